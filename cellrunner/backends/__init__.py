@@ -1,0 +1,1 @@
+"""Robot backends: ``sim`` (MuJoCo twin) and ``ur`` (ur_rtde), behind one Protocol."""

@@ -1,0 +1,89 @@
+"""The robot backend Protocol: the one surface the execution engine drives.
+
+Lifecycle: construct (no I/O) -> ``connect()`` -> cycles -> ``close()``.
+The engine streams an :class:`ApprovedTrajectory` itself, one set-point per controller
+cycle: ``servo(trajectory, i)`` then ``wait_period()`` (the sim backend advances its
+physics by one period there; the UR backend waits for the controller's next cycle, as
+ur_rtde's initPeriod/waitPeriod do). Nothing here blocks longer than one period except
+``connect`` and the recovery actions, which document their own bounds.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from cellrunner.model.trajectory import ApprovedTrajectory
+
+
+class Safety(enum.Enum):
+    """Controller safety state, as UR's safety modes collapse for the engine."""
+
+    NORMAL = "normal"
+    PROTECTIVE_STOP = "protective_stop"
+    EMERGENCY_STOP = "emergency_stop"  # robot or system e-stop pressed
+    FAULT = "fault"  # violation / fault: needs restart safety
+    DISCONNECTED = "disconnected"
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """One controller cycle's measurements.
+
+    ``wrench_N`` is force (N) and torque (N m) at the tool flange, in the base frame, as
+    UR's ``actual_TCP_force`` reports it. ``inputs`` and ``outputs`` are keyed by channel
+    (``DI0``, ``TI1``, ``DO3``...); analog channels carry floats.
+    """
+
+    time_s: float
+    q_rad: np.ndarray
+    qd_rad_s: np.ndarray
+    wrench_N: np.ndarray
+    safety: Safety
+    inputs: dict[str, float | bool] = field(default_factory=dict)
+    outputs: dict[str, float | bool] = field(default_factory=dict)
+    powered: bool = True
+    brakes_released: bool = True
+
+
+class BackendError(Exception):
+    """Raised by backends for a refused command; the engine translates it."""
+
+
+@runtime_checkable
+class RobotBackend(Protocol):
+    rate_hz: float
+
+    def connect(self) -> None:
+        """Open connections / build the model; raise PeerUnreachable when unreachable."""
+
+    def close(self) -> None:
+        """Stop motion if any and release every resource; idempotent."""
+
+    def read_state(self) -> RobotState:
+        """The latest measured state (non-blocking)."""
+
+    def servo(self, trajectory: ApprovedTrajectory, index: int) -> None:
+        """Command set-point ``index`` of an approved, sealed trajectory (servoJ)."""
+
+    def wait_period(self) -> None:
+        """Block until the next controller cycle (sim: advance physics one period)."""
+
+    def stop_motion(self) -> None:
+        """Decelerate to standstill within the controller's limits (stopJ)."""
+
+    def set_output(self, channel: str, value: bool | float) -> None:
+        """Set a digital/tool/analog output by channel name (``DO0``, ``TO1``, ``AO0``)."""
+
+    def zero_ft_sensor(self) -> None:
+        """Zero the wrist force/torque reading (e-Series zeroFtSensor)."""
+
+    def unlock_protective_stop(self) -> None:
+        """Close the popup and unlock a protective stop; raises BackendError when the
+        controller refuses (before its 5 s unlock delay)."""
+
+    def recover_from_estop(self) -> None:
+        """After a person released the e-stop: power on, release brakes, re-arm."""
