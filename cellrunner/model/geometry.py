@@ -1,0 +1,91 @@
+"""Neutral geometry: shapes, poses and placed objects, shared by planning and the twin.
+
+Poses are 4x4 homogeneous matrices named ``T_parent_child`` (a point in child
+coordinates maps to parent coordinates by ``T_parent_child @ p``). ``rpy`` angles are
+XYZ fixed-axis (roll about X, then pitch about fixed Y, then yaw about fixed Z), in
+degrees, as SPEC section 3 and PolyScope's RPY display use them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Union
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Box:
+    size_m: tuple[float, float, float]  # full edge lengths x, y, z
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    radius_m: float
+    length_m: float  # along the local Z axis, centred on the origin
+
+
+@dataclass(frozen=True)
+class Sphere:
+    radius_m: float
+
+
+@dataclass(frozen=True)
+class Mesh:
+    path: Path  # STL file, already resolved against the cell file's folder
+    scale: float = 1.0  # file units -> m
+
+
+Shape = Union[Box, Cylinder, Sphere, Mesh]
+
+
+@dataclass(frozen=True, eq=False)
+class Placed:
+    """A named shape at pose ``T_parent_shape`` (parent: world, or the tool flange)."""
+
+    name: str
+    shape: Shape
+    T_parent_shape: np.ndarray
+
+
+def rot_rpy_deg(rpy_deg: tuple[float, float, float] | list[float]) -> np.ndarray:
+    """Rotation matrix of XYZ fixed-axis roll, pitch, yaw in degrees: Rz @ Ry @ Rx."""
+    r, p, y = (math.radians(v) for v in rpy_deg)
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def pose_matrix(xyz_m=(0.0, 0.0, 0.0), rpy_deg=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """4x4 transform from a translation in m and XYZ fixed-axis angles in degrees."""
+    T = np.eye(4)
+    T[:3, :3] = rot_rpy_deg(rpy_deg)
+    T[:3, 3] = xyz_m
+    return T
+
+
+def rpy_deg_of(R: np.ndarray) -> tuple[float, float, float]:
+    """Inverse of :func:`rot_rpy_deg` (pitch in [-90, 90])."""
+    pitch = math.asin(max(-1.0, min(1.0, -R[2, 0])))
+    if abs(R[2, 0]) < 1 - 1e-9:
+        roll = math.atan2(R[2, 1], R[2, 2])
+        yaw = math.atan2(R[1, 0], R[0, 0])
+    else:  # gimbal lock: put everything in yaw
+        roll = 0.0
+        yaw = math.atan2(-R[0, 1], R[1, 1])
+    return (math.degrees(roll), math.degrees(pitch), math.degrees(yaw))
+
+
+def invert(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid transform."""
+    Ti = np.eye(4)
+    Ti[:3, :3] = T[:3, :3].T
+    Ti[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    return Ti
