@@ -1,0 +1,148 @@
+"""The ``cellrunner`` command: argument parsing and the error boundary.
+
+Commands live in their own modules and are imported only when run, so ``--help`` and
+``validate`` never import mujoco, ompl or asyncua.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+
+from cellrunner import __version__
+
+EXIT_OK, EXIT_FAILED, EXIT_INPUT, EXIT_UNREACHABLE = 0, 1, 2, 3
+
+EPILOG = """exit codes: 0 success, 1 task infeasible or job failed, 2 invalid input,
+3 cannot reach the robot or a peer"""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # argparse's own usage errors: exit 2, one line
+        self.print_usage(sys.stderr)
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        raise SystemExit(EXIT_INPUT)
+
+
+def _params(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-p", "--param", action="append", default=[], metavar="K=V",
+                   help="task parameter, repeatable (e.g. -p slot=3)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="cellrunner", description="Run Universal Robots production cells from YAML.",
+                     epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"cellrunner {__version__}")
+    parser.add_argument("--log-format", choices=("console", "json"), default="console",
+                        help="log events as console lines or JSON lines (default console)")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    p = sub.add_parser("validate", help="schema and reference checks only")
+    p.add_argument("cell")
+    p.add_argument("tasks", nargs="*", metavar="TASK",
+                   help="task files (default: every task of the cell's tasks:)")
+    p.set_defaults(module="validate")
+
+    p = sub.add_parser("check", help="pre-flight: prove a task feasible, print the plan")
+    p.add_argument("cell")
+    p.add_argument("task")
+    _params(p)
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.add_argument("--save-plan", metavar="FILE", help="write the approved motion as JSON")
+    p.add_argument("--no-cache", action="store_true", help="plan afresh, ignore the plan cache")
+    p.set_defaults(module="check")
+
+    p = sub.add_parser("dry-run", help="run the real state machine against the MuJoCo twin")
+    p.add_argument("cell")
+    p.add_argument("task")
+    _params(p)
+    p.add_argument("--inject", action="append", default=[], metavar="FAULT@STEP",
+                   help="grip_miss, part_slip, protective_stop, estop, robot_disconnect, "
+                        "plc_disconnect at a step (index, kind, or KIND#N)")
+    p.add_argument("--report", metavar="DIR", help="write JSON, pictures and plots here")
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.set_defaults(module="dryrun")
+
+    p = sub.add_parser("run", help="one job on the robot through ur_rtde (or on the twin)")
+    p.add_argument("cell")
+    p.add_argument("task")
+    _params(p)
+    p.add_argument("--backend", choices=("ur", "sim"))
+    p.add_argument("--robot-host", metavar="H")
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.set_defaults(module="run")
+
+    p = sub.add_parser("serve", help="production: PLC interface up, jobs on trigger")
+    p.add_argument("cell")
+    p.add_argument("--backend", choices=("ur", "sim"))
+    p.add_argument("--robot-host", metavar="H")
+    p.set_defaults(module="serve")
+
+    p = sub.add_parser("twin", help="a virtual UR controller backed by the MuJoCo twin")
+    p.add_argument("cell")
+    p.add_argument("--host", default="127.0.0.2")
+    p.set_defaults(module="twin")
+
+    p = sub.add_parser("schema", help="JSON Schema of cell and task files")
+    p.add_argument("kind", nargs="?", choices=("cell", "task"), help="only this one")
+    p.add_argument("--write", metavar="DIR", help="write cell.schema.json and task.schema.json here")
+    p.set_defaults(module="schema")
+
+    p = sub.add_parser("jobs", help="the journal")
+    p.add_argument("cell")
+    p.add_argument("--last", type=int, default=20, metavar="N")
+    p.add_argument("--csv", action="store_true")
+    p.set_defaults(module="jobs")
+
+    p = sub.add_parser("users", help="OPC UA users")
+    usub = p.add_subparsers(dest="users_command", metavar="ACTION", parser_class=_Parser, required=True)
+    u = usub.add_parser("add", help="add or replace a user (salted hash)")
+    u.add_argument("file")
+    u.add_argument("name")
+    u.add_argument("--password-stdin", action="store_true", required=True,
+                   help="read the password from standard input")
+    p.set_defaults(module="users")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None):
+        parser.print_help(sys.stderr)
+        return EXIT_INPUT
+    from cellrunner.errors import CellrunnerError, InputError
+
+    try:
+        module = importlib.import_module(f"cellrunner.cli.cmd_{args.module}")
+    except ModuleNotFoundError as exc:
+        if exc.name == f"cellrunner.cli.cmd_{args.module}":
+            sys.stderr.write(f"cellrunner {args.command}: not available in this build\n")
+            return EXIT_FAILED
+        raise
+    try:
+        return int(module.run(args) or 0)
+    except InputError as exc:
+        for diagnostic in exc.diagnostics:
+            sys.stderr.write(f"{diagnostic}\n")
+        return EXIT_INPUT
+    except CellrunnerError as exc:
+        sys.stderr.write(f"cellrunner {args.command}: error: {exc}\n")
+        return exc.exit_code
+    except KeyboardInterrupt:
+        sys.stderr.write("interrupted\n")
+        return 130
+    except BrokenPipeError:
+        return EXIT_OK
+    except Exception as exc:  # a bug of ours: say so in one line unless debugging
+        if os.environ.get("CELLRUNNER_DEBUG"):
+            raise
+        sys.stderr.write(f"cellrunner {args.command}: internal error: {type(exc).__name__}: {exc} "
+                         "(set CELLRUNNER_DEBUG=1 for details)\n")
+        return EXIT_FAILED
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

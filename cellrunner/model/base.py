@@ -1,0 +1,112 @@
+"""Shared pydantic pieces: the strict base model, poses, shapes."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic_core import PydanticCustomError
+
+from cellrunner.model import geometry
+from cellrunner.model.units import Angle, Length, PositiveLength
+
+Vec3 = Annotated[list[Length], Field(min_length=3, max_length=3)]
+Rpy = Annotated[list[Angle], Field(min_length=3, max_length=3)]
+Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_\-]*$", min_length=1, max_length=64)]
+
+
+class Strict(BaseModel):
+    """Base of every file model: unknown keys are errors, values are not coerced loosely."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+
+
+class Pose(Strict):
+    """A pose: translation ``xyz`` in m, XYZ fixed-axis ``rpy`` in degrees."""
+
+    xyz: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    rpy: Rpy = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+    def matrix(self) -> np.ndarray:
+        return geometry.pose_matrix(self.xyz, self.rpy)
+
+
+class BoxShape(Strict):
+    size: Annotated[list[PositiveLength], Field(min_length=3, max_length=3)]
+
+
+class CylinderShape(Strict):
+    radius: PositiveLength
+    length: PositiveLength
+
+
+class SphereShape(Strict):
+    radius: PositiveLength
+
+
+class MeshShape(Strict):
+    file: str
+    scale: float = Field(default=1.0, gt=0)
+
+
+SHAPE_KEYS = ("box", "cylinder", "sphere", "mesh")
+
+
+class Shaped(Strict):
+    """Something with exactly one of ``box``, ``cylinder``, ``sphere``, ``mesh``."""
+
+    box: BoxShape | None = None
+    cylinder: CylinderShape | None = None
+    sphere: SphereShape | None = None
+    mesh: MeshShape | None = None
+
+    @model_validator(mode="after")
+    def _one_shape(self) -> "Shaped":
+        given = [k for k in SHAPE_KEYS if getattr(self, k) is not None]
+        if len(given) != 1:
+            what = "none" if not given else ", ".join(given)
+            raise PydanticCustomError(
+                "shape", f"needs exactly one shape of box, cylinder, sphere, mesh; got {what}")
+        return self
+
+    @property
+    def shape_key(self) -> str:
+        return next(k for k in SHAPE_KEYS if getattr(self, k) is not None)
+
+    def to_shape(self, folder) -> geometry.Shape:
+        """The neutral geometry shape; mesh paths resolved against ``folder``."""
+        if self.box:
+            return geometry.Box(tuple(self.box.size))
+        if self.cylinder:
+            return geometry.Cylinder(self.cylinder.radius, self.cylinder.length)
+        if self.sphere:
+            return geometry.Sphere(self.sphere.radius)
+        return geometry.Mesh((folder / self.mesh.file).resolve(), self.mesh.scale)
+
+
+class PlacedShape(Shaped):
+    """A shape with a pose, written either inline (``xyz``, ``rpy``) or as ``pose:``."""
+
+    pose: Pose | None = None
+    xyz: Vec3 | None = None
+    rpy: Rpy | None = None
+
+    @model_validator(mode="after")
+    def _one_pose_form(self) -> "PlacedShape":
+        if self.pose is not None and (self.xyz is not None or self.rpy is not None):
+            raise PydanticCustomError(
+                "pose", "give the pose either as 'pose: {xyz, rpy}' or as 'xyz'/'rpy', not both")
+        return self
+
+    def matrix(self) -> np.ndarray:
+        if self.pose is not None:
+            return self.pose.matrix()
+        return geometry.pose_matrix(self.xyz or (0, 0, 0), self.rpy or (0, 0, 0))
+
+
+def plain(value: Any) -> Any:
+    """JSON-able view of a model value (for hashing and reports)."""
+    if isinstance(value, BaseModel):
+        return value.model_dump(mode="json")
+    return value

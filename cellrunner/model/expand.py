@@ -1,0 +1,212 @@
+"""Expanding a task into primitive steps for given params.
+
+``pick`` -> approach, descend, grip (with the retry plan), lift;
+``place`` -> approach, descend, release, retreat. Frame targets are resolved to world
+poses of the TCP here (frames, offsets in the target frame's axes, pattern slots), so
+planning and execution work from one list of :class:`Step` objects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cellrunner.errors import InputError
+from cellrunner.model import geometry
+from cellrunner.model.cell import Cell
+from cellrunner.model.load import LoadedTask, StepSpec
+from cellrunner.model.task import (
+    ApproachArgs, DistanceArgs, GripArgs, LinearArgs, Offset, Pattern, TaskFile,
+)
+
+MOTION_KINDS = ("move", "approach", "descend", "linear", "lift", "retreat")
+PLANNED_KINDS = ("move", "approach")  # collision-free planned joint moves
+LINEAR_KINDS = ("descend", "linear", "lift", "retreat")  # straight TCP lines
+
+
+@dataclass(frozen=True)
+class RetryPlan:
+    """What a grip does when its confirmation fails: run ``between``, then redo the steps
+    from ``redo_from`` (1-based expanded index), at most ``attempts`` times in all."""
+
+    attempts: int
+    between: tuple["Step", ...]
+    redo_from: int
+
+
+@dataclass(frozen=True, eq=False)
+class Step:
+    """One expanded primitive step.
+
+    ``T_world_tcp`` is the goal pose of the TCP for frame targets (approach point for
+    ``approach``); ``q_goal_deg`` for joint targets (``home`` included); both None for
+    relative motions (lift, retreat) and non-motion steps.
+    """
+
+    index: int
+    kind: str
+    name: str
+    args: Any
+    file_path: tuple
+    macro: str | None = None
+    T_world_tcp: np.ndarray | None = None
+    q_goal_deg: tuple[float, ...] | None = None
+    retry: RetryPlan | None = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def is_motion(self) -> bool:
+        return self.kind in MOTION_KINDS
+
+    @property
+    def label(self) -> str:
+        """``step 5 approach 'far_away'``, as messages name a step."""
+        return f"step {self.index} {self.kind} {self.name!r}" if self.name != self.kind else f"step {self.index} {self.kind}"
+
+
+def frame_pose(cell: Cell, name: str) -> np.ndarray:
+    """T_world_frame of a named frame, following parents up to the world."""
+    T = np.eye(4)
+    seen = set()
+    while name != "world":
+        if name in seen or name not in cell.frames:
+            raise KeyError(name)
+        seen.add(name)
+        frame = cell.frames[name]
+        T = frame.matrix() @ T
+        name = frame.parent
+    return T
+
+
+def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, int | float | bool]:
+    """The task's params: defaults overridden by ``given`` (strings from the CLI are
+    accepted); raises InputError naming the bad param and its bounds."""
+    out: dict[str, int | float | bool] = {}
+    problems = []
+    for name in given:
+        if name not in task.params:
+            problems.append(f"unknown param {name!r}; known: {', '.join(task.params) or '(none)'}")
+    for name, param in task.params.items():
+        value = given.get(name, param.default)
+        try:
+            out[name] = param.coerce(name, value)
+        except ValueError as exc:
+            problems.append(str(exc))
+    if problems:
+        raise InputError("; ".join(problems), "<params>")
+    return out
+
+
+def expand(loaded: LoadedTask, cell: Cell, params: dict[str, Any]) -> list[Step]:
+    """The primitive steps of ``loaded`` for ``params`` (already resolved)."""
+    builder = _Builder(cell, params)
+    for spec in loaded.steps:
+        builder.add(spec)
+    return builder.steps
+
+
+class _Builder:
+    def __init__(self, cell: Cell, params: dict[str, Any]):
+        self.cell, self.params = cell, params
+        self.steps: list[Step] = []
+
+    def _next(self) -> int:
+        return len(self.steps) + 1
+
+    def add(self, spec: StepSpec) -> None:
+        kind, args = spec.kind, spec.args
+        if kind == "pick":
+            self._pick(spec)
+        elif kind == "place":
+            self._place(spec)
+        else:
+            self.steps.append(self.primitive(kind, args, spec.path, self._next()))
+
+    def primitive(self, kind: str, args: Any, path: tuple, index: int, macro: str | None = None,
+                  retry: RetryPlan | None = None) -> Step:
+        name, T, q = kind, None, None
+        if kind == "move":
+            if isinstance(args.to, list):
+                name, q = "joints", tuple(args.to)
+            elif args.to == "home":
+                name, q = "home", tuple(self.cell.robot.home)
+            else:
+                name, T = args.to, frame_pose(self.cell, args.to) @ _offset(args.offset)
+        elif kind == "approach":
+            name = args.to
+            T = frame_pose(self.cell, args.to) @ _offset(args.offset) @ geometry.pose_matrix((0, 0, -args.distance))
+        elif kind in ("descend", "linear"):
+            name, T = args.to, frame_pose(self.cell, args.to) @ _offset(args.offset)
+        elif kind == "set_output":
+            name = ", ".join(f"{k}={v}" for k, v in args.values.items())
+        elif kind == "wait_input":
+            name = args.input
+        elif kind == "wait":
+            name = f"{args.seconds:g} s"
+        return Step(index, kind, name, args, path, macro, T, q, retry)
+
+    def _target(self, at: str, offset: Offset | None, pattern: Pattern | None) -> tuple[np.ndarray, str]:
+        T = frame_pose(self.cell, at)
+        name = at
+        if pattern is not None:
+            slot = int(self.params[pattern.index])
+            dx, dy, dz, _ = pattern.offset_m(slot)
+            T = geometry.pose_matrix((0, 0, dz)) @ T @ geometry.pose_matrix((dx, dy, 0))
+            name = f"{at}[{pattern.index}={slot}]"
+        return T @ _offset(offset), name
+
+    def _pick(self, spec: StepSpec) -> None:
+        a = spec.args
+        T, name = self._target(a.at, a.offset, a.pattern)
+        macro = f"pick {name}"
+        path = spec.path
+        approach_i = self._next()
+        self.steps.append(Step(approach_i, "approach", name, ApproachArgs(to=a.at, distance=a.approach), path,
+                               macro, T @ geometry.pose_matrix((0, 0, -a.approach))))
+        descend_i = self._next()
+        self.steps.append(Step(descend_i, "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T))
+        retry = None
+        if a.retry is not None and a.retry.attempts > 1:
+            between = tuple(self.primitive(s.kind, s.args, s.path, descend_i + 1, macro) for s in spec.between)
+            retry = RetryPlan(a.retry.attempts, between, descend_i)
+        self.steps.append(Step(self._next(), "grip", name, a.grip, path, macro, retry=retry,
+                               extra={"part_at": a.at}))
+        lift = a.lift if a.lift is not None else a.approach
+        if lift > 0:
+            self.steps.append(Step(self._next(), "lift", name, DistanceArgs(distance=lift, speed=a.speed),
+                                   path, macro))
+
+    def _place(self, spec: StepSpec) -> None:
+        a = spec.args
+        T, name = self._target(a.at, a.offset, a.pattern)
+        macro = f"place {name}"
+        path = spec.path
+        self.steps.append(Step(self._next(), "approach", name, ApproachArgs(to=a.at, distance=a.approach), path,
+                               macro, T @ geometry.pose_matrix((0, 0, -a.approach))))
+        self.steps.append(Step(self._next(), "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T))
+        self.steps.append(Step(self._next(), "release", name, a.release, path, macro))
+        back = a.retreat if a.retreat is not None else a.approach
+        if back > 0:
+            self.steps.append(Step(self._next(), "retreat", name, DistanceArgs(distance=back, speed=a.speed),
+                                   path, macro))
+
+
+def _offset(offset: Offset | None) -> np.ndarray:
+    return np.eye(4) if offset is None else offset.matrix()
+
+
+def pattern_params(loaded: LoadedTask) -> dict[str, range]:
+    """Every param that indexes a pattern, with the slot range ``check`` must cover."""
+    out: dict[str, range] = {}
+    for spec in loaded.steps:
+        pattern = getattr(spec.args, "pattern", None)
+        if pattern is not None:
+            p = loaded.task.params[pattern.index]
+            out[pattern.index] = range(int(p.min), int(p.max) + 1)
+    return out
+
+
+__all__ = ["Step", "RetryPlan", "expand", "frame_pose", "resolve_params", "pattern_params",
+           "MOTION_KINDS", "PLANNED_KINDS", "LINEAR_KINDS", "GripArgs"]

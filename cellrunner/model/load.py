@@ -1,0 +1,347 @@
+"""Loading cell and task files: YAML -> schema -> references, all errors located.
+
+``load_cell`` and ``load_task`` collect every problem they find and raise one
+:class:`InputError` carrying them all (one ``FILE:LINE:COL: error: ...`` line each);
+warnings (e.g. angles that look like radians) are kept on the loaded object.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from cellrunner.errors import Diagnostic, InputError
+from cellrunner.model.cell import Cell
+from cellrunner.model.diagnose import did_you_mean, diagnostics_of, dotted, known_list
+from cellrunner.model.robots import robot_spec
+from cellrunner.model.source import PathKey, Source, load_yaml
+from cellrunner.model.task import MACROS, STEP_MODELS, TaskFile, widen_step_args
+from cellrunner.model.units import looks_like_radians
+
+_CHANNEL = re.compile(r"^(DO|CO|TO|AO|DI|CI|TI|AI)(\d+)$")
+_CHANNEL_COUNT = {"DO": 8, "CO": 8, "TO": 2, "AO": 2, "DI": 8, "CI": 8, "TI": 2, "AI": 2}
+_CHANNEL_HELP = "DO0-7, CO0-7, TO0-1, AO0-1 for outputs; DI0-7, CI0-7, TI0-1, AI0-1 for inputs"
+
+
+@dataclass
+class Report:
+    """Errors and warnings collected while loading one file."""
+
+    source: Source
+    errors: list[Diagnostic] = field(default_factory=list)
+    warnings: list[Diagnostic] = field(default_factory=list)
+
+    def error(self, path: PathKey, message: str, *, at_key: bool = False) -> None:
+        where = dotted(path)
+        self.errors.append(self.source.diagnostic(path, f"{where}: {message}" if where else message,
+                                                  at_key=at_key))
+
+    def warn(self, path: PathKey, message: str) -> None:
+        self.warnings.append(self.source.diagnostic(path, f"{dotted(path)}: {message}",
+                                                    severity="warning"))
+
+    def raise_if_errors(self) -> None:
+        if self.errors:
+            raise InputError(sorted(self.errors, key=lambda d: (d.line, d.col)))
+
+
+@dataclass
+class LoadedCell:
+    cell: Cell
+    path: Path
+    source: Source
+    warnings: list[Diagnostic]
+
+    @property
+    def folder(self) -> Path:
+        return self.path.parent
+
+    @property
+    def spec(self):
+        return robot_spec(self.cell.robot.model)
+
+    def resolve(self, relative: str) -> Path:
+        """A path written in the cell file, relative to the cell file's folder."""
+        p = Path(relative)
+        return p if p.is_absolute() else (self.folder / p)
+
+
+@dataclass
+class StepSpec:
+    """One step as written in a task file, validated: kind, argument model, file path."""
+
+    kind: str
+    args: Any
+    path: PathKey
+    between: list["StepSpec"] = field(default_factory=list)  # pick retry.between steps
+
+
+@dataclass
+class LoadedTask:
+    task: TaskFile
+    path: Path
+    source: Source
+    steps: list[StepSpec]
+    warnings: list[Diagnostic]
+
+    @property
+    def name(self) -> str:
+        return self.task.task
+
+
+# ---------------------------------------------------------------------------- cell
+
+
+def load_cell(path: str | Path) -> LoadedCell:
+    """Load and check a cell file; raises InputError listing every problem."""
+    path = Path(path)
+    source = load_yaml(path)
+    report = Report(source)
+    if not isinstance(source.data, dict):
+        report.error((), "a cell file is a mapping with keys cell, robot, tool, io, ...")
+        report.raise_if_errors()
+    try:
+        cell = Cell.model_validate(source.data)
+    except ValidationError as exc:
+        raise InputError(diagnostics_of(exc, source, Cell)) from None
+    loaded = LoadedCell(cell, path, source, report.warnings)
+    _check_cell(loaded, report)
+    report.raise_if_errors()
+    return loaded
+
+
+def _check_cell(loaded: LoadedCell, report: Report) -> None:
+    cell, spec = loaded.cell, loaded.spec
+    raw = loaded.source.data
+    _check_limits(cell, spec, report)
+    _check_radians(raw, ("robot", "home"), report)
+    for i, (lo, hi, q) in enumerate(zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home)):
+        if not lo <= q <= hi:
+            report.error(("robot", "home", i), f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]")
+    if cell.tool.payload.mass > spec.payload_max_kg:
+        report.error(("tool", "payload", "mass"),
+                     f"{cell.tool.payload.mass:g} kg is above the {spec.name.upper()} payload "
+                     f"of {spec.payload_max_kg:g} kg")
+    _check_io(cell, report)
+    _check_gripper(cell, report)
+    _check_names(cell, report)
+    _check_frames(cell, report)
+    for i, fixture in enumerate(cell.fixtures):
+        if fixture.mesh is not None:
+            f = loaded.resolve(fixture.mesh.file)
+            if not f.is_file():
+                report.error(("fixtures", i, "mesh", "file"), f"mesh file {fixture.mesh.file!r} not found "
+                             f"(looked in {f.parent})")
+    for i, part in enumerate(cell.parts):
+        if part.at not in cell.frames:
+            report.error(("parts", i, "at"), _unknown("frame", part.at, cell.frames))
+    for number, task_path in cell.tasks.items():
+        if not loaded.resolve(task_path).is_file():
+            report.error(("tasks", number), f"task file {task_path!r} not found "
+                         f"(looked in {loaded.resolve(task_path).parent})")
+    if cell.plc.opcua and cell.plc.opcua.users and not loaded.resolve(cell.plc.opcua.users).exists():
+        report.warn(("plc", "opcua", "users"), f"users file {cell.plc.opcua.users!r} does not exist yet; "
+                    "create it with 'cellrunner users add'")
+
+
+def _unknown(what: str, name: Any, known) -> str:
+    known = list(known)
+    return f"unknown {what} {name!r}{did_you_mean(name, known)}; known: {known_list(known)}"
+
+
+def _check_limits(cell: Cell, spec, report: Report) -> None:
+    limits = cell.robot.limits
+    model = spec.name.upper()
+    if limits.joint_speed is not None:
+        values = limits.joint_speed if isinstance(limits.joint_speed, list) else [limits.joint_speed] * 6
+        for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s)):
+            if v > cap + 1e-9:
+                path = ("robot", "limits", "joint_speed") + ((i,) if isinstance(limits.joint_speed, list) else ())
+                report.error(path, f"{v:g} deg/s on joint {i + 1} ({_joint(i)}) is above the {model} "
+                             f"controller's {cap:g} deg/s")
+                if not isinstance(limits.joint_speed, list):
+                    break
+    if limits.joint_accel is not None:
+        values = limits.joint_accel if isinstance(limits.joint_accel, list) else [limits.joint_accel] * 6
+        for i, v in enumerate(values):
+            if v > spec.joint_accel_max_deg_s2 + 1e-9:
+                path = ("robot", "limits", "joint_accel") + ((i,) if isinstance(limits.joint_accel, list) else ())
+                report.error(path, f"{v:g} deg/s^2 is above the {model} controller's "
+                             f"{spec.joint_accel_max_deg_s2:.0f} deg/s^2")
+                break
+    if limits.tcp_speed is not None and limits.tcp_speed > spec.tcp_speed_max_mps + 1e-9:
+        report.error(("robot", "limits", "tcp_speed"), f"{limits.tcp_speed:g} m/s is above the {model} "
+                     f"controller's {spec.tcp_speed_max_mps:g} m/s")
+
+
+def _joint(i: int) -> str:
+    from cellrunner.model.robots import JOINT_NAMES
+    return JOINT_NAMES[i]
+
+
+def _check_radians(raw: Any, path: PathKey, report: Report) -> None:
+    value = raw
+    for part in path:
+        if not isinstance(value, (dict, list)):
+            return
+        try:
+            value = value[part]
+        except (KeyError, IndexError, TypeError):
+            return
+    if isinstance(value, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        if looks_like_radians([float(v) for v in value]):
+            report.warn(path, f"{value} looks like radians; angles are in degrees "
+                        "(write e.g. '1.57 rad' if you mean radians)")
+
+
+def _check_io(cell: Cell, report: Report) -> None:
+    used: dict[str, str] = {}
+    for side, table in (("outputs", cell.io.outputs), ("inputs", cell.io.inputs)):
+        for name, channel in table.items():
+            m = _CHANNEL.match(channel)
+            want_out = side == "outputs"
+            if not m:
+                report.error(("io", side, name), f"bad channel {channel!r} for {name!r}; use {_CHANNEL_HELP}")
+                continue
+            prefix, number = m.group(1), int(m.group(2))
+            if (prefix[1] == "O") != want_out:
+                report.error(("io", side, name), f"channel {channel!r} is an {'input' if want_out else 'output'}; "
+                             f"{side} use {'DO, CO, TO, AO' if want_out else 'DI, CI, TI, AI'}")
+            elif number >= _CHANNEL_COUNT[prefix]:
+                report.error(("io", side, name), f"channel {channel!r} does not exist; "
+                             f"{prefix} goes from {prefix}0 to {prefix}{_CHANNEL_COUNT[prefix] - 1}")
+            elif channel in used:
+                report.error(("io", side, name), f"channel {channel} is already used by {used[channel]!r}")
+            used[channel] = name
+    both = set(cell.io.outputs) & set(cell.io.inputs)
+    for name in sorted(both):
+        report.error(("io", "inputs", name), f"name {name!r} is both an output and an input", at_key=True)
+
+
+def check_io_name(cell: Cell, name: str, side: str, path: PathKey, report: Report) -> None:
+    """Report ``name`` unless it is a known IO of ``side`` ('inputs' or 'outputs')."""
+    table = getattr(cell.io, side)
+    if name in table:
+        return
+    other = "outputs" if side == "inputs" else "inputs"
+    if name in getattr(cell.io, other):
+        report.error(path, f"{name!r} is an {other[:-1]}, not an {side[:-1]}; known {side}: "
+                     f"{known_list(table)}")
+    else:
+        report.error(path, _unknown(side[:-1], name, table))
+
+
+def _check_gripper(cell: Cell, report: Report) -> None:
+    g = cell.tool.gripper
+    if g is None:
+        return
+    base = ("tool", "gripper")
+    if g.kind == "io" and g.close is None:
+        report.error(base, "an io gripper needs 'close: {output, value}'")
+    for key in ("close", "open"):
+        ov = getattr(g, key)
+        if ov is not None:
+            check_io_name(cell, ov.output, "outputs", base + (key, "output"), report)
+    for key in ("closed_sensor", "open_sensor"):
+        name = getattr(g, key)
+        if name is not None:
+            check_io_name(cell, name, "inputs", base + (key,), report)
+
+
+def _check_names(cell: Cell, report: Report) -> None:
+    seen: dict[str, str] = {}
+    for kind, items in (("fixture", cell.fixtures), ("part", cell.parts)):
+        for i, item in enumerate(items):
+            key = f"{kind}s"
+            if item.name in seen:
+                report.error((key, i, "name"), f"name {item.name!r} is already used by a {seen[item.name]}")
+            seen[item.name] = kind
+    for name in cell.frames:
+        if name in ("home", "world"):
+            report.error(("frames", name), f"{name!r} is reserved and cannot name a frame", at_key=True)
+
+
+def _check_frames(cell: Cell, report: Report) -> None:
+    for name, frame in cell.frames.items():
+        if frame.parent != "world" and frame.parent not in cell.frames:
+            report.error(("frames", name, "parent"), _unknown("parent frame", frame.parent,
+                                                               ["world", *cell.frames]))
+            continue
+        seen, cur = {name}, frame.parent
+        while cur != "world" and cur in cell.frames:
+            if cur in seen:
+                report.error(("frames", name, "parent"), f"frame {name!r} is its own ancestor "
+                             f"(cycle through {cur!r})")
+                break
+            seen.add(cur)
+            cur = cell.frames[cur].parent
+        _check_radians(report.source.data, ("frames", name, "rpy"), report)
+
+
+# ---------------------------------------------------------------------------- task
+
+
+def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
+    """Load a task file and check it against ``cell``; raises InputError listing every
+    problem."""
+    path = Path(path)
+    source = load_yaml(path)
+    report = Report(source)
+    if not isinstance(source.data, dict):
+        report.error((), "a task file is a mapping with keys task, params, steps")
+        report.raise_if_errors()
+    try:
+        header = TaskFile.model_validate(source.data)
+    except ValidationError as exc:
+        report.errors.extend(diagnostics_of(exc, source, TaskFile))
+        # keep going with the steps so that all errors are reported at once
+        steps_raw = source.data.get("steps") if isinstance(source.data.get("steps"), list) else []
+        _parse_steps(steps_raw, ("steps",), report, allow_macros=True)
+        report.raise_if_errors()
+        raise AssertionError("unreachable")  # pragma: no cover
+    steps = _parse_steps(header.steps, ("steps",), report, allow_macros=True)
+    loaded = LoadedTask(header, path, source, steps, report.warnings)
+    if not report.errors:
+        from cellrunner.model.references import check_task_references
+        check_task_references(loaded, cell, report)
+    report.raise_if_errors()
+    return loaded
+
+
+def _parse_steps(raw: list, base: PathKey, report: Report, *, allow_macros: bool) -> list[StepSpec]:
+    out = []
+    for i, item in enumerate(raw):
+        spec = _parse_step(item, base + (i,), report, allow_macros)
+        if spec is not None:
+            out.append(spec)
+    return out
+
+
+def _parse_step(item: Any, path: PathKey, report: Report, allow_macros: bool) -> StepSpec | None:
+    known = [k for k in STEP_MODELS if allow_macros or k not in MACROS]
+    if isinstance(item, str):
+        item = {item: None}
+    if not isinstance(item, dict) or len(item) != 1:
+        report.error(path, f"a step is one {{KIND: ARGS}} mapping or a bare KIND; known kinds: "
+                     f"{known_list(known)}")
+        return None
+    kind, args = next(iter(item.items()))
+    if kind not in known:
+        hint = " (pick and place cannot be nested)" if kind in MACROS else ""
+        report.error(path + (kind,), _unknown("step", kind, known) + hint, at_key=True)
+        return None
+    model = STEP_MODELS[kind]
+    try:
+        parsed = model.model_validate(widen_step_args(kind, args))
+    except ValidationError as exc:
+        report.errors.extend(diagnostics_of(exc, report.source, model, prefix=path + (kind,)))
+        return None
+    spec = StepSpec(kind, parsed, path + (kind,))
+    if kind == "pick" and parsed.retry is not None:
+        spec.between = _parse_steps(parsed.retry.between, path + (kind, "retry", "between"), report,
+                                    allow_macros=False)
+    return spec

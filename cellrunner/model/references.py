@@ -1,0 +1,83 @@
+"""Checks of a task's references against its cell: frames, IO names, params, patterns."""
+
+from __future__ import annotations
+
+from cellrunner.model.load import LoadedCell, LoadedTask, Report, StepSpec, _check_radians, _unknown, check_io_name
+
+_LINEAR_KINDS = ("descend", "linear")
+
+
+def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) -> None:
+    cell = loaded.cell
+    frames = list(cell.frames)
+    needs_gripper = False
+    for step in _all_steps(task.steps):
+        kind, args, path = step.kind, step.args, step.path
+        if kind == "move":
+            if isinstance(args.to, str) and args.to != "home" and args.to not in cell.frames:
+                report.error(path + ("to",), _unknown("target", args.to, ["home", *frames]))
+            if isinstance(args.to, list):
+                raw_path = path if _is_short(report, path) else path + ("to",)
+                _check_radians(report.source.data, raw_path, report)
+        elif kind in ("approach", *_LINEAR_KINDS):
+            if args.to not in cell.frames:
+                report.error(path + ("to",), _unknown("frame", args.to, frames))
+        elif kind in ("pick", "place"):
+            if args.at not in cell.frames:
+                report.error(path + ("at",), _unknown("frame", args.at, frames))
+            if args.pattern is not None:
+                _check_pattern(task, args.pattern, path + ("pattern",), report)
+            needs_gripper = True
+            grip = args.grip if kind == "pick" else args.release
+            if grip.confirm is not None:
+                check_io_name(cell, grip.confirm, "inputs", path + ("grip" if kind == "pick" else "release", "confirm"), report)
+        elif kind in ("grip", "release"):
+            needs_gripper = True
+            if args.confirm is not None:
+                check_io_name(cell, args.confirm, "inputs", path + ("confirm",), report)
+        elif kind == "set_output":
+            for name in args.values:
+                check_io_name(cell, name, "outputs", path + (name,), report)
+        elif kind == "wait_input":
+            check_io_name(cell, args.input, "inputs", path + ("input",), report)
+    if needs_gripper and cell.tool.gripper is None:
+        report.error(("steps",), f"the task grips and releases but cell {cell.cell!r} has no tool.gripper")
+    for name, param in task.task.params.items():
+        if param.default is None:
+            report.error(("params", name), f"param {name!r} needs a default (the value used when "
+                         "the PLC or the CLI gives none)", at_key=True)
+
+
+def _is_short(report: Report, path) -> bool:
+    """True when the step at ``path`` was written in short form (``move: [..]``)."""
+    value = report.source.data
+    for part in path:
+        value = value[part]
+    return not isinstance(value, dict)
+
+
+def _all_steps(steps: list[StepSpec]):
+    for step in steps:
+        yield step
+        yield from step.between
+
+
+def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
+    params = task.task.params
+    if pattern.index not in params:
+        report.error(path + ("index",), _unknown("param", pattern.index, params))
+        return
+    param = params[pattern.index]
+    if param.type != "int":
+        report.error(path + ("index",), f"pattern index param {pattern.index!r} must be of type int, "
+                     f"not {param.type}")
+        return
+    lo = param.min if param.min is not None else None
+    hi = param.max if param.max is not None else None
+    if lo is None or hi is None:
+        report.error(("params", pattern.index), f"param {pattern.index!r} indexes a pattern and needs "
+                     f"min and max (0..{pattern.slots - 1})", at_key=True)
+    elif lo < 0 or hi > pattern.slots - 1:
+        grid = " x ".join(str(g) for g in pattern.grid)
+        report.error(("params", pattern.index), f"param {pattern.index!r} range [{lo:g}, {hi:g}] "
+                     f"does not fit the {grid} pattern's slots 0..{pattern.slots - 1}", at_key=True)

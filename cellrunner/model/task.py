@@ -1,0 +1,301 @@
+"""The task file (SPEC section 4) as pydantic models.
+
+A step in the file is a one-key mapping ``{KIND: ARGS}`` (or a bare ``KIND`` for steps
+without arguments, like ``release``). :data:`STEP_MODELS` maps each kind to the model
+of its arguments; short forms (``move: home``, ``wait: 2``, ``lift: 0.1``) are widened
+to the full form by :func:`widen_step_args` before validation.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BeforeValidator, Field, WithJsonSchema, field_validator, model_validator
+from pydantic_core import PydanticCustomError
+
+from cellrunner.model.base import Name, Pose, Strict, Vec3
+from cellrunner.model.units import (
+    Force, Fraction, Length, NonNegativeLength, PositiveDuration, PositiveLength, Speed,
+    parse_quantity,
+)
+
+
+def parse_target(value: Any) -> str | list[float]:
+    """A TARGET: a frame name, ``home``, or six joint angles in degrees."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, list):
+        if len(value) != 6:
+            raise PydanticCustomError(
+                "target", f"a joint target needs 6 angles in degrees, got {len(value)}")
+        out = []
+        for i, v in enumerate(value):
+            try:
+                out.append(parse_quantity(v, "angle"))
+            except PydanticCustomError as exc:
+                raise PydanticCustomError("target", f"joint {i + 1}: {exc.message()}") from None
+        return out
+    raise PydanticCustomError(
+        "target", f"expected a frame name, 'home' or 6 joint angles in degrees, got {value!r}")
+
+
+Target = Annotated[
+    str | list[float],
+    BeforeValidator(parse_target),
+    WithJsonSchema({
+        "description": "a frame name, 'home', or 6 joint angles in degrees",
+        "anyOf": [{"type": "string"},
+                  {"type": "array", "minItems": 6, "maxItems": 6,
+                   "items": {"type": ["number", "string"]}}],
+    }),
+]
+
+
+class Offset(Pose):
+    """An offset in the target frame's axes (m, deg)."""
+
+
+def _offset(value: Any) -> Any:
+    if isinstance(value, list):  # [dx, dy, dz] short form
+        return {"xyz": value}
+    return value
+
+
+class MoveArgs(Strict):
+    to: Target
+    offset: Annotated[Offset, Field()] | None = None
+    speed: Fraction = 1.0
+
+    _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+
+
+class ApproachArgs(Strict):
+    to: Name
+    distance: NonNegativeLength = 0.1
+    offset: Offset | None = None
+    speed: Fraction = 1.0
+
+    _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+
+
+class LinearArgs(Strict):
+    to: Name
+    offset: Offset | None = None
+    speed: Speed | None = None  # m/s; default: the cell's tcp speed limit
+
+    _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+
+
+class DistanceArgs(Strict):
+    distance: PositiveLength
+    speed: Speed | None = None
+
+
+class ForceWindow(Strict):
+    min: Force = 0.0
+    max: Force | None = None
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "ForceWindow":
+        if self.max is not None and self.max < self.min:
+            raise PydanticCustomError(
+                "force", f"force window min {self.min:g} N is above max {self.max:g} N")
+        return self
+
+
+class GripArgs(Strict):
+    confirm: Name | None = None
+    force: ForceWindow | None = None
+    timeout: PositiveDuration = 1.5
+
+
+class WaitInputArgs(Strict):
+    input: Name
+    value: bool | float = True
+    timeout: PositiveDuration = 10.0
+
+
+class WaitArgs(Strict):
+    seconds: Annotated[float, Field(ge=0, le=3600)]
+
+
+class SetOutputArgs(Strict):
+    """``{NAME: value}``: one or more outputs by their cell IO names."""
+
+    model_config = Strict.model_config | {"extra": "allow"}
+
+    @model_validator(mode="after")
+    def _values(self) -> "SetOutputArgs":
+        extra = self.model_extra or {}
+        if not extra:
+            raise PydanticCustomError("set_output", "set_output needs at least one {NAME: value}")
+        for name, value in extra.items():
+            if not isinstance(value, (bool, int, float)):
+                raise PydanticCustomError(
+                    "set_output", f"output {name!r}: value must be true/false or a number, got {value!r}")
+        return self
+
+    @property
+    def values(self) -> dict[str, bool | float]:
+        return dict(self.model_extra or {})
+
+
+class Pattern(Strict):
+    """A grid of slots: ``grid: [rows, cols]`` or ``[rows, cols, layers]``.
+
+    Slot ``k`` -> layer ``k // (rows*cols)``, row ``(k % (rows*cols)) // cols``,
+    col ``k % cols``; rows step along the frame's X by ``pitch[0]``, columns along its
+    Y by ``pitch[1]``, layers straight up (world +Z) by ``pitch[2]``.
+    """
+
+    grid: Annotated[list[Annotated[int, Field(ge=1, le=1000)]], Field(min_length=2, max_length=3)]
+    pitch: Annotated[list[Length], Field(min_length=2, max_length=3)]
+    index: Name
+
+    @model_validator(mode="after")
+    def _dims(self) -> "Pattern":
+        if len(self.grid) == 3 and len(self.pitch) != 3:
+            raise PydanticCustomError("pattern", "a grid with layers needs 3 pitches [x, y, z]")
+        return self
+
+    @property
+    def slots(self) -> int:
+        n = 1
+        for g in self.grid:
+            n *= g
+        return n
+
+    def offset_m(self, slot: int) -> tuple[float, float, float, float]:
+        """(dx, dy) in the frame's axes and dz straight up, for ``slot``; plus layer."""
+        rows, cols = self.grid[0], self.grid[1]
+        layer, rest = divmod(slot, rows * cols)
+        row, col = divmod(rest, cols)
+        dz = layer * (self.pitch[2] if len(self.pitch) == 3 else 0.0)
+        return row * self.pitch[0], col * self.pitch[1], dz, layer
+
+
+class Retry(Strict):
+    attempts: Annotated[int, Field(ge=1, le=20)] = 1
+    between: list[Any] = Field(default_factory=list)  # steps, validated by the loader
+
+
+class PickArgs(Strict):
+    at: Name
+    approach: NonNegativeLength = 0.1
+    lift: NonNegativeLength | None = None  # default: the approach distance
+    offset: Offset | None = None
+    pattern: Pattern | None = None
+    grip: GripArgs = Field(default_factory=GripArgs)
+    retry: Retry | None = None
+    speed: Speed | None = None  # descend/lift speed, m/s
+
+    _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+
+
+class PlaceArgs(Strict):
+    at: Name
+    approach: NonNegativeLength = 0.1
+    retreat: NonNegativeLength | None = None  # default: the approach distance
+    offset: Offset | None = None
+    pattern: Pattern | None = None
+    release: GripArgs = Field(default_factory=GripArgs)
+    speed: Speed | None = None
+
+    _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+
+
+STEP_MODELS: dict[str, type[Strict]] = {
+    "move": MoveArgs,
+    "approach": ApproachArgs,
+    "descend": LinearArgs,
+    "linear": LinearArgs,
+    "lift": DistanceArgs,
+    "retreat": DistanceArgs,
+    "grip": GripArgs,
+    "release": GripArgs,
+    "set_output": SetOutputArgs,
+    "wait_input": WaitInputArgs,
+    "wait": WaitArgs,
+    "pick": PickArgs,
+    "place": PlaceArgs,
+}
+MACROS = ("pick", "place")
+
+
+def widen_step_args(kind: str, args: Any) -> Any:
+    """The full mapping form of a step's short form arguments (None for bare steps)."""
+    if args is None:
+        return {}
+    if kind == "move" and not isinstance(args, dict):
+        return {"to": args}
+    if kind in ("approach", "descend", "linear") and isinstance(args, str):
+        return {"to": args}
+    if kind == "wait" and not isinstance(args, dict):
+        return {"seconds": args}
+    if kind in ("lift", "retreat") and not isinstance(args, dict):
+        return {"distance": args}
+    return args
+
+
+class Param(Strict):
+    type: Literal["int", "float", "bool"] = "int"
+    min: float | None = None
+    max: float | None = None
+    default: float | bool | None = None
+    description: str | None = None
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Param":
+        if self.type == "int":
+            for key in ("min", "max", "default"):
+                v = getattr(self, key)
+                if v is not None and (isinstance(v, bool) or float(v) != int(v)):
+                    raise PydanticCustomError("param", f"{key} {v!r} is not an int")
+        if self.min is not None and self.max is not None and self.min > self.max:
+            raise PydanticCustomError("param", f"min {self.min:g} is above max {self.max:g}")
+        d = self.default
+        if d is not None and self.type != "bool" and not isinstance(d, bool):
+            if (self.min is not None and d < self.min) or (self.max is not None and d > self.max):
+                raise PydanticCustomError(
+                    "param", f"default {d:g} is outside [{self.min:g}, {self.max:g}]"
+                    if self.min is not None and self.max is not None else
+                    f"default {d:g} is outside its bounds")
+        return self
+
+    def coerce(self, name: str, value: Any) -> int | float | bool:
+        """``value`` as this param's type, or ValueError naming the bounds."""
+        if self.type == "bool":
+            if isinstance(value, bool):
+                return value
+            if isinstance(value, str) and value.lower() in ("true", "false", "1", "0"):
+                return value.lower() in ("true", "1")
+            if isinstance(value, (int, float)) and value in (0, 1):
+                return bool(value)
+            raise ValueError(f"param {name!r} must be true or false, got {value!r}")
+        try:
+            x = float(value) if not isinstance(value, bool) else None
+        except (TypeError, ValueError):
+            x = None
+        if x is None or (self.type == "int" and x != int(x)):
+            raise ValueError(f"param {name!r} must be {'an int' if self.type == 'int' else 'a number'}, got {value!r}")
+        out: int | float = int(x) if self.type == "int" else x
+        if (self.min is not None and out < self.min) or (self.max is not None and out > self.max):
+            lo = "-inf" if self.min is None else f"{self.min:g}"
+            hi = "inf" if self.max is None else f"{self.max:g}"
+            raise ValueError(f"param {name!r} = {out:g} is outside [{lo}, {hi}]")
+        return out
+
+
+class ProtectiveStopPolicy(Strict):
+    resume: bool = False
+    max: Annotated[int, Field(ge=0, le=10)] = 1
+
+
+class TaskFile(Strict):
+    """The top level of a task file; ``steps`` are validated one by one by the loader."""
+
+    task: Name
+    description: str | None = None
+    params: dict[Name, Param] = Field(default_factory=dict)
+    steps: Annotated[list[Any], Field(min_length=1)]
+    on_protective_stop: ProtectiveStopPolicy = Field(default_factory=ProtectiveStopPolicy)
