@@ -74,15 +74,15 @@ class Shaped(Strict):
     def shape_key(self) -> str:
         return next(k for k in SHAPE_KEYS if getattr(self, k) is not None)
 
-    def to_shape(self, folder) -> geometry.Shape:
-        """The neutral geometry shape; mesh paths resolved against ``folder``."""
+    def to_shape(self, resolve) -> geometry.Shape:
+        """The neutral geometry shape; ``resolve(str) -> Path`` locates mesh files."""
         if self.box:
             return geometry.Box(tuple(self.box.size))
         if self.cylinder:
             return geometry.Cylinder(self.cylinder.radius, self.cylinder.length)
         if self.sphere:
             return geometry.Sphere(self.sphere.radius)
-        return geometry.Mesh((folder / self.mesh.file).resolve(), self.mesh.scale)
+        return geometry.Mesh(resolve(self.mesh.file).resolve(), self.mesh.scale)
 
 
 class PlacedShape(Shaped):

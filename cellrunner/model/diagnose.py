@@ -113,6 +113,7 @@ def message_of(error: dict, root: type[BaseModel]) -> tuple[str, bool, tuple]:
         word = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<",
                 "less_than_equal": "<="}[kind]
         bound = next(iter(ctx.values()), "?")
+        bound = f"{bound:g}" if isinstance(bound, (int, float)) else bound
         return f"must be {word} {bound}, got {_describe(value)}", False, loc
     msg = error["msg"]
     for prefix in ("Value error, ", "Assertion failed, "):
@@ -134,7 +135,7 @@ def diagnostics_of(exc: ValidationError, source: Source, root: type[BaseModel],
         if (diag.line, diag.col, diag.message) not in seen:
             seen.add((diag.line, diag.col, diag.message))
             out.append(diag)
-    return out
+    return sorted(out, key=lambda d: (d.line, d.col))
 
 
 def _clean(loc: tuple) -> tuple:

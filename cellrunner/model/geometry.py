@@ -34,7 +34,7 @@ class Sphere:
 
 @dataclass(frozen=True)
 class Mesh:
-    path: Path  # STL file, already resolved against the cell file's folder
+    path: Path  # STL file, already resolved (see LoadedCell.resolve)
     scale: float = 1.0  # file units -> m
 
 

@@ -64,10 +64,23 @@ class LoadedCell:
     def spec(self):
         return robot_spec(self.cell.robot.model)
 
+    @property
+    def root(self) -> Path:
+        """The project folder: the parent of ``cells/`` when the cell file lives in one."""
+        folder = self.path.resolve().parent
+        return folder.parent if folder.name == "cells" else folder
+
     def resolve(self, relative: str) -> Path:
-        """A path written in the cell file, relative to the cell file's folder."""
+        """A path written in the cell file. Relative paths are looked up against the
+        project root, then the cell file's folder, then the working directory; the first
+        that exists wins, else the one under the project root (for files to create)."""
         p = Path(relative)
-        return p if p.is_absolute() else (self.folder / p)
+        if p.is_absolute():
+            return p
+        for base in (self.root, self.path.resolve().parent, Path.cwd()):
+            if (base / p).exists():
+                return base / p
+        return self.root / p
 
 
 @dataclass
@@ -135,14 +148,14 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
             f = loaded.resolve(fixture.mesh.file)
             if not f.is_file():
                 report.error(("fixtures", i, "mesh", "file"), f"mesh file {fixture.mesh.file!r} not found "
-                             f"(looked in {f.parent})")
+                             f"(looked under {loaded.root})")
     for i, part in enumerate(cell.parts):
         if part.at not in cell.frames:
             report.error(("parts", i, "at"), _unknown("frame", part.at, cell.frames))
     for number, task_path in cell.tasks.items():
         if not loaded.resolve(task_path).is_file():
             report.error(("tasks", number), f"task file {task_path!r} not found "
-                         f"(looked in {loaded.resolve(task_path).parent})")
+                         f"(looked under {loaded.root})")
     if cell.plc.opcua and cell.plc.opcua.users and not loaded.resolve(cell.plc.opcua.users).exists():
         report.warn(("plc", "opcua", "users"), f"users file {cell.plc.opcua.users!r} does not exist yet; "
                     "create it with 'cellrunner users add'")
@@ -222,7 +235,8 @@ def _check_io(cell: Cell, report: Report) -> None:
         report.error(("io", "inputs", name), f"name {name!r} is both an output and an input", at_key=True)
 
 
-def check_io_name(cell: Cell, name: str, side: str, path: PathKey, report: Report) -> None:
+def check_io_name(cell: Cell, name: str, side: str, path: PathKey, report: Report,
+                  at_key: bool = False) -> None:
     """Report ``name`` unless it is a known IO of ``side`` ('inputs' or 'outputs')."""
     table = getattr(cell.io, side)
     if name in table:
@@ -230,9 +244,9 @@ def check_io_name(cell: Cell, name: str, side: str, path: PathKey, report: Repor
     other = "outputs" if side == "inputs" else "inputs"
     if name in getattr(cell.io, other):
         report.error(path, f"{name!r} is an {other[:-1]}, not an {side[:-1]}; known {side}: "
-                     f"{known_list(table)}")
+                     f"{known_list(table)}", at_key=at_key)
     else:
-        report.error(path, _unknown(side[:-1], name, table))
+        report.error(path, _unknown(side[:-1], name, table), at_key=at_key)
 
 
 def _check_gripper(cell: Cell, report: Report) -> None:

@@ -37,7 +37,7 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
                 check_io_name(cell, args.confirm, "inputs", path + ("confirm",), report)
         elif kind == "set_output":
             for name in args.values:
-                check_io_name(cell, name, "outputs", path + (name,), report)
+                check_io_name(cell, name, "outputs", path + (name,), report, at_key=True)
         elif kind == "wait_input":
             check_io_name(cell, args.input, "inputs", path + ("input",), report)
     if needs_gripper and cell.tool.gripper is None:

@@ -1,0 +1,53 @@
+"""The command line: exit codes, lazy imports, no tracebacks."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from tests.conftest import DEMO_CELL, ROOT
+
+HEAVY = ("mujoco", "ompl", "asyncua", "toppra", "pinocchio")
+
+
+def _run(*args, stdin=None):
+    return subprocess.run([sys.executable, "-m", "cellrunner.cli.main", *args], capture_output=True, text=True,
+                          cwd=ROOT, timeout=60, input=stdin)
+
+
+def test_help_and_validate_import_nothing_heavy():
+    code = ("import sys\nfrom cellrunner.cli.main import main\ntry:\n    rc = main(%r)\nexcept SystemExit as e:\n    rc = e.code\n"
+            "heavy = [m for m in %r if m in sys.modules]\nprint(heavy)\nsys.exit(rc)")
+    for argv in (["--help"], ["validate", str(DEMO_CELL)]):
+        r = subprocess.run([sys.executable, "-c", code % (argv, HEAVY)], capture_output=True, text=True, cwd=ROOT,
+                           timeout=60)
+        assert r.returncode == 0, r.stderr
+        assert r.stdout.strip().splitlines()[-1] == "[]", r.stdout
+
+
+def test_validate_ok():
+    r = _run("validate", "cells/demo_ur5e.yaml")
+    assert r.returncode == 0, r.stderr
+    assert "cells/demo_ur5e.yaml: ok (cell demo-ur5e, ur5e" in r.stderr
+
+
+def test_missing_file_is_input_error():
+    r = _run("validate", "cells/nope.yaml")
+    assert r.returncode == 2
+    assert r.stderr.strip() == "cells/nope.yaml:1:1: error: no such file: cells/nope.yaml"
+
+
+def test_bad_arguments_exit_2_without_traceback():
+    r = _run("check")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    r = _run("frobnicate")
+    assert r.returncode == 2 and "invalid choice" in r.stderr
+
+
+def test_schema_command_prints_both():
+    r = _run("schema")
+    assert r.returncode == 0
+    out = json.loads(r.stdout)
+    assert set(out) == {"cell", "task"}
+    assert out["cell"]["properties"]["robot"]
