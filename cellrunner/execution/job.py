@@ -1,0 +1,323 @@
+"""Running one job: the expanded steps in order, tick by tick, with the task's retry
+policy, protective-stop hold and resume, e-stop abort, and step timeouts.
+
+The caller owns the clock: per controller period it calls ``backend.wait_period()`` and
+then :meth:`JobRunner.tick` once. ``tick`` never blocks. Phases follow PackML: execute ->
+holding -> held -> unholding -> execute, or -> aborting; ``done`` at the end with
+``result`` set.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from cellrunner.backends.base import BackendError, Safety
+from cellrunner.errors import InfeasibleError
+from cellrunner.execution import steps as behaviours
+from cellrunner.execution.context import JobContext
+from cellrunner.execution.results import ResultCode
+from cellrunner.execution.steps import Outcome, run_motion, run_weigh
+from cellrunner.model.expand import Step
+from cellrunner.model.task import ProtectiveStopPolicy
+
+#: the controller refuses to unlock a protective stop sooner (UR e-Series and CB3)
+UNLOCK_DELAY_S = 5.0
+#: how long recovery may keep trying to unlock before the job ends with code 100
+RECOVERY_TIMEOUT_S = 30.0
+
+
+@dataclass
+class StepRecord:
+    """One row of the report: an expanded step and what became of it."""
+
+    index: int
+    kind: str
+    name: str
+    status: str = "pending"  # pending running ok failed skipped
+    attempts: int = 0
+    started_s: float | None = None
+    duration_s: float = 0.0
+    message: str = ""
+
+
+@dataclass
+class _Item:
+    step: Step
+    attempt: int = 1
+    behaviour: str = "step"  # step | weigh
+    resume: bool = False
+    between: bool = False  # a retry's in-between step (not a row of its own)
+
+
+@dataclass
+class JobRunner:
+    ctx: JobContext
+    steps: list[Step]
+    protective_stop: ProtectiveStopPolicy = field(default_factory=ProtectiveStopPolicy)
+    wait_for_unhold: bool = False  # serve: a held job may wait for the PLC's Unhold
+    on_step: Callable[[StepRecord, int], None] | None = None  # journal hook
+
+    phase: str = "idle"
+    result: ResultCode | None = None
+    message: str = ""
+    retries_used: int = 0
+    protective_stops: int = 0
+    started_s: float = 0.0
+    ended_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.records = {s.index: StepRecord(s.index, s.kind, s.name) for s in self.steps}
+        self._agenda: list[_Item] = [_Item(s) for s in self.steps]
+        self._current: _Item | None = None
+        self._gen = None
+        self._item_started_s = 0.0
+        self._hold_since_s = 0.0
+        self._hold_reason = ""
+        self._requests: list[str] = []
+        self._pending_end: tuple[ResultCode, str] | None = None  # after cleanup steps
+
+    # ------------------------------------------------------------------ control
+    @property
+    def current_step(self) -> int:
+        """1-based index of the step under way, 0 when none."""
+        return self._current.step.index if self._current and self.phase != "done" else 0
+
+    @property
+    def done(self) -> bool:
+        return self.phase == "done"
+
+    def request(self, what: str) -> None:
+        """Queue 'hold', 'unhold' or 'abort' (from the PLC or the watchdog)."""
+        self._requests.append(what)
+
+    def start(self) -> None:
+        self.ctx.read()
+        self.started_s = self.ctx.now_s
+        self.phase = "execute"
+        self._next_item()
+
+    # ------------------------------------------------------------------ tick
+    def tick(self) -> None:
+        """Advance by one controller period."""
+        if self.phase in ("done", "idle"):
+            return
+        state = self.ctx.read()
+        self._track()
+        if state.safety is Safety.DISCONNECTED:
+            return self._finish(ResultCode.ROBOT_CONNECTION_LOST, "robot connection lost")
+        if state.safety is Safety.EMERGENCY_STOP:
+            return self._finish(ResultCode.ESTOP, f"e-stop during {self._label()}")
+        if state.safety is Safety.FAULT:
+            return self._finish(ResultCode.PROTECTIVE_STOP, f"controller fault during {self._label()}")
+        if state.safety is Safety.PROTECTIVE_STOP and self.phase == "execute":
+            self.protective_stops += 1
+            self._enter_hold("protective stop")
+        while self._requests:
+            self._handle_request(self._requests.pop(0))
+            if self.done:
+                return
+        if self.phase in ("holding", "held"):
+            return self._tick_held()
+        if self.phase == "execute":
+            self._tick_execute()
+
+    def _handle_request(self, what: str) -> None:
+        if what == "abort":
+            self._finish(ResultCode.ABORTED_BY_PLC, f"aborted during {self._label()}")
+        elif what == "hold" and self.phase == "execute":
+            self._enter_hold("hold requested")
+        elif what == "unhold" and self.phase == "held":
+            self._resume()
+
+    def _enter_hold(self, reason: str) -> None:
+        self.phase = "holding"
+        self._hold_reason = reason
+        self._hold_since_s = self.ctx.now_s
+        self._gen = None
+        if reason != "protective stop":
+            self.ctx.backend.stop_motion()
+        self._log("hold", reason=reason)
+
+    def _tick_held(self) -> None:
+        state = self.ctx.state
+        if self.phase == "holding" and np.max(np.abs(state.qd_rad_s)) < 1e-3:
+            self.phase = "held"
+        if self._hold_reason != "protective stop":
+            return  # a requested hold waits for unhold or abort
+        held_for = self.ctx.now_s - self._hold_since_s
+        if not self.protective_stop.resume or self.protective_stops > self.protective_stop.max:
+            if not self.wait_for_unhold:
+                why = ("the task does not resume after protective stops" if not self.protective_stop.resume
+                       else f"more than {self.protective_stop.max} protective stops")
+                return self._finish(ResultCode.PROTECTIVE_STOP, f"protective stop during {self._label()}: {why}")
+            return
+        if held_for < UNLOCK_DELAY_S:
+            return
+        if state.safety is Safety.PROTECTIVE_STOP:
+            try:
+                self.ctx.backend.unlock_protective_stop()
+            except BackendError as exc:
+                if held_for > UNLOCK_DELAY_S + RECOVERY_TIMEOUT_S:
+                    return self._finish(ResultCode.PROTECTIVE_STOP, f"protective stop not recovered: {exc}")
+                return
+        if self.ctx.read().safety is Safety.NORMAL:
+            self._resume()
+
+    def _resume(self) -> None:
+        self._log("unhold")
+        self.phase = "execute"
+        if self._current is not None:
+            self._current.resume = True
+            self._start_item(self._current)
+
+    def _tick_execute(self) -> None:
+        if self._current is None:
+            return self._finish(*(self._pending_end or (ResultCode.OK, "")))
+        if self.ctx.now_s - self._item_started_s > self._timeout_s(self._current):
+            self.ctx.backend.stop_motion()
+            return self._finish(ResultCode.STEP_TIMEOUT, f"{self._label()} timed out")
+        try:
+            next(self._gen)
+        except StopIteration as stop:
+            self._on_outcome(stop.value)
+        except InfeasibleError as exc:
+            self._finish(ResultCode.PLANNING_FAILED, str(exc))
+        except BackendError as exc:
+            self._finish(ResultCode.ROBOT_CONNECTION_LOST, f"{self._label()}: {exc}")
+
+    # ------------------------------------------------------------------ items
+    def _next_item(self) -> None:
+        self._current = self._agenda.pop(0) if self._agenda else None
+        if self._current is not None:
+            self._start_item(self._current)
+
+    def _start_item(self, item: _Item) -> None:
+        step = item.step
+        self._item_started_s = self.ctx.now_s
+        record = self.records[step.index]
+        if not item.between and item.behaviour == "step" and not item.resume:
+            record.status, record.attempts = "running", max(record.attempts, item.attempt)
+            if record.started_s is None:
+                record.started_s = self.ctx.now_s
+            if self.ctx.on_step_start is not None:
+                self.ctx.on_step_start(step, item.attempt)
+            self._journal(record, item.attempt)
+        self._log("step", kind=step.kind, name=step.name, attempt=item.attempt,
+                  between=item.between or None, resume=item.resume or None)
+        if item.behaviour == "weigh":
+            self._gen = run_weigh(self.ctx, step)
+        elif step.is_motion:
+            self._gen = run_motion(self.ctx, step, resume=item.resume)
+        else:
+            self._gen = behaviours.BEHAVIOURS[step.kind](self.ctx, step)
+
+    def _on_outcome(self, outcome: Outcome) -> None:
+        item = self._current
+        step = item.step
+        record = self.records[step.index]
+        if outcome.ok:
+            if not item.between and item.behaviour == "step":
+                record.status = "ok"
+                record.duration_s = self.ctx.now_s - record.started_s
+                self._journal(record, item.attempt)
+            self._after_success(item)
+            return self._next_item()
+        grip = self._grip_of(item)
+        if grip is not None and outcome.code is ResultCode.NO_PART and grip.retry and item.attempt < grip.retry.attempts:
+            return self._retry(grip, item.attempt + 1, outcome.message)
+        record = self.records[grip.index if grip is not None else step.index]
+        record.status, record.message = "failed", outcome.message
+        record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
+        self._journal(record, item.attempt)
+        if grip is not None and grip.retry and outcome.code is ResultCode.NO_PART:
+            # leave the part area the way the retry would, then end
+            self._agenda = [_Item(b, item.attempt, between=True) for b in grip.retry.between]
+            self._pending_end = (outcome.code, outcome.message)
+            return self._next_item()
+        self._finish(outcome.code, outcome.message)
+
+    def _after_success(self, item: _Item) -> None:
+        """A lift right after a grip with a force window: weigh the part next."""
+        step = item.step
+        if step.kind == "lift" and item.behaviour == "step" and not item.between:
+            grip = self._step(step.index - 1)
+            if grip is not None and grip.kind == "grip" and grip.args.force is not None:
+                self._agenda.insert(0, _Item(grip, item.attempt, behaviour="weigh"))
+
+    def _grip_of(self, item: _Item) -> Step | None:
+        """The grip step an item's NO_PART failure belongs to (the grip itself or its weighing)."""
+        return item.step if item.step.kind == "grip" and not item.between else None
+
+    def _retry(self, grip: Step, attempt: int, why: str) -> None:
+        self.retries_used += 1
+        record = self.records[grip.index]
+        record.message = f"attempt {attempt - 1} failed: {why}"
+        self._log("retry", attempt=attempt, why=why)
+        redo = [s for s in self.steps if grip.retry.redo_from <= s.index <= grip.index]
+        # everything after the grip not yet done; a failed weighing also redoes its lift
+        rest = [_Item(s, attempt) for s in self.steps if s.index > grip.index and (
+            self.records[s.index].status == "pending" or s.index == grip.index + 1)]
+        self._agenda = ([_Item(b, attempt, between=True) for b in grip.retry.between]
+                        + [_Item(s, attempt) for s in redo] + rest)
+        self._next_item()
+
+    def _step(self, index: int) -> Step | None:
+        return next((s for s in self.steps if s.index == index), None)
+
+    def _timeout_s(self, item: _Item) -> float:
+        step = item.step
+        if step.is_motion:
+            return self.ctx.step_timeout_s
+        timeout = getattr(step.args, "timeout", None) or getattr(step.args, "seconds", 0.0) or 0.0
+        return timeout + 5.0
+
+    # ------------------------------------------------------------------ end
+    def _finish(self, code: ResultCode, message: str) -> None:
+        if self.phase == "done":
+            return
+        if code is not ResultCode.OK and code.is_fault:
+            try:
+                self.ctx.backend.stop_motion()
+            except BackendError:
+                pass
+        if self._current is not None and code is not ResultCode.OK:
+            record = self.records[self._current.step.index]
+            if record.status == "running":
+                record.status, record.message = "failed", message
+                record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
+                self._journal(record, self._current.attempt)
+        for record in self.records.values():
+            if record.status == "pending":
+                record.status = "skipped"
+        self.result, self.message = code, message
+        self.ended_s = self.ctx.now_s
+        self.phase = "done"
+        self._gen = None
+        self._log("job_end", result_code=int(code), message=message)
+
+    @property
+    def cycle_time_s(self) -> float:
+        return (self.ended_s if self.done else self.ctx.now_s) - self.started_s
+
+    # ------------------------------------------------------------------ helpers
+    def _track(self) -> None:
+        if self.ctx.commanded_q is None:
+            return
+        p_cmd = self.ctx.motions.tcp_position_m(self.ctx.commanded_q)
+        p_meas = self.ctx.motions.tcp_position_m(self.ctx.state.q_rad)
+        self.ctx.tracking_error_m = max(self.ctx.tracking_error_m, float(np.linalg.norm(p_cmd - p_meas)))
+
+    def _label(self) -> str:
+        return self._current.step.label if self._current else "the job"
+
+    def _journal(self, record: StepRecord, attempt: int) -> None:
+        if self.on_step is not None:
+            self.on_step(record, attempt)
+
+    def _log(self, event: str, **kw) -> None:
+        if self.ctx.log is not None:
+            step = self._current.step.index if self._current else 0
+            self.ctx.log.info(event, step=step, **{k: v for k, v in kw.items() if v is not None})

@@ -1,0 +1,150 @@
+"""The job journal (SPEC section 9): SQLite, written before a job is acknowledged and at
+every step transition after it, so no result is ever lost.
+
+A job found unfinished at start-up is closed with result 107 by
+:meth:`Journal.close_interrupted` and reported as the last result.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from cellrunner.execution.results import ResultCode
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS jobs (
+    job_id TEXT PRIMARY KEY,
+    client_job_id TEXT,
+    cell TEXT NOT NULL,
+    task TEXT NOT NULL,
+    params TEXT NOT NULL,
+    source TEXT NOT NULL,
+    started_at REAL NOT NULL,
+    ended_at REAL,
+    result_code INTEGER,
+    result_text TEXT,
+    cycle_time_s REAL,
+    retries INTEGER DEFAULT 0
+);
+CREATE TABLE IF NOT EXISTS steps (
+    job_id TEXT NOT NULL REFERENCES jobs(job_id),
+    step_index INTEGER NOT NULL,
+    kind TEXT NOT NULL,
+    name TEXT NOT NULL,
+    status TEXT NOT NULL,
+    attempt INTEGER NOT NULL,
+    at REAL NOT NULL,
+    message TEXT
+);
+CREATE INDEX IF NOT EXISTS steps_job ON steps(job_id);
+CREATE UNIQUE INDEX IF NOT EXISTS jobs_client ON jobs(client_job_id) WHERE client_job_id IS NOT NULL;
+"""
+
+
+@dataclass(frozen=True)
+class JobRecord:
+    job_id: str
+    client_job_id: str | None
+    cell: str
+    task: str
+    params: dict
+    source: str
+    started_at: float
+    ended_at: float | None
+    result_code: int | None
+    result_text: str | None
+    cycle_time_s: float | None
+    retries: int
+
+
+class Journal:
+    """One SQLite file; every write is committed before the call returns (WAL, synchronous
+    FULL), so a crash right after a call never loses what it wrote."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self._db: sqlite3.Connection | None = None
+
+    def open(self) -> "Journal":
+        if self.path != Path(":memory:"):
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._db = sqlite3.connect(str(self.path), isolation_level=None, check_same_thread=False)
+        self._db.execute("PRAGMA journal_mode=WAL")
+        self._db.execute("PRAGMA synchronous=FULL")
+        self._db.executescript(_SCHEMA)
+        return self
+
+    def close(self) -> None:
+        if self._db is not None:
+            self._db.close()
+            self._db = None
+
+    @property
+    def db(self) -> sqlite3.Connection:
+        if self._db is None:
+            raise RuntimeError("journal is not open")
+        return self._db
+
+    def begin_job(self, job_id: str, cell: str, task: str, params: dict, source: str,
+                  client_job_id: str | None = None) -> None:
+        self.db.execute(
+            "INSERT INTO jobs (job_id, client_job_id, cell, task, params, source, started_at) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?)",
+            (job_id, client_job_id, cell, task, json.dumps(params, sort_keys=True), source, time.time()))
+
+    def step(self, job_id: str, index: int, kind: str, name: str, status: str, attempt: int,
+             message: str = "") -> None:
+        self.db.execute(
+            "INSERT INTO steps (job_id, step_index, kind, name, status, attempt, at, message) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            (job_id, index, kind, name, status, attempt, time.time(), message))
+
+    def end_job(self, job_id: str, code: ResultCode, cycle_time_s: float | None, retries: int,
+                text: str | None = None) -> None:
+        self.db.execute(
+            "UPDATE jobs SET ended_at = ?, result_code = ?, result_text = ?, cycle_time_s = ?, retries = ? "
+            "WHERE job_id = ? AND ended_at IS NULL",
+            (time.time(), int(code), text or code.text, cycle_time_s, retries, job_id))
+
+    def close_interrupted(self) -> list[JobRecord]:
+        """Close every job left unfinished (a restart mid-job) with code 107."""
+        open_jobs = self._select("WHERE ended_at IS NULL")
+        for job in open_jobs:
+            self.end_job(job.job_id, ResultCode.INTERRUPTED, None, job.retries)
+        return [self.get(job.job_id) for job in open_jobs]
+
+    def get(self, job_id: str) -> JobRecord | None:
+        rows = self._select("WHERE job_id = ?", (job_id,))
+        return rows[0] if rows else None
+
+    def by_client_id(self, client_job_id: str) -> JobRecord | None:
+        rows = self._select("WHERE client_job_id = ?", (client_job_id,))
+        return rows[0] if rows else None
+
+    def last(self, n: int = 20) -> list[JobRecord]:
+        return list(reversed(self._select("ORDER BY started_at DESC, rowid DESC LIMIT ?", (n,))))
+
+    def last_finished(self) -> JobRecord | None:
+        rows = self._select("WHERE ended_at IS NOT NULL ORDER BY ended_at DESC, rowid DESC LIMIT 1")
+        return rows[0] if rows else None
+
+    def counters(self) -> tuple[int, int]:
+        """(parts processed, parts defective): OK jobs, and jobs that ended NOK (1-3)."""
+        ok, nok = self.db.execute(
+            "SELECT SUM(result_code = 0), SUM(result_code BETWEEN 1 AND 3) FROM jobs").fetchone()
+        return int(ok or 0), int(nok or 0)
+
+    def steps_of(self, job_id: str) -> list[tuple]:
+        return self.db.execute(
+            "SELECT step_index, kind, name, status, attempt, at, message FROM steps WHERE job_id = ? "
+            "ORDER BY rowid", (job_id,)).fetchall()
+
+    def _select(self, where: str, args: tuple = ()) -> list[JobRecord]:
+        rows = self.db.execute(
+            "SELECT job_id, client_job_id, cell, task, params, source, started_at, ended_at, result_code, "
+            f"result_text, cycle_time_s, retries FROM jobs {where}", args).fetchall()
+        return [JobRecord(r[0], r[1], r[2], r[3], json.loads(r[4]), *r[5:]) for r in rows]

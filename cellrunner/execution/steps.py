@@ -1,0 +1,175 @@
+"""Step behaviours, each a generator that issues at most one command per controller tick
+and yields; ``return`` hands back the :class:`Outcome`. The job runner advances exactly
+one of them per tick, so nothing here blocks.
+
+Sensing, never flags: a grip is confirmed by its input and the wrist load; a dropped part
+is noticed by the jaw sensor and the load falling away.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Generator
+
+import numpy as np
+
+from cellrunner.execution.context import Carry, JobContext
+from cellrunner.execution.results import ResultCode
+from cellrunner.model.expand import Step
+
+StepGen = Generator[None, None, "Outcome"]
+
+#: joint distance (rad, max over joints) under which the arm is "at" a trajectory's start
+START_TOLERANCE_RAD = 2e-3
+#: ticks the wrist load is averaged over when weighing the part
+WEIGH_TICKS = 25
+SETTLE_S = 0.05
+
+
+@dataclass(frozen=True)
+class Outcome:
+    ok: bool
+    code: ResultCode = ResultCode.OK
+    message: str = ""
+
+    @staticmethod
+    def failed(code: ResultCode, message: str) -> "Outcome":
+        return Outcome(False, code, message)
+
+
+OK = Outcome(True)
+
+
+def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
+    """Stream the approved trajectory of ``step``; replan from where the arm is when it
+    does not stand at the trajectory's start (after a stop or a retry)."""
+    q_now = ctx.state.q_rad
+    approved = None if resume else ctx.motions.nominal(step)
+    if approved is None or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD:
+        approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
+    q = approved.trajectory.q_rad
+    for i in range(len(q)):
+        ctx.backend.servo(approved, i)
+        ctx.commanded_q = q[i]
+        yield
+        lost = _part_lost(ctx)
+        if lost:
+            ctx.backend.stop_motion()
+            return Outcome.failed(ResultCode.PART_LOST, lost)
+    return OK
+
+
+def run_grip(ctx: JobContext, step: Step) -> StepGen:
+    """Close the jaws; succeed when the confirmation input reads true within the timeout."""
+    args = step.args
+    if ctx.gripper_close is None:
+        return Outcome.failed(ResultCode.NO_PART, "the cell has no gripper close output")
+    baseline = np.array(ctx.state.wrench_N[:3], dtype=float)
+    channel, value = ctx.gripper_close
+    ctx.backend.set_output(channel, value)
+    confirm = ctx.inputs.get(args.confirm) if args.confirm else ctx.gripper_closed_sensor
+    t0 = ctx.now_s
+    if confirm is None:  # no sensor: all we can do is let the jaws travel
+        while ctx.now_s - t0 < min(args.timeout, 0.5):
+            yield
+    else:
+        while not ctx.state.inputs.get(confirm):
+            if ctx.now_s - t0 >= args.timeout:
+                return Outcome.failed(ResultCode.NO_PART, f"{args.confirm or 'closed sensor'} not true "
+                                      f"within {args.timeout:g} s (jaws closed on nothing)")
+            yield
+    force_min = args.force.min if args.force else 0.0
+    ctx.carry = Carry(baseline_N=baseline, min_N=force_min, confirm=confirm)
+    return OK
+
+
+def run_weigh(ctx: JobContext, step: Step) -> StepGen:
+    """After the lift: the load the wrist carries must lie within the grip's force window."""
+    window = step.args.force
+    samples = []
+    for _ in range(WEIGH_TICKS):
+        yield
+        samples.append(np.array(ctx.state.wrench_N[:3]))
+    load = float(np.linalg.norm(np.mean(samples, axis=0) - ctx.carry.baseline_N))
+    ctx.carry.load_N = load
+    hi = window.max if window.max is not None else float("inf")
+    if not window.min <= load <= hi:
+        return Outcome.failed(ResultCode.NO_PART, f"load {load:.1f} N after lift is outside "
+                              f"[{window.min:g}, {hi:g}] N")
+    return OK
+
+
+def run_release(ctx: JobContext, step: Step) -> StepGen:
+    """Open the jaws; with a confirmation input, wait for it (or the closed sensor) to drop."""
+    args = step.args
+    if ctx.gripper_open is not None:
+        channel, value = ctx.gripper_open
+        ctx.backend.set_output(channel, value)
+    if ctx.gripper_close is not None:
+        channel, value = ctx.gripper_close
+        ctx.backend.set_output(channel, (not value) if isinstance(value, bool) else 0.0)
+    ctx.carry = None
+    t0 = ctx.now_s
+    confirm = ctx.inputs.get(args.confirm) if args.confirm else None
+    watch = confirm or ctx.gripper_closed_sensor
+    while ctx.now_s - t0 < SETTLE_S or (watch and _release_pending(ctx, watch, confirm is not None)):
+        if ctx.now_s - t0 >= args.timeout:
+            return Outcome.failed(ResultCode.PLACE_FAILED, f"release not confirmed within {args.timeout:g} s")
+        yield
+    return OK
+
+
+def _release_pending(ctx: JobContext, channel: str, is_open_confirm: bool) -> bool:
+    value = bool(ctx.state.inputs.get(channel))
+    return not value if is_open_confirm else value
+
+
+def run_set_output(ctx: JobContext, step: Step) -> StepGen:
+    for name, value in step.args.values.items():
+        ctx.backend.set_output(ctx.outputs[name], value)
+    yield
+    return OK
+
+
+def run_wait_input(ctx: JobContext, step: Step) -> StepGen:
+    args = step.args
+    channel = ctx.inputs[args.input]
+    t0 = ctx.now_s
+    while ctx.state.inputs.get(channel) != args.value and not (
+            isinstance(args.value, bool) and bool(ctx.state.inputs.get(channel)) == args.value):
+        if ctx.now_s - t0 >= args.timeout:
+            return Outcome.failed(ResultCode.STEP_TIMEOUT, f"input {args.input} did not read "
+                                  f"{args.value} within {args.timeout:g} s")
+        yield
+    return OK
+
+
+def run_wait(ctx: JobContext, step: Step) -> StepGen:
+    t0 = ctx.now_s
+    while ctx.now_s - t0 < step.args.seconds:
+        yield
+    return OK
+
+
+def _part_lost(ctx: JobContext) -> str | None:
+    """Why the carried part is gone, judged from the jaw sensor and the wrist load."""
+    carry = ctx.carry
+    if carry is None:
+        return None
+    if carry.confirm is not None and not ctx.state.inputs.get(carry.confirm):
+        return "part lost in transit: the jaw sensor dropped"
+    if carry.load_N is not None and carry.min_N > 0:
+        load = float(np.linalg.norm(np.asarray(ctx.state.wrench_N[:3]) - carry.baseline_N))
+        ctx.notes["load_lp"] = 0.9 * ctx.notes.get("load_lp", carry.load_N) + 0.1 * load
+        if ctx.notes["load_lp"] < 0.5 * carry.min_N:
+            return f"part lost in transit: the wrist load fell to {ctx.notes['load_lp']:.1f} N"
+    return None
+
+
+BEHAVIOURS = {
+    "grip": run_grip,
+    "release": run_release,
+    "set_output": run_set_output,
+    "wait_input": run_wait_input,
+    "wait": run_wait,
+}
