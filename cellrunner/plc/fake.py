@@ -1,0 +1,399 @@
+"""``FakeCell``: a scripted, in-process :class:`~cellrunner.plc.port.CellPort`.
+
+It stands in for the execution engine in PLC tests and the soak bench: jobs take
+scripted step durations and end with scripted result codes, and the PackML state
+moves as SPEC section 6 says (Idle -> Starting -> Execute -> Completing -> Complete
+-> Resetting -> Idle; Hold -> Holding/Held; Abort or e-stop -> Aborting/Aborted,
+Clear -> Stopped, Reset -> Idle). Nothing moves a robot.
+
+Lifecycle: construct (no thread) -> ``start()`` -> ... -> ``close()``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+
+from cellrunner.plc.port import (
+    COMMANDS,
+    COMPLETED_CODES,
+    CellStatus,
+    JobResult,
+    JobTicket,
+    PackMLState,
+    ResultListener,
+)
+
+S = PackMLState
+
+#: How long the fake spends in each transient PackML state, s.
+TRANSIENT_S = 0.01
+
+
+@dataclass(frozen=True)
+class FakeParam:
+    """A typed, bounded task parameter (as a task file's ``params:`` entry)."""
+
+    name: str
+    type: str = "int"  # "int" | "float"
+    min: float = -32768
+    max: float = 32767
+    default: float = 0
+
+
+@dataclass(frozen=True)
+class FakeTask:
+    """A task the fake knows: number, name, params in order, step durations in s."""
+
+    number: int
+    name: str
+    params: tuple[FakeParam, ...] = ()
+    step_durations_s: tuple[float, ...] = (0.02, 0.02, 0.02)
+
+
+@dataclass
+class _Job:
+    job_id: str
+    task: FakeTask
+    params: dict[str, int | float]
+    client_job_id: str
+    source: str
+    result_code: int
+    started_s: float
+    step_index: int = 0
+    step_left_s: float = 0.0
+    retries: int = 0
+    end_code: int | None = None
+
+
+@dataclass
+class _Injected:
+    protective_stop: bool = False
+    estop: bool = False
+
+
+def default_tasks() -> list[FakeTask]:
+    """The tasks of the example cell: 1 pick_place(slot 0..11), 2 home."""
+    return [
+        FakeTask(1, "pick_place", (FakeParam("slot", "int", 0, 11, 0),)),
+        FakeTask(2, "home", (), (0.02,)),
+    ]
+
+
+@dataclass
+class FakeCell:
+    """Scripted cell engine.
+
+    ``results`` gives the result code of each accepted job in turn (default 0 once
+    exhausted); ``result_fn(task_name, params)`` overrides it when set.
+    ``last_result`` seeds the last result, e.g. a job closed with 107 at start-up.
+    """
+
+    tasks: list[FakeTask] = field(default_factory=default_tasks)
+    results: Iterable[int] = ()
+    result_fn: Callable[[str, dict[str, int | float]], int] | None = None
+    last_result: JobResult | None = None
+    parts_processed: int = 0
+    parts_defective: int = 0
+    tick_s: float = 0.002
+
+    def __post_init__(self) -> None:
+        self._by_number = {t.number: t for t in self.tasks}
+        self._by_name = {t.name: t for t in self.tasks}
+        self._script = deque(self.results)
+        self._lock = threading.RLock()
+        self._state = S.IDLE
+        self._state_until_s = 0.0
+        self._next_state: PackMLState | None = None
+        self._job: _Job | None = None
+        self._queued: _Job | None = None
+        self._ids = itertools.count(1)
+        self._listeners: list[ResultListener] = []
+        self._pending: list[JobResult] = []
+        self._injected = _Injected()
+        self._processed = self.parts_processed
+        self._defective = self.parts_defective
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._last_tick_s = 0.0
+        self.finished: list[JobResult] = []  # every result, in order (the "journal")
+        self.commands: list[str] = []  # every accepted command, in order
+
+    # -- lifecycle -----------------------------------------------------------------
+    def start(self) -> FakeCell:
+        if self._thread is None:
+            self._stop.clear()
+            self._thread = threading.Thread(target=self._run, name="fake-cell", daemon=True)
+            self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+
+    def __enter__(self) -> FakeCell:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- CellPort ------------------------------------------------------------------
+    def status(self) -> CellStatus:
+        with self._lock:
+            job = self._job or self._queued
+            state = self._state
+            return CellStatus(
+                state=int(state),
+                state_name=state.display_name,
+                ready=self._is_ready(),
+                busy=job is not None,
+                held=state in (S.HOLDING, S.HELD, S.UNHOLDING),
+                protective_stop=self._injected.protective_stop,
+                estop=self._injected.estop,
+                job_id=job.job_id if job else "",
+                step_index=job.step_index if job else 0,
+                last_result=self.last_result,
+                parts_processed=self._processed,
+                parts_defective=self._defective,
+            )
+
+    def task_params(self, task: str | int) -> list[str] | None:
+        found = self._find_task(task)
+        return None if found is None else [p.name for p in found.params]
+
+    def start_job(
+        self,
+        task: str | int,
+        params: dict[str, int | float],
+        client_job_id: str,
+        source: str = "",
+    ) -> JobTicket:
+        found = self._find_task(task)
+        if found is None:
+            known = ", ".join(f"{t.number} {t.name}" for t in self.tasks)
+            return JobTicket("", 10, f"unknown task {task!r}; known: {known}")
+        error = _check_params(found, params)
+        if error:
+            return JobTicket("", 11, error)
+        with self._lock:
+            if not self._is_ready():
+                return JobTicket("", 12, f"not ready: state {self._state.display_name}")
+            full = {p.name: params.get(p.name, p.default) for p in found.params}
+            code = self._next_result(found.name, full)
+            job = _Job(
+                job_id=f"J{next(self._ids):06d}",
+                task=found,
+                params=full,
+                client_job_id=client_job_id,
+                source=source,
+                result_code=code,
+                started_s=time.monotonic(),
+            )
+            self._queued = job
+            self._enter(S.STARTING, S.EXECUTE)
+            return JobTicket(job.job_id)
+
+    def command(self, name: str) -> bool:
+        if name not in COMMANDS:
+            raise ValueError(f"unknown command {name!r}; known: {', '.join(COMMANDS)}")
+        with self._lock:
+            accepted = self._apply_command(name)
+            if accepted:
+                self.commands.append(name)
+            return accepted
+
+    def add_result_listener(self, listener: ResultListener) -> Callable[[], None]:
+        with self._lock:
+            self._listeners.append(listener)
+
+        def remove() -> None:
+            with self._lock:
+                if listener in self._listeners:
+                    self._listeners.remove(listener)
+
+        return remove
+
+    # -- fault injection (what the twin's physics would cause) --------------------------
+    def inject_protective_stop(self) -> None:
+        with self._lock:
+            self._injected.protective_stop = True
+            if self._state in (S.EXECUTE, S.STARTING, S.UNHOLDING):
+                self._enter(S.HOLDING, S.HELD)
+
+    def release_protective_stop(self, *, unhold: bool = True) -> None:
+        with self._lock:
+            self._injected.protective_stop = False
+            if unhold and self._state == S.HELD:
+                self._enter(S.UNHOLDING, S.EXECUTE)
+
+    def inject_estop(self) -> None:
+        with self._lock:
+            self._injected.estop = True
+            self._abort(101)
+
+    def release_estop(self) -> None:
+        with self._lock:
+            self._injected.estop = False
+
+    # -- internals -----------------------------------------------------------------
+    def _find_task(self, task: str | int) -> FakeTask | None:
+        if isinstance(task, int):
+            return self._by_number.get(task)
+        if task.strip().isdigit():
+            return self._by_number.get(int(task))
+        return self._by_name.get(task)
+
+    def _next_result(self, name: str, params: dict[str, int | float]) -> int:
+        if self.result_fn is not None:
+            return self.result_fn(name, params)
+        return self._script.popleft() if self._script else 0
+
+    def _is_ready(self) -> bool:
+        return (
+            self._state == S.IDLE
+            and self._job is None
+            and self._queued is None
+            and not self._injected.estop
+            and not self._injected.protective_stop
+        )
+
+    def _enter(self, state: PackMLState, then: PackMLState | None = None) -> None:
+        self._state = state
+        self._next_state = then
+        self._state_until_s = time.monotonic() + TRANSIENT_S
+
+    def _apply_command(self, name: str) -> bool:
+        st = self._state
+        if name == "hold" and st in (S.EXECUTE, S.STARTING, S.UNHOLDING):
+            self._enter(S.HOLDING, S.HELD)
+        elif name == "unhold" and st == S.HELD and not self._injected.protective_stop:
+            self._enter(S.UNHOLDING, S.EXECUTE)
+        elif name == "abort" and st not in (S.ABORTING, S.ABORTED, S.CLEARING):
+            self._abort(106)
+        elif name == "clear" and st == S.ABORTED and not self._injected.estop:
+            self._enter(S.CLEARING, S.STOPPED)
+        elif name == "reset" and st in (S.STOPPED, S.COMPLETE):
+            self._enter(S.RESETTING, S.IDLE)
+        elif name == "stop" and st not in (S.STOPPED, S.STOPPING, S.ABORTING, S.ABORTED, S.CLEARING):
+            job = self._job or self._queued
+            if job is not None:
+                job.end_code = 106
+                self._finish(job)
+            self._enter(S.STOPPING, S.STOPPED)
+        else:
+            return False
+        return True
+
+    def _abort(self, code: int) -> None:
+        job = self._job or self._queued
+        if job is not None:
+            job.end_code = code
+            self._finish(job)
+        self._enter(S.ABORTING, S.ABORTED)
+
+    def _finish(self, job: _Job) -> None:
+        code = job.end_code if job.end_code is not None else job.result_code
+        if code in COMPLETED_CODES:
+            self._processed += 1
+            if code != 0:
+                self._defective += 1
+        result = JobResult(
+            job_id=job.job_id,
+            result_code=code,
+            result_text=_RESULT_TEXT.get(code, f"result {code}"),
+            cycle_time_s=time.monotonic() - job.started_s,
+            end_time=datetime.now(timezone.utc),
+            retries=1 if code == 1 else 0,
+            task=job.task.name,
+            client_job_id=job.client_job_id,
+            source=job.source,
+        )
+        self.last_result = result
+        self.finished.append(result)
+        self._pending.append(result)
+        self._job = None
+        self._queued = None
+
+    def step(self, now_s: float | None = None) -> None:
+        """Advance the fake by hand (when not ``start()``-ed) and notify listeners."""
+        self._tick(time.monotonic() if now_s is None else now_s)
+        self._notify()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.tick_s):
+            self.step()
+
+    def _tick(self, now_s: float) -> None:
+        with self._lock:
+            if self._next_state is not None and now_s >= self._state_until_s:
+                self._arrive(self._next_state, now_s)
+            elif self._state == S.EXECUTE and self._job is not None:
+                self._advance(self._job, now_s)
+
+    def _arrive(self, state: PackMLState, now_s: float) -> None:
+        self._state, self._next_state = state, None
+        if state == S.EXECUTE and self._job is None and self._queued is not None:
+            self._job, self._queued = self._queued, None
+            self._job.step_index = 1
+            self._job.step_left_s = self._job.task.step_durations_s[0]
+        elif state == S.COMPLETE:
+            self._enter(S.RESETTING, S.IDLE)  # production cells reset automatically
+        self._last_tick_s = now_s
+
+    def _advance(self, job: _Job, now_s: float) -> None:
+        dt = max(0.0, now_s - self._last_tick_s)
+        self._last_tick_s = now_s
+        job.step_left_s -= dt
+        while job.step_left_s <= 0:
+            if job.step_index >= len(job.task.step_durations_s):
+                self._finish(job)
+                self._enter(S.COMPLETING, S.COMPLETE)
+                return
+            job.step_index += 1
+            job.step_left_s += job.task.step_durations_s[job.step_index - 1]
+
+    def _notify(self) -> None:
+        with self._lock:
+            pending, self._pending = self._pending, []
+            listeners = list(self._listeners)
+        for result in pending:
+            for listener in listeners:
+                listener(result)
+
+
+_RESULT_TEXT = {
+    0: "OK",
+    1: "no part (grip failed after retries)",
+    2: "part lost in transit",
+    3: "place failed",
+    100: "protective stop not recovered",
+    101: "e-stop",
+    102: "robot connection lost",
+    103: "planning failed",
+    104: "limit violation",
+    105: "step timeout",
+    106: "aborted by PLC",
+    107: "interrupted (cellrunner restarted mid-job)",
+}
+
+
+def _check_params(task: FakeTask, params: dict[str, int | float]) -> str:
+    known = {p.name: p for p in task.params}
+    for name, value in params.items():
+        spec = known.get(name)
+        if spec is None:
+            names = ", ".join(known) or "none"
+            return f"unknown param {name!r} for task {task.name}; known: {names}"
+        if spec.type == "int" and float(value) != int(value):
+            return f"param {name}={value} must be an integer"
+        if not spec.min <= value <= spec.max:
+            return f"param {name}={value} outside [{spec.min:g}, {spec.max:g}]"
+    return ""
+

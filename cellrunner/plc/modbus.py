@@ -1,0 +1,471 @@
+"""Modbus TCP server: SPEC section 7, bit for bit.
+
+Two layers, so the handshake can be tested tick by tick without sockets:
+
+* :class:`ModbusLink` - the register image and the handshake logic (no I/O). It is
+  driven by ``read``/``write`` (what the PLC asks), ``tick(now_s)`` (every 20 ms) and
+  ``on_result`` (a job finished), all on one thread.
+* :class:`ModbusServer` - pymodbus 3.16's asyncio TCP server around a link, with a
+  datastore that routes every request to it (writes outside 0-19 are answered with
+  exception 02 ILLEGAL DATA ADDRESS, all or nothing).
+
+Holding registers (0-based): the PLC writes 0-19, the cell writes 100-119; reads are
+allowed anywhere in 0-119. uint32 values are two registers, high word first.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from cellrunner.errors import CellrunnerError, InputError
+from cellrunner.plc.port import COMPLETED_CODES, CellPort, CellStatus, JobResult, PackMLState
+
+# -- register map (SPEC section 7) -------------------------------------------------
+HR_HEARTBEAT = 0
+HR_COMMAND = 1
+HR_JOB_ID = 2
+HR_TASK = 3
+HR_PARAMS = 4  # 4..11, int16, in the task's params: order
+N_PARAM_REGS = 8
+PLC_FIRST, PLC_LAST = 0, 19
+
+HR_CELL_HEARTBEAT = 100
+HR_STATUS = 101
+HR_STATE = 102
+HR_JOB_ID_ECHO = 103
+HR_RESULT_JOB_ID = 104
+HR_RESULT_CODE = 105
+HR_STEP = 106
+HR_RETRIES = 107
+HR_CYCLE_MS = 108  # uint32 108-109
+HR_PROCESSED = 110  # uint32 110-111
+HR_DEFECTIVE = 112  # uint32 112-113
+CELL_FIRST, CELL_LAST = 100, 119
+N_REGS = 120
+
+_log = logging.getLogger(__name__)
+
+# command bits (register 1)
+CMD_JOB_REQ = 1 << 0
+CMD_RESET = 1 << 1
+CMD_ABORT = 1 << 2
+CMD_HOLD = 1 << 3
+CMD_UNHOLD = 1 << 4
+
+# status bits (register 101)
+ST_READY = 1 << 0
+ST_JOB_ACK = 1 << 1
+ST_BUSY = 1 << 2
+ST_DONE = 1 << 3
+ST_ERROR = 1 << 4
+ST_HELD = 1 << 5
+ST_PROTECTIVE_STOP = 1 << 6
+ST_ESTOP = 1 << 7
+ST_PLC_WATCHDOG = 1 << 8
+ST_REJECTED = 1 << 9
+HANDSHAKE_BITS = ST_JOB_ACK | ST_BUSY | ST_DONE | ST_ERROR | ST_REJECTED
+
+CELL_HEARTBEAT_PERIOD_S = 0.1  # SPEC: increments every <= 200 ms
+TICK_PERIOD_S = 0.02
+RESET_TIMEOUT_S = 10.0
+
+# Modbus exception codes
+EXC_ILLEGAL_FUNCTION = 0x01
+EXC_ILLEGAL_ADDRESS = 0x02
+
+# Register function codes; writes read back with their own code. Coils and discrete
+# inputs (1, 2, 5, 15) do not exist here: ILLEGAL FUNCTION.
+REGISTER_FCS = frozenset({3, 4, 6, 16, 22, 23})
+WRITE_FCS = frozenset({6, 16, 22, 23})
+
+
+def to_int16(raw: int) -> int:
+    """A register's 16 bits as a signed value (-32768..32767)."""
+    return raw - 0x10000 if raw & 0x8000 else raw
+
+
+def split_uint32(value: int) -> tuple[int, int]:
+    """``(high_word, low_word)``; values clamp to 0..2**32-1."""
+    value = min(max(int(value), 0), 0xFFFFFFFF)
+    return (value >> 16) & 0xFFFF, value & 0xFFFF
+
+
+@dataclass(frozen=True)
+class ModbusConfig:
+    """The cell file's ``plc.modbus``: bind address, TCP port, PLC watchdog in s."""
+
+    bind: str = "127.0.0.1"
+    port: int = 502
+    heartbeat_timeout_s: float = 1.5
+
+    @classmethod
+    def from_mapping(cls, data: Any) -> ModbusConfig:
+        """From the cell file mapping (``heartbeat_timeout`` in s) or a model object."""
+        get = data.get if isinstance(data, dict) else lambda k, d=None: getattr(data, k, d)
+        timeout = get("heartbeat_timeout_s", None)
+        if timeout is None:
+            timeout = get("heartbeat_timeout", 1.5)
+        port = int(get("port", 502))
+        if not 0 <= port <= 65535:
+            raise InputError(f"plc.modbus.port {port} outside 0..65535")
+        if float(timeout) <= 0:
+            raise InputError(f"plc.modbus.heartbeat_timeout {timeout} must be > 0 s")
+        return cls(str(get("bind", "127.0.0.1")), port, float(timeout))
+
+
+class ModbusLink:
+    """Register image and handshake of SPEC section 7 (sans I/O, single-threaded).
+
+    ``clock`` returns monotonic seconds; tests pass a fake one.
+    """
+
+    def __init__(
+        self,
+        port: CellPort,
+        heartbeat_timeout_s: float = 1.5,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.port = port
+        self.heartbeat_timeout_s = heartbeat_timeout_s
+        self.clock = clock
+        self.regs = [0] * N_REGS
+        self._active_job: str | None = None  # engine job id of the Modbus job running
+        self._active_plc_id = 0
+        self._watchdog = False
+        self._watchdog_armed = False  # arms on the first heartbeat change
+        self._heartbeat_changed_s = 0.0
+        self._cell_heartbeat_s = 0.0
+        self._reset_until_s: float | None = None  # a RESET edge still being carried out
+        self._clear_sent = False
+        self._replay: JobResult | None = None  # a 107 result owed to a re-sent request
+        self.ack_times_s: dict[int, float] = {}  # PLC job id -> time of ACK (bench)
+
+    # -- start-up ------------------------------------------------------------------
+    def restore(self) -> None:
+        """Publish the last result (e.g. a job closed with 107 at start-up)."""
+        now = self.clock()
+        self._heartbeat_changed_s = now
+        self._cell_heartbeat_s = now
+        status = self.port.status()
+        result = status.last_result
+        if result is not None:
+            self._write_result(result, status)
+            if result.result_code == 107 and result.source == "modbus":
+                self._replay = result
+        self._refresh(status)
+
+    # -- requests from the PLC ---------------------------------------------------------
+    def read(self, address: int, count: int) -> list[int] | int:
+        """Registers ``address..address+count-1`` or a Modbus exception code."""
+        if address < 0 or count < 1 or address + count > N_REGS:
+            return EXC_ILLEGAL_ADDRESS
+        return self.regs[address : address + count]
+
+    def write(self, address: int, values: Sequence[int]) -> int | None:
+        """Write PLC registers; None, or exception 02 when any address is not 0-19."""
+        if address < PLC_FIRST or address + len(values) - 1 > PLC_LAST or not values:
+            return EXC_ILLEGAL_ADDRESS
+        old_heartbeat = self.regs[HR_HEARTBEAT]
+        old_cmd = self.regs[HR_COMMAND]
+        for offset, value in enumerate(values):
+            self.regs[address + offset] = int(value) & 0xFFFF
+        now = self.clock()
+        if address <= HR_HEARTBEAT and self.regs[HR_HEARTBEAT] != old_heartbeat:
+            self._heartbeat_changed_s = now
+            self._watchdog_armed = True
+            self._watchdog = False
+        if address <= HR_COMMAND < address + len(values):
+            self._on_command(old_cmd, self.regs[HR_COMMAND], now)
+        self._refresh(self.port.status())
+        return None
+
+    # -- periodic ----------------------------------------------------------------------
+    def tick(self, now_s: float | None = None) -> None:
+        """Cell heartbeat, watchdog, status refresh; call every ~20 ms."""
+        now = self.clock() if now_s is None else now_s
+        if now - self._cell_heartbeat_s >= CELL_HEARTBEAT_PERIOD_S:
+            self._cell_heartbeat_s = now
+            self.regs[HR_CELL_HEARTBEAT] = (self.regs[HR_CELL_HEARTBEAT] + 1) & 0xFFFF
+        status = self.port.status()
+        if (
+            self._watchdog_armed
+            and not self._watchdog
+            and now - self._heartbeat_changed_s > self.heartbeat_timeout_s
+        ):
+            self._watchdog = True
+            if status.busy:
+                self.port.command("hold")
+            status = self.port.status()
+        if self._reset_until_s is not None:
+            if now > self._reset_until_s:
+                self._reset_until_s = None
+            elif self._drive_reset(status.state):
+                status = self.port.status()
+        last = status.last_result
+        if self._active_job is not None and last is not None and last.job_id == self._active_job:
+            self.on_result(last)  # a listener call lost or not yet delivered
+        self._refresh(status)
+
+    def on_result(self, result: JobResult) -> None:
+        """A job finished: for the Modbus job, write 104-113 first, then DONE/ERROR."""
+        if self._active_job is None or result.job_id != self._active_job:
+            return
+        self._active_job = None
+        status = self.port.status()
+        self._write_result(result, status, plc_job_id=self._active_plc_id)
+        st = self.regs[HR_STATUS] & ~ST_BUSY
+        if self.regs[HR_COMMAND] & CMD_JOB_REQ:
+            st |= ST_DONE if result.result_code in COMPLETED_CODES else ST_ERROR
+        else:  # the PLC dropped JOB_REQ early: results are readable, handshake over
+            st &= ~HANDSHAKE_BITS
+        self.regs[HR_STATUS] = st
+        self._refresh(status)
+
+    @property
+    def watchdog(self) -> bool:
+        return self._watchdog
+
+    # -- internals ---------------------------------------------------------------------
+    def _on_command(self, old: int, new: int, now: float) -> None:
+        rising = new & ~old
+        if rising & CMD_ABORT:
+            self.port.command("abort")
+        if rising & CMD_HOLD:
+            self.port.command("hold")
+        if rising & CMD_UNHOLD:
+            self.port.command("unhold")
+        if rising & CMD_RESET:
+            self._on_reset(now)
+        if old & CMD_JOB_REQ and not new & CMD_JOB_REQ:
+            self._on_job_release()
+        if rising & CMD_JOB_REQ:
+            self._on_job_request(now)
+
+    def _on_reset(self, now: float) -> None:
+        self._reset_until_s = now + RESET_TIMEOUT_S
+        self._clear_sent = False
+        self._drive_reset(self.port.status().state)
+
+    def _drive_reset(self, state: int) -> bool:
+        """One step of RESET: Aborted -> Clear, Stopped/Complete -> Reset.
+
+        Waits through transient states (Aborting, Clearing, Stopping...), so a RESET
+        pressed right after ABORT still ends in Idle. Returns True if it commanded.
+        """
+        if state == PackMLState.ABORTED:
+            if self._clear_sent:
+                return False  # the engine has not left Aborted yet
+            self._clear_sent = True
+            if not self.port.command("clear"):  # e.g. e-stop still pressed
+                self._reset_until_s = None
+                return False
+            return True
+        if state in (PackMLState.STOPPED, PackMLState.COMPLETE):
+            self._reset_until_s = None
+            return self.port.command("reset")
+        if state not in _TRANSIENT_STATES:
+            self._reset_until_s = None
+        return False
+
+    def _on_job_release(self) -> None:
+        st = self.regs[HR_STATUS]
+        if self._active_job is None:
+            st &= ~HANDSHAKE_BITS
+        else:  # job still running: keep ACK/BUSY until it ends
+            st &= ~(ST_DONE | ST_ERROR | ST_REJECTED)
+        self.regs[HR_STATUS] = st
+
+    def _on_job_request(self, now: float) -> None:
+        plc_id = self.regs[HR_JOB_ID]
+        task = self.regs[HR_TASK]
+        self.regs[HR_JOB_ID_ECHO] = plc_id
+        if self._replay is not None and self._replay.client_job_id == str(plc_id):
+            result, self._replay = self._replay, None
+            self._write_result(result, self.port.status(), plc_job_id=plc_id)
+            self._set_handshake(ST_JOB_ACK | ST_ERROR)
+            return
+        self._replay = None
+        if plc_id == 0:
+            self._reject(plc_id, 11)
+            return
+        status = self.port.status()
+        if self._watchdog or self._active_job is not None or not status.ready:
+            self._reject(plc_id, 12)
+            return
+        names = self.port.task_params(task)
+        if names is None:
+            self._reject(plc_id, 10)
+            return
+        raw = self.regs[HR_PARAMS : HR_PARAMS + N_PARAM_REGS]
+        params: dict[str, int | float] = {
+            name: to_int16(raw[i]) for i, name in enumerate(names[:N_PARAM_REGS])
+        }
+        ticket = self.port.start_job(task, params, str(plc_id), "modbus")
+        if not ticket.accepted:
+            self._reject(plc_id, ticket.reject_code or 12)
+            return
+        self._active_job = ticket.job_id
+        self._active_plc_id = plc_id
+        self.ack_times_s[plc_id] = now
+        self._set_handshake(ST_JOB_ACK | ST_BUSY)
+
+    def _reject(self, plc_id: int, code: int) -> None:
+        self.regs[HR_RESULT_JOB_ID] = plc_id
+        self.regs[HR_RESULT_CODE] = code
+        self._set_handshake(ST_ERROR | ST_REJECTED)
+
+    def _set_handshake(self, bits: int) -> None:
+        self.regs[HR_STATUS] = (self.regs[HR_STATUS] & ~(HANDSHAKE_BITS | ST_READY)) | bits
+
+    def _write_result(self, result: JobResult, status: CellStatus, plc_job_id: int | None = None) -> None:
+        if plc_job_id is None:
+            plc_job_id = _plc_job_id(result)
+        self.regs[HR_RESULT_JOB_ID] = plc_job_id
+        self.regs[HR_RESULT_CODE] = result.result_code & 0xFFFF
+        self.regs[HR_STEP] = status.step_index & 0xFFFF
+        self.regs[HR_RETRIES] = min(result.retries, 0xFFFF)
+        self.regs[HR_CYCLE_MS : HR_CYCLE_MS + 2] = split_uint32(round(result.cycle_time_s * 1000))
+        self._write_counters(status)
+
+    def _write_counters(self, status: CellStatus) -> None:
+        self.regs[HR_PROCESSED : HR_PROCESSED + 2] = split_uint32(status.parts_processed)
+        self.regs[HR_DEFECTIVE : HR_DEFECTIVE + 2] = split_uint32(status.parts_defective)
+
+    def _refresh(self, status: CellStatus) -> None:
+        st = self.regs[HR_STATUS] & HANDSHAKE_BITS
+        handshake_idle = st == 0 and not self.regs[HR_COMMAND] & CMD_JOB_REQ
+        if status.ready and handshake_idle and not self._watchdog and self._active_job is None:
+            st |= ST_READY
+        if status.held:
+            st |= ST_HELD
+        if status.protective_stop:
+            st |= ST_PROTECTIVE_STOP
+        if status.estop:
+            st |= ST_ESTOP
+        if self._watchdog:
+            st |= ST_PLC_WATCHDOG
+        self.regs[HR_STATUS] = st
+        self.regs[HR_STATE] = status.state & 0xFFFF
+        self.regs[HR_STEP] = status.step_index & 0xFFFF
+        self._write_counters(status)
+
+
+_TRANSIENT_STATES = frozenset(
+    {
+        PackMLState.CLEARING,
+        PackMLState.ABORTING,
+        PackMLState.STOPPING,
+        PackMLState.RESETTING,
+        PackMLState.COMPLETING,
+    }
+)
+
+
+def _plc_job_id(result: JobResult) -> int:
+    if result.source == "modbus" and result.client_job_id.isdigit():
+        return int(result.client_job_id) & 0xFFFF
+    return 0
+
+
+def _make_context(link: ModbusLink) -> Any:
+    """A pymodbus server context that routes every request to ``link``."""
+    from pymodbus.constants import ExcCodes
+    from pymodbus.datastore import ModbusServerContext
+
+    class LinkContext(ModbusServerContext):
+        # Deliberately skips ModbusServerContext.__init__ (it wants SimDevices); the
+        # server uses an "old simulator" context as is: async get/set per request.
+        def __init__(self) -> None:
+            self.old_simulator = True
+            self.simdevices = []
+            self._devices = {}
+
+        def device_ids(self) -> list[int]:
+            return [0]
+
+        async def async_getValues(  # noqa: N802 - pymodbus's name
+            self, device_id: int, func_code: int, address: int, count: int = 1
+        ) -> list[int] | ExcCodes:
+            if func_code not in REGISTER_FCS:
+                return ExcCodes.ILLEGAL_FUNCTION
+            values = link.read(address, count)
+            return ExcCodes(values) if isinstance(values, int) else values
+
+        async def async_setValues(  # noqa: N802
+            self, device_id: int, func_code: int, address: int, values: Sequence[int] | Sequence[bool]
+        ) -> ExcCodes | None:
+            if func_code not in WRITE_FCS:
+                return ExcCodes.ILLEGAL_FUNCTION
+            code = link.write(address, [int(v) for v in values])
+            return None if code is None else ExcCodes(code)
+
+    return LinkContext()
+
+
+class ModbusServer:
+    """The Modbus TCP server of one cell. Construct (no I/O), ``await start()``,
+    ``await stop()``; both run on the caller's asyncio loop."""
+
+    def __init__(self, port: CellPort, config: ModbusConfig) -> None:
+        self.port = port
+        self.config = config
+        self.link = ModbusLink(port, config.heartbeat_timeout_s)
+        self._server: Any = None
+        self._tick_task: asyncio.Task[None] | None = None
+        self._remove_listener: Callable[[], None] | None = None
+
+    @property
+    def address(self) -> tuple[str, int]:
+        """The bound (host, port), useful with port 0."""
+        if self._server is None or self._server.transport is None:
+            return (self.config.bind, self.config.port)
+        sockname = self._server.transport.sockets[0].getsockname()
+        return (sockname[0], sockname[1])
+
+    async def start(self) -> None:
+        from pymodbus.server import ModbusTcpServer
+
+        loop = asyncio.get_running_loop()
+        self.link.restore()
+        self._server = ModbusTcpServer(
+            _make_context(self.link), address=(self.config.bind, self.config.port)
+        )
+        try:
+            await self._server.serve_forever(background=True)
+        except (RuntimeError, OSError) as exc:
+            self._server = None
+            raise CellrunnerError(
+                f"cannot listen for Modbus TCP on {self.config.bind}:{self.config.port}: {exc}"
+            ) from exc
+        self._remove_listener = self.port.add_result_listener(
+            lambda result: loop.call_soon_threadsafe(self.link.on_result, result)
+        )
+        self._tick_task = asyncio.create_task(self._tick_loop(), name="modbus-tick")
+
+    async def stop(self) -> None:
+        if self._remove_listener is not None:
+            self._remove_listener()
+            self._remove_listener = None
+        if self._tick_task is not None:
+            self._tick_task.cancel()
+            try:
+                await self._tick_task
+            except asyncio.CancelledError:
+                pass
+            self._tick_task = None
+        if self._server is not None:
+            await self._server.shutdown()
+            self._server = None
+
+    async def _tick_loop(self) -> None:
+        while True:
+            try:
+                self.link.tick()
+            except Exception:  # the cell engine failed us; keep serving the PLC
+                _log.exception("modbus tick failed")
+            await asyncio.sleep(TICK_PERIOD_S)

@@ -1,0 +1,151 @@
+"""Run the configured PLC servers (Modbus TCP, OPC UA) on one asyncio loop in a thread.
+
+``cellrunner serve`` builds the engine (a :class:`~cellrunner.plc.port.CellPort`),
+then::
+
+    service = PlcService(engine, cell.plc, base_dir=cell_dir, pki_dir=journal_dir / "pki")
+    service.start()          # raises CellrunnerError when a server cannot start
+    ...                      # until SIGTERM
+    service.stop()
+
+``plc_config`` is the cell file's ``plc`` section: a mapping or an object with
+``modbus`` and ``opcua`` attributes; either may be absent (that server stays off).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from concurrent.futures import Future
+from pathlib import Path
+from typing import Any
+
+from cellrunner.errors import CellrunnerError
+from cellrunner.plc.modbus import ModbusConfig, ModbusServer
+from cellrunner.plc.port import CellPort
+
+
+def _section(config: Any, name: str) -> Any:
+    if config is None:
+        return None
+    if isinstance(config, dict):
+        return config.get(name)
+    return getattr(config, name, None)
+
+
+class PlcService:
+    """Both PLC servers of one cell, run in a background thread."""
+
+    def __init__(
+        self,
+        port: CellPort,
+        plc_config: Any,
+        *,
+        base_dir: Path | str = ".",
+        pki_dir: Path | str | None = None,
+    ) -> None:
+        from cellrunner.plc.opcua import OpcUaConfig  # light: no asyncua import
+
+        self.port = port
+        modbus = _section(plc_config, "modbus")
+        opcua = _section(plc_config, "opcua")
+        self.modbus_config = None if modbus is None else ModbusConfig.from_mapping(modbus)
+        self.opcua_config = (
+            None
+            if opcua is None
+            else OpcUaConfig.from_mapping(opcua, base_dir=Path(base_dir), pki_dir=pki_dir)
+        )
+        self.modbus: ModbusServer | None = None
+        self.opcua: Any = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._stopped: asyncio.Event | None = None
+
+    # -- lifecycle -----------------------------------------------------------------------
+    def start(self, timeout_s: float = 30.0) -> None:
+        """Start the servers; returns once both listen, raises CellrunnerError if not."""
+        if self._thread is not None:
+            return
+        started: Future[None] = Future()
+        self._thread = threading.Thread(
+            target=self._run, args=(started,), name="plc-service", daemon=True
+        )
+        self._thread.start()
+        try:
+            started.result(timeout=timeout_s)
+        except TimeoutError as exc:
+            self.stop()
+            raise CellrunnerError(f"PLC servers did not start within {timeout_s:g} s") from exc
+        except CellrunnerError:
+            self._join()
+            raise
+
+    def stop(self, timeout_s: float = 10.0) -> None:
+        """Stop both servers and the thread; idempotent."""
+        loop, stopped = self._loop, self._stopped
+        if loop is not None and stopped is not None and not loop.is_closed():
+            try:
+                loop.call_soon_threadsafe(stopped.set)
+            except RuntimeError:
+                pass
+        self._join(timeout_s)
+
+    def __enter__(self) -> PlcService:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    @property
+    def modbus_address(self) -> tuple[str, int] | None:
+        return None if self.modbus is None else self.modbus.address
+
+    @property
+    def opcua_endpoint(self) -> str | None:
+        return None if self.opcua is None else self.opcua.endpoint
+
+    # -- thread --------------------------------------------------------------------------
+    def _join(self, timeout_s: float = 10.0) -> None:
+        if self._thread is not None:
+            self._thread.join(timeout=timeout_s)
+            self._thread = None
+
+    def _run(self, started: Future[None]) -> None:
+        try:
+            asyncio.run(self._serve(started))
+        except BaseException as exc:  # noqa: BLE001 - reported through the future
+            if not started.done():
+                started.set_exception(_translate(exc))
+
+    async def _serve(self, started: Future[None]) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._stopped = asyncio.Event()
+        try:
+            if self.modbus_config is not None:
+                self.modbus = ModbusServer(self.port, self.modbus_config)
+                await self.modbus.start()
+            if self.opcua_config is not None:
+                from cellrunner.plc.opcua import OpcUaServer
+
+                self.opcua = OpcUaServer(self.port, self.opcua_config)
+                await self.opcua.start()
+        except BaseException as exc:
+            started.set_exception(_translate(exc))
+            await self._shutdown()
+            return
+        started.set_result(None)
+        await self._stopped.wait()
+        await self._shutdown()
+
+    async def _shutdown(self) -> None:
+        if self.opcua is not None:
+            await self.opcua.stop()
+        if self.modbus is not None:
+            await self.modbus.stop()
+
+
+def _translate(exc: BaseException) -> BaseException:
+    if isinstance(exc, CellrunnerError):
+        return exc
+    return CellrunnerError(f"PLC servers failed to start: {type(exc).__name__}: {exc}")
