@@ -18,7 +18,7 @@ from cellrunner.backends.base import BackendError, Safety
 from cellrunner.errors import InfeasibleError
 from cellrunner.execution import steps as behaviours
 from cellrunner.execution.context import JobContext
-from cellrunner.execution.results import ResultCode
+from cellrunner.model.codes import ResultCode
 from cellrunner.execution.steps import Outcome, run_motion, run_weigh
 from cellrunner.model.expand import Step
 from cellrunner.model.task import ProtectiveStopPolicy

@@ -13,7 +13,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from cellrunner.execution.results import ResultCode
+from cellrunner.model.codes import ResultCode
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS jobs (

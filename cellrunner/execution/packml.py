@@ -12,30 +12,7 @@ from __future__ import annotations
 import enum
 
 from cellrunner.errors import CellrunnerError
-
-
-class State(enum.IntEnum):
-    CLEARING = 1
-    STOPPED = 2
-    STARTING = 3
-    IDLE = 4
-    SUSPENDED = 5
-    EXECUTE = 6
-    STOPPING = 7
-    ABORTING = 8
-    ABORTED = 9
-    HOLDING = 10
-    HELD = 11
-    UNHOLDING = 12
-    SUSPENDING = 13
-    UNSUSPENDING = 14
-    RESETTING = 15
-    COMPLETING = 16
-    COMPLETE = 17
-
-    @property
-    def title(self) -> str:
-        return self.name.title()
+from cellrunner.model.codes import PackMLState as State
 
 
 class Command(enum.Enum):
@@ -103,7 +80,7 @@ class StateMachine:
         nxt = COMMANDS.get((self.state, command))
         if nxt is None:
             allowed = ", ".join(c.value for c in self.allowed()) or "none"
-            raise TransitionRefused(f"{command.value} is not allowed in state {self.state.title}; "
+            raise TransitionRefused(f"{command.value} is not allowed in state {self.state.display_name}; "
                                     f"allowed: {allowed}")
         self.state = nxt
         return nxt
@@ -111,7 +88,7 @@ class StateMachine:
     def state_complete(self) -> State:
         nxt = COMPLETES.get(self.state)
         if nxt is None:
-            raise TransitionRefused(f"state {self.state.title} is a wait state; it has no completion")
+            raise TransitionRefused(f"state {self.state.display_name} is a wait state; it has no completion")
         self.state = nxt
         return nxt
 

@@ -14,7 +14,7 @@ from typing import Generator
 import numpy as np
 
 from cellrunner.execution.context import Carry, JobContext
-from cellrunner.execution.results import ResultCode
+from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 
 StepGen = Generator[None, None, "Outcome"]

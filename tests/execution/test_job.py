@@ -6,7 +6,7 @@ import pytest
 
 from cellrunner.execution.context import JobContext
 from cellrunner.execution.job import JobRunner
-from cellrunner.execution.results import ResultCode
+from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import expand, resolve_params
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.model.task import ProtectiveStopPolicy

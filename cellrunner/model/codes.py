@@ -1,8 +1,38 @@
-"""Job result codes (SPEC section 7), shared by the journal, the CLI and the PLC link."""
+"""The contract's numbers: PackML states (SPEC section 6) and job result codes (section 7).
+
+Shared by the engine, the journal, the CLI and both PLC servers; pure data.
+"""
 
 from __future__ import annotations
 
 import enum
+
+
+class PackMLState(enum.IntEnum):
+    """PackML StateCurrent numbers (SPEC section 6)."""
+
+    CLEARING = 1
+    STOPPED = 2
+    STARTING = 3
+    IDLE = 4
+    SUSPENDED = 5
+    EXECUTE = 6
+    STOPPING = 7
+    ABORTING = 8
+    ABORTED = 9
+    HOLDING = 10
+    HELD = 11
+    UNHOLDING = 12
+    SUSPENDING = 13
+    UNSUSPENDING = 14
+    RESETTING = 15
+    COMPLETING = 16
+    COMPLETE = 17
+
+    @property
+    def display_name(self) -> str:
+        """``Execute``, ``Held``... as PackML tools show the state."""
+        return self.name.capitalize()
 
 
 class ResultCode(enum.IntEnum):
@@ -10,9 +40,9 @@ class ResultCode(enum.IntEnum):
     NO_PART = 1
     PART_LOST = 2
     PLACE_FAILED = 3
-    REJECTED_UNKNOWN_TASK = 10
-    REJECTED_BAD_PARAMS = 11
-    REJECTED_NOT_READY = 12
+    REJECT_UNKNOWN_TASK = 10
+    REJECT_BAD_PARAMS = 11
+    REJECT_NOT_READY = 12
     PROTECTIVE_STOP = 100
     ESTOP = 101
     ROBOT_CONNECTION_LOST = 102
@@ -37,9 +67,9 @@ _TEXT = {
     ResultCode.NO_PART: "no part (grip failed after retries)",
     ResultCode.PART_LOST: "part lost in transit",
     ResultCode.PLACE_FAILED: "place failed",
-    ResultCode.REJECTED_UNKNOWN_TASK: "rejected: unknown task",
-    ResultCode.REJECTED_BAD_PARAMS: "rejected: bad params",
-    ResultCode.REJECTED_NOT_READY: "rejected: not ready",
+    ResultCode.REJECT_UNKNOWN_TASK: "rejected: unknown task",
+    ResultCode.REJECT_BAD_PARAMS: "rejected: bad params",
+    ResultCode.REJECT_NOT_READY: "rejected: not ready",
     ResultCode.PROTECTIVE_STOP: "protective stop not recovered",
     ResultCode.ESTOP: "e-stop",
     ResultCode.ROBOT_CONNECTION_LOST: "robot connection lost",

@@ -1,0 +1,146 @@
+"""The one surface the PLC servers drive: :class:`CellPort` (implemented by the engine).
+
+The execution engine implements this Protocol; the Modbus TCP and OPC UA servers in
+plc only ever talk to a ``CellPort`` (``FakeCell`` in ``plc/fake.py`` is a
+scripted in-process implementation for tests and the soak bench).
+
+Threading contract (the engine must honour it):
+
+* every method may be called from any thread (the PLC servers call from their own
+  asyncio thread) and returns within a few milliseconds; ``start_job`` validates,
+  journals and queues, it never waits for motion;
+* result listeners are called once per finished job, from any thread, *after* the
+  counters in :meth:`CellPort.status` already include that job; they must not block;
+* ``status()`` is cheap (it is polled every 20 ms).
+
+Result and reject codes are SPEC section 7's; PackML state numbers are section 6's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Protocol, runtime_checkable
+
+from cellrunner.model.codes import PackMLState, ResultCode  # noqa: F401 (re-exported)
+
+
+#: Codes with which a job *completed* (OK or NOK, not a fault): the PLC sees DONE.
+COMPLETED_CODES = frozenset({0, 1, 2, 3})
+#: Codes that reject a job before it starts (JobTicket.reject_code).
+REJECT_CODES = frozenset({10, 11, 12})
+
+#: Commands accepted by :meth:`CellPort.command`.
+COMMANDS = ("reset", "clear", "hold", "unhold", "abort", "stop")
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """How one accepted job ended.
+
+    ``job_id`` is the engine's id (journal key); ``client_job_id`` is what the
+    requester gave (the Modbus job id as decimal text, or OPC UA's ClientJobId);
+    ``source`` names the requester: ``"modbus"``, ``"opcua"``, ``"cli"``...
+    ``end_time`` is timezone-aware UTC; ``cycle_time_s`` in seconds.
+    """
+
+    job_id: str
+    result_code: int
+    result_text: str = ""
+    cycle_time_s: float = 0.0
+    end_time: datetime | None = None
+    retries: int = 0
+    task: str = ""
+    client_job_id: str = ""
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class CellStatus:
+    """A snapshot of the cell for the PLC interfaces.
+
+    ``state`` is the PackML StateCurrent number; ``ready`` means a job would be
+    accepted now (Idle, no job, no stop active); ``held`` is true in Holding/Held;
+    ``job_id`` is the running job's engine id ("" when none) and ``step_index`` its
+    current expanded step, 1-based (0 = none). ``last_result`` is the most recently
+    finished job, including one closed with 107 at start-up.
+    """
+
+    state: int
+    state_name: str
+    ready: bool
+    busy: bool
+    held: bool = False
+    protective_stop: bool = False
+    estop: bool = False
+    job_id: str = ""
+    step_index: int = 0
+    last_result: JobResult | None = None
+    parts_processed: int = 0
+    parts_defective: int = 0
+
+
+@dataclass(frozen=True)
+class JobTicket:
+    """The immediate answer to :meth:`CellPort.start_job`.
+
+    ``reject_code`` is 0 when the job was accepted (journaled and queued), else 10
+    (unknown task), 11 (bad params) or 12 (not ready); ``job_id`` is "" for a reject.
+    """
+
+    job_id: str
+    reject_code: int = 0
+    message: str = ""
+
+    @property
+    def accepted(self) -> bool:
+        return self.reject_code == 0
+
+
+ResultListener = Callable[[JobResult], None]
+
+
+@runtime_checkable
+class CellPort(Protocol):
+    """What the PLC servers need from the cell engine."""
+
+    def status(self) -> CellStatus:
+        """The current snapshot (cheap, non-blocking)."""
+        ...
+
+    def task_params(self, task: str | int) -> list[str] | None:
+        """The task's parameter names in its ``params:`` order; None if unknown.
+
+        ``task`` is a PLC task number (cell file ``tasks:``) or a task name.
+        """
+        ...
+
+    def start_job(
+        self,
+        task: str | int,
+        params: dict[str, int | float],
+        client_job_id: str,
+        source: str,
+    ) -> JobTicket:
+        """Validate, journal and queue one job; never blocks on motion.
+
+        Rejects: 10 unknown task, 11 params outside the task's typed bounds (or
+        unknown names), 12 not ready (not Idle, job running, stop active).
+        """
+        ...
+
+    def command(self, name: str) -> bool:
+        """A PackML command: one of :data:`COMMANDS`.
+
+        Returns False (and does nothing) when the command is not valid in the
+        current state; never raises for that. An unknown name raises ValueError.
+        """
+        ...
+
+    def add_result_listener(self, listener: ResultListener) -> Callable[[], None]:
+        """Call ``listener(result)`` for every job that finishes from now on.
+
+        Returns a function that removes the listener.
+        """
+        ...
