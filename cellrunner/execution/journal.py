@@ -41,7 +41,7 @@ CREATE TABLE IF NOT EXISTS steps (
     message TEXT
 );
 CREATE INDEX IF NOT EXISTS steps_job ON steps(job_id);
-CREATE UNIQUE INDEX IF NOT EXISTS jobs_client ON jobs(client_job_id) WHERE client_job_id IS NOT NULL;
+CREATE INDEX IF NOT EXISTS jobs_client ON jobs(source, client_job_id);
 """
 
 
@@ -121,8 +121,9 @@ class Journal:
         rows = self._select("WHERE job_id = ?", (job_id,))
         return rows[0] if rows else None
 
-    def by_client_id(self, client_job_id: str) -> JobRecord | None:
-        rows = self._select("WHERE client_job_id = ?", (client_job_id,))
+    def by_client_id(self, source: str, client_job_id: str) -> JobRecord | None:
+        """The first job ``source`` asked for under ``client_job_id`` (OPC UA idempotency)."""
+        rows = self._select("WHERE source = ? AND client_job_id = ? ORDER BY rowid LIMIT 1", (source, client_job_id))
         return rows[0] if rows else None
 
     def last(self, n: int = 20) -> list[JobRecord]:

@@ -38,6 +38,8 @@ class ScriptedArm:
     safety: Safety = Safety.NORMAL
     stopped_at_s: float | None = None
     unlock_refusals: int = 0
+    estop_released: bool = False
+    powered: bool = True
     servo_count: int = 0
     _closing_ticks: int = 0
     _holding_part: bool = False
@@ -47,7 +49,8 @@ class ScriptedArm:
     def connect(self): pass
     def close(self): pass
     def zero_ft_sensor(self): pass
-    def recover_from_estop(self): pass
+    def recover_from_estop(self):
+        self.powered = True
 
     def read_state(self) -> RobotState:
         closed_on_part = self._holding_part
@@ -56,7 +59,8 @@ class ScriptedArm:
         if closed_on_part and self._lifted:  # off the table: the wrist carries the part
             wrench[2] -= self.part_mass_kg * 9.81
         return RobotState(self.t, self.q.copy(), self.qd.copy(), wrench, self.safety,
-                          inputs={self.sensor_channel: closed_on_part}, outputs=dict(self.outputs))
+                          inputs={self.sensor_channel: closed_on_part}, outputs=dict(self.outputs),
+                          powered=self.powered)
 
     def servo(self, approved, index):
         if not approved.is_sealed:
@@ -103,6 +107,8 @@ class ScriptedArm:
                 self.stopped_at_s = self.t
                 self._target = None
                 self.qd = np.zeros(6)
+        if self.safety is Safety.EMERGENCY_STOP and self.estop_released:
+            self.safety, self.powered = Safety.NORMAL, False  # released: arm powered off
         if self.drop_part_at_s is not None and self.t >= self.drop_part_at_s and self._holding_part:
             self._holding_part = False
             self.part_present = False

@@ -1,0 +1,124 @@
+"""The cell controller: PackML path of a job, rejects, journal, restart, e-stop recovery."""
+
+from __future__ import annotations
+
+import pytest
+
+from cellrunner.execution.cell import CellController, JobPlan, run_until_done
+from cellrunner.execution.journal import Journal
+from cellrunner.model.codes import PackMLState as S, ResultCode
+from cellrunner.model.expand import expand
+from cellrunner.model.load import load_cell, load_task
+from tests.conftest import DEMO_CELL
+from tests.execution.fakes import LineMotions, ScriptedArm
+
+
+def planner(loaded, params, q_now):
+    cell = load_cell(DEMO_CELL)
+    steps = expand(loaded, cell.cell, params)
+    return JobPlan(steps, LineMotions(steps), 1.0)
+
+
+def make_cell(tmp_path, arm=None):
+    cell = load_cell(DEMO_CELL)
+    tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
+    arm = arm or ScriptedArm()
+    controller = CellController(cell, tasks, arm, Journal(tmp_path / "jobs.sqlite"), planner)
+    controller.setup()
+    tick(controller, 2)  # Resetting -> Idle
+    return controller, arm
+
+
+def tick(cell, n=1):
+    for _ in range(n):
+        cell.backend.wait_period()
+        cell.tick()
+
+
+def test_job_goes_through_packml_and_is_journaled(tmp_path):
+    cell, arm = make_cell(tmp_path)
+    assert cell.status().state == S.IDLE and cell.status().ready
+    results = []
+    cell.add_result_listener(results.append)
+    ticket = cell.start_job(1, {"slot": 3}, "17", "modbus")
+    assert ticket.accepted and cell.status().state == S.STARTING and cell.status().busy
+    assert cell.journal.get(ticket.job_id).params == {"slot": 3}  # written before the ack returns
+    seen = set()
+    for _ in range(20000):
+        tick(cell)
+        seen.add(cell.status().state)
+        if cell.status().state == S.IDLE:
+            break
+    assert {S.EXECUTE, S.COMPLETING, S.COMPLETE, S.RESETTING} <= seen
+    assert [r.result_code for r in results] == [0]
+    assert results[0].client_job_id == "17" and results[0].cycle_time_s > 0
+    record = cell.journal.get(ticket.job_id)
+    assert record.result_code == 0 and record.ended_at is not None
+    steps = cell.journal.steps_of(ticket.job_id)
+    assert [s[0] for s in steps if s[3] == "ok"] == list(range(1, 11))
+    assert cell.status().parts_processed == 1 and cell.status().last_result.job_id == ticket.job_id
+
+
+def test_rejects(tmp_path):
+    cell, _ = make_cell(tmp_path)
+    assert cell.start_job(9, {}, "1", "modbus").reject_code == ResultCode.REJECT_UNKNOWN_TASK
+    bad = cell.start_job(1, {"slot": 12}, "2", "modbus")
+    assert (bad.reject_code, bad.message) == (ResultCode.REJECT_BAD_PARAMS, "param 'slot' = 12 is outside [0, 11]")
+    assert cell.start_job("pick_place", {}, "3", "modbus").accepted
+    assert cell.start_job(1, {}, "4", "modbus").reject_code == ResultCode.REJECT_NOT_READY
+
+
+def test_same_client_job_id_returns_the_first_job(tmp_path):
+    cell, _ = make_cell(tmp_path)
+    first = cell.start_job("pick_place", {}, "order-1", "opcua")
+    again = cell.start_job("pick_place", {}, "order-1", "opcua")
+    assert again.accepted and again.job_id == first.job_id
+    assert len(cell.journal.last(10)) == 1
+
+
+def test_restart_closes_unfinished_job_with_107(tmp_path):
+    journal = Journal(tmp_path / "jobs.sqlite").open()
+    journal.begin_job("abc", "demo-ur5e", "pick_place", {"slot": 0}, "modbus", "5")
+    journal.close()
+    cell, _ = make_cell(tmp_path)
+    last = cell.status().last_result
+    assert (last.job_id, last.result_code) == ("abc", 107)
+    assert cell.journal.get("abc").result_text == "interrupted (cellrunner restarted mid-job)"
+
+
+def test_estop_aborts_and_needs_release_clear_reset(tmp_path):
+    arm = ScriptedArm(estop_at_s=0.2)
+    cell, _ = make_cell(tmp_path, arm)
+    ticket = cell.start_job(1, {}, "1", "modbus")
+    run_until_done(cell, max_s=30)
+    tick(cell, 3)
+    assert cell.journal.get(ticket.job_id).result_code == ResultCode.ESTOP
+    assert cell.status().state == S.ABORTED and cell.status().estop and not cell.status().ready
+    assert not cell.command("clear")  # still pressed
+    arm.estop_released = True
+    tick(cell, 2)
+    assert cell.command("clear") and arm.powered
+    tick(cell, 3)
+    assert cell.status().state == S.STOPPED
+    assert cell.command("reset")
+    tick(cell, 3)
+    assert cell.status().state == S.IDLE and cell.status().ready
+
+
+def test_abort_by_plc_is_106(tmp_path):
+    cell, _ = make_cell(tmp_path)
+    ticket = cell.start_job(1, {}, "1", "modbus")
+    cell._job.plan.result(timeout=10)
+    tick(cell, 200)
+    assert cell.status().state == S.EXECUTE
+    assert cell.command("abort")
+    tick(cell, 3)
+    assert cell.journal.get(ticket.job_id).result_code == ResultCode.ABORTED_BY_PLC
+    assert cell.status().state == S.ABORTED
+
+
+def test_unknown_command_raises_and_illegal_returns_false(tmp_path):
+    cell, _ = make_cell(tmp_path)
+    with pytest.raises(ValueError, match="unknown command 'jump'"):
+        cell.command("jump")
+    assert not cell.command("unhold")
