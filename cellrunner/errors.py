@@ -51,6 +51,14 @@ class InputError(CellrunnerError):
         super().__init__("\n".join(str(d) for d in self.diagnostics))
 
 
+class UsageError(InputError):
+    """A bad command-line value (``-p slot=12``); printed as ``cellrunner CMD: error: ...``."""
+
+    def __init__(self, message: str):
+        super().__init__([Diagnostic("<command line>", 1, 1, message)])
+        self.message = message
+
+
 class InfeasibleError(CellrunnerError):
     """A task step cannot be carried out safely; the message names the step."""
 

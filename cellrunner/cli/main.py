@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return EXIT_INPUT
-    from cellrunner.errors import CellrunnerError, InputError
+    from cellrunner.errors import CellrunnerError, InputError, UsageError
 
     try:
         module = importlib.import_module(f"cellrunner.cli.cmd_{args.module}")
@@ -124,6 +124,9 @@ def main(argv: list[str] | None = None) -> int:
         raise
     try:
         return int(module.run(args) or 0)
+    except UsageError as exc:
+        sys.stderr.write(f"cellrunner {args.command}: error: {exc.message}\n")
+        return EXIT_INPUT
     except InputError as exc:
         for diagnostic in exc.diagnostics:
             sys.stderr.write(f"{diagnostic}\n")

@@ -1,0 +1,85 @@
+"""``cellrunner check CELL TASK``: prove a task feasible before anything moves."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, step_table
+from cellrunner.model.expand import pattern_params
+from cellrunner.model.robots import JOINT_NAMES
+
+
+def run(args) -> int:
+    t0 = time.perf_counter()
+    cell, task = load(args.cell, args.task)
+    params = parse_params(args.param, task)
+    from cellrunner.planning.cache import plan_cached
+    from cellrunner.planning.world import CellWorld
+
+    world = CellWorld(cell)
+    out = console()
+    with out.status(f"planning {task.name}", spinner="dots"):
+        plan = plan_cached(world, task, params, world.q_home_rad, use_cache=not args.no_cache)
+        errors = list(plan.errors)
+        slots_checked = _check_other_slots(world, task, params, errors, use_cache=not args.no_cache)
+    rows = [{"index": r.step.index, "name": r.step.name, "kind": r.step.kind, "duration_s": round(r.duration_s, 4),
+             "status": r.status, "message": r.message, "attempts": 0} for r in plan.rows]
+    if args.save_plan and not errors:
+        _save_plan(Path(args.save_plan), world, plan)
+    if args.json:
+        emit_json({"ok": not errors, "cell": cell.cell.cell, "task": task.name, "params": params,
+                   "cycle_time_s": round(plan.cycle_time_s, 4), "steps": rows, "errors": errors,
+                   "slots_checked": slots_checked})
+    else:
+        title = f"check {task.name} on {cell.cell.cell} ({cell.cell.robot.model})" + \
+            (f"  params: {', '.join(f'{k}={v}' for k, v in params.items())}" if params else "")
+        out.print(step_table(title, rows))
+        for name, values in slots_checked.items():
+            out.print(f"pattern param {name}: {len(values)} slots checked ({values[0]}..{values[-1]})")
+        for e in errors:
+            out.print(f"[bold red]infeasible:[/] {e}")
+        verdict = "[green]feasible[/]" if not errors else "[bold red]infeasible[/]"
+        out.print(f"{verdict}: planned cycle time {plan.cycle_time_s:.2f} s "
+                  f"(checked in {time.perf_counter() - t0:.2f} s)")
+        if args.save_plan and not errors:
+            out.print(f"plan saved to {args.save_plan}")
+    return 0 if not errors else 1
+
+
+def _check_other_slots(world, task, params, errors: list[str], use_cache: bool) -> dict[str, list[int]]:
+    """Every slot of every pattern, not only the requested one."""
+    from cellrunner.planning.cache import plan_cached
+
+    checked: dict[str, list[int]] = {}
+    for name, slots in pattern_params(task).items():
+        checked[name] = list(slots)
+        for slot in slots:
+            if slot == params.get(name):
+                continue
+            other = plan_cached(world, task, {**params, name: slot}, world.q_home_rad, use_cache=use_cache)
+            errors.extend(f"{name}={slot}: {e}" for e in other.errors)
+    return checked
+
+
+def _save_plan(path: Path, world, plan) -> None:
+    """The approved motion as streamed: one sample per controller period, degrees."""
+    c = world.loaded.cell
+    steps = []
+    for row in plan.rows:
+        if row.approved is None:
+            continue
+        traj = row.approved.trajectory
+        samples = np.column_stack([traj.t_s, np.degrees(traj.q_rad)])
+        steps.append({"index": row.step.index, "name": row.step.name, "kind": row.step.kind,
+                      "samples": np.round(samples, 9).tolist()})
+    payload = {"model": c.robot.model, "rate_hz": world.spec.rate_hz,
+               "joint_names": list(JOINT_NAMES),
+               "mount": {"xyz": list(c.robot.mount.xyz), "rpy": list(c.robot.mount.rpy)},
+               "tcp": {"xyz": list(c.tool.tcp.xyz), "rpy": list(c.tool.tcp.rpy)},
+               "steps": steps}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(payload))

@@ -1,0 +1,72 @@
+"""Shared pieces of the commands: loading a cell and task, params from -p, output."""
+
+from __future__ import annotations
+
+import json
+import sys
+from typing import Any
+
+from cellrunner.errors import InputError, UsageError
+from cellrunner.model.expand import Step, expand, resolve_params
+from cellrunner.model.load import LoadedCell, LoadedTask, load_cell, load_task
+
+
+def load(cell_path: str, task_path: str) -> tuple[LoadedCell, LoadedTask]:
+    """The cell and task, every problem of both reported at once (exit 2)."""
+    cell = load_cell(cell_path)
+    task = load_task(task_path, cell)
+    for warning in [*cell.warnings, *task.warnings]:
+        sys.stderr.write(f"{warning}\n")
+    return cell, task
+
+
+def parse_params(pairs: list[str], task: LoadedTask) -> dict[str, Any]:
+    """``["slot=3"]`` -> the task's typed params, defaults filled in."""
+    given: dict[str, str] = {}
+    for pair in pairs:
+        if "=" not in pair:
+            raise UsageError(f"-p {pair!r}: write -p NAME=VALUE")
+        key, value = pair.split("=", 1)
+        given[key.strip()] = value.strip()
+    try:
+        return resolve_params(task.task, given)
+    except InputError as exc:
+        raise UsageError(exc.diagnostics[0].message) from None
+
+
+def expanded(cell: LoadedCell, task: LoadedTask, params: dict) -> list[Step]:
+    return expand(task, cell.cell, params)
+
+
+def emit_json(payload: dict) -> None:
+    sys.stdout.write(json.dumps(payload, indent=2, default=_default) + "\n")
+
+
+def _default(value):
+    import numpy as np
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    raise TypeError(type(value).__name__)
+
+
+def console():
+    """A rich console on stderr (human output never pollutes --json on stdout)."""
+    from rich.console import Console
+    return Console(stderr=True, highlight=False)
+
+
+def step_table(title: str, rows: list[dict], extra_columns: tuple[str, ...] = ()):
+    from rich.table import Table
+    table = Table(title=title, title_justify="left", show_lines=False, pad_edge=False)
+    for name, justify in (("#", "right"), ("kind", "left"), ("name", "left"), ("time s", "right"),
+                          ("status", "left"), *[(c, "right") for c in extra_columns], ("message", "left")):
+        table.add_column(name, justify=justify, overflow="fold")
+    colors = {"ok": "green", "failed": "bold red", "not planned": "dim", "skipped": "dim"}
+    for r in rows:
+        status = r["status"]
+        table.add_row(str(r["index"]), r["kind"], r["name"], f"{r['duration_s']:.2f}",
+                      f"[{colors.get(status, 'yellow')}]{status}[/]",
+                      *[str(r.get(c.replace(' ', '_'), '')) for c in extra_columns], r.get("message", ""))
+    return table

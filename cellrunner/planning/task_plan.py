@@ -1,0 +1,337 @@
+"""Planning a whole task: every expanded step, from a start configuration, to a
+:class:`TaskPlan` whose motion steps each carry a verified, sealed trajectory.
+
+Rules (SPEC section 10):
+- ``move``/``approach``: IK nearest the current configuration, then a collision-free
+  joint path (direct, else RRTConnect); ``descend``/``linear``/``lift``/``retreat``: a
+  straight TCP line within 1 mm;
+- consecutive motions with no reason to stop are timed as one non-stop trajectory (e.g.
+  lift -> approach, retreat -> move), cut back into one piece per step; a linear step
+  always starts from rest, and grip, release, IO and waits stand still;
+- the carried part joins the collision model from its grip to its release; when a place
+  sets the part down, the fixture it lands on may be touched (ContactAllowance);
+- every piece passes :func:`verify_trajectory` (limits x margin, TCP cap, continuity,
+  straightness, collisions) before it is sealed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cellrunner.errors import InfeasibleError
+from cellrunner.model import geometry
+from cellrunner.model.expand import LINEAR_KINDS, Step
+from cellrunner.model.geometry import Placed
+from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory
+from cellrunner.planning.world import CellWorld
+
+#: nominal time a gripper takes to close or open, for the planned cycle time (s)
+GRIP_TIME_S = 0.3
+
+
+@dataclass
+class StepPlan:
+    """One row of ``check``: the step and, for motions, its approved trajectory."""
+
+    step: Step
+    status: str = "ok"  # ok | failed | not planned
+    message: str = ""
+    duration_s: float = 0.0
+    approved: ApprovedTrajectory | None = None
+    q_end_rad: np.ndarray | None = None
+    carrying: Placed | None = None
+    allowances: tuple = ()
+
+
+@dataclass
+class _Motion:
+    """A motion step's joint waypoints before timing."""
+
+    row: StepPlan
+    waypoints: np.ndarray
+    limits: object
+    line_m: tuple[np.ndarray, np.ndarray] | None
+    collision: object
+
+
+@dataclass
+class TaskPlan:
+    """The approved plan of one job; implements the engine's ``Motions``."""
+
+    world: CellWorld
+    steps: list[Step]
+    rows: list[StepPlan]
+    q_start_rad: np.ndarray
+    errors: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.errors
+
+    @property
+    def cycle_time_s(self) -> float:
+        return float(sum(r.duration_s for r in self.rows))
+
+    def row(self, step: Step) -> StepPlan | None:
+        return next((r for r in self.rows if r.step.index == step.index and r.step is step), None)
+
+    # -- Motions (the engine's view) --------------------------------------------------------
+    def nominal(self, step: Step) -> ApprovedTrajectory | None:
+        row = self.row(step)
+        return row.approved if row is not None else None
+
+    def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
+        """A verified rest-to-rest trajectory from ``q_now_rad`` to the step's goal: the
+        same goal as planned (after a stop), or, for a relative move planned nowhere (a
+        retry's retreat), its distance from where the arm stands."""
+        row = self.row(step)
+        part = row.carrying if row is not None else (self._carried_before(step) if carrying else None)
+        allowances = row.allowances if row is not None else ()
+        planner = _StepPlanner(self.world, np.asarray(q_now_rad, float), part)
+        goal_q = row.q_end_rad if row is not None and row.status == "ok" else None
+        motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
+        return _time_and_verify(self.world, [motion], np.asarray(q_now_rad, float))[0].approved
+
+    def tcp_position_m(self, q_rad: np.ndarray) -> np.ndarray:
+        return self.world.kinematics.T_world_tcp(q_rad)[:3, 3]
+
+    def _carried_before(self, step: Step) -> Placed | None:
+        rows = [r for r in self.rows if r.step.index <= step.index]
+        return rows[-1].carrying if rows else None
+
+
+def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> TaskPlan:
+    """Plan every step of a job; failures are recorded per step (the rest is not planned)."""
+    planner = _StepPlanner(world, np.asarray(q_start_rad, float), None)
+    rows = [StepPlan(s, status="not planned") for s in steps]
+    plan = TaskPlan(world, steps, rows, np.asarray(q_start_rad, float))
+    group: list[_Motion] = []
+    q_group_start = planner.q
+
+    def flush() -> None:
+        nonlocal group, q_group_start
+        if group:
+            _time_group(world, group, q_group_start)
+            group = []
+        q_group_start = planner.q
+
+    current: StepPlan | None = None
+    try:
+        for row in rows:
+            current = row
+            step = row.step
+            if step.is_motion:
+                if group and (step.kind in LINEAR_KINDS or group[-1].limits != planner.limits_for(step)):
+                    flush()
+                group.append(planner.motion(row))
+                if step.kind in ("descend", "linear"):
+                    flush()  # a descend ends at rest: something happens at its end
+            else:
+                flush()
+                planner.act(row)
+            row.status = "ok"
+            row.carrying = planner.part
+        current = None
+        flush()
+        for row in rows:
+            if row.step.retry is not None:
+                _check_retry_path(world, row, rows)
+    except InfeasibleError as exc:
+        failed = _row_named(rows, str(exc)) or current or rows[-1]
+        failed.status, failed.message = "failed", _strip_label(str(exc))
+        plan.errors.append(f"{failed.step.label}: {failed.message}")
+        for r in rows:
+            if r is not failed and (r.step.index > failed.step.index or (r.step.is_motion and r.approved is None)):
+                r.status, r.approved = "not planned", None
+    return plan
+
+
+class _StepPlanner:
+    """Walks the steps, tracking the configuration and the carried part."""
+
+    def __init__(self, world: CellWorld, q: np.ndarray, part: Placed | None):
+        self.world, self.q, self.part = world, q, part
+        self.allowances: tuple = ()
+
+    def limits_for(self, step: Step):
+        limits = self.world.limits
+        speed = getattr(step.args, "speed", None)
+        if step.kind in ("move", "approach"):
+            return limits.scaled(speed_fraction=speed if speed is not None else 1.0)
+        return limits.scaled(tcp_speed_mps=speed)
+
+    def collision(self, allowances: tuple = ()):
+        model = self.world.collision.carrying(self.part)
+        return model.allowing(*allowances) if allowances else model
+
+    def motion(self, row: StepPlan, goal_q: np.ndarray | None = None, allowances: tuple | None = None) -> _Motion:
+        from cellrunner.planning.cartesian import plan_linear
+        from cellrunner.planning.joint_path import plan_joint_path
+
+        step, kin = row.step, self.world.kinematics
+        T_now = kin.T_world_tcp(self.q)
+        if step.kind in ("move", "approach"):
+            if goal_q is None:
+                goal_q = (np.radians(step.q_goal_deg) if step.q_goal_deg is not None
+                          else self._ik(step.T_world_tcp, step))
+            collision = self.collision()
+            path = plan_joint_path(collision, self.q, goal_q).q_rad
+            line = None
+        else:
+            T_goal = self._linear_goal(step, T_now) if goal_q is None else kin.T_world_tcp(goal_q)
+            if allowances is None:
+                allowances = self._place_allowances(step, T_goal)
+            collision = self.collision(allowances)
+            path = plan_linear(kin, collision, self.q, T_goal).q_rad
+            line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
+        row.allowances = tuple(allowances or ())
+        motion = _Motion(row, path, self.limits_for(step), line, collision)
+        self.q = path[-1]
+        row.q_end_rad = path[-1]
+        return motion
+
+    def act(self, row: StepPlan) -> None:
+        step = row.step
+        if step.kind == "grip":
+            row.duration_s = GRIP_TIME_S
+            T = self.world.kinematics.T_world_tcp(self.q)
+            self.part = self.world.part_at(step.extra.get("part_at", ""), T)
+        elif step.kind == "release":
+            row.duration_s = GRIP_TIME_S
+            self.part = None
+        elif step.kind == "wait":
+            row.duration_s = step.args.seconds
+        elif step.kind == "set_output":
+            row.duration_s = 1.0 / self.world.spec.rate_hz
+        elif step.kind == "wait_input":
+            row.message = f"waits up to {step.args.timeout:g} s for {step.args.input}"
+
+    def _ik(self, T_world_tcp: np.ndarray, step: Step) -> np.ndarray:
+        kin = self.world.kinematics
+        try:
+            return kin.ik_nearest(T_world_tcp, self.q)
+        except InfeasibleError:
+            raise InfeasibleError(f"{step.label}: {kin.unreachable_reason(T_world_tcp)}") from None
+
+    def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
+        if step.kind == "lift":
+            return geometry.pose_matrix((0, 0, step.args.distance)) @ T_now
+        if step.kind == "retreat":
+            return T_now @ geometry.pose_matrix((0, 0, -step.args.distance))
+        return step.T_world_tcp
+
+    def _place_allowances(self, step: Step, T_goal: np.ndarray) -> tuple:
+        """Setting the carried part down: it may touch the fixture it lands on."""
+        from cellrunner.planning.collision import ContactAllowance
+        if self.part is None or step.kind not in ("descend", "linear", "retreat"):
+            return ()
+        q_goal = self._try_ik(T_goal)
+        if q_goal is None:
+            return ()
+        allowances: list = []
+        model = self.collision()
+        for _ in range(3):
+            clearance = model.clearance(q_goal)
+            if clearance.distance_m >= clearance.required_m or clearance.a != f"part '{self.part.name}'" \
+                    or not clearance.b.startswith("fixture '") or clearance.distance_m < -0.001:
+                break
+            allowances.append(ContactAllowance(clearance.b[len("fixture '"):-1], "part", -0.001))
+            model = self.collision(tuple(allowances))
+        return tuple(allowances)
+
+    def _try_ik(self, T: np.ndarray) -> np.ndarray | None:
+        try:
+            return self.world.kinematics.ik_nearest(T, self.q)
+        except InfeasibleError:
+            return None
+
+
+def _time_group(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> None:
+    """Time a group of motions as one non-stop trajectory; when the joined trajectory does
+    not pass verification, time them one by one from rest."""
+    if len(group) > 1:
+        try:
+            _time_and_verify(world, group, q_start)
+            return
+        except InfeasibleError:
+            pass
+    q = q_start
+    for motion in group:
+        _time_and_verify(world, [motion], q)
+        q = motion.row.q_end_rad
+
+
+def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[StepPlan]:
+    from cellrunner.planning.timing import time_path
+    from cellrunner.planning.verify import verify_trajectory
+
+    waypoints = [group[0].waypoints]
+    bounds = []
+    for motion in group:
+        if motion is not group[0]:
+            waypoints.append(motion.waypoints[1:])
+        bounds.append(sum(len(w) for w in waypoints) - 1)
+    timed = time_path(world.kinematics, np.vstack(waypoints), group[0].limits, world.spec.rate_hz)
+    cuts = _cut_indices(timed, bounds, len(group))
+    previous = np.asarray(q_start, float)
+    start = 0
+    for i, (motion, end) in enumerate(zip(group, cuts)):
+        q = timed.q_rad[start:end + 1]
+        if i == 0:
+            q = np.vstack([previous[None, :], q[1:]]) if len(q) > 1 else previous[None, :]
+        trajectory = Trajectory(world.spec.rate_hz, np.arange(len(q)) / world.spec.rate_hz, q)
+        approved = verify_trajectory(
+            trajectory, step_index=motion.row.step.index, step_name=motion.row.step.name,
+            kinematics=world.kinematics, limits=motion.limits, collision=motion.collision,
+            previous_q_rad=previous, previous_moving=i > 0, ends_at_rest=i == len(group) - 1,
+            line_m=motion.line_m)
+        motion.row.approved = approved
+        motion.row.duration_s = len(q) / world.spec.rate_hz
+        motion.row.q_end_rad = q[-1]
+        previous = q[-2:] if len(q) >= 2 else q
+        start = end + 1
+    return [m.row for m in group]
+
+
+def _cut_indices(timed, bounds: list[int], n: int) -> list[int]:
+    """The last sample index of each motion in a joined trajectory."""
+    cuts = []
+    for i, b in enumerate(bounds):
+        if i == n - 1:
+            cuts.append(len(timed.q_rad) - 1)
+        else:
+            s_b = timed.s_waypoints[b]
+            k = int(np.searchsorted(timed.s, s_b, side="right") - 1)
+            cuts.append(max(k, cuts[-1] + 1 if cuts else 0))
+    return cuts
+
+
+def _check_retry_path(world: CellWorld, row: StepPlan, rows: list[StepPlan]) -> None:
+    """A grip's retry (its in-between steps, then the descend again) must be feasible too."""
+    retry = row.step.retry
+    descend = next(r for r in rows if r.step.index == retry.redo_from)
+    q_grip = descend.q_end_rad
+    planner = _StepPlanner(world, q_grip, None)
+    try:
+        for between in retry.between:
+            if between.is_motion:
+                _time_and_verify(world, [planner.motion(StepPlan(between))], planner.q)
+        _time_and_verify(world, [planner.motion(StepPlan(descend.step), goal_q=q_grip)], planner.q)
+    except InfeasibleError as exc:
+        raise InfeasibleError(f"{row.step.label}: retry path: {_strip_label(str(exc))}") from None
+
+
+def _row_named(rows: list[StepPlan], message: str) -> StepPlan | None:
+    for r in rows:
+        if message.startswith(r.step.label + ":") or message.startswith(f"step {r.step.index} "):
+            return r
+    return None
+
+
+def _strip_label(message: str) -> str:
+    """'step 5 approach 'x': out of reach' -> 'out of reach'."""
+    if message.startswith("step ") and ": " in message:
+        return message.split(": ", 1)[1]
+    return message
