@@ -464,7 +464,7 @@ class CollisionModel:
         a, b = self._pairs[k]
         required = float(self._required[k])
         return MotionCheck(False, s, Clearance(
-            float(margin) + required, required, self._objects[a].label, self._objects[b].label
+            float(margin) + required, required + STALL_M, self._objects[a].label, self._objects[b].label
         ), queries)
 
     def check_path(self, q_rad: np.ndarray) -> MotionCheck:

@@ -199,6 +199,22 @@ class ArmKinematics:
             raise InfeasibleError(self.unreachable_reason(T_world_tcp))
         return solutions[0]
 
+    def ik_track(self, T_world_tcp: np.ndarray, q_prev_rad: np.ndarray) -> np.ndarray | None:
+        """The IK solution nearest ``q_prev_rad`` (largest joint difference), for tracking a
+        path sample by sample; None when there is none inside the limits."""
+        T_base_flange = invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        raw = self._solve(T_base_flange)
+        if not raw:
+            return None
+        q_prev = np.asarray(q_prev_rad, float)
+        cand = np.array(raw)
+        cand = cand + 2 * np.pi * np.round((q_prev - cand) / (2 * np.pi))
+        order = np.argsort(np.abs(cand - q_prev).max(axis=1))
+        for k in order:
+            if self.within_limits(cand[k]) and self._verify(cand[k], np.asarray(T_world_tcp)):
+                return cand[k]
+        return None
+
     def unreachable_reason(self, T_world_tcp: np.ndarray) -> str:
         """Why ``T_world_tcp`` has no IK solution inside the limits, with numbers."""
         T_base_flange = invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
