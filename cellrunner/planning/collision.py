@@ -468,18 +468,45 @@ class CollisionModel:
         ), queries)
 
     def check_path(self, q_rad: np.ndarray) -> MotionCheck:
-        """:meth:`check_motion` over consecutive waypoints ``q_rad`` (N x 6); the returned
-        ``s_blocked`` is the waypoint index plus the fraction of the blocked segment."""
+        """:meth:`check_motion` over the polyline through ``q_rad`` (N x 6), proven the same
+        way but sharing distance queries across segments: a pair measured at sample j with
+        margin m is fine up to the last sample k whose accumulated motion bound
+        ``sum_{i=j..k-1} c_pair(q_i -> q_i+1)`` stays below m - STALL_M; it is measured
+        again there. A segment no single measurement covers is checked with
+        :meth:`check_motion`. ``s_blocked`` is the sample index (plus segment fraction)."""
         q = np.asarray(q_rad, float)
+        if not len(self._pairs) or len(q) == 0:
+            return MotionCheck(True)
         if len(q) == 1:
             ok = self.is_valid(q[0])
             return MotionCheck(ok, None if ok else 0.0, None if ok else self.clearance(q[0]))
+        n = len(q)
+        seg = self._pair_reach @ np.abs(np.diff(q, axis=0)).T  # (pairs, n-1)
+        cum = np.concatenate([np.zeros((len(seg), 1)), np.cumsum(seg, axis=1)], axis=1)
+        due: dict[int, list[int]] = {0: list(range(len(self._pairs)))}
         queries = 0
-        for i in range(len(q) - 1):
-            result = self.check_motion(q[i], q[i + 1])
-            queries += result.distance_queries
-            if not result.ok:
-                return MotionCheck(False, i + (result.s_blocked or 0.0), result.clearance, queries)
+        proven_segments: set[int] = set()
+        j = 0
+        while due:
+            j = min(due)
+            pairs = due.pop(j)
+            self._update(q[j])
+            for k in pairs:
+                m = pin.computeDistance(self._geom_model, self._geom_data, k).min_distance - self._required_list[k]
+                queries += 1
+                if m < STALL_M:
+                    return self._blocked(float(j), k, m, queries)
+                last = int(np.searchsorted(cum[k], cum[k, j] + m - STALL_M, side="right")) - 1
+                if last <= j:
+                    if j not in proven_segments:
+                        result = self.check_motion(q[j], q[j + 1])
+                        queries += result.distance_queries
+                        if not result.ok:
+                            return MotionCheck(False, j + (result.s_blocked or 0.0), result.clearance, queries)
+                        proven_segments.add(j)
+                    last = j + 1
+                if last < n - 1:
+                    due.setdefault(last, []).append(k)
         return MotionCheck(True, distance_queries=queries)
 
 
