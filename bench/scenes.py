@@ -43,7 +43,7 @@ T_FLANGE_TCP = pose_matrix((0, 0, 0.15))
 def table_scene() -> Scene:
     fixtures = (
         box("table", (1.6, 1.6, 0.04), (0.0, 0.0, -0.02)),
-        box("wall", (0.5, 0.03, 0.40), (0.45, 0.0, 0.20)),
+        box("wall", (0.4, 0.03, 0.30), (0.50, 0.0, 0.15)),
         box("crate", (0.16, 0.16, 0.22), (0.25, -0.45, 0.11)),
         box("feeder", (0.12, 0.30, 0.30), (0.70, -0.25, 0.15)),
         box("post_a", (0.06, 0.06, 0.55), (-0.35, 0.35, 0.275)),
@@ -52,9 +52,9 @@ def table_scene() -> Scene:
         box("gantry", (0.04, 0.9, 0.04), (0.60, 0.0, 0.75)),
     )
     targets = (
-        ("pick_a", pose_matrix((0.45, -0.20, 0.06), DOWN)),
+        ("pick_a", pose_matrix((0.45, -0.25, 0.06), DOWN)),
         ("pick_b", pose_matrix((0.55, -0.30, 0.40), DOWN)),
-        ("place_a", pose_matrix((0.45, 0.20, 0.06), DOWN)),
+        ("place_a", pose_matrix((0.45, 0.25, 0.06), DOWN)),
         ("place_b", pose_matrix((0.30, 0.45, 0.14), DOWN)),
         ("back_a", pose_matrix((-0.40, 0.0, 0.20), DOWN)),
         ("side_a", pose_matrix((0.10, -0.55, 0.30), DOWN)),

@@ -344,6 +344,12 @@ class CollisionModel:
     # -- queries --------------------------------------------------------------------------
 
     @property
+    def pinocchio_geometry(self) -> pin.GeometryModel:
+        """The coal geometry with its checked pairs, on :attr:`ArmKinematics.model` (for
+        tools that take pinocchio models, e.g. the benchmark's baseline planner)."""
+        return self._geom_model
+
+    @property
     def pair_labels(self) -> list[tuple[str, str]]:
         return [(self._objects[i].label, self._objects[j].label) for i, j in self._pairs]
 
