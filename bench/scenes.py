@@ -1,0 +1,119 @@
+"""Cluttered UR5e scenes for the planning benchmark: a table with a wall and clutter, a
+shelf, two bins. The robot base is the world frame, standing on the table top (z = 0).
+Each problem is a pair of TCP poses (tool pointing down, or into the shelf), solved by IK
+on the branch nearest a reference configuration."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cellrunner.model.geometry import Box, Cylinder, Placed, pose_matrix
+
+HOME_DEG = (180.0, -90.0, 90.0, -90.0, -90.0, 0.0)  # facing +x, the work side
+DOWN = (180.0, 0.0, 0.0)  # tool z pointing down
+FORWARD = (0.0, 90.0, 0.0)  # tool z pointing along world +x
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    fixtures: tuple[Placed, ...]
+    targets: tuple[tuple[str, np.ndarray], ...]  # named T_world_tcp poses
+    problems: tuple[tuple[str, str], ...]  # (start target, goal target)
+
+
+def box(name: str, size, xyz, rpy=(0.0, 0.0, 0.0)) -> Placed:
+    return Placed(name, Box(tuple(float(s) for s in size)), pose_matrix(xyz, rpy))
+
+
+def tool() -> tuple[Placed, ...]:
+    """A parallel gripper: a body cylinder and two fingers, in the flange frame."""
+    return (
+        Placed("body", Cylinder(0.04, 0.10), pose_matrix((0, 0, 0.05))),
+        box("finger_a", (0.015, 0.02, 0.05), (0.025, 0, 0.125)),
+        box("finger_b", (0.015, 0.02, 0.05), (-0.025, 0, 0.125)),
+    )
+
+
+T_FLANGE_TCP = pose_matrix((0, 0, 0.15))
+
+
+def table_scene() -> Scene:
+    fixtures = (
+        box("table", (1.6, 1.6, 0.04), (0.0, 0.0, -0.02)),
+        box("wall", (0.4, 0.03, 0.30), (0.50, 0.0, 0.15)),
+        box("crate", (0.16, 0.16, 0.22), (0.25, -0.45, 0.11)),
+        box("feeder", (0.12, 0.30, 0.30), (0.70, -0.25, 0.15)),
+        box("post_a", (0.06, 0.06, 0.55), (-0.35, 0.35, 0.275)),
+        box("post_b", (0.06, 0.06, 0.55), (-0.35, -0.35, 0.275)),
+        box("tray", (0.25, 0.18, 0.06), (0.30, 0.45, 0.03)),
+        box("gantry", (0.04, 0.9, 0.04), (0.60, 0.0, 0.75)),
+    )
+    targets = (
+        ("pick_a", pose_matrix((0.45, -0.25, 0.06), DOWN)),
+        ("pick_b", pose_matrix((0.55, -0.30, 0.40), DOWN)),
+        ("place_a", pose_matrix((0.45, 0.25, 0.06), DOWN)),
+        ("place_b", pose_matrix((0.30, 0.45, 0.14), DOWN)),
+        ("back_a", pose_matrix((-0.40, 0.0, 0.20), DOWN)),
+        ("side_a", pose_matrix((0.10, -0.55, 0.30), DOWN)),
+    )
+    problems = (
+        ("pick_a", "place_a"), ("place_a", "pick_a"), ("pick_b", "place_b"),
+        ("place_b", "pick_a"), ("back_a", "place_a"), ("pick_a", "back_a"),
+        ("side_a", "place_b"), ("place_a", "side_a"),
+    )
+    return Scene("table", fixtures, targets, problems)
+
+
+def shelf_scene() -> Scene:
+    x0, depth, width = 0.50, 0.30, 0.80
+    fixtures = [box("table", (1.6, 1.6, 0.04), (0.0, 0.0, -0.02))]
+    fixtures.append(box("shelf_back", (0.02, width, 0.95), (x0 + depth, 0.0, 0.475)))
+    for side, y in (("left", width / 2), ("right", -width / 2)):
+        fixtures.append(box(f"shelf_{side}", (depth, 0.02, 0.95), (x0 + depth / 2, y, 0.475)))
+    for k, z in enumerate((0.25, 0.55, 0.85)):
+        fixtures.append(box(f"board_{k}", (depth, width, 0.02), (x0 + depth / 2, 0.0, z)))
+    fixtures.append(box("divider", (depth, 0.02, 0.30), (x0 + depth / 2, 0.0, 0.40)))
+    targets = (
+        ("low_left", pose_matrix((0.58, 0.20, 0.12), FORWARD)),
+        ("low_right", pose_matrix((0.58, -0.20, 0.12), FORWARD)),
+        ("mid_left", pose_matrix((0.58, 0.20, 0.40), FORWARD)),
+        ("mid_right", pose_matrix((0.58, -0.20, 0.40), FORWARD)),
+        ("top_centre", pose_matrix((0.56, 0.0, 0.70), FORWARD)),
+    )
+    problems = (
+        ("low_left", "mid_left"), ("mid_left", "mid_right"), ("mid_right", "low_right"),
+        ("low_right", "top_centre"), ("top_centre", "low_left"), ("mid_right", "mid_left"),
+    )
+    return Scene("shelf", tuple(fixtures), targets, problems)
+
+
+def bin_scene() -> Scene:
+    fixtures = [box("table", (1.6, 1.6, 0.04), (0.0, 0.0, -0.02))]
+    wall_h, size, t = 0.16, 0.30, 0.02
+    bins = {"bin_a": (0.40, -0.35), "bin_b": (0.40, 0.35), "bin_c": (-0.05, 0.50)}
+    for name, (cx, cy) in bins.items():
+        for side, (dx, dy, sx, sy) in {
+            "n": (0, size / 2, size, t), "s": (0, -size / 2, size, t),
+            "e": (size / 2, 0, t, size), "w": (-size / 2, 0, t, size),
+        }.items():
+            fixtures.append(box(f"{name}_{side}", (sx, sy, wall_h), (cx + dx, cy + dy, wall_h / 2)))
+    fixtures.append(box("chute", (0.10, 0.10, 0.45), (0.50, 0.0, 0.225)))
+    targets = (
+        ("a_corner", pose_matrix((0.45, -0.40, 0.05), DOWN)),
+        ("a_centre", pose_matrix((0.38, -0.33, 0.05), (180, 0, 45))),
+        ("b_corner", pose_matrix((0.45, 0.40, 0.05), DOWN)),
+        ("b_centre", pose_matrix((0.37, 0.33, 0.05), (180, 0, -30))),
+        ("c_centre", pose_matrix((-0.05, 0.50, 0.06), DOWN)),
+    )
+    problems = (
+        ("a_corner", "b_corner"), ("b_centre", "a_centre"), ("a_centre", "c_centre"),
+        ("c_centre", "a_corner"), ("b_corner", "c_centre"), ("a_corner", "b_centre"),
+    )
+    return Scene("bin", tuple(fixtures), targets, problems)
+
+
+def scenes() -> tuple[Scene, ...]:
+    return (table_scene(), shelf_scene(), bin_scene())

@@ -1,0 +1,128 @@
+"""Linear TCP moves (descend, linear, lift, retreat): the straight line from the start
+pose to the goal pose, orientation by slerp, followed by inverse kinematics sample by
+sample on one continuous branch.
+
+Guarantees of :func:`plan_linear` (all positions in the world frame, m):
+
+- every sample is an exact IK solution (FK-verified) of its pose on the line;
+- consecutive samples stay on one branch: no joint moves more than ``max_joint_step_rad``
+  between samples that are at most ``step_m`` / ``step_rad`` apart on the line;
+- between consecutive samples the straight joint interpolation keeps the TCP within
+  ``CHORD_TOLERANCE_M`` of the line (checked at the midpoint and subdivided until it
+  holds), so a dense resampling stays well inside the 1 mm straightness budget;
+- every sample keeps the singularity distances above the thresholds;
+- the joint-space polyline is collision-checked conservatively.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from cellrunner.errors import InfeasibleError
+from cellrunner.planning.collision import CollisionModel
+from cellrunner.planning.kinematics import ArmKinematics
+
+STEP_M = 0.005
+STEP_RAD = np.radians(2.0)
+CHORD_TOLERANCE_M = 0.0002
+MAX_JOINT_STEP_RAD = np.radians(15.0)
+MIN_SINGULARITY_ANGLE_DEG = 3.0
+MIN_SHOULDER_DISTANCE_M = 0.02
+
+
+@dataclass(frozen=True)
+class LinearPath:
+    """Joint samples ``q_rad`` (N x 6) along the TCP line from ``p_start_m`` to ``p_goal_m``
+    (world), ``u`` (N) their fraction along the line, 0 to 1."""
+
+    q_rad: np.ndarray
+    u: np.ndarray
+    p_start_m: np.ndarray
+    p_goal_m: np.ndarray
+
+
+def distance_to_segment_m(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (m) of points ``p`` (N x 3) from the segment a-b."""
+    p = np.atleast_2d(p)
+    ab = b - a
+    n2 = float(ab @ ab)
+    t = np.zeros(len(p)) if n2 == 0 else np.clip((p - a) @ ab / n2, 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
+
+
+def plan_linear(
+    kinematics: ArmKinematics,
+    collision: CollisionModel | None,
+    q_start_rad: np.ndarray,
+    T_world_tcp_goal: np.ndarray,
+    *,
+    min_singularity_angle_deg: float = MIN_SINGULARITY_ANGLE_DEG,
+    min_shoulder_distance_m: float = MIN_SHOULDER_DISTANCE_M,
+) -> LinearPath:
+    """Joint samples moving the TCP in a straight line from FK(q_start) to the goal pose.
+
+    Raises :class:`InfeasibleError` naming the reason and where along the line (mm from the
+    start) it occurs: unreachable pose, branch flip, singularity or collision.
+    """
+    q0 = np.asarray(q_start_rad, float)
+    T0 = kinematics.T_world_tcp(q0)
+    T1 = np.asarray(T_world_tcp_goal, float)
+    p0, p1 = T0[:3, 3], T1[:3, 3]
+    length_m = float(np.linalg.norm(p1 - p0))
+    slerp = Slerp([0.0, 1.0], Rotation.from_matrix([T0[:3, :3], T1[:3, :3]]))
+    angle_rad = float((Rotation.from_matrix(T0[:3, :3]).inv() * Rotation.from_matrix(T1[:3, :3])).magnitude())
+    n = max(1, int(np.ceil(max(length_m / STEP_M, angle_rad / STEP_RAD))))
+
+    def pose(u: float) -> np.ndarray:
+        T = np.eye(4)
+        T[:3, :3] = slerp([u]).as_matrix()[0]
+        T[:3, 3] = p0 + u * (p1 - p0)
+        return T
+
+    def solve(u: float, q_prev: np.ndarray) -> np.ndarray:
+        q = kinematics.ik_track(pose(u), q_prev)
+        where = f"{u * length_m * 1000:.0f} mm along the {length_m * 1000:.0f} mm line"
+        if q is None:
+            raise InfeasibleError(f"line leaves the workspace {where}: {kinematics.unreachable_reason(pose(u))}")
+        jump = float(np.abs(q - q_prev).max())
+        if jump > MAX_JOINT_STEP_RAD:
+            joint = int(np.abs(q - q_prev).argmax()) + 1
+            raise InfeasibleError(
+                f"line needs a configuration flip {where} (joint {joint} jumps "
+                f"{np.degrees(jump):.0f} deg between samples)"
+            )
+        reason = kinematics.singularity_distance(q).violation(min_singularity_angle_deg, min_shoulder_distance_m)
+        if reason is not None:
+            raise InfeasibleError(f"line passes near the {reason} {where}")
+        return q
+
+    us, qs = [0.0], [q0]
+    for k in range(1, n + 1):
+        u = k / n
+        qs_new, us_new = _refine(kinematics, solve, us[-1], qs[-1], u, solve(u, qs[-1]), p0, p1)
+        us.extend(us_new)
+        qs.extend(qs_new)
+    q_path = np.array(qs)
+    if collision is not None:
+        result = collision.check_path(q_path)
+        if not result.ok:
+            u_hit = us[int(result.s_blocked or 0)]
+            detail = result.clearance.describe() if result.clearance else "collision"
+            raise InfeasibleError(f"{detail} {u_hit * length_m * 1000:.0f} mm along the line")
+    return LinearPath(q_path, np.array(us), p0.copy(), p1.copy())
+
+
+def _refine(kin, solve, u_a, q_a, u_b, q_b, p0, p1, depth: int = 0):
+    """Samples after (u_a, q_a) up to (u_b, q_b), subdividing until the joint-space midpoint
+    keeps the TCP within CHORD_TOLERANCE_M of the line."""
+    mid = kin.T_world_tcp((q_a + q_b) / 2)[:3, 3]
+    if depth >= 8 or distance_to_segment_m(mid, p0, p1)[0] <= CHORD_TOLERANCE_M:
+        return [q_b], [u_b]
+    u_m = (u_a + u_b) / 2
+    q_m = solve(u_m, q_a)
+    qa, ua = _refine(kin, solve, u_a, q_a, u_m, q_m, p0, p1, depth + 1)
+    qb, ub = _refine(kin, solve, u_m, q_m, u_b, q_b, p0, p1, depth + 1)
+    return qa + qb, ua + ub

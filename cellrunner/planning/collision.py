@@ -1,0 +1,602 @@
+"""Collision model of the arm, its tool, a carried part and the cell's fixtures (coal).
+
+Objects and frames:
+
+- arm: the capsules of :meth:`RobotSpec.capsules`, on pinocchio joint i (body 0 = base,
+  fixed at the mount). Names: ``base``, ``shoulder``, ``upper_arm``, ``elbow``,
+  ``forearm``, ``wrist_1``, ``wrist_2``, ``wrist_3``.
+- tool: shapes placed in the flange frame (``Placed.T_parent_shape`` = ``T_flange_shape``).
+- part: the carried part, placed in the TCP frame (``T_tcp_shape``); see
+  :meth:`CollisionModel.carrying`.
+- fixtures: shapes placed in the world (``T_world_shape``): box, cylinder, sphere, STL mesh.
+
+Pairs never checked (they touch by construction or are rigidly joined): adjacent arm
+bodies (``RobotSpec.ALLOWED_SELF_CONTACT``), the base against every fixture (the robot is
+mounted on one), the tool against the wrist 2 and wrist 3 bodies, the part against the
+tool and wrist 3, fixtures against each other.
+
+Every checked pair must keep a signed distance above its required clearance: the model's
+``clearance_m`` by default, or what a :class:`ContactAllowance` grants (e.g. the part may
+touch the pallet it is placed on, down to -1 mm, while every other fixture keeps the full
+clearance). A state is valid when every pair keeps its clearance plus ``STALL_M``.
+
+Motion checking (:meth:`CollisionModel.check_motion`) is conservative advancement, exact
+up to the tolerance ``STALL_M``. Along the joint-space segment q(s) = q0 + s (q1 - q0),
+s in [0, 1], a point p of an object carried by joint k moves with speed
+
+    |dp/ds| = |sum_{j<=k} (q1_j - q0_j) w_j x (p - o_j)| <= sum_{j<=k} |q1_j - q0_j| r_j(p)
+
+where o_j and w_j are a point and the unit direction of joint j's axis and r_j(p) the
+distance of p from that axis. We bound r_j(p) for every configuration by
+``R[j, obj] = sum_{m=j+1..k} |t_m| + e_obj``: the lengths of the fixed link offsets t_m
+between joint j and joint k plus the largest distance e_obj of the object's points from
+joint k's origin. Hence over any sub-segment [s, s + ds] no point of the object moves
+more than ``ds * sum_j R[j, obj] |q1_j - q0_j|``, and the distance of a pair shrinks by at
+most ``ds * c_pair``, with ``c_pair`` that bound for the moving object against a static
+one; for two objects carried by arm bodies a < b the distance is measured in body a's
+frame, where only joints a+1..b move body b, so only those joints count. If
+the distance at s exceeds the required clearance by ``m``, the pair is provably fine on
+``[s, s + m / c_pair]``. The checker jumps from one such horizon to the next, re-measuring
+only the pairs whose horizon ran out (cheap sphere-vs-box lower bounds first, exact coal
+distances only where those are not enough), and reports a collision when a pair's margin
+falls below ``STALL_M`` (0.1 mm; also what guarantees termination). Nothing can slip
+between checks, however thin the obstacle.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
+from cellrunner.planning.kinematics import ArmKinematics
+
+#: Margin below which a pair counts as colliding in addition to its required clearance;
+#: keeps conservative advancement finite (m).
+STALL_M = 1e-4
+
+#: Spacing (largest joint move, rad) of the cheap rejection probes in check_motion.
+PROBE_STEP_RAD = 0.15
+
+ARM_BODY_NAMES = ("base", "shoulder", "upper_arm", "elbow", "forearm", "wrist_1", "wrist_2", "wrist_3")
+
+#: Arm bodies the tool is rigidly attached to or adjacent to (never checked against it).
+TOOL_ADJACENT_BODIES = frozenset({5, 6})
+
+
+@dataclass(frozen=True)
+class ContactAllowance:
+    """Let the ``robot_part`` ("tool" or "part") come within ``min_clearance_m`` of fixture
+    ``fixture`` (negative: it may touch and press in by that much) instead of the full
+    clearance. Used for grasp and placement contacts, e.g. the jaws reaching around a part
+    on the table, or the carried part set down on the pallet."""
+
+    fixture: str
+    robot_part: str = "part"
+    min_clearance_m: float = -0.001
+
+    def __post_init__(self) -> None:
+        if self.robot_part not in ("tool", "part"):
+            raise ValueError(f"robot_part must be 'tool' or 'part', not {self.robot_part!r}")
+
+
+@dataclass(frozen=True)
+class Clearance:
+    """The closest pair at a configuration: its signed distance and what it must keep."""
+
+    distance_m: float
+    required_m: float
+    a: str
+    b: str
+
+    @property
+    def margin_m(self) -> float:
+        return self.distance_m - self.required_m
+
+    def describe(self) -> str:
+        """'tool collides with fixture 'table' (distance -3.0 mm, needs >= 2.0 mm)'."""
+        verb = "collides with" if self.distance_m <= 0 else "is too close to"
+        return (
+            f"{self.a} {verb} {self.b} (distance {self.distance_m * 1000:.1f} mm, "
+            f"needs >= {self.required_m * 1000:.1f} mm)"
+        )
+
+
+@dataclass(frozen=True)
+class MotionCheck:
+    """Result of :meth:`CollisionModel.check_motion`: ``ok``, the first blocked fraction
+    of the segment (``s_blocked``, None when ok), the pair, and how many exact distance
+    queries were needed."""
+
+    ok: bool
+    s_blocked: float | None = None
+    clearance: Clearance | None = None
+    distance_queries: int = 0
+
+
+@dataclass(frozen=True)
+class _Object:
+    label: str  # for messages: "upper_arm", "tool 'gripper'", "fixture 'table'"
+    group: str  # "arm" | "tool" | "part" | "fixture"
+    body: int  # 0..6 for robot objects (0 = base / world), -1 for fixtures
+    geometry: coal.CollisionGeometry = field(compare=False)
+    placement: np.ndarray = field(compare=False)  # T_joint_shape (fixtures: T_world_shape)
+    radius_m: float = 0.0  # bounding sphere radius about the shape origin
+    fixture: str = ""
+
+
+class CollisionModel:
+    """Static collision world of one cell plus the robot; cheap derived copies carry a part
+    or grant contact allowances (:meth:`carrying`, :meth:`allowing`).
+
+    Parameters: ``kinematics`` (the arm and its mount), ``tool`` shapes in the flange
+    frame, ``fixtures`` shapes in the world, ``clearance_m`` the distance every checked
+    pair must keep (m).
+    """
+
+    def __init__(
+        self,
+        kinematics: ArmKinematics,
+        tool: Sequence[Placed] = (),
+        fixtures: Sequence[Placed] = (),
+        clearance_m: float = 0.002,
+        *,
+        part: Placed | None = None,
+        allowances: Sequence[ContactAllowance] = (),
+        _geometry_cache: dict | None = None,
+    ):
+        self.kinematics = kinematics
+        self.tool = tuple(tool)
+        self.fixtures = tuple(fixtures)
+        self.clearance_m = float(clearance_m)
+        self.part = part
+        self.allowances = tuple(allowances)
+        names = [f.name for f in self.fixtures]
+        duplicates = sorted({n for n in names if names.count(n) > 1})
+        if duplicates:
+            raise ValueError(f"duplicate fixture names: {', '.join(duplicates)}")
+        for allowance in self.allowances:
+            if allowance.fixture not in names:
+                raise ValueError(
+                    f"contact allowance names unknown fixture {allowance.fixture!r}; "
+                    f"known: {', '.join(names) or '(none)'}"
+                )
+        self._geometry_cache = _geometry_cache if _geometry_cache is not None else {}
+        self._build()
+
+    # -- derived models -------------------------------------------------------------------
+
+    def carrying(self, part: Placed | None) -> CollisionModel:
+        """The same cell with ``part`` (placed in the TCP frame) held, or none."""
+        return CollisionModel(
+            self.kinematics, self.tool, self.fixtures, self.clearance_m,
+            part=part, allowances=self.allowances, _geometry_cache=self._geometry_cache,
+        )
+
+    def allowing(self, *allowances: ContactAllowance) -> CollisionModel:
+        """The same cell and part with these contact allowances (replacing earlier ones)."""
+        return CollisionModel(
+            self.kinematics, self.tool, self.fixtures, self.clearance_m,
+            part=self.part, allowances=allowances, _geometry_cache=self._geometry_cache,
+        )
+
+    # -- construction ---------------------------------------------------------------------
+
+    def _coal_shape(self, shape: Shape) -> tuple[coal.CollisionGeometry, float]:
+        key = id(shape)
+        cached = self._geometry_cache.get(key)
+        if cached is not None and cached[0] is shape:
+            return cached[1], cached[2]
+        geometry, radius = _make_coal_shape(shape)
+        self._geometry_cache[key] = (shape, geometry, radius)
+        return geometry, radius
+
+    def _build(self) -> None:
+        kin = self.kinematics
+        model = kin.model
+        spec = kin.spec
+        objects: list[_Object] = []
+        for index, capsule in enumerate(spec.capsules()):
+            p0, p1 = np.array(capsule.p0_m, float), np.array(capsule.p1_m, float)
+            T = _segment_frame(p0, p1)
+            length = float(np.linalg.norm(p1 - p0))
+            objects.append(_Object(
+                ARM_BODY_NAMES[index], "arm", capsule.body,
+                coal.Capsule(capsule.radius_m, length), T,
+                radius_m=length / 2 + capsule.radius_m,
+            ))
+        T_joint6_flange = model.frames[kin.flange_frame_id].placement.homogeneous
+        for placed in self.tool:
+            geometry, radius = self._coal_shape(placed.shape)
+            objects.append(_Object(
+                f"tool {placed.name!r}", "tool", 6, geometry,
+                T_joint6_flange @ placed.T_parent_shape, radius_m=radius,
+            ))
+        if self.part is not None:
+            geometry, radius = self._coal_shape(self.part.shape)
+            T_joint6_tcp = T_joint6_flange @ kin.T_flange_tcp
+            objects.append(_Object(
+                f"part {self.part.name!r}", "part", 6, geometry,
+                T_joint6_tcp @ self.part.T_parent_shape, radius_m=radius,
+            ))
+        for placed in self.fixtures:
+            geometry, radius = self._coal_shape(placed.shape)
+            objects.append(_Object(
+                f"fixture {placed.name!r}", "fixture", -1, geometry,
+                np.asarray(placed.T_parent_shape, float), radius_m=radius, fixture=placed.name,
+            ))
+        self._objects = objects
+
+        geom_model = pin.GeometryModel()
+        for k, obj in enumerate(objects):
+            if obj.group == "fixture":
+                joint, placement = 0, obj.placement
+            elif obj.body == 0:
+                joint, placement = 0, kin.T_world_base @ obj.placement
+            else:
+                joint, placement = obj.body, obj.placement
+            geom_model.addGeometryObject(pin.GeometryObject(f"g{k}", joint, pin.SE3(placement), obj.geometry))
+
+        pairs: list[tuple[int, int]] = []
+        required: list[float] = []
+        for i, a in enumerate(objects):
+            for j in range(i + 1, len(objects)):
+                b = objects[j]
+                if not self._checked(a, b):
+                    continue
+                pairs.append((i, j))
+                required.append(self._required(a, b))
+        for i, j in pairs:
+            geom_model.addCollisionPair(pin.CollisionPair(i, j))
+        self._geom_model = geom_model
+        self._geom_data = pin.GeometryData(geom_model)
+        self._data = model.createData()
+        self._pairs = np.array(pairs, dtype=int).reshape(-1, 2)
+        self._required = np.array(required, dtype=float)
+        self._required_list = self._required.tolist()
+        for k, req in enumerate(self._geom_data.collisionRequests):
+            req.security_margin = float(self._required[k] + STALL_M)
+            req.num_max_contacts = 1
+        self._prepare_bounds()
+
+    def _checked(self, a: _Object, b: _Object) -> bool:
+        groups = {a.group, b.group}
+        if groups == {"fixture"}:
+            return False
+        if "fixture" in groups:
+            robot = a if b.group == "fixture" else b
+            return robot.body != 0
+        if a.group == b.group == "arm":
+            pair = (min(a.body, b.body), max(a.body, b.body))
+            return a.body != b.body and pair not in self.kinematics.spec.ALLOWED_SELF_CONTACT
+        if groups == {"tool"} or groups == {"part"}:
+            return False
+        if groups == {"tool", "part"}:
+            return False
+        other = a if a.group == "arm" else b
+        mover = b if other is a else a
+        if mover.group == "tool":
+            return other.body not in TOOL_ADJACENT_BODIES
+        return other.body != 6  # part against the arm
+
+    def _required(self, a: _Object, b: _Object) -> float:
+        fixture = a if a.group == "fixture" else b if b.group == "fixture" else None
+        if fixture is not None:
+            mover = b if fixture is a else a
+            for allowance in self.allowances:
+                if allowance.fixture == fixture.fixture and allowance.robot_part == mover.group:
+                    return allowance.min_clearance_m
+        return self.clearance_m
+
+    def _prepare_bounds(self) -> None:
+        """Per-object data for the cheap lower bounds and the motion bound R[j, obj]."""
+        model = self.kinematics.model
+        link_len = np.zeros(7)  # |t_m|: offset of joint m in joint m-1's frame
+        for m in range(2, 7):
+            link_len[m] = np.linalg.norm(model.jointPlacements[m].translation)
+        n = len(self._objects)
+        self._is_mover = np.array([o.group != "fixture" and o.body > 0 for o in self._objects])
+        self._body = np.array([o.body for o in self._objects])
+        self._center_local = np.zeros((n, 3))  # bounding sphere centre in the parent joint frame
+        self._radius = np.zeros(n)
+        self._reach = np.zeros((n, 6))  # R[obj, j]
+        for k, obj in enumerate(self._objects):
+            self._center_local[k] = obj.placement[:3, 3]
+            self._radius[k] = obj.radius_m
+            if obj.group == "fixture" or obj.body == 0:
+                continue
+            extent = float(np.linalg.norm(obj.placement[:3, 3])) + obj.radius_m
+            for j in range(1, obj.body + 1):
+                self._reach[k, j - 1] = link_len[j + 1 : obj.body + 1].sum() + extent
+        # static objects: world AABBs (fixtures, base)
+        self._aabb_lo = np.full((n, 3), np.nan)
+        self._aabb_hi = np.full((n, 3), np.nan)
+        for k, obj in enumerate(self._objects):
+            if obj.group == "fixture" or obj.body == 0:
+                T = obj.placement if obj.group == "fixture" else self.kinematics.T_world_base @ obj.placement
+                lo, hi = _world_aabb(obj.geometry, T)
+                self._aabb_lo[k], self._aabb_hi[k] = lo, hi
+        a, b = self._pairs[:, 0], self._pairs[:, 1]
+        a_moves = self._is_mover[a]
+        # per pair: a moving object, the other one, and whether the other is static
+        self._pair_mover = np.where(a_moves, a, b)
+        self._pair_other = np.where(a_moves, b, a)
+        self._pair_other_static = ~self._is_mover[self._pair_other]
+        # motion bound per pair and joint: against a static object, the mover's own bound;
+        # between two arm-carried objects, only the joints between their bodies move one
+        # relative to the other (distances are the same in the lower body's frame)
+        self._pair_reach = np.zeros((len(self._pairs), 6))
+        for p, (m, o) in enumerate(zip(self._pair_mover, self._pair_other)):
+            if self._pair_other_static[p]:
+                self._pair_reach[p] = self._reach[m]
+            else:
+                low, high = (m, o) if self._body[m] <= self._body[o] else (o, m)
+                joints = np.arange(1, 7) > self._body[low]
+                self._pair_reach[p] = np.where(joints, self._reach[high], 0.0)
+
+    # -- queries --------------------------------------------------------------------------
+
+    @property
+    def pinocchio_geometry(self) -> pin.GeometryModel:
+        """The coal geometry with its checked pairs, on :attr:`ArmKinematics.model` (for
+        tools that take pinocchio models, e.g. the benchmark's baseline planner)."""
+        return self._geom_model
+
+    @property
+    def pair_labels(self) -> list[tuple[str, str]]:
+        return [(self._objects[i].label, self._objects[j].label) for i, j in self._pairs]
+
+    def _update(self, q_rad: np.ndarray) -> None:
+        pin.updateGeometryPlacements(
+            self.kinematics.model, self._data, self._geom_model, self._geom_data, np.asarray(q_rad, float)
+        )
+
+    def _lower_bounds(self) -> np.ndarray:
+        """Lower bounds of every pair's signed distance at the last updated configuration:
+        bounding sphere of a moving object against a static object's world AABB, or two
+        bounding spheres."""
+        oMi = self._data.oMi
+        centers = np.empty((len(self._objects), 3))
+        for k in np.flatnonzero(self._is_mover):
+            M = oMi[int(self._body[k])]
+            centers[k] = M.rotation @ self._center_local[k] + M.translation
+        mover, other, static = self._pair_mover, self._pair_other, self._pair_other_static
+        lb = np.empty(len(mover))
+        # moving vs static: distance from the sphere centre to the static box, minus radius
+        if static.any():
+            c = centers[mover[static]]
+            lo, hi = self._aabb_lo[other[static]], self._aabb_hi[other[static]]
+            gap = np.maximum(np.maximum(lo - c, c - hi), 0.0)
+            lb[static] = np.linalg.norm(gap, axis=1) - self._radius[mover[static]]
+        moving = ~static
+        if moving.any():
+            m, o = mover[moving], other[moving]
+            lb[moving] = np.linalg.norm(centers[m] - centers[o], axis=1) - self._radius[m] - self._radius[o]
+        return lb
+
+    def is_valid(self, q_rad: np.ndarray) -> bool:
+        """True when every checked pair keeps its required clearance (+ ``STALL_M``)."""
+        if not len(self._pairs):
+            return True
+        return not pin.computeCollisions(
+            self.kinematics.model, self._data, self._geom_model, self._geom_data,
+            np.asarray(q_rad, float), True,
+        )
+
+    def clearance(self, q_rad: np.ndarray) -> Clearance:
+        """The pair with the smallest margin over its required clearance at ``q_rad``."""
+        if not len(self._pairs):
+            return Clearance(math.inf, self.clearance_m, "robot", "nothing")
+        self._update(q_rad)
+        distances = self._exact(np.arange(len(self._pairs)))
+        k = int(np.argmin(distances - self._required))
+        a, b = self._pairs[k]
+        return Clearance(float(distances[k]), float(self._required[k]),
+                         self._objects[a].label, self._objects[b].label)
+
+    def min_distance(self, q_rad: np.ndarray) -> tuple[float, str, str]:
+        """The smallest signed distance over the checked pairs (m) and their names."""
+        if not len(self._pairs):
+            return math.inf, "robot", "nothing"
+        self._update(q_rad)
+        distances = self._exact(np.arange(len(self._pairs)))
+        k = int(np.argmin(distances))
+        a, b = self._pairs[k]
+        return float(distances[k]), self._objects[a].label, self._objects[b].label
+
+    def _exact(self, indices: np.ndarray) -> np.ndarray:
+        out = np.empty(len(indices))
+        for n, k in enumerate(indices):
+            out[n] = pin.computeDistance(self._geom_model, self._geom_data, int(k)).min_distance
+        return out
+
+    def motion_coefficients(self, dq_rad: np.ndarray) -> np.ndarray:
+        """Per pair, the bound on how much its distance can shrink over the whole segment
+        with joint displacement ``dq_rad`` (m); see the module docstring."""
+        return self._pair_reach @ np.abs(np.asarray(dq_rad, float))
+
+    def check_motion(
+        self, q0_rad: np.ndarray, q1_rad: np.ndarray, *, explain: bool = True
+    ) -> MotionCheck:
+        """Whether the straight joint-space segment q0 -> q1 keeps every clearance, by
+        conservative advancement (provably complete up to ``STALL_M``; module docstring).
+
+        A coarse pass of state checks (every ``PROBE_STEP_RAD`` of the largest joint move,
+        bisection order) first rejects most blocked motions cheaply; it proves nothing and
+        is never used to accept one. ``explain=False`` skips naming the blocking pair.
+        """
+        q0 = np.asarray(q0_rad, float)
+        dq = np.asarray(q1_rad, float) - q0
+        if not len(self._pairs):
+            return MotionCheck(True)
+        for s in _bisection_order(int(math.ceil(float(np.abs(dq).max()) / PROBE_STEP_RAD))):
+            if not self.is_valid(q0 + s * dq):
+                return MotionCheck(False, s, self.clearance(q0 + s * dq) if explain else None)
+        c = np.maximum(self.motion_coefficients(dq), 1e-12).tolist()
+        required = self._required_list
+        self._update(q0)
+        margins = (self._exact(np.arange(len(self._pairs))) - self._required).tolist()
+        queries = len(margins)
+        due: list[tuple[float, int]] = []  # (horizon, pair): proven fine up to horizon
+        for k, m in enumerate(margins):
+            if m < STALL_M:
+                return self._blocked(0.0, k, m, queries)
+            if m < c[k]:
+                due.append((m / c[k], k))
+        heapq.heapify(due)
+        gm, gd, distance = self._geom_model, self._geom_data, pin.computeDistance
+        while due:
+            s = due[0][0]
+            self._update(q0 + s * dq)
+            while due and due[0][0] <= s:
+                _, k = heapq.heappop(due)
+                m = distance(gm, gd, k).min_distance - required[k]
+                queries += 1
+                if m < STALL_M:
+                    return self._blocked(s, k, m, queries)
+                horizon = s + m / c[k]
+                if horizon < 1.0:
+                    heapq.heappush(due, (horizon, k))
+        return MotionCheck(True, distance_queries=queries)
+
+    def _blocked(self, s: float, k: int, margin: float, queries: int) -> MotionCheck:
+        a, b = self._pairs[k]
+        required = float(self._required[k])
+        return MotionCheck(False, s, Clearance(
+            float(margin) + required, required + STALL_M, self._objects[a].label, self._objects[b].label
+        ), queries)
+
+    def check_path(self, q_rad: np.ndarray) -> MotionCheck:
+        """:meth:`check_motion` over the polyline through ``q_rad`` (N x 6), proven the same
+        way but sharing distance queries across segments: a pair measured at sample j with
+        margin m is fine up to the last sample k whose accumulated motion bound
+        ``sum_{i=j..k-1} c_pair(q_i -> q_i+1)`` stays below m - STALL_M; it is measured
+        again there. A segment no single measurement covers is checked with
+        :meth:`check_motion`. ``s_blocked`` is the sample index (plus segment fraction)."""
+        q = np.asarray(q_rad, float)
+        if not len(self._pairs) or len(q) == 0:
+            return MotionCheck(True)
+        if len(q) == 1:
+            ok = self.is_valid(q[0])
+            return MotionCheck(ok, None if ok else 0.0, None if ok else self.clearance(q[0]))
+        n = len(q)
+        seg = self._pair_reach @ np.abs(np.diff(q, axis=0)).T  # (pairs, n-1)
+        cum = np.concatenate([np.zeros((len(seg), 1)), np.cumsum(seg, axis=1)], axis=1)
+        due: dict[int, list[int]] = {0: list(range(len(self._pairs)))}
+        queries = 0
+        proven_segments: set[int] = set()
+        j = 0
+        while due:
+            j = min(due)
+            pairs = due.pop(j)
+            self._update(q[j])
+            for k in pairs:
+                m = pin.computeDistance(self._geom_model, self._geom_data, k).min_distance - self._required_list[k]
+                queries += 1
+                if m < STALL_M:
+                    return self._blocked(float(j), k, m, queries)
+                last = int(np.searchsorted(cum[k], cum[k, j] + m - STALL_M, side="right")) - 1
+                if last <= j:
+                    if j not in proven_segments:
+                        result = self.check_motion(q[j], q[j + 1])
+                        queries += result.distance_queries
+                        if not result.ok:
+                            return MotionCheck(False, j + (result.s_blocked or 0.0), result.clearance, queries)
+                        proven_segments.add(j)
+                    last = j + 1
+                if last < n - 1:
+                    due.setdefault(last, []).append(k)
+        return MotionCheck(True, distance_queries=queries)
+
+
+def _bisection_order(n: int) -> list[float]:
+    """Interior fractions k/n, k = 1..n-1, coarse to fine (midpoint first)."""
+    if n < 2:
+        return []
+    order, seen, step = [], set(), n
+    while step > 1:
+        step = max(1, step // 2)
+        for k in range(step, n, step):
+            if k not in seen:
+                seen.add(k)
+                order.append(k / n)
+    return order
+
+
+# -- shapes -------------------------------------------------------------------------------
+
+def _make_coal_shape(shape: Shape) -> tuple[coal.CollisionGeometry, float]:
+    """A coal geometry and its bounding-sphere radius about the shape origin (m)."""
+    if isinstance(shape, Box):
+        x, y, z = shape.size_m
+        return coal.Box(x, y, z), 0.5 * math.sqrt(x * x + y * y + z * z)
+    if isinstance(shape, Cylinder):
+        return coal.Cylinder(shape.radius_m, shape.length_m), math.hypot(shape.radius_m, shape.length_m / 2)
+    if isinstance(shape, Sphere):
+        return coal.Sphere(shape.radius_m), shape.radius_m
+    if isinstance(shape, Mesh):
+        vertices, triangles = read_stl(shape.path)
+        vertices = vertices * shape.scale
+        model = coal.BVHModelOBBRSS()
+        model.beginModel(len(triangles), len(vertices))
+        model.addSubModel(vertices, triangles)
+        model.endModel()
+        return model, float(np.linalg.norm(vertices, axis=1).max()) if len(vertices) else 0.0
+    raise TypeError(f"unknown shape {shape!r}")
+
+
+def read_stl(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (V x 3, file units) and triangles (T x 3 indices) of a binary or ASCII STL."""
+    raw = Path(path).read_bytes()
+    if len(raw) >= 84:
+        count = int(np.frombuffer(raw, dtype="<u4", count=1, offset=80)[0])
+        if 84 + 50 * count == len(raw):
+            record = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+            corners = np.frombuffer(raw, dtype=record, count=count, offset=84)["v"].reshape(-1, 3)
+            return _dedupe(corners.astype(float))
+    text = raw.decode("ascii", errors="replace")
+    corners = [
+        [float(v) for v in line.split()[1:4]]
+        for line in text.splitlines()
+        if line.strip().startswith("vertex")
+    ]
+    if not corners or len(corners) % 3:
+        raise ValueError(f"{path}: not an STL file (no triangles found)")
+    return _dedupe(np.array(corners, dtype=float))
+
+
+def _dedupe(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    vertices, inverse = np.unique(corners, axis=0, return_inverse=True)
+    return vertices, inverse.reshape(-1, 3).astype(int)
+
+
+def _segment_frame(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
+    """A frame at the segment's midpoint with its z axis along p0 -> p1."""
+    T = np.eye(4)
+    T[:3, 3] = (p0 + p1) / 2
+    d = p1 - p0
+    n = np.linalg.norm(d)
+    if n > 1e-12:
+        z = d / n
+        helper = np.array([1.0, 0, 0]) if abs(z[0]) < 0.9 else np.array([0, 1.0, 0])
+        x = np.cross(helper, z)
+        x /= np.linalg.norm(x)
+        T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return T
+
+
+def _world_aabb(geometry: coal.CollisionGeometry, T_world_shape: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned box in the world around ``geometry`` placed at ``T_world_shape``."""
+    geometry.computeLocalAABB()
+    box = geometry.aabb_local
+    lo, hi = np.array(box.min_), np.array(box.max_)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    world = corners @ T_world_shape[:3, :3].T + T_world_shape[:3, 3]
+    return world.min(axis=0), world.max(axis=0)

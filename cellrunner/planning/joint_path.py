@@ -1,0 +1,167 @@
+"""Collision-free joint-space paths: the straight joint move when it is free, else OMPL.
+
+The search is OMPL's RRTConnect over the six joint angles (rad), within the joint limits
+narrowed to half a turn beyond the start and goal on each joint (so a plan never winds a
+joint by a full turn for nothing). Every edge the planner keeps is proven by
+:meth:`CollisionModel.check_motion` (conservative advancement, exact up to 0.1 mm), never
+by sampling alone, so the returned path is collision-free between its waypoints, not only at
+them. The path is then shortened by greedy shortcutting with the same check.
+
+For speed the search first runs with sampled edge checks (every 0.05 rad) and only the
+edges of the shortened result are proven; when one fails the proof, the search is run
+again with the conservative check on every edge.
+
+OMPL draws its random numbers from a process-wide generator; each call reseeds it with
+``seed`` so that a call's result depends only on its arguments when it is the first OMPL
+user in the process (and is reproducible run to run when calls come in the same order).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from cellrunner.errors import InfeasibleError
+from cellrunner.planning.collision import CollisionModel
+
+#: RRTConnect extension length: largest Euclidean joint-space step per tree extension.
+RRT_RANGE_RAD = 1.5
+#: Edge sampling step (joint-space distance, rad) of the fast search before certification.
+LAZY_RESOLUTION_RAD = 0.05
+
+
+@dataclass(frozen=True)
+class JointPath:
+    """Waypoints ``q_rad`` (N x 6, N >= 2) joined by straight joint-space segments, every
+    one of them checked; ``planner`` is "direct" or "rrtconnect"."""
+
+    q_rad: np.ndarray
+    planner: str
+    planning_time_s: float
+
+
+def plan_joint_path(
+    collision: CollisionModel,
+    q_start_rad: np.ndarray,
+    q_goal_rad: np.ndarray,
+    *,
+    time_budget_s: float = 2.0,
+    seed: int = 1,
+) -> JointPath:
+    """A collision-free path from ``q_start_rad`` to ``q_goal_rad`` (both (6,), rad).
+
+    Raises :class:`InfeasibleError` when the start or goal is in collision or outside the
+    joint limits, or when no path is found within ``time_budget_s``.
+    """
+    t0 = time.perf_counter()
+    q0 = np.asarray(q_start_rad, float)
+    q1 = np.asarray(q_goal_rad, float)
+    kin = collision.kinematics
+    for label, q in (("start", q0), ("goal", q1)):
+        if not kin.within_limits(q):
+            raise InfeasibleError(f"{label} configuration outside the joint limits: {_deg(q)}")
+        if not collision.is_valid(q):
+            raise InfeasibleError(f"{label} configuration in collision: {collision.clearance(q).describe()}")
+    if collision.check_motion(q0, q1, explain=False).ok:
+        return JointPath(np.array([q0, q1]), "direct", time.perf_counter() - t0)
+    # Fast pass: search with sampled edge checks, then certify every edge of the
+    # shortened path conservatively. If an edge fails certification, search again
+    # with the conservative check on every edge.
+    deadline = t0 + time_budget_s
+    lazy = _rrt_connect(collision, q0, q1, time_budget_s, seed, conservative=False)
+    certified = shortcut(collision, lazy, edges_checked=False)
+    if certified is not None:
+        return JointPath(certified, "rrtconnect", time.perf_counter() - t0)
+    remaining = max(deadline - time.perf_counter(), 0.1 * time_budget_s)
+    strict = _rrt_connect(collision, q0, q1, remaining, seed + 1, conservative=True)
+    return JointPath(shortcut(collision, strict, edges_checked=True), "rrtconnect", time.perf_counter() - t0)
+
+
+def shortcut(collision: CollisionModel, q_rad: np.ndarray, *, edges_checked: bool = True) -> np.ndarray | None:
+    """Greedy shortcutting: from each kept waypoint, jump to the farthest later waypoint
+    reachable by a conservatively checked straight segment. Deterministic; never
+    lengthens the path. With ``edges_checked=False`` the path's own edges are not yet
+    proven either; returns None when one of them fails."""
+    q = np.asarray(q_rad, float)
+    kept = [0]
+    i = 0
+    while i < len(q) - 1:
+        for j in range(len(q) - 1, i, -1):
+            trusted = j == i + 1 and edges_checked
+            if trusted or collision.check_motion(q[i], q[j], explain=False).ok:
+                kept.append(j)
+                i = j
+                break
+        else:
+            return None
+    return q[kept]
+
+
+def _rrt_connect(
+    collision: CollisionModel,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    time_budget_s: float,
+    seed: int,
+    *,
+    conservative: bool,
+) -> np.ndarray:
+    """RRTConnect from q0 to q1. ``conservative``: every edge proven by check_motion;
+    otherwise edges are sampled every ``LAZY_RESOLUTION_RAD`` (to be certified after)."""
+    from ompl import base as ob
+    from ompl import geometric as og
+    from ompl import util as ou
+
+    ou.setLogLevel(ou.LOG_NONE)
+    ou.RNG.setSeed(seed)
+    kin = collision.kinematics
+    space = ob.RealVectorStateSpace(6)
+    bounds = ob.RealVectorBounds(6)
+    for i in range(6):
+        bounds.setLow(i, float(max(kin.q_min_rad[i], min(q0[i], q1[i]) - math.pi)))
+        bounds.setHigh(i, float(min(kin.q_max_rad[i], max(q0[i], q1[i]) + math.pi)))
+    space.setBounds(bounds)
+    setup = og.SimpleSetup(space)
+    si = setup.getSpaceInformation()
+
+    def as_array(state) -> np.ndarray:
+        return np.array([state[0], state[1], state[2], state[3], state[4], state[5]])
+
+    setup.setStateValidityChecker(lambda state: collision.is_valid(as_array(state)))
+
+    class ConservativeMotionValidator(ob.MotionValidator):
+        def checkMotion(self, a, b) -> bool:  # noqa: N802 (OMPL's name)
+            return collision.check_motion(as_array(a), as_array(b), explain=False).ok
+
+    if conservative:
+        si.setMotionValidator(ConservativeMotionValidator(si))
+    else:
+        si.setStateValidityCheckingResolution(LAZY_RESOLUTION_RAD / space.getMaximumExtent())
+    start, goal = space.allocState(), space.allocState()
+    for i in range(6):
+        start[i], goal[i] = float(q0[i]), float(q1[i])
+    setup.setStartAndGoalStates(start, goal)
+    planner = og.RRTConnect(si)
+    planner.setRange(RRT_RANGE_RAD)
+    setup.setPlanner(planner)
+    try:
+        status = setup.solve(time_budget_s)
+        solved = setup.haveExactSolutionPath()
+        path = np.array([as_array(s) for s in setup.getSolutionPath().getStates()]) if solved else None
+    finally:
+        # break the Python <-> C++ reference cycles so nothing outlives the call
+        setup.setStateValidityChecker(ob.AllValidStateValidityChecker(si))
+    if path is None:
+        raise InfeasibleError(
+            f"no collision-free joint path found within {time_budget_s:.1f} s "
+            f"(RRTConnect: {status}); start {_deg(q0)}, goal {_deg(q1)}"
+        )
+    path[0], path[-1] = q0, q1
+    return path
+
+
+def _deg(q: np.ndarray) -> str:
+    return "[" + ", ".join(f"{v:.1f}" for v in np.degrees(q)) + "] deg"

@@ -1,0 +1,298 @@
+"""Arm kinematics: forward kinematics, Jacobian, singularity distances and inverse kinematics.
+
+Frames (4x4 homogeneous matrices, ``T_parent_child``):
+
+- ``world``: the cell frame; ``T_world_base`` is the robot mount (SPEC section 3).
+- ``base``: the controller's base frame, DH frame 0.
+- ``flange``: tool0, DH frame 6.
+- ``tcp``: the tool centre point, ``T_flange_tcp`` from the cell file.
+
+Joint angles are in radians, ``q_rad`` of shape (6,), in the controller's convention (the
+DH angle of joint i is q_i; no offsets). The pinocchio model places joint i at the DH
+offsets of link i-1, so the frame of joint i is "DH frame i-1 turned by joint i", the frame
+in which :meth:`RobotSpec.capsules` are expressed.
+
+Inverse kinematics is closed-form (ur-analytic-ik, up to 8 branches); the branch nearest a
+given configuration inside the joint limits is chosen and verified by forward kinematics.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from cellrunner.errors import InfeasibleError
+from cellrunner.model.geometry import invert
+from cellrunner.model.robots import JOINT_NAMES, RobotSpec
+
+#: FK residual above which an IK solution is rejected (position m, rotation rad).
+IK_TOLERANCE_M = 1e-6
+IK_TOLERANCE_RAD = 1e-6
+
+
+@dataclass(frozen=True)
+class SingularityDistance:
+    """How far a configuration is from each of the three UR singularities.
+
+    - ``wrist_deg``: |q5| away from 0 or 180 deg (wrist 1 and wrist 3 axes parallel).
+    - ``elbow_deg``: |q3| away from 0 or 180 deg (arm stretched out or folded).
+    - ``shoulder_m``: horizontal distance of the wrist point (DH frame 5 origin) from the
+      cylinder of radius d4 around the base axis, where the two shoulder branches merge.
+    """
+
+    wrist_deg: float
+    elbow_deg: float
+    shoulder_m: float
+
+    def violation(self, min_angle_deg: float, min_shoulder_m: float) -> str | None:
+        """A message naming the nearest singularity closer than the thresholds, or None."""
+        if self.wrist_deg < min_angle_deg:
+            return (
+                f"wrist singularity (wrist 2 at {self.wrist_deg:.1f} deg from 0/180, "
+                f"needs >= {min_angle_deg:.1f} deg)"
+            )
+        if self.elbow_deg < min_angle_deg:
+            return (
+                f"elbow singularity (elbow at {self.elbow_deg:.1f} deg from straight/folded, "
+                f"needs >= {min_angle_deg:.1f} deg)"
+            )
+        if self.shoulder_m < min_shoulder_m:
+            return (
+                f"shoulder singularity (wrist {self.shoulder_m * 1000:.0f} mm from the "
+                f"base-axis cylinder, needs >= {min_shoulder_m * 1000:.0f} mm)"
+            )
+        return None
+
+
+def _angle_from_line_deg(q: float) -> float:
+    """Angle in degrees between q and the nearest multiple of pi."""
+    return math.degrees(abs(math.remainder(q, math.pi)))
+
+
+def _dh_link(d: float, a: float, alpha: float) -> pin.SE3:
+    """The fixed part of a DH link: translate d along z, a along x, rotate alpha about x."""
+    T = np.eye(4)
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    T[:3, :3] = [[1, 0, 0], [0, ca, -sa], [0, sa, ca]]
+    T[:3, 3] = [a, 0, d]
+    return pin.SE3(T)
+
+
+class ArmKinematics:
+    """Kinematics of one UR arm mounted at ``T_world_base`` carrying a tool ``T_flange_tcp``."""
+
+    def __init__(self, spec: RobotSpec, T_world_base: np.ndarray, T_flange_tcp: np.ndarray):
+        self.spec = spec
+        self.T_world_base = np.array(T_world_base, dtype=float)
+        self.T_flange_tcp = np.array(T_flange_tcp, dtype=float)
+        self.q_min_rad = np.radians(spec.joint_min_deg)
+        self.q_max_rad = np.radians(spec.joint_max_deg)
+        self.model = self._build_model()
+        self.data = self.model.createData()
+        self.flange_frame_id = self.model.getFrameId("flange")
+        self.tcp_frame_id = self.model.getFrameId("tcp")
+        self._ik = _ik_module(spec.name)
+
+    def _build_model(self) -> pin.Model:
+        spec = self.spec
+        model = pin.Model()
+        model.name = spec.name
+        parent = 0
+        placement = pin.SE3(self.T_world_base)
+        for i, name in enumerate(JOINT_NAMES):
+            parent = model.addJoint(parent, pin.JointModelRZ(), placement, name)
+            model.appendBodyToJoint(parent, pin.Inertia.Identity(), pin.SE3.Identity())
+            placement = _dh_link(spec.d_m[i], spec.a_m[i], spec.alpha_rad[i])
+        model.lowerPositionLimit = np.radians(spec.joint_min_deg)
+        model.upperPositionLimit = np.radians(spec.joint_max_deg)
+        model.velocityLimit = np.radians(spec.joint_speed_max_deg_s)
+        last = model.nframes - 1
+        flange = model.addFrame(pin.Frame("flange", parent, last, placement, pin.FrameType.OP_FRAME))
+        model.addFrame(
+            pin.Frame("tcp", parent, flange, placement * pin.SE3(self.T_flange_tcp), pin.FrameType.OP_FRAME)
+        )
+        return model
+
+    # -- forward kinematics --------------------------------------------------------------
+
+    def T_world_tcp(self, q_rad: np.ndarray) -> np.ndarray:
+        """Pose of the TCP in the world at ``q_rad``."""
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q_rad, dtype=float))
+        return self.data.oMf[self.tcp_frame_id].homogeneous.copy()
+
+    def T_world_flange(self, q_rad: np.ndarray) -> np.ndarray:
+        """Pose of the flange (tool0) in the world at ``q_rad``."""
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q_rad, dtype=float))
+        return self.data.oMf[self.flange_frame_id].homogeneous.copy()
+
+    def p_world_tcp_many(self, q_rad: np.ndarray) -> np.ndarray:
+        """TCP positions in the world (N x 3) for configurations ``q_rad`` (N x 6)."""
+        out = np.empty((len(q_rad), 3))
+        for k, q in enumerate(np.asarray(q_rad, dtype=float)):
+            pin.framesForwardKinematics(self.model, self.data, q)
+            out[k] = self.data.oMf[self.tcp_frame_id].translation
+        return out
+
+    def jacobian_tcp(self, q_rad: np.ndarray) -> np.ndarray:
+        """6x6 Jacobian of the TCP: rows 0-2 its linear velocity in world axes (m/s per
+        rad/s), rows 3-5 its angular velocity in world axes (rad/s per rad/s)."""
+        q = np.asarray(q_rad, dtype=float)
+        return pin.computeFrameJacobian(
+            self.model, self.data, q, self.tcp_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        ).copy()
+
+    def manipulability(self, q_rad: np.ndarray) -> float:
+        """Smallest singular value of the TCP position Jacobian (m/rad): the slowest TCP
+        speed per unit joint speed in the worst direction."""
+        return float(np.linalg.svd(self.jacobian_tcp(q_rad)[:3], compute_uv=False)[-1])
+
+    def singularity_distance(self, q_rad: np.ndarray) -> SingularityDistance:
+        """Distances of ``q_rad`` from the wrist, elbow and shoulder singularities."""
+        q = np.asarray(q_rad, dtype=float)
+        pin.forwardKinematics(self.model, self.data, q)
+        T_base_world = invert(self.T_world_base)
+        p_world_wrist = self.data.oMi[6].translation  # joint 6 origin = DH frame 5 origin
+        p_base_wrist = T_base_world[:3, :3] @ p_world_wrist + T_base_world[:3, 3]
+        radial_m = math.hypot(p_base_wrist[0], p_base_wrist[1])
+        return SingularityDistance(
+            wrist_deg=_angle_from_line_deg(q[4]),
+            elbow_deg=_angle_from_line_deg(q[2]),
+            shoulder_m=abs(radial_m - abs(self.spec.d_m[3])),
+        )
+
+    # -- inverse kinematics --------------------------------------------------------------
+
+    def within_limits(self, q_rad: np.ndarray) -> bool:
+        q = np.asarray(q_rad)
+        return bool(np.all(q >= self.q_min_rad - 1e-9) and np.all(q <= self.q_max_rad + 1e-9))
+
+    def ik_all(self, T_world_tcp: np.ndarray, q_near_rad: np.ndarray) -> list[np.ndarray]:
+        """Every verified IK branch for ``T_world_tcp``, each wrapped (by multiples of 2 pi
+        per joint) nearest to ``q_near_rad`` within the joint limits, sorted by distance to
+        ``q_near_rad``. Empty when the pose is unreachable."""
+        T_base_flange = invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        q_near = np.asarray(q_near_rad, dtype=float)
+        found: list[np.ndarray] = []
+        for raw in self._solve(T_base_flange):
+            q = self._wrap_near(np.asarray(raw, dtype=float), q_near)
+            if q is None or not self._verify(q, T_world_tcp):
+                continue
+            if not any(np.allclose(q, f, atol=1e-7) for f in found):
+                found.append(q)
+        found.sort(key=lambda q: float(np.linalg.norm(q - q_near)))
+        return found
+
+    def ik_nearest(self, T_world_tcp: np.ndarray, q_near_rad: np.ndarray) -> np.ndarray:
+        """The IK branch nearest ``q_near_rad`` inside the joint limits, verified by FK.
+
+        Raises :class:`InfeasibleError` with the reason when there is none.
+        """
+        solutions = self.ik_all(T_world_tcp, q_near_rad)
+        if not solutions:
+            raise InfeasibleError(self.unreachable_reason(T_world_tcp))
+        return solutions[0]
+
+    def ik_track(self, T_world_tcp: np.ndarray, q_prev_rad: np.ndarray) -> np.ndarray | None:
+        """The IK solution nearest ``q_prev_rad`` (largest joint difference), for tracking a
+        path sample by sample; None when there is none inside the limits."""
+        T_base_flange = invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        raw = self._solve(T_base_flange)
+        if not raw:
+            return None
+        q_prev = np.asarray(q_prev_rad, float)
+        cand = np.array(raw)
+        cand = cand + 2 * np.pi * np.round((q_prev - cand) / (2 * np.pi))
+        order = np.argsort(np.abs(cand - q_prev).max(axis=1))
+        for k in order:
+            if self.within_limits(cand[k]) and self._verify(cand[k], np.asarray(T_world_tcp)):
+                return cand[k]
+        return None
+
+    def unreachable_reason(self, T_world_tcp: np.ndarray) -> str:
+        """Why ``T_world_tcp`` has no IK solution inside the limits, with numbers."""
+        T_base_flange = invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        p = T_base_flange[:3, 3]
+        from_shoulder_m = float(np.linalg.norm(p - np.array([0.0, 0.0, self.spec.d_m[0]])))
+        model = self.spec.name.upper().replace("E", "e")
+        if from_shoulder_m > self.spec.reach_m:
+            return (
+                f"out of reach ({from_shoulder_m:.2f} m from the shoulder, "
+                f"{model} reach {self.spec.reach_m:.2f} m)"
+            )
+        raw = self._solve(T_base_flange)
+        if len(raw) == 0:
+            return (
+                f"no arm configuration reaches this pose (flange {from_shoulder_m:.2f} m from the "
+                f"shoulder, {model} reach {self.spec.reach_m:.2f} m; orientation or position "
+                f"too close to the base axis)"
+            )
+        return f"all {len(raw)} IK solutions exceed the joint limits"
+
+    def _solve(self, T_base_flange: np.ndarray) -> list[np.ndarray]:
+        with _stdout_silenced():
+            return list(self._ik.inverse_kinematics(np.ascontiguousarray(T_base_flange)))
+
+    def _wrap_near(self, q_raw: np.ndarray, q_near: np.ndarray) -> np.ndarray | None:
+        """Shift each joint by a multiple of 2 pi to be nearest q_near within limits."""
+        q = np.empty(6)
+        for i in range(6):
+            best = None
+            base = q_raw[i] + 2 * math.pi * round((q_near[i] - q_raw[i]) / (2 * math.pi))
+            for k in (0, -1, 1, -2, 2):
+                cand = base + 2 * math.pi * k
+                if self.q_min_rad[i] - 1e-9 <= cand <= self.q_max_rad[i] + 1e-9:
+                    if best is None or abs(cand - q_near[i]) < abs(best - q_near[i]):
+                        best = cand
+            if best is None:
+                return None
+            q[i] = min(max(best, self.q_min_rad[i]), self.q_max_rad[i])
+        return q
+
+    def _verify(self, q: np.ndarray, T_world_tcp: np.ndarray) -> bool:
+        T = self.T_world_tcp(q)
+        dp = np.linalg.norm(T[:3, 3] - T_world_tcp[:3, 3])
+        dR = rotation_angle_rad(T[:3, :3].T @ np.asarray(T_world_tcp)[:3, :3])
+        return dp < IK_TOLERANCE_M * 10 and dR < IK_TOLERANCE_RAD * 10
+
+
+def rotation_angle_rad(R: np.ndarray) -> float:
+    """Angle of the rotation matrix ``R`` in radians, robust near 0 and pi."""
+    c = (np.trace(R) - 1.0) / 2.0
+    s = np.linalg.norm([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
+    return float(math.atan2(s, c))
+
+
+@contextlib.contextmanager
+def _stdout_silenced() -> Iterator[None]:
+    """Silence file descriptor 1 for the duration: ur-analytic-ik prints a warning on
+    std::cout for every degenerate branch it filters, which would corrupt ``--json``."""
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
+
+
+def _ik_module(model_name: str):
+    import ur_analytic_ik
+
+    try:
+        return getattr(ur_analytic_ik, model_name)
+    except AttributeError:
+        raise InfeasibleError(f"no closed-form IK for robot model {model_name!r}") from None
