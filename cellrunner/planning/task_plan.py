@@ -43,6 +43,7 @@ class StepPlan:
     q_end_rad: np.ndarray | None = None
     carrying: Placed | None = None
     allowances: tuple = ()
+    verify_inputs: dict | None = None  # what verify_trajectory was given, to re-verify a cached plan
 
 
 @dataclass
@@ -119,20 +120,22 @@ def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> T
 
     current: StepPlan | None = None
     try:
-        for row in rows:
+        for i, row in enumerate(rows):
             current = row
             step = row.step
+            then = rows[i + 1].step if i + 1 < len(rows) else None
             if step.is_motion:
-                if group and (step.kind in LINEAR_KINDS or group[-1].limits != planner.limits_for(step)):
+                if group and (step.kind in LINEAR_KINDS or not _same_limits(group[-1].limits, planner.limits_for(step))):
                     flush()
-                group.append(planner.motion(row))
+                group.append(planner.motion(row, then=then))
                 if step.kind in ("descend", "linear"):
                     flush()  # a descend ends at rest: something happens at its end
             else:
                 flush()
                 planner.act(row)
             row.status = "ok"
-            row.carrying = planner.part
+            if not step.is_motion:
+                row.carrying = planner.part
         current = None
         flush()
         for row in rows:
@@ -166,7 +169,8 @@ class _StepPlanner:
         model = self.world.collision.carrying(self.part)
         return model.allowing(*allowances) if allowances else model
 
-    def motion(self, row: StepPlan, goal_q: np.ndarray | None = None, allowances: tuple | None = None) -> _Motion:
+    def motion(self, row: StepPlan, goal_q: np.ndarray | None = None, allowances: tuple | None = None,
+               then: Step | None = None) -> _Motion:
         from cellrunner.planning.cartesian import plan_linear
         from cellrunner.planning.joint_path import plan_joint_path
 
@@ -175,7 +179,7 @@ class _StepPlanner:
         if step.kind in ("move", "approach"):
             if goal_q is None:
                 goal_q = (np.radians(step.q_goal_deg) if step.q_goal_deg is not None
-                          else self._ik(step.T_world_tcp, step))
+                          else self._ik(step.T_world_tcp, step, then))
             collision = self.collision()
             path = plan_joint_path(collision, self.q, goal_q).q_rad
             line = None
@@ -187,6 +191,7 @@ class _StepPlanner:
             path = plan_linear(kin, collision, self.q, T_goal).q_rad
             line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
         row.allowances = tuple(allowances or ())
+        row.carrying = self.part
         motion = _Motion(row, path, self.limits_for(step), line, collision)
         self.q = path[-1]
         row.q_end_rad = path[-1]
@@ -208,12 +213,28 @@ class _StepPlanner:
         elif step.kind == "wait_input":
             row.message = f"waits up to {step.args.timeout:g} s for {step.args.input}"
 
-    def _ik(self, T_world_tcp: np.ndarray, step: Step) -> np.ndarray:
+    def _ik(self, T_world_tcp: np.ndarray, step: Step, then: Step | None) -> np.ndarray:
+        """The branch nearest the current configuration that is collision-free and, when
+        a straight descend follows, from which that descend's goal is on the same branch
+        and collision-free too."""
         kin = self.world.kinematics
-        try:
-            return kin.ik_nearest(T_world_tcp, self.q)
-        except InfeasibleError:
-            raise InfeasibleError(f"{step.label}: {kin.unreachable_reason(T_world_tcp)}") from None
+        branches = kin.ik_all(T_world_tcp, self.q)
+        if not branches:
+            raise InfeasibleError(f"{step.label}: {kin.unreachable_reason(T_world_tcp)}")
+        collision = self.collision()
+        follow = then.T_world_tcp if then is not None and then.kind in ("descend", "linear") else None
+        first_problem = None
+        for q in branches:
+            if not collision.is_valid(q):
+                first_problem = first_problem or collision.clearance(q).describe()
+                continue
+            if follow is not None:
+                q_next = kin.ik_track(follow, q)
+                if q_next is None or not self.collision(self._place_allowances(then, follow)).is_valid(q_next):
+                    first_problem = first_problem or f"no collision-free branch reaches {then.label} below it"
+                    continue
+            return q
+        raise InfeasibleError(f"{step.label}: every IK branch fails: {first_problem}")
 
     def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
         if step.kind == "lift":
@@ -282,17 +303,23 @@ def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray
         if i == 0:
             q = np.vstack([previous[None, :], q[1:]]) if len(q) > 1 else previous[None, :]
         trajectory = Trajectory(world.spec.rate_hz, np.arange(len(q)) / world.spec.rate_hz, q)
+        inputs = dict(previous_q_rad=previous, previous_moving=i > 0, ends_at_rest=i == len(group) - 1,
+                      line_m=motion.line_m)
         approved = verify_trajectory(
             trajectory, step_index=motion.row.step.index, step_name=motion.row.step.name,
-            kinematics=world.kinematics, limits=motion.limits, collision=motion.collision,
-            previous_q_rad=previous, previous_moving=i > 0, ends_at_rest=i == len(group) - 1,
-            line_m=motion.line_m)
+            kinematics=world.kinematics, limits=motion.limits, collision=motion.collision, **inputs)
         motion.row.approved = approved
+        motion.row.verify_inputs = inputs
         motion.row.duration_s = len(q) / world.spec.rate_hz
         motion.row.q_end_rad = q[-1]
         previous = q[-2:] if len(q) >= 2 else q
         start = end + 1
     return [m.row for m in group]
+
+
+def _same_limits(a, b) -> bool:
+    return (np.array_equal(a.joint_speed_rad_s, b.joint_speed_rad_s)
+            and np.array_equal(a.joint_accel_rad_s2, b.joint_accel_rad_s2) and a.tcp_speed_mps == b.tcp_speed_mps)
 
 
 def _cut_indices(timed, bounds: list[int], n: int) -> list[int]:
@@ -315,10 +342,11 @@ def _check_retry_path(world: CellWorld, row: StepPlan, rows: list[StepPlan]) -> 
     q_grip = descend.q_end_rad
     planner = _StepPlanner(world, q_grip, None)
     try:
-        for between in retry.between:
+        for between in [*retry.between, descend.step]:
             if between.is_motion:
-                _time_and_verify(world, [planner.motion(StepPlan(between))], planner.q)
-        _time_and_verify(world, [planner.motion(StepPlan(descend.step), goal_q=q_grip)], planner.q)
+                q_from = planner.q
+                goal = q_grip if between is descend.step else None
+                _time_and_verify(world, [planner.motion(StepPlan(between), goal_q=goal)], q_from)
     except InfeasibleError as exc:
         raise InfeasibleError(f"{row.step.label}: retry path: {_strip_label(str(exc))}") from None
 

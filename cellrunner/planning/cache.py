@@ -1,0 +1,142 @@
+"""A plan cache keyed by everything a plan depends on: the cell, task and mesh files'
+bytes, the params, the start configuration and cellrunner's version. A repeated job
+reuses its approved trajectories without planning; any change to the files misses.
+
+Entries live in memory (for ``serve``) and on disk as ``.npz`` (arrays plus JSON, no
+pickle) under ``var/plan-cache/`` of the project. What comes back from disk is verified
+again before it is sealed: the cache saves planning, never the safety check.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from cellrunner import __version__
+from cellrunner.errors import InfeasibleError
+from cellrunner.model.expand import expand
+from cellrunner.model.geometry import Placed
+from cellrunner.model.load import LoadedTask
+from cellrunner.model.trajectory import Trajectory
+from cellrunner.planning.task_plan import StepPlan, TaskPlan, _StepPlanner, plan_task
+from cellrunner.planning.world import CellWorld
+
+_MEMORY: dict[str, TaskPlan] = {}
+_MEMORY_MAX = 64
+
+
+def plan_key(world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.ndarray) -> str:
+    h = hashlib.sha256()
+    h.update(__version__.encode())
+    for path in [world.loaded.path, task.path, *sorted(m.path for m in _meshes(world))]:
+        h.update(str(path).encode())
+        h.update(Path(path).read_bytes())
+    h.update(json.dumps(params, sort_keys=True).encode())
+    h.update(np.round(np.asarray(q_start_rad, float), 6).tobytes())
+    return h.hexdigest()[:32]
+
+
+def _meshes(world: CellWorld):
+    from cellrunner.model.geometry import Mesh
+    return [p.shape for p in [*world.fixtures, *world.tool] if isinstance(p.shape, Mesh)]
+
+
+def cache_dir(world: CellWorld) -> Path:
+    return world.loaded.root / "var" / "plan-cache"
+
+
+def plan_cached(world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.ndarray,
+                *, use_cache: bool = True) -> TaskPlan:
+    """The plan of ``task`` with ``params`` from ``q_start_rad``: from the cache when the
+    same inputs were planned before, else planned (and stored when feasible)."""
+    steps = expand(task, world.loaded.cell, params)
+    if not use_cache:
+        return plan_task(world, steps, q_start_rad)
+    key = plan_key(world, task, params, q_start_rad)
+    if key in _MEMORY and _MEMORY[key].world is world:
+        return _MEMORY[key]
+    path = cache_dir(world) / f"{key}.npz"
+    plan = _load(path, world, steps, q_start_rad) if path.is_file() else None
+    if plan is None:
+        plan = plan_task(world, steps, q_start_rad)
+        if plan.ok:
+            _store(path, plan)
+    if len(_MEMORY) >= _MEMORY_MAX:
+        _MEMORY.pop(next(iter(_MEMORY)))
+    _MEMORY[key] = plan
+    return plan
+
+
+def _store(path: Path, plan: TaskPlan) -> None:
+    arrays: dict[str, np.ndarray] = {}
+    meta = []
+    for i, row in enumerate(plan.rows):
+        entry = {"status": row.status, "message": row.message, "duration_s": row.duration_s,
+                 "part": row.carrying.name if row.carrying is not None else None,
+                 "allow": [[a.fixture, a.robot_part, a.min_clearance_m] for a in row.allowances]}
+        if row.carrying is not None:
+            arrays[f"part{i}"] = row.carrying.T_parent_shape
+        if row.q_end_rad is not None:
+            arrays[f"qend{i}"] = np.asarray(row.q_end_rad)
+        if row.approved is not None:
+            inputs = row.verify_inputs
+            arrays[f"q{i}"] = row.approved.trajectory.q_rad
+            arrays[f"prev{i}"] = np.asarray(inputs["previous_q_rad"])
+            if inputs["line_m"] is not None:
+                arrays[f"line{i}"] = np.asarray(inputs["line_m"])
+            entry.update(previous_moving=inputs["previous_moving"], ends_at_rest=inputs["ends_at_rest"])
+        meta.append(entry)
+    buffer = io.BytesIO()
+    np.savez(buffer, meta=np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8), **arrays)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        tmp.write_bytes(buffer.getvalue())
+        tmp.replace(path)
+    except OSError:
+        pass  # a read-only project: the cache is an optimisation only
+
+
+def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
+    """The stored plan re-verified and sealed, or None when it does not verify."""
+    from cellrunner.planning.collision import ContactAllowance
+    from cellrunner.planning.verify import verify_trajectory
+
+    try:
+        data = np.load(path, allow_pickle=False)
+        meta = json.loads(bytes(data["meta"]).decode())
+    except (OSError, ValueError, KeyError):
+        return None
+    if len(meta) != len(steps):
+        return None
+    planner = _StepPlanner(world, np.asarray(q_start_rad, float), None)
+    rows = []
+    try:
+        for i, (step, entry) in enumerate(zip(steps, meta)):
+            row = StepPlan(step, entry["status"], entry["message"], entry["duration_s"])
+            if entry["part"] is not None:
+                shape = next(p for p in world.loaded.cell.parts if p.name == entry["part"])
+                row.carrying = Placed(shape.name, shape.to_shape(world.loaded.resolve), data[f"part{i}"])
+            row.allowances = tuple(ContactAllowance(*a) for a in entry["allow"])
+            if f"qend{i}" in data:
+                row.q_end_rad = data[f"qend{i}"]
+            if f"q{i}" in data:
+                q = data[f"q{i}"]
+                inputs = dict(previous_q_rad=data[f"prev{i}"], previous_moving=entry["previous_moving"],
+                              ends_at_rest=entry["ends_at_rest"],
+                              line_m=tuple(data[f"line{i}"]) if f"line{i}" in data else None)
+                planner.part = row.carrying
+                collision = planner.collision(row.allowances)
+                row.approved = verify_trajectory(
+                    Trajectory(world.spec.rate_hz, np.arange(len(q)) / world.spec.rate_hz, q),
+                    step_index=step.index, step_name=step.name, kinematics=world.kinematics,
+                    limits=planner.limits_for(step), collision=collision, **inputs)
+                row.verify_inputs = inputs
+            rows.append(row)
+    except (InfeasibleError, KeyError, StopIteration, ValueError):
+        return None
+    return TaskPlan(world, steps, rows, np.asarray(q_start_rad, float))
