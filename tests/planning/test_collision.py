@@ -1,0 +1,107 @@
+"""Collision model: thin and touching obstacles, allowances, conservative motion checks."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cellrunner.model.geometry import Box, Cylinder, Placed, pose_matrix
+from cellrunner.model.robots import ROBOTS
+from cellrunner.planning.collision import CollisionModel, ContactAllowance, read_stl
+from cellrunner.planning.kinematics import ArmKinematics
+
+HOME = np.radians([0, -90, 90, -90, -90, 0])
+TOOL = (Placed("gripper", Cylinder(0.04, 0.15), pose_matrix((0, 0, 0.075))),)
+
+
+def kin():
+    return ArmKinematics(ROBOTS["ur5e"], np.eye(4), pose_matrix((0, 0, 0.15)))
+
+
+def test_home_is_free_and_reports_the_closest_pair():
+    world = CollisionModel(kin(), TOOL, [Placed("table", Box((1.2, 1.2, 0.04)), pose_matrix((0, 0, -0.02)))])
+    assert world.is_valid(HOME)
+    d, a, b = world.min_distance(HOME)
+    assert d > 0.0 and a and b
+
+
+def test_tool_in_a_box_is_named():
+    k = kin()
+    p = k.T_world_tcp(HOME)[:3, 3]
+    world = CollisionModel(k, TOOL, [Placed("table", Box((0.3, 0.3, 0.05)), pose_matrix(p))])
+    assert not world.is_valid(HOME)
+    assert "tool 'gripper' collides with fixture 'table'" in world.clearance(HOME).describe()
+
+
+def test_touching_obstacle_needs_an_allowance():
+    k = kin()
+    p = k.T_world_tcp(HOME)[:3, 3]
+    # the tool points down at HOME: the part hangs 40 mm below the TCP onto the pallet's top
+    plate = Placed("pallet", Box((0.3, 0.3, 0.02)), pose_matrix(p - [0, 0, 0.05]))
+    part = Placed("block", Box((0.04, 0.04, 0.04)), pose_matrix((0, 0, 0.02)))
+    world = CollisionModel(k, TOOL, [plate]).carrying(part)
+    assert not world.is_valid(HOME)
+    allowed = world.allowing(ContactAllowance("pallet", "part", -0.001))
+    assert allowed.is_valid(HOME)
+    assert not allowed.carrying(Placed("deep", Box((0.04, 0.04, 0.04)), pose_matrix((0, 0, 0.03)))).allowing(
+        ContactAllowance("pallet", "part", -0.001)).is_valid(HOME)  # 10 mm into the pallet
+
+
+def test_unknown_fixture_in_allowance_lists_known():
+    with pytest.raises(ValueError, match="unknown fixture 'palet'; known: pallet"):
+        CollisionModel(kin(), TOOL, [Placed("pallet", Box((1, 1, 1)), pose_matrix((3, 0, 0)))],
+                       allowances=[ContactAllowance("palet")])
+
+
+def _thin_plate_world(thickness):
+    """A 2 mm plate that the tool tip crosses when joint 1 turns across -0.26 rad."""
+    k = kin()
+    p = k.T_world_tcp(HOME)[:3, 3]
+    plate = Placed("plate", Box((0.4, thickness, 0.05)), pose_matrix((p[0], 0.0, p[2])))
+    return k, CollisionModel(k, TOOL, [plate], clearance_m=0.0)
+
+
+@settings(max_examples=30, deadline=None)
+@given(a=st.floats(0.3, 0.8), b=st.floats(-0.2, 0.8))
+def test_check_motion_never_misses_a_2mm_plate(a, b):
+    k, world = _thin_plate_world(0.002)
+    q0, q1 = HOME.copy(), HOME.copy()
+    q0[0], q1[0] = -a, b
+    p0, p1 = k.T_world_tcp(q0)[:3, 3], k.T_world_tcp(q1)[:3, 3]
+    assert np.sign(p0[1]) != np.sign(p1[1])  # the TCP crosses the plate's plane
+    if not (world.is_valid(q0) and world.is_valid(q1)):
+        return
+    result = world.check_motion(q0, q1)
+    assert not result.ok
+    assert "plate" in result.clearance.b
+
+
+def test_naive_sampling_would_miss_the_plate_the_check_finds():
+    k, world = _thin_plate_world(0.002)
+    q0, q1 = HOME.copy(), HOME.copy()
+    q0[0], q1[0] = -0.5, 0.7
+    samples = [q0 + s * (q1 - q0) for s in np.linspace(0, 1, 4)]
+    assert all(world.is_valid(q) for q in samples)  # 0.4 rad samples step over the plate
+    assert not world.check_motion(q0, q1).ok
+    assert not world.check_path(np.array(samples)).ok
+
+
+def test_free_motion_is_accepted_and_bound_is_sound():
+    k, world = _thin_plate_world(0.002)
+    q0, q1 = HOME.copy(), HOME.copy()
+    q0[0], q1[0] = 0.2, 0.9
+    assert world.check_motion(q0, q1).ok
+    # the motion bound really bounds every point: the TCP moves less than the bound says
+    dq = q1 - q0
+    bound = world._reach[:, :] @ np.abs(dq)
+    moved = np.linalg.norm(k.T_world_tcp(q1)[:3, 3] - k.T_world_tcp(q0)[:3, 3])
+    assert moved <= bound.max() + 1e-12
+
+
+def test_binary_stl_is_read(tmp_path):
+    tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype="<f4")
+    data = bytearray(80) + np.uint32(1).tobytes() + np.zeros(3, "<f4").tobytes() + tri.tobytes() + bytes(2)
+    path = tmp_path / "t.stl"
+    path.write_bytes(bytes(data))
+    vertices, triangles = read_stl(path)
+    assert vertices.shape == (3, 3) and triangles.shape == (1, 3)

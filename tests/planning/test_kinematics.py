@@ -1,0 +1,79 @@
+"""FK/IK round trips on every model with a mount and a TCP; Jacobian vs finite differences."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cellrunner.errors import InfeasibleError
+from cellrunner.model.geometry import pose_matrix
+from cellrunner.model.robots import ROBOTS
+from cellrunner.planning.kinematics import ArmKinematics, rotation_angle_rad
+
+MOUNT = pose_matrix((0.3, -0.2, 0.9), (0, 20, 45))
+TCP = pose_matrix((0.01, 0, 0.15), (0, 0, 30))
+angles = st.lists(st.floats(-3.0, 3.0), min_size=6, max_size=6).map(np.array)
+
+
+@pytest.mark.parametrize("model", sorted(ROBOTS))
+@settings(max_examples=25, deadline=None)
+@given(q=angles)
+def test_ik_round_trip_returns_a_configuration_with_the_same_pose(model, q):
+    kin = ArmKinematics(ROBOTS[model], MOUNT, TCP)
+    T = kin.T_world_tcp(q)
+    sd = kin.singularity_distance(q)
+    if min(sd.wrist_deg, sd.elbow_deg) < 1.0 or sd.shoulder_m < 0.005:
+        return  # branches merge at singularities; the pose test below still holds
+    solutions = kin.ik_all(T, q)
+    assert solutions, "a pose reached by FK must have an IK solution"
+    for s in solutions:
+        T2 = kin.T_world_tcp(s)
+        assert np.linalg.norm(T2[:3, 3] - T[:3, 3]) < 1e-6
+        assert rotation_angle_rad(T2[:3, :3].T @ T[:3, :3]) < 1e-6
+        assert kin.within_limits(s)
+    assert np.abs(solutions[0] - q).max() < 1e-5  # the nearest branch is the one we came from
+
+
+@pytest.mark.parametrize("model", ["ur5e", "ur10", "ur3e"])
+def test_flange_fk_matches_ur_analytic_ik(model):
+    import ur_analytic_ik
+
+    kin = ArmKinematics(ROBOTS[model], np.eye(4), np.eye(4))
+    q = np.array([0.3, -1.1, 1.4, -0.7, 1.2, 0.5])
+    assert np.allclose(kin.T_world_flange(q), getattr(ur_analytic_ik, model).forward_kinematics(*q), atol=1e-10)
+
+
+@settings(max_examples=20, deadline=None)
+@given(q=angles)
+def test_jacobian_matches_finite_differences(q):
+    kin = ArmKinematics(ROBOTS["ur5e"], MOUNT, TCP)
+    J = kin.jacobian_tcp(q)
+    h = 1e-6
+    for i in range(6):
+        dq = np.zeros(6)
+        dq[i] = h
+        Tp, Tm = kin.T_world_tcp(q + dq), kin.T_world_tcp(q - dq)
+        assert np.allclose((Tp[:3, 3] - Tm[:3, 3]) / (2 * h), J[:3, i], atol=1e-6)
+        dR = (Tp[:3, :3] - Tm[:3, :3]) / (2 * h) @ kin.T_world_tcp(q)[:3, :3].T
+        omega = np.array([dR[2, 1], dR[0, 2], dR[1, 0]])
+        assert np.allclose(omega, J[3:, i], atol=1e-6)
+
+
+def test_far_target_is_out_of_reach_with_numbers():
+    kin = ArmKinematics(ROBOTS["ur5e"], pose_matrix((0, 0, 0.9)), pose_matrix((0, 0, 0.15)))
+    with pytest.raises(InfeasibleError, match=r"out of reach \(1\.\d\d m from the shoulder, UR5e reach 0\.85 m\)"):
+        kin.ik_nearest(pose_matrix((1.9, 0.3, 1.0), (180, 0, 0)), np.zeros(6))
+
+
+def test_ik_wraps_joints_towards_the_reference_within_limits():
+    kin = ArmKinematics(ROBOTS["ur5e"], np.eye(4), np.eye(4))
+    q = np.array([5.5, -1.0, 1.2, -1.5, -1.4, -5.0])  # beyond +-pi, inside +-2pi
+    assert np.allclose(kin.ik_nearest(kin.T_world_tcp(q), q), q, atol=1e-6)
+
+
+def test_singularity_distances_name_the_wrist():
+    kin = ArmKinematics(ROBOTS["ur5e"], np.eye(4), np.eye(4))
+    sd = kin.singularity_distance(np.array([0, -1.2, 1.2, -1.0, 0.01, 0]))
+    assert sd.wrist_deg == pytest.approx(np.degrees(0.01))
+    assert "wrist singularity" in sd.violation(3.0, 0.02)
+    assert kin.singularity_distance(np.radians([0, -90, 90, -90, -90, 0])).violation(3.0, 0.02) is None
