@@ -70,9 +70,9 @@ def _save_plan(path: Path, world, plan) -> None:
     c = world.loaded.cell
     steps = []
     for row in plan.rows:
-        if row.approved is None:
+        if row.trajectory is None:
             continue
-        traj = row.approved.trajectory
+        traj = row.trajectory
         samples = np.column_stack([traj.t_s, np.degrees(traj.q_rad)])
         steps.append({"index": row.step.index, "name": row.step.name, "kind": row.step.kind,
                       "samples": np.round(samples, 9).tolist()})

@@ -3,8 +3,9 @@ bytes, the params, the start configuration and cellrunner's version. A repeated 
 reuses its approved trajectories without planning; any change to the files misses.
 
 Entries live in memory (for ``serve``) and on disk as ``.npz`` (arrays plus JSON, no
-pickle) under ``var/plan-cache/`` of the project. What comes back from disk is verified
-again before it is sealed: the cache saves planning, never the safety check.
+pickle) under ``var/plan-cache/`` of the project. What comes back from disk is unsealed:
+each trajectory is verified again on first use (:meth:`TaskPlan.nominal`) before it can be
+streamed. The cache saves planning, never the safety check.
 """
 
 from __future__ import annotations
@@ -17,12 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from cellrunner import __version__
-from cellrunner.errors import InfeasibleError
 from cellrunner.model.expand import expand
 from cellrunner.model.geometry import Placed
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.trajectory import Trajectory
-from cellrunner.planning.task_plan import StepPlan, TaskPlan, _StepPlanner, plan_task
+from cellrunner.planning.task_plan import StepPlan, TaskPlan, plan_task
 from cellrunner.planning.world import CellWorld
 
 _MEMORY: dict[str, TaskPlan] = {}
@@ -82,9 +82,9 @@ def _store(path: Path, plan: TaskPlan) -> None:
             arrays[f"part{i}"] = row.carrying.T_parent_shape
         if row.q_end_rad is not None:
             arrays[f"qend{i}"] = np.asarray(row.q_end_rad)
-        if row.approved is not None:
+        if row.trajectory is not None:
             inputs = row.verify_inputs
-            arrays[f"q{i}"] = row.approved.trajectory.q_rad
+            arrays[f"q{i}"] = row.trajectory.q_rad
             arrays[f"prev{i}"] = np.asarray(inputs["previous_q_rad"])
             if inputs["line_m"] is not None:
                 arrays[f"line{i}"] = np.asarray(inputs["line_m"])
@@ -102,9 +102,9 @@ def _store(path: Path, plan: TaskPlan) -> None:
 
 
 def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
-    """The stored plan re-verified and sealed, or None when it does not verify."""
+    """The stored plan with its trajectories unsealed: :meth:`TaskPlan.nominal` verifies
+    each one again before it can be streamed."""
     from cellrunner.planning.collision import ContactAllowance
-    from cellrunner.planning.verify import verify_trajectory
 
     try:
         data = np.load(path, allow_pickle=False)
@@ -113,8 +113,8 @@ def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
         return None
     if len(meta) != len(steps):
         return None
-    planner = _StepPlanner(world, np.asarray(q_start_rad, float), None)
     rows = []
+    rate = world.spec.rate_hz
     try:
         for i, (step, entry) in enumerate(zip(steps, meta)):
             row = StepPlan(step, entry["status"], entry["message"], entry["duration_s"])
@@ -126,17 +126,11 @@ def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
                 row.q_end_rad = data[f"qend{i}"]
             if f"q{i}" in data:
                 q = data[f"q{i}"]
-                inputs = dict(previous_q_rad=data[f"prev{i}"], previous_moving=entry["previous_moving"],
-                              ends_at_rest=entry["ends_at_rest"],
-                              line_m=tuple(data[f"line{i}"]) if f"line{i}" in data else None)
-                planner.part = row.carrying
-                collision = planner.collision(row.allowances)
-                row.approved = verify_trajectory(
-                    Trajectory(world.spec.rate_hz, np.arange(len(q)) / world.spec.rate_hz, q),
-                    step_index=step.index, step_name=step.name, kinematics=world.kinematics,
-                    limits=planner.limits_for(step), collision=collision, **inputs)
-                row.verify_inputs = inputs
+                row.trajectory = Trajectory(rate, np.arange(len(q)) / rate, q)
+                row.verify_inputs = dict(previous_q_rad=data[f"prev{i}"], previous_moving=entry["previous_moving"],
+                                         ends_at_rest=entry["ends_at_rest"],
+                                         line_m=tuple(data[f"line{i}"]) if f"line{i}" in data else None)
             rows.append(row)
-    except (InfeasibleError, KeyError, StopIteration, ValueError):
+    except (KeyError, StopIteration, ValueError):
         return None
     return TaskPlan(world, steps, rows, np.asarray(q_start_rad, float))

@@ -40,6 +40,7 @@ class StepPlan:
     message: str = ""
     duration_s: float = 0.0
     approved: ApprovedTrajectory | None = None
+    trajectory: Trajectory | None = None  # what is streamed; sealed in ``approved`` once verified
     q_end_rad: np.ndarray | None = None
     carrying: Placed | None = None
     allowances: tuple = ()
@@ -80,8 +81,14 @@ class TaskPlan:
 
     # -- Motions (the engine's view) --------------------------------------------------------
     def nominal(self, step: Step) -> ApprovedTrajectory | None:
+        """The approved trajectory of ``step``; a plan read from the cache is verified
+        here, on first use, before anything can stream it."""
         row = self.row(step)
-        return row.approved if row is not None else None
+        if row is None:
+            return None
+        if row.approved is None and row.trajectory is not None:
+            row.approved = seal(self.world, row)
+        return row.approved
 
     def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
         """A verified rest-to-rest trajectory from ``q_now_rad`` to the step's goal: the
@@ -309,12 +316,23 @@ def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray
             trajectory, step_index=motion.row.step.index, step_name=motion.row.step.name,
             kinematics=world.kinematics, limits=motion.limits, collision=motion.collision, **inputs)
         motion.row.approved = approved
+        motion.row.trajectory = trajectory
         motion.row.verify_inputs = inputs
         motion.row.duration_s = len(q) / world.spec.rate_hz
         motion.row.q_end_rad = q[-1]
         previous = q[-2:] if len(q) >= 2 else q
         start = end + 1
     return [m.row for m in group]
+
+
+def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
+    """Verify a stored row's trajectory again with the inputs it was planned with."""
+    from cellrunner.planning.verify import verify_trajectory
+
+    planner = _StepPlanner(world, row.trajectory.q_rad[0], row.carrying)
+    return verify_trajectory(
+        row.trajectory, step_index=row.step.index, step_name=row.step.name, kinematics=world.kinematics,
+        limits=planner.limits_for(row.step), collision=planner.collision(row.allowances), **row.verify_inputs)
 
 
 def _same_limits(a, b) -> bool:
