@@ -230,18 +230,17 @@ class _StepPlanner:
             raise InfeasibleError(f"{step.label}: {kin.unreachable_reason(T_world_tcp)}")
         collision = self.collision()
         follow = then.T_world_tcp if then is not None and then.kind in ("descend", "linear") else None
-        first_problem = None
-        for q in branches:
-            if not collision.is_valid(q):
-                first_problem = first_problem or collision.clearance(q).describe()
-                continue
-            if follow is not None:
+        valid = [q for q in branches if collision.is_valid(q)]
+        if not valid:
+            raise InfeasibleError(f"{step.label}: every IK branch collides: "
+                                  f"{collision.clearance(branches[0]).describe()}")
+        if follow is not None:
+            after = self.collision(self._place_allowances(then, follow))
+            for q in valid:
                 q_next = kin.ik_track(follow, q)
-                if q_next is None or not self.collision(self._place_allowances(then, follow)).is_valid(q_next):
-                    first_problem = first_problem or f"no collision-free branch reaches {then.label} below it"
-                    continue
-            return q
-        raise InfeasibleError(f"{step.label}: every IK branch fails: {first_problem}")
+                if q_next is not None and after.is_valid(q_next):
+                    return q
+        return valid[0]  # the descend that follows will say what is wrong with it
 
     def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
         if step.kind == "lift":

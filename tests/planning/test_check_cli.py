@@ -1,0 +1,206 @@
+"""`cellrunner check` as a user runs it, on cells and tasks written here."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import ur_analytic_ik
+
+from cellrunner.model import geometry
+from cellrunner.model.robots import ROBOTS
+from tests.conftest import ROOT
+
+CELL = """
+cell: test-cell
+robot:
+  model: ur5e
+  mount: {xyz: [0, 0, 0.9], rpy: [0, 0, 180]}
+  home: [0, -90, 90, -90, -90, 0]
+  limits: {joint_speed: 100, joint_accel: 250, tcp_speed: 0.8, margin: 0.9}
+tool:
+  tcp: {xyz: [0, 0, 0.15]}
+  gripper: {kind: io, close: {output: close, value: true}, closed_sensor: closed}
+  geometry: [{cylinder: {radius: 0.04, length: 0.09}, xyz: [0, 0, 0.045]}]
+io:
+  outputs: {close: DO0}
+  inputs: {closed: DI0}
+fixtures:
+  - {name: table, box: {size: [1.2, 0.9, 0.04]}, pose: {xyz: [0.4, 0, 0.88]}}
+  - {name: wall, box: {size: [0.3, 0.02, 0.25]}, pose: {xyz: [0.5, 0.0, 1.025]}}
+  - {name: block, box: {size: [0.06, 0.06, 0.18]}, pose: {xyz: [0.35, 0.25, 0.98]}}
+frames:
+  a: {xyz: [0.45, -0.25, 0.95], rpy: [180, 0, 0]}
+  b: {xyz: [0.45, 0.25, 0.95], rpy: [180, 0, 0]}
+  over_block: {xyz: [0.35, 0.25, 0.93], rpy: [180, 0, 0]}
+  far_away: {xyz: [1.9, 0.0, 1.0], rpy: [180, 0, 0]}
+  grid: {xyz: [0.30, -0.45, 0.95], rpy: [180, 0, 0]}
+parts:
+  - {name: p, box: {size: [0.04, 0.04, 0.04]}, mass: 0.2, at: a}
+"""
+
+
+def project(tmp_path: Path, task: str) -> tuple[Path, Path]:
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "tasks").mkdir()
+    cell = tmp_path / "cells" / "c.yaml"
+    cell.write_text(CELL)
+    task_path = tmp_path / "tasks" / "t.yaml"
+    task_path.write_text(task)
+    return cell, task_path
+
+
+def check(cell: Path, task: Path, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "check", str(cell), str(task), "--json", *extra],
+                          capture_output=True, text=True, cwd=ROOT, timeout=300)
+
+
+PICK_PLACE = """task: t
+steps:
+  - move: home
+  - pick: {at: a, approach: 0.1, grip: {confirm: closed}}
+  - place: {at: b, approach: 0.1}
+  - move: home
+"""
+
+
+def test_feasible_task_and_saved_plan_pass_an_independent_check(tmp_path):
+    cell, task = project(tmp_path, PICK_PLACE)
+    plan_file = tmp_path / "plan.json"
+    r = check(cell, task, "--save-plan", str(plan_file))
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["ok"] and out["errors"] == [] and out["cycle_time_s"] > 0
+    assert [s["kind"] for s in out["steps"]] == ["move", "approach", "descend", "grip", "lift", "approach",
+                                                 "descend", "release", "retreat", "move"]
+    assert {"index", "name", "kind", "duration_s", "status", "message", "attempts"} <= set(out["steps"][0])
+    plan = json.loads(plan_file.read_text())
+    assert plan["model"] == "ur5e" and plan["rate_hz"] == 500 and len(plan["joint_names"]) == 6
+    _independent_check(plan, speed_deg_s=100 * 0.9, accel_deg_s2=250 * 0.9, tcp_mps=0.8 * 0.9)
+
+
+def _independent_check(plan: dict, speed_deg_s: float, accel_deg_s2: float, tcp_mps: float) -> None:
+    """Limits, continuity and straightness from the saved samples alone, with
+    ur-analytic-ik's FK (not the planner's pinocchio model)."""
+    spec = ROBOTS[plan["model"]]
+    T_world_base = geometry.pose_matrix(plan["mount"]["xyz"], plan["mount"]["rpy"])
+    T_flange_tcp = geometry.pose_matrix(plan["tcp"]["xyz"], plan["tcp"]["rpy"])
+    fk = getattr(ur_analytic_ik, spec.name).forward_kinematics
+
+    def tcp(q_deg):
+        return (T_world_base @ fk(*np.radians(q_deg)) @ T_flange_tcp)[:3, 3]
+
+    dt = 1.0 / plan["rate_hz"]
+    previous = None
+    for step in plan["steps"]:
+        s = np.array(step["samples"])
+        t, q = s[:, 0], s[:, 1:]
+        np.testing.assert_allclose(np.diff(t), dt, atol=1e-9)
+        assert np.all(np.abs(q) <= 360)
+        if previous is not None:  # continuous across steps: no jump bigger than one period's motion
+            assert np.abs(q[0] - previous).max() <= speed_deg_s * dt * 1.01 + 1e-9
+        padded = np.vstack([q[:1], q, q[-1:]])
+        v = np.diff(padded, axis=0) / dt
+        a = np.diff(v, axis=0) / dt
+        assert np.abs(v).max() <= speed_deg_s * 1.001, (step["index"], np.abs(v).max())
+        assert np.abs(a).max() <= accel_deg_s2 * 1.01 + 1.0, (step["index"], np.abs(a).max())
+        p = np.array([tcp(x) for x in q])
+        if len(p) > 1:
+            assert (np.linalg.norm(np.diff(p, axis=0), axis=1) / dt).max() <= tcp_mps * 1.001
+        if step["kind"] in ("descend", "lift", "retreat", "linear"):
+            a0, b0 = p[0], p[-1]
+            d = b0 - a0
+            u = np.clip((p - a0) @ d / (d @ d), 0, 1)
+            off = np.linalg.norm(p - (a0 + u[:, None] * d), axis=1)
+            assert off.max() <= 0.001, (step["index"], off.max())
+        previous = q[-1]
+
+
+def test_out_of_reach_is_refused_naming_the_step(tmp_path):
+    cell, task = project(tmp_path, "task: t\nsteps:\n  - move: home\n  - approach: {to: far_away, distance: 0.1}\n")
+    r = check(cell, task)
+    assert r.returncode == 1
+    out = json.loads(r.stdout)
+    assert not out["ok"]
+    assert out["errors"][0].startswith("step 2 approach 'far_away': out of reach (")
+    assert "UR5e reach 0.85 m" in out["errors"][0]
+    assert out["steps"][1]["status"] == "failed"
+
+
+def test_line_through_a_fixture_is_refused(tmp_path):
+    task = "task: t\nsteps:\n  - move: home\n  - approach: {to: over_block, distance: 0.15}\n  - descend: {to: over_block}\n"
+    cell, task_path = project(tmp_path, task)
+    r = check(cell, task_path)
+    assert r.returncode == 1
+    error = json.loads(r.stdout)["errors"][0]
+    assert error.startswith("step 3 descend 'over_block': tool 'gripper' "), error
+    assert "fixture 'block'" in error and "along the line" in error
+
+
+def test_every_pattern_slot_is_checked(tmp_path):
+    task = """task: t
+params:
+  slot: {type: int, min: 0, max: 5, default: 0}
+steps:
+  - move: home
+  - approach: {to: a, distance: 0.1}
+  - place: {at: grid, approach: 0.1, pattern: {grid: [2, 3], pitch: [0.05, 0.5], index: slot}}
+"""
+    cell, task_path = project(tmp_path, task)
+    r = check(cell, task_path)
+    assert r.returncode == 1, r.stdout
+    out = json.loads(r.stdout)
+    assert out["steps"][2]["status"] == "ok"  # slot 0 itself is fine
+    assert out["slots_checked"] == {"slot": [0, 1, 2, 3, 4, 5]}
+    assert any(e.startswith("slot=2: step") for e in out["errors"]), out["errors"]
+
+
+def test_bad_param_is_exit_2(tmp_path):
+    cell, task = project(tmp_path, PICK_PLACE)
+    r = check(cell, task, "-p", "slot=1")
+    assert r.returncode == 2
+    assert r.stderr.strip().endswith("cellrunner check: error: unknown param 'slot'; known: (none)")
+
+
+def test_cache_hits_and_misses(tmp_path):
+    from cellrunner.model.load import load_cell, load_task
+    from cellrunner.planning.cache import plan_key
+    from cellrunner.planning.world import CellWorld
+
+    cell, task = project(tmp_path, PICK_PLACE)
+    first = check(cell, task)
+    second = check(cell, task)
+    assert json.loads(first.stdout)["steps"] == json.loads(second.stdout)["steps"]
+    assert len(list((tmp_path / "var" / "plan-cache").glob("*.npz"))) == 1
+    loaded = load_cell(cell)
+    world = CellWorld(loaded)
+    key = plan_key(world, load_task(task, loaded), {}, world.q_home_rad)
+    cell.write_text(CELL.replace("margin: 0.9", "margin: 0.85"))
+    loaded2 = load_cell(cell)
+    world2 = CellWorld(loaded2)
+    assert plan_key(world2, load_task(task, loaded2), {}, world2.q_home_rad) != key
+    assert plan_key(world, load_task(task, loaded), {}, world.q_home_rad + 1e-3) != key
+
+
+def test_cached_plan_is_verified_before_use(tmp_path):
+    from cellrunner.errors import InfeasibleError
+    from cellrunner.model.load import load_cell, load_task
+    from cellrunner.planning import cache
+    from cellrunner.planning.world import CellWorld
+
+    cell, task = project(tmp_path, PICK_PLACE)
+    assert check(cell, task).returncode == 0
+    npz = next((tmp_path / "var" / "plan-cache").glob("*.npz"))
+    data = dict(np.load(npz))
+    data["q2"] = data["q2"] + np.radians(5) * np.linspace(0, 1, len(data["q2"]))[:, None]  # tampered
+    np.savez(npz, **data)
+    loaded = load_cell(cell)
+    world = CellWorld(loaded)
+    plan = cache.plan_cached(world, load_task(task, loaded), {}, world.q_home_rad)
+    with pytest.raises(InfeasibleError):
+        plan.nominal(plan.rows[2].step)
