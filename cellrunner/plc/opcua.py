@@ -19,12 +19,21 @@ Security: only the configured policies; username/password from the users file
 
 from __future__ import annotations
 
+import asyncio
+import json
+import logging
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlparse
 
-from cellrunner.errors import InputError
+from cellrunner.errors import CellrunnerError, InputError
+from cellrunner.plc.port import CellPort, CellStatus, JobResult
+
+_log = logging.getLogger(__name__)
 
 NAMESPACE_URI = "urn:cellrunner"
 APPLICATION_URI = "urn:cellrunner:server"
@@ -91,3 +100,404 @@ def normalize_policy(name: Any) -> str:
     raise InputError(
         f"unknown OPC UA security policy {text!r}; known: {', '.join(SECURITY_POLICIES)}"
     )
+
+
+# -- server ------------------------------------------------------------------------------
+_POLICY_TYPES = {
+    "Basic256Sha256_SignAndEncrypt": "Basic256Sha256_SignAndEncrypt",
+    "Basic256Sha256_Sign": "Basic256Sha256_Sign",
+    "Aes128Sha256RsaOaep_SignAndEncrypt": "Aes128Sha256RsaOaep_SignAndEncrypt",
+    "Aes128Sha256RsaOaep_Sign": "Aes128Sha256RsaOaep_Sign",
+    "Aes256Sha256RsaPss_SignAndEncrypt": "Aes256Sha256RsaPss_SignAndEncrypt",
+    "Aes256Sha256RsaPss_Sign": "Aes256Sha256RsaPss_Sign",
+    "none": "NoSecurity",
+}
+REFRESH_PERIOD_S = 0.05
+MAX_REMEMBERED_CLIENT_JOBS = 10_000
+NULL_DATETIME = datetime(1601, 1, 1, tzinfo=timezone.utc)  # OPC UA's "no time"
+
+# (browse name, VariantType name, initial value) of Objects/Cell's variables
+_CELL_VARIABLES = (
+    ("State", "Int32", 0),
+    ("StateName", "String", ""),
+    ("Ready", "Boolean", False),
+    ("Busy", "Boolean", False),
+    ("ProtectiveStop", "Boolean", False),
+    ("EmergencyStop", "Boolean", False),
+    ("CurrentJobId", "String", ""),
+    ("CurrentStep", "Int32", 0),
+    ("ProdProcessed", "UInt32", 0),
+    ("ProdDefective", "UInt32", 0),
+)
+_LAST_JOB_VARIABLES = (
+    ("JobId", "String", ""),
+    ("ResultCode", "Int32", 0),
+    ("ResultText", "String", ""),
+    ("CycleTime", "Double", 0.0),
+    ("EndTime", "DateTime", NULL_DATETIME),
+)
+_COMMAND_METHODS = {
+    "Reset": "reset",
+    "Hold": "hold",
+    "Unhold": "unhold",
+    "Abort": "abort",
+    "Clear": "clear",
+    "Stop": "stop",
+}
+
+
+def parse_job_parameters(text: str) -> dict[str, int | float] | None:
+    """StartJob's Parameters: a JSON object of numbers (empty text = {}); None if not."""
+    if not text or not text.strip():
+        return {}
+    try:
+        data = json.loads(text)
+    except ValueError:
+        return None
+    if not isinstance(data, dict):
+        return None
+    params: dict[str, int | float] = {}
+    for name, value in data.items():
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            return None
+        params[str(name)] = value
+    return params
+
+
+class HashedUserManager:
+    """asyncua user manager: username/password against the users file, nothing else.
+
+    Anonymous and certificate identities get no user; the channel's client certificate
+    (when the channel is secured) must be in the trust list; with no secured channel
+    the login is refused unless ``allow_insecure`` (the cell file says ``none``).
+    The users file is re-read when it changes, so ``users add`` works while serving.
+    """
+
+    def __init__(self, users_file: Path, pki: Any, allow_insecure: bool) -> None:
+        self.users_file = users_file
+        self.pki = pki
+        self.allow_insecure = allow_insecure
+        self._users: dict[str, str] = {}
+        self._stamp: tuple[float, int] | None = None
+
+    def load(self) -> None:
+        from cellrunner.plc.users import load_users
+
+        stat = self.users_file.stat() if self.users_file.exists() else None
+        self._users = load_users(self.users_file)
+        self._stamp = None if stat is None else (stat.st_mtime, stat.st_size)
+
+    def _current_users(self) -> dict[str, str]:
+        try:
+            stat = self.users_file.stat()
+            if (stat.st_mtime, stat.st_size) != self._stamp:
+                self.load()
+        except (OSError, CellrunnerError):
+            _log.warning("users file %s unreadable; keeping the previous users", self.users_file)
+        return self._users
+
+    def get_user(self, iserver: Any, username: str | None = None, password: str | None = None, certificate: Any = None) -> Any:
+        from asyncua.crypto.permission_rules import User, UserRole
+        from cryptography import x509
+
+        from cellrunner.plc.users import verify_password
+
+        if username is None or password is None:
+            return None  # anonymous or certificate identity: refused
+        if not certificate:  # no secured channel (None policy): b"" or None
+            if not self.allow_insecure:
+                return None
+        else:
+            try:
+                cert = x509.load_der_x509_certificate(bytes(certificate))
+            except ValueError:
+                return None
+            if not self.pki.is_trusted(cert):
+                self.pki.reject(cert)
+                return None
+        stored = self._current_users().get(username)
+        if not verify_password(stored, password):
+            _log.warning("OPC UA login refused for user %r", username)
+            return None
+        return User(role=UserRole.User, name=username)
+
+
+class OpcUaServer:
+    """The OPC UA server of one cell. Construct (no I/O), ``await start()``,
+    ``await stop()`` on the caller's asyncio loop."""
+
+    def __init__(self, port: CellPort, config: OpcUaConfig, *, cell_name: str = "cell") -> None:
+        self.port = port
+        self.config = config
+        self.cell_name = cell_name
+        self._server: Any = None
+        self._nodes: dict[str, Any] = {}
+        self._types: dict[str, Any] = {}
+        self._values: dict[str, Any] = {}
+        self._client_jobs: OrderedDict[str, tuple[str, int]] = OrderedDict()
+        self._event: Any = None
+        self._aspace: Any = None
+        self._refresh_task: asyncio.Task[None] | None = None
+        self._remove_listener: Callable[[], None] | None = None
+        self._results: asyncio.Queue[JobResult] | None = None
+
+    @property
+    def endpoint(self) -> str:
+        return self.config.endpoint
+
+    # -- lifecycle -------------------------------------------------------------------------
+    async def start(self) -> None:
+        from asyncua import Server, ua
+        from asyncua.crypto.permission_rules import SimpleRoleRuleset, UserRole
+
+        from cellrunner.plc.pki import Pki, default_hosts
+
+        pki = Pki(self.config.pki_dir)
+        allow_insecure = "none" in self.config.security
+        users = HashedUserManager(self.config.users_file, pki, allow_insecure)
+        users.load()  # InputError now, not at the first login
+        cert_file, key_file = pki.ensure_server_certificate(
+            APPLICATION_URI, default_hosts(urlparse(self.config.endpoint).hostname)
+        )
+        server = Server(user_manager=users)  # never asyncua's PermissiveUserManager
+        try:
+            await server.init()
+            server.set_endpoint(self.config.endpoint)
+            server.set_server_name(f"cellrunner {self.cell_name}")
+            await server.set_application_uri(APPLICATION_URI)
+            server.allow_remote_admin(False)
+            ruleset = SimpleRoleRuleset()
+            write = ua.NodeId(ua.ObjectIds.WriteRequest_Encoding_DefaultBinary)
+            ruleset._permission_dict[UserRole.User].discard(write)  # clients never write
+            server.set_security_policy(
+                [getattr(ua.SecurityPolicyType, _POLICY_TYPES[p]) for p in self.config.security],
+                permission_ruleset=ruleset,
+            )
+            server.set_identity_tokens([ua.UserNameIdentityToken])
+            await server.load_certificate(str(cert_file))
+            await server.load_private_key(str(key_file))
+            server.set_certificate_validator(_make_validator(pki))
+            await self._build_address_space(server)
+            await self._publish_status(self.port.status(), initial=True)
+            await server.start()
+        except CellrunnerError:
+            raise
+        except Exception as exc:
+            raise CellrunnerError(f"OPC UA server failed to start on {self.config.endpoint}: {exc}") from exc
+        self._server = server
+        loop = asyncio.get_running_loop()
+        self._results = asyncio.Queue()
+        results = self._results
+        self._remove_listener = self.port.add_result_listener(
+            lambda result: loop.call_soon_threadsafe(results.put_nowait, result)
+        )
+        self._refresh_task = asyncio.create_task(self._refresh_loop(), name="opcua-refresh")
+
+    async def stop(self) -> None:
+        if self._remove_listener is not None:
+            self._remove_listener()
+            self._remove_listener = None
+        if self._refresh_task is not None:
+            self._refresh_task.cancel()
+            try:
+                await self._refresh_task
+            except asyncio.CancelledError:
+                pass
+            self._refresh_task = None
+        if self._server is not None:
+            await self._server.stop()
+            self._server = None
+
+    # -- address space ---------------------------------------------------------------------
+    async def _build_address_space(self, server: Any) -> None:
+        from asyncua import ua
+
+        self._aspace = server.iserver.aspace
+        idx = await server.register_namespace(NAMESPACE_URI)
+        cell = await server.nodes.objects.add_object(ua.NodeId("Cell", idx), ua.QualifiedName("Cell", idx))
+        last = await cell.add_object(ua.NodeId("Cell.LastJob", idx), ua.QualifiedName("LastJob", idx))
+        for parent, prefix, table in ((cell, "", _CELL_VARIABLES), (last, "LastJob.", _LAST_JOB_VARIABLES)):
+            for name, vtype, initial in table:
+                key = prefix + name
+                variant_type = getattr(ua.VariantType, vtype)
+                node = await parent.add_variable(
+                    ua.NodeId(f"Cell.{key}", idx), ua.QualifiedName(name, idx), initial, variant_type
+                )
+                self._nodes[key] = node
+                self._types[key] = variant_type
+        string, int32 = ua.VariantType.String, ua.VariantType.Int32
+        await cell.add_method(
+            ua.NodeId("Cell.StartJob", idx),
+            ua.QualifiedName("StartJob", idx),
+            self._start_job_method,
+            [_argument("TaskName", string, "task name or PLC task number"),
+             _argument("Parameters", string, "JSON object of task params"),
+             _argument("ClientJobId", string, "caller's id; the same id returns the first job")],
+            [_argument("JobId", string, "the cell's job id"),
+             _argument("ReturnCode", int32, "0 accepted, else reject code 10/11/12")],
+        )
+        for name, command in _COMMAND_METHODS.items():
+            await cell.add_method(
+                ua.NodeId(f"Cell.{name}", idx), ua.QualifiedName(name, idx), self._command_method(command), [], []
+            )
+        etype = await server.create_custom_event_type(
+            idx,
+            "JobCompletedEventType",
+            ua.ObjectIds.BaseEventType,
+            [("JobId", string), ("ResultCode", int32), ("ResultText", string), ("ClientJobId", string)],
+        )
+        self._event = await server.get_event_generator(etype, cell)
+        await server.nodes.server.set_event_notifier([ua.EventNotifier.SubscribeToEvents])
+
+    # -- methods ---------------------------------------------------------------------------
+    async def _start_job_method(self, parent: Any, *args: Any) -> Any:
+        from asyncua import ua
+
+        if len(args) != 3:
+            return ua.StatusCode(ua.StatusCodes.BadArgumentsMissing if len(args) < 3 else ua.StatusCodes.BadTooManyArguments)
+        task_name, params_text, client_job_id = (_text(a) for a in args)
+        job_id, code = self.start_job(task_name, params_text, client_job_id)
+        return [ua.Variant(job_id, ua.VariantType.String), ua.Variant(code, ua.VariantType.Int32)]
+
+    def start_job(self, task_name: str, params_text: str, client_job_id: str) -> tuple[str, int]:
+        """StartJob's logic: (JobId, ReturnCode); idempotent per non-empty ClientJobId."""
+        if client_job_id and client_job_id in self._client_jobs:
+            return self._client_jobs[client_job_id]
+        params = parse_job_parameters(params_text)
+        if params is None:
+            return "", 11
+        task: str | int = int(task_name) if task_name.strip().isdigit() else task_name.strip()
+        ticket = self.port.start_job(task, params, client_job_id, "opcua")
+        if not ticket.accepted:
+            return "", ticket.reject_code or 12
+        if client_job_id:
+            self._client_jobs[client_job_id] = (ticket.job_id, 0)
+            while len(self._client_jobs) > MAX_REMEMBERED_CLIENT_JOBS:
+                self._client_jobs.popitem(last=False)
+        return ticket.job_id, 0
+
+    def _command_method(self, command: str) -> Callable[..., Any]:
+        async def call(parent: Any, *args: Any) -> Any:
+            from asyncua import ua
+
+            if args:
+                return ua.StatusCode(ua.StatusCodes.BadTooManyArguments)
+            if not self.port.command(command):
+                return ua.StatusCode(ua.StatusCodes.BadInvalidState)
+            return []
+
+        return call
+
+    # -- keeping values current ------------------------------------------------------------
+    async def _refresh_loop(self) -> None:
+        """Completions as they come (values first, then the event); status every 50 ms."""
+        assert self._results is not None
+        while True:
+            try:
+                result: JobResult | None = await asyncio.wait_for(self._results.get(), REFRESH_PERIOD_S)
+            except TimeoutError:
+                result = None
+            try:
+                if result is not None:
+                    await self._publish_result(result)
+                else:
+                    await self._publish_status(self.port.status())
+            except Exception:  # the engine failed us; keep serving
+                _log.exception("OPC UA refresh failed")
+
+    async def _publish_status(self, status: CellStatus, *, initial: bool = False) -> None:
+        values = {
+            "State": status.state,
+            "StateName": status.state_name,
+            "Ready": status.ready,
+            "Busy": status.busy,
+            "ProtectiveStop": status.protective_stop,
+            "EmergencyStop": status.estop,
+            "CurrentJobId": status.job_id,
+            "CurrentStep": status.step_index,
+            "ProdProcessed": min(max(status.parts_processed, 0), 0xFFFFFFFF),
+            "ProdDefective": min(max(status.parts_defective, 0), 0xFFFFFFFF),
+        }
+        if initial and status.last_result is not None:
+            values.update(_last_job_values(status.last_result))
+        await self._write_values(values)
+
+    async def _publish_result(self, result: JobResult) -> None:
+        await self._write_values(_last_job_values(result))
+        await self._publish_status(self.port.status())
+        await self._trigger_completion(result)
+
+    async def _write_values(self, values: dict[str, Any]) -> None:
+        from asyncua import ua
+
+        aspace = self._aspace
+        for key, value in values.items():
+            if self._values.get(key, _MISSING) == value:
+                continue
+            self._values[key] = value
+            variant = ua.Variant(value, self._types[key])
+            await aspace.write_attribute_value(
+                self._nodes[key].nodeid, ua.AttributeIds.Value, ua.DataValue(variant)
+            )
+
+    async def _trigger_completion(self, result: JobResult) -> None:
+        from asyncua import ua
+
+        gen = self._event
+        gen.event.JobId = result.job_id
+        gen.event.ResultCode = result.result_code
+        gen.event.ResultText = result.result_text
+        gen.event.ClientJobId = result.client_job_id
+        gen.event.Severity = 100 if result.result_code == 0 else 500
+        await gen.trigger(message=f"job {result.job_id} ended with {result.result_code}")
+        # the same event (same EventId) for clients subscribed on the Server object
+        cell_node = gen.event.emitting_node
+        gen.event.emitting_node = ua.NodeId(ua.ObjectIds.Server)
+        try:
+            await gen.isession.subscription_service.trigger_event(gen.event)
+        finally:
+            gen.event.emitting_node = cell_node
+
+
+_MISSING = object()
+
+
+def _last_job_values(result: JobResult) -> dict[str, Any]:
+    return {
+        "LastJob.JobId": result.job_id,
+        "LastJob.ResultCode": result.result_code,
+        "LastJob.ResultText": result.result_text,
+        "LastJob.CycleTime": float(result.cycle_time_s),
+        "LastJob.EndTime": result.end_time or NULL_DATETIME,
+    }
+
+
+def _argument(name: str, vtype: Any, description: str) -> Any:
+    from asyncua import ua
+
+    arg = ua.Argument()
+    arg.Name = name
+    arg.DataType = ua.NodeId(vtype.value)
+    arg.ValueRank = -1
+    arg.Description = ua.LocalizedText(description)
+    return arg
+
+
+def _text(variant: Any) -> str:
+    value = getattr(variant, "Value", variant)
+    return "" if value is None else str(value)
+
+
+def _make_validator(pki: Any) -> Callable[..., Any]:
+    """asyncua certificate validator: trusted/ or refuse (and file in rejected/)."""
+
+    async def validate(cert: Any, app_description: Any) -> None:
+        from asyncua import ua
+        from asyncua.common.utils import ServiceError
+
+        if not pki.is_trusted(cert):
+            path = pki.reject(cert)
+            _log.warning("untrusted OPC UA client certificate filed as %s", path)
+            raise ServiceError(ua.StatusCodes.BadCertificateUntrusted)
+
+    return validate

@@ -3,7 +3,8 @@
 ``cellrunner serve`` builds the engine (a :class:`~cellrunner.plc.port.CellPort`),
 then::
 
-    service = PlcService(engine, cell.plc, base_dir=cell_dir, pki_dir=journal_dir / "pki")
+    service = PlcService(engine, cell.plc, base_dir=cell_dir,
+                         pki_dir=journal_dir / "pki", cell_name=cell.cell)
     service.start()          # raises CellrunnerError when a server cannot start
     ...                      # until SIGTERM
     service.stop()
@@ -43,10 +44,12 @@ class PlcService:
         *,
         base_dir: Path | str = ".",
         pki_dir: Path | str | None = None,
+        cell_name: str = "cell",
     ) -> None:
         from cellrunner.plc.opcua import OpcUaConfig  # light: no asyncua import
 
         self.port = port
+        self.cell_name = cell_name
         modbus = _section(plc_config, "modbus")
         opcua = _section(plc_config, "opcua")
         self.modbus_config = None if modbus is None else ModbusConfig.from_mapping(modbus)
@@ -128,7 +131,7 @@ class PlcService:
             if self.opcua_config is not None:
                 from cellrunner.plc.opcua import OpcUaServer
 
-                self.opcua = OpcUaServer(self.port, self.opcua_config)
+                self.opcua = OpcUaServer(self.port, self.opcua_config, cell_name=self.cell_name)
                 await self.opcua.start()
         except BaseException as exc:
             started.set_exception(_translate(exc))

@@ -78,6 +78,10 @@ class PlcProcess:
         except Exception:
             self.proc.kill()
             self.proc.wait(timeout=5)
+        finally:
+            for stream in (self.proc.stdin, self.proc.stdout):
+                if stream is not None:
+                    stream.close()
 
 
 def plc_test_tasks() -> list[FakeTask]:

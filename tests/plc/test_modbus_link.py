@@ -134,3 +134,19 @@ def test_job_interrupted_by_restart_is_published_and_replayed_once() -> None:
 )
 def test_config_from_cell_file(data: dict, expected: ModbusConfig) -> None:
     assert ModbusConfig.from_mapping(data) == expected
+
+
+def test_port_in_use_is_a_cellrunner_error() -> None:
+    import socket
+
+    from cellrunner.errors import CellrunnerError
+    from cellrunner.plc.service import PlcService
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        with FakeCell() as cell:
+            service = PlcService(cell, {"modbus": {"bind": "127.0.0.1", "port": port}})
+            with pytest.raises(CellrunnerError, match=f"cannot listen for Modbus TCP on 127.0.0.1:{port}"):
+                service.start(timeout_s=10)

@@ -1,0 +1,178 @@
+"""An OPC UA client (asyncua) run as a separate process; prints one JSON object.
+
+    python opcua_client.py --url URL --scenario connect|job|write \
+        [--policy Basic256Sha256_SignAndEncrypt|none] [--cert C --key K] [--user U --password P]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import time
+from typing import Any
+
+CLIENT_URI = "urn:cellrunner:test-client"
+
+
+async def connect(args: argparse.Namespace) -> Any:
+    from asyncua import Client, ua
+    from asyncua.crypto import security_policies as sp
+
+    if args.force:  # a hostile client: ignore what the server offers, insist on ours
+        original = Client.find_endpoint
+
+        def lenient(endpoints: Any, mode: Any, uri: str) -> Any:
+            try:
+                return original(endpoints, mode, uri)
+            except ua.UaError:
+                import copy
+
+                endpoint = copy.copy(endpoints[0])
+                endpoint.SecurityMode, endpoint.SecurityPolicyUri = mode, uri
+                return endpoint
+
+        Client.find_endpoint = staticmethod(lenient)  # type: ignore[method-assign]
+    client = Client(args.url, timeout=4)
+    client.application_uri = CLIENT_URI
+    client.session_timeout = 10_000
+    if args.policy != "none":
+        name, mode = args.policy.split("_")
+        policy = getattr(sp, f"SecurityPolicy{name}")
+        await client.set_security(
+            policy, args.cert, args.key, mode=getattr(ua.MessageSecurityMode, mode)
+        )
+    if args.user:
+        client.set_user(args.user)
+        client.set_password(args.password)
+    await client.connect()
+    return client
+
+
+class Events:
+    def __init__(self) -> None:
+        self.received: list[dict[str, Any]] = []
+
+    def event_notification(self, event: Any) -> None:
+        self.received.append(
+            {"JobId": event.JobId, "ResultCode": event.ResultCode, "ClientJobId": event.ClientJobId}
+        )
+
+
+async def scenario_job(client: Any) -> dict[str, Any]:
+    from asyncua import ua
+
+    out: dict[str, Any] = {}
+    ns = await client.get_namespace_index("urn:cellrunner")
+    cell = await client.nodes.objects.get_child(f"{ns}:Cell")
+    etype = await client.nodes.base_event_type.get_child(f"{ns}:JobCompletedEventType")
+    on_cell, on_server = Events(), Events()
+    sub1 = await client.create_subscription(20, on_cell)
+    await sub1.subscribe_events(cell, etype)
+    sub2 = await client.create_subscription(20, on_server)
+    await sub2.subscribe_events(client.nodes.server, etype)
+
+    async def start(task: str, params: str, cid: str) -> list[Any]:
+        return await cell.call_method(f"{ns}:StartJob", task, params, cid)
+
+    out["types"] = {}
+    for name in ("State", "StateName", "Ready", "Busy", "ProtectiveStop", "EmergencyStop",
+                 "CurrentJobId", "CurrentStep", "ProdProcessed", "ProdDefective"):
+        dv = await (await cell.get_child(f"{ns}:{name}")).read_data_value()
+        out["types"][name] = dv.Value.VariantType.name
+    last = await cell.get_child(f"{ns}:LastJob")
+    for name in ("JobId", "ResultCode", "ResultText", "CycleTime", "EndTime"):
+        dv = await (await last.get_child(f"{ns}:{name}")).read_data_value()
+        out["types"]["LastJob." + name] = dv.Value.VariantType.name
+
+    t0 = time.monotonic()
+    out["first"] = await start("pick_place", '{"slot": 3}', "plc-job-1")
+    out["start_latency_s"] = time.monotonic() - t0
+    out["again"] = await start("pick_place", '{"slot": 3}', "plc-job-1")
+    deadline = time.monotonic() + 5
+    while (not on_cell.received or not on_server.received) and time.monotonic() < deadline:
+        await asyncio.sleep(0.02)
+    out["events_cell"] = on_cell.received
+    out["events_server"] = on_server.received
+    out["last_job"] = {
+        name: str(await (await last.get_child(f"{ns}:{name}")).read_value())
+        for name in ("JobId", "ResultCode", "ResultText")
+    }
+    out["prod_processed"] = await (await cell.get_child(f"{ns}:ProdProcessed")).read_value()
+    # wait for Idle, then the rejects
+    state = await cell.get_child(f"{ns}:Ready")
+    while not await state.read_value() and time.monotonic() < deadline:
+        await asyncio.sleep(0.02)
+    out["again_after_end"] = await start("pick_place", '{"slot": 3}', "plc-job-1")
+    out["unknown_task"] = await start("nope", "{}", "plc-job-2")
+    out["bad_params"] = await start("pick_place", '{"slot": 99}', "plc-job-3")
+    out["bad_json"] = await start("pick_place", "{slot: 1", "plc-job-4")
+    out["by_number"] = await start("2", "", "plc-job-5")
+    try:
+        await cell.call_method(f"{ns}:Unhold")
+        out["unhold_when_idle"] = "accepted"
+    except ua.UaStatusCodeError as exc:
+        out["unhold_when_idle"] = type(exc).__name__
+    await sub1.delete()
+    await sub2.delete()
+    return out
+
+
+async def scenario_write(client: Any) -> dict[str, Any]:
+    from asyncua import ua
+
+    ns = await client.get_namespace_index("urn:cellrunner")
+    cell = await client.nodes.objects.get_child(f"{ns}:Cell")
+    out: dict[str, Any] = {}
+    for name, value, vtype in (("State", 6, ua.VariantType.Int32), ("Ready", True, ua.VariantType.Boolean)):
+        node = await cell.get_child(f"{ns}:{name}")
+        try:
+            await node.write_value(ua.DataValue(ua.Variant(value, vtype)))
+            out[name] = "written"
+        except ua.UaStatusCodeError as exc:
+            out[name] = type(exc).__name__
+    node = await (await cell.get_child(f"{ns}:LastJob")).get_child(f"{ns}:JobId")
+    try:
+        await node.write_value(ua.DataValue(ua.Variant("forged", ua.VariantType.String)))
+        out["LastJob.JobId"] = "written"
+    except ua.UaStatusCodeError as exc:
+        out["LastJob.JobId"] = type(exc).__name__
+    out["State_after"] = await (await cell.get_child(f"{ns}:State")).read_value()
+    return out
+
+
+async def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--url", required=True)
+    ap.add_argument("--scenario", default="connect")
+    ap.add_argument("--policy", default="Basic256Sha256_SignAndEncrypt")
+    ap.add_argument("--cert")
+    ap.add_argument("--key")
+    ap.add_argument("--user")
+    ap.add_argument("--password")
+    ap.add_argument("--force", action="store_true", help="skip the client's endpoint check")
+    args = ap.parse_args()
+    result: dict[str, Any] = {"connected": False}
+    try:
+        client = await asyncio.wait_for(connect(args), 15)
+    except Exception as exc:  # noqa: BLE001 - reported to the test
+        result["error"] = f"{type(exc).__name__}: {exc}"
+        print(json.dumps(result))
+        return
+    result["connected"] = True
+    try:
+        if args.scenario == "job":
+            result.update(await asyncio.wait_for(scenario_job(client), 30))
+        elif args.scenario == "write":
+            result.update(await asyncio.wait_for(scenario_write(client), 15))
+        else:
+            ns = await client.get_namespace_index("urn:cellrunner")
+            cell = await client.nodes.objects.get_child(f"{ns}:Cell")
+            result["state"] = await (await cell.get_child(f"{ns}:State")).read_value()
+    finally:
+        await client.disconnect()
+    print(json.dumps(result, default=str))
+
+
+if __name__ == "__main__":
+    asyncio.run(main())

@@ -1,0 +1,174 @@
+"""SPEC section 8 over real sockets: the cell's OPC UA server, asyncua clients in processes."""
+
+from __future__ import annotations
+
+import json
+import socket
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from cryptography.hazmat.primitives import serialization
+from cryptography.hazmat.primitives.asymmetric import rsa
+
+from cellrunner.plc.fake import FakeCell
+from cellrunner.plc.pki import make_certificate
+from cellrunner.plc.service import PlcService
+from cellrunner.plc.users import add_user
+from tests.plc.conftest import HERE, child_env, plc_test_tasks
+
+USER, PASSWORD = "line3-plc", "correct horse battery"
+CLIENT_URI = "urn:cellrunner:test-client"
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def write_client_cert(directory: Path, name: str) -> tuple[Path, Path]:
+    key = rsa.generate_private_key(public_exponent=65537, key_size=2048)
+    cert = make_certificate(key, name, CLIENT_URI, ["localhost"], server=False)
+    cert_path, key_path = directory / f"{name}.der", directory / f"{name}.pem"
+    cert_path.write_bytes(cert.public_bytes(serialization.Encoding.DER))
+    key_path.write_bytes(
+        key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption())
+    )
+    return cert_path, key_path
+
+
+class Setup:
+    def __init__(self, root: Path, cell: FakeCell, service: PlcService, url: str) -> None:
+        self.root, self.cell, self.service, self.url = root, cell, service, url
+        self.pki = root / "pki"
+        self.trusted_cert, self.trusted_key = write_client_cert(root, "trusted-client")
+        (self.pki / "trusted").mkdir(parents=True, exist_ok=True)
+        (self.pki / "trusted" / "trusted-client.der").write_bytes(self.trusted_cert.read_bytes())
+        self.stranger_cert, self.stranger_key = write_client_cert(root, "stranger")
+
+    def args(self, **kw: Any) -> list[str]:
+        opts = {
+            "url": self.url, "scenario": "connect", "policy": "Basic256Sha256_SignAndEncrypt",
+            "cert": str(self.trusted_cert), "key": str(self.trusted_key), "user": USER, "password": PASSWORD,
+        }
+        opts.update(kw)
+        argv = [sys.executable, str(HERE / "opcua_client.py")]
+        for key, value in opts.items():
+            if value is not None:
+                argv += [f"--{key}", str(value)]
+        return argv
+
+
+def run_clients(argvs: list[list[str]], timeout_s: float = 60) -> list[dict[str, Any]]:
+    """Run client processes in parallel; each prints one JSON object."""
+    procs = [subprocess.Popen(a, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=child_env()) for a in argvs]
+    results = []
+    for proc in procs:
+        try:
+            out, err = proc.communicate(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out, err = proc.communicate()
+        lines = [line for line in out.splitlines() if line.startswith("{")]
+        results.append(json.loads(lines[-1]) if lines else {"connected": False, "error": err[-2000:]})
+    return results
+
+
+@pytest.fixture(scope="module")
+def opcua(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Setup]:
+    root = tmp_path_factory.mktemp("opcua")
+    users = root / "secrets" / "opcua-users.yaml"
+    add_user(users, USER, PASSWORD)
+    add_user(users, "other", "another password")
+    url = f"opc.tcp://127.0.0.1:{free_port()}/cellrunner"
+    cell = FakeCell(tasks=plc_test_tasks(), parts_processed=7).start()
+    config = {"opcua": {"endpoint": url, "users": "secrets/opcua-users.yaml", "pki": "pki"}}
+    service = PlcService(cell, config, base_dir=root)
+    setup = Setup(root, cell, service, url)  # client certs trusted before the server starts
+    service.start()
+    try:
+        yield setup
+    finally:
+        service.stop()
+        cell.close()
+
+
+def test_server_certificate_created_on_first_start(opcua: Setup) -> None:
+    assert (opcua.pki / "own" / "cert.der").is_file()
+    key = opcua.pki / "own" / "key.pem"
+    assert key.is_file() and key.stat().st_mode & 0o077 == 0
+
+
+def test_encrypted_user_session_runs_a_job_and_gets_the_completion_event(opcua: Setup) -> None:
+    [out] = run_clients([opcua.args(scenario="job")])
+    assert out["connected"], out
+    assert out["types"] == {
+        "State": "Int32", "StateName": "String", "Ready": "Boolean", "Busy": "Boolean",
+        "ProtectiveStop": "Boolean", "EmergencyStop": "Boolean", "CurrentJobId": "String",
+        "CurrentStep": "Int32", "ProdProcessed": "UInt32", "ProdDefective": "UInt32",
+        "LastJob.JobId": "String", "LastJob.ResultCode": "Int32", "LastJob.ResultText": "String",
+        "LastJob.CycleTime": "Double", "LastJob.EndTime": "DateTime",
+    }
+    job_id, code = out["first"]
+    assert code == 0 and job_id
+    assert out["start_latency_s"] < 1.0
+    assert out["again"] == [job_id, 0]  # same ClientJobId: the first job, not a second
+    assert out["again_after_end"] == [job_id, 0]
+    assert out["events_cell"] == [{"JobId": job_id, "ResultCode": 0, "ClientJobId": "plc-job-1"}]
+    assert out["events_server"] == out["events_cell"]
+    assert out["last_job"] == {"JobId": job_id, "ResultCode": "0", "ResultText": "OK"}
+    assert out["prod_processed"] == 8
+    assert out["unknown_task"] == ["", 10]
+    assert out["bad_params"] == ["", 11]
+    assert out["bad_json"] == ["", 11]
+    assert out["by_number"][1] == 0
+    assert out["unhold_when_idle"] == "BadInvalidState"
+    started = [r for r in opcua.cell.finished if r.client_job_id == "plc-job-1"]
+    assert len(started) == 1 and started[0].source == "opcua"
+
+
+def test_writes_to_cell_variables_are_refused(opcua: Setup) -> None:
+    [out] = run_clients([opcua.args(scenario="write")])
+    assert out["connected"], out
+    refused = {"BadUserAccessDenied", "BadNotWritable", "BadWriteNotSupported"}
+    assert out["State"] in refused and out["Ready"] in refused and out["LastJob.JobId"] in refused
+    assert out["State_after"] != 6 or opcua.cell.status().state == 6
+
+
+def test_security_negatives_are_all_refused(opcua: Setup) -> None:
+    cases = {
+        "anonymous": opcua.args(user=None, password=None),
+        "wrong password": opcua.args(password="wrong"),
+        "unknown user": opcua.args(user="mallory", password=PASSWORD),
+        "untrusted cert": opcua.args(cert=str(opcua.stranger_cert), key=str(opcua.stranger_key)),
+        "none security": opcua.args(policy="none", cert=None, key=None),
+        "none security, forced": opcua.args(policy="none", cert=None, key=None) + ["--force"],
+        "sign only, forced": opcua.args(policy="Basic256Sha256_Sign") + ["--force"],
+        "admin without password": opcua.args(user="admin", password="x"),
+        "sign only (not offered)": opcua.args(policy="Basic256Sha256_Sign"),
+    }
+    results = run_clients(list(cases.values()))
+    for name, out in zip(cases, results):
+        assert not out["connected"], (name, out)
+    rejected = list((opcua.pki / "rejected").iterdir())
+    assert [p.name for p in rejected if p.name.startswith("stranger-")], rejected
+    assert not any(p.name.startswith("trusted-client") for p in rejected)
+    # the same credentials with a trusted certificate do work
+    [ok] = run_clients([opcua.args()])
+    assert ok["connected"] and isinstance(ok["state"], int), ok
+
+
+def test_none_endpoint_only_when_written(tmp_path: Path) -> None:
+    users = tmp_path / "users.yaml"
+    add_user(users, USER, PASSWORD)
+    url = f"opc.tcp://127.0.0.1:{free_port()}/cellrunner"
+    config = {"opcua": {"endpoint": url, "users": str(users), "security": ["none"], "pki": str(tmp_path / "pki")}}
+    with FakeCell(tasks=plc_test_tasks()) as cell, PlcService(cell, config):
+        argv = [sys.executable, str(HERE / "opcua_client.py"), "--url", url, "--policy", "none"]
+        ok, anonymous = run_clients([argv + ["--user", USER, "--password", PASSWORD], argv])
+    assert ok["connected"], ok
+    assert not anonymous["connected"], anonymous
