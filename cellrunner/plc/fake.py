@@ -101,6 +101,7 @@ class FakeCell:
     parts_processed: int = 0
     parts_defective: int = 0
     tick_s: float = 0.002
+    clock: Callable[[], float] = time.monotonic  # the one time source, s (tests inject theirs)
 
     def __post_init__(self) -> None:
         self._by_number = {t.number: t for t in self.tasks}
@@ -194,7 +195,7 @@ class FakeCell:
                 client_job_id=client_job_id,
                 source=source,
                 result_code=code,
-                started_s=time.monotonic(),
+                started_s=self.clock(),
             )
             self._queued = job
             self._enter(S.STARTING, S.EXECUTE)
@@ -267,7 +268,7 @@ class FakeCell:
     def _enter(self, state: PackMLState, then: PackMLState | None = None) -> None:
         self._state = state
         self._next_state = then
-        self._state_until_s = time.monotonic() + TRANSIENT_S
+        self._state_until_s = self.clock() + TRANSIENT_S
 
     def _apply_command(self, name: str) -> bool:
         st = self._state
@@ -308,7 +309,7 @@ class FakeCell:
             job_id=job.job_id,
             result_code=code,
             result_text=_RESULT_TEXT.get(code, f"result {code}"),
-            cycle_time_s=time.monotonic() - job.started_s,
+            cycle_time_s=self.clock() - job.started_s,
             end_time=datetime.now(timezone.utc),
             retries=1 if code == 1 else 0,
             task=job.task.name,
@@ -323,7 +324,7 @@ class FakeCell:
 
     def step(self, now_s: float | None = None) -> None:
         """Advance the fake by hand (when not ``start()``-ed) and notify listeners."""
-        self._tick(time.monotonic() if now_s is None else now_s)
+        self._tick(self.clock() if now_s is None else now_s)
         self._notify()
 
     def _run(self) -> None:

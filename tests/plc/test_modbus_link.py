@@ -34,8 +34,8 @@ class Clock:
 
 
 def make(**kw: object) -> tuple[FakeCell, ModbusLink, Clock]:
-    cell = FakeCell(tasks=plc_test_tasks(), **kw)  # type: ignore[arg-type]
     clock = Clock()
+    cell = FakeCell(tasks=plc_test_tasks(), clock=lambda: clock.t + 100.0, **kw)  # type: ignore[arg-type]
     link = ModbusLink(cell, heartbeat_timeout_s=1.0, clock=clock)
     cell.add_result_listener(link.on_result)
     link.restore()
