@@ -101,8 +101,8 @@ def build_parser() -> argparse.ArgumentParser:
     u = usub.add_parser("add", help="add or replace a user (salted hash)")
     u.add_argument("file")
     u.add_argument("name")
-    u.add_argument("--password-stdin", action="store_true", required=True,
-                   help="read the password from standard input")
+    u.add_argument("--password-stdin", action="store_true",
+                   help="read the password from standard input (else prompt twice)")
     p.set_defaults(module="users")
     return parser
 

@@ -94,6 +94,26 @@ class CellController:
         self._now_s = self.backend.read_state().time_s
         self._enter_command(Command.RESET)
 
+    def shutdown(self, reason: str = "cellrunner stopped", max_ticks: int = 2000) -> None:
+        """Stop safely: a running job's motion is stopped, the job closed with 107, and
+        the robot left standing (bounded by ``max_ticks`` periods)."""
+        with self._lock:
+            job = self._job
+            if job is None:
+                return
+            try:
+                self.backend.stop_motion()
+            except Exception:
+                pass
+        for _ in range(max_ticks):
+            state = self.backend.read_state()
+            if float(np.max(np.abs(state.qd_rad_s))) < 1e-3:
+                break
+            self.backend.wait_period()
+        with self._lock:
+            runner = job.runner
+            self._end_job(ResultCode.INTERRUPTED, f"interrupted: {reason}", runner)
+
     def close(self) -> None:
         self._pool.shutdown(wait=False, cancel_futures=True)
         self.backend.close()

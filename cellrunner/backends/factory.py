@@ -1,0 +1,27 @@
+"""Choosing and building the robot backend a cell runs on (``robot.backend``, overridden
+by ``--backend`` and ``--robot-host``). Imports are lazy: mujoco or ur_rtde load only
+for the backend in use."""
+
+from __future__ import annotations
+
+from cellrunner.errors import UsageError
+from cellrunner.model.load import LoadedCell
+
+
+def backend_kind(cell: LoadedCell, override: str | None) -> str:
+    return override or cell.cell.robot.backend
+
+
+def make_backend(cell: LoadedCell, kind: str, host: str | None = None, **kw):
+    """The backend for ``cell``: ``sim`` (the MuJoCo twin in-process) or ``ur``."""
+    if kind == "sim":
+        from cellrunner.backends.sim.from_cell import description_of
+        from cellrunner.backends.sim.backend import SimBackend
+        return SimBackend(description_of(cell), **kw)
+    if kind == "ur":
+        host = host or cell.cell.robot.host
+        if not host:
+            raise UsageError("the ur backend needs a controller address: robot.host in the cell file or --robot-host")
+        from cellrunner.backends.ur import URBackend
+        return URBackend(cell.spec, host, **kw)
+    raise UsageError(f"unknown backend {kind!r}; known: ur, sim")

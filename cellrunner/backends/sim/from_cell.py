@@ -1,0 +1,36 @@
+"""The twin's description of a loaded cell file (the twin itself never reads YAML)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cellrunner.model.expand import frame_pose
+from cellrunner.model.geometry import Placed
+from cellrunner.model.load import LoadedCell
+
+
+def description_of(loaded: LoadedCell):
+    """A :class:`TwinDescription` of ``loaded``: arm, mount, tool, gripper, fixtures, parts, IO."""
+    from cellrunner.backends.sim.description import GripperDescription, PartDescription, TwinDescription
+
+    c = loaded.cell
+    outputs, inputs = c.io.outputs, c.io.inputs
+    gripper = None
+    g = c.tool.gripper
+    if g is not None and g.close is not None:
+        gripper = GripperDescription(
+            stroke_m=g.stroke, close_output=outputs[g.close.output], close_value=g.close.value,
+            closed_sensor_input=inputs.get(g.closed_sensor) if g.closed_sensor else None,
+            open_sensor_input=inputs.get(g.open_sensor) if g.open_sensor else None)
+    tool = [Placed("gripper" if len(c.tool.geometry) == 1 else f"tool{i}", t.to_shape(loaded.resolve), t.matrix())
+            for i, t in enumerate(c.tool.geometry)]
+    fixtures = [Placed(f.name, f.to_shape(loaded.resolve), f.matrix()) for f in c.fixtures]
+    parts = [PartDescription(p.name, p.to_shape(loaded.resolve), p.mass, frame_pose(c, p.at), p.friction)
+             for p in c.parts]
+    return TwinDescription(
+        spec=loaded.spec, T_world_base=c.robot.mount.matrix(), T_flange_tcp=c.tool.tcp.matrix(),
+        q_home_rad=tuple(np.radians(c.robot.home)), tool_geometry=tuple(tool),
+        payload_mass_kg=max(c.tool.payload.mass, 0.1), payload_cog_m=tuple(c.tool.payload.cog),
+        gripper=gripper, fixtures=tuple(fixtures), parts=tuple(parts),
+        io_outputs=tuple(dict.fromkeys(outputs.values())), io_inputs=tuple(dict.fromkeys(inputs.values())),
+        name=c.cell)

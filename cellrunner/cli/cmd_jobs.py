@@ -1,0 +1,53 @@
+"""``cellrunner jobs CELL [--last N] [--csv]``: the journal."""
+
+from __future__ import annotations
+
+import csv
+import sys
+from datetime import datetime
+
+from cellrunner.errors import UsageError
+from cellrunner.execution.journal import Journal
+from cellrunner.model.load import load_cell
+
+COLUMNS = ("job_id", "started", "task", "params", "source", "client_job_id", "result_code", "result_text",
+           "cycle_time_s", "retries")
+
+
+def run(args) -> int:
+    if args.last < 1:
+        raise UsageError(f"--last {args.last}: give a positive number of jobs")
+    cell = load_cell(args.cell)
+    path = cell.resolve(cell.cell.journal)
+    if not path.exists():
+        sys.stderr.write(f"{path}: no journal yet (no job has run)\n")
+        return 0
+    journal = Journal(path).open()
+    try:
+        records = journal.last(args.last)
+    finally:
+        journal.close()
+    rows = [{"job_id": r.job_id, "started": _time(r.started_at), "task": r.task,
+             "params": " ".join(f"{k}={v}" for k, v in r.params.items()), "source": r.source,
+             "client_job_id": r.client_job_id or "", "result_code": "" if r.result_code is None else r.result_code,
+             "result_text": r.result_text or ("running" if r.ended_at is None else ""),
+             "cycle_time_s": "" if r.cycle_time_s is None else f"{r.cycle_time_s:.2f}", "retries": r.retries}
+            for r in records]
+    if args.csv:
+        writer = csv.DictWriter(sys.stdout, fieldnames=COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+        return 0
+    from rich.table import Table
+    from cellrunner.cli.common import console
+    table = Table(title=f"jobs of {cell.cell.cell} ({path})", title_justify="left")
+    for c in COLUMNS:
+        table.add_column(c, justify="right" if c in ("result_code", "cycle_time_s", "retries") else "left")
+    for row in rows:
+        table.add_row(*[str(row[c]) for c in COLUMNS])
+    console().print(table)
+    return 0
+
+
+def _time(ts: float) -> str:
+    return datetime.fromtimestamp(ts).strftime("%Y-%m-%d %H:%M:%S")

@@ -1,0 +1,29 @@
+"""The planner the cell uses for a job: the task plan (from the plan cache when the same
+job was planned before), refused as a whole when any step is infeasible."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cellrunner.errors import InfeasibleError
+from cellrunner.execution.cell import JobPlan, Planner
+from cellrunner.model.load import LoadedTask
+
+#: a start this close to home (max over joints, rad) is planned from home, so that jobs
+#: that begin at home reuse the cached plan
+HOME_SNAP_RAD = 1e-3
+
+
+def job_planner(world, *, use_cache: bool = True) -> Planner:
+    from cellrunner.planning.cache import plan_cached
+
+    def plan(task: LoadedTask, params: dict, q_now_rad: np.ndarray) -> JobPlan:
+        q = np.asarray(q_now_rad, float)
+        if np.max(np.abs(q - world.q_home_rad)) < HOME_SNAP_RAD:
+            q = world.q_home_rad
+        task_plan = plan_cached(world, task, params, q, use_cache=use_cache)
+        if not task_plan.ok:
+            raise InfeasibleError("; ".join(task_plan.errors))
+        return JobPlan(task_plan.steps, task_plan, task_plan.cycle_time_s)
+
+    return plan
