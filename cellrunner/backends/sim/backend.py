@@ -103,6 +103,7 @@ class SimBackend:
         n = len(traj.q_rad)
         if not 0 <= index < n:
             raise BackendError(f"set-point index {index} out of range 0..{n - 1}")
+        world.check_can_move()
         q = traj.q_rad[index]
         jump = np.abs(q - world.q_ref)
         if np.any(jump > self._max_step_rad):

@@ -26,8 +26,10 @@ set after compiling, from the joint-space inertia at home, for a natural frequen
 from __future__ import annotations
 
 import math
+import struct
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -64,16 +66,24 @@ class PhysicsOptions:
 
 
 def build_mjcf(desc: TwinDescription, options: PhysicsOptions = PhysicsOptions()) -> str:
-    """The cell as an MJCF XML string."""
+    """The cell as an MJCF XML string (meshes referenced as in-memory assets)."""
     return _Builder(desc, options).build()
+
+
+def build_mjcf_with_assets(desc: TwinDescription,
+                           options: PhysicsOptions = PhysicsOptions()) -> tuple[str, dict[str, bytes]]:
+    """The MJCF XML and its mesh assets (binary STL bytes by asset file name)."""
+    builder = _Builder(desc, options)
+    xml = builder.build()
+    return xml, builder.mesh_files
 
 
 def compile_model(desc: TwinDescription, options: PhysicsOptions = PhysicsOptions()) -> Any:
     """Compile the MJCF of ``desc`` into an ``mujoco.MjModel`` with tuned servo gains."""
     mujoco = load_mujoco()
-    xml = build_mjcf(desc, options)
+    xml, assets = build_mjcf_with_assets(desc, options)
     try:
-        model = mujoco.MjModel.from_xml_string(xml)
+        model = mujoco.MjModel.from_xml_string(xml, assets)
     except ValueError as exc:  # mujoco reports XML/compile errors as ValueError
         raise ValueError(f"cannot build the twin of cell {desc.name!r}: {exc}") from exc
     tune_servo_gains(model, desc, options)
@@ -123,6 +133,30 @@ def quat_of(R: np.ndarray) -> tuple[float, float, float, float]:
     return tuple(v / n for v in q)  # type: ignore[return-value]
 
 
+def binary_stl(path: Path) -> bytes:
+    """The bytes of STL file ``path`` in binary form (MuJoCo reads only binary STL).
+
+    Raises ValueError naming the file when it cannot be read or parsed."""
+    try:
+        raw = Path(path).read_bytes()
+    except OSError as exc:
+        raise ValueError(f"cannot read mesh {path}: {exc.strerror}") from exc
+    if len(raw) >= 84 and len(raw) == 84 + 50 * struct.unpack_from("<I", raw, 80)[0]:
+        return raw  # already binary
+    text = raw.decode("ascii", errors="replace")
+    if not text.lstrip().lower().startswith("solid"):
+        raise ValueError(f"mesh {path} is neither a binary nor an ASCII STL file")
+    vertices = [tuple(float(v) for v in line.split()[1:4])
+                for line in text.splitlines() if line.strip().lower().startswith("vertex")]
+    if not vertices or len(vertices) % 3:
+        raise ValueError(f"mesh {path}: ASCII STL with {len(vertices)} vertices, not triangles")
+    out = bytearray(80) + struct.pack("<I", len(vertices) // 3)
+    for k in range(0, len(vertices), 3):
+        out += struct.pack("<12fH", 0.0, 0.0, 0.0, *vertices[k], *vertices[k + 1],
+                           *vertices[k + 2], 0)
+    return bytes(out)
+
+
 def _fmt(values: Any) -> str:
     return " ".join(f"{float(v):.9g}" for v in np.ravel(values))
 
@@ -138,6 +172,7 @@ class _Builder:
         self.root = ET.Element("mujoco", model=desc.name)
         self.assets: ET.Element | None = None
         self._meshes: dict[str, str] = {}
+        self.mesh_files: dict[str, bytes] = {}
 
     def build(self) -> str:
         d, o = self.desc, self.options
@@ -150,7 +185,9 @@ class _Builder:
                       ls_iterations="10", tolerance="1e-8", gravity="0 0 -9.81")
         visual = ET.SubElement(self.root, "visual")
         ET.SubElement(visual, "global", offwidth="1600", offheight="1200")
-        ET.SubElement(visual, "quality", shadowsize="4096", offsamples="8")
+        ET.SubElement(visual, "quality", shadowsize="2048", offsamples="4")
+        # a wider shadow clip than the default avoids shadow acne on the floor far out
+        ET.SubElement(visual, "map", shadowclip="3", shadowscale="0.6")
         ET.SubElement(visual, "headlight", ambient="0.35 0.35 0.35", diffuse="0.5 0.5 0.5",
                       specular="0.1 0.1 0.1")
         self._assets()
@@ -174,9 +211,9 @@ class _Builder:
     def _assets(self) -> None:
         a = self.assets = ET.SubElement(self.root, "asset")
         ET.SubElement(a, "texture", name="grid", type="2d", builtin="checker", width="512",
-                      height="512", rgb1="0.82 0.82 0.80", rgb2="0.74 0.74 0.72")
-        ET.SubElement(a, "material", name="floor", texture="grid", texrepeat="8 8",
-                      reflectance="0.05")
+                      height="512", rgb1="0.80 0.80 0.78", rgb2="0.74 0.74 0.72")
+        ET.SubElement(a, "material", name="floor", texture="grid", texrepeat="2 2",
+                      texuniform="true", reflectance="0")
         for name, rgba in (("arm", "0.78 0.80 0.82 1"), ("joint", "0.20 0.45 0.70 1"),
                            ("tool", "0.25 0.25 0.28 1"), ("pad", "0.10 0.10 0.10 1"),
                            ("fixture", "0.62 0.52 0.40 1"), ("part", "0.95 0.55 0.10 1")):
@@ -187,7 +224,8 @@ class _Builder:
         if key not in self._meshes:
             name = f"mesh{len(self._meshes)}"
             assert self.assets is not None
-            ET.SubElement(self.assets, "mesh", name=name, file=str(mesh.path),
+            self.mesh_files[f"{name}.stl"] = binary_stl(mesh.path)
+            ET.SubElement(self.assets, "mesh", name=name, file=f"{name}.stl",
                           scale=_fmt([mesh.scale] * 3))
             self._meshes[key] = name
         return self._meshes[key]

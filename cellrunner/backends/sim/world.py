@@ -27,6 +27,7 @@ UNLOCK_DELAY_S = 5.0  # UR: a protective stop can be unlocked 5 s after it happe
 STOP_DECEL_RAD_S2 = 30.0  # category 2 stop ramp (protective stop, stopJ default)
 GRAVITY_MPS2 = 9.81
 JAW_REST_SPEED_MPS = 0.005
+COLLISION_BACKOFF_S = 0.02
 SLIP_FRICTION = 1e-3
 
 
@@ -225,12 +226,16 @@ class SimWorld:
     # -- commands -----------------------------------------------------------------------
     def command(self, q_ref_rad: np.ndarray, qd_ref_rad_s: np.ndarray) -> None:
         """Set the servo set-point for the next period (servoJ)."""
+        self.check_can_move()
+        self.q_ref = np.asarray(q_ref_rad, dtype=float).copy()
+        self.qd_ref = np.asarray(qd_ref_rad_s, dtype=float).copy()
+
+    def check_can_move(self) -> None:
+        """Raise BackendError unless the controller would accept motion commands now."""
         if self.safety is not Safety.NORMAL:
             raise BackendError(f"robot cannot move: safety state is {self.safety.value}")
         if self._stop is not None:
             raise BackendError("robot is stopping (stopJ); wait until it stands still")
-        self.q_ref = np.asarray(q_ref_rad, dtype=float).copy()
-        self.qd_ref = np.asarray(qd_ref_rad_s, dtype=float).copy()
 
     def stop_motion(self, decel_rad_s2: float = STOP_DECEL_RAD_S2) -> None:
         """Ramp the set-point to standstill, along the current commanded motion."""
@@ -287,10 +292,19 @@ class SimWorld:
         self._resume()
 
     def raise_protective_stop(self, reason: StopReason = StopReason.INJECTED) -> None:
-        if self.safety is Safety.NORMAL:
-            self.safety = Safety.PROTECTIVE_STOP
-            self.stop_time_s = self.time_s
-            self._begin_stop(STOP_DECEL_RAD_S2 * (2.0 if reason is StopReason.CONTACT else 1.0))
+        if self.safety is not Safety.NORMAL:
+            return
+        self.safety = Safety.PROTECTIVE_STOP
+        self.stop_time_s = self.time_s
+        if reason is StopReason.CONTACT:
+            # A collision: hold where the arm was just before (backing off 20 ms of the
+            # motion, as UR arms back off) rather than ramp on into the obstacle.
+            self._stop = None
+            q, qd = self.data.qpos[self._ids.qpos], self.data.qvel[self._ids.dof]
+            self.q_ref = q - COLLISION_BACKOFF_S * qd
+            self.qd_ref = _ZERO6
+        else:
+            self._begin_stop(STOP_DECEL_RAD_S2)
 
     def inject_fault(self, fault: str | Fault) -> None:
         """Make ``fault`` happen physically (see :class:`Fault`); robot_disconnect is the
