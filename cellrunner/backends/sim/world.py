@@ -165,8 +165,9 @@ class SimWorld:
         self._pad_a = ids.pad_geoms[0]
         self._part_of_geom = {g: name for name, g in ids.part_geom.items()}
         self._force6 = np.zeros(6)
-        h = self.period_s / self.substeps  # discrete lead of the arm over its input, measured
-        self._ff_lead = ids.ff_gain - h * (self.substeps + 1) / 2
+        # The arm settles one physics step ahead of its servo input (measured), hence -h.
+        self._ff_lead = ids.ff_gain - self.period_s / self.substeps
+        self._q_prev_ref = self.q_ref.copy()
         self._R_world_base = np.array(self.description.T_world_base[:3, :3], dtype=float)
         self._gripped: frozenset[str] = _NONE
         self._jaw_adr = [int(a) for a in ids.jaw_qpos]
@@ -301,7 +302,7 @@ class SimWorld:
             # motion, as UR arms back off) rather than ramp on into the obstacle.
             self._stop = None
             q, qd = self.data.qpos[self._ids.qpos], self.data.qvel[self._ids.dof]
-            self.q_ref = q - COLLISION_BACKOFF_S * qd
+            self.q_ref = self._q_prev_ref = q - COLLISION_BACKOFF_S * qd
             self.qd_ref = _ZERO6
         else:
             self._begin_stop(STOP_DECEL_RAD_S2)
@@ -337,11 +338,22 @@ class SimWorld:
                 if self.safety is Safety.EMERGENCY_STOP:
                     self.powered = False  # category 1: power off once standing, brakes on
         # servoJ semantics: be at q_ref at the end of this period. The PD with velocity
-        # feed-forward settles onto its position input, so that input is the set-point
-        # one period back along the commanded speed (plus the kv/kp feed-forward term).
-        data.ctrl[ids.servo] = self.q_ref + self._ff_lead * self.qd_ref
+        # feed-forward settles onto its position input one physics step ahead, so that
+        # input is the set-point one step back along the commanded speed (plus the kv/kp
+        # feed-forward term). With several steps per period (CB3) the set-point is
+        # interpolated linearly across them.
         self._drive_gripper()
-        self._mj.mj_step(self.model, data, nstep=self.substeps)
+        lead = self._ff_lead * self.qd_ref
+        k = self.substeps
+        if k == 1:
+            data.ctrl[ids.servo] = self.q_ref + lead
+            self._mj.mj_step(self.model, data)
+        else:
+            delta = (self.q_ref - self._q_prev_ref) / k
+            for s in range(1, k + 1):
+                data.ctrl[ids.servo] = self._q_prev_ref + s * delta + lead
+                self._mj.mj_step(self.model, data)
+        self._q_prev_ref = self.q_ref
         if self._stop is None:
             self.qd_ref = _ZERO6  # feed-forward is valid for one period only
         self._gripped = self._check_contacts()
@@ -483,7 +495,7 @@ class SimWorld:
         self.safety = Safety.NORMAL
         self.stop_time_s = None
         self._stop = None
-        self.q_ref = self.data.qpos[self._ids.qpos].copy()
+        self.q_ref = self._q_prev_ref = self.data.qpos[self._ids.qpos].copy()
         self.qd_ref = np.zeros(6)
 
     # -- measurements ---------------------------------------------------------------------
