@@ -28,14 +28,15 @@ STOP_DECEL_RAD_S2 = 30.0  # category 2 stop ramp (protective stop, stopJ default
 GRAVITY_MPS2 = 9.81
 JAW_REST_SPEED_MPS = 0.005
 COLLISION_BACKOFF_S = 0.02
-SLIP_FRICTION = 1e-3
+SLIP_HOLD_FRACTION = 0.25  # a slipping grip holds only this fraction of the part's weight
+AIR_CLEARANCE_M = 0.01  # "in the air": this far from every fixture and the floor
 
 
 class Fault(str, enum.Enum):
     """Faults the twin can make physically happen (SPEC section 5, robot side)."""
 
     GRIP_MISS = "grip_miss"  # the part is moved away when the jaws start to close
-    PART_SLIP = "part_slip"  # a gripped part loses its grip in transit and falls
+    PART_SLIP = "part_slip"  # a gripped part loses its grip once in the air, and falls
     PROTECTIVE_STOP = "protective_stop"
     ESTOP = "estop"
     ROBOT_DISCONNECT = "robot_disconnect"  # handled by the backend (connection lost)
@@ -143,6 +144,7 @@ class SimWorld:
         self.model = compile_model(self.description, self.options)
         self.data = self._mj.MjData(self.model)
         self._ids = self._lookup_ids()
+        self._periods = 0
         ids = self._ids
         self.data.qpos[ids.qpos] = self.description.q_home_rad
         self._mj.mj_forward(self.model, self.data)
@@ -165,6 +167,8 @@ class SimWorld:
         self._pad_a = ids.pad_geoms[0]
         self._part_of_geom = {g: name for name, g in ids.part_geom.items()}
         self._force6 = np.zeros(6)
+        self._fromto6 = np.zeros(6)
+        self._static_geoms = [g for g, k in enumerate(self._kind) if k == STATIC]
         # The arm settles one physics step ahead of its servo input (measured), hence -h.
         self._ff_lead = ids.ff_gain - self.period_s / self.substeps
         self._q_prev_ref = self.q_ref.copy()
@@ -183,7 +187,8 @@ class SimWorld:
 
     @property
     def time_s(self) -> float:
-        return float(self.data.time)
+        """Simulated time (s), counted in whole controller periods (no float drift)."""
+        return self._periods / self.description.rate_hz
 
     def _lookup_ids(self) -> _Ids:
         m, mj, d = self.model, self._mj, self.description
@@ -314,8 +319,8 @@ class SimWorld:
         if f is Fault.GRIP_MISS:
             self._faults.grip_miss_armed = True
         elif f is Fault.PART_SLIP:
-            self._faults.slip_armed = True
-            self._maybe_slip(self._gripped_parts())
+            self._faults.slip_armed = True  # fires once a gripped part is in the air
+            self._maybe_slip({p for p in self._gripped if self._in_air(p)})
         elif f is Fault.PROTECTIVE_STOP:
             self.raise_protective_stop(StopReason.INJECTED)
         elif f is Fault.ESTOP:
@@ -354,6 +359,7 @@ class SimWorld:
                 data.ctrl[ids.servo] = self._q_prev_ref + s * delta + lead
                 self._mj.mj_step(self.model, data)
         self._q_prev_ref = self.q_ref
+        self._periods += 1
         if self._stop is None:
             self.qd_ref = _ZERO6  # feed-forward is valid for one period only
         self._gripped = self._check_contacts()
@@ -425,9 +431,6 @@ class SimWorld:
             self.last_contact = ContactEvent(self.time_s, total, (g1, g2))
             self.raise_protective_stop(StopReason.CONTACT)
 
-    def _gripped_parts(self) -> frozenset[str]:
-        return self._gripped
-
     # -- faults ---------------------------------------------------------------------------
     def _update_faults(self, gripped: set[str]) -> None:
         f = self._faults
@@ -444,10 +447,15 @@ class SimWorld:
         if not candidates:
             return
         self._faults.slip_armed = False
+        g = self.description.gripper
+        assert g is not None
         for name in candidates:
             self._faults.slipping.add(name)
-            self.model.geom_friction[self._ids.part_geom[name], 0] = SLIP_FRICTION
-        self.model.geom_friction[list(self._ids.pad_geoms), 0] = SLIP_FRICTION
+            # friction such that the two pads hold only a fraction of the weight
+            weight = self.model.body_mass[self._ids.part_bodies[name]] * GRAVITY_MPS2
+            mu = SLIP_HOLD_FRACTION * weight / (2.0 * g.grip_force_N)
+            self.model.geom_friction[self._ids.part_geom[name], 0] = mu
+            self.model.geom_friction[list(self._ids.pad_geoms), 0] = mu
 
     def _contacts_of(self, part: str) -> list[int]:
         """Kinds of the geoms the part touches."""
@@ -457,9 +465,17 @@ class SimWorld:
                 for g1, g2 in self.data.contact.geom[:self.data.ncon].tolist() if g in (g1, g2)]
 
     def _in_air(self, part: str) -> bool:
-        """True when the part touches the finger pads and nothing else."""
+        """True when the part touches the finger pads only and is clear of the fixtures."""
         kinds = self._contacts_of(part)
-        return bool(kinds) and all(k == PADS for k in kinds)
+        if not kinds or any(k != PADS for k in kinds):
+            return False
+        g = self._ids.part_geom[part]
+        fromto = self._fromto6
+        for other in self._static_geoms:
+            d = self._mj.mj_geomDistance(self.model, self.data, g, other, AIR_CLEARANCE_M, fromto)
+            if d < AIR_CLEARANCE_M:
+                return False
+        return True
 
     def _touches_pads(self, part: str) -> bool:
         return PADS in self._contacts_of(part)
