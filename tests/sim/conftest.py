@@ -7,9 +7,15 @@ import numpy as np
 import pytest
 
 from cellrunner.backends.sim import demo
+from cellrunner.backends.sim._mj import load_mujoco
 from cellrunner.backends.sim.backend import SimBackend
 from cellrunner.backends.sim.description import TwinDescription, dh_forward
 from cellrunner.model.trajectory import approve
+
+
+# Import MuJoCo the package's way first, so a headless run picks MUJOCO_GL=osmesa before
+# any test module imports mujoco itself.
+load_mujoco()
 
 
 class Driver:

@@ -80,7 +80,8 @@ class CellRenderer:
                 raise RenderUnavailable(
                     f"cannot render offscreen with MUJOCO_GL={backend}: {exc}. Install OSMesa "
                     "(apt-get install libosmesa6) and set MUJOCO_GL=osmesa, or use "
-                    "MUJOCO_GL=egl on a machine with a GPU") from exc
+                    "MUJOCO_GL=egl on a machine with a GPU (MUJOCO_GL is read when mujoco is "
+                    "first imported)") from exc
         return self._renderer
 
     def render(self, view: CameraView | None = None) -> np.ndarray:
