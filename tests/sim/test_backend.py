@@ -64,11 +64,23 @@ def test_unsealed_and_forged_trajectories_are_refused(backend: SimBackend, cell)
 def test_set_point_jumps_beyond_the_speed_limit_are_refused(backend: SimBackend, cell) -> None:
     q = np.array(cell.q_home_rad)
     far = q + np.radians([0, 0, 5, 0, 0, 0])
-    approved = approve(demo.to_trajectory(np.vstack([q, far]), backend.rate_hz), 3, "jumpy")
-    backend.servo(approved, 0)
+    jumpy = approve(demo.to_trajectory(np.vstack([q, far]), backend.rate_hz), 3, "jumpy")
+    with pytest.raises(BackendError, match=r"set-point 1 of step 3 \(jumpy\) jumps 5.00 deg on "
+                                           r"joint 3 in one period; the joint speed limit allows "
+                                           r"0.54 deg"):
+        backend.servo(jumpy, 0)
+    # a smooth trajectory that starts away from where the arm is
+    elsewhere = approve(demo.to_trajectory(np.vstack([far, far]), backend.rate_hz), 4, "elsewhere")
+    with pytest.raises(BackendError, match=r"set-point 0 of step 4 \(elsewhere\) jumps 5.00 deg"):
+        backend.servo(elsewhere, 0)
+    # skipping set-points is a jump too
+    q_to = q + np.radians([0, 0, 20, 0, 0, 0])
+    smooth = approve(demo.to_trajectory(demo.quintic_blend(q, q_to, 1.0, backend.rate_hz),
+                                        backend.rate_hz), 5, "smooth")
+    backend.servo(smooth, 0)
     backend.wait_period()
-    with pytest.raises(BackendError, match=r"jumps 5.00 deg on joint 3 in one period"):
-        backend.servo(approved, 1)
+    with pytest.raises(BackendError, match=r"set-point 250 of step 5 \(smooth\) jumps"):
+        backend.servo(smooth, 250)
 
 
 def test_trajectory_at_the_wrong_rate_is_refused(backend: SimBackend, cell) -> None:

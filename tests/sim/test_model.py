@@ -92,7 +92,7 @@ def test_wrist_reads_zero_at_rest_in_any_pose_payload_compensated() -> None:
         world.data.qpos[world._ids.qpos] = q
         for _ in range(200):
             world.step_period()
-        wrench = world.measure().wrench_base
+        wrench = world.measure().wrench_N
         assert np.abs(wrench[:3]).max() < 0.05, wrench
         assert np.abs(wrench[3:]).max() < 0.01, wrench
 

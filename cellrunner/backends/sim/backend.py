@@ -40,7 +40,8 @@ class SimBackend:
         self._connected = False
         self._link_lost = False
         self._last_state: RobotState | None = None
-        self._qd_cache: tuple[Any, np.ndarray] | None = None
+        self._accepted: tuple[ApprovedTrajectory, np.ndarray] | None = None
+        self._next_index, self._last_q = -1, None
         self._max_step_rad = np.radians(description.spec.joint_speed_max_deg_s) / self.rate_hz \
             * SET_POINT_JUMP_MARGIN
 
@@ -63,7 +64,7 @@ class SimBackend:
             self.world.stop_motion()
         self._connected = False
         self.world = None
-        self._qd_cache = None
+        self._accepted = None
 
     @property
     def sim_time_s(self) -> float:
@@ -81,38 +82,32 @@ class SimBackend:
                               inputs=last.inputs, outputs=last.outputs,
                               powered=last.powered, brakes_released=last.brakes_released)
         self._require_connection()
-        m = world.measure()
-        state = RobotState(time_s=m.time_s, q_rad=m.q_rad, qd_rad_s=m.qd_rad_s,
-                           wrench_N=m.wrench_base, safety=m.safety, inputs=m.inputs,
-                           outputs=m.outputs, powered=m.powered,
-                           brakes_released=m.brakes_released)
+        state = world.measure()
         self._last_state = state
         return state
 
     def servo(self, trajectory: ApprovedTrajectory, index: int) -> None:
         world = self._world()
         self._require_connection()
-        if not isinstance(trajectory, ApprovedTrajectory) or not trajectory.is_sealed:
-            raise BackendError(
-                "refusing an unsealed trajectory: only trajectories approved by check can move "
-                "the robot")
+        qd_all = self._accept(trajectory)
         traj = trajectory.trajectory
-        if abs(traj.rate_hz - self.rate_hz) > 1e-9:
-            raise BackendError(f"trajectory sampled at {traj.rate_hz:g} Hz, the controller runs "
-                               f"at {self.rate_hz:g} Hz")
         n = len(traj.q_rad)
         if not 0 <= index < n:
             raise BackendError(f"set-point index {index} out of range 0..{n - 1}")
         world.check_can_move()
         q = traj.q_rad[index]
-        jump = np.abs(q - world.q_ref)
-        if np.any(jump > self._max_step_rad):
-            j = int(np.argmax(jump - self._max_step_rad))
-            raise BackendError(
-                f"set-point {index} of step {trajectory.step_index} ({trajectory.step_name}) "
-                f"jumps {np.degrees(jump[j]):.2f} deg on joint {j + 1} in one period; the joint "
-                f"speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg")
-        world.command(q, self._speeds(traj)[index])
+        # Consecutive set-points of an accepted trajectory were checked against the speed
+        # limit once; only a set-point that does not follow the last one is checked here.
+        if index != self._next_index or world.q_ref is not self._last_q:
+            jump = np.abs(q - world.q_ref)
+            if (jump > self._max_step_rad).any():
+                j = int(np.argmax(jump - self._max_step_rad))
+                raise BackendError(
+                    f"set-point {index} of step {trajectory.step_index} ({trajectory.step_name}) "
+                    f"jumps {np.degrees(jump[j]):.2f} deg on joint {j + 1} in one period; the "
+                    f"joint speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg")
+        world.command(q, qd_all[index])
+        self._next_index, self._last_q = index + 1, q
 
     def wait_period(self) -> None:
         self._world().step_period()
@@ -182,8 +177,30 @@ class SimBackend:
             raise BackendError("robot connection lost" if self._link_lost
                                else "sim backend is not connected; call connect() first")
 
-    def _speeds(self, traj: Any) -> np.ndarray:
-        """Joint speed feed-forward of a trajectory (cached per trajectory object)."""
-        if self._qd_cache is None or self._qd_cache[0] is not traj:
-            self._qd_cache = (traj, traj.qd_rad_s)
-        return self._qd_cache[1]
+    def _accept(self, trajectory: ApprovedTrajectory) -> np.ndarray:
+        """Check an approved trajectory once (seal, rate) and return its joint speeds.
+
+        The seal is verified on the first set-point of each trajectory object and
+        remembered by identity: ApprovedTrajectory is frozen and its arrays read-only.
+        """
+        cached = self._accepted
+        if cached is not None and cached[0] is trajectory:
+            return cached[1]
+        if not isinstance(trajectory, ApprovedTrajectory) or not trajectory.is_sealed:
+            raise BackendError(
+                "refusing an unsealed trajectory: only trajectories approved by check can move "
+                "the robot")
+        traj = trajectory.trajectory
+        if abs(traj.rate_hz - self.rate_hz) > 1e-9:
+            raise BackendError(f"trajectory sampled at {traj.rate_hz:g} Hz, the controller runs "
+                               f"at {self.rate_hz:g} Hz")
+        steps = np.abs(np.diff(traj.q_rad, axis=0))
+        if len(steps) and (steps > self._max_step_rad).any():
+            i, j = np.unravel_index(int(np.argmax(steps - self._max_step_rad)), steps.shape)
+            raise BackendError(
+                f"set-point {i + 1} of step {trajectory.step_index} ({trajectory.step_name}) "
+                f"jumps {np.degrees(steps[i, j]):.2f} deg on joint {j + 1} in one period; the "
+                f"joint speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg")
+        self._accepted = (trajectory, traj.qd_rad_s)
+        self._next_index, self._last_q = -1, None
+        return self._accepted[1]

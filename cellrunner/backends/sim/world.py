@@ -4,7 +4,7 @@ ramps), the IO image and physical fault injection.
 
 ``SimWorld`` knows nothing about trajectories or the engine; :mod:`.backend` wraps it in
 the :class:`~cellrunner.backends.base.RobotBackend` Protocol. Everything the engine can
-learn comes out of :meth:`SimWorld.measure` (joint state, wrist wrench, inputs, safety):
+learn comes out of :meth:`SimWorld.measure` (a RobotState: joints, wrist wrench, IO, safety):
 fault injections change the physics, never a flag the engine could read.
 """
 
@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from cellrunner.backends.base import BackendError, Safety
+from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.backends.sim._mj import load_mujoco
 from cellrunner.backends.sim.description import TwinDescription
 from cellrunner.backends.sim.mjcf import PARTS, PADS, ROBOT, STATIC, PhysicsOptions, compile_model
@@ -54,21 +54,6 @@ class StopReason(str, enum.Enum):
     CONTACT = "contact"
     INJECTED = "injected"
     REQUESTED = "requested"
-
-
-@dataclass
-class Measurement:
-    """One period's measurements (the raw material of ``RobotState``)."""
-
-    time_s: float
-    q_rad: np.ndarray
-    qd_rad_s: np.ndarray
-    wrench_base: np.ndarray  # external force (N) and torque about the flange (N m), base axes
-    safety: Safety
-    inputs: dict[str, float | bool]
-    outputs: dict[str, float | bool]
-    powered: bool
-    brakes_released: bool
 
 
 @dataclass
@@ -164,6 +149,17 @@ class SimWorld:
         self._closing = False
         self._ft_offset = np.zeros(6)
         self._kind = [int(k) for k in ids.geom_kind]
+        # Hot-path views into MjData (its buffers never move). The arm's joints and
+        # servos come first in the model, so they are plain slices.
+        assert list(ids.qpos) == list(range(6)) and list(ids.dof) == list(range(6))
+        assert list(ids.servo) == list(range(6))
+        self._q_view = self.data.qpos[0:6]
+        self._qd_view = self.data.qvel[0:6]
+        self._servo_ctrl = self.data.ctrl[0:6]
+        self._R_site = self.data.site_xmat[ids.ft_site].reshape(3, 3)
+        self._ft = self.data.sensordata[ids.force_adr:ids.force_adr + 6].reshape(2, 3)
+        self._tool_com = self.data.subtree_com[ids.tool_body]
+        self._site_pos = self.data.site_xpos[ids.ft_site]
         self._pad_a = ids.pad_geoms[0]
         self._part_of_geom = {g: name for name, g in ids.part_geom.items()}
         self._force6 = np.zeros(6)
@@ -172,7 +168,11 @@ class SimWorld:
         # The arm settles one physics step ahead of its servo input (measured), hence -h.
         self._ff_lead = ids.ff_gain - self.period_s / self.substeps
         self._q_prev_ref = self.q_ref.copy()
-        self._R_world_base = np.array(self.description.T_world_base[:3, :3], dtype=float)
+        R_world_base = np.array(self.description.T_world_base[:3, :3], dtype=float)
+        self._neg_R_world_base = -R_world_base
+        self._R_base_world = R_world_base.T.copy()
+        self._tool_weight_N = GRAVITY_MPS2 * ids.tool_mass_kg
+        self._weight_comp_base = self._R_base_world @ np.array([0.0, 0.0, self._tool_weight_N])
         self._gripped: frozenset[str] = _NONE
         self._jaw_adr = [int(a) for a in ids.jaw_qpos]
         self._jaw_dof = [int(a) for a in ids.jaw_dof]
@@ -233,8 +233,9 @@ class SimWorld:
     def command(self, q_ref_rad: np.ndarray, qd_ref_rad_s: np.ndarray) -> None:
         """Set the servo set-point for the next period (servoJ)."""
         self.check_can_move()
-        self.q_ref = np.asarray(q_ref_rad, dtype=float).copy()
-        self.qd_ref = np.asarray(qd_ref_rad_s, dtype=float).copy()
+        # never modified in place (every update rebinds), so no copies are needed
+        self.q_ref = q_ref_rad
+        self.qd_ref = qd_ref_rad_s
 
     def check_can_move(self) -> None:
         """Raise BackendError unless the controller would accept motion commands now."""
@@ -348,15 +349,18 @@ class SimWorld:
         # feed-forward term). With several steps per period (CB3) the set-point is
         # interpolated linearly across them.
         self._drive_gripper()
-        lead = self._ff_lead * self.qd_ref
         k = self.substeps
         if k == 1:
-            data.ctrl[ids.servo] = self.q_ref + lead
+            if self.qd_ref is _ZERO6:
+                self._servo_ctrl[:] = self.q_ref
+            else:
+                self._servo_ctrl[:] = self.q_ref + self._ff_lead * self.qd_ref
             self._mj.mj_step(self.model, data)
         else:
+            lead = self._ff_lead * self.qd_ref
             delta = (self.q_ref - self._q_prev_ref) / k
             for s in range(1, k + 1):
-                data.ctrl[ids.servo] = self._q_prev_ref + s * delta + lead
+                self._servo_ctrl[:] = self._q_prev_ref + s * delta + lead
                 self._mj.mj_step(self.model, data)
         self._q_prev_ref = self.q_ref
         self._periods += 1
@@ -556,34 +560,25 @@ class SimWorld:
         static balance the external wrench is minus that, minus the tool's own weight
         (the configured payload, which UR's controller also compensates).
         """
-        ids, data = self._ids, self.data
-        R_site = data.site_xmat[ids.ft_site].reshape(3, 3)
-        ft = data.sensordata[ids.force_adr:ids.force_adr + 6].reshape(2, 3)
-        w = -(ft @ R_site.T)  # rows: force, torque; world axes
-        mg = GRAVITY_MPS2 * ids.tool_mass_kg
-        r = data.subtree_com[ids.tool_body] - data.site_xpos[ids.ft_site]
-        w[0, 2] += mg  # minus the weight (0, 0, -mg)
-        w[1, 0] += mg * r[1]  # minus r x weight
-        w[1, 1] -= mg * r[0]
-        return (w @ self._R_world_base).ravel()
+        # rows (force, torque): site frame -> world -> base, sign flipped
+        w = self._ft @ (self._R_site.T @ self._neg_R_world_base)
+        r = self._tool_com - self._site_pos  # flange origin -> tool centre of mass, world
+        mg = self._tool_weight_N
+        # minus the weight (0, 0, -mg) and minus its moment r x (0, 0, -mg), in base axes
+        w[0] += self._weight_comp_base
+        w[1] += mg * (r[1] * self._R_base_world[:, 0] - r[0] * self._R_base_world[:, 1])
+        return w.ravel()
 
-    def measure(self) -> Measurement:
-        ids, data = self._ids, self.data
-        return Measurement(
-            time_s=self.time_s,
-            q_rad=data.qpos[ids.qpos].copy(),
-            qd_rad_s=data.qvel[ids.dof].copy(),
-            wrench_base=self._raw_wrench_base() - self._ft_offset,
-            safety=self.safety,
-            inputs=dict(self.inputs),
-            outputs=dict(self.outputs),
-            powered=self.powered,
-            brakes_released=self.powered,
-        )
+    def measure(self) -> RobotState:
+        """This period's measurements, as the controller reports them."""
+        return RobotState(self._periods / self.description.rate_hz, self._q_view.copy(),
+                          self._qd_view.copy(), self._raw_wrench_base() - self._ft_offset,
+                          self.safety, dict(self.inputs), dict(self.outputs), self.powered,
+                          self.powered)
 
     # -- introspection for tests, reports and the renderer (never for the engine) ---------
     def q_measured(self) -> np.ndarray:
-        return self.data.qpos[self._ids.qpos].copy()
+        return self._q_view.copy()
 
     def tcp_pose_world(self) -> np.ndarray:
         T = np.eye(4)
