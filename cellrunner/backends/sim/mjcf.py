@@ -179,7 +179,11 @@ class _Builder:
         ET.SubElement(self.root, "compiler", angle="radian", autolimits="true",
                       inertiafromgeom="auto", fusestatic="false")
         substeps = max(1, math.ceil(1.0 / d.rate_hz / o.max_timestep_s - 1e-9))
-        ET.SubElement(self.root, "option", timestep=f"{1.0 / d.rate_hz / substeps:.9g}",
+        self.timestep_s = 1.0 / d.rate_hz / substeps
+        # Grasp contacts (pads, parts) as stiff as the step allows (time constant 2 dt):
+        # softer ones let a gripped part creep and spring away when the jaws open.
+        self.grasp_solref = f"{2 * self.timestep_s:.6g} 1"
+        ET.SubElement(self.root, "option", timestep=f"{self.timestep_s:.9g}",
                       integrator="implicitfast", cone=o.cone, impratio=f"{o.impratio:g}",
                       solver="Newton", iterations=str(o.solver_iterations),
                       ls_iterations="10", tolerance="1e-8", gravity="0 0 -9.81")
@@ -329,6 +333,7 @@ class _Builder:
             ET.SubElement(body, "geom", name=f"pad:{jaw}", type="box", material="pad",
                           pos=_fmt([x, 0, (z0 + z1) / 2]), size=_fmt([t / 2, w / 2, (z1 - z0) / 2]),
                           friction=f"{g.friction:g} 0.01 0.0001", condim="4",
+                          solref=self.grasp_solref,
                           contype=str(PADS), conaffinity=str(STATIC | PARTS),
                           mass=f"{g.finger_mass_kg:.6g}")
             ET.SubElement(body, "geom", name=f"stem:{jaw}", type="box", material="tool",
@@ -337,14 +342,16 @@ class _Builder:
         eq = self.root.find("equality")
         if eq is None:
             eq = ET.SubElement(self.root, "equality")
-        ET.SubElement(eq, "joint", name="jaw_sync", joint1="jaw_a", joint2="jaw_b")
+        ET.SubElement(eq, "joint", name="jaw_sync", joint1="jaw_a", joint2="jaw_b",
+                      solref=f"{2 * self.timestep_s:.6g} 1")
 
     def _part(self, world: ET.Element, part: Any) -> None:
         body = ET.SubElement(world, "body", name=f"part:{part.name}", **_pose_attrs(part.T_world_part))
         ET.SubElement(body, "freejoint", name=f"part:{part.name}")
         ET.SubElement(body, "geom", name=f"part:{part.name}", material="part",
                       mass=f"{part.mass_kg:.6g}", friction=f"{part.friction:g} 0.01 0.0001",
-                      condim="4", contype=str(PARTS), conaffinity=str(STATIC | ROBOT | PADS | PARTS),
+                      condim="4", solref=self.grasp_solref,
+                      contype=str(PARTS), conaffinity=str(STATIC | ROBOT | PADS | PARTS),
                       **self._shape_attrs(part.shape))
 
     def _actuators_and_sensors(self) -> None:

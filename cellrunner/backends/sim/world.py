@@ -168,6 +168,8 @@ class SimWorld:
         # The arm settles one physics step ahead of its servo input (measured), hence -h.
         self._ff_lead = ids.ff_gain - self.period_s / self.substeps
         self._q_prev_ref = self.q_ref.copy()
+        self._qd_prev_ref: np.ndarray = _ZERO6
+        self._hermite = _hermite_table(self.substeps, self.period_s)
         R_world_base = np.array(self.description.T_world_base[:3, :3], dtype=float)
         self._neg_R_world_base = -R_world_base
         self._R_base_world = R_world_base.T.copy()
@@ -309,7 +311,7 @@ class SimWorld:
             self._stop = None
             q, qd = self.data.qpos[self._ids.qpos], self.data.qvel[self._ids.dof]
             self.q_ref = self._q_prev_ref = q - COLLISION_BACKOFF_S * qd
-            self.qd_ref = _ZERO6
+            self.qd_ref = self._qd_prev_ref = _ZERO6
         else:
             self._begin_stop(STOP_DECEL_RAD_S2)
 
@@ -357,12 +359,18 @@ class SimWorld:
                 self._servo_ctrl[:] = self.q_ref + self._ff_lead * self.qd_ref
             self._mj.mj_step(self.model, data)
         else:
-            lead = self._ff_lead * self.qd_ref
-            delta = (self.q_ref - self._q_prev_ref) / k
-            for s in range(1, k + 1):
-                self._servo_ctrl[:] = self._q_prev_ref + s * delta + lead
+            # cubic Hermite between the last and this set-point (positions and speeds),
+            # so the servo input and its speed feed-forward are continuous (a stepped
+            # feed-forward at 125 Hz shakes a gripped part loose)
+            ends = np.stack([self._q_prev_ref, self._qd_prev_ref, self.q_ref, self.qd_ref])
+            q_sub = self._hermite[0] @ ends
+            qd_sub = self._hermite[1] @ ends
+            ctrl = q_sub + self._ff_lead * qd_sub
+            for s in range(k):
+                self._servo_ctrl[:] = ctrl[s]
                 self._mj.mj_step(self.model, data)
         self._q_prev_ref = self.q_ref
+        self._qd_prev_ref = self.qd_ref
         self._periods += 1
         if self._stop is None:
             self.qd_ref = _ZERO6  # feed-forward is valid for one period only
@@ -516,7 +524,7 @@ class SimWorld:
         self.stop_time_s = None
         self._stop = None
         self.q_ref = self._q_prev_ref = self.data.qpos[self._ids.qpos].copy()
-        self.qd_ref = np.zeros(6)
+        self.qd_ref = self._qd_prev_ref = _ZERO6
 
     # -- measurements ---------------------------------------------------------------------
     def _sensor_channels(self) -> set[str]:
@@ -597,6 +605,18 @@ class SimWorld:
 _NONE: frozenset[str] = frozenset()
 _ZERO6 = np.zeros(6)
 _ZERO6.setflags(write=False)
+
+
+def _hermite_table(substeps: int, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Matrices (substeps x 4) giving position and speed at the end of each physics step
+    from (q0, qd0, q1, qd1) of a cubic Hermite segment over one period."""
+    tau = np.arange(1, substeps + 1) / substeps
+    T = period_s
+    pos = np.stack([2 * tau**3 - 3 * tau**2 + 1, (tau**3 - 2 * tau**2 + tau) * T,
+                    -2 * tau**3 + 3 * tau**2, (tau**3 - tau**2) * T], axis=1)
+    vel = np.stack([(6 * tau**2 - 6 * tau) / T, 3 * tau**2 - 4 * tau + 1,
+                    (-6 * tau**2 + 6 * tau) / T, 3 * tau**2 - 2 * tau], axis=1)
+    return pos, vel
 
 
 def _zero(channel: str) -> float | bool:
