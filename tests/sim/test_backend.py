@@ -152,3 +152,21 @@ def test_cb3_arm_at_125_hz_tracks_too() -> None:
     d.move_tcp((0.45, -0.2, 1.1), 2.0)
     d.move_tcp((0.35, 0.3, 1.0), 2.0)
     assert max(d.errors_m) < 1e-3, d.errors_m
+
+
+def test_cb3_at_125_hz_carries_a_part_through_a_brisk_lift() -> None:
+    from cellrunner.model.robots import robot_spec
+
+    from conftest import Driver
+
+    desc = demo.demo_description(spec=robot_spec("ur5"))
+    b = SimBackend(desc)
+    b.connect()
+    d = Driver(b, desc)
+    d.pick_cube()
+    assert b.read_state().inputs["DI0"] is True
+    d.move_tcp(np.array(demo.CUBE_XYZ_M) + (0, 0, 0.15), 0.6, "lift")
+    d.move_tcp((0.40, 0.30, 1.08), 1.5, "transfer")
+    cube = b.world.part_pose_world("cube")[:3, 3]
+    np.testing.assert_allclose(cube, b.world.tcp_pose_world()[:3, 3] - (0, 0, 0.005), atol=0.002)
+    assert max(d.errors_m) < 1e-3
