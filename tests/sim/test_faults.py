@@ -170,3 +170,21 @@ def test_unknown_fault_lists_the_known_ones(backend) -> None:
     with pytest.raises(ValueError, match=r"unknown fault 'gremlins'; known: grip_miss, part_slip, "
                                          r"protective_stop, estop, robot_disconnect"):
         backend.inject_fault("gremlins")
+
+
+def test_presence_sensor_sees_the_part_leave(cell) -> None:
+    from cellrunner.backends.sim.backend import SimBackend
+    from cellrunner.backends.sim.description import PresenceSensor
+
+    from conftest import Driver
+
+    desc = dataclasses.replace(
+        cell, presence_sensors=(PresenceSensor("DI2", demo.CUBE_XYZ_M, (0.04, 0.04, 0.04)),))
+    b = SimBackend(desc)
+    b.connect()
+    assert b.read_state().inputs["DI2"] is True
+    with pytest.raises(BackendError, match="driven by a twin sensor"):
+        b.set_input("DI2", False)
+    b.inject_fault("grip_miss")
+    Driver(b, desc).pick_cube()  # the miss pushes the cube out of the barrier
+    assert b.read_state().inputs["DI2"] is False

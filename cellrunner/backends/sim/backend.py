@@ -13,7 +13,6 @@ notice a missed or slipped part through the jaw sensor and the wrist load.
 
 from __future__ import annotations
 
-from typing import Any
 
 import numpy as np
 

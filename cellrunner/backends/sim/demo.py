@@ -16,7 +16,7 @@ from cellrunner.backends.sim.description import (
     TwinDescription,
     dh_forward,
 )
-from cellrunner.model.geometry import Box, Cylinder, Placed, invert, pose_matrix  # noqa: F401 (Placed re-exported)
+from cellrunner.model.geometry import Box, Cylinder, Placed, invert, pose_matrix
 from cellrunner.model.robots import robot_spec
 from cellrunner.model.trajectory import Trajectory
 

@@ -70,8 +70,9 @@ def build_mjcf(desc: TwinDescription, options: PhysicsOptions = PhysicsOptions()
     return _Builder(desc, options).build()
 
 
-def build_mjcf_with_assets(desc: TwinDescription,
-                           options: PhysicsOptions = PhysicsOptions()) -> tuple[str, dict[str, bytes]]:
+def build_mjcf_with_assets(
+    desc: TwinDescription, options: PhysicsOptions = PhysicsOptions()
+) -> tuple[str, dict[str, bytes]]:
     """The MJCF XML and its mesh assets (binary STL bytes by asset file name)."""
     builder = _Builder(desc, options)
     xml = builder.build()

@@ -547,7 +547,8 @@ class SimWorld:
         if g is not None:
             gap = self.jaw_gap_m()
             qvel = self.data.qvel
-            resting = max(abs(qvel[self._jaw_dof[0]]), abs(qvel[self._jaw_dof[1]])) < JAW_REST_SPEED_MPS
+            jaw_speed = max(abs(qvel[self._jaw_dof[0]]), abs(qvel[self._jaw_dof[1]]))
+            resting = jaw_speed < JAW_REST_SPEED_MPS
             if g.closed_sensor_input:
                 self.inputs[g.closed_sensor_input] = bool(
                     self._closing and resting
@@ -557,8 +558,8 @@ class SimWorld:
         for sensor in self.description.presence_sensors:
             c = np.asarray(sensor.center_world_m)
             h = np.asarray(sensor.half_extents_m)
-            self.inputs[sensor.channel] = any(
-                bool(np.all(np.abs(self.data.xpos[b] - c) <= h)) for b in self._ids.part_bodies.values())
+            self.inputs[sensor.channel] = any(bool(np.all(np.abs(self.data.xpos[b] - c) <= h))
+                                              for b in self._ids.part_bodies.values())
 
     def _raw_wrench_base(self) -> np.ndarray:
         """External wrench on the tool (payload compensated), base axes, torque at flange.
