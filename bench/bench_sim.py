@@ -39,7 +39,7 @@ def pick_place_program(desc: TwinDescription) -> list[Segment]:
     cube = np.array(demo.CUBE_XYZ_M) + (0, 0, 0.005)
     place = np.array([0.40, 0.30, 0.93])
     q = np.array(desc.q_home_rad)
-    program: list[Segment] = []
+    program: list[Segment] = []  # durations keep every joint under 180 deg/s (UR5e)
 
     def move(name: str, xyz: np.ndarray | None, duration_s: float) -> None:
         nonlocal q
@@ -49,7 +49,7 @@ def pick_place_program(desc: TwinDescription) -> list[Segment]:
         program.append(Segment(name, approve(demo.to_trajectory(samples, rate), len(program), name)))
         q = q_to
 
-    move("approach", cube + (0, 0, 0.10), 1.5)
+    move("approach", cube + (0, 0, 0.10), 1.8)
     move("descend", cube, 0.6)
     program.append(Segment("grip", None, 0.5, True))
     move("lift", cube + (0, 0, 0.15), 0.7)
@@ -57,7 +57,7 @@ def pick_place_program(desc: TwinDescription) -> list[Segment]:
     move("descend", place + (0, 0, 0.002), 0.7)
     program.append(Segment("release", None, 0.5, False))
     move("retreat", place + (0, 0, 0.10), 0.6)
-    move("home", None, 1.8)
+    move("home", None, 2.4)
     return program
 
 

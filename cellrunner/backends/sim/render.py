@@ -143,7 +143,7 @@ def plot_joints(path: str | Path, t_s: np.ndarray, q_rad: np.ndarray, qd_rad_s: 
     ax_q.set_ylabel("position [deg]")
     ax_qd.set_ylabel("speed [deg/s]")
     ax_qd.set_xlabel("time [s]")
-    ax_q.legend(ncol=6, fontsize=8, loc="upper center")
+    ax_q.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.005, 1.0))
     for ax in (ax_q, ax_qd):
         ax.grid(alpha=0.3)
         for t_mark, label in marks or []:
