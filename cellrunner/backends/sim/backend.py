@@ -1,0 +1,205 @@
+"""The ``sim`` robot backend: the :class:`RobotBackend` Protocol over the MuJoCo twin.
+
+It behaves like the UR controller seen through ur_rtde, on simulated time: ``servo``
+is servoJ (one set-point per period, only from sealed approved trajectories),
+``wait_period`` advances the physics by one controller period (1/rate_hz) instead of
+sleeping, the 5 s protective-stop unlock rule counts simulated seconds, and an e-stop
+needs a (simulated) person to release it before ``recover_from_estop``.
+
+Fault injection (``inject_fault``) is for the dry-run command only. It changes the
+physics or the connection, never a flag in :class:`RobotState`: the engine has to
+notice a missed or slipped part through the jaw sensor and the wrist load.
+"""
+
+from __future__ import annotations
+
+
+import numpy as np
+
+from cellrunner.backends.base import BackendError, RobotState, Safety
+from cellrunner.backends.sim.description import TwinDescription, dh_forward
+from cellrunner.backends.sim.mjcf import PhysicsOptions
+from cellrunner.backends.sim.world import Fault, SimWorld
+from cellrunner.model.trajectory import ApprovedTrajectory
+
+# servoJ set-points further apart than the joint speed limit allows (with this margin)
+# are refused, as the controller would protective-stop on them.
+SET_POINT_JUMP_MARGIN = 1.5
+
+
+class SimBackend:
+    """The MuJoCo twin as a robot. Construct (no work), ``connect()`` (builds the model),
+    then ``servo``/``wait_period`` cycles, ``close()``."""
+
+    def __init__(self, description: TwinDescription, options: PhysicsOptions = PhysicsOptions()):
+        self.description = description
+        self.options = options
+        self.rate_hz = description.rate_hz
+        self.world: SimWorld | None = None
+        self._connected = False
+        self._link_lost = False
+        self._last_state: RobotState | None = None
+        self._accepted: tuple[ApprovedTrajectory, np.ndarray] | None = None
+        self._next_index, self._last_q = -1, None
+        self._max_step_rad = np.radians(description.spec.joint_speed_max_deg_s) / self.rate_hz \
+            * SET_POINT_JUMP_MARGIN
+
+    # -- lifecycle --------------------------------------------------------------------------
+    def connect(self) -> None:
+        """Build the twin (first call) and connect; after a ``robot_disconnect`` fault this
+        reconnects to the same, still running, twin."""
+        if self.world is None:
+            world = SimWorld(self.description, self.options)
+            try:
+                world.build()
+            except ValueError as exc:
+                raise BackendError(str(exc)) from exc
+            self.world = world
+        self._connected = True
+        self._link_lost = False
+
+    def close(self) -> None:
+        if self.world is not None and self._connected:
+            self.world.stop_motion()
+        self._connected = False
+        self.world = None
+        self._accepted = None
+
+    @property
+    def sim_time_s(self) -> float:
+        """Simulated time since connect (s)."""
+        return self._world().time_s
+
+    # -- Protocol -------------------------------------------------------------------------
+    def read_state(self) -> RobotState:
+        world = self._world()
+        if self._link_lost:
+            last = self._last_state
+            assert last is not None
+            return RobotState(time_s=world.time_s, q_rad=last.q_rad, qd_rad_s=last.qd_rad_s,
+                              wrench_N=last.wrench_N, safety=Safety.DISCONNECTED,
+                              inputs=last.inputs, outputs=last.outputs,
+                              powered=last.powered, brakes_released=last.brakes_released)
+        self._require_connection()
+        state = world.measure()
+        self._last_state = state
+        return state
+
+    def servo(self, trajectory: ApprovedTrajectory, index: int) -> None:
+        world = self._world()
+        self._require_connection()
+        qd_all = self._accept(trajectory)
+        traj = trajectory.trajectory
+        n = len(traj.q_rad)
+        if not 0 <= index < n:
+            raise BackendError(f"set-point index {index} out of range 0..{n - 1}")
+        world.check_can_move()
+        q = traj.q_rad[index]
+        # Consecutive set-points of an accepted trajectory were checked against the speed
+        # limit once; only a set-point that does not follow the last one is checked here.
+        if index != self._next_index or world.q_ref is not self._last_q:
+            jump = np.abs(q - world.q_ref)
+            if (jump > self._max_step_rad).any():
+                j = int(np.argmax(jump - self._max_step_rad))
+                raise BackendError(
+                    f"set-point {index} of step {trajectory.step_index} ({trajectory.step_name}) "
+                    f"jumps {np.degrees(jump[j]):.2f} deg on joint {j + 1} in one period; the "
+                    f"joint speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg")
+        world.command(q, qd_all[index])
+        self._next_index, self._last_q = index + 1, q
+
+    def wait_period(self) -> None:
+        self._world().step_period()
+
+    def stop_motion(self) -> None:
+        self._require_connection()
+        self._world().stop_motion()
+
+    def set_output(self, channel: str, value: bool | float) -> None:
+        self._require_connection()
+        self._world().set_output(channel, value)
+
+    def zero_ft_sensor(self) -> None:
+        self._require_connection()
+        self._world().zero_ft_sensor()
+
+    def unlock_protective_stop(self) -> None:
+        self._require_connection()
+        self._world().unlock_protective_stop()
+
+    def recover_from_estop(self) -> None:
+        self._require_connection()
+        self._world().recover_from_estop()
+
+    # -- the simulated world around the robot ---------------------------------------------
+    def inject_fault(self, fault: str | Fault) -> None:
+        """Make a fault happen now (dry-run ``--inject``): ``grip_miss`` (the part is moved
+        away when the jaws next start closing), ``part_slip`` (a gripped part loses its
+        grip once in the air), ``protective_stop``, ``estop`` (pressed until
+        :meth:`release_estop`), ``robot_disconnect`` (the link drops; ``connect`` again)."""
+        f = Fault.parse(fault)
+        world = self._world()
+        if f is Fault.ROBOT_DISCONNECT:
+            if self._connected:
+                self.read_state()  # the last state the engine would have received
+            world.stop_motion()  # servoJ timeout on the controller: the arm stops
+            self._connected = False
+            self._link_lost = True
+        else:
+            world.inject_fault(f)
+
+    def release_estop(self) -> None:
+        """A person releases the e-stop button (the robot stays off until recovered)."""
+        self._world().release_estop()
+
+    def set_input(self, channel: str, value: bool | float) -> None:
+        """Drive an input no twin sensor drives (e.g. a PLC's part_present in a test)."""
+        self._world().set_input(channel, value)
+
+    def tcp_tracking_error_m(self) -> float:
+        """Distance (m) between the TCP at the last set-point and the measured TCP."""
+        world = self._world()
+        q = world.q_measured()
+        T_ft = self.description.T_flange_tcp
+        p_ref = (dh_forward(self.description.spec, world.q_ref) @ T_ft)[:3, 3]
+        p_act = (dh_forward(self.description.spec, q) @ T_ft)[:3, 3]
+        return float(np.linalg.norm(p_ref - p_act))
+
+    # -- helpers ----------------------------------------------------------------------------
+    def _world(self) -> SimWorld:
+        if self.world is None:
+            raise BackendError("sim backend is not connected; call connect() first")
+        return self.world
+
+    def _require_connection(self) -> None:
+        if not self._connected:
+            raise BackendError("robot connection lost" if self._link_lost
+                               else "sim backend is not connected; call connect() first")
+
+    def _accept(self, trajectory: ApprovedTrajectory) -> np.ndarray:
+        """Check an approved trajectory once (seal, rate) and return its joint speeds.
+
+        The seal is verified on the first set-point of each trajectory object and
+        remembered by identity: ApprovedTrajectory is frozen and its arrays read-only.
+        """
+        cached = self._accepted
+        if cached is not None and cached[0] is trajectory:
+            return cached[1]
+        if not isinstance(trajectory, ApprovedTrajectory) or not trajectory.is_sealed:
+            raise BackendError(
+                "refusing an unsealed trajectory: only trajectories approved by check can move "
+                "the robot")
+        traj = trajectory.trajectory
+        if abs(traj.rate_hz - self.rate_hz) > 1e-9:
+            raise BackendError(f"trajectory sampled at {traj.rate_hz:g} Hz, the controller runs "
+                               f"at {self.rate_hz:g} Hz")
+        steps = np.abs(np.diff(traj.q_rad, axis=0))
+        if len(steps) and (steps > self._max_step_rad).any():
+            i, j = np.unravel_index(int(np.argmax(steps - self._max_step_rad)), steps.shape)
+            raise BackendError(
+                f"set-point {i + 1} of step {trajectory.step_index} ({trajectory.step_name}) "
+                f"jumps {np.degrees(steps[i, j]):.2f} deg on joint {j + 1} in one period; the "
+                f"joint speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg")
+        self._accepted = (trajectory, traj.qd_rad_s)
+        self._next_index, self._last_q = -1, None
+        return self._accepted[1]

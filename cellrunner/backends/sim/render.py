@@ -1,0 +1,207 @@
+"""Pictures for dry-run reports: offscreen MuJoCo renders of the cell and matplotlib plots.
+
+Offscreen rendering needs an OpenGL backend: ``MUJOCO_GL=osmesa`` (Debian package
+``libosmesa6``, software, works anywhere) or ``MUJOCO_GL=egl`` (GPU). Without one,
+:class:`CellRenderer` raises :class:`RenderUnavailable` with that advice instead of
+crashing; plots need only matplotlib (Agg, no display).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cellrunner.backends.sim._mj import load_mujoco
+from cellrunner.errors import CellrunnerError
+
+
+class RenderUnavailable(CellrunnerError):
+    """Offscreen rendering is not possible on this machine; the message says what to do."""
+
+
+@dataclass(frozen=True)
+class CameraView:
+    """A free camera: looks at ``lookat_m`` (world) from ``distance_m`` away, turned
+    ``azimuth_deg`` about world Z and ``elevation_deg`` (negative: from above)."""
+
+    lookat_m: tuple[float, float, float]
+    distance_m: float
+    azimuth_deg: float = 135.0
+    elevation_deg: float = -28.0
+
+
+def default_view(world: Any) -> CameraView:
+    """A 3/4 view from the front left and above, framing the robot, fixtures and parts."""
+    model, data = world.model, world.data
+    base = world.description.T_world_base[:3, 3]
+    reach = world.description.spec.reach_m
+    points = [base + (-0.3 * reach, -0.3 * reach, 0), base + (0.3 * reach, 0.3 * reach, reach)]
+    for g in range(model.ngeom):
+        if model.geom(g).name.startswith(("fixture:", "part:")):
+            centre = data.geom_xpos[g]
+            if np.linalg.norm(centre[:2] - base[:2]) < 2.0 * reach:  # skip far-away walls
+                points.append(centre)
+    pts = np.array(points)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre = (lo + hi) / 2
+    centre[2] = base[2] + 0.2 * reach
+    extent = float(np.linalg.norm(hi - lo))
+    return CameraView((float(centre[0]), float(centre[1]), float(centre[2])),
+                      float(np.clip(1.5 * extent, 1.2, 6.0)))
+
+
+class CellRenderer:
+    """Renders a :class:`~cellrunner.backends.sim.world.SimWorld` offscreen.
+
+    Holds one GL context; ``close()`` it (or use it as a context manager)."""
+
+    def __init__(self, world: Any, width: int = 1024, height: int = 768):
+        self.world = world
+        self.width, self.height = width, height
+        self._renderer: Any = None
+
+    def __enter__(self) -> CellRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _open(self) -> Any:
+        if self._renderer is None:
+            mujoco = load_mujoco()
+            try:
+                self._renderer = mujoco.Renderer(self.world.model, self.height, self.width)
+            except Exception as exc:  # GL backends fail with many exception types
+                backend = os.environ.get("MUJOCO_GL", "(unset: glfw, needs a display)")
+                raise RenderUnavailable(
+                    f"cannot render offscreen with MUJOCO_GL={backend}: {exc}. Install OSMesa "
+                    "(apt-get install libosmesa6) and set MUJOCO_GL=osmesa, or use "
+                    "MUJOCO_GL=egl on a machine with a GPU (MUJOCO_GL is read when mujoco is "
+                    "first imported)") from exc
+        return self._renderer
+
+    def render(self, view: CameraView | None = None) -> np.ndarray:
+        """An RGB image (height x width x 3, uint8) of the cell now."""
+        mujoco = load_mujoco()
+        renderer = self._open()
+        view = view or default_view(self.world)
+        cam = mujoco.MjvCamera()
+        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        cam.lookat[:] = view.lookat_m
+        cam.distance = view.distance_m
+        cam.azimuth = view.azimuth_deg
+        cam.elevation = view.elevation_deg
+        renderer.update_scene(self.world.data, camera=cam)
+        return np.array(renderer.render())
+
+    def save_png(self, path: str | Path, caption: str = "",
+                 view: CameraView | None = None) -> Path:
+        """Render and write a PNG (with an optional caption line); returns the path."""
+        image = self.render(view)
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        figure = _figure(self.width / 100, self.height / 100 + (0.35 if caption else 0))
+        ax = figure.add_axes((0, 0, 1, self.height / (self.height + (35 if caption else 0))))
+        ax.imshow(image)
+        ax.set_axis_off()
+        if caption:
+            figure.text(0.01, 0.995, caption, va="top", ha="left", fontsize=11, family="monospace")
+        figure.savefig(path, dpi=100)
+        return path
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+
+def render_png(world: Any, path: str | Path, caption: str = "", width: int = 1024,
+               height: int = 768) -> Path:
+    """One PNG of the cell now (opens and closes a GL context)."""
+    with CellRenderer(world, width, height) as renderer:
+        return renderer.save_png(path, caption)
+
+
+# -- plots ------------------------------------------------------------------------------------
+def plot_joints(path: str | Path, t_s: np.ndarray, q_rad: np.ndarray, qd_rad_s: np.ndarray,
+                q_ref_rad: np.ndarray | None = None, title: str = "",
+                marks: list[tuple[float, str]] | None = None) -> Path:
+    """Joint positions (deg) and speeds (deg/s) against time; ``q_ref_rad`` dashed;
+    ``marks`` are (time, label) vertical lines, e.g. step starts."""
+    figure = _figure(11, 7.5)
+    ax_q, ax_qd = figure.subplots(2, 1, sharex=True)
+    t = np.asarray(t_s)
+    for j in range(6):
+        line, = ax_q.plot(t, np.degrees(q_rad[:, j]), lw=1.4, label=f"q{j + 1}")
+        if q_ref_rad is not None:
+            ax_q.plot(t, np.degrees(q_ref_rad[:, j]), lw=0.9, ls="--", color=line.get_color())
+        ax_qd.plot(t, np.degrees(qd_rad_s[:, j]), lw=1.2, color=line.get_color())
+    ax_q.set_ylabel("position [deg]")
+    ax_qd.set_ylabel("speed [deg/s]")
+    ax_qd.set_xlabel("time [s]")
+    ax_q.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.005, 1.0))
+    for ax in (ax_q, ax_qd):
+        ax.grid(alpha=0.3)
+        for t_mark, label in marks or []:
+            ax.axvline(t_mark, color="0.6", lw=0.7)
+            if ax is ax_q:
+                ax.text(t_mark, 1.0, f" {label}", transform=ax.get_xaxis_transform(), fontsize=7,
+                        rotation=90, va="top", color="0.35")
+    if title:
+        ax_q.set_title(title)
+    figure.tight_layout()
+    return _save(figure, path)
+
+
+def plot_tcp_path(path: str | Path, xyz_m: np.ndarray, xyz_planned_m: np.ndarray | None = None,
+                  title: str = "", points: dict[str, np.ndarray] | None = None) -> Path:
+    """The TCP path in 3D (world, m), the planned path dashed, named ``points`` marked."""
+    figure = _figure(8, 7)
+    ax = figure.add_subplot(projection="3d")
+    xyz = np.asarray(xyz_m)
+    ax.plot(xyz[:, 0], xyz[:, 1], xyz[:, 2], lw=1.8, label="simulated")
+    if xyz_planned_m is not None:
+        p = np.asarray(xyz_planned_m)
+        ax.plot(p[:, 0], p[:, 1], p[:, 2], lw=1.0, ls="--", color="k", label="planned")
+    ax.scatter(*xyz[0], color="g", s=25, label="start")
+    ax.scatter(*xyz[-1], color="r", s=25, label="end")
+    for label, point in (points or {}).items():
+        ax.scatter(*point, color="0.3", s=14)
+        ax.text(*point, f" {label}", fontsize=8)
+    _equal_axes(ax, xyz if xyz_planned_m is None else np.vstack([xyz, xyz_planned_m]))
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title)
+    figure.tight_layout()
+    return _save(figure, path)
+
+
+def _equal_axes(ax: Any, xyz: np.ndarray) -> None:
+    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+    half = max(float((hi - lo).max()) / 2, 0.05)
+    for setter, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), (lo + hi) / 2):
+        setter(c - half, c + half)
+
+
+def _figure(width_in: float, height_in: float) -> Any:
+    from matplotlib.figure import Figure  # no pyplot: no global state, no display
+
+    return Figure(figsize=(width_in, height_in), dpi=100)
+
+
+def _save(figure: Any, path: str | Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=100)
+    return path
+
+
+__all__ = ["CameraView", "CellRenderer", "RenderUnavailable", "default_view", "plot_joints",
+           "plot_tcp_path", "render_png"]

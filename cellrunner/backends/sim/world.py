@@ -1,0 +1,624 @@
+"""The physics twin of one cell: MuJoCo model and data, stepped one controller period at
+a time, with the controller's behaviour around it (servo set-point, safety state, stop
+ramps), the IO image and physical fault injection.
+
+``SimWorld`` knows nothing about trajectories or the engine; :mod:`.backend` wraps it in
+the :class:`~cellrunner.backends.base.RobotBackend` Protocol. Everything the engine can
+learn comes out of :meth:`SimWorld.measure` (a RobotState: joints, wrist wrench, IO, safety):
+fault injections change the physics, never a flag the engine could read.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cellrunner.backends.base import BackendError, RobotState, Safety
+from cellrunner.backends.sim._mj import load_mujoco
+from cellrunner.backends.sim.description import TwinDescription
+from cellrunner.backends.sim.mjcf import PARTS, PADS, ROBOT, STATIC, PhysicsOptions, compile_model
+from cellrunner.model.robots import JOINT_NAMES
+
+UNLOCK_DELAY_S = 5.0  # UR: a protective stop can be unlocked 5 s after it happened
+STOP_DECEL_RAD_S2 = 30.0  # category 2 stop ramp (protective stop, stopJ default)
+GRAVITY_MPS2 = 9.81
+JAW_REST_SPEED_MPS = 0.005
+COLLISION_BACKOFF_S = 0.02
+SLIP_HOLD_FRACTION = 0.25  # a slipping grip holds only this fraction of the part's weight
+AIR_CLEARANCE_M = 0.01  # "in the air": this far from every fixture and the floor
+
+
+class Fault(str, enum.Enum):
+    """Faults the twin can make physically happen (SPEC section 5, robot side)."""
+
+    GRIP_MISS = "grip_miss"  # the part is moved away when the jaws start to close
+    PART_SLIP = "part_slip"  # a gripped part loses its grip once in the air, and falls
+    PROTECTIVE_STOP = "protective_stop"
+    ESTOP = "estop"
+    ROBOT_DISCONNECT = "robot_disconnect"  # handled by the backend (connection lost)
+
+    @classmethod
+    def parse(cls, name: str | Fault) -> Fault:
+        try:
+            return cls(name)
+        except ValueError:
+            known = ", ".join(f.value for f in cls)
+            raise ValueError(f"unknown fault {name!r}; known: {known}") from None
+
+
+class StopReason(str, enum.Enum):
+    CONTACT = "contact"
+    INJECTED = "injected"
+    REQUESTED = "requested"
+
+
+@dataclass
+class _Stop:
+    """A synchronized linear velocity ramp to standstill from ``qd0_rad_s``."""
+
+    t0_s: float
+    qd0_rad_s: np.ndarray
+    duration_s: float
+
+    def speed(self, t_s: float) -> np.ndarray:
+        s = max(0.0, 1.0 - (t_s - self.t0_s) / self.duration_s) if self.duration_s > 0 else 0.0
+        return self.qd0_rad_s * s
+
+
+@dataclass
+class ContactEvent:
+    """The unexpected contact that raised a protective stop (for logs and reports)."""
+
+    time_s: float
+    force_N: float
+    geoms: tuple[str, str]
+
+
+@dataclass
+class _Ids:
+    qpos: np.ndarray
+    dof: np.ndarray
+    servo: np.ndarray
+    ff_gain: np.ndarray  # kv/kp per arm servo
+    jaw_qpos: np.ndarray
+    jaw_dof: np.ndarray
+    jaw_act: np.ndarray
+    pad_geoms: tuple[int, int]
+    pad_friction: np.ndarray
+    part_bodies: dict[str, int]
+    part_qpos: dict[str, int]
+    part_geom: dict[str, int]
+    part_friction: dict[str, np.ndarray]
+    geom_kind: np.ndarray  # STATIC / ROBOT / PADS / PARTS per geom, 0 for none
+    tool_body: int
+    ft_site: int
+    tcp_site: int
+    force_adr: int
+    torque_adr: int
+    tool_mass_kg: float
+
+
+@dataclass
+class _Faults:
+    grip_miss_armed: bool = False
+    slip_armed: bool = False
+    slipping: set[str] = field(default_factory=set)
+
+
+class SimWorld:
+    """The twin: construct with a description, ``build()``, then ``step_period()``."""
+
+    def __init__(self, description: TwinDescription, options: PhysicsOptions = PhysicsOptions()):
+        self.description = description
+        self.options = options
+        self.period_s = 1.0 / description.rate_hz
+        self.substeps = max(1, math.ceil(self.period_s / options.max_timestep_s - 1e-9))
+        self.model: Any = None
+        self.data: Any = None
+        self._mj: Any = None
+        self._ids: _Ids | None = None
+
+    # -- lifecycle ----------------------------------------------------------------------
+    def build(self) -> None:
+        """Compile the model and put the arm at home and the parts at their frames."""
+        self._mj = load_mujoco()
+        self.model = compile_model(self.description, self.options)
+        self.data = self._mj.MjData(self.model)
+        self._ids = self._lookup_ids()
+        self._periods = 0
+        ids = self._ids
+        self.data.qpos[ids.qpos] = self.description.q_home_rad
+        self._mj.mj_forward(self.model, self.data)
+        self.q_ref = np.array(self.description.q_home_rad, dtype=float)
+        self.qd_ref = np.zeros(6)
+        self.safety = Safety.NORMAL
+        self.powered = True
+        self.estop_pressed = False
+        self.stop_time_s: float | None = None
+        self.last_contact: ContactEvent | None = None
+        self._stop: _Stop | None = None
+        self._faults = _Faults()
+        d = self.description
+        self.outputs: dict[str, float | bool] = {c: _zero(c) for c in d.io_outputs}
+        self.inputs: dict[str, float | bool] = {c: _zero(c) for c in d.io_inputs}
+        self._scripted_inputs: dict[str, float | bool] = {}
+        self._closing = False
+        self._ft_offset = np.zeros(6)
+        self._kind = [int(k) for k in ids.geom_kind]
+        # Hot-path views into MjData (its buffers never move). The arm's joints and
+        # servos come first in the model, so they are plain slices.
+        assert list(ids.qpos) == list(range(6)) and list(ids.dof) == list(range(6))
+        assert list(ids.servo) == list(range(6))
+        self._q_view = self.data.qpos[0:6]
+        self._qd_view = self.data.qvel[0:6]
+        self._servo_ctrl = self.data.ctrl[0:6]
+        self._R_site = self.data.site_xmat[ids.ft_site].reshape(3, 3)
+        self._ft = self.data.sensordata[ids.force_adr:ids.force_adr + 6].reshape(2, 3)
+        self._tool_com = self.data.subtree_com[ids.tool_body]
+        self._site_pos = self.data.site_xpos[ids.ft_site]
+        self._pad_a = ids.pad_geoms[0]
+        self._part_of_geom = {g: name for name, g in ids.part_geom.items()}
+        self._force6 = np.zeros(6)
+        self._fromto6 = np.zeros(6)
+        self._static_geoms = [g for g, k in enumerate(self._kind) if k == STATIC]
+        # The arm settles one physics step ahead of its servo input (measured), hence -h.
+        self._ff_lead = ids.ff_gain - self.period_s / self.substeps
+        self._q_prev_ref = self.q_ref.copy()
+        self._qd_prev_ref: np.ndarray = _ZERO6
+        self._hermite = _hermite_table(self.substeps, self.period_s)
+        R_world_base = np.array(self.description.T_world_base[:3, :3], dtype=float)
+        self._neg_R_world_base = -R_world_base
+        self._R_base_world = R_world_base.T.copy()
+        self._tool_weight_N = GRAVITY_MPS2 * ids.tool_mass_kg
+        self._weight_comp_base = self._R_base_world @ np.array([0.0, 0.0, self._tool_weight_N])
+        self._gripped: frozenset[str] = _NONE
+        self._jaw_adr = [int(a) for a in ids.jaw_qpos]
+        self._jaw_dof = [int(a) for a in ids.jaw_dof]
+        self._jaw_act = [int(a) for a in ids.jaw_act]
+        self.data.ctrl[ids.servo] = self.q_ref
+        self._mj.mj_forward(self.model, self.data)
+        self._update_inputs()
+
+    @property
+    def built(self) -> bool:
+        return self.data is not None
+
+    @property
+    def time_s(self) -> float:
+        """Simulated time (s), counted in whole controller periods (no float drift)."""
+        return self._periods / self.description.rate_hz
+
+    def _lookup_ids(self) -> _Ids:
+        m, mj, d = self.model, self._mj, self.description
+        joints = [m.joint(n).id for n in JOINT_NAMES]
+        servo = np.array([m.actuator(f"servo:{n}").id for n in JOINT_NAMES])
+        kp = m.actuator_gainprm[servo, 0]
+        kv = -m.actuator_biasprm[servo, 2]
+        geom_kind = np.zeros(m.ngeom, dtype=int)
+        for g in range(m.ngeom):
+            if m.geom_contype[g] or m.geom_conaffinity[g]:
+                geom_kind[g] = m.geom_contype[g]
+        gripper = d.gripper is not None
+        jaws = [m.joint(j).id for j in ("jaw_a", "jaw_b")] if gripper else []
+        pads = (m.geom("pad:jaw_a").id, m.geom("pad:jaw_b").id) if gripper else (-1, -1)
+        tool = m.body("tool").id
+        return _Ids(
+            qpos=m.jnt_qposadr[joints].copy(),
+            dof=m.jnt_dofadr[joints].copy(),
+            servo=servo,
+            ff_gain=kv / kp,
+            jaw_qpos=m.jnt_qposadr[jaws].copy() if gripper else np.zeros(0, int),
+            jaw_dof=m.jnt_dofadr[jaws].copy() if gripper else np.zeros(0, int),
+            jaw_act=np.array([m.actuator(f"drive:{j}").id for j in ("jaw_a", "jaw_b")]
+                             if gripper else [], dtype=int),
+            pad_geoms=pads,
+            pad_friction=m.geom_friction[list(pads)].copy() if gripper else np.zeros((0, 3)),
+            part_bodies={p.name: m.body(f"part:{p.name}").id for p in d.parts},
+            part_qpos={p.name: int(m.jnt_qposadr[m.joint(f"part:{p.name}").id]) for p in d.parts},
+            part_geom={p.name: m.geom(f"part:{p.name}").id for p in d.parts},
+            part_friction={p.name: m.geom_friction[m.geom(f"part:{p.name}").id].copy()
+                           for p in d.parts},
+            geom_kind=geom_kind,
+            tool_body=tool,
+            ft_site=m.site("ft").id,
+            tcp_site=m.site("tcp").id,
+            force_adr=int(m.sensor_adr[m.sensor("ft_force").id]),
+            torque_adr=int(m.sensor_adr[m.sensor("ft_torque").id]),  # == force_adr + 3
+            tool_mass_kg=float(m.body_subtreemass[tool]),
+        )
+
+    # -- commands -----------------------------------------------------------------------
+    def command(self, q_ref_rad: np.ndarray, qd_ref_rad_s: np.ndarray) -> None:
+        """Set the servo set-point for the next period (servoJ)."""
+        self.check_can_move()
+        # never modified in place (every update rebinds), so no copies are needed
+        self.q_ref = q_ref_rad
+        self.qd_ref = qd_ref_rad_s
+
+    def check_can_move(self) -> None:
+        """Raise BackendError unless the controller would accept motion commands now."""
+        if self.safety is not Safety.NORMAL:
+            raise BackendError(f"robot cannot move: safety state is {self.safety.value}")
+        if self._stop is not None:
+            raise BackendError("robot is stopping (stopJ); wait until it stands still")
+
+    def stop_motion(self, decel_rad_s2: float = STOP_DECEL_RAD_S2) -> None:
+        """Ramp the set-point to standstill, along the current commanded motion."""
+        self._begin_stop(decel_rad_s2)
+
+    def set_output(self, channel: str, value: bool | float) -> None:
+        if channel not in self.outputs:
+            raise BackendError(f"unknown output {channel!r}; known: {', '.join(self.outputs)}")
+        self.outputs[channel] = value
+
+    def set_input(self, channel: str, value: bool | float) -> None:
+        """Drive an input that no twin sensor drives (a test or a scripted peer)."""
+        if channel not in self.inputs:
+            raise BackendError(f"unknown input {channel!r}; known: {', '.join(self.inputs)}")
+        if channel in self._sensor_channels():
+            raise BackendError(f"input {channel!r} is driven by a twin sensor")
+        self._scripted_inputs[channel] = value
+        self.inputs[channel] = value
+
+    def zero_ft_sensor(self) -> None:
+        self._ft_offset = self._raw_wrench_base()
+
+    def unlock_protective_stop(self) -> None:
+        if self.safety is Safety.NORMAL:
+            return
+        if self.safety is not Safety.PROTECTIVE_STOP:
+            raise BackendError(f"cannot unlock a protective stop in state {self.safety.value}")
+        assert self.stop_time_s is not None
+        elapsed = self.time_s - self.stop_time_s
+        if elapsed < UNLOCK_DELAY_S:
+            raise BackendError(
+                f"protective stop cannot be unlocked yet: {elapsed:.2f} s since the stop, "
+                f"the controller needs {UNLOCK_DELAY_S:.0f} s")
+        self._resume()
+
+    def press_estop(self) -> None:
+        """A person presses the emergency stop: category 1 stop, then power off."""
+        self.estop_pressed = True
+        if self.safety is not Safety.EMERGENCY_STOP:
+            self.safety = Safety.EMERGENCY_STOP
+            self.stop_time_s = self.time_s
+            self._begin_stop(STOP_DECEL_RAD_S2)
+
+    def release_estop(self) -> None:
+        """A person twists the e-stop button out; the robot stays off until recovered."""
+        self.estop_pressed = False
+
+    def recover_from_estop(self) -> None:
+        if self.safety is not Safety.EMERGENCY_STOP:
+            return
+        if self.estop_pressed:
+            raise BackendError("emergency stop is still pressed; a person must release it first")
+        self.powered = True
+        self._resume()
+
+    def raise_protective_stop(self, reason: StopReason = StopReason.INJECTED) -> None:
+        if self.safety is not Safety.NORMAL:
+            return
+        self.safety = Safety.PROTECTIVE_STOP
+        self.stop_time_s = self.time_s
+        if reason is StopReason.CONTACT:
+            # A collision: hold where the arm was just before (backing off 20 ms of the
+            # motion, as UR arms back off) rather than ramp on into the obstacle.
+            self._stop = None
+            q, qd = self.data.qpos[self._ids.qpos], self.data.qvel[self._ids.dof]
+            self.q_ref = self._q_prev_ref = q - COLLISION_BACKOFF_S * qd
+            self.qd_ref = self._qd_prev_ref = _ZERO6
+        else:
+            self._begin_stop(STOP_DECEL_RAD_S2)
+
+    def inject_fault(self, fault: str | Fault) -> None:
+        """Make ``fault`` happen physically (see :class:`Fault`); robot_disconnect is the
+        backend's business."""
+        f = Fault.parse(fault)
+        if f is Fault.GRIP_MISS:
+            self._faults.grip_miss_armed = True
+        elif f is Fault.PART_SLIP:
+            self._faults.slip_armed = True  # fires once a gripped part is in the air
+            self._maybe_slip({p for p in self._gripped if self._in_air(p)})
+        elif f is Fault.PROTECTIVE_STOP:
+            self.raise_protective_stop(StopReason.INJECTED)
+        elif f is Fault.ESTOP:
+            self.press_estop()
+        else:
+            raise ValueError(f"fault {f.value!r} is handled by the backend, not the physics")
+
+    # -- stepping -----------------------------------------------------------------------
+    def step_period(self) -> None:
+        """Advance the physics by one controller period."""
+        ids, data = self._ids, self.data
+        assert ids is not None, "build() first"
+        t = self.time_s
+        if self._stop is not None:
+            qd = self._stop.speed(t)
+            self.q_ref = self.q_ref + qd * self.period_s
+            self.qd_ref = qd
+            if not qd.any():
+                self._stop = None
+                if self.safety is Safety.EMERGENCY_STOP:
+                    self.powered = False  # category 1: power off once standing, brakes on
+        # servoJ semantics: be at q_ref at the end of this period. The PD with velocity
+        # feed-forward settles onto its position input one physics step ahead, so that
+        # input is the set-point one step back along the commanded speed (plus the kv/kp
+        # feed-forward term). With several steps per period (CB3) the set-point is
+        # interpolated linearly across them.
+        self._drive_gripper()
+        k = self.substeps
+        if k == 1:
+            if self.qd_ref is _ZERO6:
+                self._servo_ctrl[:] = self.q_ref
+            else:
+                self._servo_ctrl[:] = self.q_ref + self._ff_lead * self.qd_ref
+            self._mj.mj_step(self.model, data)
+        else:
+            # cubic Hermite between the last and this set-point (positions and speeds),
+            # so the servo input and its speed feed-forward are continuous (a stepped
+            # feed-forward at 125 Hz shakes a gripped part loose)
+            ends = np.stack([self._q_prev_ref, self._qd_prev_ref, self.q_ref, self.qd_ref])
+            q_sub = self._hermite[0] @ ends
+            qd_sub = self._hermite[1] @ ends
+            ctrl = q_sub + self._ff_lead * qd_sub
+            for s in range(k):
+                self._servo_ctrl[:] = ctrl[s]
+                self._mj.mj_step(self.model, data)
+        self._q_prev_ref = self.q_ref
+        self._qd_prev_ref = self.qd_ref
+        self._periods += 1
+        if self._stop is None:
+            self.qd_ref = _ZERO6  # feed-forward is valid for one period only
+        self._gripped = self._check_contacts()
+        f = self._faults
+        if f.slip_armed or f.slipping:
+            self._update_faults(self._gripped)
+        self._update_inputs()
+
+    def _drive_gripper(self) -> None:
+        g = self.description.gripper
+        if g is None:
+            return
+        closing = self.outputs.get(g.close_output) == g.close_value
+        if closing and not self._closing and self._faults.grip_miss_armed:
+            self._faults.grip_miss_armed = False
+            self._move_part_away()
+        self._closing = closing
+        speed = g.grip_force_N if closing else -g.grip_force_N
+        ctrl = self.data.ctrl
+        for a in self._jaw_act:
+            ctrl[a] = speed  # a force (N): the drives are force actuators
+
+    # -- contacts -----------------------------------------------------------------------
+    def _check_contacts(self) -> frozenset[str]:
+        """Raise a protective stop on unexpected contact; return the gripped parts.
+
+        Unexpected: the arm, tool or pads against a fixture or the floor; the arm or tool
+        (not the pads) against a part that is not gripped. Contacts are few, so a plain
+        loop over Python ints beats numpy here (this runs every period).
+        """
+        data = self.data
+        n = data.ncon
+        if not n:
+            return _NONE
+        kind = self._kind
+        pad_hits: dict[int, int] = {}
+        robot_parts: list[tuple[int, int]] = []
+        suspicious: list[int] = []
+        for i, (g1, g2) in enumerate(data.contact.geom[:n].tolist()):
+            k1, k2 = kind[g1], kind[g2]
+            both = k1 | k2
+            if not both & (ROBOT | PADS):
+                continue
+            if both & STATIC:
+                suspicious.append(i)
+            elif both == PADS | PARTS:
+                pad, part = (g1, g2) if k1 == PADS else (g2, g1)
+                pad_hits[part] = pad_hits.get(part, 0) | (1 if pad == self._pad_a else 2)
+            elif both == ROBOT | PARTS:
+                robot_parts.append((i, g2 if k2 == PARTS else g1))
+        gripped_geoms = {g for g, hits in pad_hits.items() if hits == 3}
+        suspicious += [i for i, g in robot_parts if g not in gripped_geoms]
+        if suspicious and self.safety is Safety.NORMAL:
+            self._judge_contacts(suspicious)
+        if not gripped_geoms:
+            return _NONE
+        return frozenset(self._part_of_geom[g] for g in gripped_geoms)
+
+    def _judge_contacts(self, indices: list[int]) -> None:
+        force = self._force6
+        total, worst, worst_i = 0.0, -1.0, indices[0]
+        for i in indices:
+            self._mj.mj_contactForce(self.model, self.data, i, force)
+            total += abs(force[0])
+            if abs(force[0]) > worst:
+                worst, worst_i = abs(force[0]), i
+        if total > self.description.contact_force_limit_N:
+            g1, g2 = (self.model.geom(int(g)).name for g in self.data.contact.geom[worst_i])
+            self.last_contact = ContactEvent(self.time_s, total, (g1, g2))
+            self.raise_protective_stop(StopReason.CONTACT)
+
+    # -- faults ---------------------------------------------------------------------------
+    def _update_faults(self, gripped: set[str]) -> None:
+        f = self._faults
+        if f.slip_armed:
+            self._maybe_slip({p for p in gripped if self._in_air(p)})
+        for name in list(f.slipping):
+            if not self._touches_pads(name):
+                self.model.geom_friction[self._ids.part_geom[name]] = self._ids.part_friction[name]
+                f.slipping.discard(name)
+        if not f.slipping and self._ids.pad_geoms[0] >= 0:
+            self.model.geom_friction[list(self._ids.pad_geoms)] = self._ids.pad_friction
+
+    def _maybe_slip(self, candidates: set[str]) -> None:
+        if not candidates:
+            return
+        self._faults.slip_armed = False
+        g = self.description.gripper
+        assert g is not None
+        for name in candidates:
+            self._faults.slipping.add(name)
+            # friction such that the two pads hold only a fraction of the weight
+            weight = self.model.body_mass[self._ids.part_bodies[name]] * GRAVITY_MPS2
+            mu = SLIP_HOLD_FRACTION * weight / (2.0 * g.grip_force_N)
+            self.model.geom_friction[self._ids.part_geom[name], 0] = mu
+            self.model.geom_friction[list(self._ids.pad_geoms), 0] = mu
+
+    def _contacts_of(self, part: str) -> list[int]:
+        """Kinds of the geoms the part touches."""
+        g = self._ids.part_geom[part]
+        kind = self._kind
+        return [kind[g2 if g1 == g else g1]
+                for g1, g2 in self.data.contact.geom[:self.data.ncon].tolist() if g in (g1, g2)]
+
+    def _in_air(self, part: str) -> bool:
+        """True when the part touches the finger pads only and is clear of the fixtures."""
+        kinds = self._contacts_of(part)
+        if not kinds or any(k != PADS for k in kinds):
+            return False
+        g = self._ids.part_geom[part]
+        fromto = self._fromto6
+        for other in self._static_geoms:
+            d = self._mj.mj_geomDistance(self.model, self.data, g, other, AIR_CLEARANCE_M, fromto)
+            if d < AIR_CLEARANCE_M:
+                return False
+        return True
+
+    def _touches_pads(self, part: str) -> bool:
+        return PADS in self._contacts_of(part)
+
+    def _move_part_away(self) -> None:
+        """grip_miss: the part between the jaws is moved 0.15 m towards the robot base."""
+        ids, data, g = self._ids, self.data, self.description.gripper
+        tcp = data.site_xpos[ids.tcp_site]
+        reach = g.stroke_m / 2 + 0.05
+        best, best_d = None, reach
+        for name, body in ids.part_bodies.items():
+            dist = float(np.linalg.norm(data.xpos[body] - tcp))
+            if dist < best_d:
+                best, best_d = name, dist
+        if best is None:
+            return
+        adr = ids.part_qpos[best]
+        base_xy = self.description.T_world_base[:2, 3]
+        direction = base_xy - data.qpos[adr:adr + 2]
+        norm = float(np.linalg.norm(direction))
+        direction = direction / norm if norm > 1e-6 else np.array([-1.0, 0.0])
+        data.qpos[adr:adr + 2] += 0.15 * direction
+        data.qvel[self.model.jnt_dofadr[self.model.joint(f"part:{best}").id] + np.arange(6)] = 0.0
+        self._mj.mj_forward(self.model, data)
+
+    # -- safety helpers -----------------------------------------------------------------
+    def _begin_stop(self, decel_rad_s2: float) -> None:
+        qd0 = self.qd_ref.copy() if self._stop is None else self._stop.speed(self.time_s)
+        duration = float(np.max(np.abs(qd0))) / decel_rad_s2
+        self._stop = _Stop(self.time_s, qd0, duration)
+
+    def _resume(self) -> None:
+        self.safety = Safety.NORMAL
+        self.stop_time_s = None
+        self._stop = None
+        self.q_ref = self._q_prev_ref = self.data.qpos[self._ids.qpos].copy()
+        self.qd_ref = self._qd_prev_ref = _ZERO6
+
+    # -- measurements ---------------------------------------------------------------------
+    def _sensor_channels(self) -> set[str]:
+        g = self.description.gripper
+        chans = {s.channel for s in self.description.presence_sensors}
+        if g is not None:
+            chans |= {c for c in (g.closed_sensor_input, g.open_sensor_input) if c}
+        return chans
+
+    def jaw_gap_m(self) -> float:
+        """Distance between the finger pads (m); stroke when open, 0 when fully closed."""
+        g = self.description.gripper
+        if g is None:
+            return 0.0
+        qpos = self.data.qpos
+        return g.stroke_m - (qpos[self._jaw_adr[0]] + qpos[self._jaw_adr[1]])
+
+    def _update_inputs(self) -> None:
+        g = self.description.gripper
+        if g is not None:
+            gap = self.jaw_gap_m()
+            qvel = self.data.qvel
+            jaw_speed = max(abs(qvel[self._jaw_dof[0]]), abs(qvel[self._jaw_dof[1]]))
+            resting = jaw_speed < JAW_REST_SPEED_MPS
+            if g.closed_sensor_input:
+                self.inputs[g.closed_sensor_input] = bool(
+                    self._closing and resting
+                    and g.sensor_min_gap_m <= gap <= g.stroke_m - g.sensor_min_gap_m)
+            if g.open_sensor_input:
+                self.inputs[g.open_sensor_input] = bool(gap >= g.stroke_m - g.sensor_min_gap_m)
+        for sensor in self.description.presence_sensors:
+            c = np.asarray(sensor.center_world_m)
+            h = np.asarray(sensor.half_extents_m)
+            self.inputs[sensor.channel] = any(bool(np.all(np.abs(self.data.xpos[b] - c) <= h))
+                                              for b in self._ids.part_bodies.values())
+
+    def _raw_wrench_base(self) -> np.ndarray:
+        """External wrench on the tool (payload compensated), base axes, torque at flange.
+
+        MuJoCo's force/torque sensors give the force and torque the flange exerts on the
+        tool subtree (tool, fingers, anything they hold), in the ``ft`` site frame. In
+        static balance the external wrench is minus that, minus the tool's own weight
+        (the configured payload, which UR's controller also compensates).
+        """
+        # rows (force, torque): site frame -> world -> base, sign flipped
+        w = self._ft @ (self._R_site.T @ self._neg_R_world_base)
+        r = self._tool_com - self._site_pos  # flange origin -> tool centre of mass, world
+        mg = self._tool_weight_N
+        # minus the weight (0, 0, -mg) and minus its moment r x (0, 0, -mg), in base axes
+        w[0] += self._weight_comp_base
+        w[1] += mg * (r[1] * self._R_base_world[:, 0] - r[0] * self._R_base_world[:, 1])
+        return w.ravel()
+
+    def measure(self) -> RobotState:
+        """This period's measurements, as the controller reports them."""
+        return RobotState(self._periods / self.description.rate_hz, self._q_view.copy(),
+                          self._qd_view.copy(), self._raw_wrench_base() - self._ft_offset,
+                          self.safety, dict(self.inputs), dict(self.outputs), self.powered,
+                          self.powered)
+
+    # -- introspection for tests, reports and the renderer (never for the engine) ---------
+    def q_measured(self) -> np.ndarray:
+        return self._q_view.copy()
+
+    def tcp_pose_world(self) -> np.ndarray:
+        T = np.eye(4)
+        T[:3, :3] = self.data.site_xmat[self._ids.tcp_site].reshape(3, 3)
+        T[:3, 3] = self.data.site_xpos[self._ids.tcp_site]
+        return T
+
+    def part_pose_world(self, name: str) -> np.ndarray:
+        body = self._ids.part_bodies[name]
+        T = np.eye(4)
+        T[:3, :3] = self.data.xmat[body].reshape(3, 3)
+        T[:3, 3] = self.data.xpos[body]
+        return T
+
+
+_NONE: frozenset[str] = frozenset()
+_ZERO6 = np.zeros(6)
+_ZERO6.setflags(write=False)
+
+
+def _hermite_table(substeps: int, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Matrices (substeps x 4) giving position and speed at the end of each physics step
+    from (q0, qd0, q1, qd1) of a cubic Hermite segment over one period."""
+    tau = np.arange(1, substeps + 1) / substeps
+    T = period_s
+    pos = np.stack([2 * tau**3 - 3 * tau**2 + 1, (tau**3 - 2 * tau**2 + tau) * T,
+                    -2 * tau**3 + 3 * tau**2, (tau**3 - tau**2) * T], axis=1)
+    vel = np.stack([(6 * tau**2 - 6 * tau) / T, 3 * tau**2 - 4 * tau + 1,
+                    (-6 * tau**2 + 6 * tau) / T, 3 * tau**2 - 2 * tau], axis=1)
+    return pos, vel
+
+
+def _zero(channel: str) -> float | bool:
+    return 0.0 if channel[:2] in ("AI", "AO") else False
