@@ -21,9 +21,12 @@ StepGen = Generator[None, None, "Outcome"]
 
 #: joint distance (rad, max over joints) under which the arm is "at" a trajectory's start
 START_TOLERANCE_RAD = 2e-3
-#: ticks the wrist load is averaged over when weighing the part
-WEIGH_TICKS = 25
-SETTLE_S = 0.05
+#: the wrist load is averaged over this long when weighing or taking a baseline (s)
+AVERAGE_S = 0.05
+#: stand still this long before a wrist baseline or a weighing (motion transients, s)
+SETTLE_S = 0.1
+#: the jaw sensor must read false this long before the part counts as lost (debounce, s)
+SENSOR_DEBOUNCE_S = 0.05
 
 
 @dataclass(frozen=True)
@@ -64,7 +67,13 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
     args = step.args
     if ctx.gripper_close is None:
         return Outcome.failed(ResultCode.NO_PART, "the cell has no gripper close output")
-    baseline = np.array(ctx.state.wrench_N[:3], dtype=float)
+    samples = []
+    t0 = ctx.now_s
+    while ctx.now_s - t0 < SETTLE_S + AVERAGE_S:  # settle, then the baseline
+        if ctx.now_s - t0 >= SETTLE_S:
+            samples.append(np.array(ctx.state.wrench_N[:3], dtype=float))
+        yield
+    baseline = np.mean(samples, axis=0) if samples else np.array(ctx.state.wrench_N[:3], dtype=float)
     channel, value = ctx.gripper_close
     ctx.backend.set_output(channel, value)
     confirm = ctx.inputs.get(args.confirm) if args.confirm else ctx.gripper_closed_sensor
@@ -79,6 +88,8 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
                                       f"within {args.timeout:g} s (jaws closed on nothing)")
             yield
     force_min = args.force.min if args.force else 0.0
+    ctx.notes.pop("sensor_false_since", None)
+    ctx.notes.pop("load_lp", None)
     ctx.carry = Carry(baseline_N=baseline, min_N=force_min, confirm=confirm)
     return OK
 
@@ -87,9 +98,11 @@ def run_weigh(ctx: JobContext, step: Step) -> StepGen:
     """After the lift: the load the wrist carries must lie within the grip's force window."""
     window = step.args.force
     samples = []
-    for _ in range(WEIGH_TICKS):
+    t0 = ctx.now_s
+    while ctx.now_s - t0 < SETTLE_S + AVERAGE_S:
         yield
-        samples.append(np.array(ctx.state.wrench_N[:3]))
+        if ctx.now_s - t0 >= SETTLE_S:
+            samples.append(np.array(ctx.state.wrench_N[:3]))
     load = float(np.linalg.norm(np.mean(samples, axis=0) - ctx.carry.baseline_N))
     ctx.carry.load_N = load
     hi = window.max if window.max is not None else float("inf")
@@ -156,8 +169,13 @@ def _part_lost(ctx: JobContext) -> str | None:
     carry = ctx.carry
     if carry is None:
         return None
-    if carry.confirm is not None and not ctx.state.inputs.get(carry.confirm):
-        return "part lost in transit: the jaw sensor dropped"
+    if carry.confirm is not None:
+        if ctx.state.inputs.get(carry.confirm):
+            ctx.notes.pop("sensor_false_since", None)
+        else:
+            since = ctx.notes.setdefault("sensor_false_since", ctx.now_s)
+            if ctx.now_s - since >= SENSOR_DEBOUNCE_S:
+                return "part lost in transit: the jaw sensor dropped"
     if carry.load_N is not None and carry.min_N > 0:
         load = float(np.linalg.norm(np.asarray(ctx.state.wrench_N[:3]) - carry.baseline_N))
         ctx.notes["load_lp"] = 0.9 * ctx.notes.get("load_lp", carry.load_N) + 0.1 * load

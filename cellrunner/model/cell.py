@@ -55,6 +55,7 @@ class Gripper(Strict):
     closed_sensor: Name | None = None
     open_sensor: Name | None = None
     stroke: PositiveLength = 0.085
+    close_time: PositiveDuration = 0.2  # s, jaws from fully open to closed (datasheet)
     host: str | None = None  # robotiq socket host (default: the robot host)
     port: int = Field(default=63352, ge=1, le=65535)
 

@@ -27,8 +27,9 @@ from cellrunner.model.geometry import Placed
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory
 from cellrunner.planning.world import CellWorld
 
-#: nominal time a gripper takes to close or open, for the planned cycle time (s)
-GRIP_TIME_S = 0.3
+#: standing still before a grip's wrist baseline, and before weighing after a lift (s);
+#: the execution engine uses the same figures (execution.steps SETTLE_S + AVERAGE_S)
+WRIST_SETTLE_S = 0.15
 
 
 @dataclass
@@ -206,12 +207,15 @@ class _StepPlanner:
 
     def act(self, row: StepPlan) -> None:
         step = row.step
+        gripper = self.world.loaded.cell.tool.gripper
+        close_s = gripper.close_time if gripper is not None else 0.0
         if step.kind == "grip":
-            row.duration_s = GRIP_TIME_S
+            weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
+            row.duration_s = WRIST_SETTLE_S + close_s + weigh
             T = self.world.kinematics.T_world_tcp(self.q)
             self.part = self.world.part_at(step.extra.get("part_at", ""), T)
         elif step.kind == "release":
-            row.duration_s = GRIP_TIME_S
+            row.duration_s = close_s
             self.part = None
         elif step.kind == "wait":
             row.duration_s = step.args.seconds

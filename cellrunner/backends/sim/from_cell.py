@@ -19,13 +19,14 @@ def description_of(loaded: LoadedCell):
     g = c.tool.gripper
     if g is not None and g.close is not None:
         gripper = GripperDescription(
-            stroke_m=g.stroke, close_output=outputs[g.close.output], close_value=g.close.value,
+            stroke_m=g.stroke, jaw_speed_mps=g.stroke / 2 / g.close_time,
+            close_output=outputs[g.close.output], close_value=g.close.value,
             closed_sensor_input=inputs.get(g.closed_sensor) if g.closed_sensor else None,
             open_sensor_input=inputs.get(g.open_sensor) if g.open_sensor else None)
     tool = [Placed("gripper" if len(c.tool.geometry) == 1 else f"tool{i}", t.to_shape(loaded.resolve), t.matrix())
             for i, t in enumerate(c.tool.geometry)]
     fixtures = [Placed(f.name, f.to_shape(loaded.resolve), f.matrix()) for f in c.fixtures]
-    parts = [PartDescription(p.name, p.to_shape(loaded.resolve), p.mass, frame_pose(c, p.at), p.friction)
+    parts = [PartDescription(p.name, p.to_shape(loaded.resolve), p.mass, _upright(frame_pose(c, p.at)), p.friction)
              for p in c.parts]
     return TwinDescription(
         spec=loaded.spec, T_world_base=c.robot.mount.matrix(), T_flange_tcp=c.tool.tcp.matrix(),
@@ -34,3 +35,18 @@ def description_of(loaded: LoadedCell):
         gripper=gripper, fixtures=tuple(fixtures), parts=tuple(parts),
         io_outputs=tuple(dict.fromkeys(outputs.values())), io_inputs=tuple(dict.fromkeys(inputs.values())),
         name=c.cell)
+
+
+def _upright(T_world_frame: np.ndarray) -> np.ndarray:
+    """A part lies upright at its frame: the frame's position and yaw, no roll or pitch
+    (grip frames point their Z down into the part)."""
+    x = T_world_frame[:3, 0].copy()
+    x[2] = 0.0
+    if np.linalg.norm(x) < 1e-9:
+        x = np.array([1.0, 0.0, 0.0])
+    x /= np.linalg.norm(x)
+    T = np.eye(4)
+    T[:3, 0], T[:3, 2] = x, (0.0, 0.0, 1.0)
+    T[:3, 1] = np.cross(T[:3, 2], x)
+    T[:3, 3] = T_world_frame[:3, 3]
+    return T

@@ -62,7 +62,7 @@ class PhysicsOptions:
     servo_bandwidth_hz: float = 40.0  # arm servo natural frequency (capped by stability)
     solver_iterations: int = 20
     cone: str = "elliptic"
-    impratio: float = 10.0
+    impratio: float = 1.0  # 10 made held parts chatter and fly off during lifts (see tests/sim)
     # MuJoCo island sleeping: ~+20% RTF, but the wrist weight read 9% high with it; off.
     sleep: bool = False
 

@@ -1,0 +1,205 @@
+"""``cellrunner dry-run CELL TASK``: the real cell controller and job runner against the
+MuJoCo twin, with faults made to happen physically (``--inject FAULT@STEP``)."""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, step_table
+from cellrunner.cli.faults import Injection, parse_injections
+from cellrunner.execution.cell import CellController
+from cellrunner.execution.journal import Journal
+from cellrunner.execution.planner import job_planner
+from cellrunner.model.codes import PackMLState as S, ResultCode
+
+#: e-stop faults are released by the "operator" this long after they struck (sim s)
+PLC_OUTAGE_S = 2.0
+
+
+@dataclass
+class _Recorder:
+    """What the report needs: samples of the run, and pictures at key moments."""
+
+    report: Path | None
+    t: list = field(default_factory=list)
+    q: list = field(default_factory=list)
+    qd: list = field(default_factory=list)
+    q_cmd: list = field(default_factory=list)
+    tcp: list = field(default_factory=list)
+    marks: list = field(default_factory=list)
+    pictures: list = field(default_factory=list)
+
+
+def run(args) -> int:
+    cell, task = load(args.cell, args.task)
+    params = parse_params(args.param, task)
+    steps = expanded(cell, task, params)
+    injections = parse_injections(args.inject, steps)
+    from cellrunner.backends.sim.backend import SimBackend
+    from cellrunner.backends.sim.from_cell import description_of
+    from cellrunner.planning.world import CellWorld
+
+    world = CellWorld(cell)
+    backend = SimBackend(description_of(cell))
+    pending: list[tuple[Injection, float]] = []
+    recorder = _Recorder(Path(args.report) if args.report else None)
+
+    def on_step_start(step, attempt):
+        now = backend.read_state().time_s
+        recorder.marks.append((now, f"{step.index} {step.kind}"))
+        for inj in injections:
+            if inj.step_index == step.index and attempt == 1 and all(p[0] is not inj for p in pending):
+                pending.append((inj, now + inj.delay_s))
+
+    log = None
+    if args.log_format == "json":
+        from cellrunner.cli.logs import configure
+        log = configure("json", cell.cell.cell)
+    controller = CellController(cell, {1: task}, backend, Journal(":memory:"), job_planner(world), log=log,
+                                wait_for_unhold=False, on_step_start=on_step_start)
+    out = console()
+    controller.setup()
+    _tick(controller, 3)
+    t0 = time.perf_counter()
+    with out.status("planning", spinner="dots") as status:
+        ticket = controller.start_job(1, params, "dry-run", "cli")
+        if not ticket.accepted:
+            raise RuntimeError(f"dry-run job refused: {ticket.message}")
+        job = controller._job
+        job.plan.result()
+        wall_plan_s = time.perf_counter() - t0
+        planned = job.plan.result().planned_cycle_time_s if job.plan.exception() is None else 0.0
+        t_run = time.perf_counter()
+        sim_t0 = backend.read_state().time_s
+        _run(controller, backend, pending, recorder, status, steps, world, max_s=planned * 4 + 60)
+        wall_run_s = time.perf_counter() - t_run
+    finished_job, runner = controller.finished[-1]
+    result = controller.status().last_result
+    code = ResultCode(result.result_code)
+    rows = _rows(runner, steps)
+    tracking = runner.ctx.tracking_error_m if runner else 0.0
+    sim_s = backend.read_state().time_s - sim_t0
+    payload = {"ok": code is ResultCode.OK, "cell": cell.cell.cell, "task": task.name, "params": params,
+               "cycle_time_s": round(result.cycle_time_s, 4), "planned_cycle_time_s": round(planned, 4),
+               "max_tracking_error_m": round(tracking, 6), "result_code": int(code),
+               "result_text": result.result_text, "retries": runner.retries_used if runner else 0,
+               "steps": rows, "errors": [] if code is ResultCode.OK else [result.result_text],
+               "injected": [i.spec for i in injections],
+               "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None}
+    if recorder.report is not None:
+        _write_report(recorder, payload, backend)
+    controller.close()
+    if args.json:
+        emit_json(payload)
+    else:
+        out.print(step_table(f"dry-run {task.name} on {cell.cell.cell} (MuJoCo twin)", rows, ("attempts",)))
+        verdict = "[green]OK[/]" if code is ResultCode.OK else f"[bold red]{code.name}[/]"
+        out.print(f"result {int(code)} {verdict}: {result.result_text}")
+        out.print(f"cycle time {result.cycle_time_s:.2f} s simulated vs {planned:.2f} s planned; "
+                  f"max tracking error {tracking * 1000:.2f} mm; retries {payload['retries']}; "
+                  f"planning {wall_plan_s:.2f} s, simulation {wall_run_s:.2f} s wall "
+                  f"({payload['real_time_factor']}x real time)")
+        if recorder.report is not None:
+            out.print(f"report written to {recorder.report}/")
+    return 0 if code is ResultCode.OK else 1
+
+
+def _tick(controller: CellController, n: int) -> None:
+    for _ in range(n):
+        controller.backend.wait_period()
+        controller.tick()
+
+
+def _run(controller, backend, pending, recorder, status, steps, world, max_s: float) -> None:
+    """Tick until the job is over, applying injections when their moment comes."""
+    start = backend.read_state().time_s
+    plc_back_at = None
+    last_step = -1
+    sample_every = max(1, int(backend.rate_hz / 50))
+    n = 0
+    while controller._job is not None or controller.sm.state in (S.COMPLETING, S.ABORTING, S.STARTING):
+        state = backend.read_state()
+        now = state.time_s
+        if now - start > max_s:
+            controller.command("abort")
+        for item in list(pending):
+            inj, at = item
+            if now >= at:
+                pending.remove(item)
+                if inj.fault == "plc_disconnect":  # the PLC watchdog holds the cell; the PLC comes back
+                    controller.command("hold")
+                    plc_back_at = now + PLC_OUTAGE_S
+                else:
+                    backend.inject_fault(inj.fault)
+        if plc_back_at is not None and now >= plc_back_at and controller.command("unhold"):
+            plc_back_at = None
+        job = controller._job
+        runner = job.runner if job else None
+        if runner is not None:
+            if runner.current_step != last_step:
+                last_step = runner.current_step
+                status.update(f"step {last_step}/{len(steps)} {steps[last_step - 1].kind} "
+                              f"{steps[last_step - 1].name}" if last_step else "running")
+                if recorder.report is not None and last_step and steps[last_step - 1].kind in ("grip", "release"):
+                    recorder.pictures.append((f"step{last_step:02d}_{steps[last_step - 1].kind}",
+                                              _snapshot(backend)))
+            if n % sample_every == 0 and recorder.report is not None:
+                recorder.t.append(now)
+                recorder.q.append(state.q_rad.copy())
+                recorder.qd.append(state.qd_rad_s.copy())
+                recorder.q_cmd.append(runner.ctx.commanded_q.copy() if runner.ctx.commanded_q is not None
+                                      else state.q_rad.copy())
+                recorder.tcp.append(world.kinematics.T_world_tcp(state.q_rad)[:3, 3])
+        n += 1
+        backend.wait_period()
+        controller.tick()
+
+
+def _snapshot(backend) -> np.ndarray | None:
+    from cellrunner.backends.sim.render import CellRenderer, RenderUnavailable
+    try:
+        with CellRenderer(backend.world, 800, 600) as renderer:
+            return renderer.render()
+    except RenderUnavailable:
+        return None
+
+
+def _rows(runner, steps) -> list[dict]:
+    if runner is None:
+        return [{"index": s.index, "name": s.name, "kind": s.kind, "duration_s": 0.0, "status": "not run",
+                 "message": "", "attempts": 0} for s in steps]
+    return [{"index": r.index, "name": r.name, "kind": r.kind, "duration_s": round(r.duration_s, 4),
+             "status": r.status, "message": r.message, "attempts": r.attempts} for r in runner.records.values()]
+
+
+def _write_report(recorder: _Recorder, payload: dict, backend) -> None:
+    from cellrunner.backends.sim import render
+
+    folder = recorder.report
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "result.json").write_text(json.dumps(payload, indent=2))
+    pictures = list(recorder.pictures)
+    pictures.append(("end", _snapshot(backend)))
+    written = []
+    for name, image in pictures:
+        if image is None:
+            continue
+        path = folder / f"{name}.png"
+        import matplotlib.pyplot as plt
+        plt.imsave(path, image)
+        written.append(path.name)
+    if recorder.t:
+        t = np.array(recorder.t) - recorder.t[0]
+        marks = [(m - recorder.t[0], label) for m, label in recorder.marks]
+        render.plot_joints(folder / "joints.png", t, np.array(recorder.q), np.array(recorder.qd),
+                           q_ref_rad=np.array(recorder.q_cmd), title=f"{payload['task']}: joints", marks=marks)
+        render.plot_tcp_path(folder / "tcp_path.png", np.array(recorder.tcp), title=f"{payload['task']}: TCP path")
+        written += ["joints.png", "tcp_path.png"]
+    if not any(name.endswith(".png") and name not in ("joints.png", "tcp_path.png") for name in written):
+        (folder / "NO_PICTURES.txt").write_text("offscreen rendering unavailable: set MUJOCO_GL=osmesa and install "
+                                                "libosmesa6\n")
