@@ -71,9 +71,9 @@ def run(args) -> int:
         if not ticket.accepted:
             raise RuntimeError(f"dry-run job refused: {ticket.message}")
         job = controller._job
-        job.plan.result()
+        failed = job.plan.exception()  # waits for planning; a failure ends the job with 103
         wall_plan_s = time.perf_counter() - t0
-        planned = job.plan.result().planned_cycle_time_s if job.plan.exception() is None else 0.0
+        planned = job.plan.result().planned_cycle_time_s if failed is None else 0.0
         t_run = time.perf_counter()
         sim_t0 = backend.read_state().time_s
         _run(controller, backend, pending, recorder, status, steps, world, max_s=planned * 4 + 60)

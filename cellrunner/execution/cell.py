@@ -29,6 +29,7 @@ from cellrunner.model.cellport import COMMANDS, CellStatus, JobResult, JobTicket
 from cellrunner.model.codes import PackMLState as S, ResultCode
 from cellrunner.model.expand import Step, resolve_params
 from cellrunner.model.load import LoadedCell, LoadedTask
+from cellrunner.model.timing import release_time_s
 
 #: Complete is shown this long before the cell resets itself to Idle
 COMPLETE_DWELL_S = 0.1
@@ -308,6 +309,7 @@ class CellController:
         sensor = io_in[g.closed_sensor] if g and g.closed_sensor else None
         return JobContext(backend=self.backend, motions=motions, outputs=dict(io_out), inputs=dict(io_in),
                           gripper_close=close, gripper_open=open_, gripper_closed_sensor=sensor,
+                          gripper_open_s=release_time_s(g),
                           step_timeout_s=c.step_timeout, on_step_start=self.on_step_start,
                           log=self._bound_log())
 

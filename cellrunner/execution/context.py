@@ -46,6 +46,7 @@ class JobContext:
     gripper_close: tuple[str, bool | float] | None  # (channel, value) that closes the jaws
     gripper_open: tuple[str, bool | float] | None
     gripper_closed_sensor: str | None  # channel
+    gripper_open_s: float = 0.0  # a release waits at least this long: the jaws clear the part
     step_timeout_s: float = 60.0
     on_step_start: Callable[[Step, int], None] | None = None
     state: RobotState | None = None

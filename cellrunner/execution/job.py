@@ -105,7 +105,8 @@ class JobRunner:
         if self.phase in ("done", "idle"):
             return
         state = self.ctx.read()
-        self._track()
+        if state.safety is Safety.NORMAL and self.phase == "execute":
+            self._track()
         if state.safety is Safety.DISCONNECTED:
             return self._finish(ResultCode.ROBOT_CONNECTION_LOST, "robot connection lost")
         if state.safety is Safety.EMERGENCY_STOP:
@@ -137,6 +138,7 @@ class JobRunner:
         self._hold_reason = reason
         self._hold_since_s = self.ctx.now_s
         self._gen = None
+        self.ctx.commanded_q = None  # not streaming: no tracking error until the next set-point
         if reason != "protective stop":
             self.ctx.backend.stop_motion()
         self._log("hold", reason=reason)

@@ -125,7 +125,7 @@ def run_release(ctx: JobContext, step: Step) -> StepGen:
     t0 = ctx.now_s
     confirm = ctx.inputs.get(args.confirm) if args.confirm else None
     watch = confirm or ctx.gripper_closed_sensor
-    while ctx.now_s - t0 < SETTLE_S or (watch and _release_pending(ctx, watch, confirm is not None)):
+    while ctx.now_s - t0 < ctx.gripper_open_s or (watch and _release_pending(ctx, watch, confirm is not None)):
         if ctx.now_s - t0 >= args.timeout:
             return Outcome.failed(ResultCode.PLACE_FAILED, f"release not confirmed within {args.timeout:g} s")
         yield

@@ -1,5 +1,5 @@
 """A plan cache keyed by everything a plan depends on: the cell, task and mesh files'
-bytes, the params, the start configuration and cellrunner's version. A repeated job
+bytes, the params, the start configuration and the planning code itself. A repeated job
 reuses its approved trajectories without planning; any change to the files misses.
 
 Entries live in memory (for ``serve``) and on disk as ``.npz`` (arrays plus JSON, no
@@ -10,6 +10,7 @@ streamed. The cache saves planning, never the safety check.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import io
 import json
@@ -29,9 +30,19 @@ _MEMORY: dict[str, TaskPlan] = {}
 _MEMORY_MAX = 64
 
 
+@functools.lru_cache(maxsize=1)
+def _code_digest() -> bytes:
+    """The planning and model sources: a plan made by other code is another plan."""
+    h = hashlib.sha256(__version__.encode())
+    package = Path(__file__).resolve().parent.parent
+    for path in sorted([*package.glob("planning/*.py"), *package.glob("model/*.py")]):
+        h.update(path.read_bytes())
+    return h.digest()
+
+
 def plan_key(world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.ndarray) -> str:
     h = hashlib.sha256()
-    h.update(__version__.encode())
+    h.update(_code_digest())
     for path in [world.loaded.path, task.path, *sorted(m.path for m in _meshes(world))]:
         h.update(str(path).encode())
         h.update(Path(path).read_bytes())

@@ -24,6 +24,7 @@ from cellrunner.errors import InfeasibleError
 from cellrunner.model import geometry
 from cellrunner.model.expand import LINEAR_KINDS, Step
 from cellrunner.model.geometry import Placed
+from cellrunner.model.timing import close_time_s, release_time_s
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory
 from cellrunner.planning.world import CellWorld
 
@@ -208,14 +209,14 @@ class _StepPlanner:
     def act(self, row: StepPlan) -> None:
         step = row.step
         gripper = self.world.loaded.cell.tool.gripper
-        close_s = gripper.close_time if gripper is not None else 0.0
         if step.kind == "grip":
-            weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
-            row.duration_s = WRIST_SETTLE_S + close_s + weigh
             T = self.world.kinematics.T_world_tcp(self.q)
             self.part = self.world.part_at(step.extra.get("part_at", ""), T)
+            weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
+            close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
+            row.duration_s = WRIST_SETTLE_S + close_s + weigh
         elif step.kind == "release":
-            row.duration_s = close_s
+            row.duration_s = release_time_s(gripper)
             self.part = None
         elif step.kind == "wait":
             row.duration_s = step.args.seconds
@@ -254,22 +255,24 @@ class _StepPlanner:
         return step.T_world_tcp
 
     def _place_allowances(self, step: Step, T_goal: np.ndarray) -> tuple:
-        """Setting the carried part down: it may touch the fixture it lands on."""
+        """The carried part may touch the fixture it rests on where a straight move starts
+        (lifting it off) or ends (setting it down), and only that fixture."""
         from cellrunner.planning.collision import ContactAllowance
-        if self.part is None or step.kind not in ("descend", "linear", "retreat"):
+        if self.part is None or step.kind not in LINEAR_KINDS:
             return ()
         q_goal = self._try_ik(T_goal)
-        if q_goal is None:
-            return ()
         allowances: list = []
-        model = self.collision()
-        for _ in range(3):
-            clearance = model.clearance(q_goal)
-            if clearance.distance_m >= clearance.required_m or clearance.a != f"part '{self.part.name}'" \
-                    or not clearance.b.startswith("fixture '") or clearance.distance_m < -0.001:
-                break
-            allowances.append(ContactAllowance(clearance.b[len("fixture '"):-1], "part", -0.001))
+        for q in (self.q, q_goal):
+            if q is None:
+                continue
             model = self.collision(tuple(allowances))
+            for _ in range(3):
+                clearance = model.clearance(q)
+                if clearance.distance_m >= clearance.required_m or clearance.a != f"part '{self.part.name}'" \
+                        or not clearance.b.startswith("fixture '") or clearance.distance_m < -0.001:
+                    break
+                allowances.append(ContactAllowance(clearance.b[len("fixture '"):-1], "part", -0.001))
+                model = self.collision(tuple(allowances))
         return tuple(allowances)
 
     def _try_ik(self, T: np.ndarray) -> np.ndarray | None:
