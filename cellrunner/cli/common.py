@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 from cellrunner.errors import InputError, UsageError
@@ -11,8 +12,17 @@ from cellrunner.model.expand import Step, expand, resolve_params
 from cellrunner.model.load import LoadedCell, LoadedTask, load_cell, load_task
 
 
-def load(cell_path: str, task_path: str) -> tuple[LoadedCell, LoadedTask]:
-    """The cell and task, every problem of both reported at once (exit 2)."""
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+
+def load(cell_path: str | None, task_path: str | None) -> tuple[LoadedCell, LoadedTask]:
+    """The cell and task, every problem of both reported at once (exit 2). Without
+    either, the embedded example (a UR5e pick-and-place) is used."""
+    if cell_path is None:
+        cell_path = str(EXAMPLES / "cells" / "demo_ur5e.yaml")
+        task_path = task_path or str(EXAMPLES / "tasks" / "pick_place.yaml")
+    elif task_path is None:
+        raise UsageError("give the TASK file after the CELL file")
     cell = load_cell(cell_path)
     task = load_task(task_path, cell)
     for warning in [*cell.warnings, *task.warnings]:

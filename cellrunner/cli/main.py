@@ -31,6 +31,11 @@ def _params(p: argparse.ArgumentParser) -> None:
                    help="task parameter, repeatable (e.g. -p slot=3)")
 
 
+def _cell_task(p: argparse.ArgumentParser) -> None:
+    p.add_argument("cell", nargs="?", help="cell file (default: the embedded example cell)")
+    p.add_argument("task", nargs="?", help="task file (default: the example pick-and-place)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="cellrunner", description="Run Universal Robots production cells from YAML.",
                      epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -46,8 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(module="validate")
 
     p = sub.add_parser("check", help="pre-flight: prove a task feasible, print the plan")
-    p.add_argument("cell")
-    p.add_argument("task")
+    _cell_task(p)
     _params(p)
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--save-plan", metavar="FILE", help="write the approved motion as JSON")
@@ -55,8 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(module="check")
 
     p = sub.add_parser("dry-run", help="run the real state machine against the MuJoCo twin")
-    p.add_argument("cell")
-    p.add_argument("task")
+    _cell_task(p)
     _params(p)
     p.add_argument("--inject", action="append", default=[], metavar="FAULT@STEP",
                    help="grip_miss, part_slip, protective_stop, estop, robot_disconnect, "
