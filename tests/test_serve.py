@@ -3,6 +3,7 @@ Modbus TCP by an independent client (pyModbusTCP) exactly as SPEC section 7 says
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import socket
@@ -129,6 +130,54 @@ def test_restart_mid_job_reports_107(project):
         client = connect(port)
         regs = client.read_holding_registers(100, 14)
         assert (regs[4], regs[5]) == (77, 107), regs
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.communicate(timeout=60)
+    assert proc.returncode == 0
+
+
+def test_serve_over_opcua_with_encryption_and_a_user(tmp_path):
+    """OPC UA through serve: Basic256Sha256 SignAndEncrypt, a user from `users add`, a
+    trusted client certificate; StartJob runs a real twin job and the event arrives."""
+    from tests.plc.test_opcua import write_client_cert
+
+    port = free_port("127.0.0.6")
+    url = f"opc.tcp://127.0.0.6:{port}/cellrunner"
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "tasks").mkdir()
+    cell_path = tmp_path / "cells" / "c.yaml"
+    cell_path.write_text(DRYRUN_CELL + "tasks: {1: tasks/t.yaml}\nplc:\n  opcua:\n"
+                         f"    endpoint: {url}\n    users: secrets/users.yaml\n    pki: pki\n")
+    (tmp_path / "tasks" / "t.yaml").write_text(TASK)
+    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "users", "add", str(tmp_path / "secrets" / "users.yaml"),
+                        "line3", "--password-stdin"], input="s3cret pass\n", capture_output=True, text=True, cwd=ROOT,
+                       timeout=60)
+    assert r.returncode == 0, r.stderr
+    cert, key = write_client_cert(tmp_path, "plc")
+    (tmp_path / "pki" / "trusted").mkdir(parents=True)
+    (tmp_path / "pki" / "trusted" / "plc.der").write_bytes(cert.read_bytes())
+    proc = start(cell_path)
+    try:
+        argv = [sys.executable, str(ROOT / "tests" / "plc" / "opcua_client.py"), "--url", url, "--scenario", "run",
+                "--cert", str(cert), "--key", str(key), "--user", "line3", "--password", "s3cret pass",
+                "--task", "move_can", "--wait", "90"]
+        deadline = time.monotonic() + 60
+        while True:  # until the server listens
+            out = subprocess.run(argv, capture_output=True, text=True, timeout=150)
+            lines = [line for line in out.stdout.splitlines() if line.startswith("{")]
+            result = json.loads(lines[-1]) if lines else {}
+            if result.get("connected") or time.monotonic() > deadline:
+                break
+            time.sleep(1)
+        assert result.get("connected"), out.stderr[-2000:]
+        assert result["return_code"] == 0 and result["job_id"]
+        assert [e["ResultCode"] for e in result["events"]] == [0]
+        assert result["events"][0]["JobId"] == result["job_id"]
+        assert result["last_result"] == 0 and result["cycle_time"] > 3
+        wrong = subprocess.run([*argv[:-4], "--password", "wrong", "--scenario", "connect"], capture_output=True,
+                               text=True, timeout=60)
+        lines = [line for line in wrong.stdout.splitlines() if line.startswith("{")]
+        assert not json.loads(lines[-1]).get("connected")
     finally:
         proc.send_signal(signal.SIGTERM)
         proc.communicate(timeout=60)

@@ -118,6 +118,26 @@ async def scenario_job(client: Any) -> dict[str, Any]:
     return out
 
 
+async def scenario_run(client: Any, task: str, params: str, wait_s: float) -> dict[str, Any]:
+    """StartJob once and wait for its completion event (a real cell's job takes seconds)."""
+    ns = await client.get_namespace_index("urn:cellrunner")
+    cell = await client.nodes.objects.get_child(f"{ns}:Cell")
+    etype = await client.nodes.base_event_type.get_child(f"{ns}:JobCompletedEventType")
+    events = Events()
+    sub = await client.create_subscription(20, events)
+    await sub.subscribe_events(cell, etype)
+    job_id, code = await cell.call_method(f"{ns}:StartJob", task, params, "run-1")
+    deadline = time.monotonic() + wait_s
+    while not events.received and time.monotonic() < deadline:
+        await asyncio.sleep(0.05)
+    last = await cell.get_child(f"{ns}:LastJob")
+    out = {"job_id": job_id, "return_code": code, "events": events.received,
+           "last_result": await (await last.get_child(f"{ns}:ResultCode")).read_value(),
+           "cycle_time": await (await last.get_child(f"{ns}:CycleTime")).read_value()}
+    await sub.delete()
+    return out
+
+
 async def scenario_write(client: Any) -> dict[str, Any]:
     from asyncua import ua
 
@@ -151,6 +171,9 @@ async def main() -> None:
     ap.add_argument("--user")
     ap.add_argument("--password")
     ap.add_argument("--force", action="store_true", help="skip the client's endpoint check")
+    ap.add_argument("--task", default="pick_place")
+    ap.add_argument("--params", default="{}")
+    ap.add_argument("--wait", type=float, default=60.0)
     args = ap.parse_args()
     result: dict[str, Any] = {"connected": False}
     try:
@@ -163,6 +186,8 @@ async def main() -> None:
     try:
         if args.scenario == "job":
             result.update(await asyncio.wait_for(scenario_job(client), 30))
+        elif args.scenario == "run":
+            result.update(await asyncio.wait_for(scenario_run(client, args.task, args.params, args.wait), args.wait + 20))
         elif args.scenario == "write":
             result.update(await asyncio.wait_for(scenario_write(client), 15))
         else:
