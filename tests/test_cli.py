@@ -39,8 +39,11 @@ def test_missing_file_is_input_error():
 
 
 def test_bad_arguments_exit_2_without_traceback():
-    r = _run("check")
+    r = _run("check", "cells/demo_ur5e.yaml")  # a cell without its task
     assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.strip() == "cellrunner check: error: give the TASK file after the CELL file"
+    r = _run("dry-run", "--inject", "estop")
+    assert r.returncode == 2 and "write FAULT@STEP" in r.stderr
     r = _run("frobnicate")
     assert r.returncode == 2 and "invalid choice" in r.stderr
 
