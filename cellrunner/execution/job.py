@@ -25,6 +25,8 @@ from cellrunner.model.task import ProtectiveStopPolicy
 
 #: the controller refuses to unlock a protective stop sooner (UR e-Series and CB3)
 UNLOCK_DELAY_S = 5.0
+#: tracking error is sampled every this many controller periods (125 Hz at 500 Hz)
+TRACK_EVERY = 4
 #: how long recovery may keep trying to unlock before the job ends with code 100
 RECOVERY_TIMEOUT_S = 30.0
 
@@ -78,6 +80,7 @@ class JobRunner:
         self._hold_reason = ""
         self._requests: list[str] = []
         self._pending_end: tuple[ResultCode, str] | None = None  # after cleanup steps
+        self._ticks = 0
 
     # ------------------------------------------------------------------ control
     @property
@@ -105,7 +108,8 @@ class JobRunner:
         if self.phase in ("done", "idle"):
             return
         state = self.ctx.read()
-        if state.safety is Safety.NORMAL and self.phase == "execute":
+        self._ticks += 1
+        if state.safety is Safety.NORMAL and self.phase == "execute" and self._ticks % TRACK_EVERY == 0:
             self._track()
         if state.safety is Safety.DISCONNECTED:
             return self._finish(ResultCode.ROBOT_CONNECTION_LOST, "robot connection lost")

@@ -39,6 +39,7 @@ class SimBackend:
         self._connected = False
         self._link_lost = False
         self._last_state: RobotState | None = None
+        self._fresh: RobotState | None = None  # this period's measurement, until anything changes
         self._accepted: tuple[ApprovedTrajectory, np.ndarray] | None = None
         self._next_index, self._last_q = -1, None
         self._max_step_rad = np.radians(description.spec.joint_speed_max_deg_s) / self.rate_hz \
@@ -48,6 +49,7 @@ class SimBackend:
     def connect(self) -> None:
         """Build the twin (first call) and connect; after a ``robot_disconnect`` fault this
         reconnects to the same, still running, twin."""
+        self._fresh = None
         if self.world is None:
             world = SimWorld(self.description, self.options)
             try:
@@ -59,6 +61,7 @@ class SimBackend:
         self._link_lost = False
 
     def close(self) -> None:
+        self._fresh = None
         if self.world is not None and self._connected:
             self.world.stop_motion()
         self._connected = False
@@ -81,11 +84,14 @@ class SimBackend:
                               inputs=last.inputs, outputs=last.outputs,
                               powered=last.powered, brakes_released=last.brakes_released)
         self._require_connection()
+        if self._fresh is not None:  # measured this period, nothing changed since
+            return self._fresh
         state = world.measure()
-        self._last_state = state
+        self._last_state = self._fresh = state
         return state
 
     def servo(self, trajectory: ApprovedTrajectory, index: int) -> None:
+        self._fresh = None
         world = self._world()
         self._require_connection()
         qd_all = self._accept(trajectory)
@@ -109,25 +115,31 @@ class SimBackend:
         self._next_index, self._last_q = index + 1, q
 
     def wait_period(self) -> None:
+        self._fresh = None
         self._world().step_period()
 
     def stop_motion(self) -> None:
+        self._fresh = None
         self._require_connection()
         self._world().stop_motion()
 
     def set_output(self, channel: str, value: bool | float) -> None:
+        self._fresh = None
         self._require_connection()
         self._world().set_output(channel, value)
 
     def zero_ft_sensor(self) -> None:
+        self._fresh = None
         self._require_connection()
         self._world().zero_ft_sensor()
 
     def unlock_protective_stop(self) -> None:
+        self._fresh = None
         self._require_connection()
         self._world().unlock_protective_stop()
 
     def recover_from_estop(self) -> None:
+        self._fresh = None
         self._require_connection()
         self._world().recover_from_estop()
 
@@ -137,6 +149,7 @@ class SimBackend:
         away when the jaws next start closing), ``part_slip`` (a gripped part loses its
         grip once in the air), ``protective_stop``, ``estop`` (pressed until
         :meth:`release_estop`), ``robot_disconnect`` (the link drops; ``connect`` again)."""
+        self._fresh = None
         f = Fault.parse(fault)
         world = self._world()
         if f is Fault.ROBOT_DISCONNECT:
@@ -150,10 +163,12 @@ class SimBackend:
 
     def release_estop(self) -> None:
         """A person releases the e-stop button (the robot stays off until recovered)."""
+        self._fresh = None
         self._world().release_estop()
 
     def set_input(self, channel: str, value: bool | float) -> None:
         """Drive an input no twin sensor drives (e.g. a PLC's part_present in a test)."""
+        self._fresh = None
         self._world().set_input(channel, value)
 
     def tcp_tracking_error_m(self) -> float:
