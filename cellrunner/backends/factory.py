@@ -23,5 +23,5 @@ def make_backend(cell: LoadedCell, kind: str, host: str | None = None, **kw):
         if not host:
             raise UsageError("the ur backend needs a controller address: robot.host in the cell file or --robot-host")
         from cellrunner.backends.ur import URBackend
-        return URBackend(cell.spec, host, **kw)
+        return URBackend(host, cell.spec, **kw)
     raise UsageError(f"unknown backend {kind!r}; known: ur, sim")

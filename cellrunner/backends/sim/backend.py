@@ -91,7 +91,6 @@ class SimBackend:
         return state
 
     def servo(self, trajectory: ApprovedTrajectory, index: int) -> None:
-        self._fresh = None
         world = self._world()
         self._require_connection()
         qd_all = self._accept(trajectory)

@@ -1,0 +1,107 @@
+"""Dry-run speed and fidelity (issue 4).
+
+For each case, the job runs through the real cell controller against the MuJoCo twin;
+we time only the control loop (model build and planning excluded) and compare with the
+peer: streaming the same approved trajectories straight into the same twin with no engine
+(``servo`` + ``wait_period``). Prints medians over runs and the ratios.
+
+    python bench/bench_dryrun.py [--runs 5]
+
+Targets: real-time factor >= 50x; |simulated - planned| cycle time < 2 %.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from cellrunner.backends.sim.backend import SimBackend  # noqa: E402
+from cellrunner.backends.sim.from_cell import description_of  # noqa: E402
+from cellrunner.execution.cell import CellController  # noqa: E402
+from cellrunner.execution.journal import Journal  # noqa: E402
+from cellrunner.execution.planner import job_planner  # noqa: E402
+from cellrunner.model.load import load_cell, load_task  # noqa: E402
+from cellrunner.planning.world import CellWorld  # noqa: E402
+
+CASES = [("demo UR5e pick/place slot 0", "cells/demo_ur5e.yaml", "tasks/pick_place.yaml", {"slot": 0}),
+         ("demo UR5e pick/place slot 11", "cells/demo_ur5e.yaml", "tasks/pick_place.yaml", {"slot": 11})]
+
+
+def engine_run(cell, task, params) -> tuple[float, float, float, float]:
+    """(simulated s, wall s of the loop, planned cycle s, simulated cycle s)."""
+    world = CellWorld(cell)
+    backend = SimBackend(description_of(cell))
+    controller = CellController(cell, {1: task}, backend, Journal(":memory:"), job_planner(world),
+                                wait_for_unhold=False)
+    controller.setup()
+    for _ in range(3):
+        backend.wait_period()
+        controller.tick()
+    controller.start_job(1, params, "bench", "cli")
+    planned = controller._job.plan.result().planned_cycle_time_s  # planning excluded from the timing
+    sim0, wall0 = backend.read_state().time_s, time.perf_counter()
+    for _ in range(10_000_000):
+        if controller._job is None:
+            break
+        backend.wait_period()
+        controller.tick()
+    wall = time.perf_counter() - wall0
+    sim = backend.read_state().time_s - sim0
+    result = controller.status().last_result
+    assert result.result_code == 0, result
+    controller.close()
+    return sim, wall, planned, result.cycle_time_s
+
+
+def raw_stream(cell, task, params) -> tuple[float, float]:
+    """The peer: the same trajectories streamed with no engine at all."""
+    from cellrunner.planning.cache import plan_cached
+    world = CellWorld(cell)
+    plan = plan_cached(world, task, params, world.q_home_rad)
+    backend = SimBackend(description_of(cell))
+    backend.connect()
+    trajectories = [plan.nominal(s) for s in plan.steps if s.is_motion]
+    sim0, wall0 = backend.read_state().time_s, time.perf_counter()
+    for approved in trajectories:
+        for i in range(len(approved.trajectory.q_rad)):
+            backend.servo(approved, i)
+            backend.wait_period()
+            backend.read_state()
+    return backend.read_state().time_s - sim0, time.perf_counter() - wall0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=5)
+    args = ap.parse_args()
+    print(f"{'case':32s} {'engine RTF':>11s} {'raw RTF':>9s} {'engine/raw':>11s} {'planned s':>10s} "
+          f"{'simulated s':>12s} {'diff %':>7s}")
+    worst_rtf, worst_diff = float("inf"), 0.0
+    for name, cell_path, task_path, params in CASES:
+        cell = load_cell(ROOT / cell_path)
+        task = load_task(ROOT / task_path, cell)
+        engine, raw, diffs = [], [], []
+        planned = simulated = 0.0
+        for _ in range(args.runs):
+            sim, wall, planned, simulated = engine_run(cell, task, params)
+            engine.append(sim / wall)
+            diffs.append(abs(simulated - planned) / planned * 100)
+            sim_r, wall_r = raw_stream(cell, task, params)
+            raw.append(sim_r / wall_r)
+        e, r, d = statistics.median(engine), statistics.median(raw), statistics.median(diffs)
+        worst_rtf, worst_diff = min(worst_rtf, e), max(worst_diff, d)
+        print(f"{name:32s} {e:10.1f}x {r:8.1f}x {e / r:10.2f}x {planned:10.2f} {simulated:12.2f} {d:7.2f}")
+    print(f"\nmedians of {args.runs} runs; targets: RTF >= 50x (worst {worst_rtf:.1f}x: "
+          f"{'met' if worst_rtf >= 50 else 'missed'}), cycle difference < 2 % (worst {worst_diff:.2f} %: "
+          f"{'met' if worst_diff < 2 else 'missed'})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
