@@ -44,6 +44,8 @@ def engine_run(cell, task, params) -> tuple[float, float, float, float]:
         backend.wait_period()
         controller.tick()
     controller.start_job(1, params, "bench", "cli")
+    backend.wait_period()
+    controller.tick()  # planning starts on the control thread
     planned = controller._job.plan.result().planned_cycle_time_s  # planning excluded from the timing
     sim0, wall0 = backend.read_state().time_s, time.perf_counter()
     for _ in range(10_000_000):

@@ -71,6 +71,7 @@ def run(args) -> int:
         if not ticket.accepted:
             raise RuntimeError(f"dry-run job refused: {ticket.message}")
         job = controller._job
+        _tick(controller, 1)  # the control thread starts planning
         failed = job.plan.exception()  # waits for planning; a failure ends the job with 103
         wall_plan_s = time.perf_counter() - t0
         planned = job.plan.result().planned_cycle_time_s if failed is None else 0.0

@@ -26,7 +26,8 @@ def run(args) -> int:
     backend = make_backend(cell, kind, args.robot_host)
     from cellrunner.planning.world import CellWorld
     controller = CellController(cell, tasks, backend, Journal(cell.resolve(cell.cell.journal)),
-                                job_planner(CellWorld(cell)), log=log, wait_for_unhold=True)
+                                job_planner(CellWorld(cell)), log=log, wait_for_unhold=True,
+                                on_job_start=getattr(backend, "feed_parts", None))
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())

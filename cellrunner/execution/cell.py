@@ -62,11 +62,13 @@ class _Job:
 class CellController:
     def __init__(self, cell: LoadedCell, tasks: dict[int, LoadedTask], backend: RobotBackend,
                  journal: Journal, planner: Planner, *, log=None, wait_for_unhold: bool = True,
-                 on_step_start: Callable[[Step, int], None] | None = None):
+                 on_step_start: Callable[[Step, int], None] | None = None,
+                 on_job_start: Callable[[], None] | None = None):
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
         self.planner, self.log = planner, log
         self.wait_for_unhold = wait_for_unhold
         self.on_step_start = on_step_start
+        self.on_job_start = on_job_start  # e.g. the twin's infeed brings the next part
         self.sm = StateMachine(S.STOPPED)
         self._lock = threading.RLock()
         self._job: _Job | None = None
@@ -78,6 +80,7 @@ class CellController:
         self._now_s = 0.0
         self._safety = Safety.NORMAL
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan")
+        self._actions: list[Callable[[], None]] = []  # backend work asked for by other threads
         self._counters = (0, 0)
         self.finished: list[tuple[_Job, JobRunner | None]] = []
 
@@ -160,10 +163,8 @@ class CellController:
             self.journal.begin_job(job.job_id, self.cell.cell.cell, loaded.name, values, source, client_job_id)
             self._job = job
             self._enter_command(Command.START)
-            q_now = self.backend.read_state().q_rad
-            job.plan = self._pool.submit(self.planner, loaded, values, q_now)
             self._log("job_accepted", job_id=job.job_id, task=loaded.name, params=values, source=source)
-            return JobTicket(job.job_id)
+            return JobTicket(job.job_id)  # planning starts on the control thread's next tick
 
     def command(self, name: str) -> bool:
         if name not in COMMANDS:
@@ -188,9 +189,9 @@ class CellController:
                     return False
                 command = {"reset": Command.RESET, "clear": Command.CLEAR, "stop": Command.STOP,
                            "abort": Command.ABORT, "hold": Command.HOLD, "unhold": Command.UNHOLD}[name]
-                if name == "clear" and self.sm.state is S.ABORTED:
-                    self.backend.recover_from_estop()
                 self._enter_command(command)
+                if command is Command.CLEAR:
+                    self._actions.append(self._recover)  # on the control thread, in Clearing
                 return True
             except (TransitionRefused, CellrunnerError):
                 return False
@@ -205,17 +206,33 @@ class CellController:
         """One controller period; call after ``backend.wait_period()``."""
         with self._lock:
             self._ticks += 1
+            while self._actions:  # only this thread touches the backend
+                self._actions.pop(0)()
             job = self._job
             if job is None or job.runner is None:
                 state = self.backend.read_state()
                 self._now_s, self._safety = state.time_s, state.safety
-            if job is not None and job.runner is None and job.plan is not None and job.plan.done():
+            if job is not None and job.plan is None:
+                if self.on_job_start is not None:
+                    self.on_job_start()
+                job.plan = self._pool.submit(self.planner, job.task, job.params, self.backend.read_state().q_rad)
+            elif job is not None and job.runner is None and job.plan.done():
                 self._start_runner(job)
             elif job is not None and job.runner is not None:
                 job.runner.tick()
                 self._now_s, self._safety = self.backend.read_state().time_s, job.runner.ctx.state.safety
                 self._follow(job.runner)
             self._idle_transitions()
+
+    def _recover(self) -> None:
+        """Clearing: reconnect a lost link, re-arm after an e-stop (power, brakes)."""
+        try:
+            if self._safety is Safety.DISCONNECTED:
+                self.backend.connect()
+            self.backend.recover_from_estop()
+        except CellrunnerError as exc:
+            self._log("recover_failed", error=str(exc))
+        self._safety = self.backend.read_state().safety
 
     def _start_runner(self, job: _Job) -> None:
         try:

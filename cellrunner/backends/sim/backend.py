@@ -160,6 +160,11 @@ class SimBackend:
         else:
             world.inject_fault(f)
 
+    def feed_parts(self) -> list[str]:
+        """Put parts that were taken away back at their spawn pose (the twin's infeed)."""
+        self._fresh = None
+        return self._world().feed_parts()
+
     def release_estop(self) -> None:
         """A person releases the e-stop button (the robot stays off until recovered)."""
         self._fresh = None

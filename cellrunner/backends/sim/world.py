@@ -595,6 +595,30 @@ class SimWorld:
         T[:3, 3] = self.data.site_xpos[self._ids.tcp_site]
         return T
 
+    def feed_parts(self, moved_m: float = 0.01) -> list[str]:
+        """The twin's infeed: every part not held that lies more than ``moved_m`` from its
+        spawn pose is put back there at rest (a conveyor bringing the next part).
+        Returns the names of the parts fed."""
+        from scipy.spatial.transform import Rotation
+
+        mujoco = load_mujoco()
+        fed = []
+        for part in self.description.parts:
+            if part.name in self._gripped:
+                continue
+            spawn = part.T_world_part
+            if np.linalg.norm(self.part_pose_world(part.name)[:3, 3] - spawn[:3, 3]) <= moved_m:
+                continue
+            adr = self._ids.part_qpos[part.name]
+            x, y, z, w = Rotation.from_matrix(spawn[:3, :3]).as_quat()
+            self.data.qpos[adr:adr + 7] = [*spawn[:3, 3], w, x, y, z]
+            dof = self.model.jnt_dofadr[self.model.joint(f"part:{part.name}").id]
+            self.data.qvel[dof:dof + 6] = 0.0
+            fed.append(part.name)
+        if fed:
+            mujoco.mj_forward(self.model, self.data)
+        return fed
+
     def part_pose_world(self, name: str) -> np.ndarray:
         body = self._ids.part_bodies[name]
         T = np.eye(4)
