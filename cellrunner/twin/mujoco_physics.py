@@ -1,0 +1,81 @@
+"""The MuJoCo twin behind the virtual UR controller: the controller's four-method physics
+contract (``reset``, ``apply_outputs``, ``step``, ``measure``) over a :class:`SimWorld`.
+
+The controller owns safety: a contact the twin detects is reported as ``contact`` and the
+controller raises the protective stop (and decides when it may be unlocked); this
+adapter then releases the twin's own stop so the arm can move again once the controller
+allows it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cellrunner.backends.base import BackendError, Safety
+
+#: RTDE digital bit layout: DO/DI 0-7 standard, 8-15 configurable, 16-17 tool
+_BIT_OF_PREFIX = {"D": 0, "C": 8, "T": 16}
+
+
+def _bit(channel: str) -> int | None:
+    if len(channel) < 3 or channel[0] not in _BIT_OF_PREFIX or channel[1] not in "IO" or not channel[2:].isdigit():
+        return None
+    return _BIT_OF_PREFIX[channel[0]] + int(channel[2:])
+
+
+class MujocoPhysics:
+    """The MuJoCo twin of a cell as the virtual controller's physics."""
+
+    def __init__(self, description):
+        from cellrunner.backends.sim.world import SimWorld
+
+        self.description = description
+        self.world = SimWorld(description)
+        self._q_prev: np.ndarray | None = None
+        self._contact = False
+
+    def reset(self, q_rad: np.ndarray) -> None:
+        if not self.world.built:
+            self.world.build()
+        world = self.world
+        q = np.asarray(q_rad, float)
+        world.data.qpos[world._ids.qpos] = q
+        world.data.qvel[world._ids.dof] = 0.0
+        world.q_ref = world._q_prev_ref = q.copy()
+        world.qd_ref = np.zeros(6)
+        self._q_prev = q.copy()
+
+    def apply_outputs(self, digital_output_bits: int) -> None:
+        for channel in self.world.outputs:
+            bit = _bit(channel)
+            if bit is not None:
+                value = bool(digital_output_bits >> bit & 1)
+                if self.world.outputs[channel] != value:
+                    self.world.set_output(channel, value)
+
+    def step(self, q_cmd_rad: np.ndarray, dt_s: float) -> None:
+        world = self.world
+        q_cmd = np.asarray(q_cmd_rad, float)
+        qd = (q_cmd - self._q_prev) / dt_s if self._q_prev is not None else np.zeros(6)
+        self._q_prev = q_cmd
+        if world.safety is Safety.PROTECTIVE_STOP:
+            try:  # the controller decides when a stop ends (its 5 s rule); the twin follows
+                world.unlock_protective_stop()
+            except BackendError:
+                pass  # the twin's own 5 s have not passed yet either
+        if world.safety is Safety.NORMAL and world._stop is None:
+            world.command(q_cmd, qd)
+        world.step_period()
+        self._contact = world.safety is Safety.PROTECTIVE_STOP
+
+    def measure(self):
+        from cellrunner.twin.physics import Measurement
+
+        state = self.world.measure()
+        bits = 0
+        for channel, value in state.inputs.items():
+            bit = _bit(channel)
+            if bit is not None and value:
+                bits |= 1 << bit
+        return Measurement(q_rad=state.q_rad, qd_rad_s=state.qd_rad_s, wrench_flange=np.asarray(state.wrench_N),
+                           digital_inputs=bits, contact=self._contact)
