@@ -27,24 +27,34 @@ s in [0, 1], a point p of an object carried by joint k moves with speed
     |dp/ds| = |sum_{j<=k} (q1_j - q0_j) w_j x (p - o_j)| <= sum_{j<=k} |q1_j - q0_j| r_j(p)
 
 where o_j and w_j are a point and the unit direction of joint j's axis and r_j(p) the
-distance of p from that axis. We bound r_j(p) for every configuration by
-``R[j, obj] = sum_{m=j+1..k} |t_m| + e_obj``: the lengths of the fixed link offsets t_m
-between joint j and joint k plus the largest distance e_obj of the object's points from
-joint k's origin. Hence over any sub-segment [s, s + ds] no point of the object moves
-more than ``ds * sum_j R[j, obj] |q1_j - q0_j|``, and the distance of a pair shrinks by at
-most ``ds * c_pair``, with ``c_pair`` that bound for the moving object against a static
+distance of p from that axis. We bound r_j(p) for every configuration by ``R[obj, j]``
+(:func:`_joint_reach`): along the chain p - o_j = t_(j+1) + ... + t_k + (p - o_k), the
+components across axis j of the fixed link offsets t_m (their x-y part while the axes of
+joints j..m-1 stay parallel to axis j, their whole length after that) plus the largest
+distance of the object from joint k's origin, or from its axis when that is parallel too,
+taken over the object's support points (:func:`_support_points`: capsule ends + radius,
+box corners, ...). Hence over any sub-segment [s, s + ds] no point of the object moves
+more than ``ds * sum_j R[obj, j] |q1_j - q0_j|``, and the distance of a pair shrinks by
+at most ``ds * c_pair``, with ``c_pair`` that bound for the moving object against a static
 one; for two objects carried by arm bodies a < b the distance is measured in body a's
-frame, where only joints a+1..b move body b, so only those joints count. If
-the distance at s exceeds the required clearance by ``m``, the pair is provably fine on
-``[s, s + m / c_pair]``. The checker jumps from one such horizon to the next, re-measuring
-only the pairs whose horizon ran out (cheap sphere-vs-box lower bounds first, exact coal
-distances only where those are not enough), and reports a collision when a pair's margin
-falls below ``STALL_M`` (0.1 mm; also what guarantees termination). Nothing can slip
-between checks, however thin the obstacle.
+frame, where only joints a+1..b move body b, so only those joints count.
+
+:meth:`CollisionModel.check_motion` tightens ``c_pair`` per part of the segment (parts of
+at most ``KNOT_STEP_RAD``): it measures each object's distance from each axis at the
+part's ends, and since only the joints after j change r_j, at rate at most
+``A_j = sum_(i>j) R[obj, i] |dq_i|``, r_j stays below ``(r_j(start) + r_j(end) + A_j) / 2``
+over the part (:meth:`CollisionModel.segment_bounds`); the bound on the shrink is then
+piecewise linear in s. If the distance at s exceeds the required clearance by ``m``, the
+pair is provably fine until that bound has grown by ``m``. The checker jumps from one
+such horizon to the next, re-measuring only the pairs whose horizon ran out (exact coal
+distances), and reports a collision when a pair's margin falls below ``STALL_M`` (0.1 mm;
+also what guarantees termination). Nothing can slip between checks, however thin the
+obstacle.
 """
 
 from __future__ import annotations
 
+import bisect
 import heapq
 import math
 from collections.abc import Sequence
@@ -64,6 +74,10 @@ STALL_M = 1e-4
 
 #: Spacing (largest joint move, rad) of the cheap rejection probes in check_motion.
 PROBE_STEP_RAD = 0.15
+
+#: Largest joint move (rad) of one part of a segment over which check_motion bounds each
+#: object's distance from the joint axes afresh (shorter parts: tighter bounds, more FK).
+KNOT_STEP_RAD = 0.2
 
 ARM_BODY_NAMES = ("base", "shoulder", "upper_arm", "elbow", "forearm", "wrist_1", "wrist_2", "wrist_3")
 
@@ -296,25 +310,30 @@ class CollisionModel:
         return self.clearance_m
 
     def _prepare_bounds(self) -> None:
-        """Per-object data for the cheap lower bounds and the motion bound R[j, obj]."""
+        """Per-object data for the cheap lower bounds and the motion bound R[obj, j]."""
         model = self.kinematics.model
-        link_len = np.zeros(7)  # |t_m|: offset of joint m in joint m-1's frame
-        for m in range(2, 7):
-            link_len[m] = np.linalg.norm(model.jointPlacements[m].translation)
         n = len(self._objects)
         self._is_mover = np.array([o.group != "fixture" and o.body > 0 for o in self._objects])
         self._body = np.array([o.body for o in self._objects])
         self._center_local = np.zeros((n, 3))  # bounding sphere centre in the parent joint frame
         self._radius = np.zeros(n)
         self._reach = np.zeros((n, 6))  # R[obj, j]
+        support: list[tuple[np.ndarray, float]] = []
         for k, obj in enumerate(self._objects):
             self._center_local[k] = obj.placement[:3, 3]
             self._radius[k] = obj.radius_m
-            if obj.group == "fixture" or obj.body == 0:
-                continue
-            extent = float(np.linalg.norm(obj.placement[:3, 3])) + obj.radius_m
-            for j in range(1, obj.body + 1):
-                self._reach[k, j - 1] = link_len[j + 1 : obj.body + 1].sum() + extent
+            support.append(_support_points(obj.geometry, obj.placement))
+            if self._is_mover[k]:
+                self._reach[k] = _joint_reach(model, obj.body, *support[k])
+        # support points of the moving objects, for per-segment radial extents
+        movers = np.flatnonzero(self._is_mover)
+        self._movers = movers
+        self._support_all = np.concatenate([support[k][0] for k in movers]) if len(movers) else np.zeros((0, 3))
+        counts = [len(support[k][0]) for k in movers]
+        self._support_start = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
+        self._support_body = np.repeat(self._body[movers], counts)
+        self._support_moved = (np.arange(1, 7)[None, :] <= self._support_body[:, None]).astype(float)
+        self._support_pad = np.array([support[k][1] for k in movers])
         # static objects: world AABBs (fixtures, base)
         self._aabb_lo = np.full((n, 3), np.nan)
         self._aabb_hi = np.full((n, 3), np.nan)
@@ -332,14 +351,16 @@ class CollisionModel:
         # motion bound per pair and joint: against a static object, the mover's own bound;
         # between two arm-carried objects, only the joints between their bodies move one
         # relative to the other (distances are the same in the lower body's frame)
-        self._pair_reach = np.zeros((len(self._pairs), 6))
+        self._pair_high = self._pair_mover.copy()  # the object whose motion counts
+        self._pair_joints = np.ones((len(self._pairs), 6))  # 1 for the joints that count
         for p, (m, o) in enumerate(zip(self._pair_mover, self._pair_other)):
-            if self._pair_other_static[p]:
-                self._pair_reach[p] = self._reach[m]
-            else:
+            if not self._pair_other_static[p]:
                 low, high = (m, o) if self._body[m] <= self._body[o] else (o, m)
-                joints = np.arange(1, 7) > self._body[low]
-                self._pair_reach[p] = np.where(joints, self._reach[high], 0.0)
+                self._pair_high[p] = high
+                self._pair_joints[p] = np.arange(1, 7) > self._body[low]
+        self._pair_reach = self._reach[self._pair_high] * self._pair_joints
+        # row of each pair's counting object in the movers' support arrays
+        self._pair_high_row = np.searchsorted(movers, self._pair_high)
 
     # -- queries --------------------------------------------------------------------------
 
@@ -419,51 +440,107 @@ class CollisionModel:
 
     def motion_coefficients(self, dq_rad: np.ndarray) -> np.ndarray:
         """Per pair, the bound on how much its distance can shrink over the whole segment
-        with joint displacement ``dq_rad`` (m); see the module docstring."""
+        with joint displacement ``dq_rad`` (m), valid for any segment; see the module
+        docstring."""
         return self._pair_reach @ np.abs(np.asarray(dq_rad, float))
 
+    def segment_bounds(self, q0_rad: np.ndarray, q1_rad: np.ndarray, pieces: int = 1) -> np.ndarray:
+        """Per pair, a bound on how much its distance can shrink along the segment q0 -> q1
+        split into ``pieces`` equal parts: (pieces, pairs) in m, one row per part. Each is
+        :meth:`motion_coefficients` of the part with R[obj, j] replaced, when smaller, by a
+        bound on the object's distance from axis j over that part only:
+
+        at the part's ends the distances are measured (rho_a, rho_b, from the support points;
+        :meth:`_radial_extents`); in between they change at most at rate
+        A_j = sum_(i>j) |dq_i| R[obj, i] per unit of the part (only the joints after j move
+        the object relative to axis j), so r_j <= min(rho_a + t A_j, rho_b + (1 - t) A_j)
+        <= (rho_a + rho_b + A_j) / 2 for t in [0, 1]."""
+        q0 = np.asarray(q0_rad, float)
+        dq = (np.asarray(q1_rad, float) - q0) / pieces
+        adq = np.abs(dq)
+        reach = self._reach[self._movers]  # (movers, 6)
+        weighted = reach * adq
+        after = np.cumsum(weighted[:, ::-1], axis=1)[:, ::-1] - weighted  # A[:, j]
+        rho = np.empty((pieces + 1, len(self._movers), 6))
+        for i in range(pieces + 1):
+            self._update(q0 + i * dq)
+            rho[i] = self._radial_extents()
+        lo, hi = rho[:-1], rho[1:]
+        bound = np.minimum(reach, np.minimum(np.minimum(lo, hi) + after, 0.5 * (lo + hi + after)))
+        per_pair = bound[:, self._pair_high_row] * self._pair_joints  # (pieces, pairs, 6)
+        return per_pair @ adq
+
+    def _radial_extents(self) -> np.ndarray:
+        """(movers, 6): at the last updated configuration, a bound on the largest distance
+        of each moving object from the axis of each joint that moves it (0 for the others):
+        the largest over the object's support points, plus its pad."""
+        oMi = self._data.oMi
+        frames = [oMi[j] for j in range(7)]
+        rotations = np.array([M.rotation for M in frames])  # (7, 3, 3)
+        translations = np.array([M.translation for M in frames])  # (7, 3)
+        body = self._support_body
+        pts = np.einsum("pij,pj->pi", rotations[body], self._support_all) + translations[body]
+        d = pts[:, None, :] - translations[None, 1:]  # (points, 6, 3)
+        along = np.einsum("pjk,jk->pj", d, rotations[1:, :, 2])
+        across = np.sqrt(np.maximum(np.einsum("pjk,pjk->pj", d, d) - along * along, 0.0))
+        across *= self._support_moved
+        return np.maximum.reduceat(across, self._support_start, axis=0) + self._support_pad[:, None]
+
     def check_motion(
-        self, q0_rad: np.ndarray, q1_rad: np.ndarray, *, explain: bool = True
+        self, q0_rad: np.ndarray, q1_rad: np.ndarray, *, explain: bool = True, probe: bool = True
     ) -> MotionCheck:
         """Whether the straight joint-space segment q0 -> q1 keeps every clearance, by
         conservative advancement (provably complete up to ``STALL_M``; module docstring).
 
-        A coarse pass of state checks (every ``PROBE_STEP_RAD`` of the largest joint move,
-        bisection order) first rejects most blocked motions cheaply; it proves nothing and
-        is never used to accept one. ``explain=False`` skips naming the blocking pair.
+        The motion bound of each pair is tightened per part of the segment (parts of at
+        most ``KNOT_STEP_RAD`` of the largest joint move; :meth:`segment_bounds`), so the
+        advancement takes long steps where the moving objects are close to the axes that
+        turn. A coarse pass of state checks (every ``PROBE_STEP_RAD`` of the largest joint
+        move, bisection order) first rejects most blocked motions cheaply; it proves nothing
+        and is never used to accept one (``probe=False`` skips it, for edges already
+        sampled finer). ``explain=False`` skips naming the blocking pair.
         """
         q0 = np.asarray(q0_rad, float)
         dq = np.asarray(q1_rad, float) - q0
         if not len(self._pairs):
             return MotionCheck(True)
-        for s in _bisection_order(int(math.ceil(float(np.abs(dq).max()) / PROBE_STEP_RAD))):
-            if not self.is_valid(q0 + s * dq):
-                return MotionCheck(False, s, self.clearance(q0 + s * dq) if explain else None)
-        c = np.maximum(self.motion_coefficients(dq), 1e-12).tolist()
+        largest = float(np.abs(dq).max())
+        if probe:
+            for s in _bisection_order(int(math.ceil(largest / PROBE_STEP_RAD))):
+                if not self.is_valid(q0 + s * dq):
+                    return MotionCheck(False, s, self.clearance(q0 + s * dq) if explain else None)
+        pieces = max(1, int(math.ceil(largest / KNOT_STEP_RAD)))
+        rates = np.maximum(self.segment_bounds(q0, q0 + dq, pieces), 1e-12)  # (pieces, pairs)
+        # cum[k][i]: bound on pair k's shrink over s in [0, i / pieces]
+        cum = np.concatenate([np.zeros((1, rates.shape[1])), np.cumsum(rates, axis=0)]).T.tolist()
         required = self._required_list
-        self._update(q0)
-        margins = (self._exact(np.arange(len(self._pairs))) - self._required).tolist()
-        queries = len(margins)
+        model, data, gm, gd = self.kinematics.model, self._data, self._geom_model, self._geom_data
+        update, distance = pin.updateGeometryPlacements, pin.computeDistance
+        update(model, data, gm, gd, q0)
+        queries = 0
         due: list[tuple[float, int]] = []  # (horizon, pair): proven fine up to horizon
-        for k, m in enumerate(margins):
+        for k in range(len(required)):
+            m = distance(gm, gd, k).min_distance - required[k]
+            queries += 1
             if m < STALL_M:
                 return self._blocked(0.0, k, m, queries)
-            if m < c[k]:
-                due.append((m / c[k], k))
+            horizon = _advance(cum[k], pieces, 0.0, m)
+            if horizon < 1.0:
+                due.append((horizon, k))
         heapq.heapify(due)
-        gm, gd, distance = self._geom_model, self._geom_data, pin.computeDistance
+        pop, push = heapq.heappop, heapq.heappush
         while due:
             s = due[0][0]
-            self._update(q0 + s * dq)
+            update(model, data, gm, gd, q0 + s * dq)
             while due and due[0][0] <= s:
-                _, k = heapq.heappop(due)
+                k = pop(due)[1]
                 m = distance(gm, gd, k).min_distance - required[k]
                 queries += 1
                 if m < STALL_M:
                     return self._blocked(s, k, m, queries)
-                horizon = s + m / c[k]
+                horizon = _advance(cum[k], pieces, s, m)
                 if horizon < 1.0:
-                    heapq.heappush(due, (horizon, k))
+                    push(due, (horizon, k))
         return MotionCheck(True, distance_queries=queries)
 
     def _blocked(self, s: float, k: int, margin: float, queries: int) -> MotionCheck:
@@ -514,6 +591,66 @@ class CollisionModel:
                 if last < n - 1:
                     due.setdefault(last, []).append(k)
         return MotionCheck(True, distance_queries=queries)
+
+
+def _support_points(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray) -> tuple[np.ndarray, float]:
+    """Points (n x 3, parent frame) and a pad (m) such that the shape lies within ``pad``
+    of their convex hull: capsule and cylinder axis ends + radius, sphere centre + radius,
+    box corners, else the corners of the local AABB. Any convex function of the point
+    (a distance from a point or an axis) is largest over the shape at one of these points,
+    plus the pad."""
+    if isinstance(geometry, (coal.Capsule, coal.Cylinder)):
+        h = float(geometry.halfLength)
+        local, pad = np.array([[0.0, 0.0, -h], [0.0, 0.0, h]]), float(geometry.radius)
+    elif isinstance(geometry, coal.Sphere):
+        local, pad = np.zeros((1, 3)), float(geometry.radius)
+    else:
+        if isinstance(geometry, coal.Box):
+            hi = np.asarray(geometry.halfSide, float)
+            lo = -hi
+        else:
+            geometry.computeLocalAABB()
+            lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
+        local = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        pad = 0.0
+    T = np.asarray(T_parent_shape, float)
+    return local @ T[:3, :3].T + T[:3, 3], pad
+
+
+def _joint_reach(model: pin.Model, body: int, points: np.ndarray, pad: float) -> np.ndarray:
+    """R[j] (j = 1..6, as index j - 1): a bound, valid in every configuration, on the
+    distance from joint j's axis of any point of an object carried by joint ``body``
+    (given by its support ``points`` in joint ``body``'s frame and ``pad``).
+
+    The point is o_j + t_(j+1) + ... + t_body + (p - o_body), each offset t_m fixed in
+    joint m-1's frame. Its distance from the axis is at most the sum of the offsets'
+    components across the axis. While the axes of joints j..m-1 are all parallel (as for
+    the UR shoulder, elbow and wrist 1), t_m's component across axis j is exactly its
+    x-y part in joint m-1's frame; past the first axis that is not parallel, the whole
+    length |t_m| counts. Zero for the joints after ``body``."""
+    reach = np.zeros(6)
+    across_pts = float(np.hypot(points[:, 0], points[:, 1]).max()) + pad
+    whole_pts = float(np.linalg.norm(points, axis=1).max()) + pad
+    for j in range(1, body + 1):
+        parallel, total = True, 0.0
+        for m in range(j + 1, body + 1):
+            t = model.jointPlacements[m].translation
+            total += math.hypot(t[0], t[1]) if parallel else float(np.linalg.norm(t))
+            parallel = parallel and abs(model.jointPlacements[m].rotation[2, 2]) > 1.0 - 1e-12
+        reach[j - 1] = total + (across_pts if parallel else whole_pts)
+    return reach
+
+
+def _advance(cum: list[float], pieces: int, s: float, margin: float) -> float:
+    """The fraction s' >= s up to which a pair with ``margin`` (m) at s is proven fine:
+    where the piecewise-linear bound ``cum`` (values at i / pieces) has grown by margin."""
+    x = s * pieces
+    i = min(int(x), pieces - 1)
+    target = cum[i] + (x - i) * (cum[i + 1] - cum[i]) + margin
+    if target >= cum[pieces]:
+        return 1.0
+    j = bisect.bisect_right(cum, target) - 1
+    return (j + (target - cum[j]) / (cum[j + 1] - cum[j])) / pieces
 
 
 def _bisection_order(n: int) -> list[float]:
