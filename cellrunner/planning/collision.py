@@ -278,6 +278,9 @@ class CollisionModel:
         for k, req in enumerate(self._geom_data.collisionRequests):
             req.security_margin = float(self._required[k] + STALL_M)
             req.num_max_contacts = 1
+        # AABB culling before the exact tests; pinocchio inflates each object's box by the
+        # largest security margin of its pairs, so no pair within its clearance is culled
+        self._broadphase = pin.BroadPhaseManager_NaiveCollisionManager(model, geom_model, self._geom_data)
         self._prepare_bounds()
 
     def _checked(self, a: _Object, b: _Object) -> bool:
@@ -361,6 +364,54 @@ class CollisionModel:
         self._pair_reach = self._reach[self._pair_high] * self._pair_joints
         # row of each pair's counting object in the movers' support arrays
         self._pair_high_row = np.searchsorted(movers, self._pair_high)
+        self._prepare_lower_bounds()
+
+    def _prepare_lower_bounds(self) -> None:
+        """Covering spheres of the moving objects (grouped by object) and the static
+        objects' world AABBs, for :meth:`_knot_lower_bounds`."""
+        centers, radii, owner = [], [], []
+        for row, k in enumerate(self._movers):
+            obj = self._objects[k]
+            c, r = _cover_spheres(obj.geometry, obj.placement)
+            centers.append(c)
+            radii.append(r)
+            owner += [row] * len(r)
+        owner_arr = np.array(owner, dtype=int)
+        self._sphere_local = np.concatenate(centers) if centers else np.zeros((0, 3))
+        self._sphere_r = np.concatenate(radii) if radii else np.zeros(0)
+        self._sphere_body = self._body[self._movers][owner_arr] if len(owner_arr) else np.zeros(0, int)
+        self._sphere_start = np.searchsorted(owner_arr, np.arange(len(self._movers)))
+        statics = np.flatnonzero(~self._is_mover)
+        self._static_mid = tuple((0.5 * (self._aabb_lo[statics] + self._aabb_hi[statics])).T.copy())
+        self._static_half = tuple((0.5 * (self._aabb_hi[statics] - self._aabb_lo[statics])).T.copy())
+        static_col = {int(k): i for i, k in enumerate(statics)}
+        mover_row = {int(k): i for i, k in enumerate(self._movers)}
+        st = self._pair_other_static
+        self._lb_static_pair = np.flatnonzero(st)
+        self._lb_static_rows = np.array([mover_row[int(m)] for m in self._pair_mover[st]], dtype=int)
+        self._lb_static_cols = np.array([static_col[int(o)] for o in self._pair_other[st]], dtype=int)
+        self._lb_moving_pair = np.flatnonzero(~st)
+        self._lb_moving_a = np.array([mover_row[int(m)] for m in self._pair_mover[~st]], dtype=int)
+        self._lb_moving_b = np.array([mover_row[int(o)] for o in self._pair_other[~st]], dtype=int)
+        # sphere combinations of the pairs of two moving objects, grouped by pair
+        spheres_of = [np.arange(self._sphere_start[i], self._sphere_start[i + 1] if i + 1 < len(self._movers)
+                                else len(self._sphere_r)) for i in range(len(self._movers))]
+        combos = [(a, b, n) for n, (ra, rb) in enumerate(zip(self._lb_moving_a, self._lb_moving_b))
+                  for a in spheres_of[ra] for b in spheres_of[rb]]
+        combo = np.array(combos, dtype=int).reshape(-1, 3)
+        self._combo_a, self._combo_b = combo[:, 0], combo[:, 1]
+        self._combo_r = self._sphere_r[combo[:, 0]] + self._sphere_r[combo[:, 1]]
+        self._combo_start = np.searchsorted(combo[:, 2], np.arange(len(self._lb_moving_pair)))
+        # all points transformed at every knot: support points, then sphere centres
+        local = np.concatenate([self._support_all, self._sphere_local])
+        self._point_local = np.hstack([local, np.ones((len(local), 1))])
+        self._point_body = np.concatenate([self._support_body, self._sphere_body]).astype(int)
+        # index of (point p, its body) in an array of every point in every joint frame
+        self._point_pick = np.arange(len(local)) * 7 + self._point_body
+        self._reach_movers = self._reach[self._movers]
+        self._joint_placements = np.array(
+            [self.kinematics.model.jointPlacements[j].homogeneous for j in range(1, 7)]
+        )
 
     # -- queries --------------------------------------------------------------------------
 
@@ -379,37 +430,15 @@ class CollisionModel:
             self.kinematics.model, self._data, self._geom_model, self._geom_data, np.asarray(q_rad, float)
         )
 
-    def _lower_bounds(self) -> np.ndarray:
-        """Lower bounds of every pair's signed distance at the last updated configuration:
-        bounding sphere of a moving object against a static object's world AABB, or two
-        bounding spheres."""
-        oMi = self._data.oMi
-        centers = np.empty((len(self._objects), 3))
-        for k in np.flatnonzero(self._is_mover):
-            M = oMi[int(self._body[k])]
-            centers[k] = M.rotation @ self._center_local[k] + M.translation
-        mover, other, static = self._pair_mover, self._pair_other, self._pair_other_static
-        lb = np.empty(len(mover))
-        # moving vs static: distance from the sphere centre to the static box, minus radius
-        if static.any():
-            c = centers[mover[static]]
-            lo, hi = self._aabb_lo[other[static]], self._aabb_hi[other[static]]
-            gap = np.maximum(np.maximum(lo - c, c - hi), 0.0)
-            lb[static] = np.linalg.norm(gap, axis=1) - self._radius[mover[static]]
-        moving = ~static
-        if moving.any():
-            m, o = mover[moving], other[moving]
-            lb[moving] = np.linalg.norm(centers[m] - centers[o], axis=1) - self._radius[m] - self._radius[o]
-        return lb
-
     def is_valid(self, q_rad: np.ndarray) -> bool:
         """True when every checked pair keeps its required clearance (+ ``STALL_M``)."""
         if not len(self._pairs):
             return True
-        return not pin.computeCollisions(
-            self.kinematics.model, self._data, self._geom_model, self._geom_data,
-            np.asarray(q_rad, float), True,
+        pin.updateGeometryPlacements(
+            self.kinematics.model, self._data, self._geom_model, self._geom_data, np.asarray(q_rad, float)
         )
+        self._broadphase.update(False)
+        return not pin.computeCollisions(self._broadphase, True)
 
     def clearance(self, q_rad: np.ndarray) -> Clearance:
         """The pair with the smallest margin over its required clearance at ``q_rad``."""
@@ -450,41 +479,83 @@ class CollisionModel:
         :meth:`motion_coefficients` of the part with R[obj, j] replaced, when smaller, by a
         bound on the object's distance from axis j over that part only:
 
-        at the part's ends the distances are measured (rho_a, rho_b, from the support points;
-        :meth:`_radial_extents`); in between they change at most at rate
-        A_j = sum_(i>j) |dq_i| R[obj, i] per unit of the part (only the joints after j move
-        the object relative to axis j), so r_j <= min(rho_a + t A_j, rho_b + (1 - t) A_j)
-        <= (rho_a + rho_b + A_j) / 2 for t in [0, 1]."""
+        at the part's ends the distances are measured (rho_a, rho_b, from the support points);
+        in between they change at most at rate A_j = sum_(i>j) |dq_i| R[obj, i] per unit of
+        the part (only the joints after j move the object relative to axis j), so
+        r_j <= min(rho_a + t A_j, rho_b + (1 - t) A_j) <= (rho_a + rho_b + A_j) / 2 for t
+        in [0, 1]."""
+        return self._knots(q0_rad, q1_rad, pieces)[0]
+
+    def _knots(self, q0_rad: np.ndarray, q1_rad: np.ndarray, pieces: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`segment_bounds` (pieces, pairs) and, at the ``pieces + 1`` part ends,
+        lower bounds of every pair's signed distance (pieces + 1, pairs), in m."""
         q0 = np.asarray(q0_rad, float)
         dq = (np.asarray(q1_rad, float) - q0) / pieces
         adq = np.abs(dq)
-        reach = self._reach[self._movers]  # (movers, 6)
+        knots = pieces + 1
+        frames = self.joint_frames(q0 + np.arange(knots)[:, None] * dq)  # (knots, 7, 4, 4)
+        # every point in every joint frame by one product, then each in its own joint's
+        every = (frames[:, :, :3, :].reshape(-1, 4) @ self._point_local.T).reshape(knots, 7, 3, -1)
+        pts = every.transpose(0, 3, 1, 2).reshape(knots, -1, 3)[:, self._point_pick]  # (knots, points, 3)
+        n_support = len(self._support_all)
+        support = pts[:, :n_support]
+        # distances of the support points from the axes of the joints that move them:
+        # |p - o|^2 - ((p - o) . z)^2, with the dot products as batched matrix products
+        origins, axes = frames[:, 1:, :3, 3], frames[:, 1:, :3, 2]  # (knots, 6, 3)
+        along = support @ axes.transpose(0, 2, 1) - (origins * axes).sum(axis=2)[:, None, :]
+        square = ((support * support).sum(axis=2)[:, :, None] - 2 * (support @ origins.transpose(0, 2, 1))
+                  + (origins * origins).sum(axis=2)[:, None, :] - along * along)
+        across = np.sqrt(np.maximum(square, 0.0)) * self._support_moved
+        # + 1 um for the rounding of the expanded squares (far below STALL_M)
+        rho = np.maximum.reduceat(across, self._support_start, axis=1) + (self._support_pad + 1e-6)[:, None]
+        reach = self._reach_movers  # (movers, 6)
         weighted = reach * adq
         after = np.cumsum(weighted[:, ::-1], axis=1)[:, ::-1] - weighted  # A[:, j]
-        rho = np.empty((pieces + 1, len(self._movers), 6))
-        for i in range(pieces + 1):
-            self._update(q0 + i * dq)
-            rho[i] = self._radial_extents()
         lo, hi = rho[:-1], rho[1:]
         bound = np.minimum(reach, np.minimum(np.minimum(lo, hi) + after, 0.5 * (lo + hi + after)))
-        per_pair = bound[:, self._pair_high_row] * self._pair_joints  # (pieces, pairs, 6)
-        return per_pair @ adq
+        rates = (bound[:, self._pair_high_row] * self._pair_joints) @ adq
+        return rates, self._knot_lower_bounds(pts[:, n_support:])
 
-    def _radial_extents(self) -> np.ndarray:
-        """(movers, 6): at the last updated configuration, a bound on the largest distance
-        of each moving object from the axis of each joint that moves it (0 for the others):
-        the largest over the object's support points, plus its pad."""
-        oMi = self._data.oMi
-        frames = [oMi[j] for j in range(7)]
-        rotations = np.array([M.rotation for M in frames])  # (7, 3, 3)
-        translations = np.array([M.translation for M in frames])  # (7, 3)
-        body = self._support_body
-        pts = np.einsum("pij,pj->pi", rotations[body], self._support_all) + translations[body]
-        d = pts[:, None, :] - translations[None, 1:]  # (points, 6, 3)
-        along = np.einsum("pjk,jk->pj", d, rotations[1:, :, 2])
-        across = np.sqrt(np.maximum(np.einsum("pjk,pjk->pj", d, d) - along * along, 0.0))
-        across *= self._support_moved
-        return np.maximum.reduceat(across, self._support_start, axis=0) + self._support_pad[:, None]
+    def joint_frames(self, q_rad: np.ndarray) -> np.ndarray:
+        """World frames of joints 0..6 (0: the universe) at configurations ``q_rad`` (n x 6):
+        (n, 7, 4, 4), the same as pinocchio's ``oMi``, computed for all n at once."""
+        q = np.asarray(q_rad, float)
+        n = len(q)
+        rz = np.zeros((n, 6, 4, 4))
+        c, s = np.cos(q), np.sin(q)
+        rz[..., 0, 0] = c
+        rz[..., 0, 1] = -s
+        rz[..., 1, 0] = s
+        rz[..., 1, 1] = c
+        rz[..., 2, 2] = 1.0
+        rz[..., 3, 3] = 1.0
+        frames = np.empty((n, 7, 4, 4))
+        frames[:, 0] = np.eye(4)
+        for j in range(6):
+            frames[:, j + 1] = frames[:, j] @ self._joint_placements[j] @ rz[:, j]
+        return frames
+
+    def _knot_lower_bounds(self, centers: np.ndarray) -> np.ndarray:
+        """(knots, pairs) lower bounds of the signed distances from the covering spheres
+        (world centres (knots, spheres, 3)) of the moving objects: the closest of an
+        object's spheres to a static object's world AABB, or to another object's spheres
+        (less 1 um for rounding)."""
+        lb = np.empty((len(centers), len(self._pairs)))
+        r = self._sphere_r
+        if len(self._lb_static_pair):
+            square = 0.0
+            for c in range(3):
+                gap = np.abs(centers[:, :, c, None] - self._static_mid[c]) - self._static_half[c]
+                np.maximum(gap, 0.0, out=gap)
+                square = square + gap * gap
+            dist = np.sqrt(square) - r[:, None]  # (knots, spheres, statics)
+            per_object = np.minimum.reduceat(dist, self._sphere_start, axis=1)  # (knots, movers, statics)
+            lb[:, self._lb_static_pair] = per_object[:, self._lb_static_rows, self._lb_static_cols]
+        if len(self._lb_moving_pair):
+            diff = centers[:, self._combo_a] - centers[:, self._combo_b]  # (knots, combos, 3)
+            dist = np.sqrt((diff * diff).sum(axis=2)) - self._combo_r
+            lb[:, self._lb_moving_pair] = np.minimum.reduceat(dist, self._combo_start, axis=1)
+        return lb - 1e-6
 
     def check_motion(
         self, q0_rad: np.ndarray, q1_rad: np.ndarray, *, explain: bool = True, probe: bool = True
@@ -510,21 +581,34 @@ class CollisionModel:
                 if not self.is_valid(q0 + s * dq):
                     return MotionCheck(False, s, self.clearance(q0 + s * dq) if explain else None)
         pieces = max(1, int(math.ceil(largest / KNOT_STEP_RAD)))
-        rates = np.maximum(self.segment_bounds(q0, q0 + dq, pieces), 1e-12)  # (pieces, pairs)
+        rates, lower = self._knots(q0, q0 + dq, pieces)
+        rates = np.maximum(rates, 1e-12)  # (pieces, pairs)
+        # a part is proven for a pair by the lower bounds at its two ends alone when even
+        # the worst shrink between them leaves the clearance: d >= (lb_a + lb_b - rate) / 2
+        open_parts = 0.5 * (lower[:-1] + lower[1:] - rates) - self._required < STALL_M
+        pending = open_parts.T.tolist()  # per pair, per part: not proven by the lower bounds
+        first_open = np.where(open_parts.any(axis=0), open_parts.argmax(axis=0), pieces).tolist()
         # cum[k][i]: bound on pair k's shrink over s in [0, i / pieces]
         cum = np.concatenate([np.zeros((1, rates.shape[1])), np.cumsum(rates, axis=0)]).T.tolist()
         required = self._required_list
         model, data, gm, gd = self.kinematics.model, self._data, self._geom_model, self._geom_data
         update, distance = pin.updateGeometryPlacements, pin.computeDistance
-        update(model, data, gm, gd, q0)
         queries = 0
-        due: list[tuple[float, int]] = []  # (horizon, pair): proven fine up to horizon
-        for k in range(len(required)):
+        due: list[tuple[float, int]] = []  # (s, pair): proven fine up to s, measure there next
+        first: list[int] = []
+        for k, part in enumerate(first_open):
+            if part == 0:
+                first.append(k)
+            elif part < pieces:
+                due.append((part / pieces, k))
+        if first:
+            update(model, data, gm, gd, q0)
+        for k in first:
             m = distance(gm, gd, k).min_distance - required[k]
             queries += 1
             if m < STALL_M:
                 return self._blocked(0.0, k, m, queries)
-            horizon = _advance(cum[k], pieces, 0.0, m)
+            horizon = _next_due(cum[k], pending[k], pieces, 0.0, m)
             if horizon < 1.0:
                 due.append((horizon, k))
         heapq.heapify(due)
@@ -538,7 +622,7 @@ class CollisionModel:
                 queries += 1
                 if m < STALL_M:
                     return self._blocked(s, k, m, queries)
-                horizon = _advance(cum[k], pieces, s, m)
+                horizon = _next_due(cum[k], pending[k], pieces, s, m)
                 if horizon < 1.0:
                     push(due, (horizon, k))
         return MotionCheck(True, distance_queries=queries)
@@ -617,6 +701,34 @@ def _support_points(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray
     return local @ T[:3, :3].T + T[:3, 3], pad
 
 
+def _cover_spheres(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Spheres (centres n x 3 in the parent frame, radii n) whose union contains the shape:
+    a capsule or cylinder as balls along its axis (spacing at most its radius), anything
+    else as the ball around its local AABB."""
+    T = np.asarray(T_parent_shape, float)
+    if isinstance(geometry, (coal.Capsule, coal.Cylinder)):
+        # balls centred on the axis every `step` (at most the diameter), ends included:
+        # a point at most r from the axis and step / 2 along it from a centre is within
+        # hypot(r, step / 2); a capsule's end caps lie within r of the end centres
+        h, r = float(geometry.halfLength), float(geometry.radius)
+        n = max(1, int(math.ceil(h / max(r, 1e-3))))
+        step = 2 * h / n
+        z = -h + step * np.arange(n + 1)
+        local = np.column_stack([np.zeros(n + 1), np.zeros(n + 1), z])
+        radius = np.full(n + 1, math.hypot(r, step / 2))
+    elif isinstance(geometry, coal.Sphere):
+        local, radius = np.zeros((1, 3)), np.array([float(geometry.radius)])
+    else:
+        if isinstance(geometry, coal.Box):
+            hi = np.asarray(geometry.halfSide, float)
+            lo = -hi
+        else:
+            geometry.computeLocalAABB()
+            lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
+        local, radius = ((lo + hi) / 2)[None, :], np.array([float(np.linalg.norm(hi - lo)) / 2])
+    return local @ T[:3, :3].T + T[:3, 3], radius
+
+
 def _joint_reach(model: pin.Model, body: int, points: np.ndarray, pad: float) -> np.ndarray:
     """R[j] (j = 1..6, as index j - 1): a bound, valid in every configuration, on the
     distance from joint j's axis of any point of an object carried by joint ``body``
@@ -652,6 +764,21 @@ def _advance(cum: list[float], pieces: int, s: float, margin: float) -> float:
     j = bisect.bisect_right(cum, target) - 1
     return (j + (target - cum[j]) / (cum[j + 1] - cum[j])) / pieces
 
+
+def _next_due(cum: list[float], open_parts: list[bool], pieces: int, s: float, margin: float) -> float:
+    """Where a pair measured at s with ``margin`` must be measured next: its horizon
+    (:func:`_advance`), or, when that falls in a part already proven by lower bounds, the
+    start of the next part that is not (1.0: none left)."""
+    horizon = _advance(cum, pieces, s, margin)
+    if horizon >= 1.0:
+        return 1.0
+    part = min(int(horizon * pieces), pieces - 1)
+    if open_parts[part]:
+        return horizon
+    for later in range(part + 1, pieces):
+        if open_parts[later]:
+            return later / pieces
+    return 1.0
 
 def _bisection_order(n: int) -> list[float]:
     """Interior fractions k/n, k = 1..n-1, coarse to fine (midpoint first)."""

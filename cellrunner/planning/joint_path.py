@@ -72,7 +72,7 @@ def plan_joint_path(
     # with the conservative check on every edge.
     deadline = t0 + time_budget_s
     lazy = _rrt_connect(collision, q0, q1, time_budget_s, seed, conservative=False)
-    certified = shortcut(collision, lazy, edges_checked=False)
+    certified = shortcut(collision, lazy, edges_checked=False, direct_blocked=True)
     if certified is not None:
         return JointPath(certified, "rrtconnect", time.perf_counter() - t0)
     remaining = max(deadline - time.perf_counter(), 0.1 * time_budget_s)
@@ -80,18 +80,24 @@ def plan_joint_path(
     return JointPath(shortcut(collision, strict, edges_checked=True), "rrtconnect", time.perf_counter() - t0)
 
 
-def shortcut(collision: CollisionModel, q_rad: np.ndarray, *, edges_checked: bool = True) -> np.ndarray | None:
+def shortcut(
+    collision: CollisionModel, q_rad: np.ndarray, *, edges_checked: bool = True, direct_blocked: bool = False
+) -> np.ndarray | None:
     """Greedy shortcutting: from each kept waypoint, jump to the farthest later waypoint
     reachable by a conservatively checked straight segment. Deterministic; never
     lengthens the path. With ``edges_checked=False`` the path's own edges are not yet
-    proven either; returns None when one of them fails."""
+    proven either (they were sampled finely, so their proof skips the coarse probes);
+    returns None when one of them fails. ``direct_blocked``: the first-to-last segment is
+    already known to be blocked."""
     q = np.asarray(q_rad, float)
     kept = [0]
     i = 0
     while i < len(q) - 1:
         for j in range(len(q) - 1, i, -1):
-            trusted = j == i + 1 and edges_checked
-            if trusted or collision.check_motion(q[i], q[j], explain=False).ok:
+            if direct_blocked and i == 0 and j == len(q) - 1 and j > 1:
+                continue
+            edge = j == i + 1
+            if (edge and edges_checked) or collision.check_motion(q[i], q[j], explain=False, probe=not edge).ok:
                 kept.append(j)
                 i = j
                 break

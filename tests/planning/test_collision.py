@@ -201,3 +201,26 @@ def test_knot_bounds_cut_the_distance_queries_of_a_long_move():
         collision.KNOT_STEP_RAD = saved
     assert tight.ok and loose.ok
     assert tight.distance_queries < loose.distance_queries
+
+
+def test_state_check_keeps_the_clearance_where_bounding_boxes_do_not_overlap():
+    """is_valid culls pairs by bounding boxes first; a fixture 1 mm below the tool (boxes
+    apart) still violates a 2 mm clearance, and 3 mm away it does not."""
+    k = kin()
+    p = k.T_world_tcp(HOME)[:3, 3]  # the tool tip points down at HOME
+    for gap_m, valid in ((0.001, False), (0.0019, False), (0.003, True)):
+        plate = Placed("plate", Box((0.3, 0.3, 0.02)), pose_matrix(p - [0, 0, 0.01 + gap_m]))
+        world = CollisionModel(k, TOOL, [plate], clearance_m=0.002)
+        assert world.is_valid(HOME) is valid, gap_m
+
+
+@settings(max_examples=20, deadline=None)
+@given(q=st.lists(st.floats(-3.2, 3.2), min_size=6, max_size=6))
+def test_state_check_agrees_with_the_exact_distances(q):
+    world = _cluttered_world()
+    q = np.array(q)
+    d = world._exact(np.arange(len(world._pairs))) if world._update(q) is None else None
+    exact_valid = bool(np.all(d - world._required >= 1e-4 + 1e-9))
+    if np.any(np.abs(d - world._required - 1e-4) < 1e-7):
+        return  # on the boundary itself
+    assert world.is_valid(q) == exact_valid
