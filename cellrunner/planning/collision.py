@@ -539,7 +539,7 @@ class CollisionModel:
         """(knots, pairs) lower bounds of the signed distances from the covering spheres
         (world centres (knots, spheres, 3)) of the moving objects: the closest of an
         object's spheres to a static object's world AABB, or to another object's spheres
-        (less 1 um for rounding)."""
+        (less 1 um for rounding); -inf where the covers overlap."""
         lb = np.empty((len(centers), len(self._pairs)))
         r = self._sphere_r
         if len(self._lb_static_pair):
@@ -555,7 +555,9 @@ class CollisionModel:
             diff = centers[:, self._combo_a] - centers[:, self._combo_b]  # (knots, combos, 3)
             dist = np.sqrt((diff * diff).sum(axis=2)) - self._combo_r
             lb[:, self._lb_moving_pair] = np.minimum.reduceat(dist, self._combo_start, axis=1)
-        return lb - 1e-6
+        # a bound at or below zero says the covers overlap, where the shapes may penetrate
+        # deeper than any sphere radius: no bound at all there
+        return np.where(lb > 0.0, lb - 1e-6, -np.inf)
 
     def check_motion(
         self, q0_rad: np.ndarray, q1_rad: np.ndarray, *, explain: bool = True, probe: bool = True

@@ -224,3 +224,29 @@ def test_state_check_agrees_with_the_exact_distances(q):
     if np.any(np.abs(d - world._required - 1e-4) < 1e-7):
         return  # on the boundary itself
     assert world.is_valid(q) == exact_valid
+
+
+@settings(max_examples=30, deadline=None)
+@given(q=st.lists(st.floats(-3.2, 3.2), min_size=6, max_size=6))
+def test_knot_lower_bounds_never_exceed_the_exact_distances(q):
+    world = _cluttered_world()
+    q = np.array(q)
+    _, lower = world._knots(q, q, 1)  # both knots at q
+    world._update(q)
+    exact = world._exact(np.arange(len(world._pairs)))
+    assert np.all(lower <= exact[None, :] + 1e-12), world.pair_labels[int(np.argmax(lower[0] - exact))]
+
+
+def test_joint_frames_match_pinocchio():
+    import pinocchio as pin
+
+    world = _cluttered_world()
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-3, 3, (5, 6))
+    frames = world.joint_frames(q)
+    model = world.kinematics.model
+    data = model.createData()
+    for n in range(5):
+        pin.forwardKinematics(model, data, q[n])
+        for j in range(7):
+            assert np.allclose(frames[n, j], data.oMi[j].homogeneous, atol=1e-12)
