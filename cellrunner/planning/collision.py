@@ -56,17 +56,38 @@ from __future__ import annotations
 
 import bisect
 import heapq
+import importlib
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import coal
 import numpy as np
-import pinocchio as pin
 
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
-from cellrunner.planning.kinematics import ArmKinematics
+
+if TYPE_CHECKING:
+    import coal
+    import pinocchio as pin
+
+    from cellrunner.planning.kinematics import ArmKinematics
+else:
+
+    class _LazyModule:
+        """Imports ``name`` on first attribute access and takes its place in this module's
+        globals: ``ContactAllowance`` and the cache need no pinocchio or coal (~0.1-0.4 s)."""
+
+        def __init__(self, name: str, alias: str):
+            self._name, self._alias = name, alias
+
+        def __getattr__(self, attr: str):
+            module = importlib.import_module(self._name)
+            globals()[self._alias] = module
+            return getattr(module, attr)
+
+    coal = _LazyModule("coal", "coal")
+    pin = _LazyModule("pinocchio", "pin")
 
 #: Margin below which a pair counts as colliding in addition to its required clearance;
 #: keeps conservative advancement finite (m).
