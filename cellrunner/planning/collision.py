@@ -672,8 +672,10 @@ class CollisionModel:
         way but sharing distance queries across segments: a pair measured at sample j with
         margin m is fine up to the last sample k whose accumulated motion bound
         ``sum_{i=j..k-1} c_pair(q_i -> q_i+1)`` stays below m - STALL_M; it is measured
-        again there. A segment no single measurement covers is checked with
-        :meth:`check_motion`. ``s_blocked`` is the sample index (plus segment fraction)."""
+        again there. Where no single measurement covers a segment, that pair alone is
+        advanced along it by its own bound. Pairs that the samples' lower bounds prove on
+        every segment (as in :meth:`check_motion`) are never measured. ``s_blocked`` is the
+        sample index (plus segment fraction)."""
         q = np.asarray(q_rad, float)
         if not len(self._pairs) or len(q) == 0:
             return MotionCheck(True)
@@ -694,7 +696,6 @@ class CollisionModel:
                 return MotionCheck(True)
         due: dict[int, list[int]] = {0: pairs.tolist()}
         queries = 0
-        proven_segments: set[int] = set()
         j = 0
         while due:
             j = min(due)
@@ -707,16 +708,34 @@ class CollisionModel:
                     return self._blocked(float(j), k, m, queries)
                 last = int(np.searchsorted(cum[k], cum[k, j] + m - STALL_M, side="right")) - 1
                 if last <= j:
-                    if j not in proven_segments:
-                        result = self.check_motion(q[j], q[j + 1])
-                        queries += result.distance_queries
-                        if not result.ok:
-                            return MotionCheck(False, j + (result.s_blocked or 0.0), result.clearance, queries)
-                        proven_segments.add(j)
+                    # this pair alone, advanced along the segment by its own bound
+                    s_blocked, m_blocked, used = self._advance_pair(k, q[j], q[j + 1], float(seg[k, j]), m)
+                    queries += used
+                    if s_blocked is not None:
+                        return self._blocked(j + s_blocked, k, m_blocked, queries)
+                    self._update(q[j])  # the other pairs due here are measured at sample j
                     last = j + 1
                 if last < n - 1:
                     due.setdefault(last, []).append(k)
         return MotionCheck(True, distance_queries=queries)
+
+    def _advance_pair(self, k: int, qa: np.ndarray, qb: np.ndarray, shrink_m: float,
+                      margin_m: float) -> tuple[float | None, float, int]:
+        """Conservative advancement of pair ``k`` alone along qa -> qb, where its distance
+        shrinks by at most ``shrink_m`` and it has ``margin_m`` at qa: (the blocked
+        fraction or None, the margin there, exact queries made)."""
+        s, m, used = 0.0, margin_m, 0
+        required = self._required_list[k]
+        rate = max(shrink_m, 1e-12)
+        while True:
+            s += m / rate
+            if s >= 1.0:
+                return None, m, used
+            self._update(qa + s * (qb - qa))
+            m = pin.computeDistance(self._geom_model, self._geom_data, k).min_distance - required
+            used += 1
+            if m < STALL_M:
+                return s, m, used
 
 
 def _support_points(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray) -> tuple[np.ndarray, float]:
