@@ -27,36 +27,67 @@ s in [0, 1], a point p of an object carried by joint k moves with speed
     |dp/ds| = |sum_{j<=k} (q1_j - q0_j) w_j x (p - o_j)| <= sum_{j<=k} |q1_j - q0_j| r_j(p)
 
 where o_j and w_j are a point and the unit direction of joint j's axis and r_j(p) the
-distance of p from that axis. We bound r_j(p) for every configuration by
-``R[j, obj] = sum_{m=j+1..k} |t_m| + e_obj``: the lengths of the fixed link offsets t_m
-between joint j and joint k plus the largest distance e_obj of the object's points from
-joint k's origin. Hence over any sub-segment [s, s + ds] no point of the object moves
-more than ``ds * sum_j R[j, obj] |q1_j - q0_j|``, and the distance of a pair shrinks by at
-most ``ds * c_pair``, with ``c_pair`` that bound for the moving object against a static
+distance of p from that axis. We bound r_j(p) for every configuration by ``R[obj, j]``
+(:func:`_joint_reach`): along the chain p - o_j = t_(j+1) + ... + t_k + (p - o_k), the
+components across axis j of the fixed link offsets t_m (their x-y part while the axes of
+joints j..m-1 stay parallel to axis j, their whole length after that) plus the largest
+distance of the object from joint k's origin, or from its axis when that is parallel too,
+taken over the object's support points (:func:`_support_points`: capsule ends + radius,
+box corners, ...). Hence over any sub-segment [s, s + ds] no point of the object moves
+more than ``ds * sum_j R[obj, j] |q1_j - q0_j|``, and the distance of a pair shrinks by
+at most ``ds * c_pair``, with ``c_pair`` that bound for the moving object against a static
 one; for two objects carried by arm bodies a < b the distance is measured in body a's
-frame, where only joints a+1..b move body b, so only those joints count. If
-the distance at s exceeds the required clearance by ``m``, the pair is provably fine on
-``[s, s + m / c_pair]``. The checker jumps from one such horizon to the next, re-measuring
-only the pairs whose horizon ran out (cheap sphere-vs-box lower bounds first, exact coal
-distances only where those are not enough), and reports a collision when a pair's margin
-falls below ``STALL_M`` (0.1 mm; also what guarantees termination). Nothing can slip
-between checks, however thin the obstacle.
+frame, where only joints a+1..b move body b, so only those joints count.
+
+:meth:`CollisionModel.check_motion` tightens ``c_pair`` per part of the segment (parts of
+at most ``KNOT_STEP_RAD``): it measures each object's distance from each axis at the
+part's ends, and since only the joints after j change r_j, at rate at most
+``A_j = sum_(i>j) R[obj, i] |dq_i|``, r_j stays below ``(r_j(start) + r_j(end) + A_j) / 2``
+over the part (:meth:`CollisionModel.segment_bounds`); the bound on the shrink is then
+piecewise linear in s. If the distance at s exceeds the required clearance by ``m``, the
+pair is provably fine until that bound has grown by ``m``. The checker jumps from one
+such horizon to the next, re-measuring only the pairs whose horizon ran out (exact coal
+distances), and reports a collision when a pair's margin falls below ``STALL_M`` (0.1 mm;
+also what guarantees termination). Nothing can slip between checks, however thin the
+obstacle.
 """
 
 from __future__ import annotations
 
+import bisect
 import heapq
+import importlib
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import coal
 import numpy as np
-import pinocchio as pin
 
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
-from cellrunner.planning.kinematics import ArmKinematics
+
+if TYPE_CHECKING:
+    import coal
+    import pinocchio as pin
+
+    from cellrunner.planning.kinematics import ArmKinematics
+else:
+
+    class _LazyModule:
+        """Imports ``name`` on first attribute access and takes its place in this module's
+        globals: ``ContactAllowance`` and the cache need no pinocchio or coal (~0.1-0.4 s)."""
+
+        def __init__(self, name: str, alias: str):
+            self._name, self._alias = name, alias
+
+        def __getattr__(self, attr: str):
+            module = importlib.import_module(self._name)
+            globals()[self._alias] = module
+            return getattr(module, attr)
+
+    coal = _LazyModule("coal", "coal")
+    pin = _LazyModule("pinocchio", "pin")
 
 #: Margin below which a pair counts as colliding in addition to its required clearance;
 #: keeps conservative advancement finite (m).
@@ -64,6 +95,13 @@ STALL_M = 1e-4
 
 #: Spacing (largest joint move, rad) of the cheap rejection probes in check_motion.
 PROBE_STEP_RAD = 0.15
+
+#: check_path proves pairs from the samples' lower bounds first on paths up to this long.
+PATH_BOUNDS_MAX_SAMPLES = 200
+
+#: Largest joint move (rad) of one part of a segment over which check_motion bounds each
+#: object's distance from the joint axes afresh (shorter parts: tighter bounds, more FK).
+KNOT_STEP_RAD = 0.2
 
 ARM_BODY_NAMES = ("base", "shoulder", "upper_arm", "elbow", "forearm", "wrist_1", "wrist_2", "wrist_3")
 
@@ -264,6 +302,9 @@ class CollisionModel:
         for k, req in enumerate(self._geom_data.collisionRequests):
             req.security_margin = float(self._required[k] + STALL_M)
             req.num_max_contacts = 1
+        # AABB culling before the exact tests; pinocchio inflates each object's box by the
+        # largest security margin of its pairs, so no pair within its clearance is culled
+        self._broadphase = pin.BroadPhaseManager_NaiveCollisionManager(model, geom_model, self._geom_data)
         self._prepare_bounds()
 
     def _checked(self, a: _Object, b: _Object) -> bool:
@@ -296,25 +337,30 @@ class CollisionModel:
         return self.clearance_m
 
     def _prepare_bounds(self) -> None:
-        """Per-object data for the cheap lower bounds and the motion bound R[j, obj]."""
+        """Per-object data for the cheap lower bounds and the motion bound R[obj, j]."""
         model = self.kinematics.model
-        link_len = np.zeros(7)  # |t_m|: offset of joint m in joint m-1's frame
-        for m in range(2, 7):
-            link_len[m] = np.linalg.norm(model.jointPlacements[m].translation)
         n = len(self._objects)
         self._is_mover = np.array([o.group != "fixture" and o.body > 0 for o in self._objects])
         self._body = np.array([o.body for o in self._objects])
         self._center_local = np.zeros((n, 3))  # bounding sphere centre in the parent joint frame
         self._radius = np.zeros(n)
         self._reach = np.zeros((n, 6))  # R[obj, j]
+        support: list[tuple[np.ndarray, float]] = []
         for k, obj in enumerate(self._objects):
             self._center_local[k] = obj.placement[:3, 3]
             self._radius[k] = obj.radius_m
-            if obj.group == "fixture" or obj.body == 0:
-                continue
-            extent = float(np.linalg.norm(obj.placement[:3, 3])) + obj.radius_m
-            for j in range(1, obj.body + 1):
-                self._reach[k, j - 1] = link_len[j + 1 : obj.body + 1].sum() + extent
+            support.append(_support_points(obj.geometry, obj.placement))
+            if self._is_mover[k]:
+                self._reach[k] = _joint_reach(model, obj.body, *support[k])
+        # support points of the moving objects, for per-segment radial extents
+        movers = np.flatnonzero(self._is_mover)
+        self._movers = movers
+        self._support_all = np.concatenate([support[k][0] for k in movers]) if len(movers) else np.zeros((0, 3))
+        counts = [len(support[k][0]) for k in movers]
+        self._support_start = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
+        self._support_body = np.repeat(self._body[movers], counts)
+        self._support_moved = (np.arange(1, 7)[None, :] <= self._support_body[:, None]).astype(float)
+        self._support_pad = np.array([support[k][1] for k in movers])
         # static objects: world AABBs (fixtures, base)
         self._aabb_lo = np.full((n, 3), np.nan)
         self._aabb_hi = np.full((n, 3), np.nan)
@@ -332,14 +378,64 @@ class CollisionModel:
         # motion bound per pair and joint: against a static object, the mover's own bound;
         # between two arm-carried objects, only the joints between their bodies move one
         # relative to the other (distances are the same in the lower body's frame)
-        self._pair_reach = np.zeros((len(self._pairs), 6))
+        self._pair_high = self._pair_mover.copy()  # the object whose motion counts
+        self._pair_joints = np.ones((len(self._pairs), 6))  # 1 for the joints that count
         for p, (m, o) in enumerate(zip(self._pair_mover, self._pair_other)):
-            if self._pair_other_static[p]:
-                self._pair_reach[p] = self._reach[m]
-            else:
+            if not self._pair_other_static[p]:
                 low, high = (m, o) if self._body[m] <= self._body[o] else (o, m)
-                joints = np.arange(1, 7) > self._body[low]
-                self._pair_reach[p] = np.where(joints, self._reach[high], 0.0)
+                self._pair_high[p] = high
+                self._pair_joints[p] = np.arange(1, 7) > self._body[low]
+        self._pair_reach = self._reach[self._pair_high] * self._pair_joints
+        # row of each pair's counting object in the movers' support arrays
+        self._pair_high_row = np.searchsorted(movers, self._pair_high)
+        self._prepare_lower_bounds()
+
+    def _prepare_lower_bounds(self) -> None:
+        """Covering spheres of the moving objects (grouped by object) and the static
+        objects' world AABBs, for :meth:`_knot_lower_bounds`."""
+        centers, radii, owner = [], [], []
+        for row, k in enumerate(self._movers):
+            obj = self._objects[k]
+            c, r = _cover_spheres(obj.geometry, obj.placement)
+            centers.append(c)
+            radii.append(r)
+            owner += [row] * len(r)
+        owner_arr = np.array(owner, dtype=int)
+        self._sphere_local = np.concatenate(centers) if centers else np.zeros((0, 3))
+        self._sphere_r = np.concatenate(radii) if radii else np.zeros(0)
+        self._sphere_body = self._body[self._movers][owner_arr] if len(owner_arr) else np.zeros(0, int)
+        self._sphere_start = np.searchsorted(owner_arr, np.arange(len(self._movers)))
+        statics = np.flatnonzero(~self._is_mover)
+        self._static_mid = tuple((0.5 * (self._aabb_lo[statics] + self._aabb_hi[statics])).T.copy())
+        self._static_half = tuple((0.5 * (self._aabb_hi[statics] - self._aabb_lo[statics])).T.copy())
+        static_col = {int(k): i for i, k in enumerate(statics)}
+        mover_row = {int(k): i for i, k in enumerate(self._movers)}
+        st = self._pair_other_static
+        self._lb_static_pair = np.flatnonzero(st)
+        self._lb_static_rows = np.array([mover_row[int(m)] for m in self._pair_mover[st]], dtype=int)
+        self._lb_static_cols = np.array([static_col[int(o)] for o in self._pair_other[st]], dtype=int)
+        self._lb_moving_pair = np.flatnonzero(~st)
+        self._lb_moving_a = np.array([mover_row[int(m)] for m in self._pair_mover[~st]], dtype=int)
+        self._lb_moving_b = np.array([mover_row[int(o)] for o in self._pair_other[~st]], dtype=int)
+        # sphere combinations of the pairs of two moving objects, grouped by pair
+        spheres_of = [np.arange(self._sphere_start[i], self._sphere_start[i + 1] if i + 1 < len(self._movers)
+                                else len(self._sphere_r)) for i in range(len(self._movers))]
+        combos = [(a, b, n) for n, (ra, rb) in enumerate(zip(self._lb_moving_a, self._lb_moving_b))
+                  for a in spheres_of[ra] for b in spheres_of[rb]]
+        combo = np.array(combos, dtype=int).reshape(-1, 3)
+        self._combo_a, self._combo_b = combo[:, 0], combo[:, 1]
+        self._combo_r = self._sphere_r[combo[:, 0]] + self._sphere_r[combo[:, 1]]
+        self._combo_start = np.searchsorted(combo[:, 2], np.arange(len(self._lb_moving_pair)))
+        # all points transformed at every knot: support points, then sphere centres
+        local = np.concatenate([self._support_all, self._sphere_local])
+        self._point_local = np.hstack([local, np.ones((len(local), 1))])
+        self._point_body = np.concatenate([self._support_body, self._sphere_body]).astype(int)
+        # index of (point p, its body) in an array of every point in every joint frame
+        self._point_pick = np.arange(len(local)) * 7 + self._point_body
+        self._reach_movers = self._reach[self._movers]
+        self._joint_placements = np.array(
+            [self.kinematics.model.jointPlacements[j].homogeneous for j in range(1, 7)]
+        )
 
     # -- queries --------------------------------------------------------------------------
 
@@ -358,37 +454,15 @@ class CollisionModel:
             self.kinematics.model, self._data, self._geom_model, self._geom_data, np.asarray(q_rad, float)
         )
 
-    def _lower_bounds(self) -> np.ndarray:
-        """Lower bounds of every pair's signed distance at the last updated configuration:
-        bounding sphere of a moving object against a static object's world AABB, or two
-        bounding spheres."""
-        oMi = self._data.oMi
-        centers = np.empty((len(self._objects), 3))
-        for k in np.flatnonzero(self._is_mover):
-            M = oMi[int(self._body[k])]
-            centers[k] = M.rotation @ self._center_local[k] + M.translation
-        mover, other, static = self._pair_mover, self._pair_other, self._pair_other_static
-        lb = np.empty(len(mover))
-        # moving vs static: distance from the sphere centre to the static box, minus radius
-        if static.any():
-            c = centers[mover[static]]
-            lo, hi = self._aabb_lo[other[static]], self._aabb_hi[other[static]]
-            gap = np.maximum(np.maximum(lo - c, c - hi), 0.0)
-            lb[static] = np.linalg.norm(gap, axis=1) - self._radius[mover[static]]
-        moving = ~static
-        if moving.any():
-            m, o = mover[moving], other[moving]
-            lb[moving] = np.linalg.norm(centers[m] - centers[o], axis=1) - self._radius[m] - self._radius[o]
-        return lb
-
     def is_valid(self, q_rad: np.ndarray) -> bool:
         """True when every checked pair keeps its required clearance (+ ``STALL_M``)."""
         if not len(self._pairs):
             return True
-        return not pin.computeCollisions(
-            self.kinematics.model, self._data, self._geom_model, self._geom_data,
-            np.asarray(q_rad, float), True,
+        pin.updateGeometryPlacements(
+            self.kinematics.model, self._data, self._geom_model, self._geom_data, np.asarray(q_rad, float)
         )
+        self._broadphase.update(False)
+        return not pin.computeCollisions(self._broadphase, True)
 
     def clearance(self, q_rad: np.ndarray) -> Clearance:
         """The pair with the smallest margin over its required clearance at ``q_rad``."""
@@ -419,51 +493,171 @@ class CollisionModel:
 
     def motion_coefficients(self, dq_rad: np.ndarray) -> np.ndarray:
         """Per pair, the bound on how much its distance can shrink over the whole segment
-        with joint displacement ``dq_rad`` (m); see the module docstring."""
+        with joint displacement ``dq_rad`` (m), valid for any segment; see the module
+        docstring."""
         return self._pair_reach @ np.abs(np.asarray(dq_rad, float))
 
+    def segment_bounds(self, q0_rad: np.ndarray, q1_rad: np.ndarray, pieces: int = 1) -> np.ndarray:
+        """Per pair, a bound on how much its distance can shrink along the segment q0 -> q1
+        split into ``pieces`` equal parts: (pieces, pairs) in m, one row per part. Each is
+        :meth:`motion_coefficients` of the part with R[obj, j] replaced, when smaller, by a
+        bound on the object's distance from axis j over that part only:
+
+        at the part's ends the distances are measured (rho_a, rho_b, from the support points);
+        in between they change at most at rate A_j = sum_(i>j) |dq_i| R[obj, i] per unit of
+        the part (only the joints after j move the object relative to axis j), so
+        r_j <= min(rho_a + t A_j, rho_b + (1 - t) A_j) <= (rho_a + rho_b + A_j) / 2 for t
+        in [0, 1]."""
+        return self._knots(q0_rad, q1_rad, pieces)[0]
+
+    def _knots(self, q0_rad: np.ndarray, q1_rad: np.ndarray, pieces: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`segment_bounds` (pieces, pairs) and, at the ``pieces + 1`` part ends,
+        lower bounds of every pair's signed distance (pieces + 1, pairs), in m."""
+        q0 = np.asarray(q0_rad, float)
+        dq = (np.asarray(q1_rad, float) - q0) / pieces
+        return self._polyline_bounds(q0 + np.arange(pieces + 1)[:, None] * dq)
+
+    def _polyline_bounds(self, q_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For the polyline through ``q_rad`` (knots x 6): per segment and pair, the bound
+        on the distance shrink along the segment (:meth:`segment_bounds`), and per knot
+        and pair, a lower bound of the signed distance (:meth:`_knot_lower_bounds`)."""
+        q = np.asarray(q_rad, float)
+        knots = len(q)
+        adq = np.abs(np.diff(q, axis=0))  # (pieces, 6)
+        frames = self.joint_frames(q)  # (knots, 7, 4, 4)
+        # every point in every joint frame by one product, then each in its own joint's
+        every = (frames[:, :, :3, :].reshape(-1, 4) @ self._point_local.T).reshape(knots, 7, 3, -1)
+        pts = every.transpose(0, 3, 1, 2).reshape(knots, -1, 3)[:, self._point_pick]  # (knots, points, 3)
+        n_support = len(self._support_all)
+        support = pts[:, :n_support]
+        # distances of the support points from the axes of the joints that move them:
+        # |p - o|^2 - ((p - o) . z)^2, with the dot products as batched matrix products
+        origins, axes = frames[:, 1:, :3, 3], frames[:, 1:, :3, 2]  # (knots, 6, 3)
+        along = support @ axes.transpose(0, 2, 1) - (origins * axes).sum(axis=2)[:, None, :]
+        square = ((support * support).sum(axis=2)[:, :, None] - 2 * (support @ origins.transpose(0, 2, 1))
+                  + (origins * origins).sum(axis=2)[:, None, :] - along * along)
+        across = np.sqrt(np.maximum(square, 0.0)) * self._support_moved
+        # + 1 um for the rounding of the expanded squares (far below STALL_M)
+        rho = np.maximum.reduceat(across, self._support_start, axis=1) + (self._support_pad + 1e-6)[:, None]
+        reach = self._reach_movers  # (movers, 6)
+        weighted = reach[None] * adq[:, None, :]  # (pieces, movers, 6)
+        after = np.cumsum(weighted[:, :, ::-1], axis=2)[:, :, ::-1] - weighted  # A[:, :, j]
+        lo, hi = rho[:-1], rho[1:]
+        bound = np.minimum(reach, np.minimum(np.minimum(lo, hi) + after, 0.5 * (lo + hi + after)))
+        rates = np.einsum("kpj,kj->kp", bound[:, self._pair_high_row] * self._pair_joints, adq)
+        return rates, self._knot_lower_bounds(pts[:, n_support:])
+
+    def joint_frames(self, q_rad: np.ndarray) -> np.ndarray:
+        """World frames of joints 0..6 (0: the universe) at configurations ``q_rad`` (n x 6):
+        (n, 7, 4, 4), the same as pinocchio's ``oMi``, computed for all n at once."""
+        q = np.asarray(q_rad, float)
+        n = len(q)
+        rz = np.zeros((n, 6, 4, 4))
+        c, s = np.cos(q), np.sin(q)
+        rz[..., 0, 0] = c
+        rz[..., 0, 1] = -s
+        rz[..., 1, 0] = s
+        rz[..., 1, 1] = c
+        rz[..., 2, 2] = 1.0
+        rz[..., 3, 3] = 1.0
+        frames = np.empty((n, 7, 4, 4))
+        frames[:, 0] = np.eye(4)
+        for j in range(6):
+            frames[:, j + 1] = frames[:, j] @ self._joint_placements[j] @ rz[:, j]
+        return frames
+
+    def _knot_lower_bounds(self, centers: np.ndarray) -> np.ndarray:
+        """(knots, pairs) lower bounds of the signed distances from the covering spheres
+        (world centres (knots, spheres, 3)) of the moving objects: the closest of an
+        object's spheres to a static object's world AABB, or to another object's spheres
+        (less 1 um for rounding); -inf where the covers overlap."""
+        lb = np.empty((len(centers), len(self._pairs)))
+        r = self._sphere_r
+        if len(self._lb_static_pair):
+            square = 0.0
+            for c in range(3):
+                gap = np.abs(centers[:, :, c, None] - self._static_mid[c]) - self._static_half[c]
+                np.maximum(gap, 0.0, out=gap)
+                square = square + gap * gap
+            dist = np.sqrt(square) - r[:, None]  # (knots, spheres, statics)
+            per_object = np.minimum.reduceat(dist, self._sphere_start, axis=1)  # (knots, movers, statics)
+            lb[:, self._lb_static_pair] = per_object[:, self._lb_static_rows, self._lb_static_cols]
+        if len(self._lb_moving_pair):
+            diff = centers[:, self._combo_a] - centers[:, self._combo_b]  # (knots, combos, 3)
+            dist = np.sqrt((diff * diff).sum(axis=2)) - self._combo_r
+            lb[:, self._lb_moving_pair] = np.minimum.reduceat(dist, self._combo_start, axis=1)
+        # a bound at or below zero says the covers overlap, where the shapes may penetrate
+        # deeper than any sphere radius: no bound at all there
+        return np.where(lb > 0.0, lb - 1e-6, -np.inf)
+
     def check_motion(
-        self, q0_rad: np.ndarray, q1_rad: np.ndarray, *, explain: bool = True
+        self, q0_rad: np.ndarray, q1_rad: np.ndarray, *, explain: bool = True, probe: bool = True
     ) -> MotionCheck:
         """Whether the straight joint-space segment q0 -> q1 keeps every clearance, by
         conservative advancement (provably complete up to ``STALL_M``; module docstring).
 
-        A coarse pass of state checks (every ``PROBE_STEP_RAD`` of the largest joint move,
-        bisection order) first rejects most blocked motions cheaply; it proves nothing and
-        is never used to accept one. ``explain=False`` skips naming the blocking pair.
+        The motion bound of each pair is tightened per part of the segment (parts of at
+        most ``KNOT_STEP_RAD`` of the largest joint move; :meth:`segment_bounds`), so the
+        advancement takes long steps where the moving objects are close to the axes that
+        turn. A coarse pass of state checks (every ``PROBE_STEP_RAD`` of the largest joint
+        move, bisection order) first rejects most blocked motions cheaply; it proves nothing
+        and is never used to accept one (``probe=False`` skips it, for edges already
+        sampled finer). ``explain=False`` skips naming the blocking pair.
         """
         q0 = np.asarray(q0_rad, float)
         dq = np.asarray(q1_rad, float) - q0
         if not len(self._pairs):
             return MotionCheck(True)
-        for s in _bisection_order(int(math.ceil(float(np.abs(dq).max()) / PROBE_STEP_RAD))):
-            if not self.is_valid(q0 + s * dq):
-                return MotionCheck(False, s, self.clearance(q0 + s * dq) if explain else None)
-        c = np.maximum(self.motion_coefficients(dq), 1e-12).tolist()
+        largest = float(np.abs(dq).max())
+        if probe:
+            for s in _bisection_order(int(math.ceil(largest / PROBE_STEP_RAD))):
+                if not self.is_valid(q0 + s * dq):
+                    return MotionCheck(False, s, self.clearance(q0 + s * dq) if explain else None)
+        pieces = max(1, int(math.ceil(largest / KNOT_STEP_RAD)))
+        rates, lower = self._knots(q0, q0 + dq, pieces)
+        rates = np.maximum(rates, 1e-12)  # (pieces, pairs)
+        # a part is proven for a pair by the lower bounds at its two ends alone when even
+        # the worst shrink between them leaves the clearance: d >= (lb_a + lb_b - rate) / 2
+        open_parts = 0.5 * (lower[:-1] + lower[1:] - rates) - self._required < STALL_M
+        pending = open_parts.T.tolist()  # per pair, per part: not proven by the lower bounds
+        first_open = np.where(open_parts.any(axis=0), open_parts.argmax(axis=0), pieces).tolist()
+        # cum[k][i]: bound on pair k's shrink over s in [0, i / pieces]
+        cum = np.concatenate([np.zeros((1, rates.shape[1])), np.cumsum(rates, axis=0)]).T.tolist()
         required = self._required_list
-        self._update(q0)
-        margins = (self._exact(np.arange(len(self._pairs))) - self._required).tolist()
-        queries = len(margins)
-        due: list[tuple[float, int]] = []  # (horizon, pair): proven fine up to horizon
-        for k, m in enumerate(margins):
+        model, data, gm, gd = self.kinematics.model, self._data, self._geom_model, self._geom_data
+        update, distance = pin.updateGeometryPlacements, pin.computeDistance
+        queries = 0
+        due: list[tuple[float, int]] = []  # (s, pair): proven fine up to s, measure there next
+        first: list[int] = []
+        for k, part in enumerate(first_open):
+            if part == 0:
+                first.append(k)
+            elif part < pieces:
+                due.append((part / pieces, k))
+        if first:
+            update(model, data, gm, gd, q0)
+        for k in first:
+            m = distance(gm, gd, k).min_distance - required[k]
+            queries += 1
             if m < STALL_M:
                 return self._blocked(0.0, k, m, queries)
-            if m < c[k]:
-                due.append((m / c[k], k))
+            horizon = _next_due(cum[k], pending[k], pieces, 0.0, m)
+            if horizon < 1.0:
+                due.append((horizon, k))
         heapq.heapify(due)
-        gm, gd, distance = self._geom_model, self._geom_data, pin.computeDistance
+        pop, push = heapq.heappop, heapq.heappush
         while due:
             s = due[0][0]
-            self._update(q0 + s * dq)
+            update(model, data, gm, gd, q0 + s * dq)
             while due and due[0][0] <= s:
-                _, k = heapq.heappop(due)
+                k = pop(due)[1]
                 m = distance(gm, gd, k).min_distance - required[k]
                 queries += 1
                 if m < STALL_M:
                     return self._blocked(s, k, m, queries)
-                horizon = s + m / c[k]
+                horizon = _next_due(cum[k], pending[k], pieces, s, m)
                 if horizon < 1.0:
-                    heapq.heappush(due, (horizon, k))
+                    push(due, (horizon, k))
         return MotionCheck(True, distance_queries=queries)
 
     def _blocked(self, s: float, k: int, margin: float, queries: int) -> MotionCheck:
@@ -478,8 +672,10 @@ class CollisionModel:
         way but sharing distance queries across segments: a pair measured at sample j with
         margin m is fine up to the last sample k whose accumulated motion bound
         ``sum_{i=j..k-1} c_pair(q_i -> q_i+1)`` stays below m - STALL_M; it is measured
-        again there. A segment no single measurement covers is checked with
-        :meth:`check_motion`. ``s_blocked`` is the sample index (plus segment fraction)."""
+        again there. Where no single measurement covers a segment, that pair alone is
+        advanced along it by its own bound. Pairs that the samples' lower bounds prove on
+        every segment (as in :meth:`check_motion`) are never measured. ``s_blocked`` is the
+        sample index (plus segment fraction)."""
         q = np.asarray(q_rad, float)
         if not len(self._pairs) or len(q) == 0:
             return MotionCheck(True)
@@ -489,9 +685,17 @@ class CollisionModel:
         n = len(q)
         seg = self._pair_reach @ np.abs(np.diff(q, axis=0)).T  # (pairs, n-1)
         cum = np.concatenate([np.zeros((len(seg), 1)), np.cumsum(seg, axis=1)], axis=1)
-        due: dict[int, list[int]] = {0: list(range(len(self._pairs)))}
+        pairs = np.arange(len(self._pairs))
+        if n <= PATH_BOUNDS_MAX_SAMPLES:
+            # pairs whose lower bounds at the samples prove every segment (as in
+            # check_motion) need no exact distance at all
+            rates, lower = self._polyline_bounds(q)
+            open_parts = 0.5 * (lower[:-1] + lower[1:] - rates) - self._required < STALL_M
+            pairs = np.flatnonzero(open_parts.any(axis=0))
+            if not len(pairs):
+                return MotionCheck(True)
+        due: dict[int, list[int]] = {0: pairs.tolist()}
         queries = 0
-        proven_segments: set[int] = set()
         j = 0
         while due:
             j = min(due)
@@ -504,17 +708,138 @@ class CollisionModel:
                     return self._blocked(float(j), k, m, queries)
                 last = int(np.searchsorted(cum[k], cum[k, j] + m - STALL_M, side="right")) - 1
                 if last <= j:
-                    if j not in proven_segments:
-                        result = self.check_motion(q[j], q[j + 1])
-                        queries += result.distance_queries
-                        if not result.ok:
-                            return MotionCheck(False, j + (result.s_blocked or 0.0), result.clearance, queries)
-                        proven_segments.add(j)
+                    # this pair alone, advanced along the segment by its own bound
+                    s_blocked, m_blocked, used = self._advance_pair(k, q[j], q[j + 1], float(seg[k, j]), m)
+                    queries += used
+                    if s_blocked is not None:
+                        return self._blocked(j + s_blocked, k, m_blocked, queries)
+                    self._update(q[j])  # the other pairs due here are measured at sample j
                     last = j + 1
                 if last < n - 1:
                     due.setdefault(last, []).append(k)
         return MotionCheck(True, distance_queries=queries)
 
+    def _advance_pair(self, k: int, qa: np.ndarray, qb: np.ndarray, shrink_m: float,
+                      margin_m: float) -> tuple[float | None, float, int]:
+        """Conservative advancement of pair ``k`` alone along qa -> qb, where its distance
+        shrinks by at most ``shrink_m`` and it has ``margin_m`` at qa: (the blocked
+        fraction or None, the margin there, exact queries made)."""
+        s, m, used = 0.0, margin_m, 0
+        required = self._required_list[k]
+        rate = max(shrink_m, 1e-12)
+        while True:
+            s += m / rate
+            if s >= 1.0:
+                return None, m, used
+            self._update(qa + s * (qb - qa))
+            m = pin.computeDistance(self._geom_model, self._geom_data, k).min_distance - required
+            used += 1
+            if m < STALL_M:
+                return s, m, used
+
+
+def _support_points(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray) -> tuple[np.ndarray, float]:
+    """Points (n x 3, parent frame) and a pad (m) such that the shape lies within ``pad``
+    of their convex hull: capsule and cylinder axis ends + radius, sphere centre + radius,
+    box corners, else the corners of the local AABB. Any convex function of the point
+    (a distance from a point or an axis) is largest over the shape at one of these points,
+    plus the pad."""
+    if isinstance(geometry, (coal.Capsule, coal.Cylinder)):
+        h = float(geometry.halfLength)
+        local, pad = np.array([[0.0, 0.0, -h], [0.0, 0.0, h]]), float(geometry.radius)
+    elif isinstance(geometry, coal.Sphere):
+        local, pad = np.zeros((1, 3)), float(geometry.radius)
+    else:
+        if isinstance(geometry, coal.Box):
+            hi = np.asarray(geometry.halfSide, float)
+            lo = -hi
+        else:
+            geometry.computeLocalAABB()
+            lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
+        local = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        pad = 0.0
+    T = np.asarray(T_parent_shape, float)
+    return local @ T[:3, :3].T + T[:3, 3], pad
+
+
+def _cover_spheres(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Spheres (centres n x 3 in the parent frame, radii n) whose union contains the shape:
+    a capsule or cylinder as balls along its axis (spacing at most its radius), anything
+    else as the ball around its local AABB."""
+    T = np.asarray(T_parent_shape, float)
+    if isinstance(geometry, (coal.Capsule, coal.Cylinder)):
+        # balls centred on the axis every `step` (at most the diameter), ends included:
+        # a point at most r from the axis and step / 2 along it from a centre is within
+        # hypot(r, step / 2); a capsule's end caps lie within r of the end centres
+        h, r = float(geometry.halfLength), float(geometry.radius)
+        n = max(1, int(math.ceil(h / max(r, 1e-3))))
+        step = 2 * h / n
+        z = -h + step * np.arange(n + 1)
+        local = np.column_stack([np.zeros(n + 1), np.zeros(n + 1), z])
+        radius = np.full(n + 1, math.hypot(r, step / 2))
+    elif isinstance(geometry, coal.Sphere):
+        local, radius = np.zeros((1, 3)), np.array([float(geometry.radius)])
+    else:
+        if isinstance(geometry, coal.Box):
+            hi = np.asarray(geometry.halfSide, float)
+            lo = -hi
+        else:
+            geometry.computeLocalAABB()
+            lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
+        local, radius = ((lo + hi) / 2)[None, :], np.array([float(np.linalg.norm(hi - lo)) / 2])
+    return local @ T[:3, :3].T + T[:3, 3], radius
+
+
+def _joint_reach(model: pin.Model, body: int, points: np.ndarray, pad: float) -> np.ndarray:
+    """R[j] (j = 1..6, as index j - 1): a bound, valid in every configuration, on the
+    distance from joint j's axis of any point of an object carried by joint ``body``
+    (given by its support ``points`` in joint ``body``'s frame and ``pad``).
+
+    The point is o_j + t_(j+1) + ... + t_body + (p - o_body), each offset t_m fixed in
+    joint m-1's frame. Its distance from the axis is at most the sum of the offsets'
+    components across the axis. While the axes of joints j..m-1 are all parallel (as for
+    the UR shoulder, elbow and wrist 1), t_m's component across axis j is exactly its
+    x-y part in joint m-1's frame; past the first axis that is not parallel, the whole
+    length |t_m| counts. Zero for the joints after ``body``."""
+    reach = np.zeros(6)
+    across_pts = float(np.hypot(points[:, 0], points[:, 1]).max()) + pad
+    whole_pts = float(np.linalg.norm(points, axis=1).max()) + pad
+    for j in range(1, body + 1):
+        parallel, total = True, 0.0
+        for m in range(j + 1, body + 1):
+            t = model.jointPlacements[m].translation
+            total += math.hypot(t[0], t[1]) if parallel else float(np.linalg.norm(t))
+            parallel = parallel and abs(model.jointPlacements[m].rotation[2, 2]) > 1.0 - 1e-12
+        reach[j - 1] = total + (across_pts if parallel else whole_pts)
+    return reach
+
+
+def _advance(cum: list[float], pieces: int, s: float, margin: float) -> float:
+    """The fraction s' >= s up to which a pair with ``margin`` (m) at s is proven fine:
+    where the piecewise-linear bound ``cum`` (values at i / pieces) has grown by margin."""
+    x = s * pieces
+    i = min(int(x), pieces - 1)
+    target = cum[i] + (x - i) * (cum[i + 1] - cum[i]) + margin
+    if target >= cum[pieces]:
+        return 1.0
+    j = bisect.bisect_right(cum, target) - 1
+    return (j + (target - cum[j]) / (cum[j + 1] - cum[j])) / pieces
+
+
+def _next_due(cum: list[float], open_parts: list[bool], pieces: int, s: float, margin: float) -> float:
+    """Where a pair measured at s with ``margin`` must be measured next: its horizon
+    (:func:`_advance`), or, when that falls in a part already proven by lower bounds, the
+    start of the next part that is not (1.0: none left)."""
+    horizon = _advance(cum, pieces, s, margin)
+    if horizon >= 1.0:
+        return 1.0
+    part = min(int(horizon * pieces), pieces - 1)
+    if open_parts[part]:
+        return horizon
+    for later in range(part + 1, pieces):
+        if open_parts[later]:
+            return later / pieces
+    return 1.0
 
 def _bisection_order(n: int) -> list[float]:
     """Interior fractions k/n, k = 1..n-1, coarse to fine (midpoint first)."""

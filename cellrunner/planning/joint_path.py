@@ -9,7 +9,9 @@ them. The path is then shortened by greedy shortcutting with the same check.
 
 For speed the search first runs with sampled edge checks (every 0.05 rad) and only the
 edges of the shortened result are proven; when one fails the proof, the search is run
-again with the conservative check on every edge.
+again with the conservative check on every edge. Finally each corner of a searched path
+is rounded by a short arc where a proven arc fits (:func:`round_corners`), so the timed
+trajectory need not crawl through it.
 
 OMPL draws its random numbers from a process-wide generator; each call reseeds it with
 ``seed`` so that a call's result depends only on its arguments when it is the first OMPL
@@ -31,6 +33,10 @@ from cellrunner.planning.collision import CollisionModel
 RRT_RANGE_RAD = 1.5
 #: Edge sampling step (joint-space distance, rad) of the fast search before certification.
 LAZY_RESOLUTION_RAD = 0.05
+#: Corner rounding (:func:`round_corners`): fractions of the adjacent edges tried, largest
+#: first, and the number of points of each arc.
+CORNER_FRACTIONS = (0.35, 0.2, 0.1)
+CORNER_POINTS = 32
 
 
 @dataclass(frozen=True)
@@ -72,26 +78,57 @@ def plan_joint_path(
     # with the conservative check on every edge.
     deadline = t0 + time_budget_s
     lazy = _rrt_connect(collision, q0, q1, time_budget_s, seed, conservative=False)
-    certified = shortcut(collision, lazy, edges_checked=False)
-    if certified is not None:
-        return JointPath(certified, "rrtconnect", time.perf_counter() - t0)
-    remaining = max(deadline - time.perf_counter(), 0.1 * time_budget_s)
-    strict = _rrt_connect(collision, q0, q1, remaining, seed + 1, conservative=True)
-    return JointPath(shortcut(collision, strict, edges_checked=True), "rrtconnect", time.perf_counter() - t0)
+    certified = shortcut(collision, lazy, edges_checked=False, direct_blocked=True)
+    if certified is None:
+        remaining = max(deadline - time.perf_counter(), 0.1 * time_budget_s)
+        strict = _rrt_connect(collision, q0, q1, remaining, seed + 1, conservative=True)
+        certified = shortcut(collision, strict, edges_checked=True)
+    return JointPath(round_corners(collision, certified), "rrtconnect", time.perf_counter() - t0)
 
 
-def shortcut(collision: CollisionModel, q_rad: np.ndarray, *, edges_checked: bool = True) -> np.ndarray | None:
+def round_corners(collision: CollisionModel, q_rad: np.ndarray) -> np.ndarray:
+    """The path with each interior waypoint w (between a and b) replaced by a quadratic
+    Bezier arc from w + f (a - w) to w + f (b - w) with control point w, sampled at
+    ``CORNER_POINTS`` points, for the largest f of ``CORNER_FRACTIONS`` whose arc passes
+    :meth:`CollisionModel.check_path` (the straight pieces before and after it are parts
+    of edges already proven); corners no arc clears stay. A sharp corner in joint space
+    forces the time parameterization to crawl through it; the arc lets it keep moving."""
+    q = np.asarray(q_rad, float)
+    if len(q) < 3:
+        return q
+    out = [q[0]]
+    t = np.linspace(0.0, 1.0, CORNER_POINTS)[:, None]
+    for a, w, b in zip(q[:-2], q[1:-1], q[2:]):
+        arc = None
+        for f in CORNER_FRACTIONS:
+            p1, p2 = w + f * (a - w), w + f * (b - w)
+            candidate = (1 - t) ** 2 * p1 + 2 * (1 - t) * t * w + t**2 * p2
+            if collision.check_path(candidate).ok:
+                arc = candidate
+                break
+        out.extend(arc if arc is not None else [w])
+    out.append(q[-1])
+    return np.array(out)
+
+
+def shortcut(
+    collision: CollisionModel, q_rad: np.ndarray, *, edges_checked: bool = True, direct_blocked: bool = False
+) -> np.ndarray | None:
     """Greedy shortcutting: from each kept waypoint, jump to the farthest later waypoint
     reachable by a conservatively checked straight segment. Deterministic; never
     lengthens the path. With ``edges_checked=False`` the path's own edges are not yet
-    proven either; returns None when one of them fails."""
+    proven either (they were sampled finely, so their proof skips the coarse probes);
+    returns None when one of them fails. ``direct_blocked``: the first-to-last segment is
+    already known to be blocked."""
     q = np.asarray(q_rad, float)
     kept = [0]
     i = 0
     while i < len(q) - 1:
         for j in range(len(q) - 1, i, -1):
-            trusted = j == i + 1 and edges_checked
-            if trusted or collision.check_motion(q[i], q[j], explain=False).ok:
+            if direct_blocked and i == 0 and j == len(q) - 1 and j > 1:
+                continue
+            edge = j == i + 1
+            if (edge and edges_checked) or collision.check_motion(q[i], q[j], explain=False, probe=not edge).ok:
                 kept.append(j)
                 i = j
                 break

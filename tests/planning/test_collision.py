@@ -105,3 +105,148 @@ def test_binary_stl_is_read(tmp_path):
     path.write_bytes(bytes(data))
     vertices, triangles = read_stl(path)
     assert vertices.shape == (3, 3) and triangles.shape == (1, 3)
+
+
+def _sample_points(obj, rng, n=40):
+    """Random points of an object's shape, in its parent joint's frame (T_joint_shape)."""
+    import coal
+
+    g = obj.geometry
+    if isinstance(g, (coal.Capsule, coal.Cylinder)):
+        t = rng.uniform(-g.halfLength, g.halfLength, n)
+        u = rng.normal(size=(n, 3))
+        u /= np.linalg.norm(u, axis=1)[:, None]
+        if isinstance(g, coal.Cylinder):
+            u[:, 2] = 0.0
+            u /= np.maximum(np.linalg.norm(u, axis=1)[:, None], 1e-12)
+        local = np.column_stack([np.zeros(n), np.zeros(n), t]) + g.radius * u
+    elif isinstance(g, coal.Box):
+        local = rng.uniform(-1, 1, (n, 3)) * np.asarray(g.halfSide)
+        local[: min(n, 8)] = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])[: min(n, 8)] * g.halfSide
+    else:
+        local = np.zeros((1, 3))
+    T = obj.placement
+    return local @ T[:3, :3].T + T[:3, 3]
+
+
+def _cluttered_world():
+    fixtures = [
+        Placed("table", Box((1.2, 1.2, 0.04)), pose_matrix((0, 0, -0.02))),
+        Placed("post", Cylinder(0.03, 0.6), pose_matrix((0.4, 0.3, 0.3))),
+    ]
+    part = Placed("block", Box((0.05, 0.04, 0.06)), pose_matrix((0.01, 0, 0.03)))
+    return CollisionModel(kin(), TOOL, fixtures).carrying(part)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    q0=st.lists(st.floats(-3.0, 3.0), min_size=6, max_size=6),
+    dq=st.lists(st.floats(-1.5, 1.5), min_size=6, max_size=6),
+    pieces=st.integers(1, 4),
+)
+def test_segment_bounds_bound_the_motion_of_every_point(q0, dq, pieces):
+    """Along a segment, no point of any object moves (relative to what it is checked
+    against) faster than its pair's bound for that part of the segment says."""
+    world = _cluttered_world()
+    q0, q1 = np.array(q0), np.array(q0) + np.array(dq)
+    rates = world.segment_bounds(q0, q1, pieces)  # (pieces, pairs), per unit part
+    static = world.motion_coefficients(q1 - q0)
+    assert np.all(rates * pieces <= static + 1e-9)  # never looser than the static bound
+    rng = np.random.default_rng(0)
+    model = world.kinematics.model
+    data = model.createData()
+    steps = 24  # per part
+    s = np.linspace(0.0, 1.0, pieces * steps + 1)
+    frames = []
+    for si in s:
+        pin_fk(model, data, q0 + si * (q1 - q0))
+        frames.append([data.oMi[j].homogeneous.copy() for j in range(7)])
+    points = {k: _sample_points(o, rng) for k, o in enumerate(world._objects) if world._is_mover[k]}
+    for p, (mover, high, joints) in enumerate(zip(world._pair_mover, world._pair_high, world._pair_joints)):
+        body = world._body[high]
+        low = 0 if world._pair_other_static[p] else int(min(world._body[mover], world._body[world._pair_other[p]]))
+        pts = points[high]
+        for i in range(pieces):
+            moved = 0.0
+            for a in range(i * steps, (i + 1) * steps):
+                A = np.linalg.inv(frames[a][low]) @ frames[a][body]
+                B = np.linalg.inv(frames[a + 1][low]) @ frames[a + 1][body]
+                moved = max(moved, float(np.linalg.norm(
+                    (pts @ B[:3, :3].T + B[:3, 3]) - (pts @ A[:3, :3].T + A[:3, 3]), axis=1).max()))
+            # moved is over 1/steps of the part; the bound is for the whole part
+            assert moved * steps <= rates[i, p] * (1 + 1e-6) + 1e-9, world.pair_labels[p]
+        assert joints[: low].sum() == 0
+
+
+def pin_fk(model, data, q):
+    import pinocchio as pin
+
+    pin.forwardKinematics(model, data, q)
+
+
+def test_knot_bounds_cut_the_distance_queries_of_a_long_move():
+    """The per-part bounds prove a long free move with fewer exact distance queries than
+    the configuration-independent bound would need (same answer)."""
+    world = _cluttered_world()
+    q0 = np.radians([0, -90, 90, -90, -90, 0])
+    q1 = np.radians([150, -60, 60, -120, -90, 90])
+    tight = world.check_motion(q0, q1)
+    import cellrunner.planning.collision as collision
+
+    saved = collision.KNOT_STEP_RAD
+    collision.KNOT_STEP_RAD = 100.0  # one part: the whole segment
+    try:
+        loose = world.check_motion(q0, q1)
+    finally:
+        collision.KNOT_STEP_RAD = saved
+    assert tight.ok and loose.ok
+    assert tight.distance_queries < loose.distance_queries
+
+
+def test_state_check_keeps_the_clearance_where_bounding_boxes_do_not_overlap():
+    """is_valid culls pairs by bounding boxes first; a fixture 1 mm below the tool (boxes
+    apart) still violates a 2 mm clearance, and 3 mm away it does not."""
+    k = kin()
+    p = k.T_world_tcp(HOME)[:3, 3]  # the tool tip points down at HOME
+    for gap_m, valid in ((0.001, False), (0.0019, False), (0.003, True)):
+        plate = Placed("plate", Box((0.3, 0.3, 0.02)), pose_matrix(p - [0, 0, 0.01 + gap_m]))
+        world = CollisionModel(k, TOOL, [plate], clearance_m=0.002)
+        assert world.is_valid(HOME) is valid, gap_m
+
+
+@settings(max_examples=20, deadline=None)
+@given(q=st.lists(st.floats(-3.2, 3.2), min_size=6, max_size=6))
+def test_state_check_agrees_with_the_exact_distances(q):
+    world = _cluttered_world()
+    q = np.array(q)
+    d = world._exact(np.arange(len(world._pairs))) if world._update(q) is None else None
+    exact_valid = bool(np.all(d - world._required >= 1e-4 + 1e-9))
+    if np.any(np.abs(d - world._required - 1e-4) < 1e-7):
+        return  # on the boundary itself
+    assert world.is_valid(q) == exact_valid
+
+
+@settings(max_examples=30, deadline=None)
+@given(q=st.lists(st.floats(-3.2, 3.2), min_size=6, max_size=6))
+def test_knot_lower_bounds_never_exceed_the_exact_distances(q):
+    world = _cluttered_world()
+    q = np.array(q)
+    _, lower = world._knots(q, q, 1)  # both knots at q
+    world._update(q)
+    exact = world._exact(np.arange(len(world._pairs)))
+    assert np.all(lower <= exact[None, :] + 1e-12), world.pair_labels[int(np.argmax(lower[0] - exact))]
+
+
+def test_joint_frames_match_pinocchio():
+    import pinocchio as pin
+
+    world = _cluttered_world()
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-3, 3, (5, 6))
+    frames = world.joint_frames(q)
+    model = world.kinematics.model
+    data = model.createData()
+    for n in range(5):
+        pin.forwardKinematics(model, data, q[n])
+        for j in range(7):
+            assert np.allclose(frames[n, j], data.oMi[j].homogeneous, atol=1e-12)

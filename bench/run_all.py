@@ -1,0 +1,63 @@
+"""Every planning benchmark in one command, then the summary lines for the README.
+
+Run from the repository root::
+
+    PYTHONPATH=. python bench/run_all.py [--quick]
+
+1. planning: 20 UR5e problems, cellrunner vs pyroboplan RRT-Connect (bench_planning.py);
+2. cycle time of the demo task vs a PolyScope movej/movel baseline and rest-to-rest
+   (bench_cycle.py);
+3. ``cellrunner check`` wall time, cold and warm (bench_check.py).
+
+``--quick`` does fewer repetitions (1 planning run per problem, 1 cold and 3 warm checks).
+Exit status 1 when a target is missed: 100% success, median <= 10 ms, >= 10x pyroboplan;
+cycle <= 0.7x PolyScope; warm check < 1 s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent))
+
+import bench_check  # noqa: E402
+import bench_cycle  # noqa: E402
+import bench_planning  # noqa: E402
+
+
+def targets(planning: dict, cycle: dict, check: dict) -> list[tuple[str, bool]]:
+    return [
+        ("planning success 100%", planning["ours_success"] == planning["problems"]),
+        ("planning median <= 10 ms", planning["ours_median_ms"] <= 10.0),
+        ("planning >= 10x pyroboplan", planning.get("ratio", 0.0) >= 10.0),
+        ("cycle <= 0.7x PolyScope", cycle["ratio_polyscope"] <= 0.7),
+        ("warm check < 1 s", check["warm_s"] < 1.0),
+    ]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer repetitions")
+    args = parser.parse_args(argv)
+    print("== (1) planning", flush=True)
+    planning = bench_planning.run(reps=1 if args.quick else 3)
+    print("== (2) cycle time", flush=True)
+    cycle = bench_cycle.run()
+    print("== (3) check wall time", flush=True)
+    check = bench_check.run(cold_runs=1 if args.quick else 3, warm_runs=3 if args.quick else 5)
+    print()
+    print("== summary")
+    for line in [*bench_planning.summary_lines(planning), *bench_cycle.summary_lines(cycle),
+                 *bench_check.summary_lines(check)]:
+        print(line)
+    results = targets(planning, cycle, check)
+    print("targets: " + ", ".join(f"{name} {'met' if ok else 'MISSED'}" for name, ok in results))
+    return 0 if all(ok for _, ok in results) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,77 @@
+"""Joint paths: direct or searched, certified edges, rounded corners."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import cellrunner.planning.collision as collision_module
+from cellrunner.model.geometry import Box, Cylinder, Placed, pose_matrix
+from cellrunner.model.robots import ROBOTS
+from cellrunner.planning.collision import CollisionModel, MotionCheck
+from cellrunner.planning.joint_path import CORNER_POINTS, plan_joint_path, round_corners
+from cellrunner.planning.kinematics import ArmKinematics
+
+TOOL = (Placed("gripper", Cylinder(0.04, 0.15), pose_matrix((0, 0, 0.075))),)
+HOME = np.radians([0, -90, 90, -90, -90, 0])
+
+
+def _world():
+    """A low wall on a table between two pick poses (as bench/scenes.py's table scene)."""
+    kin = ArmKinematics(ROBOTS["ur5e"], np.eye(4), pose_matrix((0, 0, 0.15)))
+    fixtures = [
+        Placed("table", Box((1.6, 1.6, 0.04)), pose_matrix((0, 0, -0.02))),
+        Placed("wall", Box((0.4, 0.03, 0.30)), pose_matrix((0.50, 0.0, 0.15))),
+    ]
+    return CollisionModel(kin, TOOL, fixtures)
+
+
+def _targets(world):
+    kin = world.kinematics
+    down, near = (180.0, 0.0, 0.0), np.radians([180, -90, 90, -90, -90, 0])
+    a = kin.ik_nearest(pose_matrix((0.45, -0.25, 0.06), down), near)
+    b = kin.ik_nearest(pose_matrix((0.45, 0.25, 0.06), down), near)
+    return a, b
+
+
+def test_path_around_a_wall_is_certified_and_rounded():
+    world = _world()
+    a, b = _targets(world)
+    assert not world.check_motion(a, b).ok  # the wall is in the way
+    path = plan_joint_path(world, a, b, seed=1)
+    assert path.planner == "rrtconnect"
+    assert np.allclose(path.q_rad[0], a) and np.allclose(path.q_rad[-1], b)
+    for p, q in zip(path.q_rad[:-1], path.q_rad[1:]):
+        assert world.check_motion(p, q).ok  # every edge, arcs included, proven
+    assert len(path.q_rad) >= 2 + CORNER_POINTS  # at least one corner became an arc
+
+
+def test_round_corners_keeps_a_corner_no_arc_clears(monkeypatch):
+    world = _world()
+    q = np.array([HOME, HOME + [0.5, 0, 0, 0, 0, 0], HOME + [0.5, 0.3, 0, 0, 0, 0]])
+    monkeypatch.setattr(CollisionModel, "check_path", lambda self, q: MotionCheck(False, 0.0))
+    assert np.array_equal(round_corners(world, q), q)
+
+
+def test_round_corners_never_lengthens_the_path():
+    world = _world()
+    q = np.array([HOME, HOME + [0.8, 0, 0, 0, 0, 0], HOME + [0.8, 0.4, -0.3, 0, 0, 0]])
+    rounded = round_corners(world, q)
+    length = lambda p: float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())  # noqa: E731
+    assert length(rounded) <= length(q) + 1e-12
+    assert world.check_path(rounded).ok
+
+
+@settings(max_examples=25, deadline=None)
+@given(start=st.lists(st.floats(-2.5, 2.5), min_size=6, max_size=6),
+       steps=st.lists(st.lists(st.floats(-0.3, 0.3), min_size=6, max_size=6), min_size=1, max_size=6))
+def test_check_path_lower_bound_pruning_changes_no_verdict(start, steps):
+    world = _world()
+    q = np.cumsum(np.vstack([start, steps]), axis=0)
+    pruned = world.check_path(q).ok
+    saved = collision_module.PATH_BOUNDS_MAX_SAMPLES
+    collision_module.PATH_BOUNDS_MAX_SAMPLES = 0
+    try:
+        plain = world.check_path(q).ok
+    finally:
+        collision_module.PATH_BOUNDS_MAX_SAMPLES = saved
+    assert pruned == plain
