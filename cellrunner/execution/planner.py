@@ -1,5 +1,6 @@
 """The planner the cell uses for a job: the task plan (from the plan cache when the same
-job was planned before), refused as a whole when any step is infeasible."""
+job was planned before, its trajectories verified again before the job starts), refused
+as a whole when any step is infeasible."""
 
 from __future__ import annotations
 
@@ -24,6 +25,11 @@ def job_planner(world, *, use_cache: bool = True) -> Planner:
         task_plan = plan_cached(world, task, params, q, use_cache=use_cache)
         if not task_plan.ok:
             raise InfeasibleError("; ".join(task_plan.errors))
+        # A plan read from the cache verifies its trajectories on first use; do that here,
+        # on the planning thread, so no control tick ever waits on a collision check.
+        for step in task_plan.steps:
+            if step.is_motion:
+                task_plan.nominal(step)
         return JobPlan(task_plan.steps, task_plan, task_plan.cycle_time_s)
 
     return plan
