@@ -176,6 +176,10 @@ class SimWorld:
         self._R_base_world_flat = tuple(R_world_base.T.ravel().tolist())
         self._tool_weight_N = GRAVITY_MPS2 * ids.tool_mass_kg
         self._gripped: frozenset[str] = _NONE
+        # geom pairs of the last contact check that found nothing suspicious, and its
+        # verdict (the gripped parts)
+        self._clean_pairs: list[list[int]] | None = None
+        self._clean_gripped: frozenset[str] = _NONE
         self._jaw_adr = [int(a) for a in ids.jaw_qpos]
         self._jaw_dof = [int(a) for a in ids.jaw_dof]
         self._jaw_act = [int(a) for a in ids.jaw_act]
@@ -402,18 +406,22 @@ class SimWorld:
 
         Unexpected: the arm, tool or pads against a fixture or the floor; the arm or tool
         (not the pads) against a part that is not gripped. Contacts are few, so a plain
-        loop over Python ints beats numpy here (this runs every period); most periods
-        only parts touch fixtures, and one pass of set lookups settles that.
+        loop over Python ints beats numpy here (this runs every period). Most periods
+        see the same geom pairs as the last one (a part resting, a part held), and the
+        verdict on pairs with nothing suspicious among them depends on the pairs alone.
         """
         data = self.data
         if not data.ncon:
             return _NONE
         pairs = data.contact.geom.tolist()
+        if pairs == self._clean_pairs:
+            return self._clean_gripped
         watched = self._robot_or_pad_geoms
         for g1, g2 in pairs:
             if g1 in watched or g2 in watched:
                 break
         else:
+            self._clean_pairs, self._clean_gripped = pairs, _NONE
             return _NONE
         kind = self._kind
         pad_hits: dict[int, int] = {}
@@ -435,9 +443,9 @@ class SimWorld:
         suspicious += [i for i, g in robot_parts if g not in gripped_geoms]
         if suspicious and self.safety is Safety.NORMAL:
             self._judge_contacts(suspicious)
-        if not gripped_geoms:
-            return _NONE
-        return frozenset(self._part_of_geom[g] for g in gripped_geoms)
+        gripped = frozenset(self._part_of_geom[g] for g in gripped_geoms) if gripped_geoms else _NONE
+        self._clean_pairs, self._clean_gripped = (None, _NONE) if suspicious else (pairs, gripped)
+        return gripped
 
     def _judge_contacts(self, indices: list[int]) -> None:
         force = self._force6
