@@ -154,6 +154,7 @@ class SimWorld:
         # servos come first in the model, so they are plain slices.
         assert list(ids.qpos) == list(range(6)) and list(ids.dof) == list(range(6))
         assert list(ids.servo) == list(range(6))
+        self._qpos, self._qvel = self.data.qpos, self.data.qvel
         self._q_view = self.data.qpos[0:6]
         self._qd_view = self.data.qvel[0:6]
         self._servo_ctrl = self.data.ctrl[0:6]
@@ -556,22 +557,23 @@ class SimWorld:
         g = self.description.gripper
         if g is None:
             return 0.0
-        qpos = self.data.qpos
-        return g.stroke_m - (qpos[self._jaw_adr[0]] + qpos[self._jaw_adr[1]])
+        qpos = self._qpos
+        return g.stroke_m - float(qpos[self._jaw_adr[0]] + qpos[self._jaw_adr[1]])
 
     def _update_inputs(self) -> None:
         g = self.description.gripper
         if g is not None:
-            gap = self.jaw_gap_m()
-            qvel = self.data.qvel
-            jaw_speed = max(abs(qvel[self._jaw_dof[0]]), abs(qvel[self._jaw_dof[1]]))
-            resting = jaw_speed < JAW_REST_SPEED_MPS
+            qpos, qvel = self._qpos, self._qvel
+            a, b = self._jaw_adr
+            gap = g.stroke_m - float(qpos[a] + qpos[b])
+            va, vb = self._jaw_dof
+            resting = max(abs(float(qvel[va])), abs(float(qvel[vb]))) < JAW_REST_SPEED_MPS
+            lo = g.sensor_min_gap_m
+            hi = g.stroke_m - lo
             if g.closed_sensor_input:
-                self.inputs[g.closed_sensor_input] = bool(
-                    self._closing and resting
-                    and g.sensor_min_gap_m <= gap <= g.stroke_m - g.sensor_min_gap_m)
+                self.inputs[g.closed_sensor_input] = bool(self._closing and resting and lo <= gap <= hi)
             if g.open_sensor_input:
-                self.inputs[g.open_sensor_input] = bool(gap >= g.stroke_m - g.sensor_min_gap_m)
+                self.inputs[g.open_sensor_input] = gap >= hi
         for sensor in self.description.presence_sensors:
             c = np.asarray(sensor.center_world_m)
             h = np.asarray(sensor.half_extents_m)
