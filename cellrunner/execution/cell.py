@@ -213,15 +213,16 @@ class CellController:
         with self._lock:
             self._ticks += 1
             job = self._job
-            if job is None or job.runner is None:
+            runner = job.runner if job is not None else None
+            if runner is not None:
+                runner.tick()
+                self._now_s, self._safety = self.backend.read_state().time_s, runner.ctx.state.safety
+                self._follow(runner)
+            else:
                 state = self.backend.read_state()
                 self._now_s, self._safety = state.time_s, state.safety
-            if job is not None and job.runner is None and job.plan is not None and job.plan.done():
-                self._start_runner(job)
-            elif job is not None and job.runner is not None:
-                job.runner.tick()
-                self._now_s, self._safety = self.backend.read_state().time_s, job.runner.ctx.state.safety
-                self._follow(job.runner)
+                if job is not None and job.plan is not None and job.plan.done():
+                    self._start_runner(job)
             self._idle_transitions()
 
     def _start_runner(self, job: _Job) -> None:

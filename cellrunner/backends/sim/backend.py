@@ -76,6 +76,9 @@ class SimBackend:
 
     # -- Protocol -------------------------------------------------------------------------
     def read_state(self) -> RobotState:
+        fresh = self._fresh
+        if fresh is not None and self._connected:  # measured this period, nothing changed since
+            return fresh
         world = self._world()
         if self._link_lost:
             last = self._last_state

@@ -115,7 +115,8 @@ class SimWorld:
     def __init__(self, description: TwinDescription, options: PhysicsOptions = PhysicsOptions()):
         self.description = description
         self.options = options
-        self.period_s = 1.0 / description.rate_hz
+        self._rate_hz = description.rate_hz
+        self.period_s = 1.0 / self._rate_hz
         self.substeps = max(1, math.ceil(self.period_s / options.max_timestep_s - 1e-9))
         self.model: Any = None
         self.data: Any = None
@@ -158,6 +159,7 @@ class SimWorld:
         self._q_view = self.data.qpos[0:6]
         self._qd_view = self.data.qvel[0:6]
         self._servo_ctrl = self.data.ctrl[0:6]
+        self._ctrl_tmp = np.zeros(6)
         self._R_site_flat = self.data.site_xmat[ids.ft_site]  # row-major 3x3
         self._ft_flat = self.data.sensordata[ids.force_adr:ids.force_adr + 6]  # force, torque
         self._tool_com = self.data.subtree_com[ids.tool_body]
@@ -195,7 +197,7 @@ class SimWorld:
     @property
     def time_s(self) -> float:
         """Simulated time (s), counted in whole controller periods (no float drift)."""
-        return self._periods / self.description.rate_hz
+        return self._periods / self._rate_hz
 
     def _lookup_ids(self) -> _Ids:
         m, mj, d = self.model, self._mj, self.description
@@ -359,8 +361,8 @@ class SimWorld:
         if k == 1:
             if self.qd_ref is _ZERO6:
                 self._servo_ctrl[:] = self.q_ref
-            else:
-                self._servo_ctrl[:] = self.q_ref + self._ff_lead * self.qd_ref
+            else:  # ctrl = q_ref + ff_lead * qd_ref, with no temporaries
+                np.add(np.multiply(self._ff_lead, self.qd_ref, self._ctrl_tmp), self.q_ref, self._servo_ctrl)
             self._mj.mj_step(self.model, data)
         else:
             # cubic Hermite between the last and this set-point (positions and speeds),
@@ -613,7 +615,7 @@ class SimWorld:
         w = self._raw_wrench_base()
         o0, o1, o2, o3, o4, o5 = self._ft_offset
         wrench = np.array((w[0] - o0, w[1] - o1, w[2] - o2, w[3] - o3, w[4] - o4, w[5] - o5))
-        return RobotState(self._periods / self.description.rate_hz, self._q_view.copy(),
+        return RobotState(self._periods / self._rate_hz, self._q_view.copy(),
                           self._qd_view.copy(), wrench, self.safety, self.inputs.copy(),
                           self.outputs.copy(), self.powered, self.powered)
 
