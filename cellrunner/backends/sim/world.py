@@ -559,17 +559,17 @@ class SimWorld:
         g = self.description.gripper
         if g is None:
             return 0.0
-        qpos = self._qpos
-        return g.stroke_m - float(qpos[self._jaw_adr[0]] + qpos[self._jaw_adr[1]])
+        a, b = self._jaw_adr
+        return g.stroke_m - (self._qpos.item(a) + self._qpos.item(b))
 
     def _update_inputs(self) -> None:
         g = self.description.gripper
         if g is not None:
-            qpos, qvel = self._qpos, self._qvel
+            qpos, qvel = self._qpos.item, self._qvel.item  # Python floats, not numpy scalars
             a, b = self._jaw_adr
-            gap = g.stroke_m - float(qpos[a] + qpos[b])
+            gap = g.stroke_m - (qpos(a) + qpos(b))
             va, vb = self._jaw_dof
-            resting = max(abs(float(qvel[va])), abs(float(qvel[vb]))) < JAW_REST_SPEED_MPS
+            resting = max(abs(qvel(va)), abs(qvel(vb))) < JAW_REST_SPEED_MPS
             lo = g.sensor_min_gap_m
             hi = g.stroke_m - lo
             if g.closed_sensor_input:
