@@ -105,11 +105,12 @@ class SimBackend:
         _, q_all, qd_all = accepted
         if not 0 <= index < len(q_all):
             raise BackendError(f"set-point index {index} out of range 0..{len(q_all) - 1}")
-        world.check_can_move()
         q = q_all[index]
         # Consecutive set-points of an accepted trajectory were checked against the speed
-        # limit once; only a set-point that does not follow the last one is checked here.
+        # limit once; only a set-point that does not follow the last one is checked here
+        # (after the safety state, which world.command checks for the others).
         if index != self._next_index or world.q_ref is not self._last_q:
+            world.check_can_move()
             jump = np.abs(q - world.q_ref)
             if (jump > self._max_step_rad).any():
                 j = int(np.argmax(jump - self._max_step_rad))
