@@ -34,6 +34,13 @@ from cellrunner.model.timing import release_time_s
 #: Complete is shown this long before the cell resets itself to Idle
 COMPLETE_DWELL_S = 0.1
 
+#: the PackML state shown for each phase of a running job
+_PHASE_STATE = {"execute": S.EXECUTE, "holding": S.HOLDING, "held": S.HELD}
+#: acting states that complete on the next tick by themselves
+_SELF_COMPLETING = frozenset({S.COMPLETING, S.ABORTING, S.STOPPING, S.CLEARING, S.RESETTING})
+_ABORT_STATES = frozenset({S.ABORTING, S.ABORTED})
+_HOLD_STATES = frozenset({S.HOLDING, S.HELD})
+
 
 @dataclass(frozen=True)
 class JobPlan:
@@ -209,19 +216,20 @@ class CellController:
             while self._actions:  # only this thread touches the backend
                 self._actions.pop(0)()
             job = self._job
-            if job is None or job.runner is None:
+            runner = job.runner if job is not None else None
+            if runner is not None:
+                runner.tick()
+                self._now_s, self._safety = self.backend.read_state().time_s, runner.ctx.state.safety
+                self._follow(runner)
+            else:
                 state = self.backend.read_state()
                 self._now_s, self._safety = state.time_s, state.safety
-            if job is not None and job.plan is None:
-                if self.on_job_start is not None:
-                    self.on_job_start()
-                job.plan = self._pool.submit(self.planner, job.task, job.params, self.backend.read_state().q_rad)
-            elif job is not None and job.runner is None and job.plan.done():
-                self._start_runner(job)
-            elif job is not None and job.runner is not None:
-                job.runner.tick()
-                self._now_s, self._safety = self.backend.read_state().time_s, job.runner.ctx.state.safety
-                self._follow(job.runner)
+                if job is not None and job.plan is None:
+                    if self.on_job_start is not None:
+                        self.on_job_start()
+                    job.plan = self._pool.submit(self.planner, job.task, job.params, state.q_rad)
+                elif job is not None and job.plan.done():
+                    self._start_runner(job)
             self._idle_transitions()
 
     def _recover(self) -> None:
@@ -251,12 +259,12 @@ class CellController:
         job.runner.start()
 
     def _follow(self, runner: JobRunner) -> None:
-        target = {"execute": S.EXECUTE, "holding": S.HOLDING, "held": S.HELD}.get(runner.phase)
         if runner.done:
             code = runner.result
             return self._end_job(code, runner.message, runner)
+        target = _PHASE_STATE.get(runner.phase)
         if target is not None and target is not self.sm.state:
-            if target is S.EXECUTE and self.sm.state in (S.HOLDING, S.HELD):
+            if target is S.EXECUTE and self.sm.state in _HOLD_STATES:
                 self.sm.force(S.UNHOLDING)  # shown for one period
             else:
                 self.sm.force(target)
@@ -266,11 +274,14 @@ class CellController:
         state = self.sm.state
         if self._entered_tick == self._ticks:
             return  # every state is visible for at least one period
-        if self._safety is Safety.EMERGENCY_STOP and state not in (S.ABORTING, S.ABORTED):
+        safety = self._safety
+        if state is S.EXECUTE and safety is Safety.NORMAL:
+            return  # the common case while a job runs: nothing to do
+        if safety is Safety.EMERGENCY_STOP and state not in _ABORT_STATES:
             self.sm.force(S.ABORTING)
-        elif self._safety is Safety.DISCONNECTED and self._job is None and state not in (S.ABORTING, S.ABORTED):
+        elif safety is Safety.DISCONNECTED and self._job is None and state not in _ABORT_STATES:
             self.sm.force(S.ABORTING)
-        elif state in (S.COMPLETING, S.ABORTING, S.STOPPING, S.CLEARING, S.RESETTING):
+        elif state in _SELF_COMPLETING:
             self.sm.state_complete()
         elif state is S.UNHOLDING:
             self.sm.force(S.EXECUTE)

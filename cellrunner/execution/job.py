@@ -9,6 +9,7 @@ holding -> held -> unholding -> execute, or -> aborting; ``done`` at the end wit
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -29,6 +30,8 @@ UNLOCK_DELAY_S = 5.0
 TRACK_EVERY = 4
 #: how long recovery may keep trying to unlock before the job ends with code 100
 RECOVERY_TIMEOUT_S = 30.0
+
+_NORMAL = Safety.NORMAL  # looked up once: tick runs every period
 
 
 @dataclass
@@ -76,6 +79,7 @@ class JobRunner:
         self._current: _Item | None = None
         self._gen = None
         self._item_started_s = 0.0
+        self._item_timeout_s = 0.0
         self._hold_since_s = 0.0
         self._hold_reason = ""
         self._requests: list[str] = []
@@ -105,29 +109,32 @@ class JobRunner:
     # ------------------------------------------------------------------ tick
     def tick(self) -> None:
         """Advance by one controller period."""
-        if self.phase in ("done", "idle"):
+        phase = self.phase
+        if phase == "done" or phase == "idle":
             return
-        state = self.ctx.read()
+        safety = self.ctx.read().safety
         self._ticks += 1
-        if state.safety is Safety.NORMAL and self.phase == "execute" and self._ticks % TRACK_EVERY == 0:
-            self._track()
-        if state.safety is Safety.DISCONNECTED:
+        if safety is _NORMAL:
+            if phase == "execute" and self._ticks % TRACK_EVERY == 0:
+                self._track()
+        elif safety is Safety.DISCONNECTED:
             return self._finish(ResultCode.ROBOT_CONNECTION_LOST, "robot connection lost")
-        if state.safety is Safety.EMERGENCY_STOP:
+        elif safety is Safety.EMERGENCY_STOP:
             return self._finish(ResultCode.ESTOP, f"e-stop during {self._label()}")
-        if state.safety is Safety.FAULT:
+        elif safety is Safety.FAULT:
             return self._finish(ResultCode.PROTECTIVE_STOP, f"controller fault during {self._label()}")
-        if state.safety is Safety.PROTECTIVE_STOP and self.phase == "execute":
+        elif safety is Safety.PROTECTIVE_STOP and phase == "execute":
             self.protective_stops += 1
             self._enter_hold("protective stop")
         while self._requests:
             self._handle_request(self._requests.pop(0))
             if self.done:
                 return
-        if self.phase in ("holding", "held"):
-            return self._tick_held()
-        if self.phase == "execute":
+        phase = self.phase
+        if phase == "execute":
             self._tick_execute()
+        elif phase == "holding" or phase == "held":
+            self._tick_held()
 
     def _handle_request(self, what: str) -> None:
         if what == "abort":
@@ -182,7 +189,7 @@ class JobRunner:
     def _tick_execute(self) -> None:
         if self._current is None:
             return self._finish(*(self._pending_end or (ResultCode.OK, "")))
-        if self.ctx.now_s - self._item_started_s > self._timeout_s(self._current):
+        if self.ctx.state.time_s - self._item_started_s > self._item_timeout_s:
             self.ctx.backend.stop_motion()
             return self._finish(ResultCode.STEP_TIMEOUT, f"{self._label()} timed out")
         try:
@@ -203,6 +210,7 @@ class JobRunner:
     def _start_item(self, item: _Item) -> None:
         step = item.step
         self._item_started_s = self.ctx.now_s
+        self._item_timeout_s = self._timeout_s(item)
         record = self.records[step.index]
         if not item.between and item.behaviour == "step" and not item.resume:
             record.status, record.attempts = "running", max(record.attempts, item.attempt)
@@ -310,11 +318,14 @@ class JobRunner:
 
     # ------------------------------------------------------------------ helpers
     def _track(self) -> None:
-        if self.ctx.commanded_q is None:
+        ctx = self.ctx
+        if ctx.commanded_q is None:
             return
-        p_cmd = self.ctx.motions.tcp_position_m(self.ctx.commanded_q)
-        p_meas = self.ctx.motions.tcp_position_m(self.ctx.state.q_rad)
-        self.ctx.tracking_error_m = max(self.ctx.tracking_error_m, float(np.linalg.norm(p_cmd - p_meas)))
+        p_cmd = ctx.motions.tcp_position_m(ctx.commanded_q)
+        p_meas = ctx.motions.tcp_position_m(ctx.state.q_rad)
+        error = math.dist(p_cmd.tolist(), p_meas.tolist())
+        if error > ctx.tracking_error_m:
+            ctx.tracking_error_m = error
 
     def _label(self) -> str:
         return self._current.step.label if self._current else "the job"

@@ -1,13 +1,19 @@
 """The planner the cell uses for a job: the task plan (from the plan cache when the same
-job was planned before), refused as a whole when any step is infeasible."""
+job was planned before, its trajectories verified again on the planning thread), refused
+as a whole when any step is infeasible."""
 
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
 from cellrunner.execution.cell import JobPlan, Planner
 from cellrunner.model.load import LoadedTask
+
+if TYPE_CHECKING:
+    from cellrunner.planning.task_plan import TaskPlan
 
 #: a start this close to home (max over joints, rad) is planned from home, so that jobs
 #: that begin at home reuse the cached plan
@@ -24,6 +30,19 @@ def job_planner(world, *, use_cache: bool = True) -> Planner:
         task_plan = plan_cached(world, task, params, q, use_cache=use_cache)
         if not task_plan.ok:
             raise InfeasibleError("; ".join(task_plan.errors))
+        _verify_ahead(task_plan)
         return JobPlan(task_plan.steps, task_plan, task_plan.cycle_time_s)
 
     return plan
+
+
+def _verify_ahead(task_plan: TaskPlan) -> None:
+    """Verify a cached plan's trajectories here, on the planning thread, so that no control
+    tick waits on a collision check. A trajectory that fails stays unverified: streaming
+    it verifies it again and fails that step, as without this."""
+    for step in task_plan.steps:
+        if step.is_motion:
+            try:
+                task_plan.nominal(step)
+            except InfeasibleError:
+                return

@@ -127,6 +127,11 @@ class ArmKinematics:
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q_rad, dtype=float))
         return self.data.oMf[self.tcp_frame_id].homogeneous.copy()
 
+    def p_world_tcp(self, q_rad: np.ndarray) -> np.ndarray:
+        """Position of the TCP in the world at ``q_rad`` (m)."""
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q_rad, dtype=float))
+        return self.data.oMf[self.tcp_frame_id].translation.copy()
+
     def T_world_flange(self, q_rad: np.ndarray) -> np.ndarray:
         """Pose of the flange (tool0) in the world at ``q_rad``."""
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q_rad, dtype=float))

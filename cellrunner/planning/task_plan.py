@@ -105,7 +105,7 @@ class TaskPlan:
         return _time_and_verify(self.world, [motion], np.asarray(q_now_rad, float))[0].approved
 
     def tcp_position_m(self, q_rad: np.ndarray) -> np.ndarray:
-        return self.world.kinematics.T_world_tcp(q_rad)[:3, 3]
+        return self.world.kinematics.p_world_tcp(q_rad)
 
     def _carried_before(self, step: Step) -> Placed | None:
         rows = [r for r in self.rows if r.step.index <= step.index]

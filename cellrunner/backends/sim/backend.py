@@ -40,7 +40,8 @@ class SimBackend:
         self._link_lost = False
         self._last_state: RobotState | None = None
         self._fresh: RobotState | None = None  # this period's measurement, until anything changes
-        self._accepted: tuple[ApprovedTrajectory, np.ndarray] | None = None
+        # the trajectory servo last accepted, with its positions and speeds
+        self._accepted: tuple[ApprovedTrajectory, np.ndarray, np.ndarray] | None = None
         self._next_index, self._last_q = -1, None
         self._max_step_rad = np.radians(description.spec.joint_speed_max_deg_s) / self.rate_hz \
             * SET_POINT_JUMP_MARGIN
@@ -75,6 +76,9 @@ class SimBackend:
 
     # -- Protocol -------------------------------------------------------------------------
     def read_state(self) -> RobotState:
+        fresh = self._fresh
+        if fresh is not None and self._connected:  # measured this period, nothing changed since
+            return fresh
         world = self._world()
         if self._link_lost:
             last = self._last_state
@@ -91,18 +95,22 @@ class SimBackend:
         return state
 
     def servo(self, trajectory: ApprovedTrajectory, index: int) -> None:
-        world = self._world()
-        self._require_connection()
-        qd_all = self._accept(trajectory)
-        traj = trajectory.trajectory
-        n = len(traj.q_rad)
-        if not 0 <= index < n:
-            raise BackendError(f"set-point index {index} out of range 0..{n - 1}")
-        world.check_can_move()
-        q = traj.q_rad[index]
+        world = self.world
+        if world is None or not self._connected:
+            self._world()
+            self._require_connection()
+        accepted = self._accepted
+        if accepted is None or accepted[0] is not trajectory:
+            accepted = self._accept(trajectory)
+        _, q_all, qd_all = accepted
+        if not 0 <= index < len(q_all):
+            raise BackendError(f"set-point index {index} out of range 0..{len(q_all) - 1}")
+        q = q_all[index]
         # Consecutive set-points of an accepted trajectory were checked against the speed
-        # limit once; only a set-point that does not follow the last one is checked here.
+        # limit once; only a set-point that does not follow the last one is checked here
+        # (after the safety state, which world.command checks for the others).
         if index != self._next_index or world.q_ref is not self._last_q:
+            world.check_can_move()
             jump = np.abs(q - world.q_ref)
             if (jump > self._max_step_rad).any():
                 j = int(np.argmax(jump - self._max_step_rad))
@@ -195,15 +203,13 @@ class SimBackend:
             raise BackendError("robot connection lost" if self._link_lost
                                else "sim backend is not connected; call connect() first")
 
-    def _accept(self, trajectory: ApprovedTrajectory) -> np.ndarray:
-        """Check an approved trajectory once (seal, rate) and return its joint speeds.
+    def _accept(self, trajectory: ApprovedTrajectory) -> tuple[ApprovedTrajectory, np.ndarray, np.ndarray]:
+        """Check an approved trajectory once (seal, rate, speed) and remember it with its
+        joint positions and speeds.
 
         The seal is verified on the first set-point of each trajectory object and
         remembered by identity: ApprovedTrajectory is frozen and its arrays read-only.
         """
-        cached = self._accepted
-        if cached is not None and cached[0] is trajectory:
-            return cached[1]
         if not isinstance(trajectory, ApprovedTrajectory) or not trajectory.is_sealed:
             raise BackendError(
                 "refusing an unsealed trajectory: only trajectories approved by check can move "
@@ -219,6 +225,6 @@ class SimBackend:
                 f"set-point {i + 1} of step {trajectory.step_index} ({trajectory.step_name}) "
                 f"jumps {np.degrees(steps[i, j]):.2f} deg on joint {j + 1} in one period; the "
                 f"joint speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg")
-        self._accepted = (trajectory, traj.qd_rad_s)
+        self._accepted = (trajectory, traj.q_rad, traj.qd_rad_s)
         self._next_index, self._last_q = -1, None
-        return self._accepted[1]
+        return self._accepted

@@ -115,7 +115,8 @@ class SimWorld:
     def __init__(self, description: TwinDescription, options: PhysicsOptions = PhysicsOptions()):
         self.description = description
         self.options = options
-        self.period_s = 1.0 / description.rate_hz
+        self._rate_hz = description.rate_hz
+        self.period_s = 1.0 / self._rate_hz
         self.substeps = max(1, math.ceil(self.period_s / options.max_timestep_s - 1e-9))
         self.model: Any = None
         self.data: Any = None
@@ -147,17 +148,20 @@ class SimWorld:
         self.inputs: dict[str, float | bool] = {c: _zero(c) for c in d.io_inputs}
         self._scripted_inputs: dict[str, float | bool] = {}
         self._closing = False
-        self._ft_offset = np.zeros(6)
+        self._jaws_driven = False  # jaw forces not written to ctrl yet
+        self._ft_offset: tuple[float, ...] = (0.0,) * 6
         self._kind = [int(k) for k in ids.geom_kind]
         # Hot-path views into MjData (its buffers never move). The arm's joints and
         # servos come first in the model, so they are plain slices.
         assert list(ids.qpos) == list(range(6)) and list(ids.dof) == list(range(6))
         assert list(ids.servo) == list(range(6))
+        self._qpos, self._qvel = self.data.qpos, self.data.qvel
         self._q_view = self.data.qpos[0:6]
         self._qd_view = self.data.qvel[0:6]
         self._servo_ctrl = self.data.ctrl[0:6]
-        self._R_site = self.data.site_xmat[ids.ft_site].reshape(3, 3)
-        self._ft = self.data.sensordata[ids.force_adr:ids.force_adr + 6].reshape(2, 3)
+        self._ctrl_tmp = np.zeros(6)
+        self._R_site_flat = self.data.site_xmat[ids.ft_site]  # row-major 3x3
+        self._ft_flat = self.data.sensordata[ids.force_adr:ids.force_adr + 6]  # force, torque
         self._tool_com = self.data.subtree_com[ids.tool_body]
         self._site_pos = self.data.site_xpos[ids.ft_site]
         self._pad_a = ids.pad_geoms[0]
@@ -165,17 +169,20 @@ class SimWorld:
         self._force6 = np.zeros(6)
         self._fromto6 = np.zeros(6)
         self._static_geoms = [g for g, k in enumerate(self._kind) if k == STATIC]
+        self._robot_or_pad_geoms = frozenset(g for g, k in enumerate(self._kind) if k & (ROBOT | PADS))
         # The arm settles one physics step ahead of its servo input (measured), hence -h.
         self._ff_lead = ids.ff_gain - self.period_s / self.substeps
         self._q_prev_ref = self.q_ref.copy()
         self._qd_prev_ref: np.ndarray = _ZERO6
         self._hermite = _hermite_table(self.substeps, self.period_s)
         R_world_base = np.array(self.description.T_world_base[:3, :3], dtype=float)
-        self._neg_R_world_base = -R_world_base
-        self._R_base_world = R_world_base.T.copy()
+        self._R_base_world_flat = tuple(R_world_base.T.ravel().tolist())
         self._tool_weight_N = GRAVITY_MPS2 * ids.tool_mass_kg
-        self._weight_comp_base = self._R_base_world @ np.array([0.0, 0.0, self._tool_weight_N])
         self._gripped: frozenset[str] = _NONE
+        # geom pairs of the last contact check that found nothing suspicious, and its
+        # verdict (the gripped parts)
+        self._clean_pairs: list[list[int]] | None = None
+        self._clean_gripped: frozenset[str] = _NONE
         self._jaw_adr = [int(a) for a in ids.jaw_qpos]
         self._jaw_dof = [int(a) for a in ids.jaw_dof]
         self._jaw_act = [int(a) for a in ids.jaw_act]
@@ -190,7 +197,7 @@ class SimWorld:
     @property
     def time_s(self) -> float:
         """Simulated time (s), counted in whole controller periods (no float drift)."""
-        return self._periods / self.description.rate_hz
+        return self._periods / self._rate_hz
 
     def _lookup_ids(self) -> _Ids:
         m, mj, d = self.model, self._mj, self.description
@@ -265,7 +272,7 @@ class SimWorld:
         self.inputs[channel] = value
 
     def zero_ft_sensor(self) -> None:
-        self._ft_offset = self._raw_wrench_base()
+        self._ft_offset = tuple(self._raw_wrench_base())
 
     def unlock_protective_stop(self) -> None:
         if self.safety is Safety.NORMAL:
@@ -334,11 +341,10 @@ class SimWorld:
     # -- stepping -----------------------------------------------------------------------
     def step_period(self) -> None:
         """Advance the physics by one controller period."""
-        ids, data = self._ids, self.data
-        assert ids is not None, "build() first"
-        t = self.time_s
+        data = self.data
+        assert self._ids is not None, "build() first"
         if self._stop is not None:
-            qd = self._stop.speed(t)
+            qd = self._stop.speed(self.time_s)
             self.q_ref = self.q_ref + qd * self.period_s
             self.qd_ref = qd
             if not qd.any():
@@ -355,8 +361,8 @@ class SimWorld:
         if k == 1:
             if self.qd_ref is _ZERO6:
                 self._servo_ctrl[:] = self.q_ref
-            else:
-                self._servo_ctrl[:] = self.q_ref + self._ff_lead * self.qd_ref
+            else:  # ctrl = q_ref + ff_lead * qd_ref, with no temporaries
+                np.add(np.multiply(self._ff_lead, self.qd_ref, self._ctrl_tmp), self.q_ref, self._servo_ctrl)
             self._mj.mj_step(self.model, data)
         else:
             # cubic Hermite between the last and this set-point (positions and speeds),
@@ -385,10 +391,13 @@ class SimWorld:
         if g is None:
             return
         closing = self.outputs.get(g.close_output) == g.close_value
+        if closing == self._closing and self._jaws_driven:
+            return  # the drive forces already in ctrl stay
         if closing and not self._closing and self._faults.grip_miss_armed:
             self._faults.grip_miss_armed = False
             self._move_part_away()
         self._closing = closing
+        self._jaws_driven = True
         speed = g.grip_force_N if closing else -g.grip_force_N
         ctrl = self.data.ctrl
         for a in self._jaw_act:
@@ -400,17 +409,28 @@ class SimWorld:
 
         Unexpected: the arm, tool or pads against a fixture or the floor; the arm or tool
         (not the pads) against a part that is not gripped. Contacts are few, so a plain
-        loop over Python ints beats numpy here (this runs every period).
+        loop over Python ints beats numpy here (this runs every period). Most periods
+        see the same geom pairs as the last one (a part resting, a part held), and the
+        verdict on pairs with nothing suspicious among them depends on the pairs alone.
         """
         data = self.data
-        n = data.ncon
-        if not n:
+        if not data.ncon:
+            return _NONE
+        pairs = data.contact.geom.tolist()
+        if pairs == self._clean_pairs:
+            return self._clean_gripped
+        watched = self._robot_or_pad_geoms
+        for g1, g2 in pairs:
+            if g1 in watched or g2 in watched:
+                break
+        else:
+            self._clean_pairs, self._clean_gripped = pairs, _NONE
             return _NONE
         kind = self._kind
         pad_hits: dict[int, int] = {}
         robot_parts: list[tuple[int, int]] = []
         suspicious: list[int] = []
-        for i, (g1, g2) in enumerate(data.contact.geom[:n].tolist()):
+        for i, (g1, g2) in enumerate(pairs):
             k1, k2 = kind[g1], kind[g2]
             both = k1 | k2
             if not both & (ROBOT | PADS):
@@ -426,9 +446,9 @@ class SimWorld:
         suspicious += [i for i, g in robot_parts if g not in gripped_geoms]
         if suspicious and self.safety is Safety.NORMAL:
             self._judge_contacts(suspicious)
-        if not gripped_geoms:
-            return _NONE
-        return frozenset(self._part_of_geom[g] for g in gripped_geoms)
+        gripped = frozenset(self._part_of_geom[g] for g in gripped_geoms) if gripped_geoms else _NONE
+        self._clean_pairs, self._clean_gripped = (None, _NONE) if suspicious else (pairs, gripped)
+        return gripped
 
     def _judge_contacts(self, indices: list[int]) -> None:
         force = self._force6
@@ -539,51 +559,65 @@ class SimWorld:
         g = self.description.gripper
         if g is None:
             return 0.0
-        qpos = self.data.qpos
-        return g.stroke_m - (qpos[self._jaw_adr[0]] + qpos[self._jaw_adr[1]])
+        a, b = self._jaw_adr
+        return g.stroke_m - (self._qpos.item(a) + self._qpos.item(b))
 
     def _update_inputs(self) -> None:
         g = self.description.gripper
         if g is not None:
-            gap = self.jaw_gap_m()
-            qvel = self.data.qvel
-            jaw_speed = max(abs(qvel[self._jaw_dof[0]]), abs(qvel[self._jaw_dof[1]]))
-            resting = jaw_speed < JAW_REST_SPEED_MPS
+            qpos, qvel = self._qpos.item, self._qvel.item  # Python floats, not numpy scalars
+            a, b = self._jaw_adr
+            gap = g.stroke_m - (qpos(a) + qpos(b))
+            va, vb = self._jaw_dof
+            resting = max(abs(qvel(va)), abs(qvel(vb))) < JAW_REST_SPEED_MPS
+            lo = g.sensor_min_gap_m
+            hi = g.stroke_m - lo
             if g.closed_sensor_input:
-                self.inputs[g.closed_sensor_input] = bool(
-                    self._closing and resting
-                    and g.sensor_min_gap_m <= gap <= g.stroke_m - g.sensor_min_gap_m)
+                self.inputs[g.closed_sensor_input] = bool(self._closing and resting and lo <= gap <= hi)
             if g.open_sensor_input:
-                self.inputs[g.open_sensor_input] = bool(gap >= g.stroke_m - g.sensor_min_gap_m)
+                self.inputs[g.open_sensor_input] = gap >= hi
         for sensor in self.description.presence_sensors:
             c = np.asarray(sensor.center_world_m)
             h = np.asarray(sensor.half_extents_m)
             self.inputs[sensor.channel] = any(bool(np.all(np.abs(self.data.xpos[b] - c) <= h))
                                               for b in self._ids.part_bodies.values())
 
-    def _raw_wrench_base(self) -> np.ndarray:
-        """External wrench on the tool (payload compensated), base axes, torque at flange.
+    def _raw_wrench_base(self) -> list[float]:
+        """External wrench on the tool (payload compensated), base axes, torque at flange:
+        (fx, fy, fz, tx, ty, tz) in N and N m.
 
         MuJoCo's force/torque sensors give the force and torque the flange exerts on the
         tool subtree (tool, fingers, anything they hold), in the ``ft`` site frame. In
         static balance the external wrench is minus that, minus the tool's own weight
-        (the configured payload, which UR's controller also compensates).
+        (the configured payload, which UR's controller also compensates). Plain float
+        arithmetic: numpy's per-call cost dwarfs 3x3 products, and this runs every period.
         """
-        # rows (force, torque): site frame -> world -> base, sign flipped
-        w = self._ft @ (self._R_site.T @ self._neg_R_world_base)
-        r = self._tool_com - self._site_pos  # flange origin -> tool centre of mass, world
+        fx, fy, fz, tx, ty, tz = self._ft_flat.tolist()
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = self._R_site_flat.tolist()
+        cx, cy, cz = self._tool_com.tolist()
+        sx, sy, sz = self._site_pos.tolist()
         mg = self._tool_weight_N
-        # minus the weight (0, 0, -mg) and minus its moment r x (0, 0, -mg), in base axes
-        w[0] += self._weight_comp_base
-        w[1] += mg * (r[1] * self._R_base_world[:, 0] - r[0] * self._R_base_world[:, 1])
-        return w.ravel()
+        # world axes: minus the sensed wrench (site -> world), minus the tool's weight
+        # (0, 0, -mg) and its moment about the flange, (c - s) x (0, 0, -mg)
+        ex = -(r00 * fx + r01 * fy + r02 * fz)
+        ey = -(r10 * fx + r11 * fy + r12 * fz)
+        ez = mg - (r20 * fx + r21 * fy + r22 * fz)
+        mx = mg * (cy - sy) - (r00 * tx + r01 * ty + r02 * tz)
+        my = -mg * (cx - sx) - (r10 * tx + r11 * ty + r12 * tz)
+        mz = -(r20 * tx + r21 * ty + r22 * tz)
+        b00, b01, b02, b10, b11, b12, b20, b21, b22 = self._R_base_world_flat
+        return [b00 * ex + b01 * ey + b02 * ez, b10 * ex + b11 * ey + b12 * ez,
+                b20 * ex + b21 * ey + b22 * ez, b00 * mx + b01 * my + b02 * mz,
+                b10 * mx + b11 * my + b12 * mz, b20 * mx + b21 * my + b22 * mz]
 
     def measure(self) -> RobotState:
         """This period's measurements, as the controller reports them."""
-        return RobotState(self._periods / self.description.rate_hz, self._q_view.copy(),
-                          self._qd_view.copy(), self._raw_wrench_base() - self._ft_offset,
-                          self.safety, dict(self.inputs), dict(self.outputs), self.powered,
-                          self.powered)
+        w = self._raw_wrench_base()
+        o0, o1, o2, o3, o4, o5 = self._ft_offset
+        wrench = np.array((w[0] - o0, w[1] - o1, w[2] - o2, w[3] - o3, w[4] - o4, w[5] - o5))
+        return RobotState(self._periods / self._rate_hz, self._q_view.copy(),
+                          self._qd_view.copy(), wrench, self.safety, self.inputs.copy(),
+                          self.outputs.copy(), self.powered, self.powered)
 
     # -- introspection for tests, reports and the renderer (never for the engine) ---------
     def q_measured(self) -> np.ndarray:
