@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import errno
 import json
+import os
 import re
 import selectors
 import socket
@@ -40,6 +41,7 @@ FAULT_COMMANDS = """\
 ping                          -> ok pong
 state                         -> ok {json: modes, q, outputs, inputs, programs, time}
 log [N]                       -> ok [json list of the last N controller log lines]
+timing                        -> ok {json: real-time loop period stats over the last ~4000 periods}
 protective_stop [REASON]      -> the controller raises a protective stop now
 collision [on|off]            -> the physics reports contact (protective stop follows)
 estop press|release           -> robot emergency stop pressed / released
@@ -121,8 +123,15 @@ class _Conn:
 class TwinServer:
     """Serve one :class:`Controller` on ``host``; construct, ``start()``, ``stop()``."""
 
-    def __init__(self, controller: Controller, host: str = "127.0.0.2", ports: TwinPorts | None = None):
+    def __init__(
+        self,
+        controller: Controller,
+        host: str = "127.0.0.2",
+        ports: TwinPorts | None = None,
+        realtime: bool = True,
+    ):
         self.ctl = controller
+        self.realtime = realtime  # try SCHED_FIFO for the loop thread (ignored if not permitted)
         self.host = host
         self.ports = ports or TwinPorts()
         self.owners = InputOwners()
@@ -182,13 +191,15 @@ class TwinServer:
 
     def _rt_loop(self) -> None:
         period = self.ctl.period_s
+        realtime = self.realtime and _try_realtime_priority()
+        spin_s = 0.00005 if realtime else 0.0002  # sleep until this close, then spin
+        self.ctl.add_log(f"real-time loop at {1 / period:g} Hz, SCHED_FIFO {'on' if realtime else 'off'}")
         deadline = time.perf_counter() + period
         last = time.perf_counter()
         while not self._stop.is_set():
             now = time.perf_counter()
             remaining = deadline - now
-            if remaining > 0.0003:
-                time.sleep(remaining - 0.0003)
+            time.sleep(max(remaining - spin_s, 0.0001))  # always yield a little
             while time.perf_counter() < deadline:
                 pass
             now = time.perf_counter()
@@ -380,6 +391,8 @@ class TwinServer:
                 self._blackout_until = time.monotonic() + float(args[0])
             self._drop_clients_except_fault()
             return cmd
+        if cmd == "timing":
+            return json.dumps(self.timing())
         with ctl.lock:
             if cmd == "state":
                 return json.dumps(self.state())
@@ -434,6 +447,26 @@ class TwinServer:
         for conn in conns:
             self._close(conn)
 
+    def timing(self) -> dict[str, float]:
+        """Statistics of the real-time loop's period (s) and its deviation from nominal."""
+        periods = sorted(self.loop_periods_s[-4000:])
+        if not periods:
+            return {}
+        deviation = sorted(abs(p - self.ctl.period_s) for p in periods)
+
+        def pct(values: list[float], q: float) -> float:
+            return values[min(len(values) - 1, int(q * len(values)))]
+
+        return {
+            "n": len(periods),
+            "period_s": self.ctl.period_s,
+            "period_p50_s": pct(periods, 0.5),
+            "period_max_s": periods[-1],
+            "jitter_p50_s": pct(deviation, 0.5),
+            "jitter_p99_s": pct(deviation, 0.99),
+            "jitter_max_s": deviation[-1],
+        }
+
     def state(self) -> dict[str, Any]:
         """A JSON-able snapshot of the controller (call under the lock)."""
         ctl = self.ctl
@@ -456,6 +489,16 @@ class TwinServer:
             "watchdog": list(ctl.watchdog) if ctl.watchdog else None,
             "clients": sum(1 for c in self._conns.values() if c.role != "fault"),
         }
+
+
+def _try_realtime_priority(priority: int = 20) -> bool:
+    """Give the calling thread SCHED_FIFO ``priority``, as a real controller's loop has;
+    False where the OS does not allow it (no CAP_SYS_NICE, not Linux)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        return True
+    except (AttributeError, OSError):
+        return False
 
 
 # ---------------------------------------------------------------------- entry point

@@ -39,6 +39,14 @@ def stream(backend: URBackend, approved: ApprovedTrajectory) -> list[float]:
     return errors
 
 
+def assert_tracks(errors: list[float]) -> None:
+    """Tracking within a few periods of lag; bounds allow a scheduling stall on a loaded
+    machine but not an arm that ignores the stream (errors of tenths of a rad)."""
+    assert np.median(errors) < 0.005
+    assert np.percentile(errors, 90) < 0.02
+    assert max(errors) < 0.1
+
+
 def test_constructor_does_no_io_and_satisfies_the_protocol():
     backend = URBackend("127.254.254.254", UR5E)  # nothing listens there
     assert isinstance(backend, RobotBackend)
@@ -96,7 +104,7 @@ def test_streams_an_approved_trajectory_and_tracks_it(backend):
     # rad; peak joint speed 0.52 rad/s = 1 mrad per period: typically under one period of
     # lag, spikes of several periods when the OS does not schedule us in time
     assert np.median(errors) < 0.002
-    assert max(errors) < 0.03
+    assert_tracks(errors)
     backend.stop_motion()
     final = approved.trajectory.q_rad[-1]
     assert wait_until(lambda: np.max(np.abs(backend.read_state().q_rad - final)) < 1e-4, 1.0)
@@ -147,7 +155,7 @@ def test_protective_stop_recovery_resumes_streaming(backend, twin):
     assert backend.read_state().safety == Safety.NORMAL
     # resume: a fresh approved move from where the arm stopped
     errors = stream(backend, approve(wave(500.0, 0.5, backend.read_state().q_rad), 3, "resume"))
-    assert max(errors) < 0.03
+    assert_tracks(errors)
 
 
 def test_estop_needs_release_then_recovers(backend, twin):
@@ -163,7 +171,7 @@ def test_estop_needs_release_then_recovers(backend, twin):
     state = backend.read_state()
     assert state.powered and state.brakes_released
     errors = stream(backend, approve(wave(500.0, 0.6, state.q_rad), 0, "after-estop"))
-    assert max(errors) < 0.03
+    assert_tracks(errors)
 
 
 def test_connection_loss_reconnects_with_backoff(backend, twin):
@@ -176,7 +184,7 @@ def test_connection_loss_reconnects_with_backoff(backend, twin):
     assert time.monotonic() - t0 < 6.0
     assert backend.read_state().safety == Safety.NORMAL
     errors = stream(backend, approve(wave(500.0, 0.6, backend.read_state().q_rad), 0, "after"))
-    assert max(errors) < 0.03
+    assert_tracks(errors)
 
 
 def test_reconnect_gives_up_with_peer_unreachable():
