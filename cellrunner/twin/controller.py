@@ -23,7 +23,7 @@ import enum
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -31,9 +31,6 @@ from cellrunner.model.robots import RobotSpec
 from cellrunner.twin import motion as mo
 from cellrunner.twin.kinematics import Kinematics, matrix_to_pose, matrix_to_rotvec, rotvec_to_matrix
 from cellrunner.twin.physics import KinematicPhysics, Measurement, Physics
-
-if TYPE_CHECKING:
-    from collections.abc import Callable
 
 
 class RobotMode(enum.IntEnum):
@@ -196,7 +193,6 @@ class Controller:
         self.target_tcp_pose = self.actual_tcp_pose.copy()
         self.actual_tcp_speed = np.zeros(6)
         self.target_tcp_speed = np.zeros(6)
-        self._listeners: list[Callable[[Controller], None]] = []
 
     # ------------------------------------------------------------------ queries
 
@@ -426,11 +422,12 @@ class Controller:
         return stop
 
     def is_steady(self) -> bool:
-        return bool(np.max(np.abs(self.meas.qd_rad_s)) < 1e-4) and self.motion is None
+        """At rest: measured and commanded joint speeds (almost) zero."""
+        return bool(np.max(np.abs(self.meas.qd_rad_s)) < 1e-4 and np.max(np.abs(self.target_qd)) < 1e-4)
 
-    def on_tick(self, listener: Callable[[Controller], None]) -> None:
-        """Call ``listener(self)`` after every tick (under the lock); used by servers."""
-        self._listeners.append(listener)
+    def tool_contact(self, threshold_N: float = 10.0) -> bool:
+        """The zeroed TCP force exceeds ``threshold_N`` (what ``tool_contact`` reports)."""
+        return bool(np.linalg.norm(self.wrench[:3]) > threshold_N) or self.meas.contact
 
     # ------------------------------------------------------------------ the period
 
@@ -457,8 +454,6 @@ class Controller:
         self.actual_tcp_speed = _pose_rate(previous_tcp, self.actual_tcp_pose, dt)
         if self.meas.contact and self.safety_mode == SafetyMode.NORMAL:
             self.protective_stop("collision detected")
-        for listener in self._listeners:
-            listener(self)
 
     def _advance_motion(self, dt: float) -> None:
         previous_qd = self.target_qd

@@ -206,10 +206,12 @@ class LinearPath:
             self._dp.append(dp)
             self._dw.append(dw)
             lin, ang = float(np.linalg.norm(dp)), float(np.linalg.norm(dw))
-            # orientation-only moves use the same numbers as rad/s and rad/s^2
-            distance = lin if lin > 1e-6 else ang
-            profiles.append(Trapezoid(distance, max(v * self.speed_scale, 1e-9), max(a * self.speed_scale**2, 1e-9)))
-            blends.append(r if lin > 1e-6 else 0.0)
+            v_eff, a_eff = max(v * self.speed_scale, 1e-9), max(a * self.speed_scale**2, 1e-9)
+            # the orientation change uses the same numbers as rad/s and rad/s^2; the
+            # slower of the two profiles sets the pace of the segment
+            by_position, by_rotation = Trapezoid(lin, v_eff, a_eff), Trapezoid(ang, v_eff, a_eff)
+            profiles.append(by_position if by_position.duration >= by_rotation.duration else by_rotation)
+            blends.append(r if by_position.duration >= by_rotation.duration else 0.0)
             p_prev, R_prev = T[:3, 3], T[:3, :3]
         overlaps = [_overlap(profiles[k], profiles[k + 1], blends[k]) for k in range(len(profiles) - 1)]
         self._segments = _schedule(profiles, overlaps)
@@ -240,8 +242,13 @@ class LinearPath:
         if q_new is None:
             raise MotionError("movel: no inverse kinematics solution along the line")
         qd_new = (q_new - q) / dt
-        if np.any(np.abs(qd_new) > self.qd_max * 1.5):
-            raise MotionError("movel: joint speed limit exceeded along the line (singularity)")
+        over = np.abs(qd_new) / self.qd_max
+        if np.any(over > 1.5):
+            j = int(np.argmax(over))
+            raise MotionError(
+                f"movel: joint {j + 1} would need {abs(qd_new[j]):.2f} rad/s at t={self.t_s:.3f} s "
+                f"(limit {self.qd_max[j]:.2f}); the line passes near a singularity (q={np.round(q, 4).tolist()})"
+            )
         return q_new, qd_new, self.t_s >= self.duration_s
 
 

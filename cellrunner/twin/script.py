@@ -503,8 +503,14 @@ class RtdeControlProgram:
     def _tcp_offset(self, ctl: Controller) -> None:
         self._out_q(ctl, 0, ctl.tcp_offset)
 
+    def _tool_contact(self, ctl: Controller) -> None:
+        self._out_int(ctl, 1, int(ctl.tool_contact()))
+
     def _jog_start(self, ctl: Controller) -> None:
         xd = self._in_q(ctl, 0)
+        if round(self._in_double(ctl, 6)) == 1:  # tool feature: speeds in the TCP frame
+            R = pose_to_matrix(ctl.target_tcp_pose)[:3, :3]
+            xd = np.concatenate([R @ xd[:3], R @ xd[3:]])
         if isinstance(ctl.motion, mo.SpeedL):
             ctl.motion.xd_target = xd
         else:
@@ -554,7 +560,7 @@ _HANDLERS: dict[int, Callable[[RtdeControlProgram, Controller], None]] = {
     9: P._speedj, 10: P._speedl, 11: P._servoj, 12: P._unsupported,
     15: P._stop_with_decel, 16: P._stop_with_decel, 17: P._set_payload,
     18: P._unsupported, 19: P._unsupported, 20: P._damping, 21: P._gain_scaling,
-    24: P._servol, 25: P._unsupported, 26: P._steptime, 27: P._joint_history,
+    24: P._servol, 25: P._tool_contact, 26: P._steptime, 27: P._joint_history,
     28: P._target_waypoint, 29: P._set_tcp, 30: P._ik_args, 31: P._protective_stop,
     33: P._stopl_stopj, 34: P._stopl_stopj, 35: P._set_watchdog,
     36: P._pose_within_limits, 37: P._joints_within_limits, 38: P._joint_torques,

@@ -96,3 +96,19 @@ def test_pose_matrix_roundtrip():
     T = pose_to_matrix(pose)
     assert np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3))
     assert np.allclose(T[:3, 3], pose[:3])
+
+
+def test_movel_paces_by_the_slower_of_position_and_rotation():
+    k = Kinematics(SPEC)
+    qd_max = np.radians(SPEC.joint_speed_max_deg_s)
+    q_target = Q_HOME + np.array([0, 0, 0, 0, 0, 0.2])  # mostly a turn of the tool
+    pose = k.tcp_pose(q_target)
+    pose[0] += 2e-6  # and a few micrometres of travel
+    line = mo.LinearPath(Q_HOME, [(pose, 0.25, 1.2, 0.0)], k, qd_max)
+    assert line.duration_s == pytest.approx(mo.Trapezoid(0.2, 0.25, 1.2).duration, rel=1e-3)
+    q, qd = Q_HOME.copy(), np.zeros(6)
+    for _ in range(1000):
+        q, qd, done = line.advance(q, qd, 0.002)
+        if done:
+            break
+    assert done and np.allclose(k.tcp_pose(q), pose, atol=1e-6)

@@ -416,3 +416,21 @@ def test_cb3_controller_answers_as_cb3_at_125_hz():
         finally:
             control.disconnect()
             receive.disconnect()
+
+
+def test_kinematics_queries_and_rotation_only_movel(control, receive):
+    # (getForwardKinematics(q) with a zero TCP sends recipe 6, whose script reads the TCP
+    # from stale registers: a ur_rtde quirk a real controller shares; use the other forms)
+    q = receive.getActualQ()
+    pose = control.getForwardKinematics()
+    assert np.allclose(pose, receive.getActualTCPPose(), atol=1e-6)
+    with_tool = control.getForwardKinematics(q, [0, 0, 0.1, 0, 0, 0])
+    assert np.linalg.norm(np.array(with_tool[:3]) - pose[:3]) == pytest.approx(0.1, abs=1e-6)
+    assert np.allclose(control.getInverseKinematics(pose, q), q, atol=1e-5)
+    assert control.getInverseKinematicsHasSolution(pose)
+    assert np.allclose(control.poseTrans([0, 0, 0.1, 0, 0, 0], [0.1, 0, 0, 0, 0, 0]), [0.1, 0, 0.1, 0, 0, 0])
+    target = list(q)
+    target[5] += 0.2  # the TCP turns in place (flange on the wrist-3 axis)
+    assert control.moveL_FK(target, 0.25, 1.2)
+    assert np.allclose(receive.getActualQ(), target, atol=1e-4)
+    assert wait_until(control.isSteady, 1.0)
