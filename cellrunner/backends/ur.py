@@ -117,6 +117,9 @@ class URBackend:
         connect_timeout_s: float = 3.0,
         reconnect_timeout_s: float = 10.0,
         require_remote_control: bool = True,
+        tcp_pose: tuple[float, ...] | None = None,
+        payload_kg: float | None = None,
+        payload_cog_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
     ):
         self.host = host
         self.spec = spec
@@ -127,6 +130,11 @@ class URBackend:
         self.connect_timeout_s = connect_timeout_s
         self.reconnect_timeout_s = reconnect_timeout_s
         self.require_remote_control = require_remote_control
+        # set on the controller at every connect: TCP as a UR pose in the flange frame
+        # (m, rotation vector rad), payload mass (kg) and centre of gravity (m, flange)
+        self.tcp_pose = tcp_pose
+        self.payload_kg = payload_kg
+        self.payload_cog_m = payload_cog_m
         self.controller_versions: tuple[int, ...] | None = None
         self.robot_model = ""
         self._dashboard: Any = None
@@ -175,12 +183,19 @@ class URBackend:
             self._control = rtde_control.RTDEControlInterface(self.host, self.rate_hz)
             self._io = RtdeOutputWriter(self.host, timeout_s=self.connect_timeout_s)
             self._io.connect()
+            self._configure_tool()
         except BackendError:
             self._close_quietly()
             raise
         except (RuntimeError, OSError) as exc:
             self._close_quietly()
             raise self._translate(exc) from exc
+
+    def _configure_tool(self) -> None:
+        if self.tcp_pose is not None and not self._control.setTcp(list(self.tcp_pose)):
+            raise BackendError(f"the controller at {self.host} refused setTcp({list(self.tcp_pose)})")
+        if self.payload_kg is not None and not self._control.setPayload(self.payload_kg, list(self.payload_cog_m)):
+            raise BackendError(f"the controller at {self.host} refused setPayload({self.payload_kg})")
 
     def _require_running(self) -> None:
         safety = _safety_of(self._receive.getSafetyStatusBits())
@@ -449,6 +464,7 @@ class URBackend:
         except RuntimeError as exc:
             raise self._translate(exc) from exc
         self._wait_for(self._control.isProgramRunning, 5.0, "the control script did not start")
+        self._configure_tool()
 
     def _wait_for(self, predicate: Any, timeout_s: float, what: str) -> None:
         deadline = time.monotonic() + timeout_s

@@ -88,10 +88,16 @@ def twin():
 
 @pytest.fixture(scope="module")
 def backend(twin):
-    b = URBackend(twin.host, UR5E)
+    b = URBackend(twin.host, UR5E, tcp_pose=(0, 0, 0.15, 0, 0, 0), payload_kg=1.2, payload_cog_m=(0, 0, 0.05))
     b.connect()
     yield b
     b.close()
+
+
+def test_connect_sets_tool_and_payload(backend, twin):
+    state = twin.state()
+    assert state["tcp_offset"][2] == pytest.approx(0.15)
+    assert state["payload_kg"] == pytest.approx(1.2)
 
 
 def test_streams_an_approved_trajectory_and_tracks_it(backend):

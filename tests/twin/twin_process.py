@@ -25,8 +25,18 @@ def fresh_host() -> str:
 
 
 def _serve(robot: str, host: str, stop: Any, ready: Any, config: dict[str, Any]) -> None:
+    import threading
+
     from cellrunner.twin.server import run_twin
 
+    parent = os.getppid()
+
+    def orphan_watch() -> None:  # never outlive the test process (killed, timed out)
+        while not stop.wait(0.5):
+            if os.getppid() != parent:
+                stop.set()
+
+    threading.Thread(target=orphan_watch, daemon=True).start()
     run_twin(robot, host=host, stop_event=stop, ready=ready, **config)
 
 
