@@ -24,6 +24,7 @@ Joint speeds are clipped to the robot's limits in every generator.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -343,3 +344,20 @@ class SpeedL:
         qd_new = np.linalg.solve(J.T @ J + 1e-6 * np.eye(6), J.T @ self.xd)
         qd_new = _clip_speed(qd_new, self.qd_max)
         return q + qd_new * dt, qd_new, False
+
+
+@dataclass
+class UntilContact:
+    """moveUntilContact: speedl until ``in_contact()`` reports tool contact, then stop."""
+
+    speed: SpeedL
+    in_contact: Callable[[], bool]
+    decel: float = 3.0
+    stop: Stop | None = None
+
+    def advance(self, q: np.ndarray, qd: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, bool]:
+        if self.stop is None and self.in_contact():
+            self.stop = Stop(self.decel)
+        if self.stop is not None:
+            return self.stop.advance(q, qd, dt)
+        return self.speed.advance(q, qd, dt)

@@ -503,6 +503,12 @@ class RtdeControlProgram:
     def _tcp_offset(self, ctl: Controller) -> None:
         self._out_q(ctl, 0, ctl.tcp_offset)
 
+    def _move_until_contact(self, ctl: Controller) -> None:
+        xd, acc = self._in_q(ctl, 0), self._in_double(ctl, 12)
+        self._stop_async_move(ctl)
+        speed = mo.SpeedL(xd, acc or 0.5, ctl.kinematics, ctl.qd_max)
+        self.busy = ctl.start_motion(mo.UntilContact(speed, ctl.tool_contact))
+
     def _tool_contact(self, ctl: Controller) -> None:
         self._out_int(ctl, 1, int(ctl.tool_contact()))
 
@@ -566,7 +572,7 @@ _HANDLERS: dict[int, Callable[[RtdeControlProgram, Controller], None]] = {
     36: P._pose_within_limits, 37: P._joints_within_limits, 38: P._joint_torques,
     39: P._pose_trans, 40: P._tcp_offset, 41: P._jog_start, 42: P._jog_stop,
     43: P._fk_default, 44: P._fk_args, 45: P._move_path, 46: P._ik_default,
-    47: P._is_steady, 51: P._unsupported, 52: P._unsupported, 53: P._unsupported,
+    47: P._is_steady, 51: P._move_until_contact, 52: P._unsupported, 53: P._unsupported,
     54: P._freedrive_status, 56: P._unsupported, 57: P._unsupported, 58: P._flange_pose,
     59: P._unsupported, 60: P._ik_has_solution, 61: P._ik_has_solution,
     62: P._unsupported, 63: P._unsupported, 64: P._read_contact, 65: P._set_payload,

@@ -228,6 +228,8 @@ class TwinServer:
 
     def _io_loop(self) -> None:
         assert self._selector is not None
+        if self.realtime:  # commands must not wait behind other processes either
+            _try_realtime_priority(10)
         while not self._stop.is_set():
             try:
                 events = self._selector.select(timeout=0.05)

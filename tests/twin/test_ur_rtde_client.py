@@ -434,3 +434,21 @@ def test_kinematics_queries_and_rotation_only_movel(control, receive):
     assert control.moveL_FK(target, 0.25, 1.2)
     assert np.allclose(receive.getActualQ(), target, atol=1e-4)
     assert wait_until(control.isSteady, 1.0)
+
+
+def test_move_until_contact_stops_on_tool_force(control, receive, twin):
+    import threading
+
+    z0 = receive.getActualTCPPose()[2]
+    presser = threading.Timer(0.4, lambda: twin.fault("wrench 0 0 25 0 0 0"))
+    presser.start()
+    try:
+        t0 = time.monotonic()
+        assert control.moveUntilContact([0, 0, -0.05, 0, 0, 0])
+        elapsed = time.monotonic() - t0
+    finally:
+        presser.join()
+        twin.fault("wrench 0 0 0 0 0 0")
+    travelled = z0 - receive.getActualTCPPose()[2]
+    assert 0.35 < elapsed < 2.0
+    assert 0.01 < travelled < 0.05  # moved down at 5 cm/s until the force came
