@@ -148,7 +148,13 @@ class URBackend:
     # ------------------------------------------------------------------ lifecycle
 
     def connect(self) -> None:
-        """Probe, check identity and remote control, open the ur_rtde interfaces."""
+        """Probe, check identity and remote control, open the ur_rtde interfaces.
+
+        An arm that is not ready (powered off, brakes on, protective or emergency stop)
+        does not fail ``connect``: the state shows it (``read_state``) and the control
+        script is uploaded once :meth:`unlock_protective_stop` / :meth:`recover_from_estop`
+        (which also powers up a powered-off arm) made the arm ready."""
+        self._close_quietly()
         versions = controller_version(self.host, self.connect_timeout_s)
         generation = generation_of(versions)
         version_text = ".".join(str(v) for v in versions)
@@ -159,7 +165,6 @@ class URBackend:
             )
         self.controller_versions = versions
         import dashboard_client
-        import rtde_control
         import rtde_receive
 
         try:
@@ -179,11 +184,10 @@ class URBackend:
                         "switch the teach pendant to Remote Control"
                     )
             self._receive = rtde_receive.RTDEReceiveInterface(self.host, self.rate_hz, RECEIVE_VARIABLES)
-            self._require_running()
-            self._control = rtde_control.RTDEControlInterface(self.host, self.rate_hz)
             self._io = RtdeOutputWriter(self.host, timeout_s=self.connect_timeout_s)
             self._io.connect()
-            self._configure_tool()
+            if self._arm_ready():
+                self._open_control()
         except BackendError:
             self._close_quietly()
             raise
@@ -197,15 +201,21 @@ class URBackend:
         if self.payload_kg is not None and not self._control.setPayload(self.payload_kg, list(self.payload_cog_m)):
             raise BackendError(f"the controller at {self.host} refused setPayload({self.payload_kg})")
 
-    def _require_running(self) -> None:
-        safety = _safety_of(self._receive.getSafetyStatusBits())
-        if safety != Safety.NORMAL:
-            raise SafetyStop(f"the controller at {self.host} is in {safety.value}", safety)
-        if self._receive.getRobotMode() != _ROBOT_MODE_RUNNING:
-            raise BackendError(
-                f"the arm at {self.host} is not ready (robot mode {self._receive.getRobotMode()}); "
-                "power it on and release the brakes"
-            )
+    def _arm_ready(self) -> bool:
+        return (
+            _safety_of(self._receive.getSafetyStatusBits()) == Safety.NORMAL
+            and self._receive.getRobotMode() == _ROBOT_MODE_RUNNING
+        )
+
+    def _open_control(self) -> None:
+        """RTDEControl uploads ur_rtde's control script; then the tool is configured."""
+        import rtde_control
+
+        try:
+            self._control = rtde_control.RTDEControlInterface(self.host, self.rate_hz)
+        except RuntimeError as exc:
+            raise self._translate(exc) from exc
+        self._configure_tool()
 
     def _translate(self, exc: Exception) -> BackendError | PeerUnreachable:
         text = str(exc)
@@ -219,8 +229,8 @@ class URBackend:
 
     def close(self) -> None:
         """Stop motion and release every connection; idempotent."""
-        if self._control is not None:
-            try:
+        if self._control is not None and self._control.isConnected():
+            try:  # (on a broken link ur_rtde would try to reconnect inside these calls)
                 if self._servoing and self._control.isProgramRunning():
                     self._control.servoStop(4.0)
                 self._control.stopScript()
@@ -283,7 +293,7 @@ class URBackend:
         if receive is None or not receive.isConnected():
             return RobotState(0.0, np.zeros(6), np.zeros(6), np.zeros(6), Safety.DISCONNECTED, powered=False)
         safety = _safety_of(receive.getSafetyStatusBits())
-        if self._control is None or not self._control.isConnected():
+        if self._control is not None and not self._control.isConnected():
             safety = Safety.DISCONNECTED
         inputs_bits, output_bits = receive.getActualDigitalInputBits(), receive.getActualDigitalOutputBits()
         inputs: dict[str, float | bool] = {}
@@ -311,9 +321,9 @@ class URBackend:
     # ------------------------------------------------------------------ streaming
 
     def _check_link_and_safety(self) -> None:
-        if self._receive is None or self._control is None:
+        if self._receive is None:
             raise BackendError("not connected; call connect() first")
-        if not self._receive.isConnected() or not self._control.isConnected():
+        if not self._receive.isConnected() or (self._control is not None and not self._control.isConnected()):
             raise ConnectionLost(f"lost the connection to the controller at {self.host}")
         safety = _safety_of(self._receive.getSafetyStatusBits())
         if safety != Safety.NORMAL:
@@ -322,6 +332,13 @@ class URBackend:
             self._servoing = False
             self._t_cycle = None
             raise SafetyStop(f"the controller at {self.host} stopped the arm: {safety.value}", safety)
+        if self._control is None:
+            if self._receive.getRobotMode() != _ROBOT_MODE_RUNNING:
+                raise BackendError(
+                    f"the arm at {self.host} is not ready (robot mode {self._receive.getRobotMode()}); "
+                    "power it on and release the brakes (recover_from_estop)"
+                )
+            self._open_control()
 
     def servo(self, trajectory: ApprovedTrajectory, index: int) -> None:
         if not isinstance(trajectory, ApprovedTrajectory) or not trajectory.is_sealed:
@@ -401,6 +418,7 @@ class URBackend:
         if self.spec.generation != "e-Series":
             raise BackendError(f"{self.spec.name} (CB3) has no built-in force/torque sensor to zero")
         self._check_link_and_safety()
+        assert self._control is not None
         if not self._control.zeroFtSensor():
             raise BackendError(f"the controller at {self.host} refused zeroFtSensor")
 
@@ -440,7 +458,8 @@ class URBackend:
                 time.sleep(0.25)
 
     def recover_from_estop(self) -> None:
-        """After a person released the e-stop: power on, release brakes, re-arm."""
+        """After a person released the e-stop (or for an arm found powered off): power
+        on, release the brakes, (re)start the control script."""
         if self._dashboard is None or self._receive is None:
             raise BackendError("not connected; call connect() first")
         if _safety_of(self._receive.getSafetyStatusBits()) == Safety.EMERGENCY_STOP:
@@ -458,6 +477,9 @@ class URBackend:
         self._reupload()
 
     def _reupload(self) -> None:
+        if self._control is None or not self._control.isConnected():
+            self._open_control()
+            return
         try:
             if not self._control.reuploadScript():
                 raise BackendError(f"could not re-upload the control script to {self.host}")

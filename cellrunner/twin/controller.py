@@ -442,9 +442,8 @@ class Controller:
             self.robot_mode = mode
         self._check_watchdog()
         if self.program is not None and not self.program.tick(self):
-            self.program = None
-            self.runtime_state = RuntimeState.STOPPED
-            self.watchdog = None
+            # a program that ends stops the arm (servo and speed threads end with it)
+            self._halt_program("finished")
         self._advance_motion(dt)
         self.physics.apply_outputs(self.digital_output_bits)
         self.physics.step(self.target_q, dt)

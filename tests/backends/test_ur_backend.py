@@ -222,3 +222,22 @@ def test_cb3_streams_at_125_hz():
         finally:
             backend.close()
 
+
+
+def test_powered_off_arm_connects_and_powers_up_on_request():
+    with TwinProcess("ur5e", start_running=False, power_on_s=0.2, brake_release_s=0.2) as twin:
+        backend = URBackend(twin.host, UR5E)
+        backend.connect()
+        try:
+            state = backend.read_state()
+            assert not state.powered and not state.brakes_released
+            assert state.safety == Safety.NORMAL
+            approved = approve(wave(500.0, 0.6, state.q_rad), 0, "cold")
+            with pytest.raises(BackendError, match="not ready"):
+                backend.servo(approved, 0)
+            assert twin.state()["programs_started"] == 0
+            backend.recover_from_estop()
+            assert backend.read_state().brakes_released
+            assert_tracks(stream(backend, approved))
+        finally:
+            backend.close()
