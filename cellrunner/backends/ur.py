@@ -31,6 +31,7 @@ ur_rtde's exceptions (``RuntimeError``/``logic_error`` with text) are translated
 from __future__ import annotations
 
 import datetime
+import re
 import time
 from typing import Any
 
@@ -84,6 +85,11 @@ class SafetyStop(BackendError):
 
 class ConnectionLost(BackendError):
     """A connection to the controller dropped; call :meth:`URBackend.reconnect`."""
+
+
+def _model_family(name: str) -> str:
+    """``ur5e`` / ``UR5e`` / ``UR5`` -> ``UR5``."""
+    return name.strip().upper().removesuffix("E")
 
 
 def _safety_of(bits: int) -> Safety:
@@ -171,8 +177,11 @@ class URBackend:
             self._dashboard = dashboard_client.DashboardClient(self.host)
             self._dashboard.connect(int(self.connect_timeout_s * 1000))
             self.robot_model = self._dashboard.getRobotModel().strip()
-            expected = self.spec.name.upper().rstrip("E")
-            if self.robot_model != expected:
+            expected = _model_family(self.spec.name)
+            # the dashboard answers "UR5" for a UR5 and a UR5e alike (the generation was
+            # checked above); a reply that names no model is not held against the robot
+            reported = _model_family(self.robot_model)
+            if re.fullmatch(r"UR\d+", reported) and reported != expected:
                 raise ControllerMismatch(
                     f"the controller at {self.host} drives a {self.robot_model} "
                     f"but the cell's robot is {self.spec.name} ({expected})"

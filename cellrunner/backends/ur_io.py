@@ -39,6 +39,7 @@ class RtdeOutputWriter:
         self.host, self.port, self.timeout_s = host, port, timeout_s
         self._sock: socket.socket | None = None
         self._recipe_ids: dict[str, int] = {}
+        self.refused: dict[str, str] = {}  # output kind -> why the controller refused it
 
     def connect(self) -> None:
         sock = socket.create_connection((self.host, self.port), timeout=self.timeout_s)
@@ -49,11 +50,10 @@ class RtdeOutputWriter:
                 body = self._exchange(sock, "I", names.encode())
                 types = body[1:].decode("ascii", "replace")
                 if body[0] == 0 or "IN_USE" in types or "NOT_FOUND" in types:
-                    raise BackendError(
-                        f"the controller at {self.host} refused the output recipe {names} ({types}); "
-                        "another RTDE client or a fieldbus (EtherNet/IP, PROFINET, Modbus) owns it"
-                    )
-                self._recipe_ids[kind] = body[0]
+                    # refused now, reported when that kind of output is used
+                    self.refused[kind] = f"{names} -> {types}"
+                else:
+                    self._recipe_ids[kind] = body[0]
         except BaseException:
             sock.close()
             raise
@@ -84,6 +84,12 @@ class RtdeOutputWriter:
     def _send(self, kind: str, fields: bytes) -> None:
         if self._sock is None:
             raise IoConnectionLost(f"outputs of {self.host}: not connected")
+        if kind not in self._recipe_ids:
+            raise BackendError(
+                f"the controller at {self.host} refused the RTDE inputs for {kind} outputs "
+                f"({self.refused.get(kind, 'not set up')}); another RTDE client or a fieldbus "
+                "(EtherNet/IP, PROFINET, Modbus) may own them"
+            )
         payload = bytes([self._recipe_ids[kind]]) + fields
         if not self._alive():
             self.close()
