@@ -283,6 +283,8 @@ class Servo:
     def set_target(self, q_rad: np.ndarray, period_s: float, lookahead_s: float, gain: float) -> None:
         q_rad = np.asarray(q_rad, dtype=float)
         period_s = max(period_s, 1e-3)
+        if self.target is not None and np.array_equal(q_rad, self.target):
+            return  # the same command seen again in a later period: nothing new
         if self.target is not None and self._age_s <= 3 * period_s:
             self.feed_forward = (q_rad - self.target) / period_s
         else:
