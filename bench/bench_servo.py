@@ -52,7 +52,7 @@ def pct(values: list[float], q: float) -> float:
     return float(np.percentile(values, q)) if values else float("nan")
 
 
-def bench(host: str, seconds: float) -> dict[str, list[float] | dict]:
+def bench(host: str, seconds: float, rate_hz: float) -> dict[str, list[float] | dict]:
     import rtde_control
     import rtde_receive
 
@@ -63,7 +63,7 @@ def bench(host: str, seconds: float) -> dict[str, list[float] | dict]:
         realtime = False
     receive = rtde_receive.RTDEReceiveInterface(host)
     control = rtde_control.RTDEControlInterface(host)
-    period = 1.0 / (500.0 if control.getStepTime() < 0.005 else 125.0)
+    period = 1.0 / rate_hz
     try:
         q0 = np.array(receive.getActualQ())
         sends, errors = [], []
@@ -124,7 +124,9 @@ def main() -> int:
     args = parser.parse_args()
     twin = start_twin(args.model, args.host)
     try:
-        r = bench(args.host, args.seconds)
+        from cellrunner.model.robots import robot_spec
+
+        r = bench(args.host, args.seconds, robot_spec(args.model).rate_hz)
     finally:
         twin.terminate()
         twin.wait(5)
