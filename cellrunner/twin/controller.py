@@ -336,6 +336,21 @@ class Controller:
         self.add_log(f"program {program.name!r} started")
         return True
 
+    def pause_program(self) -> bool:
+        """Dashboard ``pause``: the arm stops, the program keeps its place."""
+        if self.program is None or self.runtime_state != RuntimeState.PLAYING:
+            return False
+        self.runtime_state = RuntimeState.PAUSED
+        if self.motion is not None and not isinstance(self.motion, mo.Stop):
+            self.motion = mo.Stop(self.accel_max)
+        return True
+
+    def resume_program(self) -> bool:
+        if self.program is None or self.runtime_state != RuntimeState.PAUSED or not self.can_move:
+            return False
+        self.runtime_state = RuntimeState.PLAYING
+        return True
+
     def stop_program(self) -> None:
         """Dashboard ``stop`` or end of a program: the arm stops, runtime STOPPED."""
         self._halt_program("stopped")
@@ -441,7 +456,9 @@ class Controller:
             self._mode_timer = None
             self.robot_mode = mode
         self._check_watchdog()
-        if self.program is not None and not self.program.tick(self):
+        if self.runtime_state == RuntimeState.PAUSED:
+            pass  # a paused program keeps its place and does not run
+        elif self.program is not None and not self.program.tick(self):
             # a program that ends stops the arm (servo and speed threads end with it)
             self._halt_program("finished")
         self._advance_motion(dt)

@@ -20,6 +20,20 @@ _REMOTE_ONLY = (
 )  # fmt: skip
 
 
+class InstalledProgram:
+    """A ``.urp`` loaded on the pendant: the twin cannot read it, so playing it runs
+    nothing but shows PLAYING until ``stop`` (what a PLC sequence watches)."""
+
+    def __init__(self, name: str):
+        self.name = name
+
+    def tick(self, ctl: Controller) -> bool:
+        return True
+
+    def kill(self, ctl: Controller) -> None:
+        pass
+
+
 def software_version(ctl: Controller) -> str:
     major, minor, bugfix, build = ctl.versions
     return f"{major}.{minor}.{bugfix}.{build}"
@@ -86,13 +100,13 @@ def handle(ctl: Controller, line: str) -> tuple[str, bool]:
         ctl.stop_program()
         return "Stopped", False
     if cmd == "play":
-        if ctl.loaded_program and ctl.can_move:
+        if ctl.resume_program():
+            return "Starting program", False
+        if ctl.loaded_program and ctl.start_program(InstalledProgram(ctl.loaded_program)):
             return "Starting program", False
         return "Failed to execute: play", False
     if cmd == "pause":
-        if ctl.runtime_state == RuntimeState.PLAYING:
-            return "Pausing program", False
-        return "Failed to execute: pause", False
+        return ("Pausing program" if ctl.pause_program() else "Failed to execute: pause"), False
     if cmd.startswith("load installation "):
         return f"Loading installation: {raw[18:]}", False
     if cmd.startswith("load "):

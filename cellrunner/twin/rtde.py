@@ -298,7 +298,8 @@ class RtdeSession:
         with self.ctl.lock:
             versions = self.ctl.versions
         types = [output_type(n, versions) for n in names]
-        if not names or "NOT_FOUND" in types or not 0 < frequency <= self.ctl.spec.rate_hz:
+        frequency = min(frequency, self.ctl.spec.rate_hz)  # never faster than the controller
+        if not names or "NOT_FOUND" in types or not frequency > 0:
             return self.message(O, struct.pack(">B", 0) + ",".join(types).encode())
         recipe_id = self._new_recipe_id("out")
         fmt = ">" + "".join(_FORMATS[t] for t in types)

@@ -44,7 +44,7 @@ log [N]                       -> ok [json list of the last N controller log line
 timing                        -> ok {json: real-time loop period stats over the last ~4000 periods}
 protective_stop [REASON]      -> the controller raises a protective stop now
 collision [on|off]            -> the physics reports contact (protective stop follows)
-estop press|release           -> robot emergency stop pressed / released
+estop press [system]|release  -> robot (or system) emergency stop pressed / released
 fault                         -> safety fault (needs restart safety)
 input CH 0|1|clear            -> force digital input CH (DI0-7, CI0-7, TI0-1)
 wrench FX FY FZ TX TY TZ      -> flange wrench the physics reports (N, N m)
@@ -416,8 +416,9 @@ class TwinServer:
                 if args and args[0].lower() == "release":
                     ctl.release_estop()
                     return "estop released"
-                ctl.press_estop()
-                return "estop pressed"
+                system = len(args) > 1 and args[1].lower() == "system"
+                ctl.press_estop(system=system)
+                return f"{'system ' if system else ''}estop pressed"
             if cmd == "fault":
                 ctl.raise_fault()
                 return "fault"

@@ -452,3 +452,24 @@ def test_move_until_contact_stops_on_tool_force(control, receive, twin):
     travelled = z0 - receive.getActualTCPPose()[2]
     assert 0.35 < elapsed < 2.0
     assert 0.01 < travelled < 0.05  # moved down at 5 cm/s until the force came
+
+
+def test_dashboard_play_pause_stop_of_a_loaded_program():
+    with TwinProcess("ur5e") as twin:
+        d = Dashboard(twin.host)
+        try:
+            assert d.ask("play") == "Failed to execute: play"  # nothing loaded
+            assert d.ask("load /programs/cell.urp") == "Loading program: /programs/cell.urp"
+            assert d.ask("play") == "Starting program"
+            assert d.ask("programState") == "PLAYING /programs/cell.urp"
+            assert d.ask("running") == "Program running: true"
+            assert d.ask("pause") == "Pausing program"
+            assert d.ask("programState") == "PAUSED /programs/cell.urp"
+            assert d.ask("play") == "Starting program"
+            assert d.ask("stop") == "Stopped"
+            assert d.ask("programState").startswith("STOPPED")
+            twin.fault("estop press system")
+            assert d.ask("safetystatus") == "Safetystatus: SYSTEM_EMERGENCY_STOP"
+            assert d.ask("play") == "Failed to execute: play"
+        finally:
+            d.close()
