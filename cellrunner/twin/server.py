@@ -33,7 +33,7 @@ from typing import Any
 from cellrunner.model.robots import RobotSpec, robot_spec
 from cellrunner.twin import dashboard
 from cellrunner.twin.controller import Controller, ControllerConfig, RobotMode, RuntimeState, SafetyMode
-from cellrunner.twin.physics import Physics
+from cellrunner.twin.physics import KinematicPhysics, Physics
 from cellrunner.twin.rtde import InputOwners, RtdeError, RtdeSession
 from cellrunner.twin.script import ScriptError, SimpleProgram, parse_program
 
@@ -508,11 +508,22 @@ def _try_realtime_priority(priority: int = 20) -> bool:
 
 
 def make_controller(
-    robot: str | RobotSpec, physics: Physics | None = None, **config: Any
+    robot: str | RobotSpec,
+    physics: Physics | None = None,
+    loopback: dict[str, str] | None = None,
+    **config: Any,
 ) -> Controller:
     """A controller for model ``robot`` (``"ur5e"`` or a RobotSpec); ``config`` sets
-    :class:`ControllerConfig` fields (timings, initial joints, versions...)."""
+    :class:`ControllerConfig` fields (timings, initial joints, versions...).
+
+    Without ``physics`` the arm is a :class:`KinematicPhysics`; ``loopback`` wires its
+    outputs to inputs by channel name (``{"DO0": "DI0"}``: a valve and its sensor)."""
     spec = robot_spec(robot) if isinstance(robot, str) else robot
+    if physics is None:
+        wiring = {parse_channel(out): parse_channel(inp) for out, inp in (loopback or {}).items()}
+        physics = KinematicPhysics(spec, loopback=wiring)
+    elif loopback:
+        raise ValueError("loopback wires the kinematic physics only; this physics has its own IO")
     return Controller(ControllerConfig(spec=spec, **config), physics)
 
 
@@ -523,15 +534,18 @@ def run_twin(
     stop_event: Any = None,
     ports: TwinPorts | None = None,
     ready: Any = None,
+    loopback: dict[str, str] | None = None,
     **config: Any,
 ) -> None:
     """Serve a virtual UR controller on ``host`` until ``stop_event`` is set.
 
-    ``physics`` defaults to :class:`~cellrunner.twin.physics.KinematicPhysics`;
-    ``ready`` (an Event) is set once every port is bound. Without ``stop_event`` it
+    ``physics`` defaults to :class:`~cellrunner.twin.physics.KinematicPhysics` (with
+    ``loopback`` wiring, see :func:`make_controller`); ``config`` sets
+    :class:`ControllerConfig` fields, e.g. ``q_initial_rad`` (the cell's home) or
+    ``unlock_delay_s``; ``ready`` (an Event) is set once every port is bound. Without ``stop_event`` it
     serves until interrupted (Ctrl-C / SIGTERM in the caller).
     """
-    server = TwinServer(make_controller(robot, physics, **config), host, ports)
+    server = TwinServer(make_controller(robot, physics, loopback, **config), host, ports)
     server.start()
     try:
         if ready is not None:

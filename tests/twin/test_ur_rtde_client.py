@@ -473,3 +473,29 @@ def test_dashboard_play_pause_stop_of_a_loaded_program():
             assert d.ask("play") == "Failed to execute: play"
         finally:
             d.close()
+
+
+def test_script_port_runs_simple_programs_and_refuses_others():
+    with TwinProcess("ur5e", loopback={"DO0": "DI0"}) as twin:
+        receive = rtde_receive.RTDEReceiveInterface(twin.host)
+        try:
+            q = receive.getActualQ()
+            target = [q[0] + 0.2, *q[1:]]
+            with socket.create_connection((twin.host, 30002), timeout=3) as sock:
+                sock.sendall(
+                    (
+                        "def cell_test():\n"
+                        f"  movej({target}, a=2.0, v=1.0)\n"
+                        "  set_standard_digital_out(0, True)\n"
+                        "  write_output_integer_register(13, 7)\n"
+                        "end\n"
+                    ).encode()
+                )
+                assert wait_until(lambda: receive.getDigitalOutState(0), 3.0)
+                assert np.allclose(receive.getActualQ(), target, atol=1e-5)
+                assert wait_until(lambda: receive.getDigitalInState(0), 1.0)  # DO0 -> DI0 wiring
+                assert receive.getOutputIntRegister(13) == 7
+                sock.sendall(b"socket_open(\"10.0.0.1\", 80)\n")
+                assert wait_until(lambda: "program refused: unsupported statement" in twin.fault("log"), 1.0)
+        finally:
+            receive.disconnect()
