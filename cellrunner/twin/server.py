@@ -504,6 +504,33 @@ def _try_realtime_priority(priority: int = 20) -> bool:
         return False
 
 
+class FaultClient:
+    """Client of a twin's fault channel (e.g. for ``--inject`` against ``cellrunner twin``).
+
+    ``FaultClient("127.0.0.2").command("protective_stop")`` -> reply text after ``ok``;
+    a refused command raises ValueError, an unreachable twin OSError."""
+
+    def __init__(self, host: str, port: int = TwinPorts.fault, timeout_s: float = 3.0):
+        self.host, self.port, self.timeout_s = host, port, timeout_s
+
+    def command(self, line: str) -> str:
+        with socket.create_connection((self.host, self.port), timeout=self.timeout_s) as sock:
+            sock.sendall((line.strip() + "\n").encode())
+            reply = b""
+            while not reply.endswith(b"\n"):
+                chunk = sock.recv(65536)
+                if not chunk:
+                    break
+                reply += chunk
+        text = reply.decode().strip()
+        if not text.startswith("ok"):
+            raise ValueError(f"twin fault channel refused {line!r}: {text}")
+        return text[3:]
+
+    def state(self) -> dict[str, Any]:
+        return json.loads(self.command("state"))
+
+
 # ---------------------------------------------------------------------- entry point
 
 

@@ -6,6 +6,7 @@ change safety state get their own twin.
 
 from __future__ import annotations
 
+import json
 import math
 import socket
 import struct
@@ -499,3 +500,13 @@ def test_script_port_runs_simple_programs_and_refuses_others():
                 assert wait_until(lambda: "program refused: unsupported statement" in twin.fault("log"), 1.0)
         finally:
             receive.disconnect()
+
+
+def test_fault_channel_names_known_commands_on_error(twin):
+    with pytest.raises(ValueError, match=r"unknown command 'bogus'; known: ping, state"):
+        twin.fault("bogus")
+    with pytest.raises(ValueError, match=r"unknown channel 'XX9'"):
+        twin.fault("input XX9 1")
+    timing = json.loads(twin.fault("timing"))
+    assert timing["period_s"] == pytest.approx(0.002)
+    assert timing["n"] > 100

@@ -76,19 +76,9 @@ class TwinProcess:
 
     def fault(self, command: str, timeout_s: float = 3.0) -> str:
         """Send one fault-channel command; returns the text after ``ok`` (raises on error)."""
-        with socket.create_connection((self.host, 29990), timeout=timeout_s) as sock:
-            sock.sendall((command + "\n").encode())
-            reply = b""
-            deadline = time.monotonic() + timeout_s
-            while not reply.endswith(b"\n") and time.monotonic() < deadline:
-                chunk = sock.recv(65536)
-                if not chunk:
-                    break
-                reply += chunk
-        text = reply.decode().strip()
-        if not text.startswith("ok"):
-            raise RuntimeError(f"fault channel: {command!r} -> {text!r}")
-        return text[3:]
+        from cellrunner.twin.server import FaultClient
+
+        return FaultClient(self.host, timeout_s=timeout_s).command(command)
 
     def state(self) -> dict[str, Any]:
         return json.loads(self.fault("state"))
