@@ -87,3 +87,9 @@ class RobotBackend(Protocol):
 
     def recover_from_estop(self) -> None:
         """After a person released the e-stop: power on, release brakes, re-arm."""
+
+    def reconnect(self, timeout_s: float | None = None) -> None:
+        """After ``read_state().safety`` is DISCONNECTED (or a call raised): reopen the
+        connections, retrying with backoff for at most ``timeout_s``; raise
+        PeerUnreachable if the robot does not come back (result code 102). The sim
+        backend has nothing to reconnect and returns at once."""

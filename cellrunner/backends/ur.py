@@ -1,0 +1,505 @@
+"""The ``ur`` backend: a Universal Robots controller through ur_rtde.
+
+Lifecycle (``RobotBackend``): construct (no I/O) -> :meth:`URBackend.connect` -> cycles
+of ``servo(trajectory, i)`` + ``wait_period()`` -> :meth:`URBackend.close`.
+
+``connect`` first probes the controller over RTDE (bounded, :mod:`ur_probe`) and asks the
+dashboard for its model and remote-control state; it refuses a controller whose
+generation or model differs from the cell's (:class:`ControllerMismatch`) and one in
+local control (:class:`RemoteControlOff`). Then it opens RTDEReceive (the state, every
+controller period), RTDEControl (uploads ur_rtde's control script) and RTDEIO.
+
+Streaming is ``servoJ`` at the controller rate (500 Hz e-Series, 125 Hz CB3), paced by
+ur_rtde's ``initPeriod``/``waitPeriod``; every ``servo`` call first checks the safety
+bits of the latest state and raises :class:`SafetyStop` on a protective or emergency
+stop, :class:`ConnectionLost` when a connection dropped.
+
+Recovery, as UR prescribes it:
+
+- protective stop: :meth:`unlock_protective_stop` closes the safety popup and unlocks
+  (the controller refuses for 5 s after the stop: :class:`BackendError` carrying UR's
+  text), then re-uploads the control script; :meth:`recover_from_protective_stop` waits
+  for the 5 s itself (bounded);
+- e-stop: after a person released it, :meth:`recover_from_estop` powers on, releases the
+  brakes and re-uploads the control script;
+- connection loss: :meth:`reconnect` retries with exponential backoff for a bounded
+  time, then raises :class:`PeerUnreachable` (result code 102 for the engine).
+
+ur_rtde's exceptions (``RuntimeError``/``logic_error`` with text) are translated here.
+"""
+
+from __future__ import annotations
+
+import datetime
+import re
+import time
+from typing import Any
+
+import numpy as np
+
+from cellrunner.backends.base import BackendError, RobotState, Safety
+from cellrunner.backends.ur_io import IoConnectionLost, RtdeOutputWriter
+from cellrunner.backends.ur_probe import controller_version, generation_of
+from cellrunner.errors import PeerUnreachable
+from cellrunner.model.robots import RobotSpec
+from cellrunner.model.trajectory import ApprovedTrajectory
+
+RECEIVE_VARIABLES = [
+    "timestamp",
+    "actual_q",
+    "actual_qd",
+    "target_q",
+    "actual_TCP_force",
+    "robot_mode",
+    "safety_mode",
+    "robot_status_bits",
+    "safety_status_bits",
+    "runtime_state",
+    "actual_digital_input_bits",
+    "actual_digital_output_bits",
+    "standard_analog_input0",
+    "standard_analog_input1",
+    "standard_analog_output0",
+    "standard_analog_output1",
+]
+_ROBOT_MODE_RUNNING = 7
+_ROBOT_MODE_IDLE = 5
+_CHANNELS = "DO0-7, CO0-7, TO0-1, AO0-1"
+
+
+class ControllerMismatch(BackendError):
+    """The controller is not the robot the cell file describes."""
+
+
+class RemoteControlOff(BackendError):
+    """The controller is in local control; production needs remote control."""
+
+
+class SafetyStop(BackendError):
+    """The controller stopped the arm; ``safety`` says how."""
+
+    def __init__(self, message: str, safety: Safety):
+        super().__init__(message)
+        self.safety = safety
+
+
+class ConnectionLost(BackendError):
+    """A connection to the controller dropped; call :meth:`URBackend.reconnect`."""
+
+
+def _model_family(name: str) -> str:
+    """``ur5e`` / ``UR5e`` / ``UR5`` -> ``UR5``."""
+    return name.strip().upper().removesuffix("E")
+
+
+def _safety_of(bits: int) -> Safety:
+    if bits & (1 << 5 | 1 << 6 | 1 << 7):
+        return Safety.EMERGENCY_STOP
+    if bits & (1 << 8 | 1 << 9):
+        return Safety.FAULT
+    if bits & (1 << 2 | 1 << 4):
+        return Safety.PROTECTIVE_STOP
+    return Safety.NORMAL
+
+
+def _channel(name: str) -> tuple[str, int]:
+    kind, index = name[:2].upper(), name[2:]
+    limits = {"DO": 8, "CO": 8, "TO": 2, "AO": 2, "DI": 8, "CI": 8, "TI": 2, "AI": 2}
+    if kind not in limits or not index.isdigit() or int(index) >= limits[kind]:
+        raise BackendError(f"unknown output channel {name!r}; valid: {_CHANNELS}")
+    return kind, int(index)
+
+
+class URBackend:
+    """A UR arm through ur_rtde; see the module docstring for the lifecycle."""
+
+    def __init__(
+        self,
+        host: str,
+        spec: RobotSpec,
+        *,
+        servo_lookahead_s: float = 0.03,
+        servo_gain: float = 1000.0,
+        connect_timeout_s: float = 3.0,
+        reconnect_timeout_s: float = 10.0,
+        require_remote_control: bool = True,
+        tcp_pose: tuple[float, ...] | None = None,
+        payload_kg: float | None = None,
+        payload_cog_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ):
+        self.host = host
+        self.spec = spec
+        self.rate_hz = spec.rate_hz
+        self.period_s = 1.0 / spec.rate_hz
+        self.servo_lookahead_s = servo_lookahead_s
+        self.servo_gain = servo_gain
+        self.connect_timeout_s = connect_timeout_s
+        self.reconnect_timeout_s = reconnect_timeout_s
+        self.require_remote_control = require_remote_control
+        # set on the controller at every connect: TCP as a UR pose in the flange frame
+        # (m, rotation vector rad), payload mass (kg) and centre of gravity (m, flange)
+        self.tcp_pose = tcp_pose
+        self.payload_kg = payload_kg
+        self.payload_cog_m = payload_cog_m
+        self.controller_versions: tuple[int, ...] | None = None
+        self.robot_model = ""
+        self._dashboard: Any = None
+        self._receive: Any = None
+        self._control: Any = None
+        self._io: Any = None
+        self._t_cycle: Any = None
+        self._servoing = False
+        self._protective_stop_seen_at: float | None = None
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def connect(self) -> None:
+        """Probe, check identity and remote control, open the ur_rtde interfaces.
+
+        An arm that is not ready (powered off, brakes on, protective or emergency stop)
+        does not fail ``connect``: the state shows it (``read_state``) and the control
+        script is uploaded once :meth:`unlock_protective_stop` / :meth:`recover_from_estop`
+        (which also powers up a powered-off arm) made the arm ready."""
+        self._close_quietly()
+        versions = controller_version(self.host, self.connect_timeout_s)
+        generation = generation_of(versions)
+        version_text = ".".join(str(v) for v in versions)
+        if generation != self.spec.generation:
+            raise ControllerMismatch(
+                f"the controller at {self.host} is {generation} (PolyScope {version_text}) "
+                f"but the cell's robot {self.spec.name} is {self.spec.generation}"
+            )
+        self.controller_versions = versions
+        import dashboard_client
+        import rtde_receive
+
+        try:
+            self._dashboard = dashboard_client.DashboardClient(self.host)
+            self._dashboard.connect(int(self.connect_timeout_s * 1000))
+            self.robot_model = self._dashboard.getRobotModel().strip()
+            expected = _model_family(self.spec.name)
+            # the dashboard answers "UR5" for a UR5 and a UR5e alike (the generation was
+            # checked above); a reply that names no model is not held against the robot
+            reported = _model_family(self.robot_model)
+            if re.fullmatch(r"UR\d+", reported) and reported != expected:
+                raise ControllerMismatch(
+                    f"the controller at {self.host} drives a {self.robot_model} "
+                    f"but the cell's robot is {self.spec.name} ({expected})"
+                )
+            if self.require_remote_control and versions[0] == 5 and versions[1] >= 6:
+                if not self._dashboard.isInRemoteControl():
+                    raise RemoteControlOff(
+                        f"the controller at {self.host} is in local control; "
+                        "switch the teach pendant to Remote Control"
+                    )
+            self._receive = rtde_receive.RTDEReceiveInterface(self.host, self.rate_hz, RECEIVE_VARIABLES)
+            self._io = RtdeOutputWriter(self.host, timeout_s=self.connect_timeout_s)
+            self._io.connect()
+            if self._arm_ready():
+                self._open_control()
+        except BackendError:
+            self._close_quietly()
+            raise
+        except (RuntimeError, OSError) as exc:
+            self._close_quietly()
+            raise self._translate(exc) from exc
+
+    def _configure_tool(self) -> None:
+        if self.tcp_pose is not None and not self._control.setTcp(list(self.tcp_pose)):
+            raise BackendError(f"the controller at {self.host} refused setTcp({list(self.tcp_pose)})")
+        if self.payload_kg is not None and not self._control.setPayload(self.payload_kg, list(self.payload_cog_m)):
+            raise BackendError(f"the controller at {self.host} refused setPayload({self.payload_kg})")
+
+    def _arm_ready(self) -> bool:
+        return (
+            _safety_of(self._receive.getSafetyStatusBits()) == Safety.NORMAL
+            and self._receive.getRobotMode() == _ROBOT_MODE_RUNNING
+        )
+
+    def _open_control(self) -> None:
+        """RTDEControl uploads ur_rtde's control script; then the tool is configured."""
+        import rtde_control
+
+        try:
+            self._control = rtde_control.RTDEControlInterface(self.host, self.rate_hz)
+        except RuntimeError as exc:
+            raise self._translate(exc) from exc
+        self._configure_tool()
+
+    def _translate(self, exc: Exception) -> BackendError | PeerUnreachable:
+        text = str(exc)
+        if isinstance(exc, OSError) or any(
+            marker in text for marker in ("Could not connect", "Timeout connecting", "End of file", "connection")
+        ):
+            return PeerUnreachable(f"cannot reach the robot controller at {self.host}: {text}")
+        if "remote control" in text:
+            return RemoteControlOff(f"the controller at {self.host}: {text}")
+        return BackendError(f"ur_rtde: {text}")
+
+    def close(self) -> None:
+        """Stop motion and release every connection; idempotent."""
+        if self._control is not None and self._control.isConnected():
+            try:  # (on a broken link ur_rtde would try to reconnect inside these calls)
+                if self._servoing and self._control.isProgramRunning():
+                    self._control.servoStop(4.0)
+                self._control.stopScript()
+            except RuntimeError:
+                pass
+        self._servoing = False
+        self._t_cycle = None
+        self._close_quietly()
+
+    def _close_quietly(self) -> None:
+        if self._io is not None:
+            self._io.close()
+            self._io = None
+        for name in ("_control", "_receive"):
+            client = getattr(self, name)
+            setattr(self, name, None)
+            if client is not None:
+                try:
+                    client.disconnect()
+                except RuntimeError:
+                    pass
+        if self._dashboard is not None:
+            try:
+                self._dashboard.disconnect()
+            except RuntimeError:
+                pass
+            self._dashboard = None
+
+    def reconnect(self, timeout_s: float | None = None) -> None:
+        """Reopen every connection, retrying with exponential backoff (0.2 s doubling to
+        2 s) for at most ``timeout_s`` (default ``reconnect_timeout_s``); raises
+        :class:`PeerUnreachable` if the controller does not come back."""
+        deadline = time.monotonic() + (self.reconnect_timeout_s if timeout_s is None else timeout_s)
+        self._servoing = False
+        self._close_quietly()
+        delay, last_error = 0.2, None
+        while True:
+            try:
+                self.connect()
+                return
+            except (PeerUnreachable, ConnectionLost) as exc:
+                last_error = exc
+            if time.monotonic() + delay > deadline:
+                raise PeerUnreachable(
+                    f"the robot controller at {self.host} did not come back: {last_error}"
+                ) from last_error
+            time.sleep(delay)
+            delay = min(2.0, delay * 2)
+
+    # ------------------------------------------------------------------ state
+
+    @property
+    def connected(self) -> bool:
+        return all(
+            c is not None and c.isConnected() for c in (self._receive, self._control, self._dashboard)
+        )
+
+    def read_state(self) -> RobotState:
+        receive = self._receive
+        if receive is None or not receive.isConnected():
+            return RobotState(0.0, np.zeros(6), np.zeros(6), np.zeros(6), Safety.DISCONNECTED, powered=False)
+        safety = _safety_of(receive.getSafetyStatusBits())
+        if self._control is not None and not self._control.isConnected():
+            safety = Safety.DISCONNECTED
+        inputs_bits, output_bits = receive.getActualDigitalInputBits(), receive.getActualDigitalOutputBits()
+        inputs: dict[str, float | bool] = {}
+        outputs: dict[str, float | bool] = {}
+        for prefix, bits, target in (("I", inputs_bits, inputs), ("O", output_bits, outputs)):
+            for i in range(8):
+                target[f"D{prefix}{i}"] = bool(bits >> i & 1)
+                target[f"C{prefix}{i}"] = bool(bits >> (8 + i) & 1)
+            for i in range(2):
+                target[f"T{prefix}{i}"] = bool(bits >> (16 + i) & 1)
+        inputs["AI0"], inputs["AI1"] = receive.getStandardAnalogInput0(), receive.getStandardAnalogInput1()
+        outputs["AO0"], outputs["AO1"] = receive.getStandardAnalogOutput0(), receive.getStandardAnalogOutput1()
+        return RobotState(
+            time_s=receive.getTimestamp(),
+            q_rad=np.array(receive.getActualQ()),
+            qd_rad_s=np.array(receive.getActualQd()),
+            wrench_N=np.array(receive.getActualTCPForce()),
+            safety=safety,
+            inputs=inputs,
+            outputs=outputs,
+            powered=bool(receive.getRobotStatus() & 1),
+            brakes_released=receive.getRobotMode() == _ROBOT_MODE_RUNNING,
+        )
+
+    # ------------------------------------------------------------------ streaming
+
+    def _check_link_and_safety(self) -> None:
+        if self._receive is None:
+            raise BackendError("not connected; call connect() first")
+        if not self._receive.isConnected() or (self._control is not None and not self._control.isConnected()):
+            raise ConnectionLost(f"lost the connection to the controller at {self.host}")
+        safety = _safety_of(self._receive.getSafetyStatusBits())
+        if safety != Safety.NORMAL:
+            if safety == Safety.PROTECTIVE_STOP and self._protective_stop_seen_at is None:
+                self._protective_stop_seen_at = time.monotonic()
+            self._servoing = False
+            self._t_cycle = None
+            raise SafetyStop(f"the controller at {self.host} stopped the arm: {safety.value}", safety)
+        if self._control is None:
+            if self._receive.getRobotMode() != _ROBOT_MODE_RUNNING:
+                raise BackendError(
+                    f"the arm at {self.host} is not ready (robot mode {self._receive.getRobotMode()}); "
+                    "power it on and release the brakes (recover_from_estop)"
+                )
+            self._open_control()
+
+    def servo(self, trajectory: ApprovedTrajectory, index: int) -> None:
+        if not isinstance(trajectory, ApprovedTrajectory) or not trajectory.is_sealed:
+            raise BackendError("refusing a trajectory that planning did not approve (seal missing or broken)")
+        if abs(trajectory.trajectory.rate_hz - self.rate_hz) > 1e-9:
+            raise BackendError(
+                f"trajectory sampled at {trajectory.trajectory.rate_hz} Hz; "
+                f"the {self.spec.generation} controller runs at {self.rate_hz} Hz"
+            )
+        self._check_link_and_safety()
+        if self._t_cycle is None:  # first set-point of a stream: the schedule starts now
+            self._t_cycle = self._control.initPeriod()
+        q = [float(x) for x in trajectory.trajectory.q_rad[index]]
+        try:
+            ok = self._control.servoJ(q, 0.0, 0.0, self.period_s, self.servo_lookahead_s, self.servo_gain)
+        except RuntimeError as exc:
+            raise self._translate(exc) from exc
+        if not ok:
+            # the control and receive connections see a stop in different packages: give
+            # the safety bits a few periods to arrive so the caller learns why
+            deadline = time.monotonic() + 0.05
+            while time.monotonic() < deadline:
+                self._check_link_and_safety()
+                time.sleep(self.period_s)
+            self._t_cycle = None
+            raise BackendError(f"the controller at {self.host} refused servoJ (control script not running)")
+        self._servoing = True
+
+    def wait_period(self) -> None:
+        """Sleep until the next period of a fixed schedule (start + k * period), so time
+        spent between ``wait_period`` and ``servo`` does not stretch the stream."""
+        if self._control is None or self._t_cycle is None:
+            time.sleep(self.period_s)
+            return
+        self._control.waitPeriod(self._t_cycle)
+        period = datetime.timedelta(seconds=self.period_s)
+        self._t_cycle += period
+        now = self._control.initPeriod()
+        if now - self._t_cycle > period:  # fell more than a period behind: restart the schedule
+            self._t_cycle = now
+
+    def stop_motion(self) -> None:
+        if self._control is None or not self._control.isConnected():
+            return
+        try:
+            if self._control.isProgramRunning():
+                if self._servoing:
+                    self._control.servoStop(4.0)
+                else:
+                    self._control.stopJ(2.0)
+        except RuntimeError as exc:
+            raise self._translate(exc) from exc
+        finally:
+            self._servoing = False
+            self._t_cycle = None
+
+    # ------------------------------------------------------------------ IO and sensors
+
+    def set_output(self, channel: str, value: bool | float) -> None:
+        kind, index = _channel(channel)
+        io = self._io
+        if io is None:
+            raise BackendError("not connected; call connect() first")
+        try:
+            if kind in ("DO", "CO", "TO"):
+                io.set_digital(kind, index, bool(value))
+            elif kind == "AO":
+                if not 0.0 <= float(value) <= 1.0:
+                    raise BackendError(f"{channel}: {value} is not a fraction of the range in [0, 1]")
+                io.set_analog_voltage(index, float(value))
+            else:
+                raise BackendError(f"{channel} is an input; valid outputs: {_CHANNELS}")
+        except IoConnectionLost as exc:
+            raise ConnectionLost(str(exc)) from exc
+
+    def zero_ft_sensor(self) -> None:
+        if self.spec.generation != "e-Series":
+            raise BackendError(f"{self.spec.name} (CB3) has no built-in force/torque sensor to zero")
+        self._check_link_and_safety()
+        assert self._control is not None
+        if not self._control.zeroFtSensor():
+            raise BackendError(f"the controller at {self.host} refused zeroFtSensor")
+
+    # ------------------------------------------------------------------ recovery
+
+    def unlock_protective_stop(self) -> None:
+        """Close the safety popup, unlock, re-upload the control script.
+
+        Raises :class:`BackendError` with UR's reply when the controller refuses
+        (within 5 s of the stop)."""
+        if self._dashboard is None:
+            raise BackendError("not connected; call connect() first")
+        try:
+            self._dashboard.closeSafetyPopup()
+            self._dashboard.unlockProtectiveStop()
+        except RuntimeError as exc:
+            text = str(exc).removeprefix("Unlock protective stop failure: ")
+            raise BackendError(f"the controller refused to unlock the protective stop: {text}") from exc
+        self._protective_stop_seen_at = None
+        self._wait_for(lambda: _safety_of(self._receive.getSafetyStatusBits()) == Safety.NORMAL, 2.0,
+                       "the protective stop did not clear")
+        self._reupload()
+
+    def recover_from_protective_stop(self, unlock_delay_s: float = 5.0, timeout_s: float = 12.0) -> None:
+        """Wait until the controller accepts the unlock (``unlock_delay_s`` after the stop
+        was first seen), then :meth:`unlock_protective_stop`; bounded by ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        seen = self._protective_stop_seen_at or time.monotonic()
+        time.sleep(max(0.0, min(seen + unlock_delay_s + 0.05, deadline) - time.monotonic()))
+        while True:
+            try:
+                self.unlock_protective_stop()
+                return
+            except BackendError:
+                if time.monotonic() + 0.25 > deadline:
+                    raise
+                time.sleep(0.25)
+
+    def recover_from_estop(self) -> None:
+        """After a person released the e-stop (or for an arm found powered off): power
+        on, release the brakes, (re)start the control script."""
+        if self._dashboard is None or self._receive is None:
+            raise BackendError("not connected; call connect() first")
+        if _safety_of(self._receive.getSafetyStatusBits()) == Safety.EMERGENCY_STOP:
+            raise BackendError("the emergency stop is still pressed; a person must release it first")
+        try:
+            self._dashboard.closeSafetyPopup()
+            self._dashboard.powerOn()
+            self._wait_for(lambda: self._receive.getRobotMode() in (_ROBOT_MODE_IDLE, _ROBOT_MODE_RUNNING), 30.0,
+                           "the arm did not power on")
+            self._dashboard.brakeRelease()
+            self._wait_for(lambda: self._receive.getRobotMode() == _ROBOT_MODE_RUNNING, 30.0,
+                           "the brakes were not released")
+        except RuntimeError as exc:
+            raise self._translate(exc) from exc
+        self._reupload()
+
+    def _reupload(self) -> None:
+        if self._control is None or not self._control.isConnected():
+            self._open_control()
+            return
+        try:
+            if not self._control.reuploadScript():
+                raise BackendError(f"could not re-upload the control script to {self.host}")
+        except RuntimeError as exc:
+            raise self._translate(exc) from exc
+        self._wait_for(self._control.isProgramRunning, 5.0, "the control script did not start")
+        self._configure_tool()
+
+    def _wait_for(self, predicate: Any, timeout_s: float, what: str) -> None:
+        deadline = time.monotonic() + timeout_s
+        while not predicate():
+            if time.monotonic() > deadline:
+                raise BackendError(f"{what} within {timeout_s:g} s (controller at {self.host})")
+            time.sleep(0.01)
