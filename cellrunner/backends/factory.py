@@ -23,5 +23,8 @@ def make_backend(cell: LoadedCell, kind: str, host: str | None = None, **kw):
         if not host:
             raise UsageError("the ur backend needs a controller address: robot.host in the cell file or --robot-host")
         from cellrunner.backends.ur import URBackend
-        return URBackend(host, cell.spec, **kw)
+        from cellrunner.model.geometry import tcp_pose_of
+        c = cell.cell
+        return URBackend(host, cell.spec, tcp_pose=tcp_pose_of(c.tool.tcp.matrix()),
+                         payload_kg=c.tool.payload.mass, payload_cog_m=tuple(c.tool.payload.cog), **kw)
     raise UsageError(f"unknown backend {kind!r}; known: ur, sim")

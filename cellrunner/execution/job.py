@@ -16,7 +16,7 @@ from typing import Callable
 import numpy as np
 
 from cellrunner.backends.base import BackendError, Safety
-from cellrunner.errors import InfeasibleError
+from cellrunner.errors import CellrunnerError, InfeasibleError
 from cellrunner.execution import steps as behaviours
 from cellrunner.execution.context import JobContext
 from cellrunner.model.codes import ResultCode
@@ -118,7 +118,7 @@ class JobRunner:
             if phase == "execute" and self._ticks % TRACK_EVERY == 0:
                 self._track()
         elif safety is Safety.DISCONNECTED:
-            return self._finish(ResultCode.ROBOT_CONNECTION_LOST, "robot connection lost")
+            return self._reconnect()
         elif safety is Safety.EMERGENCY_STOP:
             return self._finish(ResultCode.ESTOP, f"e-stop during {self._label()}")
         elif safety is Safety.FAULT:
@@ -199,7 +199,35 @@ class JobRunner:
         except InfeasibleError as exc:
             self._finish(ResultCode.PLANNING_FAILED, str(exc))
         except BackendError as exc:
-            self._finish(ResultCode.ROBOT_CONNECTION_LOST, f"{self._label()}: {exc}")
+            self._on_backend_error(exc)
+
+    def _on_backend_error(self, exc: BackendError) -> None:
+        """A refused command: a safety stop the state had not shown yet is handled as
+        that stop; anything else means the link to the robot is in doubt."""
+        safety = getattr(exc, "safety", None)
+        if safety is Safety.PROTECTIVE_STOP:
+            self.protective_stops += 1
+            self._enter_hold("protective stop")
+        elif safety is Safety.EMERGENCY_STOP:
+            self._finish(ResultCode.ESTOP, f"e-stop during {self._label()}")
+        else:
+            self._reconnect(f"{self._label()}: {exc}")
+
+    def _reconnect(self, why: str = "robot connection lost") -> None:
+        """Reconnect with backoff (the backend bounds it); resume from where the arm
+        stands, or end with 102 if the robot does not come back."""
+        self._log("reconnect", why=why)
+        try:
+            self.ctx.backend.reconnect()
+            state = self.ctx.read()
+        except CellrunnerError as exc:
+            return self._finish(ResultCode.ROBOT_CONNECTION_LOST, f"{why}; {exc}")
+        if state.safety is Safety.DISCONNECTED:
+            return self._finish(ResultCode.ROBOT_CONNECTION_LOST, why)
+        self.ctx.commanded_q = None
+        if self.phase == "execute" and self._current is not None:
+            self._current.resume = True
+            self._start_item(self._current)
 
     # ------------------------------------------------------------------ items
     def _next_item(self) -> None:

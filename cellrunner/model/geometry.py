@@ -89,3 +89,10 @@ def invert(T: np.ndarray) -> np.ndarray:
     Ti[:3, :3] = T[:3, :3].T
     Ti[:3, 3] = -T[:3, :3].T @ T[:3, 3]
     return Ti
+
+
+def tcp_pose_of(T: np.ndarray) -> tuple[float, ...]:
+    """A UR pose ``[x, y, z, rx, ry, rz]`` (m, rotation vector in rad) of a transform."""
+    from scipy.spatial.transform import Rotation
+
+    return (*(float(v) for v in T[:3, 3]), *(float(v) for v in Rotation.from_matrix(T[:3, :3]).as_rotvec()))

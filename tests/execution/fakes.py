@@ -47,6 +47,7 @@ class ScriptedArm:
     _target: np.ndarray | None = None
 
     def connect(self): pass
+    def reconnect(self, timeout_s=None): pass
     def close(self): pass
     def zero_ft_sensor(self): pass
     def recover_from_estop(self):

@@ -20,6 +20,7 @@ from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.backends.sim.description import TwinDescription, dh_forward
 from cellrunner.backends.sim.mjcf import PhysicsOptions
 from cellrunner.backends.sim.world import Fault, SimWorld
+from cellrunner.errors import PeerUnreachable
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 # servoJ set-points further apart than the joint speed limit allows (with this margin)
@@ -167,6 +168,13 @@ class SimBackend:
             self._link_lost = True
         else:
             world.inject_fault(f)
+
+    def reconnect(self, timeout_s: float | None = None) -> None:
+        """The twin's link does not come back after an injected ``robot_disconnect`` (that
+        is what the fault rehearses: code 102); call ``connect()`` to restore it."""
+        self._fresh = None
+        if self._link_lost:
+            raise PeerUnreachable("the twin's robot link was cut (robot_disconnect) and stays down")
 
     def feed_parts(self) -> list[str]:
         """Put parts that were taken away back at their spawn pose (the twin's infeed)."""

@@ -1,0 +1,38 @@
+"""``cellrunner twin CELL [--host 127.0.0.2]``: a virtual UR controller (Dashboard 29999,
+RTDE 30004, script 30001-30003, fault channel 29990) backed by the cell's MuJoCo twin, so
+that ``run``/``serve --backend ur`` and the unmodified ur_rtde client work without an arm."""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+
+import numpy as np
+
+from cellrunner.model.load import load_cell
+
+
+def run(args) -> int:
+    cell = load_cell(args.cell)
+    for w in cell.warnings:
+        sys.stderr.write(f"{w}\n")
+    from cellrunner.backends.sim.from_cell import description_of
+    from cellrunner.twin.mujoco_physics import MujocoPhysics
+    from cellrunner.twin.server import run_twin
+
+    stop, ready = threading.Event(), threading.Event()
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda *_: stop.set())
+    physics = MujocoPhysics(description_of(cell))
+    spec = cell.spec
+    threading.Thread(target=_announce, args=(ready, stop, args.host, spec), daemon=True).start()
+    run_twin(spec, host=args.host, physics=physics, stop_event=stop, ready=ready,
+             q_initial_rad=tuple(np.radians(cell.cell.robot.home)))
+    return 0
+
+
+def _announce(ready: threading.Event, stop: threading.Event, host: str, spec) -> None:
+    if ready.wait(timeout=60) and not stop.is_set():
+        sys.stderr.write(f"virtual {spec.name.upper()} controller ({spec.generation}, {spec.rate_hz:g} Hz) on {host}: "
+                         "dashboard 29999, RTDE 30004, script 30001-30003, faults 29990\n")

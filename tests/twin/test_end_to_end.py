@@ -1,0 +1,73 @@
+"""`cellrunner twin` (the virtual UR controller over the cell's MuJoCo twin) and
+`cellrunner run --backend ur` (the UR backend through the unmodified ur_rtde client), each
+in its own process, over loopback."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from tests.conftest import ROOT
+from tests.execution.test_dryrun import project  # noqa: F401 (fixture)
+
+HOST = "127.0.0.23"
+
+
+@pytest.fixture
+def twin(project):  # noqa: F811
+    cell, _ = project
+    proc = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", HOST],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "MUJOCO_GL": "osmesa"})
+    deadline = time.monotonic() + 60
+    line = ""
+    while time.monotonic() < deadline and "virtual" not in line:
+        line = proc.stderr.readline()
+        assert line or proc.poll() is None, "the twin exited"
+    assert "virtual UR10E controller (e-Series, 500 Hz)" in line
+    yield proc
+    proc.terminate()
+    proc.communicate(timeout=30)
+
+
+def run_job(project, *extra):  # noqa: F811
+    cell, task = project
+    return subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "run", str(cell), str(task), "--backend", "ur",
+                           "--robot-host", HOST, "--json", *extra], capture_output=True, text=True, cwd=ROOT,
+                          timeout=300)
+
+
+def test_run_through_ur_rtde_on_the_twin(project, twin):  # noqa: F811
+    r = run_job(project)
+    assert r.returncode == 0, r.stderr[-3000:]
+    out = json.loads(r.stdout)
+    assert out["backend"] == "ur" and out["result_code"] == 0
+    assert [s["status"] for s in out["steps"]] == ["ok"] * 10
+    assert 4.0 < out["cycle_time_s"] < 15.0
+
+
+def test_protective_stop_on_the_twin_is_recovered(project, twin):  # noqa: F811
+    from cellrunner.twin.server import FaultClient
+
+    def stop_later():
+        time.sleep(2.5)  # the job is under way (planning ~1 s, then the approach)
+        FaultClient(HOST).command("protective_stop")
+
+    threading.Thread(target=stop_later, daemon=True).start()
+    r = run_job(project)
+    assert r.returncode == 0, r.stderr[-3000:]
+    out = json.loads(r.stdout)
+    assert out["result_code"] == 0
+    assert out["cycle_time_s"] > 10.0  # the controller's 5 s unlock delay is in it
+
+
+def test_unreachable_controller_is_exit_3(project):  # noqa: F811
+    r = run_job(project, "--robot-host", "127.0.0.24")
+    assert r.returncode == 3, r.stderr[-2000:]
+    assert "Traceback" not in r.stderr
