@@ -19,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-from cellrunner.backends.base import RobotBackend, Safety
+from cellrunner.backends.base import BackendError, RobotBackend, Safety
 from cellrunner.errors import CellrunnerError, InputError
 from cellrunner.execution.context import JobContext, Motions
 from cellrunner.execution.job import JobRunner, StepRecord
@@ -190,8 +190,8 @@ class CellController:
                 if name == "abort" and job is not None and runner is None:  # still planning
                     self._end_job(ResultCode.ABORTED_BY_PLC, "aborted while planning")
                     return True
-                if name in ("reset", "clear") and self._safety is Safety.EMERGENCY_STOP:
-                    return False
+                if name == "reset" and self._safety is Safety.EMERGENCY_STOP:
+                    return False  # Clear first (it finds out whether the e-stop was released)
                 if name == "reset" and self.sm.state is S.ABORTED:
                     return False
                 command = {"reset": Command.RESET, "clear": Command.CLEAR, "stop": Command.STOP,
@@ -238,8 +238,10 @@ class CellController:
             if self._safety is Safety.DISCONNECTED:
                 self.backend.connect()
             self.backend.recover_from_estop()
-        except CellrunnerError as exc:
-            self._log("recover_failed", error=str(exc))
+        except (CellrunnerError, BackendError) as exc:  # e.g. the e-stop is still pressed
+            self._log("clear_failed", error=str(exc))
+            self.sm.force(S.ABORTED)
+            self._mark_entered()
         self._safety = self.backend.read_state().safety
 
     def _start_runner(self, job: _Job) -> None:

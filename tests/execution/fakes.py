@@ -51,6 +51,8 @@ class ScriptedArm:
     def close(self): pass
     def zero_ft_sensor(self): pass
     def recover_from_estop(self):
+        if self.safety is Safety.EMERGENCY_STOP:
+            raise BackendError("emergency stop is still pressed; a person must release it first")
         self.powered = True
 
     def read_state(self) -> RobotState:

@@ -94,7 +94,9 @@ def test_estop_aborts_and_needs_release_clear_reset(tmp_path):
     tick(cell, 3)
     assert cell.journal.get(ticket.job_id).result_code == ResultCode.ESTOP
     assert cell.status().state == S.ABORTED and cell.status().estop and not cell.status().ready
-    assert not cell.command("clear")  # still pressed
+    assert cell.command("clear")  # accepted: Clear finds out that the e-stop is still pressed
+    tick(cell, 3)
+    assert cell.status().state == S.ABORTED and cell.status().estop
     arm.estop_released = True
     tick(cell, 2)
     assert cell.command("clear")
