@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import faulthandler
 from pathlib import Path
 
 import pytest
@@ -16,3 +17,15 @@ def in_repo(monkeypatch):
     """Run with the repository root as the working directory."""
     monkeypatch.chdir(ROOT)
     return ROOT
+
+
+#: no test may run longer than this: ur_rtde's constructors, for one, wait without a timeout
+TEST_TIMEOUT_S = 120
+
+
+@pytest.fixture(autouse=True)
+def _hang_guard():
+    """Dump every thread's traceback and exit rather than hang CI."""
+    faulthandler.dump_traceback_later(TEST_TIMEOUT_S, exit=True)
+    yield
+    faulthandler.cancel_dump_traceback_later()

@@ -63,9 +63,9 @@ class RtdeOutputWriter:
     def _exchange(sock: socket.socket, kind: str, payload: bytes) -> bytes:
         sock.sendall(struct.pack(">HB", 3 + len(payload), ord(kind)) + payload)
         while True:
-            head = _recv_exact(sock, 3)
+            head = recv_exact(sock, 3)
             size, reply_kind = struct.unpack(">HB", head)
-            body = _recv_exact(sock, size - 3)
+            body = recv_exact(sock, size - 3)
             if reply_kind == ord(kind):
                 return body
             # text messages (M) may come in between; anything else is skipped as well
@@ -126,7 +126,8 @@ class RtdeOutputWriter:
             self._sock = None
 
 
-def _recv_exact(sock: socket.socket, n: int) -> bytes:
+def recv_exact(sock: socket.socket, n: int) -> bytes:
+    """Exactly ``n`` bytes from ``sock`` (TCP delivers RTDE frames in pieces)."""
     data = b""
     while len(data) < n:
         chunk = sock.recv(n - len(data))

@@ -10,23 +10,15 @@ from __future__ import annotations
 import socket
 import struct
 
+from cellrunner.backends.ur_io import recv_exact
 from cellrunner.errors import PeerUnreachable
 
 RTDE_PORT = 30004
 
 
 def _read_message(sock: socket.socket) -> tuple[int, bytes]:
-    def read(n: int) -> bytes:
-        data = b""
-        while len(data) < n:
-            chunk = sock.recv(n - len(data))
-            if not chunk:
-                raise ConnectionError("controller closed the connection")
-            data += chunk
-        return data
-
-    size, kind = struct.unpack(">HB", read(3))
-    return kind, read(size - 3)
+    size, kind = struct.unpack(">HB", recv_exact(sock, 3))
+    return kind, recv_exact(sock, size - 3)
 
 
 def controller_version(host: str, timeout_s: float = 3.0, port: int = RTDE_PORT) -> tuple[int, int, int, int]:

@@ -124,8 +124,22 @@ def _overlap(prev: Trapezoid, nxt: Trapezoid, blend_distance: float) -> float:
     return max(0.0, min(prev.t_acc, nxt.t_acc, t_within))
 
 
+class _Scheduled:
+    """Timing of a path made of overlapping trapezoid segments (``_segments``, ``t_s``)."""
+
+    @property
+    def duration_s(self) -> float:
+        last = self._segments[-1]
+        return last.start_s + last.profile.duration if self._segments else 0.0
+
+    @property
+    def segment_index(self) -> int:
+        """Index of the latest segment that has started (for async progress)."""
+        return max(i for i, s in enumerate(self._segments) if s.start_s <= self.t_s) if self._segments else 0
+
+
 @dataclass
-class JointPath:
+class JointPath(_Scheduled):
     """movej through joint waypoints ``(q_rad, speed, accel, blend_m)``, synchronized joints."""
 
     q_start: np.ndarray
@@ -159,16 +173,6 @@ class JointPath:
         overlaps = [_overlap(profiles[k], profiles[k + 1], blends_rad[k]) for k in range(len(profiles) - 1)]
         self._segments = _schedule(profiles, overlaps)
 
-    @property
-    def duration_s(self) -> float:
-        last = self._segments[-1]
-        return last.start_s + last.profile.duration if self._segments else 0.0
-
-    @property
-    def segment_index(self) -> int:
-        """Index of the latest segment that has started (for async progress)."""
-        return max(i for i, s in enumerate(self._segments) if s.start_s <= self.t_s) if self._segments else 0
-
     def _q_at(self, t: float) -> np.ndarray:
         q = np.array(self.q_start, dtype=float)
         for seg, delta in zip(self._segments, self._deltas):
@@ -183,7 +187,7 @@ class JointPath:
 
 
 @dataclass
-class LinearPath:
+class LinearPath(_Scheduled):
     """movel through TCP poses ``(pose, speed, accel, blend_m)``, straight lines in base."""
 
     q_start: np.ndarray
@@ -216,15 +220,6 @@ class LinearPath:
             p_prev, R_prev = T[:3, 3], T[:3, :3]
         overlaps = [_overlap(profiles[k], profiles[k + 1], blends[k]) for k in range(len(profiles) - 1)]
         self._segments = _schedule(profiles, overlaps)
-
-    @property
-    def duration_s(self) -> float:
-        last = self._segments[-1]
-        return last.start_s + last.profile.duration if self._segments else 0.0
-
-    @property
-    def segment_index(self) -> int:
-        return max(i for i, s in enumerate(self._segments) if s.start_s <= self.t_s) if self._segments else 0
 
     def _pose_at(self, t: float) -> np.ndarray:
         p, R = self._p0.copy(), self._R0.copy()
