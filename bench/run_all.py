@@ -1,13 +1,18 @@
-"""Every planning benchmark in one command, then the summary lines for the README.
+"""Every benchmark in one command, then the summary lines for the README.
 
 Run from the repository root::
 
-    PYTHONPATH=. python bench/run_all.py [--quick]
+    PYTHONPATH=. python bench/run_all.py [--quick] [--all]
 
 1. planning: 20 UR5e problems, cellrunner vs pyroboplan RRT-Connect (bench_planning.py);
 2. cycle time of the demo task vs a PolyScope movej/movel baseline and rest-to-rest
    (bench_cycle.py);
 3. ``cellrunner check`` wall time, cold and warm (bench_check.py).
+
+``--all`` then runs the others, each as its own process: the dry-run real-time factor and
+planned-vs-simulated cycle (bench_dryrun.py), the PLC soak of 200 Modbus jobs on the real
+engine and twin with random faults (bench_plc.py), and servoJ streaming through ur_rtde
+into the virtual controller (bench_servo.py).
 
 ``--quick`` does fewer repetitions (1 planning run per problem, 1 cold and 3 warm checks).
 Exit status 1 when a target is missed: 100% success, median <= 10 ms, >= 10x pyroboplan;
@@ -42,6 +47,7 @@ def targets(planning: dict, cycle: dict, check: dict) -> list[tuple[str, bool]]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repetitions")
+    parser.add_argument("--all", action="store_true", help="also the dry-run, PLC soak and servo benches")
     args = parser.parse_args(argv)
     print("== (1) planning", flush=True)
     planning = bench_planning.run(reps=1 if args.quick else 3)
@@ -56,7 +62,26 @@ def main(argv: list[str] | None = None) -> int:
         print(line)
     results = targets(planning, cycle, check)
     print("targets: " + ", ".join(f"{name} {'met' if ok else 'MISSED'}" for name, ok in results))
-    return 0 if all(ok for _, ok in results) else 1
+    ok = all(good for _, good in results)
+    if args.all:
+        ok = run_others(args.quick) and ok
+    return 0 if ok else 1
+
+
+def run_others(quick: bool) -> bool:
+    """The engine, PLC and servo benches, each in its own process (they own their threads)."""
+    import os
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(HERE.parent), "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa")}
+    runs = [("(4) dry-run", ["bench_dryrun.py", "--runs", "3" if quick else "5"]),
+            ("(5) PLC soak", ["bench_plc.py", "--cell", "bench.soak_engine:make", "--jobs", "50" if quick else "200"]),
+            ("(6) servoJ streaming", ["bench_servo.py"])]
+    ok = True
+    for title, argv in runs:
+        print(f"\n== {title}", flush=True)
+        ok = subprocess.run([sys.executable, str(HERE / argv[0]), *argv[1:]], cwd=HERE.parent, env=env).returncode == 0 and ok
+    return ok
 
 
 if __name__ == "__main__":
