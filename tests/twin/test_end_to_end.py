@@ -71,3 +71,34 @@ def test_unreachable_controller_is_exit_3(project):  # noqa: F811
     r = run_job(project, "--robot-host", "127.0.0.24")
     assert r.returncode == 3, r.stderr[-2000:]
     assert "Traceback" not in r.stderr
+
+
+def test_serve_with_the_ur_backend_runs_a_plc_job(tmp_path):
+    """serve --backend ur against the twin, a job triggered over Modbus TCP."""
+    from tests.execution.test_dryrun import CELL, TASK
+    from tests.test_serve import DONE, connect, free_port, job
+
+    port = free_port("127.0.0.5")
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "tasks").mkdir()
+    cell = tmp_path / "cells" / "c.yaml"
+    cell.write_text(CELL + f"tasks: {{1: tasks/t.yaml}}\nplc:\n  modbus: {{bind: 127.0.0.5, port: {port}}}\n")
+    (tmp_path / "tasks" / "t.yaml").write_text(TASK)
+    twin = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", HOST],
+                            cwd=ROOT, stderr=subprocess.PIPE, text=True, env={**os.environ, "MUJOCO_GL": "osmesa"})
+    serve = None
+    try:
+        assert "virtual" in twin.stderr.readline()
+        serve = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "serve", str(cell), "--backend", "ur",
+                                  "--robot-host", HOST], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                 text=True)
+        client = connect(port)
+        regs = job(client, 9, 1, [], [0])
+        assert regs[1] & DONE and (regs[4], regs[5]) == (9, 0), regs
+    finally:
+        if serve is not None:
+            serve.terminate()
+            serve.communicate(timeout=60)
+        twin.terminate()
+        twin.communicate(timeout=30)
+    assert serve.returncode == 0
