@@ -7,6 +7,7 @@
      │                               carries located Diagnostics (FILE:LINE:COL)
      ├── InfeasibleError    exit 1   `check` refuses a step (reach, collision, limits)
      ├── JobFailed          exit 1   a job ended with a non-zero result code
+ ├── BackendError       exit 1   a robot backend refused a command (backends/base.py)
      └── PeerUnreachable    exit 3   robot controller or another peer cannot be reached
 
 Third-party errors (ur_rtde, pymodbus, asyncua, OMPL) are translated into these where

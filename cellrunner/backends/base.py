@@ -16,6 +16,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from cellrunner.errors import CellrunnerError
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 
@@ -49,8 +50,9 @@ class RobotState:
     brakes_released: bool = True
 
 
-class BackendError(Exception):
-    """Raised by backends for a refused command; the engine translates it."""
+class BackendError(CellrunnerError):
+    """Raised by backends for a refused command; the engine translates it (exit 1 if it
+    reaches the command line)."""
 
 
 @runtime_checkable

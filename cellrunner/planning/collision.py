@@ -871,7 +871,8 @@ def _make_coal_shape(shape: Shape) -> tuple[coal.CollisionGeometry, float]:
         vertices = vertices * shape.scale
         model = coal.BVHModelOBBRSS()
         model.beginModel(len(triangles), len(vertices))
-        model.addSubModel(vertices, triangles)
+        model.addVertices(np.ascontiguousarray(vertices, dtype=float))
+        model.addTriangles(np.ascontiguousarray(triangles, dtype=np.int64))
         model.endModel()
         return model, float(np.linalg.norm(vertices, axis=1).max()) if len(vertices) else 0.0
     raise TypeError(f"unknown shape {shape!r}")

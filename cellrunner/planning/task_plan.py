@@ -31,6 +31,8 @@ from cellrunner.planning.world import CellWorld
 #: standing still before a grip's wrist baseline, and before weighing after a lift (s);
 #: the execution engine uses the same figures (execution.steps SETTLE_S + AVERAGE_S)
 WRIST_SETTLE_S = 0.15
+#: how far a carried part may press into the surface it is set down on or lifted off (m)
+SET_DOWN_PRESS_M = 0.001
 
 
 @dataclass
@@ -262,16 +264,22 @@ class _StepPlanner:
             return ()
         q_goal = self._try_ik(T_goal)
         allowances: list = []
-        for q in (self.q, q_goal):
+        for end, q in (("start", self.q), ("end", q_goal)):
             if q is None:
                 continue
             model = self.collision(tuple(allowances))
             for _ in range(3):
                 clearance = model.clearance(q)
                 if clearance.distance_m >= clearance.required_m or clearance.a != f"part '{self.part.name}'" \
-                        or not clearance.b.startswith("fixture '") or clearance.distance_m < -0.001:
+                        or not clearance.b.startswith("fixture '"):
                     break
-                allowances.append(ContactAllowance(clearance.b[len("fixture '"):-1], "part", -0.001))
+                if clearance.distance_m < -SET_DOWN_PRESS_M:
+                    depth_mm = -clearance.distance_m * 1000
+                    raise InfeasibleError(
+                        f"{step.label}: at its {end} the part '{self.part.name}' would be {depth_mm:.1f} mm inside "
+                        f"{clearance.b} (setting a part down may press {SET_DOWN_PRESS_M * 1000:.0f} mm at most); "
+                        f"move the target up by {depth_mm - SET_DOWN_PRESS_M * 1000:.1f} mm or more")
+                allowances.append(ContactAllowance(clearance.b[len("fixture '"):-1], "part", -SET_DOWN_PRESS_M))
                 model = self.collision(tuple(allowances))
         return tuple(allowances)
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from cellrunner.model import geometry
 from cellrunner.model.geometry import Placed
+from cellrunner.model.gripper import open_pads
 from cellrunner.model.load import LoadedCell
 from cellrunner.model.robots import RobotSpec
 
@@ -31,9 +32,13 @@ class CellWorld:
 
     @cached_property
     def tool(self) -> list[Placed]:
-        return [Placed(f"tool{i}" if len(self.loaded.cell.tool.geometry) > 1 else "gripper",
-                       g.to_shape(self.loaded.resolve), g.matrix())
-                for i, g in enumerate(self.loaded.cell.tool.geometry)]
+        """The declared tool geometry and, with a gripper, its finger pads fully open."""
+        tool = self.loaded.cell.tool
+        shapes = [Placed(f"tool{i}" if len(tool.geometry) > 1 else "gripper", g.to_shape(self.loaded.resolve),
+                         g.matrix()) for i, g in enumerate(tool.geometry)]
+        if tool.gripper is not None:
+            shapes += open_pads(tool.gripper.stroke, tool.tcp.matrix())
+        return shapes
 
     @cached_property
     def fixtures(self) -> list[Placed]:

@@ -250,3 +250,44 @@ def test_joint_frames_match_pinocchio():
         pin.forwardKinematics(model, data, q[n])
         for j in range(7):
             assert np.allclose(frames[n, j], data.oMi[j].homogeneous, atol=1e-12)
+
+
+def _write_stl_box(path, size):
+    """A closed box as a binary STL (12 triangles), centred on the origin."""
+    import itertools
+    import struct
+
+    hx, hy, hz = (s / 2 for s in size)
+    v = [np.array([x, y, z]) for x, y, z in itertools.product((-hx, hx), (-hy, hy), (-hz, hz))]
+    faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
+             (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]
+    with open(path, "wb") as f:
+        f.write(b"\0" * 80 + struct.pack("<I", len(faces)))
+        for a, b, c in faces:
+            f.write(struct.pack("<3f", 0, 0, 0))
+            for k in (a, b, c):
+                f.write(struct.pack("<3f", *v[k]))
+            f.write(b"\0\0")
+
+
+def test_stl_mesh_fixture_matches_the_same_box(tmp_path):
+    from cellrunner.model import geometry
+    from cellrunner.model.geometry import Box, Mesh, Placed
+    from cellrunner.model.robots import ROBOTS
+    from cellrunner.planning.collision import CollisionModel
+    from cellrunner.planning.kinematics import ArmKinematics
+
+    stl = tmp_path / "block.stl"
+    _write_stl_box(stl, (0.2, 0.2, 0.2))
+    kin = ArmKinematics(ROBOTS["ur5e"], np.eye(4), geometry.pose_matrix((0, 0, 0.1)))
+    pose = geometry.pose_matrix((0.45, 0.1, 0.3))
+    as_mesh = CollisionModel(kin, fixtures=[Placed("block", Mesh(stl), pose)])
+    as_box = CollisionModel(kin, fixtures=[Placed("block", Box((0.2, 0.2, 0.2)), pose)])
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        q = rng.uniform(-np.pi, np.pi, 6)
+        d_mesh, _, b_mesh = as_mesh.min_distance(q)
+        d_box, _, _ = as_box.min_distance(q)
+        if d_box > 0:  # outside: the mesh surface and the box agree
+            assert abs(d_mesh - d_box) < 1e-6, (d_mesh, d_box)
+        assert (d_mesh > 0) == (d_box > 0) or d_box < 0

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
+from cellrunner.model.gripper import FINGER_SIZE_M, PAD_Z_M
 from cellrunner.model.robots import RobotSpec
 
 
@@ -43,8 +44,8 @@ class GripperDescription:
     open_sensor_input: str | None = None
     grip_force_N: float = 40.0  # per jaw
     jaw_speed_mps: float = 0.15  # per jaw
-    finger_size_m: tuple[float, float, float] = (0.012, 0.022, 0.045)  # thick, wide, long
-    pad_z_m: tuple[float, float] = (-0.02, 0.02)  # pad extent along TCP Z
+    finger_size_m: tuple[float, float, float] = FINGER_SIZE_M  # thick, wide, long
+    pad_z_m: tuple[float, float] = PAD_Z_M  # pad extent along TCP Z (planning checks the same)
     finger_mass_kg: float = 0.05
     friction: float = 1.0
     sensor_min_gap_m: float = 0.002

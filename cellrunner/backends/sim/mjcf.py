@@ -11,8 +11,10 @@ Model layout (names are what :mod:`.world` looks up):
   -> ``jaw_a``/``jaw_b`` finger bodies on slide joints along the TCP's X axis.
 - parts: free bodies ``part:<name>``; fixtures: static geoms ``fixture:<name>``; a floor.
 
-Collision bits (contype / conaffinity): 1 static world, 2 robot (arm + tool), 4 finger
-pads, 8 parts. The arm does not collide with itself (planning proves that); the base
+Collision bits (contype / conaffinity): 1 static world, 2 robot arm, 4 finger pads,
+8 parts, 16 the cell's tool geometry. The tool geometry is the envelope planning checks
+against fixtures (it often reaches down around the fingers to the TCP), so in the twin it
+collides with fixtures only; the finger pads are what touches parts. The arm does not collide with itself (planning proves that); the base
 link collides with nothing (it never moves and sits on its mount).
 
 Arm actuation: one position servo per joint with stiffness kp and damping kv; the world
@@ -51,7 +53,7 @@ JOINT_TORQUE_MAX_NM = {"ur3": _TORQUE_SMALL, "ur3e": _TORQUE_SMALL,
 # Reflected rotor inertia of the harmonic drives (kg m^2), scaled by arm size.
 _ARMATURE_UR5 = (0.6, 0.6, 0.3, 0.06, 0.06, 0.06)
 
-STATIC, ROBOT, PADS, PARTS = 1, 2, 4, 8
+STATIC, ROBOT, PADS, PARTS, TOOL = 1, 2, 4, 8, 16
 
 
 @dataclass(frozen=True)
@@ -160,6 +162,26 @@ def binary_stl(path: Path) -> bytes:
     return bytes(out)
 
 
+#: a mesh thinner than this along some axis is treated as flat (m), and given this thickness
+FLAT_MESH_M = 0.001
+
+
+def _flat_mesh_box(mesh: Mesh) -> tuple[np.ndarray, np.ndarray] | None:
+    """(centre, full size) of a mesh's bounding box when the mesh is flat (coplanar
+    vertices along a frame axis), else None."""
+    raw = binary_stl(mesh.path)
+    count = struct.unpack_from("<I", raw, 80)[0]
+    record = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+    vertices = np.frombuffer(raw, dtype=record, count=count, offset=84)["v"].reshape(-1, 3) * mesh.scale
+    if not len(vertices):
+        return None
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    size = hi - lo
+    if size.min() >= FLAT_MESH_M:
+        return None
+    return (lo + hi) / 2, np.maximum(size, FLAT_MESH_M)
+
+
 def _fmt(values: Any) -> str:
     return " ".join(f"{float(v):.9g}" for v in np.ravel(values))
 
@@ -253,9 +275,16 @@ class _Builder:
 
     # -- bodies ---------------------------------------------------------------------
     def _static_geom(self, parent: ET.Element, placed: Placed) -> None:
+        shape, T = placed.shape, placed.T_parent_shape
+        flat = _flat_mesh_box(shape) if isinstance(shape, Mesh) else None
+        if flat is not None:  # MuJoCo cannot hull a flat mesh: a thin box over its bounds
+            center, size = flat
+            T = T.copy()
+            T[:3, 3] = T[:3, :3] @ center + T[:3, 3]
+            shape = Box(tuple(size))
         ET.SubElement(parent, "geom", name=f"fixture:{placed.name}", material="fixture",
                       contype=str(STATIC), conaffinity=str(ROBOT | PADS | PARTS),
-                      **self._shape_attrs(placed.shape), **_pose_attrs(placed.T_parent_shape))
+                      **self._shape_attrs(shape), **_pose_attrs(T))
 
     def _arm(self, world: ET.Element) -> None:
         d = self.desc
@@ -313,7 +342,7 @@ class _Builder:
                       **_pose_attrs(d.T_flange_tcp))
         for k, placed in enumerate(d.tool_geometry):
             ET.SubElement(tool, "geom", name=f"tool:{placed.name or k}", material="tool",
-                          density="0", contype=str(ROBOT), conaffinity=str(STATIC | PARTS),
+                          density="0", contype=str(TOOL), conaffinity=str(STATIC),
                           **self._shape_attrs(placed.shape), **_pose_attrs(placed.T_parent_shape))
         if g is not None:
             self._gripper(tool, g)

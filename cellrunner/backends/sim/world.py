@@ -20,7 +20,7 @@ import numpy as np
 from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.backends.sim._mj import load_mujoco
 from cellrunner.backends.sim.description import TwinDescription
-from cellrunner.backends.sim.mjcf import PARTS, PADS, ROBOT, STATIC, PhysicsOptions, compile_model
+from cellrunner.backends.sim.mjcf import PARTS, PADS, ROBOT, STATIC, TOOL, PhysicsOptions, compile_model
 from cellrunner.model.robots import JOINT_NAMES
 
 UNLOCK_DELAY_S = 5.0  # UR: a protective stop can be unlocked 5 s after it happened
@@ -169,7 +169,7 @@ class SimWorld:
         self._force6 = np.zeros(6)
         self._fromto6 = np.zeros(6)
         self._static_geoms = [g for g, k in enumerate(self._kind) if k == STATIC]
-        self._robot_or_pad_geoms = frozenset(g for g, k in enumerate(self._kind) if k & (ROBOT | PADS))
+        self._robot_or_pad_geoms = frozenset(g for g, k in enumerate(self._kind) if k & (ROBOT | PADS | TOOL))
         # The arm settles one physics step ahead of its servo input (measured), hence -h.
         self._ff_lead = ids.ff_gain - self.period_s / self.substeps
         self._q_prev_ref = self.q_ref.copy()
@@ -433,7 +433,7 @@ class SimWorld:
         for i, (g1, g2) in enumerate(pairs):
             k1, k2 = kind[g1], kind[g2]
             both = k1 | k2
-            if not both & (ROBOT | PADS):
+            if not both & (ROBOT | PADS | TOOL):
                 continue
             if both & STATIC:
                 suspicious.append(i)

@@ -1,0 +1,27 @@
+"""The parallel gripper's finger pads, as planning checks them and the twin builds them.
+
+The jaws move along the TCP's X axis, symmetric about the TCP; each pad is a box
+``FINGER_SIZE_M`` (thickness along X, width along Y, and along Z it spans ``PAD_Z_M``
+around the TCP). Planning checks the pads where they are widest (fully open).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cellrunner.model import geometry
+from cellrunner.model.geometry import Box, Placed
+
+FINGER_SIZE_M = (0.012, 0.022, 0.045)  # thickness (X), width (Y), length (Z)
+PAD_Z_M = (-0.02, 0.02)  # pad extent along the TCP's Z, around the TCP
+
+
+def open_pads(stroke_m: float, T_flange_tcp: np.ndarray) -> list[Placed]:
+    """Both pads fully open, placed in the flange frame."""
+    t, w, _ = FINGER_SIZE_M
+    z0, z1 = PAD_Z_M
+    pads = []
+    for name, sign in (("jaw_a", 1.0), ("jaw_b", -1.0)):
+        x = sign * (stroke_m / 2 + t / 2)
+        pads.append(Placed(name, Box((t, w, z1 - z0)), T_flange_tcp @ geometry.pose_matrix((x, 0.0, (z0 + z1) / 2))))
+    return pads
