@@ -79,7 +79,7 @@ def run(args) -> int:
         sim_t0 = backend.read_state().time_s
         _run(controller, backend, pending, recorder, status, steps, world, max_s=planned * 4 + 60)
         wall_run_s = time.perf_counter() - t_run
-    finished_job, runner = controller.finished[-1]
+    runner = controller.last_runner
     result = controller.status().last_result
     code = ResultCode(result.result_code)
     rows = _rows(runner, steps)

@@ -38,7 +38,7 @@ def run(args) -> int:
             return 1
         with out.status(f"running {task.name} on the {kind} backend", spinner="dots"):
             run_until_done(controller, max_s=3600.0)
-        job, runner = controller.finished[-1]
+        runner = controller.last_runner
         result = controller.status().last_result
     finally:
         controller.close()

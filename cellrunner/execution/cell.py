@@ -89,7 +89,7 @@ class CellController:
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan")
         self._actions: list[Callable[[], None]] = []  # backend work asked for by other threads
         self._counters = (0, 0)
-        self.finished: list[tuple[_Job, JobRunner | None]] = []
+        self.last_runner: JobRunner | None = None  # of the last finished job (its step records)
 
     # ------------------------------------------------------------------ lifecycle
     def setup(self) -> None:
@@ -303,7 +303,7 @@ class CellController:
         self._counters = self.journal.counters()
         self._last = JobResult(job.job_id, int(code), message or code.text, cycle,
                                datetime.now(timezone.utc), retries, job.task.name, job.client_job_id, job.source)
-        self.finished.append((job, runner))
+        self.last_runner = runner
         self._job = None
         if code.is_fault:
             self.sm.force(S.ABORTING)

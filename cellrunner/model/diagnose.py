@@ -67,6 +67,8 @@ def fields_at(root: type[BaseModel], loc: tuple) -> list[str] | None:
 
 
 def _describe(value: Any) -> str:
+    if value is None:
+        return "nothing (an empty value)"
     if isinstance(value, dict):
         return "a mapping"
     if isinstance(value, list):

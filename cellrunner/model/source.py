@@ -71,10 +71,11 @@ def load_yaml(path: Path) -> Source:
     except MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line, col = (mark.line + 1, mark.column + 1) if mark else (1, 1)
-        problem = (exc.problem or exc.context or "invalid YAML").strip()
+        problem = " ".join((exc.problem or exc.context or "invalid YAML").split())  # one line
         raise InputError([Diagnostic(name, line, col, f"YAML syntax: {problem}")]) from None
     except YAMLError as exc:
-        raise InputError(f"YAML syntax: {exc}", name) from None
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else "invalid YAML"
+        raise InputError(f"YAML syntax: {first}", name) from None
     source = Source(name, None)
     if node is None:
         raise InputError([Diagnostic(name, 1, 1, "the file is empty")])
