@@ -75,7 +75,7 @@ def plan_with_waypoints(world, steps, q_start, *, rounded: bool = True):
     from cellrunner.planning import joint_path, task_plan
 
     recorded: dict[int, tuple[np.ndarray, object]] = {}
-    original, original_round = task_plan._time_and_verify, joint_path.round_corners
+    original, original_round = task_plan._timed_pieces, joint_path.round_corners
 
     def recording(world_, group, q_start_):
         for motion in group:
@@ -83,7 +83,7 @@ def plan_with_waypoints(world, steps, q_start, *, rounded: bool = True):
             recorded.setdefault(motion.row.step.index, (np.array(motion.waypoints), motion.limits))
         return original(world_, group, q_start_)
 
-    task_plan._time_and_verify = recording
+    task_plan._timed_pieces = recording
     if not rounded:
         joint_path.round_corners = lambda collision, q: np.asarray(q, float)
     try:
@@ -91,7 +91,7 @@ def plan_with_waypoints(world, steps, q_start, *, rounded: bool = True):
         plan = task_plan.plan_task(world, steps, q_start)
         plan_s = time.perf_counter() - t
     finally:
-        task_plan._time_and_verify, joint_path.round_corners = original, original_round
+        task_plan._timed_pieces, joint_path.round_corners = original, original_round
     return plan, recorded, plan_s
 
 

@@ -52,7 +52,9 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     if approved is None or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD:
         approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
     q = approved.trajectory.q_rad
-    for i in range(len(q)):
+    # a non-stop continuation starts on the set-point just streamed: don't send it twice
+    first = 1 if ctx.commanded_q is not None and len(q) > 1 and np.array_equal(q[0], ctx.commanded_q) else 0
+    for i in range(first, len(q)):
         ctx.backend.servo(approved, i)
         ctx.commanded_q = q[i]
         yield

@@ -291,21 +291,44 @@ class _StepPlanner:
 
 
 def _time_group(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> None:
-    """Time a group of motions as one non-stop trajectory; when the joined trajectory does
-    not pass verification, time them one by one from rest."""
+    """Time a group of motions as one non-stop trajectory, and one by one from rest; keep
+    whichever verified timing is faster (a corner where two motions join can slow a whole
+    joined move more than stopping there costs)."""
+    options = []
     if len(group) > 1:
         try:
-            _time_and_verify(world, group, q_start)
-            return
+            options.append(_timed_pieces(world, group, q_start))
         except InfeasibleError:
             pass
-    q = q_start
+    separate, q = [], q_start
     for motion in group:
-        _time_and_verify(world, [motion], q)
-        q = motion.row.q_end_rad
+        piece = _timed_pieces(world, [motion], q)[0]
+        separate.append(piece)
+        q = piece["q"][-1]
+    options.append(separate)
+    best = min(options, key=lambda pieces: sum(len(p["q"]) - 1 for p in pieces))
+    for motion, piece in zip(group, best):
+        row = motion.row
+        row.approved, row.trajectory, row.verify_inputs = piece["approved"], piece["trajectory"], piece["inputs"]
+        # every piece starts on the set-point before it (the start state, or the last
+        # sample of the piece it continues), which the engine does not stream twice
+        row.duration_s = (len(piece["q"]) - 1) / world.spec.rate_hz
+        row.q_end_rad = piece["q"][-1]
 
 
 def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[StepPlan]:
+    """Time ``group`` as one motion and apply the verified pieces to its rows."""
+    for motion, piece in zip(group, _timed_pieces(world, group, q_start)):
+        row = motion.row
+        row.approved, row.trajectory, row.verify_inputs = piece["approved"], piece["trajectory"], piece["inputs"]
+        row.duration_s = (len(piece["q"]) - 1) / world.spec.rate_hz
+        row.q_end_rad = piece["q"][-1]
+    return [m.row for m in group]
+
+
+def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[dict]:
+    """TOPP-RA over the group's joined waypoints, cut into one verified piece per motion
+    (sharing boundary samples); raises InfeasibleError when a piece fails verification."""
     from cellrunner.planning.timing import time_path
     from cellrunner.planning.verify import verify_trajectory
 
@@ -319,6 +342,7 @@ def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray
     cuts = _cut_indices(timed, bounds, len(group))
     previous = np.asarray(q_start, float)
     start = 0
+    pieces = []
     for i, (motion, end) in enumerate(zip(group, cuts)):
         q = timed.q_rad[start:end + 1]
         if i == 0:
@@ -329,14 +353,10 @@ def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray
         approved = verify_trajectory(
             trajectory, step_index=motion.row.step.index, step_name=motion.row.step.name,
             kinematics=world.kinematics, limits=motion.limits, collision=motion.collision, **inputs)
-        motion.row.approved = approved
-        motion.row.trajectory = trajectory
-        motion.row.verify_inputs = inputs
-        motion.row.duration_s = len(q) / world.spec.rate_hz
-        motion.row.q_end_rad = q[-1]
+        pieces.append({"q": q, "trajectory": trajectory, "approved": approved, "inputs": inputs})
         previous = q[-2:] if len(q) >= 2 else q
-        start = end + 1
-    return [m.row for m in group]
+        start = end  # the next piece shares this boundary sample
+    return pieces
 
 
 def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
@@ -355,7 +375,8 @@ def _same_limits(a, b) -> bool:
 
 
 def _cut_indices(timed, bounds: list[int], n: int) -> list[int]:
-    """The last sample index of each motion in a joined trajectory."""
+    """The last sample index of each motion in a joined trajectory (the next motion's
+    first sample: joined pieces share their boundary sample)."""
     cuts = []
     for i, b in enumerate(bounds):
         if i == n - 1:
