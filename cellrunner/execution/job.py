@@ -363,6 +363,10 @@ class JobRunner:
             self.on_step(record, attempt)
 
     def _log(self, event: str, **kw) -> None:
+        """A structlog event bound with the step and attempt under way (the logger already
+        carries cell and job_id)."""
         if self.ctx.log is not None:
-            step = self._current.step.index if self._current else 0
-            self.ctx.log.info(event, step=step, **{k: v for k, v in kw.items() if v is not None})
+            current = self._current
+            fields = {"step": current.step.index if current else 0, "attempt": current.attempt if current else 0}
+            fields.update({k: v for k, v in kw.items() if v is not None})
+            self.ctx.log.info(event, **fields)

@@ -142,3 +142,17 @@ def test_report_has_pictures_and_plots(project, tmp_path):
     assert any(name.startswith("step") and name.endswith("_grip.png") for name in files)
     assert (tmp_path / "rep" / "end.png").stat().st_size > 10_000
     assert json.loads((tmp_path / "rep" / "result.json").read_text())["result_code"] == 0
+
+
+def test_json_logs_are_bound_with_cell_job_step_attempt(project):
+    cell, task = project
+    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "--log-format", "json", "dry-run", str(cell),
+                        str(task), "--inject", "grip_miss@grip"], capture_output=True, text=True, cwd=ROOT,
+                       timeout=600, env={**os.environ, "MUJOCO_GL": "osmesa"})
+    events = [json.loads(line) for line in r.stderr.splitlines() if line.startswith("{")]
+    steps = [e for e in events if e["event"] == "step"]
+    assert steps and all({"cell", "job_id", "step", "attempt", "timestamp"} <= set(e) for e in steps)
+    assert {e["cell"] for e in events} == {"dryrun-cell"}
+    assert max(e["attempt"] for e in steps if e["step"] == 4) == 2  # the grip's retry
+    assert any(e["event"] == "retry" for e in events)
+    assert events[-1]["event"] == "job_end" and events[-1]["result_code"] == 1
