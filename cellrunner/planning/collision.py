@@ -750,16 +750,20 @@ def _support_points(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray
     elif isinstance(geometry, coal.Sphere):
         local, pad = np.zeros((1, 3)), float(geometry.radius)
     else:
-        if isinstance(geometry, coal.Box):
-            hi = np.asarray(geometry.halfSide, float)
-            lo = -hi
-        else:
-            geometry.computeLocalAABB()
-            lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
+        lo, hi = _local_aabb(geometry)
         local = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
         pad = 0.0
     T = np.asarray(T_parent_shape, float)
     return local @ T[:3, :3].T + T[:3, 3], pad
+
+
+def _local_aabb(geometry: coal.CollisionGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """Corners (lo, hi) of a geometry's box in its own frame."""
+    if isinstance(geometry, coal.Box):
+        hi = np.asarray(geometry.halfSide, float)
+        return -hi, hi
+    geometry.computeLocalAABB()
+    return np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
 
 
 def _cover_spheres(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -780,12 +784,7 @@ def _cover_spheres(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray)
     elif isinstance(geometry, coal.Sphere):
         local, radius = np.zeros((1, 3)), np.array([float(geometry.radius)])
     else:
-        if isinstance(geometry, coal.Box):
-            hi = np.asarray(geometry.halfSide, float)
-            lo = -hi
-        else:
-            geometry.computeLocalAABB()
-            lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
+        lo, hi = _local_aabb(geometry)
         local, radius = ((lo + hi) / 2)[None, :], np.array([float(np.linalg.norm(hi - lo)) / 2])
     return local @ T[:3, :3].T + T[:3, 3], radius
 

@@ -124,8 +124,18 @@ def _overlap(prev: Trapezoid, nxt: Trapezoid, blend_distance: float) -> float:
     return max(0.0, min(prev.t_acc, nxt.t_acc, t_within))
 
 
+@dataclass
 class _Scheduled:
-    """Timing of a path made of overlapping trapezoid segments (``_segments``, ``t_s``)."""
+    """A path of overlapping trapezoid segments through ``waypoints``
+    ``(target, speed, accel, blend_m)``, and its timing."""
+
+    q_start: np.ndarray
+    waypoints: list[tuple[np.ndarray, float, float, float]]
+    kinematics: Kinematics
+    qd_max: np.ndarray
+    speed_scale: float = 1.0
+    t_s: float = 0.0
+    _segments: list[_Segment] = field(default_factory=list)
 
     @property
     def duration_s(self) -> float:
@@ -142,13 +152,6 @@ class _Scheduled:
 class JointPath(_Scheduled):
     """movej through joint waypoints ``(q_rad, speed, accel, blend_m)``, synchronized joints."""
 
-    q_start: np.ndarray
-    waypoints: list[tuple[np.ndarray, float, float, float]]
-    kinematics: Kinematics
-    qd_max: np.ndarray
-    speed_scale: float = 1.0
-    t_s: float = 0.0
-    _segments: list[_Segment] = field(default_factory=list)
     _deltas: list[np.ndarray] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -190,13 +193,6 @@ class JointPath(_Scheduled):
 class LinearPath(_Scheduled):
     """movel through TCP poses ``(pose, speed, accel, blend_m)``, straight lines in base."""
 
-    q_start: np.ndarray
-    waypoints: list[tuple[np.ndarray, float, float, float]]
-    kinematics: Kinematics
-    qd_max: np.ndarray
-    speed_scale: float = 1.0
-    t_s: float = 0.0
-    _segments: list[_Segment] = field(default_factory=list)
     _dp: list[np.ndarray] = field(default_factory=list)
     _dw: list[np.ndarray] = field(default_factory=list)
 
