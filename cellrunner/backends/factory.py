@@ -25,6 +25,9 @@ def make_backend(cell: LoadedCell, kind: str, host: str | None = None, **kw):
         from cellrunner.backends.ur import URBackend
         from cellrunner.model.geometry import tcp_pose_of
         c = cell.cell
+        g = c.tool.gripper
+        robotiq = g.port if g is not None and g.kind == "robotiq" and g.close is None else None
         return URBackend(host, cell.spec, tcp_pose=tcp_pose_of(c.tool.tcp.matrix()),
-                         payload_kg=c.tool.payload.mass, payload_cog_m=tuple(c.tool.payload.cog), **kw)
+                         payload_kg=c.tool.payload.mass, payload_cog_m=tuple(c.tool.payload.cog),
+                         robotiq_port=robotiq, **kw)
     raise UsageError(f"unknown backend {kind!r}; known: ur, sim")

@@ -41,6 +41,7 @@ from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.backends.ur_io import IoConnectionLost, RtdeOutputWriter
 from cellrunner.backends.ur_probe import controller_version, generation_of
 from cellrunner.errors import PeerUnreachable
+from cellrunner.model.gripper import ROBOTIQ_CLOSE, ROBOTIQ_OBJECT
 from cellrunner.model.robots import RobotSpec
 from cellrunner.model.trajectory import ApprovedTrajectory
 
@@ -123,6 +124,7 @@ class URBackend:
         connect_timeout_s: float = 3.0,
         reconnect_timeout_s: float = 10.0,
         require_remote_control: bool = True,
+        robotiq_port: int | None = None,
         tcp_pose: tuple[float, ...] | None = None,
         payload_kg: float | None = None,
         payload_cog_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
@@ -136,6 +138,8 @@ class URBackend:
         self.connect_timeout_s = connect_timeout_s
         self.reconnect_timeout_s = reconnect_timeout_s
         self.require_remote_control = require_remote_control
+        self.robotiq_port = robotiq_port  # a Robotiq 2F on this controller's socket, or None
+        self._robotiq = None
         # set on the controller at every connect: TCP as a UR pose in the flange frame
         # (m, rotation vector rad), payload mass (kg) and centre of gravity (m, flange)
         self.tcp_pose = tcp_pose
@@ -160,6 +164,10 @@ class URBackend:
         does not fail ``connect``: the state shows it (``read_state``) and the control
         script is uploaded once :meth:`unlock_protective_stop` / :meth:`recover_from_estop`
         (which also powers up a powered-off arm) made the arm ready."""
+        if self.robotiq_port is not None and self._robotiq is None:
+            from cellrunner.backends.robotiq import RobotiqClient
+            self._robotiq = RobotiqClient(self.host, self.robotiq_port, self.connect_timeout_s)
+            self._robotiq.connect()
         self._close_quietly()
         versions = controller_version(self.host, self.connect_timeout_s)
         generation = generation_of(versions)
@@ -247,6 +255,9 @@ class URBackend:
                 pass
         self._servoing = False
         self._t_cycle = None
+        if self._robotiq is not None:
+            self._robotiq.close()
+            self._robotiq = None
         self._close_quietly()
 
     def _close_quietly(self) -> None:
@@ -314,6 +325,8 @@ class URBackend:
             for i in range(2):
                 target[f"T{prefix}{i}"] = bool(bits >> (16 + i) & 1)
         inputs["AI0"], inputs["AI1"] = receive.getStandardAnalogInput0(), receive.getStandardAnalogInput1()
+        if self._robotiq is not None:
+            inputs[ROBOTIQ_OBJECT] = self._robotiq.object_detected
         outputs["AO0"], outputs["AO1"] = receive.getStandardAnalogOutput0(), receive.getStandardAnalogOutput1()
         return RobotState(
             time_s=receive.getTimestamp(),
@@ -407,6 +420,9 @@ class URBackend:
     # ------------------------------------------------------------------ IO and sensors
 
     def set_output(self, channel: str, value: bool | float) -> None:
+        if channel == ROBOTIQ_CLOSE and self._robotiq is not None:
+            self._robotiq.move(bool(value))
+            return
         kind, index = _channel(channel)
         io = self._io
         if io is None:

@@ -27,6 +27,11 @@ def run(args) -> int:
     physics = MujocoPhysics(description_of(cell))
     spec = cell.spec
     threading.Thread(target=_announce, args=(ready, stop, args.host, spec), daemon=True).start()
+    g = cell.cell.tool.gripper
+    if g is not None and g.kind == "robotiq" and g.close is None:
+        from cellrunner.backends.robotiq import serve_robotiq
+        physics.reset(np.radians(cell.cell.robot.home))  # builds the world the gripper socket drives
+        threading.Thread(target=serve_robotiq, args=(args.host, physics.world, stop, g.port), daemon=True).start()
     run_twin(spec, host=args.host, physics=physics, stop_event=stop, ready=ready,
              q_initial_rad=tuple(np.radians(cell.cell.robot.home)))
     return 0

@@ -29,6 +29,7 @@ from cellrunner.model.cellport import COMMANDS, CellStatus, JobResult, JobTicket
 from cellrunner.model.codes import PackMLState as S, ResultCode
 from cellrunner.model.expand import Step, resolve_params
 from cellrunner.model.load import LoadedCell, LoadedTask
+from cellrunner.model.gripper import gripper_channels
 from cellrunner.model.timing import release_time_s
 
 #: Complete is shown this long before the cell resets itself to Idle
@@ -334,9 +335,7 @@ class CellController:
         c = self.cell.cell
         io_out, io_in = c.io.outputs, c.io.inputs
         g = c.tool.gripper
-        close = (io_out[g.close.output], g.close.value) if g and g.close else None
-        open_ = (io_out[g.open.output], g.open.value) if g and g.open else None
-        sensor = io_in[g.closed_sensor] if g and g.closed_sensor else None
+        close, open_, sensor = gripper_channels(g, io_out, io_in)
         return JobContext(backend=self.backend, motions=motions, outputs=dict(io_out), inputs=dict(io_in),
                           gripper_close=close, gripper_open=open_, gripper_closed_sensor=sensor,
                           gripper_open_s=release_time_s(g),

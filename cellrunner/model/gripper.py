@@ -12,6 +12,11 @@ import numpy as np
 from cellrunner.model import geometry
 from cellrunner.model.geometry import Box, Placed
 
+#: a Robotiq 2F gripper is driven through its own socket, not the robot's IO; the engine
+#: and the backends address it through these two virtual channels
+ROBOTIQ_CLOSE = "RQ0"  # output: true closes the jaws (SET POS 255), false opens them
+ROBOTIQ_OBJECT = "RQ_OBJ"  # input: true when the gripper reports an object detected (OBJ 2)
+
 FINGER_SIZE_M = (0.012, 0.022, 0.045)  # thickness (X), width (Y), length (Z)
 PAD_Z_M = (-0.02, 0.02)  # pad extent along the TCP's Z, around the TCP
 
@@ -25,3 +30,18 @@ def open_pads(stroke_m: float, T_flange_tcp: np.ndarray) -> list[Placed]:
         x = sign * (stroke_m / 2 + t / 2)
         pads.append(Placed(name, Box((t, w, z1 - z0)), T_flange_tcp @ geometry.pose_matrix((x, 0.0, (z0 + z1) / 2))))
     return pads
+
+
+def gripper_channels(gripper, outputs: dict[str, str], inputs: dict[str, str]):
+    """(close channel and value, open channel and value or None, closed-sensor channel) of
+    the cell's gripper: IO channels for ``kind: io``, the virtual Robotiq channels for
+    ``kind: robotiq`` (where the cell names no IO of its own)."""
+    if gripper is None:
+        return None, None, None
+    if gripper.kind == "robotiq" and gripper.close is None:
+        sensor = inputs[gripper.closed_sensor] if gripper.closed_sensor else ROBOTIQ_OBJECT
+        return (ROBOTIQ_CLOSE, True), None, sensor
+    close = (outputs[gripper.close.output], gripper.close.value) if gripper.close else None
+    open_ = (outputs[gripper.open.output], gripper.open.value) if gripper.open else None
+    sensor = inputs[gripper.closed_sensor] if gripper.closed_sensor else None
+    return close, open_, sensor

@@ -102,3 +102,35 @@ def test_serve_with_the_ur_backend_runs_a_plc_job(tmp_path):
         twin.terminate()
         twin.communicate(timeout=30)
     assert serve.returncode == 0
+
+
+def test_robotiq_gripper_through_its_socket(tmp_path):
+    """kind: robotiq: the UR backend drives the gripper through its socket (port 63352 on
+    the controller), which the twin serves over its MuJoCo jaws; a grip is confirmed by
+    OBJ 2 (object detected), a miss retried and refused."""
+    from tests.execution.test_dryrun import CELL, TASK
+
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "tasks").mkdir()
+    cell = tmp_path / "cells" / "c.yaml"
+    cell.write_text(CELL.replace("gripper: {kind: io, close: {output: jaws, value: true}, closed_sensor: jaws_closed, "
+                                 "stroke: 0.08, close_time: 0.25}", "gripper: {kind: robotiq, stroke: 0.085}"))
+    task = tmp_path / "tasks" / "t.yaml"
+    task.write_text(TASK.replace("grip: {confirm: jaws_closed, ", "grip: {"))
+    host = "127.0.0.32"
+    twin = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", host],
+                            cwd=ROOT, stderr=subprocess.PIPE, text=True, env={**os.environ, "MUJOCO_GL": "osmesa"})
+    try:
+        assert "virtual" in twin.stderr.readline()
+        r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "run", str(cell), str(task), "--backend", "ur",
+                            "--robot-host", host, "--json"], capture_output=True, text=True, cwd=ROOT, timeout=300)
+        assert r.returncode == 0, r.stderr[-3000:]
+        assert json.loads(r.stdout)["result_code"] == 0
+    finally:
+        twin.terminate()
+        twin.communicate(timeout=30)
+    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "dry-run", str(cell), str(task), "--json",
+                        "--inject", "grip_miss@grip"], capture_output=True, text=True, cwd=ROOT, timeout=300,
+                       env={**os.environ, "MUJOCO_GL": "osmesa"})
+    out = json.loads(r.stdout)
+    assert (r.returncode, out["result_code"], out["retries"]) == (1, 1, 1)

@@ -6,6 +6,7 @@ import numpy as np
 
 from cellrunner.model.expand import frame_pose
 from cellrunner.model.geometry import Placed
+from cellrunner.model.gripper import gripper_channels
 from cellrunner.model.load import LoadedCell
 
 
@@ -17,12 +18,15 @@ def description_of(loaded: LoadedCell):
     outputs, inputs = c.io.outputs, c.io.inputs
     gripper = None
     g = c.tool.gripper
-    if g is not None and g.close is not None:
+    io_outputs, io_inputs = list(dict.fromkeys(outputs.values())), list(dict.fromkeys(inputs.values()))
+    close, _, sensor = gripper_channels(g, outputs, inputs)
+    if close is not None:
         gripper = GripperDescription(
             stroke_m=g.stroke, jaw_speed_mps=g.stroke / 2 / g.close_time,
-            close_output=outputs[g.close.output], close_value=g.close.value,
-            closed_sensor_input=inputs.get(g.closed_sensor) if g.closed_sensor else None,
+            close_output=close[0], close_value=close[1], closed_sensor_input=sensor,
             open_sensor_input=inputs.get(g.open_sensor) if g.open_sensor else None)
+        io_outputs += [close[0]] if close[0] not in io_outputs else []
+        io_inputs += [sensor] if sensor and sensor not in io_inputs else []
     tool = [Placed("gripper" if len(c.tool.geometry) == 1 else f"tool{i}", t.to_shape(loaded.resolve), t.matrix())
             for i, t in enumerate(c.tool.geometry)]
     fixtures = [Placed(f.name, f.to_shape(loaded.resolve), f.matrix()) for f in c.fixtures]
@@ -33,7 +37,7 @@ def description_of(loaded: LoadedCell):
         q_home_rad=tuple(np.radians(c.robot.home)), tool_geometry=tuple(tool),
         payload_mass_kg=max(c.tool.payload.mass, 0.1), payload_cog_m=tuple(c.tool.payload.cog),
         gripper=gripper, fixtures=tuple(fixtures), parts=tuple(parts),
-        io_outputs=tuple(dict.fromkeys(outputs.values())), io_inputs=tuple(dict.fromkeys(inputs.values())),
+        io_outputs=tuple(io_outputs), io_inputs=tuple(io_inputs),
         name=c.cell)
 
 
