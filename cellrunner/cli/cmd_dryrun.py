@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, step_table
+from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, record_rows, step_table
 from cellrunner.cli.faults import Injection, parse_injections
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
@@ -82,7 +82,7 @@ def run(args) -> int:
     runner = controller.last_runner
     result = controller.status().last_result
     code = ResultCode(result.result_code)
-    rows = _rows(runner, steps)
+    rows = record_rows(runner, steps)
     tracking = runner.ctx.tracking_error_m if runner else 0.0
     sim_s = backend.read_state().time_s - sim_t0
     payload = {"ok": code is ResultCode.OK, "cell": cell.cell.cell, "task": task.name, "params": params,
@@ -168,14 +168,6 @@ def _snapshot(backend) -> np.ndarray | None:
             return renderer.render()
     except RenderUnavailable:
         return None
-
-
-def _rows(runner, steps) -> list[dict]:
-    if runner is None:
-        return [{"index": s.index, "name": s.name, "kind": s.kind, "duration_s": 0.0, "status": "not run",
-                 "message": "", "attempts": 0} for s in steps]
-    return [{"index": r.index, "name": r.name, "kind": r.kind, "duration_s": round(r.duration_s, 4),
-             "status": r.status, "message": r.message, "attempts": r.attempts} for r in runner.records.values()]
 
 
 def _write_report(recorder: _Recorder, payload: dict, backend) -> None:

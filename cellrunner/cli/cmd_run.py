@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 
 from cellrunner.backends.factory import backend_kind, make_backend
-from cellrunner.cli.common import console, emit_json, load, parse_params, step_table
+from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
 from cellrunner.execution.cell import CellController, run_until_done
 from cellrunner.execution.journal import Journal
 from cellrunner.execution.planner import job_planner
@@ -43,9 +43,7 @@ def run(args) -> int:
     finally:
         controller.close()
     code = ResultCode(result.result_code)
-    rows = [{"index": r.index, "name": r.name, "kind": r.kind, "duration_s": round(r.duration_s, 4),
-             "status": r.status, "message": r.message, "attempts": r.attempts}
-            for r in (runner.records.values() if runner else [])]
+    rows = record_rows(runner)
     payload = {"ok": code is ResultCode.OK, "cell": cell.cell.cell, "task": task.name, "params": params,
                "cycle_time_s": round(result.cycle_time_s, 4), "result_code": int(code),
                "result_text": result.result_text, "job_id": result.job_id, "backend": kind, "steps": rows,

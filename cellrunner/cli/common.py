@@ -80,3 +80,13 @@ def step_table(title: str, rows: list[dict], extra_columns: tuple[str, ...] = ()
                       f"[{colors.get(status, 'yellow')}]{status}[/]",
                       *[str(r.get(c.replace(' ', '_'), '')) for c in extra_columns], r.get("message", ""))
     return table
+
+
+def record_rows(runner, steps=None) -> list[dict]:
+    """The ``steps`` of a ``--json`` report from a job runner's step records (rows with
+    status "not run" for ``steps`` when no runner started)."""
+    if runner is None:
+        return [{"index": s.index, "name": s.name, "kind": s.kind, "duration_s": 0.0, "status": "not run",
+                 "message": "", "attempts": 0} for s in steps or []]
+    return [{"index": r.index, "name": r.name, "kind": r.kind, "duration_s": round(r.duration_s, 4),
+             "status": r.status, "message": r.message, "attempts": r.attempts} for r in runner.records.values()]

@@ -70,6 +70,18 @@ class LoadedCell:
         folder = self.path.resolve().parent
         return folder.parent if folder.name == "cells" else folder
 
+    def tool_shapes(self) -> list:
+        """The declared tool geometry as placed shapes in the flange frame."""
+        from cellrunner.model.geometry import Placed
+        geometry = self.cell.tool.geometry
+        return [Placed(f"tool{i}" if len(geometry) > 1 else "gripper", g.to_shape(self.resolve), g.matrix())
+                for i, g in enumerate(geometry)]
+
+    def fixture_shapes(self) -> list:
+        """The fixtures as placed shapes in the world."""
+        from cellrunner.model.geometry import Placed
+        return [Placed(f.name, f.to_shape(self.resolve), f.matrix()) for f in self.cell.fixtures]
+
     def resolve(self, relative: str) -> Path:
         """A path written in the cell file. Relative paths are looked up against the
         project root, then the cell file's folder, then the working directory; the first

@@ -306,24 +306,23 @@ def _time_group(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> 
         separate.append(piece)
         q = piece["q"][-1]
     options.append(separate)
-    best = min(options, key=lambda pieces: sum(len(p["q"]) - 1 for p in pieces))
-    for motion, piece in zip(group, best):
+    _apply(world, group, min(options, key=lambda pieces: sum(len(p["q"]) - 1 for p in pieces)))
+
+
+def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[StepPlan]:
+    """Time ``group`` as one motion and apply the verified pieces to its rows."""
+    _apply(world, group, _timed_pieces(world, group, q_start))
+    return [m.row for m in group]
+
+
+def _apply(world: CellWorld, group: list[_Motion], pieces: list[dict]) -> None:
+    for motion, piece in zip(group, pieces):
         row = motion.row
         row.approved, row.trajectory, row.verify_inputs = piece["approved"], piece["trajectory"], piece["inputs"]
         # every piece starts on the set-point before it (the start state, or the last
         # sample of the piece it continues), which the engine does not stream twice
         row.duration_s = (len(piece["q"]) - 1) / world.spec.rate_hz
         row.q_end_rad = piece["q"][-1]
-
-
-def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[StepPlan]:
-    """Time ``group`` as one motion and apply the verified pieces to its rows."""
-    for motion, piece in zip(group, _timed_pieces(world, group, q_start)):
-        row = motion.row
-        row.approved, row.trajectory, row.verify_inputs = piece["approved"], piece["trajectory"], piece["inputs"]
-        row.duration_s = (len(piece["q"]) - 1) / world.spec.rate_hz
-        row.q_end_rad = piece["q"][-1]
-    return [m.row for m in group]
 
 
 def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[dict]:

@@ -34,15 +34,14 @@ class CellWorld:
     def tool(self) -> list[Placed]:
         """The declared tool geometry and, with a gripper, its finger pads fully open."""
         tool = self.loaded.cell.tool
-        shapes = [Placed(f"tool{i}" if len(tool.geometry) > 1 else "gripper", g.to_shape(self.loaded.resolve),
-                         g.matrix()) for i, g in enumerate(tool.geometry)]
+        shapes = self.loaded.tool_shapes()
         if tool.gripper is not None:
             shapes += open_pads(tool.gripper.stroke, tool.tcp.matrix())
         return shapes
 
     @cached_property
     def fixtures(self) -> list[Placed]:
-        return [Placed(f.name, f.to_shape(self.loaded.resolve), f.matrix()) for f in self.loaded.cell.fixtures]
+        return self.loaded.fixture_shapes()
 
     @cached_property
     def collision(self):

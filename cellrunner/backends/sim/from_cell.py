@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 from cellrunner.model.expand import frame_pose
-from cellrunner.model.geometry import Placed
 from cellrunner.model.gripper import gripper_channels
 from cellrunner.model.load import LoadedCell
 
@@ -27,16 +26,13 @@ def description_of(loaded: LoadedCell):
             open_sensor_input=inputs.get(g.open_sensor) if g.open_sensor else None)
         io_outputs += [close[0]] if close[0] not in io_outputs else []
         io_inputs += [sensor] if sensor and sensor not in io_inputs else []
-    tool = [Placed("gripper" if len(c.tool.geometry) == 1 else f"tool{i}", t.to_shape(loaded.resolve), t.matrix())
-            for i, t in enumerate(c.tool.geometry)]
-    fixtures = [Placed(f.name, f.to_shape(loaded.resolve), f.matrix()) for f in c.fixtures]
     parts = [PartDescription(p.name, p.to_shape(loaded.resolve), p.mass, _upright(frame_pose(c, p.at)), p.friction)
              for p in c.parts]
     return TwinDescription(
         spec=loaded.spec, T_world_base=c.robot.mount.matrix(), T_flange_tcp=c.tool.tcp.matrix(),
-        q_home_rad=tuple(np.radians(c.robot.home)), tool_geometry=tuple(tool),
+        q_home_rad=tuple(np.radians(c.robot.home)), tool_geometry=tuple(loaded.tool_shapes()),
         payload_mass_kg=max(c.tool.payload.mass, 0.1), payload_cog_m=tuple(c.tool.payload.cog),
-        gripper=gripper, fixtures=tuple(fixtures), parts=tuple(parts),
+        gripper=gripper, fixtures=tuple(loaded.fixture_shapes()), parts=tuple(parts),
         io_outputs=tuple(io_outputs), io_inputs=tuple(io_inputs),
         name=c.cell)
 
