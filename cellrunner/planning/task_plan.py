@@ -231,16 +231,17 @@ class _StepPlanner:
         """The branch nearest the current configuration that is collision-free and, when
         a straight descend follows, from which that descend's goal is on the same branch
         and collision-free too."""
+        from cellrunner.planning.blockers import unreachable, every_branch_collides
+
         kin = self.world.kinematics
         branches = kin.ik_all(T_world_tcp, self.q)
-        if not branches:
-            raise InfeasibleError(f"{step.label}: {kin.unreachable_reason(T_world_tcp)}")
         collision = self.collision()
+        if not branches:
+            raise unreachable(step.label, kin, collision, T_world_tcp, self.q)
         follow = then.T_world_tcp if then is not None and then.kind in ("descend", "linear") else None
         valid = [q for q in branches if collision.is_valid(q)]
         if not valid:
-            raise InfeasibleError(f"{step.label}: every IK branch collides: "
-                                  f"{collision.clearance(branches[0]).describe()}")
+            raise every_branch_collides(step.label, kin, collision, T_world_tcp, self.q)
         if follow is not None:
             after = self.collision(self._place_allowances(then, follow))
             for q in valid:
