@@ -164,6 +164,8 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     for i, part in enumerate(cell.parts):
         if part.at not in cell.frames:
             report.error(("parts", i, "at"), _unknown("frame", part.at, cell.frames))
+    from cellrunner.model import sanity
+    sanity.check_cell(loaded, report)
     for number, task_path in cell.tasks.items():
         if not loaded.resolve(task_path).is_file():
             report.error(("tasks", number), f"task file {task_path!r} not found "
@@ -342,6 +344,8 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
     if not report.errors:
         from cellrunner.model.references import check_task_references
         check_task_references(loaded, cell, report)
+        from cellrunner.model import sanity
+        sanity.check_task(loaded, cell, report)
     report.raise_if_errors()
     return loaded
 
