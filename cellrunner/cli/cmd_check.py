@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import json
+import re
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+from rich.text import Text
 
 from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, step_table
 from cellrunner.model.expand import pattern_params
@@ -22,10 +25,23 @@ def run(args) -> int:
 
     world = CellWorld(cell)
     out = console()
-    with out.status(f"planning {task.name}", spinner="dots"):
-        plan = plan_cached(world, task, params, world.q_home_rad, use_cache=not args.no_cache)
-        errors = list(plan.errors)
-        slots_checked = _check_other_slots(world, task, params, errors, use_cache=not args.no_cache)
+    use_cache = not args.no_cache
+    others = [(name, slot) for name, slots in pattern_params(task).items() for slot in slots
+              if slot != params.get(name)]
+    n_steps = len(expanded(cell, task, params))
+    with _progress(out, 1 + len(others), n_steps) as step_done:
+        plan = plan_cached(world, task, params, world.q_home_rad, use_cache=use_cache,
+                           on_step=step_done(f"{task.name} {_params_text(params)}"))
+        failures: list[tuple[str, int, str]] = []  # (param, slot, error) of the other slots
+        for name, slot in others:
+            other = plan_cached(world, task, {**params, name: slot}, world.q_home_rad, use_cache=use_cache,
+                                on_step=step_done(f"{name}={slot}"))
+            failures += [(name, slot, e) for e in other.errors]
+    errors = list(plan.errors) + [f"{name}={slot}: {e}" for name, slot, e in failures]
+    slots_checked = {name: list(slots) for name, slots in pattern_params(task).items()}
+    pattern = next(iter(slots_checked), None)
+    requested = [(pattern, params[pattern], e) for e in plan.errors] if pattern is not None else []
+    grouped = group_slot_failures(requested + failures)
     rows = [{"index": r.step.index, "name": r.step.name, "kind": r.step.kind, "duration_s": round(r.duration_s, 4),
              "status": r.status, "message": r.message, "attempts": 0} for r in plan.rows]
     if args.save_plan and not errors:
@@ -33,36 +49,106 @@ def run(args) -> int:
     if args.json:
         emit_json({"ok": not errors, "cell": cell.cell.cell, "task": task.name, "params": params,
                    "cycle_time_s": round(plan.cycle_time_s, 4), "steps": rows, "errors": errors,
-                   "slots_checked": slots_checked})
+                   "slots_checked": slots_checked,
+                   "failed_slots": [{"param": name, "slots": slots, "error": message}
+                                    for name, slots, message in grouped],
+                   "warnings": [str(w) for w in [*cell.warnings, *task.warnings]]})
     else:
         title = f"check {task.name} on {cell.cell.cell} ({cell.cell.robot.model})" + \
-            (f"  params: {', '.join(f'{k}={v}' for k, v in params.items())}" if params else "")
-        out.print(step_table(title, rows))
+            (f"  params: {_params_text(params)}" if params else "")
+        out.print(step_table(title, [{**r, "message": _headline(r["message"])} for r in rows]))
         for name, values in slots_checked.items():
-            out.print(f"pattern param {name}: {len(values)} slots checked ({values[0]}..{values[-1]})")
-        for e in errors:
-            out.print(f"[bold red]infeasible:[/] {e}")
+            out.print(f"pattern param {name}: {len(values)} slots checked ({values[0]}..{values[-1]})",
+                      markup=False)
+        if pattern is None:
+            for e in plan.errors:
+                out.print(Text("infeasible: ", style="bold red") + Text(_lines(e)))
+        for name, slots, message in grouped:
+            out.print(Text("infeasible: ", style="bold red") + Text(_lines(f"{slot_range_text(name, slots)}: {message}")))
         verdict = "[green]feasible[/]" if not errors else "[bold red]infeasible[/]"
         out.print(f"{verdict}: planned cycle time {plan.cycle_time_s:.2f} s "
                   f"(checked in {time.perf_counter() - t0:.2f} s)")
         if args.save_plan and not errors:
-            out.print(f"plan saved to {args.save_plan}")
+            out.print(f"plan saved to {args.save_plan}", markup=False)
     return 0 if not errors else 1
 
 
-def _check_other_slots(world, task, params, errors: list[str], use_cache: bool) -> dict[str, list[int]]:
-    """Every slot of every pattern, not only the requested one."""
-    from cellrunner.planning.cache import plan_cached
+def _headline(message: str, width: int = 90) -> str:
+    """The start of a long message for the table (the whole of it is printed below)."""
+    if len(message) <= width:
+        return message
+    return message[:width].rsplit(" ", 1)[0] + " ... (below)"
 
-    checked: dict[str, list[int]] = {}
-    for name, slots in pattern_params(task).items():
-        checked[name] = list(slots)
-        for slot in slots:
-            if slot == params.get(name):
-                continue
-            other = plan_cached(world, task, {**params, name: slot}, world.q_home_rad, use_cache=use_cache)
-            errors.extend(f"{name}={slot}: {e}" for e in other.errors)
-    return checked
+
+def _lines(message: str) -> str:
+    """A long diagnostic one clause per line: '; '-separated parts (each IK branch, the
+    blockers, the fix) indented under the first."""
+    first, *rest = message.split("; ")
+    return first + "".join(f"\n    {part}" for part in rest)
+
+
+def _params_text(params: dict) -> str:
+    return ", ".join(f"{k}={v}" for k, v in params.items())
+
+
+@contextmanager
+def _progress(out, n_plans: int, steps_per_plan: int):
+    """A progress bar over the plans (slots) and their steps; yields ``step_done(label)``,
+    which returns the ``on_step`` callback of one plan."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TextColumn("{task.fields[detail]}", markup=False), TimeElapsedColumn(),
+                  console=out, transient=True) as progress:
+        slots = progress.add_task("slots", total=n_plans, detail="")
+        steps = progress.add_task("steps", total=n_plans * steps_per_plan, detail="")
+        state = {"plans": 0}
+
+        def step_done(label: str):
+            if state["plans"]:
+                progress.advance(slots)
+            state["plans"] += 1
+            progress.update(slots, detail=label)
+
+            def on_step(step) -> None:
+                progress.advance(steps)
+                progress.update(steps, detail=step.label)
+            return on_step
+
+        yield step_done
+        progress.update(slots, completed=n_plans)
+        progress.update(steps, completed=n_plans * steps_per_plan)
+
+
+def group_slot_failures(failures: list[tuple[str, int, str]]) -> list[tuple[str, list[int], str]]:
+    """Per-slot errors grouped: slots whose errors differ only in numbers (joint angles,
+    distances) share one entry, shown with the first slot's message.
+    ``[(param, slot, error)]`` -> ``[(param, [slots], error)]`` in first-seen order."""
+    groups: dict[tuple[str, str], tuple[list[int], str]] = {}
+    for name, slot, message in failures:
+        key = (name, _NUMBERS.sub("#", message))
+        if key not in groups:
+            groups[key] = ([], message)
+        if slot not in groups[key][0]:
+            groups[key][0].append(slot)
+    return [(name, slots, message) for (name, _), (slots, message) in groups.items()]
+
+
+_NUMBERS = re.compile(r"-?\d+(?:\.\d+)?")
+
+
+def slot_range_text(name: str, slots: list[int]) -> str:
+    """``slot``, [3, 4, 5, 9] -> 'slots 3-5, 9' (one slot: 'slot=3'; another param: 'k 3-5, 9')."""
+    if len(slots) == 1:
+        return f"{name}={slots[0]}"
+    runs: list[list[int]] = []
+    for s in sorted(slots):
+        if runs and s == runs[-1][-1] + 1:
+            runs[-1].append(s)
+        else:
+            runs.append([s])
+    text = ", ".join(f"{r[0]}-{r[-1]}" if len(r) > 1 else str(r[0]) for r in runs)
+    return f"{'slots' if name == 'slot' else name} {text}"
 
 
 def _save_plan(path: Path, world, plan) -> None:

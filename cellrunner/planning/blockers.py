@@ -199,6 +199,6 @@ def every_branch_collides(label: str, kinematics, collision, T_world_tcp: np.nda
     obstacle, n = blockers.obstacles[0] if blockers.obstacles else ("an obstacle", 0)
     part = next((p for (p, o), _ in blockers.counts if o == obstacle), "arm")
     return InfeasibleError(
-        f"{label}: every IK branch collides, {n} of {len(lines)} with {obstacle} (mostly the {part}): "
+        f"{label}: every IK branch collides, {n} of {len(lines)} with {obstacle} (mostly the {part}); "
         + "; ".join(lines) + "; "
         f"{fix_hint('goal', blockers.names)}", blockers.names)

@@ -16,6 +16,7 @@ Rules (SPEC section 10):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -114,8 +115,10 @@ class TaskPlan:
         return rows[-1].carrying if rows else None
 
 
-def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> TaskPlan:
-    """Plan every step of a job; failures are recorded per step (the rest is not planned)."""
+def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray,
+              on_step: Callable[[Step], None] | None = None) -> TaskPlan:
+    """Plan every step of a job; failures are recorded per step (the rest is not planned).
+    ``on_step(step)`` is called as each step's planning starts (for a progress bar)."""
     planner = _StepPlanner(world, np.asarray(q_start_rad, float), None)
     rows = [StepPlan(s, status="not planned") for s in steps]
     plan = TaskPlan(world, steps, rows, np.asarray(q_start_rad, float))
@@ -134,6 +137,8 @@ def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> T
         for i, row in enumerate(rows):
             current = row
             step = row.step
+            if on_step is not None:
+                on_step(step)
             then = rows[i + 1].step if i + 1 < len(rows) else None
             if step.is_motion:
                 if group and (step.kind in LINEAR_KINDS or not _same_limits(group[-1].limits, planner.limits_for(step))):
