@@ -175,16 +175,26 @@ def fix_hint(kind: str, obstacles: Sequence[str] = ()) -> str:
 
 # -- the errors ---------------------------------------------------------------------------------
 
-def unreachable(label: str, kinematics, collision, T_world_tcp: np.ndarray, q_near_rad: np.ndarray):
+def unreachable(label: str, kinematics, collision, T_world_tcp: np.ndarray, q_near_rad: np.ndarray,
+                approach_m: float | None = None):
     """The error for a pose with no IK branch inside the joint ranges: the reach, or each
-    branch and the joint that refuses it."""
+    branch and the joint that refuses it. ``approach_m``: the step's approach distance,
+    named when it is what puts the pose out of reach (a length written in mm)."""
     from cellrunner.errors import InfeasibleError
 
     reason = kinematics.unreachable_reason(T_world_tcp)
     lines = explain_ik_branches(kinematics, collision, T_world_tcp, q_near_rad)
     if lines:
-        reason += f" ({len(lines)} branches tried: " + "; ".join(lines) + ")"
-    return InfeasibleError(f"{label}: {reason}; {fix_hint('reach')}")
+        reason += f"; {len(lines)} branches tried: " + "; ".join(lines)
+    fix = fix_hint("reach")
+    reach_m = kinematics.spec.reach_m
+    if ": did you mean mm?" in reason:
+        fix = "fix: write the frame's xyz in metres, or each with its unit ('450 mm')"
+    if approach_m is not None and approach_m > reach_m:
+        reason = reason.split(": did you mean mm?")[0]
+        fix = (f"the approach distance {approach_m:g} m is longer than the reach: did you mean "
+               f"{approach_m:g} mm = {approach_m / 1000:g} m? (write '{approach_m:g} mm')")
+    return InfeasibleError(f"{label}: {reason}; {fix}")
 
 
 def every_branch_collides(label: str, kinematics, collision, T_world_tcp: np.ndarray,

@@ -228,11 +228,11 @@ class ArmKinematics:
         model = self.spec.name.upper().replace("E", "e")
         if from_shoulder_m > self.spec.reach_m:
             mm = from_shoulder_m / 1000
-            hint = (f"; did you mean mm? read as mm the target is {mm:.3f} m from the shoulder"
+            hint = (f": did you mean mm? (read as mm, {from_shoulder_m:.2f} m is {mm:.3f} m)"
                     if from_shoulder_m > 10 * self.spec.reach_m else "")
             return (
                 f"out of reach ({from_shoulder_m:.2f} m from the shoulder, "
-                f"{model} reach {self.spec.reach_m:.2f} m{hint})"
+                f"{model} reach {self.spec.reach_m:.2f} m){hint}"
             )
         raw = self._solve(T_base_flange)
         if len(raw) == 0:

@@ -242,7 +242,8 @@ class _StepPlanner:
         branches = kin.ik_all(T_world_tcp, self.q)
         collision = self.collision()
         if not branches:
-            raise unreachable(step.label, kin, collision, T_world_tcp, self.q)
+            raise unreachable(step.label, kin, collision, T_world_tcp, self.q,
+                              getattr(step.args, "distance", None) if step.kind == "approach" else None)
         follow = then.T_world_tcp if then is not None and then.kind in ("descend", "linear") else None
         valid = [q for q in branches if collision.is_valid(q)]
         if not valid:

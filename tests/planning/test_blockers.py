@@ -88,7 +88,9 @@ def test_joint_range_refusal_names_the_joint_and_its_range():
 def test_out_of_reach_in_metres_that_were_meant_as_mm_says_so():
     kin = _kinematics()
     message = kin.unreachable_reason(pose_matrix((1253.0, 30.0, 150.0), DOWN))
-    assert "m from the shoulder, UR5e reach 0.85 m; did you mean mm? read as mm the target is 1.2" in message
+    assert message.startswith("out of reach (1262.30 m")
+    assert "m from the shoulder, UR5e reach 0.85 m): did you mean mm? (read as mm, 1262.30 m is 1.262 m)" in message
+    assert message.endswith(" m is 1.262 m)")
 
 
 @pytest.mark.parametrize("distance_m, required_m, expected", [
