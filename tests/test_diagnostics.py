@@ -105,3 +105,25 @@ def test_json_prints_its_object_on_input_errors_with_exit_2(tmp_path):
     r = cellrunner("check", "--json", "--bogus")
     assert r.returncode == 2
     assert json.loads(r.stdout)["errors"] == ["cellrunner: error: unrecognized arguments: --bogus"]
+
+
+def test_jobs_shows_whole_job_ids_at_80_columns(tmp_path):
+    from cellrunner.execution.journal import Journal
+    from cellrunner.model.codes import ResultCode
+
+    (tmp_path / "c.yaml").write_text("cell: c\nrobot: {model: ur5e, home: [0, -90, 90, -90, -90, 0]}\n"
+                                     "journal: jobs.sqlite\n")
+    journal = Journal(tmp_path / "jobs.sqlite").open()
+    job_ids = ["3f2b8c1e-9a47-4d2b-8e51-7c0d9f6a1b23", "c0ffee00-1234-4abc-9def-0123456789ab"]
+    for job_id in job_ids:
+        journal.begin_job(job_id, "c", "pick_place", {"slot": 7}, "plc-modbus", "client-42")
+        journal.end_job(job_id, ResultCode.OK, 8.76, 0, "OK")
+    journal.close()
+    r = cellrunner("jobs", str(tmp_path / "c.yaml"))
+    r80 = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "jobs", str(tmp_path / "c.yaml")],
+                         capture_output=True, text=True, cwd=ROOT, timeout=60,
+                         env={"COLUMNS": "80", "PATH": "/usr/bin:/bin"})
+    for out in (r.stderr, r80.stderr):
+        for job_id in job_ids:
+            assert job_id in out, out
+    assert max(len(line) for line in r80.stderr.splitlines()) <= 80
