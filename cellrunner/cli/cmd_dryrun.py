@@ -6,6 +6,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from rich.markup import escape
+
 from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, record_rows, step_table
 from cellrunner.cli.faults import Injection, parse_injections
 from cellrunner.execution.cell import CellController
@@ -91,7 +93,7 @@ def run(args) -> int:
     else:
         out.print(step_table(f"dry-run {task.name} on {cell.cell.cell} (MuJoCo twin)", rows, ("attempts",)))
         verdict = "[green]OK[/]" if code is ResultCode.OK else f"[bold red]{code.name}[/]"
-        out.print(f"result {int(code)} {verdict}: {result.result_text}")
+        out.print(f"result {int(code)} {verdict}: {escape(result.result_text)}")
         out.print(f"cycle time {result.cycle_time_s:.2f} s simulated vs {planned:.2f} s planned; "
                   f"max tracking error {tracking * 1000:.2f} mm; retries {payload['retries']}; "
                   f"planning {wall_plan_s:.2f} s, simulation {wall_run_s:.2f} s wall "
@@ -136,8 +138,8 @@ def _run(controller, backend, pending, recorder, status, steps, world, io_names:
         if runner is not None:
             if runner.current_step != last_step:
                 last_step = runner.current_step
-                status.update(f"step {last_step}/{len(steps)} {steps[last_step - 1].kind} "
-                              f"{steps[last_step - 1].name}" if last_step else "running")
+                status.update(escape(f"step {last_step}/{len(steps)} {steps[last_step - 1].kind} "
+                                     f"{steps[last_step - 1].name}") if last_step else "running")
                 if recorder is not None and last_step and steps[last_step - 1].kind in ("grip", "release"):
                     recorder.moment(f"step{last_step:02d}_{steps[last_step - 1].kind}", backend.world)
             if recorder is not None and recorder.due(now):
