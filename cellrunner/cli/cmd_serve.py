@@ -6,12 +6,12 @@ from __future__ import annotations
 import signal
 import sys
 import threading
-import time
 
 from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.logs import configure
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
+from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
 from cellrunner.model.load import load_cell, load_task
 
@@ -35,14 +35,19 @@ def run(args) -> int:
     service = _plc_service(controller, cell)
     log.info("serving", backend=kind, tasks={n: t.name for n, t in tasks.items()},
              modbus=getattr(service, "modbus_address", None) if service else None)
+    reason = "cellrunner stopped (SIGTERM)"
     try:
-        _loop(controller, stop, paced=kind == "sim")
+        ControlLoop(controller, realtime=kind == "sim").run(stop)
+    except Exception as exc:  # a bug in the control loop: close the job saying so, then exit 1
+        reason = f"cellrunner failed: {type(exc).__name__}: {exc}"
+        log.exception("control_loop_failed", error=str(exc))
+        raise
     finally:
-        controller.shutdown("cellrunner stopped (SIGTERM)")
+        controller.shutdown(reason)
         if service is not None:
             service.stop()
         controller.close()
-        log.info("stopped")
+        log.info("stopped", reason=reason)
     return 0
 
 
@@ -55,19 +60,3 @@ def _plc_service(controller: CellController, cell):
     service = PlcService(controller, plc, base_dir=cell.root, pki_dir=pki, cell_name=cell.cell.cell)
     service.start()
     return service
-
-
-def _loop(controller: CellController, stop: threading.Event, *, paced: bool) -> None:
-    """One tick per controller period; the twin in-process is paced to the wall clock."""
-    period = 1.0 / controller.backend.rate_hz
-    next_t = time.monotonic()
-    while not stop.is_set():
-        controller.backend.wait_period()
-        controller.tick()
-        if paced:
-            next_t += period
-            delay = next_t - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-            elif delay < -0.5:
-                next_t = time.monotonic()  # fell behind: don't try to catch up in a burst
