@@ -6,8 +6,9 @@ of ``servo(trajectory, i)`` + ``wait_period()`` -> :meth:`URBackend.close`.
 ``connect`` first probes the controller over RTDE (bounded, :mod:`ur_probe`) and asks the
 dashboard for its model and remote-control state; it refuses a controller whose
 generation or model differs from the cell's (:class:`ControllerMismatch`) and one in
-local control (:class:`RemoteControlOff`). Then it opens RTDEReceive (the state, every
-controller period), RTDEControl (uploads ur_rtde's control script) and RTDEIO.
+local control (:class:`RemoteControlOff`). Then it opens the state stream (every
+controller period, :mod:`ur_state`), RTDEControl (uploads ur_rtde's control script, in
+its own process: :mod:`ur_control`) and the outputs (:mod:`ur_io`).
 
 Streaming is ``servoJ`` at the controller rate (500 Hz e-Series, 125 Hz CB3), paced on
 a fixed monotonic schedule; every ``servo`` call first checks the safety bits of the
@@ -44,6 +45,7 @@ import numpy as np
 from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.backends.ur_control import ControlLost, ControlProcess
 from cellrunner.backends.ur_io import IoConnectionLost, RtdeOutputWriter
+from cellrunner.backends.ur_state import RtdeStateReader
 from cellrunner.backends.ur_probe import controller_version, generation_of
 from cellrunner.errors import PeerUnreachable
 from cellrunner.model.gripper import ROBOTIQ_CLOSE, ROBOTIQ_OBJECT
@@ -184,7 +186,6 @@ class URBackend:
             )
         self.controller_versions = versions
         import dashboard_client
-        import rtde_receive
 
         try:
             self._dashboard = dashboard_client.DashboardClient(self.host)
@@ -205,7 +206,8 @@ class URBackend:
                         f"the controller at {self.host} is in local control; "
                         "switch the teach pendant to Remote Control"
                     )
-            self._receive = rtde_receive.RTDEReceiveInterface(self.host, self.rate_hz, RECEIVE_VARIABLES)
+            self._receive = RtdeStateReader(self.host, self.rate_hz, RECEIVE_VARIABLES, timeout_s=self.connect_timeout_s)
+            self._receive.connect()
             self._io = RtdeOutputWriter(self.host, timeout_s=self.connect_timeout_s)
             self._io.connect()
             if self._arm_ready():

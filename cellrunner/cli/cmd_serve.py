@@ -25,8 +25,13 @@ def run(args) -> int:
     kind = backend_kind(cell, args.backend)
     backend = make_backend(cell, kind, args.robot_host)
     from cellrunner.planning.world import CellWorld
+    world = CellWorld(cell)
+    _warm_up(world)
+    # the planning thread is CPU-bound; hand the GIL over every 1 ms (Python's default is
+    # 5 ms) so the PLC threads answer promptly while a job plans
+    sys.setswitchinterval(0.001)
     controller = CellController(cell, tasks, backend, Journal(cell.resolve(cell.cell.journal)),
-                                job_planner(CellWorld(cell)), log=log, wait_for_unhold=True,
+                                job_planner(world), log=log, wait_for_unhold=True,
                                 on_job_start=getattr(backend, "feed_parts", None))
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
@@ -60,3 +65,16 @@ def _plc_service(controller: CellController, cell):
     service = PlcService(controller, plc, base_dir=cell.root, pki_dir=pki, cell_name=cell.cell.cell)
     service.start()
     return service
+
+
+def _warm_up(world) -> None:
+    """Import the planners' libraries and build the collision model now, before the PLC
+    link is up: loading them holds Python's GIL for tenths of a second, which on the first
+    job would stall every thread of the process, the PLC heartbeat among them."""
+    import ompl.geometric  # noqa: F401
+    import toppra  # noqa: F401
+
+    from cellrunner.planning import cartesian, joint_path, timing, verify  # noqa: F401
+
+    world.collision  # noqa: B018 - builds the model
+    world.limits  # noqa: B018
