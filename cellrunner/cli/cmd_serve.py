@@ -12,21 +12,22 @@ from cellrunner.cli.logs import configure
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
 from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner
-from cellrunner.model.load import load_cell, load_task
+from cellrunner.execution.planner import job_planner, warm_up
+from cellrunner.model.load import load_cell, load_task, serve_file_warnings
 
 
 def run(args) -> int:
     cell = load_cell(args.cell)
     tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
-    for w in cell.warnings:
+    for w in cell.warnings + serve_file_warnings(cell):
         sys.stderr.write(f"{w}\n")
     log = configure(args.log_format, cell.cell.cell)
     kind = backend_kind(cell, args.backend)
     backend = make_backend(cell, kind, args.robot_host)
     from cellrunner.planning.world import CellWorld
     world = CellWorld(cell)
-    _warm_up(world)
+    warm_up(world)  # before READY: the first job is acknowledged as fast as any other
+    _load_planning_libraries()
     # the planning thread is CPU-bound; hand the GIL over every 1 ms (Python's default is
     # 5 ms) so the PLC threads answer promptly while a job plans
     sys.setswitchinterval(0.001)
@@ -62,19 +63,14 @@ def _plc_service(controller: CellController, cell):
         return None
     from cellrunner.plc.service import PlcService
     pki = cell.resolve(plc.opcua.pki) if plc.opcua and plc.opcua.pki else cell.resolve(cell.cell.journal).parent / "pki"
-    service = PlcService(controller, plc, base_dir=cell.root, pki_dir=pki, cell_name=cell.cell.cell)
+    service = PlcService(controller, plc, resolve=cell.resolve, pki_dir=pki, cell_name=cell.cell.cell)
     service.start()
     return service
 
 
-def _warm_up(world) -> None:
-    """Import the planners' libraries and build the collision model now, before the PLC
-    link is up: loading them holds Python's GIL for tenths of a second, which on the first
-    job would stall every thread of the process, the PLC heartbeat among them."""
+def _load_planning_libraries() -> None:
+    """Load OMPL and TOPP-RA now, before the PLC link is up: loading them holds Python's
+    GIL for tenths of a second, which during the first job would stall every thread of
+    the process, the PLC heartbeat among them."""
     import ompl.geometric  # noqa: F401
     import toppra  # noqa: F401
-
-    from cellrunner.planning import cartesian, joint_path, timing, verify  # noqa: F401
-
-    world.collision  # noqa: B018 - builds the model
-    world.limits  # noqa: B018
