@@ -8,12 +8,14 @@ A job found unfinished at start-up is closed with result 107 by
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
 import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from cellrunner.errors import CellrunnerError
 from cellrunner.model.codes import ResultCode
 
 _SCHEMA = """
@@ -80,12 +82,30 @@ class Journal:
             return self.db.execute(sql, args).fetchall()
 
     def open(self) -> "Journal":
-        if self.path != Path(":memory:"):
+        """Open (or create, readable by its owner only) the journal. An existing file that
+        is empty or not a journal is an error, never silently started afresh: that would
+        lose the history, the counters and an interrupted job's 107."""
+        on_disk = self.path != Path(":memory:")
+        if on_disk:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._db = sqlite3.connect(str(self.path), isolation_level=None, check_same_thread=False)
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("PRAGMA synchronous=FULL")
-        self._db.executescript(_SCHEMA)
+            if self.path.exists() and self.path.stat().st_size == 0:
+                raise CellrunnerError(f"journal {self.path} is empty (0 bytes): its history is lost; restore it "
+                                      "from a backup, or move it away to start a new journal")
+            if not self.path.exists():
+                os.close(os.open(self.path, os.O_CREAT | os.O_WRONLY, 0o600))
+        try:
+            self._db = sqlite3.connect(str(self.path), isolation_level=None, check_same_thread=False)
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("PRAGMA synchronous=FULL")
+            self._db.executescript(_SCHEMA)
+        except sqlite3.DatabaseError as exc:
+            self.close()
+            raise CellrunnerError(f"journal {self.path} is not a cellrunner journal ({exc}); restore it from a "
+                                  "backup, or move it away to start a new journal") from exc
+        if on_disk:
+            for path in (self.path, Path(f"{self.path}-wal"), Path(f"{self.path}-shm")):
+                if path.exists():
+                    os.chmod(path, 0o600)  # job history is the line's business only
         return self
 
     def close(self) -> None:
