@@ -42,6 +42,9 @@ class ControlLost(Exception):
 def _serve(conn: Any, host: str, rate_hz: float) -> None:
     """The child: build the interface, then answer requests until told to stop."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when we end
+    quiet = os.open(os.devnull, os.O_WRONLY)  # ur_rtde prints to stdout/stderr: keep the
+    os.dup2(quiet, 1)  # parent's (JSON) log clean; its errors reach the parent as exceptions
+    os.dup2(quiet, 2)
     try:
         import rtde_control
 
