@@ -47,7 +47,13 @@ from cellrunner.backends.ur_control import ControlLost, ControlProcess
 from cellrunner.backends.ur_io import IoConnectionLost, RtdeOutputWriter
 from cellrunner.backends.ur_state import RtdeStateReader
 from cellrunner.backends.ur_probe import controller_version, generation_of
-from cellrunner.errors import PeerUnreachable
+from cellrunner.errors import (  # noqa: F401 (re-exported)
+    ConnectionLost,
+    ControllerMismatch,
+    PeerUnreachable,
+    RemoteControlOff,
+    SafetyStop,
+)
 from cellrunner.model.gripper import ROBOTIQ_CLOSE, ROBOTIQ_OBJECT
 from cellrunner.model.robots import RobotSpec
 from cellrunner.model.trajectory import ApprovedTrajectory
@@ -75,24 +81,14 @@ _ROBOT_MODE_IDLE = 5
 _CHANNELS = "DO0-7, CO0-7, TO0-1, AO0-1"
 
 
-class ControllerMismatch(BackendError):
-    """The controller is not the robot the cell file describes."""
-
-
-class RemoteControlOff(BackendError):
-    """The controller is in local control; production needs remote control."""
-
-
-class SafetyStop(BackendError):
-    """The controller stopped the arm; ``safety`` says how."""
-
-    def __init__(self, message: str, safety: Safety):
-        super().__init__(message)
-        self.safety = safety
-
-
-class ConnectionLost(BackendError):
-    """A connection to the controller dropped; call :meth:`URBackend.reconnect`."""
+#: ur_rtde's RuntimeError texts -> (cellrunner error, message); the first marker found wins
+UR_RTDE_ERRORS: tuple[tuple[str, type[BackendError] | type[PeerUnreachable], str], ...] = (
+    ("Could not connect", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
+    ("Timeout connecting", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
+    ("End of file", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
+    ("connection", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
+    ("remote control", RemoteControlOff, "the controller at {host}: {text}"),
+)
 
 
 def _model_family(name: str) -> str:
@@ -272,13 +268,14 @@ class URBackend:
         self._configure_tool()
 
     def _translate(self, exc: Exception) -> BackendError | PeerUnreachable:
+        """ur_rtde's ``RuntimeError`` (or a socket's ``OSError``) as cellrunner's error,
+        through :data:`UR_RTDE_ERRORS`."""
         text = str(exc)
-        if isinstance(exc, OSError) or any(
-            marker in text for marker in ("Could not connect", "Timeout connecting", "End of file", "connection")
-        ):
+        if isinstance(exc, OSError):
             return PeerUnreachable(f"cannot reach the robot controller at {self.host}: {text}")
-        if "remote control" in text:
-            return RemoteControlOff(f"the controller at {self.host}: {text}")
+        for marker, error, template in UR_RTDE_ERRORS:
+            if marker in text:
+                return error(template.format(host=self.host, text=text))
         return BackendError(f"ur_rtde: {text}")
 
     def close(self) -> None:

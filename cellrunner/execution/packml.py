@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import enum
 
-from cellrunner.errors import CellrunnerError
+from cellrunner.errors import TransitionRefused  # noqa: F401 (re-exported)
 from cellrunner.model.codes import PackMLState as State
 
 
@@ -38,10 +38,6 @@ class Event(enum.Enum):
     ESTOP = "estop"  # the e-stop was pressed
     LINK_LOST = "link_lost"  # the robot connection is gone with no job to end
     CLEAR_FAILED = "clear_failed"  # Clearing could not re-arm the robot (e-stop still pressed)
-
-
-class TransitionRefused(CellrunnerError):
-    """A command or event that is not allowed in the current state."""
 
 
 S, C, E = State, Command, Event
