@@ -32,6 +32,8 @@ UNLOCK_DELAY_S = 5.0
 TRACK_EVERY = 4
 #: how long recovery may keep trying to unlock before the job ends with code 100
 RECOVERY_TIMEOUT_S = 30.0
+#: a refused unlock is tried again this often, not every period (s)
+UNLOCK_RETRY_S = 0.25
 #: reconnect attempts back off from this delay, doubling to 2 s (s)
 RECONNECT_FIRST_DELAY_S = 0.2
 
@@ -107,6 +109,7 @@ class JobRunner:
         self._requests: list[str] = []
         self._pending_end: tuple[ResultCode, str] | None = None  # after cleanup steps
         self._ticks = 0
+        self._unlock_at_s = 0.0  # robot time of the next unlock attempt
         self._reconnect_why: str | None = None  # a reconnect under way, polled by tick
         self._reconnect_until = 0.0  # monotonic s
         self._reconnect_next = 0.0
@@ -198,6 +201,9 @@ class JobRunner:
         if held_for < UNLOCK_DELAY_S:
             return
         if state.safety is Safety.PROTECTIVE_STOP:
+            if self.ctx.now_s < self._unlock_at_s:
+                return  # bounded work: one attempt per UNLOCK_RETRY_S, polled by tick
+            self._unlock_at_s = self.ctx.now_s + UNLOCK_RETRY_S
             try:
                 self.ctx.backend.unlock_protective_stop()
             except BackendError as exc:

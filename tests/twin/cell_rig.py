@@ -76,6 +76,7 @@ class Rig:
         self.twin: subprocess.Popen | None = None
         self.serve: subprocess.Popen | None = None
         self.probe: subprocess.Popen | None = None
+        self.watch: subprocess.Popen | None = None
         self.client: ModbusClient | None = None
         self.serve_log = root / "serve.log"
         self.beat = 0
@@ -98,8 +99,9 @@ class Rig:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if self.probe is not None and self.probe.poll() is None:
-            self.probe.kill()
+        for helper in (self.probe, self.watch):
+            if helper is not None and helper.poll() is None:
+                helper.kill()
         if self.serve is not None and self.serve.poll() is None:
             self.serve.send_signal(signal.SIGTERM)
             try:
@@ -120,6 +122,17 @@ class Rig:
                                        MODBUS_HOST, "--port", str(self.port)], stdin=subprocess.PIPE,
                                       stdout=subprocess.PIPE, text=True)
         assert json.loads(self.probe.stdout.readline()) == {"started": True}
+
+    def start_watch(self) -> None:
+        """An OPC UA client (its own process) reading Cell.State every 50 ms."""
+        self.watch = subprocess.Popen([sys.executable, str(ROOT / "tests" / "plc" / "opcua_watch.py"), "--url",
+                                       self.opcua_url, "--user", "line3", "--password", "s3cret pass"],
+                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        assert json.loads(self.watch.stdout.readline()) == {"started": True}
+
+    def stop_watch(self) -> dict[str, Any]:
+        out, _ = self.watch.communicate("", timeout=30)
+        return json.loads(out.strip().splitlines()[-1])
 
     def stop_probe(self) -> dict[str, Any]:
         assert self.probe is not None

@@ -19,6 +19,7 @@ MAX_GAP_S = 0.3
 def test_heartbeat_never_stalls_through_faults(tmp_path):
     with Rig(tmp_path, "127.0.0.131", opcua=True) as rig:
         rig.start_probe()
+        rig.start_watch()
         # a protective stop mid-job: held, unlocked after the controller's 5 s, resumed
         rig.trigger(101)
         time.sleep(1.5)
@@ -53,8 +54,11 @@ def test_heartbeat_never_stalls_through_faults(tmp_path):
         regs = rig.finish()
         assert regs[1] & DONE and regs[5] == 0, regs
         probe = rig.stop_probe()
+        watch = rig.stop_watch()
         assert rig.serve.poll() is None, rig.log_tail()
-    print("heartbeat probe:", probe)
+    print("heartbeat probe:", probe, "OPC UA watch:", watch)
+    # OPC UA kept answering and refreshing: Held (protective stop) and Aborted (e-stop) seen
+    assert watch["errors"] == 0 and watch["max_gap_s"] <= 2.0 and {11, 9} <= set(watch["states"]), watch
     assert probe["changes"] > 100 and probe["read_errors"] == 0, probe
     assert probe["max_gap_s"] <= MAX_GAP_S, probe
 
