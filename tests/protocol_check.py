@@ -18,8 +18,9 @@ def assert_implements(obj: Any, protocol: type) -> None:
         assert callable(impl), f"{type(obj).__name__} lacks {protocol.__name__}.{name}"
         wanted = list(inspect.signature(getattr(protocol, name)).parameters.values())[1:]  # without self
         got = list(inspect.signature(impl).parameters.values())
+        empty = inspect.Parameter.empty
         same = [(p.name, p.kind) for p in got] == [(p.name, p.kind) for p in wanted] and all(
-            g.default == w.default for g, w in zip(got, wanted) if w.default is not inspect.Parameter.empty)
+            g.default == w.default for g, w in zip(got, wanted, strict=True) if w.default is not empty)
         assert same, (
             f"{type(obj).__name__}.{name}{inspect.signature(impl)} differs from "
             f"{protocol.__name__}.{name}{inspect.signature(getattr(protocol, name))}")

@@ -45,8 +45,8 @@ import numpy as np
 from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.backends.ur_control import ControlLost, ControlProcess
 from cellrunner.backends.ur_io import IoConnectionLost, RtdeOutputWriter
-from cellrunner.backends.ur_state import RtdeStateReader
 from cellrunner.backends.ur_probe import controller_version, generation_of
+from cellrunner.backends.ur_state import RtdeStateReader
 from cellrunner.errors import (  # noqa: F401 (re-exported)
     ConnectionLost,
     ControllerMismatch,
@@ -202,7 +202,8 @@ class URBackend:
                         f"the controller at {self.host} is in local control; "
                         "switch the teach pendant to Remote Control"
                     )
-            self._receive = RtdeStateReader(self.host, self.rate_hz, RECEIVE_VARIABLES, timeout_s=self.connect_timeout_s)
+            self._receive = RtdeStateReader(self.host, self.rate_hz, RECEIVE_VARIABLES,
+                                            timeout_s=self.connect_timeout_s)
             self._receive.connect()
             self._io = RtdeOutputWriter(self.host, timeout_s=self.connect_timeout_s)
             self._io.connect()

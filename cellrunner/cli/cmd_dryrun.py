@@ -11,13 +11,21 @@ from typing import Any
 
 import numpy as np
 
-from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, record_rows, step_table
+from cellrunner.cli.common import (
+    console,
+    emit_json,
+    expanded,
+    load,
+    parse_params,
+    record_rows,
+    step_table,
+)
 from cellrunner.cli.faults import Injection, parse_injections
+from cellrunner.errors import CellrunnerError
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
-from cellrunner.errors import CellrunnerError
 from cellrunner.model.codes import ResultCode
 
 #: e-stop faults are released by the "operator" this long after they struck (sim s)

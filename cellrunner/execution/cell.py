@@ -29,13 +29,20 @@ from cellrunner.backends.base import RobotBackend, Safety
 from cellrunner.errors import CellrunnerError, InputError
 from cellrunner.execution.context import JobContext, Motions
 from cellrunner.execution.job import JobPhase, JobRunner, StepRecord
-from cellrunner.execution.journal import Journal, JobRecord
+from cellrunner.execution.journal import JobRecord, Journal
 from cellrunner.execution.packml import Command, Event, StateMachine, TransitionRefused
-from cellrunner.model.cellport import COMMANDS, CellStatus, JobResult, JobTicket, ResultListener
-from cellrunner.model.codes import PackMLState as S, ResultCode
+from cellrunner.model.cellport import (
+    COMMANDS,
+    CellStatus,
+    JobResult,
+    JobTicket,
+    ResultListener,
+)
+from cellrunner.model.codes import PackMLState as S
+from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step, resolve_params
-from cellrunner.model.load import LoadedCell, LoadedTask
 from cellrunner.model.gripper import gripper_channels
+from cellrunner.model.load import LoadedCell, LoadedTask
 from cellrunner.model.timing import release_time_s
 
 #: Complete is shown this long before the cell resets itself to Idle
@@ -90,9 +97,9 @@ def _view_of(job: _Job, runner: JobRunner | None, code: ResultCode | None = None
     if runner is None:
         return JobView(job.job_id, job.task.name, None, 0, planned, (), 0.0, 0, 0.0, None, code, message)
     ctx = runner.ctx
-    return JobView(job.job_id, job.task.name, runner.phase, runner.current_step, planned,
-                   tuple(replace(r) for r in runner.records.values()) if records else (), ctx.tracking_error_m, runner.retries_used,
-                   runner.cycle_time_s, None if ctx.commanded_q is None else np.array(ctx.commanded_q),
+    rows = tuple(replace(r) for r in runner.records.values()) if records else ()
+    return JobView(job.job_id, job.task.name, runner.phase, runner.current_step, planned, rows,
+                   ctx.tracking_error_m, runner.retries_used, runner.cycle_time_s, None if ctx.commanded_q is None else np.array(ctx.commanded_q),
                    code if code is not None else runner.result, message or runner.message)
 
 
@@ -319,14 +326,14 @@ class CellController:
         runner = job.runner if job is not None else None
         if runner is not None:
             runner.tick()
-            state = runner.ctx.state
+            state = runner.ctx.state or self.backend.read_state()
         else:
             state = self.backend.read_state()
             if job is not None and job.plan is None:
                 if self.on_job_start is not None:
                     self.on_job_start()
                 job.plan = self._pool.submit(self.planner, job.task, job.params, state.q_rad)
-            elif job is not None and job.plan.done():
+            elif job is not None and job.plan is not None and job.plan.done():
                 runner = self._start_runner(job)
         with self._lock:
             self._now_s, self._safety = state.time_s, state.safety

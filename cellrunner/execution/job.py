@@ -21,8 +21,8 @@ from cellrunner.backends.base import BackendError, Safety
 from cellrunner.errors import CellrunnerError, InfeasibleError, PeerUnreachable
 from cellrunner.execution import steps as behaviours
 from cellrunner.execution.context import JobContext
-from cellrunner.model.codes import ResultCode
 from cellrunner.execution.steps import Outcome, run_motion, run_weigh
+from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.task import ProtectiveStopPolicy
 

@@ -53,13 +53,15 @@ def write_project(root: Path, *, opcua: bool = False) -> tuple[Path, int, str]:
     (root / "cells").mkdir(exist_ok=True)
     (root / "tasks").mkdir(exist_ok=True)
     port = free_port(MODBUS_HOST)
-    text = CELL + f"tasks: {{1: tasks/t.yaml}}\nplc:\n  modbus: {{bind: {MODBUS_HOST}, port: {port}, heartbeat_timeout: 5.0}}\n"
+    text = CELL + ("tasks: {1: tasks/t.yaml}\nplc:\n"
+                   f"  modbus: {{bind: {MODBUS_HOST}, port: {port}, heartbeat_timeout: 5.0}}\n")
     url = ""
     if opcua:
         url = f"opc.tcp://{MODBUS_HOST}:{free_port(MODBUS_HOST)}/cellrunner"
         text += f"  opcua:\n    endpoint: {url}\n    security: [none]\n    users: secrets/users.yaml\n    pki: pki\n"
-        r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "users", "add", str(root / "secrets" / "users.yaml"),
-                            "line3", "--password-stdin"], input="s3cret pass\n", capture_output=True, text=True,
+        users = root / "secrets" / "users.yaml"
+        r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "users", "add", str(users), "line3",
+                            "--password-stdin"], input="s3cret pass\n", capture_output=True, text=True,
                            cwd=ROOT, timeout=60)
         assert r.returncode == 0, r.stderr
     (root / "cells" / "c.yaml").write_text(text)
