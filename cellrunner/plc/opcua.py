@@ -135,7 +135,7 @@ MAX_CONNECTIONS = 32
 #: a connection that has not logged in this long after connecting is closed (s)
 LOGIN_GRACE_S = 10.0
 #: password checks allowed back to back, and their refill rate (per s)
-LOGIN_BURST, LOGINS_PER_S = 4, 4.0
+LOGIN_BURST, LOGINS_PER_S = 10, 5.0
 #: the longest TaskName, ClientJobId and Parameters text StartJob accepts (characters)
 MAX_TEXT = {"TaskName": 64, "ClientJobId": 128, "Parameters": 1024}
 #: how deep a Parameters JSON value may nest (a flat object of numbers is 1)
