@@ -133,7 +133,7 @@ MAX_REMEMBERED_CLIENT_JOBS = 10_000
 #: connections (logged in or not) the server accepts at once
 MAX_CONNECTIONS = 32
 #: a connection that has not logged in this long after connecting is closed (s)
-LOGIN_GRACE_S = 10.0
+LOGIN_GRACE_S = 30.0
 #: password checks allowed back to back, and their refill rate (per s)
 LOGIN_BURST, LOGINS_PER_S = 10, 5.0
 #: the longest TaskName, ClientJobId and Parameters text StartJob accepts (characters)
