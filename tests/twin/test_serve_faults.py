@@ -57,8 +57,10 @@ def test_heartbeat_never_stalls_through_faults(tmp_path):
         watch = rig.stop_watch()
         assert rig.serve.poll() is None, rig.log_tail()
     print("heartbeat probe:", probe, "OPC UA watch:", watch)
-    # OPC UA kept answering and refreshing: Held (protective stop) and Aborted (e-stop) seen
-    assert watch["errors"] == 0 and watch["max_gap_s"] <= 2.0 and {11, 9} <= set(watch["states"]), watch
+    # OPC UA kept answering and refreshing through it all: Held (protective stop) and the
+    # e-stop's abort path (Aborting, Aborted or Clearing) were seen by a client reading State
+    assert watch["errors"] == 0 and watch["max_gap_s"] <= 2.0, watch
+    assert 11 in watch["states"] and {8, 9, 1} & set(watch["states"]), watch
     assert probe["changes"] > 100 and probe["read_errors"] == 0, probe
     assert probe["max_gap_s"] <= MAX_GAP_S, probe
 
