@@ -140,6 +140,7 @@ class CellController:
         self._counters = (0, 0)
         self.last_runner: JobRunner | None = None  # of the last finished job (its step records)
         self._last_view: JobView | None = None
+        self._status_key: tuple[object, ...] = ()
         self._status = self._snapshot()
 
     # ------------------------------------------------------------------ lifecycle
@@ -202,8 +203,13 @@ class CellController:
             parts_defective=self._counters[1])
 
     def _publish(self) -> None:
-        """Publish a new status snapshot (under the lock)."""
-        self._status = self._snapshot()
+        """Publish a new status snapshot (under the lock) when anything in it changed."""
+        job = self._job
+        key = (self.sm.state, job, self._safety, job.runner.current_step if job and job.runner else 0,
+               self._last, self._counters)
+        if key != self._status_key:
+            self._status_key = key
+            self._status = self._snapshot()
 
     # ------------------------------------------------------------------ job views
     @property
