@@ -208,23 +208,28 @@ class _Problem:
         from toppra import constraint
 
         f = self.tightening
-        vlim = self.limits.joint_speed_rad_s * f
         alim = self.limits.joint_accel_rad_s2 * f
-        per_joint = np.minimum(np.where(np.isfinite(cap), cap, 1e6)[:, None] * self.dq_ds, 1e6)
-        per_joint = np.maximum(per_joint, 1e-9)
-        grid = self.grid
+        # joint speed limits and the path-speed cap as one bound on s_dot^2 per grid point
+        per_joint = (self.limits.joint_speed_rad_s * f)[None, :] / np.maximum(self.dq_ds, 1e-12)
+        sd_max = np.minimum(per_joint.min(axis=1), cap)
+        x_max = np.minimum(sd_max, 1e6) ** 2
 
-        def cap_vlim(s: float) -> np.ndarray:
-            k = min(int(np.searchsorted(grid, s - 1e-12)), len(grid) - 1)
-            return np.column_stack([-per_joint[k], per_joint[k]])
+        class PathSpeedBound(constraint.LinearConstraint):
+            """s_dot^2 <= x_max on each grid point (computed above for the whole grid)."""
+
+            def __init__(self):
+                super().__init__()
+                self.dof = len(alim)
+
+            def compute_constraint_params(self, path, gridpoints):
+                return None, None, None, None, None, None, np.column_stack([np.zeros(len(x_max)), x_max])
 
         constraints = [
-            constraint.JointVelocityConstraint(np.column_stack([-vlim, vlim])),
+            PathSpeedBound(),
             constraint.JointAccelerationConstraint(np.column_stack([-alim, alim])),
-            constraint.JointVelocityConstraintVarying(cap_vlim),
         ]
         try:
-            instance = algo.TOPPRA(constraints, self.path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
+            instance = algo.TOPPRA(constraints, self.path, gridpoints=self.grid, parametrizer="ParametrizeConstAccel")
             _, sd, _ = instance.compute_parameterization(0.0, 0.0)
         except Exception as exc:  # toppra raises its own exception types from its solvers
             raise InfeasibleError(f"time parameterization failed (TOPP-RA: {exc})") from exc
