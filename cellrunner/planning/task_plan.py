@@ -43,6 +43,8 @@ BLEND_RADIUS_MAX_M = 0.05
 #: between two joint moves: this share of each adjacent edge (as joint_path.round_corners)
 CORNER_FRACTION = 0.35
 BLEND_POINTS = 24
+#: timed groups remembered per cell (:func:`_timed_pieces`)
+TIMING_MEMO_SIZE = 256
 
 
 @dataclass
@@ -433,6 +435,27 @@ def _apply(world: CellWorld, group: list[_Motion], pieces: list[dict]) -> None:
 
 
 def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[dict]:
+    """:func:`_time_pieces`, remembered per cell for the same inputs (the pattern slots of
+    a job share their first motions, and a grip's retry path is the same for all): the
+    same waypoints, limits, lines, collision models, step and start give the same
+    verified pieces, since timing and verification are deterministic."""
+    key = (np.asarray(q_start, float).tobytes(), tuple(
+        (m.row.step.index, m.row.step.name, np.asarray(m.waypoints, float).tobytes(), id(m.collision),
+         None if m.line_m is None else np.asarray(m.line_m, float).tobytes(),
+         m.limits.joint_speed_rad_s.tobytes(), m.limits.joint_accel_rad_s2.tobytes(), m.limits.tcp_speed_mps)
+        for m in group))
+    memo = world.timing_memo
+    hit = memo.get(key)
+    if hit is not None and all(a is m.collision for a, m in zip(hit[0], group)):
+        return hit[1]
+    pieces = _time_pieces(world, group, q_start)
+    if len(memo) >= TIMING_MEMO_SIZE:
+        memo.clear()
+    memo[key] = ([m.collision for m in group], pieces)
+    return pieces
+
+
+def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[dict]:
     """TOPP-RA over the group's joined waypoints, cut into one verified piece per motion
     (sharing boundary samples); raises InfeasibleError when a piece fails verification."""
     from cellrunner.planning.timing import time_path
