@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from pathlib import Path
@@ -21,8 +22,8 @@ def run(args) -> int:
     from cellrunner.planning.world import CellWorld
 
     world = CellWorld(cell)
-    out = console()
-    with out.status(f"planning {task.name}", spinner="dots"):
+    out = None if args.json else console()  # --json is for programs: no spinner, no rich
+    with contextlib.nullcontext() if out is None else out.status(f"planning {task.name}", spinner="dots"):
         plan = plan_cached(world, task, params, world.q_home_rad, use_cache=not args.no_cache)
         errors = list(plan.errors)
         slots_checked = _check_other_slots(world, task, params, errors, use_cache=not args.no_cache)
@@ -78,6 +79,8 @@ def _plan_split(world, task, slots: list[dict], use_cache: bool) -> list[tuple[d
     process may run on more than one core (planning is single-threaded Python). The
     child inherits the loaded cell; it sends back only the errors. If it fails, the
     parent plans its half too."""
+    if len(slots) < 2:
+        return _slot_errors(world, task, slots, use_cache)
     import multiprocessing
     import os
 
