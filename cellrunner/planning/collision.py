@@ -726,7 +726,7 @@ class CollisionModel:
                 queries += 1
                 if m < STALL_M:
                     return self._blocked(float(j), k, m, queries)
-                last = int(np.searchsorted(cum[k], cum[k, j] + m - STALL_M, side="right")) - 1
+                last = int(cum[k].searchsorted(cum[k, j] + m - STALL_M, side="right")) - 1
                 if last <= j:
                     # this pair alone, advanced along the segment by its own bound
                     s_blocked, m_blocked, used = self._advance_pair(k, q[j], q[j + 1], float(seg[k, j]), m)
