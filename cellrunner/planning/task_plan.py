@@ -106,6 +106,10 @@ class TaskPlan:
             row.approved = seal(self.world, row)
         return row.approved
 
+    def continues(self, step: Step) -> bool:
+        row = self.row(step)
+        return bool(row is not None and row.verify_inputs and row.verify_inputs["previous_moving"])
+
     def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
         """A verified rest-to-rest trajectory from ``q_now_rad`` to the step's goal: the
         same goal as planned (after a stop), or, for a relative move planned nowhere (a
