@@ -24,19 +24,15 @@ def run(args) -> int:
     from cellrunner.planning.world import CellWorld
 
     world = CellWorld(cell)
-    out = console()
+    out = None if args.json else console()  # --json is for programs: no progress bar, no rich
     use_cache = not args.no_cache
-    others = [(name, slot) for name, slots in pattern_params(task).items() for slot in slots
+    others = [{**params, name: slot} for name, slots in pattern_params(task).items() for slot in slots
               if slot != params.get(name)]
     n_steps = len(expanded(cell, task, params))
-    with _progress(out, 1 + len(others), n_steps) as step_done:
+    with _progress(out, 1 + len(others), n_steps) as progress:
         plan = plan_cached(world, task, params, world.q_home_rad, use_cache=use_cache,
-                           on_step=step_done(f"{task.name} {_params_text(params)}"))
-        failures: list[tuple[str, int, str]] = []  # (param, slot, error) of the other slots
-        for name, slot in others:
-            other = plan_cached(world, task, {**params, name: slot}, world.q_home_rad, use_cache=use_cache,
-                                on_step=step_done(f"{name}={slot}"))
-            failures += [(name, slot, e) for e in other.errors]
+                           on_step=progress.plan(f"{task.name} {_params_text(params)}"))
+        failures = _check_other_slots(world, task, params, others, use_cache, progress)
     errors = list(plan.errors) + [f"{name}={slot}: {e}" for name, slot, e in failures]
     slots_checked = {name: list(slots) for name, slots in pattern_params(task).items()}
     pattern = next(iter(slots_checked), None)
@@ -91,33 +87,52 @@ def _params_text(params: dict) -> str:
     return ", ".join(f"{k}={v}" for k, v in params.items())
 
 
+class _Counter:
+    """What a progress bar is told: a plan starts (``plan(label)`` returns its ``on_step``),
+    or plans finished elsewhere (``skip(n)``, e.g. in a forked child)."""
+
+    def __init__(self, progress=None, steps_per_plan: int = 0):
+        self._progress, self._steps_per_plan = progress, steps_per_plan
+        self._started = 0
+
+    def plan(self, label: str):
+        if self._progress is None:
+            return None
+        progress, (slots, steps) = self._progress
+        if self._started:
+            progress.advance(slots)
+        self._started += 1
+        progress.update(slots, detail=label)
+
+        def on_step(step) -> None:
+            progress.advance(steps)
+            progress.update(steps, detail=step.label)
+        return on_step
+
+    def skip(self, n_plans: int) -> None:
+        if self._progress is not None and n_plans:
+            progress, (slots, steps) = self._progress
+            progress.advance(slots, n_plans)
+            progress.advance(steps, n_plans * self._steps_per_plan)
+
+
 @contextmanager
 def _progress(out, n_plans: int, steps_per_plan: int):
-    """A progress bar over the plans (slots) and their steps; yields ``step_done(label)``,
-    which returns the ``on_step`` callback of one plan."""
+    """A progress bar over the plans (slots) and their steps on ``out`` (none when None);
+    yields a :class:`_Counter`."""
+    if out is None:
+        yield _Counter()
+        return
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TextColumn("{task.fields[detail]}", markup=False), TimeElapsedColumn(),
                   console=out, transient=True) as progress:
-        slots = progress.add_task("slots", total=n_plans, detail="")
-        steps = progress.add_task("steps", total=n_plans * steps_per_plan, detail="")
-        state = {"plans": 0}
-
-        def step_done(label: str):
-            if state["plans"]:
-                progress.advance(slots)
-            state["plans"] += 1
-            progress.update(slots, detail=label)
-
-            def on_step(step) -> None:
-                progress.advance(steps)
-                progress.update(steps, detail=step.label)
-            return on_step
-
-        yield step_done
-        progress.update(slots, completed=n_plans)
-        progress.update(steps, completed=n_plans * steps_per_plan)
+        tasks = (progress.add_task("slots", total=n_plans, detail=""),
+                 progress.add_task("steps", total=n_plans * steps_per_plan, detail=""))
+        yield _Counter((progress, tasks), steps_per_plan)
+        progress.update(tasks[0], completed=n_plans)
+        progress.update(tasks[1], completed=n_plans * steps_per_plan)
 
 
 def group_slot_failures(failures: list[tuple[str, int, str]]) -> list[tuple[str, list[int], str]]:
@@ -131,7 +146,7 @@ def group_slot_failures(failures: list[tuple[str, int, str]]) -> list[tuple[str,
             groups[key] = ([], message)
         if slot not in groups[key][0]:
             groups[key][0].append(slot)
-    return [(name, slots, message) for (name, _), (slots, message) in groups.items()]
+    return [(name, sorted(slots), message) for (name, _), (slots, message) in groups.items()]
 
 
 _NUMBERS = re.compile(r"-?\d+(?:\.\d+)?")
@@ -149,6 +164,74 @@ def slot_range_text(name: str, slots: list[int]) -> str:
             runs.append([s])
     text = ", ".join(f"{r[0]}-{r[-1]}" if len(r) > 1 else str(r[0]) for r in runs)
     return f"{'slots' if name == 'slot' else name} {text}"
+
+
+def _check_other_slots(world, task, params, others: list[dict], use_cache: bool,
+                       progress: _Counter) -> list[tuple[str, int, str]]:
+    """Every other slot of every pattern (``others``: their params); the slots to plan
+    afresh are shared with a forked child when a second core is free (:func:`_plan_split`).
+    Returns (param, slot, error) for each error found."""
+    from cellrunner.planning.cache import cache_dir, plan_key
+
+    cached = [p for p in others if use_cache
+              and (cache_dir(world) / f"{plan_key(world, task, p, world.q_home_rad)}.npz").is_file()]
+    fresh = [p for p in others if p not in cached]
+    found_all = [*_plan_split(world, task, fresh, use_cache, progress),
+                 *_slot_errors(world, task, cached, use_cache, progress)]
+    return [(k, given[k], e) for given, found in found_all for k in given if given[k] != params.get(k)
+            for e in found]
+
+
+def _slot_errors(world, task, slots: list[dict], use_cache: bool,
+                 progress: _Counter | None = None) -> list[tuple[dict, list[str]]]:
+    from cellrunner.planning.cache import plan_cached
+    progress = progress or _Counter()
+    return [(p, plan_cached(world, task, p, world.q_home_rad, use_cache=use_cache,
+                            on_step=progress.plan(_params_text(p))).errors) for p in slots]
+
+
+def _plan_split(world, task, slots: list[dict], use_cache: bool,
+                progress: _Counter) -> list[tuple[dict, list[str]]]:
+    """``_slot_errors`` of every slot, half of them in a forked child process when this
+    process may run on more than one core (planning is single-threaded Python). The
+    child inherits the loaded cell; it sends back only the errors. If it fails, the
+    parent plans its half too."""
+    if len(slots) < 2:
+        return _slot_errors(world, task, slots, use_cache, progress)
+    import multiprocessing
+    import os
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if cores < 2 or len(slots) < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        return _slot_errors(world, task, slots, use_cache, progress)
+    theirs, mine = slots[: len(slots) // 2], slots[len(slots) // 2:]
+    context = multiprocessing.get_context("fork")
+    reader, writer = context.Pipe(duplex=False)
+
+    def child() -> None:
+        writer.send([found for _, found in _slot_errors(world, task, theirs, use_cache)])
+
+    process = context.Process(target=child, daemon=True)
+    process.start()
+    writer.close()
+    results = _slot_errors(world, task, mine, use_cache, progress)
+    try:
+        found = reader.recv() if reader.poll(CHILD_TIMEOUT_S) else None
+    except (EOFError, OSError):
+        found = None
+    process.join(timeout=1.0)
+    if process.is_alive():
+        process.kill()
+        process.join()
+    reader.close()
+    if found is None or len(found) != len(theirs):
+        return [*_slot_errors(world, task, theirs, use_cache, progress), *results]
+    progress.skip(len(theirs))
+    return [*zip(theirs, found), *results]
+
+
+#: how long the parent waits for the child's slots before planning them itself (s)
+CHILD_TIMEOUT_S = 120.0
 
 
 def _save_plan(path: Path, world, plan) -> None:
