@@ -99,8 +99,9 @@ class _Counter:
         if self._progress is None:
             return None
         progress, (slots, steps) = self._progress
-        if self._started:
+        if self._started:  # the plan before is over (a failed step leaves the rest unplanned)
             progress.advance(slots)
+            progress.update(steps, completed=max(progress.tasks[steps].completed, self._started * self._steps_per_plan))
         self._started += 1
         progress.update(slots, detail=label)
 
