@@ -127,3 +127,18 @@ def test_jobs_shows_whole_job_ids_at_80_columns(tmp_path):
         for job_id in job_ids:
             assert job_id in out, out
     assert max(len(line) for line in r80.stderr.splitlines()) <= 80
+
+
+def test_a_radius_and_a_tcp_speed_in_mm_get_a_did_you_mean(tmp_path):
+    cell = tmp_path / "r.yaml"
+    cell.write_text("cell: r\nrobot:\n  model: ur5e\n  home: [0, -90, 90, -90, -90, 0]\n"
+                    "fixtures:\n  - {name: post, cylinder: {radius: 15, length: 0.4}, pose: {xyz: [0.5, 0, 0.2]}}\n")
+    r = cellrunner("validate", str(cell))
+    assert r.returncode == 0
+    assert (f"{cell}:6:37: warning: fixtures[0].cylinder.radius: 15 m is larger than any cylinder radius in a cell "
+            "(over 5 m); did you mean 15 mm = 0.015 m? (write '15 mm')") in r.stderr
+    cell.write_text("cell: r\nrobot:\n  model: ur5e\n  home: [0, -90, 90, -90, -90, 0]\n  limits: {tcp_speed: 250}\n")
+    r = cellrunner("validate", str(cell))
+    assert r.returncode == 2
+    assert r.stderr.strip().endswith("robot.limits.tcp_speed: 250 m/s is above the UR5E controller's 3 m/s; "
+                                     "did you mean 250 mm/s = 0.25 m/s? (write '250 mm/s')")

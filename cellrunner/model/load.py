@@ -209,8 +209,10 @@ def _check_limits(cell: Cell, spec, report: Report) -> None:
                              f"{spec.joint_accel_max_deg_s2:.0f} deg/s^2")
                 break
     if limits.tcp_speed is not None and limits.tcp_speed > spec.tcp_speed_max_mps + 1e-9:
+        slip = (f"; did you mean {limits.tcp_speed:g} mm/s = {limits.tcp_speed / 1000:g} m/s? (write "
+                f"'{limits.tcp_speed:g} mm/s')" if limits.tcp_speed / 1000 <= spec.tcp_speed_max_mps else "")
         report.error(("robot", "limits", "tcp_speed"), f"{limits.tcp_speed:g} m/s is above the {model} "
-                     f"controller's {spec.tcp_speed_max_mps:g} m/s")
+                     f"controller's {spec.tcp_speed_max_mps:g} m/s{slip}")
 
 
 def _joint(i: int) -> str:

@@ -133,8 +133,8 @@ def _shape(raw: Any, base: PathKey, limit_m: float, report) -> None:
             value = _get(raw, path)
             if isinstance(value, list):
                 _vector(raw, path, limit_m, report, f"a {key}'s size")
-            elif (n := _number(value)) is not None and n > limit_m:
-                report.warn(path, f"{n:g} m is larger than any {key} in a cell (over {limit_m:g} m); {_mm(n)}")
+            elif (n := _number(value)) is not None and n > (limit := limit_m / 4 if size == "radius" else limit_m):
+                report.warn(path, f"{n:g} m is larger than any {key} {size} in a cell (over {limit:g} m); {_mm(n)}")
     for path in ((*base, "xyz"), (*base, "pose", "xyz")):
         _vector(raw, path, limit_m, report, "a shape's position")
 
