@@ -75,6 +75,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", choices=("ur", "sim"))
     p.add_argument("--robot-host", metavar="H")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.add_argument("--speed", type=float, default=1.0, metavar="F",
+                   help="commissioning: the approved motions at F x their pace (0 < F <= 1), same path")
+    p.add_argument("--step", action="store_true",
+                   help="commissioning: show each step and wait for Enter before running it")
     p.set_defaults(module="run")
 
     p = sub.add_parser("serve", help="production: PLC interface up, jobs on trigger")

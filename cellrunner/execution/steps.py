@@ -49,7 +49,11 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     does not stand at the trajectory's start (after a stop or a retry)."""
     q_now = ctx.state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
-    if approved is None or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD:
+    # the last set-point streamed is this trajectory's start: the arm is on its way there
+    # (servo lag, more under load), so the approved trajectory continues; else it must stand there
+    continues = approved is not None and ctx.commanded_q is not None and np.array_equal(
+        approved.trajectory.q_rad[0], ctx.commanded_q)
+    if approved is None or not continues and np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD:
         approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
     q = approved.trajectory.q_rad
     # a non-stop continuation starts on the set-point just streamed: don't send it twice

@@ -114,8 +114,10 @@ class TaskPlan:
         return rows[-1].carrying if rows else None
 
 
-def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> TaskPlan:
-    """Plan every step of a job; failures are recorded per step (the rest is not planned)."""
+def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray, *, joined: bool = True) -> TaskPlan:
+    """Plan every step of a job; failures are recorded per step (the rest is not planned).
+    ``joined=False`` (run --step) ends every motion at rest: the same waypoints, each
+    timed from rest to rest, so that the job can pause between any two steps."""
     planner = _StepPlanner(world, np.asarray(q_start_rad, float), None)
     rows = [StepPlan(s, status="not planned") for s in steps]
     plan = TaskPlan(world, steps, rows, np.asarray(q_start_rad, float))
@@ -125,7 +127,7 @@ def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> T
     def flush() -> None:
         nonlocal group, q_group_start
         if group:
-            _time_group(world, group, q_group_start)
+            _time_group(world, group, q_group_start, joined)
             group = []
         q_group_start = planner.q
 
@@ -290,12 +292,12 @@ class _StepPlanner:
             return None
 
 
-def _time_group(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> None:
+def _time_group(world: CellWorld, group: list[_Motion], q_start: np.ndarray, joined: bool = True) -> None:
     """Time a group of motions as one non-stop trajectory, and one by one from rest; keep
     whichever verified timing is faster (a corner where two motions join can slow a whole
     joined move more than stopping there costs)."""
     options = []
-    if len(group) > 1:
+    if len(group) > 1 and joined:
         try:
             options.append(_timed_pieces(world, group, q_start))
         except InfeasibleError:
