@@ -92,6 +92,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--host", default="127.0.0.2")
     p.set_defaults(module="twin")
 
+    p = sub.add_parser("teach", help="commissioning: a frame from the arm, written into the cell file")
+    p.add_argument("cell")
+    p.add_argument("frame")
+    p.add_argument("--robot-host", metavar="H")
+    p.add_argument("--points", type=int, default=1, metavar="N",
+                   help="1: the TCP pose (default); 3: origin, a +X point, a point in the XY plane")
+    p.add_argument("--yes", action="store_true", help="write the change without asking")
+    p.set_defaults(module="teach")
+
+    p = sub.add_parser("calibrate-tcp", help="commissioning: the TCP from poses about one fixed point")
+    p.add_argument("cell")
+    p.add_argument("--robot-host", metavar="H")
+    p.add_argument("--poses", type=int, default=4, metavar="N", help="poses to take, at least 4 (default 4)")
+    p.add_argument("--yes", action="store_true", help="write the change without asking")
+    p.set_defaults(module="calibrate_tcp")
+
     p = sub.add_parser("schema", help="JSON Schema of cell and task files")
     p.add_argument("kind", nargs="?", choices=("cell", "task"), help="only this one")
     p.add_argument("--write", metavar="DIR", help="write cell.schema.json and task.schema.json here")
