@@ -47,7 +47,7 @@ def test_an_inline_parent_is_refused_with_the_place(cell):
     cell.write_text(CELL.replace("frames:\n  pick: {xyz: [0.7, -0.4, 0.83], rpy: [180, 0, 45]}   # infeed\n"
                                  "  drop:   {xyz: [0.7, 0.4, 0.835], rpy: [180, 0, 0]}   # keep: hand aligned\n",
                                  "frames: {pick: {xyz: [0.7, -0.4, 0.83]}}\n"))
-    with pytest.raises(CellFileError, match=r"c\.yaml:21:10: frames is written inline"):
+    with pytest.raises(CellFileError, match=r"c\.yaml:20:10: frames is written inline"):
         pose_edit(cell, ("frames", "new"), [0, 0, 0], [0, 0, 0])
 
 
