@@ -101,6 +101,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--yes", action="store_true", help="write the change without asking")
     p.set_defaults(module="teach")
 
+    p = sub.add_parser("jog", help="commissioning: jog the arm from a terminal (dead-man keys)")
+    p.add_argument("cell")
+    p.add_argument("--robot-host", metavar="H")
+    p.add_argument("--mode", choices=("joint", "base", "tool"), default="joint")
+    p.set_defaults(module="jog")
+
     p = sub.add_parser("calibrate-tcp", help="commissioning: the TCP from poses about one fixed point")
     p.add_argument("cell")
     p.add_argument("--robot-host", metavar="H")

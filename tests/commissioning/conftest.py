@@ -30,7 +30,7 @@ io:
   inputs: {jaws_closed: TI0}
 fixtures:
   - {name: bench, box: {size: [1.6, 1.2, 0.05]}, pose: {xyz: [0.5, 0, 0.775]}}
-  - {name: wall, box: {size: [0.05, 1.2, 1.0]}, pose: {xyz: [-0.9, 0, 1.3]}}
+  - {name: wall, box: {size: [0.05, 1.2, 1.0]}, pose: {xyz: [1.05, 0, 1.3]}}
 
 # named targets, measured with a tape
 frames:
