@@ -4,6 +4,8 @@ cell file after showing the diff."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from cellrunner.commissioning.arm import ArmReader
@@ -19,7 +21,14 @@ PROMPTS = ("jog the TCP to the frame's ORIGIN and press Enter",
            "jog the TCP to a point in the frame's XY plane, on the +Y side, and press Enter")
 
 
+#: frame names as the cell file takes them (model.base.Name)
+FRAME_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
+
+
 def run(args) -> int:
+    if not FRAME_NAME.match(args.frame) or len(args.frame) > 64 or args.frame == "world":
+        raise UsageError(f"frame name {args.frame!r}: use letters, digits, _ and - (not starting with a digit "
+                         "or -, at most 64, not 'world')")
     cell = load_cell(args.cell)
     host = args.robot_host or cell.cell.robot.host
     if not host:

@@ -173,3 +173,19 @@ def test_calibrate_tcp_refuses_poses_about_one_axis():
         poses.append(_tcp_pose(np.array([0.5, 0, 1.0]) - R @ hidden, R))
     with pytest.raises(TcpError, match=r"the poses turn the tool about too few axes \(conditioning 0\.0"):
         solve_tcp(poses)
+
+
+def test_bad_arguments_are_exit_2_and_an_absent_controller_exit_3(tmp_path):
+    cell, _ = write_project(tmp_path)
+    r = cli("teach", str(cell), "2nd frame", "--robot-host", "127.0.0.159")
+    assert r.returncode == 2 and "frame name '2nd frame': use letters, digits, _ and -" in r.stderr
+    r = cli("teach", str(cell), "pick", "--robot-host", "127.0.0.159", "--points", "2")
+    assert r.returncode == 2 and "--points 2: give 1 (the TCP pose) or 3" in r.stderr
+    r = cli("calibrate-tcp", str(cell), "--robot-host", "127.0.0.159", "--poses", "3")
+    assert r.returncode == 2 and "--poses 3: the TCP needs at least 4" in r.stderr
+    for command in (["teach", str(cell), "pick"], ["calibrate-tcp", str(cell)]):
+        r = cli(*command, "--robot-host", "127.0.0.159", input="\n")
+        assert r.returncode == 3 and "Traceback" not in r.stderr, r.stderr
+    r = cli("jog", str(cell), "--robot-host", "127.0.0.159", stdin=subprocess.DEVNULL)
+    assert r.returncode == 2 and "jog needs a terminal" in r.stderr
+    assert cell.read_text() == CELL
