@@ -8,8 +8,9 @@ import sys
 from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
 from cellrunner.errors import UsageError
-from cellrunner.execution.cell import CellController, run_until_done
+from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
+from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode
 
@@ -38,10 +39,9 @@ def run(args) -> int:
                                 planner, log=log, wait_for_unhold=False, gate=gate)
     out = console()
     controller.setup()
+    loop = ControlLoop(controller)
     try:
-        for _ in range(5):
-            backend.wait_period()
-            controller.tick()
+        loop.step(5)
         ticket = controller.start_job(1, params, "", "cli")
         if not ticket.accepted:
             sys.stderr.write(f"cellrunner run: job refused: {ticket.message}\n")
@@ -50,16 +50,16 @@ def run(args) -> int:
         if gate is not None:  # no spinner: the operator reads each step's preview
             out.print(f"running {task.name} on the {kind} backend{pace}, one step at a time")
             gate.start()
-            run_until_done(controller, max_s=24 * 3600.0)
+            loop.run_job(max_s=24 * 3600.0)
         else:
             with out.status(f"running {task.name} on the {kind} backend{pace}", spinner="dots"):
-                run_until_done(controller, max_s=3600.0 / speed)
-        runner = controller.last_runner
+                loop.run_job(max_s=3600.0 / speed)
+        job = controller.last_job
         result = controller.status().last_result
     finally:
         controller.close()
     code = ResultCode(result.result_code)
-    rows = record_rows(runner)
+    rows = record_rows(job)
     payload = {"ok": code is ResultCode.OK, "cell": cell.cell.cell, "task": task.name, "params": params,
                "cycle_time_s": round(result.cycle_time_s, 4), "result_code": int(code),
                "result_text": result.result_text, "job_id": result.job_id, "backend": kind, "steps": rows,

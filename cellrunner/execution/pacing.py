@@ -28,6 +28,9 @@ class PacedMotions:
         approved = self.motions.nominal(step)
         return None if approved is None else time_scaled(approved, self.speed)
 
+    def continues(self, step: Step) -> bool:
+        return self.motions.continues(step)
+
     def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
         return time_scaled(self.motions.replan(step, q_now_rad, carrying), self.speed)
 
