@@ -499,17 +499,22 @@ class CollisionModel:
         return Clearance(float(distances[k]), float(self._required[k]),
                          self._objects[a].label, self._objects[b].label)
 
+    def pair_distances(self, q_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance (m) and required clearance (m) of every checked pair at
+        ``q_rad``, in :meth:`pair_labels` order (the jog governor watches fixtures)."""
+        if not len(self._pairs):
+            return np.empty(0), np.empty(0)
+        self._update(q_rad)
+        return self._exact(np.arange(len(self._pairs))), np.asarray(self._required, float)
+
     def violations(self, q_rad: np.ndarray) -> list[Clearance]:
         """Every checked pair closer than its required clearance (+ ``STALL_M``) at
         ``q_rad``, closest first (what blocks a state, for diagnostics)."""
-        if not len(self._pairs):
-            return []
-        self._update(q_rad)
-        margins = self._exact(np.arange(len(self._pairs))) - self._required
+        distances, required = self.pair_distances(q_rad)
         out = []
-        for k in np.flatnonzero(margins < STALL_M):
+        for k in np.flatnonzero(distances - required < STALL_M):
             a, b = self._pairs[k]
-            out.append(Clearance(float(margins[k] + self._required[k]), float(self._required[k]),
+            out.append(Clearance(float(distances[k]), float(required[k]),
                                  self._objects[a].label, self._objects[b].label))
         return sorted(out, key=lambda c: c.margin_m)
 
