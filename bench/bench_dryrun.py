@@ -30,6 +30,7 @@ from cellrunner.execution.journal import Journal  # noqa: E402
 from cellrunner.execution.planner import job_planner  # noqa: E402
 from cellrunner.model.load import load_cell, load_task  # noqa: E402
 from cellrunner.planning.world import CellWorld  # noqa: E402
+from cellrunner.execution.loop import ControlLoop  # noqa: E402
 
 CASES = [("demo UR5e pick/place slot 0", "cells/demo_ur5e.yaml", "tasks/pick_place.yaml", {"slot": 0}),
          ("demo UR5e pick/place slot 11", "cells/demo_ur5e.yaml", "tasks/pick_place.yaml", {"slot": 11})]
@@ -42,19 +43,14 @@ def engine_run(cell, task, params) -> tuple[float, float, float, float]:
     controller = CellController(cell, {1: task}, backend, Journal(":memory:"), job_planner(world),
                                 wait_for_unhold=False)
     controller.setup()
-    for _ in range(3):
-        backend.wait_period()
-        controller.tick()
+    loop = ControlLoop(controller)
+    loop.step(3)
     controller.start_job(1, params, "bench", "cli")
-    backend.wait_period()
-    controller.tick()  # planning starts on the control thread
-    planned = controller._job.plan.result().planned_cycle_time_s  # planning excluded from the timing
+    loop.step(1)  # planning starts on the control thread
+    controller.wait_for_plan(timeout_s=600.0)  # planning excluded from the timing
     sim0, wall0 = backend.read_state().time_s, time.perf_counter()
-    for _ in range(10_000_000):
-        if controller._job is None:
-            break
-        backend.wait_period()
-        controller.tick()
+    loop.run_job(max_s=3600.0)
+    planned = controller.last_job.planned_cycle_time_s
     wall = time.perf_counter() - wall0
     sim = backend.read_state().time_s - sim0
     result = controller.status().last_result
