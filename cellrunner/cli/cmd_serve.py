@@ -17,6 +17,10 @@ from cellrunner.model.load import load_cell, load_task
 
 
 def run(args) -> int:
+    http = None
+    if getattr(args, "http", None):
+        from cellrunner.web.server import parse_address
+        http = parse_address(args.http)  # a bad address is exit 2 before anything starts
     cell = load_cell(args.cell)
     tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
     for w in cell.warnings:
@@ -32,18 +36,46 @@ def run(args) -> int:
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
     controller.setup()
-    service = _plc_service(controller, cell)
-    log.info("serving", backend=kind, tasks={n: t.name for n, t in tasks.items()},
-             modbus=getattr(service, "modbus_address", None) if service else None)
+    service = status_page = None
     try:
+        service = _plc_service(controller, cell)
+        status_page = _status_page(controller, cell, service, http, log) if http else None
+        log.info("serving", backend=kind, tasks={n: t.name for n, t in tasks.items()},
+                 modbus=getattr(service, "modbus_address", None) if service else None,
+                 http=status_page.url if status_page else None)
         _loop(controller, stop, paced=kind == "sim")
     finally:
         controller.shutdown("cellrunner stopped (SIGTERM)")
+        if status_page is not None:
+            status_page.stop()
+            status_page.board.close()
         if service is not None:
             service.stop()
         controller.close()
         log.info("stopped")
     return 0
+
+
+def _status_page(controller: CellController, cell, service, address: tuple[str, int], log):
+    """The status page and /metrics on their own thread, reading the journal through
+    their own connection."""
+    from cellrunner.web.board import StatusBoard
+    from cellrunner.web.server import StatusServer, is_loopback
+
+    host, port = address
+    journal = Journal(cell.resolve(cell.cell.journal))
+    board = StatusBoard(controller, journal, cell.cell.cell,
+                        plc_links=service.links if service is not None else dict).setup()
+    server = StatusServer(board, host, port)
+    try:
+        server.start()
+    except Exception:
+        board.close()
+        raise
+    if not is_loopback(host):
+        log.warning("status_page_not_loopback", host=host,
+                    note="the status page is reachable from the network (read-only)")
+    return server
 
 
 def _plc_service(controller: CellController, cell):
