@@ -8,7 +8,7 @@ import sys
 from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
 from cellrunner.execution.cell import CellController, run_until_done
-from cellrunner.execution.journal import Journal
+from cellrunner.execution.journal import cell_journal
 from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode
 
@@ -24,7 +24,7 @@ def run(args) -> int:
     if args.log_format == "json":
         from cellrunner.cli.logs import configure
         log = configure("json", cell.cell.cell)
-    controller = CellController(cell, {1: task}, backend, Journal(cell.resolve(cell.cell.journal)),
+    controller = CellController(cell, {1: task}, backend, cell_journal(cell),
                                 job_planner(CellWorld(cell)), log=log, wait_for_unhold=False)
     out = console()
     controller.setup()

@@ -11,7 +11,7 @@ import time
 from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.logs import configure
 from cellrunner.execution.cell import CellController
-from cellrunner.execution.journal import Journal
+from cellrunner.execution.journal import cell_journal, is_database_url
 from cellrunner.execution.planner import job_planner, warm_up
 from cellrunner.model.load import load_cell, load_task, serve_file_warnings
 
@@ -31,7 +31,7 @@ def run(args) -> int:
     from cellrunner.planning.world import CellWorld
     world = CellWorld(cell)
     warm_up(world)  # before READY: the first job is acknowledged as fast as any other
-    controller = CellController(cell, tasks, backend, Journal(cell.resolve(cell.cell.journal)),
+    controller = CellController(cell, tasks, backend, cell_journal(cell),
                                 job_planner(world), log=log, wait_for_unhold=True,
                                 on_job_start=getattr(backend, "feed_parts", None))
     stop = threading.Event()
@@ -65,7 +65,7 @@ def _status_page(controller: CellController, cell, service, address: tuple[str, 
     from cellrunner.web.server import StatusServer, is_loopback
 
     host, port = address
-    journal = Journal(cell.resolve(cell.cell.journal))
+    journal = cell_journal(cell)
     board = StatusBoard(controller, journal, cell.cell.cell,
                         plc_links=service.links if service is not None else dict).setup()
     server = StatusServer(board, host, port)
@@ -85,7 +85,12 @@ def _plc_service(controller: CellController, cell):
     if plc.modbus is None and plc.opcua is None:
         return None
     from cellrunner.plc.service import PlcService
-    pki = cell.resolve(plc.opcua.pki) if plc.opcua and plc.opcua.pki else cell.resolve(cell.cell.journal).parent / "pki"
+    if plc.opcua and plc.opcua.pki:
+        pki = cell.resolve(plc.opcua.pki)
+    elif is_database_url(cell.cell.journal):
+        pki = cell.resolve("var/pki")
+    else:
+        pki = cell.resolve(cell.cell.journal).parent / "pki"
     service = PlcService(controller, plc, resolve=cell.resolve, pki_dir=pki, cell_name=cell.cell.cell)
     service.start()
     return service

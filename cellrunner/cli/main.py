@@ -100,6 +100,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("cell")
     p.add_argument("--last", type=int, default=20, metavar="N")
     p.add_argument("--csv", action="store_true")
+    p.add_argument("--all-cells", action="store_true",
+                   help="every cell's jobs in a shared journal (e.g. a postgresql:// one), with a cell column")
     p.set_defaults(module="jobs")
 
     p = sub.add_parser("users", help="OPC UA users")

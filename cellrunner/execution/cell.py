@@ -23,7 +23,7 @@ from cellrunner.backends.base import BackendError, RobotBackend, Safety
 from cellrunner.errors import CellrunnerError, InputError
 from cellrunner.execution.context import JobContext, Motions
 from cellrunner.execution.job import JobRunner, StepRecord
-from cellrunner.execution.journal import Journal, JobRecord
+from cellrunner.execution.journal import JobRecord, JournalBackend, JournalError
 from cellrunner.execution.packml import Command, StateMachine, TransitionRefused
 from cellrunner.model.cellport import COMMANDS, CellStatus, JobResult, JobTicket, ResultListener
 from cellrunner.model.codes import PackMLState as S, ResultCode
@@ -69,7 +69,7 @@ class _Job:
 
 class CellController:
     def __init__(self, cell: LoadedCell, tasks: dict[int, LoadedTask], backend: RobotBackend,
-                 journal: Journal, planner: Planner, *, log=None, wait_for_unhold: bool = True,
+                 journal: JournalBackend, planner: Planner, *, log=None, wait_for_unhold: bool = True,
                  on_step_start: Callable[[Step, int], None] | None = None,
                  on_job_start: Callable[[], None] | None = None):
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
@@ -154,7 +154,10 @@ class CellController:
     def start_job(self, task: str | int, params: dict, client_job_id: str, source: str) -> JobTicket:
         with self._lock:
             if source == "opcua" and client_job_id:
-                first = self.journal.by_client_id(source, client_job_id)
+                try:
+                    first = self.journal.by_client_id(source, client_job_id)
+                except JournalError as exc:
+                    return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: {exc}")
                 if first is not None:
                     return JobTicket(first.job_id, 0, "the same ClientJobId again: the first job")
             loaded = self._task(task)
@@ -168,7 +171,11 @@ class CellController:
             if self.sm.state is not S.IDLE or self._job is not None or self._safety is not Safety.NORMAL:
                 return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: state {self.sm.state.display_name}")
             job = _Job(uuid.uuid4().hex[:12], loaded, values, client_job_id, source)
-            self.journal.begin_job(job.job_id, self.cell.cell.cell, loaded.name, values, source, client_job_id)
+            try:  # journaled before it is acknowledged, or not accepted
+                self.journal.begin_job(job.job_id, self.cell.cell.cell, loaded.name, values, source, client_job_id)
+            except JournalError as exc:
+                self._log("job_refused_journal", error=str(exc))
+                return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: {exc}")
             self._job = job
             self._enter_command(Command.START)
             self._log("job_accepted", job_id=job.job_id, task=loaded.name, params=values, source=source)
