@@ -20,12 +20,10 @@ from pyModbusTCP.client import ModbusClient
 from tests.conftest import ROOT
 from tests.execution.test_dryrun import CELL, TASK
 from tests.test_serve import free_port
-from tests.web.browser import Chromium, chromium_path
+from tests.web.browser import Chromium
 
 HOST = "127.0.0.141"
 READY, JOB_ACK, DONE, ERROR = 1, 2, 8, 16
-
-pytestmark = pytest.mark.skipif(chromium_path() is None, reason="chromium not installed (scripts/test installs it as root)")
 
 
 class Plc:
