@@ -111,3 +111,16 @@ def test_an_unreachable_database_is_a_clear_error(pg):
     text = str(exc.value)
     assert text.startswith(f"cannot reach the journal database postgresql://cellrunner@{HOST}:1/plant: ")
     assert "secret" not in text and exc.value.exit_code == 3
+
+
+def test_jobs_command_on_an_unreachable_database_is_exit_3(tmp_path, capsys):
+    from cellrunner.cli.main import main
+    from tests.execution.test_dryrun import CELL
+
+    (tmp_path / "cells").mkdir()
+    cell = tmp_path / "cells" / "c.yaml"
+    cell.write_text(CELL + f"journal: postgresql://cellrunner:secret@{HOST}:1/plant\n")
+    assert main(["jobs", str(cell), "--all-cells"]) == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        f"cellrunner jobs: error: cannot reach the journal database postgresql://cellrunner@{HOST}:1/plant: ")

@@ -122,3 +122,13 @@ def test_address_parsing_defaults_to_loopback():
     with pytest.raises(UsageError, match=r"--http 'localhost:http': give \[HOST:\]PORT"):
         parse_address("localhost:http")
     assert is_loopback("127.0.0.1") and is_loopback("::1") and not is_loopback("0.0.0.0")
+
+
+def test_serve_refuses_a_bad_http_address_before_starting(capsys):
+    from cellrunner.cli.main import main
+    from tests.conftest import DEMO_CELL
+
+    assert main(["serve", str(DEMO_CELL), "--http", "127.0.0.1:port"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["cellrunner serve: error: --http '127.0.0.1:port': give [HOST:]PORT with PORT 0-65535, "
+                   "e.g. 127.0.0.1:8080"]
