@@ -36,8 +36,9 @@ def free_port(host: str) -> int:
 class PgServer:
     """``with PgServer("127.0.0.142") as pg: pg.url; pg.restart()``."""
 
-    def __init__(self, host: str):
+    def __init__(self, host: str, *, durable: bool = False):
         self.host = host
+        self.durable = durable  # fsync as in production (benchmarks); tests skip it
         self.port = free_port(host)
         self.root = Path(tempfile.mkdtemp(prefix="cellrunner-pg-"))
         self.data = self.root / "data"
@@ -65,8 +66,9 @@ class PgServer:
             shutil.rmtree(self.root, ignore_errors=True)
 
     def start(self) -> None:
-        options = (f"-c listen_addresses={self.host} -p {self.port} -k {self.root} "
-                   "-c fsync=off -c full_page_writes=off")
+        options = f"-c listen_addresses={self.host} -p {self.port} -k {self.root}"
+        if not self.durable:
+            options += " -c fsync=off -c full_page_writes=off"
         self._run(pg_bin("pg_ctl"), "-D", str(self.data), "-l", str(self.root / "log"), "-w", "-t", "60",
                   "-o", options, "start")
 
