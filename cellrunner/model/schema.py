@@ -45,7 +45,7 @@ STEP_HELP: dict[str, tuple[str, Any]] = {
     "set_output": ("Set outputs by their cell IO names.", {"beacon": True}),
     "wait_input": ("Wait until an input reads `value`, failing the step after `timeout` (s).",
                    {"input": "part_present", "value": True, "timeout": 10}),
-    "wait": ("Wait this long (s, or a string with a unit).", 0.5),
+    "wait": ("Wait this long, s.", 0.5),
     "pick": ("Macro: approach -> descend -> grip -> lift.",
              {"at": "infeed", "approach": 0.1, "grip": {"confirm": "gripper_closed"}}),
     "place": ("Macro: approach -> descend -> release -> retreat.",

@@ -79,7 +79,9 @@ def test_every_key_has_a_description_and_an_example_that_validates():
         props = list(_properties(schema))
         assert len(props) > 60
         for path, sub in props:
-            assert sub.get("description") and sub.get("examples"), f"{path}: needs a docstring ending in Example: `...`"
+            assert sub.get("description") and sub.get("examples"), (
+                f"{path}: give the field a docstring ending in Example: `YAML` (a step kind: STEP_HELP "
+                "in cellrunner/model/schema.py)")
             assert "Example:" not in sub["description"], path
             check = jsonschema.Draft7Validator({**sub, "$defs": schema.get("$defs", {})})
             for example in sub["examples"]:
