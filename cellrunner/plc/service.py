@@ -120,8 +120,7 @@ class PlcService:
         if self.modbus_config is not None:
             out["modbus"] = self.modbus is not None and self.modbus.link.heartbeat_alive
         if self.opcua_config is not None:
-            bserver = getattr(getattr(self.opcua, "_server", None), "bserver", None)
-            out["opcua"] = bool(getattr(bserver, "clients", None))
+            out["opcua"] = self.opcua is not None and self.opcua.connected_clients > 0
         return out
 
     # -- thread --------------------------------------------------------------------------

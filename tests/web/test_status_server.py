@@ -132,3 +132,27 @@ def test_serve_refuses_a_bad_http_address_before_starting(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["cellrunner serve: error: --http '127.0.0.1:port': give [HOST:]PORT with PORT 0-65535, "
                    "e.g. 127.0.0.1:8080"]
+
+
+def test_plc_link_is_up_while_the_heartbeat_moves():
+    """PlcService.links() over a real Modbus socket: down until the PLC heartbeat changes,
+    up while it keeps changing, down again once it stops for heartbeat_timeout."""
+    from pyModbusTCP.client import ModbusClient
+
+    from cellrunner.plc.service import PlcService
+    from tests.test_serve import free_port
+
+    port = free_port(HOST)
+    with FakeCell() as cell, PlcService(cell, {"modbus": {"bind": HOST, "port": port,
+                                                          "heartbeat_timeout": 0.5}}) as service:
+        assert service.links() == {"modbus": False}
+        client = ModbusClient(host=HOST, port=port, timeout=2.0, auto_open=True)
+        for beat in range(1, 6):
+            assert client.write_single_register(0, beat)
+            time.sleep(0.05)
+        assert service.links() == {"modbus": True}
+        deadline = time.monotonic() + 3
+        while service.links()["modbus"]:
+            assert time.monotonic() < deadline, "the link stayed up without a heartbeat"
+            time.sleep(0.05)
+        client.close()
