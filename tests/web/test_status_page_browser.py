@@ -117,7 +117,7 @@ def test_page_follows_a_running_job_in_chromium(serving, tmp_path):
         assert len(seen) >= 4, seen
         indices = [int(s.split(":")[0].split()[1]) for s in seen]
         assert indices == sorted(indices) and indices[0] <= 2 and indices[-1] >= 9, seen
-        assert "home (move)" in seen[0] and any("(descend)" in s for s in seen), seen
+        assert len({s.rsplit("(", 1)[1] for s in seen}) >= 3, seen  # several kinds of step shown
         assert shot is not None and shot.stat().st_size > 10_000
         keep_artifact(shot)
 
