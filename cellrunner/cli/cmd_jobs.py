@@ -49,10 +49,13 @@ def run(args) -> int:
     from cellrunner.cli.common import console
     whose = "all cells" if all_cells else cell.cell.cell
     table = Table(title=f"jobs of {whose} ({display_location(where)})", title_justify="left")
-    for c in columns:
-        table.add_column(c, justify="right" if c in ("result_code", "cycle_time_s", "retries") else "left")
+    from rich.text import Text
+    id_width = max([len(str(row["job_id"])) for row in rows], default=6)
+    for c in columns:  # a job id is never cut (it is what one looks up); the other columns fold
+        table.add_column(c, justify="right" if c in ("result_code", "cycle_time_s", "retries") else "left",
+                         no_wrap=c == "job_id", min_width=id_width if c == "job_id" else None, overflow="fold")
     for row in rows:
-        table.add_row(*[str(row[c]) for c in columns])
+        table.add_row(*[Text(str(row[c])) for c in columns])
     console().print(table)
     return 0
 
