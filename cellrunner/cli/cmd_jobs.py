@@ -1,4 +1,6 @@
-"""``cellrunner jobs CELL [--last N] [--csv]``: the journal."""
+"""``cellrunner jobs CELL [--last N] [--csv] [--all-cells]``: the journal (the cell's
+jobs; with ``--all-cells`` every cell's in a shared journal, e.g. a plant-wide
+PostgreSQL one)."""
 
 from __future__ import annotations
 
@@ -7,7 +9,7 @@ import sys
 from datetime import datetime
 
 from cellrunner.errors import UsageError
-from cellrunner.execution.journal import Journal
+from cellrunner.execution.journal import cell_journal, display_location, is_database_url
 from cellrunner.model.load import load_cell
 
 COLUMNS = ("job_id", "started", "task", "params", "source", "client_job_id", "result_code", "result_text",
@@ -18,39 +20,46 @@ def run(args) -> int:
     if args.last < 1:
         raise UsageError(f"--last {args.last}: give a positive number of jobs")
     cell = load_cell(args.cell)
-    path = cell.resolve(cell.cell.journal)
-    if not path.exists():
-        sys.stderr.write(f"{path}: no journal yet (no job has run)\n")
-        return 0
-    journal = Journal(path).open()
+    all_cells = getattr(args, "all_cells", False)
+    where = cell.cell.journal
+    if not is_database_url(where):
+        path = cell.resolve(where)
+        if not path.exists():
+            sys.stderr.write(f"{path}: no journal yet (no job has run)\n")
+            return 0
+        where = str(path)
+    journal = cell_journal(cell, all_cells=all_cells).open()
     try:
         records = journal.last(args.last)
     finally:
         journal.close()
-    rows = [{"job_id": r.job_id, "started": _time(r.started_at), "task": r.task,
+    columns = ("cell", *COLUMNS) if all_cells else COLUMNS
+    rows = [{"cell": r.cell, "job_id": r.job_id, "started": _time(r.started_at), "task": r.task,
              "params": " ".join(f"{k}={v}" for k, v in r.params.items()), "source": r.source,
              "client_job_id": r.client_job_id or "", "result_code": "" if r.result_code is None else r.result_code,
              "result_text": r.result_text or ("running" if r.ended_at is None else ""),
              "cycle_time_s": "" if r.cycle_time_s is None else f"{r.cycle_time_s:.2f}", "retries": r.retries}
             for r in records]
     if args.csv:
-        writer = csv.DictWriter(sys.stdout, fieldnames=COLUMNS)
+        writer = csv.DictWriter(sys.stdout, fieldnames=columns, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(rows)
         return 0
     from rich.table import Table
     from cellrunner.cli.common import console
-    table = Table(title=f"jobs of {cell.cell.cell} ({path})", title_justify="left")
+    whose = "all cells" if all_cells else cell.cell.cell
+    table = Table(title=f"jobs of {whose} ({display_location(where)})", title_justify="left")
     from rich.text import Text
     id_width = max([len(str(row["job_id"])) for row in rows], default=6)
-    for c in COLUMNS:  # a job id is never cut (it is what one looks up); the other columns fold
+    for c in columns:  # a job id is never cut (it is what one looks up); the other columns fold
         table.add_column(c, justify="right" if c in ("result_code", "cycle_time_s", "retries") else "left",
                          no_wrap=c == "job_id", min_width=id_width if c == "job_id" else None, overflow="fold")
     for row in rows:
-        table.add_row(*[Text(str(row[c])) for c in COLUMNS])
+        table.add_row(*[Text(str(row[c])) for c in columns])
     console().print(table)
     return 0
 
 
 def _time(ts: float) -> str:
     return datetime.fromtimestamp(ts).strftime("%Y-%m-%d %H:%M:%S")
+

@@ -9,7 +9,7 @@ from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
 from cellrunner.errors import UsageError
 from cellrunner.execution.cell import CellController
-from cellrunner.execution.journal import Journal
+from cellrunner.execution.journal import cell_journal
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode
@@ -35,7 +35,7 @@ def run(args) -> int:
         from cellrunner.execution.pacing import EnterGate, describe_step
         gate = EnterGate(describe_step, on_end=lambda: controller.command("abort"))
     planner = job_planner(CellWorld(cell), speed=speed, joined=not stepping)
-    controller = CellController(cell, {1: task}, backend, Journal(cell.resolve(cell.cell.journal)),
+    controller = CellController(cell, {1: task}, backend, cell_journal(cell),
                                 planner, log=log, wait_for_unhold=False, gate=gate)
     out = console()
     controller.setup()

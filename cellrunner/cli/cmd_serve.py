@@ -10,13 +10,17 @@ import threading
 from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.logs import configure
 from cellrunner.execution.cell import CellController
-from cellrunner.execution.journal import Journal
+from cellrunner.execution.journal import cell_journal, is_database_url
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner, warm_up
 from cellrunner.model.load import load_cell, load_task, serve_file_warnings
 
 
 def run(args) -> int:
+    http = None
+    if getattr(args, "http", None):
+        from cellrunner.web.server import parse_address
+        http = parse_address(args.http)  # a bad address is exit 2 before anything starts
     cell = load_cell(args.cell)
     tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
     for w in cell.warnings + serve_file_warnings(cell):
@@ -31,18 +35,21 @@ def run(args) -> int:
     # the planning thread is CPU-bound; hand the GIL over every 1 ms (Python's default is
     # 5 ms) so the PLC threads answer promptly while a job plans
     sys.setswitchinterval(0.001)
-    controller = CellController(cell, tasks, backend, Journal(cell.resolve(cell.cell.journal)),
+    controller = CellController(cell, tasks, backend, cell_journal(cell),
                                 job_planner(world), log=log, wait_for_unhold=True,
                                 on_job_start=getattr(backend, "feed_parts", None))
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
     controller.setup()
-    service = _plc_service(controller, cell)
-    log.info("serving", backend=kind, tasks={n: t.name for n, t in tasks.items()},
-             modbus=getattr(service, "modbus_address", None) if service else None)
+    service = status_page = None
     reason = "cellrunner stopped (SIGTERM)"
     try:
+        service = _plc_service(controller, cell)
+        status_page = _status_page(controller, cell, service, http, log) if http else None
+        log.info("serving", backend=kind, tasks={n: t.name for n, t in tasks.items()},
+                 modbus=getattr(service, "modbus_address", None) if service else None,
+                 http=status_page.url if status_page else None)
         ControlLoop(controller, realtime=kind == "sim").run(stop)
     except Exception as exc:  # a bug in the control loop: close the job saying so, then exit 1
         reason = f"cellrunner failed: {type(exc).__name__}: {exc}"
@@ -50,6 +57,9 @@ def run(args) -> int:
         raise
     finally:
         controller.shutdown(reason)
+        if status_page is not None:
+            status_page.stop()
+            status_page.board.close()
         if service is not None:
             service.stop()
         controller.close()
@@ -57,12 +67,39 @@ def run(args) -> int:
     return 0
 
 
+def _status_page(controller: CellController, cell, service, address: tuple[str, int], log):
+    """The status page and /metrics on their own thread, reading the journal through
+    their own connection."""
+    from cellrunner.web.board import StatusBoard
+    from cellrunner.web.server import StatusServer, is_loopback
+
+    host, port = address
+    journal = cell_journal(cell)
+    board = StatusBoard(controller, journal, cell.cell.cell,
+                        plc_links=service.links if service is not None else dict).setup()
+    server = StatusServer(board, host, port)
+    try:
+        server.start()
+    except Exception:
+        board.close()
+        raise
+    if not is_loopback(host):
+        log.warning("status_page_not_loopback", host=host,
+                    note="the status page is reachable from the network (read-only)")
+    return server
+
+
 def _plc_service(controller: CellController, cell):
     plc = cell.cell.plc
     if plc.modbus is None and plc.opcua is None:
         return None
     from cellrunner.plc.service import PlcService
-    pki = cell.resolve(plc.opcua.pki) if plc.opcua and plc.opcua.pki else cell.resolve(cell.cell.journal).parent / "pki"
+    if plc.opcua and plc.opcua.pki:
+        pki = cell.resolve(plc.opcua.pki)
+    elif is_database_url(cell.cell.journal):
+        pki = cell.resolve("var/pki")
+    else:
+        pki = cell.resolve(cell.cell.journal).parent / "pki"
     service = PlcService(controller, plc, resolve=cell.resolve, pki_dir=pki, cell_name=cell.cell.cell)
     service.start()
     return service

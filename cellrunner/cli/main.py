@@ -94,6 +94,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("cell")
     p.add_argument("--backend", choices=("ur", "sim"))
     p.add_argument("--robot-host", metavar="H")
+    p.add_argument("--http", metavar="[HOST:]PORT",
+                   help="serve a read-only status page and Prometheus /metrics here "
+                        "(host defaults to 127.0.0.1, e.g. --http 127.0.0.1:8080)")
     p.set_defaults(module="serve")
 
     p = sub.add_parser("twin", help="a virtual UR controller backed by the MuJoCo twin")
@@ -132,6 +135,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("cell")
     p.add_argument("--last", type=int, default=20, metavar="N")
     p.add_argument("--csv", action="store_true")
+    p.add_argument("--all-cells", action="store_true",
+                   help="every cell's jobs in a shared journal (e.g. a postgresql:// one), with a cell column")
     p.set_defaults(module="jobs")
 
     p = sub.add_parser("users", help="OPC UA users")

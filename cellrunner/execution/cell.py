@@ -29,7 +29,7 @@ from cellrunner.backends.base import RobotBackend, Safety
 from cellrunner.errors import CellrunnerError, InputError
 from cellrunner.execution.context import JobContext, Motions
 from cellrunner.execution.job import JobPhase, JobRunner, StepRecord
-from cellrunner.execution.journal import JobRecord, Journal
+from cellrunner.execution.journal import JobRecord, JournalBackend, JournalError
 from cellrunner.execution.packml import Command, Event, StateMachine, TransitionRefused
 from cellrunner.model.cellport import (
     COMMANDS,
@@ -117,7 +117,7 @@ class _Job:
 
 class CellController:
     def __init__(self, cell: LoadedCell, tasks: dict[int, LoadedTask], backend: RobotBackend,
-                 journal: Journal, planner: Planner, *, log=None, wait_for_unhold: bool = True,
+                 journal: JournalBackend, planner: Planner, *, log=None, wait_for_unhold: bool = True,
                  on_step_start: Callable[[Step, int], None] | None = None,
                  on_job_start: Callable[[], None] | None = None,
                  gate: Callable[[Step], bool] | None = None):
@@ -254,7 +254,10 @@ class CellController:
     def start_job(self, task: str | int, params: dict, client_job_id: str, source: str) -> JobTicket:
         with self._lock:
             if source == "opcua" and client_job_id:
-                first = self.journal.by_client_id(source, client_job_id)
+                try:
+                    first = self.journal.by_client_id(source, client_job_id)
+                except JournalError as exc:
+                    return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: {exc}")
                 if first is not None:
                     return JobTicket(first.job_id, 0, "the same ClientJobId again: the first job")
             loaded = self._task(task)
@@ -268,9 +271,9 @@ class CellController:
             if self.sm.state is not S.IDLE or self._job is not None or self._safety is not Safety.NORMAL:
                 return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: state {self.sm.state.display_name}")
             job = _Job(uuid.uuid4().hex[:12], loaded, values, client_job_id, source)
-            try:
+            try:  # journaled before it is acknowledged, or not accepted (SPEC 9)
                 self.journal.begin_job(job.job_id, self.cell.cell.cell, loaded.name, values, source, client_job_id)
-            except sqlite3.Error as exc:  # disk full, read-only: no journal, no job (SPEC 9)
+            except (JournalError, sqlite3.Error) as exc:  # database away, disk full, read-only
                 self._log("journal_failed", error=str(exc))
                 return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: the journal cannot be written: {exc}")
             self._job = job

@@ -1,8 +1,15 @@
-"""The job journal (SPEC section 9): SQLite, written before a job is acknowledged and at
-every step transition after it, so no result is ever lost.
+"""The job journal (SPEC section 9): written before a job is acknowledged and at every
+step transition after it, so no result is ever lost.
+
+Two backends behind one :class:`JournalBackend` Protocol, picked by the cell file's
+``journal:`` (:func:`journal_for`): a SQLite file (the default, :class:`SqliteJournal`)
+or a ``postgresql://`` URL, one database shared by many cells
+(:class:`~cellrunner.execution.journal_postgres.PostgresJournal`). A journal opened for
+a cell sees that cell's jobs only (several cells may share one journal); one opened
+with ``cell=None`` reads across cells (``cellrunner jobs --all-cells``).
 
 A job found unfinished at start-up is closed with result 107 by
-:meth:`Journal.close_interrupted` and reported as the last result.
+:meth:`JournalBackend.close_interrupted` and reported as the last result.
 """
 
 from __future__ import annotations
@@ -14,9 +21,13 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 from cellrunner.errors import CellrunnerError
 from cellrunner.model.codes import ResultCode
+
+#: the ``journal:`` values that name a PostgreSQL database
+POSTGRES_SCHEMES = ("postgresql://", "postgres://")
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS jobs (
@@ -64,12 +75,79 @@ class JobRecord:
     retries: int
 
 
-class Journal:
-    """One SQLite file; every write is committed before the call returns (WAL, synchronous
-    FULL), so a crash right after a call never loses what it wrote."""
+class JournalError(CellrunnerError):
+    """The journal cannot be written or read (database unreachable, ...): jobs are refused
+    rather than run unjournaled."""
 
-    def __init__(self, path: str | Path):
+    exit_code = 3
+
+
+class JournalBackend(Protocol):
+    """What the cell and the status page need from a journal (SQLite or PostgreSQL).
+
+    Construct (no I/O), :meth:`open`, use, :meth:`close`. :meth:`begin_job` is durable
+    when it returns, or raises :class:`JournalError` (a job is journaled before it is
+    acknowledged); later writes of a job are durable when they return, or delivered in
+    order as soon as the database is back (PostgreSQL). ``counters`` never waits on I/O.
+    """
+
+    cell: str | None
+
+    def open(self) -> "JournalBackend": ...
+    def close(self) -> None: ...
+    def begin_job(self, job_id: str, cell: str, task: str, params: dict, source: str,
+                  client_job_id: str | None = None) -> None: ...
+    def step(self, job_id: str, index: int, kind: str, name: str, status: str, attempt: int,
+             message: str = "") -> None: ...
+    def end_job(self, job_id: str, code: ResultCode, cycle_time_s: float | None, retries: int,
+                text: str | None = None) -> None: ...
+    def close_interrupted(self) -> list[JobRecord]: ...
+    def get(self, job_id: str) -> JobRecord | None: ...
+    def by_client_id(self, source: str, client_job_id: str) -> JobRecord | None: ...
+    def last(self, n: int = 20) -> list[JobRecord]: ...
+    def last_finished(self) -> JobRecord | None: ...
+    def counters(self) -> tuple[int, int]: ...
+    def steps_of(self, job_id: str) -> list[tuple]: ...
+
+
+def journal_for(location: str, cell: str | None, resolve=Path) -> JournalBackend:
+    """The journal the cell file's ``journal:`` names: a ``postgresql://`` URL, else a
+    SQLite file (``resolve`` turns the written path into a file path)."""
+    if location.startswith(POSTGRES_SCHEMES):
+        from cellrunner.execution.journal_postgres import PostgresJournal
+        return PostgresJournal(location, cell)
+    return SqliteJournal(resolve(location), cell)
+
+
+def cell_journal(cell, *, all_cells: bool = False) -> JournalBackend:
+    """The journal of a loaded cell (``LoadedCell``); ``all_cells`` reads every cell's jobs."""
+    return journal_for(cell.cell.journal, None if all_cells else cell.cell.cell, cell.resolve)
+
+
+def is_database_url(location: str) -> bool:
+    return location.startswith(POSTGRES_SCHEMES)
+
+
+def display_location(location: str) -> str:
+    """A journal location fit for messages: a database URL loses its password."""
+    if not is_database_url(location):
+        return location
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(location)
+    user = f"{parts.username}@" if parts.username else ""
+    port = f":{parts.port}" if parts.port else ""
+    return f"{parts.scheme}://{user}{parts.hostname or 'localhost'}{port}{parts.path}"
+
+
+class SqliteJournal:
+    """One SQLite file; every write is committed before the call returns (WAL, synchronous
+    FULL), so a crash right after a call never loses what it wrote. ``cell`` scopes
+    what is read and closed to one cell (None: every cell in the file)."""
+
+    def __init__(self, path: str | Path, cell: str | None = None):
         self.path = Path(path)
+        self.cell = cell
         self._db: sqlite3.Connection | None = None
         self._lock = threading.Lock()  # the control thread and the PLC threads share the connection
 
@@ -81,7 +159,7 @@ class Journal:
         with self._lock:
             return self.db.execute(sql, args).fetchall()
 
-    def open(self) -> "Journal":
+    def open(self) -> "SqliteJournal":
         """Open (or create, readable by its owner only) the journal. An existing file that
         is empty or not a journal is an error, never silently started afresh: that would
         lose the history, the counters and an interrupted job's 107."""
@@ -141,32 +219,33 @@ class Journal:
             (time.time(), int(code), text or code.text, cycle_time_s, retries, job_id))
 
     def close_interrupted(self) -> list[JobRecord]:
-        """Close every job left unfinished (a restart mid-job) with code 107."""
-        open_jobs = self._select("WHERE ended_at IS NULL")
+        """Close every job of this cell left unfinished (a restart mid-job) with code 107."""
+        open_jobs = self._select("ended_at IS NULL")
         for job in open_jobs:
             self.end_job(job.job_id, ResultCode.INTERRUPTED, None, job.retries)
         return [self.get(job.job_id) for job in open_jobs]
 
     def get(self, job_id: str) -> JobRecord | None:
-        rows = self._select("WHERE job_id = ?", (job_id,))
+        rows = self._select("job_id = ?", (job_id,))
         return rows[0] if rows else None
 
     def by_client_id(self, source: str, client_job_id: str) -> JobRecord | None:
         """The first job ``source`` asked for under ``client_job_id`` (OPC UA idempotency)."""
-        rows = self._select("WHERE source = ? AND client_job_id = ? ORDER BY rowid LIMIT 1", (source, client_job_id))
+        rows = self._select("source = ? AND client_job_id = ?", (source, client_job_id), "ORDER BY rowid LIMIT 1")
         return rows[0] if rows else None
 
     def last(self, n: int = 20) -> list[JobRecord]:
-        return list(reversed(self._select("ORDER BY started_at DESC, rowid DESC LIMIT ?", (n,))))
+        return list(reversed(self._select("1", (), "ORDER BY started_at DESC, rowid DESC LIMIT ?", (n,))))
 
     def last_finished(self) -> JobRecord | None:
-        rows = self._select("WHERE ended_at IS NOT NULL ORDER BY ended_at DESC, rowid DESC LIMIT 1")
+        rows = self._select("ended_at IS NOT NULL", (), "ORDER BY ended_at DESC, rowid DESC LIMIT 1")
         return rows[0] if rows else None
 
     def counters(self) -> tuple[int, int]:
         """(parts processed, parts defective): OK jobs, and jobs that ended NOK (1-3)."""
+        where, args = self._where("1", ())
         ((ok, nok),) = self._fetchall(
-            "SELECT SUM(result_code = 0), SUM(result_code BETWEEN 1 AND 3) FROM jobs")
+            f"SELECT SUM(result_code = 0), SUM(result_code BETWEEN 1 AND 3) FROM jobs {where}", args)
         return int(ok or 0), int(nok or 0)
 
     def steps_of(self, job_id: str) -> list[tuple]:
@@ -174,8 +253,19 @@ class Journal:
             "SELECT step_index, kind, name, status, attempt, at, message FROM steps WHERE job_id = ? "
             "ORDER BY rowid", (job_id,))
 
-    def _select(self, where: str, args: tuple = ()) -> list[JobRecord]:
+    def _where(self, cond: str, args: tuple) -> tuple[str, tuple]:
+        """``WHERE cond``, narrowed to this journal's cell."""
+        if self.cell is None:
+            return f"WHERE {cond}", args
+        return f"WHERE cell = ? AND ({cond})", (self.cell, *args)
+
+    def _select(self, cond: str, args: tuple = (), order: str = "", order_args: tuple = ()) -> list[JobRecord]:
+        where, args = self._where(cond, args)
         rows = self._fetchall(
             "SELECT job_id, client_job_id, cell, task, params, source, started_at, ended_at, result_code, "
-            f"result_text, cycle_time_s, retries FROM jobs {where}", args)
+            f"result_text, cycle_time_s, retries FROM jobs {where} {order}", (*args, *order_args))
         return [JobRecord(r[0], r[1], r[2], r[3], json.loads(r[4]), *r[5:]) for r in rows]
+
+
+#: the SQLite journal was the only one; the name stays for callers that mean a file
+Journal = SqliteJournal

@@ -19,14 +19,17 @@ Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_\-]*$", min_length=1,
 class Strict(BaseModel):
     """Base of every file model: unknown keys are errors, values are not coerced loosely."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True,
+                              use_attribute_docstrings=True)  # a field's docstring: its schema description
 
 
 class Pose(Strict):
     """A pose: translation ``xyz`` in m, XYZ fixed-axis ``rpy`` in degrees."""
 
     xyz: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    """Translation x, y, z in m (or strings with a unit). Example: `[0.4, 0, 0.9]`"""
     rpy: Rpy = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    """Rotation as XYZ fixed-axis roll, pitch, yaw in degrees. Example: `[180, 0, 90]`"""
 
     def matrix(self) -> np.ndarray:
         return geometry.pose_matrix(self.xyz, self.rpy)
@@ -34,20 +37,26 @@ class Pose(Strict):
 
 class BoxShape(Strict):
     size: Annotated[list[PositiveLength], Field(min_length=3, max_length=3)]
+    """Edge lengths along x, y, z in m. Example: `[1.2, 0.8, 0.04]`"""
 
 
 class CylinderShape(Strict):
     radius: PositiveLength
+    """Radius in m. Example: `0.05`"""
     length: PositiveLength
+    """Length along the local Z axis in m, centred on the pose. Example: `0.6`"""
 
 
 class SphereShape(Strict):
     radius: PositiveLength
+    """Radius in m. Example: `0.05`"""
 
 
 class MeshShape(Strict):
     file: str
+    """STL file, relative to the project folder. Example: `meshes/fence.stl`"""
     scale: float = Field(default=1.0, gt=0)
+    """Factor applied to the mesh's coordinates (0.001 for a mesh drawn in mm). Example: `0.001`"""
 
 
 SHAPE_KEYS = ("box", "cylinder", "sphere", "mesh")
@@ -57,9 +66,13 @@ class Shaped(Strict):
     """Something with exactly one of ``box``, ``cylinder``, ``sphere``, ``mesh``."""
 
     box: BoxShape | None = None
+    """A box centred on the pose. Example: `{size: [1.2, 0.8, 0.04]}`"""
     cylinder: CylinderShape | None = None
+    """A cylinder along the pose's Z axis, centred on it. Example: `{radius: 0.05, length: 0.6}`"""
     sphere: SphereShape | None = None
+    """A sphere centred on the pose. Example: `{radius: 0.05}`"""
     mesh: MeshShape | None = None
+    """A triangle mesh (STL). Example: `{file: meshes/fence.stl}`"""
 
     @model_validator(mode="after")
     def _one_shape(self) -> "Shaped":
@@ -89,8 +102,11 @@ class PlacedShape(Shaped):
     """A shape with a pose, written either inline (``xyz``, ``rpy``) or as ``pose:``."""
 
     pose: Pose | None = None
+    """Where the shape sits, as {xyz, rpy}; or write xyz/rpy directly. Example: `{xyz: [0.4, 0, 0.88]}`"""
     xyz: Vec3 | None = None
+    """Translation in m (short form of pose.xyz). Example: `[0, 0, 0.075]`"""
     rpy: Rpy | None = None
+    """Rotation in degrees, XYZ fixed axes (short form of pose.rpy). Example: `[0, 90, 0]`"""
 
     @model_validator(mode="after")
     def _one_pose_form(self) -> "PlacedShape":

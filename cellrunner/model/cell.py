@@ -24,73 +24,111 @@ class Limits(Strict):
     """Motion limits plans may use, never above the controller's (checked per model)."""
 
     joint_speed: AngularSpeed | Annotated[list[AngularSpeed], Field(min_length=6, max_length=6)] | None = None
+    """Joint speed limit in deg/s, one value or six (never above the controller's). Example: `120`"""
     joint_accel: AngularAccel | Annotated[list[AngularAccel], Field(min_length=6, max_length=6)] | None = None
+    """Joint acceleration limit in deg/s^2, one value or six. Example: `300`"""
     tcp_speed: Speed | None = None
+    """TCP speed cap in m/s. Example: `1.0`"""
     margin: Fraction = 0.95
+    """Fraction of each limit that plans may use. Example: `0.95`"""
 
 
 class Robot(Strict):
     model: RobotModel
+    """Universal Robots arm model. Example: `ur5e`"""
     host: str | None = None
+    """Controller address for the ur_rtde backend. Example: `192.168.1.101`"""
     backend: Literal["ur", "sim"] = "ur"
+    """What run and serve drive: the arm through ur_rtde, or the MuJoCo twin. Example: `ur`"""
     mount: Pose = Field(default_factory=Pose)
+    """The controller's base frame in the world (m, deg). Example: `{xyz: [0, 0, 0.9], rpy: [0, 0, 0]}`"""
     home: Joints
+    """Home joint angles in degrees, base to wrist 3. Example: `[0, -90, 90, -90, -90, 0]`"""
     limits: Limits = Field(default_factory=Limits)
+    """Motion limits plans may use. Example: `{joint_speed: 120, joint_accel: 300, tcp_speed: 1.0, margin: 0.95}`"""
 
 
 class Payload(Strict):
     mass: Mass = 0.0
+    """Tool payload mass in kg. Example: `1.2`"""
     cog: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    """Centre of gravity in the flange frame, m. Example: `[0, 0, 0.05]`"""
 
 
 class OutputValue(Strict):
     output: Name
+    """Output name from io.outputs. Example: `gripper_close`"""
     value: bool | float = True
+    """Value written: true/false, or a number for an analog output. Example: `true`"""
 
 
 class Gripper(Strict):
     kind: Literal["io", "robotiq"] = "io"
+    """io (a valve and a sensor) or robotiq (2F-85/140 through its socket). Example: `io`"""
     close: OutputValue | None = None
+    """Output that closes the jaws. Example: `{output: gripper_close, value: true}`"""
     open: OutputValue | None = None
+    """Output that opens the jaws (default: the close output, inverted). Example: `{output: gripper_open, value: true}`"""
     closed_sensor: Name | None = None
+    """Input that confirms the jaws closed. Example: `gripper_closed`"""
     open_sensor: Name | None = None
+    """Input that confirms the jaws opened. Example: `gripper_open`"""
     stroke: PositiveLength = 0.085
+    """Jaw stroke in m (for the twin). Example: `0.085`"""
     close_time: PositiveDuration = 0.2  # s, jaws from fully open to closed (datasheet)
+    """Jaws from fully open to closed, s (datasheet). Example: `0.2`"""
     host: str | None = None  # robotiq socket host (default: the robot host)
+    """Robotiq socket host (default: the robot host). Example: `192.168.1.101`"""
     port: int = Field(default=63352, ge=1, le=65535)
+    """Robotiq socket TCP port. Example: `63352`"""
 
 
 class Tool(Strict):
     tcp: Pose = Field(default_factory=Pose)
+    """Flange (tool0) to tool centre point, m and deg. Example: `{xyz: [0, 0, 0.15]}`"""
     payload: Payload = Field(default_factory=Payload)
+    """Tool payload. Example: `{mass: 1.2, cog: [0, 0, 0.05]}`"""
     gripper: Gripper | None = None
+    """The gripper and its IO. Example: `{kind: io, close: {output: gripper_close, value: true}, closed_sensor: gripper_closed}`"""
     geometry: list[PlacedShape] = Field(default_factory=list)
+    """Collision shapes of the tool in the flange frame. Example: `[{cylinder: {radius: 0.04, length: 0.15}, xyz: [0, 0, 0.075]}]`"""
 
 
 class Io(Strict):
     outputs: dict[Name, str] = Field(default_factory=dict)
+    """Output names to controller channels: DOn standard, TOn tool, AOn analog. Example: `{gripper_close: DO0, beacon: DO3}`"""
     inputs: dict[Name, str] = Field(default_factory=dict)
+    """Input names to controller channels: DIn standard, TIn tool, AIn analog. Example: `{gripper_closed: DI0, part_present: DI1}`"""
 
 
 class Fixture(PlacedShape):
     name: Name
+    """Fixture name, used in messages and reports. Example: `table`"""
 
 
 class Frame(Pose):
     parent: Name = "world"
+    """Frame this pose is given in (world or another frame). Example: `world`"""
 
 
 class Part(Shaped):
     name: Name
+    """Part name. Example: `block`"""
     mass: Mass
+    """Mass in kg. Example: `0.3`"""
     at: Name
+    """Frame where the twin spawns it (where a TCP at that frame grips it). Example: `infeed`"""
     friction: float = Field(default=0.8, gt=0, le=2)
+    """Friction coefficient in the twin. Example: `0.8`"""
 
 
 class Modbus(Strict):
     bind: str = "127.0.0.1"
+    """Address the Modbus TCP server listens on. Example: `127.0.0.1`"""
     port: int = Field(default=502, ge=1, le=65535)
+    """Modbus TCP port. Example: `502`"""
     heartbeat_timeout: PositiveDuration = 1.5
+    """PLC heartbeat timeout in s: longer without a change sets PLC_WATCHDOG and holds. Example: `1.5`"""
 
 
 SecurityPolicy = Literal[
@@ -103,10 +141,14 @@ SecurityPolicy = Literal[
 
 class OpcUa(Strict):
     endpoint: str = "opc.tcp://127.0.0.1:4840/cellrunner"
+    """Endpoint URL the OPC UA server listens on. Example: `opc.tcp://127.0.0.1:4840/cellrunner`"""
     security: list[SecurityPolicy] = Field(
         default_factory=lambda: ["Basic256Sha256_SignAndEncrypt"], min_length=1)
+    """Security policies offered; none only when written here. Example: `[Basic256Sha256_SignAndEncrypt]`"""
     users: str | None = None
+    """Users file (user -> salted hash), written by `cellrunner users add`. Example: `secrets/opcua-users.yaml`"""
     pki: str | None = None
+    """PKI folder (own/, trusted/, rejected/); default pki/ beside the journal. Example: `pki`"""
 
     @field_validator("endpoint")
     @classmethod
@@ -119,20 +161,33 @@ class OpcUa(Strict):
 
 class Plc(Strict):
     modbus: Modbus | None = None
+    """Modbus TCP server (SPEC section 7). Example: `{bind: 127.0.0.1, port: 502, heartbeat_timeout: 1.5}`"""
     opcua: OpcUa | None = None
+    """OPC UA server (SPEC section 8). Example: `{endpoint: 'opc.tcp://127.0.0.1:4840/cellrunner', users: secrets/opcua-users.yaml}`"""
 
 
 class Cell(Strict):
     """A robot cell: robot, tool, IO, fixtures, frames, parts, tasks, PLC link, journal."""
 
     cell: Name
+    """Cell name, used in logs, the journal and the PLC interface. Example: `line3-cell2`"""
     robot: Robot
+    """The arm. Example: `{model: ur5e, home: [0, -90, 90, -90, -90, 0]}`"""
     tool: Tool = Field(default_factory=Tool)
+    """The mounted tool. Example: `{tcp: {xyz: [0, 0, 0.15]}}`"""
     io: Io = Field(default_factory=Io)
+    """Names of the controller's inputs and outputs. Example: `{outputs: {gripper_close: DO0}, inputs: {gripper_closed: DI0}}`"""
     fixtures: list[Fixture] = Field(default_factory=list)
+    """Static collision objects, poses in the world. Example: `[{name: table, box: {size: [1.2, 0.8, 0.04]}, pose: {xyz: [0.4, 0, 0.88]}}]`"""
     frames: dict[Name, Frame] = Field(default_factory=dict)
+    """Named targets (m, deg). Example: `{infeed: {xyz: [0.45, -0.35, 0.93], rpy: [180, 0, 0]}}`"""
     parts: list[Part] = Field(default_factory=list)
+    """What the twin spawns and a grip may carry. Example: `[{name: block, box: {size: [0.05, 0.05, 0.05]}, mass: 0.3, at: infeed}]`"""
     tasks: dict[Annotated[int, Field(ge=1, le=65535)], str] = Field(default_factory=dict)
+    """PLC task numbers to task files. Example: `{1: tasks/pick_place.yaml}`"""
     plc: Plc = Field(default_factory=Plc)
+    """The PLC link. Example: `{modbus: {bind: 127.0.0.1, port: 502}}`"""
     journal: str = "var/jobs.sqlite"
+    """SQLite file, or a postgresql:// URL for a journal shared by many cells. Example: `var/jobs.sqlite`"""
     step_timeout: PositiveDuration = 60.0
+    """A step that runs longer than this (s) fails with 105. Example: `60`"""

@@ -1,14 +1,21 @@
-"""JSON Schema of cell and task files, for editors (VS Code YAML, etc.)."""
+"""JSON Schema of cell and task files, for editors (VS Code YAML, etc.).
+
+Every key has a description and an example: a field's docstring in the model is its
+description, and its closing ``Example: `YAML` `` becomes the schema's ``examples``
+(what an editor offers on completion). Steps are keyed by their kind (``{KIND: ARGS}``),
+so an editor checks ARGS against that kind alone and names it in its message.
+"""
 
 from __future__ import annotations
 
-from typing import Any, Literal, Optional, Union
+import json
+import re
+from typing import Any, Optional
 
-from pydantic import TypeAdapter, create_model
+from pydantic import TypeAdapter
 
-from cellrunner.model.base import Strict
 from cellrunner.model.cell import Cell
-from cellrunner.model.task import STEP_MODELS, Target, TaskFile
+from cellrunner.model.task import MACROS, STEP_MODELS, Target, TaskFile
 from cellrunner.model.units import NonNegativeLength, PositiveLength
 
 _SHORT_FORMS: dict[str, Any] = {
@@ -23,41 +30,112 @@ _SHORT_FORMS: dict[str, Any] = {
 _BARE = ("grip", "release")
 
 
-def _step_schema_type(allow_macros: bool = True):
-    members = []
+#: what each step kind does and an example of its arguments (hover text and completion)
+STEP_HELP: dict[str, tuple[str, Any]] = {
+    "move": ("Planned, collision-free joint move to a frame, 'home' or six joint angles (deg); "
+             "or {to, offset, speed (fraction of the limits)}.", "home"),
+    "approach": ("Planned move to `distance` back from a frame along its Z.", {"to": "infeed", "distance": 0.1}),
+    "descend": ("Straight TCP line to a frame (speed in m/s).", "infeed"),
+    "linear": ("Straight TCP line to a frame (speed in m/s).", {"to": "pallet", "offset": [0, 0, 0.02]}),
+    "lift": ("Straight line up world +Z by `distance` (m).", 0.1),
+    "retreat": ("Straight line back along the tool's -Z by `distance` (m).", 0.05),
+    "grip": ("Close the jaws, then check the confirmation input and the measured force window.",
+             {"confirm": "gripper_closed", "force": {"min": 2, "max": 40}, "timeout": 1.5}),
+    "release": ("Open the jaws (optionally confirmed by an input).", {"timeout": 1.0}),
+    "set_output": ("Set outputs by their cell IO names.", {"beacon": True}),
+    "wait_input": ("Wait until an input reads `value`, failing the step after `timeout` (s).",
+                   {"input": "part_present", "value": True, "timeout": 10}),
+    "wait": ("Wait this long, s.", 0.5),
+    "pick": ("Macro: approach -> descend -> grip -> lift.",
+             {"at": "infeed", "approach": 0.1, "grip": {"confirm": "gripper_closed"}}),
+    "place": ("Macro: approach -> descend -> release -> retreat.",
+              {"at": "pallet", "approach": 0.1, "pattern": {"grid": [3, 4], "pitch": [0.07, 0.07],
+                                                            "index": "slot"}}),
+}
+
+
+def _steps_schema(defs: dict, allow_macros: bool = True) -> dict:
+    """A list of steps: each a one-key mapping ``{KIND: ARGS}`` whose key names the step
+    (the discriminator: an editor validates ARGS against that kind's schema alone and
+    lists the known kinds for an unknown one), or a bare ``grip``/``release``."""
+    kinds: dict[str, dict] = {}
     for kind, model in STEP_MODELS.items():
-        if not allow_macros and kind in ("pick", "place"):
+        if not allow_macros and kind in MACROS:
             continue
-        value_type: Any = model
-        if kind in _SHORT_FORMS:
-            value_type = Union[model, _SHORT_FORMS[kind]]
-        if kind in _BARE:
-            value_type = Optional[model]
-        wrapper = create_model(f"{kind.title().replace('_', '')}Step", __base__=Strict,
-                               **{kind: (value_type, ...)})
-        members.append(wrapper)
-    members.append(Literal[_BARE])  # type: ignore[valid-type]
-    return Union[tuple(members)]  # type: ignore[return-value]
+        args = _json_schema(Optional[model] if kind in _BARE else model, defs)
+        if kind in _SHORT_FORMS:  # the mapping form, else the short form: errors name the one meant
+            args = {"if": {"type": "object"}, "then": args, "else": _json_schema(_SHORT_FORMS[kind], defs)}
+        description, example = STEP_HELP.get(kind, ((model.__doc__ or kind).strip(), None))
+        kinds[kind] = {**args, "title": kind, "description": description,
+                       **({"examples": [example]} if example is not None else {})}
+    step = {"type": "object", "title": "step", "description": "One step: {KIND: ARGS}.",
+            "properties": kinds, "propertyNames": {"enum": list(kinds)}, "additionalProperties": False,
+            "minProperties": 1, "maxProperties": 1}
+    bare = {"type": "string", "enum": list(_BARE), "description": "A step without arguments."}
+    return {"type": "array", "items": {"if": {"type": "string"}, "then": bare, "else": step}}
+
+
+def _json_schema(value_type: Any, defs: dict) -> dict:
+    schema = _offset_short_form(_with_examples(TypeAdapter(value_type).json_schema()))
+    defs.update(schema.pop("$defs", {}))
+    return schema
+
+
+#: yaml-language-server (VS Code YAML) validates draft-07; our schemas use nothing newer
+DRAFT = "http://json-schema.org/draft-07/schema#"
+
+
+def _with_examples(node: Any) -> Any:
+    """Move each description's closing ``Example: `YAML` `` into ``examples``."""
+    if isinstance(node, list):
+        return [_with_examples(v) for v in node]
+    if not isinstance(node, dict):
+        return node
+    out = {k: _with_examples(v) for k, v in node.items()}
+    text = out.get("description")
+    if isinstance(text, str) and (m := _EXAMPLE.search(text)):
+        from ruamel.yaml import YAML
+
+        out["description"] = text[:m.start()].rstrip()
+        example = YAML(typ="safe", pure=True).load(m.group(1))
+        out["examples"] = [json.loads(json.dumps(example))]  # as a JSON file holds it (keys are strings)
+    return out
+
+
+def _offset_short_form(node: Any) -> Any:
+    """``offset: [dx, dy, dz]`` is accepted (widened by the model's validator): say so."""
+    if isinstance(node, list):
+        return [_offset_short_form(v) for v in node]
+    if not isinstance(node, dict):
+        return node
+    out = {k: _offset_short_form(v) for k, v in node.items()}
+    if {"$ref": "#/$defs/Offset"} in out.get("anyOf", []):
+        out["anyOf"] = [*out["anyOf"], {"type": "array", "minItems": 3, "maxItems": 3,
+                                        "items": {"type": ["number", "string"]}}]
+    return out
+
+
+_EXAMPLE = re.compile(r"\s*Example: `([^`]+)`\s*$")
 
 
 def cell_schema() -> dict:
-    schema = Cell.model_json_schema()
-    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema = _with_examples(Cell.model_json_schema())
+    schema["$schema"] = DRAFT
     schema["title"] = "cellrunner cell file"
     return schema
 
 
 def task_schema() -> dict:
-    schema = TaskFile.model_json_schema()
-    steps = TypeAdapter(list[_step_schema_type()]).json_schema()
+    schema = _offset_short_form(_with_examples(TaskFile.model_json_schema()))
     defs = schema.setdefault("$defs", {})
-    defs.update(steps.pop("$defs", {}))
-    schema["properties"]["steps"] = {**steps, "minItems": 1, "title": "Steps"}
-    # retry.between holds primitive steps
-    primitive = TypeAdapter(list[_step_schema_type(allow_macros=False)]).json_schema()
-    defs.update(primitive.pop("$defs", {}))
-    defs["Retry"]["properties"]["between"] = {**primitive, "title": "Between"}
-    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    steps = schema["properties"]["steps"]
+    schema["properties"]["steps"] = {**_steps_schema(defs), "minItems": 1, "title": "Steps",
+                                     "description": steps.get("description", "The steps, in order."),
+                                     **({"examples": steps["examples"]} if "examples" in steps else {})}
+    between = defs["Retry"]["properties"]["between"]  # retry.between holds primitive steps
+    defs["Retry"]["properties"]["between"] = {**_steps_schema(defs, allow_macros=False), "title": "Between",
+                                              **{k: between[k] for k in ("description", "examples") if k in between}}
+    schema["$schema"] = DRAFT
     schema["title"] = "cellrunner task file"
     return schema
 

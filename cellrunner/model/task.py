@@ -63,37 +63,51 @@ def _offset(value: Any) -> Any:
 
 class MoveArgs(Strict):
     to: Target
+    """A frame name, home, or six joint angles in degrees. Example: `home`"""
     offset: Annotated[Offset, Field()] | None = None
+    """Offset in the target frame's axes (m, deg), or [dx, dy, dz]. Example: `[0, 0, 0.05]`"""
     speed: Fraction = 1.0
+    """Fraction of the joint limits. Example: `0.5`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
 
 
 class ApproachArgs(Strict):
     to: Name
+    """Frame to approach. Example: `infeed`"""
     distance: NonNegativeLength = 0.1
+    """How far back from the frame along its Z, m. Example: `0.1`"""
     offset: Offset | None = None
+    """Offset in the frame's axes (m, deg), or [dx, dy, dz]. Example: `[0, 0.02, 0]`"""
     speed: Fraction = 1.0
+    """Fraction of the joint limits. Example: `1.0`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
 
 
 class LinearArgs(Strict):
     to: Name
+    """Frame the TCP moves to in a straight line. Example: `infeed`"""
     offset: Offset | None = None
+    """Offset in the frame's axes (m, deg), or [dx, dy, dz]. Example: `[0, 0, 0.01]`"""
     speed: Speed | None = None  # m/s; default: the cell's tcp speed limit
+    """TCP speed in m/s (default: the cell's TCP speed limit). Example: `0.1`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
 
 
 class DistanceArgs(Strict):
     distance: PositiveLength
+    """Distance in m. Example: `0.1`"""
     speed: Speed | None = None
+    """TCP speed in m/s (default: the cell's TCP speed limit). Example: `0.25`"""
 
 
 class ForceWindow(Strict):
     min: Force = 0.0
+    """Least load that counts as holding a part, N. Example: `2`"""
     max: Force | None = None
+    """Most load allowed, N. Example: `40`"""
 
     @model_validator(mode="after")
     def _ordered(self) -> "ForceWindow":
@@ -105,18 +119,25 @@ class ForceWindow(Strict):
 
 class GripArgs(Strict):
     confirm: Name | None = None
+    """Input that must read true within the timeout. Example: `gripper_closed`"""
     force: ForceWindow | None = None
+    """Measured load window in N (wrench change, or weight once lifted). Example: `{min: 2, max: 40}`"""
     timeout: PositiveDuration = 1.5
+    """Seconds to wait for the confirmation. Example: `1.5`"""
 
 
 class WaitInputArgs(Strict):
     input: Name
+    """Input name from io.inputs. Example: `part_present`"""
     value: bool | float = True
+    """Value to wait for. Example: `true`"""
     timeout: PositiveDuration = 10.0
+    """Seconds before the step fails with 105. Example: `10`"""
 
 
 class WaitArgs(Strict):
     seconds: Annotated[float, Field(ge=0, le=3600)]
+    """Seconds to wait. Example: `0.5`"""
 
 
 class SetOutputArgs(Strict):
@@ -149,8 +170,11 @@ class Pattern(Strict):
     """
 
     grid: Annotated[list[Annotated[int, Field(ge=1, le=1000)]], Field(min_length=2, max_length=3)]
+    """[rows, cols] or [rows, cols, layers]. Example: `[3, 4]`"""
     pitch: Annotated[list[Length], Field(min_length=2, max_length=3)]
+    """Spacing in m along the frame's X (rows), Y (columns) and world +Z (layers). Example: `[0.07, 0.07]`"""
     index: Name
+    """The param that picks the slot (0-based). Example: `slot`"""
 
     @model_validator(mode="after")
     def _dims(self) -> "Pattern":
@@ -176,30 +200,47 @@ class Pattern(Strict):
 
 class Retry(Strict):
     attempts: Annotated[int, Field(ge=1, le=20)] = 1
+    """Attempts in all (1 = no retry). Example: `3`"""
     between: list[Any] = Field(default_factory=list)  # steps, validated by the loader
+    """Primitive steps run before each new attempt. Example: `[release, {retreat: 0.03}]`"""
 
 
 class PickArgs(Strict):
     at: Name
+    """Frame of the part (where the TCP grips it). Example: `infeed`"""
     approach: NonNegativeLength = 0.1
+    """Approach distance above the frame along tool -Z, m. Example: `0.1`"""
     lift: NonNegativeLength | None = None  # default: the approach distance
+    """Lift distance after the grip, m (default: the approach distance). Example: `0.1`"""
     offset: Offset | None = None
+    """Offset in the frame's axes (m, deg), or [dx, dy, dz]. Example: `[0, 0, 0.005]`"""
     pattern: Pattern | None = None
+    """A grid of pick positions indexed by a param. Example: `{grid: [3, 4], pitch: [0.07, 0.07], index: slot}`"""
     grip: GripArgs = Field(default_factory=GripArgs)
+    """How the grip is confirmed. Example: `{confirm: gripper_closed, force: {min: 2, max: 40}, timeout: 1.5}`"""
     retry: Retry | None = None
+    """Retries of a failed grip. Example: `{attempts: 3, between: [release, {retreat: 0.03}]}`"""
     speed: Speed | None = None  # descend/lift speed, m/s
+    """Descend and lift speed, m/s. Example: `0.1`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
 
 
 class PlaceArgs(Strict):
     at: Name
+    """Frame where the part is put down. Example: `pallet`"""
     approach: NonNegativeLength = 0.1
+    """Approach distance above the frame along tool -Z, m. Example: `0.1`"""
     retreat: NonNegativeLength | None = None  # default: the approach distance
+    """Retreat distance after the release, m (default: the approach distance). Example: `0.1`"""
     offset: Offset | None = None
+    """Offset in the frame's axes (m, deg), or [dx, dy, dz]. Example: `[0, 0, 0.005]`"""
     pattern: Pattern | None = None
+    """A grid of place positions indexed by a param. Example: `{grid: [3, 4], pitch: [0.07, 0.07], index: slot}`"""
     release: GripArgs = Field(default_factory=GripArgs)
+    """How the release is confirmed. Example: `{timeout: 1.0}`"""
     speed: Speed | None = None
+    """Descend and retreat speed, m/s. Example: `0.1`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
 
@@ -239,10 +280,15 @@ def widen_step_args(kind: str, args: Any) -> Any:
 
 class Param(Strict):
     type: Literal["int", "float", "bool"] = "int"
+    """int, float or bool. Example: `int`"""
     min: float | None = None
+    """Least value accepted. Example: `0`"""
     max: float | None = None
+    """Greatest value accepted. Example: `11`"""
     default: float | bool | None = None
+    """Value when the PLC or CLI gives none. Example: `0`"""
     description: str | None = None
+    """What the param means, for people. Example: `pallet slot, row by row`"""
 
     @model_validator(mode="after")
     def _consistent(self) -> "Param":
@@ -288,14 +334,21 @@ class Param(Strict):
 
 class ProtectiveStopPolicy(Strict):
     resume: bool = False
+    """Resume the job after a protective stop (after the controller's 5 s unlock delay). Example: `true`"""
     max: Annotated[int, Field(ge=0, le=10)] = 1
+    """Protective stops a job may resume from. Example: `2`"""
 
 
 class TaskFile(Strict):
     """The top level of a task file; ``steps`` are validated one by one by the loader."""
 
     task: Name
+    """Task name, used in logs, the journal and OPC UA StartJob. Example: `pick_place`"""
     description: str | None = None
+    """What the task does, for people. Example: `pick a block from the infeed, place it on the pallet`"""
     params: dict[Name, Param] = Field(default_factory=dict)
+    """Typed, bounded params a PLC or the CLI supplies, in PLC register order. Example: `{slot: {type: int, min: 0, max: 11, default: 0}}`"""
     steps: Annotated[list[Any], Field(min_length=1)]
+    """The steps, in order: {KIND: ARGS} or a bare grip/release. Example: `[{move: home}, {pick: {at: infeed}}, {place: {at: pallet}}]`"""
     on_protective_stop: ProtectiveStopPolicy = Field(default_factory=ProtectiveStopPolicy)
+    """What a protective stop does to the job (an e-stop always aborts). Example: `{resume: true, max: 2}`"""

@@ -231,6 +231,11 @@ class ModbusLink:
     def watchdog(self) -> bool:
         return self._watchdog
 
+    @property
+    def heartbeat_alive(self) -> bool:
+        """The PLC heartbeat has changed and not stopped for ``heartbeat_timeout_s``."""
+        return self._watchdog_armed and not self._watchdog
+
     # -- internals ---------------------------------------------------------------------
     def _on_command(self, old: int, new: int, now: float) -> None:
         rising = new & ~old

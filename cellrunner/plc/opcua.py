@@ -318,6 +318,12 @@ class OpcUaServer:
     def endpoint(self) -> str:
         return self.config.endpoint
 
+    @property
+    def connected_clients(self) -> int:
+        """OPC UA clients connected now (read from any thread: a list's length)."""
+        bserver = getattr(self._server, "bserver", None)
+        return len(getattr(bserver, "clients", ()) or ())
+
     # -- lifecycle -------------------------------------------------------------------------
     async def start(self) -> None:
         from asyncua import Server, ua

@@ -186,6 +186,17 @@ class PlcService:
     def opcua_endpoint(self) -> str | None:
         return None if self.opcua is None else self.opcua.endpoint
 
+    def links(self) -> dict[str, bool]:
+        """Whether each configured PLC link is up, for the status page and metrics:
+        Modbus while the PLC heartbeat keeps changing, OPC UA while a client is
+        connected. Reads plain attributes only (safe from any thread)."""
+        out: dict[str, bool] = {}
+        if self.modbus_config is not None:
+            out["modbus"] = self.modbus is not None and self.modbus.link.heartbeat_alive
+        if self.opcua_config is not None:
+            out["opcua"] = self.opcua is not None and self.opcua.connected_clients > 0
+        return out
+
 
 def _translate(exc: BaseException) -> BaseException:
     if isinstance(exc, CellrunnerError):

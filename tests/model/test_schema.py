@@ -58,3 +58,67 @@ def test_schema_refuses_unknown_keys_and_models():
     assert not jsonschema.Draft202012Validator(task_schema()).is_valid(task)
     task = {"task": "t", "steps": ["release", {"move": "home"}, {"wait": 1}, {"pick": {"at": "x"}}]}
     jsonschema.validate(task, task_schema())
+
+
+def _properties(node, path=""):
+    """(path, property schema) of every key of every object in a schema."""
+    if isinstance(node, dict):
+        props = node.get("properties")
+        if isinstance(props, dict) and node.get("type") == "object":
+            for key, sub in props.items():
+                yield f"{path}/{key}", sub
+        for key, sub in node.items():
+            yield from _properties(sub, f"{path}/{key}")
+    elif isinstance(node, list):
+        for i, sub in enumerate(node):
+            yield from _properties(sub, f"{path}/{i}")
+
+
+def test_every_key_has_a_description_and_an_example_that_validates():
+    for schema in (cell_schema(), task_schema()):
+        props = list(_properties(schema))
+        assert len(props) > 60
+        for path, sub in props:
+            assert sub.get("description") and sub.get("examples"), (
+                f"{path}: give the field a docstring ending in Example: `YAML` (a step kind: STEP_HELP "
+                "in cellrunner/model/schema.py)")
+            assert "Example:" not in sub["description"], path
+            check = jsonschema.Draft7Validator({**sub, "$defs": schema.get("$defs", {})})
+            for example in sub["examples"]:
+                assert check.is_valid(example), f"{path}: example {example!r} fails its own schema"
+
+
+def _first_error(schema, instance):
+    return jsonschema.exceptions.best_match(jsonschema.Draft7Validator(schema).iter_errors(instance))
+
+
+def test_step_kinds_discriminate_so_errors_name_the_step():
+    schema = task_schema()
+    error = _first_error(schema, {"task": "t", "steps": [{"move": "home"}, {"move": {"to": "home", "sped": 1}}]})
+    assert list(error.absolute_path) == ["steps", 1, "move"]
+    assert error.message == "Additional properties are not allowed ('sped' was unexpected)"
+    error = _first_error(schema, {"task": "t", "steps": [{"pick": {"at": "infeed", "grip": {"timeout": "x"}}}]})
+    assert list(error.absolute_path)[:4] == ["steps", 0, "pick", "grip"]
+    error = _first_error(schema, {"task": "t", "steps": [{"mvoe": "home"}]})
+    assert error.message.startswith("'mvoe' is not one of ['move', 'approach', 'descend', 'linear'")
+    error = _first_error(schema, {"task": "t", "steps": ["gripp"]})
+    assert error.message == "'gripp' is not one of ['grip', 'release']"
+    error = _first_error(schema, {"task": "t", "steps": [{"move": "home", "wait": 1}]})
+    assert "has too many properties" in error.message  # one step per list item
+    between = _first_error(schema, {"task": "t", "steps": [{"pick": {"at": "a", "retry": {"between": [{"pick": {"at": "a"}}]}}}]})
+    assert "'pick'" in between.message and "between" in list(between.absolute_path)  # no macros between retries
+    assert schema["properties"]["steps"]["items"]["else"]["properties"]["pick"]["description"].startswith("Macro:")
+
+
+def test_schema_is_what_yaml_language_server_reads():
+    """yaml-language-server (VS Code YAML) validates draft-07 schemas: declare it, and use
+    no keyword from later drafts; step kinds are property names an editor completes."""
+    newer = {"prefixItems", "$dynamicRef", "$dynamicAnchor", "unevaluatedProperties", "unevaluatedItems",
+             "dependentSchemas", "dependentRequired", "$recursiveRef", "$anchor"}
+    for schema in (cell_schema(), task_schema()):
+        assert schema["$schema"] == "http://json-schema.org/draft-07/schema#"
+        jsonschema.Draft7Validator.check_schema(schema)
+        text = json.dumps(schema)
+        assert not {k for k in newer if f'"{k}"' in text}
+    kinds = task_schema()["properties"]["steps"]["items"]["else"]["propertyNames"]["enum"]
+    assert {"move", "approach", "pick", "place", "wait_input"} <= set(kinds)

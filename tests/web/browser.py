@@ -1,0 +1,114 @@
+"""A real headless Chromium driven over the DevTools protocol (CDP, a websocket).
+
+Just enough for the status page tests: open a URL, evaluate JavaScript in the page,
+take a screenshot. The browser runs with a fresh profile and no network but loopback
+(no sync, no component updates, no background requests).
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import itertools
+import json
+import shutil
+import subprocess
+import tempfile
+import time
+import urllib.request
+from pathlib import Path
+
+FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         "--disable-dev-shm-usage", "--hide-scrollbars", "--remote-debugging-address=127.0.0.1",
+         "--remote-debugging-port=0")
+
+
+def chromium_path() -> str | None:
+    return shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+
+
+class Chromium:
+    """``with Chromium(url) as page: page.evaluate("document.title")``."""
+
+    def __init__(self, url: str, *, width: int = 1280, height: int = 900, timeout_s: float = 30.0):
+        self.url, self.width, self.height, self.timeout_s = url, width, height, timeout_s
+        self._profile = Path(tempfile.mkdtemp(prefix="cellrunner-chromium-"))
+        self._proc: subprocess.Popen | None = None
+        self._ws = None
+        self._stack = contextlib.ExitStack()
+        self._ids = itertools.count(1)
+
+    def __enter__(self) -> "Chromium":
+        from websockets.sync.client import connect
+
+        exe = chromium_path()
+        assert exe, "chromium is not installed (scripts/test installs it when run as root)"
+        self._proc = subprocess.Popen([exe, *FLAGS, f"--user-data-dir={self._profile}",
+                                       f"--window-size={self.width},{self.height}", self.url],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        port = self._devtools_port()
+        deadline = time.monotonic() + self.timeout_s
+        while True:
+            with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=5) as res:
+                pages = [t for t in json.load(res) if t.get("type") == "page"]
+            if pages or time.monotonic() > deadline:
+                break
+            time.sleep(0.1)
+        assert pages, "chromium opened no page"
+        self._ws = self._stack.enter_context(
+            connect(pages[0]["webSocketDebuggerUrl"], max_size=64 * 2**20, open_timeout=10))
+        self.call("Emulation.setDeviceMetricsOverride", width=self.width, height=self.height,
+                  deviceScaleFactor=1, mobile=False)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stack.close()
+        if self._proc is not None:
+            self._proc.terminate()
+            try:
+                self._proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
+                self._proc.wait(timeout=10)
+        shutil.rmtree(self._profile, ignore_errors=True)
+
+    def call(self, method: str, **params) -> dict:
+        """One CDP command; its result (events on the way are skipped)."""
+        msg_id = next(self._ids)
+        self._ws.send(json.dumps({"id": msg_id, "method": method, "params": params}))
+        deadline = time.monotonic() + self.timeout_s
+        while time.monotonic() < deadline:
+            reply = json.loads(self._ws.recv(timeout=max(0.1, deadline - time.monotonic())))
+            if reply.get("id") == msg_id:
+                if "error" in reply:
+                    raise RuntimeError(f"{method}: {reply['error']}")
+                return reply["result"]
+        raise TimeoutError(f"{method}: no answer within {self.timeout_s} s")
+
+    def evaluate(self, expression: str):
+        """The value of a JavaScript expression in the page (JSON-serialisable)."""
+        result = self.call("Runtime.evaluate", expression=expression, returnByValue=True)
+        if "exceptionDetails" in result:
+            raise RuntimeError(f"{expression}: {result['exceptionDetails']}")
+        return result["result"].get("value")
+
+    def text(self, element_id: str) -> str:
+        return self.evaluate(f"(document.getElementById({json.dumps(element_id)}) || {{}}).textContent || ''")
+
+    def screenshot(self, path: Path) -> Path:
+        data = self.call("Page.captureScreenshot", format="png", captureBeyondViewport=True)["data"]
+        path.write_bytes(base64.b64decode(data))
+        return path
+
+    def _devtools_port(self) -> int:
+        marker = self._profile / "DevToolsActivePort"
+        deadline = time.monotonic() + self.timeout_s
+        while time.monotonic() < deadline:
+            if marker.exists():
+                lines = marker.read_text().splitlines()
+                if lines and lines[0].isdigit():
+                    return int(lines[0])
+            assert self._proc.poll() is None, f"chromium exited with {self._proc.returncode}"
+            time.sleep(0.05)
+        raise TimeoutError("chromium did not open its DevTools port")
