@@ -33,6 +33,8 @@ class _Recorder:
     tcp: list = field(default_factory=list)
     marks: list = field(default_factory=list)
     pictures: list = field(default_factory=list)
+    force_trace: list = field(default_factory=list)  # (t_s, step index, N) of the force steps
+    force_limits: dict = field(default_factory=dict)  # step index -> its stop force (N)
 
 
 def run(args) -> int:
@@ -91,7 +93,11 @@ def run(args) -> int:
                "result_text": result.result_text, "retries": runner.retries_used if runner else 0,
                "steps": rows, "errors": [] if code is ResultCode.OK else [result.result_text],
                "injected": [i.spec for i in injections],
-               "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None}
+               "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None,
+               "parts_end_m": _parts_end(backend)}
+    recorder.force_trace = runner.ctx.notes.get("force_trace", []) if runner else []
+    recorder.force_limits = {s.index: s.args.force if s.kind == "move_until_contact" else s.args.force.max
+                             for s in steps if s.kind in ("move_until_contact", "insert")}
     if recorder.report is not None:
         _write_report(recorder, payload, backend)
     controller.close()
@@ -161,6 +167,13 @@ def _run(controller, backend, pending, recorder, status, steps, world, max_s: fl
         controller.tick()
 
 
+def _parts_end(backend) -> dict[str, list[float]]:
+    """Where each part of the twin ended (world position, m)."""
+    world = backend.world
+    return {p.name: [round(float(v), 5) for v in world.part_pose_world(p.name)[:3, 3]]
+            for p in backend.description.parts}
+
+
 def _snapshot(backend) -> np.ndarray | None:
     from cellrunner.backends.sim.render import CellRenderer, RenderUnavailable
     try:
@@ -193,6 +206,10 @@ def _write_report(recorder: _Recorder, payload: dict, backend) -> None:
                            q_ref_rad=np.array(recorder.q_cmd), title=f"{payload['task']}: joints", marks=marks)
         render.plot_tcp_path(folder / "tcp_path.png", np.array(recorder.tcp), title=f"{payload['task']}: TCP path")
         written += ["joints.png", "tcp_path.png"]
+    if recorder.force_trace:
+        render.plot_wrist_force(folder / "wrist_force.png", recorder.force_trace, recorder.force_limits,
+                                title=f"{payload['task']}: wrist force in the force steps")
+        written.append("wrist_force.png")
     if not any(name.endswith(".png") and name not in ("joints.png", "tcp_path.png") for name in written):
         (folder / "NO_PICTURES.txt").write_text("offscreen rendering unavailable: set MUJOCO_GL=osmesa and install "
                                                 "libosmesa6\n")

@@ -30,6 +30,7 @@ from cellrunner.model.codes import PackMLState as S, ResultCode
 from cellrunner.model.expand import Step, resolve_params
 from cellrunner.model.load import LoadedCell, LoadedTask
 from cellrunner.model.gripper import gripper_channels
+from cellrunner.execution.context import use_gripper
 from cellrunner.model.timing import release_time_s
 
 #: Complete is shown this long before the cell resets itself to Idle
@@ -336,11 +337,13 @@ class CellController:
         io_out, io_in = c.io.outputs, c.io.inputs
         g = c.tool.gripper
         close, open_, sensor = gripper_channels(g, io_out, io_in)
-        return JobContext(backend=self.backend, motions=motions, outputs=dict(io_out), inputs=dict(io_in),
-                          gripper_close=close, gripper_open=open_, gripper_closed_sensor=sensor,
-                          gripper_open_s=release_time_s(g),
-                          step_timeout_s=c.step_timeout, on_step_start=self.on_step_start,
-                          log=self._bound_log())
+        ctx = JobContext(backend=self.backend, motions=motions, outputs=dict(io_out), inputs=dict(io_in),
+                         gripper_close=close, gripper_open=open_, gripper_closed_sensor=sensor,
+                         gripper_open_s=release_time_s(g),
+                         step_timeout_s=c.step_timeout, on_step_start=self.on_step_start,
+                         log=self._bound_log(), tools=dict(c.tools))
+        use_gripper(ctx, g)
+        return ctx
 
     def _bound_log(self):
         if self.log is None or self._job is None:

@@ -16,7 +16,9 @@ import numpy as np
 
 from cellrunner.execution.context import Carry, JobContext
 from cellrunner.model.codes import ResultCode
+from cellrunner.execution.force import run_force
 from cellrunner.model.expand import Step
+from cellrunner.model.force_steps import FORCE_KINDS
 
 StepGen = Generator[None, None, "Outcome"]
 
@@ -47,6 +49,8 @@ OK = Outcome(True)
 def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     """Stream the approved trajectory of ``step``; replan from where the arm is when it
     does not stand at the trajectory's start (after a stop or a retry)."""
+    if step.kind in FORCE_KINDS:  # a guarded line (cellrunner.execution.force)
+        return (yield from run_force(ctx, step, resume))
     q_now = ctx.state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
     if approved is None or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD:
@@ -89,13 +93,17 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
         while not ctx.state.inputs.get(confirm):
             if ctx.now_s - t0 >= args.timeout:
                 return Outcome.failed(ResultCode.NO_PART, f"{args.confirm or 'closed sensor'} not true "
-                                      f"within {args.timeout:g} s (jaws closed on nothing)")
+                                      f"within {args.timeout:g} s ({_gripped_nothing(ctx)})")
             yield
     force_min = args.force.min if args.force else 0.0
     ctx.notes.pop("sensor_false_since", None)
     ctx.notes.pop("load_lp", None)
     ctx.carry = Carry(baseline_N=baseline, min_N=force_min, confirm=confirm)
     return OK
+
+
+def _gripped_nothing(ctx: JobContext) -> str:
+    return "no vacuum: the cups sealed on nothing" if ctx.gripper_kind == "vacuum" else "jaws closed on nothing"
 
 
 def run_weigh(ctx: JobContext, step: Step) -> StepGen:
@@ -127,6 +135,12 @@ def run_release(ctx: JobContext, step: Step) -> StepGen:
         ctx.backend.set_output(channel, (not value) if isinstance(value, bool) else 0.0)
     ctx.carry = None
     t0 = ctx.now_s
+    if ctx.gripper_blow_off is not None:  # a vacuum gripper's blow-off pulse breaks the seal
+        channel, pulse_s = ctx.gripper_blow_off
+        ctx.backend.set_output(channel, True)
+        while ctx.now_s - t0 < pulse_s:
+            yield
+        ctx.backend.set_output(channel, False)
     confirm = ctx.inputs.get(args.confirm) if args.confirm else None
     watch = confirm or ctx.gripper_closed_sensor
     while ctx.now_s - t0 < ctx.gripper_open_s or (watch and _release_pending(ctx, watch, confirm is not None)):
@@ -179,7 +193,7 @@ def _part_lost(ctx: JobContext) -> str | None:
         else:
             since = ctx.notes.setdefault("sensor_false_since", ctx.now_s)
             if ctx.now_s - since >= SENSOR_DEBOUNCE_S:
-                return "part lost in transit: the jaw sensor dropped"
+                return f"part lost in transit: the {'vacuum switch' if ctx.gripper_kind == 'vacuum' else 'jaw sensor'} dropped"
     if carry.load_N is not None and carry.min_N > 0:
         # plain floats: numpy's per-call cost dwarfs a 3-vector norm, and this runs every tick
         load = math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), carry.baseline_N.tolist())
@@ -189,7 +203,11 @@ def _part_lost(ctx: JobContext) -> str | None:
     return None
 
 
+from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock  # noqa: E402
+
 BEHAVIOURS = {
+    "tool_lock": run_tool_lock,
+    "tool_unlock": run_tool_unlock,
     "grip": run_grip,
     "release": run_release,
     "set_output": run_set_output,

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
 from cellrunner.model.base import Name, PlacedShape, Pose, Shaped, Strict, Vec3
 from cellrunner.model.robots import ROBOTS
 from cellrunner.model.units import (
-    Angle, AngularAccel, AngularSpeed, Duration, Fraction, Mass, PositiveDuration,
+    Angle, AngularAccel, AngularSpeed, Duration, Force, Fraction, Mass, PositiveDuration,
     PositiveLength, Speed,
 )
 
@@ -36,6 +36,7 @@ class Robot(Strict):
     mount: Pose = Field(default_factory=Pose)
     home: Joints
     limits: Limits = Field(default_factory=Limits)
+    tool: Name | None = None  # with ``tools:``, the one mounted at start
 
 
 class Payload(Strict):
@@ -48,8 +49,20 @@ class OutputValue(Strict):
     value: bool | float = True
 
 
+class Cup(Strict):
+    """A suction cup: its face centre in the TCP frame (m) and its radius (m)."""
+
+    xyz: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    radius: PositiveLength = 0.02
+
+
+class BlowOff(Strict):
+    output: Name
+    pulse: PositiveDuration = 0.1  # s
+
+
 class Gripper(Strict):
-    kind: Literal["io", "robotiq"] = "io"
+    kind: Literal["io", "robotiq", "vacuum"] = "io"
     close: OutputValue | None = None
     open: OutputValue | None = None
     closed_sensor: Name | None = None
@@ -58,6 +71,12 @@ class Gripper(Strict):
     close_time: PositiveDuration = 0.2  # s, jaws from fully open to closed (datasheet)
     host: str | None = None  # robotiq socket host (default: the robot host)
     port: int = Field(default=63352, ge=1, le=65535)
+    # kind: vacuum
+    suction: OutputValue | None = None
+    vacuum_ok: Name | None = None
+    blow_off: BlowOff | None = None
+    cups: list[Cup] = Field(default_factory=list)
+    holding_force: Force | None = None  # N, the pull the cups hold before the part tears off
 
 
 class Tool(Strict):
@@ -65,6 +84,16 @@ class Tool(Strict):
     payload: Payload = Field(default_factory=Payload)
     gripper: Gripper | None = None
     geometry: list[PlacedShape] = Field(default_factory=list)
+
+
+class ToolChanger(Strict):
+    """``lock`` output locks the mounted tool, ``locked`` input confirms it; ``rack`` gives
+    each tool's rack frame (the TCP pose of that tool parked in the rack)."""
+
+    lock: Name
+    locked: Name | None = None
+    rack: dict[Name, Name] = Field(default_factory=dict)
+    approach: PositiveLength = 0.1  # m, along the rack frame's Z
 
 
 class Io(Strict):
@@ -128,6 +157,8 @@ class Cell(Strict):
     cell: Name
     robot: Robot
     tool: Tool = Field(default_factory=Tool)
+    tools: dict[Name, Tool] = Field(default_factory=dict)
+    tool_changer: ToolChanger | None = None
     io: Io = Field(default_factory=Io)
     fixtures: list[Fixture] = Field(default_factory=list)
     frames: dict[Name, Frame] = Field(default_factory=dict)
@@ -136,3 +167,14 @@ class Cell(Strict):
     plc: Plc = Field(default_factory=Plc)
     journal: str = "var/jobs.sqlite"
     step_timeout: PositiveDuration = 60.0
+
+    @model_validator(mode="after")
+    def _mounted_tool(self) -> "Cell":
+        """With ``tools:``, ``tool`` is the one ``robot.tool`` names (names are checked,
+        located, by the loader)."""
+        if self.tools and self.robot.tool in self.tools:
+            self.tool = self.tools[self.robot.tool]
+        return self
+
+    def tool_named(self, name: str) -> Tool:
+        return self.tools[name] if self.tools else self.tool

@@ -23,6 +23,7 @@ import numpy as np
 from cellrunner.errors import InfeasibleError
 from cellrunner.model import geometry
 from cellrunner.model.expand import LINEAR_KINDS, Step
+from cellrunner.model.force_steps import FORCE_KINDS
 from cellrunner.model.geometry import Placed
 from cellrunner.model.timing import close_time_s, release_time_s
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory
@@ -49,6 +50,7 @@ class StepPlan:
     carrying: Placed | None = None
     allowances: tuple = ()
     verify_inputs: dict | None = None  # what verify_trajectory was given, to re-verify a cached plan
+    world: CellWorld | None = None  # the world (mounted tool) the step was planned in; None: the plan's
 
 
 @dataclass
@@ -60,6 +62,7 @@ class _Motion:
     limits: object
     line_m: tuple[np.ndarray, np.ndarray] | None
     collision: object
+    world: CellWorld
 
 
 @dataclass
@@ -101,13 +104,20 @@ class TaskPlan:
         row = self.row(step)
         part = row.carrying if row is not None else (self._carried_before(step) if carrying else None)
         allowances = row.allowances if row is not None else ()
-        planner = _StepPlanner(self.world, np.asarray(q_now_rad, float), part)
+        world = self._world_of(step)
+        planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
         goal_q = row.q_end_rad if row is not None and row.status == "ok" else None
         motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
-        return _time_and_verify(self.world, [motion], np.asarray(q_now_rad, float))[0].approved
+        return _time_and_verify(world, [motion], np.asarray(q_now_rad, float))[0].approved
 
-    def tcp_position_m(self, q_rad: np.ndarray) -> np.ndarray:
-        return self.world.kinematics.p_world_tcp(q_rad)
+    def _world_of(self, step: Step) -> CellWorld:
+        rows = [r for r in self.rows if r.step.index <= step.index and r.world is not None]
+        return rows[-1].world if rows else self.world
+
+    def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
+        """World TCP position at ``q_rad``, with the tool mounted at ``step`` (default: at start)."""
+        world = self.world if step is None else self._world_of(step)
+        return world.kinematics.p_world_tcp(q_rad)
 
     def _carried_before(self, step: Step) -> Placed | None:
         rows = [r for r in self.rows if r.step.index <= step.index]
@@ -139,12 +149,13 @@ def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> T
                 if group and (step.kind in LINEAR_KINDS or not _same_limits(group[-1].limits, planner.limits_for(step))):
                     flush()
                 group.append(planner.motion(row, then=then))
-                if step.kind in ("descend", "linear"):
+                if step.kind in ("descend", "linear", *FORCE_KINDS):
                     flush()  # a descend ends at rest: something happens at its end
             else:
                 flush()
                 planner.act(row)
             row.status = "ok"
+            row.world = row.world or planner.world
             if not step.is_motion:
                 row.carrying = planner.part
         current = None
@@ -168,6 +179,7 @@ class _StepPlanner:
     def __init__(self, world: CellWorld, q: np.ndarray, part: Placed | None):
         self.world, self.q, self.part = world, q, part
         self.allowances: tuple = ()
+        self.contact: tuple = ()  # a force step's contacts, which the next straight move leaves
 
     def limits_for(self, step: Step):
         limits = self.world.limits
@@ -197,13 +209,18 @@ class _StepPlanner:
         else:
             T_goal = self._linear_goal(step, T_now) if goal_q is None else kin.T_world_tcp(goal_q)
             if allowances is None:
-                allowances = self._place_allowances(step, T_goal)
+                allowances = self._place_allowances(step, T_goal) + self.contact
+                if step.kind in FORCE_KINDS:
+                    from cellrunner.planning.force_plan import contact_allowances
+                    allowances += contact_allowances(self, step, T_goal)
+                self.contact = allowances if step.kind in FORCE_KINDS else ()
             collision = self.collision(allowances)
             path = plan_linear(kin, collision, self.q, T_goal).q_rad
             line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
         row.allowances = tuple(allowances or ())
         row.carrying = self.part
-        motion = _Motion(row, path, self.limits_for(step), line, collision)
+        motion = _Motion(row, path, self.limits_for(step), line, collision, self.world)
+        row.world = self.world
         self.q = path[-1]
         row.q_end_rad = path[-1]
         return motion
@@ -226,6 +243,10 @@ class _StepPlanner:
             row.duration_s = 1.0 / self.world.spec.rate_hz
         elif step.kind == "wait_input":
             row.message = f"waits up to {step.args.timeout:g} s for {step.args.input}"
+        elif step.kind in ("tool_unlock", "tool_lock"):
+            self.world = self.world.with_tool(step.extra["tool"], tcp_of=step.extra["tcp_of"])
+            row.world = self.world
+            row.duration_s = WRIST_SETTLE_S
 
     def _ik(self, T_world_tcp: np.ndarray, step: Step, then: Step | None) -> np.ndarray:
         """The branch nearest the current configuration that is collision-free and, when
@@ -254,6 +275,9 @@ class _StepPlanner:
             return geometry.pose_matrix((0, 0, step.args.distance)) @ T_now
         if step.kind == "retreat":
             return T_now @ geometry.pose_matrix((0, 0, -step.args.distance))
+        if step.kind == "move_until_contact":
+            from cellrunner.planning.force_plan import contact_line_goal
+            return contact_line_goal(step.args, T_now)
         return step.T_world_tcp
 
     def _place_allowances(self, step: Step, T_goal: np.ndarray) -> tuple:
@@ -337,6 +361,7 @@ def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -
         if motion is not group[0]:
             waypoints.append(motion.waypoints[1:])
         bounds.append(sum(len(w) for w in waypoints) - 1)
+    world = group[0].world
     timed = time_path(world.kinematics, np.vstack(waypoints), group[0].limits, world.spec.rate_hz)
     cuts = _cut_indices(timed, bounds, len(group))
     previous = np.asarray(q_start, float)
@@ -362,6 +387,7 @@ def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
     """Verify a stored row's trajectory again with the inputs it was planned with."""
     from cellrunner.planning.verify import verify_trajectory
 
+    world = row.world or world
     planner = _StepPlanner(world, row.trajectory.q_rad[0], row.carrying)
     return verify_trajectory(
         row.trajectory, step_index=row.step.index, step_name=row.step.name, kinematics=world.kinematics,
@@ -392,6 +418,7 @@ def _check_retry_path(world: CellWorld, row: StepPlan, rows: list[StepPlan]) -> 
     retry = row.step.retry
     descend = next(r for r in rows if r.step.index == retry.redo_from)
     q_grip = descend.q_end_rad
+    world = descend.world or world
     planner = _StepPlanner(world, q_grip, None)
     try:
         for between in [*retry.between, descend.step]:

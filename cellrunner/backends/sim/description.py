@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -107,6 +108,7 @@ class TwinDescription:
     io_outputs: tuple[str, ...] = ("DO0",)
     io_inputs: tuple[str, ...] = ("DI0",)
     presence_sensors: tuple[PresenceSensor, ...] = ()
+    vacuum: Any = None  # a VacuumDescription (backends.sim.vacuum) for a suction gripper
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"
@@ -127,7 +129,7 @@ class TwinDescription:
         if self.gripper is not None:
             g = self.gripper
             if g.close_output not in self.io_outputs:
-                raise ValueError(f"gripper close output {g.close_output!r} is not an output; "
+                raise ValueError(f"gripper close output {g.close_output!r} is not an output; "  # noqa: E501
                                  f"known: {', '.join(self.io_outputs)}")
             for ch in (g.closed_sensor_input, g.open_sensor_input):
                 if ch is not None and ch not in self.io_inputs:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from cellrunner.model.expand import frame_pose
-from cellrunner.model.gripper import gripper_channels
+from cellrunner.model.gripper import gripper_channels, part_center_depth_m
 from cellrunner.model.load import LoadedCell
 
 
@@ -26,15 +26,32 @@ def description_of(loaded: LoadedCell):
             open_sensor_input=inputs.get(g.open_sensor) if g.open_sensor else None)
         io_outputs += [close[0]] if close[0] not in io_outputs else []
         io_inputs += [sensor] if sensor and sensor not in io_inputs else []
-    parts = [PartDescription(p.name, p.to_shape(loaded.resolve), p.mass, _upright(frame_pose(c, p.at)), p.friction)
-             for p in c.parts]
+    vacuum = None
+    if g is not None and g.kind == "vacuum":
+        from cellrunner.backends.sim.vacuum import VacuumDescription
+        gripper = None
+        vacuum = VacuumDescription(
+            cups=tuple((tuple(cup.xyz), cup.radius) for cup in g.cups), suction_output=close[0],
+            suction_value=close[1], vacuum_ok_input=sensor,
+            blow_off_output=outputs[g.blow_off.output] if g.blow_off else None,
+            holding_force_N=g.holding_force or 100.0)
+    parts = [PartDescription(p.name, shape, p.mass, _part_pose(c, p.at, g, shape), p.friction)
+             for p in c.parts for shape in [p.to_shape(loaded.resolve)]]
     return TwinDescription(
         spec=loaded.spec, T_world_base=c.robot.mount.matrix(), T_flange_tcp=c.tool.tcp.matrix(),
         q_home_rad=tuple(np.radians(c.robot.home)), tool_geometry=tuple(loaded.tool_shapes()),
         payload_mass_kg=max(c.tool.payload.mass, 0.1), payload_cog_m=tuple(c.tool.payload.cog),
-        gripper=gripper, fixtures=tuple(loaded.fixture_shapes()), parts=tuple(parts),
+        gripper=gripper, vacuum=vacuum, fixtures=tuple(loaded.fixture_shapes()), parts=tuple(parts),
         io_outputs=tuple(io_outputs), io_inputs=tuple(io_inputs),
         name=c.cell)
+
+
+def _part_pose(cell, frame: str, gripper, shape) -> np.ndarray:
+    """A part at ``frame`` lies upright where a TCP at the frame grips it: centred (jaws)
+    or with its top face at the frame (suction)."""
+    T = _upright(frame_pose(cell, frame))
+    T[2, 3] -= part_center_depth_m(gripper, shape)
+    return T
 
 
 def _upright(T_world_frame: np.ndarray) -> np.ndarray:

@@ -235,6 +235,9 @@ class _Builder:
         self._arm(world)
         for part in d.parts:
             self._part(world, part)
+        if d.vacuum is not None and d.parts:
+            from cellrunner.backends.sim.vacuum import add_welds
+            add_welds(self.root, d.parts)
         self._actuators_and_sensors()
         ET.indent(self.root)
         return ET.tostring(self.root, encoding="unicode")
@@ -346,6 +349,9 @@ class _Builder:
                           **self._shape_attrs(placed.shape), **_pose_attrs(placed.T_parent_shape))
         if g is not None:
             self._gripper(tool, g)
+        if d.vacuum is not None:
+            from cellrunner.backends.sim.vacuum import add_cups
+            add_cups(self, tool, d.vacuum, d.T_flange_tcp, PADS, STATIC | PARTS)
 
     def _gripper(self, tool: ET.Element, g: Any) -> None:
         d = self.desc

@@ -205,3 +205,25 @@ def _save(figure: Any, path: str | Path) -> Path:
 
 __all__ = ["CameraView", "CellRenderer", "RenderUnavailable", "default_view", "plot_joints",
            "plot_tcp_path", "render_png"]
+
+
+def plot_wrist_force(path: str | Path, trace: list[tuple[float, int, float]], limits_N: dict[int, float],
+                     title: str = "") -> Path:
+    """The wrist force rise (N, above the step's standing baseline) against time (s) during
+    the force steps, one line per step, each with its stop limit dashed."""
+    figure = _figure(8, 4)
+    ax = figure.add_subplot()
+    data = np.asarray(trace, float)
+    t0 = data[0, 0]
+    for index in sorted({int(i) for i in data[:, 1]}):
+        rows = data[data[:, 1] == index]
+        line, = ax.plot(rows[:, 0] - t0, rows[:, 2], lw=1.5, label=f"step {index}")
+        if index in limits_N:
+            ax.axhline(limits_N[index], ls="--", lw=1.0, color=line.get_color())
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("wrist force rise [N]")
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title)
+    figure.tight_layout()
+    return _save(figure, path)

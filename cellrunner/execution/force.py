@@ -1,0 +1,111 @@
+"""The force steps on every backend: a guarded servo along the approved straight line.
+
+``move_until_contact`` and ``insert`` stream the line ``check`` approved (to
+``max_distance`` / ``depth``) set-point by set-point, as every motion does, and watch the
+wrist force (the controller's ``actual_TCP_force``, base axes) against a baseline taken
+standing still just before. The first period whose force rise exceeds the step's limit
+stops the arm (stopJ / servoStop) where it is:
+
+- ``move_until_contact``: contact is success; the line's end without contact fails the
+  step (3 when a part is carried, which was being set down; else 1, nothing found);
+- ``insert``: the depth reached past the frame (the TCP measured along the frame's Z)
+  must lie in ``expect_depth``; outside it the place failed (3), with the depth in the
+  message.
+
+Why not ur_rtde's moveUntilContact: it is a speedL without an end, so it could run past
+the line ``check`` approved; the guarded servo cannot (and reads the same sensor).
+Each period's force is kept in ``ctx.notes['force_trace']`` as (t_s, step index, N) for
+the report's wrist-force plot.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Generator
+
+import numpy as np
+
+from cellrunner.execution.context import JobContext
+from cellrunner.model.codes import ResultCode
+from cellrunner.model.expand import Step
+
+#: stand still this long before the baseline, then average it over AVERAGE_S (s)
+SETTLE_S = 0.1
+AVERAGE_S = 0.05
+#: after a contact stop, wait at most this long for the arm to stand still (s)
+STOP_WAIT_S = 1.0
+#: joint speed under which the arm stands still (rad/s)
+STILL_RAD_S = 2e-3
+#: the arm must be this close to the approved line's start to stream it (rad)
+START_TOLERANCE_RAD = 2e-3
+
+
+def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[None, None, object]:
+    from cellrunner.execution.steps import OK, Outcome
+
+    baseline = yield from _baseline(ctx)
+    args = step.args
+    limit_N = args.force if step.kind == "move_until_contact" else args.force.max
+    q_now = ctx.state.q_rad
+    approved = None if resume else ctx.motions.nominal(step)
+    if approved is None or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD:
+        approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
+    trace = ctx.notes.setdefault("force_trace", [])
+    q = approved.trajectory.q_rad
+    contact_N = None
+    for i in range(len(q)):
+        ctx.backend.servo(approved, i)
+        ctx.commanded_q = q[i]
+        yield
+        force_N = math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)
+        trace.append((ctx.now_s, step.index, force_N))
+        if force_N > limit_N:
+            contact_N = force_N
+            break
+    if contact_N is not None:
+        ctx.backend.stop_motion()
+        ctx.commanded_q = None  # pressing, not tracking
+        yield from _until_still(ctx, trace, step, baseline)
+    if step.kind == "move_until_contact":
+        if contact_N is None:
+            code = ResultCode.PLACE_FAILED if ctx.carry is not None else ResultCode.NO_PART
+            return Outcome.failed(code, f"no contact within {args.max_distance * 1000:.1f} mm "
+                                  f"(force stayed under {limit_N:g} N)")
+        return OK
+    depth_m = _depth_m(ctx, step)
+    lo, hi = args.depth_window_m
+    how = f"stopped at {contact_N:.1f} N" if contact_N is not None else "no force stop"
+    if not lo - 1e-4 <= depth_m <= hi + 1e-4:
+        return Outcome.failed(ResultCode.PLACE_FAILED, f"inserted {depth_m * 1000:.1f} mm, expected "
+                              f"{lo * 1000:.1f}-{hi * 1000:.1f} mm ({how})")
+    return OK
+
+
+def _baseline(ctx: JobContext) -> Generator[None, None, list[float]]:
+    samples = []
+    t0 = ctx.now_s
+    while ctx.now_s - t0 < SETTLE_S + AVERAGE_S:
+        if ctx.now_s - t0 >= SETTLE_S:
+            samples.append(np.asarray(ctx.state.wrench_N[:3], float))
+        yield
+    if not samples:
+        samples.append(np.asarray(ctx.state.wrench_N[:3], float))
+    return np.mean(samples, axis=0).tolist()
+
+
+def _until_still(ctx: JobContext, trace: list, step: Step, baseline: list[float]) -> Generator[None, None, None]:
+    t0 = ctx.now_s
+    while ctx.now_s - t0 < STOP_WAIT_S:
+        yield
+        trace.append((ctx.now_s, step.index, math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)))
+        if ctx.now_s - t0 > 0.05 and np.max(np.abs(ctx.state.qd_rad_s)) < STILL_RAD_S:
+            return
+
+
+def _depth_m(ctx: JobContext, step: Step) -> float:
+    """How far past the insert's frame the TCP stands, along the frame's Z (m)."""
+    T_end = step.T_world_tcp
+    z = T_end[:3, 2]
+    p_frame = T_end[:3, 3] - step.args.depth * z
+    p_tcp = ctx.motions.tcp_position_m(ctx.state.q_rad, step)
+    return float(np.dot(np.asarray(p_tcp) - p_frame, z))
