@@ -3,7 +3,7 @@ checked in :mod:`cellrunner.model.references`."""
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
@@ -168,13 +168,17 @@ class Cell(Strict):
     journal: str = "var/jobs.sqlite"
     step_timeout: PositiveDuration = 60.0
 
-    @model_validator(mode="after")
-    def _mounted_tool(self) -> "Cell":
+    @model_validator(mode="before")
+    @classmethod
+    def _mounted_tool(cls, data: Any) -> Any:
         """With ``tools:``, ``tool`` is the one ``robot.tool`` names (names are checked,
         located, by the loader)."""
-        if self.tools and self.robot.tool in self.tools:
-            self.tool = self.tools[self.robot.tool]
-        return self
+        if isinstance(data, dict) and isinstance(data.get("tools"), dict) and "tool" not in data:
+            robot = data.get("robot")
+            name = robot.get("tool") if isinstance(robot, dict) else None
+            if isinstance(name, str) and name in data["tools"]:
+                data = {**data, "tool": data["tools"][name]}
+        return data
 
     def tool_named(self, name: str) -> Tool:
         return self.tools[name] if self.tools else self.tool

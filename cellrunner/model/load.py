@@ -303,7 +303,7 @@ def _check_tool_names(cell: Cell, raw: Any, report: Report) -> None:
     """``robot.tool`` names one of ``tools``; a tool changer racks every tool."""
     names = list(cell.tools)
     if cell.tools:
-        if isinstance(raw, dict) and "tool" in raw:
+        if isinstance(raw, dict) and "tool" in raw:  # (the model copies the mounted one into tool)
             report.error(("tool",), "give either 'tool:' or 'tools:', not both", at_key=True)
         if cell.robot.tool is None:
             report.error(("robot",), f"with 'tools:', robot.tool names the tool mounted at start; "

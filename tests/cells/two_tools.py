@@ -1,0 +1,51 @@
+"""A cell with two tools (jaws and a suction cup) on a UR5e tool changer, for the tests."""
+
+CELL = """\
+cell: two-tools
+robot:
+  model: ur5e
+  backend: sim
+  mount: {xyz: [0, 0, 0.9], rpy: [0, 0, 180]}
+  home: [0, -90, 90, -90, -90, 0]
+  tool: jaws
+  limits: {joint_speed: 120, joint_accel: 300, tcp_speed: 0.8, margin: 0.9}
+tools:
+  jaws:
+    tcp: {xyz: [0, 0, 0.15]}
+    payload: {mass: 1.0, cog: [0, 0, 0.05]}
+    gripper: {kind: io, close: {output: jaws, value: true}, closed_sensor: jaws_closed, stroke: 0.06}
+    geometry: [{cylinder: {radius: 0.035, length: 0.09}, xyz: [0, 0, 0.045]}]
+  cup:
+    tcp: {xyz: [0, 0, 0.22]}
+    payload: {mass: 0.6, cog: [0, 0, 0.08]}
+    gripper:
+      kind: vacuum
+      suction: {output: vacuum_on}
+      vacuum_ok: vacuum_ok
+      cups: [{xyz: [0, 0, 0], radius: 0.02}]
+      holding_force: 40
+    geometry: [{cylinder: {radius: 0.02, length: 0.2}, xyz: [0, 0, 0.1]}]
+tool_changer:
+  lock: tool_lock
+  locked: tool_locked
+  rack: {jaws: rack_jaws, cup: rack_cup}
+io:
+  outputs: {jaws: DO0, vacuum_on: DO1, tool_lock: DO4}
+  inputs: {jaws_closed: DI0, vacuum_ok: DI1, tool_locked: DI4}
+fixtures:
+  - {name: table, box: {size: [1.2, 1.2, 0.04]}, pose: {xyz: [0.3, 0, 0.88]}}
+frames:
+  rack_jaws: {xyz: [0.25, 0.40, 1.05], rpy: [180, 0, 0]}
+  rack_cup: {xyz: [0.40, 0.40, 1.12], rpy: [180, 0, 0]}
+  spot: {xyz: [0.45, -0.2, 1.05], rpy: [180, 0, 0]}
+"""
+
+TASK = """\
+task: swap
+steps:
+  - move: home
+  - change_tool: cup
+  - move: spot
+  - change_tool: jaws
+  - move: home
+"""
