@@ -209,10 +209,11 @@ class _StepPlanner:
         else:
             T_goal = self._linear_goal(step, T_now) if goal_q is None else kin.T_world_tcp(goal_q)
             if allowances is None:
-                allowances = self._place_allowances(step, T_goal) + self.contact
-                if step.kind in FORCE_KINDS:
+                if step.kind in FORCE_KINDS:  # contact is what the step is for, where its line ends
                     from cellrunner.planning.force_plan import contact_allowances
-                    allowances += contact_allowances(self, step, T_goal)
+                    allowances = self.contact + contact_allowances(self, step, T_goal)
+                else:
+                    allowances = self._place_allowances(step, T_goal) + self.contact
                 self.contact = allowances if step.kind in FORCE_KINDS else ()
             collision = self.collision(allowances)
             path = plan_linear(kin, collision, self.q, T_goal).q_rad
