@@ -19,6 +19,8 @@ from cellrunner.model.codes import PackMLState as S, ResultCode
 
 #: e-stop faults are released by the "operator" this long after they struck (sim s)
 PLC_OUTAGE_S = 2.0
+#: written into a report that has plots but no rendered pictures
+NO_PICTURES = "NO_PICTURES.txt"
 
 
 @dataclass
@@ -42,6 +44,9 @@ def run(args) -> int:
     params = parse_params(args.param, task)
     steps = expanded(cell, task, params)
     injections = parse_injections(args.inject, steps)
+    if args.report:
+        from cellrunner.backends.sim._mj import enable_pictures
+        enable_pictures()  # before MuJoCo is imported: it reads its GL backend once
     from cellrunner.backends.sim.backend import SimBackend
     from cellrunner.backends.sim.from_cell import description_of
     from cellrunner.planning.world import CellWorld
@@ -98,8 +103,7 @@ def run(args) -> int:
     recorder.force_trace = runner.ctx.notes.get("force_trace", []) if runner else []
     recorder.force_limits = {s.index: s.args.force if s.kind == "move_until_contact" else s.args.force.max
                              for s in steps if s.kind in ("move_until_contact", "insert")}
-    if recorder.report is not None:
-        _write_report(recorder, payload, backend)
+    has_pictures = _write_report(recorder, payload, backend) if recorder.report is not None else True
     controller.close()
     if args.json:
         emit_json(payload)
@@ -113,6 +117,9 @@ def run(args) -> int:
                   f"({payload['real_time_factor']}x real time)")
         if recorder.report is not None:
             out.print(f"report written to {recorder.report}/")
+    if not has_pictures:
+        from cellrunner.backends.sim._mj import GL_ADVICE
+        out.print(f"no pictures in the report: no OpenGL backend here ({GL_ADVICE} gives one)", soft_wrap=True)
     return 0 if code is ResultCode.OK else 1
 
 
@@ -183,7 +190,8 @@ def _snapshot(backend) -> np.ndarray | None:
         return None
 
 
-def _write_report(recorder: _Recorder, payload: dict, backend) -> None:
+def _write_report(recorder: _Recorder, payload: dict, backend) -> bool:
+    """Write the report folder; returns whether it holds rendered pictures."""
     from cellrunner.backends.sim import render
 
     folder = recorder.report
@@ -210,6 +218,10 @@ def _write_report(recorder: _Recorder, payload: dict, backend) -> None:
         render.plot_wrist_force(folder / "wrist_force.png", recorder.force_trace, recorder.force_limits,
                                 title=f"{payload['task']}: wrist force in the force steps")
         written.append("wrist_force.png")
-    if not any(name.endswith(".png") and name not in ("joints.png", "tcp_path.png") for name in written):
-        (folder / "NO_PICTURES.txt").write_text("offscreen rendering unavailable: set MUJOCO_GL=osmesa and install "
-                                                "libosmesa6\n")
+    has_pictures = any(name.endswith(".png") and name not in ("joints.png", "tcp_path.png", "wrist_force.png")
+                       for name in written)
+    (folder / NO_PICTURES).unlink(missing_ok=True)
+    if not has_pictures:
+        from cellrunner.backends.sim._mj import GL_ADVICE
+        (folder / NO_PICTURES).write_text(f"no offscreen OpenGL backend here: {GL_ADVICE} gives one\n")
+    return has_pictures
