@@ -1,0 +1,88 @@
+"""The reference cells through the unmodified ur_rtde client: `cellrunner run --backend ur`
+against `cellrunner twin` (the virtual controller over the cell's MuJoCo twin), each in
+its own process on loopback; faults made to happen in the twin's physics over its fault
+channel."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from contextlib import contextmanager
+
+from tests.cells.test_reference_cells import PALLETIZER, PEG
+from tests.conftest import ROOT
+
+ENV = {**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"}
+
+
+@contextmanager
+def twin(cell: str, host: str):
+    proc = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "twin", cell, "--host", host],
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=ENV)
+    try:
+        deadline = time.monotonic() + 60
+        line = ""
+        while time.monotonic() < deadline and "virtual" not in line:
+            line = proc.stderr.readline()
+            assert line or proc.poll() is None, "the twin exited"
+        assert "virtual" in line, line
+        yield proc
+    finally:
+        proc.terminate()
+        proc.communicate(timeout=30)
+
+
+def run(cell: str, task: str, host: str, *extra: str) -> dict:
+    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "run", cell, task, "--backend", "ur",
+                        "--robot-host", host, "--json", *extra], capture_output=True, text=True, cwd=ROOT,
+                       timeout=300, env=ENV)
+    assert r.returncode in (0, 1), r.stderr[-3000:]
+    return json.loads(r.stdout)
+
+
+def test_palletizer_through_ur_rtde():
+    from cellrunner.twin.server import FaultClient
+
+    host = "127.0.0.110"
+    with twin(PALLETIZER[0], host):
+        out = run(*PALLETIZER, host, "-p", "slot=2")
+        assert out["result_code"] == 0, out
+        assert [s["status"] for s in out["steps"]] == ["ok"] * 10
+    host = "127.0.0.114"  # a fresh twin: the first carton is on the pallet
+    with twin(PALLETIZER[0], host):
+        FaultClient(host).command("part_slip")  # fires once the carton hangs in the air
+        out = run(*PALLETIZER, host, "-p", "slot=1")
+        assert out["result_code"] == 2, out
+        assert "the vacuum switch dropped" in out["result_text"]
+
+
+def test_palletizer_grip_miss_through_ur_rtde():
+    from cellrunner.twin.server import FaultClient
+
+    host = "127.0.0.111"
+    with twin(PALLETIZER[0], host):
+        FaultClient(host).command("grip_miss")  # the carton is moved away as suction comes on
+        out = run(*PALLETIZER, host)
+        assert out["result_code"] == 1, out
+        assert "no vacuum" in out["result_text"]
+
+
+def test_peg_insert_through_ur_rtde(tmp_path):
+    host = "127.0.0.112"
+    with twin(PEG[0], host):
+        out = run(*PEG, host)
+        assert out["result_code"] == 0, out
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "tasks").mkdir()
+    cell = tmp_path / "cells" / "peg.yaml"
+    cell.write_text((ROOT / PEG[0]).read_text().replace(
+        "{name: hole_floor, box: {size: [0.022, 0.022, 0.01]}, pose: {xyz: [0.30, 0.15, 0.805]}}",
+        "{name: hole_floor, box: {size: [0.022, 0.022, 0.03]}, pose: {xyz: [0.30, 0.15, 0.815]}}"))
+    (tmp_path / "tasks" / "peg_insert.yaml").write_text((ROOT / PEG[1]).read_text())
+    with twin(str(cell), "127.0.0.113"):
+        out = run(str(cell), str(tmp_path / "tasks" / "peg_insert.yaml"), "127.0.0.113")
+        assert out["result_code"] == 3, out
+        assert out["result_text"].startswith("inserted ")
