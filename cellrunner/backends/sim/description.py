@@ -109,6 +109,7 @@ class TwinDescription:
     io_inputs: tuple[str, ...] = ("DI0",)
     presence_sensors: tuple[PresenceSensor, ...] = ()
     vacuum: Any = None  # a VacuumDescription (backends.sim.vacuum) for a suction gripper
+    tool_lock: tuple[str, str] | None = None  # tool changer (lock output, locked input): locked follows lock
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"

@@ -41,9 +41,16 @@ def description_of(loaded: LoadedCell):
         spec=loaded.spec, T_world_base=c.robot.mount.matrix(), T_flange_tcp=c.tool.tcp.matrix(),
         q_home_rad=tuple(np.radians(c.robot.home)), tool_geometry=tuple(loaded.tool_shapes()),
         payload_mass_kg=max(c.tool.payload.mass, 0.1), payload_cog_m=tuple(c.tool.payload.cog),
-        gripper=gripper, vacuum=vacuum, fixtures=tuple(loaded.fixture_shapes()), parts=tuple(parts),
+        gripper=gripper, vacuum=vacuum, tool_lock=_tool_lock(c), fixtures=tuple(loaded.fixture_shapes()), parts=tuple(parts),
         io_outputs=tuple(io_outputs), io_inputs=tuple(io_inputs),
         name=c.cell)
+
+
+def _tool_lock(cell) -> tuple[str, str] | None:
+    changer = cell.tool_changer
+    if changer is None or changer.locked is None:
+        return None
+    return cell.io.outputs[changer.lock], cell.io.inputs[changer.locked]
 
 
 def _part_pose(cell, frame: str, gripper, shape) -> np.ndarray:

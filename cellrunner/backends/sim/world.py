@@ -568,6 +568,8 @@ class SimWorld:
         chans = {s.channel for s in self.description.presence_sensors}
         if self.description.vacuum is not None and self.description.vacuum.vacuum_ok_input:
             chans.add(self.description.vacuum.vacuum_ok_input)
+        if self.description.tool_lock is not None:
+            chans.add(self.description.tool_lock[1])
         if g is not None:
             chans |= {c for c in (g.closed_sensor_input, g.open_sensor_input) if c}
         return chans
@@ -596,6 +598,9 @@ class SimWorld:
                 self.inputs[g.open_sensor_input] = gap >= hi
         if self.vacuum is not None and self.vacuum.vac.vacuum_ok_input:
             self.inputs[self.vacuum.vac.vacuum_ok_input] = self.vacuum.vacuum_ok
+        if self.description.tool_lock is not None:
+            lock, locked = self.description.tool_lock
+            self.inputs[locked] = bool(self.outputs.get(lock))
         for sensor in self.description.presence_sensors:
             c = np.asarray(sensor.center_world_m)
             h = np.asarray(sensor.half_extents_m)

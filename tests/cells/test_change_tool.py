@@ -1,0 +1,57 @@
+"""change_tool: planning swaps the TCP (and geometry) at the change; the job runs in the
+twin, the changer's lock confirmed by its locked input."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tests.cells.two_tools import CELL, TASK
+from tests.conftest import ROOT
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("tools")
+    (d / "c.yaml").write_text(CELL)
+    (d / "t.yaml").write_text(TASK)
+    return d / "c.yaml", d / "t.yaml"
+
+
+def test_change_tool_expands_and_plans_with_the_new_tcp(files):
+    from cellrunner.model.expand import expand, frame_pose
+    from cellrunner.model.load import load_cell, load_task
+    from cellrunner.planning.task_plan import plan_task
+    from cellrunner.planning.world import CellWorld
+
+    cell = load_cell(files[0])
+    steps = expand(load_task(files[1], cell), cell.cell, {})
+    assert [s.kind for s in steps[1:9]] == ["approach", "descend", "tool_unlock", "retreat", "approach", "descend",
+                                            "tool_lock", "retreat"]
+    world = CellWorld(cell)
+    plan = plan_task(world, steps, world.q_home_rad)
+    assert plan.ok, plan.errors
+    move_spot = next(r for r in plan.rows if r.step.kind == "move" and r.step.name == "spot")
+    spot = frame_pose(cell.cell, "spot")[:3, 3]
+    q = move_spot.q_end_rad
+    # the cup (TCP 0.22 m) stands at the spot; the jaws' TCP (0.15 m) would be 7 cm above it
+    assert np.allclose(world.with_tool("cup").kinematics.T_world_tcp(q)[:3, 3], spot, atol=1e-4)
+    assert np.allclose(world.kinematics.T_world_tcp(q)[:3, 3], spot + [0, 0, 0.07], atol=1e-4)
+    assert move_spot.world.loaded.cell.tool.gripper.kind == "vacuum"
+    # the rack approach after the unlock carries no tool geometry, the one after the lock the cup's
+    assert [p.name for p in plan.rows[5].world.tool] == []
+    assert {p.name for p in plan.rows[9].world.tool} == {"gripper", "cup0"}
+
+
+def test_change_tool_job_runs_in_the_twin(files):
+    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "dry-run", str(files[0]), str(files[1]), "--json"],
+                       capture_output=True, text=True, cwd=ROOT, timeout=300,
+                       env={**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"})
+    out = json.loads(r.stdout)
+    assert out["result_code"] == 0, out
+    assert len(out["steps"]) == 19 and all(s["status"] == "ok" for s in out["steps"])
