@@ -20,6 +20,8 @@ class CellWorld:
     """Everything planning needs from a cell file, in SI and radians."""
 
     loaded: LoadedCell
+    tool_key: tuple | None = None  # (tool, tcp_of) of a world made by with_tool; None: as the cell file mounts it
+    base: "CellWorld | None" = None  # the world with_tool made this one from
 
     @property
     def spec(self) -> RobotSpec:
@@ -41,6 +43,10 @@ class CellWorld:
     def with_tool(self, name: str | None, tcp_of: str | None = None) -> "CellWorld":
         """The same cell with tool ``name`` mounted (from ``tools:``); None: the bare
         flange, carrying tool ``tcp_of``'s TCP as a virtual point (no geometry, no payload)."""
+        if self.base is not None:
+            return self.base.with_tool(name, tcp_of)
+        if name is not None and name == self.loaded.cell.robot.tool:
+            return self
         key = (name, None if name is not None else tcp_of)
         worlds = self._tool_worlds
         if key not in worlds:
@@ -48,7 +54,7 @@ class CellWorld:
             cell = self.loaded.cell
             tool = cell.tools[name] if name is not None else Tool(tcp=cell.tools[tcp_of].tcp)
             loaded = dataclasses.replace(self.loaded, cell=cell.model_copy(update={"tool": tool}))
-            worlds[key] = CellWorld(loaded)
+            worlds[key] = CellWorld(loaded, key, self)
         return worlds[key]
 
     @cached_property
