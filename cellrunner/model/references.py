@@ -42,6 +42,7 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             check_io_name(cell, args.input, "inputs", path + ("input",), report)
         elif kind == "change_tool":
             _check_change_tool(cell, args.tool, path, report)
+    _check_tool_at_end(task, cell, report)
     if needs_gripper and cell.tool.gripper is None:
         report.error(("steps",), f"the task grips and releases but cell {cell.cell!r} has no tool.gripper")
     for name, param in task.task.params.items():
@@ -94,3 +95,14 @@ def _check_change_tool(cell, tool: str, path, report: Report) -> None:
     elif cell.tool_changer is None:
         report.error(path, f"change_tool needs the cell's tool_changer: {{lock: OUTPUT, locked: INPUT, "
                      f"rack: {{NAME: FRAME}}}}; cell {cell.cell!r} has none")
+
+
+def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
+    """Every job starts with ``robot.tool`` mounted, so a task must end with it."""
+    last = None
+    for step in task.steps:
+        if step.kind == "change_tool" and step.args.tool in cell.tools:
+            last = step
+    if last is not None and last.args.tool != cell.robot.tool:
+        report.error(last.path, f"the task ends with tool {last.args.tool!r} mounted, but every job starts "
+                     f"with {cell.robot.tool!r} (robot.tool); add 'change_tool: {cell.robot.tool}' before the end")

@@ -80,3 +80,11 @@ def test_force_step_errors(tmp_path):
                                               "force: {max: 10}}\n"))
     assert r.stderr.strip().endswith("error: steps[2].insert.to: unknown frame 'spott' (did you mean 'spot'?); "
                                      "known: rack_jaws, rack_cup, spot")
+
+
+def test_task_must_end_with_its_start_tool(tmp_path):
+    r = validate(tmp_path, CELL, TASK.replace("  - change_tool: jaws\n", ""))
+    assert r.returncode == 2
+    assert r.stderr.strip() == (f"{tmp_path}/t.yaml:4:18: error: steps[1].change_tool: the task ends with tool 'cup' "
+                                "mounted, but every job starts with 'jaws' (robot.tool); add 'change_tool: jaws' "
+                                "before the end")
