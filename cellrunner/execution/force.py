@@ -6,8 +6,10 @@ wrist force (the controller's ``actual_TCP_force``, base axes) against a baselin
 standing still just before. The first period whose force rise exceeds the step's limit
 stops the arm (stopJ / servoStop) where it is:
 
-- ``move_until_contact``: contact is success; the line's end without contact fails the
-  step (3 when a part is carried, which was being set down; else 1, nothing found);
+- ``move_until_contact``: contact is success, and the arm goes back along the line to
+  where the contact began (as ur_rtde's moveUntilContact retracts); the line's end without
+  contact fails the step (3 when a part is carried, which was being set down; else 1,
+  nothing found);
 - ``insert``: the depth reached past the frame (the TCP measured along the frame's Z)
   must lie in ``expect_depth``; outside it the place failed (3), with the depth in the
   message.
@@ -36,6 +38,8 @@ AVERAGE_S = 0.05
 STOP_WAIT_S = 1.0
 #: joint speed under which the arm stands still (rad/s)
 STILL_RAD_S = 2e-3
+#: contact begins where the force first rises above this fraction of the step's limit
+TOUCH_FRACTION = 0.2
 #: the arm must be this close to the approved line's start to stream it (rad)
 START_TOLERANCE_RAD = 2e-3
 
@@ -52,13 +56,15 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
     trace = ctx.notes.setdefault("force_trace", [])
     q = approved.trajectory.q_rad
-    contact_N = None
+    contact_N, touch_i = None, None
     for i in range(len(q)):
         ctx.backend.servo(approved, i)
         ctx.commanded_q = q[i]
         yield
         force_N = math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)
         trace.append((ctx.now_s, step.index, force_N))
+        if touch_i is None and force_N > TOUCH_FRACTION * limit_N:
+            touch_i = i
         if force_N > limit_N:
             contact_N = force_N
             break
@@ -67,6 +73,8 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         ctx.commanded_q = None  # pressing, not tracking
         yield from _until_still(ctx, trace, step, baseline)
     if step.kind == "move_until_contact":
+        if contact_N is not None:  # back to where the contact began, as moveUntilContact does
+            yield from _retract(ctx, approved, i, max((touch_i or i) - 1, 0), trace, step, baseline)
         if contact_N is None:
             code = ResultCode.PLACE_FAILED if ctx.carry is not None else ResultCode.NO_PART
             return Outcome.failed(code, f"no contact within {args.max_distance * 1000:.1f} mm "
@@ -79,6 +87,17 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         return Outcome.failed(ResultCode.PLACE_FAILED, f"inserted {depth_m * 1000:.1f} mm, expected "
                               f"{lo * 1000:.1f}-{hi * 1000:.1f} mm ({how})")
     return OK
+
+
+def _retract(ctx: JobContext, approved, i_from: int, i_to: int, trace: list, step: Step,
+             baseline: list[float]) -> Generator[None, None, None]:
+    """Stream the approved line backwards from set-point ``i_from`` to ``i_to``, then stand."""
+    for k in range(i_from, i_to - 1, -1):
+        ctx.backend.servo(approved, k)
+        ctx.commanded_q = approved.trajectory.q_rad[k]
+        yield
+        trace.append((ctx.now_s, step.index, math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)))
+    yield from _until_still(ctx, trace, step, baseline)
 
 
 def _baseline(ctx: JobContext) -> Generator[None, None, list[float]]:

@@ -70,10 +70,11 @@ class LoadedCell:
         folder = self.path.resolve().parent
         return folder.parent if folder.name == "cells" else folder
 
-    def tool_shapes(self) -> list:
-        """The declared tool geometry as placed shapes in the flange frame."""
+    def tool_shapes(self, tool=None) -> list:
+        """The declared geometry of ``tool`` (default: the mounted one) as placed shapes in
+        the flange frame."""
         from cellrunner.model.geometry import Placed
-        geometry = self.cell.tool.geometry
+        geometry = (tool or self.cell.tool).geometry
         return [Placed(f"tool{i}" if len(geometry) > 1 else "gripper", g.to_shape(self.resolve), g.matrix())
                 for i, g in enumerate(geometry)]
 

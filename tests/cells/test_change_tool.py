@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from tests.cells.two_tools import CELL, TASK
+from tests.cells.two_tools import CELL, TASK, TOUCH
 from tests.conftest import ROOT
 
 
@@ -20,6 +20,8 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("tools")
     (d / "c.yaml").write_text(CELL)
     (d / "t.yaml").write_text(TASK)
+    (d / "touch.yaml").write_text(TOUCH)
+    (d / "touch_jaws.yaml").write_text(TOUCH.replace("  - change_tool: cup\n", "").replace("  - change_tool: jaws\n", ""))
     return d / "c.yaml", d / "t.yaml"
 
 
@@ -48,10 +50,25 @@ def test_change_tool_expands_and_plans_with_the_new_tcp(files):
     assert {p.name for p in plan.rows[9].world.tool} == {"gripper", "cup0"}
 
 
-def test_change_tool_job_runs_in_the_twin(files):
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "dry-run", str(files[0]), str(files[1]), "--json"],
+def dry_run(cell, task) -> dict:
+    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "dry-run", str(cell), str(task), "--json"],
                        capture_output=True, text=True, cwd=ROOT, timeout=300,
                        env={**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"})
-    out = json.loads(r.stdout)
+    return json.loads(r.stdout)
+
+
+def test_change_tool_job_runs_in_the_twin(files):
+    out = dry_run(*files)
     assert out["result_code"] == 0, out
     assert len(out["steps"]) == 19 and all(s["status"] == "ok" for s in out["steps"])
+
+
+def test_the_twin_swaps_the_tool_physically(files):
+    """The cup, mounted by the change, meets the table where its TCP says; without the
+    change the jaws never reach the table within the insert's 20 mm."""
+    cell = files[0]
+    out = dry_run(cell, cell.parent / "touch.yaml")
+    assert out["result_code"] == 0, out
+    out = dry_run(cell, cell.parent / "touch_jaws.yaml")
+    assert out["result_code"] != 0  # the jaws' pads hit the table before the frame
+    assert [s["index"] for s in out["steps"] if s["status"] == "failed"] == [3]

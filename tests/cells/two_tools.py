@@ -38,6 +38,21 @@ frames:
   rack_jaws: {xyz: [0.25, 0.40, 1.05], rpy: [180, 0, 0]}
   rack_cup: {xyz: [0.40, 0.40, 1.12], rpy: [180, 0, 0]}
   spot: {xyz: [0.45, -0.2, 1.05], rpy: [180, 0, 0]}
+  touch: {xyz: [0.45, -0.2, 0.91], rpy: [180, 0, 0]}    # 10 mm over the table
+"""
+
+#: touch the table with the mounted tool: only the cup (TCP 0.22 m, its face at the TCP)
+#: meets the table 10 mm past the frame; the jaws' pads end 5 cm short of the cup's face
+TOUCH = """\
+task: touch
+steps:
+  - move: home
+  - change_tool: cup
+  - approach: {to: touch, distance: 0.03}
+  - insert: {to: touch, depth: 0.02, speed: 0.01, force: {max: 10}, expect_depth: [0.007, 0.013]}
+  - retreat: 0.05
+  - change_tool: jaws
+  - move: home
 """
 
 TASK = """\

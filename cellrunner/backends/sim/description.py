@@ -50,6 +50,7 @@ class GripperDescription:
     finger_mass_kg: float = 0.05
     friction: float = 1.0
     sensor_min_gap_m: float = 0.002
+    T_flange_tcp: np.ndarray | None = None  # the jaws' tool's TCP (default: the twin's)
 
     def __post_init__(self) -> None:
         if not self.stroke_m > 2 * self.sensor_min_gap_m:
@@ -109,7 +110,7 @@ class TwinDescription:
     io_inputs: tuple[str, ...] = ("DI0",)
     presence_sensors: tuple[PresenceSensor, ...] = ()
     vacuum: Any = None  # a VacuumDescription (backends.sim.vacuum) for a suction gripper
-    tool_lock: tuple[str, str] | None = None  # tool changer (lock output, locked input): locked follows lock
+    tool_changer: Any = None  # a ToolChangerDescription (backends.sim.tool_changer) for several tools
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"

@@ -351,7 +351,11 @@ class _Builder:
             self._gripper(tool, g)
         if d.vacuum is not None:
             from cellrunner.backends.sim.vacuum import add_cups
-            add_cups(self, tool, d.vacuum, d.T_flange_tcp, PADS, STATIC | PARTS)
+            T = d.vacuum.T_flange_tcp if d.vacuum.T_flange_tcp is not None else d.T_flange_tcp
+            add_cups(self, tool, d.vacuum, T, PADS, STATIC | PARTS)
+        if d.tool_changer is not None:
+            from cellrunner.backends.sim.tool_changer import add_tools
+            add_tools(self, tool, self.root.find("worldbody"), d.tool_changer, TOOL, STATIC)
 
     def _gripper(self, tool: ET.Element, g: Any) -> None:
         d = self.desc
@@ -359,7 +363,8 @@ class _Builder:
         z0, z1 = g.pad_z_m
         half_stroke = g.stroke_m / 2
         # Visual rail across the fingers' tops, fixed to the tool at the TCP frame.
-        rail = ET.SubElement(tool, "body", name="gripper", **_pose_attrs(d.T_flange_tcp))
+        T_flange_jaws = g.T_flange_tcp if g.T_flange_tcp is not None else d.T_flange_tcp
+        rail = ET.SubElement(tool, "body", name="gripper", **_pose_attrs(T_flange_jaws))
         ET.SubElement(rail, "geom", name="gripper:rail", type="box", material="tool",
                       pos=_fmt([0, 0, z0 - 0.02]), size=_fmt([half_stroke + t + 0.01, w / 2 + 0.004, 0.008]),
                       contype="0", conaffinity="0", density="0", group="1")

@@ -46,6 +46,7 @@ class VacuumDescription:
 
     cups: tuple[tuple[tuple[float, float, float], float], ...]
     suction_output: str
+    T_flange_tcp: np.ndarray | None = None  # the vacuum tool's TCP (default: the twin's)
     suction_value: bool | float = True
     vacuum_ok_input: str | None = None
     blow_off_output: str | None = None
@@ -91,12 +92,25 @@ class VacuumCups:
         self.slip_armed = False
         self._pull_lp: dict[str, float] = {}
         self.last_pull_N = 0.0
+        self.enabled = True
+        self._cup_bits = [(int(m.geom_contype[g]), int(m.geom_conaffinity[g])) for g in self.cup_geoms]
+
+    def set_enabled(self, on: bool) -> None:
+        """Mounted (a tool changer took the vacuum tool) or parked: cups collide and seal only when on."""
+        self.enabled = on
+        m = self.world.model
+        for g, bits in zip(self.cup_geoms, self._cup_bits):
+            m.geom_contype[g], m.geom_conaffinity[g] = bits if on else (0, 0)
+            m.geom_rgba[g, 3] = 1.0 if on else 0.0
+        if not on:
+            self._drop_all()
+            self.suction = False
 
     # -- per period ---------------------------------------------------------------------
     def drive(self) -> None:
         """Follow the suction and blow-off outputs (before the physics step)."""
         w, v = self.world, self.vac
-        on = w.outputs.get(v.suction_output) == v.suction_value
+        on = self.enabled and w.outputs.get(v.suction_output) == v.suction_value
         if v.blow_off_output is not None and w.outputs.get(v.blow_off_output):
             on = False
         if on and not self.suction:

@@ -189,9 +189,14 @@ class SimWorld:
         self.data.ctrl[ids.servo] = self.q_ref
         self._mj.mj_forward(self.model, self.data)
         self.vacuum = None
+        self.jaws_enabled = True
         if self.description.vacuum is not None:
             from cellrunner.backends.sim.vacuum import VacuumCups
             self.vacuum = VacuumCups(self, self.description.vacuum)
+        self.changer = None
+        if self.description.tool_changer is not None:
+            from cellrunner.backends.sim.tool_changer import ToolChanger
+            self.changer = ToolChanger(self, self.description.tool_changer)
         self._update_inputs()
 
     @property
@@ -363,6 +368,8 @@ class SimWorld:
         # feed-forward term). With several steps per period (CB3) the set-point is
         # interpolated linearly across them.
         self._drive_gripper()
+        if self.changer is not None:
+            self.changer.drive()
         if self.vacuum is not None:
             self.vacuum.drive()
         k = self.substeps
@@ -401,7 +408,7 @@ class SimWorld:
         g = self.description.gripper
         if g is None:
             return
-        closing = self.outputs.get(g.close_output) == g.close_value
+        closing = self.jaws_enabled and self.outputs.get(g.close_output) == g.close_value
         if closing == self._closing and self._jaws_driven:
             return  # the drive forces already in ctrl stay
         if closing and not self._closing and self._faults.grip_miss_armed:
@@ -415,6 +422,15 @@ class SimWorld:
             ctrl[a] = speed  # a force (N): the drives are force actuators
 
     # -- contacts -----------------------------------------------------------------------
+    def contacts_changed(self) -> None:
+        """Geoms were switched on or off (a tool change): take their collision kinds anew."""
+        m = self.model
+        self._kind = [int(m.geom_contype[g]) if (m.geom_contype[g] or m.geom_conaffinity[g]) else 0
+                      for g in range(m.ngeom)]
+        self._static_geoms = [g for g, k in enumerate(self._kind) if k == STATIC]
+        self._robot_or_pad_geoms = frozenset(g for g, k in enumerate(self._kind) if k & (ROBOT | PADS | TOOL))
+        self._clean_pairs, self._clean_gripped = None, _NONE
+
     def _check_contacts(self) -> frozenset[str]:
         """Raise a protective stop on unexpected contact; return the gripped parts.
 
@@ -568,8 +584,8 @@ class SimWorld:
         chans = {s.channel for s in self.description.presence_sensors}
         if self.description.vacuum is not None and self.description.vacuum.vacuum_ok_input:
             chans.add(self.description.vacuum.vacuum_ok_input)
-        if self.description.tool_lock is not None:
-            chans.add(self.description.tool_lock[1])
+        if self.description.tool_changer is not None and self.description.tool_changer.locked_input:
+            chans.add(self.description.tool_changer.locked_input)
         if g is not None:
             chans |= {c for c in (g.closed_sensor_input, g.open_sensor_input) if c}
         return chans
@@ -598,9 +614,8 @@ class SimWorld:
                 self.inputs[g.open_sensor_input] = gap >= hi
         if self.vacuum is not None and self.vacuum.vac.vacuum_ok_input:
             self.inputs[self.vacuum.vac.vacuum_ok_input] = self.vacuum.vacuum_ok
-        if self.description.tool_lock is not None:
-            lock, locked = self.description.tool_lock
-            self.inputs[locked] = bool(self.outputs.get(lock))
+        if self.changer is not None and self.changer.desc.locked_input:
+            self.inputs[self.changer.desc.locked_input] = self.changer.locked
         for sensor in self.description.presence_sensors:
             c = np.asarray(sensor.center_world_m)
             h = np.asarray(sensor.half_extents_m)
