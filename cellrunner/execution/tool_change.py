@@ -22,13 +22,17 @@ def run_tool_unlock(ctx: JobContext, step: Step) -> Generator[None, None, object
     outcome = yield from _drive(ctx, step, lock=False)
     if outcome.ok:
         use_gripper(ctx, None)
+        tcp_of = ctx.tools[step.extra["tcp_of"]]
+        ctx.backend.set_tool(tcp_of.tcp.matrix(), 0.0, (0.0, 0.0, 0.0))  # the bare flange
     return outcome
 
 
 def run_tool_lock(ctx: JobContext, step: Step) -> Generator[None, None, object]:
     outcome = yield from _drive(ctx, step, lock=True)
     if outcome.ok:
-        use_gripper(ctx, ctx.tools[step.extra["tool"]].gripper)
+        tool = ctx.tools[step.extra["tool"]]
+        use_gripper(ctx, tool.gripper)
+        ctx.backend.set_tool(tool.tcp.matrix(), tool.payload.mass, tuple(tool.payload.cog))
     return outcome
 
 

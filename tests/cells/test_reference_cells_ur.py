@@ -86,3 +86,20 @@ def test_peg_insert_through_ur_rtde(tmp_path):
         out = run(str(cell), str(tmp_path / "tasks" / "peg_insert.yaml"), "127.0.0.113")
         assert out["result_code"] == 3, out
         assert out["result_text"].startswith("inserted ")
+
+
+def test_change_tool_through_ur_rtde(tmp_path):
+    """The changer's lock goes out over RTDE, the twin swaps the tool, the controller gets
+    the new TCP and payload (setTcp, setPayload), and the cup meets the table where its TCP
+    says."""
+    from cellrunner.twin.server import FaultClient
+    from tests.cells.two_tools import CELL, TOUCH
+
+    (tmp_path / "c.yaml").write_text(CELL.replace("  backend: sim\n", "  backend: sim\n  host: 127.0.0.115\n"))
+    (tmp_path / "touch.yaml").write_text(TOUCH)
+    host = "127.0.0.115"
+    with twin(str(tmp_path / "c.yaml"), host):
+        out = run(str(tmp_path / "c.yaml"), str(tmp_path / "touch.yaml"), host)
+        assert out["result_code"] == 0, out
+        state = json.loads(FaultClient(host).command("state"))
+        assert state["payload_kg"] == 1.0  # the jaws again, as every job starts
