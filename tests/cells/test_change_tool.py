@@ -72,3 +72,14 @@ def test_the_twin_swaps_the_tool_physically(files):
     out = dry_run(cell, cell.parent / "touch_jaws.yaml")
     assert out["result_code"] != 0  # the jaws' pads hit the table before the frame
     assert [s["index"] for s in out["steps"] if s["status"] == "failed"] == [3]
+
+
+def test_a_second_jaw_gripper_after_the_change_grips_with_its_own_io(tmp_path):
+    """The twin's jaws take the mounted tool's valve, sensor, stroke and TCP."""
+    from tests.cells.two_tools import TWO_JAWS, WIDE_PICK
+
+    (tmp_path / "c.yaml").write_text(TWO_JAWS)
+    (tmp_path / "t.yaml").write_text(WIDE_PICK)
+    out = dry_run(tmp_path / "c.yaml", tmp_path / "t.yaml")
+    assert out["result_code"] == 0, out
+    assert out["parts_end_m"]["block"] == pytest.approx([0.50, 0.05, 0.93], abs=0.003)

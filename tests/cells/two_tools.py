@@ -64,3 +64,54 @@ steps:
   - change_tool: jaws
   - move: home
 """
+
+#: two jaw grippers on the changer, each with its own valve and sensor: only the wide one
+#: takes the 60 mm block
+TWO_JAWS = """\
+cell: two-jaws
+robot:
+  model: ur5e
+  backend: sim
+  mount: {xyz: [0, 0, 0.9], rpy: [0, 0, 180]}
+  home: [0, -90, 90, -90, -90, 0]
+  tool: narrow
+  limits: {joint_speed: 120, joint_accel: 300, tcp_speed: 0.8, margin: 0.9}
+tools:
+  narrow:
+    tcp: {xyz: [0, 0, 0.15]}
+    payload: {mass: 1.0, cog: [0, 0, 0.05]}
+    gripper: {kind: io, close: {output: narrow_close}, closed_sensor: narrow_closed, stroke: 0.04}
+    geometry: [{cylinder: {radius: 0.035, length: 0.1}, xyz: [0, 0, 0.05]}]
+  wide:
+    tcp: {xyz: [0, 0, 0.18]}
+    payload: {mass: 1.3, cog: [0, 0, 0.06]}
+    gripper: {kind: io, close: {output: wide_close}, closed_sensor: wide_closed, stroke: 0.09}
+    geometry: [{cylinder: {radius: 0.04, length: 0.13}, xyz: [0, 0, 0.065]}]
+tool_changer:
+  lock: tool_lock
+  locked: tool_locked
+  rack: {narrow: rack_narrow, wide: rack_wide}
+io:
+  outputs: {narrow_close: DO0, wide_close: DO2, tool_lock: DO4}
+  inputs: {narrow_closed: DI0, wide_closed: DI2, tool_locked: DI4}
+fixtures:
+  - {name: table, box: {size: [1.2, 1.2, 0.04]}, pose: {xyz: [0.3, 0, 0.88]}}
+frames:
+  rack_narrow: {xyz: [0.25, 0.40, 1.05], rpy: [180, 0, 0]}
+  rack_wide: {xyz: [0.40, 0.40, 1.08], rpy: [180, 0, 0]}
+  infeed: {xyz: [0.45, -0.25, 0.93], rpy: [180, 0, 0]}
+  drop: {xyz: [0.50, 0.05, 0.931], rpy: [180, 0, 0]}
+parts:
+  - {name: block, box: {size: [0.06, 0.06, 0.06]}, mass: 0.4, at: infeed}
+"""
+
+WIDE_PICK = """\
+task: wide_pick
+steps:
+  - move: home
+  - change_tool: wide
+  - pick: {at: infeed, approach: 0.1, grip: {confirm: wide_closed, force: {min: 2, max: 10}}}
+  - place: {at: drop, approach: 0.1}
+  - change_tool: narrow
+  - move: home
+"""

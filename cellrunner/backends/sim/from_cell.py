@@ -19,11 +19,12 @@ def description_of(loaded: LoadedCell):
     c = loaded.cell
     outputs, inputs = c.io.outputs, c.io.inputs
     io_outputs, io_inputs = list(dict.fromkeys(outputs.values())), list(dict.fromkeys(inputs.values()))
-    changer = _changer(loaded) if c.tools and c.tool_changer is not None else None
+    changer = _changer(loaded, io_outputs, io_inputs) if c.tools and c.tool_changer is not None else None
     tools = list(c.tools.values()) if changer is not None else [c.tool]
-    jaws = next((t for t in tools if t.gripper is not None and t.gripper.kind != "vacuum"), None)
     suction = next((t for t in tools if t.gripper is not None and t.gripper.kind == "vacuum"), None)
-    gripper = _jaws(jaws, c, io_outputs, io_inputs) if jaws is not None else None
+    jaws = [t for t in tools if t.gripper is not None and t.gripper.kind != "vacuum"]
+    jaws.sort(key=lambda t: t is not c.tool)  # the mounted tool's jaws first
+    gripper = _jaws(jaws[0], c, io_outputs, io_inputs) if jaws else None
     vacuum = _cups(suction, c) if suction is not None else None
     g = c.tool.gripper
     parts = [PartDescription(p.name, shape, p.mass, _part_pose(c, p.at, g, shape), p.friction)
@@ -62,7 +63,7 @@ def _cups(tool, cell):
         holding_force_N=g.holding_force or 100.0, T_flange_tcp=tool.tcp.matrix())
 
 
-def _changer(loaded: LoadedCell):
+def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
     from cellrunner.backends.sim.tool_changer import ChangerTool, ToolChangerDescription
     c = loaded.cell
     changer = c.tool_changer
@@ -72,7 +73,8 @@ def _changer(loaded: LoadedCell):
         kind = None if g is None else "vacuum" if g.kind == "vacuum" else "jaws"
         shapes = loaded.tool_shapes(tool)
         tools.append(ChangerTool(name, tool.tcp.matrix(), tuple(shapes), max(tool.payload.mass, 0.1),
-                                 tuple(tool.payload.cog), kind, frame_pose(c, changer.rack[name])))
+                                 tuple(tool.payload.cog), kind, frame_pose(c, changer.rack[name]),
+                                 _jaws(tool, c, io_outputs, io_inputs) if kind == "jaws" else None))
     return ToolChangerDescription(c.io.outputs[changer.lock],
                                   c.io.inputs[changer.locked] if changer.locked else None,
                                   tuple(tools), c.robot.tool)

@@ -39,6 +39,7 @@ class ChangerTool:
     payload_cog_m: tuple[float, float, float]
     gripper: str | None
     T_world_rack_tcp: np.ndarray
+    jaws: Any = None  # its GripperDescription when it has jaws (the twin's one pair of jaws takes its place)
 
 
 @dataclass(frozen=True)
@@ -112,8 +113,28 @@ class ToolChanger:
         T_world_tcp = self._T_world_flange() @ tool.T_flange_tcp
         return float(np.linalg.norm(T_world_tcp[:3, 3] - tool.T_world_rack_tcp[:3, 3])) < RACK_TOLERANCE_M
 
+    def _fit_jaws(self, tool: ChangerTool) -> None:
+        """The twin's pair of jaws becomes this tool's: its IO, stroke and place at its TCP."""
+        import dataclasses
+        from cellrunner.backends.sim.mjcf import quat_of
+        w = self.world
+        m = w.model
+        g = tool.jaws
+        w.description = dataclasses.replace(w.description, gripper=g)
+        rail = m.body("gripper").id
+        m.body_pos[rail] = tool.T_flange_tcp[:3, 3]
+        m.body_quat[rail] = quat_of(tool.T_flange_tcp[:3, :3])
+        half = g.stroke_m / 2
+        for jaw, sign, pad in zip(("jaw_a", "jaw_b"), (1.0, -1.0), w._ids.pad_geoms):
+            m.jnt_range[m.joint(jaw).id] = (0.0, half)
+            m.geom_pos[pad, 0] = sign * (half + g.finger_size_m[0] / 2)
+        w._jaws_driven = False
+
     def _park(self) -> None:
         name = self.mounted
+        jaws = self.tools[name].jaws
+        if jaws is not None and jaws.closed_sensor_input:
+            self.world.inputs[jaws.closed_sensor_input] = False
         self._show(name, mounted=False)
         self._set_gripper(None)
         self._set_payload(0.02, (0.0, 0.0, 0.0))
@@ -128,6 +149,8 @@ class ToolChanger:
         m.site_pos[site] = tool.T_flange_tcp[:3, 3]
         m.site_quat[site] = quat_of(tool.T_flange_tcp[:3, :3])
         self._show(name, mounted=True)
+        if tool.jaws is not None:
+            self._fit_jaws(tool)
         self._set_gripper(tool.gripper)
         self._set_payload(tool.payload_mass_kg, tool.payload_cog_m)
         self.mounted = name
