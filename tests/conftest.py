@@ -11,7 +11,11 @@ from cellrunner.backends.sim._mj import enable_pictures
 
 # The tests render pictures in this process: choose MuJoCo's offscreen GL backend before
 # anything imports MuJoCo (it reads MUJOCO_GL once).
-enable_pictures()
+GL_BACKEND = enable_pictures()
+
+
+def pytest_report_header() -> str:
+    return f"MuJoCo GL backend for pictures: {GL_BACKEND or 'none'}"
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMO_CELL = ROOT / "cells" / "demo_ur5e.yaml"

@@ -21,7 +21,7 @@ GL_BACKENDS = ("egl", "osmesa")
 #: what to install where no backend works (Debian's package; software rendering)
 GL_ADVICE = "apt-get install libosmesa6"
 _OFF = ("disable", "disabled", "off", "false", "0")
-_PROBE_TIMEOUT_S = 20.0
+_PROBE_TIMEOUT_S = 60.0
 _PROBE = (
     "import mujoco\n"
     "c = mujoco.GLContext(16, 16)\n"
