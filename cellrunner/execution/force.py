@@ -38,6 +38,8 @@ AVERAGE_S = 0.05
 STOP_WAIT_S = 1.0
 #: joint speed under which the arm stands still (rad/s)
 STILL_RAD_S = 2e-3
+#: the gripper's sensor must read false this long before the part counts as lost (s)
+SENSOR_DEBOUNCE_S = 0.05
 #: contact begins where the force first rises above this fraction of the step's limit
 TOUCH_FRACTION = 0.2
 #: the arm must be this close to the approved line's start to stream it (rad)
@@ -63,6 +65,10 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         yield
         force_N = math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)
         trace.append((ctx.now_s, step.index, force_N))
+        lost = _sensor_lost(ctx)
+        if lost:
+            ctx.backend.stop_motion()
+            return Outcome.failed(ResultCode.PART_LOST, lost)
         if touch_i is None and force_N > TOUCH_FRACTION * limit_N:
             touch_i = i
         if force_N > limit_N:
@@ -98,6 +104,20 @@ def _retract(ctx: JobContext, approved, i_from: int, i_to: int, trace: list, ste
         yield
         trace.append((ctx.now_s, step.index, math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)))
     yield from _until_still(ctx, trace, step, baseline)
+
+
+def _sensor_lost(ctx: JobContext) -> str | None:
+    """The carried part is gone by its gripper's sensor (the wrist load is the contact's
+    business during a force step)."""
+    carry = ctx.carry
+    if carry is None or carry.confirm is None or ctx.state.inputs.get(carry.confirm):
+        ctx.notes.pop("sensor_false_since", None)
+        return None
+    since = ctx.notes.setdefault("sensor_false_since", ctx.now_s)
+    if ctx.now_s - since >= SENSOR_DEBOUNCE_S:
+        sensor = "vacuum switch" if ctx.gripper_kind == "vacuum" else "jaw sensor"
+        return f"part lost during the force step: the {sensor} dropped"
+    return None
 
 
 def _baseline(ctx: JobContext) -> Generator[None, None, list[float]]:

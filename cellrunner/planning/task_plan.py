@@ -220,6 +220,9 @@ class _StepPlanner:
             line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
         row.allowances = tuple(allowances or ())
         row.carrying = self.part
+        if step.kind in FORCE_KINDS:
+            from cellrunner.planning.force_plan import describe
+            row.message = describe(step, line, row.allowances)
         motion = _Motion(row, path, self.limits_for(step), line, collision, self.world)
         row.world = self.world
         self.q = path[-1]

@@ -32,7 +32,7 @@ def failed(out: dict) -> list[tuple[int, str]]:
 
 def test_palletizer_places_the_carton_on_its_slot():
     out = dry_run(*PALLETIZER, "-p", "slot=3")
-    assert out["result_code"] == 0, out
+    assert out["result_code"] == 0, (out["result_text"], out["steps"])
     x, y, z = out["parts_end_m"]["carton"]
     # slot 3: row 1, col 1 -> 0.22 m along the frame's X, 0.17 m along its Y (world -Y)
     assert (x, y) == pytest.approx((0.69 + 0.22, 0.285 - 0.17), abs=0.005)
@@ -56,7 +56,7 @@ def test_palletizer_part_slip_is_part_lost():
 
 def test_palletizer_plc_disconnect_holds_and_resumes_with_suction():
     out = dry_run(*PALLETIZER, "--inject", "plc_disconnect@approach#2")
-    assert out["result_code"] == 0, out
+    assert out["result_code"] == 0, (out["result_text"], out["steps"])
     assert out["cycle_time_s"] > out["planned_cycle_time_s"] + 1.5  # held while the PLC was away
 
 
@@ -67,7 +67,7 @@ def test_palletizer_estop_is_101():
 
 def test_peg_insert_reaches_its_depth():
     out = dry_run(*PEG)
-    assert out["result_code"] == 0, out
+    assert out["result_code"] == 0, (out["result_text"], out["steps"])
     x, y, z = out["parts_end_m"]["peg"]
     assert (x, y) == pytest.approx((0.30, 0.15), abs=0.002)
     assert z == pytest.approx(0.81 + 0.05, abs=0.003)  # in the hole, on its floor
@@ -81,7 +81,7 @@ def test_peg_grip_miss_and_slip():
 
 def test_peg_protective_stop_during_insert_resumes():
     out = dry_run(*PEG, "--inject", "protective_stop@insert")
-    assert out["result_code"] == 0, out
+    assert out["result_code"] == 0, (out["result_text"], out["steps"])
     assert out["cycle_time_s"] > out["planned_cycle_time_s"] + 5.0  # the controller's unlock delay
 
 
@@ -121,10 +121,37 @@ def test_insert_blocked_early_is_place_failed(shallow):
 
 def test_move_until_contact_stops_at_the_block(shallow):
     out = dry_run(str(shallow / "cells" / "peg.yaml"), str(shallow / "tasks" / "probe.yaml"))
-    assert out["result_code"] == 0, out
+    assert out["result_code"] == 0, (out["result_text"], out["steps"])
 
 
 def test_move_until_contact_without_contact_fails(shallow):
     out = dry_run(str(shallow / "cells" / "peg.yaml"), str(shallow / "tasks" / "probe_far.yaml"))
     assert out["result_code"] == 1
     assert failed(out) == [(3, "no contact within 20.0 mm (force stayed under 8 N)")]
+
+
+def check_json(cell: str, task: str) -> tuple[int, dict]:
+    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "check", cell, task, "--json"],
+                       capture_output=True, text=True, cwd=ROOT, timeout=300)
+    return r.returncode, json.loads(r.stdout)
+
+
+def test_check_verifies_the_insert_line_and_names_the_contact():
+    code, out = check_json(*PEG)
+    assert code == 0
+    row = next(s for s in out["steps"] if s["kind"] == "insert")
+    assert row["message"] == ("guarded: stops above 10 N; 55 mm line checked; contact allowed with: "
+                              "wall_xm, wall_xp, wall_ym, wall_yp")
+
+
+def test_check_refuses_an_insert_that_drives_the_gripper_into_the_block(tmp_path):
+    """Only the carried part may make the insert's contact: 40 mm deep, the jaws would
+    reach 10 mm into the block around the hole."""
+    task = tmp_path / "deep.yaml"
+    task.write_text((ROOT / PEG[1]).read_text().replace("depth: 0.025", "depth: 0.04")
+                    .replace("expect_depth: [0.022, 0.026]", "expect_depth: [0.035, 0.041]"))
+    code, out = check_json(PEG[0], str(task))
+    assert code == 1
+    row = next(s for s in out["steps"] if s["kind"] == "insert")
+    assert row["status"] == "failed"
+    assert "tool 'jaw_" in row["message"] and "fixture 'wall_" in row["message"], row["message"]

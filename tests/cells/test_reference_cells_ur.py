@@ -49,7 +49,7 @@ def test_palletizer_through_ur_rtde():
     host = "127.0.0.110"
     with twin(PALLETIZER[0], host):
         out = run(*PALLETIZER, host, "-p", "slot=2")
-        assert out["result_code"] == 0, out
+        assert out["result_code"] == 0, (out["result_text"], out["steps"])
         assert [s["status"] for s in out["steps"]] == ["ok"] * 10
     host = "127.0.0.114"  # a fresh twin: the first carton is on the pallet
     with twin(PALLETIZER[0], host):
@@ -74,7 +74,7 @@ def test_peg_insert_through_ur_rtde(tmp_path):
     host = "127.0.0.112"
     with twin(PEG[0], host):
         out = run(*PEG, host)
-        assert out["result_code"] == 0, out
+        assert out["result_code"] == 0, (out["result_text"], out["steps"])
     (tmp_path / "cells").mkdir()
     (tmp_path / "tasks").mkdir()
     cell = tmp_path / "cells" / "peg.yaml"
@@ -100,6 +100,6 @@ def test_change_tool_through_ur_rtde(tmp_path):
     host = "127.0.0.115"
     with twin(str(tmp_path / "c.yaml"), host):
         out = run(str(tmp_path / "c.yaml"), str(tmp_path / "touch.yaml"), host)
-        assert out["result_code"] == 0, out
+        assert out["result_code"] == 0, (out["result_text"], out["steps"])
         state = json.loads(FaultClient(host).command("state"))
         assert state["payload_kg"] == 1.0  # the jaws again, as every job starts

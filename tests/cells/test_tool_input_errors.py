@@ -51,7 +51,7 @@ def test_rack_frame_unknown(tmp_path):
     r = validate(tmp_path, CELL.replace("cup: rack_cup}", "cup: rack_cups}"))
     assert r.returncode == 2
     assert "tool_changer.rack.cup: unknown frame 'rack_cups' (did you mean 'rack_cup'?); known: rack_jaws, " \
-           "rack_cup, spot" in r.stderr
+           "rack_cup, spot, touch" in r.stderr
 
 
 def test_vacuum_gripper_needs_its_suction(tmp_path):
@@ -79,7 +79,7 @@ def test_force_step_errors(tmp_path):
     r = validate(tmp_path, CELL, TASK.replace("  - move: spot\n", "  - insert: {to: spott, depth: 0.02, "
                                               "force: {max: 10}}\n"))
     assert r.stderr.strip().endswith("error: steps[2].insert.to: unknown frame 'spott' (did you mean 'spot'?); "
-                                     "known: rack_jaws, rack_cup, spot")
+                                     "known: rack_jaws, rack_cup, spot, touch")
 
 
 def test_task_must_end_with_its_start_tool(tmp_path):
