@@ -3,8 +3,8 @@
 ``move_until_contact`` and ``insert`` stream the line ``check`` approved (to
 ``max_distance`` / ``depth``) set-point by set-point, as every motion does, and watch the
 wrist force (the controller's ``actual_TCP_force``, base axes) against a baseline taken
-standing still just before. The first period whose force rise exceeds the step's limit
-stops the arm (stopJ / servoStop) where it is:
+standing still just before. A force rise above the step's limit for two periods in a row
+(or twice the limit at once) stops the arm (stopJ / servoStop) where it is:
 
 - ``move_until_contact``: contact is success, and the arm goes back along the line to
   where the contact began (as ur_rtde's moveUntilContact retracts); the line's end without
@@ -40,6 +40,10 @@ STOP_WAIT_S = 1.0
 STILL_RAD_S = 2e-3
 #: the gripper's sensor must read false this long before the part counts as lost (s)
 SENSOR_DEBOUNCE_S = 0.05
+#: a force over the limit stops the line when two measurements in a row show it, or at
+#: once when it is this many times the limit: a one-period jolt (a late set-point shakes
+#: the tool's mass) is not a contact, a hard hit is
+HARD_HIT_FACTOR = 2.0
 #: contact begins where the force first rises above this fraction of the step's limit
 TOUCH_FRACTION = 0.2
 #: the arm must be this close to the approved line's start to stream it (rad)
@@ -58,11 +62,14 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
     trace = ctx.notes.setdefault("force_trace", [])
     q = approved.trajectory.q_rad
-    contact_N, touch_i = None, None
+    contact_N, touch_i, above, t_last = None, None, False, None
     for i in range(len(q)):
         ctx.backend.servo(approved, i)
         ctx.commanded_q = q[i]
         yield
+        if ctx.now_s == t_last:
+            continue  # no new measurement this period (a late controller package)
+        t_last = ctx.now_s
         force_N = math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)
         trace.append((ctx.now_s, step.index, force_N))
         lost = _sensor_lost(ctx)
@@ -71,9 +78,10 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
             return Outcome.failed(ResultCode.PART_LOST, lost)
         if touch_i is None and force_N > TOUCH_FRACTION * limit_N:
             touch_i = i
-        if force_N > limit_N:
+        if force_N > limit_N and (above or force_N > HARD_HIT_FACTOR * limit_N):
             contact_N = force_N
             break
+        above = force_N > limit_N
     if contact_N is not None:
         ctx.backend.stop_motion()
         ctx.commanded_q = None  # pressing, not tracking

@@ -88,6 +88,28 @@ def test_peg_insert_through_ur_rtde(tmp_path):
         assert out["result_text"].startswith("inserted ")
 
 
+def test_move_until_contact_through_ur_rtde(tmp_path):
+    """The gripper, empty, probes down onto the block: contact within 100 mm is found; the
+    same probe limited to 20 mm finds nothing and fails the step."""
+    probe = """task: probe
+steps:
+  - move: home
+  - approach: {to: hole, distance: 0.03}
+  - move_until_contact: {direction: [0, 0, 1], speed: 0.01, force: 8, max_distance: DIST}
+  - retreat: 0.05
+  - move: home
+"""
+    (tmp_path / "near.yaml").write_text(probe.replace("DIST", "0.1"))
+    (tmp_path / "far.yaml").write_text(probe.replace("DIST", "0.02"))
+    host = "127.0.0.116"
+    with twin(PEG[0], host):
+        out = run(PEG[0], str(tmp_path / "near.yaml"), host)
+        assert out["result_code"] == 0, (out["result_text"], out["steps"])
+        out = run(PEG[0], str(tmp_path / "far.yaml"), host)
+        assert out["result_code"] == 1
+        assert out["result_text"] == "no contact within 20.0 mm (force stayed under 8 N)"
+
+
 def test_change_tool_through_ur_rtde(tmp_path):
     """The changer's lock goes out over RTDE, the twin swaps the tool, the controller gets
     the new TCP and payload (setTcp, setPayload), and the cup meets the table where its TCP
