@@ -33,8 +33,14 @@ _PROBE = (
 
 def load_mujoco() -> ModuleType:
     """Import and return ``mujoco``; GL stays off unless pictures were asked for first."""
-    if "mujoco" not in sys.modules and not os.environ.get("MUJOCO_GL"):
-        os.environ["MUJOCO_GL"] = "disable"
+    if "mujoco" not in sys.modules:
+        if not os.environ.get("MUJOCO_GL"):
+            os.environ["MUJOCO_GL"] = "disable"
+        backend = gl_backend()
+        if backend in GL_BACKENDS:
+            # PyOpenGL must load the same platform; an inherited PYOPENGL_PLATFORM (a parent
+            # that rendered with another backend) would break the context
+            os.environ["PYOPENGL_PLATFORM"] = backend
     import mujoco
 
     return mujoco
