@@ -279,6 +279,8 @@ class _Builder:
     # -- bodies ---------------------------------------------------------------------
     def _static_geom(self, parent: ET.Element, placed: Placed) -> None:
         shape, T = placed.shape, placed.T_parent_shape
+        if isinstance(shape, Mesh) and self._mesh_pieces(parent, placed):
+            return
         flat = _flat_mesh_box(shape) if isinstance(shape, Mesh) else None
         if flat is not None:  # MuJoCo cannot hull a flat mesh: a thin box over its bounds
             center, size = flat
@@ -288,6 +290,22 @@ class _Builder:
         ET.SubElement(parent, "geom", name=f"fixture:{placed.name}", material="fixture",
                       contype=str(STATIC), conaffinity=str(ROBOT | PADS | PARTS),
                       **self._shape_attrs(shape), **_pose_attrs(T))
+
+    def _mesh_pieces(self, parent: ET.Element, placed: Placed) -> bool:
+        """A non-convex mesh fixture as one thin prism per triangle (see :mod:`.mesh_pieces`);
+        False when the mesh is convex (or too big), to be built as usual."""
+        from cellrunner.backends.sim import mesh_pieces
+        triangles = mesh_pieces.triangles_of(binary_stl(placed.shape.path), placed.shape.scale)
+        if len(triangles) > mesh_pieces.MAX_TRIANGLES or mesh_pieces.is_convex(triangles):
+            return False
+        assert self.assets is not None
+        for k, vertices in enumerate(mesh_pieces.prisms(triangles)):
+            name = f"{placed.name}_piece{k}"
+            ET.SubElement(self.assets, "mesh", name=name, vertex=_fmt(vertices))
+            ET.SubElement(parent, "geom", name=f"fixture:{placed.name}:{k}", material="fixture", type="mesh",
+                          mesh=name, contype=str(STATIC), conaffinity=str(ROBOT | PADS | PARTS),
+                          **_pose_attrs(placed.T_parent_shape))
+        return True
 
     def _arm(self, world: ET.Element) -> None:
         d = self.desc
