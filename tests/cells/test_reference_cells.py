@@ -106,6 +106,8 @@ steps:
 """
     (root / "tasks" / "probe_far.yaml").write_text(probe.replace("DIST", "0.02"))
     (root / "tasks" / "probe.yaml").write_text(probe.replace("DIST", "0.1"))
+    (root / "tasks" / "probe_world.yaml").write_text(
+        probe.replace("DIST", "0.1").replace("direction: [0, 0, 1]", "direction: [0, 0, -1], frame: world"))
     return root
 
 
@@ -122,6 +124,19 @@ def test_insert_blocked_early_is_place_failed(shallow):
 def test_move_until_contact_stops_at_the_block(shallow):
     out = dry_run(str(shallow / "cells" / "peg.yaml"), str(shallow / "tasks" / "probe.yaml"))
     assert out["result_code"] == 0, (out["result_text"], out["steps"])
+
+
+def test_move_until_contact_in_world_axes(shallow):
+    out = dry_run(str(shallow / "cells" / "peg.yaml"), str(shallow / "tasks" / "probe_world.yaml"))
+    assert out["result_code"] == 0, (out["result_text"], out["steps"])
+
+
+def test_report_plots_the_wrist_force(shallow, tmp_path):
+    out = dry_run(str(shallow / "cells" / "peg.yaml"), str(shallow / "tasks" / "peg_insert.yaml"),
+                  "--report", str(tmp_path / "report"))
+    assert out["result_code"] == 3
+    plot = tmp_path / "report" / "wrist_force.png"
+    assert plot.is_file() and plot.stat().st_size > 10_000
 
 
 def test_move_until_contact_without_contact_fails(shallow):
