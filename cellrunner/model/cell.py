@@ -180,5 +180,3 @@ class Cell(Strict):
                 data = {**data, "tool": data["tools"][name]}
         return data
 
-    def tool_named(self, name: str) -> Tool:
-        return self.tools[name] if self.tools else self.tool
