@@ -125,3 +125,30 @@ def test_change_tool_through_ur_rtde(tmp_path):
         assert out["result_code"] == 0, (out["result_text"], out["steps"])
         state = json.loads(FaultClient(host).command("state"))
         assert state["payload_kg"] == 1.0  # the jaws again, as every job starts
+
+
+def fault_later(host: str, command: str, after_s: float) -> None:
+    import threading
+
+    from cellrunner.twin.server import FaultClient
+
+    def strike() -> None:
+        time.sleep(after_s)
+        FaultClient(host).command(command)
+
+    threading.Thread(target=strike, daemon=True).start()
+
+
+def test_peg_protective_stop_and_estop_through_ur_rtde():
+    """A protective stop during the insert is held and resumed (the controller's 5 s); an
+    e-stop ends the job with 101."""
+    host = "127.0.0.118"
+    with twin(PEG[0], host):
+        fault_later(host, "protective_stop", 7.0)  # planning ~1-2 s, then ~4 s to the insert
+        out = run(*PEG, host)
+        assert out["result_code"] == 0, (out["result_text"], out["steps"])
+        assert out["cycle_time_s"] > 15.0  # 12 s job plus the unlock delay
+    with twin(PEG[0], "127.0.0.119"):
+        fault_later("127.0.0.119", "estop press", 5.0)
+        out = run(*PEG, "127.0.0.119")
+        assert out["result_code"] == 101, (out["result_text"], out["steps"])
