@@ -28,31 +28,24 @@ from typing import Generator
 import numpy as np
 
 from cellrunner.execution.context import JobContext
+from cellrunner.execution.steps import AVERAGE_S, OK, SETTLE_S, START_TOLERANCE_RAD, Outcome, sensor_dropped
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 
-#: stand still this long before the baseline, then average it over AVERAGE_S (s)
-SETTLE_S = 0.1
-AVERAGE_S = 0.05
 #: after a contact stop, wait at most this long for the arm to stand still (s)
 STOP_WAIT_S = 1.0
 #: joint speed under which the arm stands still (rad/s)
 STILL_RAD_S = 2e-3
-#: the gripper's sensor must read false this long before the part counts as lost (s)
-SENSOR_DEBOUNCE_S = 0.05
 #: a force over the limit stops the line when two measurements in a row show it, or at
 #: once when it is this many times the limit: a one-period jolt (a late set-point shakes
 #: the tool's mass) is not a contact, a hard hit is
 HARD_HIT_FACTOR = 2.0
 #: contact begins where the force first rises above this fraction of the step's limit
 TOUCH_FRACTION = 0.2
-#: the arm must be this close to the approved line's start to stream it (rad)
-START_TOLERANCE_RAD = 2e-3
 
 
-def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[None, None, object]:
-    from cellrunner.execution.steps import OK, Outcome
-
+def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[None, None, Outcome]:
+    """Stream ``step``'s approved line until its force limit; the step's Outcome."""
     baseline = yield from _baseline(ctx)
     args = step.args
     limit_N = args.force if step.kind == "move_until_contact" else args.force.max
@@ -72,10 +65,10 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         t_last = ctx.now_s
         force_N = math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)
         trace.append((ctx.now_s, step.index, force_N))
-        lost = _sensor_lost(ctx)
-        if lost:
+        sensor = sensor_dropped(ctx)  # (the wrist load is the contact's business here)
+        if sensor is not None:
             ctx.backend.stop_motion()
-            return Outcome.failed(ResultCode.PART_LOST, lost)
+            return Outcome.failed(ResultCode.PART_LOST, f"part lost during {step.kind}: the {sensor} dropped")
         if touch_i is None and force_N > TOUCH_FRACTION * limit_N:
             touch_i = i
         if force_N > limit_N and (above or force_N > HARD_HIT_FACTOR * limit_N):
@@ -112,20 +105,6 @@ def _retract(ctx: JobContext, approved, i_from: int, i_to: int, trace: list, ste
         yield
         trace.append((ctx.now_s, step.index, math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)))
     yield from _until_still(ctx, trace, step, baseline)
-
-
-def _sensor_lost(ctx: JobContext) -> str | None:
-    """The carried part is gone by its gripper's sensor (the wrist load is the contact's
-    business during a force step)."""
-    carry = ctx.carry
-    if carry is None or carry.confirm is None or ctx.state.inputs.get(carry.confirm):
-        ctx.notes.pop("sensor_false_since", None)
-        return None
-    since = ctx.notes.setdefault("sensor_false_since", ctx.now_s)
-    if ctx.now_s - since >= SENSOR_DEBOUNCE_S:
-        sensor = "vacuum switch" if ctx.gripper_kind == "vacuum" else "jaw sensor"
-        return f"part lost during the force step: the {sensor} dropped"
-    return None
 
 
 def _baseline(ctx: JobContext) -> Generator[None, None, list[float]]:

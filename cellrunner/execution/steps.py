@@ -16,7 +16,7 @@ import numpy as np
 
 from cellrunner.execution.context import Carry, JobContext
 from cellrunner.model.codes import ResultCode
-from cellrunner.execution.force import run_force
+from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock
 from cellrunner.model.expand import Step
 from cellrunner.model.force_steps import FORCE_KINDS
 
@@ -49,7 +49,8 @@ OK = Outcome(True)
 def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     """Stream the approved trajectory of ``step``; replan from where the arm is when it
     does not stand at the trajectory's start (after a stop or a retry)."""
-    if step.kind in FORCE_KINDS:  # a guarded line (cellrunner.execution.force)
+    if step.kind in FORCE_KINDS:  # a guarded line
+        from cellrunner.execution.force import run_force
         return (yield from run_force(ctx, step, resume))
     q_now = ctx.state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
@@ -182,18 +183,27 @@ def run_wait(ctx: JobContext, step: Step) -> StepGen:
     return OK
 
 
+def sensor_dropped(ctx: JobContext) -> str | None:
+    """The gripper's sensor ('jaw sensor', 'vacuum switch') when it has read false for
+    SENSOR_DEBOUNCE_S while a part is carried, else None."""
+    carry = ctx.carry
+    if carry is None or carry.confirm is None or ctx.state.inputs.get(carry.confirm):
+        ctx.notes.pop("sensor_false_since", None)
+        return None
+    since = ctx.notes.setdefault("sensor_false_since", ctx.now_s)
+    if ctx.now_s - since >= SENSOR_DEBOUNCE_S:
+        return "vacuum switch" if ctx.gripper_kind == "vacuum" else "jaw sensor"
+    return None
+
+
 def _part_lost(ctx: JobContext) -> str | None:
     """Why the carried part is gone, judged from the jaw sensor and the wrist load."""
     carry = ctx.carry
     if carry is None:
         return None
-    if carry.confirm is not None:
-        if ctx.state.inputs.get(carry.confirm):
-            ctx.notes.pop("sensor_false_since", None)
-        else:
-            since = ctx.notes.setdefault("sensor_false_since", ctx.now_s)
-            if ctx.now_s - since >= SENSOR_DEBOUNCE_S:
-                return f"part lost in transit: the {'vacuum switch' if ctx.gripper_kind == 'vacuum' else 'jaw sensor'} dropped"
+    sensor = sensor_dropped(ctx)
+    if sensor is not None:
+        return f"part lost in transit: the {sensor} dropped"
     if carry.load_N is not None and carry.min_N > 0:
         # plain floats: numpy's per-call cost dwarfs a 3-vector norm, and this runs every tick
         load = math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), carry.baseline_N.tolist())
@@ -202,8 +212,6 @@ def _part_lost(ctx: JobContext) -> str | None:
             return f"part lost in transit: the wrist load fell to {load_lp:.1f} N"
     return None
 
-
-from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock  # noqa: E402
 
 BEHAVIOURS = {
     "tool_lock": run_tool_lock,

@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from cellrunner.model.gripper import CUP_LENGTH_M  # a cup's body above its face, as planning checks it
+
 #: a cup seals on a face this close (m) ...
 SEAL_GAP_M = 0.002
 #: ... and this square to the cup's axis (deg)
@@ -35,8 +37,6 @@ SEAL_ANGLE_DEG = 10.0
 CUP_FRICTION = 0.5
 #: low-pass weight of each period's pull (contact spikes last one period, weight does not)
 PULL_FILTER = 0.3
-#: a cup's body length above its face (m), as planning checks it
-from cellrunner.model.gripper import CUP_LENGTH_M  # noqa: E402
 
 
 @dataclass(frozen=True)
