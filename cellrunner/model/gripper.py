@@ -58,17 +58,19 @@ def gripper_shapes(gripper, T_flange_tcp: np.ndarray) -> list[Placed]:
 
 def part_center_depth_m(gripper, shape) -> float:
     """How far below its frame (along the frame's Z, into the part) a part's centre lies:
-    a suction gripper holds a part by its top face (at the frame), jaws by its middle."""
+    a suction gripper holds a part by its top face, under the cups' faces (at the frame when
+    the cups sit at the TCP), jaws by its middle."""
     if gripper is None or gripper.kind != "vacuum":
         return 0.0
     from cellrunner.model.geometry import Box, Cylinder, Sphere
+    cups_z = max((float(c.xyz[2]) for c in gripper.cups), default=0.0)
     if isinstance(shape, Box):
-        return float(shape.size_m[2]) / 2
+        return cups_z + float(shape.size_m[2]) / 2
     if isinstance(shape, Cylinder):
-        return float(shape.length_m) / 2
+        return cups_z + float(shape.length_m) / 2
     if isinstance(shape, Sphere):
-        return float(shape.radius_m)
-    return 0.0
+        return cups_z + float(shape.radius_m)
+    return cups_z
 
 
 def gripper_channels(gripper, outputs: dict[str, str], inputs: dict[str, str]):
