@@ -3,8 +3,9 @@
 ``move_until_contact`` and ``insert`` stream the line ``check`` approved (to
 ``max_distance`` / ``depth``) set-point by set-point, as every motion does, and watch the
 wrist force (the controller's ``actual_TCP_force``, base axes) against a baseline taken
-standing still just before. A force rise above the step's limit for two periods in a row
-(or twice the limit at once) stops the arm (stopJ / servoStop) where it is:
+standing still just before. A force rise above the step's limit over the last three
+measurements (or three times the limit at once) stops the arm (stopJ / servoStop) where
+it is:
 
 - ``move_until_contact``: contact is success, and the arm goes back along the line to
   where the contact began (as ur_rtde's moveUntilContact retracts); the line's end without
@@ -36,10 +37,11 @@ from cellrunner.model.expand import Step
 STOP_WAIT_S = 1.0
 #: joint speed under which the arm stands still (rad/s)
 STILL_RAD_S = 2e-3
-#: a force over the limit stops the line when two measurements in a row show it, or at
-#: once when it is this many times the limit: a one-period jolt (a late set-point shakes
-#: the tool's mass) is not a contact, a hard hit is
-HARD_HIT_FACTOR = 2.0
+#: the line stops when the mean of the last CONFIRM_SAMPLES measurements is over the
+#: limit, or at once on one over HARD_HIT_FACTOR x the limit: a jolt of a few periods (a
+#: late set-point shakes the tool's mass) is not a contact, a hard hit is
+CONFIRM_SAMPLES = 3
+HARD_HIT_FACTOR = 3.0
 #: contact begins where the force first rises above this fraction of the step's limit
 TOUCH_FRACTION = 0.2
 
@@ -55,7 +57,8 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
     trace = ctx.notes.setdefault("force_trace", [])
     q = approved.trajectory.q_rad
-    contact_N, touch_i, above, t_last = None, None, False, None
+    contact_N, touch_i, t_last = None, None, None
+    recent: list[float] = []
     for i in range(len(q)):
         ctx.backend.servo(approved, i)
         ctx.commanded_q = q[i]
@@ -71,10 +74,10 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
             return Outcome.failed(ResultCode.PART_LOST, f"part lost during {step.kind}: the {sensor} dropped")
         if touch_i is None and force_N > TOUCH_FRACTION * limit_N:
             touch_i = i
-        if force_N > limit_N and (above or force_N > HARD_HIT_FACTOR * limit_N):
+        recent = (recent + [force_N])[-CONFIRM_SAMPLES:]
+        if sum(recent) / CONFIRM_SAMPLES > limit_N or force_N > HARD_HIT_FACTOR * limit_N:
             contact_N = force_N
             break
-        above = force_N > limit_N
     if contact_N is not None:
         ctx.backend.stop_motion()
         ctx.commanded_q = None  # pressing, not tracking

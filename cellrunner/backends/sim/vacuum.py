@@ -9,8 +9,9 @@ equality to the tool body, inactive at start. Every period, with the suction out
   square to one of the part's faces (within ``SEAL_ANGLE_DEG``); the part's weld is then
   activated at the pose the part has (no jump);
 - the weld's force on the part, split into pull along the cup axis and shear across it,
-  is held only while ``pull + shear / CUP_FRICTION`` (low-pass filtered over a few
-  periods) stays under the holding force; above it the part tears off;
+  is held only while ``pull + shear / CUP_FRICTION`` (low-pass filtered, PULL_TAU_S)
+  stays under the holding force; above it the part tears off (and does not seal again
+  until suction is switched off and on);
 - suction off (or a blow-off pulse) releases at once; ``part_slip`` opens a leak once the
   held part is in the air (the seal is lost until suction is switched off and on again);
   ``grip_miss`` moves the part away as suction comes on.
@@ -35,8 +36,9 @@ SEAL_GAP_M = 0.002
 SEAL_ANGLE_DEG = 10.0
 #: friction of a sealed cup against shear (lateral force holds up to this x the pull rating)
 CUP_FRICTION = 0.5
-#: low-pass weight of each period's pull (contact spikes last one period, weight does not)
-PULL_FILTER = 0.3
+#: time constant (s) of the low-pass on the pull: a seal leaks for a while before it lets
+#: go, so a jolt of a few milliseconds does not tear a part off, a sustained pull does
+PULL_TAU_S = 0.05
 
 
 @dataclass(frozen=True)
@@ -88,6 +90,7 @@ class VacuumCups:
         self.held: frozenset[str] = frozenset()
         self.suction = False
         self.leak = False
+        self.torn: set[str] = set()
         self.grip_miss_armed = False
         self.slip_armed = False
         self._pull_lp: dict[str, float] = {}
@@ -115,6 +118,7 @@ class VacuumCups:
             on = False
         if on and not self.suction:
             self.leak = False
+            self.torn.clear()
             if self.grip_miss_armed:
                 self.grip_miss_armed = False
                 w._move_part_away(reach_m=0.1)
@@ -131,6 +135,7 @@ class VacuumCups:
         for name in list(self.held):
             if self._pull_N(name) > self.vac.holding_force_N:
                 self._drop(name)
+                self.torn.add(name)  # open to the air: no seal on it until suction is cycled
         if self.slip_armed and any(self._in_air(p) for p in self.held):
             self.slip_armed = False
             self.leak = True
@@ -160,6 +165,8 @@ class VacuumCups:
         cos_max = math.cos(math.radians(SEAL_ANGLE_DEG))
         fromto = np.zeros(6)
         for name, geom in w._ids.part_geom.items():
+            if name in self.torn:
+                continue
             R_part = d.xmat[w._ids.part_bodies[name]].reshape(3, 3)
             if float(np.max(np.abs(R_part.T @ axis))) < cos_max:
                 continue
@@ -208,6 +215,7 @@ class VacuumCups:
         pull = float(np.dot(f_on_part, -axis))  # towards the cups: what the seal must hold
         shear = float(np.linalg.norm(f_on_part + pull * axis))
         load = max(pull, 0.0) + shear / CUP_FRICTION
-        lp = self._pull_lp[name] = (1 - PULL_FILTER) * self._pull_lp.get(name, load) + PULL_FILTER * load
+        alpha = min(1.0, w.period_s / PULL_TAU_S)
+        lp = self._pull_lp[name] = (1 - alpha) * self._pull_lp.get(name, load) + alpha * load
         self.last_pull_N = lp
         return lp
