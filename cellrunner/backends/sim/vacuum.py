@@ -36,6 +36,9 @@ SEAL_GAP_M = 0.002
 SEAL_ANGLE_DEG = 10.0
 #: friction of a sealed cup against shear (lateral force holds up to this x the pull rating)
 CUP_FRICTION = 0.5
+#: a cup's rubber lip is compliant: its contacts are MuJoCo's default softness, not the
+#: stiff grasp contacts of the jaws (a held part hangs on its weld, not on the contact)
+CUP_SOLREF = "0.02 1"
 #: time constant (s) of the low-pass on the pull: a seal leaks for a while before it lets
 #: go, so a jolt of a few milliseconds does not tear a part off, a sustained pull does
 PULL_TAU_S = 0.05
@@ -64,7 +67,7 @@ def add_cups(builder: Any, tool: ET.Element, vac: VacuumDescription, T_flange_tc
         T = T_flange_tcp @ geometry.pose_matrix((x, y, z - CUP_LENGTH_M / 2))
         ET.SubElement(tool, "geom", name=f"cup:{i}", type="cylinder", size=f"{r:.6g} {CUP_LENGTH_M / 2:.6g}",
                       material="pad", density="0", friction="1 0.01 0.0001", condim="4",
-                      solref=builder.grasp_solref, contype=str(pads_kind), conaffinity=str(hits),
+                      solref=CUP_SOLREF, contype=str(pads_kind), conaffinity=str(hits),
                       **_pose_attrs(T))
 
 
