@@ -7,8 +7,9 @@ import sys
 
 from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
-from cellrunner.execution.cell import CellController, run_until_done
+from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
+from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode
 
@@ -28,22 +29,21 @@ def run(args) -> int:
                                 job_planner(CellWorld(cell)), log=log, wait_for_unhold=False)
     out = console()
     controller.setup()
+    loop = ControlLoop(controller)
     try:
-        for _ in range(5):
-            backend.wait_period()
-            controller.tick()
+        loop.step(5)
         ticket = controller.start_job(1, params, "", "cli")
         if not ticket.accepted:
             sys.stderr.write(f"cellrunner run: job refused: {ticket.message}\n")
             return 1
         with out.status(f"running {task.name} on the {kind} backend", spinner="dots"):
-            run_until_done(controller, max_s=3600.0)
-        runner = controller.last_runner
+            loop.run_job(max_s=3600.0)
+        job = controller.last_job
         result = controller.status().last_result
     finally:
         controller.close()
     code = ResultCode(result.result_code)
-    rows = record_rows(runner)
+    rows = record_rows(job)
     payload = {"ok": code is ResultCode.OK, "cell": cell.cell.cell, "task": task.name, "params": params,
                "cycle_time_s": round(result.cycle_time_s, 4), "result_code": int(code),
                "result_text": result.result_text, "job_id": result.job_id, "backend": kind, "steps": rows,

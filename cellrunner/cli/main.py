@@ -13,6 +13,13 @@ import sys
 
 from cellrunner import __version__
 
+# Native thread pools (OpenMP, OpenBLAS) would spin a thread per core beside our own
+# single-threaded planning and control loops; one thread each unless the user says otherwise.
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
+# pydantic would scan every installed distribution for plugins at the first model (~10 ms)
+os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "1")
+
 EXIT_OK, EXIT_FAILED, EXIT_INPUT, EXIT_UNREACHABLE = 0, 1, 2, 3
 
 EPILOG = """exit codes: 0 success, 1 task infeasible or job failed, 2 invalid input,

@@ -24,6 +24,8 @@ StepGen = Generator[None, None, "Outcome"]
 
 #: joint distance (rad, max over joints) under which the arm is "at" a trajectory's start
 START_TOLERANCE_RAD = 2e-3
+#: a planned continuation slower than this (rad/s) may start from rest as it is
+CONTINUATION_MIN_RAD_S = 1e-3
 #: the wrist load is averaged over this long when weighing or taking a baseline (s)
 AVERAGE_S = 0.05
 #: stand still this long before a wrist baseline or a weighing (motion transients, s)
@@ -54,7 +56,8 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
         return (yield from run_force(ctx, step, resume))
     q_now = ctx.state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
-    if approved is None or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD:
+    if approved is None or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD \
+            or (ctx.motions.continues(step) and _at_rest_for(approved, ctx.state)):
         approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
     q = approved.trajectory.q_rad
     # a non-stop continuation starts on the set-point just streamed: don't send it twice
@@ -69,6 +72,17 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
                 ctx.backend.stop_motion()
                 return Outcome.failed(ResultCode.PART_LOST, lost)
     return OK
+
+
+def _at_rest_for(approved, state) -> bool:
+    """A trajectory planned to continue a motion without stopping, while the arm stands
+    (the motion before it was interrupted and finished from rest): its first set-points
+    would jerk the arm from rest, so the step is replanned from where it stands."""
+    q = approved.trajectory.q_rad
+    if len(q) < 2:
+        return False
+    planned_rad_s = float(np.abs(q[1] - q[0]).max()) * approved.trajectory.rate_hz
+    return planned_rad_s > CONTINUATION_MIN_RAD_S and float(np.abs(state.qd_rad_s).max()) < 0.5 * planned_rad_s
 
 
 def run_grip(ctx: JobContext, step: Step) -> StepGen:
