@@ -116,7 +116,8 @@ def run(args) -> int:
                "injected": [i.spec for i in injections],
                "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None,
                "parts_end_m": _parts_end(backend)}
-    recorder.force_trace = runner.ctx.notes.get("force_trace", []) if runner else []
+    runner = controller.last_runner  # finished: the control loop no longer touches it
+    recorder.force_trace = list(runner.ctx.notes.get("force_trace", [])) if runner else []
     recorder.force_limits = {s.index: s.args.force if s.kind == "move_until_contact" else s.args.force.max
                              for s in steps if s.kind in ("move_until_contact", "insert")}
     has_pictures = _write_report(recorder, payload, backend) if recorder.report is not None else True

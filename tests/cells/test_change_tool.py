@@ -38,13 +38,15 @@ def test_change_tool_expands_and_plans_with_the_new_tcp(files):
     world = CellWorld(cell)
     plan = plan_task(world, steps, world.q_home_rad)
     assert plan.ok, plan.errors
-    move_spot = next(r for r in plan.rows if r.step.kind == "move" and r.step.name == "spot")
-    spot = frame_pose(cell.cell, "spot")[:3, 3]
-    q = move_spot.q_end_rad
-    # the cup (TCP 0.22 m) stands at the spot; the jaws' TCP (0.15 m) would be 7 cm above it
-    assert np.allclose(world.with_tool("cup").kinematics.T_world_tcp(q)[:3, 3], spot, atol=1e-4)
-    assert np.allclose(world.kinematics.T_world_tcp(q)[:3, 3], spot + [0, 0, 0.07], atol=1e-4)
-    assert move_spot.world.loaded.cell.tool.gripper.kind == "vacuum"
+    # parking the cup: its descend (planned with the cup mounted) ends with the cup's TCP
+    # (0.22 m) on the rack frame; the jaws' TCP (0.15 m) would be 7 cm above it
+    park = plan.rows[11]
+    assert (park.step.kind, park.step.name) == ("descend", "rack[cup]")
+    rack = frame_pose(cell.cell, "rack_cup")[:3, 3]
+    q = park.q_end_rad
+    assert np.allclose(world.with_tool("cup").kinematics.T_world_tcp(q)[:3, 3], rack, atol=1e-4)
+    assert np.allclose(world.kinematics.T_world_tcp(q)[:3, 3], rack + [0, 0, 0.07], atol=1e-4)
+    assert park.world.loaded.cell.tool.gripper.kind == "vacuum"
     # the rack approach after the unlock carries no tool geometry, the one after the lock the cup's
     assert [p.name for p in plan.rows[5].world.tool] == []
     assert {p.name for p in plan.rows[9].world.tool} == {"gripper", "cup0"}
