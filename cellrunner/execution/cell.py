@@ -119,12 +119,14 @@ class CellController:
     def __init__(self, cell: LoadedCell, tasks: dict[int, LoadedTask], backend: RobotBackend,
                  journal: Journal, planner: Planner, *, log=None, wait_for_unhold: bool = True,
                  on_step_start: Callable[[Step, int], None] | None = None,
-                 on_job_start: Callable[[], None] | None = None):
+                 on_job_start: Callable[[], None] | None = None,
+                 gate: Callable[[Step], bool] | None = None):
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
         self.planner, self.log = planner, log
         self.wait_for_unhold = wait_for_unhold
         self.on_step_start = on_step_start
         self.on_job_start = on_job_start  # e.g. the twin's infeed brings the next part
+        self.gate = gate  # run --step: each step starts once gate(step) is true
         self.sm = StateMachine(S.STOPPED)
         self._lock = threading.RLock()
         self._job: _Job | None = None
@@ -382,7 +384,7 @@ class CellController:
         job.planned = plan
         ctx = self._context(plan.motions, job.job_id)
         runner = JobRunner(ctx, plan.steps, job.task.task.on_protective_stop, wait_for_unhold=self.wait_for_unhold,
-                           on_step=lambda rec, attempt: self._journal_step(job, rec, attempt))
+                           gate=self.gate, on_step=lambda rec, attempt: self._journal_step(job, rec, attempt))
         runner.start()
         return runner
 

@@ -78,6 +78,7 @@ class _Item:
     attempt: int = 1
     behaviour: str = "step"  # step | weigh
     resume: bool = False
+    gated: bool = False  # the gate (run --step) let it start
     between: bool = False  # a retry's in-between step (not a row of its own)
 
 
@@ -88,6 +89,7 @@ class JobRunner:
     protective_stop: ProtectiveStopPolicy = field(default_factory=ProtectiveStopPolicy)
     wait_for_unhold: bool = False  # serve: a held job may wait for the PLC's Unhold
     on_step: Callable[[StepRecord, int], None] | None = None  # journal hook
+    gate: Callable[[Step], bool] | None = None  # run --step: a step starts once gate(step) is true
 
     phase: JobPhase = JobPhase.IDLE
     result: ResultCode | None = None
@@ -295,6 +297,10 @@ class JobRunner:
 
     def _start_item(self, item: _Item) -> None:
         step = item.step
+        if self.gate is not None and not (item.gated or item.between or item.resume) and item.behaviour == "step":
+            self._item_timeout_s = math.inf
+            self._gen = self._await_gate(item)
+            return
         self._item_started_s = self.ctx.now_s
         self._item_timeout_s = self._timeout_s(item)
         record = self.records[step.index]
@@ -313,6 +319,15 @@ class JobRunner:
             self._gen = run_motion(self.ctx, step, resume=item.resume)
         else:
             self._gen = behaviours.BEHAVIOURS[step.kind](self.ctx, step)
+
+    def _await_gate(self, item: _Item):
+        """Stand still until the gate opens, then start the item (its own behaviour runs
+        from the next tick on)."""
+        while not self.gate(item.step):
+            yield
+        item.gated = True
+        self._start_item(item)
+        yield
 
     def _on_outcome(self, outcome: Outcome) -> None:
         item = self._current

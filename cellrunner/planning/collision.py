@@ -495,6 +495,14 @@ class CollisionModel:
         return Clearance(float(distances[k]), float(self._required[k]),
                          self._objects[a].label, self._objects[b].label)
 
+    def pair_distances(self, q_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance (m) and required clearance (m) of every checked pair at
+        ``q_rad``, in :meth:`pair_labels` order (the jog governor watches fixtures)."""
+        if not len(self._pairs):
+            return np.empty(0), np.empty(0)
+        self._update(q_rad)
+        return self._exact(np.arange(len(self._pairs))), np.asarray(self._required, float)
+
     def min_distance(self, q_rad: np.ndarray) -> tuple[float, str, str]:
         """The smallest signed distance over the checked pairs (m) and their names."""
         if not len(self._pairs):

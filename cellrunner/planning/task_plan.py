@@ -140,8 +140,10 @@ class TaskPlan:
         return rows[-1].carrying if rows else None
 
 
-def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> TaskPlan:
-    """Plan every step of a job; failures are recorded per step (the rest is not planned)."""
+def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray, *, joined: bool = True) -> TaskPlan:
+    """Plan every step of a job; failures are recorded per step (the rest is not planned).
+    ``joined=False`` (run --step) ends every motion at rest: the same waypoints, each
+    timed from rest to rest, so that the job can pause between any two steps."""
     planner = _StepPlanner(world, np.asarray(q_start_rad, float), None)
     rows = [StepPlan(s, status="not planned") for s in steps]
     plan = TaskPlan(world, steps, rows, np.asarray(q_start_rad, float))
@@ -151,7 +153,7 @@ def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> T
     def flush() -> None:
         nonlocal group, q_group_start
         if group:
-            _time_group(world, group, q_group_start)
+            _time_group(world, group, q_group_start, joined)
             group = []
         q_group_start = planner.q
 
@@ -335,10 +337,10 @@ class _StepPlanner:
             return None
 
 
-def _time_group(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> None:
+def _time_group(world: CellWorld, group: list[_Motion], q_start: np.ndarray, joined: bool = True) -> None:
     """Time a group of motions as one non-stop trajectory with its corners blended
-    (:func:`_blend`); if that fails verification, one by one from rest."""
-    if len(group) > 1:
+    (:func:`_blend`); if that fails verification, or not ``joined``, one by one from rest."""
+    if len(group) > 1 and joined:
         try:
             _apply(world, group, _timed_pieces(world, _blend(world, group), q_start))
             return

@@ -144,9 +144,8 @@ class PlcService:
         """Start the servers; returns once both listen, raises CellrunnerError if not."""
         if self._threads:
             return
-        if self.modbus_config is not None:
-            config = self.modbus_config
-            self._threads.append(_ServerThread("modbus", lambda: ModbusServer(self.port, config)))
+        # OPC UA first: building its address space holds the GIL for seconds, which would
+        # stall a Modbus server already answering (its heartbeat) during start-up
         if self.opcua_config is not None:
             opcua_config = self.opcua_config
 
@@ -156,6 +155,9 @@ class PlcService:
                 return OpcUaServer(self.port, opcua_config, cell_name=self.cell_name)
 
             self._threads.append(_ServerThread("opcua", make_opcua))
+        if self.modbus_config is not None:
+            config = self.modbus_config
+            self._threads.append(_ServerThread("modbus", lambda: ModbusServer(self.port, config)))
         try:
             for thread in self._threads:
                 thread.start(timeout_s)
