@@ -67,9 +67,14 @@ class UsageError(InputError):
 
 
 class InfeasibleError(CellrunnerError):
-    """A task step cannot be carried out safely; the message names the step."""
+    """A task step cannot be carried out safely; the message names the step, and
+    ``blockers`` the links and fixtures found in the way (most frequent first)."""
 
     exit_code = 1
+
+    def __init__(self, message: str, blockers: tuple[str, ...] = ()):
+        super().__init__(message)
+        self.blockers = tuple(blockers)
 
 
 class JobFailed(CellrunnerError):

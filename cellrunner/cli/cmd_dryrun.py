@@ -3,13 +3,12 @@ MuJoCo twin, with faults made to happen physically (``--inject FAULT@STEP``)."""
 
 from __future__ import annotations
 
-import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+from rich.markup import escape
 
 from cellrunner.cli.common import (
     console,
@@ -27,27 +26,16 @@ from cellrunner.execution.journal import Journal
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode
+from cellrunner.report.recorder import RunRecorder
 
 #: e-stop faults are released by the "operator" this long after they struck (sim s)
 PLC_OUTAGE_S = 2.0
-#: written into a report that has plots but no rendered pictures
-NO_PICTURES = "NO_PICTURES.txt"
 
-
-@dataclass
-class _Recorder:
-    """What the report needs: samples of the run, and pictures at key moments."""
-
-    report: Path | None
-    t: list = field(default_factory=list)
-    q: list = field(default_factory=list)
-    qd: list = field(default_factory=list)
-    q_cmd: list = field(default_factory=list)
-    tcp: list = field(default_factory=list)
-    marks: list = field(default_factory=list)
-    pictures: list = field(default_factory=list)
-    force_trace: list = field(default_factory=list)  # (t_s, step index, N) of the force steps
-    force_limits: dict = field(default_factory=dict)  # step index -> its stop force (N)
+def _parts_end(backend) -> dict[str, list[float]]:
+    """Where each part of the twin ended (world position, m)."""
+    world = backend.world
+    return {p.name: [round(float(v), 5) for v in world.part_pose_world(p.name)[:3, 3]]
+            for p in backend.description.parts}
 
 
 def run(args) -> int:
@@ -65,11 +53,12 @@ def run(args) -> int:
     world = CellWorld(cell)
     backend = SimBackend(description_of(cell))
     pending: list[tuple[Injection, float]] = []
-    recorder = _Recorder(Path(args.report) if args.report else None)
+    report = Path(args.report) if args.report else None
+    recorder = RunRecorder()
 
     def on_step_start(step, attempt):
         now = backend.read_state().time_s
-        recorder.marks.append((now, f"{step.index} {step.kind}"))
+        recorder.mark(now, step)
         for inj in injections:
             if inj.step_index == step.index and attempt == 1 and all(p[0] is not inj for p in pending):
                 pending.append((inj, now + inj.delay_s))
@@ -94,7 +83,8 @@ def run(args) -> int:
         wall_plan_s = time.perf_counter() - t0
         t_run = time.perf_counter()
         sim_t0 = backend.read_state().time_s
-        rehearsal = _Rehearsal(backend, pending, recorder, status, steps, world)
+        rehearsal = _Rehearsal(backend, pending, recorder if report else None, status, steps, world,
+                               {**cell.cell.io.outputs, **cell.cell.io.inputs})
         loop.add_observer(rehearsal.observe)
         loop.step(1)  # the plan is picked up: the job runs (or ended with 103)
         view = controller.job_view(records=False) or controller.last_job
@@ -116,24 +106,32 @@ def run(args) -> int:
                "injected": [i.spec for i in injections],
                "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None,
                "parts_end_m": _parts_end(backend)}
+    has_pictures = True
+    if report is not None:
+        from cellrunner.report import write_report
+        has_pictures = write_report(report, recorder, payload, sim_world=backend.world, world=world, task=task,
+                                    params=params, step_rows=rows)
     runner = controller.last_runner  # finished: the control loop no longer touches it
-    recorder.force_trace = list(runner.ctx.notes.get("force_trace", [])) if runner else []
-    recorder.force_limits = {s.index: s.args.force if s.kind == "move_until_contact" else s.args.force.max
-                             for s in steps if s.kind in ("move_until_contact", "insert")}
-    has_pictures = _write_report(recorder, payload, backend) if recorder.report is not None else True
+    trace = list(runner.ctx.notes.get("force_trace", [])) if runner else []
+    if report is not None and trace:
+        from cellrunner.report.plots import plot_wrist_force
+        limits = {s.index: s.args.force if s.kind == "move_until_contact" else s.args.force.max
+                  for s in steps if s.kind in ("move_until_contact", "insert")}
+        plot_wrist_force(Path(report) / "wrist_force.png", trace, limits,
+                         title=f"{task.name}: wrist force in the force steps")
     controller.close()
     if args.json:
         emit_json(payload)
     else:
         out.print(step_table(f"dry-run {task.name} on {cell.cell.cell} (MuJoCo twin)", rows, ("attempts",)))
         verdict = "[green]OK[/]" if code is ResultCode.OK else f"[bold red]{code.name}[/]"
-        out.print(f"result {int(code)} {verdict}: {result.result_text}")
+        out.print(f"result {int(code)} {verdict}: {escape(result.result_text)}")
         out.print(f"cycle time {result.cycle_time_s:.2f} s simulated vs {planned:.2f} s planned; "
                   f"max tracking error {tracking * 1000:.2f} mm; retries {payload['retries']}; "
                   f"planning {wall_plan_s:.2f} s, simulation {wall_run_s:.2f} s wall "
                   f"({payload['real_time_factor']}x real time)")
-        if recorder.report is not None:
-            out.print(f"report written to {recorder.report}/")
+        if report is not None:
+            out.print(f"report written to {report}/index.html", markup=False)
     if not has_pictures:
         from cellrunner.backends.sim._mj import GL_ADVICE
         out.print(f"no pictures in the report: no OpenGL backend here ({GL_ADVICE} gives one)", soft_wrap=True)
@@ -143,17 +141,17 @@ def run(args) -> int:
 @dataclass
 class _Rehearsal:
     """A control-loop observer: applies the injections when their moment comes, shows
-    progress, and records the run for the report."""
+    progress, and records the run for the report (``recorder`` None: no report)."""
 
     backend: Any
     pending: list
-    recorder: _Recorder
+    recorder: RunRecorder | None
     status: Any
     steps: list
     world: Any
+    io_names: dict  # IO name -> channel, for the report's IO lanes
     plc_back_at: float | None = None
     last_step: int = -1
-    n: int = 0
 
     def observe(self, cell: CellController) -> None:
         backend, recorder = self.backend, self.recorder
@@ -176,67 +174,10 @@ class _Rehearsal:
         steps = self.steps
         if view.step != self.last_step:
             self.last_step = view.step
-            self.status.update(f"step {view.step}/{len(steps)} {steps[view.step - 1].kind} "
-                               f"{steps[view.step - 1].name}" if view.step else "running")
-            if recorder.report is not None and view.step and steps[view.step - 1].kind in ("grip", "release"):
-                recorder.pictures.append((f"step{view.step:02d}_{steps[view.step - 1].kind}", _snapshot(backend)))
-        if self.n % max(1, int(backend.rate_hz / 50)) == 0 and recorder.report is not None:
-            recorder.t.append(now)
-            recorder.q.append(state.q_rad.copy())
-            recorder.qd.append(state.qd_rad_s.copy())
-            recorder.q_cmd.append(view.commanded_q_rad if view.commanded_q_rad is not None else state.q_rad.copy())
-            recorder.tcp.append(self.world.kinematics.T_world_tcp(state.q_rad)[:3, 3])
-        self.n += 1
-
-
-def _parts_end(backend) -> dict[str, list[float]]:
-    """Where each part of the twin ended (world position, m)."""
-    world = backend.world
-    return {p.name: [round(float(v), 5) for v in world.part_pose_world(p.name)[:3, 3]]
-            for p in backend.description.parts}
-
-
-def _snapshot(backend) -> np.ndarray | None:
-    from cellrunner.backends.sim.render import CellRenderer, RenderUnavailable
-    try:
-        with CellRenderer(backend.world, 800, 600) as renderer:
-            return renderer.render()
-    except RenderUnavailable:
-        return None
-
-
-def _write_report(recorder: _Recorder, payload: dict, backend) -> bool:
-    """Write the report folder; returns whether it holds rendered pictures."""
-    from cellrunner.backends.sim import render
-
-    folder = recorder.report
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "result.json").write_text(json.dumps(payload, indent=2))
-    pictures = list(recorder.pictures)
-    pictures.append(("end", _snapshot(backend)))
-    written = []
-    for name, image in pictures:
-        if image is None:
-            continue
-        path = folder / f"{name}.png"
-        import matplotlib.pyplot as plt
-        plt.imsave(path, image)
-        written.append(path.name)
-    if recorder.t:
-        t = np.array(recorder.t) - recorder.t[0]
-        marks = [(m - recorder.t[0], label) for m, label in recorder.marks]
-        render.plot_joints(folder / "joints.png", t, np.array(recorder.q), np.array(recorder.qd),
-                           q_ref_rad=np.array(recorder.q_cmd), title=f"{payload['task']}: joints", marks=marks)
-        render.plot_tcp_path(folder / "tcp_path.png", np.array(recorder.tcp), title=f"{payload['task']}: TCP path")
-        written += ["joints.png", "tcp_path.png"]
-    if recorder.force_trace:
-        render.plot_wrist_force(folder / "wrist_force.png", recorder.force_trace, recorder.force_limits,
-                                title=f"{payload['task']}: wrist force in the force steps")
-        written.append("wrist_force.png")
-    has_pictures = any(name.endswith(".png") and name not in ("joints.png", "tcp_path.png", "wrist_force.png")
-                       for name in written)
-    (folder / NO_PICTURES).unlink(missing_ok=True)
-    if not has_pictures:
-        from cellrunner.backends.sim._mj import GL_ADVICE
-        (folder / NO_PICTURES).write_text(f"no offscreen OpenGL backend here: {GL_ADVICE} gives one\n")
-    return has_pictures
+            self.status.update(escape(f"step {view.step}/{len(steps)} {steps[view.step - 1].kind} "
+                                      f"{steps[view.step - 1].name}") if view.step else "running")
+            if recorder is not None and view.step and steps[view.step - 1].kind in ("grip", "release"):
+                recorder.moment(f"step{view.step:02d}_{steps[view.step - 1].kind}", backend.world)
+        if recorder is not None and recorder.due(now):
+            recorder.sample(state, view.commanded_q_rad, self.world.kinematics.p_world_tcp(state.q_rad),
+                            self.io_names)

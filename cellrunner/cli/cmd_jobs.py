@@ -41,10 +41,13 @@ def run(args) -> int:
     from rich.table import Table
     from cellrunner.cli.common import console
     table = Table(title=f"jobs of {cell.cell.cell} ({path})", title_justify="left")
-    for c in COLUMNS:
-        table.add_column(c, justify="right" if c in ("result_code", "cycle_time_s", "retries") else "left")
+    from rich.text import Text
+    id_width = max([len(str(row["job_id"])) for row in rows], default=6)
+    for c in COLUMNS:  # a job id is never cut (it is what one looks up); the other columns fold
+        table.add_column(c, justify="right" if c in ("result_code", "cycle_time_s", "retries") else "left",
+                         no_wrap=c == "job_id", min_width=id_width if c == "job_id" else None, overflow="fold")
     for row in rows:
-        table.add_row(*[str(row[c]) for c in COLUMNS])
+        table.add_row(*[Text(str(row[c])) for c in COLUMNS])
     console().print(table)
     return 0
 

@@ -68,7 +68,8 @@ def run(args) -> int:
         emit_json(payload)
     else:
         out.print(step_table(f"run {task.name} on {cell.cell.cell} ({kind})", rows, ("attempts",)))
-        out.print(f"job {result.job_id}: result {int(code)} {result.result_text}; cycle {result.cycle_time_s:.2f} s")
+        out.print(f"job {result.job_id}: result {int(code)} {result.result_text}; cycle {result.cycle_time_s:.2f} s",
+                  markup=False)
     if code is ResultCode.ROBOT_CONNECTION_LOST:
         return 3
     return 0 if code is ResultCode.OK else 1

@@ -69,6 +69,7 @@ def console():
 
 def step_table(title: str, rows: list[dict], extra_columns: tuple[str, ...] = ()):
     from rich.table import Table
+    from rich.text import Text
     table = Table(title=title, title_justify="left", show_lines=False, pad_edge=False)
     for name, justify in (("#", "right"), ("kind", "left"), ("name", "left"), ("time s", "right"),
                           ("status", "left"), *[(c, "right") for c in extra_columns], ("message", "left")):
@@ -76,9 +77,9 @@ def step_table(title: str, rows: list[dict], extra_columns: tuple[str, ...] = ()
     colors = {"ok": "green", "failed": "bold red", "not planned": "dim", "skipped": "dim"}
     for r in rows:
         status = r["status"]
-        table.add_row(str(r["index"]), r["kind"], r["name"], f"{r['duration_s']:.2f}",
-                      f"[{colors.get(status, 'yellow')}]{status}[/]",
-                      *[str(r.get(c.replace(' ', '_'), '')) for c in extra_columns], r.get("message", ""))
+        table.add_row(str(r["index"]), r["kind"], Text(r["name"]), f"{r['duration_s']:.2f}",
+                      Text(status, style=colors.get(status, "yellow")),
+                      *[str(r.get(c.replace(' ', '_'), '')) for c in extra_columns], Text(r.get("message", "")))
     return table
 
 

@@ -30,7 +30,9 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str):  # argparse's own usage errors: exit 2, one line
         self.print_usage(sys.stderr)
         sys.stderr.write(f"{self.prog}: error: {message}\n")
-        raise SystemExit(EXIT_INPUT)
+        exit_ = SystemExit(EXIT_INPUT)
+        exit_.message = f"{self.prog}: error: {message}"  # for --json
+        raise exit_
 
 
 def _params(p: argparse.ArgumentParser) -> None:
@@ -145,7 +147,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    words = sys.argv[1:] if argv is None else argv
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:
+        if exc.code == EXIT_INPUT and "--json" in words:
+            _json_failure(argparse.Namespace(json=True), [getattr(exc, "message", "bad command line")])
+        raise
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return EXIT_INPUT
@@ -162,13 +170,16 @@ def main(argv: list[str] | None = None) -> int:
         return int(module.run(args) or 0)
     except UsageError as exc:
         sys.stderr.write(f"cellrunner {args.command}: error: {exc.message}\n")
+        _json_failure(args, [f"cellrunner {args.command}: error: {exc.message}"])
         return EXIT_INPUT
     except InputError as exc:
         for diagnostic in exc.diagnostics:
             sys.stderr.write(f"{diagnostic}\n")
+        _json_failure(args, [str(d) for d in exc.diagnostics])
         return EXIT_INPUT
     except CellrunnerError as exc:
         sys.stderr.write(f"cellrunner {args.command}: error: {exc}\n")
+        _json_failure(args, [f"cellrunner {args.command}: error: {exc}"])
         return exc.exit_code
     except KeyboardInterrupt:
         sys.stderr.write("interrupted\n")
@@ -181,6 +192,17 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"cellrunner {args.command}: internal error: {type(exc).__name__}: {exc} "
                          "(set CELLRUNNER_DEBUG=1 for details)\n")
         return EXIT_FAILED
+
+
+def _json_failure(args: argparse.Namespace, errors: list[str]) -> None:
+    """``--json`` promises one JSON object on stdout, also when the input is refused before
+    anything ran (SPEC section 5): ok false, the errors as printed on stderr."""
+    if not getattr(args, "json", False):
+        return
+    from cellrunner.cli.common import emit_json
+
+    emit_json({"ok": False, "cell": None, "task": None, "params": {}, "cycle_time_s": 0.0, "steps": [],
+               "errors": errors})
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -338,6 +338,8 @@ class JobRunner:
                 record.status = StepStatus.OK
                 record.duration_s = self.ctx.now_s - record.started_s
                 self._journal(record, item.attempt)
+            elif item.behaviour == "weigh":  # the grip's weighing happens after its lift: its time is the grip's
+                record.duration_s += self.ctx.now_s - self._item_started_s
             self._after_success(item)
             return self._next_item()
         grip = self._grip_of(item)

@@ -168,6 +168,8 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     for i, part in enumerate(cell.parts):
         if part.at not in cell.frames:
             report.error(("parts", i, "at"), _unknown("frame", part.at, cell.frames))
+    from cellrunner.model import sanity
+    sanity.check_cell(loaded, report)
     for number, task_path in cell.tasks.items():
         if not loaded.resolve(task_path).is_file():
             report.error(("tasks", number), f"task file {task_path!r} not found "
@@ -211,8 +213,10 @@ def _check_limits(cell: Cell, spec, report: Report) -> None:
                              f"{spec.joint_accel_max_deg_s2:.0f} deg/s^2")
                 break
     if limits.tcp_speed is not None and limits.tcp_speed > spec.tcp_speed_max_mps + 1e-9:
+        slip = (f"; did you mean {limits.tcp_speed:g} mm/s = {limits.tcp_speed / 1000:g} m/s? (write "
+                f"'{limits.tcp_speed:g} mm/s')" if limits.tcp_speed / 1000 <= spec.tcp_speed_max_mps else "")
         report.error(("robot", "limits", "tcp_speed"), f"{limits.tcp_speed:g} m/s is above the {model} "
-                     f"controller's {spec.tcp_speed_max_mps:g} m/s")
+                     f"controller's {spec.tcp_speed_max_mps:g} m/s{slip}")
 
 
 def _joint(i: int) -> str:
@@ -396,6 +400,8 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
     if not report.errors:
         from cellrunner.model.references import check_task_references
         check_task_references(loaded, cell, report)
+        from cellrunner.model import sanity
+        sanity.check_task(loaded, cell, report)
     report.raise_if_errors()
     return loaded
 

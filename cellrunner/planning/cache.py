@@ -64,19 +64,26 @@ def cache_dir(world: CellWorld) -> Path:
 
 
 def plan_cached(world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.ndarray,
-                *, use_cache: bool = True, joined: bool = True) -> TaskPlan:
+                *, use_cache: bool = True, joined: bool = True, on_step=None) -> TaskPlan:
     """The plan of ``task`` with ``params`` from ``q_start_rad``: from the cache when the
-    same inputs were planned before, else planned (and stored when feasible)."""
+    same inputs were planned before, else planned (and stored when feasible).
+    ``on_step(step)``: called per step as it is planned (all at once for a cached plan)."""
     steps = expand(task, world.loaded.cell, params)
     if not use_cache:
-        return plan_task(world, steps, q_start_rad, joined=joined)
+        return plan_task(world, steps, q_start_rad, joined=joined, on_step=on_step)
     key = plan_key(world, task, params, q_start_rad, joined)
-    if key in _MEMORY and _MEMORY[key].world is world:
-        return _MEMORY[key]
+    plan = _MEMORY[key] if key in _MEMORY and _MEMORY[key].world is world else None
+    if plan is not None:
+        for step in steps if on_step is not None else ():
+            on_step(step)
+        return plan
     path = cache_dir(world) / f"{key}.npz"
     plan = _load(path, world, steps, q_start_rad) if path.is_file() else None
+    if plan is not None and on_step is not None:
+        for step in steps:
+            on_step(step)
     if plan is None:
-        plan = plan_task(world, steps, q_start_rad, joined=joined)
+        plan = plan_task(world, steps, q_start_rad, joined=joined, on_step=on_step)
         if plan.ok:
             _store(path, plan)
     if len(_MEMORY) >= _MEMORY_MAX:

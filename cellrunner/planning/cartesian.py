@@ -151,8 +151,13 @@ def plan_linear(
         result = collision.check_path(q_path)
         if not result.ok:
             u_hit = us[int(result.s_blocked or 0)]
-            detail = result.clearance.describe() if result.clearance else "collision"
-            raise InfeasibleError(f"{detail} {u_hit * length_m * 1000:.0f} mm along the line")
+            from cellrunner.planning.blockers import fix_hint
+
+            c = result.clearance
+            names = (c.b, c.a) if c is not None else ()
+            detail = c.describe() if c is not None else "collision"
+            raise InfeasibleError(f"{detail} {u_hit * length_m * 1000:.0f} mm along the line; "
+                                  f"{fix_hint('line', names)}", names)
     return LinearPath(q_path, np.array(us), p0.copy(), p1.copy())
 
 

@@ -143,12 +143,16 @@ class Clearance:
         return self.distance_m - self.required_m
 
     def describe(self) -> str:
-        """'tool collides with fixture 'table' (distance -3.0 mm, needs >= 2.0 mm)'."""
-        verb = "collides with" if self.distance_m <= 0 else "is too close to"
-        return (
-            f"{self.a} {verb} {self.b} (distance {self.distance_m * 1000:.1f} mm, "
-            f"needs >= {self.required_m * 1000:.1f} mm)"
-        )
+        """'tool collides with fixture 'table' (3.0 mm deep; keeps >= 2.0 mm)' or
+        'upper_arm is too close to fixture 'wall' (1.96 mm apart, 0.14 mm short of 2.1 mm)':
+        the shortfall is printed with enough digits never to read as no shortfall."""
+        if self.distance_m <= 0:
+            return (f"{self.a} collides with {self.b} ({-self.distance_m * 1000:.1f} mm deep; "
+                    f"must keep {self.required_m * 1000:.1f} mm)")
+        short_mm = (self.required_m - self.distance_m) * 1000
+        digits = 1 if short_mm >= 0.1 else 2 if short_mm >= 0.01 else 3
+        return (f"{self.a} is too close to {self.b} ({self.distance_m * 1000:.{digits}f} mm apart, "
+                f"{short_mm:.{digits}f} mm short of the {self.required_m * 1000:.1f} mm it must keep)")
 
 
 @dataclass(frozen=True)
@@ -502,6 +506,17 @@ class CollisionModel:
             return np.empty(0), np.empty(0)
         self._update(q_rad)
         return self._exact(np.arange(len(self._pairs))), np.asarray(self._required, float)
+
+    def violations(self, q_rad: np.ndarray) -> list[Clearance]:
+        """Every checked pair closer than its required clearance (+ ``STALL_M``) at
+        ``q_rad``, closest first (what blocks a state, for diagnostics)."""
+        distances, required = self.pair_distances(q_rad)
+        out = []
+        for k in np.flatnonzero(distances - required < STALL_M):
+            a, b = self._pairs[k]
+            out.append(Clearance(float(distances[k]), float(required[k]),
+                                 self._objects[a].label, self._objects[b].label))
+        return sorted(out, key=lambda c: c.margin_m)
 
     def min_distance(self, q_rad: np.ndarray) -> tuple[float, str, str]:
         """The smallest signed distance over the checked pairs (m) and their names."""

@@ -37,6 +37,8 @@ LAZY_RESOLUTION_RAD = 0.05
 #: first, and the number of points of each arc.
 CORNER_FRACTIONS = (0.35, 0.2, 0.1)
 CORNER_POINTS = 32
+#: states in collision a failed search keeps to say what blocked it
+MAX_REFUSED_KEPT = 2000
 
 
 @dataclass(frozen=True)
@@ -167,7 +169,16 @@ def _rrt_connect(
     def as_array(state) -> np.ndarray:
         return np.array([state[0], state[1], state[2], state[3], state[4], state[5]])
 
-    setup.setStateValidityChecker(lambda state: collision.is_valid(as_array(state)))
+    in_collision: list[np.ndarray] = []  # a bounded sample of the refused states, for the message
+
+    def valid(state) -> bool:
+        q = as_array(state)
+        ok = collision.is_valid(q)
+        if not ok and len(in_collision) < MAX_REFUSED_KEPT:
+            in_collision.append(q)
+        return ok
+
+    setup.setStateValidityChecker(valid)
 
     class ConservativeMotionValidator(ob.MotionValidator):
         def checkMotion(self, a, b) -> bool:  # noqa: N802 (OMPL's name)
@@ -187,17 +198,31 @@ def _rrt_connect(
     try:
         status = setup.solve(time_budget_s)
         solved = setup.haveExactSolutionPath()
-        path = np.array([as_array(s) for s in setup.getSolutionPath().getStates()]) if solved else None
+        best = np.array([as_array(s) for s in setup.getSolutionPath().getStates()]) if setup.haveSolutionPath() else None
     finally:
         # break the Python <-> C++ reference cycles so nothing outlives the call
         setup.setStateValidityChecker(ob.AllValidStateValidityChecker(si))
-    if path is None:
-        raise InfeasibleError(
-            f"no collision-free joint path found within {time_budget_s:.1f} s "
-            f"(RRTConnect: {status}); start {_deg(q0)}, goal {_deg(q1)}"
-        )
+    if not solved:
+        raise _no_path(collision, q0, q1, best, in_collision, f"within {time_budget_s:.1f} s (RRTConnect: {status})")
+    path = best
     path[0], path[-1] = q0, q1
     return path
+
+
+def _no_path(collision: CollisionModel, q0: np.ndarray, q1: np.ndarray, best: np.ndarray | None,
+             refused: list[np.ndarray], how: str) -> InfeasibleError:
+    """The error of a failed search, naming what blocks it: the pairs in collision along
+    the gap between the best attempt's nearest state and the goal (or the straight move
+    when there was none), and in the states the search refused."""
+    from cellrunner.planning.blockers import blocking_summary, fix_hint, line_states
+
+    near = q0 if best is None or not len(best) else best[np.argmin(np.linalg.norm(best - q1, axis=1))]
+    gap = line_states(near, q1)
+    blockers = blocking_summary(collision, gap + refused[:: max(1, len(refused) // 36)])
+    return InfeasibleError(
+        f"no collision-free joint path found {how}: {blockers.describe()}; "
+        f"{fix_hint('path', blockers.names)}; start {_deg(q0)}, goal {_deg(q1)}",
+        blockers.names)
 
 
 def _deg(q: np.ndarray) -> str:

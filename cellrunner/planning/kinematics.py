@@ -245,9 +245,12 @@ class ArmKinematics:
         from_shoulder_m = float(np.linalg.norm(p - np.array([0.0, 0.0, self.spec.d_m[0]])))
         model = self.spec.name.upper().replace("E", "e")
         if from_shoulder_m > self.spec.reach_m:
+            mm = from_shoulder_m / 1000
+            hint = (f": did you mean mm? (read as mm, {from_shoulder_m:.2f} m is {mm:.3f} m)"
+                    if from_shoulder_m > 10 * self.spec.reach_m else "")
             return (
                 f"out of reach ({from_shoulder_m:.2f} m from the shoulder, "
-                f"{model} reach {self.spec.reach_m:.2f} m)"
+                f"{model} reach {self.spec.reach_m:.2f} m){hint}"
             )
         raw = self._solve(T_base_flange)
         if len(raw) == 0:
@@ -257,6 +260,18 @@ class ArmKinematics:
                 f"too close to the base axis)"
             )
         return f"all {len(raw)} IK solutions exceed the joint limits"
+
+    def ik_raw(self, T_world_tcp: np.ndarray) -> list[np.ndarray]:
+        """Every closed-form IK solution of ``T_world_tcp`` verified by FK, unwrapped and
+        unchecked against the joint limits (for diagnostics: why each branch is refused)."""
+        T_base_flange = invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        raw = [np.asarray(q, float) for q in self._solve(T_base_flange)]
+        return [q for q in raw if self._verify(q, np.asarray(T_world_tcp))]
+
+    def wrap_near(self, q_raw: np.ndarray, q_near_rad: np.ndarray) -> np.ndarray | None:
+        """``q_raw`` shifted per joint by multiples of 2 pi to be nearest ``q_near_rad``
+        inside the joint limits; None when some joint has no such value."""
+        return self._wrap_near(np.asarray(q_raw, float), np.asarray(q_near_rad, float))
 
     def _solve(self, T_base_flange: np.ndarray) -> list[np.ndarray]:
         with _stdout_silenced():

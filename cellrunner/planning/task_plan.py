@@ -18,6 +18,7 @@ Rules (SPEC section 10):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -140,10 +141,12 @@ class TaskPlan:
         return rows[-1].carrying if rows else None
 
 
-def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray, *, joined: bool = True) -> TaskPlan:
+def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray, *, joined: bool = True,
+              on_step: Callable[[Step], None] | None = None) -> TaskPlan:
     """Plan every step of a job; failures are recorded per step (the rest is not planned).
     ``joined=False`` (run --step) ends every motion at rest: the same waypoints, each
-    timed from rest to rest, so that the job can pause between any two steps."""
+    timed from rest to rest, so that the job can pause between any two steps.
+    ``on_step(step)`` is called as each step's planning starts (for a progress bar)."""
     planner = _StepPlanner(world, np.asarray(q_start_rad, float), None)
     rows = [StepPlan(s, status="not planned") for s in steps]
     plan = TaskPlan(world, steps, rows, np.asarray(q_start_rad, float))
@@ -162,6 +165,8 @@ def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray, *, j
         for i, row in enumerate(rows):
             current = row
             step = row.step
+            if on_step is not None:
+                on_step(step)
             then = rows[i + 1].step if i + 1 < len(rows) else None
             if step.is_motion:
                 if group and (not _joins(group[-1].row.step, step)
@@ -275,16 +280,18 @@ class _StepPlanner:
         """The branch nearest the current configuration that is collision-free and, when
         a straight descend follows, from which that descend's goal is on the same branch
         and collision-free too."""
+        from cellrunner.planning.blockers import unreachable, every_branch_collides
+
         kin = self.world.kinematics
         branches = kin.ik_all(T_world_tcp, self.q)
-        if not branches:
-            raise InfeasibleError(f"{step.label}: {kin.unreachable_reason(T_world_tcp)}")
         collision = self.collision()
+        if not branches:
+            raise unreachable(step.label, kin, collision, T_world_tcp, self.q,
+                              getattr(step.args, "distance", None) if step.kind == "approach" else None)
         follow = then.T_world_tcp if then is not None and then.kind in ("descend", "linear") else None
         valid = [q for q in branches if collision.is_valid(q)]
         if not valid:
-            raise InfeasibleError(f"{step.label}: every IK branch collides: "
-                                  f"{collision.clearance(branches[0]).describe()}")
+            raise every_branch_collides(step.label, kin, collision, T_world_tcp, self.q)
         if follow is not None:
             after = self.collision(self._place_allowances(then, follow))
             for q in valid:

@@ -12,9 +12,9 @@ import pytest
 from cellrunner.backends.sim.render import (
     CellRenderer,
     default_view,
-    plot_joints,
-    plot_tcp_path,
 )
+from cellrunner.model.geometry import Box, Placed, pose_matrix
+from cellrunner.report.plots import plot_joints, plot_tcp_path
 
 pytest.importorskip("mujoco")
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -69,11 +69,12 @@ def test_joint_and_tcp_plots_are_written(tmp_path) -> None:
     t = np.linspace(0, 2, 200)
     q = np.stack([np.sin(t + j) for j in range(6)], axis=1)
     qd = np.gradient(q, t, axis=0)
-    p1 = plot_joints(tmp_path / "joints.png", t, q, qd, q_ref_rad=q + 0.01, title="demo",
-                     marks=[(0.5, "grip"), (1.2, "lift")])
+    marks = [(0.0, 1, "move", "home"), (0.5, 2, "grip", "infeed"), (1.2, 3, "lift", "infeed")]
+    p1 = plot_joints(tmp_path / "joints.png", t, q, qd, q + 0.01, marks, "demo")
     xyz = np.stack([0.4 + 0.1 * np.cos(t), 0.1 * np.sin(t), 1.0 + 0.05 * t], axis=1)
-    p2 = plot_tcp_path(tmp_path / "tcp.png", xyz, xyz_planned_m=xyz + 0.001,
-                       points={"infeed": np.array([0.45, -0.35, 0.93])})
+    table = Placed("table", Box((1.2, 0.8, 0.04)), pose_matrix((0.4, 0, 0.88)))
+    p2 = plot_tcp_path(tmp_path / "tcp.png", xyz, [table], np.array([0.0, 0.0, 0.9]),
+                       [("2 grip", np.array([0.45, -0.35, 0.93]))], "demo")
     for p in (p1, p2):
         assert p.read_bytes()[:8] == PNG_MAGIC
         assert _read_png(p).std() > 0.05

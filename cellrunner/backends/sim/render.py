@@ -1,10 +1,10 @@
-"""Pictures for dry-run reports: offscreen MuJoCo renders of the cell and matplotlib plots.
+"""Offscreen MuJoCo renders of the cell (the report's plots are in :mod:`cellrunner.report.plots`).
 
 Offscreen rendering needs an OpenGL backend, chosen by
 :func:`~cellrunner.backends.sim._mj.enable_pictures` before MuJoCo is imported (EGL, then
 OSMesa: Debian's ``libosmesa6``, software, works anywhere). Without one,
 :class:`CellRenderer` raises :class:`RenderUnavailable` with that advice instead of
-crashing; plots need only matplotlib (Agg, no display).
+crashing.
 """
 
 from __future__ import annotations
@@ -126,104 +126,10 @@ def render_png(world: Any, path: str | Path, caption: str = "", width: int = 102
         return renderer.save_png(path, caption)
 
 
-# -- plots ------------------------------------------------------------------------------------
-def plot_joints(path: str | Path, t_s: np.ndarray, q_rad: np.ndarray, qd_rad_s: np.ndarray,
-                q_ref_rad: np.ndarray | None = None, title: str = "",
-                marks: list[tuple[float, str]] | None = None) -> Path:
-    """Joint positions (deg) and speeds (deg/s) against time; ``q_ref_rad`` dashed;
-    ``marks`` are (time, label) vertical lines, e.g. step starts."""
-    figure = _figure(11, 7.5)
-    ax_q, ax_qd = figure.subplots(2, 1, sharex=True)
-    t = np.asarray(t_s)
-    for j in range(6):
-        line, = ax_q.plot(t, np.degrees(q_rad[:, j]), lw=1.4, label=f"q{j + 1}")
-        if q_ref_rad is not None:
-            ax_q.plot(t, np.degrees(q_ref_rad[:, j]), lw=0.9, ls="--", color=line.get_color())
-        ax_qd.plot(t, np.degrees(qd_rad_s[:, j]), lw=1.2, color=line.get_color())
-    ax_q.set_ylabel("position [deg]")
-    ax_qd.set_ylabel("speed [deg/s]")
-    ax_qd.set_xlabel("time [s]")
-    ax_q.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.005, 1.0))
-    for ax in (ax_q, ax_qd):
-        ax.grid(alpha=0.3)
-        for t_mark, label in marks or []:
-            ax.axvline(t_mark, color="0.6", lw=0.7)
-            if ax is ax_q:
-                ax.text(t_mark, 1.0, f" {label}", transform=ax.get_xaxis_transform(), fontsize=7,
-                        rotation=90, va="top", color="0.35")
-    if title:
-        ax_q.set_title(title)
-    figure.tight_layout()
-    return _save(figure, path)
-
-
-def plot_tcp_path(path: str | Path, xyz_m: np.ndarray, xyz_planned_m: np.ndarray | None = None,
-                  title: str = "", points: dict[str, np.ndarray] | None = None) -> Path:
-    """The TCP path in 3D (world, m), the planned path dashed, named ``points`` marked."""
-    figure = _figure(8, 7)
-    ax = figure.add_subplot(projection="3d")
-    xyz = np.asarray(xyz_m)
-    ax.plot(xyz[:, 0], xyz[:, 1], xyz[:, 2], lw=1.8, label="simulated")
-    if xyz_planned_m is not None:
-        p = np.asarray(xyz_planned_m)
-        ax.plot(p[:, 0], p[:, 1], p[:, 2], lw=1.0, ls="--", color="k", label="planned")
-    ax.scatter(*xyz[0], color="g", s=25, label="start")
-    ax.scatter(*xyz[-1], color="r", s=25, label="end")
-    for label, point in (points or {}).items():
-        ax.scatter(*point, color="0.3", s=14)
-        ax.text(*point, f" {label}", fontsize=8)
-    _equal_axes(ax, xyz if xyz_planned_m is None else np.vstack([xyz, xyz_planned_m]))
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
-    ax.legend(fontsize=8)
-    if title:
-        ax.set_title(title)
-    figure.tight_layout()
-    return _save(figure, path)
-
-
-def _equal_axes(ax: Any, xyz: np.ndarray) -> None:
-    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
-    half = max(float((hi - lo).max()) / 2, 0.05)
-    for setter, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), (lo + hi) / 2):
-        setter(c - half, c + half)
-
-
 def _figure(width_in: float, height_in: float) -> Any:
     from matplotlib.figure import Figure  # no pyplot: no global state, no display
 
     return Figure(figsize=(width_in, height_in), dpi=100)
 
 
-def _save(figure: Any, path: str | Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=100)
-    return path
-
-
-__all__ = ["CameraView", "CellRenderer", "RenderUnavailable", "default_view", "plot_joints",
-           "plot_tcp_path", "render_png"]
-
-
-def plot_wrist_force(path: str | Path, trace: list[tuple[float, int, float]], limits_N: dict[int, float],
-                     title: str = "") -> Path:
-    """The wrist force rise (N, above the step's standing baseline) against time (s) during
-    the force steps, one line per step, each with its stop limit dashed."""
-    figure = _figure(8, 4)
-    ax = figure.add_subplot()
-    data = np.asarray(trace, float)
-    t0 = data[0, 0]
-    for index in sorted({int(i) for i in data[:, 1]}):
-        rows = data[data[:, 1] == index]
-        line, = ax.plot(rows[:, 0] - t0, rows[:, 2], lw=1.5, label=f"step {index}")
-        if index in limits_N:
-            ax.axhline(limits_N[index], ls="--", lw=1.0, color=line.get_color())
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("wrist force rise [N]")
-    ax.legend(fontsize=8)
-    if title:
-        ax.set_title(title)
-    figure.tight_layout()
-    return _save(figure, path)
+__all__ = ["CameraView", "CellRenderer", "RenderUnavailable", "default_view", "render_png"]
