@@ -222,6 +222,17 @@ class URBackend:
         if self.payload_kg is not None and not self._call("setPayload", self.payload_kg, list(self.payload_cog_m)):
             raise BackendError(f"the controller at {self.host} refused setPayload({self.payload_kg})")
 
+    def set_tool(self, T_flange_tcp: np.ndarray, payload_kg: float, payload_cog_m: tuple[float, float, float]) -> None:
+        from cellrunner.model.geometry import tcp_pose_of
+        self.tcp_pose = tcp_pose_of(T_flange_tcp)
+        self.payload_kg, self.payload_cog_m = payload_kg, tuple(payload_cog_m)
+        if self._control is None:
+            return  # set at the next connect
+        if self._servoing:  # standing still at a tool change; leave servo mode first
+            self._call("servoStop", 4.0)
+            self._servoing, self._t_cycle = False, None
+        self._configure_tool()
+
     def _call(self, name: str, *args: Any, timeout_s: float | None = None) -> Any:
         """One RTDEControlInterface call in the control process, translated: ur_rtde's
         texts through :meth:`_translate`, a lost process as :class:`ConnectionLost`."""

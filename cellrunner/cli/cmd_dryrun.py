@@ -31,6 +31,13 @@ from cellrunner.report.recorder import RunRecorder
 #: e-stop faults are released by the "operator" this long after they struck (sim s)
 PLC_OUTAGE_S = 2.0
 
+def _parts_end(backend) -> dict[str, list[float]]:
+    """Where each part of the twin ended (world position, m)."""
+    world = backend.world
+    return {p.name: [round(float(v), 5) for v in world.part_pose_world(p.name)[:3, 3]]
+            for p in backend.description.parts}
+
+
 def run(args) -> int:
     cell, task = load(args.cell, args.task)
     params = parse_params(args.param, task)
@@ -97,12 +104,21 @@ def run(args) -> int:
                "result_text": result.result_text, "retries": job.retries_used if job else 0,
                "steps": rows, "errors": [] if code is ResultCode.OK else [result.result_text],
                "injected": [i.spec for i in injections],
-               "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None}
+               "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None,
+               "parts_end_m": _parts_end(backend)}
     has_pictures = True
     if report is not None:
         from cellrunner.report import write_report
         has_pictures = write_report(report, recorder, payload, sim_world=backend.world, world=world, task=task,
                                     params=params, step_rows=rows)
+    runner = controller.last_runner  # finished: the control loop no longer touches it
+    trace = list(runner.ctx.notes.get("force_trace", [])) if runner else []
+    if report is not None and trace:
+        from cellrunner.report.plots import plot_wrist_force
+        limits = {s.index: s.args.force if s.kind == "move_until_contact" else s.args.force.max
+                  for s in steps if s.kind in ("move_until_contact", "insert")}
+        plot_wrist_force(Path(report) / "wrist_force.png", trace, limits,
+                         title=f"{task.name}: wrist force in the force steps")
     controller.close()
     if args.json:
         emit_json(payload)

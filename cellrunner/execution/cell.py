@@ -27,7 +27,7 @@ import numpy as np
 
 from cellrunner.backends.base import RobotBackend, Safety
 from cellrunner.errors import CellrunnerError, InputError
-from cellrunner.execution.context import JobContext, Motions
+from cellrunner.execution.context import JobContext, Motions, use_gripper
 from cellrunner.execution.job import JobPhase, JobRunner, StepRecord
 from cellrunner.execution.journal import JobRecord, JournalBackend, JournalError
 from cellrunner.execution.packml import Command, Event, StateMachine, TransitionRefused
@@ -477,11 +477,13 @@ class CellController:
         io_out, io_in = c.io.outputs, c.io.inputs
         g = c.tool.gripper
         close, open_, sensor = gripper_channels(g, io_out, io_in)
-        return JobContext(backend=self.backend, motions=motions, outputs=dict(io_out), inputs=dict(io_in),
-                          gripper_close=close, gripper_open=open_, gripper_closed_sensor=sensor,
-                          gripper_open_s=release_time_s(g),
-                          step_timeout_s=c.step_timeout, on_step_start=self.on_step_start,
-                          log=None if self.log is None else self.log.bind(job_id=job_id))
+        ctx = JobContext(backend=self.backend, motions=motions, outputs=dict(io_out), inputs=dict(io_in),
+                         gripper_close=close, gripper_open=open_, gripper_closed_sensor=sensor,
+                         gripper_open_s=release_time_s(g),
+                         step_timeout_s=c.step_timeout, on_step_start=self.on_step_start,
+                         log=None if self.log is None else self.log.bind(job_id=job_id), tools=dict(c.tools))
+        use_gripper(ctx, g)
+        return ctx
 
     def _journal_step(self, job: _Job, record: StepRecord, attempt: int) -> None:
         try:

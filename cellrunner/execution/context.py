@@ -51,6 +51,9 @@ class JobContext:
     gripper_open: tuple[str, bool | float] | None
     gripper_closed_sensor: str | None  # channel
     gripper_open_s: float = 0.0  # a release waits at least this long: the jaws clear the part
+    gripper_blow_off: tuple[str, float] | None = None  # (channel, pulse s) of a vacuum gripper
+    gripper_kind: str = "io"
+    tools: dict = field(default_factory=dict)  # tool name -> its Gripper (change_tool switches)
     step_timeout_s: float = 60.0
     on_step_start: Callable[[Step, int], None] | None = None
     state: RobotState | None = None
@@ -67,3 +70,16 @@ class JobContext:
     def read(self) -> RobotState:
         self.state = self.backend.read_state()
         return self.state
+
+
+def use_gripper(ctx: JobContext, gripper) -> None:
+    """Point the context's gripper channels at ``gripper`` (None: nothing mounted)."""
+    from cellrunner.model.gripper import gripper_channels
+    from cellrunner.model.timing import release_time_s
+
+    ctx.gripper_close, ctx.gripper_open, ctx.gripper_closed_sensor = gripper_channels(
+        gripper, ctx.outputs, ctx.inputs)
+    ctx.gripper_open_s = release_time_s(gripper)
+    ctx.gripper_kind = getattr(gripper, "kind", "none")
+    blow = getattr(gripper, "blow_off", None)
+    ctx.gripper_blow_off = (ctx.outputs[blow.output], blow.pulse) if blow is not None else None

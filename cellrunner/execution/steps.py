@@ -16,7 +16,9 @@ import numpy as np
 
 from cellrunner.execution.context import Carry, JobContext
 from cellrunner.model.codes import ResultCode
+from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock
 from cellrunner.model.expand import Step
+from cellrunner.model.force_steps import FORCE_KINDS
 
 StepGen = Generator[None, None, "Outcome"]
 
@@ -49,6 +51,9 @@ OK = Outcome(True)
 def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     """Stream the approved trajectory of ``step``; replan from where the arm is when it
     does not stand at the trajectory's start (after a stop or a retry)."""
+    if step.kind in FORCE_KINDS:  # a guarded line
+        from cellrunner.execution.force import run_force
+        return (yield from run_force(ctx, step, resume))
     q_now = ctx.state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
     # the last set-point streamed is this trajectory's start: the arm is on its way there
@@ -120,13 +125,17 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
         while not ctx.state.inputs.get(confirm):
             if ctx.now_s - t0 >= args.timeout:
                 return Outcome.failed(ResultCode.NO_PART, f"{args.confirm or 'closed sensor'} not true "
-                                      f"within {args.timeout:g} s (jaws closed on nothing)")
+                                      f"within {args.timeout:g} s ({_gripped_nothing(ctx)})")
             yield
     force_min = args.force.min if args.force else 0.0
     ctx.notes.pop("sensor_false_since", None)
     ctx.notes.pop("load_lp", None)
     ctx.carry = Carry(baseline_N=baseline, min_N=force_min, confirm=confirm)
     return OK
+
+
+def _gripped_nothing(ctx: JobContext) -> str:
+    return "no vacuum: the cups sealed on nothing" if ctx.gripper_kind == "vacuum" else "jaws closed on nothing"
 
 
 def run_weigh(ctx: JobContext, step: Step) -> StepGen:
@@ -158,6 +167,12 @@ def run_release(ctx: JobContext, step: Step) -> StepGen:
         ctx.backend.set_output(channel, (not value) if isinstance(value, bool) else 0.0)
     ctx.carry = None
     t0 = ctx.now_s
+    if ctx.gripper_blow_off is not None:  # a vacuum gripper's blow-off pulse breaks the seal
+        channel, pulse_s = ctx.gripper_blow_off
+        ctx.backend.set_output(channel, True)
+        while ctx.now_s - t0 < pulse_s:
+            yield
+        ctx.backend.set_output(channel, False)
     confirm = ctx.inputs.get(args.confirm) if args.confirm else None
     watch = confirm or ctx.gripper_closed_sensor
     while ctx.now_s - t0 < ctx.gripper_open_s or (watch and _release_pending(ctx, watch, confirm is not None)):
@@ -199,18 +214,27 @@ def run_wait(ctx: JobContext, step: Step) -> StepGen:
     return OK
 
 
+def sensor_dropped(ctx: JobContext) -> str | None:
+    """The gripper's sensor ('jaw sensor', 'vacuum switch') when it has read false for
+    SENSOR_DEBOUNCE_S while a part is carried, else None."""
+    carry = ctx.carry
+    if carry is None or carry.confirm is None or ctx.state.inputs.get(carry.confirm):
+        ctx.notes.pop("sensor_false_since", None)
+        return None
+    since = ctx.notes.setdefault("sensor_false_since", ctx.now_s)
+    if ctx.now_s - since >= SENSOR_DEBOUNCE_S:
+        return "vacuum switch" if ctx.gripper_kind == "vacuum" else "jaw sensor"
+    return None
+
+
 def _part_lost(ctx: JobContext) -> str | None:
     """Why the carried part is gone, judged from the jaw sensor and the wrist load."""
     carry = ctx.carry
     if carry is None:
         return None
-    if carry.confirm is not None:
-        if ctx.state.inputs.get(carry.confirm):
-            ctx.notes.pop("sensor_false_since", None)
-        else:
-            since = ctx.notes.setdefault("sensor_false_since", ctx.now_s)
-            if ctx.now_s - since >= SENSOR_DEBOUNCE_S:
-                return "part lost in transit: the jaw sensor dropped"
+    sensor = sensor_dropped(ctx)
+    if sensor is not None:
+        return f"part lost in transit: the {sensor} dropped"
     if carry.load_N is not None and carry.min_N > 0:
         # plain floats: numpy's per-call cost dwarfs a 3-vector norm, and this runs every tick
         load = math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), carry.baseline_N.tolist())
@@ -221,6 +245,8 @@ def _part_lost(ctx: JobContext) -> str | None:
 
 
 BEHAVIOURS = {
+    "tool_lock": run_tool_lock,
+    "tool_unlock": run_tool_unlock,
     "grip": run_grip,
     "release": run_release,
     "set_output": run_set_output,

@@ -3,14 +3,14 @@ checked in :mod:`cellrunner.model.references`."""
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
 from cellrunner.model.base import Name, PlacedShape, Pose, Shaped, Strict, Vec3
 from cellrunner.model.robots import ROBOTS
 from cellrunner.model.units import (
-    Angle, AngularAccel, AngularSpeed, Duration, Fraction, Mass, PositiveDuration,
+    Angle, AngularAccel, AngularSpeed, Duration, Force, Fraction, Mass, PositiveDuration,
     PositiveLength, Speed,
 )
 
@@ -46,6 +46,8 @@ class Robot(Strict):
     """Home joint angles in degrees, base to wrist 3. Example: `[0, -90, 90, -90, -90, 0]`"""
     limits: Limits = Field(default_factory=Limits)
     """Motion limits plans may use. Example: `{joint_speed: 120, joint_accel: 300, tcp_speed: 1.0, margin: 0.95}`"""
+    tool: Name | None = None
+    """With `tools:`, the tool mounted at start. Example: `jaws`"""
 
 
 class Payload(Strict):
@@ -62,9 +64,25 @@ class OutputValue(Strict):
     """Value written: true/false, or a number for an analog output. Example: `true`"""
 
 
+class Cup(Strict):
+    """A suction cup: its face centre in the TCP frame (m) and its radius (m)."""
+
+    xyz: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    """Centre of the cup's face in the TCP frame, m. Example: `[0, 0, 0]`"""
+    radius: PositiveLength = 0.02
+    """Cup radius, m. Example: `0.02`"""
+
+
+class BlowOff(Strict):
+    output: Name
+    """Output pulsed to blow the part off. Example: `blow_off`"""
+    pulse: PositiveDuration = 0.1
+    """Pulse length, s. Example: `0.1`"""
+
+
 class Gripper(Strict):
-    kind: Literal["io", "robotiq"] = "io"
-    """io (a valve and a sensor) or robotiq (2F-85/140 through its socket). Example: `io`"""
+    kind: Literal["io", "robotiq", "vacuum"] = "io"
+    """io (a valve and a sensor), robotiq (2F-85/140 through its socket) or vacuum (suction cups). Example: `io`"""
     close: OutputValue | None = None
     """Output that closes the jaws. Example: `{output: gripper_close, value: true}`"""
     open: OutputValue | None = None
@@ -81,6 +99,16 @@ class Gripper(Strict):
     """Robotiq socket host (default: the robot host). Example: `192.168.1.101`"""
     port: int = Field(default=63352, ge=1, le=65535)
     """Robotiq socket TCP port. Example: `63352`"""
+    suction: OutputValue | None = None
+    """Vacuum: the output that switches suction on. Example: `{output: vacuum_on, value: true}`"""
+    vacuum_ok: Name | None = None
+    """Vacuum: the input that confirms the cups hold vacuum. Example: `vacuum_ok`"""
+    blow_off: BlowOff | None = None
+    """Vacuum: an output pulsed on release to drop the part. Example: `{output: blow_off, pulse: 0.1}`"""
+    cups: list[Cup] = Field(default_factory=list)
+    """Vacuum: the cups, face centres in the TCP frame (m) and radii (m). Example: `[{xyz: [0, 0, 0], radius: 0.02}]`"""
+    holding_force: Force | None = None
+    """Vacuum: the pull in N the cups hold before the part tears off. Example: `150`"""
 
 
 class Tool(Strict):
@@ -92,6 +120,20 @@ class Tool(Strict):
     """The gripper and its IO. Example: `{kind: io, close: {output: gripper_close, value: true}, closed_sensor: gripper_closed}`"""
     geometry: list[PlacedShape] = Field(default_factory=list)
     """Collision shapes of the tool in the flange frame. Example: `[{cylinder: {radius: 0.04, length: 0.15}, xyz: [0, 0, 0.075]}]`"""
+
+
+class ToolChanger(Strict):
+    """``lock`` output locks the mounted tool, ``locked`` input confirms it; ``rack`` gives
+    each tool's rack frame (the TCP pose of that tool parked in the rack)."""
+
+    lock: Name
+    """Output that locks the mounted tool. Example: `changer_lock`"""
+    locked: Name | None = None
+    """Input that confirms the lock. Example: `changer_locked`"""
+    rack: dict[Name, Name] = Field(default_factory=dict)
+    """Each tool's rack frame (the TCP pose of that tool parked). Example: `{jaws: rack_jaws, cup: rack_cup}`"""
+    approach: PositiveLength = 0.1
+    """Distance in m along the rack frame's Z to approach from. Example: `0.1`"""
 
 
 class Io(Strict):
@@ -175,6 +217,10 @@ class Cell(Strict):
     """The arm. Example: `{model: ur5e, home: [0, -90, 90, -90, -90, 0]}`"""
     tool: Tool = Field(default_factory=Tool)
     """The mounted tool. Example: `{tcp: {xyz: [0, 0, 0.15]}}`"""
+    tools: dict[Name, Tool] = Field(default_factory=dict)
+    """Several tools by name, with `robot.tool` the one mounted at start. Example: `{jaws: {tcp: {xyz: [0, 0, 0.15]}}}`"""
+    tool_changer: ToolChanger | None = None
+    """The tool changer: lock output, locked input, rack frames. Example: `{lock: changer_lock, locked: changer_locked, rack: {jaws: rack_jaws}}`"""
     io: Io = Field(default_factory=Io)
     """Names of the controller's inputs and outputs. Example: `{outputs: {gripper_close: DO0}, inputs: {gripper_closed: DI0}}`"""
     fixtures: list[Fixture] = Field(default_factory=list)
@@ -191,3 +237,16 @@ class Cell(Strict):
     """SQLite file, or a postgresql:// URL for a journal shared by many cells. Example: `var/jobs.sqlite`"""
     step_timeout: PositiveDuration = 60.0
     """A step that runs longer than this (s) fails with 105. Example: `60`"""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _mounted_tool(cls, data: Any) -> Any:
+        """With ``tools:``, ``tool`` is the one ``robot.tool`` names (names are checked,
+        located, by the loader)."""
+        if isinstance(data, dict) and isinstance(data.get("tools"), dict) and "tool" not in data:
+            robot = data.get("robot")
+            name = robot.get("tool") if isinstance(robot, dict) else None
+            if isinstance(name, str) and name in data["tools"]:
+                data = {**data, "tool": data["tools"][name]}
+        return data
+

@@ -21,9 +21,11 @@ from cellrunner.model.task import (
     ApproachArgs, DistanceArgs, GripArgs, LinearArgs, Offset, Pattern, TaskFile,
 )
 
-MOTION_KINDS = ("move", "approach", "descend", "linear", "lift", "retreat")
+from cellrunner.model.force_steps import FORCE_KINDS
+
+MOTION_KINDS = ("move", "approach", "descend", "linear", "lift", "retreat", *FORCE_KINDS)
 PLANNED_KINDS = ("move", "approach")  # collision-free planned joint moves
-LINEAR_KINDS = ("descend", "linear", "lift", "retreat")  # straight TCP lines
+LINEAR_KINDS = ("descend", "linear", "lift", "retreat", *FORCE_KINDS)  # straight TCP lines
 
 
 @dataclass(frozen=True)
@@ -111,6 +113,7 @@ class _Builder:
     def __init__(self, cell: Cell, params: dict[str, Any]):
         self.cell, self.params = cell, params
         self.steps: list[Step] = []
+        self.tool = cell.robot.tool  # the mounted tool's name (with ``tools:``)
 
     def _next(self) -> int:
         return len(self.steps) + 1
@@ -121,6 +124,9 @@ class _Builder:
             self._pick(spec)
         elif kind == "place":
             self._place(spec)
+        elif kind == "change_tool":
+            from cellrunner.model.tool_change import expand_change_tool
+            self.tool = expand_change_tool(self, spec, self.tool)
         else:
             self.steps.append(self.primitive(kind, args, spec.path, self._next()))
 
@@ -139,6 +145,8 @@ class _Builder:
             T = frame_pose(self.cell, args.to) @ _offset(args.offset) @ geometry.pose_matrix((0, 0, -args.distance))
         elif kind in ("descend", "linear"):
             name, T = args.to, frame_pose(self.cell, args.to) @ _offset(args.offset)
+        elif kind == "insert":  # the line ends ``depth`` past the frame, along its Z
+            name, T = args.to, frame_pose(self.cell, args.to) @ geometry.pose_matrix((0, 0, args.depth))
         elif kind == "set_output":
             name = ", ".join(f"{k}={v}" for k, v in args.values.items())
         elif kind == "wait_input":

@@ -1,4 +1,5 @@
-"""The parallel gripper's finger pads, as planning checks them and the twin builds them.
+"""The gripper's shapes, as planning checks them and the twin builds them: a parallel
+gripper's finger pads, or a vacuum gripper's cups; and the channels that drive it.
 
 The jaws move along the TCP's X axis, symmetric about the TCP; each pad is a box
 ``FINGER_SIZE_M`` (thickness along X, width along Y, and along Z it spans ``PAD_Z_M``
@@ -32,12 +33,55 @@ def open_pads(stroke_m: float, T_flange_tcp: np.ndarray) -> list[Placed]:
     return pads
 
 
+#: a suction cup's body: its face is at the cup's xyz, its body this long above it (m)
+CUP_LENGTH_M = 0.02
+
+
+def cup_shapes(cups, T_flange_tcp: np.ndarray) -> list[Placed]:
+    """Each cup as a cylinder in the flange frame, its face at the cup's point (TCP frame)
+    and its body reaching back along the TCP's -Z."""
+    from cellrunner.model.geometry import Cylinder
+    return [Placed(f"cup{i}", Cylinder(float(c.radius), CUP_LENGTH_M),
+                   T_flange_tcp @ geometry.pose_matrix((c.xyz[0], c.xyz[1], c.xyz[2] - CUP_LENGTH_M / 2)))
+            for i, c in enumerate(cups)]
+
+
+def gripper_shapes(gripper, T_flange_tcp: np.ndarray) -> list[Placed]:
+    """What planning checks of the gripper: the cups of a vacuum gripper (no fingers),
+    else the finger pads fully open."""
+    if gripper is None:
+        return []
+    if gripper.kind == "vacuum":
+        return cup_shapes(gripper.cups, T_flange_tcp)
+    return open_pads(gripper.stroke, T_flange_tcp)
+
+
+def part_center_depth_m(gripper, shape) -> float:
+    """How far below its frame (along the frame's Z, into the part) a part's centre lies:
+    a suction gripper holds a part by its top face, under the cups' faces (at the frame when
+    the cups sit at the TCP), jaws by its middle."""
+    if gripper is None or gripper.kind != "vacuum":
+        return 0.0
+    from cellrunner.model.geometry import Box, Cylinder, Sphere
+    cups_z = max((float(c.xyz[2]) for c in gripper.cups), default=0.0)
+    if isinstance(shape, Box):
+        return cups_z + float(shape.size_m[2]) / 2
+    if isinstance(shape, Cylinder):
+        return cups_z + float(shape.length_m) / 2
+    if isinstance(shape, Sphere):
+        return cups_z + float(shape.radius_m)
+    return cups_z
+
+
 def gripper_channels(gripper, outputs: dict[str, str], inputs: dict[str, str]):
     """(close channel and value, open channel and value or None, closed-sensor channel) of
     the cell's gripper: IO channels for ``kind: io``, the virtual Robotiq channels for
     ``kind: robotiq`` (where the cell names no IO of its own)."""
     if gripper is None:
         return None, None, None
+    if gripper.kind == "vacuum":  # suction on "closes", the vacuum switch confirms
+        close = (outputs[gripper.suction.output], gripper.suction.value) if gripper.suction else None
+        return close, None, inputs[gripper.vacuum_ok] if gripper.vacuum_ok else None
     if gripper.kind == "robotiq" and gripper.close is None:
         sensor = inputs[gripper.closed_sensor] if gripper.closed_sensor else ROBOTIQ_OBJECT
         return (ROBOTIQ_CLOSE, True), None, sensor

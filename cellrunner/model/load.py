@@ -70,10 +70,11 @@ class LoadedCell:
         folder = self.path.resolve().parent
         return folder.parent if folder.name == "cells" else folder
 
-    def tool_shapes(self) -> list:
-        """The declared tool geometry as placed shapes in the flange frame."""
+    def tool_shapes(self, tool=None) -> list:
+        """The declared geometry of ``tool`` (default: the mounted one) as placed shapes in
+        the flange frame."""
         from cellrunner.model.geometry import Placed
-        geometry = self.cell.tool.geometry
+        geometry = (tool or self.cell.tool).geometry
         return [Placed(f"tool{i}" if len(geometry) > 1 else "gripper", g.to_shape(self.resolve), g.matrix())
                 for i, g in enumerate(geometry)]
 
@@ -147,12 +148,15 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     for i, (lo, hi, q) in enumerate(zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home)):
         if not lo <= q <= hi:
             report.error(("robot", "home", i), f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]")
-    if cell.tool.payload.mass > spec.payload_max_kg:
-        report.error(("tool", "payload", "mass"),
-                     f"{cell.tool.payload.mass:g} kg is above the {spec.name.upper()} payload "
-                     f"of {spec.payload_max_kg:g} kg")
+    for path, tool in _tools(cell):
+        if tool.payload.mass > spec.payload_max_kg:
+            report.error(path + ("payload", "mass"),
+                         f"{tool.payload.mass:g} kg is above the {spec.name.upper()} payload "
+                         f"of {spec.payload_max_kg:g} kg")
     _check_io(cell, report)
-    _check_gripper(cell, report)
+    for path, tool in _tools(cell):
+        _check_gripper(cell, tool, path, report)
+    _check_tool_names(cell, raw, report)
     _check_names(cell, report)
     _check_frames(cell, report)
     for i, fixture in enumerate(cell.fixtures):
@@ -273,13 +277,31 @@ def check_io_name(cell: Cell, name: str, side: str, path: PathKey, report: Repor
         report.error(path, _unknown(side[:-1], name, table), at_key=at_key)
 
 
-def _check_gripper(cell: Cell, report: Report) -> None:
-    g = cell.tool.gripper
+def _tools(cell: Cell) -> list[tuple[PathKey, Any]]:
+    """Every tool of the cell with its path in the file (``tools.NAME`` or ``tool``)."""
+    if cell.tools:
+        return [(("tools", name), tool) for name, tool in cell.tools.items()]
+    return [(("tool",), cell.tool)]
+
+
+def _check_gripper(cell: Cell, tool, path: PathKey, report: Report) -> None:
+    g = tool.gripper
     if g is None:
         return
-    base = ("tool", "gripper")
+    base = path + ("gripper",)
     if g.kind == "io" and g.close is None:
         report.error(base, "an io gripper needs 'close: {output, value}'")
+    if g.kind == "vacuum":
+        for key, example in (("suction", "suction: {output, value}"), ("vacuum_ok", "vacuum_ok: INPUT"),
+                             ("cups", "cups: [{xyz, radius}]"), ("holding_force", "holding_force: N")):
+            if not getattr(g, key):
+                report.error(base, f"a vacuum gripper needs '{example}'")
+        if g.suction is not None:
+            check_io_name(cell, g.suction.output, "outputs", base + ("suction", "output"), report)
+        if g.vacuum_ok is not None:
+            check_io_name(cell, g.vacuum_ok, "inputs", base + ("vacuum_ok",), report)
+        if g.blow_off is not None:
+            check_io_name(cell, g.blow_off.output, "outputs", base + ("blow_off", "output"), report)
     for key in ("close", "open"):
         ov = getattr(g, key)
         if ov is not None:
@@ -288,6 +310,38 @@ def _check_gripper(cell: Cell, report: Report) -> None:
         name = getattr(g, key)
         if name is not None:
             check_io_name(cell, name, "inputs", base + (key,), report)
+
+
+def _check_tool_names(cell: Cell, raw: Any, report: Report) -> None:
+    """``robot.tool`` names one of ``tools``; a tool changer racks every tool."""
+    names = list(cell.tools)
+    if cell.tools:
+        if isinstance(raw, dict) and "tool" in raw:  # (the model copies the mounted one into tool)
+            report.error(("tool",), "give either 'tool:' or 'tools:', not both", at_key=True)
+        if cell.robot.tool is None:
+            report.error(("robot",), f"with 'tools:', robot.tool names the tool mounted at start; "
+                         f"known: {known_list(names)}")
+        elif cell.robot.tool not in cell.tools:
+            report.error(("robot", "tool"), _unknown("tool", cell.robot.tool, names))
+    elif cell.robot.tool is not None:
+        report.error(("robot", "tool"), f"robot.tool {cell.robot.tool!r} names a tool but the cell has no "
+                     "'tools:' (give tools: {NAME: TOOL})")
+    changer = cell.tool_changer
+    if changer is None:
+        return
+    base = ("tool_changer",)
+    check_io_name(cell, changer.lock, "outputs", base + ("lock",), report)
+    if changer.locked is not None:
+        check_io_name(cell, changer.locked, "inputs", base + ("locked",), report)
+    for name, frame in changer.rack.items():
+        if name not in cell.tools:
+            report.error(base + ("rack", name), _unknown("tool", name, names), at_key=True)
+        if frame not in cell.frames:
+            report.error(base + ("rack", name), _unknown("frame", frame, cell.frames))
+    missing = [n for n in names if n not in changer.rack]
+    if missing:
+        report.error(base + ("rack",), f"the rack has no place for tool(s) {', '.join(map(repr, missing))}; "
+                     f"give each a frame: rack: {{{', '.join(f'{n}: FRAME' for n in names)}}}")
 
 
 def _check_names(cell: Cell, report: Report) -> None:

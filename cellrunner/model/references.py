@@ -19,7 +19,7 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             if isinstance(args.to, list):
                 raw_path = path if _is_short(report, path) else path + ("to",)
                 _check_radians(report.source.data, raw_path, report)
-        elif kind in ("approach", *_LINEAR_KINDS):
+        elif kind in ("approach", "insert", *_LINEAR_KINDS):
             if args.to not in cell.frames:
                 report.error(path + ("to",), _unknown("frame", args.to, frames))
         elif kind in ("pick", "place"):
@@ -40,6 +40,9 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
                 check_io_name(cell, name, "outputs", path + (name,), report, at_key=True)
         elif kind == "wait_input":
             check_io_name(cell, args.input, "inputs", path + ("input",), report)
+        elif kind == "change_tool":
+            _check_change_tool(cell, args.tool, path, report)
+    _check_tool_at_end(task, cell, report)
     if needs_gripper and cell.tool.gripper is None:
         report.error(("steps",), f"the task grips and releases but cell {cell.cell!r} has no tool.gripper")
     for name, param in task.task.params.items():
@@ -81,3 +84,25 @@ def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
         grid = " x ".join(str(g) for g in pattern.grid)
         report.error(("params", pattern.index), f"param {pattern.index!r} range [{lo:g}, {hi:g}] "
                      f"does not fit the {grid} pattern's slots 0..{pattern.slots - 1}", at_key=True)
+
+
+def _check_change_tool(cell, tool: str, path, report: Report) -> None:
+    if tool not in cell.tools:
+        known = list(cell.tools)
+        report.error(path + ("tool",) if not _is_short(report, path) else path,
+                     _unknown("tool", tool, known) if known else
+                     f"unknown tool {tool!r}: the cell has no 'tools:' to change between")
+    elif cell.tool_changer is None:
+        report.error(path, f"change_tool needs the cell's tool_changer: {{lock: OUTPUT, locked: INPUT, "
+                     f"rack: {{NAME: FRAME}}}}; cell {cell.cell!r} has none")
+
+
+def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
+    """Every job starts with ``robot.tool`` mounted, so a task must end with it."""
+    last = None
+    for step in task.steps:
+        if step.kind == "change_tool" and step.args.tool in cell.tools:
+            last = step
+    if last is not None and last.args.tool != cell.robot.tool:
+        report.error(last.path, f"the task ends with tool {last.args.tool!r} mounted, but every job starts "
+                     f"with {cell.robot.tool!r} (robot.tool); add 'change_tool: {cell.robot.tool}' before the end")

@@ -26,6 +26,7 @@ _SHORT_FORMS: dict[str, Any] = {
     "lift": PositiveLength,
     "retreat": PositiveLength,
     "wait": float,
+    "change_tool": str,
 }
 _BARE = ("grip", "release")
 
@@ -46,6 +47,16 @@ STEP_HELP: dict[str, tuple[str, Any]] = {
     "wait_input": ("Wait until an input reads `value`, failing the step after `timeout` (s).",
                    {"input": "part_present", "value": True, "timeout": 10}),
     "wait": ("Wait this long, s.", 0.5),
+    "move_until_contact": ("Straight line along `direction` until the wrist force rises by `force` (N); "
+                           "fails without contact within `max_distance` (m).",
+                           {"direction": [0, 0, 1], "frame": "tool", "speed": 0.01, "force": 10,
+                            "max_distance": 0.05}),
+    "insert": ("Straight in to a frame and `depth` (m) past it under a force limit; ending outside "
+               "`expect_depth` is a failed place (3).",
+               {"to": "hole", "depth": 0.02, "speed": 0.005, "force": {"max": 20},
+                "expect_depth": [0.018, 0.021]}),
+    "change_tool": ("Macro: park the mounted tool in its rack, take the named tool, switch TCP, "
+                    "payload and collision geometry.", "cup"),
     "pick": ("Macro: approach -> descend -> grip -> lift.",
              {"at": "infeed", "approach": 0.1, "grip": {"confirm": "gripper_closed"}}),
     "place": ("Macro: approach -> descend -> release -> retreat.",

@@ -14,6 +14,8 @@ from pydantic import BeforeValidator, Field, WithJsonSchema, field_validator, mo
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Pose, Strict, Vec3
+from cellrunner.model.force_steps import InsertArgs, MoveUntilContactArgs
+from cellrunner.model.tool_steps import ChangeToolArgs
 from cellrunner.model.units import (
     Force, Fraction, Length, NonNegativeLength, PositiveDuration, PositiveLength, Speed,
     parse_quantity,
@@ -259,8 +261,11 @@ STEP_MODELS: dict[str, type[Strict]] = {
     "wait": WaitArgs,
     "pick": PickArgs,
     "place": PlaceArgs,
+    "move_until_contact": MoveUntilContactArgs,
+    "insert": InsertArgs,
+    "change_tool": ChangeToolArgs,
 }
-MACROS = ("pick", "place")
+MACROS = ("pick", "place", "change_tool")
 
 
 def widen_step_args(kind: str, args: Any) -> Any:
@@ -275,6 +280,8 @@ def widen_step_args(kind: str, args: Any) -> Any:
         return {"seconds": args}
     if kind in ("lift", "retreat") and not isinstance(args, dict):
         return {"distance": args}
+    if kind == "change_tool" and isinstance(args, str):
+        return {"tool": args}
     return args
 
 

@@ -98,7 +98,8 @@ def _store(path: Path, plan: TaskPlan) -> None:
     for i, row in enumerate(plan.rows):
         entry = {"status": row.status, "message": row.message, "duration_s": row.duration_s,
                  "part": row.carrying.name if row.carrying is not None else None,
-                 "allow": [[a.fixture, a.robot_part, a.min_clearance_m] for a in row.allowances]}
+                 "allow": [[a.fixture, a.robot_part, a.min_clearance_m] for a in row.allowances],
+                 "tool": list(row.world.tool_key) if row.world is not None and row.world.tool_key else None}
         if row.carrying is not None:
             arrays[f"part{i}"] = row.carrying.T_parent_shape
         if row.q_end_rad is not None:
@@ -143,6 +144,7 @@ def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
                 shape = next(p for p in world.loaded.cell.parts if p.name == entry["part"])
                 row.carrying = Placed(shape.name, shape.to_shape(world.loaded.resolve), data[f"part{i}"])
             row.allowances = tuple(ContactAllowance(*a) for a in entry["allow"])
+            row.world = world.with_tool(*entry["tool"]) if entry.get("tool") else world
             if f"qend{i}" in data:
                 row.q_end_rad = data[f"qend{i}"]
             if f"q{i}" in data:

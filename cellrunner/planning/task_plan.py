@@ -26,6 +26,7 @@ import numpy as np
 from cellrunner.errors import InfeasibleError
 from cellrunner.model import geometry
 from cellrunner.model.expand import LINEAR_KINDS, Step
+from cellrunner.model.force_steps import FORCE_KINDS
 from cellrunner.model.geometry import Placed
 from cellrunner.model.timing import close_time_s, release_time_s
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory
@@ -62,6 +63,7 @@ class StepPlan:
     carrying: Placed | None = None
     allowances: tuple = ()
     verify_inputs: dict | None = None  # what verify_trajectory was given, to re-verify a cached plan
+    world: CellWorld | None = None  # the world (mounted tool) the step was planned in; None: the plan's
 
 
 @dataclass
@@ -73,6 +75,7 @@ class _Motion:
     limits: object
     line_m: tuple[np.ndarray, np.ndarray] | None
     collision: object
+    world: CellWorld
 
 
 @dataclass
@@ -118,13 +121,20 @@ class TaskPlan:
         row = self.row(step)
         part = row.carrying if row is not None else (self._carried_before(step) if carrying else None)
         allowances = row.allowances if row is not None else ()
-        planner = _StepPlanner(self.world, np.asarray(q_now_rad, float), part)
+        world = self._world_of(step)
+        planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
         goal_q = row.q_end_rad if row is not None and row.status == "ok" else None
         motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
-        return _time_and_verify(self.world, [motion], np.asarray(q_now_rad, float))[0].approved
+        return _time_and_verify(world, [motion], np.asarray(q_now_rad, float))[0].approved
 
-    def tcp_position_m(self, q_rad: np.ndarray) -> np.ndarray:
-        return self.world.kinematics.p_world_tcp(q_rad)
+    def _world_of(self, step: Step) -> CellWorld:
+        rows = [r for r in self.rows if r.step.index <= step.index and r.world is not None]
+        return rows[-1].world if rows else self.world
+
+    def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
+        """World TCP position at ``q_rad``, with the tool mounted at ``step`` (default: at start)."""
+        world = self.world if step is None else self._world_of(step)
+        return world.kinematics.p_world_tcp(q_rad)
 
     def _carried_before(self, step: Step) -> Placed | None:
         rows = [r for r in self.rows if r.step.index <= step.index]
@@ -163,12 +173,13 @@ def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray, *, j
                               or not _same_limits(group[-1].limits, planner.limits_for(step))):
                     flush()
                 group.append(planner.motion(row, then=then))
-                if step.kind in ("descend", "linear") or _weighed(rows, i):
-                    flush()  # ends at rest: something happens at its end (a grip, weighing the part)
+                if step.kind in ("descend", "linear", *FORCE_KINDS) or _weighed(rows, i):
+                    flush()  # ends at rest: something happens at its end (a grip, weighing the part, a contact)
             else:
                 flush()
                 planner.act(row)
             row.status = "ok"
+            row.world = row.world or planner.world
             if not step.is_motion:
                 row.carrying = planner.part
         current = None
@@ -192,6 +203,7 @@ class _StepPlanner:
     def __init__(self, world: CellWorld, q: np.ndarray, part: Placed | None):
         self.world, self.q, self.part = world, q, part
         self.allowances: tuple = ()
+        self.contact: tuple = ()  # a force step's contacts, which the next straight move leaves
 
     def limits_for(self, step: Step):
         limits = self.world.limits
@@ -221,13 +233,22 @@ class _StepPlanner:
         else:
             T_goal = self._linear_goal(step, T_now) if goal_q is None else kin.T_world_tcp(goal_q)
             if allowances is None:
-                allowances = self._place_allowances(step, T_goal)
+                if step.kind in FORCE_KINDS:  # contact is what the step is for, where its line ends
+                    from cellrunner.planning.force_plan import contact_allowances
+                    allowances = self.contact + contact_allowances(self, step, T_goal)
+                else:
+                    allowances = self._place_allowances(step, T_goal) + self.contact
+                self.contact = allowances if step.kind in FORCE_KINDS else ()
             collision = self.collision(allowances)
             path = plan_linear(kin, collision, self.q, T_goal).q_rad
             line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
         row.allowances = tuple(allowances or ())
         row.carrying = self.part
-        motion = _Motion(row, path, self.limits_for(step), line, collision)
+        if step.kind in FORCE_KINDS:
+            from cellrunner.planning.force_plan import describe
+            row.message = describe(step, line, row.allowances)
+        motion = _Motion(row, path, self.limits_for(step), line, collision, self.world)
+        row.world = self.world
         self.q = path[-1]
         row.q_end_rad = path[-1]
         return motion
@@ -250,6 +271,10 @@ class _StepPlanner:
             row.duration_s = 1.0 / self.world.spec.rate_hz
         elif step.kind == "wait_input":
             row.message = f"waits up to {step.args.timeout:g} s for {step.args.input}"
+        elif step.kind in ("tool_unlock", "tool_lock"):
+            self.world = self.world.with_tool(step.extra["tool"], tcp_of=step.extra["tcp_of"])
+            row.world = self.world
+            row.duration_s = WRIST_SETTLE_S
 
     def _ik(self, T_world_tcp: np.ndarray, step: Step, then: Step | None) -> np.ndarray:
         """The branch nearest the current configuration that is collision-free and, when
@@ -280,6 +305,9 @@ class _StepPlanner:
             return geometry.pose_matrix((0, 0, step.args.distance)) @ T_now
         if step.kind == "retreat":
             return T_now @ geometry.pose_matrix((0, 0, -step.args.distance))
+        if step.kind == "move_until_contact":
+            from cellrunner.planning.force_plan import contact_line_goal
+            return contact_line_goal(step.args, T_now)
         return step.T_world_tcp
 
     def _place_allowances(self, step: Step, T_goal: np.ndarray) -> tuple:
@@ -335,6 +363,8 @@ def _time_group(world: CellWorld, group: list[_Motion], q_start: np.ndarray, joi
 def _joins(before: Step, after: Step) -> bool:
     """Whether ``after`` may continue ``before`` without stopping: a joint move after any
     motion, a straight move only after a joint move (two straight lines meet at a corner)."""
+    if after.kind in FORCE_KINDS:  # a force step starts standing, for its wrist baseline
+        return False
     return after.kind not in LINEAR_KINDS or before.kind not in LINEAR_KINDS
 
 
@@ -356,8 +386,8 @@ def _blend(world: CellWorld, group: list[_Motion]) -> list[_Motion]:
     edge. The arc belongs to the joint move and is checked with its collision model; the
     straight step keeps its (shorter) line, verified straight. Corners no arc clears stay
     sharp."""
-    out = [_Motion(m.row, np.asarray(m.waypoints, float), m.limits, m.line_m, m.collision) for m in group]
-    kin = world.kinematics
+    out = [_Motion(m.row, np.asarray(m.waypoints, float), m.limits, m.line_m, m.collision, m.world) for m in group]
+    kin = group[0].world.kinematics  # the tool mounted for this group
     for a, b in zip(out[:-1], out[1:]):
         a_line, b_line = a.line_m is not None, b.line_m is not None
         if (a_line and b_line) or _still(a.waypoints) or _still(b.waypoints):
@@ -474,6 +504,7 @@ def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) ->
     from cellrunner.planning.timing import time_path
     from cellrunner.planning.verify import verify_trajectory
 
+    world = group[0].world  # the tool mounted for this group (a tool change flushes groups)
     waypoints = np.vstack([group[0].waypoints, *[m.waypoints[1:] for m in group[1:]]])
     s_waypoints = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(waypoints, axis=0), axis=1))])
     timed = time_path(world.kinematics, waypoints, group[0].limits, world.spec.rate_hz)
@@ -501,6 +532,7 @@ def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
     """Verify a stored row's trajectory again with the inputs it was planned with."""
     from cellrunner.planning.verify import verify_trajectory
 
+    world = row.world or world
     planner = _StepPlanner(world, row.trajectory.q_rad[0], row.carrying)
     return verify_trajectory(
         row.trajectory, step_index=row.step.index, step_name=row.step.name, kinematics=world.kinematics,
@@ -539,6 +571,7 @@ def _check_retry_path(world: CellWorld, row: StepPlan, rows: list[StepPlan]) -> 
     retry = row.step.retry
     descend = next(r for r in rows if r.step.index == retry.redo_from)
     q_grip = descend.q_end_rad
+    world = descend.world or world
     planner = _StepPlanner(world, q_grip, None)
     try:
         for between in [*retry.between, descend.step]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -9,7 +10,7 @@ import numpy as np
 
 from cellrunner.model import geometry
 from cellrunner.model.geometry import Placed
-from cellrunner.model.gripper import open_pads
+from cellrunner.model.gripper import gripper_shapes, part_center_depth_m
 from cellrunner.model.load import LoadedCell
 from cellrunner.model.robots import RobotSpec
 
@@ -19,6 +20,8 @@ class CellWorld:
     """Everything planning needs from a cell file, in SI and radians."""
 
     loaded: LoadedCell
+    tool_key: tuple | None = None  # (tool, tcp_of) of a world made by with_tool; None: as the cell file mounts it
+    base: "CellWorld | None" = None  # the world with_tool made this one from
 
     @property
     def spec(self) -> RobotSpec:
@@ -35,9 +38,28 @@ class CellWorld:
         """The declared tool geometry and, with a gripper, its finger pads fully open."""
         tool = self.loaded.cell.tool
         shapes = self.loaded.tool_shapes()
-        if tool.gripper is not None:
-            shapes += open_pads(tool.gripper.stroke, tool.tcp.matrix())
-        return shapes
+        return shapes + gripper_shapes(tool.gripper, tool.tcp.matrix())
+
+    def with_tool(self, name: str | None, tcp_of: str | None = None) -> "CellWorld":
+        """The same cell with tool ``name`` mounted (from ``tools:``); None: the bare
+        flange, carrying tool ``tcp_of``'s TCP as a virtual point (no geometry, no payload)."""
+        if self.base is not None:
+            return self.base.with_tool(name, tcp_of)
+        if name is not None and name == self.loaded.cell.robot.tool:
+            return self
+        key = (name, None if name is not None else tcp_of)
+        worlds = self._tool_worlds
+        if key not in worlds:
+            from cellrunner.model.cell import Tool
+            cell = self.loaded.cell
+            tool = cell.tools[name] if name is not None else Tool(tcp=cell.tools[tcp_of].tcp)
+            loaded = dataclasses.replace(self.loaded, cell=cell.model_copy(update={"tool": tool}))
+            worlds[key] = CellWorld(loaded, key, self)
+        return worlds[key]
+
+    @cached_property
+    def _tool_worlds(self) -> dict:
+        return {}
 
     @cached_property
     def fixtures(self) -> list[Placed]:
@@ -71,7 +93,9 @@ class CellWorld:
         from cellrunner.model.expand import frame_pose
         for part in self.loaded.cell.parts:
             if part.at == frame:
-                T_world_part = frame_pose(self.loaded.cell, frame)
+                shape = part.to_shape(self.loaded.resolve)
+                depth = part_center_depth_m(self.loaded.cell.tool.gripper, shape)
+                T_world_part = frame_pose(self.loaded.cell, frame) @ geometry.pose_matrix((0, 0, depth))
                 T_tcp_part = geometry.invert(T_world_tcp) @ T_world_part
-                return Placed(part.name, part.to_shape(self.loaded.resolve), T_tcp_part)
+                return Placed(part.name, shape, T_tcp_part)
         return None

@@ -274,3 +274,25 @@ def plot_slot_cycles(path: Path, cycles: list[tuple[int, float | None]], param: 
     ax.grid(alpha=0.3, axis="y")
     fig.tight_layout()
     return save(fig, path)
+
+
+def plot_wrist_force(path: Path, trace: list[tuple[float, int, float]], limits_N: dict[int, float],
+                     title: str = "") -> Path:
+    """The wrist force rise (N, above the step's standing baseline) against time (s) during
+    the force steps (move_until_contact, insert), one line per step, its stop limit dashed."""
+    fig = figure(8, 4)
+    ax = fig.add_subplot()
+    data = np.asarray(trace, float)
+    t0 = data[0, 0]
+    for index in sorted({int(i) for i in data[:, 1]}):
+        rows = data[data[:, 1] == index]
+        line, = ax.plot(rows[:, 0] - t0, rows[:, 2], lw=1.5, label=f"step {index}")
+        if index in limits_N:
+            ax.axhline(limits_N[index], ls="--", lw=1.0, color=line.get_color())
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("wrist force rise [N]")
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return save(fig, Path(path))

@@ -45,6 +45,10 @@ class MujocoPhysics:
         world.qd_ref = np.zeros(6)
         self._q_prev = q.copy()
 
+    def inject_fault(self, fault: str) -> None:
+        """grip_miss or part_slip, made to happen in the MuJoCo twin (as dry-run does)."""
+        self.world.inject_fault(fault)
+
     def apply_outputs(self, digital_output_bits: int) -> None:
         for channel in self.world.outputs:
             bit = _bit(channel)

@@ -46,6 +46,7 @@ protective_stop [REASON]      -> the controller raises a protective stop now
 collision [on|off]            -> the physics reports contact (protective stop follows)
 estop press [system]|release  -> robot (or system) emergency stop pressed / released
 fault                         -> safety fault (needs restart safety)
+grip_miss | part_slip         -> the physics moves the next part away / drops the held part in the air
 input CH 0|1|clear            -> force digital input CH (DI0-7, CI0-7, TI0-1)
 wrench FX FY FZ TX TY TZ      -> flange wrench the physics reports (N, N m)
 remote on|off                 -> remote / local control
@@ -424,6 +425,12 @@ class TwinServer:
             if cmd == "fault":
                 ctl.raise_fault()
                 return "fault"
+            if cmd in ("grip_miss", "part_slip"):
+                inject = getattr(ctl.physics, "inject_fault", None)
+                if inject is None:
+                    raise ValueError("this physics has no parts to miss or drop")
+                inject(cmd)
+                return cmd
             if cmd == "input":
                 bit = parse_channel(args[0])
                 if args[1].lower() == "clear":

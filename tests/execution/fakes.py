@@ -50,6 +50,7 @@ class ScriptedArm:
     def reconnect(self, timeout_s=None): pass
     def close(self): pass
     def zero_ft_sensor(self): pass
+    def set_tool(self, T_flange_tcp, payload_kg, payload_cog_m): pass
     def recover_from_estop(self):
         if self.safety is Safety.EMERGENCY_STOP:
             raise BackendError("emergency stop is still pressed; a person must release it first")

@@ -141,6 +141,11 @@ class SimBackend:
         self._require_connection()
         self._world().zero_ft_sensor()
 
+    def set_tool(self, T_flange_tcp: np.ndarray, payload_kg: float, payload_cog_m: tuple[float, float, float]) -> None:
+        """Nothing to tell the twin: its tool changer swaps TCP, payload and shapes itself,
+        driven by the changer's lock output, as the real changer does."""
+        self._require_connection()
+
     def unlock_protective_stop(self) -> None:
         self._fresh = None
         self._require_connection()

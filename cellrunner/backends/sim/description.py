@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -49,6 +50,7 @@ class GripperDescription:
     finger_mass_kg: float = 0.05
     friction: float = 1.0
     sensor_min_gap_m: float = 0.002
+    T_flange_tcp: np.ndarray | None = None  # the jaws' tool's TCP (default: the twin's)
 
     def __post_init__(self) -> None:
         if not self.stroke_m > 2 * self.sensor_min_gap_m:
@@ -107,6 +109,8 @@ class TwinDescription:
     io_outputs: tuple[str, ...] = ("DO0",)
     io_inputs: tuple[str, ...] = ("DI0",)
     presence_sensors: tuple[PresenceSensor, ...] = ()
+    vacuum: Any = None  # a VacuumDescription (backends.sim.vacuum) for a suction gripper
+    tool_changer: Any = None  # a ToolChangerDescription (backends.sim.tool_changer) for several tools
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"
@@ -127,7 +131,7 @@ class TwinDescription:
         if self.gripper is not None:
             g = self.gripper
             if g.close_output not in self.io_outputs:
-                raise ValueError(f"gripper close output {g.close_output!r} is not an output; "
+                raise ValueError(f"gripper close output {g.close_output!r} is not an output; "  # noqa: E501
                                  f"known: {', '.join(self.io_outputs)}")
             for ch in (g.closed_sensor_input, g.open_sensor_input):
                 if ch is not None and ch not in self.io_inputs:

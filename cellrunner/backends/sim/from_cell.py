@@ -5,36 +5,87 @@ from __future__ import annotations
 import numpy as np
 
 from cellrunner.model.expand import frame_pose
-from cellrunner.model.gripper import gripper_channels
+from cellrunner.model.gripper import gripper_channels, part_center_depth_m
 from cellrunner.model.load import LoadedCell
 
 
 def description_of(loaded: LoadedCell):
-    """A :class:`TwinDescription` of ``loaded``: arm, mount, tool, gripper, fixtures, parts, IO."""
-    from cellrunner.backends.sim.description import GripperDescription, PartDescription, TwinDescription
+    """A :class:`TwinDescription` of ``loaded``: arm, mount, tool, gripper, fixtures, parts, IO.
+
+    With ``tools:`` and a tool changer every tool is built (each enabled while mounted):
+    the jaws of the first tool with jaws, the cups of the first vacuum tool."""
+    from cellrunner.backends.sim.description import PartDescription, TwinDescription
 
     c = loaded.cell
     outputs, inputs = c.io.outputs, c.io.inputs
-    gripper = None
-    g = c.tool.gripper
     io_outputs, io_inputs = list(dict.fromkeys(outputs.values())), list(dict.fromkeys(inputs.values()))
-    close, _, sensor = gripper_channels(g, outputs, inputs)
-    if close is not None:
-        gripper = GripperDescription(
-            stroke_m=g.stroke, jaw_speed_mps=g.stroke / 2 / g.close_time,
-            close_output=close[0], close_value=close[1], closed_sensor_input=sensor,
-            open_sensor_input=inputs.get(g.open_sensor) if g.open_sensor else None)
-        io_outputs += [close[0]] if close[0] not in io_outputs else []
-        io_inputs += [sensor] if sensor and sensor not in io_inputs else []
-    parts = [PartDescription(p.name, p.to_shape(loaded.resolve), p.mass, _upright(frame_pose(c, p.at)), p.friction)
-             for p in c.parts]
+    changer = _changer(loaded, io_outputs, io_inputs) if c.tools and c.tool_changer is not None else None
+    tools = list(c.tools.values()) if changer is not None else [c.tool]
+    suction = next((t for t in tools if t.gripper is not None and t.gripper.kind == "vacuum"), None)
+    jaws = [t for t in tools if t.gripper is not None and t.gripper.kind != "vacuum"]
+    jaws.sort(key=lambda t: t is not c.tool)  # the mounted tool's jaws first
+    gripper = _jaws(jaws[0], c, io_outputs, io_inputs) if jaws else None
+    vacuum = _cups(suction, c) if suction is not None else None
+    g = c.tool.gripper
+    parts = [PartDescription(p.name, shape, p.mass, _part_pose(c, p.at, g, shape), p.friction)
+             for p in c.parts for shape in [p.to_shape(loaded.resolve)]]
     return TwinDescription(
         spec=loaded.spec, T_world_base=c.robot.mount.matrix(), T_flange_tcp=c.tool.tcp.matrix(),
-        q_home_rad=tuple(np.radians(c.robot.home)), tool_geometry=tuple(loaded.tool_shapes()),
+        q_home_rad=tuple(np.radians(c.robot.home)),
+        tool_geometry=tuple(loaded.tool_shapes()) if changer is None else (),
         payload_mass_kg=max(c.tool.payload.mass, 0.1), payload_cog_m=tuple(c.tool.payload.cog),
-        gripper=gripper, fixtures=tuple(loaded.fixture_shapes()), parts=tuple(parts),
-        io_outputs=tuple(io_outputs), io_inputs=tuple(io_inputs),
+        gripper=gripper, vacuum=vacuum, tool_changer=changer, fixtures=tuple(loaded.fixture_shapes()),
+        parts=tuple(parts), io_outputs=tuple(io_outputs), io_inputs=tuple(io_inputs),
         name=c.cell)
+
+
+def _jaws(tool, cell, io_outputs: list, io_inputs: list):
+    from cellrunner.backends.sim.description import GripperDescription
+    g = tool.gripper
+    close, _, sensor = gripper_channels(g, cell.io.outputs, cell.io.inputs)
+    io_outputs += [close[0]] if close[0] not in io_outputs else []
+    io_inputs += [sensor] if sensor and sensor not in io_inputs else []
+    return GripperDescription(
+        stroke_m=g.stroke, jaw_speed_mps=g.stroke / 2 / g.close_time,
+        close_output=close[0], close_value=close[1], closed_sensor_input=sensor,
+        open_sensor_input=cell.io.inputs.get(g.open_sensor) if g.open_sensor else None,
+        T_flange_tcp=tool.tcp.matrix())
+
+
+def _cups(tool, cell):
+    from cellrunner.backends.sim.vacuum import VacuumDescription
+    g = tool.gripper
+    close, _, sensor = gripper_channels(g, cell.io.outputs, cell.io.inputs)
+    return VacuumDescription(
+        cups=tuple((tuple(cup.xyz), cup.radius) for cup in g.cups), suction_output=close[0],
+        suction_value=close[1], vacuum_ok_input=sensor,
+        blow_off_output=cell.io.outputs[g.blow_off.output] if g.blow_off else None,
+        holding_force_N=g.holding_force or 100.0, T_flange_tcp=tool.tcp.matrix())
+
+
+def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
+    from cellrunner.backends.sim.tool_changer import ChangerTool, ToolChangerDescription
+    c = loaded.cell
+    changer = c.tool_changer
+    tools = []
+    for name, tool in c.tools.items():
+        g = tool.gripper
+        kind = None if g is None else "vacuum" if g.kind == "vacuum" else "jaws"
+        shapes = loaded.tool_shapes(tool)
+        tools.append(ChangerTool(name, tool.tcp.matrix(), tuple(shapes), max(tool.payload.mass, 0.1),
+                                 tuple(tool.payload.cog), kind, frame_pose(c, changer.rack[name]),
+                                 _jaws(tool, c, io_outputs, io_inputs) if kind == "jaws" else None))
+    return ToolChangerDescription(c.io.outputs[changer.lock],
+                                  c.io.inputs[changer.locked] if changer.locked else None,
+                                  tuple(tools), c.robot.tool)
+
+
+def _part_pose(cell, frame: str, gripper, shape) -> np.ndarray:
+    """A part at ``frame`` lies upright where a TCP at the frame grips it: centred (jaws)
+    or with its top face at the frame (suction)."""
+    T = _upright(frame_pose(cell, frame))
+    T[2, 3] -= part_center_depth_m(gripper, shape)
+    return T
 
 
 def _upright(T_world_frame: np.ndarray) -> np.ndarray:

@@ -235,6 +235,9 @@ class _Builder:
         self._arm(world)
         for part in d.parts:
             self._part(world, part)
+        if d.vacuum is not None and d.parts:
+            from cellrunner.backends.sim.vacuum import add_welds
+            add_welds(self.root, d.parts)
         self._actuators_and_sensors()
         ET.indent(self.root)
         return ET.tostring(self.root, encoding="unicode")
@@ -276,6 +279,8 @@ class _Builder:
     # -- bodies ---------------------------------------------------------------------
     def _static_geom(self, parent: ET.Element, placed: Placed) -> None:
         shape, T = placed.shape, placed.T_parent_shape
+        if isinstance(shape, Mesh) and self._mesh_pieces(parent, placed):
+            return
         flat = _flat_mesh_box(shape) if isinstance(shape, Mesh) else None
         if flat is not None:  # MuJoCo cannot hull a flat mesh: a thin box over its bounds
             center, size = flat
@@ -285,6 +290,22 @@ class _Builder:
         ET.SubElement(parent, "geom", name=f"fixture:{placed.name}", material="fixture",
                       contype=str(STATIC), conaffinity=str(ROBOT | PADS | PARTS),
                       **self._shape_attrs(shape), **_pose_attrs(T))
+
+    def _mesh_pieces(self, parent: ET.Element, placed: Placed) -> bool:
+        """A non-convex mesh fixture as one thin prism per triangle (see :mod:`.mesh_pieces`);
+        False when the mesh is convex (or too big), to be built as usual."""
+        from cellrunner.backends.sim import mesh_pieces
+        triangles = mesh_pieces.triangles_of(binary_stl(placed.shape.path), placed.shape.scale)
+        if len(triangles) > mesh_pieces.MAX_TRIANGLES or mesh_pieces.is_convex(triangles):
+            return False
+        assert self.assets is not None
+        for k, vertices in enumerate(mesh_pieces.prisms(triangles)):
+            name = f"{placed.name}_piece{k}"
+            ET.SubElement(self.assets, "mesh", name=name, vertex=_fmt(vertices))
+            ET.SubElement(parent, "geom", name=f"fixture:{placed.name}:{k}", material="fixture", type="mesh",
+                          mesh=name, contype=str(STATIC), conaffinity=str(ROBOT | PADS | PARTS),
+                          **_pose_attrs(placed.T_parent_shape))
+        return True
 
     def _arm(self, world: ET.Element) -> None:
         d = self.desc
@@ -346,6 +367,13 @@ class _Builder:
                           **self._shape_attrs(placed.shape), **_pose_attrs(placed.T_parent_shape))
         if g is not None:
             self._gripper(tool, g)
+        if d.vacuum is not None:
+            from cellrunner.backends.sim.vacuum import add_cups
+            T = d.vacuum.T_flange_tcp if d.vacuum.T_flange_tcp is not None else d.T_flange_tcp
+            add_cups(self, tool, d.vacuum, T, PADS, STATIC | PARTS)
+        if d.tool_changer is not None:
+            from cellrunner.backends.sim.tool_changer import add_tools
+            add_tools(self, tool, self.root.find("worldbody"), d.tool_changer, TOOL, STATIC)
 
     def _gripper(self, tool: ET.Element, g: Any) -> None:
         d = self.desc
@@ -353,7 +381,8 @@ class _Builder:
         z0, z1 = g.pad_z_m
         half_stroke = g.stroke_m / 2
         # Visual rail across the fingers' tops, fixed to the tool at the TCP frame.
-        rail = ET.SubElement(tool, "body", name="gripper", **_pose_attrs(d.T_flange_tcp))
+        T_flange_jaws = g.T_flange_tcp if g.T_flange_tcp is not None else d.T_flange_tcp
+        rail = ET.SubElement(tool, "body", name="gripper", **_pose_attrs(T_flange_jaws))
         ET.SubElement(rail, "geom", name="gripper:rail", type="box", material="tool",
                       pos=_fmt([0, 0, z0 - 0.02]), size=_fmt([half_stroke + t + 0.01, w / 2 + 0.004, 0.008]),
                       contype="0", conaffinity="0", density="0", group="1")

@@ -188,6 +188,15 @@ class SimWorld:
         self._jaw_act = [int(a) for a in ids.jaw_act]
         self.data.ctrl[ids.servo] = self.q_ref
         self._mj.mj_forward(self.model, self.data)
+        self.vacuum = None
+        self.jaws_enabled = True
+        if self.description.vacuum is not None:
+            from cellrunner.backends.sim.vacuum import VacuumCups
+            self.vacuum = VacuumCups(self, self.description.vacuum)
+        self.changer = None
+        if self.description.tool_changer is not None:
+            from cellrunner.backends.sim.tool_changer import ToolChanger
+            self.changer = ToolChanger(self, self.description.tool_changer)
         self._update_inputs()
 
     @property
@@ -326,7 +335,9 @@ class SimWorld:
         """Make ``fault`` happen physically (see :class:`Fault`); robot_disconnect is the
         backend's business."""
         f = Fault.parse(fault)
-        if f is Fault.GRIP_MISS:
+        if f in (Fault.GRIP_MISS, Fault.PART_SLIP) and self.vacuum is not None:
+            setattr(self.vacuum, "grip_miss_armed" if f is Fault.GRIP_MISS else "slip_armed", True)
+        elif f is Fault.GRIP_MISS:
             self._faults.grip_miss_armed = True
         elif f is Fault.PART_SLIP:
             self._faults.slip_armed = True  # fires once a gripped part is in the air
@@ -357,6 +368,10 @@ class SimWorld:
         # feed-forward term). With several steps per period (CB3) the set-point is
         # interpolated linearly across them.
         self._drive_gripper()
+        if self.changer is not None:
+            self.changer.drive()
+        if self.vacuum is not None:
+            self.vacuum.drive()
         k = self.substeps
         if k == 1:
             if self.qd_ref is _ZERO6:
@@ -381,6 +396,9 @@ class SimWorld:
         if self._stop is None:
             self.qd_ref = _ZERO6  # feed-forward is valid for one period only
         self._gripped = self._check_contacts()
+        if self.vacuum is not None:
+            self.vacuum.update()
+            self._gripped = self._gripped | self.vacuum.held
         f = self._faults
         if f.slip_armed or f.slipping:
             self._update_faults(self._gripped)
@@ -390,7 +408,7 @@ class SimWorld:
         g = self.description.gripper
         if g is None:
             return
-        closing = self.outputs.get(g.close_output) == g.close_value
+        closing = self.jaws_enabled and self.outputs.get(g.close_output) == g.close_value
         if closing == self._closing and self._jaws_driven:
             return  # the drive forces already in ctrl stay
         if closing and not self._closing and self._faults.grip_miss_armed:
@@ -404,6 +422,15 @@ class SimWorld:
             ctrl[a] = speed  # a force (N): the drives are force actuators
 
     # -- contacts -----------------------------------------------------------------------
+    def contacts_changed(self) -> None:
+        """Geoms were switched on or off (a tool change): take their collision kinds anew."""
+        m = self.model
+        self._kind = [int(m.geom_contype[g]) if (m.geom_contype[g] or m.geom_conaffinity[g]) else 0
+                      for g in range(m.ngeom)]
+        self._static_geoms = [g for g, k in enumerate(self._kind) if k == STATIC]
+        self._robot_or_pad_geoms = frozenset(g for g, k in enumerate(self._kind) if k & (ROBOT | PADS | TOOL))
+        self._clean_pairs, self._clean_gripped = None, _NONE
+
     def _check_contacts(self) -> frozenset[str]:
         """Raise a protective stop on unexpected contact; return the gripped parts.
 
@@ -501,6 +528,10 @@ class SimWorld:
         kinds = self._contacts_of(part)
         if not kinds or any(k != PADS for k in kinds):
             return False
+        return self._clear_of_static(part)
+
+    def _clear_of_static(self, part: str) -> bool:
+        """True when the part is ``AIR_CLEARANCE_M`` clear of every fixture and the floor."""
         g = self._ids.part_geom[part]
         fromto = self._fromto6
         for other in self._static_geoms:
@@ -512,11 +543,12 @@ class SimWorld:
     def _touches_pads(self, part: str) -> bool:
         return PADS in self._contacts_of(part)
 
-    def _move_part_away(self) -> None:
-        """grip_miss: the part between the jaws is moved 0.15 m towards the robot base."""
+    def _move_part_away(self, reach_m: float | None = None) -> None:
+        """grip_miss: the part at the gripper (within ``reach_m`` of the TCP; default: the
+        jaws' half stroke + 5 cm) is moved 0.15 m towards the robot base."""
         ids, data, g = self._ids, self.data, self.description.gripper
         tcp = data.site_xpos[ids.tcp_site]
-        reach = g.stroke_m / 2 + 0.05
+        reach = reach_m if reach_m is not None else g.stroke_m / 2 + 0.05
         best, best_d = None, reach
         for name, body in ids.part_bodies.items():
             dist = float(np.linalg.norm(data.xpos[body] - tcp))
@@ -550,6 +582,10 @@ class SimWorld:
     def _sensor_channels(self) -> set[str]:
         g = self.description.gripper
         chans = {s.channel for s in self.description.presence_sensors}
+        if self.description.vacuum is not None and self.description.vacuum.vacuum_ok_input:
+            chans.add(self.description.vacuum.vacuum_ok_input)
+        if self.description.tool_changer is not None and self.description.tool_changer.locked_input:
+            chans.add(self.description.tool_changer.locked_input)
         if g is not None:
             chans |= {c for c in (g.closed_sensor_input, g.open_sensor_input) if c}
         return chans
@@ -576,6 +612,10 @@ class SimWorld:
                 self.inputs[g.closed_sensor_input] = bool(self._closing and resting and lo <= gap <= hi)
             if g.open_sensor_input:
                 self.inputs[g.open_sensor_input] = gap >= hi
+        if self.vacuum is not None and self.vacuum.vac.vacuum_ok_input:
+            self.inputs[self.vacuum.vac.vacuum_ok_input] = self.vacuum.vacuum_ok
+        if self.changer is not None and self.changer.desc.locked_input:
+            self.inputs[self.changer.desc.locked_input] = self.changer.locked
         for sensor in self.description.presence_sensors:
             c = np.asarray(sensor.center_world_m)
             h = np.asarray(sensor.half_extents_m)

@@ -1,0 +1,224 @@
+"""Suction cups in the twin: a cup seals on a part's face, a weld holds the part while
+the pull stays under the holding force, and losing the vacuum drops it.
+
+Model: each cup is a short cylinder on the tool body (collision kind PADS: touching parts
+is what cups do; touching a fixture is a contact like any other). Each part has a weld
+equality to the tool body, inactive at start. Every period, with the suction output on:
+
+- a cup *seals* when its face is within ``SEAL_GAP_M`` of a part and the cup's axis is
+  square to one of the part's faces (within ``SEAL_ANGLE_DEG``); the part's weld is then
+  activated at the pose the part has (no jump);
+- the weld's force on the part, split into pull along the cup axis and shear across it,
+  is held only while ``pull + shear / CUP_FRICTION`` (low-pass filtered, PULL_TAU_S)
+  stays under the holding force; above it the part tears off (and does not seal again
+  until suction is switched off and on);
+- suction off (or a blow-off pulse) releases at once; ``part_slip`` opens a leak once the
+  held part is in the air (the seal is lost until suction is switched off and on again);
+  ``grip_miss`` moves the part away as suction comes on.
+
+``vacuum_ok`` (the vacuum switch) reads true while suction is on and a cup seals.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cellrunner.model.gripper import CUP_LENGTH_M  # a cup's body above its face, as planning checks it
+
+#: a cup seals on a face this close (m) ...
+SEAL_GAP_M = 0.002
+#: ... and this square to the cup's axis (deg)
+SEAL_ANGLE_DEG = 10.0
+#: friction of a sealed cup against shear (lateral force holds up to this x the pull rating)
+CUP_FRICTION = 0.5
+#: a cup's rubber lip is compliant: its contacts are MuJoCo's default softness, not the
+#: stiff grasp contacts of the jaws (a held part hangs on its weld, not on the contact)
+CUP_SOLREF = "0.02 1"
+#: time constant (s) of the low-pass on the pull: a seal leaks for a while before it lets
+#: go, so a jolt of a few milliseconds does not tear a part off, a sustained pull does
+PULL_TAU_S = 0.05
+
+
+@dataclass(frozen=True)
+class VacuumDescription:
+    """A vacuum gripper: cups ``(xyz in the TCP frame, radius)``, its IO channels and the
+    pull (N) the cups hold."""
+
+    cups: tuple[tuple[tuple[float, float, float], float], ...]
+    suction_output: str
+    T_flange_tcp: np.ndarray | None = None  # the vacuum tool's TCP (default: the twin's)
+    suction_value: bool | float = True
+    vacuum_ok_input: str | None = None
+    blow_off_output: str | None = None
+    holding_force_N: float = 100.0
+
+
+def add_cups(builder: Any, tool: ET.Element, vac: VacuumDescription, T_flange_tcp: np.ndarray,
+             pads_kind: int, hits: int) -> None:
+    """The cups as geoms of the tool body (MJCF)."""
+    from cellrunner.backends.sim.mjcf import _pose_attrs
+    from cellrunner.model import geometry
+    for i, ((x, y, z), r) in enumerate(vac.cups):
+        T = T_flange_tcp @ geometry.pose_matrix((x, y, z - CUP_LENGTH_M / 2))
+        ET.SubElement(tool, "geom", name=f"cup:{i}", type="cylinder", size=f"{r:.6g} {CUP_LENGTH_M / 2:.6g}",
+                      material="pad", density="0", friction="1 0.01 0.0001", condim="4",
+                      solref=CUP_SOLREF, contype=str(pads_kind), conaffinity=str(hits),
+                      **_pose_attrs(T))
+
+
+def add_welds(root: ET.Element, parts) -> None:
+    """One inactive weld per part, tool to part (MJCF)."""
+    eq = root.find("equality")
+    if eq is None:
+        eq = ET.SubElement(root, "equality")
+    for part in parts:
+        ET.SubElement(eq, "weld", name=f"vac:{part.name}", body1="tool", body2=f"part:{part.name}",
+                      active="false", solref="0.004 1")
+
+
+class VacuumCups:
+    """The cups of one built SimWorld (constructed after its model is compiled)."""
+
+    def __init__(self, world: Any, vac: VacuumDescription):
+        self.world, self.vac = world, vac
+        m = world.model
+        self._mj = world._mj
+        self.cup_geoms = [m.geom(f"cup:{i}").id for i in range(len(vac.cups))]
+        self.weld = {name: m.equality(f"vac:{name}").id for name in world._ids.part_bodies}
+        self.held: frozenset[str] = frozenset()
+        self.suction = False
+        self.leak = False
+        self.torn: set[str] = set()
+        self.grip_miss_armed = False
+        self.slip_armed = False
+        self._pull_lp: dict[str, float] = {}
+        self.last_pull_N = 0.0
+        self.enabled = True
+        self._cup_bits = [(int(m.geom_contype[g]), int(m.geom_conaffinity[g])) for g in self.cup_geoms]
+
+    def set_enabled(self, on: bool) -> None:
+        """Mounted (a tool changer took the vacuum tool) or parked: cups collide and seal only when on."""
+        self.enabled = on
+        m = self.world.model
+        for g, bits in zip(self.cup_geoms, self._cup_bits):
+            m.geom_contype[g], m.geom_conaffinity[g] = bits if on else (0, 0)
+            m.geom_rgba[g, 3] = 1.0 if on else 0.0
+        if not on:
+            self._drop_all()
+            self.suction = False
+
+    # -- per period ---------------------------------------------------------------------
+    def drive(self) -> None:
+        """Follow the suction and blow-off outputs (before the physics step)."""
+        w, v = self.world, self.vac
+        on = self.enabled and w.outputs.get(v.suction_output) == v.suction_value
+        if v.blow_off_output is not None and w.outputs.get(v.blow_off_output):
+            on = False
+        if on and not self.suction:
+            self.leak = False
+            self.torn.clear()
+            if self.grip_miss_armed:
+                self.grip_miss_armed = False
+                w._move_part_away(reach_m=0.1)
+        self.suction = on
+        if not on and self.held:
+            self._drop_all()
+
+    def update(self) -> None:
+        """Seal, hold or tear off (after the physics step)."""
+        if not self.suction or self.leak:
+            if self.held:
+                self._drop_all()
+            return
+        for name in list(self.held):
+            if self._pull_N(name) > self.vac.holding_force_N:
+                self._drop(name)
+                self.torn.add(name)  # open to the air: no seal on it until suction is cycled
+        if self.slip_armed and any(self._in_air(p) for p in self.held):
+            self.slip_armed = False
+            self.leak = True
+            self._drop_all()
+            return
+        if not self.held:
+            name = self._sealed_part()
+            if name is not None:
+                self._weld(name)
+
+    @property
+    def vacuum_ok(self) -> bool:
+        return self.suction and bool(self.held)
+
+    # -- helpers ------------------------------------------------------------------------
+    def _in_air(self, part: str) -> bool:
+        """Held by the cups alone, clear of fixtures and the floor."""
+        from cellrunner.backends.sim.mjcf import PADS
+        w = self.world
+        return all(k == PADS for k in w._contacts_of(part)) and w._clear_of_static(part)
+
+    def _sealed_part(self) -> str | None:
+        w = self.world
+        m, d = w.model, w.data
+        R_tcp = d.site_xmat[w._ids.tcp_site].reshape(3, 3)
+        axis = R_tcp[:, 2]
+        cos_max = math.cos(math.radians(SEAL_ANGLE_DEG))
+        fromto = np.zeros(6)
+        for name, geom in w._ids.part_geom.items():
+            if name in self.torn:
+                continue
+            R_part = d.xmat[w._ids.part_bodies[name]].reshape(3, 3)
+            if float(np.max(np.abs(R_part.T @ axis))) < cos_max:
+                continue
+            for cup in self.cup_geoms:
+                if self._mj.mj_geomDistance(m, d, cup, geom, 0.01, fromto) < SEAL_GAP_M:
+                    return name
+        return None
+
+    def _weld(self, name: str) -> None:
+        w = self.world
+        m, d = w.model, w.data
+        eq = self.weld[name]
+        t, p = w._ids.tool_body, w._ids.part_bodies[name]
+        R1 = d.xmat[t].reshape(3, 3)
+        R2 = d.xmat[p].reshape(3, 3)
+        quat = np.zeros(4)
+        self._mj.mju_mat2Quat(quat, (R1.T @ R2).ravel())
+        m.eq_data[eq, 0:3] = 0.0
+        m.eq_data[eq, 3:6] = R1.T @ (d.xpos[p] - d.xpos[t])
+        m.eq_data[eq, 6:10] = quat
+        m.eq_data[eq, 10] = 1.0
+        d.eq_active[eq] = 1
+        self.held = self.held | {name}
+        self._pull_lp[name] = 0.0
+
+    def _drop(self, name: str) -> None:
+        self.world.data.eq_active[self.weld[name]] = 0
+        self.held = self.held - {name}
+        self._pull_lp.pop(name, None)
+
+    def _drop_all(self) -> None:
+        for name in list(self.held):
+            self._drop(name)
+
+    def _pull_N(self, name: str) -> float:
+        """The filtered pull on the part's seal: along the cup axis plus shear over friction."""
+        w = self.world
+        d = w.data
+        eq = self.weld[name]
+        n = d.nefc
+        rows = np.flatnonzero((d.efc_type[:n] == self._mj.mjtConstraint.mjCNSTR_EQUALITY) & (d.efc_id[:n] == eq))
+        if len(rows) < 3:
+            return self._pull_lp.get(name, 0.0)
+        f_on_part = -np.asarray(d.efc_force[rows[:3]])
+        axis = d.site_xmat[w._ids.tcp_site].reshape(3, 3)[:, 2]  # out of the cups, into the part
+        pull = float(np.dot(f_on_part, -axis))  # towards the cups: what the seal must hold
+        shear = float(np.linalg.norm(f_on_part + pull * axis))
+        load = max(pull, 0.0) + shear / CUP_FRICTION
+        alpha = min(1.0, w.period_s / PULL_TAU_S)
+        lp = self._pull_lp[name] = (1 - alpha) * self._pull_lp.get(name, load) + alpha * load
+        self.last_pull_N = lp
+        return lp

@@ -1,0 +1,140 @@
+"""The force steps on every backend: a guarded servo along the approved straight line.
+
+``move_until_contact`` and ``insert`` stream the line ``check`` approved (to
+``max_distance`` / ``depth``) set-point by set-point, as every motion does, and watch the
+wrist force (the controller's ``actual_TCP_force``, base axes) against a baseline taken
+standing still just before. A force rise above the step's limit over the last three
+measurements (or three times the limit at once) stops the arm (stopJ / servoStop) where
+it is:
+
+- ``move_until_contact``: contact is success, and the arm goes back along the line to
+  where the contact began (as ur_rtde's moveUntilContact retracts); the line's end without
+  contact fails the step (3 when a part is carried, which was being set down; else 1,
+  nothing found);
+- ``insert``: the depth reached past the frame (the TCP measured along the frame's Z)
+  must lie in ``expect_depth``; outside it the place failed (3), with the depth in the
+  message.
+
+Why not ur_rtde's moveUntilContact: it is a speedL without an end, so it could run past
+the line ``check`` approved; the guarded servo cannot (and reads the same sensor).
+Each period's force is kept in ``ctx.notes['force_trace']`` as (t_s, step index, N) for
+the report's wrist-force plot.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Generator
+
+import numpy as np
+
+from cellrunner.execution.context import JobContext
+from cellrunner.execution.steps import AVERAGE_S, OK, SETTLE_S, START_TOLERANCE_RAD, Outcome, sensor_dropped
+from cellrunner.model.codes import ResultCode
+from cellrunner.model.expand import Step
+
+#: after a contact stop, wait at most this long for the arm to stand still (s)
+STOP_WAIT_S = 1.0
+#: joint speed under which the arm stands still (rad/s)
+STILL_RAD_S = 2e-3
+#: the line stops when the mean of the last CONFIRM_SAMPLES measurements is over the
+#: limit, or at once on one over HARD_HIT_FACTOR x the limit: a jolt of a few periods (a
+#: late set-point shakes the tool's mass) is not a contact, a hard hit is
+CONFIRM_SAMPLES = 3
+HARD_HIT_FACTOR = 3.0
+#: contact begins where the force first rises above this fraction of the step's limit
+TOUCH_FRACTION = 0.2
+
+
+def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[None, None, Outcome]:
+    """Stream ``step``'s approved line until its force limit; the step's Outcome."""
+    baseline = yield from _baseline(ctx)
+    args = step.args
+    limit_N = args.force if step.kind == "move_until_contact" else args.force.max
+    q_now = ctx.state.q_rad
+    approved = None if resume else ctx.motions.nominal(step)
+    if approved is None or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD:
+        approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
+    trace = ctx.notes.setdefault("force_trace", [])
+    q = approved.trajectory.q_rad
+    contact_N, touch_i, t_last = None, None, None
+    recent: list[float] = []
+    for i in range(len(q)):
+        ctx.backend.servo(approved, i)
+        ctx.commanded_q = q[i]
+        yield
+        if ctx.now_s == t_last:
+            continue  # no new measurement this period (a late controller package)
+        t_last = ctx.now_s
+        force_N = math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)
+        trace.append((ctx.now_s, step.index, force_N))
+        sensor = sensor_dropped(ctx)  # (the wrist load is the contact's business here)
+        if sensor is not None:
+            ctx.backend.stop_motion()
+            return Outcome.failed(ResultCode.PART_LOST, f"part lost during {step.kind}: the {sensor} dropped")
+        if touch_i is None and force_N > TOUCH_FRACTION * limit_N:
+            touch_i = i
+        recent = (recent + [force_N])[-CONFIRM_SAMPLES:]
+        if sum(recent) / CONFIRM_SAMPLES > limit_N or force_N > HARD_HIT_FACTOR * limit_N:
+            contact_N = force_N
+            break
+    if contact_N is not None:
+        ctx.backend.stop_motion()
+        ctx.commanded_q = None  # pressing, not tracking
+        yield from _until_still(ctx, trace, step, baseline)
+    if step.kind == "move_until_contact":
+        if contact_N is not None:  # back to where the contact began, as moveUntilContact does
+            yield from _retract(ctx, approved, i, max((touch_i or i) - 1, 0), trace, step, baseline)
+        if contact_N is None:
+            code = ResultCode.PLACE_FAILED if ctx.carry is not None else ResultCode.NO_PART
+            return Outcome.failed(code, f"no contact within {args.max_distance * 1000:.1f} mm "
+                                  f"(force stayed under {limit_N:g} N)")
+        return OK
+    depth_m = _depth_m(ctx, step)
+    lo, hi = args.depth_window_m
+    how = f"stopped at {contact_N:.1f} N" if contact_N is not None else "no force stop"
+    if not lo - 1e-4 <= depth_m <= hi + 1e-4:
+        return Outcome.failed(ResultCode.PLACE_FAILED, f"inserted {depth_m * 1000:.1f} mm, expected "
+                              f"{lo * 1000:.1f}-{hi * 1000:.1f} mm ({how})")
+    return OK
+
+
+def _retract(ctx: JobContext, approved, i_from: int, i_to: int, trace: list, step: Step,
+             baseline: list[float]) -> Generator[None, None, None]:
+    """Stream the approved line backwards from set-point ``i_from`` to ``i_to``, then stand."""
+    for k in range(i_from, i_to - 1, -1):
+        ctx.backend.servo(approved, k)
+        ctx.commanded_q = approved.trajectory.q_rad[k]
+        yield
+        trace.append((ctx.now_s, step.index, math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)))
+    yield from _until_still(ctx, trace, step, baseline)
+
+
+def _baseline(ctx: JobContext) -> Generator[None, None, list[float]]:
+    samples = []
+    t0 = ctx.now_s
+    while ctx.now_s - t0 < SETTLE_S + AVERAGE_S:
+        if ctx.now_s - t0 >= SETTLE_S:
+            samples.append(np.asarray(ctx.state.wrench_N[:3], float))
+        yield
+    if not samples:
+        samples.append(np.asarray(ctx.state.wrench_N[:3], float))
+    return np.mean(samples, axis=0).tolist()
+
+
+def _until_still(ctx: JobContext, trace: list, step: Step, baseline: list[float]) -> Generator[None, None, None]:
+    t0 = ctx.now_s
+    while ctx.now_s - t0 < STOP_WAIT_S:
+        yield
+        trace.append((ctx.now_s, step.index, math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)))
+        if ctx.now_s - t0 > 0.05 and np.max(np.abs(ctx.state.qd_rad_s)) < STILL_RAD_S:
+            return
+
+
+def _depth_m(ctx: JobContext, step: Step) -> float:
+    """How far past the insert's frame the TCP stands, along the frame's Z (m)."""
+    T_end = step.T_world_tcp
+    z = T_end[:3, 2]
+    p_frame = T_end[:3, 3] - step.args.depth * z
+    p_tcp = ctx.motions.tcp_position_m(ctx.state.q_rad, step)
+    return float(np.dot(np.asarray(p_tcp) - p_frame, z))

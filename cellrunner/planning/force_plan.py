@@ -1,0 +1,61 @@
+"""Planning the force steps: their straight line, and the contact they may make.
+
+``move_until_contact`` runs to ``max_distance`` along its direction and ``insert`` to
+``depth`` past its frame; ``check`` verifies the whole line. The contact the step is
+for is allowed only where the line ends: the carried part (or, carrying nothing, the
+tool) may reach into the fixtures it meets at the end of the line, by no more than it
+does there; every other pair (the arm, the tool holding a part, other fixtures) keeps the
+full clearance.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cellrunner.model import geometry
+
+#: contact allowed beyond the depth measured at the line's end (m)
+CONTACT_SLACK_M = 0.001
+
+
+def contact_line_goal(args, T_world_tcp: np.ndarray) -> np.ndarray:
+    """The end of a move_until_contact line from ``T_world_tcp`` (full max_distance)."""
+    d = np.asarray(args.direction, float) * args.max_distance
+    if args.frame == "tool":
+        return T_world_tcp @ geometry.pose_matrix(tuple(d))
+    return geometry.pose_matrix(tuple(d)) @ T_world_tcp
+
+
+def contact_allowances(planner, step, T_goal: np.ndarray) -> tuple:
+    """Allowances for the fixtures the carried part (or, carrying nothing, the tool) meets
+    at the line's end, by no more than it reaches into them there."""
+    from cellrunner.planning.collision import ContactAllowance
+
+    try:
+        q_end = planner.world.kinematics.ik_nearest(T_goal, planner.q)
+    except Exception:  # unreachable: the line planner says why
+        return ()
+    # what makes the contact: the carried part, or the tool when nothing is carried (the
+    # tool holding a part must keep its clearance, as the arm always does)
+    mover, label = ("part", "part '") if planner.part is not None else ("tool", "tool ")
+    # while looking for the mover's contacts, the tool's own are left for the line check
+    # to report (as the collision it is)
+    others = tuple(ContactAllowance(f.name, "tool", -1.0) for f in planner.world.fixtures) if mover == "part" else ()
+    allowances: list = []
+    for _ in range(8):  # one pair per round, a line meets few
+        model = planner.collision(tuple(allowances) + others)
+        clearance = model.clearance(q_end)
+        if clearance.distance_m >= clearance.required_m or not clearance.b.startswith("fixture '") \
+                or not clearance.a.startswith(label):
+            break
+        fixture = clearance.b[len("fixture '"):-1]
+        allowances.append(ContactAllowance(fixture, mover, min(clearance.distance_m, 0.0) - CONTACT_SLACK_M))
+    return tuple(allowances)
+
+
+def describe(step, line_m, allowances: tuple) -> str:
+    """The row message of a force step: its stop force, the line checked, the contact allowed."""
+    limit = step.args.force if step.kind == "move_until_contact" else step.args.force.max
+    length_mm = float(np.linalg.norm(line_m[1] - line_m[0])) * 1000 if line_m is not None else 0.0
+    where = ", ".join(sorted({a.fixture for a in allowances if a.min_clearance_m < 0})) or "none"
+    return f"guarded: stops above {limit:g} N; {length_mm:.0f} mm line checked; contact allowed with: {where}"
