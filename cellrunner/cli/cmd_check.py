@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, step_table
-from cellrunner.model.expand import pattern_params
+from cellrunner.model.expand import box_params, pattern_params
 from cellrunner.model.robots import JOINT_NAMES
 
 
@@ -39,7 +39,10 @@ def run(args) -> int:
             (f"  params: {', '.join(f'{k}={v}' for k, v in params.items())}" if params else "")
         out.print(step_table(title, rows))
         for name, values in slots_checked.items():
-            out.print(f"pattern param {name}: {len(values)} slots checked ({values[0]}..{values[-1]})")
+            if isinstance(values[0], dict):
+                out.print(f"pose param {name}: {len(values)} poses checked (its box's centre and corners)")
+            else:
+                out.print(f"pattern param {name}: {len(values)} slots checked ({values[0]}..{values[-1]})")
         for e in errors:
             out.print(f"[bold red]infeasible:[/] {e}")
         verdict = "[green]feasible[/]" if not errors else "[bold red]infeasible[/]"
@@ -50,19 +53,26 @@ def run(args) -> int:
     return 0 if not errors else 1
 
 
-def _check_other_slots(world, task, params, errors: list[str], use_cache: bool) -> dict[str, list[int]]:
-    """Every slot of every pattern, not only the requested one."""
+def _check_other_slots(world, task, params, errors: list[str], use_cache: bool) -> dict[str, list]:
+    """Every slot of every pattern and every corner (and the centre) of every pose param's
+    box, not only the requested value."""
     from cellrunner.planning.cache import plan_cached
 
-    checked: dict[str, list[int]] = {}
-    for name, slots in pattern_params(task).items():
+    checked: dict[str, list] = {}
+    for name, slots in {**pattern_params(task), **box_params(task)}.items():
         checked[name] = list(slots)
         for slot in slots:
             if slot == params.get(name):
                 continue
             other = plan_cached(world, task, {**params, name: slot}, world.q_home_rad, use_cache=use_cache)
-            errors.extend(f"{name}={slot}: {e}" for e in other.errors)
+            errors.extend(f"{name}={_shown(slot)}: {e}" for e in other.errors)
     return checked
+
+
+def _shown(value) -> str:
+    if isinstance(value, dict):
+        return json.dumps(value, separators=(",", ":"))
+    return str(value)
 
 
 def _save_plan(path: Path, world, plan) -> None:

@@ -144,11 +144,10 @@ def _run(controller, backend, pending, recorder, status, steps, world, max_s: fl
         if runner is not None:
             if runner.current_step != last_step:
                 last_step = runner.current_step
-                status.update(f"step {last_step}/{len(steps)} {steps[last_step - 1].kind} "
-                              f"{steps[last_step - 1].name}" if last_step else "running")
-                if recorder.report is not None and last_step and steps[last_step - 1].kind in ("grip", "release"):
-                    recorder.pictures.append((f"step{last_step:02d}_{steps[last_step - 1].kind}",
-                                              _snapshot(backend)))
+                step = next((s for s in (*runner.steps, *runner.on_error) if s.index == last_step), None)
+                status.update(f"step {last_step}/{len(steps)} {step.kind} {step.name}" if step else "running")
+                if recorder.report is not None and step and step.kind in ("grip", "release"):
+                    recorder.pictures.append((f"step{last_step:02d}_{step.kind}", _snapshot(backend)))
             if n % sample_every == 0 and recorder.report is not None:
                 recorder.t.append(now)
                 recorder.q.append(state.q_rad.copy())

@@ -21,6 +21,7 @@ HOME_SNAP_RAD = 1e-3
 
 
 def job_planner(world, *, use_cache: bool = True) -> Planner:
+    from cellrunner.model.expand import expand_on_error
     from cellrunner.planning.cache import plan_cached
 
     def plan(task: LoadedTask, params: dict, q_now_rad: np.ndarray) -> JobPlan:
@@ -31,7 +32,9 @@ def job_planner(world, *, use_cache: bool = True) -> Planner:
         if not task_plan.ok:
             raise InfeasibleError("; ".join(task_plan.errors))
         _verify_ahead(task_plan)
-        return JobPlan(task_plan.steps, task_plan, task_plan.cycle_time_s)
+        # the task's on_error steps ride along, marked, for the runner to keep for a failure
+        cleanup = expand_on_error(task, world.loaded.cell, params, len(task_plan.steps) + 1)
+        return JobPlan(task_plan.steps + cleanup, task_plan, task_plan.cycle_time_s)
 
     return plan
 

@@ -9,6 +9,7 @@ from pydantic import Field, field_validator
 
 from cellrunner.model.base import Name, PlacedShape, Pose, Shaped, Strict, Vec3
 from cellrunner.model.robots import ROBOTS
+from cellrunner.model.sim_inputs import SimBlock
 from cellrunner.model.units import (
     Angle, AngularAccel, AngularSpeed, Duration, Fraction, Mass, PositiveDuration,
     PositiveLength, Speed,
@@ -84,6 +85,7 @@ class Part(Shaped):
     name: Name
     mass: Mass
     at: Name
+    offset: Pose | None = None  # twin only: where the part really lies from ``at`` (a camera's find)
     friction: float = Field(default=0.8, gt=0, le=2)
 
 
@@ -122,6 +124,14 @@ class Plc(Strict):
     opcua: OpcUa | None = None
 
 
+class PlaceTolerance(Strict):
+    """How far a placed part may end from its target before the twin calls the place
+    failed (SPEC section 11): ``distance`` m, ``angle`` deg."""
+
+    distance: PositiveLength = 0.005
+    angle: Annotated[Angle, Field(gt=0)] = 5.0
+
+
 class Cell(Strict):
     """A robot cell: robot, tool, IO, fixtures, frames, parts, tasks, PLC link, journal."""
 
@@ -136,3 +146,5 @@ class Cell(Strict):
     plc: Plc = Field(default_factory=Plc)
     journal: str = "var/jobs.sqlite"
     step_timeout: PositiveDuration = 60.0
+    place_tolerance: PlaceTolerance = Field(default_factory=PlaceTolerance)
+    sim: SimBlock | None = None  # inputs the twin drives in rehearsal

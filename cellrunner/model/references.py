@@ -11,7 +11,7 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
     cell = loaded.cell
     frames = list(cell.frames)
     needs_gripper = False
-    for step in _all_steps(task.steps):
+    for step in _all_steps([*task.steps, *task.on_error]):
         kind, args, path = step.kind, step.args, step.path
         if kind == "move":
             if isinstance(args.to, str) and args.to != "home" and args.to not in cell.frames:
@@ -27,6 +27,10 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
                 report.error(path + ("at",), _unknown("frame", args.at, frames))
             if args.pattern is not None:
                 _check_pattern(task, args.pattern, path + ("pattern",), report)
+            if args.at_offset is not None:
+                _check_pose_param(task, args.at_offset, path + ("at", "offset"), report)
+            if kind == "place" and args.confirm is not None:
+                check_io_name(cell, args.confirm, "inputs", path + ("confirm",), report)
             needs_gripper = True
             grip = args.grip if kind == "pick" else args.release
             if grip.confirm is not None:
@@ -81,3 +85,11 @@ def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
         grid = " x ".join(str(g) for g in pattern.grid)
         report.error(("params", pattern.index), f"param {pattern.index!r} range [{lo:g}, {hi:g}] "
                      f"does not fit the {grid} pattern's slots 0..{pattern.slots - 1}", at_key=True)
+
+
+def _check_pose_param(task: LoadedTask, name: str, path, report: Report) -> None:
+    params = task.task.params
+    if name not in params:
+        report.error(path, _unknown("param", name, params))
+    elif params[name].type != "pose":
+        report.error(path, f"offset param {name!r} must be of type pose, not {params[name].type}")

@@ -14,8 +14,9 @@ from pydantic import BeforeValidator, Field, WithJsonSchema, field_validator, mo
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Pose, Strict, Vec3
+from cellrunner.model.params import Param
 from cellrunner.model.units import (
-    Force, Fraction, Length, NonNegativeLength, PositiveDuration, PositiveLength, Speed,
+    Duration, Force, Fraction, Length, NonNegativeLength, PositiveDuration, PositiveLength, Speed,
     parse_quantity,
 )
 
@@ -116,13 +117,15 @@ class WaitInputArgs(Strict):
 
 
 class WaitArgs(Strict):
-    seconds: Annotated[float, Field(ge=0, le=3600)]
+    seconds: Annotated[Duration, Field(le=3600)]
 
 
 class SetOutputArgs(Strict):
     """``{NAME: value}``: one or more outputs by their cell IO names."""
 
     model_config = Strict.model_config | {"extra": "allow"}
+
+    pulse: PositiveDuration | None = None  # s: set the outputs, hold them this long, set them back
 
     @model_validator(mode="after")
     def _values(self) -> "SetOutputArgs":
@@ -179,8 +182,30 @@ class Retry(Strict):
     between: list[Any] = Field(default_factory=list)  # steps, validated by the loader
 
 
+def _at_frame(data: Any) -> Any:
+    """``at: {frame: FRAME, offset: POSE_PARAM | {xyz, rpy}}`` -> ``at: FRAME`` plus
+    ``at_offset`` (a pose param's name) or ``offset`` (a literal pose)."""
+    if not isinstance(data, dict) or not isinstance(data.get("at"), dict):
+        return data
+    at = dict(data["at"])
+    unknown = set(at) - {"frame", "offset"}
+    if unknown or "frame" not in at:
+        raise PydanticCustomError(
+            "at", f"'at' is a frame name or {{frame: FRAME, offset: POSE_PARAM}}; got keys {sorted(at)}")
+    out = {**data, "at": at["frame"]}
+    offset = at.get("offset")
+    if isinstance(offset, str):
+        out["at_offset"] = offset
+    elif offset is not None:
+        if data.get("offset") is not None:
+            raise PydanticCustomError("at", "give the offset either in 'at' or beside it, not both")
+        out["offset"] = offset
+    return out
+
+
 class PickArgs(Strict):
     at: Name
+    at_offset: Name | None = None  # a pose param: where the part is, in the frame's axes
     approach: NonNegativeLength = 0.1
     lift: NonNegativeLength | None = None  # default: the approach distance
     offset: Offset | None = None
@@ -190,10 +215,13 @@ class PickArgs(Strict):
     speed: Speed | None = None  # descend/lift speed, m/s
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+    _a = model_validator(mode="before")(lambda cls, v: _at_frame(v))
 
 
 class PlaceArgs(Strict):
     at: Name
+    at_offset: Name | None = None
+    confirm: Name | None = None  # input that must read true after the release (part in place)
     approach: NonNegativeLength = 0.1
     retreat: NonNegativeLength | None = None  # default: the approach distance
     offset: Offset | None = None
@@ -202,6 +230,7 @@ class PlaceArgs(Strict):
     speed: Speed | None = None
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+    _a = model_validator(mode="before")(lambda cls, v: _at_frame(v))
 
 
 STEP_MODELS: dict[str, type[Strict]] = {
@@ -237,55 +266,6 @@ def widen_step_args(kind: str, args: Any) -> Any:
     return args
 
 
-class Param(Strict):
-    type: Literal["int", "float", "bool"] = "int"
-    min: float | None = None
-    max: float | None = None
-    default: float | bool | None = None
-    description: str | None = None
-
-    @model_validator(mode="after")
-    def _consistent(self) -> "Param":
-        if self.type == "int":
-            for key in ("min", "max", "default"):
-                v = getattr(self, key)
-                if v is not None and (isinstance(v, bool) or float(v) != int(v)):
-                    raise PydanticCustomError("param", f"{key} {v!r} is not an int")
-        if self.min is not None and self.max is not None and self.min > self.max:
-            raise PydanticCustomError("param", f"min {self.min:g} is above max {self.max:g}")
-        d = self.default
-        if d is not None and self.type != "bool" and not isinstance(d, bool):
-            if (self.min is not None and d < self.min) or (self.max is not None and d > self.max):
-                raise PydanticCustomError(
-                    "param", f"default {d:g} is outside [{self.min:g}, {self.max:g}]"
-                    if self.min is not None and self.max is not None else
-                    f"default {d:g} is outside its bounds")
-        return self
-
-    def coerce(self, name: str, value: Any) -> int | float | bool:
-        """``value`` as this param's type, or ValueError naming the bounds."""
-        if self.type == "bool":
-            if isinstance(value, bool):
-                return value
-            if isinstance(value, str) and value.lower() in ("true", "false", "1", "0"):
-                return value.lower() in ("true", "1")
-            if isinstance(value, (int, float)) and value in (0, 1):
-                return bool(value)
-            raise ValueError(f"param {name!r} must be true or false, got {value!r}")
-        try:
-            x = float(value) if not isinstance(value, bool) else None
-        except (TypeError, ValueError):
-            x = None
-        if x is None or (self.type == "int" and x != int(x)):
-            raise ValueError(f"param {name!r} must be {'an int' if self.type == 'int' else 'a number'}, got {value!r}")
-        out: int | float = int(x) if self.type == "int" else x
-        if (self.min is not None and out < self.min) or (self.max is not None and out > self.max):
-            lo = "-inf" if self.min is None else f"{self.min:g}"
-            hi = "inf" if self.max is None else f"{self.max:g}"
-            raise ValueError(f"param {name!r} = {out:g} is outside [{lo}, {hi}]")
-        return out
-
-
 class ProtectiveStopPolicy(Strict):
     resume: bool = False
     max: Annotated[int, Field(ge=0, le=10)] = 1
@@ -299,3 +279,4 @@ class TaskFile(Strict):
     params: dict[Name, Param] = Field(default_factory=dict)
     steps: Annotated[list[Any], Field(min_length=1)]
     on_protective_stop: ProtectiveStopPolicy = Field(default_factory=ProtectiveStopPolicy)
+    on_error: list[Any] = Field(default_factory=list)  # steps after a failed job; validated by the loader

@@ -107,13 +107,14 @@ class TwinDescription:
     io_outputs: tuple[str, ...] = ("DO0",)
     io_inputs: tuple[str, ...] = ("DI0",)
     presence_sensors: tuple[PresenceSensor, ...] = ()
+    input_rules: tuple = ()  # InputRuleDescription: inputs the cell's sim: block drives
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"
 
     def __post_init__(self) -> None:
         for attr in ("tool_geometry", "fixtures", "parts", "io_outputs", "io_inputs",
-                     "presence_sensors"):
+                     "presence_sensors", "input_rules"):
             object.__setattr__(self, attr, tuple(getattr(self, attr)))
         if len(self.q_home_rad) != 6:
             raise ValueError(f"q_home_rad needs 6 values, got {len(self.q_home_rad)}")

@@ -26,15 +26,45 @@ def description_of(loaded: LoadedCell):
             open_sensor_input=inputs.get(g.open_sensor) if g.open_sensor else None)
         io_outputs += [close[0]] if close[0] not in io_outputs else []
         io_inputs += [sensor] if sensor and sensor not in io_inputs else []
-    parts = [PartDescription(p.name, p.to_shape(loaded.resolve), p.mass, _upright(frame_pose(c, p.at)), p.friction)
-             for p in c.parts]
+    parts = [_part(loaded, p) for p in c.parts]
     return TwinDescription(
         spec=loaded.spec, T_world_base=c.robot.mount.matrix(), T_flange_tcp=c.tool.tcp.matrix(),
         q_home_rad=tuple(np.radians(c.robot.home)), tool_geometry=tuple(loaded.tool_shapes()),
         payload_mass_kg=max(c.tool.payload.mass, 0.1), payload_cog_m=tuple(c.tool.payload.cog),
         gripper=gripper, fixtures=tuple(loaded.fixture_shapes()), parts=tuple(parts),
         io_outputs=tuple(io_outputs), io_inputs=tuple(io_inputs),
-        name=c.cell)
+        input_rules=_input_rules(c), name=c.cell)
+
+
+def _part(loaded: LoadedCell, part):
+    """A part upright at its frame, moved by its twin-only ``offset``."""
+    from cellrunner.backends.sim.description import PartDescription
+
+    T_world_grip = frame_pose(loaded.cell, part.at)
+    if part.offset is not None:
+        T_world_grip = T_world_grip @ part.offset.matrix()
+    return PartDescription(part.name, part.to_shape(loaded.resolve), part.mass, _upright(T_world_grip), part.friction)
+
+
+def _input_rules(cell) -> tuple:
+    """The ``sim: inputs`` rules in channels and world metres."""
+    from cellrunner.backends.sim.input_rules import InputRuleDescription
+
+    if cell.sim is None:
+        return ()
+    out = []
+    for name, rule in cell.sim.inputs.items():
+        channel = cell.io.inputs[name]
+        if rule.part_at is not None:
+            point = tuple(float(v) for v in frame_pose(cell, rule.part_at)[:3, 3])
+            out.append(InputRuleDescription(channel, "part_at", point_world_m=point, within_m=rule.within,
+                                            invert=rule.invert))
+        else:
+            kind = "follows" if rule.follows is not None else "pulse_after"
+            output = cell.io.outputs[rule.follows or rule.pulse_after]
+            out.append(InputRuleDescription(channel, kind, output=output, delay_s=rule.delay, width_s=rule.width,
+                                            invert=rule.invert))
+    return tuple(out)
 
 
 def _upright(T_world_frame: np.ndarray) -> np.ndarray:
