@@ -146,8 +146,9 @@ _COMMAND_METHODS = {
 }
 
 
-def parse_job_parameters(text: str) -> dict[str, int | float] | None:
-    """StartJob's Parameters: a JSON object of numbers (empty text = {}); None if not."""
+def parse_job_parameters(text: str) -> dict[str, int | float | str | dict] | None:
+    """StartJob's Parameters: a JSON object of numbers, quantities with a unit ("250 ms")
+    and poses ({"xyz": [m], "rpy": [deg]}) (empty text = {}); None if not."""
     if not text or not text.strip():
         return {}
     try:
@@ -156,9 +157,14 @@ def parse_job_parameters(text: str) -> dict[str, int | float] | None:
         return None
     if not isinstance(data, dict):
         return None
-    params: dict[str, int | float] = {}
+    params: dict[str, int | float | str | dict] = {}
     for name, value in data.items():
-        if isinstance(value, bool) or not isinstance(value, int | float):
+        if isinstance(value, dict):
+            if not set(value) <= {"xyz", "rpy"} or not all(
+                    isinstance(v, list) and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v)
+                    for v in value.values()):
+                return None
+        elif isinstance(value, bool) or not isinstance(value, int | float | str):
             return None
         params[str(name)] = value
     return params

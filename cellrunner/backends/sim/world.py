@@ -498,22 +498,34 @@ class SimWorld:
 
     def _part_in_tcp(self, part: str) -> np.ndarray:
         """T_tcp_part: the part's pose in the TCP frame."""
-        T = np.linalg.inv(self.tcp_pose_world()) @ self.part_pose_world(part)
+        T_world_tcp = self.tcp_pose_world()
+        R_t = T_world_tcp[:3, :3].T
+        T_world_part = self.part_pose_world(part)
+        T = np.eye(4)
+        T[:3, :3] = R_t @ T_world_part[:3, :3]
+        T[:3, 3] = R_t @ (T_world_part[:3, 3] - T_world_tcp[:3, 3])
         return T
 
     def _slide_in_jaws_m(self, part: str) -> float:
+        """How far the part was forced back in the jaws (towards the flange, or sideways)
+        since it was last free of fixtures; sliding out of them (a slip) does not count."""
         held = self._held_at.get(part)
-        return 0.0 if held is None else float(np.linalg.norm(self._part_in_tcp(part)[:3, 3] - held[:3, 3]))
+        if held is None:
+            return 0.0
+        d = self._part_in_tcp(part)[:3, 3] - held[:3, 3]
+        return max(-float(d[2]), math.hypot(float(d[0]), float(d[1])))
 
     def _note_held(self, gripped: frozenset[str], pressed: bool) -> None:
-        """Where each gripped part sits in the jaws while no fixture presses it (kept
-        after the release, for the place check)."""
-        if not gripped:
+        """Where each gripped part sits in the jaws while no fixture touches it; kept
+        through a period of lost pad contact, handed to the place check once the jaws
+        are commanded open."""
+        if not self._closing:
             if self._held_at:
                 self._held_last, self._held_at = self._held_at, {}
             return
-        if not pressed:
-            self._held_at = {name: self._part_in_tcp(name) for name in gripped}
+        if gripped and not pressed:
+            for name in gripped:
+                self._held_at[name] = self._part_in_tcp(name)
 
     # -- faults ---------------------------------------------------------------------------
     def _update_faults(self, gripped: set[str]) -> None:
