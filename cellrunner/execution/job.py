@@ -78,6 +78,7 @@ class JobRunner:
         self.on_error = [s for s in self.steps if s.macro == ON_ERROR]
         self.steps = [s for s in self.steps if s.macro != ON_ERROR]
         self._cleanup: tuple[ResultCode, str] | None = None  # the failure on_error runs after
+        self._cleanup_failures: list[str] = []
         self.records = {s.index: StepRecord(s.index, s.kind, s.name) for s in self.steps}
         self._agenda: list[_Item] = [_Item(s) for s in self.steps]
         self._current: _Item | None = None
@@ -360,6 +361,7 @@ class JobRunner:
     def _start_cleanup(self, code: ResultCode, message: str) -> None:
         """Run the task's on_error steps (safe outputs, retreat), then end with ``code``."""
         self._cleanup = (code, message)
+        self.ctx.carry = None  # cleaning up: a part still held (or lost) is not watched
         self._log("on_error", result_code=int(code), message=message)
         for s in self.on_error:
             self.records[s.index] = StepRecord(s.index, s.kind, s.name)
@@ -370,24 +372,31 @@ class JobRunner:
         self._next_item()
 
     def _end_cleanup(self, code: ResultCode, message: str) -> None:
-        """on_error is over: the job ends with the failure that started it; how on_error
-        went is added to its message (and each of its steps is journaled)."""
+        """An on_error step ended (or all did, ``code`` OK). A step that fails is noted
+        and the next one runs (best effort: outputs, then motions from where the arm
+        stands); a fault ends cleanup. The job ends with the failure that started it;
+        how on_error went is added to its message (each of its steps is journaled)."""
         first, why = self._cleanup
-        if code is ResultCode.OK:
-            note = "on_error done"
-        else:
+        if code is not ResultCode.OK:
             if self._current is not None:
                 record = self.records[self._current.step.index]
                 if record.status == "running":
                     record.status, record.message = "failed", message
                     record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
                     self._journal(record, self._current.attempt)
-            note = f"on_error failed: {message}"
+            label = self._current.step.label if self._current is not None else "on_error"
+            self._cleanup_failures.append(message if message.startswith("step ") else f"{label}: {message}")
+            # nothing moved on a failed check or a refused plan: the next step may still help
+            if (not code.is_fault or code is ResultCode.PLANNING_FAILED) and self._agenda:
+                self.ctx.commanded_q = None
+                return self._next_item()
             if code.is_fault:
                 try:
                     self.ctx.backend.stop_motion()
                 except BackendError:
                     pass
+        failures = self._cleanup_failures
+        note = "on_error done" if not failures else f"on_error failed: {'; '.join(failures)}"
         for record in self.records.values():
             if record.status == "pending":
                 record.status = "skipped"

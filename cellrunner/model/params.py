@@ -124,13 +124,20 @@ class Param(Strict):
             raise ValueError(f"param {name!r} must be true or false, got {value!r}")
         x = None
         if isinstance(value, str) and self.kind is not None:
+            try:  # a bare number is in the param's own unit
+                x = parse_quantity(f"{float(value)!r} {self.unit}", self.kind)
+            except ValueError:
+                pass
+        if x is not None:
+            pass
+        elif isinstance(value, str) and self.kind is not None:
             try:
                 x = parse_quantity(value, self.kind)
             except PydanticCustomError as exc:
                 raise ValueError(f"param {name!r}: {exc.message()}") from None
         elif not isinstance(value, bool):
             try:
-                x = float(value)
+                x = float(value) if self.kind is None else parse_quantity(f"{float(value)!r} {self.unit}", self.kind)
             except (TypeError, ValueError):
                 x = None
         if x is None or (self.type == "int" and x != int(x)):

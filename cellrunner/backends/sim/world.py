@@ -639,7 +639,10 @@ class SimWorld:
             lo = g.sensor_min_gap_m
             hi = g.stroke_m - lo
             if g.closed_sensor_input:
-                self.inputs[g.closed_sensor_input] = bool(self._closing and resting and lo <= gap <= hi)
+                # switches on once the jaws came to rest on something, then reads their
+                # position only: jaws that shake on a held part (a stop, a jerk) stay on
+                on = resting or self.inputs[g.closed_sensor_input]
+                self.inputs[g.closed_sensor_input] = bool(self._closing and on and lo <= gap <= hi)
             if g.open_sensor_input:
                 self.inputs[g.open_sensor_input] = gap >= hi
         for sensor in self.description.presence_sensors:
