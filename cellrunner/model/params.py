@@ -108,7 +108,9 @@ class Param(Strict):
         return UNIT_KINDS.get(self.unit) if self.unit else None
 
     def coerce(self, name: str, value: Any) -> int | float | bool | PoseValue:
-        """``value`` as this param's type, or ValueError naming the bounds."""
+        """``value`` as this param's type, or ValueError naming the bounds. A param's
+        ``unit`` applies to its min, max and default in the task file and to its Modbus
+        register; values given here are SI numbers (s, m, N, deg) or strings with a unit."""
         if self.type == "pose":
             try:
                 return self._pose(name, value)
@@ -124,20 +126,13 @@ class Param(Strict):
             raise ValueError(f"param {name!r} must be true or false, got {value!r}")
         x = None
         if isinstance(value, str) and self.kind is not None:
-            try:  # a bare number is in the param's own unit
-                x = parse_quantity(f"{float(value)!r} {self.unit}", self.kind)
-            except ValueError:
-                pass
-        if x is not None:
-            pass
-        elif isinstance(value, str) and self.kind is not None:
             try:
                 x = parse_quantity(value, self.kind)
             except PydanticCustomError as exc:
                 raise ValueError(f"param {name!r}: {exc.message()}") from None
         elif not isinstance(value, bool):
             try:
-                x = float(value) if self.kind is None else parse_quantity(f"{float(value)!r} {self.unit}", self.kind)
+                x = float(value)
             except (TypeError, ValueError):
                 x = None
         if x is None or (self.type == "int" and x != int(x)):
