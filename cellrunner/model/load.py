@@ -371,7 +371,8 @@ def _parse_step(item: Any, path: PathKey, report: Report, allow_macros: bool, pa
         return None
     kind, args = next(iter(item.items()))
     if kind not in known:
-        hint = " (pick and place cannot be nested)" if kind in MACROS else ""
+        hint = "" if kind not in MACROS else (" (on_error takes primitive steps)" if path[0] == "on_error"
+                                              else " (pick and place cannot be nested)")
         report.error(path + (kind,), _unknown("step", kind, known) + hint, at_key=True)
         return None
     model = STEP_MODELS[kind]

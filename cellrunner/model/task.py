@@ -203,8 +203,17 @@ def _at_frame(data: Any) -> Any:
     return out
 
 
+#: ``at``: a frame name, or (widened by :func:`_at_frame`) ``{frame, offset}``
+AtFrame = Annotated[Name, WithJsonSchema({
+    "description": "a frame name, or {frame: FRAME, offset: POSE_PARAM or {xyz, rpy}}",
+    "anyOf": [{"type": "string"},
+              {"type": "object", "required": ["frame"], "additionalProperties": False,
+               "properties": {"frame": {"type": "string"}, "offset": {"type": ["string", "object", "array"]}}}],
+})]
+
+
 class PickArgs(Strict):
-    at: Name
+    at: AtFrame
     at_offset: Name | None = None  # a pose param: where the part is, in the frame's axes
     approach: NonNegativeLength = 0.1
     lift: NonNegativeLength | None = None  # default: the approach distance
@@ -219,7 +228,7 @@ class PickArgs(Strict):
 
 
 class PlaceArgs(Strict):
-    at: Name
+    at: AtFrame
     at_offset: Name | None = None
     confirm: Name | None = None  # input that must read true after the release (part in place)
     approach: NonNegativeLength = 0.1

@@ -8,6 +8,7 @@ import pytest
 
 from cellrunner.backends.base import BackendError, Safety
 from cellrunner.backends.sim import demo
+from cellrunner.backends.sim.world import PLACE_DROP_M
 
 pytest.importorskip("mujoco")
 
@@ -43,7 +44,7 @@ def test_a_part_dropped_from_above_its_target_is_off_by_the_fall(driver) -> None
     _release(driver)
     driver.move_tcp(high + (0, 0, 0.1), 0.8, "retreat")
     _, offset_m, _ = driver.backend.placed_offset(demo.tcp_down_at(high))
-    assert offset_m == pytest.approx(0.040, abs=0.004)
+    assert offset_m == pytest.approx(0.040 - PLACE_DROP_M, abs=0.004)  # a short fall onto the table is free
 
 
 def test_no_part_released_means_nothing_to_inspect(backend) -> None:

@@ -31,6 +31,7 @@ JAW_REST_SPEED_MPS = 0.005
 COLLISION_BACKOFF_S = 0.02
 SLIP_HOLD_FRACTION = 0.25  # a slipping grip holds only this fraction of the part's weight
 AIR_CLEARANCE_M = 0.01  # "in the air": this far from every fixture and the floor
+PLACE_DROP_M = 0.01  # a part released this far above its support lands where it was put
 JAM_SLIDE_M = 0.005  # a gripped part forced back this far in the jaws by a fixture: a collision
 JAM_FORCE_N = 150.0  # or pressed onto a fixture this hard (UR's default force limit)
 
@@ -729,12 +730,15 @@ class SimWorld:
     def placed_offset(self, T_world_tcp: np.ndarray) -> tuple[str, float, float] | None:
         """How far the part released last lies from where a gripper at ``T_world_tcp``
         holding it as it did (before anything pressed it) puts it: (name, distance m,
-        angle deg); None when no part was released."""
+        angle deg); None when no part was released. Released a little above its support,
+        a part falls onto it: up to ``PLACE_DROP_M`` straight down does not count."""
         found = None
         for name, T_tcp_part in self._held_last.items():
             target = T_world_tcp @ T_tcp_part
             actual = self.part_pose_world(name)
-            offset_m = float(np.linalg.norm(actual[:3, 3] - target[:3, 3]))
+            d = actual[:3, 3] - target[:3, 3]
+            fall = max(0.0, -float(d[2]) - PLACE_DROP_M) if d[2] < 0 else float(d[2])
+            offset_m = math.hypot(float(d[0]), float(d[1]), fall)
             cos = (float(np.trace(target[:3, :3].T @ actual[:3, :3])) - 1.0) / 2.0
             angle_deg = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
             if found is None or offset_m > found[1]:
