@@ -109,11 +109,17 @@ def test_vision_pick_at_the_pose_the_camera_gives(project):
     assert r["steps"][3]["name"] == "camera_zone+part_pose"
 
 
-def test_vision_pick_where_the_camera_did_not_see_the_part_finds_nothing(project):
-    r = dry_run(project, VISION, "-p", 'part_pose={"xyz": [0, 0, 0], "rpy": [0, 0, 0]}')
+def test_vision_pick_where_the_part_is_not_finds_nothing(project):
+    r = dry_run(project, VISION, "-p", 'part_pose={"xyz": [-0.04, 0.05, 0], "rpy": [0, 0, 0]}')
     assert (r["result_code"], r["result_text"]) == (1, "jaws_closed not true within 1 s (jaws closed on nothing); "
                                                        "on_error done")
     assert r["steps"][5]["attempts"] == 2  # the retry went to the same (wrong) place
+
+
+def test_vision_pick_with_the_fingers_landing_on_the_part_is_a_contact(project):
+    r = dry_run(project, VISION, "-p", 'part_pose={"xyz": [0, 0, 0], "rpy": [0, 0, 0]}')
+    assert (r["result_code"], r["result_text"]) == (
+        100, "protective stop during step 5 descend 'camera_zone+part_pose': more than 1 protective stops")
 
 
 @pytest.mark.parametrize("fault, code", [

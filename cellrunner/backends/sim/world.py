@@ -441,6 +441,7 @@ class SimWorld:
         robot_parts: list[tuple[int, int]] = []
         suspicious: list[int] = []
         part_static: list[int] = []
+        pad_parts: list[tuple[int, int]] = []
         for i, (g1, g2) in enumerate(pairs):
             k1, k2 = kind[g1], kind[g2]
             both = k1 | k2
@@ -453,10 +454,13 @@ class SimWorld:
             elif both == PADS | PARTS:
                 pad, part = (g1, g2) if k1 == PADS else (g2, g1)
                 pad_hits[part] = pad_hits.get(part, 0) | (1 if pad == self._pad_a else 2)
+                pad_parts.append((i, part))
             elif both == ROBOT | PARTS:
                 robot_parts.append((i, g2 if k2 == PARTS else g1))
         gripped_geoms = {g for g, hits in pad_hits.items() if hits == 3}
         suspicious += [i for i, g in robot_parts if g not in gripped_geoms]
+        # a finger landing on a part it does not hold (judged by force, like the tool)
+        suspicious += [i for i, g in pad_parts if g not in gripped_geoms]
         # a carried part pushed into a fixture is a contact like the tool's own; the
         # light touch of setting it down is not (judged each period, so never cached)
         pressed = [i for i in part_static if pairs[i][0] in gripped_geoms or pairs[i][1] in gripped_geoms]
