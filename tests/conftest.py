@@ -7,6 +7,16 @@ from pathlib import Path
 
 import pytest
 
+from cellrunner.backends.sim._mj import enable_pictures
+
+# The tests render pictures in this process: choose MuJoCo's offscreen GL backend before
+# anything imports MuJoCo (it reads MUJOCO_GL once).
+GL_BACKEND = enable_pictures()
+
+
+def pytest_report_header() -> str:
+    return f"MuJoCo GL backend for pictures: {GL_BACKEND or 'none'}"
+
 ROOT = Path(__file__).resolve().parent.parent
 DEMO_CELL = ROOT / "cells" / "demo_ur5e.yaml"
 PICK_PLACE = ROOT / "tasks" / "pick_place.yaml"

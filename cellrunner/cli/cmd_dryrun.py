@@ -19,6 +19,8 @@ from cellrunner.model.codes import PackMLState as S, ResultCode
 
 #: e-stop faults are released by the "operator" this long after they struck (sim s)
 PLC_OUTAGE_S = 2.0
+#: written into a report that has plots but no rendered pictures
+NO_PICTURES = "NO_PICTURES.txt"
 
 
 @dataclass
@@ -40,6 +42,9 @@ def run(args) -> int:
     params = parse_params(args.param, task)
     steps = expanded(cell, task, params)
     injections = parse_injections(args.inject, steps)
+    if args.report:
+        from cellrunner.backends.sim._mj import enable_pictures
+        enable_pictures()  # before MuJoCo is imported: it reads its GL backend once
     from cellrunner.backends.sim.backend import SimBackend
     from cellrunner.backends.sim.from_cell import description_of
     from cellrunner.planning.world import CellWorld
@@ -92,8 +97,7 @@ def run(args) -> int:
                "steps": rows, "errors": [] if code is ResultCode.OK else [result.result_text],
                "injected": [i.spec for i in injections],
                "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None}
-    if recorder.report is not None:
-        _write_report(recorder, payload, backend)
+    has_pictures = _write_report(recorder, payload, backend) if recorder.report is not None else True
     controller.close()
     if args.json:
         emit_json(payload)
@@ -107,6 +111,9 @@ def run(args) -> int:
                   f"({payload['real_time_factor']}x real time)")
         if recorder.report is not None:
             out.print(f"report written to {recorder.report}/")
+    if not has_pictures:
+        from cellrunner.backends.sim._mj import GL_ADVICE
+        out.print(f"no pictures in the report: no OpenGL backend here ({GL_ADVICE} gives one)", soft_wrap=True)
     return 0 if code is ResultCode.OK else 1
 
 
@@ -169,7 +176,8 @@ def _snapshot(backend) -> np.ndarray | None:
         return None
 
 
-def _write_report(recorder: _Recorder, payload: dict, backend) -> None:
+def _write_report(recorder: _Recorder, payload: dict, backend) -> bool:
+    """Write the report folder; returns whether it holds rendered pictures."""
     from cellrunner.backends.sim import render
 
     folder = recorder.report
@@ -192,6 +200,9 @@ def _write_report(recorder: _Recorder, payload: dict, backend) -> None:
                            q_ref_rad=np.array(recorder.q_cmd), title=f"{payload['task']}: joints", marks=marks)
         render.plot_tcp_path(folder / "tcp_path.png", np.array(recorder.tcp), title=f"{payload['task']}: TCP path")
         written += ["joints.png", "tcp_path.png"]
-    if not any(name.endswith(".png") and name not in ("joints.png", "tcp_path.png") for name in written):
-        (folder / "NO_PICTURES.txt").write_text("offscreen rendering unavailable: set MUJOCO_GL=osmesa and install "
-                                                "libosmesa6\n")
+    has_pictures = any(name.endswith(".png") and name not in ("joints.png", "tcp_path.png") for name in written)
+    (folder / NO_PICTURES).unlink(missing_ok=True)
+    if not has_pictures:
+        from cellrunner.backends.sim._mj import GL_ADVICE
+        (folder / NO_PICTURES).write_text(f"no offscreen OpenGL backend here: {GL_ADVICE} gives one\n")
+    return has_pictures

@@ -12,21 +12,23 @@ from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.logs import configure
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
-from cellrunner.execution.planner import job_planner
-from cellrunner.model.load import load_cell, load_task
+from cellrunner.execution.planner import job_planner, warm_up
+from cellrunner.model.load import load_cell, load_task, serve_file_warnings
 
 
 def run(args) -> int:
     cell = load_cell(args.cell)
     tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
-    for w in cell.warnings:
+    for w in cell.warnings + serve_file_warnings(cell):
         sys.stderr.write(f"{w}\n")
     log = configure(args.log_format, cell.cell.cell)
     kind = backend_kind(cell, args.backend)
     backend = make_backend(cell, kind, args.robot_host)
     from cellrunner.planning.world import CellWorld
+    world = CellWorld(cell)
+    warm_up(world)  # before READY: the first job is acknowledged as fast as any other
     controller = CellController(cell, tasks, backend, Journal(cell.resolve(cell.cell.journal)),
-                                job_planner(CellWorld(cell)), log=log, wait_for_unhold=True,
+                                job_planner(world), log=log, wait_for_unhold=True,
                                 on_job_start=getattr(backend, "feed_parts", None))
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
@@ -52,7 +54,7 @@ def _plc_service(controller: CellController, cell):
         return None
     from cellrunner.plc.service import PlcService
     pki = cell.resolve(plc.opcua.pki) if plc.opcua and plc.opcua.pki else cell.resolve(cell.cell.journal).parent / "pki"
-    service = PlcService(controller, plc, base_dir=cell.root, pki_dir=pki, cell_name=cell.cell.cell)
+    service = PlcService(controller, plc, resolve=cell.resolve, pki_dir=pki, cell_name=cell.cell.cell)
     service.start()
     return service
 

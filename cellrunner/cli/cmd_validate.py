@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 from cellrunner.errors import Diagnostic, InputError
-from cellrunner.model.load import load_cell, load_task
+from cellrunner.model.load import load_cell, load_task, serve_file_warnings
 from cellrunner.model.source import display_name
 
 
@@ -15,7 +15,7 @@ def run(args) -> int:
         cell = load_cell(args.cell)
     except InputError as exc:
         raise InputError(exc.diagnostics) from None
-    _print(cell.warnings)
+    _print(cell.warnings + serve_file_warnings(cell))
     task_paths = args.tasks or [str(cell.resolve(p)) for p in cell.cell.tasks.values()]
     summaries = []
     for path in task_paths:

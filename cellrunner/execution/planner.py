@@ -49,3 +49,16 @@ def _verify_ahead(task_plan: TaskPlan) -> None:
                 task_plan.nominal(step)
             except InfeasibleError:
                 return
+
+
+def warm_up(world) -> None:
+    """Do now what the first job's planning would do lazily: import the planning stack
+    (pinocchio, coal, OMPL, TOPP-RA) and build the cell's kinematics, collision model and
+    limits, so the first job is acknowledged as fast as any other (``serve`` calls this
+    before it raises READY)."""
+    import importlib
+
+    for module in ("task_plan", "timing", "verify", "joint_path", "cartesian", "collision", "cache"):
+        importlib.import_module(f"cellrunner.planning.{module}")
+    world.kinematics.T_world_tcp(world.q_home_rad)
+    _ = world.collision, world.limits

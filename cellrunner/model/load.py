@@ -180,9 +180,17 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
         if not loaded.resolve(task_path).is_file():
             report.error(("tasks", number), f"task file {task_path!r} not found "
                          f"(looked under {loaded.root})")
-    if cell.plc.opcua and cell.plc.opcua.users and not loaded.resolve(cell.plc.opcua.users).exists():
-        report.warn(("plc", "opcua", "users"), f"users file {cell.plc.opcua.users!r} does not exist yet; "
+
+
+def serve_file_warnings(loaded: LoadedCell) -> list[Diagnostic]:
+    """Warnings about files ``serve`` needs that do not exist yet (shown by ``validate``
+    and ``serve``; a dry-run never needs them)."""
+    report = Report(loaded.source)
+    opcua = loaded.cell.plc.opcua
+    if opcua and opcua.users and not loaded.resolve(opcua.users).exists():
+        report.warn(("plc", "opcua", "users"), f"users file {opcua.users!r} does not exist yet; "
                     "create it with 'cellrunner users add'")
+    return report.warnings
 
 
 def _unknown(what: str, name: Any, known) -> str:

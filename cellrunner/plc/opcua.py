@@ -65,13 +65,21 @@ class OpcUaConfig:
 
     @classmethod
     def from_mapping(
-        cls, data: Any, *, base_dir: Path = Path("."), pki_dir: Path | str | None = None
+        cls,
+        data: Any,
+        *,
+        base_dir: Path = Path("."),
+        pki_dir: Path | str | None = None,
+        resolve: Callable[[str], Path] | None = None,
     ) -> OpcUaConfig:
-        """From the cell file mapping or model object; relative paths from ``base_dir``.
+        """From the cell file mapping or model object.
 
+        Relative paths go through ``resolve`` (the cell's one lookup rule,
+        :meth:`~cellrunner.model.load.LoadedCell.resolve`), else from ``base_dir``.
         ``pki_dir`` is the default PKI directory (SPEC: ``pki/`` beside the journal)
         used when the section has no ``pki`` key.
         """
+        resolve = resolve or (lambda p: base_dir / p)
         get = data.get if isinstance(data, dict) else lambda k, d=None: getattr(data, k, d)
         endpoint = str(get("endpoint", cls.endpoint))
         url = urlparse(endpoint)
@@ -80,14 +88,12 @@ class OpcUaConfig:
                 f"plc.opcua.endpoint {endpoint!r} is not an opc.tcp://HOST:PORT/PATH URL"
             )
         security = tuple(normalize_policy(p) for p in (get("security", None) or DEFAULT_SECURITY))
-        users = Path(str(get("users", cls.users_file)))
         pki = get("pki", None)
-        pki_path = Path(str(pki)) if pki is not None else Path(pki_dir or "pki")
         return cls(
             endpoint=endpoint,
             security=security,
-            users_file=users if users.is_absolute() else base_dir / users,
-            pki_dir=pki_path if pki_path.is_absolute() else base_dir / pki_path,
+            users_file=resolve(str(get("users", None) or cls.users_file)),
+            pki_dir=resolve(str(pki)) if pki is not None else Path(pki_dir or resolve("pki")),
         )
 
 

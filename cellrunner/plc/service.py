@@ -3,7 +3,7 @@
 ``cellrunner serve`` builds the engine (a :class:`~cellrunner.plc.port.CellPort`),
 then::
 
-    service = PlcService(engine, cell.plc, base_dir=cell_dir,
+    service = PlcService(engine, cell.plc, resolve=loaded_cell.resolve,
                          pki_dir=journal_dir / "pki", cell_name=cell.cell)
     service.start()          # raises CellrunnerError when a server cannot start
     ...                      # until SIGTERM
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import threading
+from collections.abc import Callable
 from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
@@ -45,6 +46,7 @@ class PlcService:
         base_dir: Path | str = ".",
         pki_dir: Path | str | None = None,
         cell_name: str = "cell",
+        resolve: Callable[[str], Path] | None = None,
     ) -> None:
         from cellrunner.plc.opcua import OpcUaConfig  # light: no asyncua import
 
@@ -56,7 +58,9 @@ class PlcService:
         self.opcua_config = (
             None
             if opcua is None
-            else OpcUaConfig.from_mapping(opcua, base_dir=Path(base_dir), pki_dir=pki_dir)
+            else OpcUaConfig.from_mapping(
+                opcua, base_dir=Path(base_dir), pki_dir=pki_dir, resolve=resolve
+            )
         )
         self.modbus: ModbusServer | None = None
         self.opcua: Any = None

@@ -13,8 +13,7 @@ from cellrunner.backends.sim.description import TwinDescription, dh_forward
 from cellrunner.model.trajectory import approve
 
 
-# Import MuJoCo the package's way first, so a headless run picks MUJOCO_GL=osmesa before
-# any test module imports mujoco itself.
+# Import MuJoCo the package's way first (the root conftest chose its GL backend already).
 load_mujoco()
 
 

@@ -1,21 +1,21 @@
 """Pictures for dry-run reports: offscreen MuJoCo renders of the cell and matplotlib plots.
 
-Offscreen rendering needs an OpenGL backend: ``MUJOCO_GL=osmesa`` (Debian package
-``libosmesa6``, software, works anywhere) or ``MUJOCO_GL=egl`` (GPU). Without one,
+Offscreen rendering needs an OpenGL backend, chosen by
+:func:`~cellrunner.backends.sim._mj.enable_pictures` before MuJoCo is imported (EGL, then
+OSMesa: Debian's ``libosmesa6``, software, works anywhere). Without one,
 :class:`CellRenderer` raises :class:`RenderUnavailable` with that advice instead of
 crashing; plots need only matplotlib (Agg, no display).
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from cellrunner.backends.sim._mj import load_mujoco
+from cellrunner.backends.sim._mj import GL_ADVICE, gl_backend, load_mujoco
 from cellrunner.errors import CellrunnerError
 
 
@@ -73,15 +73,15 @@ class CellRenderer:
     def _open(self) -> Any:
         if self._renderer is None:
             mujoco = load_mujoco()
+            backend = gl_backend()
+            if backend is None:
+                raise RenderUnavailable(f"no OpenGL backend for pictures here ({GL_ADVICE} gives one)")
             try:
                 self._renderer = mujoco.Renderer(self.world.model, self.height, self.width)
             except Exception as exc:  # GL backends fail with many exception types
-                backend = os.environ.get("MUJOCO_GL", "(unset: glfw, needs a display)")
                 raise RenderUnavailable(
-                    f"cannot render offscreen with MUJOCO_GL={backend}: {exc}. Install OSMesa "
-                    "(apt-get install libosmesa6) and set MUJOCO_GL=osmesa, or use "
-                    "MUJOCO_GL=egl on a machine with a GPU (MUJOCO_GL is read when mujoco is "
-                    "first imported)") from exc
+                    f"cannot render offscreen with MUJOCO_GL={backend}: {exc} ({GL_ADVICE} gives "
+                    "a software backend; MUJOCO_GL=egl needs a GPU or Mesa's EGL)") from exc
         return self._renderer
 
     def render(self, view: CameraView | None = None) -> np.ndarray:
