@@ -459,8 +459,10 @@ class SimWorld:
                 robot_parts.append((i, g2 if k2 == PARTS else g1))
         gripped_geoms = {g for g, hits in pad_hits.items() if hits == 3}
         suspicious += [i for i, g in robot_parts if g not in gripped_geoms]
-        # a finger landing on a part it does not hold (judged by force, like the tool)
-        suspicious += [i for i, g in pad_parts if g not in gripped_geoms]
+        # a finger landing on a part it does not hold (judged by force, like the tool);
+        # a held part that loses one pad's contact for a moment is still held
+        held = self._held_at
+        suspicious += [i for i, g in pad_parts if g not in gripped_geoms and self._part_of_geom[g] not in held]
         # a carried part pushed into a fixture is a contact like the tool's own; the
         # light touch of setting it down is not (judged each period, so never cached)
         pressed = [i for i in part_static if pairs[i][0] in gripped_geoms or pairs[i][1] in gripped_geoms]
