@@ -10,8 +10,9 @@ side is a separate process (pymodbus client) doing what a PLC program does: hear
 every 100 ms, wait READY, write id/task/params, raise JOB_REQ, wait ACK, wait DONE/ERROR,
 read 104-113, drop JOB_REQ; RESET when the cell sits in Aborted/Stopped.
 
-Prints jobs/hour, trigger->ACK latency p50/p99 (target p99 < 50 ms) and a
-reconciliation of what the PLC observed against the cell's own record of results
+Prints jobs/hour, trigger->ACK latency p50/p99 (target p99 < 50 ms), the resident
+memory of this process (cell, engine, PLC server: what ``serve`` runs) after 50 jobs and
+at the end (target: within 10 % over 500 jobs), and a reconciliation of what the PLC observed against the cell's own record of results
 (every accepted job exactly once, same code; nothing the PLC did not see).
 """
 
@@ -204,6 +205,7 @@ def run_bench(port: Any, jobs: int, tasks: list[list[int]], job_timeout_s: float
     service.start()
     host, mb_port = service.modbus_address or ("127.0.0.1", 0)
     observed: list[dict[str, Any]] = []
+    rss_mib: dict[int, float] = {}
     elapsed = float("nan")
     try:
         cmd = [sys.executable, __file__, "--plc-client", host, str(mb_port), str(jobs),
@@ -218,10 +220,13 @@ def run_bench(port: Any, jobs: int, tasks: list[list[int]], job_timeout_s: float
                 raise RuntimeError(record["fatal"])
             else:
                 observed.append(record)
+                if len(observed) == RSS_BASELINE_JOBS:
+                    rss_mib[RSS_BASELINE_JOBS] = rss_now_mib()
                 if len(observed) % 50 == 0:
                     print(f"  {len(observed)}/{jobs} jobs", file=sys.stderr)
         proc.wait(timeout=10)
         time.sleep(0.2)  # the last result listener call
+        rss_mib[len(observed)] = rss_now_mib()
     finally:
         service.stop()
         remove()
@@ -243,7 +248,23 @@ def run_bench(port: Any, jobs: int, tasks: list[list[int]], job_timeout_s: float
         "outcomes": dict(outcomes),
         "result_codes": {str(k): v for k, v in sorted(codes.items(), key=lambda kv: str(kv[0]))},
         "reconciliation": rec,
+        "rss_mib": rss_mib,
     }
+
+
+#: the job count after which resident memory is the baseline of the growth measure
+RSS_BASELINE_JOBS = 50
+
+
+def rss_now_mib() -> float:
+    """This process's resident set size (MiB), from /proc (nan where there is none)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return float("nan")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -284,6 +305,13 @@ def main(argv: list[str] | None = None) -> int:
     print(f"trigger->ACK latency: p50 {lat['p50']:.2f} ms, p99 {lat['p99']:.2f} ms, max {lat['max']:.2f} ms"
           f"  (target p99 < 50 ms: {'met' if lat['p99'] < 50 else 'MISSED'})")
     print(f"outcomes: {report['outcomes']}  result codes: {report['result_codes']}")
+    rss = report["rss_mib"]
+    if RSS_BASELINE_JOBS in rss and len(rss) > 1:
+        end = max(rss)
+        growth = rss[end] / rss[RSS_BASELINE_JOBS] - 1
+        print(f"resident memory: {rss[RSS_BASELINE_JOBS]:.0f} MiB after {RSS_BASELINE_JOBS} jobs, {rss[end]:.0f} MiB "
+              f"after {end}: {growth * 100:+.1f} % (target within 10 % over 500 jobs: "
+              f"{'met' if abs(growth) <= 0.10 and end >= 500 else 'met so far' if abs(growth) <= 0.10 else 'MISSED'})")
     verdict = "OK - no result lost or duplicated" if not rec["issues"] else f"{len(rec['issues'])} ISSUES"
     print(f"reconciliation: PLC saw {rec['accepted']} accepted jobs, cell recorded {rec['cell_results']}: {verdict}")
     for issue in rec["issues"][:20]:

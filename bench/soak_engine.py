@@ -19,6 +19,7 @@ from cellrunner.backends.sim.backend import SimBackend
 from cellrunner.backends.sim.from_cell import description_of
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
+from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.planning.world import CellWorld
@@ -72,14 +73,14 @@ class SoakCell(CellController):
                 self._release_at = self.sim.read_state().time_s + 0.5
 
     def _loop(self) -> None:
-        while not self._stop.is_set():
-            self.sim.wait_period()
-            self.tick()
-            if self._release_at is not None and self.sim.read_state().time_s >= self._release_at:
-                self.sim.release_estop()  # the operator releases it; the PLC's RESET clears
-                self._release_at = None
-            if self._job is None:
-                time.sleep(0.002)  # idle: don't spin the physics faster than the PLC can talk
+        ControlLoop(self, observers=(self._observe,)).run(self._stop)
+
+    def _observe(self, cell: CellController) -> None:
+        if self._release_at is not None and self.sim.read_state().time_s >= self._release_at:
+            self.sim.release_estop()  # the operator releases it; the PLC's RESET clears
+            self._release_at = None
+        if not cell.busy:
+            time.sleep(0.002)  # idle: don't spin the physics faster than the PLC can talk
 
 
 def make() -> SoakCell:

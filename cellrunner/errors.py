@@ -4,14 +4,20 @@
 
     CellrunnerError                  base; never shown with a traceback
      ├── InputError         exit 2   bad YAML, schema, references, CLI arguments;
-     │                               carries located Diagnostics (FILE:LINE:COL)
+     │    └── UsageError             carries located Diagnostics (FILE:LINE:COL)
      ├── InfeasibleError    exit 1   `check` refuses a step (reach, collision, limits)
      ├── JobFailed          exit 1   a job ended with a non-zero result code
- ├── BackendError       exit 1   a robot backend refused a command (backends/base.py)
+     ├── TransitionRefused  exit 1   a PackML command or event not allowed in the state
+     ├── BackendError       exit 1   a robot backend refused a command
+     │    ├── ControllerMismatch     the controller is not the cell's robot
+     │    ├── RemoteControlOff       the controller is in local control
+     │    ├── SafetyStop             the controller stopped the arm (``safety`` says how)
+     │    └── ConnectionLost         a connection to the controller dropped
      └── PeerUnreachable    exit 3   robot controller or another peer cannot be reached
 
-Third-party errors (ur_rtde, pymodbus, asyncua, OMPL) are translated into these where
-they enter the program (``raise PeerUnreachable(...) from exc``).
+Third-party errors (ur_rtde, pymodbus, asyncua, OMPL, SQLite) are translated into these
+where they enter the program (``raise PeerUnreachable(...) from exc``); ur_rtde's
+``RuntimeError`` texts through one table in :mod:`cellrunner.backends.ur`.
 """
 
 from __future__ import annotations
@@ -80,3 +86,32 @@ class PeerUnreachable(CellrunnerError):
     """The robot controller or another peer cannot be reached, exit code 3."""
 
     exit_code = 3
+
+
+class TransitionRefused(CellrunnerError):
+    """A PackML command or event that is not allowed in the current state."""
+
+
+class BackendError(CellrunnerError):
+    """A robot backend refused a command; the engine translates it (exit 1 if it reaches
+    the command line)."""
+
+
+class ControllerMismatch(BackendError):
+    """The controller is not the robot the cell file describes."""
+
+
+class RemoteControlOff(BackendError):
+    """The controller is in local control; production needs remote control."""
+
+
+class SafetyStop(BackendError):
+    """The controller stopped the arm; ``safety`` (a ``backends.base.Safety``) says how."""
+
+    def __init__(self, message: str, safety: object):
+        super().__init__(message)
+        self.safety = safety
+
+
+class ConnectionLost(BackendError):
+    """A connection to the controller dropped; the backend's ``reconnect`` rebuilds it."""

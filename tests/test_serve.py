@@ -182,3 +182,23 @@ def test_serve_over_opcua_with_encryption_and_a_user(tmp_path):
         proc.send_signal(signal.SIGTERM)
         proc.communicate(timeout=60)
     assert proc.returncode == 0
+
+
+def test_json_logs_carry_no_raw_library_lines(project):
+    """Garbage on the Modbus port makes pymodbus complain; with --log-format json its
+    complaints are JSON lines like every other event."""
+    cell, port = project
+    proc = start(cell)
+    try:
+        connect(port)
+        for payload in (b"\x00\x01\x00\x00\x00\x02\x01\x63", b"\xff" * 300):
+            with socket.create_connection(("127.0.0.5", port), timeout=5) as sock:
+                sock.sendall(payload)
+                time.sleep(0.3)
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert any("pymodbus" in line for line in lines), err[-2000:]
+    for line in lines:
+        assert isinstance(json.loads(line), dict), line

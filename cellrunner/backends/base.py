@@ -16,7 +16,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from cellrunner.errors import CellrunnerError
+from cellrunner.errors import BackendError  # noqa: F401 (re-exported: backends raise it)
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 
@@ -48,11 +48,6 @@ class RobotState:
     outputs: dict[str, float | bool] = field(default_factory=dict)
     powered: bool = True
     brakes_released: bool = True
-
-
-class BackendError(CellrunnerError):
-    """Raised by backends for a refused command; the engine translates it (exit 1 if it
-    reaches the command line)."""
 
 
 @runtime_checkable

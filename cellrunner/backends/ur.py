@@ -6,13 +6,19 @@ of ``servo(trajectory, i)`` + ``wait_period()`` -> :meth:`URBackend.close`.
 ``connect`` first probes the controller over RTDE (bounded, :mod:`ur_probe`) and asks the
 dashboard for its model and remote-control state; it refuses a controller whose
 generation or model differs from the cell's (:class:`ControllerMismatch`) and one in
-local control (:class:`RemoteControlOff`). Then it opens RTDEReceive (the state, every
-controller period), RTDEControl (uploads ur_rtde's control script) and RTDEIO.
+local control (:class:`RemoteControlOff`). Then it opens the state stream (every
+controller period, :mod:`ur_state`), RTDEControl (uploads ur_rtde's control script, in
+its own process: :mod:`ur_control`) and the outputs (:mod:`ur_io`).
 
-Streaming is ``servoJ`` at the controller rate (500 Hz e-Series, 125 Hz CB3), paced by
-ur_rtde's ``initPeriod``/``waitPeriod``; every ``servo`` call first checks the safety
-bits of the latest state and raises :class:`SafetyStop` on a protective or emergency
-stop, :class:`ConnectionLost` when a connection dropped.
+Streaming is ``servoJ`` at the controller rate (500 Hz e-Series, 125 Hz CB3), paced on
+a fixed monotonic schedule; every ``servo`` call first checks the safety bits of the
+latest state and raises :class:`SafetyStop` on a protective or emergency stop,
+:class:`ConnectionLost` when a connection dropped.
+
+Threading: every ur_rtde object is touched from the caller's thread only (the control
+thread). RTDEControlInterface runs in a child process (:mod:`ur_control`), because its
+own reconnect races inside the library and crashes the process that holds it; the child
+is killed when the link drops and a reconnect builds a new one.
 
 Recovery, as UR prescribes it:
 
@@ -30,7 +36,6 @@ ur_rtde's exceptions (``RuntimeError``/``logic_error`` with text) are translated
 
 from __future__ import annotations
 
-import datetime
 import re
 import time
 from typing import Any
@@ -38,9 +43,17 @@ from typing import Any
 import numpy as np
 
 from cellrunner.backends.base import BackendError, RobotState, Safety
+from cellrunner.backends.ur_control import ControlLost, ControlProcess
 from cellrunner.backends.ur_io import IoConnectionLost, RtdeOutputWriter
 from cellrunner.backends.ur_probe import controller_version, generation_of
-from cellrunner.errors import PeerUnreachable
+from cellrunner.backends.ur_state import RtdeStateReader
+from cellrunner.errors import (  # noqa: F401 (re-exported)
+    ConnectionLost,
+    ControllerMismatch,
+    PeerUnreachable,
+    RemoteControlOff,
+    SafetyStop,
+)
 from cellrunner.model.gripper import ROBOTIQ_CLOSE, ROBOTIQ_OBJECT
 from cellrunner.model.robots import RobotSpec
 from cellrunner.model.trajectory import ApprovedTrajectory
@@ -68,24 +81,14 @@ _ROBOT_MODE_IDLE = 5
 _CHANNELS = "DO0-7, CO0-7, TO0-1, AO0-1"
 
 
-class ControllerMismatch(BackendError):
-    """The controller is not the robot the cell file describes."""
-
-
-class RemoteControlOff(BackendError):
-    """The controller is in local control; production needs remote control."""
-
-
-class SafetyStop(BackendError):
-    """The controller stopped the arm; ``safety`` says how."""
-
-    def __init__(self, message: str, safety: Safety):
-        super().__init__(message)
-        self.safety = safety
-
-
-class ConnectionLost(BackendError):
-    """A connection to the controller dropped; call :meth:`URBackend.reconnect`."""
+#: ur_rtde's RuntimeError texts -> (cellrunner error, message); the first marker found wins
+UR_RTDE_ERRORS: tuple[tuple[str, type[BackendError] | type[PeerUnreachable], str], ...] = (
+    ("Could not connect", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
+    ("Timeout connecting", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
+    ("End of file", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
+    ("connection", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
+    ("remote control", RemoteControlOff, "the controller at {host}: {text}"),
+)
 
 
 def _model_family(name: str) -> str:
@@ -149,9 +152,9 @@ class URBackend:
         self.robot_model = ""
         self._dashboard: Any = None
         self._receive: Any = None
-        self._control: Any = None
+        self._control: ControlProcess | None = None
         self._io: Any = None
-        self._t_cycle: Any = None
+        self._t_cycle: float | None = None  # monotonic time of the current period's start
         self._servoing = False
         self._protective_stop_seen_at: float | None = None
 
@@ -179,7 +182,6 @@ class URBackend:
             )
         self.controller_versions = versions
         import dashboard_client
-        import rtde_receive
 
         try:
             self._dashboard = dashboard_client.DashboardClient(self.host)
@@ -200,7 +202,9 @@ class URBackend:
                         f"the controller at {self.host} is in local control; "
                         "switch the teach pendant to Remote Control"
                     )
-            self._receive = rtde_receive.RTDEReceiveInterface(self.host, self.rate_hz, RECEIVE_VARIABLES)
+            self._receive = RtdeStateReader(self.host, self.rate_hz, RECEIVE_VARIABLES,
+                                            timeout_s=self.connect_timeout_s)
+            self._receive.connect()
             self._io = RtdeOutputWriter(self.host, timeout_s=self.connect_timeout_s)
             self._io.connect()
             if self._arm_ready():
@@ -213,10 +217,37 @@ class URBackend:
             raise self._translate(exc) from exc
 
     def _configure_tool(self) -> None:
-        if self.tcp_pose is not None and not self._control.setTcp(list(self.tcp_pose)):
+        if self.tcp_pose is not None and not self._call("setTcp", list(self.tcp_pose)):
             raise BackendError(f"the controller at {self.host} refused setTcp({list(self.tcp_pose)})")
-        if self.payload_kg is not None and not self._control.setPayload(self.payload_kg, list(self.payload_cog_m)):
+        if self.payload_kg is not None and not self._call("setPayload", self.payload_kg, list(self.payload_cog_m)):
             raise BackendError(f"the controller at {self.host} refused setPayload({self.payload_kg})")
+
+    def _call(self, name: str, *args: Any, timeout_s: float | None = None) -> Any:
+        """One RTDEControlInterface call in the control process, translated: ur_rtde's
+        texts through :meth:`_translate`, a lost process as :class:`ConnectionLost`."""
+        control = self._control
+        if control is None:
+            raise BackendError("the control script is not running; recover the arm first")
+        try:
+            if timeout_s is None:
+                return control.call(name, *args)
+            return control.call(name, *args, timeout_s=timeout_s)
+        except ControlLost as exc:
+            self._drop_control()
+            raise ConnectionLost(f"lost the control connection to {self.host}: {exc}") from exc
+        except RuntimeError as exc:
+            error = self._translate(exc)
+            if isinstance(error, PeerUnreachable):  # the link broke under the call
+                self._drop_control()
+                raise ConnectionLost(str(error)) from exc
+            raise error from exc
+
+    def _drop_control(self) -> None:
+        control, self._control = self._control, None
+        self._servoing = False
+        self._t_cycle = None
+        if control is not None:
+            control.close()
 
     def _arm_ready(self) -> bool:
         return (
@@ -225,33 +256,37 @@ class URBackend:
         )
 
     def _open_control(self) -> None:
-        """RTDEControl uploads ur_rtde's control script; then the tool is configured."""
-        import rtde_control
-
+        """RTDEControl (in its process) uploads ur_rtde's control script; then the tool
+        is configured."""
+        control = ControlProcess(self.host, self.rate_hz, start_timeout_s=self.connect_timeout_s + 10.0)
         try:
-            self._control = rtde_control.RTDEControlInterface(self.host, self.rate_hz)
+            control.start()
+        except ControlLost as exc:
+            raise PeerUnreachable(f"cannot reach the robot controller at {self.host}: {exc}") from exc
         except RuntimeError as exc:
             raise self._translate(exc) from exc
+        self._control = control
         self._configure_tool()
 
     def _translate(self, exc: Exception) -> BackendError | PeerUnreachable:
+        """ur_rtde's ``RuntimeError`` (or a socket's ``OSError``) as cellrunner's error,
+        through :data:`UR_RTDE_ERRORS`."""
         text = str(exc)
-        if isinstance(exc, OSError) or any(
-            marker in text for marker in ("Could not connect", "Timeout connecting", "End of file", "connection")
-        ):
+        if isinstance(exc, OSError):
             return PeerUnreachable(f"cannot reach the robot controller at {self.host}: {text}")
-        if "remote control" in text:
-            return RemoteControlOff(f"the controller at {self.host}: {text}")
+        for marker, error, template in UR_RTDE_ERRORS:
+            if marker in text:
+                return error(template.format(host=self.host, text=text))
         return BackendError(f"ur_rtde: {text}")
 
     def close(self) -> None:
         """Stop motion and release every connection; idempotent."""
-        if self._control is not None and self._control.isConnected():
+        if self._control is not None and self._link_up():
             try:  # (on a broken link ur_rtde would try to reconnect inside these calls)
-                if self._servoing and self._control.isProgramRunning():
-                    self._control.servoStop(4.0)
-                self._control.stopScript()
-            except RuntimeError:
+                if self._servoing and self._call("isProgramRunning", timeout_s=1.0):
+                    self._call("servoStop", 4.0, timeout_s=1.0)
+                self._call("stopScript", timeout_s=1.0)
+            except BackendError:
                 pass
         self._servoing = False
         self._t_cycle = None
@@ -264,14 +299,13 @@ class URBackend:
         if self._io is not None:
             self._io.close()
             self._io = None
-        for name in ("_control", "_receive"):
-            client = getattr(self, name)
-            setattr(self, name, None)
-            if client is not None:
-                try:
-                    client.disconnect()
-                except RuntimeError:
-                    pass
+        self._drop_control()
+        receive, self._receive = self._receive, None
+        if receive is not None:
+            try:
+                receive.disconnect()
+            except RuntimeError:
+                pass
         if self._dashboard is not None:
             try:
                 self._dashboard.disconnect()
@@ -304,16 +338,21 @@ class URBackend:
 
     @property
     def connected(self) -> bool:
-        return all(
-            c is not None and c.isConnected() for c in (self._receive, self._control, self._dashboard)
-        )
+        return self._link_up() and self._control is not None and self._dashboard is not None
+
+    def _link_up(self) -> bool:
+        """The state stream is live and the control process (when there is one) runs."""
+        receive = self._receive
+        if receive is None or not receive.isConnected():
+            return False
+        return self._control is None or self._control.alive
 
     def read_state(self) -> RobotState:
         receive = self._receive
         if receive is None or not receive.isConnected():
             return RobotState(0.0, np.zeros(6), np.zeros(6), np.zeros(6), Safety.DISCONNECTED, powered=False)
         safety = _safety_of(receive.getSafetyStatusBits())
-        if self._control is not None and not self._control.isConnected():
+        if self._control is not None and not self._control.alive:
             safety = Safety.DISCONNECTED
         inputs_bits, output_bits = receive.getActualDigitalInputBits(), receive.getActualDigitalOutputBits()
         inputs: dict[str, float | bool] = {}
@@ -345,7 +384,8 @@ class URBackend:
     def _check_link_and_safety(self) -> None:
         if self._receive is None:
             raise BackendError("not connected; call connect() first")
-        if not self._receive.isConnected() or (self._control is not None and not self._control.isConnected()):
+        if not self._link_up():
+            self._drop_control()  # never let ur_rtde reconnect by itself: it races
             raise ConnectionLost(f"lost the connection to the controller at {self.host}")
         safety = _safety_of(self._receive.getSafetyStatusBits())
         if safety != Safety.NORMAL:
@@ -372,12 +412,9 @@ class URBackend:
             )
         self._check_link_and_safety()
         if self._t_cycle is None:  # first set-point of a stream: the schedule starts now
-            self._t_cycle = self._control.initPeriod()
+            self._t_cycle = time.monotonic()
         q = [float(x) for x in trajectory.trajectory.q_rad[index]]
-        try:
-            ok = self._control.servoJ(q, 0.0, 0.0, self.period_s, self.servo_lookahead_s, self.servo_gain)
-        except RuntimeError as exc:
-            raise self._translate(exc) from exc
+        ok = self._call("servoJ", q, 0.0, 0.0, self.period_s, self.servo_lookahead_s, self.servo_gain)
         if not ok:
             # the control and receive connections see a stop in different packages: give
             # the safety bits a few periods to arrive so the caller learns why
@@ -392,27 +429,25 @@ class URBackend:
     def wait_period(self) -> None:
         """Sleep until the next period of a fixed schedule (start + k * period), so time
         spent between ``wait_period`` and ``servo`` does not stretch the stream."""
-        if self._control is None or self._t_cycle is None:
+        if self._t_cycle is None:
             time.sleep(self.period_s)
             return
-        self._control.waitPeriod(self._t_cycle)
-        period = datetime.timedelta(seconds=self.period_s)
-        self._t_cycle += period
-        now = self._control.initPeriod()
-        if now - self._t_cycle > period:  # fell more than a period behind: restart the schedule
-            self._t_cycle = now
+        self._t_cycle += self.period_s
+        delay = self._t_cycle - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        elif delay < -self.period_s:  # fell more than a period behind: restart the schedule
+            self._t_cycle = time.monotonic()
 
     def stop_motion(self) -> None:
-        if self._control is None or not self._control.isConnected():
-            return
+        if self._control is None or not self._link_up():
+            return  # no link: the controller stops the arm itself
         try:
-            if self._control.isProgramRunning():
+            if self._call("isProgramRunning"):
                 if self._servoing:
-                    self._control.servoStop(4.0)
+                    self._call("servoStop", 4.0)
                 else:
-                    self._control.stopJ(2.0)
-        except RuntimeError as exc:
-            raise self._translate(exc) from exc
+                    self._call("stopJ", 2.0)
         finally:
             self._servoing = False
             self._t_cycle = None
@@ -443,8 +478,7 @@ class URBackend:
         if self.spec.generation != "e-Series":
             raise BackendError(f"{self.spec.name} (CB3) has no built-in force/torque sensor to zero")
         self._check_link_and_safety()
-        assert self._control is not None
-        if not self._control.zeroFtSensor():
+        if not self._call("zeroFtSensor"):
             raise BackendError(f"the controller at {self.host} refused zeroFtSensor")
 
     # ------------------------------------------------------------------ recovery
@@ -502,15 +536,13 @@ class URBackend:
         self._reupload()
 
     def _reupload(self) -> None:
-        if self._control is None or not self._control.isConnected():
+        if self._control is None or not self._control.alive:
+            self._drop_control()
             self._open_control()
             return
-        try:
-            if not self._control.reuploadScript():
-                raise BackendError(f"could not re-upload the control script to {self.host}")
-        except RuntimeError as exc:
-            raise self._translate(exc) from exc
-        self._wait_for(self._control.isProgramRunning, 5.0, "the control script did not start")
+        if not self._call("reuploadScript"):
+            raise BackendError(f"could not re-upload the control script to {self.host}")
+        self._wait_for(lambda: bool(self._call("isProgramRunning")), 5.0, "the control script did not start")
         self._configure_tool()
 
     def _wait_for(self, predicate: Any, timeout_s: float, what: str) -> None:

@@ -14,7 +14,7 @@ import select
 import socket
 import struct
 
-from cellrunner.backends.base import BackendError
+from cellrunner.errors import BackendError, ConnectionLost
 
 _RECIPES = {
     "DO": ("standard_digital_output_mask,standard_digital_output", ">BB"),
@@ -28,7 +28,7 @@ _RECIPES = {
 }
 
 
-class IoConnectionLost(BackendError):
+class IoConnectionLost(ConnectionLost):
     """The RTDE connection used for outputs dropped."""
 
 

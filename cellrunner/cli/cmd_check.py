@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from pathlib import Path
@@ -21,8 +22,8 @@ def run(args) -> int:
     from cellrunner.planning.world import CellWorld
 
     world = CellWorld(cell)
-    out = console()
-    with out.status(f"planning {task.name}", spinner="dots"):
+    out = None if args.json else console()  # --json is for programs: no spinner, no rich
+    with contextlib.nullcontext() if out is None else out.status(f"planning {task.name}", spinner="dots"):
         plan = plan_cached(world, task, params, world.q_home_rad, use_cache=not args.no_cache)
         errors = list(plan.errors)
         slots_checked = _check_other_slots(world, task, params, errors, use_cache=not args.no_cache)
@@ -55,18 +56,68 @@ def run(args) -> int:
 
 def _check_other_slots(world, task, params, errors: list[str], use_cache: bool) -> dict[str, list]:
     """Every slot of every pattern and every corner (and the centre) of every pose param's
-    box, not only the requested value."""
-    from cellrunner.planning.cache import plan_cached
+    box, not only the requested value; the slots to plan afresh
+    are shared with a forked child when a second core is free (:func:`_plan_split`)."""
+    from cellrunner.planning.cache import cache_dir, plan_key
 
     checked: dict[str, list] = {}
+    others: list[dict] = []
     for name, slots in {**pattern_params(task), **box_params(task)}.items():
         checked[name] = list(slots)
-        for slot in slots:
-            if slot == params.get(name):
-                continue
-            other = plan_cached(world, task, {**params, name: slot}, world.q_home_rad, use_cache=use_cache)
-            errors.extend(f"{name}={_shown(slot)}: {e}" for e in other.errors)
+        others += [{**params, name: slot} for slot in slots if slot != params.get(name)]
+    cached = [p for p in others if use_cache
+              and (cache_dir(world) / f"{plan_key(world, task, p, world.q_home_rad)}.npz").is_file()]
+    fresh = [p for p in others if p not in cached]
+    for given, found in [*_plan_split(world, task, fresh, use_cache), *_slot_errors(world, task, cached, use_cache)]:
+        errors.extend(f"{k}={_shown(given[k])}: {e}" for k in given if given[k] != params.get(k) for e in found)
     return checked
+
+
+def _slot_errors(world, task, slots: list[dict], use_cache: bool) -> list[tuple[dict, list[str]]]:
+    from cellrunner.planning.cache import plan_cached
+    return [(p, plan_cached(world, task, p, world.q_home_rad, use_cache=use_cache).errors) for p in slots]
+
+
+def _plan_split(world, task, slots: list[dict], use_cache: bool) -> list[tuple[dict, list[str]]]:
+    """``_slot_errors`` of every slot, half of them in a forked child process when this
+    process may run on more than one core (planning is single-threaded Python). The
+    child inherits the loaded cell; it sends back only the errors. If it fails, the
+    parent plans its half too."""
+    if len(slots) < 2:
+        return _slot_errors(world, task, slots, use_cache)
+    import multiprocessing
+    import os
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if cores < 2 or len(slots) < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        return _slot_errors(world, task, slots, use_cache)
+    theirs, mine = slots[: len(slots) // 2], slots[len(slots) // 2:]
+    context = multiprocessing.get_context("fork")
+    reader, writer = context.Pipe(duplex=False)
+
+    def child() -> None:
+        writer.send([found for _, found in _slot_errors(world, task, theirs, use_cache)])
+
+    process = context.Process(target=child, daemon=True)
+    process.start()
+    writer.close()
+    results = _slot_errors(world, task, mine, use_cache)
+    try:
+        found = reader.recv() if reader.poll(CHILD_TIMEOUT_S) else None
+    except (EOFError, OSError):
+        found = None
+    process.join(timeout=1.0)
+    if process.is_alive():
+        process.kill()
+        process.join()
+    reader.close()
+    if found is None or len(found) != len(theirs):
+        return [*_slot_errors(world, task, theirs, use_cache), *results]
+    return [*zip(theirs, found), *results]
+
+
+#: how long the parent waits for the child's slots before planning them itself (s)
+CHILD_TIMEOUT_S = 120.0
 
 
 def _shown(value) -> str:

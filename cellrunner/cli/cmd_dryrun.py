@@ -7,15 +7,26 @@ import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, record_rows, step_table
+from cellrunner.cli.common import (
+    console,
+    emit_json,
+    expanded,
+    load,
+    parse_params,
+    record_rows,
+    step_table,
+)
 from cellrunner.cli.faults import Injection, parse_injections
+from cellrunner.errors import CellrunnerError
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
+from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
-from cellrunner.model.codes import PackMLState as S, ResultCode
+from cellrunner.model.codes import ResultCode
 
 #: e-stop faults are released by the "operator" this long after they struck (sim s)
 PLC_OUTAGE_S = 2.0
@@ -69,31 +80,36 @@ def run(args) -> int:
                                 wait_for_unhold=False, on_step_start=on_step_start)
     out = console()
     controller.setup()
-    _tick(controller, 3)
+    loop = ControlLoop(controller)
+    loop.step(3)
     t0 = time.perf_counter()
     with out.status("planning", spinner="dots") as status:
         ticket = controller.start_job(1, params, "dry-run", "cli")
         if not ticket.accepted:
-            raise RuntimeError(f"dry-run job refused: {ticket.message}")
-        job = controller._job
-        _tick(controller, 1)  # the control thread starts planning
-        failed = job.plan.exception()  # waits for planning; a failure ends the job with 103
+            raise CellrunnerError(f"dry-run job refused: {ticket.message}")
+        loop.step(1)  # the control thread starts planning
+        controller.wait_for_plan(timeout_s=3600.0)
         wall_plan_s = time.perf_counter() - t0
-        planned = job.plan.result().planned_cycle_time_s if failed is None else 0.0
         t_run = time.perf_counter()
         sim_t0 = backend.read_state().time_s
-        _run(controller, backend, pending, recorder, status, steps, world, max_s=planned * 4 + 60)
+        rehearsal = _Rehearsal(backend, pending, recorder, status, steps, world)
+        loop.add_observer(rehearsal.observe)
+        loop.step(1)  # the plan is picked up: the job runs (or ended with 103)
+        view = controller.job_view(records=False) or controller.last_job
+        planned_s = (view.planned_cycle_time_s or 0.0) if view is not None else 0.0
+        loop.run_job(max_s=planned_s * 4 + 60)
         wall_run_s = time.perf_counter() - t_run
-    runner = controller.last_runner
+    job = controller.last_job
     result = controller.status().last_result
     code = ResultCode(result.result_code)
-    rows = record_rows(runner, steps)
-    tracking = runner.ctx.tracking_error_m if runner else 0.0
+    rows = record_rows(job, steps)
+    tracking = job.tracking_error_m if job else 0.0
+    planned = (job.planned_cycle_time_s or 0.0) if job else 0.0
     sim_s = backend.read_state().time_s - sim_t0
     payload = {"ok": code is ResultCode.OK, "cell": cell.cell.cell, "task": task.name, "params": params,
                "cycle_time_s": round(result.cycle_time_s, 4), "planned_cycle_time_s": round(planned, 4),
                "max_tracking_error_m": round(tracking, 6), "result_code": int(code),
-               "result_text": result.result_text, "retries": runner.retries_used if runner else 0,
+               "result_text": result.result_text, "retries": job.retries_used if job else 0,
                "steps": rows, "errors": [] if code is ResultCode.OK else [result.result_text],
                "injected": [i.spec for i in injections],
                "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None}
@@ -117,54 +133,53 @@ def run(args) -> int:
     return 0 if code is ResultCode.OK else 1
 
 
-def _tick(controller: CellController, n: int) -> None:
-    for _ in range(n):
-        controller.backend.wait_period()
-        controller.tick()
+@dataclass
+class _Rehearsal:
+    """A control-loop observer: applies the injections when their moment comes, shows
+    progress, and records the run for the report."""
 
+    backend: Any
+    pending: list
+    recorder: _Recorder
+    status: Any
+    steps: list
+    world: Any
+    plc_back_at: float | None = None
+    last_step: int = -1
+    n: int = 0
 
-def _run(controller, backend, pending, recorder, status, steps, world, max_s: float) -> None:
-    """Tick until the job is over, applying injections when their moment comes."""
-    start = backend.read_state().time_s
-    plc_back_at = None
-    last_step = -1
-    sample_every = max(1, int(backend.rate_hz / 50))
-    n = 0
-    while controller._job is not None or controller.sm.state in (S.COMPLETING, S.ABORTING, S.STARTING):
+    def observe(self, cell: CellController) -> None:
+        backend, recorder = self.backend, self.recorder
         state = backend.read_state()
         now = state.time_s
-        if now - start > max_s:
-            controller.command("abort")
-        for item in list(pending):
+        for item in list(self.pending):
             inj, at = item
             if now >= at:
-                pending.remove(item)
+                self.pending.remove(item)
                 if inj.fault == "plc_disconnect":  # the PLC watchdog holds the cell; the PLC comes back
-                    controller.command("hold")
-                    plc_back_at = now + PLC_OUTAGE_S
+                    cell.command("hold")
+                    self.plc_back_at = now + PLC_OUTAGE_S
                 else:
                     backend.inject_fault(inj.fault)
-        if plc_back_at is not None and now >= plc_back_at and controller.command("unhold"):
-            plc_back_at = None
-        job = controller._job
-        runner = job.runner if job else None
-        if runner is not None:
-            if runner.current_step != last_step:
-                last_step = runner.current_step
-                step = next((s for s in (*runner.steps, *runner.on_error) if s.index == last_step), None)
-                status.update(f"step {last_step}/{len(steps)} {step.kind} {step.name}" if step else "running")
-                if recorder.report is not None and step and step.kind in ("grip", "release"):
-                    recorder.pictures.append((f"step{last_step:02d}_{step.kind}", _snapshot(backend)))
-            if n % sample_every == 0 and recorder.report is not None:
-                recorder.t.append(now)
-                recorder.q.append(state.q_rad.copy())
-                recorder.qd.append(state.qd_rad_s.copy())
-                recorder.q_cmd.append(runner.ctx.commanded_q.copy() if runner.ctx.commanded_q is not None
-                                      else state.q_rad.copy())
-                recorder.tcp.append(world.kinematics.T_world_tcp(state.q_rad)[:3, 3])
-        n += 1
-        backend.wait_period()
-        controller.tick()
+        if self.plc_back_at is not None and now >= self.plc_back_at and cell.command("unhold"):
+            self.plc_back_at = None
+        view = cell.job_view(records=False)
+        if view is None or view.phase is None:
+            return
+        steps = self.steps
+        if view.step != self.last_step:
+            self.last_step = view.step
+            step = steps[view.step - 1] if 0 < view.step <= len(steps) else None  # else on_error's
+            self.status.update(f"step {view.step}/{len(steps)} {step.kind} {step.name}" if step else "running")
+            if recorder.report is not None and step is not None and step.kind in ("grip", "release"):
+                recorder.pictures.append((f"step{view.step:02d}_{step.kind}", _snapshot(backend)))
+        if self.n % max(1, int(backend.rate_hz / 50)) == 0 and recorder.report is not None:
+            recorder.t.append(now)
+            recorder.q.append(state.q_rad.copy())
+            recorder.qd.append(state.qd_rad_s.copy())
+            recorder.q_cmd.append(view.commanded_q_rad if view.commanded_q_rad is not None else state.q_rad.copy())
+            recorder.tcp.append(self.world.kinematics.T_world_tcp(state.q_rad)[:3, 3])
+        self.n += 1
 
 
 def _snapshot(backend) -> np.ndarray | None:

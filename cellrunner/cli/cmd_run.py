@@ -7,13 +7,18 @@ import sys
 
 from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
-from cellrunner.execution.cell import CellController, run_until_done
+from cellrunner.errors import UsageError
+from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
+from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode
 
 
 def run(args) -> int:
+    speed = getattr(args, "speed", 1.0)
+    if not 0.0 < speed <= 1.0:
+        raise UsageError(f"--speed {speed:g}: give a fraction of the approved pace, 0 < F <= 1 (e.g. 0.25)")
     cell, task = load(args.cell, args.task)
     params = parse_params(args.param, task)
     from cellrunner.planning.world import CellWorld
@@ -24,26 +29,37 @@ def run(args) -> int:
     if args.log_format == "json":
         from cellrunner.cli.logs import configure
         log = configure("json", cell.cell.cell)
+    stepping = getattr(args, "step", False)
+    gate = None
+    if stepping:
+        from cellrunner.execution.pacing import EnterGate, describe_step
+        gate = EnterGate(describe_step, on_end=lambda: controller.command("abort"))
+    planner = job_planner(CellWorld(cell), speed=speed, joined=not stepping)
     controller = CellController(cell, {1: task}, backend, Journal(cell.resolve(cell.cell.journal)),
-                                job_planner(CellWorld(cell)), log=log, wait_for_unhold=False)
+                                planner, log=log, wait_for_unhold=False, gate=gate)
     out = console()
     controller.setup()
+    loop = ControlLoop(controller)
     try:
-        for _ in range(5):
-            backend.wait_period()
-            controller.tick()
+        loop.step(5)
         ticket = controller.start_job(1, params, "", "cli")
         if not ticket.accepted:
             sys.stderr.write(f"cellrunner run: job refused: {ticket.message}\n")
             return 1
-        with out.status(f"running {task.name} on the {kind} backend", spinner="dots"):
-            run_until_done(controller, max_s=3600.0)
-        runner = controller.last_runner
+        pace = f" at {speed:g} x speed" if speed != 1.0 else ""
+        if gate is not None:  # no spinner: the operator reads each step's preview
+            out.print(f"running {task.name} on the {kind} backend{pace}, one step at a time")
+            gate.start()
+            loop.run_job(max_s=24 * 3600.0)
+        else:
+            with out.status(f"running {task.name} on the {kind} backend{pace}", spinner="dots"):
+                loop.run_job(max_s=3600.0 / speed)
+        job = controller.last_job
         result = controller.status().last_result
     finally:
         controller.close()
     code = ResultCode(result.result_code)
-    rows = record_rows(runner)
+    rows = record_rows(job)
     payload = {"ok": code is ResultCode.OK, "cell": cell.cell.cell, "task": task.name, "params": params,
                "cycle_time_s": round(result.cycle_time_s, 4), "result_code": int(code),
                "result_text": result.result_text, "job_id": result.job_id, "backend": kind, "steps": rows,

@@ -6,12 +6,12 @@ from __future__ import annotations
 import signal
 import sys
 import threading
-import time
 
 from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.logs import configure
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
+from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner, warm_up
 from cellrunner.model.load import load_cell, load_task, serve_file_warnings
 
@@ -27,6 +27,10 @@ def run(args) -> int:
     from cellrunner.planning.world import CellWorld
     world = CellWorld(cell)
     warm_up(world)  # before READY: the first job is acknowledged as fast as any other
+    _load_planning_libraries()
+    # the planning thread is CPU-bound; hand the GIL over every 1 ms (Python's default is
+    # 5 ms) so the PLC threads answer promptly while a job plans
+    sys.setswitchinterval(0.001)
     controller = CellController(cell, tasks, backend, Journal(cell.resolve(cell.cell.journal)),
                                 job_planner(world), log=log, wait_for_unhold=True,
                                 on_job_start=getattr(backend, "feed_parts", None))
@@ -37,14 +41,19 @@ def run(args) -> int:
     service = _plc_service(controller, cell)
     log.info("serving", backend=kind, tasks={n: t.name for n, t in tasks.items()},
              modbus=getattr(service, "modbus_address", None) if service else None)
+    reason = "cellrunner stopped (SIGTERM)"
     try:
-        _loop(controller, stop, paced=kind == "sim")
+        ControlLoop(controller, realtime=kind == "sim").run(stop)
+    except Exception as exc:  # a bug in the control loop: close the job saying so, then exit 1
+        reason = f"cellrunner failed: {type(exc).__name__}: {exc}"
+        log.exception("control_loop_failed", error=str(exc))
+        raise
     finally:
-        controller.shutdown("cellrunner stopped (SIGTERM)")
+        controller.shutdown(reason)
         if service is not None:
             service.stop()
         controller.close()
-        log.info("stopped")
+        log.info("stopped", reason=reason)
     return 0
 
 
@@ -59,17 +68,9 @@ def _plc_service(controller: CellController, cell):
     return service
 
 
-def _loop(controller: CellController, stop: threading.Event, *, paced: bool) -> None:
-    """One tick per controller period; the twin in-process is paced to the wall clock."""
-    period = 1.0 / controller.backend.rate_hz
-    next_t = time.monotonic()
-    while not stop.is_set():
-        controller.backend.wait_period()
-        controller.tick()
-        if paced:
-            next_t += period
-            delay = next_t - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-            elif delay < -0.5:
-                next_t = time.monotonic()  # fell behind: don't try to catch up in a burst
+def _load_planning_libraries() -> None:
+    """Load OMPL and TOPP-RA now, before the PLC link is up: loading them holds Python's
+    GIL for tenths of a second, which during the first job would stall every thread of
+    the process, the PLC heartbeat among them."""
+    import ompl.geometric  # noqa: F401
+    import toppra  # noqa: F401

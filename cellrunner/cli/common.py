@@ -82,11 +82,15 @@ def step_table(title: str, rows: list[dict], extra_columns: tuple[str, ...] = ()
     return table
 
 
-def record_rows(runner, steps=None) -> list[dict]:
-    """The ``steps`` of a ``--json`` report from a job runner's step records (rows with
-    status "not run" for ``steps`` when no runner started)."""
-    if runner is None:
+def record_rows(job, steps=None) -> list[dict]:
+    """The ``steps`` of a ``--json`` report from a job's step records (a
+    :class:`~cellrunner.execution.cell.JobView`; rows with status "not run" for ``steps``
+    when the job has none, e.g. planning failed)."""
+    records = () if job is None else job.records
+    if isinstance(records, dict):  # a JobRunner's own records
+        records = tuple(records.values())
+    if not records:
         return [{"index": s.index, "name": s.name, "kind": s.kind, "duration_s": 0.0, "status": "not run",
                  "message": "", "attempts": 0} for s in steps or []]
     return [{"index": r.index, "name": r.name, "kind": r.kind, "duration_s": round(r.duration_s, 4),
-             "status": r.status, "message": r.message, "attempts": r.attempts} for r in runner.records.values()]
+             "status": str(r.status), "message": r.message, "attempts": r.attempts} for r in records]

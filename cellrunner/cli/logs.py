@@ -19,4 +19,36 @@ def configure(fmt: str, cell: str):
         logger_factory=structlog.PrintLoggerFactory(file=sys.stderr),
         cache_logger_on_first_use=False,
     )
+    _route_stdlib_logging(fmt)
     return structlog.get_logger().bind(cell=cell)
+
+
+class _JsonLines(logging.Handler):
+    """Library log records (pymodbus, asyncua) as JSON lines like our own events."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        import json
+        from datetime import datetime, timezone
+
+        try:
+            line = json.dumps({"event": record.getMessage(), "logger": record.name,
+                               "level": record.levelname.lower(),
+                               "timestamp": datetime.fromtimestamp(record.created, timezone.utc).isoformat()})
+            sys.stderr.write(line + "\n")
+        except Exception:  # noqa: BLE001 - logging must never raise
+            self.handleError(record)
+
+
+def _route_stdlib_logging(fmt: str) -> None:
+    """Warnings and errors of the libraries through one handler: JSON lines with
+    ``--log-format json`` (never a raw pymodbus line in a JSON log), plain text otherwise."""
+    root = logging.getLogger()
+    for handler in list(root.handlers):
+        if getattr(handler, "_cellrunner", False):
+            root.removeHandler(handler)
+    handler: logging.Handler = _JsonLines() if fmt == "json" else logging.StreamHandler(sys.stderr)
+    handler._cellrunner = True  # type: ignore[attr-defined]
+    handler.setLevel(logging.WARNING)
+    root.addHandler(handler)
+    if root.level > logging.WARNING or root.level == logging.NOTSET:
+        root.setLevel(logging.WARNING)

@@ -13,6 +13,13 @@ import sys
 
 from cellrunner import __version__
 
+# Native thread pools (OpenMP, OpenBLAS) would spin a thread per core beside our own
+# single-threaded planning and control loops; one thread each unless the user says otherwise.
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
+# pydantic would scan every installed distribution for plugins at the first model (~10 ms)
+os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "1")
+
 EXIT_OK, EXIT_FAILED, EXIT_INPUT, EXIT_UNREACHABLE = 0, 1, 2, 3
 
 EPILOG = """exit codes: 0 success, 1 task infeasible or job failed, 2 invalid input,
@@ -75,6 +82,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", choices=("ur", "sim"))
     p.add_argument("--robot-host", metavar="H")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.add_argument("--speed", type=float, default=1.0, metavar="F",
+                   help="commissioning: the approved motions at F x their pace (0 < F <= 1), same path")
+    p.add_argument("--step", action="store_true",
+                   help="commissioning: show each step and wait for Enter before running it")
     p.set_defaults(module="run")
 
     p = sub.add_parser("serve", help="production: PLC interface up, jobs on trigger")
@@ -87,6 +98,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("cell")
     p.add_argument("--host", default="127.0.0.2")
     p.set_defaults(module="twin")
+
+    p = sub.add_parser("teach", help="commissioning: a frame from the arm, written into the cell file")
+    p.add_argument("cell")
+    p.add_argument("frame")
+    p.add_argument("--robot-host", metavar="H")
+    p.add_argument("--points", type=int, default=1, metavar="N",
+                   help="1: the TCP pose (default); 3: origin, a +X point, a point in the XY plane")
+    p.add_argument("--yes", action="store_true", help="write the change without asking")
+    p.set_defaults(module="teach")
+
+    p = sub.add_parser("jog", help="commissioning: jog the arm from a terminal (dead-man keys)")
+    p.add_argument("cell")
+    p.add_argument("--robot-host", metavar="H")
+    p.add_argument("--mode", choices=("joint", "base", "tool"), default="joint")
+    p.set_defaults(module="jog")
+
+    p = sub.add_parser("calibrate-tcp", help="commissioning: the TCP from poses about one fixed point")
+    p.add_argument("cell")
+    p.add_argument("--robot-host", metavar="H")
+    p.add_argument("--poses", type=int, default=4, metavar="N", help="poses to take, at least 4 (default 4)")
+    p.add_argument("--yes", action="store_true", help="write the change without asking")
+    p.set_defaults(module="calibrate_tcp")
 
     p = sub.add_parser("schema", help="JSON Schema of cell and task files")
     p.add_argument("kind", nargs="?", choices=("cell", "task"), help="only this one")

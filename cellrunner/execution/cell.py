@@ -2,44 +2,54 @@
 :class:`~cellrunner.model.cellport.CellPort`, which the PLC servers and the CLI drive.
 
 Threading: :meth:`CellController.tick` runs on the control thread once per controller
-period (after ``backend.wait_period()``); the CellPort methods may be called from any
-thread and only take the lock briefly. Planning a job runs on a worker thread so that
-ticks never block.
+period (after ``backend.wait_period()``, see :mod:`~cellrunner.execution.loop`); only
+that thread touches the backend. The CellPort methods may be called from any thread:
+they take the lock briefly, and the lock is never held across backend I/O, so a tick
+that waits on the robot (a reconnect attempt, an unlock) never delays them.
+:meth:`CellController.status` takes no lock at all: it returns the snapshot published
+after every change. Planning a job runs on a worker thread so that ticks never block.
+
+Every state change goes through the PackML tables of :mod:`~cellrunner.execution.packml`:
+PLC commands as commands, what the robot and the job do as events.
 """
 
 from __future__ import annotations
 
+import sqlite3
 import threading
-import time
 import uuid
 from concurrent.futures import Future, ThreadPoolExecutor, wait
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from typing import Callable
 
 import numpy as np
 
-from cellrunner.backends.base import BackendError, RobotBackend, Safety
+from cellrunner.backends.base import RobotBackend, Safety
 from cellrunner.errors import CellrunnerError, InputError
 from cellrunner.execution.context import JobContext, Motions
-from cellrunner.execution.job import JobRunner, StepRecord
-from cellrunner.execution.journal import Journal, JobRecord
-from cellrunner.execution.packml import Command, StateMachine, TransitionRefused
-from cellrunner.model.cellport import COMMANDS, CellStatus, JobResult, JobTicket, ResultListener
-from cellrunner.model.codes import PackMLState as S, ResultCode
+from cellrunner.execution.job import JobPhase, JobRunner, StepRecord
+from cellrunner.execution.journal import JobRecord, Journal
+from cellrunner.execution.packml import Command, Event, StateMachine, TransitionRefused
+from cellrunner.model.cellport import (
+    COMMANDS,
+    CellStatus,
+    JobResult,
+    JobTicket,
+    ResultListener,
+)
+from cellrunner.model.codes import PackMLState as S
+from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step, resolve_params
-from cellrunner.model.load import LoadedCell, LoadedTask
 from cellrunner.model.gripper import gripper_channels
+from cellrunner.model.load import LoadedCell, LoadedTask
 from cellrunner.model.timing import release_time_s
 
 #: Complete is shown this long before the cell resets itself to Idle
 COMPLETE_DWELL_S = 0.1
 
-#: the PackML state shown for each phase of a running job
-_PHASE_STATE = {"execute": S.EXECUTE, "holding": S.HOLDING, "held": S.HELD}
 #: acting states that complete on the next tick by themselves
 _SELF_COMPLETING = frozenset({S.COMPLETING, S.ABORTING, S.STOPPING, S.CLEARING, S.RESETTING})
-_ABORT_STATES = frozenset({S.ABORTING, S.ABORTED})
 _HOLD_STATES = frozenset({S.HOLDING, S.HELD})
 
 
@@ -53,6 +63,44 @@ class JobPlan:
 
 
 Planner = Callable[[LoadedTask, dict, np.ndarray], JobPlan]
+
+
+@dataclass(frozen=True)
+class JobView:
+    """What anyone reporting on a job may know of it: a frozen copy, taken on the control
+    thread. ``phase`` is ``None`` while the job is being planned; ``step`` is the 1-based
+    index of the step under way (0 = none); ``records`` are copies of the step rows;
+    ``tracking_error_m`` the largest TCP distance (m) between commanded and measured so far;
+    ``commanded_q_rad`` the set-point streamed last (None when not streaming)."""
+
+    job_id: str
+    task: str
+    phase: JobPhase | None
+    step: int
+    planned_cycle_time_s: float | None
+    records: tuple[StepRecord, ...]
+    tracking_error_m: float
+    retries_used: int
+    cycle_time_s: float
+    commanded_q_rad: np.ndarray | None
+    result_code: ResultCode | None = None
+    message: str = ""
+
+    @property
+    def planning(self) -> bool:
+        return self.phase is None and self.result_code is None
+
+
+def _view_of(job: _Job, runner: JobRunner | None, code: ResultCode | None = None, message: str = "",
+             records: bool = True) -> JobView:
+    planned = job.planned.planned_cycle_time_s if job.planned is not None else None
+    if runner is None:
+        return JobView(job.job_id, job.task.name, None, 0, planned, (), 0.0, 0, 0.0, None, code, message)
+    ctx = runner.ctx
+    rows = tuple(replace(r) for r in runner.records.values()) if records else ()
+    return JobView(job.job_id, job.task.name, runner.phase, runner.current_step, planned, rows,
+                   ctx.tracking_error_m, runner.retries_used, runner.cycle_time_s, None if ctx.commanded_q is None else np.array(ctx.commanded_q),
+                   code if code is not None else runner.result, message or runner.message)
 
 
 @dataclass
@@ -71,12 +119,14 @@ class CellController:
     def __init__(self, cell: LoadedCell, tasks: dict[int, LoadedTask], backend: RobotBackend,
                  journal: Journal, planner: Planner, *, log=None, wait_for_unhold: bool = True,
                  on_step_start: Callable[[Step, int], None] | None = None,
-                 on_job_start: Callable[[], None] | None = None):
+                 on_job_start: Callable[[], None] | None = None,
+                 gate: Callable[[Step], bool] | None = None):
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
         self.planner, self.log = planner, log
         self.wait_for_unhold = wait_for_unhold
         self.on_step_start = on_step_start
         self.on_job_start = on_job_start  # e.g. the twin's infeed brings the next part
+        self.gate = gate  # run --step: each step starts once gate(step) is true
         self.sm = StateMachine(S.STOPPED)
         self._lock = threading.RLock()
         self._job: _Job | None = None
@@ -91,6 +141,9 @@ class CellController:
         self._actions: list[Callable[[], None]] = []  # backend work asked for by other threads
         self._counters = (0, 0)
         self.last_runner: JobRunner | None = None  # of the last finished job (its step records)
+        self._last_view: JobView | None = None
+        self._status_key: tuple[object, ...] = ()
+        self._status = self._snapshot()
 
     # ------------------------------------------------------------------ lifecycle
     def setup(self) -> None:
@@ -104,27 +157,28 @@ class CellController:
         self._counters = self.journal.counters()
         self.backend.connect()
         self._now_s = self.backend.read_state().time_s
-        self._enter_command(Command.RESET)
+        with self._lock:
+            self._enter_command(Command.RESET)
+            self._publish()
 
     def shutdown(self, reason: str = "cellrunner stopped", max_ticks: int = 2000) -> None:
         """Stop safely: a running job's motion is stopped, the job closed with 107, and
         the robot left standing (bounded by ``max_ticks`` periods)."""
-        with self._lock:
-            job = self._job
-            if job is None:
-                return
-            try:
-                self.backend.stop_motion()
-            except Exception:
-                pass
+        job = self._job
+        if job is None:
+            return
+        try:
+            self.backend.stop_motion()
+        except Exception:  # noqa: BLE001 - stopping is best effort; the job is closed below
+            pass
         for _ in range(max_ticks):
             state = self.backend.read_state()
             if float(np.max(np.abs(state.qd_rad_s))) < 1e-3:
                 break
             self.backend.wait_period()
         with self._lock:
-            runner = job.runner
-            self._end_job(ResultCode.INTERRUPTED, f"interrupted: {reason}", runner)
+            self._end_job(ResultCode.INTERRUPTED, f"interrupted: {reason}", job.runner)
+            self._publish()
 
     def close(self) -> None:
         self._pool.shutdown(wait=False, cancel_futures=True)
@@ -133,19 +187,65 @@ class CellController:
 
     # ------------------------------------------------------------------ CellPort
     def status(self) -> CellStatus:
-        with self._lock:
-            state = self.sm.state
-            job = self._job
-            return CellStatus(
-                state=int(state), state_name=state.display_name,
-                ready=state is S.IDLE and job is None and self._safety is Safety.NORMAL,
-                busy=job is not None, held=state in (S.HOLDING, S.HELD),
-                protective_stop=self._safety is Safety.PROTECTIVE_STOP,
-                estop=self._safety is Safety.EMERGENCY_STOP,
-                job_id=job.job_id if job else "",
-                step_index=job.runner.current_step if job and job.runner else 0,
-                last_result=self._last, parts_processed=self._counters[0],
-                parts_defective=self._counters[1])
+        """The snapshot published after the last change; takes no lock, never waits."""
+        return self._status
+
+    def _snapshot(self) -> CellStatus:
+        state = self.sm.state
+        job = self._job
+        return CellStatus(
+            state=int(state), state_name=state.display_name,
+            ready=state is S.IDLE and job is None and self._safety is Safety.NORMAL,
+            busy=job is not None, held=state in (S.HOLDING, S.HELD),
+            protective_stop=self._safety is Safety.PROTECTIVE_STOP,
+            estop=self._safety is Safety.EMERGENCY_STOP,
+            job_id=job.job_id if job else "",
+            step_index=job.runner.current_step if job and job.runner else 0,
+            last_result=self._last, parts_processed=self._counters[0],
+            parts_defective=self._counters[1])
+
+    def _publish(self) -> None:
+        """Publish a new status snapshot (under the lock) when anything in it changed."""
+        job = self._job
+        key = (self.sm.state, job, self._safety, job.runner.current_step if job and job.runner else 0,
+               self._last, self._counters)
+        if key != self._status_key:
+            self._status_key = key
+            self._status = self._snapshot()
+
+    # ------------------------------------------------------------------ job views
+    @property
+    def busy(self) -> bool:
+        """A job is under way or its end is still being shown (Starting, Completing,
+        Aborting): a loop running one job ticks on while this is true."""
+        return self._job is not None or self.sm.state in (S.COMPLETING, S.ABORTING, S.STARTING)
+
+    @property
+    def planning(self) -> bool:
+        """A job was accepted and its plan is not picked up yet."""
+        job = self._job
+        return job is not None and job.runner is None
+
+    def job_view(self, *, records: bool = True) -> JobView | None:
+        """The job under way (None when there is none), with copies of its step records
+        unless ``records`` is False (a per-period observer needs only the step); call on
+        the control thread."""
+        job = self._job
+        return None if job is None else _view_of(job, job.runner, records=records)
+
+    @property
+    def last_job(self) -> JobView | None:
+        """The last job that ended, as it ended (its step records, result and tracking)."""
+        return self._last_view
+
+    def wait_for_plan(self, timeout_s: float) -> bool:
+        """Block (not the control loop's business while a job plans) until the running
+        job's plan is ready or ``timeout_s`` passed; True when there is nothing to wait for."""
+        job = self._job
+        if job is None or job.runner is not None or job.plan is None:
+            return True
+        done, _ = wait([job.plan], timeout=timeout_s)
+        return bool(done)
 
     def task_params(self, task: str | int) -> list[str] | None:
         loaded = self._task(task)
@@ -173,9 +273,14 @@ class CellController:
             if self.sm.state is not S.IDLE or self._job is not None or self._safety is not Safety.NORMAL:
                 return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: state {self.sm.state.display_name}")
             job = _Job(uuid.uuid4().hex[:12], loaded, values, client_job_id, source)
-            self.journal.begin_job(job.job_id, self.cell.cell.cell, loaded.name, values, source, client_job_id)
+            try:
+                self.journal.begin_job(job.job_id, self.cell.cell.cell, loaded.name, values, source, client_job_id)
+            except sqlite3.Error as exc:  # disk full, read-only: no journal, no job (SPEC 9)
+                self._log("journal_failed", error=str(exc))
+                return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: the journal cannot be written: {exc}")
             self._job = job
             self._enter_command(Command.START)
+            self._publish()
             self._log("job_accepted", job_id=job.job_id, task=loaded.name, params=values, source=source)
             return JobTicket(job.job_id)  # planning starts on the control thread's next tick
 
@@ -183,31 +288,36 @@ class CellController:
         if name not in COMMANDS:
             raise ValueError(f"unknown command {name!r}; known: {', '.join(COMMANDS)}")
         with self._lock:
-            job = self._job
-            runner = job.runner if job else None
-            if name in ("hold", "unhold", "abort") and runner is not None and not runner.done:
-                if name == "unhold" and runner.phase != "held":
-                    return False
-                if name == "hold" and runner.phase != "execute":
-                    return False
-                runner.request(name)
-                return True
-            try:
-                if name == "abort" and job is not None and runner is None:  # still planning
-                    self._end_job(ResultCode.ABORTED_BY_PLC, "aborted while planning")
-                    return True
-                if name == "reset" and self._safety is Safety.EMERGENCY_STOP:
-                    return False  # Clear first (it finds out whether the e-stop was released)
-                if name == "reset" and self.sm.state is S.ABORTED:
-                    return False
-                command = {"reset": Command.RESET, "clear": Command.CLEAR, "stop": Command.STOP,
-                           "abort": Command.ABORT, "hold": Command.HOLD, "unhold": Command.UNHOLD}[name]
-                self._enter_command(command)
-                if command is Command.CLEAR:
-                    self._actions.append(self._recover)  # on the control thread, in Clearing
-                return True
-            except (TransitionRefused, CellrunnerError):
+            accepted = self._command(name)
+            self._publish()
+            return accepted
+
+    def _command(self, name: str) -> bool:
+        job = self._job
+        runner = job.runner if job else None
+        if name in ("hold", "unhold", "abort") and runner is not None and not runner.done:
+            if name == "unhold" and runner.phase is not JobPhase.HELD:
                 return False
+            if name == "hold" and runner.phase is not JobPhase.EXECUTE:
+                return False
+            runner.request(name)  # the control thread acts on it at its next tick
+            return True
+        try:
+            if name == "abort" and job is not None and runner is None:  # still planning
+                self._end_job(ResultCode.ABORTED_BY_PLC, "aborted while planning")
+                return True
+            if name == "reset" and self._safety is Safety.EMERGENCY_STOP:
+                return False  # Clear first (it finds out whether the e-stop was released)
+            if name == "reset" and self.sm.state is S.ABORTED:
+                return False
+            command = {"reset": Command.RESET, "clear": Command.CLEAR, "stop": Command.STOP,
+                       "abort": Command.ABORT, "hold": Command.HOLD, "unhold": Command.UNHOLD}[name]
+            self._enter_command(command)
+            if command is Command.CLEAR:
+                self._actions.append(self._recover)  # on the control thread, in Clearing
+            return True
+        except (TransitionRefused, CellrunnerError):
+            return False
 
     def add_result_listener(self, listener: ResultListener) -> Callable[[], None]:
         with self._lock:
@@ -216,67 +326,92 @@ class CellController:
 
     # ------------------------------------------------------------------ tick
     def tick(self) -> None:
-        """One controller period; call after ``backend.wait_period()``."""
+        """One controller period; call after ``backend.wait_period()``.
+
+        Backend I/O (recovery actions, the runner's tick, starting a runner) happens
+        outside the lock; the state changes it leads to are made under it."""
         with self._lock:
             self._ticks += 1
-            while self._actions:  # only this thread touches the backend
-                self._actions.pop(0)()
+            actions, self._actions = self._actions, []
             job = self._job
-            runner = job.runner if job is not None else None
-            if runner is not None:
-                runner.tick()
-                self._now_s, self._safety = self.backend.read_state().time_s, runner.ctx.state.safety
-                self._follow(runner)
-            else:
-                state = self.backend.read_state()
-                self._now_s, self._safety = state.time_s, state.safety
-                if job is not None and job.plan is None:
-                    if self.on_job_start is not None:
-                        self.on_job_start()
-                    job.plan = self._pool.submit(self.planner, job.task, job.params, state.q_rad)
-                elif job is not None and job.plan.done():
-                    self._start_runner(job)
+        for action in actions:  # backend work other threads asked for: only this thread does it
+            action()
+        runner = job.runner if job is not None else None
+        if runner is not None:
+            runner.tick()
+            state = runner.ctx.state or self.backend.read_state()
+        else:
+            state = self.backend.read_state()
+            if job is not None and job.plan is None:
+                if self.on_job_start is not None:
+                    self.on_job_start()
+                job.plan = self._pool.submit(self.planner, job.task, job.params, state.q_rad)
+            elif job is not None and job.plan is not None and job.plan.done():
+                runner = self._start_runner(job)
+        with self._lock:
+            self._now_s, self._safety = state.time_s, state.safety
+            if job is not None and job is self._job and runner is not None:
+                self._follow(job, runner)
             self._idle_transitions()
+            self._publish()
 
     def _recover(self) -> None:
-        """Clearing: reconnect a lost link, re-arm after an e-stop (power, brakes)."""
+        """Clearing (on the control thread): reconnect a lost link, re-arm after an
+        e-stop (power, brakes); bounded by the backend."""
+        error = None
         try:
             if self._safety is Safety.DISCONNECTED:
                 self.backend.connect()
             self.backend.recover_from_estop()
-        except (CellrunnerError, BackendError) as exc:  # e.g. the e-stop is still pressed
-            self._log("clear_failed", error=str(exc))
-            self.sm.force(S.ABORTED)
-            self._mark_entered()
-        self._safety = self.backend.read_state().safety
+        except CellrunnerError as exc:  # e.g. the e-stop is still pressed
+            error = exc
+        safety = self.backend.read_state().safety
+        with self._lock:
+            if error is not None:
+                self._log("clear_failed", error=str(error))
+                if self.sm.can(Event.CLEAR_FAILED):
+                    self.sm.on(Event.CLEAR_FAILED)
+                    self._mark_entered()
+            self._safety = safety
 
-    def _start_runner(self, job: _Job) -> None:
+    def _start_runner(self, job: _Job) -> JobRunner | None:
+        """The planned job's runner, started (reads the robot); None when planning failed
+        (the job is then ended with 103)."""
+        assert job.plan is not None
         try:
             plan: JobPlan = job.plan.result()
-        except CellrunnerError as exc:
-            return self._end_job(ResultCode.PLANNING_FAILED, str(exc))
-        except Exception as exc:  # a planner bug must still close the job with a code
-            return self._end_job(ResultCode.PLANNING_FAILED, f"{type(exc).__name__}: {exc}")
+        except Exception as exc:  # noqa: BLE001 - a planner bug must still close the job with a code
+            message = str(exc) if isinstance(exc, CellrunnerError) else f"{type(exc).__name__}: {exc}"
+            with self._lock:
+                if job is self._job:
+                    self._end_job(ResultCode.PLANNING_FAILED, message)
+            return None
         job.planned = plan
-        ctx = self._context(plan.motions)
-        job.runner = JobRunner(ctx, plan.steps, job.task.task.on_protective_stop,
-                               wait_for_unhold=self.wait_for_unhold,
-                               on_step=lambda rec, attempt: self._journal_step(job, rec, attempt))
-        self.sm.state_complete()  # Starting -> Execute
-        self._mark_entered()
-        job.runner.start()
+        ctx = self._context(plan.motions, job.job_id)
+        runner = JobRunner(ctx, plan.steps, job.task.task.on_protective_stop, wait_for_unhold=self.wait_for_unhold,
+                           gate=self.gate, on_step=lambda rec, attempt: self._journal_step(job, rec, attempt))
+        runner.start()
+        return runner
 
-    def _follow(self, runner: JobRunner) -> None:
+    def _follow(self, job: _Job, runner: JobRunner) -> None:
+        """Move the PackML state one step towards the runner's phase."""
+        if job.runner is None:  # just started: Starting -> Execute
+            job.runner = runner
+            self.sm.state_complete()
+            return self._mark_entered()
         if runner.done:
-            code = runner.result
-            return self._end_job(code, runner.message, runner)
-        target = _PHASE_STATE.get(runner.phase)
-        if target is not None and target is not self.sm.state:
-            if target is S.EXECUTE and self.sm.state in _HOLD_STATES:
-                self.sm.force(S.UNHOLDING)  # shown for one period
-            else:
-                self.sm.force(target)
-            self._mark_entered()
+            assert runner.result is not None
+            return self._end_job(runner.result, runner.message, runner)
+        state, phase = self.sm.state, runner.phase
+        if state is S.EXECUTE and phase in (JobPhase.HOLDING, JobPhase.HELD):
+            self.sm.on(Event.HOLD_STARTED)
+        elif state is S.HOLDING and phase is JobPhase.HELD:
+            self.sm.state_complete()
+        elif state in _HOLD_STATES and phase is JobPhase.EXECUTE:
+            self.sm.on(Event.RESUMED)  # Unholding, shown for one period
+        else:
+            return
+        self._mark_entered()
 
     def _idle_transitions(self) -> None:
         state = self.sm.state
@@ -285,14 +420,12 @@ class CellController:
         safety = self._safety
         if state is S.EXECUTE and safety is Safety.NORMAL:
             return  # the common case while a job runs: nothing to do
-        if safety is Safety.EMERGENCY_STOP and state not in _ABORT_STATES:
-            self.sm.force(S.ABORTING)
-        elif safety is Safety.DISCONNECTED and self._job is None and state not in _ABORT_STATES:
-            self.sm.force(S.ABORTING)
-        elif state in _SELF_COMPLETING:
+        if safety is Safety.EMERGENCY_STOP and self.sm.can(Event.ESTOP):
+            self.sm.on(Event.ESTOP)
+        elif safety is Safety.DISCONNECTED and self._job is None and self.sm.can(Event.LINK_LOST):
+            self.sm.on(Event.LINK_LOST)
+        elif state in _SELF_COMPLETING or state is S.UNHOLDING:
             self.sm.state_complete()
-        elif state is S.UNHOLDING:
-            self.sm.force(S.EXECUTE)
         elif state is S.COMPLETE and self._now_s - self._entered_s >= COMPLETE_DWELL_S:
             self._enter_command(Command.RESET)
         else:
@@ -305,16 +438,21 @@ class CellController:
             return
         retries = runner.retries_used if runner else 0
         cycle = runner.cycle_time_s if runner else 0.0
-        self.journal.end_job(job.job_id, code, cycle, retries, message or code.text)
-        self._counters = self.journal.counters()
+        try:
+            self.journal.end_job(job.job_id, code, cycle, retries, message or code.text)
+            self._counters = self.journal.counters()
+        except sqlite3.Error as exc:  # disk full: the PLC still gets the result; the journal
+            self._log("journal_failed", job_id=job.job_id, error=str(exc))  # closes it with 107 later
         self._last = JobResult(job.job_id, int(code), message or code.text, cycle,
                                datetime.now(timezone.utc), retries, job.task.name, job.client_job_id, job.source)
         self.last_runner = runner
+        self._last_view = _view_of(job, runner, code, message or code.text)
         self._job = None
-        if code.is_fault:
-            self.sm.force(S.ABORTING)
-        else:
-            self.sm.force(S.COMPLETING)
+        event = Event.JOB_ABORTED if code.is_fault else Event.JOB_ENDED
+        if self.sm.can(event):
+            self.sm.on(event)
+        elif self.sm.can(Event.JOB_ABORTED):  # a job that ends OK in a state it cannot complete from
+            self.sm.on(Event.JOB_ABORTED)
         self._mark_entered()
         self._log("job_end", job_id=job.job_id, result_code=int(code), message=message)
         for listener in list(self._listeners):
@@ -336,7 +474,7 @@ class CellController:
             return self.tasks.get(int(task))
         return next((t for t in self.tasks.values() if t.name == task), None)
 
-    def _context(self, motions: Motions) -> JobContext:
+    def _context(self, motions: Motions, job_id: str) -> JobContext:
         c = self.cell.cell
         io_out, io_in = c.io.outputs, c.io.inputs
         g = c.tool.gripper
@@ -345,16 +483,14 @@ class CellController:
                           gripper_close=close, gripper_open=open_, gripper_closed_sensor=sensor,
                           gripper_open_s=release_time_s(g),
                           step_timeout_s=c.step_timeout, on_step_start=self.on_step_start,
-                          log=self._bound_log())
-
-    def _bound_log(self):
-        if self.log is None or self._job is None:
-            return self.log
-        return self.log.bind(job_id=self._job.job_id)
+                          log=None if self.log is None else self.log.bind(job_id=job_id))
 
     def _journal_step(self, job: _Job, record: StepRecord, attempt: int) -> None:
-        self.journal.step(job.job_id, record.index, record.kind, record.name, record.status, attempt,
-                          record.message)
+        try:
+            self.journal.step(job.job_id, record.index, record.kind, record.name, record.status, attempt,
+                              record.message)
+        except sqlite3.Error as exc:  # disk full: the job goes on; its row is missing a step
+            self._log("journal_failed", job_id=job.job_id, error=str(exc))
 
     def _log(self, event: str, **kw) -> None:
         if self.log is not None:
@@ -369,21 +505,8 @@ def _result_of(record: JobRecord) -> JobResult:
 
 
 def run_until_done(cell: CellController, *, max_s: float, stop: threading.Event | None = None) -> None:
-    """Tick ``cell`` (one backend period each) until its job ended or ``max_s`` of
-    backend time passed."""
-    t0 = cell.backend.read_state().time_s
-    deadline_wall = time.monotonic() + max(60.0, max_s * 4)
-    while cell._job is not None or cell.sm.state in (S.COMPLETING, S.ABORTING, S.STARTING):
-        if stop is not None and stop.is_set():
-            return
-        job = cell._job
-        if job is not None and job.runner is None and job.plan is not None and not job.plan.done():
-            wait([job.plan], timeout=1.0)  # don't spin the physics while planning
-            continue
-        if cell.backend.read_state().time_s - t0 > max_s or time.monotonic() > deadline_wall:
-            cell.command("abort")
-            cell.backend.wait_period()
-            cell.tick()
-            return
-        cell.backend.wait_period()
-        cell.tick()
+    """Tick ``cell`` until its job ended or ``max_s`` of backend time passed (see
+    :meth:`~cellrunner.execution.loop.ControlLoop.run_job`)."""
+    from cellrunner.execution.loop import ControlLoop
+
+    ControlLoop(cell).run_job(max_s=max_s, stop=stop)

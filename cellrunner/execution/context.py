@@ -19,6 +19,10 @@ class Motions(Protocol):
         """The trajectory ``check`` approved for ``step`` (from its planned start); None
         for motions only planned where the arm stands (a retry's in-between steps)."""
 
+    def continues(self, step: Step) -> bool:
+        """Whether ``step``'s nominal trajectory continues the motion before it without
+        stopping (it was verified starting at that motion's speed, not from rest)."""
+
     def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
         """A verified trajectory from ``q_now_rad`` to ``step``'s goal (after a stop, a
         retry); raises InfeasibleError when none passes the checks."""

@@ -9,18 +9,20 @@ holding -> held -> unholding -> execute, or -> aborting; ``done`` at the end wit
 
 from __future__ import annotations
 
+import enum
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
 from cellrunner.backends.base import BackendError, Safety
-from cellrunner.errors import CellrunnerError, InfeasibleError
+from cellrunner.errors import CellrunnerError, InfeasibleError, PeerUnreachable
 from cellrunner.execution import steps as behaviours
 from cellrunner.execution.context import JobContext
-from cellrunner.model.codes import ResultCode
 from cellrunner.execution.steps import Outcome, run_motion, run_weigh
+from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import ON_ERROR, Step
 from cellrunner.model.task import ProtectiveStopPolicy
 
@@ -30,8 +32,30 @@ UNLOCK_DELAY_S = 5.0
 TRACK_EVERY = 4
 #: how long recovery may keep trying to unlock before the job ends with code 100
 RECOVERY_TIMEOUT_S = 30.0
+#: a refused unlock is tried again this often, not every period (s)
+UNLOCK_RETRY_S = 0.25
+#: reconnect attempts back off from this delay, doubling to 2 s (s)
+RECONNECT_FIRST_DELAY_S = 0.2
 
 _NORMAL = Safety.NORMAL  # looked up once: tick runs every period
+
+
+class JobPhase(enum.StrEnum):
+    """Where a job is (PackML's Execute, Holding, Held; ``done`` once it ended)."""
+
+    IDLE = "idle"
+    EXECUTE = "execute"
+    HOLDING = "holding"
+    HELD = "held"
+    DONE = "done"
+
+
+class StepStatus(enum.StrEnum):
+    PENDING = "pending"
+    RUNNING = "running"
+    OK = "ok"
+    FAILED = "failed"
+    SKIPPED = "skipped"
 
 
 @dataclass
@@ -41,7 +65,7 @@ class StepRecord:
     index: int
     kind: str
     name: str
-    status: str = "pending"  # pending running ok failed skipped
+    status: StepStatus = StepStatus.PENDING
     attempts: int = 0
     started_s: float | None = None
     duration_s: float = 0.0
@@ -54,6 +78,7 @@ class _Item:
     attempt: int = 1
     behaviour: str = "step"  # step | weigh | still
     resume: bool = False
+    gated: bool = False  # the gate (run --step) let it start
     between: bool = False  # a retry's in-between step (not a row of its own)
 
 
@@ -64,8 +89,9 @@ class JobRunner:
     protective_stop: ProtectiveStopPolicy = field(default_factory=ProtectiveStopPolicy)
     wait_for_unhold: bool = False  # serve: a held job may wait for the PLC's Unhold
     on_step: Callable[[StepRecord, int], None] | None = None  # journal hook
+    gate: Callable[[Step], bool] | None = None  # run --step: a step starts once gate(step) is true
 
-    phase: str = "idle"
+    phase: JobPhase = JobPhase.IDLE
     result: ResultCode | None = None
     message: str = ""
     retries_used: int = 0
@@ -90,16 +116,21 @@ class JobRunner:
         self._requests: list[str] = []
         self._pending_end: tuple[ResultCode, str] | None = None  # after cleanup steps
         self._ticks = 0
+        self._unlock_at_s = 0.0  # robot time of the next unlock attempt
+        self._reconnect_why: str | None = None  # a reconnect under way, polled by tick
+        self._reconnect_until = 0.0  # monotonic s
+        self._reconnect_next = 0.0
+        self._reconnect_delay = RECONNECT_FIRST_DELAY_S
 
     # ------------------------------------------------------------------ control
     @property
     def current_step(self) -> int:
         """1-based index of the step under way, 0 when none."""
-        return self._current.step.index if self._current and self.phase != "done" else 0
+        return self._current.step.index if self._current and self.phase is not JobPhase.DONE else 0
 
     @property
     def done(self) -> bool:
-        return self.phase == "done"
+        return self.phase is JobPhase.DONE
 
     def request(self, what: str) -> None:
         """Queue 'hold', 'unhold' or 'abort' (from the PLC or the watchdog)."""
@@ -108,19 +139,21 @@ class JobRunner:
     def start(self) -> None:
         self.ctx.read()
         self.started_s = self.ctx.now_s
-        self.phase = "execute"
+        self.phase = JobPhase.EXECUTE
         self._next_item()
 
     # ------------------------------------------------------------------ tick
     def tick(self) -> None:
         """Advance by one controller period."""
         phase = self.phase
-        if phase == "done" or phase == "idle":
+        if phase is JobPhase.DONE or phase is JobPhase.IDLE:
             return
         safety = self.ctx.read().safety
         self._ticks += 1
+        if self._reconnect_why is not None:
+            return self._reconnect()
         if safety is _NORMAL:
-            if phase == "execute" and self._ticks % TRACK_EVERY == 0:
+            if phase is JobPhase.EXECUTE and self._ticks % TRACK_EVERY == 0:
                 self._track()
         elif safety is Safety.DISCONNECTED:
             return self._reconnect()
@@ -128,7 +161,7 @@ class JobRunner:
             return self._finish(ResultCode.ESTOP, f"e-stop during {self._label()}")
         elif safety is Safety.FAULT:
             return self._finish(ResultCode.PROTECTIVE_STOP, f"controller fault during {self._label()}")
-        elif safety is Safety.PROTECTIVE_STOP and phase == "execute":
+        elif safety is Safety.PROTECTIVE_STOP and phase is JobPhase.EXECUTE:
             self.protective_stops += 1
             self._enter_hold("protective stop")
         while self._requests:
@@ -136,21 +169,21 @@ class JobRunner:
             if self.done:
                 return
         phase = self.phase
-        if phase == "execute":
+        if phase is JobPhase.EXECUTE:
             self._tick_execute()
-        elif phase == "holding" or phase == "held":
+        elif phase is JobPhase.HOLDING or phase is JobPhase.HELD:
             self._tick_held()
 
     def _handle_request(self, what: str) -> None:
         if what == "abort":
             self._finish(ResultCode.ABORTED_BY_PLC, f"aborted during {self._label()}")
-        elif what == "hold" and self.phase == "execute":
+        elif what == "hold" and self.phase is JobPhase.EXECUTE:
             self._enter_hold("hold requested")
-        elif what == "unhold" and self.phase == "held":
+        elif what == "unhold" and self.phase is JobPhase.HELD:
             self._resume()
 
     def _enter_hold(self, reason: str) -> None:
-        self.phase = "holding"
+        self.phase = JobPhase.HOLDING
         self._hold_reason = reason
         self._hold_since_s = self.ctx.now_s
         self._gen = None
@@ -161,8 +194,8 @@ class JobRunner:
 
     def _tick_held(self) -> None:
         state = self.ctx.state
-        if self.phase == "holding" and np.max(np.abs(state.qd_rad_s)) < 1e-3:
-            self.phase = "held"
+        if self.phase is JobPhase.HOLDING and np.max(np.abs(state.qd_rad_s)) < 1e-3:
+            self.phase = JobPhase.HELD
         if self._hold_reason != "protective stop":
             return  # a requested hold waits for unhold or abort
         held_for = self.ctx.now_s - self._hold_since_s
@@ -175,6 +208,9 @@ class JobRunner:
         if held_for < UNLOCK_DELAY_S:
             return
         if state.safety is Safety.PROTECTIVE_STOP:
+            if self.ctx.now_s < self._unlock_at_s:
+                return  # bounded work: one attempt per UNLOCK_RETRY_S, polled by tick
+            self._unlock_at_s = self.ctx.now_s + UNLOCK_RETRY_S
             try:
                 self.ctx.backend.unlock_protective_stop()
             except BackendError as exc:
@@ -186,7 +222,7 @@ class JobRunner:
 
     def _resume(self) -> None:
         self._log("unhold")
-        self.phase = "execute"
+        self.phase = JobPhase.EXECUTE
         if self._current is not None:
             self._current.resume = True
             self._start_item(self._current)
@@ -197,6 +233,9 @@ class JobRunner:
         if self.ctx.state.time_s - self._item_started_s > self._item_timeout_s:
             self.ctx.backend.stop_motion()
             return self._finish(ResultCode.STEP_TIMEOUT, f"{self._label()} timed out")
+        if self._gen is None:  # a reconnect or hold dropped the step's generator
+            self._current.resume = True
+            return self._start_item(self._current)
         try:
             next(self._gen)
         except StopIteration as stop:
@@ -205,6 +244,8 @@ class JobRunner:
             self._finish(ResultCode.PLANNING_FAILED, str(exc))
         except BackendError as exc:
             self._on_backend_error(exc)
+        except PeerUnreachable as exc:
+            self._reconnect(f"{self._label()}: {exc}")
 
     def _on_backend_error(self, exc: BackendError) -> None:
         """A refused command: a safety stop the state had not shown yet is handled as
@@ -219,18 +260,37 @@ class JobRunner:
             self._reconnect(f"{self._label()}: {exc}")
 
     def _reconnect(self, why: str = "robot connection lost") -> None:
-        """Reconnect with backoff (the backend bounds it); resume from where the arm
-        stands, or end with 102 if the robot does not come back."""
-        self._log("reconnect", why=why)
+        """Bounded work polled by :meth:`tick`: one connection attempt per call when its
+        backoff delay (0.2 s doubling to 2 s) is due, for at most the backend's
+        ``reconnect_timeout_s`` (a backend without one gets a single attempt); then resume
+        from where the arm stands, or end with 102. No call blocks for longer than one
+        attempt (the backend bounds it)."""
+        now = time.monotonic()
+        if self._reconnect_why is None:
+            self._log("reconnect", why=why)
+            timeout_s = float(getattr(self.ctx.backend, "reconnect_timeout_s", 0.0))
+            self._reconnect_why, self._reconnect_until = why, now + timeout_s
+            self._reconnect_next, self._reconnect_delay = now, RECONNECT_FIRST_DELAY_S
+            self._gen = None
+            self.ctx.commanded_q = None
+        if now < self._reconnect_next:
+            return
         try:
-            self.ctx.backend.reconnect()
-            state = self.ctx.read()
+            self.ctx.backend.reconnect(timeout_s=0.0)
+            failure = "the robot link is still down" if self.ctx.read().safety is Safety.DISCONNECTED else None
         except CellrunnerError as exc:
-            return self._finish(ResultCode.ROBOT_CONNECTION_LOST, f"{why}; {exc}")
-        if state.safety is Safety.DISCONNECTED:
-            return self._finish(ResultCode.ROBOT_CONNECTION_LOST, why)
-        self.ctx.commanded_q = None
-        if self.phase == "execute" and self._current is not None:
+            failure = str(exc)
+        why = self._reconnect_why
+        if failure is not None:
+            if time.monotonic() + self._reconnect_delay >= self._reconnect_until:
+                self._reconnect_why = None
+                return self._finish(ResultCode.ROBOT_CONNECTION_LOST, f"{why}; {failure}")
+            self._reconnect_next = time.monotonic() + self._reconnect_delay
+            self._reconnect_delay = min(2.0, self._reconnect_delay * 2)
+            return
+        self._reconnect_why = None
+        self._log("reconnected")
+        if self.phase is JobPhase.EXECUTE and self._current is not None:
             self._current.resume = True
             self._start_item(self._current)
 
@@ -242,11 +302,15 @@ class JobRunner:
 
     def _start_item(self, item: _Item) -> None:
         step = item.step
+        if self.gate is not None and not (item.gated or item.between or item.resume) and item.behaviour == "step":
+            self._item_timeout_s = math.inf
+            self._gen = self._await_gate(item)
+            return
         self._item_started_s = self.ctx.now_s
         self._item_timeout_s = self._timeout_s(item)
         record = self.records[step.index]
         if not item.between and item.behaviour == "step" and not item.resume:
-            record.status, record.attempts = "running", max(record.attempts, item.attempt)
+            record.status, record.attempts = StepStatus.RUNNING, max(record.attempts, item.attempt)
             if record.started_s is None:
                 record.started_s = self.ctx.now_s
             if self.ctx.on_step_start is not None:
@@ -263,13 +327,22 @@ class JobRunner:
         else:
             self._gen = behaviours.BEHAVIOURS[step.kind](self.ctx, step)
 
+    def _await_gate(self, item: _Item):
+        """Stand still until the gate opens, then start the item (its own behaviour runs
+        from the next tick on)."""
+        while not self.gate(item.step):
+            yield
+        item.gated = True
+        self._start_item(item)
+        yield
+
     def _on_outcome(self, outcome: Outcome) -> None:
         item = self._current
         step = item.step
         record = self.records[step.index]
         if outcome.ok:
             if not item.between and item.behaviour == "step":
-                record.status = "ok"
+                record.status = StepStatus.OK
                 record.duration_s = self.ctx.now_s - record.started_s
                 self._journal(record, item.attempt)
             self._after_success(item)
@@ -278,7 +351,7 @@ class JobRunner:
         if grip is not None and outcome.code is ResultCode.NO_PART and grip.retry and item.attempt < grip.retry.attempts:
             return self._retry(grip, item.attempt + 1, outcome.message)
         record = self.records[grip.index if grip is not None else step.index]
-        record.status, record.message = "failed", outcome.message
+        record.status, record.message = StepStatus.FAILED, outcome.message
         record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
         self._journal(record, item.attempt)
         if grip is not None and grip.retry and outcome.code is ResultCode.NO_PART:
@@ -308,7 +381,7 @@ class JobRunner:
         redo = [s for s in self.steps if grip.retry.redo_from <= s.index <= grip.index]
         # everything after the grip not yet done; a failed weighing also redoes its lift
         rest = [_Item(s, attempt) for s in self.steps if s.index > grip.index and (
-            self.records[s.index].status == "pending" or s.index == grip.index + 1)]
+            self.records[s.index].status is StepStatus.PENDING or s.index == grip.index + 1)]
         self._agenda = ([_Item(b, attempt, between=True) for b in grip.retry.between]
                         + [_Item(s, attempt) for s in redo] + rest)
         self._next_item()
@@ -326,7 +399,7 @@ class JobRunner:
 
     # ------------------------------------------------------------------ end
     def _finish(self, code: ResultCode, message: str) -> None:
-        if self.phase == "done":
+        if self.phase is JobPhase.DONE:
             return
         if self._cleanup is not None:
             return self._end_cleanup(code, message)
@@ -337,13 +410,13 @@ class JobRunner:
                 pass
         if self._current is not None and code is not ResultCode.OK:
             record = self.records[self._current.step.index]
-            if record.status == "running":
-                record.status, record.message = "failed", message
+            if record.status is StepStatus.RUNNING:
+                record.status, record.message = StepStatus.FAILED, message
                 record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
                 self._journal(record, self._current.attempt)
         for record in self.records.values():
-            if record.status == "pending":
-                record.status = "skipped"
+            if record.status is StepStatus.PENDING:
+                record.status = StepStatus.SKIPPED
         if code is not ResultCode.OK and self.on_error and self._arm_can_move(code):
             return self._start_cleanup(code, message)
         self._end(code, message)
@@ -367,7 +440,7 @@ class JobRunner:
             self.records[s.index] = StepRecord(s.index, s.kind, s.name)
         self._agenda = [_Item(self.on_error[0], behaviour="still", between=True)] + [_Item(s) for s in self.on_error]
         self._pending_end = None
-        self.phase = "execute"
+        self.phase = JobPhase.EXECUTE
         self.ctx.commanded_q = None
         self._next_item()
 
@@ -380,8 +453,8 @@ class JobRunner:
         if code is not ResultCode.OK:
             if self._current is not None:
                 record = self.records[self._current.step.index]
-                if record.status == "running":
-                    record.status, record.message = "failed", message
+                if record.status is StepStatus.RUNNING:
+                    record.status, record.message = StepStatus.FAILED, message
                     record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
                     self._journal(record, self._current.attempt)
             label = self._current.step.label if self._current is not None else "on_error"
@@ -398,14 +471,14 @@ class JobRunner:
         failures = self._cleanup_failures
         note = "on_error done" if not failures else f"on_error failed: {'; '.join(failures)}"
         for record in self.records.values():
-            if record.status == "pending":
-                record.status = "skipped"
+            if record.status is StepStatus.PENDING:
+                record.status = StepStatus.SKIPPED
         self._end(first, f"{why}; {note}" if why else note)
 
     def _end(self, code: ResultCode, message: str) -> None:
         self.result, self.message = code, message
         self.ended_s = self.ctx.now_s
-        self.phase = "done"
+        self.phase = JobPhase.DONE
         self._gen = None
         self._log("job_end", result_code=int(code), message=message)
 

@@ -8,11 +8,14 @@ A job found unfinished at start-up is closed with result 107 by
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from cellrunner.errors import CellrunnerError
 from cellrunner.model.codes import ResultCode
 
 _SCHEMA = """
@@ -68,14 +71,41 @@ class Journal:
     def __init__(self, path: str | Path):
         self.path = Path(path)
         self._db: sqlite3.Connection | None = None
+        self._lock = threading.Lock()  # the control thread and the PLC threads share the connection
+
+    def _execute(self, sql: str, args: tuple = ()) -> sqlite3.Cursor:
+        with self._lock:
+            return self.db.execute(sql, args)
+
+    def _fetchall(self, sql: str, args: tuple = ()) -> list[tuple]:
+        with self._lock:
+            return self.db.execute(sql, args).fetchall()
 
     def open(self) -> "Journal":
-        if self.path != Path(":memory:"):
+        """Open (or create, readable by its owner only) the journal. An existing file that
+        is empty or not a journal is an error, never silently started afresh: that would
+        lose the history, the counters and an interrupted job's 107."""
+        on_disk = self.path != Path(":memory:")
+        if on_disk:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._db = sqlite3.connect(str(self.path), isolation_level=None, check_same_thread=False)
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("PRAGMA synchronous=FULL")
-        self._db.executescript(_SCHEMA)
+            if self.path.exists() and self.path.stat().st_size == 0:
+                raise CellrunnerError(f"journal {self.path} is empty (0 bytes): its history is lost; restore it "
+                                      "from a backup, or move it away to start a new journal")
+            if not self.path.exists():
+                os.close(os.open(self.path, os.O_CREAT | os.O_WRONLY, 0o600))
+        try:
+            self._db = sqlite3.connect(str(self.path), isolation_level=None, check_same_thread=False)
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("PRAGMA synchronous=FULL")
+            self._db.executescript(_SCHEMA)
+        except sqlite3.DatabaseError as exc:
+            self.close()
+            raise CellrunnerError(f"journal {self.path} is not a cellrunner journal ({exc}); restore it from a "
+                                  "backup, or move it away to start a new journal") from exc
+        if on_disk:
+            for path in (self.path, Path(f"{self.path}-wal"), Path(f"{self.path}-shm")):
+                if path.exists():
+                    os.chmod(path, 0o600)  # job history is the line's business only
         return self
 
     def close(self) -> None:
@@ -91,21 +121,21 @@ class Journal:
 
     def begin_job(self, job_id: str, cell: str, task: str, params: dict, source: str,
                   client_job_id: str | None = None) -> None:
-        self.db.execute(
+        self._execute(
             "INSERT INTO jobs (job_id, client_job_id, cell, task, params, source, started_at) "
             "VALUES (?, ?, ?, ?, ?, ?, ?)",
             (job_id, client_job_id, cell, task, json.dumps(params, sort_keys=True), source, time.time()))
 
     def step(self, job_id: str, index: int, kind: str, name: str, status: str, attempt: int,
              message: str = "") -> None:
-        self.db.execute(
+        self._execute(
             "INSERT INTO steps (job_id, step_index, kind, name, status, attempt, at, message) "
             "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
             (job_id, index, kind, name, status, attempt, time.time(), message))
 
     def end_job(self, job_id: str, code: ResultCode, cycle_time_s: float | None, retries: int,
                 text: str | None = None) -> None:
-        self.db.execute(
+        self._execute(
             "UPDATE jobs SET ended_at = ?, result_code = ?, result_text = ?, cycle_time_s = ?, retries = ? "
             "WHERE job_id = ? AND ended_at IS NULL",
             (time.time(), int(code), text or code.text, cycle_time_s, retries, job_id))
@@ -135,17 +165,17 @@ class Journal:
 
     def counters(self) -> tuple[int, int]:
         """(parts processed, parts defective): OK jobs, and jobs that ended NOK (1-3)."""
-        ok, nok = self.db.execute(
-            "SELECT SUM(result_code = 0), SUM(result_code BETWEEN 1 AND 3) FROM jobs").fetchone()
+        ((ok, nok),) = self._fetchall(
+            "SELECT SUM(result_code = 0), SUM(result_code BETWEEN 1 AND 3) FROM jobs")
         return int(ok or 0), int(nok or 0)
 
     def steps_of(self, job_id: str) -> list[tuple]:
-        return self.db.execute(
+        return self._fetchall(
             "SELECT step_index, kind, name, status, attempt, at, message FROM steps WHERE job_id = ? "
-            "ORDER BY rowid", (job_id,)).fetchall()
+            "ORDER BY rowid", (job_id,))
 
     def _select(self, where: str, args: tuple = ()) -> list[JobRecord]:
-        rows = self.db.execute(
+        rows = self._fetchall(
             "SELECT job_id, client_job_id, cell, task, params, source, started_at, ended_at, result_code, "
-            f"result_text, cycle_time_s, retries FROM jobs {where}", args).fetchall()
+            f"result_text, cycle_time_s, retries FROM jobs {where}", args)
         return [JobRecord(r[0], r[1], r[2], r[3], json.loads(r[4]), *r[5:]) for r in rows]

@@ -20,7 +20,10 @@ if TYPE_CHECKING:
 HOME_SNAP_RAD = 1e-3
 
 
-def job_planner(world, *, use_cache: bool = True) -> Planner:
+def job_planner(world, *, use_cache: bool = True, speed: float = 1.0, joined: bool = True) -> Planner:
+    """``speed`` < 1 streams the approved motions slower, in time only (run --speed);
+    ``joined=False`` plans every motion to end at rest (run --step)."""
+    from cellrunner.execution.pacing import PacedMotions
     from cellrunner.model.expand import expand_on_error
     from cellrunner.planning.cache import plan_cached
 
@@ -28,13 +31,15 @@ def job_planner(world, *, use_cache: bool = True) -> Planner:
         q = np.asarray(q_now_rad, float)
         if np.max(np.abs(q - world.q_home_rad)) < HOME_SNAP_RAD:
             q = world.q_home_rad
-        task_plan = plan_cached(world, task, params, q, use_cache=use_cache)
+        task_plan = plan_cached(world, task, params, q, use_cache=use_cache, joined=joined)
         if not task_plan.ok:
             raise InfeasibleError("; ".join(task_plan.errors))
         _verify_ahead(task_plan)
         # the task's on_error steps ride along, marked, for the runner to keep for a failure
-        cleanup = expand_on_error(task, world.loaded.cell, params, len(task_plan.steps) + 1)
-        return JobPlan(task_plan.steps + cleanup, task_plan, task_plan.cycle_time_s)
+        steps = task_plan.steps + expand_on_error(task, world.loaded.cell, params, len(task_plan.steps) + 1)
+        if speed != 1.0:
+            return JobPlan(steps, PacedMotions(task_plan, speed), task_plan.cycle_time_s / speed)
+        return JobPlan(steps, task_plan, task_plan.cycle_time_s)
 
     return plan
 

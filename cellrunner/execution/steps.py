@@ -22,6 +22,8 @@ StepGen = Generator[None, None, "Outcome"]
 
 #: joint distance (rad, max over joints) under which the arm is "at" a trajectory's start
 START_TOLERANCE_RAD = 2e-3
+#: a planned continuation slower than this (rad/s) may start from rest as it is
+CONTINUATION_MIN_RAD_S = 1e-3
 #: the wrist load is averaged over this long when weighing or taking a baseline (s)
 AVERAGE_S = 0.05
 #: stand still this long before a wrist baseline or a weighing (motion transients, s)
@@ -49,7 +51,13 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     does not stand at the trajectory's start (after a stop or a retry)."""
     q_now = ctx.state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
-    if approved is None or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD:
+    # the last set-point streamed is this trajectory's start: the arm is on its way there
+    # (servo lag, more under load), so the approved trajectory continues; else it must stand there
+    on_its_way = approved is not None and ctx.commanded_q is not None and np.array_equal(
+        approved.trajectory.q_rad[0], ctx.commanded_q)
+    if approved is None or (not on_its_way and np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD) \
+            or (ctx.motions.continues(step) and not (on_its_way and _streamed_into(ctx, approved))
+                and _at_rest_for(approved, ctx.state)):
         approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
     q = approved.trajectory.q_rad
     # a non-stop continuation starts on the set-point just streamed: don't send it twice
@@ -63,6 +71,7 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
             if lost:
                 ctx.backend.stop_motion()
                 return Outcome.failed(ResultCode.PART_LOST, lost)
+    ctx.notes["end_rad_s"] = float(np.abs(q[-1] - q[-2]).max()) * approved.trajectory.rate_hz if len(q) > 1 else 0.0
     return check_place(ctx, step)
 
 
@@ -83,6 +92,28 @@ def check_place(ctx: JobContext, step: Step) -> Outcome:
                               f"and {angle_deg:.1f} deg from its target (tolerance {tol_m * 1000:g} mm, "
                               f"{tol_deg:g} deg)")
     return OK
+
+
+def _streamed_into(ctx: JobContext, approved) -> bool:
+    """The set-points just streamed ran into this continuation at its speed (the motion
+    before ended moving, as planned): judged from the commands, not from the measured
+    speed, which lags the stream (more so at a reduced pace or under load)."""
+    q = approved.trajectory.q_rad
+    if len(q) < 2:
+        return False
+    planned_rad_s = float(np.abs(q[1] - q[0]).max()) * approved.trajectory.rate_hz
+    return ctx.notes.get("end_rad_s", 0.0) >= 0.5 * planned_rad_s
+
+
+def _at_rest_for(approved, state) -> bool:
+    """A trajectory planned to continue a motion without stopping, while the arm stands
+    (the motion before it was interrupted and finished from rest): its first set-points
+    would jerk the arm from rest, so the step is replanned from where it stands."""
+    q = approved.trajectory.q_rad
+    if len(q) < 2:
+        return False
+    planned_rad_s = float(np.abs(q[1] - q[0]).max()) * approved.trajectory.rate_hz
+    return planned_rad_s > CONTINUATION_MIN_RAD_S and float(np.abs(state.qd_rad_s).max()) < 0.5 * planned_rad_s
 
 
 def run_grip(ctx: JobContext, step: Step) -> StepGen:

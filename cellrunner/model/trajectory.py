@@ -74,3 +74,33 @@ def _seal_of(trajectory: Trajectory) -> str:
 def approve(trajectory: Trajectory, step_index: int, step_name: str) -> ApprovedTrajectory:
     """Seal ``trajectory``; call only from the verifier after every check has passed."""
     return ApprovedTrajectory(trajectory, step_index, step_name, _seal_of(trajectory))
+
+
+def time_scaled(approved: ApprovedTrajectory, speed: float) -> ApprovedTrajectory:
+    """The approved trajectory at ``speed`` x its pace (0 < speed <= 1): the same joint
+    path, stretched in time only, resampled at the same controller rate.
+
+    Set-point ``k / speed`` is approved sample ``k`` exactly whenever ``k / speed`` is an
+    integer (every 4th set-point at 0.25); the set-points between lie on the straight
+    joint-space segment between two approved samples, which is what the controller
+    interpolates anyway. Joint speeds scale by ``speed``; nothing leaves the approved path,
+    so the result keeps the approval (sealed here, from a sealed input only).
+    """
+    if not approved.is_sealed:
+        raise ValueError("only an approved (sealed) trajectory can be time-scaled")
+    if not 0.0 < speed <= 1.0:
+        raise ValueError(f"speed {speed:g} is outside (0, 1]: a fraction of the approved pace")
+    source = approved.trajectory
+    if speed == 1.0 or len(source.q_rad) < 2:
+        return approved
+    last = len(source.q_rad) - 1
+    n = int(np.ceil(last / speed - 1e-9)) + 1
+    u = np.minimum(np.arange(n) * speed, last)  # position along the source, in samples
+    i = np.minimum(np.floor(u + 1e-9).astype(int), last)
+    frac = np.clip(u - i, 0.0, 1.0)[:, None]
+    j = np.minimum(i + 1, last)
+    q = source.q_rad[i] + frac * (source.q_rad[j] - source.q_rad[i])
+    exact = frac[:, 0] < 1e-9
+    q[exact] = source.q_rad[i[exact]]  # approved samples pass through bit for bit
+    scaled = Trajectory(source.rate_hz, source.t_s[0] + np.arange(n) / source.rate_hz, q)
+    return approve(scaled, approved.step_index, approved.step_name)

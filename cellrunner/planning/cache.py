@@ -40,9 +40,12 @@ def _code_digest() -> bytes:
     return h.digest()
 
 
-def plan_key(world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.ndarray) -> str:
+def plan_key(world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.ndarray,
+             joined: bool = True) -> str:
     h = hashlib.sha256()
     h.update(_code_digest())
+    if not joined:
+        h.update(b"every motion ends at rest")
     for path in [world.loaded.path, task.path, *sorted(m.path for m in _meshes(world))]:
         h.update(str(path).encode())
         h.update(Path(path).read_bytes())
@@ -61,19 +64,19 @@ def cache_dir(world: CellWorld) -> Path:
 
 
 def plan_cached(world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.ndarray,
-                *, use_cache: bool = True) -> TaskPlan:
+                *, use_cache: bool = True, joined: bool = True) -> TaskPlan:
     """The plan of ``task`` with ``params`` from ``q_start_rad``: from the cache when the
     same inputs were planned before, else planned (and stored when feasible)."""
     steps = expand(task, world.loaded.cell, params)
     if not use_cache:
-        return plan_task(world, steps, q_start_rad)
-    key = plan_key(world, task, params, q_start_rad)
+        return plan_task(world, steps, q_start_rad, joined=joined)
+    key = plan_key(world, task, params, q_start_rad, joined)
     if key in _MEMORY and _MEMORY[key].world is world:
         return _MEMORY[key]
     path = cache_dir(world) / f"{key}.npz"
     plan = _load(path, world, steps, q_start_rad) if path.is_file() else None
     if plan is None:
-        plan = plan_task(world, steps, q_start_rad)
+        plan = plan_task(world, steps, q_start_rad, joined=joined)
         if plan.ok:
             _store(path, plan)
     if len(_MEMORY) >= _MEMORY_MAX:

@@ -96,12 +96,16 @@ STALL_M = 1e-4
 #: Spacing (largest joint move, rad) of the cheap rejection probes in check_motion.
 PROBE_STEP_RAD = 0.15
 
-#: check_path proves pairs from the samples' lower bounds first on paths up to this long.
-PATH_BOUNDS_MAX_SAMPLES = 200
+#: check_path proves pairs from the samples' lower bounds first on paths up to this long (on the
+#: dense 500 Hz samples the verifier checks, the exact queries' jumps are cheaper: measured)
+PATH_BOUNDS_MAX_SAMPLES = 40
 
 #: Largest joint move (rad) of one part of a segment over which check_motion bounds each
 #: object's distance from the joint axes afresh (shorter parts: tighter bounds, more FK).
 KNOT_STEP_RAD = 0.2
+
+#: derived models (carried part x contact allowances) kept per cell
+VARIANTS_KEPT = 64
 
 ARM_BODY_NAMES = ("base", "shoulder", "upper_arm", "elbow", "forearm", "wrist_1", "wrist_2", "wrist_3")
 
@@ -208,29 +212,45 @@ class CollisionModel:
                 )
         self._geometry_cache = _geometry_cache if _geometry_cache is not None else {}
         self._build()
+        key = (_placed_key(part), self.allowances)
+        self._variants: dict = {key: self} if _hashable(key) else {}
 
     # -- derived models -------------------------------------------------------------------
 
     def carrying(self, part: Placed | None) -> CollisionModel:
         """The same cell with ``part`` (placed in the TCP frame) held, or none."""
-        return CollisionModel(
-            self.kinematics, self.tool, self.fixtures, self.clearance_m,
-            part=part, allowances=self.allowances, _geometry_cache=self._geometry_cache,
-        )
+        return self._variant(part, self.allowances)
 
     def allowing(self, *allowances: ContactAllowance) -> CollisionModel:
         """The same cell and part with these contact allowances (replacing earlier ones)."""
-        return CollisionModel(
-            self.kinematics, self.tool, self.fixtures, self.clearance_m,
-            part=self.part, allowances=allowances, _geometry_cache=self._geometry_cache,
-        )
+        return self._variant(self.part, tuple(allowances))
+
+    def _variant(self, part: Placed | None, allowances: tuple[ContactAllowance, ...]) -> CollisionModel:
+        """The model of this cell with ``part`` and ``allowances``, built once per cell and
+        such state and shared by every model derived from the same one (models keep no
+        state between queries)."""
+        key = (_placed_key(part), allowances)
+        if key == (_placed_key(self.part), self.allowances):
+            return self
+        model = self._variants.get(key) if _hashable(key) else None  # a shape holding a list: not kept
+        if model is None:
+            model = CollisionModel(
+                self.kinematics, self.tool, self.fixtures, self.clearance_m,
+                part=part, allowances=allowances, _geometry_cache=self._geometry_cache,
+            )
+            model._variants = self._variants
+            if _hashable(key):
+                if len(self._variants) >= VARIANTS_KEPT:  # parts in ever new poses: stay bounded
+                    self._variants.clear()
+                self._variants[key] = model
+        return model
 
     # -- construction ---------------------------------------------------------------------
 
     def _coal_shape(self, shape: Shape) -> tuple[coal.CollisionGeometry, float]:
-        key = id(shape)
+        key = shape if _hashable(shape) else id(shape)  # the same box read twice is one geometry
         cached = self._geometry_cache.get(key)
-        if cached is not None and cached[0] is shape:
+        if cached is not None and (cached[0] is shape or cached[0] == shape):
             return cached[1], cached[2]
         geometry, radius = _make_coal_shape(shape)
         self._geometry_cache[key] = (shape, geometry, radius)
@@ -475,6 +495,14 @@ class CollisionModel:
         return Clearance(float(distances[k]), float(self._required[k]),
                          self._objects[a].label, self._objects[b].label)
 
+    def pair_distances(self, q_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance (m) and required clearance (m) of every checked pair at
+        ``q_rad``, in :meth:`pair_labels` order (the jog governor watches fixtures)."""
+        if not len(self._pairs):
+            return np.empty(0), np.empty(0)
+        self._update(q_rad)
+        return self._exact(np.arange(len(self._pairs))), np.asarray(self._required, float)
+
     def min_distance(self, q_rad: np.ndarray) -> tuple[float, str, str]:
         """The smallest signed distance over the checked pairs (m) and their names."""
         if not len(self._pairs):
@@ -706,7 +734,7 @@ class CollisionModel:
                 queries += 1
                 if m < STALL_M:
                     return self._blocked(float(j), k, m, queries)
-                last = int(np.searchsorted(cum[k], cum[k, j] + m - STALL_M, side="right")) - 1
+                last = int(cum[k].searchsorted(cum[k, j] + m - STALL_M, side="right")) - 1
                 if last <= j:
                     # this pair alone, advanced along the segment by its own bound
                     s_blocked, m_blocked, used = self._advance_pair(k, q[j], q[j + 1], float(seg[k, j]), m)
@@ -736,6 +764,21 @@ class CollisionModel:
             used += 1
             if m < STALL_M:
                 return s, m, used
+
+
+def _placed_key(placed: Placed | None) -> tuple | None:
+    """What a placed shape is, by value (a part placed again in the same pose is the same)."""
+    if placed is None:
+        return None
+    return placed.name, placed.shape, np.asarray(placed.T_parent_shape, float).tobytes()
+
+
+def _hashable(value) -> bool:
+    try:
+        hash(value)
+    except TypeError:
+        return False
+    return True
 
 
 def _support_points(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray) -> tuple[np.ndarray, float]:

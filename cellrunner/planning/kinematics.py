@@ -19,6 +19,7 @@ given configuration inside the joint limits is chosen and verified by forward ki
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import os
 import sys
@@ -138,12 +139,29 @@ class ArmKinematics:
         return self.data.oMf[self.flange_frame_id].homogeneous.copy()
 
     def p_world_tcp_many(self, q_rad: np.ndarray) -> np.ndarray:
-        """TCP positions in the world (N x 3) for configurations ``q_rad`` (N x 6)."""
-        out = np.empty((len(q_rad), 3))
-        for k, q in enumerate(np.asarray(q_rad, dtype=float)):
-            pin.framesForwardKinematics(self.model, self.data, q)
-            out[k] = self.data.oMf[self.tcp_frame_id].translation
-        return out
+        """TCP positions in the world (N x 3) for configurations ``q_rad`` (N x 6), computed
+        for all N at once (the joint chain as arrays of rotations)."""
+        q = np.asarray(q_rad, dtype=float).reshape(-1, 6)
+        R = np.broadcast_to(np.eye(3), (len(q), 3, 3)).copy()
+        p = np.zeros((len(q), 3))
+        for j, (R_link, p_link) in enumerate(self._chain):
+            p += R @ p_link
+            R = R @ R_link
+            c, s = np.cos(q[:, j])[:, None], np.sin(q[:, j])[:, None]
+            x, y = R[:, :, 0].copy(), R[:, :, 1]
+            R[:, :, 0] = c * x + s * y  # R @ Rz(q_j)
+            R[:, :, 1] = c * y - s * x
+        return p + R @ self._p_joint6_tcp
+
+    @functools.cached_property
+    def _chain(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Each joint's placement in its parent (rotation, translation), base to wrist 3."""
+        return [(self.model.jointPlacements[j].rotation.copy(), self.model.jointPlacements[j].translation.copy())
+                for j in range(1, 7)]
+
+    @functools.cached_property
+    def _p_joint6_tcp(self) -> np.ndarray:
+        return self.model.frames[self.tcp_frame_id].placement.translation.copy()
 
     def jacobian_tcp(self, q_rad: np.ndarray) -> np.ndarray:
         """6x6 Jacobian of the TCP: rows 0-2 its linear velocity in world axes (m/s per

@@ -6,8 +6,10 @@ Rules (SPEC section 10):
   joint path (direct, else RRTConnect); ``descend``/``linear``/``lift``/``retreat``: a
   straight TCP line within 1 mm;
 - consecutive motions with no reason to stop are timed as one non-stop trajectory (e.g.
-  lift -> approach, retreat -> move), cut back into one piece per step; a linear step
-  always starts from rest, and grip, release, IO and waits stand still;
+  approach -> descend, retreat -> move), cut back into one piece per step, their corners
+  blended (:func:`_blend`: a collision-checked arc, the part end of a straight step kept
+  straight); two straight steps never join, a lift after a grip with a force window ends
+  at rest (the part is weighed), and grip, release, IO and waits stand still;
 - the carried part joins the collision model from its grip to its release; when a place
   sets the part down, the fixture it lands on may be touched (ContactAllowance);
 - every piece passes :func:`verify_trajectory` (limits x margin, TCP cap, continuity,
@@ -33,6 +35,16 @@ from cellrunner.planning.world import CellWorld
 WRIST_SETTLE_S = 0.15
 #: how far a carried part may press into the surface it is set down on or lifted off (m)
 SET_DOWN_PRESS_M = 0.001
+#: blends where a joint move meets a straight step (:func:`_blend`): at most this share
+#: of the straight step's line and this distance (m) from the corner, like the radii a
+#: UR integrator sets (bench/polyscope.py uses the same)
+LINEAR_BLEND_FRACTION = 0.4
+BLEND_RADIUS_MAX_M = 0.05
+#: between two joint moves: this share of each adjacent edge (as joint_path.round_corners)
+CORNER_FRACTION = 0.35
+BLEND_POINTS = 24
+#: timed groups remembered per cell (:func:`_timed_pieces`)
+TIMING_MEMO_SIZE = 256
 
 
 @dataclass
@@ -94,6 +106,10 @@ class TaskPlan:
             row.approved = seal(self.world, row)
         return row.approved
 
+    def continues(self, step: Step) -> bool:
+        row = self.row(step)
+        return bool(row is not None and row.verify_inputs and row.verify_inputs["previous_moving"])
+
     def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
         """A verified rest-to-rest trajectory from ``q_now_rad`` to the step's goal: the
         same goal as planned (after a stop), or, for a relative move planned nowhere (a
@@ -114,8 +130,10 @@ class TaskPlan:
         return rows[-1].carrying if rows else None
 
 
-def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> TaskPlan:
-    """Plan every step of a job; failures are recorded per step (the rest is not planned)."""
+def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray, *, joined: bool = True) -> TaskPlan:
+    """Plan every step of a job; failures are recorded per step (the rest is not planned).
+    ``joined=False`` (run --step) ends every motion at rest: the same waypoints, each
+    timed from rest to rest, so that the job can pause between any two steps."""
     planner = _StepPlanner(world, np.asarray(q_start_rad, float), None)
     rows = [StepPlan(s, status="not planned") for s in steps]
     plan = TaskPlan(world, steps, rows, np.asarray(q_start_rad, float))
@@ -125,7 +143,7 @@ def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> T
     def flush() -> None:
         nonlocal group, q_group_start
         if group:
-            _time_group(world, group, q_group_start)
+            _time_group(world, group, q_group_start, joined)
             group = []
         q_group_start = planner.q
 
@@ -136,11 +154,12 @@ def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray) -> T
             step = row.step
             then = rows[i + 1].step if i + 1 < len(rows) else None
             if step.is_motion:
-                if group and (step.kind in LINEAR_KINDS or not _same_limits(group[-1].limits, planner.limits_for(step))):
+                if group and (not _joins(group[-1].row.step, step)
+                              or not _same_limits(group[-1].limits, planner.limits_for(step))):
                     flush()
                 group.append(planner.motion(row, then=then))
-                if step.kind in ("descend", "linear"):
-                    flush()  # a descend ends at rest: something happens at its end
+                if step.kind in ("descend", "linear") or _weighed(rows, i):
+                    flush()  # ends at rest: something happens at its end (a grip, weighing the part)
             else:
                 flush()
                 planner.act(row)
@@ -290,23 +309,119 @@ class _StepPlanner:
             return None
 
 
-def _time_group(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> None:
-    """Time a group of motions as one non-stop trajectory, and one by one from rest; keep
-    whichever verified timing is faster (a corner where two motions join can slow a whole
-    joined move more than stopping there costs)."""
-    options = []
-    if len(group) > 1:
+def _time_group(world: CellWorld, group: list[_Motion], q_start: np.ndarray, joined: bool = True) -> None:
+    """Time a group of motions as one non-stop trajectory with its corners blended
+    (:func:`_blend`); if that fails verification, or not ``joined``, one by one from rest."""
+    if len(group) > 1 and joined:
         try:
-            options.append(_timed_pieces(world, group, q_start))
+            _apply(world, group, _timed_pieces(world, _blend(world, group), q_start))
+            return
         except InfeasibleError:
             pass
-    separate, q = [], q_start
+    q = q_start
     for motion in group:
         piece = _timed_pieces(world, [motion], q)[0]
-        separate.append(piece)
+        _apply(world, [motion], [piece])
         q = piece["q"][-1]
-    options.append(separate)
-    _apply(world, group, min(options, key=lambda pieces: sum(len(p["q"]) - 1 for p in pieces)))
+
+
+def _joins(before: Step, after: Step) -> bool:
+    """Whether ``after`` may continue ``before`` without stopping: a joint move after any
+    motion, a straight move only after a joint move (two straight lines meet at a corner)."""
+    return after.kind not in LINEAR_KINDS or before.kind not in LINEAR_KINDS
+
+
+def _weighed(rows: list[StepPlan], i: int) -> bool:
+    """A lift right after a grip with a force window: the engine weighs the part at rest
+    after it (execution.job), so the lift ends at rest."""
+    step = rows[i].step
+    return (step.kind == "lift" and i > 0 and rows[i - 1].step.kind == "grip"
+            and getattr(rows[i - 1].step.args, "force", None) is not None)
+
+
+def _blend(world: CellWorld, group: list[_Motion]) -> list[_Motion]:
+    """The group with each corner between two motions rounded by a quadratic Bezier arc in
+    joint space, as a PolyScope blend radius does: it leaves the first motion at A and
+    joins the second at B, with the corner as control point. On a straight step, A (or B)
+    is at most ``LINEAR_BLEND_FRACTION`` of its line and ``BLEND_RADIUS_MAX_M`` from the
+    corner, so the part end of a descend, lift or retreat stays straight; on a joint move,
+    as far along its edge (joint-space distance) as the straight side, at most half of the
+    edge. The arc belongs to the joint move and is checked with its collision model; the
+    straight step keeps its (shorter) line, verified straight. Corners no arc clears stay
+    sharp."""
+    out = [_Motion(m.row, np.asarray(m.waypoints, float), m.limits, m.line_m, m.collision) for m in group]
+    kin = world.kinematics
+    for a, b in zip(out[:-1], out[1:]):
+        a_line, b_line = a.line_m is not None, b.line_m is not None
+        if (a_line and b_line) or _still(a.waypoints) or _still(b.waypoints):
+            continue
+        joint = b if a_line else a
+        for shrink in (1.0, 0.5, 0.25):
+            blended = _corner_arc(kin, a, b, shrink)
+            if blended is not None and joint.collision.check_path(blended[2]).ok:
+                a.waypoints, b.waypoints = blended[0], blended[1]
+                if a_line:
+                    a.line_m = (a.line_m[0], kin.p_world_tcp(a.waypoints[-1]))
+                if b_line:
+                    b.line_m = (kin.p_world_tcp(b.waypoints[0]), b.line_m[1])
+                break
+    return out
+
+
+def _still(q_rad: np.ndarray) -> bool:
+    return float(np.abs(q_rad - q_rad[0]).max()) < 1e-9
+
+
+def _corner_arc(kin, a: _Motion, b: _Motion, shrink: float):
+    """(a's waypoints, b's waypoints, the arc) with the corner between them rounded
+    (:func:`_blend`); the arc is the start of the joint move (or its end when b is the
+    straight one). None when a side is too short to blend."""
+    corner = a.waypoints[-1]
+    t = np.linspace(0.0, 1.0, BLEND_POINTS)[:, None]
+
+    def straight_point(line_q: np.ndarray, from_end: bool) -> int | None:
+        p = kin.p_world_tcp_many(line_q)
+        length = float(np.linalg.norm(p[-1] - p[0]))
+        radius = min(LINEAR_BLEND_FRACTION * length, BLEND_RADIUS_MAX_M) * shrink
+        d = np.linalg.norm(p - (p[-1] if from_end else p[0]), axis=1)
+        inside = np.nonzero(d < radius)[0]
+        if radius <= 1e-4 or len(inside) == 0:
+            return None
+        k = inside[0] if from_end else inside[-1]  # the farthest sample within the radius
+        return int(k) if 0 < k < len(line_q) - 1 else None
+
+    def along(edge_from: np.ndarray, edge_to: np.ndarray, distance: float) -> np.ndarray:
+        edge = edge_to - edge_from
+        length = float(np.linalg.norm(edge))
+        return edge_from + edge * min(distance / max(length, 1e-12), 0.5)
+
+    if a.line_m is not None:  # straight -> joint
+        if len(b.waypoints) < 2:
+            return None
+        k = straight_point(a.waypoints, from_end=True)
+        if k is None:
+            return None
+        start = a.waypoints[k]
+        end = along(corner, b.waypoints[1], float(np.linalg.norm(corner - start)))
+        arc = (1 - t) ** 2 * start + 2 * (1 - t) * t * corner + t**2 * end
+        return a.waypoints[:k + 1], np.vstack([arc, b.waypoints[1:]]), arc
+    if b.line_m is not None:  # joint -> straight
+        if len(a.waypoints) < 2:
+            return None
+        k = straight_point(b.waypoints, from_end=False)
+        if k is None:
+            return None
+        end = b.waypoints[k]
+        start = along(corner, a.waypoints[-2], float(np.linalg.norm(end - corner)))
+        arc = (1 - t) ** 2 * start + 2 * (1 - t) * t * corner + t**2 * end
+        return np.vstack([a.waypoints[:-1], arc]), b.waypoints[k:], arc
+    if len(a.waypoints) < 2 or len(b.waypoints) < 2:  # joint -> joint
+        return None
+    f = CORNER_FRACTION * shrink
+    start = along(corner, a.waypoints[-2], f * float(np.linalg.norm(a.waypoints[-2] - corner)))
+    end = along(corner, b.waypoints[1], f * float(np.linalg.norm(b.waypoints[1] - corner)))
+    arc = (1 - t) ** 2 * start + 2 * (1 - t) * t * corner + t**2 * end
+    return np.vstack([a.waypoints[:-1], arc]), np.vstack([arc[-1:], b.waypoints[1:]]), arc
 
 
 def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[StepPlan]:
@@ -326,19 +441,36 @@ def _apply(world: CellWorld, group: list[_Motion], pieces: list[dict]) -> None:
 
 
 def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[dict]:
+    """:func:`_time_pieces`, remembered per cell for the same inputs (the pattern slots of
+    a job share their first motions, and a grip's retry path is the same for all): the
+    same waypoints, limits, lines, collision models, step and start give the same
+    verified pieces, since timing and verification are deterministic."""
+    key = (np.asarray(q_start, float).tobytes(), tuple(
+        (m.row.step.index, m.row.step.name, np.asarray(m.waypoints, float).tobytes(), id(m.collision),
+         None if m.line_m is None else np.asarray(m.line_m, float).tobytes(),
+         m.limits.joint_speed_rad_s.tobytes(), m.limits.joint_accel_rad_s2.tobytes(), m.limits.tcp_speed_mps)
+        for m in group))
+    memo = world.timing_memo
+    hit = memo.get(key)
+    if hit is not None and all(a is m.collision for a, m in zip(hit[0], group)):
+        return hit[1]
+    pieces = _time_pieces(world, group, q_start)
+    if len(memo) >= TIMING_MEMO_SIZE:
+        memo.clear()
+    memo[key] = ([m.collision for m in group], pieces)
+    return pieces
+
+
+def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[dict]:
     """TOPP-RA over the group's joined waypoints, cut into one verified piece per motion
     (sharing boundary samples); raises InfeasibleError when a piece fails verification."""
     from cellrunner.planning.timing import time_path
     from cellrunner.planning.verify import verify_trajectory
 
-    waypoints = [group[0].waypoints]
-    bounds = []
-    for motion in group:
-        if motion is not group[0]:
-            waypoints.append(motion.waypoints[1:])
-        bounds.append(sum(len(w) for w in waypoints) - 1)
-    timed = time_path(world.kinematics, np.vstack(waypoints), group[0].limits, world.spec.rate_hz)
-    cuts = _cut_indices(timed, bounds, len(group))
+    waypoints = np.vstack([group[0].waypoints, *[m.waypoints[1:] for m in group[1:]]])
+    s_waypoints = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(waypoints, axis=0), axis=1))])
+    timed = time_path(world.kinematics, waypoints, group[0].limits, world.spec.rate_hz)
+    cuts = _cut_indices(timed.s, group, s_waypoints)
     previous = np.asarray(q_start, float)
     start = 0
     pieces = []
@@ -373,17 +505,25 @@ def _same_limits(a, b) -> bool:
             and np.array_equal(a.joint_accel_rad_s2, b.joint_accel_rad_s2) and a.tcp_speed_mps == b.tcp_speed_mps)
 
 
-def _cut_indices(timed, bounds: list[int], n: int) -> list[int]:
+def _cut_indices(s_samples: np.ndarray, group: list[_Motion], s_waypoints: np.ndarray) -> list[int]:
     """The last sample index of each motion in a joined trajectory (the next motion's
-    first sample: joined pieces share their boundary sample)."""
-    cuts = []
-    for i, b in enumerate(bounds):
-        if i == n - 1:
-            cuts.append(len(timed.q_rad) - 1)
+    first sample: joined pieces share their boundary sample). A straight motion keeps only
+    samples on its own stretch of the path: it ends on the last sample at or before its
+    end, and starts on the first sample at or after its start."""
+    cuts: list[int] = []
+    last = len(s_samples) - 1
+    bound = -1
+    for i, motion in enumerate(group[:-1]):
+        bound += len(motion.waypoints) - (0 if i == 0 else 1)
+        s_b = s_waypoints[bound]
+        if motion.line_m is not None:
+            k = int(np.searchsorted(s_samples, s_b + 1e-12, side="right")) - 1
+        elif group[i + 1].line_m is not None:
+            k = int(np.searchsorted(s_samples, s_b - 1e-12, side="left"))
         else:
-            s_b = timed.s_waypoints[b]
-            k = int(np.searchsorted(timed.s, s_b, side="right") - 1)
-            cuts.append(max(k, cuts[-1] + 1 if cuts else 0))
+            k = int(np.argmin(np.abs(s_samples - s_b)))
+        cuts.append(min(max(k, cuts[-1] + 1 if cuts else 0), last))
+    cuts.append(last)
     return cuts
 
 

@@ -2,19 +2,27 @@
 
 A path is a polyline of joint waypoints (rad). It is densified (no joint moves more than
 ``DENSIFY_STEP_RAD`` between points), fitted with a cubic spline in the cumulative
-joint-space distance ``s`` and time-optimally parameterized by TOPP-RA under
+joint-space distance ``s`` and time-optimally parameterized by TOPP-RA, once, on a grid
+through every densified point, under
 
 - joint speed limits x margin (rad/s),
 - joint acceleration limits x margin (rad/s^2),
-- the TCP speed cap x margin (m/s), as a path-varying joint-velocity constraint: with
-  ``v(s) = |J_p(q(s)) q'(s)|`` the TCP speed per unit path speed, each joint i gets the
-  limit ``tcp_cap |q_i'(s)| / v(s)``, which is equivalent to ``s_dot <= tcp_cap / v(s)``.
+- the TCP speed cap x margin (m/s), as a path-speed cap ``s_dot <= tcp_cap / v(s)`` with
+  ``v(s) = |dp/ds|`` the TCP speed per unit path speed, computed for the whole grid at
+  once by forward kinematics and given to TOPP-RA as per-joint limits
+  ``cap(s) |q_i'(s)|``.
 
 Rest-to-rest: zero path speed at both ends. TOPP-RA enforces the constraints at its grid
 points only, so the trajectory resampled at the controller rate (``t = k / rate_hz``,
 ending exactly on the last waypoint) is measured the way the verifier measures it
-(finite differences of the samples, TCP speed by FK) and uniformly slowed down until
-every measure is within its limit: the limits hold at every sample by construction.
+(finite differences of the samples, TCP speed by FK). Where a sample exceeds a limit,
+the path speed is capped **locally**, on the grid points around that sample, at its speed
+there divided by the excess, and TOPP-RA is solved again (at most ``LOCAL_ROUNDS``
+times; the rest of the motion keeps its optimal speed). Only if that does not converge
+is the whole motion slowed uniformly. The limits hold at every sample by construction.
+
+toppra's algorithm module imports ``matplotlib.pyplot`` for its plotting helpers; it is
+given a stand-in that imports the real pyplot on first use (:func:`_import_toppra`).
 """
 
 from __future__ import annotations
@@ -29,8 +37,15 @@ from cellrunner.model.robots import RobotSpec
 from cellrunner.planning.kinematics import ArmKinematics
 
 DENSIFY_STEP_RAD = 0.03
-#: Headroom kept below each limit after resampling (fraction).
+#: Where resampling exceeds a limit, the speed there is lowered this much more (fraction).
 RESAMPLE_HEADROOM = 0.995
+#: Rounds of local slow-down before the uniform fallback.
+LOCAL_ROUNDS = 4
+#: TOPP-RA's grid: every densified point, at least / at most this many points.
+MIN_GRID_POINTS = 40
+MAX_GRID_POINTS = 800
+#: TOPP-RA plans against limits this much lower (its solver meets them to ~1e-9 only).
+TOPPRA_TIGHTENING = 0.9995
 
 
 @dataclass(frozen=True)
@@ -113,62 +128,192 @@ def time_path(
     """Time-optimal rest-to-rest trajectory through ``waypoints_rad`` (N x 6), sampled at
     ``rate_hz``; see the module docstring. Raises :class:`InfeasibleError` when TOPP-RA
     finds no parameterization."""
-    import toppra as ta
-    import toppra.algorithm as algo
-    import toppra.constraint as constraint
-
     wp = _dedupe(np.asarray(waypoints_rad, float))
     if len(wp) == 1:
         return TimedPath(rate_hz, np.zeros(1), wp.copy(), np.zeros(1), np.zeros(1))
-    dense, s_dense, s_wp = _densify(wp)
-    path = ta.SplineInterpolator(s_dense, dense, bc_type="natural")
-    vlim = np.column_stack([-limits.joint_speed_rad_s, limits.joint_speed_rad_s])
-    alim = np.column_stack([-limits.joint_accel_rad_s2, limits.joint_accel_rad_s2])
-    tcp_cap = limits.tcp_speed_mps
-
-    def tcp_vlim(s: float) -> np.ndarray:
-        q = path(s)
-        dq = path(s, 1)
-        v = float(np.linalg.norm(kin.jacobian_tcp(q)[:3] @ dq))
-        lim = np.full(6, 1e6) if v < 1e-9 else np.maximum(tcp_cap * np.abs(dq) / v, 1e-9)
-        return np.column_stack([-lim, lim])
-
-    constraints = [
-        constraint.JointVelocityConstraint(vlim),
-        constraint.JointAccelerationConstraint(alim),
-        constraint.JointVelocityConstraintVarying(tcp_vlim),
-    ]
-    n_grid = int(min(max(60, 2 * len(wp)), 600))
-    gridpoints = np.linspace(0.0, s_dense[-1], n_grid)
-    try:
-        instance = algo.TOPPRA(constraints, path, gridpoints=gridpoints, parametrizer="ParametrizeConstAccel")
-        _, sd, _ = instance.compute_parameterization(0.0, 0.0)
-    except Exception as exc:  # toppra raises its own exception types from its solvers
-        raise InfeasibleError(f"time parameterization failed (TOPP-RA: {exc})") from exc
-    if sd is None or not np.all(np.isfinite(sd)):
-        raise InfeasibleError(
-            "time parameterization failed (TOPP-RA found no speed profile within the joint "
-            "speed, acceleration and TCP speed limits)"
-        )
-    s_of_t, duration = _s_of_time(np.asarray(sd, float), gridpoints)
+    problem = _Problem(kin, wp, limits)
+    cap = problem.tcp_cap.copy()
+    for _ in range(LOCAL_ROUNDS + 1):
+        sd = problem.solve(cap)
+        s_of_t, duration = _s_of_time(sd, problem.grid)
+        t, s, q = _resample(problem, s_of_t, duration, 1.0, rate_hz)
+        excess = _excess(kin, q, limits, rate_hz)
+        if excess.max() <= 1.0:
+            return TimedPath(rate_hz, t, q, s, problem.s_waypoints)
+        cap = _capped_locally(problem.grid, sd, cap, s, excess)
     scale = 1.0
-    for _ in range(8):
-        n = max(1, int(math.ceil(duration * scale * rate_hz - 1e-9)))
-        t = np.arange(n + 1) / rate_hz
-        tau = np.minimum(t * duration / (n / rate_hz), duration)  # stretch onto the grid
-        s = s_of_t(tau)
-        q = path(s)
-        q[0], q[-1] = wp[0], wp[-1]
-        v, a, tcp = sample_measures(kin, q, rate_hz)
-        ratio = max(
-            float(np.max(np.abs(v) / limits.joint_speed_rad_s)),
-            math.sqrt(float(np.max(np.abs(a) / limits.joint_accel_rad_s2))),
-            float(np.max(tcp)) / tcp_cap,
-        )
-        if ratio <= RESAMPLE_HEADROOM:
-            return TimedPath(rate_hz, t, q, s, s_wp)
-        scale = (n / rate_hz) / duration * ratio / RESAMPLE_HEADROOM
-    raise InfeasibleError(f"trajectory exceeds its limits after resampling (x{ratio:.3f})")
+    for _ in range(8):  # uniform fallback
+        scale *= float(excess.max()) / RESAMPLE_HEADROOM
+        t, s, q = _resample(problem, s_of_t, duration, scale, rate_hz)
+        excess = _excess(kin, q, limits, rate_hz)
+        if excess.max() <= 1.0:
+            return TimedPath(rate_hz, t, q, s, problem.s_waypoints)
+    raise InfeasibleError(f"trajectory exceeds its limits after resampling (x{excess.max():.3f})")
+
+
+def optimal_duration_s(kin: ArmKinematics, q_path_rad: np.ndarray, limits: MotionLimits,
+                       grid_points: int = 2000) -> float:
+    """The time-optimal rest-to-rest duration (s) of the path through the configurations
+    ``q_path_rad`` (N x 6, e.g. a streamed trajectory), by TOPP-RA on a fine grid with no
+    resampling: a lower bound for any trajectory on that path within ``limits``."""
+    q = _dedupe(np.asarray(q_path_rad, float))
+    if len(q) < 2:
+        return 0.0
+    step = np.abs(np.diff(q, axis=0)).max(axis=1)
+    keep, travelled = [0], 0.0
+    for k in range(1, len(q) - 1):  # points about 0.01 rad apart: the path, not the sampling
+        travelled += step[k - 1]
+        if travelled >= 0.01:
+            keep.append(k)
+            travelled = 0.0
+    keep.append(len(q) - 1)
+    problem = _Problem(kin, q[keep], limits, grid_points=grid_points, densify=False, tightening=1.0)
+    return _s_of_time(problem.solve(problem.tcp_cap), problem.grid)[1]
+
+
+class _Problem:
+    """The spline path through the waypoints, its TOPP-RA grid and the TCP path-speed cap
+    on that grid (rad/s of path speed)."""
+
+    def __init__(self, kin: ArmKinematics, wp: np.ndarray, limits: MotionLimits, *, grid_points: int = 0,
+                 densify: bool = True, tightening: float = TOPPRA_TIGHTENING):
+        ta = _import_toppra()
+        self.wp, self.limits, self.tightening = wp, limits, tightening
+        if densify:
+            dense, s_dense, self.s_waypoints = _densify(wp)
+        else:
+            dense = wp
+            s_dense = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(wp, axis=0), axis=1))])
+            self.s_waypoints = s_dense
+        self.path = ta.SplineInterpolator(s_dense, dense, bc_type="natural")
+        if grid_points:
+            grid = np.linspace(0.0, s_dense[-1], grid_points)
+        else:
+            grid = np.union1d(s_dense, np.linspace(0.0, s_dense[-1], MIN_GRID_POINTS))
+            if len(grid) > MAX_GRID_POINTS:
+                grid = grid[np.round(np.linspace(0, len(grid) - 1, MAX_GRID_POINTS)).astype(int)]
+        self.grid = grid
+        self.dq_ds = np.abs(self.path(grid, 1))
+        h = 1e-6
+        dp = kin.p_world_tcp_many(self.path(np.minimum(grid + h, s_dense[-1]))) \
+            - kin.p_world_tcp_many(self.path(np.maximum(grid - h, 0.0)))
+        width = np.minimum(grid + h, s_dense[-1]) - np.maximum(grid - h, 0.0)
+        tcp_per_s = np.linalg.norm(dp, axis=1) / width
+        self.tcp_cap = np.where(tcp_per_s < 1e-9, np.inf, limits.tcp_speed_mps * tightening / np.maximum(tcp_per_s, 1e-12))
+
+    def solve(self, cap: np.ndarray) -> np.ndarray:
+        """TOPP-RA's path speeds (s_dot) on the grid under the joint limits and ``cap``."""
+        _import_toppra()
+        from toppra import algorithm as algo
+        from toppra import constraint
+
+        f = self.tightening
+        alim = self.limits.joint_accel_rad_s2 * f
+        # joint speed limits and the path-speed cap as one bound on s_dot^2 per grid point
+        per_joint = (self.limits.joint_speed_rad_s * f)[None, :] / np.maximum(self.dq_ds, 1e-12)
+        sd_max = np.minimum(per_joint.min(axis=1), cap)
+        x_max = np.minimum(sd_max, 1e6) ** 2
+
+        class PathSpeedBound(constraint.LinearConstraint):
+            """s_dot^2 <= x_max on each grid point (computed above for the whole grid)."""
+
+            def __init__(self):
+                super().__init__()
+                self.dof = len(alim)
+
+            def compute_constraint_params(self, path, gridpoints):
+                return None, None, None, None, None, None, np.column_stack([np.zeros(len(x_max)), x_max])
+
+        constraints = [
+            PathSpeedBound(),
+            constraint.JointAccelerationConstraint(np.column_stack([-alim, alim])),
+        ]
+        try:
+            instance = algo.TOPPRA(constraints, self.path, gridpoints=self.grid, parametrizer="ParametrizeConstAccel")
+            _, sd, _ = instance.compute_parameterization(0.0, 0.0)
+        except Exception as exc:  # toppra raises its own exception types from its solvers
+            raise InfeasibleError(f"time parameterization failed (TOPP-RA: {exc})") from exc
+        if sd is None or not np.all(np.isfinite(sd)):
+            raise InfeasibleError(
+                "time parameterization failed (TOPP-RA found no speed profile within the joint "
+                "speed, acceleration and TCP speed limits)"
+            )
+        return np.asarray(sd, float)
+
+
+def _resample(problem: _Problem, s_of_t, duration: float, scale: float, rate_hz: float):
+    """Samples at ``t = k / rate_hz`` of the profile stretched by ``scale``, ending
+    exactly on the last waypoint: (t, s, q)."""
+    n = max(1, int(math.ceil(duration * scale * rate_hz - 1e-9)))
+    t = np.arange(n + 1) / rate_hz
+    tau = np.minimum(t * duration / (n / rate_hz), duration)
+    s = s_of_t(tau)
+    q = problem.path(s)
+    q[0], q[-1] = problem.wp[0], problem.wp[-1]
+    return t, s, q
+
+
+def _excess(kin: ArmKinematics, q: np.ndarray, limits: MotionLimits, rate_hz: float) -> np.ndarray:
+    """Per sample, how far over its limits the trajectory is there (1 = at a limit), as a
+    path-speed factor: speed and TCP ratios, square root of the acceleration ratio."""
+    v, a, tcp = sample_measures(kin, q, rate_hz)
+    rv = np.max(np.abs(v) / limits.joint_speed_rad_s, axis=1)  # N + 1 differences
+    rt = tcp / limits.tcp_speed_mps
+    ra = np.sqrt(np.max(np.abs(a) / limits.joint_accel_rad_s2, axis=1))  # N second differences
+    per_sample = np.zeros(len(q))
+    # difference k lies between samples k-1 and k (padded with rest at both ends)
+    for ratio, offset in ((np.maximum(rv, rt), 1), (ra, 1)):
+        lo = np.clip(np.arange(len(ratio)) - offset, 0, len(q) - 1)
+        hi = np.clip(np.arange(len(ratio)) - offset + 1, 0, len(q) - 1)
+        np.maximum.at(per_sample, lo, ratio)
+        np.maximum.at(per_sample, hi, ratio)
+    return per_sample
+
+
+def _capped_locally(grid: np.ndarray, sd: np.ndarray, cap: np.ndarray, s: np.ndarray,
+                    excess: np.ndarray) -> np.ndarray:
+    """``cap`` lowered on the grid points around each sample over its limits to the speed
+    there divided by the excess (and the headroom)."""
+    cap = cap.copy()
+    for k in np.nonzero(excess > 1.0)[0]:
+        lo = max(int(np.searchsorted(grid, s[max(k - 2, 0)])) - 2, 0)
+        hi = min(int(np.searchsorted(grid, s[min(k + 2, len(s) - 1)])) + 2, len(grid))
+        target = np.maximum(sd[lo:hi], 1e-3) * RESAMPLE_HEADROOM / excess[k]
+        cap[lo:hi] = np.minimum(cap[lo:hi], target)
+    return cap
+
+
+def _import_toppra():
+    """toppra, imported without loading ``matplotlib.pyplot`` (0.45 s), which its
+    algorithm module imports at the top for plotting helpers we never call: while toppra
+    loads, ``matplotlib.pyplot`` is a stand-in that imports the real module on first use."""
+    import sys
+    if "toppra" in sys.modules or "matplotlib.pyplot" in sys.modules:
+        import toppra
+        return toppra
+    import types
+
+    class _LazyPyplot(types.ModuleType):
+        def __getattr__(self, name: str):
+            import importlib
+            sys.modules.pop("matplotlib.pyplot", None)
+            real = importlib.import_module("matplotlib.pyplot")
+            return getattr(real, name)
+
+    stand_in = _LazyPyplot("matplotlib.pyplot")
+    added = {"matplotlib.pyplot": stand_in}
+    if "matplotlib" not in sys.modules:
+        parent = types.ModuleType("matplotlib")
+        parent.pyplot = stand_in  # type: ignore[attr-defined]
+        added["matplotlib"] = parent
+    sys.modules.update(added)
+    try:
+        import toppra
+    finally:
+        for name, module in added.items():
+            if sys.modules.get(name) is module:
+                del sys.modules[name]
+    return toppra
 
 
 def _s_of_time(sd: np.ndarray, gridpoints: np.ndarray):

@@ -90,7 +90,7 @@ def verify_trajectory(
         ("acceleration", a, limits.joint_accel_rad_s2, "deg/s^2", np.degrees(1.0)),
     ):
         ratio = np.abs(values) / limit
-        if ratio.max() > tol:
+        if ratio.size and ratio.max() > tol:
             k, i = np.unravel_index(int(ratio.argmax()), ratio.shape)
             raise fail(f"{JOINT_NAMES[i]} {name} {abs(values[k, i]) * scale:.1f} {unit} exceeds "
                        f"the limit {limit[i] * scale:.1f} {unit} (sample {k})")

@@ -57,6 +57,11 @@ class CellWorld:
         return MotionLimits.from_cell(self.spec, joint_speed_deg_s=speed, joint_accel_deg_s2=accel,
                                       tcp_speed_mps=lim.tcp_speed, margin=lim.margin)
 
+    @cached_property
+    def timing_memo(self) -> dict:
+        """Timed, verified motion groups of this cell by their inputs (task_plan)."""
+        return {}
+
     @property
     def q_home_rad(self) -> np.ndarray:
         return np.radians(self.loaded.cell.robot.home)

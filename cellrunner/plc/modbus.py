@@ -24,7 +24,7 @@ from typing import Any
 
 from cellrunner.errors import CellrunnerError, InputError
 from cellrunner.plc.param_registers import N_PARAM_REGS, PARAM_FIRST, decode_params, to_int16
-from cellrunner.plc.port import COMPLETED_CODES, CellPort, CellStatus, JobResult, PackMLState
+from cellrunner.plc.port import COMPLETED_CODES, CellPort, CellStatus, JobResult, PackMLState, ResultCode
 
 # -- register map (SPEC section 7) -------------------------------------------------
 HR_HEARTBEAT = 0
@@ -70,7 +70,7 @@ ST_PLC_WATCHDOG = 1 << 8
 ST_REJECTED = 1 << 9
 HANDSHAKE_BITS = ST_JOB_ACK | ST_BUSY | ST_DONE | ST_ERROR | ST_REJECTED
 
-CELL_HEARTBEAT_PERIOD_S = 0.1  # SPEC: increments every <= 200 ms
+CELL_HEARTBEAT_PERIOD_S = 0.05  # SPEC: increments every <= 200 ms; 50 ms leaves room for jitter
 TICK_PERIOD_S = 0.02
 RESET_TIMEOUT_S = 10.0
 
@@ -137,7 +137,7 @@ class ModbusLink:
         self._cell_heartbeat_s = 0.0
         self._reset_until_s: float | None = None  # a RESET edge still being carried out
         self._clear_sent = False
-        self._replay: JobResult | None = None  # a 107 result owed to a re-sent request
+        self._replay: JobResult | None = None  # the last Modbus job's result, owed to a re-sent request
         self.ack_times_s: dict[int, float] = {}  # PLC job id -> time of ACK (bench)
 
     # -- start-up ------------------------------------------------------------------
@@ -150,8 +150,8 @@ class ModbusLink:
         result = status.last_result
         if result is not None:
             self._write_result(result, status)
-            if result.result_code == 107 and result.source == "modbus":
-                self._replay = result
+            if result.source == "modbus":
+                self._replay = result  # a restart right after it ended: the PLC may ask again
         self._refresh(status)
 
     # -- requests from the PLC ---------------------------------------------------------
@@ -211,6 +211,7 @@ class ModbusLink:
         if self._active_job is None or result.job_id != self._active_job:
             return
         self._active_job = None
+        self._replay = result  # the same id asked again gets this result, never a second run
         status = self.port.status()
         self._write_result(result, status, plc_job_id=self._active_plc_id)
         st = self.regs[HR_STATUS] & ~ST_BUSY
@@ -278,30 +279,38 @@ class ModbusLink:
     def _on_job_request(self, now: float) -> None:
         plc_id = self.regs[HR_JOB_ID]
         task = self.regs[HR_TASK]
+        if self._active_job is not None:
+            if plc_id == self._active_plc_id:  # JOB_REQ toggled for the job that runs: still ACK+BUSY
+                self._set_handshake(ST_JOB_ACK | ST_BUSY)
+            else:  # another request while busy: refused without touching the running job's bits
+                self.regs[HR_RESULT_JOB_ID], self.regs[HR_RESULT_CODE] = plc_id, int(ResultCode.REJECT_NOT_READY)
+                self.regs[HR_STATUS] |= ST_ERROR | ST_REJECTED
+            return
         self.regs[HR_JOB_ID_ECHO] = plc_id
         if self._replay is not None and self._replay.client_job_id == str(plc_id):
-            result, self._replay = self._replay, None
+            # the job this id names has ended (maybe before a restart): its result, not a second run
+            result = self._replay
             self._write_result(result, self.port.status(), plc_job_id=plc_id)
-            self._set_handshake(ST_JOB_ACK | ST_ERROR)
+            done = result.result_code in COMPLETED_CODES
+            self._set_handshake(ST_JOB_ACK | (ST_DONE if done else ST_ERROR))
             return
-        self._replay = None
         if plc_id == 0:
-            self._reject(plc_id, 11)
+            self._reject(plc_id, ResultCode.REJECT_BAD_PARAMS)
             return
         status = self.port.status()
-        if self._watchdog or self._active_job is not None or not status.ready:
-            self._reject(plc_id, 12)
+        if self._watchdog or not status.ready:
+            self._reject(plc_id, ResultCode.REJECT_NOT_READY)
             return
         names = self.port.task_params(task)
         if names is None:
-            self._reject(plc_id, 10)
+            self._reject(plc_id, ResultCode.REJECT_UNKNOWN_TASK)
             return
         specs = getattr(self.port, "task_param_specs", None)
         layout = specs(task) if specs is not None else [(name, "int", None) for name in names]
         params = decode_params(layout, self.regs[HR_PARAMS : HR_PARAMS + N_PARAM_REGS])
         ticket = self.port.start_job(task, params, str(plc_id), "modbus")
         if not ticket.accepted:
-            self._reject(plc_id, ticket.reject_code or 12)
+            self._reject(plc_id, ticket.reject_code or ResultCode.REJECT_NOT_READY)
             return
         self._active_job = ticket.job_id
         self._active_plc_id = plc_id
@@ -310,7 +319,7 @@ class ModbusLink:
 
     def _reject(self, plc_id: int, code: int) -> None:
         self.regs[HR_RESULT_JOB_ID] = plc_id
-        self.regs[HR_RESULT_CODE] = code
+        self.regs[HR_RESULT_CODE] = int(code)
         self._set_handshake(ST_ERROR | ST_REJECTED)
 
     def _set_handshake(self, bits: int) -> None:
@@ -401,6 +410,55 @@ def _make_context(link: ModbusLink) -> Any:
     return LinkContext()
 
 
+def _server_class() -> Any:
+    """pymodbus's TCP server whose connections answer every request of a TCP segment.
+
+    pymodbus 3.16 takes one frame per ``data_received`` and leaves the rest in its buffer
+    until more bytes arrive, so a PLC that pipelines requests (several in one segment)
+    waits for answers that never come. Here each received chunk is cut into all its
+    complete frames and each is answered, in order."""
+    from pymodbus.server import ModbusTcpServer
+    from pymodbus.server.requesthandler import ServerRequestHandler
+
+    class PipelinedHandler(ServerRequestHandler):  # type: ignore[misc]
+        def callback_data(self, data: bytes, addr: tuple[str, int] | None = None) -> int:
+            used = 0
+            while used < len(data):
+                step = super().callback_data(data[used:], addr)
+                if step <= 0:
+                    break
+                used += step
+                if self.last_pdu is not None:
+                    pdu, self.last_pdu = self.last_pdu, None
+                    self._pending.append((pdu, addr))
+            return used
+
+        def handle_later(self) -> None:  # called once per frame by the base class
+            if not getattr(self, "_draining", False):
+                self._draining = True
+                asyncio.ensure_future(self._drain())
+
+        async def _drain(self) -> None:
+            try:
+                while self._pending:
+                    self.last_pdu, self.last_addr = self._pending.pop(0)
+                    await self.handle_request()
+            finally:
+                self.last_pdu, self._draining = None, False
+
+        @property
+        def _pending(self) -> list[tuple[Any, Any]]:
+            if "_queue" not in self.__dict__:
+                self.__dict__["_queue"] = []
+            return self.__dict__["_queue"]
+
+    class PipelinedTcpServer(ModbusTcpServer):  # type: ignore[misc]
+        def callback_new_connection(self) -> Any:
+            return PipelinedHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
+
+    return PipelinedTcpServer
+
+
 class ModbusServer:
     """The Modbus TCP server of one cell. Construct (no I/O), ``await start()``,
     ``await stop()``; both run on the caller's asyncio loop."""
@@ -422,11 +480,9 @@ class ModbusServer:
         return (sockname[0], sockname[1])
 
     async def start(self) -> None:
-        from pymodbus.server import ModbusTcpServer
-
         loop = asyncio.get_running_loop()
         self.link.restore()
-        self._server = ModbusTcpServer(
+        self._server = _server_class()(
             _make_context(self.link), address=(self.config.bind, self.config.port)
         )
         try:

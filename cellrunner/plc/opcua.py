@@ -15,6 +15,13 @@ Security: only the configured policies; username/password from the users file
 (:mod:`cellrunner.plc.users`); client certificates must be in ``pki/trusted/``
 (unknown ones are filed in ``pki/rejected/``); the server certificate is created in
 ``pki/own/`` on first start (:mod:`cellrunner.plc.pki`).
+
+Bounds, so no client can exhaust the cell: at most :data:`MAX_CONNECTIONS` connections
+(sessions included), a connection that does not log in within
+:data:`LOGIN_GRACE_S` is closed, password checks (scrypt, tens of ms each) are limited
+to :data:`LOGIN_BURST` at once refilled at :data:`LOGINS_PER_S` (a login beyond that is
+refused at once, without hashing), RegisterServer is refused (the cell is no discovery
+server), and StartJob's strings are bounded (:data:`MAX_TEXT`, reject code 11).
 """
 
 from __future__ import annotations
@@ -22,6 +29,9 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+import math
+import threading
+import time
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -31,7 +41,7 @@ from typing import Any
 from urllib.parse import urlparse
 
 from cellrunner.errors import CellrunnerError, InputError
-from cellrunner.plc.port import CellPort, CellStatus, JobResult
+from cellrunner.plc.port import CellPort, CellStatus, JobResult, ResultCode
 
 _log = logging.getLogger(__name__)
 
@@ -120,6 +130,16 @@ _POLICY_TYPES = {
 }
 REFRESH_PERIOD_S = 0.05
 MAX_REMEMBERED_CLIENT_JOBS = 10_000
+#: connections (logged in or not) the server accepts at once
+MAX_CONNECTIONS = 32
+#: a connection that has not logged in this long after connecting is closed (s)
+LOGIN_GRACE_S = 30.0
+#: password checks allowed back to back, and their refill rate (per s)
+LOGIN_BURST, LOGINS_PER_S = 10, 5.0
+#: the longest TaskName, ClientJobId and Parameters text StartJob accepts (characters)
+MAX_TEXT = {"TaskName": 64, "ClientJobId": 128, "Parameters": 1024}
+#: how deep a Parameters JSON value may nest (a flat object of numbers is 1)
+MAX_JSON_DEPTH = 3  # {name: {xyz: [...]}}: an object of pose params
 NULL_DATETIME = datetime(1601, 1, 1, tzinfo=timezone.utc)  # OPC UA's "no time"
 
 # (browse name, VariantType name, initial value) of Objects/Cell's variables
@@ -152,14 +172,22 @@ _COMMAND_METHODS = {
 }
 
 
+def _refuse_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
 def parse_job_parameters(text: str) -> dict[str, int | float | str | dict] | None:
-    """StartJob's Parameters: a JSON object of numbers, quantities with a unit ("250 ms")
-    and poses ({"xyz": [m], "rpy": [deg]}) (empty text = {}); None if not."""
+    """StartJob's Parameters: a JSON object of finite numbers, quantities with a unit
+    ("250 ms") and poses ({"xyz": [m], "rpy": [deg]}) (empty text = {}); None if not
+    (also for NaN/Infinity, over-long text, or nesting deeper than an object of poses,
+    which is refused before it is parsed)."""
     if not text or not text.strip():
         return {}
+    if len(text) > MAX_TEXT["Parameters"] or _nesting(text) > MAX_JSON_DEPTH:
+        return None
     try:
-        data = json.loads(text)
-    except ValueError:
+        data = json.loads(text, parse_constant=_refuse_constant)
+    except (ValueError, RecursionError):
         return None
     if not isinstance(data, dict):
         return None
@@ -172,8 +200,43 @@ def parse_job_parameters(text: str) -> dict[str, int | float | str | dict] | Non
                 return None
         elif isinstance(value, bool) or not isinstance(value, int | float | str):
             return None
+        if isinstance(value, float) and not math.isfinite(value):
+            return None
         params[str(name)] = value
     return params
+
+
+def _nesting(text: str) -> int:
+    """The deepest bracket nesting in ``text`` (strings counted too: an upper bound)."""
+    depth = deepest = 0
+    for ch in text:
+        if ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+    return deepest
+
+
+class LoginBudget:
+    """A token bucket for password checks: ``burst`` at once, refilled at ``per_s``.
+    Thread-safe; ``clock`` returns monotonic seconds."""
+
+    def __init__(self, burst: int = LOGIN_BURST, per_s: float = LOGINS_PER_S, clock: Any = time.monotonic) -> None:
+        self.burst, self.per_s, self.clock = burst, per_s, clock
+        self._tokens = float(burst)
+        self._at = clock()
+        self._lock = threading.Lock()
+
+    def take(self) -> bool:
+        with self._lock:
+            now = self.clock()
+            self._tokens = min(self.burst, self._tokens + (now - self._at) * self.per_s)
+            self._at = now
+            if self._tokens < 1.0:
+                return False
+            self._tokens -= 1.0
+            return True
 
 
 class HashedUserManager:
@@ -185,10 +248,11 @@ class HashedUserManager:
     The users file is re-read when it changes, so ``users add`` works while serving.
     """
 
-    def __init__(self, users_file: Path, pki: Any, allow_insecure: bool) -> None:
+    def __init__(self, users_file: Path, pki: Any, allow_insecure: bool, budget: LoginBudget | None = None) -> None:
         self.users_file = users_file
         self.pki = pki
         self.allow_insecure = allow_insecure
+        self.budget = budget or LoginBudget()
         self._users: dict[str, str] = {}
         self._stamp: tuple[float, int] | None = None
 
@@ -227,6 +291,9 @@ class HashedUserManager:
             if not self.pki.is_trusted(cert):
                 self.pki.reject(cert)
                 return None
+        if not self.budget.take():  # a login flood: refuse without spending a hash on it
+            _log.warning("OPC UA login refused for user %r: too many logins at once", username)
+            return None
         stored = self._current_users().get(username)
         if not verify_password(stored, password):
             _log.warning("OPC UA login refused for user %r", username)
@@ -274,6 +341,7 @@ class OpcUaServer:
         server = Server(user_manager=users)  # never asyncua's PermissiveUserManager
         try:
             await server.init()
+            _bound(server.iserver)
             server.set_endpoint(self.config.endpoint)
             server.set_server_name(f"cellrunner {self.cell_name}")
             await server.set_application_uri(APPLICATION_URI)
@@ -367,21 +435,28 @@ class OpcUaServer:
 
         if len(args) != 3:
             return ua.StatusCode(ua.StatusCodes.BadArgumentsMissing if len(args) < 3 else ua.StatusCodes.BadTooManyArguments)
+        if not all(isinstance(getattr(a, "Value", a), str | None) for a in args):
+            return ua.StatusCode(ua.StatusCodes.BadTypeMismatch)  # every argument is a String
         task_name, params_text, client_job_id = (_text(a) for a in args)
         job_id, code = self.start_job(task_name, params_text, client_job_id)
         return [ua.Variant(job_id, ua.VariantType.String), ua.Variant(code, ua.VariantType.Int32)]
 
     def start_job(self, task_name: str, params_text: str, client_job_id: str) -> tuple[str, int]:
-        """StartJob's logic: (JobId, ReturnCode); idempotent per non-empty ClientJobId."""
+        """StartJob's logic: (JobId, ReturnCode); idempotent per non-empty ClientJobId.
+        Over-long strings are refused with 11 (bad params) before anything else."""
+        for name, text in (("TaskName", task_name), ("Parameters", params_text), ("ClientJobId", client_job_id)):
+            if len(text) > MAX_TEXT[name]:
+                _log.warning("StartJob refused: %s of %d characters (at most %d)", name, len(text), MAX_TEXT[name])
+                return "", int(ResultCode.REJECT_BAD_PARAMS)
         if client_job_id and client_job_id in self._client_jobs:
             return self._client_jobs[client_job_id]
         params = parse_job_parameters(params_text)
         if params is None:
-            return "", 11
+            return "", int(ResultCode.REJECT_BAD_PARAMS)
         task: str | int = int(task_name) if task_name.strip().isdigit() else task_name.strip()
         ticket = self.port.start_job(task, params, client_job_id, "opcua")
         if not ticket.accepted:
-            return "", ticket.reject_code or 12
+            return "", ticket.reject_code or int(ResultCode.REJECT_NOT_READY)
         if client_job_id:
             self._client_jobs[client_job_id] = (ticket.job_id, 0)
             while len(self._client_jobs) > MAX_REMEMBERED_CLIENT_JOBS:
@@ -472,6 +547,20 @@ class OpcUaServer:
 
 
 _MISSING = object()
+
+
+def _bound(iserver: Any) -> None:
+    """Caps on what clients may hold, and RegisterServer refused (see the module docstring)."""
+    from asyncua import ua
+    from asyncua.common.utils import ServiceError
+
+    iserver.max_connections = MAX_CONNECTIONS
+    iserver.max_pending_activation_seconds = LOGIN_GRACE_S
+
+    def refuse_registration(*args: Any, **kwargs: Any) -> None:
+        raise ServiceError(ua.StatusCodes.BadServiceUnsupported)
+
+    iserver.register_server = refuse_registration
 
 
 def _last_job_values(result: JobResult) -> dict[str, Any]:

@@ -1,4 +1,5 @@
-"""Run the configured PLC servers (Modbus TCP, OPC UA) on one asyncio loop in a thread.
+"""Run the configured PLC servers (Modbus TCP, OPC UA), each on its own asyncio loop in
+its own thread.
 
 ``cellrunner serve`` builds the engine (a :class:`~cellrunner.plc.port.CellPort`),
 then::
@@ -35,8 +36,71 @@ def _section(config: Any, name: str) -> Any:
     return getattr(config, name, None)
 
 
+class _ServerThread:
+    """One asyncio server (``await start()`` / ``await stop()``) on its own loop in its own
+    thread, so nothing one server does (an OPC UA login hashing a password, a slow
+    client) can delay another (the Modbus heartbeat)."""
+
+    def __init__(self, name: str, make: Any) -> None:
+        self.name = name
+        self._make = make  # () -> server, called on the thread's loop
+        self.server: Any = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._stopped: asyncio.Event | None = None
+
+    def start(self, timeout_s: float) -> None:
+        started: Future[None] = Future()
+        self._thread = threading.Thread(target=self._run, args=(started,), name=self.name, daemon=True)
+        self._thread.start()
+        try:
+            started.result(timeout=timeout_s)
+        except TimeoutError as exc:
+            self.stop()
+            raise CellrunnerError(f"the {self.name} server did not start within {timeout_s:g} s") from exc
+        except CellrunnerError:
+            self.join()
+            raise
+
+    def stop(self, timeout_s: float = 10.0) -> None:
+        loop, stopped = self._loop, self._stopped
+        if loop is not None and stopped is not None and not loop.is_closed():
+            try:
+                loop.call_soon_threadsafe(stopped.set)
+            except RuntimeError:
+                pass
+        self.join(timeout_s)
+
+    def join(self, timeout_s: float = 10.0) -> None:
+        if self._thread is not None:
+            self._thread.join(timeout=timeout_s)
+            self._thread = None
+
+    def _run(self, started: Future[None]) -> None:
+        try:
+            asyncio.run(self._serve(started))
+        except BaseException as exc:  # noqa: BLE001 - reported through the future
+            if not started.done():
+                started.set_exception(_translate(exc))
+
+    async def _serve(self, started: Future[None]) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._stopped = asyncio.Event()
+        try:
+            self.server = self._make()
+            await self.server.start()
+        except BaseException as exc:
+            started.set_exception(_translate(exc))
+            if self.server is not None:
+                await self.server.stop()
+            return
+        started.set_result(None)
+        await self._stopped.wait()
+        await self.server.stop()
+
+
 class PlcService:
-    """Both PLC servers of one cell, run in a background thread."""
+    """Both PLC servers of one cell, each on its own thread and asyncio loop."""
 
     def __init__(
         self,
@@ -62,40 +126,50 @@ class PlcService:
                 opcua, base_dir=Path(base_dir), pki_dir=pki_dir, resolve=resolve
             )
         )
-        self.modbus: ModbusServer | None = None
-        self.opcua: Any = None
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._thread: threading.Thread | None = None
-        self._stopped: asyncio.Event | None = None
+        self._threads: list[_ServerThread] = []
+
+    @property
+    def modbus(self) -> ModbusServer | None:
+        return self._server("modbus")
+
+    @property
+    def opcua(self) -> Any:
+        return self._server("opcua")
+
+    def _server(self, name: str) -> Any:
+        return next((t.server for t in self._threads if t.name == name), None)
 
     # -- lifecycle -----------------------------------------------------------------------
     def start(self, timeout_s: float = 30.0) -> None:
         """Start the servers; returns once both listen, raises CellrunnerError if not."""
-        if self._thread is not None:
+        if self._threads:
             return
-        started: Future[None] = Future()
-        self._thread = threading.Thread(
-            target=self._run, args=(started,), name="plc-service", daemon=True
-        )
-        self._thread.start()
+        # OPC UA first: building its address space holds the GIL for seconds, which would
+        # stall a Modbus server already answering (its heartbeat) during start-up
+        if self.opcua_config is not None:
+            opcua_config = self.opcua_config
+
+            def make_opcua() -> Any:
+                from cellrunner.plc.opcua import OpcUaServer
+
+                return OpcUaServer(self.port, opcua_config, cell_name=self.cell_name)
+
+            self._threads.append(_ServerThread("opcua", make_opcua))
+        if self.modbus_config is not None:
+            config = self.modbus_config
+            self._threads.append(_ServerThread("modbus", lambda: ModbusServer(self.port, config)))
         try:
-            started.result(timeout=timeout_s)
-        except TimeoutError as exc:
-            self.stop()
-            raise CellrunnerError(f"PLC servers did not start within {timeout_s:g} s") from exc
+            for thread in self._threads:
+                thread.start(timeout_s)
         except CellrunnerError:
-            self._join()
+            self.stop()
             raise
 
     def stop(self, timeout_s: float = 10.0) -> None:
-        """Stop both servers and the thread; idempotent."""
-        loop, stopped = self._loop, self._stopped
-        if loop is not None and stopped is not None and not loop.is_closed():
-            try:
-                loop.call_soon_threadsafe(stopped.set)
-            except RuntimeError:
-                pass
-        self._join(timeout_s)
+        """Stop both servers and their threads; idempotent."""
+        for thread in reversed(self._threads):
+            thread.stop(timeout_s)
+        self._threads = []
 
     def __enter__(self) -> PlcService:
         self.start()
@@ -111,45 +185,6 @@ class PlcService:
     @property
     def opcua_endpoint(self) -> str | None:
         return None if self.opcua is None else self.opcua.endpoint
-
-    # -- thread --------------------------------------------------------------------------
-    def _join(self, timeout_s: float = 10.0) -> None:
-        if self._thread is not None:
-            self._thread.join(timeout=timeout_s)
-            self._thread = None
-
-    def _run(self, started: Future[None]) -> None:
-        try:
-            asyncio.run(self._serve(started))
-        except BaseException as exc:  # noqa: BLE001 - reported through the future
-            if not started.done():
-                started.set_exception(_translate(exc))
-
-    async def _serve(self, started: Future[None]) -> None:
-        self._loop = asyncio.get_running_loop()
-        self._stopped = asyncio.Event()
-        try:
-            if self.modbus_config is not None:
-                self.modbus = ModbusServer(self.port, self.modbus_config)
-                await self.modbus.start()
-            if self.opcua_config is not None:
-                from cellrunner.plc.opcua import OpcUaServer
-
-                self.opcua = OpcUaServer(self.port, self.opcua_config, cell_name=self.cell_name)
-                await self.opcua.start()
-        except BaseException as exc:
-            started.set_exception(_translate(exc))
-            await self._shutdown()
-            return
-        started.set_result(None)
-        await self._stopped.wait()
-        await self._shutdown()
-
-    async def _shutdown(self) -> None:
-        if self.opcua is not None:
-            await self.opcua.stop()
-        if self.modbus is not None:
-            await self.modbus.stop()
 
 
 def _translate(exc: BaseException) -> BaseException:

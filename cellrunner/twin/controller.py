@@ -163,6 +163,7 @@ class Controller:
         self.programs_started = 0
         self.motion: Any = None
         self.speed_slider = 1.0
+        self.servo_record: list[tuple[float, ...]] | None = None  # (time_s, q1..q6 rad) per servoJ package
         # IO image
         self.standard_do = 0  # DO0-7
         self.configurable_do = 0  # CO0-7
@@ -417,6 +418,10 @@ class Controller:
         for name, value in fields.items():
             if name.startswith(("input_", "external_force_torque")):
                 self.set_input_register(name, value)
+        if self.servo_record is not None and hasattr(self.program, "servo_target"):
+            q = self.program.servo_target(self)
+            if q is not None:  # one row per servoJ package received (``record on``)
+                self.servo_record.append((self.time_s, *(float(v) for v in q)))
 
     # ------------------------------------------------------------------ motion helpers
 

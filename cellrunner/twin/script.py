@@ -403,6 +403,10 @@ class RtdeControlProgram:
             raise mo.MotionError("servol: no inverse kinematics solution")
         self._servo_to(ctl, q)
 
+    def servo_target(self, ctl: Controller) -> np.ndarray | None:
+        """The joint target (rad) of a servoJ command standing in the input registers."""
+        return self._in_q(ctl, 0) if self._in_int(ctl, 0) == 11 else None
+
     def _servo_to(self, ctl: Controller, q: np.ndarray) -> None:
         servo = ctl.motion
         if not isinstance(servo, mo.Servo):

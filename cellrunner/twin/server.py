@@ -51,6 +51,8 @@ wrench FX FY FZ TX TY TZ      -> flange wrench the physics reports (N, N m)
 remote on|off                 -> remote / local control
 disconnect                    -> close every client connection now
 blackout SECONDS              -> close every client and refuse connections for SECONDS
+record on|off                 -> start (afresh) / stop recording the servo set-points received
+record save PATH              -> write them to PATH (.npy: rows of time_s, q1..q6 rad); -> ok N
 """
 
 _SEND_LIMIT = 64 * 1024
@@ -438,11 +440,29 @@ class TwinServer:
                     raise ValueError("this physics has no settable wrench")
                 setter(values)
                 return "wrench"
+            if cmd == "record":
+                return self._record(args)
             if cmd == "remote":
                 ctl.remote_control = args[0].lower() == "on"
                 return f"remote {args[0].lower()}"
         raise ValueError(f"unknown command {cmd!r}; known: " + ", ".join(
             ln.split()[0] for ln in FAULT_COMMANDS.splitlines()))
+
+    def _record(self, args: list[str]) -> str:
+        """The servo set-points as received (for tests that compare them with a plan)."""
+        ctl = self.ctl
+        if args[:1] == ["on"]:
+            ctl.servo_record = []
+            return "record on"
+        if args[:1] == ["off"]:
+            ctl.servo_record = None
+            return "record off"
+        if args[:1] == ["save"] and len(args) == 2:
+            import numpy as np
+            rows = list(ctl.servo_record or [])
+            np.save(args[1], np.array(rows, dtype=float).reshape(len(rows), 7))
+            return str(len(rows))
+        raise ValueError("record on | record off | record save PATH")
 
     def _drop_clients_except_fault(self) -> None:
         with self._conns_lock:

@@ -49,7 +49,9 @@ def assert_tracks(errors: list[float]) -> None:
 
 def test_constructor_does_no_io_and_satisfies_the_protocol():
     backend = URBackend("127.254.254.254", UR5E)  # nothing listens there
-    assert isinstance(backend, RobotBackend)
+    from tests.protocol_check import assert_implements
+
+    assert_implements(backend, RobotBackend)
     assert backend.rate_hz == 500.0
     assert backend.read_state().safety == Safety.DISCONNECTED
 

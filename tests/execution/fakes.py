@@ -143,6 +143,9 @@ class LineMotions:
         s = np.linspace(0, 1, n)[:, None]
         return approve(Trajectory(RATE, np.arange(n) / RATE, q0 + s * (q1 - q0)), step.index, step.name)
 
+    def continues(self, step):
+        return False  # every line starts and ends at rest
+
     def nominal(self, step):
         if step.index not in self.start or step.kind != self.kinds.get(step.index):
             return None  # a retry's in-between motion: planned where the arm stands

@@ -112,7 +112,7 @@ def test_abort_by_plc_is_106(tmp_path):
     cell, _ = make_cell(tmp_path)
     ticket = cell.start_job(1, {}, "1", "modbus")
     tick(cell)
-    cell._job.plan.result(timeout=10)
+    assert cell.wait_for_plan(timeout_s=10)
     tick(cell, 200)
     assert cell.status().state == S.EXECUTE
     assert cell.command("abort")

@@ -291,3 +291,29 @@ def test_stl_mesh_fixture_matches_the_same_box(tmp_path):
         if d_box > 0:  # outside: the mesh surface and the box agree
             assert abs(d_mesh - d_box) < 1e-6, (d_mesh, d_box)
         assert (d_mesh > 0) == (d_box > 0) or d_box < 0
+
+
+def test_derived_models_are_built_once_per_part_and_allowances():
+    from cellrunner.model.geometry import Box, Placed, pose_matrix
+    from cellrunner.planning.collision import CollisionModel, ContactAllowance
+    from cellrunner.planning.kinematics import ArmKinematics
+    from cellrunner.model.robots import ROBOTS
+
+    kin = ArmKinematics(ROBOTS["ur5e"], np.eye(4), pose_matrix((0, 0, 0.15)))
+    table = Placed("table", Box((1.0, 1.0, 0.04)), pose_matrix((0.4, 0, -0.03)))
+    root = CollisionModel(kin, (), [table])
+    part = Placed("block", Box((0.05, 0.05, 0.05)), pose_matrix((0, 0, 0.025)))
+    again = Placed("block", Box((0.05, 0.05, 0.05)), pose_matrix((0, 0, 0.025)))  # read anew
+    moved = Placed("block", Box((0.05, 0.05, 0.05)), pose_matrix((0, 0, 0.030)))
+    held = root.carrying(part)
+    assert root.carrying(again) is held
+    assert root.carrying(moved) is not held
+    assert held.carrying(None) is root.carrying(None)
+    allowed = held.allowing(ContactAllowance("table", "part", -0.001))
+    assert allowed is root.carrying(again).allowing(ContactAllowance("table", "part", -0.001))
+    assert allowed.part is part and allowed.allowances == (ContactAllowance("table", "part", -0.001),)
+    assert allowed.allowing() is held
+    # the cached models answer as fresh ones do
+    fresh = CollisionModel(kin, (), [table], part=moved)
+    q = np.radians([0, -90, 90, -90, -90, 0])
+    assert root.carrying(moved).min_distance(q)[0] == fresh.min_distance(q)[0]

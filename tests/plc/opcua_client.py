@@ -161,6 +161,59 @@ async def scenario_write(client: Any) -> dict[str, Any]:
     return out
 
 
+async def scenario_hostile(client: Any) -> dict[str, Any]:
+    """StartJob with what a careless or hostile client sends: wrong argument types,
+    non-finite and deeply nested JSON, over-long strings."""
+    from asyncua import ua
+
+    ns = await client.get_namespace_index("urn:cellrunner")
+    cell = await client.nodes.objects.get_child(f"{ns}:Cell")
+    out: dict[str, Any] = {}
+
+    async def call(name: str, *args: Any) -> Any:
+        try:
+            job_id, code = await cell.call_method(f"{ns}:StartJob", *args)
+            out[name] = code
+        except ua.UaStatusCodeError as exc:
+            out[name] = type(exc).__name__
+
+    int32 = ua.VariantType.Int32
+    await call("wrong_types", ua.Variant(1, int32), ua.Variant(2, int32), ua.Variant(3, int32))
+    await call("infinity", "pick_place", '{"slot": Infinity}', "h-1")
+    await call("nan", "pick_place", '{"slot": NaN}', "h-2")
+    await call("huge_number", "pick_place", '{"slot": 1e999}', "h-3")
+    await call("deep_json", "pick_place", "[" * 100_000 + "]" * 100_000, "h-4")
+    await call("long_client_id", "pick_place", "{}", "x" * 10_000_000)
+    await call("long_task", "p" * 100_000, "{}", "h-5")
+    await call("fine", "home", "{}", "h-6")
+    return out
+
+
+async def register_unauthenticated(url: str) -> str:
+    """RegisterServer on a bare secure channel (no session, no user)."""
+    from asyncua import Client, ua
+
+    client = Client(url, timeout=4)
+    await client.connect_socket()
+    try:
+        await client.send_hello()
+        await client.open_secure_channel()
+        server = ua.RegisteredServer()
+        server.ServerUri = "urn:intruder"
+        server.ProductUri = "urn:intruder"
+        server.ServerNames = [ua.LocalizedText("intruder")]
+        server.ServerType = ua.ApplicationType.Server
+        server.DiscoveryUrls = [url]
+        server.IsOnline = True
+        try:
+            await client.uaclient.register_server(server)
+            return "accepted"
+        except ua.UaStatusCodeError as exc:
+            return type(exc).__name__
+    finally:
+        client.disconnect_socket()
+
+
 async def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--url", required=True)
@@ -176,6 +229,9 @@ async def main() -> None:
     ap.add_argument("--wait", type=float, default=60.0)
     args = ap.parse_args()
     result: dict[str, Any] = {"connected": False}
+    if args.scenario == "register":
+        print(json.dumps({"register": await asyncio.wait_for(register_unauthenticated(args.url), 15)}))
+        return
     try:
         client = await asyncio.wait_for(connect(args), 15)
     except Exception as exc:  # noqa: BLE001 - reported to the test
@@ -188,6 +244,8 @@ async def main() -> None:
             result.update(await asyncio.wait_for(scenario_job(client), 30))
         elif args.scenario == "run":
             result.update(await asyncio.wait_for(scenario_run(client, args.task, args.params, args.wait), args.wait + 20))
+        elif args.scenario == "hostile":
+            result.update(await asyncio.wait_for(scenario_hostile(client), 60))
         elif args.scenario == "write":
             result.update(await asyncio.wait_for(scenario_write(client), 15))
         else:

@@ -52,8 +52,23 @@ def run_until(cell: FakeCell, link: ModbusLink, clock: Clock, bits: int, limit: 
     raise AssertionError(f"status bits {link.regs[101]:#x} never showed {bits:#x}")
 
 
-def test_fake_cell_satisfies_the_protocol() -> None:
-    assert isinstance(FakeCell(), CellPort)
+def test_fake_cell_and_the_engine_implement_the_port_with_its_signatures() -> None:
+    from cellrunner.execution.cell import CellController
+    from tests.protocol_check import assert_implements
+
+    assert_implements(FakeCell(), CellPort)
+    assert_implements(CellController.__new__(CellController), CellPort)
+
+
+def test_the_signature_check_catches_a_drifted_method() -> None:
+    from tests.protocol_check import assert_implements
+
+    class Drifted(FakeCell):
+        def start_job(self, task, params):  # type: ignore[override]  # lost client_job_id, source
+            raise NotImplementedError
+
+    with pytest.raises(AssertionError, match=r"Drifted\.start_job"):
+        assert_implements(Drifted(), CellPort)
 
 
 def test_words() -> None:

@@ -172,3 +172,18 @@ def test_none_endpoint_only_when_written(tmp_path: Path) -> None:
         ok, anonymous = run_clients([argv + ["--user", USER, "--password", PASSWORD], argv])
     assert ok["connected"], ok
     assert not anonymous["connected"], anonymous
+
+
+def test_hostile_start_jobs_are_refused_cleanly(opcua: Setup) -> None:
+    [out] = run_clients([opcua.args(scenario="hostile")])
+    assert out["connected"], out
+    assert out["wrong_types"] == "BadTypeMismatch"
+    for name in ("infinity", "nan", "huge_number", "deep_json", "long_client_id", "long_task"):
+        assert out[name] == 11, (name, out[name])  # reject: bad params, no traceback, no job
+    assert out["fine"] == 0
+    assert not any(j.client_job_id.startswith("x") for j in opcua.cell.finished)
+
+
+def test_register_server_without_a_session_is_refused(opcua: Setup) -> None:
+    [out] = run_clients([[*opcua.args(scenario="register", policy="none")]])
+    assert out.get("register") == "BadServiceUnsupported", out

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import argparse
 import io
+import time
 from pathlib import Path
 
 import pytest
 
 from cellrunner.errors import InputError
-from cellrunner.plc.opcua import HashedUserManager
+from cellrunner.plc.opcua import HashedUserManager, LoginBudget
 from cellrunner.plc.pki import Pki
 from cellrunner.plc.users import add_user, configure_users_parser, load_users, run_users_command, verify_password
 
@@ -66,7 +67,7 @@ def test_cli_entry_reads_the_password_from_stdin(tmp_path: Path) -> None:
 def test_user_manager_refuses_everything_but_a_known_password(tmp_path: Path) -> None:
     path = tmp_path / "users.yaml"
     add_user(path, "plc1", "pw")
-    manager = HashedUserManager(path, Pki(tmp_path / "pki"), allow_insecure=True)
+    manager = HashedUserManager(path, Pki(tmp_path / "pki"), allow_insecure=True, budget=LoginBudget(burst=100))
     manager.load()
     assert manager.get_user(None, "plc1", "pw").name == "plc1"
     for username, password in [("plc1", "nope"), ("admin", "pw"), ("admin", ""), (None, None), ("plc1", None)]:
@@ -76,3 +77,20 @@ def test_user_manager_refuses_everything_but_a_known_password(tmp_path: Path) ->
     assert strict.get_user(None, "plc1", "pw", certificate=b"") is None  # no secure channel
     add_user(path, "late", "pw2")  # picked up without a restart
     assert manager.get_user(None, "late", "pw2") is not None
+
+
+def test_a_login_flood_is_refused_without_hashing_until_the_budget_refills(tmp_path: Path) -> None:
+    path = tmp_path / "users.yaml"
+    add_user(path, "plc1", "pw")
+    now = [0.0]
+    manager = HashedUserManager(path, Pki(tmp_path / "pki"), allow_insecure=True,
+                                budget=LoginBudget(burst=2, per_s=4.0, clock=lambda: now[0]))
+    manager.load()
+    assert manager.get_user(None, "plc1", "wrong") is None
+    assert manager.get_user(None, "plc1", "pw") is not None
+    t0 = time.perf_counter()
+    assert manager.get_user(None, "plc1", "pw") is None  # the budget is spent: refused at once
+    assert time.perf_counter() - t0 < 0.01  # no scrypt was run for it
+    now[0] = 0.25  # one check's worth refilled
+    assert manager.get_user(None, "plc1", "pw") is not None
+    assert manager.get_user(None, "plc1", "pw") is None

@@ -16,7 +16,9 @@ GRAVITY = 9.81
 
 
 def test_sim_backend_implements_the_protocol(backend: SimBackend) -> None:
-    assert isinstance(backend, RobotBackend)
+    from tests.protocol_check import assert_implements
+
+    assert_implements(backend, RobotBackend)
     assert backend.rate_hz == 500.0
 
 

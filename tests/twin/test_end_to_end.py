@@ -56,8 +56,17 @@ def test_protective_stop_on_the_twin_is_recovered(project, twin):  # noqa: F811
     from cellrunner.twin.server import FaultClient
 
     def stop_later():
-        time.sleep(2.5)  # the job is under way (planning ~1 s, then the approach)
-        FaultClient(HOST).command("protective_stop")
+        """Once the arm moves (the job is under way, however long start-up took)."""
+        client = FaultClient(HOST)
+        q0 = None
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            q = json.loads(client.command("state"))["q_rad"]
+            q0 = q0 or q
+            if max(abs(a - b) for a, b in zip(q, q0)) > 0.02:
+                break
+            time.sleep(0.02)
+        client.command("protective_stop")
 
     threading.Thread(target=stop_later, daemon=True).start()
     r = run_job(project)

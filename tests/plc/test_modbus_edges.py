@@ -1,0 +1,104 @@
+"""Handshake edge cases found with an independent PLC (issue 13), each over real sockets
+with the PLC in its own process (both client libraries)."""
+
+from __future__ import annotations
+
+import socket
+import struct
+import time
+
+from cellrunner.plc.fake import FakeCell
+from cellrunner.plc.modbus import CMD_JOB_REQ, ST_BUSY, ST_DONE, ST_ERROR, ST_JOB_ACK, ST_READY, ST_REJECTED
+from cellrunner.plc.service import PlcService
+from tests.plc.conftest import PlcProcess
+from tests.plc.test_modbus import drop_job_req, raise_job_req, wait_end
+
+
+def test_job_req_toggled_fast_with_the_same_id_never_shows_a_reject(plc: PlcProcess, cell: FakeCell) -> None:
+    regs = raise_job_req(plc, 31, 3)  # task 3 runs ~1.2 s
+    assert regs[1] & (ST_JOB_ACK | ST_BUSY) == ST_JOB_ACK | ST_BUSY
+    for _ in range(5):  # 1-0-1 as fast as the PLC can
+        assert plc.write(1, [0])["ok"] and plc.write(1, [CMD_JOB_REQ])["ok"]
+        regs = plc.read(100, 14)
+        assert not regs[1] & (ST_REJECTED | ST_ERROR), regs
+        assert regs[1] & (ST_JOB_ACK | ST_BUSY) == ST_JOB_ACK | ST_BUSY, regs
+    regs = wait_end(plc)
+    assert regs[1] & ST_DONE and (regs[4], regs[5]) == (31, 0), regs
+    drop_job_req(plc)
+    assert [j.client_job_id for j in cell.finished] == ["31"]
+
+
+def test_a_trigger_while_busy_keeps_the_running_jobs_ack_and_busy(plc: PlcProcess, cell: FakeCell) -> None:
+    raise_job_req(plc, 41, 3)
+    assert plc.write(1, [0])["ok"]  # the PLC drops the request early (job still running)...
+    assert plc.write(2, [42, 2])["ok"] and plc.write(1, [CMD_JOB_REQ])["ok"]  # ...and asks for another
+    regs = plc.read(100, 14)
+    assert regs[1] & (ST_JOB_ACK | ST_BUSY) == ST_JOB_ACK | ST_BUSY, regs  # the running job's bits stay
+    assert regs[1] & ST_REJECTED and (regs[4], regs[5]) == (42, 12), regs  # the new one is refused
+    assert regs[3] == 41  # the echo still names the running job
+    assert plc.write(1, [0])["ok"]
+    regs = plc.read(100, 14)
+    assert regs[1] & ST_BUSY and not regs[1] & ST_REJECTED, regs
+    deadline = time.monotonic() + 5
+    while plc.read(101)[0] & ST_BUSY and time.monotonic() < deadline:
+        time.sleep(0.01)
+    regs = plc.read(100, 14)
+    assert (regs[4], regs[5]) == (41, 0) and not regs[1] & ST_BUSY, regs
+    assert [j.client_job_id for j in cell.finished] == ["41"]
+
+
+def test_the_same_id_after_its_job_ended_gets_the_result_not_a_second_run(plc: PlcProcess, cell: FakeCell) -> None:
+    raise_job_req(plc, 51, 2)
+    assert wait_end(plc)[5] == 0
+    drop_job_req(plc)
+    regs = raise_job_req(plc, 51, 2)  # asked again (a PLC retry, a restart)
+    assert regs[1] & (ST_JOB_ACK | ST_DONE) == ST_JOB_ACK | ST_DONE and not regs[1] & ST_BUSY, regs
+    assert (regs[4], regs[5]) == (51, 0)
+    drop_job_req(plc)
+    time.sleep(0.2)
+    assert [j.client_job_id for j in cell.finished] == ["51"]  # ran once
+    regs = raise_job_req(plc, 52, 2)  # a new id runs
+    assert regs[1] & ST_BUSY or regs[1] & ST_DONE
+    wait_end(plc)
+    drop_job_req(plc)
+    assert [j.client_job_id for j in cell.finished] == ["51", "52"]
+
+
+def test_a_job_that_ended_before_a_restart_is_not_run_again(cell: FakeCell) -> None:
+    """kill -9 right after DONE: the new process finds the job's result as the last one
+    (the journal) and answers the re-raised id with it."""
+    from cellrunner.plc.port import JobResult
+
+    cell.last_result = JobResult("j-61", 0, "OK", 1.5, source="modbus", client_job_id="61")
+    service = PlcService(cell, {"modbus": {"bind": "127.0.0.1", "port": 0}})
+    service.start()
+    plc = PlcProcess("pyModbusTCP", *service.modbus_address)
+    try:
+        regs = raise_job_req(plc, 61, 2)
+        assert regs[1] & ST_DONE and not regs[1] & ST_BUSY and (regs[4], regs[5]) == (61, 0), regs
+        drop_job_req(plc)
+        assert cell.finished == []  # nothing ran
+    finally:
+        plc.close()
+        service.stop()
+
+
+def test_pipelined_requests_in_one_segment_are_all_answered(modbus_service: PlcService) -> None:
+    """Three read requests written in one send(): three answers, in order."""
+    host, port = modbus_service.modbus_address
+    frames = b"".join(struct.pack(">HHHBBHH", tid, 0, 6, 1, 3, 100, 2) for tid in (1, 2, 3))
+    with socket.create_connection((host, port), timeout=3) as sock:
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        sock.sendall(frames)
+        data, deadline = b"", time.monotonic() + 3
+        while len(data) < 3 * 13 and time.monotonic() < deadline:
+            data += sock.recv(4096)
+    tids = [struct.unpack(">H", data[i:i + 2])[0] for i in range(0, len(data), 13)]
+    assert tids == [1, 2, 3], data.hex()
+
+
+def test_ready_comes_back_after_a_busy_reject(plc: PlcProcess, cell: FakeCell) -> None:
+    raise_job_req(plc, 71, 2)
+    wait_end(plc)
+    drop_job_req(plc)
+    assert plc.wait_bits(ST_READY, ST_READY, timeout=3.0)["ok"]
