@@ -12,7 +12,7 @@ import numpy as np
 from rich.text import Text
 
 from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, step_table
-from cellrunner.model.expand import pattern_params
+from cellrunner.model.expand import box_params, pattern_params
 from cellrunner.model.robots import JOINT_NAMES
 
 
@@ -26,18 +26,21 @@ def run(args) -> int:
     world = CellWorld(cell)
     out = None if args.json else console()  # --json is for programs: no progress bar, no rich
     use_cache = not args.no_cache
-    others = [{**params, name: slot} for name, slots in pattern_params(task).items() for slot in slots
+    # every slot of every pattern and every corner (and the centre) of every pose param's box
+    checked_params = {**pattern_params(task), **box_params(task)}
+    others = [{**params, name: slot} for name, slots in checked_params.items() for slot in slots
               if slot != params.get(name)]
     n_steps = len(expanded(cell, task, params))
     with _progress(out, 1 + len(others), n_steps) as progress:
         plan = plan_cached(world, task, params, world.q_home_rad, use_cache=use_cache,
                            on_step=progress.plan(f"{task.name} {_params_text(params)}"))
         failures = _check_other_slots(world, task, params, others, use_cache, progress)
-    errors = list(plan.errors) + [f"{name}={slot}: {e}" for name, slot, e in failures]
-    slots_checked = {name: list(slots) for name, slots in pattern_params(task).items()}
-    pattern = next(iter(slots_checked), None)
+    errors = list(plan.errors) + [f"{name}={_shown(slot)}: {e}" for name, slot, e in failures]
+    slots_checked = {name: list(slots) for name, slots in checked_params.items()}
+    pattern = next(iter(pattern_params(task)), None)
     requested = [(pattern, params[pattern], e) for e in plan.errors] if pattern is not None else []
-    grouped = group_slot_failures(requested + failures)
+    grouped = group_slot_failures([f for f in requested + failures if not isinstance(f[1], dict)])
+    poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, dict)]
     rows = [{"index": r.step.index, "name": r.step.name, "kind": r.step.kind, "duration_s": round(r.duration_s, 4),
              "status": r.status, "message": r.message, "attempts": 0} for r in plan.rows]
     if args.save_plan and not errors:
@@ -54,13 +57,19 @@ def run(args) -> int:
             (f"  params: {_params_text(params)}" if params else "")
         out.print(step_table(title, [{**r, "message": _headline(r["message"])} for r in rows]))
         for name, values in slots_checked.items():
-            out.print(f"pattern param {name}: {len(values)} slots checked ({values[0]}..{values[-1]})",
-                      markup=False)
+            if isinstance(values[0], dict):
+                out.print(f"pose param {name}: {len(values)} poses checked (its box's centre and corners)",
+                          markup=False)
+            else:
+                out.print(f"pattern param {name}: {len(values)} slots checked ({values[0]}..{values[-1]})",
+                          markup=False)
         if pattern is None:
             for e in plan.errors:
                 out.print(Text("infeasible: ", style="bold red") + Text(_lines(e)))
         for name, slots, message in grouped:
             out.print(Text("infeasible: ", style="bold red") + Text(_lines(f"{slot_range_text(name, slots)}: {message}")))
+        for name, pose, message in poses:
+            out.print(Text("infeasible: ", style="bold red") + Text(_lines(f"{name}={_shown(pose)}: {message}")))
         verdict = "[green]feasible[/]" if not errors else "[bold red]infeasible[/]"
         out.print(f"{verdict}: planned cycle time {plan.cycle_time_s:.2f} s "
                   f"(checked in {time.perf_counter() - t0:.2f} s)")
@@ -233,6 +242,12 @@ def _plan_split(world, task, slots: list[dict], use_cache: bool,
 
 #: how long the parent waits for the child's slots before planning them itself (s)
 CHILD_TIMEOUT_S = 120.0
+
+
+def _shown(value) -> str:
+    if isinstance(value, dict):
+        return json.dumps(value, separators=(",", ":"))
+    return str(value)
 
 
 def _save_plan(path: Path, world, plan) -> None:

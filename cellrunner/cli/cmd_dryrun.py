@@ -174,10 +174,11 @@ class _Rehearsal:
         steps = self.steps
         if view.step != self.last_step:
             self.last_step = view.step
-            self.status.update(escape(f"step {view.step}/{len(steps)} {steps[view.step - 1].kind} "
-                                      f"{steps[view.step - 1].name}") if view.step else "running")
-            if recorder is not None and view.step and steps[view.step - 1].kind in ("grip", "release"):
-                recorder.moment(f"step{view.step:02d}_{steps[view.step - 1].kind}", backend.world)
+            step = steps[view.step - 1] if 0 < view.step <= len(steps) else None  # else on_error's
+            self.status.update(escape(f"step {view.step}/{len(steps)} {step.kind} {step.name}") if step
+                               else "running")
+            if recorder is not None and step is not None and step.kind in ("grip", "release"):
+                recorder.moment(f"step{view.step:02d}_{step.kind}", backend.world)
         if recorder is not None and recorder.due(now):
             recorder.sample(state, view.commanded_q_rad, self.world.kinematics.p_world_tcp(state.q_rad),
                             self.io_names)

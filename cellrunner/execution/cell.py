@@ -251,6 +251,11 @@ class CellController:
         loaded = self._task(task)
         return list(loaded.task.params) if loaded else None
 
+    def task_param_specs(self, task: str | int) -> list[tuple[str, str, str | None]] | None:
+        """(name, type, unit) of the task's params in order, for the PLC's register layout."""
+        loaded = self._task(task)
+        return [(n, p.type, p.unit) for n, p in loaded.task.params.items()] if loaded else None
+
     def start_job(self, task: str | int, params: dict, client_job_id: str, source: str) -> JobTicket:
         with self._lock:
             if source == "opcua" and client_job_id:

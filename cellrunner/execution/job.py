@@ -23,7 +23,7 @@ from cellrunner.execution import steps as behaviours
 from cellrunner.execution.context import JobContext
 from cellrunner.execution.steps import Outcome, run_motion, run_weigh
 from cellrunner.model.codes import ResultCode
-from cellrunner.model.expand import Step
+from cellrunner.model.expand import ON_ERROR, Step
 from cellrunner.model.task import ProtectiveStopPolicy
 
 #: the controller refuses to unlock a protective stop sooner (UR e-Series and CB3)
@@ -76,7 +76,7 @@ class StepRecord:
 class _Item:
     step: Step
     attempt: int = 1
-    behaviour: str = "step"  # step | weigh
+    behaviour: str = "step"  # step | weigh | still
     resume: bool = False
     gated: bool = False  # the gate (run --step) let it start
     between: bool = False  # a retry's in-between step (not a row of its own)
@@ -100,6 +100,11 @@ class JobRunner:
     ended_s: float = 0.0
 
     def __post_init__(self) -> None:
+        # the task's on_error steps come last, marked; they run only after a failure
+        self.on_error = [s for s in self.steps if s.macro == ON_ERROR]
+        self.steps = [s for s in self.steps if s.macro != ON_ERROR]
+        self._cleanup: tuple[ResultCode, str] | None = None  # the failure on_error runs after
+        self._cleanup_failures: list[str] = []
         self.records = {s.index: StepRecord(s.index, s.kind, s.name) for s in self.steps}
         self._agenda: list[_Item] = [_Item(s) for s in self.steps]
         self._current: _Item | None = None
@@ -315,6 +320,8 @@ class JobRunner:
                   between=item.between or None, resume=item.resume or None)
         if item.behaviour == "weigh":
             self._gen = run_weigh(self.ctx, step)
+        elif item.behaviour == "still":
+            self._gen = _stand_still(self.ctx)
         elif step.is_motion:
             self._gen = run_motion(self.ctx, step, resume=item.resume)
         else:
@@ -388,13 +395,16 @@ class JobRunner:
         step = item.step
         if step.is_motion:
             return self.ctx.step_timeout_s
-        timeout = getattr(step.args, "timeout", None) or getattr(step.args, "seconds", 0.0) or 0.0
+        timeout = (getattr(step.args, "timeout", None) or getattr(step.args, "seconds", 0.0)
+                   or getattr(step.args, "pulse", 0.0) or 0.0)
         return timeout + 5.0
 
     # ------------------------------------------------------------------ end
     def _finish(self, code: ResultCode, message: str) -> None:
         if self.phase is JobPhase.DONE:
             return
+        if self._cleanup is not None:
+            return self._end_cleanup(code, message)
         if code is not ResultCode.OK and code.is_fault:
             try:
                 self.ctx.backend.stop_motion()
@@ -409,6 +419,65 @@ class JobRunner:
         for record in self.records.values():
             if record.status is StepStatus.PENDING:
                 record.status = StepStatus.SKIPPED
+        if code is not ResultCode.OK and self.on_error and self._arm_can_move(code):
+            return self._start_cleanup(code, message)
+        self._end(code, message)
+
+    # ------------------------------------------------------------------ on_error
+    def _arm_can_move(self, code: ResultCode) -> bool:
+        """on_error runs only where the arm is able to move: powered, linked, no stop."""
+        if code in (ResultCode.ESTOP, ResultCode.ROBOT_CONNECTION_LOST, ResultCode.PROTECTIVE_STOP):
+            return False
+        try:
+            return self.ctx.read().safety is _NORMAL
+        except (BackendError, CellrunnerError):
+            return False
+
+    def _start_cleanup(self, code: ResultCode, message: str) -> None:
+        """Run the task's on_error steps (safe outputs, retreat), then end with ``code``."""
+        self._cleanup = (code, message)
+        self.ctx.carry = None  # cleaning up: a part still held (or lost) is not watched
+        self._log("on_error", result_code=int(code), message=message)
+        for s in self.on_error:
+            self.records[s.index] = StepRecord(s.index, s.kind, s.name)
+        self._agenda = [_Item(self.on_error[0], behaviour="still", between=True)] + [_Item(s) for s in self.on_error]
+        self._pending_end = None
+        self.phase = JobPhase.EXECUTE
+        self.ctx.commanded_q = None
+        self._next_item()
+
+    def _end_cleanup(self, code: ResultCode, message: str) -> None:
+        """An on_error step ended (or all did, ``code`` OK). A step that fails is noted
+        and the next one runs (best effort: outputs, then motions from where the arm
+        stands); a fault ends cleanup. The job ends with the failure that started it;
+        how on_error went is added to its message (each of its steps is journaled)."""
+        first, why = self._cleanup
+        if code is not ResultCode.OK:
+            if self._current is not None:
+                record = self.records[self._current.step.index]
+                if record.status is StepStatus.RUNNING:
+                    record.status, record.message = StepStatus.FAILED, message
+                    record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
+                    self._journal(record, self._current.attempt)
+            label = self._current.step.label if self._current is not None else "on_error"
+            self._cleanup_failures.append(message if message.startswith("step ") else f"{label}: {message}")
+            # nothing moved on a failed check or a refused plan: the next step may still help
+            if (not code.is_fault or code is ResultCode.PLANNING_FAILED) and self._agenda:
+                self.ctx.commanded_q = None
+                return self._next_item()
+            if code.is_fault:
+                try:
+                    self.ctx.backend.stop_motion()
+                except BackendError:
+                    pass
+        failures = self._cleanup_failures
+        note = "on_error done" if not failures else f"on_error failed: {'; '.join(failures)}"
+        for record in self.records.values():
+            if record.status is StepStatus.PENDING:
+                record.status = StepStatus.SKIPPED
+        self._end(first, f"{why}; {note}" if why else note)
+
+    def _end(self, code: ResultCode, message: str) -> None:
         self.result, self.message = code, message
         self.ended_s = self.ctx.now_s
         self.phase = JobPhase.DONE
@@ -445,3 +514,13 @@ class JobRunner:
             fields = {"step": current.step.index if current else 0, "attempt": current.attempt if current else 0}
             fields.update({k: v for k, v in kw.items() if v is not None})
             self.ctx.log.info(event, **fields)
+
+
+def _stand_still(ctx: JobContext):
+    """Wait (at most 2 s) until the arm stands still: after a failure's stop ramp, before
+    the first on_error motion."""
+    t0 = ctx.now_s
+    while np.max(np.abs(ctx.state.qd_rad_s)) > 1e-3 and ctx.now_s - t0 < 2.0:
+        yield
+    yield
+    return behaviours.OK

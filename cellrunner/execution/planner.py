@@ -24,6 +24,7 @@ def job_planner(world, *, use_cache: bool = True, speed: float = 1.0, joined: bo
     """``speed`` < 1 streams the approved motions slower, in time only (run --speed);
     ``joined=False`` plans every motion to end at rest (run --step)."""
     from cellrunner.execution.pacing import PacedMotions
+    from cellrunner.model.expand import expand_on_error
     from cellrunner.planning.cache import plan_cached
 
     def plan(task: LoadedTask, params: dict, q_now_rad: np.ndarray) -> JobPlan:
@@ -34,9 +35,11 @@ def job_planner(world, *, use_cache: bool = True, speed: float = 1.0, joined: bo
         if not task_plan.ok:
             raise InfeasibleError("; ".join(task_plan.errors))
         _verify_ahead(task_plan)
+        # the task's on_error steps ride along, marked, for the runner to keep for a failure
+        steps = task_plan.steps + expand_on_error(task, world.loaded.cell, params, len(task_plan.steps) + 1)
         if speed != 1.0:
-            return JobPlan(task_plan.steps, PacedMotions(task_plan, speed), task_plan.cycle_time_s / speed)
-        return JobPlan(task_plan.steps, task_plan, task_plan.cycle_time_s)
+            return JobPlan(steps, PacedMotions(task_plan, speed), task_plan.cycle_time_s / speed)
+        return JobPlan(steps, task_plan, task_plan.cycle_time_s)
 
     return plan
 

@@ -77,6 +77,25 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
                 ctx.backend.stop_motion()
                 return Outcome.failed(ResultCode.PART_LOST, lost)
     ctx.notes["end_rad_s"] = float(np.abs(q[-1] - q[-2]).max()) * approved.trajectory.rate_hz if len(q) > 1 else 0.0
+    return check_place(ctx, step)
+
+
+def check_place(ctx: JobContext, step: Step) -> Outcome:
+    """Where the backend can see the parts (the twin), the part just set down must lie
+    within the cell's place tolerance of where the task put it (SPEC section 11)."""
+    target = step.extra.get("place_check")
+    inspect = getattr(ctx.backend, "placed_offset", None)
+    if target is None or inspect is None:
+        return OK
+    found = inspect(target["T_world_tcp"])
+    if found is None:
+        return OK
+    name, offset_m, angle_deg = found
+    tol_m, tol_deg = target["tolerance"]
+    if offset_m > tol_m or angle_deg > tol_deg:
+        return Outcome.failed(ResultCode.PLACE_FAILED, f"place failed: part {name!r} is {offset_m * 1000:.1f} mm "
+                              f"and {angle_deg:.1f} deg from its target (tolerance {tol_m * 1000:g} mm, "
+                              f"{tol_deg:g} deg)")
     return OK
 
 
@@ -177,9 +196,12 @@ def run_release(ctx: JobContext, step: Step) -> StepGen:
     watch = confirm or ctx.gripper_closed_sensor
     while ctx.now_s - t0 < ctx.gripper_open_s or (watch and _release_pending(ctx, watch, confirm is not None)):
         if ctx.now_s - t0 >= args.timeout:
+            if confirm is not None:
+                return Outcome.failed(ResultCode.PLACE_FAILED, f"place failed: {args.confirm} not true within "
+                                      f"{args.timeout:g} s after the release")
             return Outcome.failed(ResultCode.PLACE_FAILED, f"release not confirmed within {args.timeout:g} s")
         yield
-    return OK
+    return check_place(ctx, step)
 
 
 def _release_pending(ctx: JobContext, channel: str, is_open_confirm: bool) -> bool:
@@ -188,9 +210,19 @@ def _release_pending(ctx: JobContext, channel: str, is_open_confirm: bool) -> bo
 
 
 def run_set_output(ctx: JobContext, step: Step) -> StepGen:
-    for name, value in step.args.values.items():
+    """Set the outputs; with ``pulse``, hold them that long and set them back (false, 0)."""
+    values = step.args.values
+    for name, value in values.items():
         ctx.backend.set_output(ctx.outputs[name], value)
     yield
+    pulse_s = step.args.pulse
+    if pulse_s:
+        t0 = ctx.now_s
+        while ctx.now_s - t0 < pulse_s - 1e-9:
+            yield
+        for name, value in values.items():
+            ctx.backend.set_output(ctx.outputs[name], False if isinstance(value, bool) else 0.0)
+        yield
     return OK
 
 

@@ -9,6 +9,7 @@ from pydantic import Field, field_validator, model_validator
 
 from cellrunner.model.base import Name, PlacedShape, Pose, Shaped, Strict, Vec3
 from cellrunner.model.robots import ROBOTS
+from cellrunner.model.sim_inputs import SimBlock
 from cellrunner.model.units import (
     Angle, AngularAccel, AngularSpeed, Duration, Force, Fraction, Mass, PositiveDuration,
     PositiveLength, Speed,
@@ -160,6 +161,8 @@ class Part(Shaped):
     """Mass in kg. Example: `0.3`"""
     at: Name
     """Frame where the twin spawns it (where a TCP at that frame grips it). Example: `infeed`"""
+    offset: Pose | None = None
+    """Twin only: where the part really lies from `at` (what a camera would find). Example: `{xyz: [0.01, -0.02, 0], rpy: [0, 0, 15]}`"""
     friction: float = Field(default=0.8, gt=0, le=2)
     """Friction coefficient in the twin. Example: `0.8`"""
 
@@ -208,6 +211,16 @@ class Plc(Strict):
     """OPC UA server (SPEC section 8). Example: `{endpoint: 'opc.tcp://127.0.0.1:4840/cellrunner', users: secrets/opcua-users.yaml}`"""
 
 
+class PlaceTolerance(Strict):
+    """How far a placed part may end from its target before the twin calls the place
+    failed (SPEC section 11): ``distance`` m, ``angle`` deg."""
+
+    distance: PositiveLength = 0.005
+    """Largest distance from the target, m. Example: `0.005`"""
+    angle: Annotated[Angle, Field(gt=0)] = 5.0
+    """Largest turn from the target, deg. Example: `5`"""
+
+
 class Cell(Strict):
     """A robot cell: robot, tool, IO, fixtures, frames, parts, tasks, PLC link, journal."""
 
@@ -237,6 +250,10 @@ class Cell(Strict):
     """SQLite file, or a postgresql:// URL for a journal shared by many cells. Example: `var/jobs.sqlite`"""
     step_timeout: PositiveDuration = 60.0
     """A step that runs longer than this (s) fails with 105. Example: `60`"""
+    place_tolerance: PlaceTolerance = Field(default_factory=PlaceTolerance)
+    """How far a placed part may end from its target in the twin before the place fails (3). Example: `{distance: 0.005, angle: 5}`"""
+    sim: SimBlock | None = None
+    """Inputs the twin drives in rehearsal (dry-run and twin). Example: `{inputs: {part_present: {part_at: infeed}}}`"""
 
     @model_validator(mode="before")
     @classmethod

@@ -103,15 +103,26 @@ def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, int | flo
 
 def expand(loaded: LoadedTask, cell: Cell, params: dict[str, Any]) -> list[Step]:
     """The primitive steps of ``loaded`` for ``params`` (already resolved)."""
-    builder = _Builder(cell, params)
+    builder = _Builder(cell, params, loaded.task.params)
     for spec in loaded.steps:
         builder.add(spec)
     return builder.steps
 
 
+def expand_on_error(loaded: LoadedTask, cell: Cell, params: dict[str, Any], first_index: int) -> list[Step]:
+    """The task's ``on_error`` steps, numbered from ``first_index``, marked with the macro
+    ``on_error`` (the job runner keeps them for after a failure)."""
+    builder = _Builder(cell, params, loaded.task.params)
+    return [builder.primitive(s.kind, s.bind(loaded.task.params, params), s.path, first_index + i, ON_ERROR)
+            for i, s in enumerate(loaded.on_error)]
+
+
+ON_ERROR = "on_error"
+
+
 class _Builder:
-    def __init__(self, cell: Cell, params: dict[str, Any]):
-        self.cell, self.params = cell, params
+    def __init__(self, cell: Cell, params: dict[str, Any], specs: dict | None = None):
+        self.cell, self.params, self.specs = cell, params, specs or {}
         self.steps: list[Step] = []
         self.tool = cell.robot.tool  # the mounted tool's name (with ``tools:``)
 
@@ -119,11 +130,11 @@ class _Builder:
         return len(self.steps) + 1
 
     def add(self, spec: StepSpec) -> None:
-        kind, args = spec.kind, spec.args
+        kind, args = spec.kind, spec.bind(self.specs, self.params)
         if kind == "pick":
-            self._pick(spec)
+            self._pick(spec, args)
         elif kind == "place":
-            self._place(spec)
+            self._place(spec, args)
         elif kind == "change_tool":
             from cellrunner.model.tool_change import expand_change_tool
             self.tool = expand_change_tool(self, spec, self.tool)
@@ -155,7 +166,8 @@ class _Builder:
             name = f"{args.seconds:g} s"
         return Step(index, kind, name, args, path, macro, T, q, retry)
 
-    def _target(self, at: str, offset: Offset | None, pattern: Pattern | None) -> tuple[np.ndarray, str]:
+    def _target(self, at: str, offset: Offset | None, pattern: Pattern | None,
+                at_offset: str | None = None) -> tuple[np.ndarray, str]:
         T = frame_pose(self.cell, at)
         name = at
         if pattern is not None:
@@ -163,11 +175,14 @@ class _Builder:
             dx, dy, dz, _ = pattern.offset_m(slot)
             T = geometry.pose_matrix((0, 0, dz)) @ T @ geometry.pose_matrix((dx, dy, 0))
             name = f"{at}[{pattern.index}={slot}]"
+        if at_offset is not None:  # a pose param: where the camera saw the part, in the frame's axes
+            pose = self.params[at_offset]
+            T = T @ geometry.pose_matrix(pose["xyz"], pose["rpy"])
+            name = f"{at}+{at_offset}"
         return T @ _offset(offset), name
 
-    def _pick(self, spec: StepSpec) -> None:
-        a = spec.args
-        T, name = self._target(a.at, a.offset, a.pattern)
+    def _pick(self, spec: StepSpec, a) -> None:
+        T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"pick {name}"
         path = spec.path
         approach_i = self._next()
@@ -177,7 +192,8 @@ class _Builder:
         self.steps.append(Step(descend_i, "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T))
         retry = None
         if a.retry is not None and a.retry.attempts > 1:
-            between = tuple(self.primitive(s.kind, s.args, s.path, descend_i + 1, macro) for s in spec.between)
+            between = tuple(self.primitive(s.kind, s.bind(self.specs, self.params), s.path, descend_i + 1, macro)
+                            for s in spec.between)
             retry = RetryPlan(a.retry.attempts, between, descend_i)
         self.steps.append(Step(self._next(), "grip", name, a.grip, path, macro, retry=retry,
                                extra={"part_at": a.at}))
@@ -186,19 +202,23 @@ class _Builder:
             self.steps.append(Step(self._next(), "lift", name, DistanceArgs(distance=lift, speed=a.speed),
                                    path, macro))
 
-    def _place(self, spec: StepSpec) -> None:
-        a = spec.args
-        T, name = self._target(a.at, a.offset, a.pattern)
+    def _place(self, spec: StepSpec, a) -> None:
+        T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"place {name}"
         path = spec.path
         self.steps.append(Step(self._next(), "approach", name, ApproachArgs(to=a.at, distance=a.approach), path,
                                macro, T @ geometry.pose_matrix((0, 0, -a.approach))))
         self.steps.append(Step(self._next(), "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T))
-        self.steps.append(Step(self._next(), "release", name, a.release, path, macro))
+        release = a.release if a.confirm is None else a.release.model_copy(update={"confirm": a.confirm})
+        tolerance = self.cell.place_tolerance
+        # the twin compares the part's pose with this once the gripper has left it
+        check = {"place_check": {"T_world_tcp": T, "tolerance": (tolerance.distance, tolerance.angle)}}
         back = a.retreat if a.retreat is not None else a.approach
+        self.steps.append(Step(self._next(), "release", name, release, path, macro,
+                               extra={} if back > 0 else check))
         if back > 0:
             self.steps.append(Step(self._next(), "retreat", name, DistanceArgs(distance=back, speed=a.speed),
-                                   path, macro))
+                                   path, macro, extra=check))
 
 
 def _offset(offset: Offset | None) -> np.ndarray:
@@ -216,5 +236,16 @@ def pattern_params(loaded: LoadedTask) -> dict[str, range]:
     return out
 
 
-__all__ = ["Step", "RetryPlan", "expand", "frame_pose", "resolve_params", "pattern_params",
-           "MOTION_KINDS", "PLANNED_KINDS", "LINEAR_KINDS", "GripArgs"]
+def box_params(loaded: LoadedTask) -> dict[str, list[dict]]:
+    """Every pose param a pick or place is offset by, with the poses ``check`` must cover:
+    the centre and the corners of its box."""
+    out: dict[str, list[dict]] = {}
+    for spec in loaded.steps:
+        name = getattr(spec.args, "at_offset", None)
+        if name is not None:
+            out[name] = loaded.task.params[name].box_values()
+    return out
+
+
+__all__ = ["box_params", "Step", "RetryPlan", "expand", "frame_pose", "resolve_params", "pattern_params",
+           "MOTION_KINDS", "PLANNED_KINDS", "LINEAR_KINDS", "GripArgs", "expand_on_error", "ON_ERROR"]

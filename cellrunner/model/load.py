@@ -104,6 +104,15 @@ class StepSpec:
     args: Any
     path: PathKey
     between: list["StepSpec"] = field(default_factory=list)  # pick retry.between steps
+    raw: Any = None  # the widened arguments as written, when they name float params
+    refs: frozenset[str] = frozenset()  # the float params they name
+
+    def bind(self, params: dict, values: dict) -> Any:
+        """The arguments with the named params' values (``args`` when none are named)."""
+        if not self.refs:
+            return self.args
+        from cellrunner.model.params import substitute
+        return STEP_MODELS[self.kind].model_validate(substitute(self.raw, params, values)[0])
 
 
 @dataclass
@@ -113,6 +122,7 @@ class LoadedTask:
     source: Source
     steps: list[StepSpec]
     warnings: list[Diagnostic]
+    on_error: list[StepSpec] = field(default_factory=list)
 
     @property
     def name(self) -> str:
@@ -165,6 +175,8 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
             if not f.is_file():
                 report.error(("fixtures", i, "mesh", "file"), f"mesh file {fixture.mesh.file!r} not found "
                              f"(looked under {loaded.root})")
+    from cellrunner.model.sim_inputs import check_sim_block
+    check_sim_block(cell, report)
     for i, part in enumerate(cell.parts):
         if part.at not in cell.frames:
             report.error(("parts", i, "at"), _unknown("frame", part.at, cell.frames))
@@ -395,8 +407,9 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
         _parse_steps(steps_raw, ("steps",), report, allow_macros=True)
         report.raise_if_errors()
         raise AssertionError("unreachable")  # pragma: no cover
-    steps = _parse_steps(header.steps, ("steps",), report, allow_macros=True)
-    loaded = LoadedTask(header, path, source, steps, report.warnings)
+    steps = _parse_steps(header.steps, ("steps",), report, allow_macros=True, params=header.params)
+    on_error = _parse_steps(header.on_error, ("on_error",), report, allow_macros=False, params=header.params)
+    loaded = LoadedTask(header, path, source, steps, report.warnings, on_error)
     if not report.errors:
         from cellrunner.model.references import check_task_references
         check_task_references(loaded, cell, report)
@@ -406,16 +419,17 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
     return loaded
 
 
-def _parse_steps(raw: list, base: PathKey, report: Report, *, allow_macros: bool) -> list[StepSpec]:
+def _parse_steps(raw: list, base: PathKey, report: Report, *, allow_macros: bool,
+                 params: dict | None = None) -> list[StepSpec]:
     out = []
     for i, item in enumerate(raw):
-        spec = _parse_step(item, base + (i,), report, allow_macros)
+        spec = _parse_step(item, base + (i,), report, allow_macros, params or {})
         if spec is not None:
             out.append(spec)
     return out
 
 
-def _parse_step(item: Any, path: PathKey, report: Report, allow_macros: bool) -> StepSpec | None:
+def _parse_step(item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict) -> StepSpec | None:
     known = [k for k in STEP_MODELS if allow_macros or k not in MACROS]
     if isinstance(item, str):
         item = {item: None}
@@ -425,17 +439,29 @@ def _parse_step(item: Any, path: PathKey, report: Report, allow_macros: bool) ->
         return None
     kind, args = next(iter(item.items()))
     if kind not in known:
-        hint = " (pick and place cannot be nested)" if kind in MACROS else ""
+        hint = "" if kind not in MACROS else (" (on_error takes primitive steps)" if path[0] == "on_error"
+                                              else " (pick and place cannot be nested)")
         report.error(path + (kind,), _unknown("step", kind, known) + hint, at_key=True)
         return None
     model = STEP_MODELS[kind]
+    raw = widen_step_args(kind, args)
+    from cellrunner.model.params import substitute
+    refs: set[str] = set()
     try:
-        parsed = model.model_validate(widen_step_args(kind, args))
+        # a float param stands for a quantity: its default, min and max must all read there
+        parsed = None
+        for bound in ("default", "min", "max"):
+            values = {n: getattr(p, bound) for n, p in params.items() if getattr(p, bound) is not None}
+            args_b, refs = substitute(raw, params, values)
+            checked = model.model_validate(args_b)
+            parsed = parsed or checked
+            if not refs:
+                break
     except ValidationError as exc:
         report.errors.extend(diagnostics_of(exc, report.source, model, prefix=path + (kind,)))
         return None
-    spec = StepSpec(kind, parsed, path + (kind,))
+    spec = StepSpec(kind, parsed, path + (kind,), raw=raw if refs else None, refs=frozenset(refs))
     if kind == "pick" and parsed.retry is not None:
         spec.between = _parse_steps(parsed.retry.between, path + (kind, "retry", "between"), report,
-                                    allow_macros=False)
+                                    allow_macros=False, params=params)
     return spec

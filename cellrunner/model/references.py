@@ -11,7 +11,7 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
     cell = loaded.cell
     frames = list(cell.frames)
     needs_gripper = False
-    for step in _all_steps(task.steps):
+    for step in _all_steps([*task.steps, *task.on_error]):
         kind, args, path = step.kind, step.args, step.path
         if kind == "move":
             if isinstance(args.to, str) and args.to != "home" and args.to not in cell.frames:
@@ -27,6 +27,10 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
                 report.error(path + ("at",), _unknown("frame", args.at, frames))
             if args.pattern is not None:
                 _check_pattern(task, args.pattern, path + ("pattern",), report)
+            if args.at_offset is not None:
+                _check_pose_param(task, args.at_offset, path + ("at", "offset"), report)
+            if kind == "place" and args.confirm is not None:
+                check_io_name(cell, args.confirm, "inputs", path + ("confirm",), report)
             needs_gripper = True
             grip = args.grip if kind == "pick" else args.release
             if grip.confirm is not None:
@@ -106,3 +110,11 @@ def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
     if last is not None and last.args.tool != cell.robot.tool:
         report.error(last.path, f"the task ends with tool {last.args.tool!r} mounted, but every job starts "
                      f"with {cell.robot.tool!r} (robot.tool); add 'change_tool: {cell.robot.tool}' before the end")
+
+
+def _check_pose_param(task: LoadedTask, name: str, path, report: Report) -> None:
+    params = task.task.params
+    if name not in params:
+        report.error(path, _unknown("param", name, params))
+    elif params[name].type != "pose":
+        report.error(path, f"offset param {name!r} must be of type pose, not {params[name].type}")

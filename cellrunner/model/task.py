@@ -16,8 +16,9 @@ from pydantic_core import PydanticCustomError
 from cellrunner.model.base import Name, Pose, Strict, Vec3
 from cellrunner.model.force_steps import InsertArgs, MoveUntilContactArgs
 from cellrunner.model.tool_steps import ChangeToolArgs
+from cellrunner.model.params import Param
 from cellrunner.model.units import (
-    Force, Fraction, Length, NonNegativeLength, PositiveDuration, PositiveLength, Speed,
+    Duration, Force, Fraction, Length, NonNegativeLength, PositiveDuration, PositiveLength, Speed,
     parse_quantity,
 )
 
@@ -138,14 +139,17 @@ class WaitInputArgs(Strict):
 
 
 class WaitArgs(Strict):
-    seconds: Annotated[float, Field(ge=0, le=3600)]
-    """Seconds to wait. Example: `0.5`"""
+    seconds: Annotated[Duration, Field(le=3600)]
+    """Time to wait, s (or a string with a unit). Example: `0.5`"""
 
 
 class SetOutputArgs(Strict):
     """``{NAME: value}``: one or more outputs by their cell IO names."""
 
     model_config = Strict.model_config | {"extra": "allow"}
+
+    pulse: PositiveDuration | None = None
+    """Set the outputs, hold them this long (s), set them back. Example: `0.2`"""
 
     @model_validator(mode="after")
     def _values(self) -> "SetOutputArgs":
@@ -207,9 +211,45 @@ class Retry(Strict):
     """Primitive steps run before each new attempt. Example: `[release, {retreat: 0.03}]`"""
 
 
+def _at_frame(data: Any) -> Any:
+    """``at: {frame: FRAME, offset: POSE_PARAM | {xyz, rpy}}`` -> ``at: FRAME`` plus
+    ``at_offset`` (a pose param's name) or ``offset`` (a literal pose)."""
+    if not isinstance(data, dict) or not isinstance(data.get("at"), dict):
+        return data
+    at = dict(data["at"])
+    unknown = set(at) - {"frame", "offset"}
+    if unknown or "frame" not in at:
+        raise PydanticCustomError(
+            "at", f"'at' is a frame name or {{frame: FRAME, offset: POSE_PARAM}}; got keys {sorted(at)}")
+    out = {**data, "at": at["frame"]}
+    offset = at.get("offset")
+    if isinstance(offset, str):
+        out["at_offset"] = offset
+    elif offset is not None:
+        if data.get("offset") is not None:
+            raise PydanticCustomError("at", "give the offset either in 'at' or beside it, not both")
+        out["offset"] = offset
+    return out
+
+
+#: ``at``: a frame name, or (widened by :func:`_at_frame`) ``{frame, offset}``
+AtFrame = Annotated[Name, WithJsonSchema({
+    "description": "a frame name, or {frame: FRAME, offset: POSE_PARAM or {xyz, rpy}}",
+    "anyOf": [{"type": "string"},
+              {"type": "object", "required": ["frame"], "additionalProperties": False,
+               "properties": {
+                   "frame": {"type": "string", "description": "the frame", "examples": ["infeed"]},
+                   "offset": {"type": ["string", "object", "array"],
+                              "description": "a pose param's name, or a literal {xyz, rpy}",
+                              "examples": ["part_pose"]}}}],
+})]
+
+
 class PickArgs(Strict):
-    at: Name
-    """Frame of the part (where the TCP grips it). Example: `infeed`"""
+    at: AtFrame
+    """Frame of the part (where the TCP grips it), or {frame, offset: POSE_PARAM}. Example: `infeed`"""
+    at_offset: Name | None = None
+    """Set from `at: {frame, offset: PARAM}`: the pose param giving where the part is. Example: `part_pose`"""
     approach: NonNegativeLength = 0.1
     """Approach distance above the frame along tool -Z, m. Example: `0.1`"""
     lift: NonNegativeLength | None = None  # default: the approach distance
@@ -226,11 +266,16 @@ class PickArgs(Strict):
     """Descend and lift speed, m/s. Example: `0.1`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+    _a = model_validator(mode="before")(lambda cls, v: _at_frame(v))
 
 
 class PlaceArgs(Strict):
-    at: Name
-    """Frame where the part is put down. Example: `pallet`"""
+    at: AtFrame
+    """Frame where the part is put down, or {frame, offset: POSE_PARAM}. Example: `pallet`"""
+    at_offset: Name | None = None
+    """Set from `at: {frame, offset: PARAM}`: the pose param giving where to put the part. Example: `drop_pose`"""
+    confirm: Name | None = None
+    """Input that must read true after the release (part in place). Example: `part_in_fixture`"""
     approach: NonNegativeLength = 0.1
     """Approach distance above the frame along tool -Z, m. Example: `0.1`"""
     retreat: NonNegativeLength | None = None  # default: the approach distance
@@ -245,6 +290,7 @@ class PlaceArgs(Strict):
     """Descend and retreat speed, m/s. Example: `0.1`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+    _a = model_validator(mode="before")(lambda cls, v: _at_frame(v))
 
 
 STEP_MODELS: dict[str, type[Strict]] = {
@@ -285,60 +331,6 @@ def widen_step_args(kind: str, args: Any) -> Any:
     return args
 
 
-class Param(Strict):
-    type: Literal["int", "float", "bool"] = "int"
-    """int, float or bool. Example: `int`"""
-    min: float | None = None
-    """Least value accepted. Example: `0`"""
-    max: float | None = None
-    """Greatest value accepted. Example: `11`"""
-    default: float | bool | None = None
-    """Value when the PLC or CLI gives none. Example: `0`"""
-    description: str | None = None
-    """What the param means, for people. Example: `pallet slot, row by row`"""
-
-    @model_validator(mode="after")
-    def _consistent(self) -> "Param":
-        if self.type == "int":
-            for key in ("min", "max", "default"):
-                v = getattr(self, key)
-                if v is not None and (isinstance(v, bool) or float(v) != int(v)):
-                    raise PydanticCustomError("param", f"{key} {v!r} is not an int")
-        if self.min is not None and self.max is not None and self.min > self.max:
-            raise PydanticCustomError("param", f"min {self.min:g} is above max {self.max:g}")
-        d = self.default
-        if d is not None and self.type != "bool" and not isinstance(d, bool):
-            if (self.min is not None and d < self.min) or (self.max is not None and d > self.max):
-                raise PydanticCustomError(
-                    "param", f"default {d:g} is outside [{self.min:g}, {self.max:g}]"
-                    if self.min is not None and self.max is not None else
-                    f"default {d:g} is outside its bounds")
-        return self
-
-    def coerce(self, name: str, value: Any) -> int | float | bool:
-        """``value`` as this param's type, or ValueError naming the bounds."""
-        if self.type == "bool":
-            if isinstance(value, bool):
-                return value
-            if isinstance(value, str) and value.lower() in ("true", "false", "1", "0"):
-                return value.lower() in ("true", "1")
-            if isinstance(value, (int, float)) and value in (0, 1):
-                return bool(value)
-            raise ValueError(f"param {name!r} must be true or false, got {value!r}")
-        try:
-            x = float(value) if not isinstance(value, bool) else None
-        except (TypeError, ValueError):
-            x = None
-        if x is None or (self.type == "int" and x != int(x)):
-            raise ValueError(f"param {name!r} must be {'an int' if self.type == 'int' else 'a number'}, got {value!r}")
-        out: int | float = int(x) if self.type == "int" else x
-        if (self.min is not None and out < self.min) or (self.max is not None and out > self.max):
-            lo = "-inf" if self.min is None else f"{self.min:g}"
-            hi = "inf" if self.max is None else f"{self.max:g}"
-            raise ValueError(f"param {name!r} = {out:g} is outside [{lo}, {hi}]")
-        return out
-
-
 class ProtectiveStopPolicy(Strict):
     resume: bool = False
     """Resume the job after a protective stop (after the controller's 5 s unlock delay). Example: `true`"""
@@ -359,3 +351,5 @@ class TaskFile(Strict):
     """The steps, in order: {KIND: ARGS} or a bare grip/release. Example: `[{move: home}, {pick: {at: infeed}}, {place: {at: pallet}}]`"""
     on_protective_stop: ProtectiveStopPolicy = Field(default_factory=ProtectiveStopPolicy)
     """What a protective stop does to the job (an e-stop always aborts). Example: `{resume: true, max: 2}`"""
+    on_error: list[Any] = Field(default_factory=list)
+    """Steps run after a failed or aborted job that left the arm able to move. Example: `[{set_output: {door_cmd: false}}, {retreat: 0.05}]`"""

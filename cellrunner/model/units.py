@@ -98,6 +98,8 @@ def quantity(kind: str, *, gt: float | None = None, ge: float | None = None,
         "anyOf": [
             {"type": "number", **_json_bounds(gt, ge, lt, le)},
             {"type": "string", "pattern": _unit_pattern(kind)},
+            {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_\-]*$",
+             "description": "the name of a task param of type float (with a unit of this kind)"},
         ],
         "description": f"{kind.replace('_', ' ')} in {unit0 or 'plain units'}, or a string with "
                        f"a unit ({', '.join(u for u in UNITS[kind][1] if u)})",

@@ -268,7 +268,7 @@ class _StepPlanner:
         elif step.kind == "wait":
             row.duration_s = step.args.seconds
         elif step.kind == "set_output":
-            row.duration_s = 1.0 / self.world.spec.rate_hz
+            row.duration_s = (step.args.pulse or 0.0) + 1.0 / self.world.spec.rate_hz
         elif step.kind == "wait_input":
             row.message = f"waits up to {step.args.timeout:g} s for {step.args.input}"
         elif step.kind in ("tool_unlock", "tool_lock"):

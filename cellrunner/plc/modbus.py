@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from cellrunner.errors import CellrunnerError, InputError
+from cellrunner.plc.param_registers import N_PARAM_REGS, PARAM_FIRST, decode_params, to_int16
 from cellrunner.plc.port import COMPLETED_CODES, CellPort, CellStatus, JobResult, PackMLState, ResultCode
 
 # -- register map (SPEC section 7) -------------------------------------------------
@@ -30,8 +31,7 @@ HR_HEARTBEAT = 0
 HR_COMMAND = 1
 HR_JOB_ID = 2
 HR_TASK = 3
-HR_PARAMS = 4  # 4..11, int16, in the task's params: order
-N_PARAM_REGS = 8
+HR_PARAMS = PARAM_FIRST  # 4..19, in the task's params: order (see param_registers)
 PLC_FIRST, PLC_LAST = 0, 19
 
 HR_CELL_HEARTBEAT = 100
@@ -82,11 +82,6 @@ EXC_ILLEGAL_ADDRESS = 0x02
 # inputs (1, 2, 5, 15) do not exist here: ILLEGAL FUNCTION.
 REGISTER_FCS = frozenset({3, 4, 6, 16, 22, 23})
 WRITE_FCS = frozenset({6, 16, 22, 23})
-
-
-def to_int16(raw: int) -> int:
-    """A register's 16 bits as a signed value (-32768..32767)."""
-    return raw - 0x10000 if raw & 0x8000 else raw
 
 
 def split_uint32(value: int) -> tuple[int, int]:
@@ -315,10 +310,9 @@ class ModbusLink:
         if names is None:
             self._reject(plc_id, ResultCode.REJECT_UNKNOWN_TASK)
             return
-        raw = self.regs[HR_PARAMS : HR_PARAMS + N_PARAM_REGS]
-        params: dict[str, int | float] = {
-            name: to_int16(raw[i]) for i, name in enumerate(names[:N_PARAM_REGS])
-        }
+        specs = getattr(self.port, "task_param_specs", None)
+        layout = specs(task) if specs is not None else [(name, "int", None) for name in names]
+        params = decode_params(layout, self.regs[HR_PARAMS : HR_PARAMS + N_PARAM_REGS])
         ticket = self.port.start_job(task, params, str(plc_id), "modbus")
         if not ticket.accepted:
             self._reject(plc_id, ticket.reject_code or ResultCode.REJECT_NOT_READY)

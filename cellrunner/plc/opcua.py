@@ -139,7 +139,7 @@ LOGIN_BURST, LOGINS_PER_S = 10, 5.0
 #: the longest TaskName, ClientJobId and Parameters text StartJob accepts (characters)
 MAX_TEXT = {"TaskName": 64, "ClientJobId": 128, "Parameters": 1024}
 #: how deep a Parameters JSON value may nest (a flat object of numbers is 1)
-MAX_JSON_DEPTH = 2
+MAX_JSON_DEPTH = 3  # {name: {xyz: [...]}}: an object of pose params
 NULL_DATETIME = datetime(1601, 1, 1, tzinfo=timezone.utc)  # OPC UA's "no time"
 
 # (browse name, VariantType name, initial value) of Objects/Cell's variables
@@ -176,10 +176,11 @@ def _refuse_constant(name: str) -> float:
     raise ValueError(f"{name} is not a number JSON allows")
 
 
-def parse_job_parameters(text: str) -> dict[str, int | float] | None:
-    """StartJob's Parameters: a JSON object of finite numbers (empty text = {}); None if
-    not (also for NaN/Infinity, over-long text, or nesting deeper than an object of
-    numbers, which is refused before it is parsed)."""
+def parse_job_parameters(text: str) -> dict[str, int | float | str | dict] | None:
+    """StartJob's Parameters: a JSON object of finite numbers, quantities with a unit
+    ("250 ms") and poses ({"xyz": [m], "rpy": [deg]}) (empty text = {}); None if not
+    (also for NaN/Infinity, over-long text, or nesting deeper than an object of poses,
+    which is refused before it is parsed)."""
     if not text or not text.strip():
         return {}
     if len(text) > MAX_TEXT["Parameters"] or _nesting(text) > MAX_JSON_DEPTH:
@@ -190,9 +191,14 @@ def parse_job_parameters(text: str) -> dict[str, int | float] | None:
         return None
     if not isinstance(data, dict):
         return None
-    params: dict[str, int | float] = {}
+    params: dict[str, int | float | str | dict] = {}
     for name, value in data.items():
-        if isinstance(value, bool) or not isinstance(value, int | float):
+        if isinstance(value, dict):
+            if not set(value) <= {"xyz", "rpy"} or not all(
+                    isinstance(v, list) and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v)
+                    for v in value.values()):
+                return None
+        elif isinstance(value, bool) or not isinstance(value, int | float | str):
             return None
         if isinstance(value, float) and not math.isfinite(value):
             return None

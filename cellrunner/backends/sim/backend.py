@@ -196,6 +196,11 @@ class SimBackend:
         self._fresh = None
         self._world().set_input(channel, value)
 
+    def placed_offset(self, T_world_tcp: np.ndarray) -> tuple[str, float, float] | None:
+        """The twin's place inspection: how far the part just set down lies from where
+        a gripper at ``T_world_tcp`` puts it, as (part, m, deg); see SimWorld."""
+        return self._world().placed_offset(T_world_tcp)
+
     def tcp_tracking_error_m(self) -> float:
         """Distance (m) between the TCP at the last set-point and the measured TCP."""
         world = self._world()

@@ -111,13 +111,14 @@ class TwinDescription:
     presence_sensors: tuple[PresenceSensor, ...] = ()
     vacuum: Any = None  # a VacuumDescription (backends.sim.vacuum) for a suction gripper
     tool_changer: Any = None  # a ToolChangerDescription (backends.sim.tool_changer) for several tools
+    input_rules: tuple = ()  # InputRuleDescription: inputs the cell's sim: block drives
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"
 
     def __post_init__(self) -> None:
         for attr in ("tool_geometry", "fixtures", "parts", "io_outputs", "io_inputs",
-                     "presence_sensors"):
+                     "presence_sensors", "input_rules"):
             object.__setattr__(self, attr, tuple(getattr(self, attr)))
         if len(self.q_home_rad) != 6:
             raise ValueError(f"q_home_rad needs 6 values, got {len(self.q_home_rad)}")

@@ -14,7 +14,7 @@ def description_of(loaded: LoadedCell):
 
     With ``tools:`` and a tool changer every tool is built (each enabled while mounted):
     the jaws of the first tool with jaws, the cups of the first vacuum tool."""
-    from cellrunner.backends.sim.description import PartDescription, TwinDescription
+    from cellrunner.backends.sim.description import TwinDescription
 
     c = loaded.cell
     outputs, inputs = c.io.outputs, c.io.inputs
@@ -26,9 +26,7 @@ def description_of(loaded: LoadedCell):
     jaws.sort(key=lambda t: t is not c.tool)  # the mounted tool's jaws first
     gripper = _jaws(jaws[0], c, io_outputs, io_inputs) if jaws else None
     vacuum = _cups(suction, c) if suction is not None else None
-    g = c.tool.gripper
-    parts = [PartDescription(p.name, shape, p.mass, _part_pose(c, p.at, g, shape), p.friction)
-             for p in c.parts for shape in [p.to_shape(loaded.resolve)]]
+    parts = [_part(loaded, p, c.tool.gripper) for p in c.parts]
     return TwinDescription(
         spec=loaded.spec, T_world_base=c.robot.mount.matrix(), T_flange_tcp=c.tool.tcp.matrix(),
         q_home_rad=tuple(np.radians(c.robot.home)),
@@ -36,7 +34,39 @@ def description_of(loaded: LoadedCell):
         payload_mass_kg=max(c.tool.payload.mass, 0.1), payload_cog_m=tuple(c.tool.payload.cog),
         gripper=gripper, vacuum=vacuum, tool_changer=changer, fixtures=tuple(loaded.fixture_shapes()),
         parts=tuple(parts), io_outputs=tuple(io_outputs), io_inputs=tuple(io_inputs),
-        name=c.cell)
+        input_rules=_input_rules(c), name=c.cell)
+
+
+def _part(loaded: LoadedCell, part, gripper):
+    """A part where a TCP at its frame grips it, moved by its twin-only ``offset``."""
+    from cellrunner.backends.sim.description import PartDescription
+
+    T_world_grip = frame_pose(loaded.cell, part.at)
+    if part.offset is not None:
+        T_world_grip = T_world_grip @ part.offset.matrix()
+    shape = part.to_shape(loaded.resolve)
+    return PartDescription(part.name, shape, part.mass, _part_pose(T_world_grip, gripper, shape), part.friction)
+
+
+def _input_rules(cell) -> tuple:
+    """The ``sim: inputs`` rules in channels and world metres."""
+    from cellrunner.backends.sim.input_rules import InputRuleDescription
+
+    if cell.sim is None:
+        return ()
+    out = []
+    for name, rule in cell.sim.inputs.items():
+        channel = cell.io.inputs[name]
+        if rule.part_at is not None:
+            point = tuple(float(v) for v in frame_pose(cell, rule.part_at)[:3, 3])
+            out.append(InputRuleDescription(channel, "part_at", point_world_m=point, within_m=rule.within,
+                                            invert=rule.invert))
+        else:
+            kind = "follows" if rule.follows is not None else "pulse_after"
+            output = cell.io.outputs[rule.follows or rule.pulse_after]
+            out.append(InputRuleDescription(channel, kind, output=output, delay_s=rule.delay, width_s=rule.width,
+                                            invert=rule.invert))
+    return tuple(out)
 
 
 def _jaws(tool, cell, io_outputs: list, io_inputs: list):
@@ -80,10 +110,10 @@ def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
                                   tuple(tools), c.robot.tool)
 
 
-def _part_pose(cell, frame: str, gripper, shape) -> np.ndarray:
-    """A part at ``frame`` lies upright where a TCP at the frame grips it: centred (jaws)
-    or with its top face at the frame (suction)."""
-    T = _upright(frame_pose(cell, frame))
+def _part_pose(T_world_grip: np.ndarray, gripper, shape) -> np.ndarray:
+    """A part lies upright where a TCP at ``T_world_grip`` grips it: centred (jaws) or
+    with its top face there (suction)."""
+    T = _upright(T_world_grip)
     T[2, 3] -= part_center_depth_m(gripper, shape)
     return T
 

@@ -65,6 +65,10 @@ class PhysicsOptions:
     solver_iterations: int = 20
     cone: str = "elliptic"
     impratio: float = 1.0  # 10 made held parts chatter and fly off during lifts (see tests/sim)
+    # MuJoCo's soft friction lets a gripped part creep down the pads under its weight
+    # (~0.8 mm/s, so a part held through a 5 s protective stop hung 4 mm lower); the
+    # no-slip pass removes that creep
+    noslip_iterations: int = 3
     # MuJoCo island sleeping: ~+20% RTF, but the wrist weight read 9% high with it; off.
     sleep: bool = False
 
@@ -212,6 +216,7 @@ class _Builder:
             self.root, "option", timestep=f"{self.timestep_s:.9g}", integrator="implicitfast",
             cone=o.cone, impratio=f"{o.impratio:g}", solver="Newton",
             iterations=str(o.solver_iterations), ls_iterations="10", tolerance="1e-8",
+            noslip_iterations=str(o.noslip_iterations),
             gravity="0 0 -9.81")
         if o.sleep:  # parts at rest stop costing solver time until something touches them
             ET.SubElement(option, "flag", sleep="enable")

@@ -20,6 +20,7 @@ import numpy as np
 from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.backends.sim._mj import load_mujoco
 from cellrunner.backends.sim.description import TwinDescription
+from cellrunner.backends.sim.input_rules import InputRules
 from cellrunner.backends.sim.mjcf import PARTS, PADS, ROBOT, STATIC, TOOL, PhysicsOptions, compile_model
 from cellrunner.model.robots import JOINT_NAMES
 
@@ -30,6 +31,9 @@ JAW_REST_SPEED_MPS = 0.005
 COLLISION_BACKOFF_S = 0.02
 SLIP_HOLD_FRACTION = 0.25  # a slipping grip holds only this fraction of the part's weight
 AIR_CLEARANCE_M = 0.01  # "in the air": this far from every fixture and the floor
+PLACE_DROP_M = 0.01  # a part released this far above its support lands where it was put
+JAM_SLIDE_M = 0.005  # a gripped part forced back this far in the jaws by a fixture: a collision
+JAM_FORCE_N = 150.0  # or pressed onto a fixture this hard (UR's default force limit)
 
 
 class Fault(str, enum.Enum):
@@ -147,6 +151,9 @@ class SimWorld:
         self.outputs: dict[str, float | bool] = {c: _zero(c) for c in d.io_outputs}
         self.inputs: dict[str, float | bool] = {c: _zero(c) for c in d.io_inputs}
         self._scripted_inputs: dict[str, float | bool] = {}
+        self._rules = InputRules(d.input_rules) if d.input_rules else None
+        self._held_at: dict[str, np.ndarray] = {}  # gripped part -> T_tcp_part while no fixture presses it
+        self._held_last: dict[str, np.ndarray] = {}  # the same, of the parts released last
         self._closing = False
         self._jaws_driven = False  # jaw forces not written to ctrl yet
         self._ft_offset: tuple[float, ...] = (0.0,) * 6
@@ -395,7 +402,10 @@ class SimWorld:
         self._periods += 1
         if self._stop is None:
             self.qd_ref = _ZERO6  # feed-forward is valid for one period only
+        self._pressed = False
         self._gripped = self._check_contacts()
+        if self._gripped or self._held_at:
+            self._note_held(self._gripped, self._pressed)
         if self.vacuum is not None:
             self.vacuum.update()
             self._gripped = self._gripped | self.vacuum.held
@@ -457,24 +467,39 @@ class SimWorld:
         pad_hits: dict[int, int] = {}
         robot_parts: list[tuple[int, int]] = []
         suspicious: list[int] = []
+        part_static: list[int] = []
+        pad_parts: list[tuple[int, int]] = []
         for i, (g1, g2) in enumerate(pairs):
             k1, k2 = kind[g1], kind[g2]
             both = k1 | k2
             if not both & (ROBOT | PADS | TOOL):
+                if both == PARTS | STATIC:
+                    part_static.append(i)
                 continue
             if both & STATIC:
                 suspicious.append(i)
             elif both == PADS | PARTS:
                 pad, part = (g1, g2) if k1 == PADS else (g2, g1)
                 pad_hits[part] = pad_hits.get(part, 0) | (1 if pad == self._pad_a else 2)
+                pad_parts.append((i, part))
             elif both == ROBOT | PARTS:
                 robot_parts.append((i, g2 if k2 == PARTS else g1))
         gripped_geoms = {g for g, hits in pad_hits.items() if hits == 3}
         suspicious += [i for i, g in robot_parts if g not in gripped_geoms]
+        # a finger landing on a part it does not hold (judged by force, like the tool);
+        # a held part that loses one pad's contact for a moment is still held
+        held = self._held_at
+        suspicious += [i for i, g in pad_parts if g not in gripped_geoms and self._part_of_geom[g] not in held]
+        # a carried part pushed into a fixture is a contact like the tool's own; the
+        # light touch of setting it down is not (judged each period, so never cached)
+        pressed = [i for i in part_static if pairs[i][0] in gripped_geoms or pairs[i][1] in gripped_geoms]
+        if pressed and self.safety is Safety.NORMAL:
+            self._judge_pressed(pressed, gripped_geoms)
         if suspicious and self.safety is Safety.NORMAL:
             self._judge_contacts(suspicious)
         gripped = frozenset(self._part_of_geom[g] for g in gripped_geoms) if gripped_geoms else _NONE
-        self._clean_pairs, self._clean_gripped = (None, _NONE) if suspicious else (pairs, gripped)
+        self._clean_pairs, self._clean_gripped = (None, _NONE) if suspicious or pressed else (pairs, gripped)
+        self._pressed = bool(pressed)
         return gripped
 
     def _judge_contacts(self, indices: list[int]) -> None:
@@ -489,6 +514,52 @@ class SimWorld:
             g1, g2 = (self.model.geom(int(g)).name for g in self.data.contact.geom[worst_i])
             self.last_contact = ContactEvent(self.time_s, total, (g1, g2))
             self.raise_protective_stop(StopReason.CONTACT)
+
+    def _judge_pressed(self, indices: list[int], gripped_geoms: set[int]) -> None:
+        """A gripped part against a fixture: a protective stop when it is forced back in
+        the jaws by more than ``JAM_SLIDE_M`` since it was last free of fixtures (pushed
+        into the fixture, not set down on it), or pressed harder than ``JAM_FORCE_N``."""
+        force = self._force6
+        total = 0.0
+        for i in indices:
+            self._mj.mj_contactForce(self.model, self.data, i, force)
+            total += abs(force[0])
+        slide = max((self._slide_in_jaws_m(self._part_of_geom[g]) for g in gripped_geoms), default=0.0)
+        if slide > JAM_SLIDE_M or total > JAM_FORCE_N:
+            g1, g2 = (self.model.geom(int(g)).name for g in self.data.contact.geom[indices[0]])
+            self.last_contact = ContactEvent(self.time_s, total, (g1, g2))
+            self.raise_protective_stop(StopReason.CONTACT)
+
+    def _part_in_tcp(self, part: str) -> np.ndarray:
+        """T_tcp_part: the part's pose in the TCP frame."""
+        T_world_tcp = self.tcp_pose_world()
+        R_t = T_world_tcp[:3, :3].T
+        T_world_part = self.part_pose_world(part)
+        T = np.eye(4)
+        T[:3, :3] = R_t @ T_world_part[:3, :3]
+        T[:3, 3] = R_t @ (T_world_part[:3, 3] - T_world_tcp[:3, 3])
+        return T
+
+    def _slide_in_jaws_m(self, part: str) -> float:
+        """How far the part was forced back in the jaws (towards the flange, or sideways)
+        since it was last free of fixtures; sliding out of them (a slip) does not count."""
+        held = self._held_at.get(part)
+        if held is None:
+            return 0.0
+        d = self._part_in_tcp(part)[:3, 3] - held[:3, 3]
+        return max(-float(d[2]), math.hypot(float(d[0]), float(d[1])))
+
+    def _note_held(self, gripped: frozenset[str], pressed: bool) -> None:
+        """Where each gripped part sits in the jaws while no fixture touches it; kept
+        through a period of lost pad contact, handed to the place check once the jaws
+        are commanded open."""
+        if not self._closing:
+            if self._held_at:
+                self._held_last, self._held_at = self._held_at, {}
+            return
+        if gripped and not pressed:
+            for name in gripped:
+                self._held_at[name] = self._part_in_tcp(name)
 
     # -- faults ---------------------------------------------------------------------------
     def _update_faults(self, gripped: set[str]) -> None:
@@ -586,6 +657,8 @@ class SimWorld:
             chans.add(self.description.vacuum.vacuum_ok_input)
         if self.description.tool_changer is not None and self.description.tool_changer.locked_input:
             chans.add(self.description.tool_changer.locked_input)
+        if self._rules is not None:
+            chans |= self._rules.channels()
         if g is not None:
             chans |= {c for c in (g.closed_sensor_input, g.open_sensor_input) if c}
         return chans
@@ -609,7 +682,10 @@ class SimWorld:
             lo = g.sensor_min_gap_m
             hi = g.stroke_m - lo
             if g.closed_sensor_input:
-                self.inputs[g.closed_sensor_input] = bool(self._closing and resting and lo <= gap <= hi)
+                # switches on once the jaws came to rest on something, then reads their
+                # position only: jaws that shake on a held part (a stop, a jerk) stay on
+                on = resting or self.inputs[g.closed_sensor_input]
+                self.inputs[g.closed_sensor_input] = bool(self._closing and on and lo <= gap <= hi)
             if g.open_sensor_input:
                 self.inputs[g.open_sensor_input] = gap >= hi
         if self.vacuum is not None and self.vacuum.vac.vacuum_ok_input:
@@ -621,6 +697,10 @@ class SimWorld:
             h = np.asarray(sensor.half_extents_m)
             self.inputs[sensor.channel] = any(bool(np.all(np.abs(self.data.xpos[b] - c) <= h))
                                               for b in self._ids.part_bodies.values())
+        if self._rules is not None:
+            xpos = self.data.xpos
+            self.inputs.update(self._rules.evaluate(
+                self.time_s, self.outputs, (xpos[b].tolist() for b in self._ids.part_bodies.values())))
 
     def _raw_wrench_base(self) -> list[float]:
         """External wrench on the tool (payload compensated), base axes, torque at flange:
@@ -692,6 +772,24 @@ class SimWorld:
         if fed:
             mujoco.mj_forward(self.model, self.data)
         return fed
+
+    def placed_offset(self, T_world_tcp: np.ndarray) -> tuple[str, float, float] | None:
+        """How far the part released last lies from where a gripper at ``T_world_tcp``
+        holding it as it did (before anything pressed it) puts it: (name, distance m,
+        angle deg); None when no part was released. Released a little above its support,
+        a part falls onto it: up to ``PLACE_DROP_M`` straight down does not count."""
+        found = None
+        for name, T_tcp_part in self._held_last.items():
+            target = T_world_tcp @ T_tcp_part
+            actual = self.part_pose_world(name)
+            d = actual[:3, 3] - target[:3, 3]
+            fall = max(0.0, -float(d[2]) - PLACE_DROP_M) if d[2] < 0 else float(d[2])
+            offset_m = math.hypot(float(d[0]), float(d[1]), fall)
+            cos = (float(np.trace(target[:3, :3].T @ actual[:3, :3])) - 1.0) / 2.0
+            angle_deg = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
+            if found is None or offset_m > found[1]:
+                found = (name, offset_m, angle_deg)
+        return found
 
     def part_pose_world(self, name: str) -> np.ndarray:
         body = self._ids.part_bodies[name]

@@ -1,0 +1,223 @@
+"""Task params (SPEC sections 4 and 11): typed, bounded values a PLC or the CLI supplies.
+
+- ``int`` / ``bool``: as before; ``int`` params index patterns.
+- ``float`` with an optional ``unit`` (``s``, ``m``, ``m/s``, ``deg``, ``N``, or any spelling
+  :mod:`.units` knows): bounds and default are read in that unit and stored canonical (m,
+  s, N, deg, m/s); the param's name may stand wherever a quantity of that kind is read
+  (``wait: dwell``, ``approach: clearance``), see :func:`substitute`.
+- ``pose``: a part's pose from a camera or MES, ``{xyz: [m], rpy: [deg]}`` in the frame
+  that uses it (``at: {frame: infeed, offset: PARAM}``), bounded by a box
+  ``min: [x, y, z, rx, ry, rz]``, ``max: [...]``; ``check`` verifies the box's corners
+  and centre (:meth:`Param.box_values`), its default is the box's centre.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+from typing import Annotated, Any, Literal
+
+from pydantic import Field, model_validator
+from pydantic_core import PydanticCustomError
+
+from cellrunner.model.base import Strict
+from cellrunner.model.units import UNITS, parse_quantity
+
+#: unit spelling -> quantity kind, for float params
+UNIT_KINDS: dict[str, str] = {u: kind for kind in ("time", "length", "speed", "angle", "force")
+                              for u in UNITS[kind][1]}
+POSE_AXES = ("x", "y", "z", "rx", "ry", "rz")
+
+PoseValue = dict  # {"xyz": [m, m, m], "rpy": [deg, deg, deg]}
+
+
+class Param(Strict):
+    type: Literal["int", "float", "bool", "pose"] = "int"
+    """int, float, bool or pose (x y z in m, rx ry rz in deg, in the frame that uses it). Example: `int`"""
+    unit: str | None = None
+    """Float params: the unit of min, max, default and PLC values. Example: `ms`"""
+    min: Any = None
+    """Least value accepted (a pose: six values). Example: `0`"""
+    max: Any = None
+    """Greatest value accepted (a pose: six values). Example: `11`"""
+    default: Any = None
+    """Value when the PLC or CLI gives none (a pose: the box's centre). Example: `0`"""
+    description: str | None = None
+    """What the param means, for people. Example: `pallet slot, row by row`"""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _read_units(cls, data: Any) -> Any:
+        """Bounds and default of a float param with a unit, read in that unit."""
+        if not isinstance(data, dict):
+            return data
+        unit, kind = data.get("unit"), data.get("type", "int")
+        if unit is None:
+            return data
+        if kind != "float":
+            raise PydanticCustomError("param", f"only float params take a unit, not {kind} params")
+        if unit not in UNIT_KINDS:
+            raise PydanticCustomError("param", f"unknown unit {unit!r}; known: {', '.join(UNIT_KINDS)}")
+        out = dict(data)
+        for key in ("min", "max", "default"):
+            v = out.get(key)
+            if v is not None and not isinstance(v, bool):
+                text = v if isinstance(v, str) else f"{v} {unit}"
+                out[key] = parse_quantity(text, UNIT_KINDS[unit])
+        return out
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Param":
+        if self.type == "pose":
+            return self._pose_box()
+        for key in ("min", "max", "default"):
+            v = getattr(self, key)
+            if v is None:
+                continue
+            if self.type == "bool" and key == "default":
+                if not isinstance(v, bool):
+                    raise PydanticCustomError("param", f"default {v!r} is not true or false")
+            elif isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise PydanticCustomError("param", f"{key} {v!r} is not a number")
+            elif self.type == "int" and float(v) != int(v):
+                raise PydanticCustomError("param", f"{key} {v!r} is not an int")
+        if self.min is not None and self.max is not None and self.min > self.max:
+            raise PydanticCustomError("param", f"min {self.min:g} is above max {self.max:g}")
+        d = self.default
+        if d is not None and self.type != "bool" and not isinstance(d, bool):
+            if (self.min is not None and d < self.min) or (self.max is not None and d > self.max):
+                raise PydanticCustomError(
+                    "param", f"default {d:g} is outside [{self.min:g}, {self.max:g}]"
+                    if self.min is not None and self.max is not None else
+                    f"default {d:g} is outside its bounds")
+        return self
+
+    def _pose_box(self) -> "Param":
+        if self.min is None or self.max is None:
+            raise PydanticCustomError("param", "a pose param needs min and max: [x, y, z, rx, ry, rz] "
+                                      "in m and deg")
+        lo, hi = (_six(self.min, "min"), _six(self.max, "max"))
+        for axis, a, b in zip(POSE_AXES, lo, hi):
+            if a > b:
+                raise PydanticCustomError("param", f"min {axis} {a:g} is above max {axis} {b:g}")
+        object.__setattr__(self, "min", lo)
+        object.__setattr__(self, "max", hi)
+        default = self.default
+        if default is None:
+            default = pose_value([(a + b) / 2 for a, b in zip(lo, hi)])
+        object.__setattr__(self, "default", self._pose("default", default))
+        return self
+
+    @property
+    def kind(self) -> str | None:
+        """The quantity kind of a float param with a unit (``time``, ``length``, ...)."""
+        return UNIT_KINDS.get(self.unit) if self.unit else None
+
+    def coerce(self, name: str, value: Any) -> int | float | bool | PoseValue:
+        """``value`` as this param's type, or ValueError naming the bounds. A param's
+        ``unit`` applies to its min, max and default in the task file and to its Modbus
+        register; values given here are SI numbers (s, m, N, deg) or strings with a unit."""
+        if self.type == "pose":
+            try:
+                return self._pose(name, value)
+            except PydanticCustomError as exc:
+                raise ValueError(exc.message()) from None
+        if self.type == "bool":
+            if isinstance(value, bool):
+                return value
+            if isinstance(value, str) and value.lower() in ("true", "false", "1", "0"):
+                return value.lower() in ("true", "1")
+            if isinstance(value, (int, float)) and value in (0, 1):
+                return bool(value)
+            raise ValueError(f"param {name!r} must be true or false, got {value!r}")
+        x = None
+        if isinstance(value, str) and self.kind is not None:
+            try:
+                x = parse_quantity(value, self.kind)
+            except PydanticCustomError as exc:
+                raise ValueError(f"param {name!r}: {exc.message()}") from None
+        elif not isinstance(value, bool):
+            try:
+                x = float(value)
+            except (TypeError, ValueError):
+                x = None
+        if x is None or (self.type == "int" and x != int(x)):
+            raise ValueError(f"param {name!r} must be {'an int' if self.type == 'int' else 'a number'}, got {value!r}")
+        out: int | float = int(x) if self.type == "int" else x
+        if (self.min is not None and out < self.min) or (self.max is not None and out > self.max):
+            lo = "-inf" if self.min is None else f"{self.min:g}"
+            hi = "inf" if self.max is None else f"{self.max:g}"
+            unit = f" {UNITS[self.kind][0]}" if self.kind else ""
+            raise ValueError(f"param {name!r} = {out:g}{unit} is outside [{lo}, {hi}]{unit}")
+        return out
+
+    def _pose(self, name: str, value: Any) -> PoseValue:
+        """A pose value ``{"xyz": [m], "rpy": [deg]}`` (or its JSON text, or six numbers)
+        inside this param's box."""
+        if isinstance(value, str):
+            try:
+                value = json.loads(value)
+            except ValueError:
+                raise PydanticCustomError(
+                    "param", f"param {name!r} must be a pose {{\"xyz\": [x, y, z], \"rpy\": [rx, ry, rz]}} "
+                    f"(m, deg), got {value!r}") from None
+        if isinstance(value, (list, tuple)):
+            six = _six(value, name)
+        elif isinstance(value, dict) and set(value) <= {"xyz", "rpy"}:
+            six = _six([*value.get("xyz", [0, 0, 0]), *value.get("rpy", [0, 0, 0])], name)
+        else:
+            raise PydanticCustomError(
+                "param", f"param {name!r} must be a pose {{\"xyz\": [x, y, z], \"rpy\": [rx, ry, rz]}} "
+                f"(m, deg), got {value!r}")
+        for axis, v, a, b in zip(POSE_AXES, six, self.min, self.max):
+            if not a - 1e-9 <= v <= b + 1e-9:
+                unit = "deg" if axis.startswith("r") else "m"
+                raise PydanticCustomError(
+                    "param", f"param {name!r} {axis} = {v:g} {unit} is outside [{a:g}, {b:g}] {unit}")
+        return pose_value(six)
+
+    def box_values(self) -> list[PoseValue]:
+        """The centre and every corner of a pose param's box (axes that do not vary are
+        not multiplied out): what ``check`` verifies."""
+        axes = [(a, b) if b > a else (a,) for a, b in zip(self.min, self.max)]
+        centre = pose_value([(a + b) / 2 for a, b in zip(self.min, self.max)])
+        return [centre, *(pose_value(list(c)) for c in itertools.product(*axes))]
+
+
+def _six(value: Any, what: str) -> list[float]:
+    if not isinstance(value, (list, tuple)) or len(value) != 6:
+        raise PydanticCustomError("param", f"{what} must be 6 numbers [x, y, z, rx, ry, rz] (m, deg), "
+                                  f"got {value!r}")
+    out = []
+    for axis, v in zip(POSE_AXES, value):
+        kind = "angle" if axis.startswith("r") else "length"
+        out.append(parse_quantity(v, kind))
+    return out
+
+
+def pose_value(six: list[float]) -> PoseValue:
+    return {"xyz": [float(v) for v in six[:3]], "rpy": [float(v) for v in six[3:]]}
+
+
+ParamTable = Annotated[dict[str, Param], Field(default_factory=dict)]
+
+
+def substitute(raw: Any, params: dict[str, Param], values: dict[str, Any]) -> tuple[Any, set[str]]:
+    """``raw`` step arguments with every string that names a float param replaced by its
+    value, written with its unit (``"2.5 s"``) so that the field reading it checks the
+    kind; returns the new arguments and the names used."""
+    used: set[str] = set()
+
+    def walk(v: Any) -> Any:
+        if isinstance(v, str) and v in params and params[v].type == "float":
+            used.add(v)
+            p = params[v]
+            x = values.get(v, p.default)
+            return f"{x!r} {UNITS[p.kind][0]}" if p.kind else x
+        if isinstance(v, dict):
+            return {k: walk(x) for k, x in v.items()}
+        if isinstance(v, list):
+            return [walk(x) for x in v]
+        return v
+
+    return walk(raw), used

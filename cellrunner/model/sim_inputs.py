@@ -1,0 +1,72 @@
+"""The cell's ``sim:`` block (SPEC section 11): how the twin drives inputs in rehearsal
+(``dry-run`` and ``twin``), where on the line a conveyor, a door or a machine would.
+
+```yaml
+sim:
+  inputs:
+    part_present: {part_at: infeed}                  # true while a part lies at the frame
+    door_open: {follows: door_cmd, delay: 1.5}       # the output's value, delay s later
+    cycle_done: {pulse_after: cnc_start, delay: 20, width: 0.5}  # a pulse after the output rose
+```
+
+Names are the cell's IO names; :mod:`cellrunner.model.references`-style checks are in
+:func:`check_sim_block`.
+"""
+
+from __future__ import annotations
+
+from pydantic import Field, model_validator
+from pydantic_core import PydanticCustomError
+
+from cellrunner.model.base import Name, Strict
+from cellrunner.model.units import Duration, PositiveDuration, PositiveLength
+
+
+class InputRule(Strict):
+    """One input's rule: exactly one of ``part_at``, ``follows``, ``pulse_after``."""
+
+    part_at: Name | None = None
+    """True while a part's centre lies within `within` of this frame. Example: `infeed`"""
+    within: PositiveLength = 0.02
+    """How close a part's centre must be to the `part_at` frame, m. Example: `0.02`"""
+    follows: Name | None = None
+    """Takes this output's value `delay` s later. Example: `door_cmd`"""
+    pulse_after: Name | None = None
+    """Pulses `delay` s after this output turns on, for `width` s. Example: `cnc_start`"""
+    delay: Duration = 0.0
+    """Delay of `follows` and `pulse_after`, s. Example: `1.5`"""
+    width: PositiveDuration = 0.5
+    """Pulse width of `pulse_after`, s. Example: `0.5`"""
+    invert: bool = False
+    """Drive the input inverted. Example: `false`"""
+
+    @model_validator(mode="after")
+    def _one_rule(self) -> "InputRule":
+        given = [k for k in ("part_at", "follows", "pulse_after") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise PydanticCustomError(
+                "sim", f"an input rule needs exactly one of part_at, follows, pulse_after; got "
+                f"{', '.join(given) or 'none'}")
+        return self
+
+
+class SimBlock(Strict):
+    inputs: dict[Name, InputRule] = Field(default_factory=dict)
+    """Input names to the rule that drives them in rehearsal. Example: `{part_present: {part_at: infeed}}`"""
+
+
+def check_sim_block(cell, report) -> None:
+    """Report rule inputs, outputs and frames the cell does not know."""
+    from cellrunner.model.load import _unknown, check_io_name
+
+    if cell.sim is None:
+        return
+    for name, rule in cell.sim.inputs.items():
+        base = ("sim", "inputs", name)
+        check_io_name(cell, name, "inputs", base, report, at_key=True)
+        if rule.part_at is not None and rule.part_at not in cell.frames:
+            report.error(base + ("part_at",), _unknown("frame", rule.part_at, cell.frames))
+        for key in ("follows", "pulse_after"):
+            output = getattr(rule, key)
+            if output is not None:
+                check_io_name(cell, output, "outputs", base + (key,), report)

@@ -1,0 +1,39 @@
+"""A carried part pushed into a fixture: `check` refuses it, allowing only the 1 mm
+set-down touch, and the twin never reports OK for it (SPEC section 11)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+
+import pytest
+
+from cellrunner.cli.main import main
+from tests.conftest import DEMO_CELL
+
+PLACE = "task: t\nsteps:\n  - move: home\n  - pick: {{at: infeed}}\n  - place: {{at: pallet, offset: [0, 0, {dz}]}}\n"
+
+
+def cli(*argv: str) -> dict:
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()):
+        main([*argv, "--json"])
+    return json.loads(out.getvalue())
+
+
+@pytest.mark.parametrize("dz", ["0.0035", "0"])  # pressed 0.5 mm onto the table, set 3 mm above it
+def test_a_set_down_touch_is_approved_and_placed(tmp_path, dz):
+    task = tmp_path / "t.yaml"
+    task.write_text(PLACE.format(dz=dz))
+    assert cli("check", str(DEMO_CELL), str(task), "--no-cache")["ok"]
+    assert cli("dry-run", str(DEMO_CELL), str(task))["result_code"] == 0
+
+
+def test_a_part_pushed_into_the_table_is_refused_by_check(tmp_path):
+    task = tmp_path / "t.yaml"
+    task.write_text(PLACE.format(dz="0.02"))  # the pallet frame's Z points down: 17 mm into the table
+    out = cli("check", str(DEMO_CELL), str(task), "--no-cache")
+    assert out["errors"] == [
+        "step 7 descend 'pallet': at its end the part 'block' would be 17.0 mm inside fixture 'table' (setting a "
+        "part down may press 1 mm at most); move the target up by 16.0 mm or more"]
