@@ -17,6 +17,7 @@ then::
 from __future__ import annotations
 
 import asyncio
+import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import Future
@@ -77,6 +78,7 @@ class _ServerThread:
             self._thread = None
 
     def _run(self, started: Future[None]) -> None:
+        _raise_thread_priority()
         try:
             asyncio.run(self._serve(started))
         except BaseException as exc:  # noqa: BLE001 - reported through the future
@@ -202,3 +204,18 @@ def _translate(exc: BaseException) -> BaseException:
     if isinstance(exc, CellrunnerError):
         return exc
     return CellrunnerError(f"PLC servers failed to start: {type(exc).__name__}: {exc}")
+
+
+#: nice value a PLC server thread asks for: the link's heartbeat must keep beating while
+#: planning and the control loop load the cores
+PLC_THREAD_NICE = -10
+
+
+def _raise_thread_priority() -> bool:
+    """Run the calling (PLC server) thread at :data:`PLC_THREAD_NICE`; False where the OS
+    does not allow it (no CAP_SYS_NICE, not Linux), which leaves the default priority."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), PLC_THREAD_NICE)
+        return True
+    except (AttributeError, OSError):
+        return False
