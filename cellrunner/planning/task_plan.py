@@ -427,6 +427,10 @@ def _corner_arc(kin, a: _Motion, b: _Motion, shrink: float):
         k = inside[0] if from_end else inside[-1]  # the farthest sample within the radius
         return int(k) if 0 < k < len(line_q) - 1 else None
 
+    def rounded(start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """The quadratic Bezier arc from ``start`` through the corner's pull to ``end``."""
+        return (1 - t) ** 2 * start + 2 * (1 - t) * t * corner + t**2 * end
+
     def along(edge_from: np.ndarray, edge_to: np.ndarray, distance: float) -> np.ndarray:
         edge = edge_to - edge_from
         length = float(np.linalg.norm(edge))
@@ -440,7 +444,7 @@ def _corner_arc(kin, a: _Motion, b: _Motion, shrink: float):
             return None
         start = a.waypoints[k]
         end = along(corner, b.waypoints[1], float(np.linalg.norm(corner - start)))
-        arc = (1 - t) ** 2 * start + 2 * (1 - t) * t * corner + t**2 * end
+        arc = rounded(start, end)
         return a.waypoints[:k + 1], np.vstack([arc, b.waypoints[1:]]), arc
     if b.line_m is not None:  # joint -> straight
         if len(a.waypoints) < 2:
@@ -450,14 +454,14 @@ def _corner_arc(kin, a: _Motion, b: _Motion, shrink: float):
             return None
         end = b.waypoints[k]
         start = along(corner, a.waypoints[-2], float(np.linalg.norm(end - corner)))
-        arc = (1 - t) ** 2 * start + 2 * (1 - t) * t * corner + t**2 * end
+        arc = rounded(start, end)
         return np.vstack([a.waypoints[:-1], arc]), b.waypoints[k:], arc
     if len(a.waypoints) < 2 or len(b.waypoints) < 2:  # joint -> joint
         return None
     f = CORNER_FRACTION * shrink
     start = along(corner, a.waypoints[-2], f * float(np.linalg.norm(a.waypoints[-2] - corner)))
     end = along(corner, b.waypoints[1], f * float(np.linalg.norm(b.waypoints[1] - corner)))
-    arc = (1 - t) ** 2 * start + 2 * (1 - t) * t * corner + t**2 * end
+    arc = rounded(start, end)
     return np.vstack([a.waypoints[:-1], arc]), np.vstack([arc[-1:], b.waypoints[1:]]), arc
 
 
