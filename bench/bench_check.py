@@ -39,13 +39,17 @@ def _env() -> dict[str, str]:
     run compile the whole package from source (0.2 s more per run, measured)."""
     env = dict(os.environ)
     env.pop("PYTHONDONTWRITEBYTECODE", None)
-    env["PYTHONPATH"] = str(REPO) + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    env["PYTHONPATH"] = str(REPO) + (
+        os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else ""
+    )
     return env
 
 
 def timed(args: list[str]) -> tuple[float, subprocess.CompletedProcess]:
     t = time.perf_counter()
-    done = subprocess.run([sys.executable, *args], cwd=REPO, env=_env(), capture_output=True, text=True)
+    done = subprocess.run(
+        [sys.executable, *args], cwd=REPO, env=_env(), capture_output=True, text=True
+    )
     return time.perf_counter() - t, done
 
 
@@ -72,12 +76,29 @@ def run(cold_runs: int = 3, warm_runs: int = 5, verbose: bool = True) -> dict:
             print(f"  warm  {t:6.2f} s", flush=True)
     bare = statistics.median(timed(["-c", "pass"])[0] for _ in range(3))
     imports = statistics.median(
-        timed(["-c", "import cellrunner.cli.main, cellrunner.cli.cmd_check, cellrunner.cli.common, "
-                     "cellrunner.planning.cache, cellrunner.planning.collision"])[0] for _ in range(3))
-    validate = statistics.median(timed(["-m", "cellrunner.cli.main", "validate", CELL])[0] for _ in range(warm_runs))
-    return {"cold_s": statistics.median(cold), "warm_s": statistics.median(warm), "cold_runs": cold_runs,
-            "warm_runs": warm_runs, "interpreter_s": bare, "imports_s": imports, "cycle_time_s": cycle,
-            "validate_s": validate, "reverify_ms_per_step": reverify_ms_per_step()}
+        timed(
+            [
+                "-c",
+                "import cellrunner.cli.main, cellrunner.cli.cmd_check, cellrunner.cli.common, "
+                "cellrunner.planning.cache, cellrunner.planning.collision",
+            ]
+        )[0]
+        for _ in range(3)
+    )
+    validate = statistics.median(
+        timed(["-m", "cellrunner.cli.main", "validate", CELL])[0] for _ in range(warm_runs)
+    )
+    return {
+        "cold_s": statistics.median(cold),
+        "warm_s": statistics.median(warm),
+        "cold_runs": cold_runs,
+        "warm_runs": warm_runs,
+        "interpreter_s": bare,
+        "imports_s": imports,
+        "cycle_time_s": cycle,
+        "validate_s": validate,
+        "reverify_ms_per_step": reverify_ms_per_step(),
+    }
 
 
 def reverify_ms_per_step(runs: int = 5) -> float:
@@ -99,6 +120,7 @@ def reverify_ms_per_step(runs: int = 5) -> float:
     per_step = []
     for _ in range(runs):
         from cellrunner.planning import cache
+
         cache._MEMORY.clear()
         plan = plan_cached(world, task, params, world.q_home_rad)
         steps = [s for s in plan.steps if s.is_motion]
@@ -121,9 +143,12 @@ def summary_lines(r: dict) -> list[str]:
 
 
 def targets(r: dict) -> list[tuple[str, bool]]:
-    return [("cold check <= 1.5 s", r["cold_s"] <= 1.5), ("warm check <= 0.3 s", r["warm_s"] <= 0.3),
-            ("validate <= 0.25 s", r["validate_s"] <= 0.25),
-            ("re-verify <= 1 ms/step", r["reverify_ms_per_step"] <= 1.0)]
+    return [
+        ("cold check <= 1.5 s", r["cold_s"] <= 1.5),
+        ("warm check <= 0.3 s", r["warm_s"] <= 0.3),
+        ("validate <= 0.25 s", r["validate_s"] <= 0.25),
+        ("re-verify <= 1 ms/step", r["reverify_ms_per_step"] <= 1.0),
+    ]
 
 
 def main(argv: list[str] | None = None) -> int:

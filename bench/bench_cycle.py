@@ -50,7 +50,11 @@ def jobs(cell_arg: str | None = None, task_arg: str | None = None) -> list[tuple
 
     if cell_arg and task_arg:
         return [(cell_arg, task_arg)]
-    cells = [cell_arg] if cell_arg else sorted(str(p.relative_to(REPO)) for p in (REPO / "cells").glob("*.yaml"))
+    cells = (
+        [cell_arg]
+        if cell_arg
+        else sorted(str(p.relative_to(REPO)) for p in (REPO / "cells").glob("*.yaml"))
+    )
     out = []
     for cell_path in cells:
         with contextlib.redirect_stderr(io.StringIO()):
@@ -101,10 +105,17 @@ def polyscope_program(world, plan, taught) -> tuple[list, list[float], list[floa
         if step.kind in LINEAR_KINDS:
             parts = [polyscope.movel(kin, waypoints, limits, rate)]
         else:
-            parts = [polyscope.movej(kin, a, b, limits, rate) for a, b in zip(waypoints[:-1], waypoints[1:])]
+            parts = [
+                polyscope.movej(kin, a, b, limits, rate)
+                for a, b in zip(waypoints[:-1], waypoints[1:])
+            ]
         parts = [m for m in parts if m.duration_s > 0]
-        weighed = step.kind == "lift" and i > 0 and rows[i - 1].step.kind == "grip" \
+        weighed = (
+            step.kind == "lift"
+            and i > 0
+            and rows[i - 1].step.kind == "grip"
             and getattr(rows[i - 1].step.args, "force", None) is not None
+        )
         for k, move in enumerate(parts):
             moves.append(move)
             labels.append(step.label)
@@ -113,8 +124,10 @@ def polyscope_program(world, plan, taught) -> tuple[list, list[float], list[floa
             stops_after.append(last and weighed)
     if stops_after:
         stops_after[-1] = True
-    radii = [polyscope.blend_radius(m, n, stop=s, via=v)
-             for m, n, s, v in zip(moves[:-1], moves[1:], stops_after[:-1], vias[:-1])]
+    radii = [
+        polyscope.blend_radius(m, n, stop=s, via=v)
+        for m, n, s, v in zip(moves[:-1], moves[1:], stops_after[:-1], vias[:-1])
+    ]
     return moves, radii, fixed, labels
 
 
@@ -139,6 +152,7 @@ def optimal_bound_s(world, plan) -> float:
 
 def _limits_of(world, row):
     from cellrunner.planning.task_plan import _StepPlanner
+
     return _StepPlanner(world, row.trajectory.q_rad[0], None).limits_for(row.step)
 
 
@@ -158,7 +172,9 @@ def run(cell_path: str, task_path: str, verbose: bool = True) -> dict:
     plan_s = time.perf_counter() - t
     if not plan.ok:
         raise SystemExit(f"{cell_path} {task_path}: the task is infeasible: {plan.errors}")
-    moves, radii, fixed, labels = polyscope_program(world, plan, taught_waypoints(world, steps, world.q_home_rad))
+    moves, radii, fixed, labels = polyscope_program(
+        world, plan, taught_waypoints(world, steps, world.q_home_rad)
+    )
     rate = world.spec.rate_hz
     blended, saved = polyscope.program_time_s(moves, radii, rate)
     stopping, _ = polyscope.program_time_s(moves, [0.0] * len(radii), rate)
@@ -169,14 +185,26 @@ def run(cell_path: str, task_path: str, verbose: bool = True) -> dict:
     if verbose:
         print(f"  {cell_path} {Path(task_path).name} {params}: PolyScope program")
         for move, label, r, s in zip(moves, labels, [*radii, 0.0], [*saved, 0.0]):
-            print(f"    {move.kind} {label[:40]:40s} {move.duration_s:6.2f} s   blend {r * 1000:5.0f} mm saves {s:5.2f} s")
+            print(
+                f"    {move.kind} {label[:40]:40s} {move.duration_s:6.2f} s   blend {r * 1000:5.0f} mm saves {s:5.2f} s"
+            )
         for row in plan.rows:
             if row.step.is_motion:
                 print(f"    cellrunner {row.step.label[:40]:40s} {row.duration_s:6.2f} s")
-    return {"cell": cell_path, "task": task_path, "params": params, "ours_s": ours, "blended_s": blended,
-            "stopping_s": stopping, "bound_s": bound, "plan_s": plan_s, "motion": bool(moves),
-            "ratio_blended": ours / blended if moves else 1.0, "ratio_stopping": ours / stopping if moves else 1.0,
-            "ratio_bound": ours / bound if bound > 0 else 1.0}
+    return {
+        "cell": cell_path,
+        "task": task_path,
+        "params": params,
+        "ours_s": ours,
+        "blended_s": blended,
+        "stopping_s": stopping,
+        "bound_s": bound,
+        "plan_s": plan_s,
+        "motion": bool(moves),
+        "ratio_blended": ours / blended if moves else 1.0,
+        "ratio_stopping": ours / stopping if moves else 1.0,
+        "ratio_bound": ours / bound if bound > 0 else 1.0,
+    }
 
 
 def run_all(cell: str | None = None, task: str | None = None, verbose: bool = True) -> list[dict]:
@@ -189,15 +217,19 @@ def run_all(cell: str | None = None, task: str | None = None, verbose: bool = Tr
         try:
             results.append(run(c, t, verbose))
         except (CellrunnerError, SystemExit) as exc:
-            results.append({"cell": c, "task": t, "skipped": str(exc) or type(exc).__name__, "motion": False})
+            results.append(
+                {"cell": c, "task": t, "skipped": str(exc) or type(exc).__name__, "motion": False}
+            )
     return results
 
 
 def summary_lines(results: list[dict]) -> list[str]:
-    lines = [f"cycle time, same limits (targets: <= {TARGET_BLENDED}x blended, <= {TARGET_STOPPING}x stopping, "
-             f"<= {TARGET_BOUND}x bound)",
-             f"  {'cell / task':44s} {'cellrunner':>10s} {'PS blend':>9s} {'ratio':>6s} {'PS stop':>8s} {'ratio':>6s} "
-             f"{'bound':>7s} {'ratio':>6s}"]
+    lines = [
+        f"cycle time, same limits (targets: <= {TARGET_BLENDED}x blended, <= {TARGET_STOPPING}x stopping, "
+        f"<= {TARGET_BOUND}x bound)",
+        f"  {'cell / task':44s} {'cellrunner':>10s} {'PS blend':>9s} {'ratio':>6s} {'PS stop':>8s} {'ratio':>6s} "
+        f"{'bound':>7s} {'ratio':>6s}",
+    ]
     for r in results:
         name = f"{Path(r['cell']).stem} / {Path(r['task']).stem}"
         if "skipped" in r:
@@ -206,8 +238,10 @@ def summary_lines(results: list[dict]) -> list[str]:
         if not r["motion"]:
             lines.append(f"  {name:44s} {r['ours_s']:9.2f}s   (no motion)")
             continue
-        lines.append(f"  {name:44s} {r['ours_s']:9.2f}s {r['blended_s']:8.2f}s {r['ratio_blended']:5.2f}x "
-                     f"{r['stopping_s']:7.2f}s {r['ratio_stopping']:5.2f}x {r['bound_s']:6.2f}s {r['ratio_bound']:5.3f}x")
+        lines.append(
+            f"  {name:44s} {r['ours_s']:9.2f}s {r['blended_s']:8.2f}s {r['ratio_blended']:5.2f}x "
+            f"{r['stopping_s']:7.2f}s {r['ratio_stopping']:5.2f}x {r['bound_s']:6.2f}s {r['ratio_bound']:5.3f}x"
+        )
     return lines
 
 
@@ -215,9 +249,18 @@ def targets(results: list[dict]) -> list[tuple[str, bool]]:
     moving = [r for r in results if r["motion"]]
     return [
         ("cycle: every reference job timed", all("skipped" not in r for r in results)),
-        (f"cycle <= {TARGET_BLENDED}x PolyScope blended", all(r["ratio_blended"] <= TARGET_BLENDED for r in moving)),
-        (f"cycle <= {TARGET_STOPPING}x PolyScope stopping", all(r["ratio_stopping"] <= TARGET_STOPPING for r in moving)),
-        (f"cycle <= {TARGET_BOUND}x time-optimal bound", all(r["ratio_bound"] <= TARGET_BOUND for r in moving)),
+        (
+            f"cycle <= {TARGET_BLENDED}x PolyScope blended",
+            all(r["ratio_blended"] <= TARGET_BLENDED for r in moving),
+        ),
+        (
+            f"cycle <= {TARGET_STOPPING}x PolyScope stopping",
+            all(r["ratio_stopping"] <= TARGET_STOPPING for r in moving),
+        ),
+        (
+            f"cycle <= {TARGET_BOUND}x time-optimal bound",
+            all(r["ratio_bound"] <= TARGET_BOUND for r in moving),
+        ),
     ]
 
 

@@ -27,21 +27,24 @@ from cellrunner.backends.sim.backend import SimBackend  # noqa: E402
 from cellrunner.backends.sim.from_cell import description_of  # noqa: E402
 from cellrunner.execution.cell import CellController  # noqa: E402
 from cellrunner.execution.journal import Journal  # noqa: E402
+from cellrunner.execution.loop import ControlLoop  # noqa: E402
 from cellrunner.execution.planner import job_planner  # noqa: E402
 from cellrunner.model.load import load_cell, load_task  # noqa: E402
 from cellrunner.planning.world import CellWorld  # noqa: E402
-from cellrunner.execution.loop import ControlLoop  # noqa: E402
 
-CASES = [("demo UR5e pick/place slot 0", "cells/demo_ur5e.yaml", "tasks/pick_place.yaml", {"slot": 0}),
-         ("demo UR5e pick/place slot 11", "cells/demo_ur5e.yaml", "tasks/pick_place.yaml", {"slot": 11})]
+CASES = [
+    ("demo UR5e pick/place slot 0", "cells/demo_ur5e.yaml", "tasks/pick_place.yaml", {"slot": 0}),
+    ("demo UR5e pick/place slot 11", "cells/demo_ur5e.yaml", "tasks/pick_place.yaml", {"slot": 11}),
+]
 
 
 def engine_run(cell, task, params) -> tuple[float, float, float, float]:
     """(simulated s, wall s of the loop, planned cycle s, simulated cycle s)."""
     world = CellWorld(cell)
     backend = SimBackend(description_of(cell))
-    controller = CellController(cell, {1: task}, backend, Journal(":memory:"), job_planner(world),
-                                wait_for_unhold=False)
+    controller = CellController(
+        cell, {1: task}, backend, Journal(":memory:"), job_planner(world), wait_for_unhold=False
+    )
     controller.setup()
     loop = ControlLoop(controller)
     loop.step(3)
@@ -62,6 +65,7 @@ def engine_run(cell, task, params) -> tuple[float, float, float, float]:
 def raw_stream(cell, task, params) -> tuple[float, float]:
     """The peer: the same trajectories streamed with no engine at all."""
     from cellrunner.planning.cache import plan_cached
+
     world = CellWorld(cell)
     plan = plan_cached(world, task, params, world.q_home_rad)
     backend = SimBackend(description_of(cell))
@@ -80,6 +84,7 @@ def raw_mj_step(cell, sim_s: float) -> float:
     """Real-time factor of mujoco.mj_step alone on the twin's own compiled model (the
     arm at rest at home), for ``sim_s`` of simulated time."""
     import mujoco
+
     backend = SimBackend(description_of(cell))
     backend.connect()
     world = backend.world
@@ -97,8 +102,10 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=5)
     args = ap.parse_args()
-    print(f"{'case':32s} {'engine RTF':>11s} {'stream RTF':>10s} {'mj_step RTF':>11s} {'engine/mj_step':>14s} "
-          f"{'planned s':>10s} {'simulated s':>12s} {'diff %':>7s}")
+    print(
+        f"{'case':32s} {'engine RTF':>11s} {'stream RTF':>10s} {'mj_step RTF':>11s} {'engine/mj_step':>14s} "
+        f"{'planned s':>10s} {'simulated s':>12s} {'diff %':>7s}"
+    )
     worst_rtf, worst_diff = float("inf"), 0.0
     for name, cell_path, task_path, params in CASES:
         cell = load_cell(ROOT / cell_path)
@@ -115,10 +122,14 @@ def main() -> int:
         e, r, d = statistics.median(engine), statistics.median(raw), statistics.median(diffs)
         p = statistics.median(physics)
         worst_rtf, worst_diff = min(worst_rtf, e / p), max(worst_diff, d)
-        print(f"{name:32s} {e:10.1f}x {r:9.1f}x {p:10.1f}x {e / p:13.2f}x {planned:10.2f} {simulated:12.2f} {d:7.2f}")
-    print(f"\nmedians of {args.runs} runs; targets: engine >= 0.8x raw mj_step (worst {worst_rtf:.2f}x: "
-          f"{'met' if worst_rtf >= 0.8 else 'missed'}), cycle difference < 2 % (worst {worst_diff:.2f} %: "
-          f"{'met' if worst_diff < 2 else 'missed'})")
+        print(
+            f"{name:32s} {e:10.1f}x {r:9.1f}x {p:10.1f}x {e / p:13.2f}x {planned:10.2f} {simulated:12.2f} {d:7.2f}"
+        )
+    print(
+        f"\nmedians of {args.runs} runs; targets: engine >= 0.8x raw mj_step (worst {worst_rtf:.2f}x: "
+        f"{'met' if worst_rtf >= 0.8 else 'missed'}), cycle difference < 2 % (worst {worst_diff:.2f} %: "
+        f"{'met' if worst_diff < 2 else 'missed'})"
+    )
     return 0
 
 

@@ -75,8 +75,10 @@ def main() -> int:
         for backend, series in results.items():
             values = series[path]
             ratio = statistics.median(values) / base if base else float("nan")
-            print(f"{path:<16}{backend:<12}{pct(values, 0.5):8.3f}{pct(values, 0.99):8.3f}{max(values) * 1e3:8.2f}"
-                  f"{ratio:15.2f}")
+            print(
+                f"{path:<16}{backend:<12}{pct(values, 0.5):8.3f}{pct(values, 0.99):8.3f}{max(values) * 1e3:8.2f}"
+                f"{ratio:15.2f}"
+            )
     return 0
 
 

@@ -95,8 +95,11 @@ def pyroboplan_runner():
 
     def run(kin, world, q0, q1):
         options = RRTPlannerOptions(
-            rrt_connect=True, bidirectional_rrt=True, rng_seed=SEED,
-            collision_distance_padding=CLEARANCE_M, max_planning_time=10.0,
+            rrt_connect=True,
+            bidirectional_rrt=True,
+            rng_seed=SEED,
+            collision_distance_padding=CLEARANCE_M,
+            max_planning_time=10.0,
         )
         planner = RRTPlanner(kin.model, world.pinocchio_geometry, options)
         with contextlib.redirect_stdout(io.StringIO()):  # it prints progress
@@ -142,15 +145,32 @@ def run(reps: int = 3, verbose: bool = True) -> dict:
                 base_times.append(b_t)
                 if s_t is not None:
                     short_times.append(s_t)
-        row = Row(name, statistics.median(times), ok, how if ok else "FAIL",
-                  statistics.median(base_times) if base_times else None, base_ok,
-                  statistics.median(short_times) if short_times else None)
+        row = Row(
+            name,
+            statistics.median(times),
+            ok,
+            how if ok else "FAIL",
+            statistics.median(base_times) if base_times else None,
+            base_ok,
+            statistics.median(short_times) if short_times else None,
+        )
         rows.append(row)
         if verbose:
-            base = "" if row.base_s is None else (
-                f"{row.base_s * 1000:9.1f} ms {'ok' if row.base_ok else 'FAIL'}"
-                + ("" if row.base_shortcut_s is None else f"  +shortcut {row.base_shortcut_s * 1000:7.1f} ms"))
-            print(f"  {name:30s} {row.ours_how:10s} {row.ours_s * 1000:7.1f} ms   {base}", flush=True)
+            base = (
+                ""
+                if row.base_s is None
+                else (
+                    f"{row.base_s * 1000:9.1f} ms {'ok' if row.base_ok else 'FAIL'}"
+                    + (
+                        ""
+                        if row.base_shortcut_s is None
+                        else f"  +shortcut {row.base_shortcut_s * 1000:7.1f} ms"
+                    )
+                )
+            )
+            print(
+                f"  {name:30s} {row.ours_how:10s} {row.ours_s * 1000:7.1f} ms   {base}", flush=True
+            )
     ours_t = [r.ours_s for r in rows]
     result = {
         "problems": len(rows),

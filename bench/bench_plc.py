@@ -67,7 +67,11 @@ def plc_main(host: str, port: int, jobs: int, tasks: list[list[int]], job_timeou
 
     def write(addr: int, values: list[int]) -> None:
         with lock:
-            rr = client.write_registers(addr, values) if len(values) > 1 else client.write_register(addr, values[0])
+            rr = (
+                client.write_registers(addr, values)
+                if len(values) > 1
+                else client.write_register(addr, values[0])
+            )
         if rr.isError():
             raise RuntimeError(f"write {addr} failed: {rr}")
 
@@ -122,9 +126,12 @@ def plc_main(host: str, port: int, jobs: int, tasks: list[list[int]], job_timeou
             else:
                 record.update(
                     outcome="done" if end[1] & DONE else "error",
-                    result_job_id=end[4], code=end[5], retries=end[7],
+                    result_job_id=end[4],
+                    code=end[5],
+                    retries=end[7],
                     cycle_ms=(end[8] << 16) | end[9],
-                    processed=(end[10] << 16) | end[11], defective=(end[12] << 16) | end[13],
+                    processed=(end[10] << 16) | end[11],
+                    defective=(end[12] << 16) | end[13],
                 )
         write(1, [0])
         wait(lambda r: not r[1] & (ACK | DONE | ERROR | REJECTED), 5.0)
@@ -178,7 +185,9 @@ def reconcile(observed: list[dict[str, Any]], cell_results: list[Any]) -> dict[s
         elif o.get("outcome") == "no_end":
             issues.append(f"job {key}: the PLC never saw DONE/ERROR")
         elif cell_code[key] != o["code"] or o["result_job_id"] != o["plc_job_id"]:
-            issues.append(f"job {key}: PLC saw {o['result_job_id']}/{o['code']}, cell recorded {cell_code[key]}")
+            issues.append(
+                f"job {key}: PLC saw {o['result_job_id']}/{o['code']}, cell recorded {cell_code[key]}"
+            )
         if o.get("echo") != o["plc_job_id"]:
             issues.append(f"job {key}: echo {o.get('echo')}")
     seen = {str(o["plc_job_id"]) for o in accepted}
@@ -188,7 +197,9 @@ def reconcile(observed: list[dict[str, Any]], cell_results: list[Any]) -> dict[s
     return {"accepted": len(accepted), "cell_results": len(cell_results), "issues": issues}
 
 
-def run_bench(port: Any, jobs: int, tasks: list[list[int]], job_timeout_s: float = 60.0) -> dict[str, Any]:
+def run_bench(
+    port: Any, jobs: int, tasks: list[list[int]], job_timeout_s: float = 60.0
+) -> dict[str, Any]:
     """Soak ``port`` (a CellPort, already started) over Modbus; returns the report."""
     from cellrunner.plc.service import PlcService
 
@@ -201,15 +212,25 @@ def run_bench(port: Any, jobs: int, tasks: list[list[int]], job_timeout_s: float
                 results.append(result)
 
     remove = port.add_result_listener(on_result)
-    service = PlcService(port, {"modbus": {"bind": "127.0.0.1", "port": 0, "heartbeat_timeout": 1.5}})
+    service = PlcService(
+        port, {"modbus": {"bind": "127.0.0.1", "port": 0, "heartbeat_timeout": 1.5}}
+    )
     service.start()
     host, mb_port = service.modbus_address or ("127.0.0.1", 0)
     observed: list[dict[str, Any]] = []
     rss_mib: dict[int, float] = {}
     elapsed = float("nan")
     try:
-        cmd = [sys.executable, __file__, "--plc-client", host, str(mb_port), str(jobs),
-               json.dumps(tasks), str(job_timeout_s)]
+        cmd = [
+            sys.executable,
+            __file__,
+            "--plc-client",
+            host,
+            str(mb_port),
+            str(jobs),
+            json.dumps(tasks),
+            str(job_timeout_s),
+        ]
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
         assert proc.stdout is not None
         for line in proc.stdout:
@@ -238,7 +259,9 @@ def run_bench(port: Any, jobs: int, tasks: list[list[int]], job_timeout_s: float
     return {
         "jobs": len(observed),
         "elapsed_s": elapsed,
-        "jobs_per_hour": len(observed) / elapsed * 3600 if elapsed and elapsed == elapsed else float("nan"),
+        "jobs_per_hour": len(observed) / elapsed * 3600
+        if elapsed and elapsed == elapsed
+        else float("nan"),
         "ack_latency_ms": {
             "p50": percentile(latencies, 50) * 1000,
             "p99": percentile(latencies, 99) * 1000,
@@ -275,10 +298,16 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--jobs", type=int, default=200)
-    ap.add_argument("--fault-rate", type=float, default=0.1, help="FakeCell: share of jobs ending non-OK")
-    ap.add_argument("--estop-rate", type=float, default=0.02, help="FakeCell: e-stop chance per 50 ms of a job")
+    ap.add_argument(
+        "--fault-rate", type=float, default=0.1, help="FakeCell: share of jobs ending non-OK"
+    )
+    ap.add_argument(
+        "--estop-rate", type=float, default=0.02, help="FakeCell: e-stop chance per 50 ms of a job"
+    )
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--tasks", default="[[1, 0], [1, 5], [1, 11], [2]]", help="JSON list of [task, params...]")
+    ap.add_argument(
+        "--tasks", default="[[1, 0], [1, 5], [1, 11], [2]]", help="JSON list of [task, params...]"
+    )
     ap.add_argument("--cell", help="module:factory returning a CellPort (default FakeCell)")
     ap.add_argument("--job-timeout", type=float, default=60.0)
     ap.add_argument("--json", type=Path, help="also write the report here")
@@ -292,7 +321,9 @@ def main(argv: list[str] | None = None) -> int:
     if hasattr(cell, "start"):
         cell.start()
     if args.cell is None and args.estop_rate > 0:
-        threading.Thread(target=estop_injector, args=(cell, args.estop_rate, args.seed, stop), daemon=True).start()
+        threading.Thread(
+            target=estop_injector, args=(cell, args.estop_rate, args.seed, stop), daemon=True
+        ).start()
     try:
         report = run_bench(cell, args.jobs, json.loads(args.tasks), args.job_timeout)
     finally:
@@ -301,19 +332,29 @@ def main(argv: list[str] | None = None) -> int:
             cell.close()
     lat = report["ack_latency_ms"]
     rec = report["reconciliation"]
-    print(f"jobs: {report['jobs']} in {report['elapsed_s']:.1f} s  ->  {report['jobs_per_hour']:.0f} jobs/hour")
-    print(f"trigger->ACK latency: p50 {lat['p50']:.2f} ms, p99 {lat['p99']:.2f} ms, max {lat['max']:.2f} ms"
-          f"  (target p99 < 50 ms: {'met' if lat['p99'] < 50 else 'MISSED'})")
+    print(
+        f"jobs: {report['jobs']} in {report['elapsed_s']:.1f} s  ->  {report['jobs_per_hour']:.0f} jobs/hour"
+    )
+    print(
+        f"trigger->ACK latency: p50 {lat['p50']:.2f} ms, p99 {lat['p99']:.2f} ms, max {lat['max']:.2f} ms"
+        f"  (target p99 < 50 ms: {'met' if lat['p99'] < 50 else 'MISSED'})"
+    )
     print(f"outcomes: {report['outcomes']}  result codes: {report['result_codes']}")
     rss = report["rss_mib"]
     if RSS_BASELINE_JOBS in rss and len(rss) > 1:
         end = max(rss)
         growth = rss[end] / rss[RSS_BASELINE_JOBS] - 1
-        print(f"resident memory: {rss[RSS_BASELINE_JOBS]:.0f} MiB after {RSS_BASELINE_JOBS} jobs, {rss[end]:.0f} MiB "
-              f"after {end}: {growth * 100:+.1f} % (target within 10 % over 500 jobs: "
-              f"{'met' if abs(growth) <= 0.10 and end >= 500 else 'met so far' if abs(growth) <= 0.10 else 'MISSED'})")
-    verdict = "OK - no result lost or duplicated" if not rec["issues"] else f"{len(rec['issues'])} ISSUES"
-    print(f"reconciliation: PLC saw {rec['accepted']} accepted jobs, cell recorded {rec['cell_results']}: {verdict}")
+        print(
+            f"resident memory: {rss[RSS_BASELINE_JOBS]:.0f} MiB after {RSS_BASELINE_JOBS} jobs, {rss[end]:.0f} MiB "
+            f"after {end}: {growth * 100:+.1f} % (target within 10 % over 500 jobs: "
+            f"{'met' if abs(growth) <= 0.10 and end >= 500 else 'met so far' if abs(growth) <= 0.10 else 'MISSED'})"
+        )
+    verdict = (
+        "OK - no result lost or duplicated" if not rec["issues"] else f"{len(rec['issues'])} ISSUES"
+    )
+    print(
+        f"reconciliation: PLC saw {rec['accepted']} accepted jobs, cell recorded {rec['cell_results']}: {verdict}"
+    )
     for issue in rec["issues"][:20]:
         print(f"  {issue}")
     if args.json:

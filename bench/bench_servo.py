@@ -35,8 +35,12 @@ def fault(host: str, command: str) -> str:
 
 
 def start_twin(model: str, host: str) -> subprocess.Popen:
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.getcwd(), os.environ.get("PYTHONPATH", "")]))
-    proc = subprocess.Popen([sys.executable, "-m", "cellrunner.twin", model, "--host", host], env=env)
+    env = dict(
+        os.environ, PYTHONPATH=os.pathsep.join([os.getcwd(), os.environ.get("PYTHONPATH", "")])
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cellrunner.twin", model, "--host", host], env=env
+    )
     deadline = time.monotonic() + 15
     while time.monotonic() < deadline:
         try:
@@ -117,7 +121,9 @@ def bench(host: str, seconds: float, rate_hz: float) -> dict[str, list[float] | 
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--model", default="ur5e")
     parser.add_argument("--host", default="127.0.9.2")
     parser.add_argument("--seconds", type=float, default=5.0)
@@ -133,19 +139,43 @@ def main() -> int:
     ms = 1e3
     twin_t = r["twin"]
     rows = [
-        ("client period (ms)", pct(r["client_periods"], 50) * ms, pct(r["client_periods"], 99) * ms,
-         max(r["client_periods"]) * ms),
-        ("client jitter |dt-T| (ms)", pct(r["client_jitter"], 50) * ms, pct(r["client_jitter"], 99) * ms,
-         max(r["client_jitter"]) * ms),
-        ("twin loop jitter (ms)", twin_t["jitter_p50_s"] * ms, twin_t["jitter_p99_s"] * ms, twin_t["jitter_max_s"] * ms),
-        ("tracking error (mrad)", pct(r["errors"], 50) * 1e3, pct(r["errors"], 99) * 1e3, max(r["errors"]) * 1e3),
-        ("cmd-to-motion latency (ms)", pct(r["latencies"], 50) * ms, pct(r["latencies"], 99) * ms,
-         max(r["latencies"] or [float("nan")]) * ms),
+        (
+            "client period (ms)",
+            pct(r["client_periods"], 50) * ms,
+            pct(r["client_periods"], 99) * ms,
+            max(r["client_periods"]) * ms,
+        ),
+        (
+            "client jitter |dt-T| (ms)",
+            pct(r["client_jitter"], 50) * ms,
+            pct(r["client_jitter"], 99) * ms,
+            max(r["client_jitter"]) * ms,
+        ),
+        (
+            "twin loop jitter (ms)",
+            twin_t["jitter_p50_s"] * ms,
+            twin_t["jitter_p99_s"] * ms,
+            twin_t["jitter_max_s"] * ms,
+        ),
+        (
+            "tracking error (mrad)",
+            pct(r["errors"], 50) * 1e3,
+            pct(r["errors"], 99) * 1e3,
+            max(r["errors"]) * 1e3,
+        ),
+        (
+            "cmd-to-motion latency (ms)",
+            pct(r["latencies"], 50) * ms,
+            pct(r["latencies"], 99) * ms,
+            max(r["latencies"] or [float("nan")]) * ms,
+        ),
     ]
-    print(f"\nservoJ bench: {args.model} at {1 / r['period']:.0f} Hz, {args.seconds:g} s, "
-          f"{len(r['client_periods']) + 1} set-points, {len(r['latencies'])} latency probes, "
-          f"{os.cpu_count()} CPUs, client SCHED_FIFO {'on' if r['realtime'] else 'off'}, "
-          f"load average {os.getloadavg()[0]:.2f}")
+    print(
+        f"\nservoJ bench: {args.model} at {1 / r['period']:.0f} Hz, {args.seconds:g} s, "
+        f"{len(r['client_periods']) + 1} set-points, {len(r['latencies'])} latency probes, "
+        f"{os.cpu_count()} CPUs, client SCHED_FIFO {'on' if r['realtime'] else 'off'}, "
+        f"load average {os.getloadavg()[0]:.2f}"
+    )
     print(f"{'metric':<28}{'p50':>10}{'p99':>10}{'max':>10}")
     for name, p50, p99, mx in rows:
         print(f"{name:<28}{p50:>10.3f}{p99:>10.3f}{mx:>10.3f}")

@@ -43,10 +43,15 @@ def pick_place_program(desc: TwinDescription) -> list[Segment]:
 
     def move(name: str, xyz: np.ndarray | None, duration_s: float) -> None:
         nonlocal q
-        q_to = np.array(desc.q_home_rad) if xyz is None else \
-            demo.solve_ik(desc, demo.tcp_down_at(xyz), q)
+        q_to = (
+            np.array(desc.q_home_rad)
+            if xyz is None
+            else demo.solve_ik(desc, demo.tcp_down_at(xyz), q)
+        )
         samples = demo.quintic_blend(q, q_to, duration_s, rate)
-        program.append(Segment(name, approve(demo.to_trajectory(samples, rate), len(program), name)))
+        program.append(
+            Segment(name, approve(demo.to_trajectory(samples, rate), len(program), name))
+        )
         q = q_to
 
     move("approach", cube + (0, 0, 0.10), 1.8)
@@ -92,10 +97,16 @@ def run(desc: TwinDescription, options: PhysicsOptions) -> dict[str, float]:
     backend.close()
     tcp = lambda q: (dh_forward(desc.spec, q) @ desc.T_flange_tcp)[:3, 3]  # noqa: E731
     err = np.array([np.linalg.norm(tcp(a) - tcp(r)) for a, r in zip(q_log, ref_log)])
-    return {"build_s": build_s, "sim_s": sim_s, "wall_s": wall_s, "rtf": sim_s / wall_s,
-            "rtf_cpu": sim_s / cpu_s,
-            "err_max_mm": 1e3 * err.max(), "err_rms_mm": 1e3 * float(np.sqrt((err**2).mean())),
-            "place_err_mm": 1e3 * float(np.linalg.norm(placed[:2] - (0.40, 0.30)))}
+    return {
+        "build_s": build_s,
+        "sim_s": sim_s,
+        "wall_s": wall_s,
+        "rtf": sim_s / wall_s,
+        "rtf_cpu": sim_s / cpu_s,
+        "err_max_mm": 1e3 * err.max(),
+        "err_rms_mm": 1e3 * float(np.sqrt((err**2).mean())),
+        "place_err_mm": 1e3 * float(np.linalg.norm(placed[:2] - (0.40, 0.30))),
+    }
 
 
 def main() -> None:
@@ -105,21 +116,31 @@ def main() -> None:
     cases = [
         ("ur5e 500 Hz, 2 ms step (default)", demo.demo_description(), PhysicsOptions()),
         ("ur5e 500 Hz, 1 ms step", demo.demo_description(), PhysicsOptions(max_timestep_s=0.001)),
-        ("ur5e 500 Hz, 2 ms, pyramidal cone", demo.demo_description(),
-         PhysicsOptions(cone="pyramidal", impratio=1.0)),
-        ("ur5 (CB3) 125 Hz, 4 x 2 ms", demo.demo_description(spec=robot_spec("ur5")),
-         PhysicsOptions()),
+        (
+            "ur5e 500 Hz, 2 ms, pyramidal cone",
+            demo.demo_description(),
+            PhysicsOptions(cone="pyramidal", impratio=1.0),
+        ),
+        (
+            "ur5 (CB3) 125 Hz, 4 x 2 ms",
+            demo.demo_description(spec=robot_spec("ur5")),
+            PhysicsOptions(),
+        ),
     ]
-    header = (f"{'case':36s} {'build s':>8s} {'sim s':>7s} {'wall s':>7s} {'RTF':>7s} {'RTF cpu':>7s} "
-              f"{'err max mm':>10s} {'err rms mm':>10s} {'place mm':>9s}")
+    header = (
+        f"{'case':36s} {'build s':>8s} {'sim s':>7s} {'wall s':>7s} {'RTF':>7s} {'RTF cpu':>7s} "
+        f"{'err max mm':>10s} {'err rms mm':>10s} {'place mm':>9s}"
+    )
     print(header)
     print("-" * len(header))
     for label, desc, options in cases:
         runs = [run(desc, options) for _ in range(args.repeat)]
         r = max(runs, key=lambda x: x["rtf"])
-        print(f"{label:36s} {r['build_s']:8.3f} {r['sim_s']:7.2f} {r['wall_s']:7.3f} "
-              f"{r['rtf']:7.1f} {r['rtf_cpu']:7.1f} {r['err_max_mm']:10.3f} {r['err_rms_mm']:10.3f} "
-              f"{r['place_err_mm']:9.2f}")
+        print(
+            f"{label:36s} {r['build_s']:8.3f} {r['sim_s']:7.2f} {r['wall_s']:7.3f} "
+            f"{r['rtf']:7.1f} {r['rtf_cpu']:7.1f} {r['err_max_mm']:10.3f} {r['err_rms_mm']:10.3f} "
+            f"{r['place_err_mm']:9.2f}"
+        )
     print("\ntarget: RTF >= 50 (simulated s per wall s, build excluded); tracking error < 5 mm")
     print("RTF cpu: simulated s per CPU s of this process (robust when the machine is busy)")
 

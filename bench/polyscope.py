@@ -100,9 +100,11 @@ def trapezoid_fraction(t_s: np.ndarray, duration_s: float, accel_s: float) -> np
     ta, T = accel_s, duration_s
     v = 1.0 / (T - ta)  # cruise speed in fraction per second
     a = v / ta
-    return np.where(t < ta, 0.5 * a * t * t,
-                    np.where(t <= T - ta, 0.5 * a * ta * ta + v * (t - ta),
-                             1.0 - 0.5 * a * (T - t) ** 2))
+    return np.where(
+        t < ta,
+        0.5 * a * t * t,
+        np.where(t <= T - ta, 0.5 * a * ta * ta + v * (t - ta), 1.0 - 0.5 * a * (T - t) ** 2),
+    )
 
 
 def _profile(distance: float, speed: float, accel: float) -> tuple[float, float]:
@@ -123,7 +125,10 @@ def movej(kin, q_from_rad: np.ndarray, q_to_rad: np.ndarray, limits, rate_hz: fl
 
     q0, q1 = np.asarray(q_from_rad, float), np.asarray(q_to_rad, float)
     dq = q1 - q0
-    times = [_profile(abs(d), v, a) for d, v, a in zip(dq, limits.joint_speed_rad_s, limits.joint_accel_rad_s2)]
+    times = [
+        _profile(abs(d), v, a)
+        for d, v, a in zip(dq, limits.joint_speed_rad_s, limits.joint_accel_rad_s2)
+    ]
     duration, accel_s = max(times)
     if duration == 0.0:
         return Move("movej", 0.0, kin.p_world_tcp_many(q0[None, :]))
@@ -152,9 +157,12 @@ def movel(kin, q_line_rad: np.ndarray, limits, rate_hz: float) -> Move:
         return Move("movel", 0.0, p_line[:1])
     keep = np.concatenate([[True], np.diff(x) > 1e-9])
     from scipy.interpolate import CubicSpline
+
     q_of_x = CubicSpline(x[keep], q_line[keep], axis=0)  # smooth: no kinks at the IK samples
     dq_dx = np.abs(q_of_x(x, 1))
-    speed = min(limits.tcp_speed_mps, float(np.min(limits.joint_speed_rad_s / np.maximum(dq_dx, 1e-12))))
+    speed = min(
+        limits.tcp_speed_mps, float(np.min(limits.joint_speed_rad_s / np.maximum(dq_dx, 1e-12)))
+    )
 
     def sampled(accel: float, v: float) -> np.ndarray:
         T, ta = _profile(length, v, accel)
@@ -163,9 +171,11 @@ def movel(kin, q_line_rad: np.ndarray, limits, rate_hz: float) -> Move:
 
     def within(accel: float, v: float) -> bool:
         vel, acc, tcp = sample_measures(kin, sampled(accel, v), rate_hz)
-        return bool((np.abs(vel) <= limits.joint_speed_rad_s * 1.000001).all()
-                    and (np.abs(acc) <= limits.joint_accel_rad_s2 * 1.000001).all()
-                    and tcp.max() <= limits.tcp_speed_mps * 1.000001)
+        return bool(
+            (np.abs(vel) <= limits.joint_speed_rad_s * 1.000001).all()
+            and (np.abs(acc) <= limits.joint_accel_rad_s2 * 1.000001).all()
+            and tcp.max() <= limits.tcp_speed_mps * 1.000001
+        )
 
     for _ in range(20):  # the speed from the joint limits holds on the samples' chords
         lo, hi = 1e-3, 100.0
@@ -192,7 +202,9 @@ def blend_radius(before: Move, after: Move, *, stop: bool, via: bool) -> float:
     return min(limit, LINEAR_BLEND_FRACTION * min(straight), APPROACH_RADIUS_MAX_M)
 
 
-def program_time_s(moves: list[Move], radii_m: list[float], rate_hz: float) -> tuple[float, list[float]]:
+def program_time_s(
+    moves: list[Move], radii_m: list[float], rate_hz: float
+) -> tuple[float, list[float]]:
     """Duration (s) of ``moves`` run one after the other, blended at the waypoint after
     move i with radius ``radii_m[i]`` (0 = stop), and the time saved at each waypoint."""
     saved = []

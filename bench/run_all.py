@@ -51,7 +51,9 @@ def targets(planning: dict, cycle: list[dict], check: dict) -> list[tuple[str, b
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repetitions")
-    parser.add_argument("--all", action="store_true", help="also the dry-run, PLC soak and servo benches")
+    parser.add_argument(
+        "--all", action="store_true", help="also the dry-run, PLC soak and servo benches"
+    )
     args = parser.parse_args(argv)
     print("== (1) planning", flush=True)
     planning = bench_planning.run(reps=1 if args.quick else 3)
@@ -61,8 +63,11 @@ def main(argv: list[str] | None = None) -> int:
     check = bench_check.run(cold_runs=1 if args.quick else 3, warm_runs=3 if args.quick else 5)
     print()
     print("== summary")
-    for line in [*bench_planning.summary_lines(planning), *bench_cycle.summary_lines(cycle),
-                 *bench_check.summary_lines(check)]:
+    for line in [
+        *bench_planning.summary_lines(planning),
+        *bench_cycle.summary_lines(cycle),
+        *bench_check.summary_lines(check),
+    ]:
         print(line)
     results = targets(planning, cycle, check)
     print("targets: " + ", ".join(f"{name} {'met' if ok else 'MISSED'}" for name, ok in results))
@@ -77,14 +82,35 @@ def run_others(quick: bool) -> bool:
     import os
     import subprocess
 
-    env = {**os.environ, "PYTHONPATH": str(HERE.parent), "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa")}
-    runs = [("(4) dry-run", ["bench_dryrun.py", "--runs", "3" if quick else "5"]),
-            ("(5) PLC soak", ["bench_plc.py", "--cell", "bench.soak_engine:make", "--jobs", "50" if quick else "200"]),
-            ("(6) servoJ streaming", ["bench_servo.py"])]
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(HERE.parent),
+        "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa"),
+    }
+    runs = [
+        ("(4) dry-run", ["bench_dryrun.py", "--runs", "3" if quick else "5"]),
+        (
+            "(5) PLC soak",
+            [
+                "bench_plc.py",
+                "--cell",
+                "bench.soak_engine:make",
+                "--jobs",
+                "50" if quick else "200",
+            ],
+        ),
+        ("(6) servoJ streaming", ["bench_servo.py"]),
+    ]
     ok = True
     for title, argv in runs:
         print(f"\n== {title}", flush=True)
-        ok = subprocess.run([sys.executable, str(HERE / argv[0]), *argv[1:]], cwd=HERE.parent, env=env).returncode == 0 and ok
+        ok = (
+            subprocess.run(
+                [sys.executable, str(HERE / argv[0]), *argv[1:]], cwd=HERE.parent, env=env
+            ).returncode
+            == 0
+            and ok
+        )
     return ok
 
 

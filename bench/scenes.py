@@ -60,9 +60,14 @@ def table_scene() -> Scene:
         ("side_a", pose_matrix((0.10, -0.55, 0.30), DOWN)),
     )
     problems = (
-        ("pick_a", "place_a"), ("place_a", "pick_a"), ("pick_b", "place_b"),
-        ("place_b", "pick_a"), ("back_a", "place_a"), ("pick_a", "back_a"),
-        ("side_a", "place_b"), ("place_a", "side_a"),
+        ("pick_a", "place_a"),
+        ("place_a", "pick_a"),
+        ("pick_b", "place_b"),
+        ("place_b", "pick_a"),
+        ("back_a", "place_a"),
+        ("pick_a", "back_a"),
+        ("side_a", "place_b"),
+        ("place_a", "side_a"),
     )
     return Scene("table", fixtures, targets, problems)
 
@@ -84,8 +89,12 @@ def shelf_scene() -> Scene:
         ("top_centre", pose_matrix((0.56, 0.0, 0.70), FORWARD)),
     )
     problems = (
-        ("low_left", "mid_left"), ("mid_left", "mid_right"), ("mid_right", "low_right"),
-        ("low_right", "top_centre"), ("top_centre", "low_left"), ("mid_right", "mid_left"),
+        ("low_left", "mid_left"),
+        ("mid_left", "mid_right"),
+        ("mid_right", "low_right"),
+        ("low_right", "top_centre"),
+        ("top_centre", "low_left"),
+        ("mid_right", "mid_left"),
     )
     return Scene("shelf", tuple(fixtures), targets, problems)
 
@@ -96,8 +105,10 @@ def bin_scene() -> Scene:
     bins = {"bin_a": (0.40, -0.35), "bin_b": (0.40, 0.35), "bin_c": (-0.05, 0.50)}
     for name, (cx, cy) in bins.items():
         for side, (dx, dy, sx, sy) in {
-            "n": (0, size / 2, size, t), "s": (0, -size / 2, size, t),
-            "e": (size / 2, 0, t, size), "w": (-size / 2, 0, t, size),
+            "n": (0, size / 2, size, t),
+            "s": (0, -size / 2, size, t),
+            "e": (size / 2, 0, t, size),
+            "w": (-size / 2, 0, t, size),
         }.items():
             fixtures.append(box(f"{name}_{side}", (sx, sy, wall_h), (cx + dx, cy + dy, wall_h / 2)))
     fixtures.append(box("chute", (0.10, 0.10, 0.45), (0.50, 0.0, 0.225)))
@@ -109,8 +120,12 @@ def bin_scene() -> Scene:
         ("c_centre", pose_matrix((-0.05, 0.50, 0.06), DOWN)),
     )
     problems = (
-        ("a_corner", "b_corner"), ("b_centre", "a_centre"), ("a_centre", "c_centre"),
-        ("c_centre", "a_corner"), ("b_corner", "c_centre"), ("a_corner", "b_centre"),
+        ("a_corner", "b_corner"),
+        ("b_centre", "a_centre"),
+        ("a_centre", "c_centre"),
+        ("c_centre", "a_corner"),
+        ("b_corner", "c_centre"),
+        ("a_corner", "b_centre"),
     )
     return Scene("bin", tuple(fixtures), targets, problems)
 

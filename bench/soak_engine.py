@@ -35,8 +35,16 @@ class SoakCell(CellController):
         cell = load_cell(ROOT / "cells" / "demo_ur5e.yaml")
         tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
         self.sim = SimBackend(description_of(cell))
-        super().__init__(cell, tasks, self.sim, Journal(":memory:"), job_planner(CellWorld(cell)),
-                         wait_for_unhold=False, on_step_start=self._maybe_inject, on_job_start=self.sim.feed_parts)
+        super().__init__(
+            cell,
+            tasks,
+            self.sim,
+            Journal(":memory:"),
+            job_planner(CellWorld(cell)),
+            wait_for_unhold=False,
+            on_step_start=self._maybe_inject,
+            on_job_start=self.sim.feed_parts,
+        )
         self.rng = random.Random(seed)
         self.fault_rate = fault_rate
         self._stop = threading.Event()
@@ -45,7 +53,7 @@ class SoakCell(CellController):
         self._release_at: float | None = None
         self.injected: dict[str, int] = {}
 
-    def start(self) -> "SoakCell":
+    def start(self) -> SoakCell:
         self.setup()
         self._thread = threading.Thread(target=self._loop, name="soak-control", daemon=True)
         self._thread.start()

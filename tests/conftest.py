@@ -17,6 +17,7 @@ GL_BACKEND = enable_pictures()
 def pytest_report_header() -> str:
     return f"MuJoCo GL backend for pictures: {GL_BACKEND or 'none'}"
 
+
 ROOT = Path(__file__).resolve().parent.parent
 DEMO_CELL = ROOT / "cells" / "demo_ur5e.yaml"
 PICK_PLACE = ROOT / "tasks" / "pick_place.yaml"

@@ -12,16 +12,29 @@ HEAVY = ("mujoco", "ompl", "asyncua", "toppra", "pinocchio")
 
 
 def _run(*args, stdin=None):
-    return subprocess.run([sys.executable, "-m", "cellrunner.cli.main", *args], capture_output=True, text=True,
-                          cwd=ROOT, timeout=60, input=stdin)
+    return subprocess.run(
+        [sys.executable, "-m", "cellrunner.cli.main", *args],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+        input=stdin,
+    )
 
 
 def test_help_and_validate_import_nothing_heavy():
-    code = ("import sys\nfrom cellrunner.cli.main import main\ntry:\n    rc = main(%r)\nexcept SystemExit as e:\n    rc = e.code\n"
-            "heavy = [m for m in %r if m in sys.modules]\nprint(heavy)\nsys.exit(rc)")
+    code = (
+        "import sys\nfrom cellrunner.cli.main import main\ntry:\n    rc = main(%r)\nexcept SystemExit as e:\n    rc = e.code\n"
+        "heavy = [m for m in %r if m in sys.modules]\nprint(heavy)\nsys.exit(rc)"
+    )
     for argv in (["--help"], ["validate", str(DEMO_CELL)]):
-        r = subprocess.run([sys.executable, "-c", code % (argv, HEAVY)], capture_output=True, text=True, cwd=ROOT,
-                           timeout=60)
+        r = subprocess.run(
+            [sys.executable, "-c", code % (argv, HEAVY)],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            timeout=60,
+        )
         assert r.returncode == 0, r.stderr
         assert r.stdout.strip().splitlines()[-1] == "[]", r.stdout
 

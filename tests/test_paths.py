@@ -7,7 +7,9 @@ from cellrunner.model.load import load_cell, serve_file_warnings
 from cellrunner.plc.opcua import OpcUaConfig
 from tests.execution.test_dryrun import CELL
 
-OPCUA = "plc:\n  opcua: {endpoint: 'opc.tcp://127.0.0.1:4840/x', users: opcua-users.yaml, pki: pki}\n"
+OPCUA = (
+    "plc:\n  opcua: {endpoint: 'opc.tcp://127.0.0.1:4840/x', users: opcua-users.yaml, pki: pki}\n"
+)
 
 
 def _project(tmp_path, users_in: str | None):
@@ -36,5 +38,7 @@ def test_project_folder_wins_and_a_missing_users_file_warns_only_for_serve(tmp_p
     missing = load_cell(tmp_path / "cells" / "c.yaml")
     assert missing.warnings == []  # check and dry-run never need it
     [warning] = serve_file_warnings(missing)
-    assert str(warning).endswith(":25:58: warning: plc.opcua.users: users file 'opcua-users.yaml' does not exist yet; "
-                                 "create it with 'cellrunner users add'")
+    assert str(warning).endswith(
+        ":25:58: warning: plc.opcua.users: users file 'opcua-users.yaml' does not exist yet; "
+        "create it with 'cellrunner users add'"
+    )

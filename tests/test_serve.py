@@ -16,7 +16,8 @@ import pytest
 from pyModbusTCP.client import ModbusClient
 
 from tests.conftest import ROOT
-from tests.execution.test_dryrun import CELL as DRYRUN_CELL, TASK
+from tests.execution.test_dryrun import CELL as DRYRUN_CELL
+from tests.execution.test_dryrun import TASK
 
 READY, JOB_ACK, BUSY, DONE, ERROR, REJECTED = 1, 2, 4, 8, 16, 512
 JOB_REQ = 1
@@ -34,16 +35,34 @@ def project(tmp_path) -> tuple[Path, int]:
     port = free_port(host)
     (tmp_path / "cells").mkdir()
     (tmp_path / "tasks").mkdir()
-    cell = DRYRUN_CELL + f"tasks: {{1: tasks/t.yaml}}\nplc:\n  modbus: {{bind: {host}, port: {port}, heartbeat_timeout: 2.0}}\n"
+    cell = (
+        DRYRUN_CELL
+        + f"tasks: {{1: tasks/t.yaml}}\nplc:\n  modbus: {{bind: {host}, port: {port}, heartbeat_timeout: 2.0}}\n"
+    )
     (tmp_path / "cells" / "c.yaml").write_text(cell)
     (tmp_path / "tasks" / "t.yaml").write_text(TASK)
     return tmp_path / "cells" / "c.yaml", port
 
 
 def start(cell: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "--log-format", "json", "serve", str(cell),
-                             "--backend", "sim"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env={**os.environ, "MUJOCO_GL": "osmesa"})
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "--log-format",
+            "json",
+            "serve",
+            str(cell),
+            "--backend",
+            "sim",
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
 
 
 def connect(port: int, timeout_s: float = 60.0) -> ModbusClient:
@@ -65,7 +84,9 @@ def wait(client: ModbusClient, mask: int, timeout_s: float, beat: list) -> list[
         if regs and regs[1] & mask == mask:
             return regs
         time.sleep(0.05)
-    raise AssertionError(f"status bits {mask:#x} not seen within {timeout_s} s: {client.read_holding_registers(100, 14)}")
+    raise AssertionError(
+        f"status bits {mask:#x} not seen within {timeout_s} s: {client.read_holding_registers(100, 14)}"
+    )
 
 
 def job(client, job_id: int, task: int, params: list[int], beat) -> list[int]:
@@ -146,21 +167,54 @@ def test_serve_over_opcua_with_encryption_and_a_user(tmp_path):
     (tmp_path / "cells").mkdir()
     (tmp_path / "tasks").mkdir()
     cell_path = tmp_path / "cells" / "c.yaml"
-    cell_path.write_text(DRYRUN_CELL + "tasks: {1: tasks/t.yaml}\nplc:\n  opcua:\n"
-                         f"    endpoint: {url}\n    users: secrets/users.yaml\n    pki: pki\n")
+    cell_path.write_text(
+        DRYRUN_CELL + "tasks: {1: tasks/t.yaml}\nplc:\n  opcua:\n"
+        f"    endpoint: {url}\n    users: secrets/users.yaml\n    pki: pki\n"
+    )
     (tmp_path / "tasks" / "t.yaml").write_text(TASK)
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "users", "add", str(tmp_path / "secrets" / "users.yaml"),
-                        "line3", "--password-stdin"], input="s3cret pass\n", capture_output=True, text=True, cwd=ROOT,
-                       timeout=60)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "users",
+            "add",
+            str(tmp_path / "secrets" / "users.yaml"),
+            "line3",
+            "--password-stdin",
+        ],
+        input="s3cret pass\n",
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+    )
     assert r.returncode == 0, r.stderr
     cert, key = write_client_cert(tmp_path, "plc")
     (tmp_path / "pki" / "trusted").mkdir(parents=True)
     (tmp_path / "pki" / "trusted" / "plc.der").write_bytes(cert.read_bytes())
     proc = start(cell_path)
     try:
-        argv = [sys.executable, str(ROOT / "tests" / "plc" / "opcua_client.py"), "--url", url, "--scenario", "run",
-                "--cert", str(cert), "--key", str(key), "--user", "line3", "--password", "s3cret pass",
-                "--task", "move_can", "--wait", "90"]
+        argv = [
+            sys.executable,
+            str(ROOT / "tests" / "plc" / "opcua_client.py"),
+            "--url",
+            url,
+            "--scenario",
+            "run",
+            "--cert",
+            str(cert),
+            "--key",
+            str(key),
+            "--user",
+            "line3",
+            "--password",
+            "s3cret pass",
+            "--task",
+            "move_can",
+            "--wait",
+            "90",
+        ]
         deadline = time.monotonic() + 60
         while True:  # until the server listens
             out = subprocess.run(argv, capture_output=True, text=True, timeout=150)
@@ -174,8 +228,12 @@ def test_serve_over_opcua_with_encryption_and_a_user(tmp_path):
         assert [e["ResultCode"] for e in result["events"]] == [0]
         assert result["events"][0]["JobId"] == result["job_id"]
         assert result["last_result"] == 0 and result["cycle_time"] > 3
-        wrong = subprocess.run([*argv[:-4], "--password", "wrong", "--scenario", "connect"], capture_output=True,
-                               text=True, timeout=60)
+        wrong = subprocess.run(
+            [*argv[:-4], "--password", "wrong", "--scenario", "connect"],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
         lines = [line for line in wrong.stdout.splitlines() if line.startswith("{")]
         assert not json.loads(lines[-1]).get("connected")
     finally:

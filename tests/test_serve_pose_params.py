@@ -30,7 +30,11 @@ def test_pose_registers_round_trip_and_the_window_layout():
     assert words == [300, from_int16(-200), 0, 0, 0, 2000]
     layout = [("part_pose", "pose", None), ("settle", "float", "ms"), ("n", "int", None)]
     got = decode_params(layout, [*words, 150, from_int16(-3), *[0] * 8])
-    assert got == {"part_pose": {"xyz": [0.03, -0.02, 0.0], "rpy": [0.0, 0.0, 20.0]}, "settle": "150 ms", "n": -3}
+    assert got == {
+        "part_pose": {"xyz": [0.03, -0.02, 0.0], "rpy": [0.0, 0.0, 20.0]},
+        "settle": "150 ms",
+        "n": -3,
+    }
     with pytest.raises(ValueError, match="pose value 40000 counts does not fit an int16 register"):
         encode_pose([4.0, 0, 0], [0, 0, 0])
 
@@ -40,7 +44,9 @@ def _project(tmp_path: Path, plc: str) -> Path:
         shutil.copytree(ROOT / folder, tmp_path / folder)
     cell = tmp_path / "cells" / "vision_pick_ur10e.yaml"
     text = re.sub(r"plc:\n(  .*\n)+", plc, cell.read_text())
-    cell.write_text(text.replace("journal: var/vision-jobs.sqlite", f"journal: {tmp_path}/jobs.sqlite"))
+    cell.write_text(
+        text.replace("journal: var/vision-jobs.sqlite", f"journal: {tmp_path}/jobs.sqlite")
+    )
     return cell
 
 
@@ -72,7 +78,9 @@ def _job(client: ModbusClient, job_id: int, params: list[int], beat: list) -> li
 
 def test_vision_pick_with_the_pose_in_modbus_registers(tmp_path):
     port = free_port(HOST)
-    cell = _project(tmp_path, f"plc:\n  modbus: {{bind: {HOST}, port: {port}, heartbeat_timeout: 2.0}}\n")
+    cell = _project(
+        tmp_path, f"plc:\n  modbus: {{bind: {HOST}, port: {port}, heartbeat_timeout: 2.0}}\n"
+    )
     proc = start(cell)
     beat = [0]
     try:
@@ -98,20 +106,55 @@ def test_vision_pick_with_the_pose_as_opcua_json(tmp_path):
 
     port = free_port(HOST)
     url = f"opc.tcp://{HOST}:{port}/cellrunner"
-    cell = _project(tmp_path, f"plc:\n  opcua:\n    endpoint: {url}\n    users: secrets/users.yaml\n    pki: pki\n")
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "users", "add", str(tmp_path / "secrets" / "users.yaml"),
-                        "line3", "--password-stdin"], input="s3cret pass\n", capture_output=True, text=True, cwd=ROOT,
-                       timeout=60)
+    cell = _project(
+        tmp_path,
+        f"plc:\n  opcua:\n    endpoint: {url}\n    users: secrets/users.yaml\n    pki: pki\n",
+    )
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "users",
+            "add",
+            str(tmp_path / "secrets" / "users.yaml"),
+            "line3",
+            "--password-stdin",
+        ],
+        input="s3cret pass\n",
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+    )
     assert r.returncode == 0, r.stderr
     cert, key = write_client_cert(tmp_path, "plc")
     (tmp_path / "pki" / "trusted").mkdir(parents=True)
     (tmp_path / "pki" / "trusted" / "plc.der").write_bytes(cert.read_bytes())
     proc = start(cell)
     try:
-        argv = [sys.executable, str(ROOT / "tests" / "plc" / "opcua_client.py"), "--url", url, "--scenario", "run",
-                "--cert", str(cert), "--key", str(key), "--user", "line3", "--password", "s3cret pass",
-                "--task", "vision_pick", "--params", json.dumps({"part_pose": SEEN, "settle": "80 ms"}),
-                "--wait", "90"]
+        argv = [
+            sys.executable,
+            str(ROOT / "tests" / "plc" / "opcua_client.py"),
+            "--url",
+            url,
+            "--scenario",
+            "run",
+            "--cert",
+            str(cert),
+            "--key",
+            str(key),
+            "--user",
+            "line3",
+            "--password",
+            "s3cret pass",
+            "--task",
+            "vision_pick",
+            "--params",
+            json.dumps({"part_pose": SEEN, "settle": "80 ms"}),
+            "--wait",
+            "90",
+        ]
         deadline = time.monotonic() + 150  # serve warms up its planning before it listens
         while True:  # until the server listens
             out = subprocess.run(argv, capture_output=True, text=True, timeout=150)

@@ -89,15 +89,32 @@ def write_cell(root: Path, name: str, port: int, journal: str) -> Path:
     (folder / "tasks").mkdir()
     (folder / "tasks" / "t.yaml").write_text(TASK)
     path = folder / "cells" / "c.yaml"
-    path.write_text(CELL.replace("cell: dryrun-cell", f"cell: {name}") + "tasks: {1: tasks/t.yaml}\n"
-                    f"plc:\n  modbus: {{bind: {HOST}, port: {port}, heartbeat_timeout: 3.0}}\njournal: {journal}\n")
+    path.write_text(
+        CELL.replace("cell: dryrun-cell", f"cell: {name}") + "tasks: {1: tasks/t.yaml}\n"
+        f"plc:\n  modbus: {{bind: {HOST}, port: {port}, heartbeat_timeout: 3.0}}\njournal: {journal}\n"
+    )
     return path
 
 
 def serve(cell: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "--log-format", "json", "serve", str(cell),
-                             "--backend", "sim"], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True, env={**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"})
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "--log-format",
+            "json",
+            "serve",
+            str(cell),
+            "--backend",
+            "sim",
+        ],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"},
+    )
 
 
 def stop(proc: subprocess.Popen) -> str:
@@ -116,7 +133,9 @@ def wait_up(plc: Plc, proc: subprocess.Popen) -> None:
 
 
 def test_two_cells_share_one_postgres_journal_through_a_database_restart(tmp_path):
-    faulthandler.dump_traceback_later(420, exit=True)  # two real-time twins: a longer bound than the default
+    faulthandler.dump_traceback_later(
+        420, exit=True
+    )  # two real-time twins: a longer bound than the default
     with PgServer(HOST) as pg:
         ports = {"cell-a": free_port(HOST), "cell-b": free_port(HOST)}
         cells = {name: write_cell(tmp_path, name, port, pg.url) for name, port in ports.items()}
@@ -130,8 +149,9 @@ def test_two_cells_share_one_postgres_journal_through_a_database_restart(tmp_pat
             # crash the database while both cells run their second job
             deadline = time.monotonic() + 180
             while not all(len(p.accepted) >= 1 and p.running.is_set() for p in plcs.values()):
-                assert time.monotonic() < deadline and all(p.is_alive() for p in plcs.values()), \
-                    [(p.accepted, p.error) for p in plcs.values()]
+                assert time.monotonic() < deadline and all(p.is_alive() for p in plcs.values()), [
+                    (p.accepted, p.error) for p in plcs.values()
+                ]
                 time.sleep(0.05)
             time.sleep(1.0)
             pg.restart("immediate", down_s=8.0)  # down past the end of the job: the next is refused
@@ -154,9 +174,13 @@ def test_two_cells_share_one_postgres_journal_through_a_database_restart(tmp_pat
             plc_a.client.write_single_register(1, 0)
         finally:
             errs = {name: stop(proc) for name, proc in procs.items() if proc.poll() is None}
-        assert all("journal:" not in err for err in errs.values()), errs  # no write left undelivered
+        assert all("journal:" not in err for err in errs.values()), (
+            errs
+        )  # no write left undelivered
 
-        rows = pg.sql("SELECT cell, client_job_id, result_code, job_id FROM cellrunner_jobs ORDER BY seq")
+        rows = pg.sql(
+            "SELECT cell, client_job_id, result_code, job_id FROM cellrunner_jobs ORDER BY seq"
+        )
         for name, plc in plcs.items():
             mine = [(int(r[1]), r[2]) for r in rows if r[0] == name]
             expected = {**plc.accepted, **({150: 107} if name == "cell-a" else {})}
@@ -165,8 +189,10 @@ def test_two_cells_share_one_postgres_journal_through_a_database_restart(tmp_pat
             assert set(plc.refused.values()) <= {12}, plc.refused  # 12: not ready (journal away)
         assert any(plc.refused for plc in plcs.values())  # the outage was seen by a PLC
         # every job has all its step transitions, once: the same sequence for every OK job
-        step_rows = pg.sql("SELECT s.job_id, s.step_index, s.status FROM cellrunner_steps s "
-                           "JOIN cellrunner_jobs j USING (job_id) WHERE j.result_code = 0 ORDER BY s.job_id, s.seq")
+        step_rows = pg.sql(
+            "SELECT s.job_id, s.step_index, s.status FROM cellrunner_steps s "
+            "JOIN cellrunner_jobs j USING (job_id) WHERE j.result_code = 0 ORDER BY s.job_id, s.seq"
+        )
         per_job: dict[str, list] = {}
         for job_id, index, status in step_rows:
             per_job.setdefault(job_id, []).append((index, status))
@@ -174,9 +200,25 @@ def test_two_cells_share_one_postgres_journal_through_a_database_restart(tmp_pat
         assert len(per_job) == 2 * JOBS_PER_CELL and len(sequences) == 1, per_job
         assert list(sequences)[0][-1][1] == "ok" and len(list(sequences)[0]) >= 20
 
-        out = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "jobs", str(cells["cell-b"]),
-                              "--all-cells", "--csv", "--last", "50"], cwd=ROOT, capture_output=True, text=True,
-                             timeout=60)
+        out = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "cellrunner.cli.main",
+                "jobs",
+                str(cells["cell-b"]),
+                "--all-cells",
+                "--csv",
+                "--last",
+                "50",
+            ],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
         assert out.returncode == 0, out.stderr
         listed = list(csv.DictReader(io.StringIO(out.stdout)))
-        assert sorted((r["cell"], r["job_id"]) for r in listed) == sorted((r[0], r[3]) for r in rows)
+        assert sorted((r["cell"], r["job_id"]) for r in listed) == sorted(
+            (r[0], r[3]) for r in rows
+        )

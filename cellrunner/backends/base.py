@@ -78,7 +78,9 @@ class RobotBackend(Protocol):
     def zero_ft_sensor(self) -> None:
         """Zero the wrist force/torque reading (e-Series zeroFtSensor)."""
 
-    def set_tool(self, T_flange_tcp: np.ndarray, payload_kg: float, payload_cog_m: tuple[float, float, float]) -> None:
+    def set_tool(
+        self, T_flange_tcp: np.ndarray, payload_kg: float, payload_cog_m: tuple[float, float, float]
+    ) -> None:
         """A tool change: the controller's TCP (flange frame) and payload (kg, centre of
         gravity in m, flange frame), kept for every reconnect (setTcp, setPayload)."""
 

@@ -15,19 +15,29 @@ def backend_kind(cell: LoadedCell, override: str | None) -> str:
 def make_backend(cell: LoadedCell, kind: str, host: str | None = None, **kw):
     """The backend for ``cell``: ``sim`` (the MuJoCo twin in-process) or ``ur``."""
     if kind == "sim":
-        from cellrunner.backends.sim.from_cell import description_of
         from cellrunner.backends.sim.backend import SimBackend
+        from cellrunner.backends.sim.from_cell import description_of
+
         return SimBackend(description_of(cell), **kw)
     if kind == "ur":
         host = host or cell.cell.robot.host
         if not host:
-            raise UsageError("the ur backend needs a controller address: robot.host in the cell file or --robot-host")
+            raise UsageError(
+                "the ur backend needs a controller address: robot.host in the cell file or --robot-host"
+            )
         from cellrunner.backends.ur import URBackend
         from cellrunner.model.geometry import tcp_pose_of
+
         c = cell.cell
         g = c.tool.gripper
         robotiq = g.port if g is not None and g.kind == "robotiq" and g.close is None else None
-        return URBackend(host, cell.spec, tcp_pose=tcp_pose_of(c.tool.tcp.matrix()),
-                         payload_kg=c.tool.payload.mass, payload_cog_m=tuple(c.tool.payload.cog),
-                         robotiq_port=robotiq, **kw)
+        return URBackend(
+            host,
+            cell.spec,
+            tcp_pose=tcp_pose_of(c.tool.tcp.matrix()),
+            payload_kg=c.tool.payload.mass,
+            payload_cog_m=tuple(c.tool.payload.cog),
+            robotiq_port=robotiq,
+            **kw,
+        )
     raise UsageError(f"unknown backend {kind!r}; known: ur, sim")

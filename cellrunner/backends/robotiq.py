@@ -75,7 +75,9 @@ class RobotiqClient:
         return answer
 
 
-def serve_robotiq(host: str, world, stop: threading.Event, port: int = PORT, ready: threading.Event | None = None):
+def serve_robotiq(
+    host: str, world, stop: threading.Event, port: int = PORT, ready: threading.Event | None = None
+):
     """The gripper's socket for the twin: commands drive the twin's jaws (``RQ0``),
     ``GET OBJ`` reports its object sensor (``RQ_OBJ``). Runs until ``stop`` is set."""
     from cellrunner.model.gripper import ROBOTIQ_CLOSE, ROBOTIQ_OBJECT
@@ -92,7 +94,7 @@ def serve_robotiq(host: str, world, stop: threading.Event, port: int = PORT, rea
             while not stop.is_set():
                 try:
                     chunk = conn.recv(256)
-                except socket.timeout:
+                except TimeoutError:
                     continue
                 except OSError:
                     return
@@ -104,9 +106,13 @@ def serve_robotiq(host: str, world, stop: threading.Event, port: int = PORT, rea
                     words = line.decode(errors="replace").split()
                     if words[:2] == ["GET", "OBJ"]:
                         closed = bool(world.outputs.get(ROBOTIQ_CLOSE))
-                        conn.sendall(f"OBJ {2 if closed and world.inputs.get(ROBOTIQ_OBJECT) else 3}\n".encode())
+                        conn.sendall(
+                            f"OBJ {2 if closed and world.inputs.get(ROBOTIQ_OBJECT) else 3}\n".encode()
+                        )
                     elif words[:2] == ["GET", "POS"]:
-                        conn.sendall(f"POS {255 if world.outputs.get(ROBOTIQ_CLOSE) else 0}\n".encode())
+                        conn.sendall(
+                            f"POS {255 if world.outputs.get(ROBOTIQ_CLOSE) else 0}\n".encode()
+                        )
                     elif words[:1] == ["SET"] and len(words) == 3:
                         if words[1] == "POS":
                             world.outputs[ROBOTIQ_CLOSE] = int(words[2]) > 127
@@ -118,6 +124,6 @@ def serve_robotiq(host: str, world, stop: threading.Event, port: int = PORT, rea
         while not stop.is_set():
             try:
                 conn, _ = server.accept()
-            except socket.timeout:
+            except TimeoutError:
                 continue
             threading.Thread(target=handle, args=(conn,), daemon=True).start()

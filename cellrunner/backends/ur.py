@@ -169,6 +169,7 @@ class URBackend:
         (which also powers up a powered-off arm) made the arm ready."""
         if self.robotiq_port is not None and self._robotiq is None:
             from cellrunner.backends.robotiq import RobotiqClient
+
             self._robotiq = RobotiqClient(self.host, self.robotiq_port, self.connect_timeout_s)
             self._robotiq.connect()
         self._close_quietly()
@@ -202,8 +203,9 @@ class URBackend:
                         f"the controller at {self.host} is in local control; "
                         "switch the teach pendant to Remote Control"
                     )
-            self._receive = RtdeStateReader(self.host, self.rate_hz, RECEIVE_VARIABLES,
-                                            timeout_s=self.connect_timeout_s)
+            self._receive = RtdeStateReader(
+                self.host, self.rate_hz, RECEIVE_VARIABLES, timeout_s=self.connect_timeout_s
+            )
             self._receive.connect()
             self._io = RtdeOutputWriter(self.host, timeout_s=self.connect_timeout_s)
             self._io.connect()
@@ -218,12 +220,21 @@ class URBackend:
 
     def _configure_tool(self) -> None:
         if self.tcp_pose is not None and not self._call("setTcp", list(self.tcp_pose)):
-            raise BackendError(f"the controller at {self.host} refused setTcp({list(self.tcp_pose)})")
-        if self.payload_kg is not None and not self._call("setPayload", self.payload_kg, list(self.payload_cog_m)):
-            raise BackendError(f"the controller at {self.host} refused setPayload({self.payload_kg})")
+            raise BackendError(
+                f"the controller at {self.host} refused setTcp({list(self.tcp_pose)})"
+            )
+        if self.payload_kg is not None and not self._call(
+            "setPayload", self.payload_kg, list(self.payload_cog_m)
+        ):
+            raise BackendError(
+                f"the controller at {self.host} refused setPayload({self.payload_kg})"
+            )
 
-    def set_tool(self, T_flange_tcp: np.ndarray, payload_kg: float, payload_cog_m: tuple[float, float, float]) -> None:
+    def set_tool(
+        self, T_flange_tcp: np.ndarray, payload_kg: float, payload_cog_m: tuple[float, float, float]
+    ) -> None:
         from cellrunner.model.geometry import tcp_pose_of
+
         self.tcp_pose = tcp_pose_of(T_flange_tcp)
         self.payload_kg, self.payload_cog_m = payload_kg, tuple(payload_cog_m)
         if self._control is None:
@@ -269,11 +280,15 @@ class URBackend:
     def _open_control(self) -> None:
         """RTDEControl (in its process) uploads ur_rtde's control script; then the tool
         is configured."""
-        control = ControlProcess(self.host, self.rate_hz, start_timeout_s=self.connect_timeout_s + 10.0)
+        control = ControlProcess(
+            self.host, self.rate_hz, start_timeout_s=self.connect_timeout_s + 10.0
+        )
         try:
             control.start()
         except ControlLost as exc:
-            raise PeerUnreachable(f"cannot reach the robot controller at {self.host}: {exc}") from exc
+            raise PeerUnreachable(
+                f"cannot reach the robot controller at {self.host}: {exc}"
+            ) from exc
         except RuntimeError as exc:
             raise self._translate(exc) from exc
         self._control = control
@@ -361,11 +376,16 @@ class URBackend:
     def read_state(self) -> RobotState:
         receive = self._receive
         if receive is None or not receive.isConnected():
-            return RobotState(0.0, np.zeros(6), np.zeros(6), np.zeros(6), Safety.DISCONNECTED, powered=False)
+            return RobotState(
+                0.0, np.zeros(6), np.zeros(6), np.zeros(6), Safety.DISCONNECTED, powered=False
+            )
         safety = _safety_of(receive.getSafetyStatusBits())
         if self._control is not None and not self._control.alive:
             safety = Safety.DISCONNECTED
-        inputs_bits, output_bits = receive.getActualDigitalInputBits(), receive.getActualDigitalOutputBits()
+        inputs_bits, output_bits = (
+            receive.getActualDigitalInputBits(),
+            receive.getActualDigitalOutputBits(),
+        )
         inputs: dict[str, float | bool] = {}
         outputs: dict[str, float | bool] = {}
         for prefix, bits, target in (("I", inputs_bits, inputs), ("O", output_bits, outputs)):
@@ -374,10 +394,16 @@ class URBackend:
                 target[f"C{prefix}{i}"] = bool(bits >> (8 + i) & 1)
             for i in range(2):
                 target[f"T{prefix}{i}"] = bool(bits >> (16 + i) & 1)
-        inputs["AI0"], inputs["AI1"] = receive.getStandardAnalogInput0(), receive.getStandardAnalogInput1()
+        inputs["AI0"], inputs["AI1"] = (
+            receive.getStandardAnalogInput0(),
+            receive.getStandardAnalogInput1(),
+        )
         if self._robotiq is not None:
             inputs[ROBOTIQ_OBJECT] = self._robotiq.object_detected
-        outputs["AO0"], outputs["AO1"] = receive.getStandardAnalogOutput0(), receive.getStandardAnalogOutput1()
+        outputs["AO0"], outputs["AO1"] = (
+            receive.getStandardAnalogOutput0(),
+            receive.getStandardAnalogOutput1(),
+        )
         return RobotState(
             time_s=receive.getTimestamp(),
             q_rad=np.array(receive.getActualQ()),
@@ -404,7 +430,9 @@ class URBackend:
                 self._protective_stop_seen_at = time.monotonic()
             self._servoing = False
             self._t_cycle = None
-            raise SafetyStop(f"the controller at {self.host} stopped the arm: {safety.value}", safety)
+            raise SafetyStop(
+                f"the controller at {self.host} stopped the arm: {safety.value}", safety
+            )
         if self._control is None:
             if self._receive.getRobotMode() != _ROBOT_MODE_RUNNING:
                 raise BackendError(
@@ -415,7 +443,9 @@ class URBackend:
 
     def servo(self, trajectory: ApprovedTrajectory, index: int) -> None:
         if not isinstance(trajectory, ApprovedTrajectory) or not trajectory.is_sealed:
-            raise BackendError("refusing a trajectory that planning did not approve (seal missing or broken)")
+            raise BackendError(
+                "refusing a trajectory that planning did not approve (seal missing or broken)"
+            )
         if abs(trajectory.trajectory.rate_hz - self.rate_hz) > 1e-9:
             raise BackendError(
                 f"trajectory sampled at {trajectory.trajectory.rate_hz} Hz; "
@@ -425,7 +455,9 @@ class URBackend:
         if self._t_cycle is None:  # first set-point of a stream: the schedule starts now
             self._t_cycle = time.monotonic()
         q = [float(x) for x in trajectory.trajectory.q_rad[index]]
-        ok = self._call("servoJ", q, 0.0, 0.0, self.period_s, self.servo_lookahead_s, self.servo_gain)
+        ok = self._call(
+            "servoJ", q, 0.0, 0.0, self.period_s, self.servo_lookahead_s, self.servo_gain
+        )
         if not ok:
             # the control and receive connections see a stop in different packages: give
             # the safety bits a few periods to arrive so the caller learns why
@@ -434,7 +466,9 @@ class URBackend:
                 self._check_link_and_safety()
                 time.sleep(self.period_s)
             self._t_cycle = None
-            raise BackendError(f"the controller at {self.host} refused servoJ (control script not running)")
+            raise BackendError(
+                f"the controller at {self.host} refused servoJ (control script not running)"
+            )
         self._servoing = True
 
     def wait_period(self) -> None:
@@ -478,7 +512,9 @@ class URBackend:
                 io.set_digital(kind, index, bool(value))
             elif kind == "AO":
                 if not 0.0 <= float(value) <= 1.0:
-                    raise BackendError(f"{channel}: {value} is not a fraction of the range in [0, 1]")
+                    raise BackendError(
+                        f"{channel}: {value} is not a fraction of the range in [0, 1]"
+                    )
                 io.set_analog_voltage(index, float(value))
             else:
                 raise BackendError(f"{channel} is an input; valid outputs: {_CHANNELS}")
@@ -487,7 +523,9 @@ class URBackend:
 
     def zero_ft_sensor(self) -> None:
         if self.spec.generation != "e-Series":
-            raise BackendError(f"{self.spec.name} (CB3) has no built-in force/torque sensor to zero")
+            raise BackendError(
+                f"{self.spec.name} (CB3) has no built-in force/torque sensor to zero"
+            )
         self._check_link_and_safety()
         if not self._call("zeroFtSensor"):
             raise BackendError(f"the controller at {self.host} refused zeroFtSensor")
@@ -506,13 +544,20 @@ class URBackend:
             self._dashboard.unlockProtectiveStop()
         except RuntimeError as exc:
             text = str(exc).removeprefix("Unlock protective stop failure: ")
-            raise BackendError(f"the controller refused to unlock the protective stop: {text}") from exc
+            raise BackendError(
+                f"the controller refused to unlock the protective stop: {text}"
+            ) from exc
         self._protective_stop_seen_at = None
-        self._wait_for(lambda: _safety_of(self._receive.getSafetyStatusBits()) == Safety.NORMAL, 2.0,
-                       "the protective stop did not clear")
+        self._wait_for(
+            lambda: _safety_of(self._receive.getSafetyStatusBits()) == Safety.NORMAL,
+            2.0,
+            "the protective stop did not clear",
+        )
         self._reupload()
 
-    def recover_from_protective_stop(self, unlock_delay_s: float = 5.0, timeout_s: float = 12.0) -> None:
+    def recover_from_protective_stop(
+        self, unlock_delay_s: float = 5.0, timeout_s: float = 12.0
+    ) -> None:
         """Wait until the controller accepts the unlock (``unlock_delay_s`` after the stop
         was first seen), then :meth:`unlock_protective_stop`; bounded by ``timeout_s``."""
         deadline = time.monotonic() + timeout_s
@@ -533,15 +578,23 @@ class URBackend:
         if self._dashboard is None or self._receive is None:
             raise BackendError("not connected; call connect() first")
         if _safety_of(self._receive.getSafetyStatusBits()) == Safety.EMERGENCY_STOP:
-            raise BackendError("the emergency stop is still pressed; a person must release it first")
+            raise BackendError(
+                "the emergency stop is still pressed; a person must release it first"
+            )
         try:
             self._dashboard.closeSafetyPopup()
             self._dashboard.powerOn()
-            self._wait_for(lambda: self._receive.getRobotMode() in (_ROBOT_MODE_IDLE, _ROBOT_MODE_RUNNING), 30.0,
-                           "the arm did not power on")
+            self._wait_for(
+                lambda: self._receive.getRobotMode() in (_ROBOT_MODE_IDLE, _ROBOT_MODE_RUNNING),
+                30.0,
+                "the arm did not power on",
+            )
             self._dashboard.brakeRelease()
-            self._wait_for(lambda: self._receive.getRobotMode() == _ROBOT_MODE_RUNNING, 30.0,
-                           "the brakes were not released")
+            self._wait_for(
+                lambda: self._receive.getRobotMode() == _ROBOT_MODE_RUNNING,
+                30.0,
+                "the brakes were not released",
+            )
         except RuntimeError as exc:
             raise self._translate(exc) from exc
         self._reupload()
@@ -553,7 +606,9 @@ class URBackend:
             return
         if not self._call("reuploadScript"):
             raise BackendError(f"could not re-upload the control script to {self.host}")
-        self._wait_for(lambda: bool(self._call("isProgramRunning")), 5.0, "the control script did not start")
+        self._wait_for(
+            lambda: bool(self._call("isProgramRunning")), 5.0, "the control script did not start"
+        )
         self._configure_tool()
 
     def _wait_for(self, predicate: Any, timeout_s: float, what: str) -> None:

@@ -27,10 +27,20 @@ import signal
 from typing import Any
 
 #: the RTDEControlInterface methods the parent may call (nothing else is forwarded)
-METHODS = frozenset({
-    "servoJ", "servoStop", "stopJ", "stopScript", "isConnected", "isProgramRunning", "reuploadScript", "setTcp",
-    "setPayload", "zeroFtSensor",
-})
+METHODS = frozenset(
+    {
+        "servoJ",
+        "servoStop",
+        "stopJ",
+        "stopScript",
+        "isConnected",
+        "isProgramRunning",
+        "reuploadScript",
+        "setTcp",
+        "setPayload",
+        "zeroFtSensor",
+    }
+)
 #: a call that takes longer than this means the child or the link is stuck (s)
 CALL_TIMEOUT_S = 5.0
 
@@ -84,8 +94,9 @@ class ControlProcess:
         the child does not answer within ``start_timeout_s``."""
         ctx = multiprocessing.get_context("spawn")
         parent, child = ctx.Pipe()
-        self._process = ctx.Process(target=_serve, args=(child, self.host, self.rate_hz), daemon=True,
-                                    name="ur-control")
+        self._process = ctx.Process(
+            target=_serve, args=(child, self.host, self.rate_hz), daemon=True, name="ur-control"
+        )
         self._process.start()
         child.close()
         self._conn = parent

@@ -93,12 +93,16 @@ class RtdeOutputWriter:
         payload = bytes([self._recipe_ids[kind]]) + fields
         if not self._alive():
             self.close()
-            raise IoConnectionLost(f"the controller at {self.host} closed the RTDE connection for outputs")
+            raise IoConnectionLost(
+                f"the controller at {self.host} closed the RTDE connection for outputs"
+            )
         try:
             self._sock.sendall(struct.pack(">HB", 3 + len(payload), ord("U")) + payload)
         except OSError as exc:
             self.close()
-            raise IoConnectionLost(f"lost the RTDE connection for outputs to {self.host}: {exc}") from exc
+            raise IoConnectionLost(
+                f"lost the RTDE connection for outputs to {self.host}: {exc}"
+            ) from exc
 
     def _alive(self) -> bool:
         """False once the controller closed the connection (a write would vanish)."""

@@ -21,7 +21,9 @@ def _read_message(sock: socket.socket) -> tuple[int, bytes]:
     return kind, recv_exact(sock, size - 3)
 
 
-def controller_version(host: str, timeout_s: float = 3.0, port: int = RTDE_PORT) -> tuple[int, int, int, int]:
+def controller_version(
+    host: str, timeout_s: float = 3.0, port: int = RTDE_PORT
+) -> tuple[int, int, int, int]:
     """``(major, minor, bugfix, build)`` of the controller at ``host``.
 
     Major 3 is a CB3 controller (PolyScope 3), 5 an e-Series (PolyScope 5), 10 an
@@ -32,7 +34,9 @@ def controller_version(host: str, timeout_s: float = 3.0, port: int = RTDE_PORT)
             sock.sendall(struct.pack(">HBH", 5, ord("V"), 2))
             kind, body = _read_message(sock)
             if kind != ord("V") or not body or body[0] != 1:
-                raise PeerUnreachable(f"controller at {host}:{port} refused RTDE protocol version 2")
+                raise PeerUnreachable(
+                    f"controller at {host}:{port} refused RTDE protocol version 2"
+                )
             sock.sendall(struct.pack(">HB", 3, ord("v")))
             kind, body = _read_message(sock)
             if kind != ord("v") or len(body) < 16:

@@ -18,8 +18,18 @@ from typing import Any
 from cellrunner.backends.ur_io import recv_exact
 
 #: RTDE type name -> struct code (big-endian, SPEC of the RTDE guide)
-_TYPES = {"DOUBLE": "d", "UINT64": "Q", "UINT32": "I", "INT32": "i", "UINT8": "B", "BOOL": "?",
-          "VECTOR6D": "6d", "VECTOR3D": "3d", "VECTOR6INT32": "6i", "VECTOR6UINT32": "6I"}
+_TYPES = {
+    "DOUBLE": "d",
+    "UINT64": "Q",
+    "UINT32": "I",
+    "INT32": "i",
+    "UINT8": "B",
+    "BOOL": "?",
+    "VECTOR6D": "6d",
+    "VECTOR3D": "3d",
+    "VECTOR6INT32": "6i",
+    "VECTOR6UINT32": "6I",
+}
 _WIDTH = {"VECTOR6D": 6, "VECTOR3D": 3, "VECTOR6INT32": 6, "VECTOR6UINT32": 6}
 
 
@@ -27,9 +37,22 @@ class RtdeStateReader:
     """Subscribe ``variables`` at ``rate_hz``; construct, :meth:`connect`, getters,
     :meth:`disconnect`. Getters return the latest package's values."""
 
-    def __init__(self, host: str, rate_hz: float, variables: list[str], *, port: int = 30004,
-                 timeout_s: float = 3.0):
-        self.host, self.rate_hz, self.variables, self.port, self.timeout_s = host, rate_hz, variables, port, timeout_s
+    def __init__(
+        self,
+        host: str,
+        rate_hz: float,
+        variables: list[str],
+        *,
+        port: int = 30004,
+        timeout_s: float = 3.0,
+    ):
+        self.host, self.rate_hz, self.variables, self.port, self.timeout_s = (
+            host,
+            rate_hz,
+            variables,
+            port,
+            timeout_s,
+        )
         self._sock: socket.socket | None = None
         self._thread: threading.Thread | None = None
         self._latest: dict[str, Any] = {}
@@ -46,21 +69,35 @@ class RtdeStateReader:
         try:
             exchange = RtdeOutputWriter._exchange
             if not exchange(sock, "V", struct.pack(">H", 2))[0]:
-                raise ConnectionError(f"the controller at {self.host} refused RTDE protocol version 2")
-            body = exchange(sock, "O", struct.pack(">d", self.rate_hz) + ",".join(self.variables).encode())
+                raise ConnectionError(
+                    f"the controller at {self.host} refused RTDE protocol version 2"
+                )
+            body = exchange(
+                sock, "O", struct.pack(">d", self.rate_hz) + ",".join(self.variables).encode()
+            )
             types = body[1:].decode("ascii", "replace").split(",")
-            unknown = [f"{n} ({t})" for n, t in zip(self.variables, types, strict=False) if t not in _TYPES]
+            unknown = [
+                f"{n} ({t})" for n, t in zip(self.variables, types, strict=False) if t not in _TYPES
+            ]
             if unknown or len(types) != len(self.variables):
-                raise ConnectionError(f"the controller at {self.host} cannot stream {', '.join(unknown) or types}")
+                raise ConnectionError(
+                    f"the controller at {self.host} cannot stream {', '.join(unknown) or types}"
+                )
             if not exchange(sock, "S", b"")[0]:
-                raise ConnectionError(f"the controller at {self.host} refused to start the RTDE stream")
+                raise ConnectionError(
+                    f"the controller at {self.host} refused to start the RTDE stream"
+                )
         except BaseException:
             sock.close()
             raise
         fmt = ">B" + "".join(_TYPES[t] for t in types)
         self._sock, self._connected = sock, True
-        self._thread = threading.Thread(target=self._receive, args=(sock, struct.Struct(fmt), types), daemon=True,
-                                        name="rtde-state")
+        self._thread = threading.Thread(
+            target=self._receive,
+            args=(sock, struct.Struct(fmt), types),
+            daemon=True,
+            name="rtde-state",
+        )
         self._thread.start()
         if not self._first.wait(self.timeout_s):
             self.disconnect()
@@ -78,7 +115,7 @@ class RtdeStateReader:
                 latest, i = {}, 0
                 for name, type_name in zip(self.variables, types, strict=True):
                     width = _WIDTH.get(type_name, 1)
-                    latest[name] = list(flat[i:i + width]) if width > 1 else flat[i]
+                    latest[name] = list(flat[i : i + width]) if width > 1 else flat[i]
                     i += width
                 self._latest = latest
                 self._first.set()

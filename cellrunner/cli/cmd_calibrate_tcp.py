@@ -31,8 +31,10 @@ def run(args) -> int:
     taken, refused = [], 0
     try:
         while len(taken) < args.poses:
-            operator.ask(f"pose {len(taken) + 1}/{args.poses}: touch the fixed point with the tool tip, the "
-                         "tool turned a new way, and press Enter")
+            operator.ask(
+                f"pose {len(taken) + 1}/{args.poses}: touch the fixed point with the tool tip, the "
+                "tool turned a new way, and press Enter"
+            )
             T = kinematics.T_world_flange(reader.read_q_rad())
             why = too_alike(T, taken)
             if why is not None:
@@ -47,9 +49,13 @@ def run(args) -> int:
         reader.close()
     solution = solve_tcp(taken)
     tcp_mm = ", ".join(f"{v * 1000:.2f}" for v in solution.tcp_m)
-    operator.say(f"TCP xyz [{tcp_mm}] mm in the flange frame; residual rms {solution.rms_m * 1000:.3f} mm, "
-                 f"max {solution.residuals_m.max() * 1000:.3f} mm (per pose: "
-                 f"{', '.join(f'{r * 1000:.3f}' for r in solution.residuals_m)} mm); "
-                 f"conditioning {solution.conditioning:.2f}")
-    offer(pose_edit(cell.path, ("tool", "tcp"), solution.tcp_m, None), operator, args.yes, "tool.tcp")
+    operator.say(
+        f"TCP xyz [{tcp_mm}] mm in the flange frame; residual rms {solution.rms_m * 1000:.3f} mm, "
+        f"max {solution.residuals_m.max() * 1000:.3f} mm (per pose: "
+        f"{', '.join(f'{r * 1000:.3f}' for r in solution.residuals_m)} mm); "
+        f"conditioning {solution.conditioning:.2f}"
+    )
+    offer(
+        pose_edit(cell.path, ("tool", "tcp"), solution.tcp_m, None), operator, args.yes, "tool.tcp"
+    )
     return 0

@@ -28,12 +28,22 @@ def run(args) -> int:
     use_cache = not args.no_cache
     # every slot of every pattern and every corner (and the centre) of every pose param's box
     checked_params = {**pattern_params(task), **box_params(task)}
-    others = [{**params, name: slot} for name, slots in checked_params.items() for slot in slots
-              if slot != params.get(name)]
+    others = [
+        {**params, name: slot}
+        for name, slots in checked_params.items()
+        for slot in slots
+        if slot != params.get(name)
+    ]
     n_steps = len(expanded(cell, task, params))
     with _progress(out, 1 + len(others), n_steps) as progress:
-        plan = plan_cached(world, task, params, world.q_home_rad, use_cache=use_cache,
-                           on_step=progress.plan(f"{task.name} {_params_text(params)}"))
+        plan = plan_cached(
+            world,
+            task,
+            params,
+            world.q_home_rad,
+            use_cache=use_cache,
+            on_step=progress.plan(f"{task.name} {_params_text(params)}"),
+        )
         failures = _check_other_slots(world, task, params, others, use_cache, progress)
     errors = list(plan.errors) + [f"{name}={_shown(slot)}: {e}" for name, slot, e in failures]
     slots_checked = {name: list(slots) for name, slots in checked_params.items()}
@@ -41,38 +51,72 @@ def run(args) -> int:
     requested = [(pattern, params[pattern], e) for e in plan.errors] if pattern is not None else []
     grouped = group_slot_failures([f for f in requested + failures if not isinstance(f[1], dict)])
     poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, dict)]
-    rows = [{"index": r.step.index, "name": r.step.name, "kind": r.step.kind, "duration_s": round(r.duration_s, 4),
-             "status": r.status, "message": r.message, "attempts": 0} for r in plan.rows]
+    rows = [
+        {
+            "index": r.step.index,
+            "name": r.step.name,
+            "kind": r.step.kind,
+            "duration_s": round(r.duration_s, 4),
+            "status": r.status,
+            "message": r.message,
+            "attempts": 0,
+        }
+        for r in plan.rows
+    ]
     if args.save_plan and not errors:
         _save_plan(Path(args.save_plan), world, plan)
     if args.json:
-        emit_json({"ok": not errors, "cell": cell.cell.cell, "task": task.name, "params": params,
-                   "cycle_time_s": round(plan.cycle_time_s, 4), "steps": rows, "errors": errors,
-                   "slots_checked": slots_checked,
-                   "failed_slots": [{"param": name, "slots": slots, "error": message}
-                                    for name, slots, message in grouped],
-                   "warnings": [str(w) for w in [*cell.warnings, *task.warnings]]})
+        emit_json(
+            {
+                "ok": not errors,
+                "cell": cell.cell.cell,
+                "task": task.name,
+                "params": params,
+                "cycle_time_s": round(plan.cycle_time_s, 4),
+                "steps": rows,
+                "errors": errors,
+                "slots_checked": slots_checked,
+                "failed_slots": [
+                    {"param": name, "slots": slots, "error": message}
+                    for name, slots, message in grouped
+                ],
+                "warnings": [str(w) for w in [*cell.warnings, *task.warnings]],
+            }
+        )
     else:
-        title = f"check {task.name} on {cell.cell.cell} ({cell.cell.robot.model})" + \
-            (f"  params: {_params_text(params)}" if params else "")
+        title = f"check {task.name} on {cell.cell.cell} ({cell.cell.robot.model})" + (
+            f"  params: {_params_text(params)}" if params else ""
+        )
         out.print(step_table(title, [{**r, "message": _headline(r["message"])} for r in rows]))
         for name, values in slots_checked.items():
             if isinstance(values[0], dict):
-                out.print(f"pose param {name}: {len(values)} poses checked (its box's centre and corners)",
-                          markup=False)
+                out.print(
+                    f"pose param {name}: {len(values)} poses checked (its box's centre and corners)",
+                    markup=False,
+                )
             else:
-                out.print(f"pattern param {name}: {len(values)} slots checked ({values[0]}..{values[-1]})",
-                          markup=False)
+                out.print(
+                    f"pattern param {name}: {len(values)} slots checked ({values[0]}..{values[-1]})",
+                    markup=False,
+                )
         if pattern is None:
             for e in plan.errors:
                 out.print(Text("infeasible: ", style="bold red") + Text(_lines(e)))
         for name, slots, message in grouped:
-            out.print(Text("infeasible: ", style="bold red") + Text(_lines(f"{slot_range_text(name, slots)}: {message}")))
+            out.print(
+                Text("infeasible: ", style="bold red")
+                + Text(_lines(f"{slot_range_text(name, slots)}: {message}"))
+            )
         for name, pose, message in poses:
-            out.print(Text("infeasible: ", style="bold red") + Text(_lines(f"{name}={_shown(pose)}: {message}")))
+            out.print(
+                Text("infeasible: ", style="bold red")
+                + Text(_lines(f"{name}={_shown(pose)}: {message}"))
+            )
         verdict = "[green]feasible[/]" if not errors else "[bold red]infeasible[/]"
-        out.print(f"{verdict}: planned cycle time {plan.cycle_time_s:.2f} s "
-                  f"(checked in {time.perf_counter() - t0:.2f} s)")
+        out.print(
+            f"{verdict}: planned cycle time {plan.cycle_time_s:.2f} s "
+            f"(checked in {time.perf_counter() - t0:.2f} s)"
+        )
         if args.save_plan and not errors:
             out.print(f"plan saved to {args.save_plan}", markup=False)
     return 0 if not errors else 1
@@ -110,13 +154,19 @@ class _Counter:
         progress, (slots, steps) = self._progress
         if self._started:  # the plan before is over (a failed step leaves the rest unplanned)
             progress.advance(slots)
-            progress.update(steps, completed=max(progress.tasks[steps].completed, self._started * self._steps_per_plan))
+            progress.update(
+                steps,
+                completed=max(
+                    progress.tasks[steps].completed, self._started * self._steps_per_plan
+                ),
+            )
         self._started += 1
         progress.update(slots, detail=label)
 
         def on_step(step) -> None:
             progress.advance(steps)
             progress.update(steps, detail=step.label)
+
         return on_step
 
     def skip(self, n_plans: int) -> None:
@@ -135,11 +185,19 @@ def _progress(out, n_plans: int, steps_per_plan: int):
         return
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TextColumn("{task.fields[detail]}", markup=False), TimeElapsedColumn(),
-                  console=out, transient=True) as progress:
-        tasks = (progress.add_task("slots", total=n_plans, detail=""),
-                 progress.add_task("steps", total=n_plans * steps_per_plan, detail=""))
+    with Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[detail]}", markup=False),
+        TimeElapsedColumn(),
+        console=out,
+        transient=True,
+    ) as progress:
+        tasks = (
+            progress.add_task("slots", total=n_plans, detail=""),
+            progress.add_task("steps", total=n_plans * steps_per_plan, detail=""),
+        )
         yield _Counter((progress, tasks), steps_per_plan)
         progress.update(tasks[0], completed=n_plans)
         progress.update(tasks[1], completed=n_plans * steps_per_plan)
@@ -176,32 +234,59 @@ def slot_range_text(name: str, slots: list[int]) -> str:
     return f"{'slots' if name == 'slot' else name} {text}"
 
 
-def _check_other_slots(world, task, params, others: list[dict], use_cache: bool,
-                       progress: _Counter) -> list[tuple[str, int, str]]:
+def _check_other_slots(
+    world, task, params, others: list[dict], use_cache: bool, progress: _Counter
+) -> list[tuple[str, int, str]]:
     """Every other slot of every pattern (``others``: their params); the slots to plan
     afresh are shared with a forked child when a second core is free (:func:`_plan_split`).
     Returns (param, slot, error) for each error found."""
     from cellrunner.planning.cache import cache_dir, plan_key
 
-    cached = [p for p in others if use_cache
-              and (cache_dir(world) / f"{plan_key(world, task, p, world.q_home_rad)}.npz").is_file()]
+    cached = [
+        p
+        for p in others
+        if use_cache
+        and (cache_dir(world) / f"{plan_key(world, task, p, world.q_home_rad)}.npz").is_file()
+    ]
     fresh = [p for p in others if p not in cached]
-    found_all = [*_plan_split(world, task, fresh, use_cache, progress),
-                 *_slot_errors(world, task, cached, use_cache, progress)]
-    return [(k, given[k], e) for given, found in found_all for k in given if given[k] != params.get(k)
-            for e in found]
+    found_all = [
+        *_plan_split(world, task, fresh, use_cache, progress),
+        *_slot_errors(world, task, cached, use_cache, progress),
+    ]
+    return [
+        (k, given[k], e)
+        for given, found in found_all
+        for k in given
+        if given[k] != params.get(k)
+        for e in found
+    ]
 
 
-def _slot_errors(world, task, slots: list[dict], use_cache: bool,
-                 progress: _Counter | None = None) -> list[tuple[dict, list[str]]]:
+def _slot_errors(
+    world, task, slots: list[dict], use_cache: bool, progress: _Counter | None = None
+) -> list[tuple[dict, list[str]]]:
     from cellrunner.planning.cache import plan_cached
+
     progress = progress or _Counter()
-    return [(p, plan_cached(world, task, p, world.q_home_rad, use_cache=use_cache,
-                            on_step=progress.plan(_params_text(p))).errors) for p in slots]
+    return [
+        (
+            p,
+            plan_cached(
+                world,
+                task,
+                p,
+                world.q_home_rad,
+                use_cache=use_cache,
+                on_step=progress.plan(_params_text(p)),
+            ).errors,
+        )
+        for p in slots
+    ]
 
 
-def _plan_split(world, task, slots: list[dict], use_cache: bool,
-                progress: _Counter) -> list[tuple[dict, list[str]]]:
+def _plan_split(
+    world, task, slots: list[dict], use_cache: bool, progress: _Counter
+) -> list[tuple[dict, list[str]]]:
     """``_slot_errors`` of every slot, half of them in a forked child process when this
     process may run on more than one core (planning is single-threaded Python). The
     child inherits the loaded cell; it sends back only the errors. If it fails, the
@@ -211,10 +296,12 @@ def _plan_split(world, task, slots: list[dict], use_cache: bool,
     import multiprocessing
     import os
 
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    cores = (
+        len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    )
     if cores < 2 or len(slots) < 2 or "fork" not in multiprocessing.get_all_start_methods():
         return _slot_errors(world, task, slots, use_cache, progress)
-    theirs, mine = slots[: len(slots) // 2], slots[len(slots) // 2:]
+    theirs, mine = slots[: len(slots) // 2], slots[len(slots) // 2 :]
     context = multiprocessing.get_context("fork")
     reader, writer = context.Pipe(duplex=False)
 
@@ -259,12 +346,21 @@ def _save_plan(path: Path, world, plan) -> None:
             continue
         traj = row.trajectory
         samples = np.column_stack([traj.t_s, np.degrees(traj.q_rad)])
-        steps.append({"index": row.step.index, "name": row.step.name, "kind": row.step.kind,
-                      "samples": np.round(samples, 9).tolist()})
-    payload = {"model": c.robot.model, "rate_hz": world.spec.rate_hz,
-               "joint_names": list(JOINT_NAMES),
-               "mount": {"xyz": list(c.robot.mount.xyz), "rpy": list(c.robot.mount.rpy)},
-               "tcp": {"xyz": list(c.tool.tcp.xyz), "rpy": list(c.tool.tcp.rpy)},
-               "steps": steps}
+        steps.append(
+            {
+                "index": row.step.index,
+                "name": row.step.name,
+                "kind": row.step.kind,
+                "samples": np.round(samples, 9).tolist(),
+            }
+        )
+    payload = {
+        "model": c.robot.model,
+        "rate_hz": world.spec.rate_hz,
+        "joint_names": list(JOINT_NAMES),
+        "mount": {"xyz": list(c.robot.mount.xyz), "rpy": list(c.robot.mount.rpy)},
+        "tcp": {"xyz": list(c.tool.tcp.xyz), "rpy": list(c.tool.tcp.rpy)},
+        "steps": steps,
+    }
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(payload))

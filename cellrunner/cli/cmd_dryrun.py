@@ -31,11 +31,14 @@ from cellrunner.report.recorder import RunRecorder
 #: e-stop faults are released by the "operator" this long after they struck (sim s)
 PLC_OUTAGE_S = 2.0
 
+
 def _parts_end(backend) -> dict[str, list[float]]:
     """Where each part of the twin ended (world position, m)."""
     world = backend.world
-    return {p.name: [round(float(v), 5) for v in world.part_pose_world(p.name)[:3, 3]]
-            for p in backend.description.parts}
+    return {
+        p.name: [round(float(v), 5) for v in world.part_pose_world(p.name)[:3, 3]]
+        for p in backend.description.parts
+    }
 
 
 def run(args) -> int:
@@ -45,6 +48,7 @@ def run(args) -> int:
     injections = parse_injections(args.inject, steps)
     if args.report:
         from cellrunner.backends.sim._mj import enable_pictures
+
         enable_pictures()  # before MuJoCo is imported: it reads its GL backend once
     from cellrunner.backends.sim.backend import SimBackend
     from cellrunner.backends.sim.from_cell import description_of
@@ -60,15 +64,28 @@ def run(args) -> int:
         now = backend.read_state().time_s
         recorder.mark(now, step)
         for inj in injections:
-            if inj.step_index == step.index and attempt == 1 and all(p[0] is not inj for p in pending):
+            if (
+                inj.step_index == step.index
+                and attempt == 1
+                and all(p[0] is not inj for p in pending)
+            ):
                 pending.append((inj, now + inj.delay_s))
 
     log = None
     if args.log_format == "json":
         from cellrunner.cli.logs import configure
+
         log = configure("json", cell.cell.cell)
-    controller = CellController(cell, {1: task}, backend, Journal(":memory:"), job_planner(world), log=log,
-                                wait_for_unhold=False, on_step_start=on_step_start)
+    controller = CellController(
+        cell,
+        {1: task},
+        backend,
+        Journal(":memory:"),
+        job_planner(world),
+        log=log,
+        wait_for_unhold=False,
+        on_step_start=on_step_start,
+    )
     out = console()
     controller.setup()
     loop = ControlLoop(controller)
@@ -83,8 +100,15 @@ def run(args) -> int:
         wall_plan_s = time.perf_counter() - t0
         t_run = time.perf_counter()
         sim_t0 = backend.read_state().time_s
-        rehearsal = _Rehearsal(backend, pending, recorder if report else None, status, steps, world,
-                               {**cell.cell.io.outputs, **cell.cell.io.inputs})
+        rehearsal = _Rehearsal(
+            backend,
+            pending,
+            recorder if report else None,
+            status,
+            steps,
+            world,
+            {**cell.cell.io.outputs, **cell.cell.io.inputs},
+        )
         loop.add_observer(rehearsal.observe)
         loop.step(1)  # the plan is picked up: the job runs (or ended with 103)
         view = controller.job_view(records=False) or controller.last_job
@@ -98,43 +122,79 @@ def run(args) -> int:
     tracking = job.tracking_error_m if job else 0.0
     planned = (job.planned_cycle_time_s or 0.0) if job else 0.0
     sim_s = backend.read_state().time_s - sim_t0
-    payload = {"ok": code is ResultCode.OK, "cell": cell.cell.cell, "task": task.name, "params": params,
-               "cycle_time_s": round(result.cycle_time_s, 4), "planned_cycle_time_s": round(planned, 4),
-               "max_tracking_error_m": round(tracking, 6), "result_code": int(code),
-               "result_text": result.result_text, "retries": job.retries_used if job else 0,
-               "steps": rows, "errors": [] if code is ResultCode.OK else [result.result_text],
-               "injected": [i.spec for i in injections],
-               "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None,
-               "parts_end_m": _parts_end(backend)}
+    payload = {
+        "ok": code is ResultCode.OK,
+        "cell": cell.cell.cell,
+        "task": task.name,
+        "params": params,
+        "cycle_time_s": round(result.cycle_time_s, 4),
+        "planned_cycle_time_s": round(planned, 4),
+        "max_tracking_error_m": round(tracking, 6),
+        "result_code": int(code),
+        "result_text": result.result_text,
+        "retries": job.retries_used if job else 0,
+        "steps": rows,
+        "errors": [] if code is ResultCode.OK else [result.result_text],
+        "injected": [i.spec for i in injections],
+        "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None,
+        "parts_end_m": _parts_end(backend),
+    }
     has_pictures = True
     if report is not None:
         from cellrunner.report import write_report
-        has_pictures = write_report(report, recorder, payload, sim_world=backend.world, world=world, task=task,
-                                    params=params, step_rows=rows)
+
+        has_pictures = write_report(
+            report,
+            recorder,
+            payload,
+            sim_world=backend.world,
+            world=world,
+            task=task,
+            params=params,
+            step_rows=rows,
+        )
     runner = controller.last_runner  # finished: the control loop no longer touches it
     trace = list(runner.ctx.notes.get("force_trace", [])) if runner else []
     if report is not None and trace:
         from cellrunner.report.plots import plot_wrist_force
-        limits = {s.index: s.args.force if s.kind == "move_until_contact" else s.args.force.max
-                  for s in steps if s.kind in ("move_until_contact", "insert")}
-        plot_wrist_force(Path(report) / "wrist_force.png", trace, limits,
-                         title=f"{task.name}: wrist force in the force steps")
+
+        limits = {
+            s.index: s.args.force if s.kind == "move_until_contact" else s.args.force.max
+            for s in steps
+            if s.kind in ("move_until_contact", "insert")
+        }
+        plot_wrist_force(
+            Path(report) / "wrist_force.png",
+            trace,
+            limits,
+            title=f"{task.name}: wrist force in the force steps",
+        )
     controller.close()
     if args.json:
         emit_json(payload)
     else:
-        out.print(step_table(f"dry-run {task.name} on {cell.cell.cell} (MuJoCo twin)", rows, ("attempts",)))
+        out.print(
+            step_table(
+                f"dry-run {task.name} on {cell.cell.cell} (MuJoCo twin)", rows, ("attempts",)
+            )
+        )
         verdict = "[green]OK[/]" if code is ResultCode.OK else f"[bold red]{code.name}[/]"
         out.print(f"result {int(code)} {verdict}: {escape(result.result_text)}")
-        out.print(f"cycle time {result.cycle_time_s:.2f} s simulated vs {planned:.2f} s planned; "
-                  f"max tracking error {tracking * 1000:.2f} mm; retries {payload['retries']}; "
-                  f"planning {wall_plan_s:.2f} s, simulation {wall_run_s:.2f} s wall "
-                  f"({payload['real_time_factor']}x real time)")
+        out.print(
+            f"cycle time {result.cycle_time_s:.2f} s simulated vs {planned:.2f} s planned; "
+            f"max tracking error {tracking * 1000:.2f} mm; retries {payload['retries']}; "
+            f"planning {wall_plan_s:.2f} s, simulation {wall_run_s:.2f} s wall "
+            f"({payload['real_time_factor']}x real time)"
+        )
         if report is not None:
             out.print(f"report written to {report}/index.html", markup=False)
     if not has_pictures:
         from cellrunner.backends.sim._mj import GL_ADVICE
-        out.print(f"no pictures in the report: no OpenGL backend here ({GL_ADVICE} gives one)", soft_wrap=True)
+
+        out.print(
+            f"no pictures in the report: no OpenGL backend here ({GL_ADVICE} gives one)",
+            soft_wrap=True,
+        )
     return 0 if code is ResultCode.OK else 1
 
 
@@ -161,7 +221,9 @@ class _Rehearsal:
             inj, at = item
             if now >= at:
                 self.pending.remove(item)
-                if inj.fault == "plc_disconnect":  # the PLC watchdog holds the cell; the PLC comes back
+                if (
+                    inj.fault == "plc_disconnect"
+                ):  # the PLC watchdog holds the cell; the PLC comes back
                     cell.command("hold")
                     self.plc_back_at = now + PLC_OUTAGE_S
                 else:
@@ -175,10 +237,17 @@ class _Rehearsal:
         if view.step != self.last_step:
             self.last_step = view.step
             step = steps[view.step - 1] if 0 < view.step <= len(steps) else None  # else on_error's
-            self.status.update(escape(f"step {view.step}/{len(steps)} {step.kind} {step.name}") if step
-                               else "running")
+            self.status.update(
+                escape(f"step {view.step}/{len(steps)} {step.kind} {step.name}")
+                if step
+                else "running"
+            )
             if recorder is not None and step is not None and step.kind in ("grip", "release"):
                 recorder.moment(f"step{view.step:02d}_{step.kind}", backend.world)
         if recorder is not None and recorder.due(now):
-            recorder.sample(state, view.commanded_q_rad, self.world.kinematics.p_world_tcp(state.q_rad),
-                            self.io_names)
+            recorder.sample(
+                state,
+                view.commanded_q_rad,
+                self.world.kinematics.p_world_tcp(state.q_rad),
+                self.io_names,
+            )

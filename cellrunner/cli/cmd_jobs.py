@@ -12,8 +12,18 @@ from cellrunner.errors import UsageError
 from cellrunner.execution.journal import cell_journal, display_location, is_database_url
 from cellrunner.model.load import load_cell
 
-COLUMNS = ("job_id", "started", "task", "params", "source", "client_job_id", "result_code", "result_text",
-           "cycle_time_s", "retries")
+COLUMNS = (
+    "job_id",
+    "started",
+    "task",
+    "params",
+    "source",
+    "client_job_id",
+    "result_code",
+    "result_text",
+    "cycle_time_s",
+    "retries",
+)
 
 
 def run(args) -> int:
@@ -34,26 +44,44 @@ def run(args) -> int:
     finally:
         journal.close()
     columns = ("cell", *COLUMNS) if all_cells else COLUMNS
-    rows = [{"cell": r.cell, "job_id": r.job_id, "started": _time(r.started_at), "task": r.task,
-             "params": " ".join(f"{k}={v}" for k, v in r.params.items()), "source": r.source,
-             "client_job_id": r.client_job_id or "", "result_code": "" if r.result_code is None else r.result_code,
-             "result_text": r.result_text or ("running" if r.ended_at is None else ""),
-             "cycle_time_s": "" if r.cycle_time_s is None else f"{r.cycle_time_s:.2f}", "retries": r.retries}
-            for r in records]
+    rows = [
+        {
+            "cell": r.cell,
+            "job_id": r.job_id,
+            "started": _time(r.started_at),
+            "task": r.task,
+            "params": " ".join(f"{k}={v}" for k, v in r.params.items()),
+            "source": r.source,
+            "client_job_id": r.client_job_id or "",
+            "result_code": "" if r.result_code is None else r.result_code,
+            "result_text": r.result_text or ("running" if r.ended_at is None else ""),
+            "cycle_time_s": "" if r.cycle_time_s is None else f"{r.cycle_time_s:.2f}",
+            "retries": r.retries,
+        }
+        for r in records
+    ]
     if args.csv:
         writer = csv.DictWriter(sys.stdout, fieldnames=columns, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(rows)
         return 0
     from rich.table import Table
+
     from cellrunner.cli.common import console
+
     whose = "all cells" if all_cells else cell.cell.cell
     table = Table(title=f"jobs of {whose} ({display_location(where)})", title_justify="left")
     from rich.text import Text
+
     id_width = max([len(str(row["job_id"])) for row in rows], default=6)
     for c in columns:  # a job id is never cut (it is what one looks up); the other columns fold
-        table.add_column(c, justify="right" if c in ("result_code", "cycle_time_s", "retries") else "left",
-                         no_wrap=c == "job_id", min_width=id_width if c == "job_id" else None, overflow="fold")
+        table.add_column(
+            c,
+            justify="right" if c in ("result_code", "cycle_time_s", "retries") else "left",
+            no_wrap=c == "job_id",
+            min_width=id_width if c == "job_id" else None,
+            overflow="fold",
+        )
     for row in rows:
         table.add_row(*[Text(str(row[c])) for c in columns])
     console().print(table)
@@ -62,4 +90,3 @@ def run(args) -> int:
 
 def _time(ts: float) -> str:
     return datetime.fromtimestamp(ts).strftime("%Y-%m-%d %H:%M:%S")
-

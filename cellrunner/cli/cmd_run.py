@@ -18,7 +18,9 @@ from cellrunner.model.codes import ResultCode
 def run(args) -> int:
     speed = getattr(args, "speed", 1.0)
     if not 0.0 < speed <= 1.0:
-        raise UsageError(f"--speed {speed:g}: give a fraction of the approved pace, 0 < F <= 1 (e.g. 0.25)")
+        raise UsageError(
+            f"--speed {speed:g}: give a fraction of the approved pace, 0 < F <= 1 (e.g. 0.25)"
+        )
     cell, task = load(args.cell, args.task)
     params = parse_params(args.param, task)
     from cellrunner.planning.world import CellWorld
@@ -28,15 +30,25 @@ def run(args) -> int:
     log = None
     if args.log_format == "json":
         from cellrunner.cli.logs import configure
+
         log = configure("json", cell.cell.cell)
     stepping = getattr(args, "step", False)
     gate = None
     if stepping:
         from cellrunner.execution.pacing import EnterGate, describe_step
+
         gate = EnterGate(describe_step, on_end=lambda: controller.command("abort"))
     planner = job_planner(CellWorld(cell), speed=speed, joined=not stepping)
-    controller = CellController(cell, {1: task}, backend, cell_journal(cell),
-                                planner, log=log, wait_for_unhold=False, gate=gate)
+    controller = CellController(
+        cell,
+        {1: task},
+        backend,
+        cell_journal(cell),
+        planner,
+        log=log,
+        wait_for_unhold=False,
+        gate=gate,
+    )
     out = console()
     controller.setup()
     loop = ControlLoop(controller)
@@ -60,16 +72,27 @@ def run(args) -> int:
         controller.close()
     code = ResultCode(result.result_code)
     rows = record_rows(job)
-    payload = {"ok": code is ResultCode.OK, "cell": cell.cell.cell, "task": task.name, "params": params,
-               "cycle_time_s": round(result.cycle_time_s, 4), "result_code": int(code),
-               "result_text": result.result_text, "job_id": result.job_id, "backend": kind, "steps": rows,
-               "errors": [] if code is ResultCode.OK else [result.result_text]}
+    payload = {
+        "ok": code is ResultCode.OK,
+        "cell": cell.cell.cell,
+        "task": task.name,
+        "params": params,
+        "cycle_time_s": round(result.cycle_time_s, 4),
+        "result_code": int(code),
+        "result_text": result.result_text,
+        "job_id": result.job_id,
+        "backend": kind,
+        "steps": rows,
+        "errors": [] if code is ResultCode.OK else [result.result_text],
+    }
     if args.json:
         emit_json(payload)
     else:
         out.print(step_table(f"run {task.name} on {cell.cell.cell} ({kind})", rows, ("attempts",)))
-        out.print(f"job {result.job_id}: result {int(code)} {result.result_text}; cycle {result.cycle_time_s:.2f} s",
-                  markup=False)
+        out.print(
+            f"job {result.job_id}: result {int(code)} {result.result_text}; cycle {result.cycle_time_s:.2f} s",
+            markup=False,
+        )
     if code is ResultCode.ROBOT_CONNECTION_LOST:
         return 3
     return 0 if code is ResultCode.OK else 1

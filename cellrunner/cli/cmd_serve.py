@@ -20,6 +20,7 @@ def run(args) -> int:
     http = None
     if getattr(args, "http", None):
         from cellrunner.web.server import parse_address
+
         http = parse_address(args.http)  # a bad address is exit 2 before anything starts
     cell = load_cell(args.cell)
     tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
@@ -29,15 +30,23 @@ def run(args) -> int:
     kind = backend_kind(cell, args.backend)
     backend = make_backend(cell, kind, args.robot_host)
     from cellrunner.planning.world import CellWorld
+
     world = CellWorld(cell)
     warm_up(world)  # before READY: the first job is acknowledged as fast as any other
     _load_planning_libraries()
     # the planning thread is CPU-bound; hand the GIL over every 1 ms (Python's default is
     # 5 ms) so the PLC threads answer promptly while a job plans
     sys.setswitchinterval(0.001)
-    controller = CellController(cell, tasks, backend, cell_journal(cell),
-                                job_planner(world), log=log, wait_for_unhold=True,
-                                on_job_start=getattr(backend, "feed_parts", None))
+    controller = CellController(
+        cell,
+        tasks,
+        backend,
+        cell_journal(cell),
+        job_planner(world),
+        log=log,
+        wait_for_unhold=True,
+        on_job_start=getattr(backend, "feed_parts", None),
+    )
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
@@ -47,9 +56,13 @@ def run(args) -> int:
     try:
         service = _plc_service(controller, cell)
         status_page = _status_page(controller, cell, service, http, log) if http else None
-        log.info("serving", backend=kind, tasks={n: t.name for n, t in tasks.items()},
-                 modbus=getattr(service, "modbus_address", None) if service else None,
-                 http=status_page.url if status_page else None)
+        log.info(
+            "serving",
+            backend=kind,
+            tasks={n: t.name for n, t in tasks.items()},
+            modbus=getattr(service, "modbus_address", None) if service else None,
+            http=status_page.url if status_page else None,
+        )
         ControlLoop(controller, realtime=kind == "sim").run(stop)
     except Exception as exc:  # a bug in the control loop: close the job saying so, then exit 1
         reason = f"cellrunner failed: {type(exc).__name__}: {exc}"
@@ -75,8 +88,12 @@ def _status_page(controller: CellController, cell, service, address: tuple[str, 
 
     host, port = address
     journal = cell_journal(cell)
-    board = StatusBoard(controller, journal, cell.cell.cell,
-                        plc_links=service.links if service is not None else dict).setup()
+    board = StatusBoard(
+        controller,
+        journal,
+        cell.cell.cell,
+        plc_links=service.links if service is not None else dict,
+    ).setup()
     server = StatusServer(board, host, port)
     try:
         server.start()
@@ -84,8 +101,11 @@ def _status_page(controller: CellController, cell, service, address: tuple[str, 
         board.close()
         raise
     if not is_loopback(host):
-        log.warning("status_page_not_loopback", host=host,
-                    note="the status page is reachable from the network (read-only)")
+        log.warning(
+            "status_page_not_loopback",
+            host=host,
+            note="the status page is reachable from the network (read-only)",
+        )
     return server
 
 
@@ -94,13 +114,16 @@ def _plc_service(controller: CellController, cell):
     if plc.modbus is None and plc.opcua is None:
         return None
     from cellrunner.plc.service import PlcService
+
     if plc.opcua and plc.opcua.pki:
         pki = cell.resolve(plc.opcua.pki)
     elif is_database_url(cell.cell.journal):
         pki = cell.resolve("var/pki")
     else:
         pki = cell.resolve(cell.cell.journal).parent / "pki"
-    service = PlcService(controller, plc, resolve=cell.resolve, pki_dir=pki, cell_name=cell.cell.cell)
+    service = PlcService(
+        controller, plc, resolve=cell.resolve, pki_dir=pki, cell_name=cell.cell.cell
+    )
     service.start()
     return service
 

@@ -30,14 +30,27 @@ def run(args) -> int:
     g = cell.cell.tool.gripper
     if g is not None and g.kind == "robotiq" and g.close is None:
         from cellrunner.backends.robotiq import serve_robotiq
-        physics.reset(np.radians(cell.cell.robot.home))  # builds the world the gripper socket drives
-        threading.Thread(target=serve_robotiq, args=(args.host, physics.world, stop, g.port), daemon=True).start()
-    run_twin(spec, host=args.host, physics=physics, stop_event=stop, ready=ready,
-             q_initial_rad=tuple(np.radians(cell.cell.robot.home)))
+
+        physics.reset(
+            np.radians(cell.cell.robot.home)
+        )  # builds the world the gripper socket drives
+        threading.Thread(
+            target=serve_robotiq, args=(args.host, physics.world, stop, g.port), daemon=True
+        ).start()
+    run_twin(
+        spec,
+        host=args.host,
+        physics=physics,
+        stop_event=stop,
+        ready=ready,
+        q_initial_rad=tuple(np.radians(cell.cell.robot.home)),
+    )
     return 0
 
 
 def _announce(ready: threading.Event, stop: threading.Event, host: str, spec) -> None:
     if ready.wait(timeout=60) and not stop.is_set():
-        sys.stderr.write(f"virtual {spec.name.upper()} controller ({spec.generation}, {spec.rate_hz:g} Hz) on {host}: "
-                         "dashboard 29999, RTDE 30004, script 30001-30003, faults 29990\n")
+        sys.stderr.write(
+            f"virtual {spec.name.upper()} controller ({spec.generation}, {spec.rate_hz:g} Hz) on {host}: "
+            "dashboard 29999, RTDE 30004, script 30001-30003, faults 29990\n"
+        )

@@ -5,4 +5,5 @@ from __future__ import annotations
 
 def run(args) -> int:
     from cellrunner.plc.users import run_users_command
+
     return run_users_command(args)

@@ -25,14 +25,18 @@ def run(args) -> int:
             errors.extend(exc.diagnostics)
             continue
         _print(task.warnings)
-        summaries.append(f"{display_name(task.path)}: ok (task {task.name}, {len(task.steps)} steps, "
-                         f"params: {', '.join(task.task.params) or 'none'})")
+        summaries.append(
+            f"{display_name(task.path)}: ok (task {task.name}, {len(task.steps)} steps, "
+            f"params: {', '.join(task.task.params) or 'none'})"
+        )
     if errors:
         raise InputError(errors)
     c = cell.cell
-    sys.stderr.write(f"{display_name(cell.path)}: ok (cell {c.cell}, {c.robot.model}, "
-                     f"{len(c.fixtures)} fixtures, {len(c.frames)} frames, {len(c.parts)} parts, "
-                     f"{len(c.tasks)} tasks)\n")
+    sys.stderr.write(
+        f"{display_name(cell.path)}: ok (cell {c.cell}, {c.robot.model}, "
+        f"{len(c.fixtures)} fixtures, {len(c.frames)} frames, {len(c.parts)} parts, "
+        f"{len(c.tasks)} tasks)\n"
+    )
     for line in summaries:
         sys.stderr.write(line + "\n")
     return 0

@@ -11,7 +11,6 @@ from cellrunner.errors import InputError, UsageError
 from cellrunner.model.expand import Step, expand, resolve_params
 from cellrunner.model.load import LoadedCell, LoadedTask, load_cell, load_task
 
-
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
@@ -54,6 +53,7 @@ def emit_json(payload: dict) -> None:
 
 def _default(value):
     import numpy as np
+
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, (np.floating, np.integer)):
@@ -64,22 +64,37 @@ def _default(value):
 def console():
     """A rich console on stderr (human output never pollutes --json on stdout)."""
     from rich.console import Console
+
     return Console(stderr=True, highlight=False)
 
 
 def step_table(title: str, rows: list[dict], extra_columns: tuple[str, ...] = ()):
     from rich.table import Table
     from rich.text import Text
+
     table = Table(title=title, title_justify="left", show_lines=False, pad_edge=False)
-    for name, justify in (("#", "right"), ("kind", "left"), ("name", "left"), ("time s", "right"),
-                          ("status", "left"), *[(c, "right") for c in extra_columns], ("message", "left")):
+    for name, justify in (
+        ("#", "right"),
+        ("kind", "left"),
+        ("name", "left"),
+        ("time s", "right"),
+        ("status", "left"),
+        *[(c, "right") for c in extra_columns],
+        ("message", "left"),
+    ):
         table.add_column(name, justify=justify, overflow="fold")
     colors = {"ok": "green", "failed": "bold red", "not planned": "dim", "skipped": "dim"}
     for r in rows:
         status = r["status"]
-        table.add_row(str(r["index"]), r["kind"], Text(r["name"]), f"{r['duration_s']:.2f}",
-                      Text(status, style=colors.get(status, "yellow")),
-                      *[str(r.get(c.replace(' ', '_'), '')) for c in extra_columns], Text(r.get("message", "")))
+        table.add_row(
+            str(r["index"]),
+            r["kind"],
+            Text(r["name"]),
+            f"{r['duration_s']:.2f}",
+            Text(status, style=colors.get(status, "yellow")),
+            *[str(r.get(c.replace(" ", "_"), "")) for c in extra_columns],
+            Text(r.get("message", "")),
+        )
     return table
 
 
@@ -91,7 +106,27 @@ def record_rows(job, steps=None) -> list[dict]:
     if isinstance(records, dict):  # a JobRunner's own records
         records = tuple(records.values())
     if not records:
-        return [{"index": s.index, "name": s.name, "kind": s.kind, "duration_s": 0.0, "status": "not run",
-                 "message": "", "attempts": 0} for s in steps or []]
-    return [{"index": r.index, "name": r.name, "kind": r.kind, "duration_s": round(r.duration_s, 4),
-             "status": str(r.status), "message": r.message, "attempts": r.attempts} for r in records]
+        return [
+            {
+                "index": s.index,
+                "name": s.name,
+                "kind": s.kind,
+                "duration_s": 0.0,
+                "status": "not run",
+                "message": "",
+                "attempts": 0,
+            }
+            for s in steps or []
+        ]
+    return [
+        {
+            "index": r.index,
+            "name": r.name,
+            "kind": r.kind,
+            "duration_s": round(r.duration_s, 4),
+            "status": str(r.status),
+            "message": r.message,
+            "attempts": r.attempts,
+        }
+        for r in records
+    ]

@@ -8,7 +8,14 @@ from dataclasses import dataclass
 from cellrunner.errors import UsageError
 from cellrunner.model.expand import Step
 
-FAULTS = ("grip_miss", "part_slip", "protective_stop", "estop", "robot_disconnect", "plc_disconnect")
+FAULTS = (
+    "grip_miss",
+    "part_slip",
+    "protective_stop",
+    "estop",
+    "robot_disconnect",
+    "plc_disconnect",
+)
 #: faults that strike a while into their step (a stop in the middle of a move), not at its start
 DELAYED_S = {"protective_stop": 0.3, "estop": 0.3, "robot_disconnect": 0.3, "plc_disconnect": 0.3}
 
@@ -30,9 +37,13 @@ def parse_injections(specs: list[str], steps: list[Step]) -> list[Injection]:
     for spec in specs:
         fault, _, where = spec.partition("@")
         if fault not in FAULTS:
-            raise UsageError(f"--inject {spec!r}: unknown fault {fault!r}; known: {', '.join(FAULTS)}")
+            raise UsageError(
+                f"--inject {spec!r}: unknown fault {fault!r}; known: {', '.join(FAULTS)}"
+            )
         if not where:
-            raise UsageError(f"--inject {spec!r}: write FAULT@STEP (a step index, a kind, or KIND#N)")
+            raise UsageError(
+                f"--inject {spec!r}: write FAULT@STEP (a step index, a kind, or KIND#N)"
+            )
         out.append(Injection(fault, _step_index(spec, where, steps), spec))
     return out
 
@@ -41,12 +52,16 @@ def _step_index(spec: str, where: str, steps: list[Step]) -> int:
     if where.isdigit():
         index = int(where)
         if not 1 <= index <= len(steps):
-            raise UsageError(f"--inject {spec!r}: step {index} does not exist; the task has steps 1..{len(steps)}")
+            raise UsageError(
+                f"--inject {spec!r}: step {index} does not exist; the task has steps 1..{len(steps)}"
+            )
         return index
     m = re.fullmatch(r"([a-z_]+)(?:#(\d+))?", where)
     kinds = list(dict.fromkeys(s.kind for s in steps))
     if not m or m.group(1) not in kinds:
-        raise UsageError(f"--inject {spec!r}: no step {where!r}; kinds in this task: {', '.join(kinds)}")
+        raise UsageError(
+            f"--inject {spec!r}: no step {where!r}; kinds in this task: {', '.join(kinds)}"
+        )
     matches = [s for s in steps if s.kind == m.group(1)]
     n = int(m.group(2) or 1)
     if not 1 <= n <= len(matches):

@@ -4,17 +4,24 @@ from __future__ import annotations
 
 import logging
 import sys
+from datetime import UTC
 
 
 def configure(fmt: str, cell: str):
     """A logger bound with ``cell``; events carry job_id, step and attempt when bound."""
     import structlog
 
-    renderer = (structlog.processors.JSONRenderer() if fmt == "json"
-                else structlog.dev.ConsoleRenderer(colors=sys.stderr.isatty()))
+    renderer = (
+        structlog.processors.JSONRenderer()
+        if fmt == "json"
+        else structlog.dev.ConsoleRenderer(colors=sys.stderr.isatty())
+    )
     structlog.configure(
-        processors=[structlog.processors.add_log_level, structlog.processors.TimeStamper(fmt="iso", utc=True),
-                    renderer],
+        processors=[
+            structlog.processors.add_log_level,
+            structlog.processors.TimeStamper(fmt="iso", utc=True),
+            renderer,
+        ],
         wrapper_class=structlog.make_filtering_bound_logger(logging.INFO),
         logger_factory=structlog.PrintLoggerFactory(file=sys.stderr),
         cache_logger_on_first_use=False,
@@ -31,9 +38,14 @@ class _JsonLines(logging.Handler):
         from datetime import datetime, timezone
 
         try:
-            line = json.dumps({"event": record.getMessage(), "logger": record.name,
-                               "level": record.levelname.lower(),
-                               "timestamp": datetime.fromtimestamp(record.created, timezone.utc).isoformat()})
+            line = json.dumps(
+                {
+                    "event": record.getMessage(),
+                    "logger": record.name,
+                    "level": record.levelname.lower(),
+                    "timestamp": datetime.fromtimestamp(record.created, UTC).isoformat(),
+                }
+            )
             sys.stderr.write(line + "\n")
         except Exception:  # noqa: BLE001 - logging must never raise
             self.handleError(record)

@@ -36,8 +36,14 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _params(p: argparse.ArgumentParser) -> None:
-    p.add_argument("-p", "--param", action="append", default=[], metavar="K=V",
-                   help="task parameter, repeatable (e.g. -p slot=3)")
+    p.add_argument(
+        "-p",
+        "--param",
+        action="append",
+        default=[],
+        metavar="K=V",
+        help="task parameter, repeatable (e.g. -p slot=3)",
+    )
 
 
 def _cell_task(p: argparse.ArgumentParser) -> None:
@@ -46,17 +52,29 @@ def _cell_task(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="cellrunner", description="Run Universal Robots production cells from YAML.",
-                     epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = _Parser(
+        prog="cellrunner",
+        description="Run Universal Robots production cells from YAML.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument("--version", action="version", version=f"cellrunner {__version__}")
-    parser.add_argument("--log-format", choices=("console", "json"), default="console",
-                        help="log events as console lines or JSON lines (default console)")
+    parser.add_argument(
+        "--log-format",
+        choices=("console", "json"),
+        default="console",
+        help="log events as console lines or JSON lines (default console)",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     p = sub.add_parser("validate", help="schema and reference checks only")
     p.add_argument("cell")
-    p.add_argument("tasks", nargs="*", metavar="TASK",
-                   help="task files (default: every task of the cell's tasks:)")
+    p.add_argument(
+        "tasks",
+        nargs="*",
+        metavar="TASK",
+        help="task files (default: every task of the cell's tasks:)",
+    )
     p.set_defaults(module="validate")
 
     p = sub.add_parser("check", help="pre-flight: prove a task feasible, print the plan")
@@ -70,9 +88,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("dry-run", help="run the real state machine against the MuJoCo twin")
     _cell_task(p)
     _params(p)
-    p.add_argument("--inject", action="append", default=[], metavar="FAULT@STEP",
-                   help="grip_miss, part_slip, protective_stop, estop, robot_disconnect, "
-                        "plc_disconnect at a step (index, kind, or KIND#N)")
+    p.add_argument(
+        "--inject",
+        action="append",
+        default=[],
+        metavar="FAULT@STEP",
+        help="grip_miss, part_slip, protective_stop, estop, robot_disconnect, "
+        "plc_disconnect at a step (index, kind, or KIND#N)",
+    )
     p.add_argument("--report", metavar="DIR", help="write JSON, pictures and plots here")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.set_defaults(module="dryrun")
@@ -84,19 +107,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", choices=("ur", "sim"))
     p.add_argument("--robot-host", metavar="H")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
-    p.add_argument("--speed", type=float, default=1.0, metavar="F",
-                   help="commissioning: the approved motions at F x their pace (0 < F <= 1), same path")
-    p.add_argument("--step", action="store_true",
-                   help="commissioning: show each step and wait for Enter before running it")
+    p.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        metavar="F",
+        help="commissioning: the approved motions at F x their pace (0 < F <= 1), same path",
+    )
+    p.add_argument(
+        "--step",
+        action="store_true",
+        help="commissioning: show each step and wait for Enter before running it",
+    )
     p.set_defaults(module="run")
 
     p = sub.add_parser("serve", help="production: PLC interface up, jobs on trigger")
     p.add_argument("cell")
     p.add_argument("--backend", choices=("ur", "sim"))
     p.add_argument("--robot-host", metavar="H")
-    p.add_argument("--http", metavar="[HOST:]PORT",
-                   help="serve a read-only status page and Prometheus /metrics here "
-                        "(host defaults to 127.0.0.1, e.g. --http 127.0.0.1:8080)")
+    p.add_argument(
+        "--http",
+        metavar="[HOST:]PORT",
+        help="serve a read-only status page and Prometheus /metrics here "
+        "(host defaults to 127.0.0.1, e.g. --http 127.0.0.1:8080)",
+    )
     p.set_defaults(module="serve")
 
     p = sub.add_parser("twin", help="a virtual UR controller backed by the MuJoCo twin")
@@ -104,12 +138,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--host", default="127.0.0.2")
     p.set_defaults(module="twin")
 
-    p = sub.add_parser("teach", help="commissioning: a frame from the arm, written into the cell file")
+    p = sub.add_parser(
+        "teach", help="commissioning: a frame from the arm, written into the cell file"
+    )
     p.add_argument("cell")
     p.add_argument("frame")
     p.add_argument("--robot-host", metavar="H")
-    p.add_argument("--points", type=int, default=1, metavar="N",
-                   help="1: the TCP pose (default); 3: origin, a +X point, a point in the XY plane")
+    p.add_argument(
+        "--points",
+        type=int,
+        default=1,
+        metavar="N",
+        help="1: the TCP pose (default); 3: origin, a +X point, a point in the XY plane",
+    )
     p.add_argument("--yes", action="store_true", help="write the change without asking")
     p.set_defaults(module="teach")
 
@@ -119,33 +160,47 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mode", choices=("joint", "base", "tool"), default="joint")
     p.set_defaults(module="jog")
 
-    p = sub.add_parser("calibrate-tcp", help="commissioning: the TCP from poses about one fixed point")
+    p = sub.add_parser(
+        "calibrate-tcp", help="commissioning: the TCP from poses about one fixed point"
+    )
     p.add_argument("cell")
     p.add_argument("--robot-host", metavar="H")
-    p.add_argument("--poses", type=int, default=4, metavar="N", help="poses to take, at least 4 (default 4)")
+    p.add_argument(
+        "--poses", type=int, default=4, metavar="N", help="poses to take, at least 4 (default 4)"
+    )
     p.add_argument("--yes", action="store_true", help="write the change without asking")
     p.set_defaults(module="calibrate_tcp")
 
     p = sub.add_parser("schema", help="JSON Schema of cell and task files")
     p.add_argument("kind", nargs="?", choices=("cell", "task"), help="only this one")
-    p.add_argument("--write", metavar="DIR", help="write cell.schema.json and task.schema.json here")
+    p.add_argument(
+        "--write", metavar="DIR", help="write cell.schema.json and task.schema.json here"
+    )
     p.set_defaults(module="schema")
 
     p = sub.add_parser("jobs", help="the journal")
     p.add_argument("cell")
     p.add_argument("--last", type=int, default=20, metavar="N")
     p.add_argument("--csv", action="store_true")
-    p.add_argument("--all-cells", action="store_true",
-                   help="every cell's jobs in a shared journal (e.g. a postgresql:// one), with a cell column")
+    p.add_argument(
+        "--all-cells",
+        action="store_true",
+        help="every cell's jobs in a shared journal (e.g. a postgresql:// one), with a cell column",
+    )
     p.set_defaults(module="jobs")
 
     p = sub.add_parser("users", help="OPC UA users")
-    usub = p.add_subparsers(dest="users_command", metavar="ACTION", parser_class=_Parser, required=True)
+    usub = p.add_subparsers(
+        dest="users_command", metavar="ACTION", parser_class=_Parser, required=True
+    )
     u = usub.add_parser("add", help="add or replace a user (salted hash)")
     u.add_argument("file")
     u.add_argument("name")
-    u.add_argument("--password-stdin", action="store_true",
-                   help="read the password from standard input (else prompt twice)")
+    u.add_argument(
+        "--password-stdin",
+        action="store_true",
+        help="read the password from standard input (else prompt twice)",
+    )
     p.set_defaults(module="users")
     return parser
 
@@ -157,7 +212,9 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:
         if exc.code == EXIT_INPUT and "--json" in words:
-            _json_failure(argparse.Namespace(json=True), [getattr(exc, "message", "bad command line")])
+            _json_failure(
+                argparse.Namespace(json=True), [getattr(exc, "message", "bad command line")]
+            )
         raise
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
@@ -194,8 +251,10 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # a bug of ours: say so in one line unless debugging
         if os.environ.get("CELLRUNNER_DEBUG"):
             raise
-        sys.stderr.write(f"cellrunner {args.command}: internal error: {type(exc).__name__}: {exc} "
-                         "(set CELLRUNNER_DEBUG=1 for details)\n")
+        sys.stderr.write(
+            f"cellrunner {args.command}: internal error: {type(exc).__name__}: {exc} "
+            "(set CELLRUNNER_DEBUG=1 for details)\n"
+        )
         return EXIT_FAILED
 
 
@@ -206,8 +265,17 @@ def _json_failure(args: argparse.Namespace, errors: list[str]) -> None:
         return
     from cellrunner.cli.common import emit_json
 
-    emit_json({"ok": False, "cell": None, "task": None, "params": {}, "cycle_time_s": 0.0, "steps": [],
-               "errors": errors})
+    emit_json(
+        {
+            "ok": False,
+            "cell": None,
+            "task": None,
+            "params": {},
+            "cycle_time_s": 0.0,
+            "steps": [],
+            "errors": errors,
+        }
+    )
 
 
 if __name__ == "__main__":  # pragma: no cover

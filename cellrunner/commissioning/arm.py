@@ -36,8 +36,9 @@ class ArmReader:
         import rtde_receive
 
         try:
-            self._receive = rtde_receive.RTDEReceiveInterface(self.host, self.cell.spec.rate_hz,
-                                                              ["timestamp", "actual_q", "actual_qd"])
+            self._receive = rtde_receive.RTDEReceiveInterface(
+                self.host, self.cell.spec.rate_hz, ["timestamp", "actual_q", "actual_qd"]
+            )
         except (RuntimeError, OSError) as exc:
             raise PeerUnreachable(f"cannot read the arm at {self.host}: {exc}") from exc
 
@@ -53,8 +54,10 @@ class ArmReader:
         deadline = time.monotonic() + timeout_s
         while len(readings) < samples:
             if time.monotonic() > deadline:
-                raise PeerUnreachable(f"the arm at {self.host} did not stand still for a reading "
-                                      f"within {timeout_s:g} s")
+                raise PeerUnreachable(
+                    f"the arm at {self.host} did not stand still for a reading "
+                    f"within {timeout_s:g} s"
+                )
             if not self._receive.isConnected():
                 raise PeerUnreachable(f"lost the connection to the arm at {self.host}")
             if max(abs(v) for v in self._receive.getActualQd()) > STILL_RAD_S:

@@ -36,8 +36,14 @@ class PoseEdit:
 
     @property
     def diff(self) -> str:
-        return "".join(difflib.unified_diff(self.before.splitlines(True), self.after.splitlines(True),
-                                            str(self.path), str(self.path)))
+        return "".join(
+            difflib.unified_diff(
+                self.before.splitlines(True),
+                self.after.splitlines(True),
+                str(self.path),
+                str(self.path),
+            )
+        )
 
     def apply(self) -> None:
         self.path.write_text(self.after)
@@ -123,8 +129,10 @@ def _splice(text: str, lines: list[str], node, keys, values: dict[str, str], pat
         line, col = node.lc.value(key)
         start = _offset(lines, line, col)
         if text[start] != "[":
-            raise CellFileError(f"{path}:{line + 1}:{col + 1}: {where}.{key} is not written as [a, b, c]; "
-                                "write it so and teach again")
+            raise CellFileError(
+                f"{path}:{line + 1}:{col + 1}: {where}.{key} is not written as [a, b, c]; "
+                "write it so and teach again"
+            )
         edits.append((start, _flow_end(text, start, "[", "]"), value))
     if missing:
         mapping_start = _offset(lines, node.lc.line, node.lc.col)
@@ -134,7 +142,9 @@ def _splice(text: str, lines: list[str], node, keys, values: dict[str, str], pat
         else:  # block: a line after the first key, at its indentation
             line, col = node.lc.key(next(iter(node)))
             if node.lc.value(next(iter(node)))[0] != line:
-                raise CellFileError(f"{path}:{line + 1}:{col + 1}: {where}: add {', '.join(missing)} by hand")
+                raise CellFileError(
+                    f"{path}:{line + 1}:{col + 1}: {where}: add {', '.join(missing)} by hand"
+                )
             at = _offset(lines, line + 1, 0)
             edits.append((at, at, "".join(f"{' ' * col}{k}: {values[k]}\n" for k in missing)))
     for start, end, replacement in sorted(edits, reverse=True):
@@ -150,12 +160,16 @@ def _insert(text: str, lines: list[str], root, keys, values: dict[str, str], pat
         if len(keys) == 2 and keys[0] not in root:
             sep = "" if text.endswith("\n") or not text else "\n"
             return f"{text}{sep}{keys[0]}:\n  {keys[1]}: {flow}\n"
-        raise CellFileError(f"{path}: {'.'.join(keys[:-1])} is missing or empty; add it, then teach again")
+        raise CellFileError(
+            f"{path}: {'.'.join(keys[:-1])} is missing or empty; add it, then teach again"
+        )
     first = next(iter(parent))
     line, col = parent.lc.key(first)
     if text[_offset(lines, parent.lc.line, parent.lc.col)] == "{":
-        raise CellFileError(f"{path}:{line + 1}:{col + 1}: {'.'.join(keys[:-1])} is written inline "
-                            "({...}); write it as a block to teach into it")
+        raise CellFileError(
+            f"{path}:{line + 1}:{col + 1}: {'.'.join(keys[:-1])} is written inline "
+            "({...}); write it as a block to teach into it"
+        )
     at = _offset(lines, line, 0)
     return text[:at] + f"{' ' * col}{keys[-1]}: {flow}\n" + text[at:]
 
@@ -170,12 +184,16 @@ def _check(path: Path, before: str, after: str, keys, values: dict[str, str]) ->
         node = node[key]
     for key, value in values.items():
         if not np.allclose(node[key], [float(v) for v in value.strip("[]").split(",")], atol=0):
-            raise CellFileError(f"{path}: writing {'.'.join(keys)} failed; the file was left as it was")
+            raise CellFileError(
+                f"{path}: writing {'.'.join(keys)} failed; the file was left as it was"
+            )
     target = old
     for key in keys[:-1]:
         target = target.setdefault(key, {}) if isinstance(target, dict) else target
     pose = target.get(keys[-1]) if isinstance(target.get(keys[-1]), dict) else {}
     target[keys[-1]] = {**pose, **{k: node[k] for k in values}}
     if old != new:
-        raise CellFileError(f"{path}: writing {'.'.join(keys)} would change more than that pose; "
-                            "the file was left as it was")
+        raise CellFileError(
+            f"{path}: writing {'.'.join(keys)} would change more than that pose; "
+            "the file was left as it was"
+        )

@@ -63,7 +63,9 @@ class Verdict:
     singularity: str
 
 
-def requested_qd(kinematics, q_rad: np.ndarray, mode: str, axis: int, sign: int, speed: float) -> np.ndarray:
+def requested_qd(
+    kinematics, q_rad: np.ndarray, mode: str, axis: int, sign: int, speed: float
+) -> np.ndarray:
     """Joint speeds (rad/s) for jogging ``axis`` by ``sign`` at ``speed`` (fraction) in
     ``mode``: joints directly; base and tool as a TCP twist through a damped inverse of
     the TCP Jacobian (the base frame is the controller's: the cell's mount turns it)."""
@@ -72,14 +74,16 @@ def requested_qd(kinematics, q_rad: np.ndarray, mode: str, axis: int, sign: int,
         qd[axis] = sign * math.radians(JOINT_SPEED_DEG_S) * speed
         return qd
     twist = np.zeros(6)
-    twist[axis] = sign * speed * (LINEAR_SPEED_MPS if axis < 3 else math.radians(ANGULAR_SPEED_DEG_S))
+    twist[axis] = (
+        sign * speed * (LINEAR_SPEED_MPS if axis < 3 else math.radians(ANGULAR_SPEED_DEG_S))
+    )
     if mode == "base":
         R = kinematics.T_world_base[:3, :3]
     else:
         R = kinematics.T_world_tcp(q_rad)[:3, :3]
     twist_world = np.concatenate([R @ twist[:3], R @ twist[3:]])
     J = kinematics.jacobian_tcp(q_rad)
-    return J.T @ np.linalg.solve(J @ J.T + DAMPING ** 2 * np.eye(6), twist_world)
+    return J.T @ np.linalg.solve(J @ J.T + DAMPING**2 * np.eye(6), twist_world)
 
 
 def _ramp(value: float, slow: float, stop: float) -> float:
@@ -96,17 +100,49 @@ class Governor:
     def judge(self, q_rad: np.ndarray, qd_rad_s: np.ndarray) -> Verdict:
         q = np.asarray(q_rad, float)
         ahead = q + np.asarray(qd_rad_s, float) * LOOKAHEAD_S
-        now, then = self.kinematics.singularity_distance(q), self.kinematics.singularity_distance(ahead)
+        now, then = (
+            self.kinematics.singularity_distance(q),
+            self.kinematics.singularity_distance(ahead),
+        )
         scale, reason = 1.0, ""
-        checks = (("wrist singularity", now.wrist_deg, then.wrist_deg, WRIST_SLOW_DEG, WRIST_STOP_DEG, "deg"),
-                  ("elbow singularity", now.elbow_deg, then.elbow_deg, ELBOW_SLOW_DEG, ELBOW_STOP_DEG, "deg"),
-                  ("shoulder singularity", now.shoulder_m, then.shoulder_m, SHOULDER_SLOW_M, SHOULDER_STOP_M, "m"))
+        checks = (
+            (
+                "wrist singularity",
+                now.wrist_deg,
+                then.wrist_deg,
+                WRIST_SLOW_DEG,
+                WRIST_STOP_DEG,
+                "deg",
+            ),
+            (
+                "elbow singularity",
+                now.elbow_deg,
+                then.elbow_deg,
+                ELBOW_SLOW_DEG,
+                ELBOW_STOP_DEG,
+                "deg",
+            ),
+            (
+                "shoulder singularity",
+                now.shoulder_m,
+                then.shoulder_m,
+                SHOULDER_SLOW_M,
+                SHOULDER_STOP_M,
+                "m",
+            ),
+        )
         for name, d_now, d_then, slow, stop, unit in checks:
-            if d_then < d_now - (APPROACH_EPS_DEG if unit == "deg" else APPROACH_EPS_M):  # getting closer
+            if d_then < d_now - (
+                APPROACH_EPS_DEG if unit == "deg" else APPROACH_EPS_M
+            ):  # getting closer
                 s = _ramp(d_then, slow, stop)
                 if s < scale:
                     scale = s
-                    reason = f"{name} {d_then:.1f} {unit}" if unit == "deg" else f"{name} {d_then * 1000:.0f} mm"
+                    reason = (
+                        f"{name} {d_then:.1f} {unit}"
+                        if unit == "deg"
+                        else f"{name} {d_then * 1000:.0f} mm"
+                    )
         m_now, m_then = self._fixture_margins(q), self._fixture_margins(ahead)
         closing = np.flatnonzero(m_then < m_now - APPROACH_EPS_M)  # pair by pair
         for k in closing:
@@ -126,8 +162,11 @@ class Governor:
         clearance (m)."""
         if self._fixture_pairs is None:
             self._labels = self.collision.pair_labels
-            self._fixture_pairs = [k for k, (a, b) in enumerate(self._labels)
-                                   if a.startswith("fixture") or b.startswith("fixture")]
+            self._fixture_pairs = [
+                k
+                for k, (a, b) in enumerate(self._labels)
+                if a.startswith("fixture") or b.startswith("fixture")
+            ]
         if not self._fixture_pairs:
             return np.empty(0)
         distances, required = self.collision.pair_distances(q_rad)

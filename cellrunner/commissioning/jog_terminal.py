@@ -49,8 +49,9 @@ class JogSession:
 
         try:
             rate = self.world.spec.rate_hz
-            self._receive = rtde_receive.RTDEReceiveInterface(self.host, rate, ["timestamp", "actual_q", "actual_qd",
-                                                                                  "safety_mode"])
+            self._receive = rtde_receive.RTDEReceiveInterface(
+                self.host, rate, ["timestamp", "actual_q", "actual_qd", "safety_mode"]
+            )
             self._control = rtde_control.RTDEControlInterface(self.host, rate)
         except (RuntimeError, OSError) as exc:
             raise PeerUnreachable(f"cannot jog the arm at {self.host}: {exc}") from exc
@@ -95,13 +96,19 @@ class JogSession:
                 qd_cmd, verdict, self.status = np.zeros(6), None, "stopped (no key held)"
             elif now >= next_govern or verdict is None:
                 axis, sign = jog.KEYS[held]
-                request = jog.requested_qd(self.kinematics, q, self.mode, axis, sign, jog.SPEED_STEPS[self.speed_index])
+                request = jog.requested_qd(
+                    self.kinematics, q, self.mode, axis, sign, jog.SPEED_STEPS[self.speed_index]
+                )
                 verdict = self.governor.judge(q, request)
                 qd_cmd = request * verdict.scale
                 label = self._axis_label(axis, sign)
-                self.status = (f"moving {label}" if verdict.scale >= 1 else
-                               f"slowing ({verdict.scale * 100:.0f}%): {verdict.reason}" if verdict.scale > 0 else
-                               f"stopped: {verdict.reason}")
+                self.status = (
+                    f"moving {label}"
+                    if verdict.scale >= 1
+                    else f"slowing ({verdict.scale * 100:.0f}%): {verdict.reason}"
+                    if verdict.scale > 0
+                    else f"stopped: {verdict.reason}"
+                )
                 next_govern = now + GOVERN_S
             self._control.speedJ(list(qd_cmd), jog.JOG_ACCEL_RAD_S2, period_s)
             if now >= next_screen:

@@ -34,7 +34,7 @@ class TcpSolution:
 
     @property
     def rms_m(self) -> float:
-        return float(np.sqrt(np.mean(self.residuals_m ** 2)))
+        return float(np.sqrt(np.mean(self.residuals_m**2)))
 
 
 def too_alike(T_world_flange: np.ndarray, taken: list[np.ndarray]) -> str | None:
@@ -43,8 +43,10 @@ def too_alike(T_world_flange: np.ndarray, taken: list[np.ndarray]) -> str | None
         R = T[:3, :3].T @ T_world_flange[:3, :3]
         angle = float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
         if angle < MIN_POSE_ANGLE_DEG:
-            return (f"this pose is turned only {angle:.1f} deg from pose {i + 1}; turn the tool at "
-                    f"least {MIN_POSE_ANGLE_DEG:g} deg from every pose taken")
+            return (
+                f"this pose is turned only {angle:.1f} deg from pose {i + 1}; turn the tool at "
+                f"least {MIN_POSE_ANGLE_DEG:g} deg from every pose taken"
+            )
     return None
 
 
@@ -57,8 +59,10 @@ def solve_tcp(T_world_flange: list[np.ndarray]) -> TcpSolution:
     singular = np.linalg.svd(A, compute_uv=False)
     conditioning = float(singular[-1] / singular[0])
     if conditioning < MIN_CONDITIONING:
-        raise TcpError(f"the poses turn the tool about too few axes (conditioning {conditioning:.3f} < "
-                       f"{MIN_CONDITIONING:g}); tilt it about another axis as well")
+        raise TcpError(
+            f"the poses turn the tool about too few axes (conditioning {conditioning:.3f} < "
+            f"{MIN_CONDITIONING:g}); tilt it about another axis as well"
+        )
     x, *_ = np.linalg.lstsq(A, b, rcond=None)
     t, c = x[:3], x[3:]
     residuals = np.array([np.linalg.norm(T[:3, :3] @ t + T[:3, 3] - c) for T in T_world_flange])

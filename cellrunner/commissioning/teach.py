@@ -26,14 +26,18 @@ def frame_from_points(p_origin: np.ndarray, p_x: np.ndarray, p_plane: np.ndarray
     p0, p1, p2 = (np.asarray(p, float) for p in (p_origin, p_x, p_plane))
     for name, a, b in (("+X point", p0, p1), ("plane point", p0, p2), ("plane point", p1, p2)):
         if np.linalg.norm(b - a) < MIN_POINT_SPACING_M:
-            raise TeachError(f"the {name} is {np.linalg.norm(b - a) * 1000:.1f} mm from another point; "
-                             f"keep the points at least {MIN_POINT_SPACING_M * 1000:g} mm apart")
+            raise TeachError(
+                f"the {name} is {np.linalg.norm(b - a) * 1000:.1f} mm from another point; "
+                f"keep the points at least {MIN_POINT_SPACING_M * 1000:g} mm apart"
+            )
     x = (p1 - p0) / np.linalg.norm(p1 - p0)
     v = p2 - p0
     angle = np.degrees(np.arccos(np.clip(abs(x @ v) / np.linalg.norm(v), 0.0, 1.0)))
     if angle < MIN_PLANE_ANGLE_DEG:
-        raise TeachError(f"the plane point lies {angle:.1f} deg off the X axis; it must be at least "
-                         f"{MIN_PLANE_ANGLE_DEG:g} deg off it to fix the plane")
+        raise TeachError(
+            f"the plane point lies {angle:.1f} deg off the X axis; it must be at least "
+            f"{MIN_PLANE_ANGLE_DEG:g} deg off it to fix the plane"
+        )
     z = np.cross(x, v)
     z /= np.linalg.norm(z)
     T = np.eye(4)
@@ -47,5 +51,9 @@ def in_parent(cell, frame: str, T_world_frame: np.ndarray) -> tuple[list[float],
     parent when it has one."""
     existing = cell.frames.get(frame)
     parent = existing.parent if existing is not None else "world"
-    T = T_world_frame if parent == "world" else geometry.invert(frame_pose(cell, parent)) @ T_world_frame
+    T = (
+        T_world_frame
+        if parent == "world"
+        else geometry.invert(frame_pose(cell, parent)) @ T_world_frame
+    )
     return [float(v) for v in T[:3, 3]], list(geometry.rpy_deg_of(T[:3, :3]))

@@ -18,10 +18,10 @@ from __future__ import annotations
 import sqlite3
 import threading
 import uuid
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, replace
-from datetime import datetime, timezone
-from typing import Callable
+from datetime import UTC, datetime, timezone
 
 import numpy as np
 
@@ -91,16 +91,34 @@ class JobView:
         return self.phase is None and self.result_code is None
 
 
-def _view_of(job: _Job, runner: JobRunner | None, code: ResultCode | None = None, message: str = "",
-             records: bool = True) -> JobView:
+def _view_of(
+    job: _Job,
+    runner: JobRunner | None,
+    code: ResultCode | None = None,
+    message: str = "",
+    records: bool = True,
+) -> JobView:
     planned = job.planned.planned_cycle_time_s if job.planned is not None else None
     if runner is None:
-        return JobView(job.job_id, job.task.name, None, 0, planned, (), 0.0, 0, 0.0, None, code, message)
+        return JobView(
+            job.job_id, job.task.name, None, 0, planned, (), 0.0, 0, 0.0, None, code, message
+        )
     ctx = runner.ctx
     rows = tuple(replace(r) for r in runner.records.values()) if records else ()
-    return JobView(job.job_id, job.task.name, runner.phase, runner.current_step, planned, rows,
-                   ctx.tracking_error_m, runner.retries_used, runner.cycle_time_s, None if ctx.commanded_q is None else np.array(ctx.commanded_q),
-                   code if code is not None else runner.result, message or runner.message)
+    return JobView(
+        job.job_id,
+        job.task.name,
+        runner.phase,
+        runner.current_step,
+        planned,
+        rows,
+        ctx.tracking_error_m,
+        runner.retries_used,
+        runner.cycle_time_s,
+        None if ctx.commanded_q is None else np.array(ctx.commanded_q),
+        code if code is not None else runner.result,
+        message or runner.message,
+    )
 
 
 @dataclass
@@ -116,11 +134,20 @@ class _Job:
 
 
 class CellController:
-    def __init__(self, cell: LoadedCell, tasks: dict[int, LoadedTask], backend: RobotBackend,
-                 journal: JournalBackend, planner: Planner, *, log=None, wait_for_unhold: bool = True,
-                 on_step_start: Callable[[Step, int], None] | None = None,
-                 on_job_start: Callable[[], None] | None = None,
-                 gate: Callable[[Step], bool] | None = None):
+    def __init__(
+        self,
+        cell: LoadedCell,
+        tasks: dict[int, LoadedTask],
+        backend: RobotBackend,
+        journal: JournalBackend,
+        planner: Planner,
+        *,
+        log=None,
+        wait_for_unhold: bool = True,
+        on_step_start: Callable[[Step, int], None] | None = None,
+        on_job_start: Callable[[], None] | None = None,
+        gate: Callable[[Step], bool] | None = None,
+    ):
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
         self.planner, self.log = planner, log
         self.wait_for_unhold = wait_for_unhold
@@ -194,21 +221,31 @@ class CellController:
         state = self.sm.state
         job = self._job
         return CellStatus(
-            state=int(state), state_name=state.display_name,
+            state=int(state),
+            state_name=state.display_name,
             ready=state is S.IDLE and job is None and self._safety is Safety.NORMAL,
-            busy=job is not None, held=state in (S.HOLDING, S.HELD),
+            busy=job is not None,
+            held=state in (S.HOLDING, S.HELD),
             protective_stop=self._safety is Safety.PROTECTIVE_STOP,
             estop=self._safety is Safety.EMERGENCY_STOP,
             job_id=job.job_id if job else "",
             step_index=job.runner.current_step if job and job.runner else 0,
-            last_result=self._last, parts_processed=self._counters[0],
-            parts_defective=self._counters[1])
+            last_result=self._last,
+            parts_processed=self._counters[0],
+            parts_defective=self._counters[1],
+        )
 
     def _publish(self) -> None:
         """Publish a new status snapshot (under the lock) when anything in it changed."""
         job = self._job
-        key = (self.sm.state, job, self._safety, job.runner.current_step if job and job.runner else 0,
-               self._last, self._counters)
+        key = (
+            self.sm.state,
+            job,
+            self._safety,
+            job.runner.current_step if job and job.runner else 0,
+            self._last,
+            self._counters,
+        )
         if key != self._status_key:
             self._status_key = key
             self._status = self._snapshot()
@@ -256,7 +293,9 @@ class CellController:
         loaded = self._task(task)
         return [(n, p.type, p.unit) for n, p in loaded.task.params.items()] if loaded else None
 
-    def start_job(self, task: str | int, params: dict, client_job_id: str, source: str) -> JobTicket:
+    def start_job(
+        self, task: str | int, params: dict, client_job_id: str, source: str
+    ) -> JobTicket:
         with self._lock:
             if source == "opcua" and client_job_id:
                 try:
@@ -268,23 +307,41 @@ class CellController:
             loaded = self._task(task)
             if loaded is None:
                 known = ", ".join(f"{n} ({t.name})" for n, t in self.tasks.items())
-                return JobTicket("", ResultCode.REJECT_UNKNOWN_TASK, f"unknown task {task!r}; known: {known}")
+                return JobTicket(
+                    "", ResultCode.REJECT_UNKNOWN_TASK, f"unknown task {task!r}; known: {known}"
+                )
             try:
                 values = resolve_params(loaded.task, params)
             except InputError as exc:
                 return JobTicket("", ResultCode.REJECT_BAD_PARAMS, exc.diagnostics[0].message)
-            if self.sm.state is not S.IDLE or self._job is not None or self._safety is not Safety.NORMAL:
-                return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: state {self.sm.state.display_name}")
+            if (
+                self.sm.state is not S.IDLE
+                or self._job is not None
+                or self._safety is not Safety.NORMAL
+            ):
+                return JobTicket(
+                    "",
+                    ResultCode.REJECT_NOT_READY,
+                    f"not ready: state {self.sm.state.display_name}",
+                )
             job = _Job(uuid.uuid4().hex[:12], loaded, values, client_job_id, source)
             try:  # journaled before it is acknowledged, or not accepted (SPEC 9)
-                self.journal.begin_job(job.job_id, self.cell.cell.cell, loaded.name, values, source, client_job_id)
+                self.journal.begin_job(
+                    job.job_id, self.cell.cell.cell, loaded.name, values, source, client_job_id
+                )
             except (JournalError, sqlite3.Error) as exc:  # database away, disk full, read-only
                 self._log("journal_failed", error=str(exc))
-                return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: the journal cannot be written: {exc}")
+                return JobTicket(
+                    "",
+                    ResultCode.REJECT_NOT_READY,
+                    f"not ready: the journal cannot be written: {exc}",
+                )
             self._job = job
             self._enter_command(Command.START)
             self._publish()
-            self._log("job_accepted", job_id=job.job_id, task=loaded.name, params=values, source=source)
+            self._log(
+                "job_accepted", job_id=job.job_id, task=loaded.name, params=values, source=source
+            )
             return JobTicket(job.job_id)  # planning starts on the control thread's next tick
 
     def command(self, name: str) -> bool:
@@ -313,8 +370,14 @@ class CellController:
                 return False  # Clear first (it finds out whether the e-stop was released)
             if name == "reset" and self.sm.state is S.ABORTED:
                 return False
-            command = {"reset": Command.RESET, "clear": Command.CLEAR, "stop": Command.STOP,
-                       "abort": Command.ABORT, "hold": Command.HOLD, "unhold": Command.UNHOLD}[name]
+            command = {
+                "reset": Command.RESET,
+                "clear": Command.CLEAR,
+                "stop": Command.STOP,
+                "abort": Command.ABORT,
+                "hold": Command.HOLD,
+                "unhold": Command.UNHOLD,
+            }[name]
             self._enter_command(command)
             if command is Command.CLEAR:
                 self._actions.append(self._recover)  # on the control thread, in Clearing
@@ -384,15 +447,23 @@ class CellController:
         try:
             plan: JobPlan = job.plan.result()
         except Exception as exc:  # noqa: BLE001 - a planner bug must still close the job with a code
-            message = str(exc) if isinstance(exc, CellrunnerError) else f"{type(exc).__name__}: {exc}"
+            message = (
+                str(exc) if isinstance(exc, CellrunnerError) else f"{type(exc).__name__}: {exc}"
+            )
             with self._lock:
                 if job is self._job:
                     self._end_job(ResultCode.PLANNING_FAILED, message)
             return None
         job.planned = plan
         ctx = self._context(plan.motions, job.job_id)
-        runner = JobRunner(ctx, plan.steps, job.task.task.on_protective_stop, wait_for_unhold=self.wait_for_unhold,
-                           gate=self.gate, on_step=lambda rec, attempt: self._journal_step(job, rec, attempt))
+        runner = JobRunner(
+            ctx,
+            plan.steps,
+            job.task.task.on_protective_stop,
+            wait_for_unhold=self.wait_for_unhold,
+            gate=self.gate,
+            on_step=lambda rec, attempt: self._journal_step(job, rec, attempt),
+        )
         runner.start()
         return runner
 
@@ -445,16 +516,29 @@ class CellController:
             self.journal.end_job(job.job_id, code, cycle, retries, message or code.text)
             self._counters = self.journal.counters()
         except sqlite3.Error as exc:  # disk full: the PLC still gets the result; the journal
-            self._log("journal_failed", job_id=job.job_id, error=str(exc))  # closes it with 107 later
-        self._last = JobResult(job.job_id, int(code), message or code.text, cycle,
-                               datetime.now(timezone.utc), retries, job.task.name, job.client_job_id, job.source)
+            self._log(
+                "journal_failed", job_id=job.job_id, error=str(exc)
+            )  # closes it with 107 later
+        self._last = JobResult(
+            job.job_id,
+            int(code),
+            message or code.text,
+            cycle,
+            datetime.now(UTC),
+            retries,
+            job.task.name,
+            job.client_job_id,
+            job.source,
+        )
         self.last_runner = runner
         self._last_view = _view_of(job, runner, code, message or code.text)
         self._job = None
         event = Event.JOB_ABORTED if code.is_fault else Event.JOB_ENDED
         if self.sm.can(event):
             self.sm.on(event)
-        elif self.sm.can(Event.JOB_ABORTED):  # a job that ends OK in a state it cannot complete from
+        elif self.sm.can(
+            Event.JOB_ABORTED
+        ):  # a job that ends OK in a state it cannot complete from
             self.sm.on(Event.JOB_ABORTED)
         self._mark_entered()
         self._log("job_end", job_id=job.job_id, result_code=int(code), message=message)
@@ -482,18 +566,34 @@ class CellController:
         io_out, io_in = c.io.outputs, c.io.inputs
         g = c.tool.gripper
         close, open_, sensor = gripper_channels(g, io_out, io_in)
-        ctx = JobContext(backend=self.backend, motions=motions, outputs=dict(io_out), inputs=dict(io_in),
-                         gripper_close=close, gripper_open=open_, gripper_closed_sensor=sensor,
-                         gripper_open_s=release_time_s(g),
-                         step_timeout_s=c.step_timeout, on_step_start=self.on_step_start,
-                         log=None if self.log is None else self.log.bind(job_id=job_id), tools=dict(c.tools))
+        ctx = JobContext(
+            backend=self.backend,
+            motions=motions,
+            outputs=dict(io_out),
+            inputs=dict(io_in),
+            gripper_close=close,
+            gripper_open=open_,
+            gripper_closed_sensor=sensor,
+            gripper_open_s=release_time_s(g),
+            step_timeout_s=c.step_timeout,
+            on_step_start=self.on_step_start,
+            log=None if self.log is None else self.log.bind(job_id=job_id),
+            tools=dict(c.tools),
+        )
         use_gripper(ctx, g)
         return ctx
 
     def _journal_step(self, job: _Job, record: StepRecord, attempt: int) -> None:
         try:
-            self.journal.step(job.job_id, record.index, record.kind, record.name, record.status, attempt,
-                              record.message)
+            self.journal.step(
+                job.job_id,
+                record.index,
+                record.kind,
+                record.name,
+                record.status,
+                attempt,
+                record.message,
+            )
         except sqlite3.Error as exc:  # disk full: the job goes on; its row is missing a step
             self._log("journal_failed", job_id=job.job_id, error=str(exc))
 
@@ -503,13 +603,23 @@ class CellController:
 
 
 def _result_of(record: JobRecord) -> JobResult:
-    end = datetime.fromtimestamp(record.ended_at, timezone.utc) if record.ended_at else None
-    return JobResult(record.job_id, int(record.result_code or 0), record.result_text or "",
-                     record.cycle_time_s or 0.0, end, record.retries, record.task,
-                     record.client_job_id or "", record.source)
+    end = datetime.fromtimestamp(record.ended_at, UTC) if record.ended_at else None
+    return JobResult(
+        record.job_id,
+        int(record.result_code or 0),
+        record.result_text or "",
+        record.cycle_time_s or 0.0,
+        end,
+        record.retries,
+        record.task,
+        record.client_job_id or "",
+        record.source,
+    )
 
 
-def run_until_done(cell: CellController, *, max_s: float, stop: threading.Event | None = None) -> None:
+def run_until_done(
+    cell: CellController, *, max_s: float, stop: threading.Event | None = None
+) -> None:
     """Tick ``cell`` until its job ended or ``max_s`` of backend time passed (see
     :meth:`~cellrunner.execution.loop.ControlLoop.run_job`)."""
     from cellrunner.execution.loop import ControlLoop

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -78,7 +79,8 @@ def use_gripper(ctx: JobContext, gripper) -> None:
     from cellrunner.model.timing import release_time_s
 
     ctx.gripper_close, ctx.gripper_open, ctx.gripper_closed_sensor = gripper_channels(
-        gripper, ctx.outputs, ctx.inputs)
+        gripper, ctx.outputs, ctx.inputs
+    )
     ctx.gripper_open_s = release_time_s(gripper)
     ctx.gripper_kind = getattr(gripper, "kind", "none")
     blow = getattr(gripper, "blow_off", None)

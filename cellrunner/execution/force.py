@@ -24,12 +24,19 @@ the report's wrist-force plot.
 from __future__ import annotations
 
 import math
-from typing import Generator
+from collections.abc import Generator
 
 import numpy as np
 
 from cellrunner.execution.context import JobContext
-from cellrunner.execution.steps import AVERAGE_S, OK, SETTLE_S, START_TOLERANCE_RAD, Outcome, sensor_dropped
+from cellrunner.execution.steps import (
+    AVERAGE_S,
+    OK,
+    SETTLE_S,
+    START_TOLERANCE_RAD,
+    Outcome,
+    sensor_dropped,
+)
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 
@@ -53,7 +60,10 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
     limit_N = args.force if step.kind == "move_until_contact" else args.force.max
     q_now = ctx.state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
-    if approved is None or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD:
+    if (
+        approved is None
+        or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD
+    ):
         approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
     trace = ctx.notes.setdefault("force_trace", [])
     q = approved.trajectory.q_rad
@@ -71,7 +81,9 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         sensor = sensor_dropped(ctx)  # (the wrist load is the contact's business here)
         if sensor is not None:
             ctx.backend.stop_motion()
-            return Outcome.failed(ResultCode.PART_LOST, f"part lost during {step.kind}: the {sensor} dropped")
+            return Outcome.failed(
+                ResultCode.PART_LOST, f"part lost during {step.kind}: the {sensor} dropped"
+            )
         if touch_i is None and force_N > TOUCH_FRACTION * limit_N:
             touch_i = i
         recent = (recent + [force_N])[-CONFIRM_SAMPLES:]
@@ -87,26 +99,45 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
             yield from _retract(ctx, approved, i, max((touch_i or i) - 1, 0), trace, step, baseline)
         if contact_N is None:
             code = ResultCode.PLACE_FAILED if ctx.carry is not None else ResultCode.NO_PART
-            return Outcome.failed(code, f"no contact within {args.max_distance * 1000:.1f} mm "
-                                  f"(force stayed under {limit_N:g} N)")
+            return Outcome.failed(
+                code,
+                f"no contact within {args.max_distance * 1000:.1f} mm "
+                f"(force stayed under {limit_N:g} N)",
+            )
         return OK
     depth_m = _depth_m(ctx, step)
     lo, hi = args.depth_window_m
     how = f"stopped at {contact_N:.1f} N" if contact_N is not None else "no force stop"
     if not lo - 1e-4 <= depth_m <= hi + 1e-4:
-        return Outcome.failed(ResultCode.PLACE_FAILED, f"inserted {depth_m * 1000:.1f} mm, expected "
-                              f"{lo * 1000:.1f}-{hi * 1000:.1f} mm ({how})")
+        return Outcome.failed(
+            ResultCode.PLACE_FAILED,
+            f"inserted {depth_m * 1000:.1f} mm, expected "
+            f"{lo * 1000:.1f}-{hi * 1000:.1f} mm ({how})",
+        )
     return OK
 
 
-def _retract(ctx: JobContext, approved, i_from: int, i_to: int, trace: list, step: Step,
-             baseline: list[float]) -> Generator[None, None, None]:
+def _retract(
+    ctx: JobContext,
+    approved,
+    i_from: int,
+    i_to: int,
+    trace: list,
+    step: Step,
+    baseline: list[float],
+) -> Generator[None, None, None]:
     """Stream the approved line backwards from set-point ``i_from`` to ``i_to``, then stand."""
     for k in range(i_from, i_to - 1, -1):
         ctx.backend.servo(approved, k)
         ctx.commanded_q = approved.trajectory.q_rad[k]
         yield
-        trace.append((ctx.now_s, step.index, math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)))
+        trace.append(
+            (
+                ctx.now_s,
+                step.index,
+                math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline),
+            )
+        )
     yield from _until_still(ctx, trace, step, baseline)
 
 
@@ -122,11 +153,19 @@ def _baseline(ctx: JobContext) -> Generator[None, None, list[float]]:
     return np.mean(samples, axis=0).tolist()
 
 
-def _until_still(ctx: JobContext, trace: list, step: Step, baseline: list[float]) -> Generator[None, None, None]:
+def _until_still(
+    ctx: JobContext, trace: list, step: Step, baseline: list[float]
+) -> Generator[None, None, None]:
     t0 = ctx.now_s
     while ctx.now_s - t0 < STOP_WAIT_S:
         yield
-        trace.append((ctx.now_s, step.index, math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)))
+        trace.append(
+            (
+                ctx.now_s,
+                step.index,
+                math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline),
+            )
+        )
         if ctx.now_s - t0 > 0.05 and np.max(np.abs(ctx.state.qd_rad_s)) < STILL_RAD_S:
             return
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 import enum
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -160,7 +160,9 @@ class JobRunner:
         elif safety is Safety.EMERGENCY_STOP:
             return self._finish(ResultCode.ESTOP, f"e-stop during {self._label()}")
         elif safety is Safety.FAULT:
-            return self._finish(ResultCode.PROTECTIVE_STOP, f"controller fault during {self._label()}")
+            return self._finish(
+                ResultCode.PROTECTIVE_STOP, f"controller fault during {self._label()}"
+            )
         elif safety is Safety.PROTECTIVE_STOP and phase is JobPhase.EXECUTE:
             self.protective_stops += 1
             self._enter_hold("protective stop")
@@ -201,9 +203,14 @@ class JobRunner:
         held_for = self.ctx.now_s - self._hold_since_s
         if not self.protective_stop.resume or self.protective_stops > self.protective_stop.max:
             if not self.wait_for_unhold:
-                why = ("the task does not resume after protective stops" if not self.protective_stop.resume
-                       else f"more than {self.protective_stop.max} protective stops")
-                return self._finish(ResultCode.PROTECTIVE_STOP, f"protective stop during {self._label()}: {why}")
+                why = (
+                    "the task does not resume after protective stops"
+                    if not self.protective_stop.resume
+                    else f"more than {self.protective_stop.max} protective stops"
+                )
+                return self._finish(
+                    ResultCode.PROTECTIVE_STOP, f"protective stop during {self._label()}: {why}"
+                )
             return
         if held_for < UNLOCK_DELAY_S:
             return
@@ -215,7 +222,9 @@ class JobRunner:
                 self.ctx.backend.unlock_protective_stop()
             except BackendError as exc:
                 if held_for > UNLOCK_DELAY_S + RECOVERY_TIMEOUT_S:
-                    return self._finish(ResultCode.PROTECTIVE_STOP, f"protective stop not recovered: {exc}")
+                    return self._finish(
+                        ResultCode.PROTECTIVE_STOP, f"protective stop not recovered: {exc}"
+                    )
                 return
         if self.ctx.read().safety is Safety.NORMAL:
             self._resume()
@@ -277,7 +286,11 @@ class JobRunner:
             return
         try:
             self.ctx.backend.reconnect(timeout_s=0.0)
-            failure = "the robot link is still down" if self.ctx.read().safety is Safety.DISCONNECTED else None
+            failure = (
+                "the robot link is still down"
+                if self.ctx.read().safety is Safety.DISCONNECTED
+                else None
+            )
         except CellrunnerError as exc:
             failure = str(exc)
         why = self._reconnect_why
@@ -302,7 +315,11 @@ class JobRunner:
 
     def _start_item(self, item: _Item) -> None:
         step = item.step
-        if self.gate is not None and not (item.gated or item.between or item.resume) and item.behaviour == "step":
+        if (
+            self.gate is not None
+            and not (item.gated or item.between or item.resume)
+            and item.behaviour == "step"
+        ):
             self._item_timeout_s = math.inf
             self._gen = self._await_gate(item)
             return
@@ -316,8 +333,14 @@ class JobRunner:
             if self.ctx.on_step_start is not None:
                 self.ctx.on_step_start(step, item.attempt)
             self._journal(record, item.attempt)
-        self._log("step", kind=step.kind, name=step.name, attempt=item.attempt,
-                  between=item.between or None, resume=item.resume or None)
+        self._log(
+            "step",
+            kind=step.kind,
+            name=step.name,
+            attempt=item.attempt,
+            between=item.between or None,
+            resume=item.resume or None,
+        )
         if item.behaviour == "weigh":
             self._gen = run_weigh(self.ctx, step)
         elif item.behaviour == "still":
@@ -345,12 +368,19 @@ class JobRunner:
                 record.status = StepStatus.OK
                 record.duration_s = self.ctx.now_s - record.started_s
                 self._journal(record, item.attempt)
-            elif item.behaviour == "weigh":  # the grip's weighing happens after its lift: its time is the grip's
+            elif (
+                item.behaviour == "weigh"
+            ):  # the grip's weighing happens after its lift: its time is the grip's
                 record.duration_s += self.ctx.now_s - self._item_started_s
             self._after_success(item)
             return self._next_item()
         grip = self._grip_of(item)
-        if grip is not None and outcome.code is ResultCode.NO_PART and grip.retry and item.attempt < grip.retry.attempts:
+        if (
+            grip is not None
+            and outcome.code is ResultCode.NO_PART
+            and grip.retry
+            and item.attempt < grip.retry.attempts
+        ):
             return self._retry(grip, item.attempt + 1, outcome.message)
         record = self.records[grip.index if grip is not None else step.index]
         record.status, record.message = StepStatus.FAILED, outcome.message
@@ -382,10 +412,17 @@ class JobRunner:
         self._log("retry", attempt=attempt, why=why)
         redo = [s for s in self.steps if grip.retry.redo_from <= s.index <= grip.index]
         # everything after the grip not yet done; a failed weighing also redoes its lift
-        rest = [_Item(s, attempt) for s in self.steps if s.index > grip.index and (
-            self.records[s.index].status is StepStatus.PENDING or s.index == grip.index + 1)]
-        self._agenda = ([_Item(b, attempt, between=True) for b in grip.retry.between]
-                        + [_Item(s, attempt) for s in redo] + rest)
+        rest = [
+            _Item(s, attempt)
+            for s in self.steps
+            if s.index > grip.index
+            and (self.records[s.index].status is StepStatus.PENDING or s.index == grip.index + 1)
+        ]
+        self._agenda = (
+            [_Item(b, attempt, between=True) for b in grip.retry.between]
+            + [_Item(s, attempt) for s in redo]
+            + rest
+        )
         self._next_item()
 
     def _step(self, index: int) -> Step | None:
@@ -395,8 +432,12 @@ class JobRunner:
         step = item.step
         if step.is_motion:
             return self.ctx.step_timeout_s
-        timeout = (getattr(step.args, "timeout", None) or getattr(step.args, "seconds", 0.0)
-                   or getattr(step.args, "pulse", 0.0) or 0.0)
+        timeout = (
+            getattr(step.args, "timeout", None)
+            or getattr(step.args, "seconds", 0.0)
+            or getattr(step.args, "pulse", 0.0)
+            or 0.0
+        )
         return timeout + 5.0
 
     # ------------------------------------------------------------------ end
@@ -440,7 +481,9 @@ class JobRunner:
         self._log("on_error", result_code=int(code), message=message)
         for s in self.on_error:
             self.records[s.index] = StepRecord(s.index, s.kind, s.name)
-        self._agenda = [_Item(self.on_error[0], behaviour="still", between=True)] + [_Item(s) for s in self.on_error]
+        self._agenda = [_Item(self.on_error[0], behaviour="still", between=True)] + [
+            _Item(s) for s in self.on_error
+        ]
         self._pending_end = None
         self.phase = JobPhase.EXECUTE
         self.ctx.commanded_q = None
@@ -460,7 +503,9 @@ class JobRunner:
                     record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
                     self._journal(record, self._current.attempt)
             label = self._current.step.label if self._current is not None else "on_error"
-            self._cleanup_failures.append(message if message.startswith("step ") else f"{label}: {message}")
+            self._cleanup_failures.append(
+                message if message.startswith("step ") else f"{label}: {message}"
+            )
             # nothing moved on a failed check or a refused plan: the next step may still help
             if (not code.is_fault or code is ResultCode.PLANNING_FAILED) and self._agenda:
                 self.ctx.commanded_q = None
@@ -511,7 +556,10 @@ class JobRunner:
         carries cell and job_id)."""
         if self.ctx.log is not None:
             current = self._current
-            fields = {"step": current.step.index if current else 0, "attempt": current.attempt if current else 0}
+            fields = {
+                "step": current.step.index if current else 0,
+                "attempt": current.attempt if current else 0,
+            }
             fields.update({k: v for k, v in kw.items() if v is not None})
             self.ctx.log.info(event, **fields)
 

@@ -93,14 +93,35 @@ class JournalBackend(Protocol):
 
     cell: str | None
 
-    def open(self) -> "JournalBackend": ...
+    def open(self) -> JournalBackend: ...
     def close(self) -> None: ...
-    def begin_job(self, job_id: str, cell: str, task: str, params: dict, source: str,
-                  client_job_id: str | None = None) -> None: ...
-    def step(self, job_id: str, index: int, kind: str, name: str, status: str, attempt: int,
-             message: str = "") -> None: ...
-    def end_job(self, job_id: str, code: ResultCode, cycle_time_s: float | None, retries: int,
-                text: str | None = None) -> None: ...
+    def begin_job(
+        self,
+        job_id: str,
+        cell: str,
+        task: str,
+        params: dict,
+        source: str,
+        client_job_id: str | None = None,
+    ) -> None: ...
+    def step(
+        self,
+        job_id: str,
+        index: int,
+        kind: str,
+        name: str,
+        status: str,
+        attempt: int,
+        message: str = "",
+    ) -> None: ...
+    def end_job(
+        self,
+        job_id: str,
+        code: ResultCode,
+        cycle_time_s: float | None,
+        retries: int,
+        text: str | None = None,
+    ) -> None: ...
     def close_interrupted(self) -> list[JobRecord]: ...
     def get(self, job_id: str) -> JobRecord | None: ...
     def by_client_id(self, source: str, client_job_id: str) -> JobRecord | None: ...
@@ -115,6 +136,7 @@ def journal_for(location: str, cell: str | None, resolve=Path) -> JournalBackend
     SQLite file (``resolve`` turns the written path into a file path)."""
     if location.startswith(POSTGRES_SCHEMES):
         from cellrunner.execution.journal_postgres import PostgresJournal
+
         return PostgresJournal(location, cell)
     return SqliteJournal(resolve(location), cell)
 
@@ -159,7 +181,7 @@ class SqliteJournal:
         with self._lock:
             return self.db.execute(sql, args).fetchall()
 
-    def open(self) -> "SqliteJournal":
+    def open(self) -> SqliteJournal:
         """Open (or create, readable by its owner only) the journal. An existing file that
         is empty or not a journal is an error, never silently started afresh: that would
         lose the history, the counters and an interrupted job's 107."""
@@ -167,19 +189,25 @@ class SqliteJournal:
         if on_disk:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             if self.path.exists() and self.path.stat().st_size == 0:
-                raise CellrunnerError(f"journal {self.path} is empty (0 bytes): its history is lost; restore it "
-                                      "from a backup, or move it away to start a new journal")
+                raise CellrunnerError(
+                    f"journal {self.path} is empty (0 bytes): its history is lost; restore it "
+                    "from a backup, or move it away to start a new journal"
+                )
             if not self.path.exists():
                 os.close(os.open(self.path, os.O_CREAT | os.O_WRONLY, 0o600))
         try:
-            self._db = sqlite3.connect(str(self.path), isolation_level=None, check_same_thread=False)
+            self._db = sqlite3.connect(
+                str(self.path), isolation_level=None, check_same_thread=False
+            )
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.executescript(_SCHEMA)
         except sqlite3.DatabaseError as exc:
             self.close()
-            raise CellrunnerError(f"journal {self.path} is not a cellrunner journal ({exc}); restore it from a "
-                                  "backup, or move it away to start a new journal") from exc
+            raise CellrunnerError(
+                f"journal {self.path} is not a cellrunner journal ({exc}); restore it from a "
+                "backup, or move it away to start a new journal"
+            ) from exc
         if on_disk:
             for path in (self.path, Path(f"{self.path}-wal"), Path(f"{self.path}-shm")):
                 if path.exists():
@@ -197,26 +225,58 @@ class SqliteJournal:
             raise RuntimeError("journal is not open")
         return self._db
 
-    def begin_job(self, job_id: str, cell: str, task: str, params: dict, source: str,
-                  client_job_id: str | None = None) -> None:
+    def begin_job(
+        self,
+        job_id: str,
+        cell: str,
+        task: str,
+        params: dict,
+        source: str,
+        client_job_id: str | None = None,
+    ) -> None:
         self._execute(
             "INSERT INTO jobs (job_id, client_job_id, cell, task, params, source, started_at) "
             "VALUES (?, ?, ?, ?, ?, ?, ?)",
-            (job_id, client_job_id, cell, task, json.dumps(params, sort_keys=True), source, time.time()))
+            (
+                job_id,
+                client_job_id,
+                cell,
+                task,
+                json.dumps(params, sort_keys=True),
+                source,
+                time.time(),
+            ),
+        )
 
-    def step(self, job_id: str, index: int, kind: str, name: str, status: str, attempt: int,
-             message: str = "") -> None:
+    def step(
+        self,
+        job_id: str,
+        index: int,
+        kind: str,
+        name: str,
+        status: str,
+        attempt: int,
+        message: str = "",
+    ) -> None:
         self._execute(
             "INSERT INTO steps (job_id, step_index, kind, name, status, attempt, at, message) "
             "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-            (job_id, index, kind, name, status, attempt, time.time(), message))
+            (job_id, index, kind, name, status, attempt, time.time(), message),
+        )
 
-    def end_job(self, job_id: str, code: ResultCode, cycle_time_s: float | None, retries: int,
-                text: str | None = None) -> None:
+    def end_job(
+        self,
+        job_id: str,
+        code: ResultCode,
+        cycle_time_s: float | None,
+        retries: int,
+        text: str | None = None,
+    ) -> None:
         self._execute(
             "UPDATE jobs SET ended_at = ?, result_code = ?, result_text = ?, cycle_time_s = ?, retries = ? "
             "WHERE job_id = ? AND ended_at IS NULL",
-            (time.time(), int(code), text or code.text, cycle_time_s, retries, job_id))
+            (time.time(), int(code), text or code.text, cycle_time_s, retries, job_id),
+        )
 
     def close_interrupted(self) -> list[JobRecord]:
         """Close every job of this cell left unfinished (a restart mid-job) with code 107."""
@@ -231,27 +291,36 @@ class SqliteJournal:
 
     def by_client_id(self, source: str, client_job_id: str) -> JobRecord | None:
         """The first job ``source`` asked for under ``client_job_id`` (OPC UA idempotency)."""
-        rows = self._select("source = ? AND client_job_id = ?", (source, client_job_id), "ORDER BY rowid LIMIT 1")
+        rows = self._select(
+            "source = ? AND client_job_id = ?", (source, client_job_id), "ORDER BY rowid LIMIT 1"
+        )
         return rows[0] if rows else None
 
     def last(self, n: int = 20) -> list[JobRecord]:
-        return list(reversed(self._select("1", (), "ORDER BY started_at DESC, rowid DESC LIMIT ?", (n,))))
+        return list(
+            reversed(self._select("1", (), "ORDER BY started_at DESC, rowid DESC LIMIT ?", (n,)))
+        )
 
     def last_finished(self) -> JobRecord | None:
-        rows = self._select("ended_at IS NOT NULL", (), "ORDER BY ended_at DESC, rowid DESC LIMIT 1")
+        rows = self._select(
+            "ended_at IS NOT NULL", (), "ORDER BY ended_at DESC, rowid DESC LIMIT 1"
+        )
         return rows[0] if rows else None
 
     def counters(self) -> tuple[int, int]:
         """(parts processed, parts defective): OK jobs, and jobs that ended NOK (1-3)."""
         where, args = self._where("1", ())
         ((ok, nok),) = self._fetchall(
-            f"SELECT SUM(result_code = 0), SUM(result_code BETWEEN 1 AND 3) FROM jobs {where}", args)
+            f"SELECT SUM(result_code = 0), SUM(result_code BETWEEN 1 AND 3) FROM jobs {where}", args
+        )
         return int(ok or 0), int(nok or 0)
 
     def steps_of(self, job_id: str) -> list[tuple]:
         return self._fetchall(
             "SELECT step_index, kind, name, status, attempt, at, message FROM steps WHERE job_id = ? "
-            "ORDER BY rowid", (job_id,))
+            "ORDER BY rowid",
+            (job_id,),
+        )
 
     def _where(self, cond: str, args: tuple) -> tuple[str, tuple]:
         """``WHERE cond``, narrowed to this journal's cell."""
@@ -259,11 +328,15 @@ class SqliteJournal:
             return f"WHERE {cond}", args
         return f"WHERE cell = ? AND ({cond})", (self.cell, *args)
 
-    def _select(self, cond: str, args: tuple = (), order: str = "", order_args: tuple = ()) -> list[JobRecord]:
+    def _select(
+        self, cond: str, args: tuple = (), order: str = "", order_args: tuple = ()
+    ) -> list[JobRecord]:
         where, args = self._where(cond, args)
         rows = self._fetchall(
             "SELECT job_id, client_job_id, cell, task, params, source, started_at, ended_at, result_code, "
-            f"result_text, cycle_time_s, retries FROM jobs {where} {order}", (*args, *order_args))
+            f"result_text, cycle_time_s, retries FROM jobs {where} {order}",
+            (*args, *order_args),
+        )
         return [JobRecord(r[0], r[1], r[2], r[3], json.loads(r[4]), *r[5:]) for r in rows]
 
 

@@ -63,8 +63,10 @@ _SCHEMA = (
     "CREATE INDEX IF NOT EXISTS cellrunner_jobs_client ON cellrunner_jobs (cell, source, client_job_id)",
     "CREATE INDEX IF NOT EXISTS cellrunner_jobs_open ON cellrunner_jobs (cell) WHERE ended_at IS NULL",
 )
-_COLUMNS = ("job_id, client_job_id, cell, task, params, source, started_at, ended_at, result_code, "
-            "result_text, cycle_time_s, retries")
+_COLUMNS = (
+    "job_id, client_job_id, cell, task, params, source, started_at, ended_at, result_code, "
+    "result_text, cycle_time_s, retries"
+)
 
 #: how long begin_job waits for its commit before the job is refused, s
 BEGIN_TIMEOUT_S = 3.0
@@ -88,8 +90,14 @@ class _Write:
 class PostgresJournal:
     """A journal in a PostgreSQL database, for ``cell`` (None: every cell, read-only use)."""
 
-    def __init__(self, url: str, cell: str | None = None, *, begin_timeout_s: float = BEGIN_TIMEOUT_S,
-                 flush_timeout_s: float = FLUSH_TIMEOUT_S):
+    def __init__(
+        self,
+        url: str,
+        cell: str | None = None,
+        *,
+        begin_timeout_s: float = BEGIN_TIMEOUT_S,
+        flush_timeout_s: float = FLUSH_TIMEOUT_S,
+    ):
         self.url, self.cell = url, cell
         self.begin_timeout_s, self.flush_timeout_s = begin_timeout_s, flush_timeout_s
         self._queue: queue.Queue[_Write | None] = queue.Queue()
@@ -106,7 +114,7 @@ class PostgresJournal:
         self.undelivered = 0  # writes still queued when close() gave up
 
     # ------------------------------------------------------------------ lifecycle
-    def open(self) -> "PostgresJournal":
+    def open(self) -> PostgresJournal:
         """Connect, create the tables if absent, start the writer. Raises JournalError
         when the database cannot be reached."""
         self._write_conn = self._connect()
@@ -119,7 +127,8 @@ class PostgresJournal:
             ok, nok = self._read(
                 "SELECT count(*) FILTER (WHERE result_code = 0), "
                 "count(*) FILTER (WHERE result_code BETWEEN 1 AND 3) FROM cellrunner_jobs WHERE cell = %s",
-                (self.cell,))[0]
+                (self.cell,),
+            )[0]
             self._counters = [int(ok), int(nok)]
         self._writer = threading.Thread(target=self._write_loop, name="journal-writer", daemon=True)
         self._writer.start()
@@ -135,8 +144,10 @@ class PostgresJournal:
                 self._writer.join(5.0)
             self.undelivered = self._queue.qsize()
             if self.undelivered:
-                sys.stderr.write(f"journal: {self.undelivered} writes could not reach {self._where()} "
-                                 f"({self._last_error})\n")
+                sys.stderr.write(
+                    f"journal: {self.undelivered} writes could not reach {self._where()} "
+                    f"({self._last_error})\n"
+                )
             self._writer = None
         for conn in (self._write_conn, self._read_conn):
             if conn is not None:
@@ -144,39 +155,69 @@ class PostgresJournal:
         self._write_conn = self._read_conn = None
 
     # ------------------------------------------------------------------ writes
-    def begin_job(self, job_id: str, cell: str, task: str, params: dict, source: str,
-                  client_job_id: str | None = None) -> None:
+    def begin_job(
+        self,
+        job_id: str,
+        cell: str,
+        task: str,
+        params: dict,
+        source: str,
+        client_job_id: str | None = None,
+    ) -> None:
         from psycopg.types.json import Jsonb
 
         if not self._healthy:
-            raise JournalError(f"journal database unreachable ({self._where()}: {self._last_error})")
+            raise JournalError(
+                f"journal database unreachable ({self._where()}: {self._last_error})"
+            )
         self._step_seq[job_id] = 0
         item = self._enqueue(
             "INSERT INTO cellrunner_jobs (job_id, client_job_id, cell, task, params, source, started_at) "
             "VALUES (%s, %s, %s, %s, %s, %s, %s) ON CONFLICT (job_id) DO NOTHING",
-            (job_id, client_job_id, cell, task, Jsonb(params), source, time.time()))
+            (job_id, client_job_id, cell, task, Jsonb(params), source, time.time()),
+        )
         if item.done.wait(self.begin_timeout_s) and not item.error:
             return
         item.cancelled = True  # and undo it, should it land after all
-        self._enqueue("DELETE FROM cellrunner_jobs WHERE job_id = %s AND ended_at IS NULL", (job_id,))
-        raise JournalError(f"job {job_id} could not be journaled within {self.begin_timeout_s:g} s "
-                           f"({self._where()}: {item.error or self._last_error or 'no answer'})")
+        self._enqueue(
+            "DELETE FROM cellrunner_jobs WHERE job_id = %s AND ended_at IS NULL", (job_id,)
+        )
+        raise JournalError(
+            f"job {job_id} could not be journaled within {self.begin_timeout_s:g} s "
+            f"({self._where()}: {item.error or self._last_error or 'no answer'})"
+        )
 
-    def step(self, job_id: str, index: int, kind: str, name: str, status: str, attempt: int,
-             message: str = "") -> None:
+    def step(
+        self,
+        job_id: str,
+        index: int,
+        kind: str,
+        name: str,
+        status: str,
+        attempt: int,
+        message: str = "",
+    ) -> None:
         seq = self._step_seq.get(job_id, 0) + 1
         self._step_seq[job_id] = seq
         self._enqueue(
             "INSERT INTO cellrunner_steps (job_id, seq, step_index, kind, name, status, attempt, at, message) "
             "VALUES (%s, %s, %s, %s, %s, %s, %s, %s, %s) ON CONFLICT (job_id, seq) DO NOTHING",
-            (job_id, seq, index, kind, name, status, attempt, time.time(), message))
+            (job_id, seq, index, kind, name, status, attempt, time.time(), message),
+        )
 
-    def end_job(self, job_id: str, code: ResultCode, cycle_time_s: float | None, retries: int,
-                text: str | None = None) -> None:
+    def end_job(
+        self,
+        job_id: str,
+        code: ResultCode,
+        cycle_time_s: float | None,
+        retries: int,
+        text: str | None = None,
+    ) -> None:
         self._enqueue(
             "UPDATE cellrunner_jobs SET ended_at = %s, result_code = %s, result_text = %s, cycle_time_s = %s, "
             "retries = %s WHERE job_id = %s AND ended_at IS NULL",
-            (time.time(), int(code), text or code.text, cycle_time_s, retries, job_id))
+            (time.time(), int(code), text or code.text, cycle_time_s, retries, job_id),
+        )
         self._step_seq.pop(job_id, None)
         if job_id not in self._ended:
             self._ended.add(job_id)
@@ -201,11 +242,15 @@ class PostgresJournal:
     def by_client_id(self, source: str, client_job_id: str) -> JobRecord | None:
         """The first job ``source`` asked this cell for under ``client_job_id``."""
         self._drain()
-        rows = self._select("source = %s AND client_job_id = %s", (source, client_job_id), "ORDER BY seq LIMIT 1")
+        rows = self._select(
+            "source = %s AND client_job_id = %s", (source, client_job_id), "ORDER BY seq LIMIT 1"
+        )
         return rows[0] if rows else None
 
     def last(self, n: int = 20) -> list[JobRecord]:
-        return list(reversed(self._select("TRUE", (), "ORDER BY started_at DESC, seq DESC LIMIT %s", (n,))))
+        return list(
+            reversed(self._select("TRUE", (), "ORDER BY started_at DESC, seq DESC LIMIT %s", (n,)))
+        )
 
     def last_finished(self) -> JobRecord | None:
         rows = self._select("ended_at IS NOT NULL", (), "ORDER BY ended_at DESC, seq DESC LIMIT 1")
@@ -216,14 +261,21 @@ class PostgresJournal:
         return self._counters[0], self._counters[1]
 
     def steps_of(self, job_id: str) -> list[tuple]:
-        return self._read("SELECT step_index, kind, name, status, attempt, at, message FROM cellrunner_steps "
-                          "WHERE job_id = %s ORDER BY seq", (job_id,))
+        return self._read(
+            "SELECT step_index, kind, name, status, attempt, at, message FROM cellrunner_steps "
+            "WHERE job_id = %s ORDER BY seq",
+            (job_id,),
+        )
 
     # ------------------------------------------------------------------ internals
-    def _select(self, cond: str, args: tuple = (), order: str = "", order_args: tuple = ()) -> list[JobRecord]:
+    def _select(
+        self, cond: str, args: tuple = (), order: str = "", order_args: tuple = ()
+    ) -> list[JobRecord]:
         if self.cell is not None:
             cond, args = f"cell = %s AND ({cond})", (self.cell, *args)
-        rows = self._read(f"SELECT {_COLUMNS} FROM cellrunner_jobs WHERE {cond} {order}", (*args, *order_args))
+        rows = self._read(
+            f"SELECT {_COLUMNS} FROM cellrunner_jobs WHERE {cond} {order}", (*args, *order_args)
+        )
         return [JobRecord(*r) for r in rows]
 
     def _read(self, sql: str, args: tuple) -> list[tuple]:
@@ -239,7 +291,9 @@ class PostgresJournal:
                 except (psycopg.OperationalError, psycopg.InterfaceError) as exc:
                     self._drop_read()
                     if attempt == 2:
-                        raise JournalError(f"cannot read the journal ({self._where()}): {_first_line(exc)}") from exc
+                        raise JournalError(
+                            f"cannot read the journal ({self._where()}): {_first_line(exc)}"
+                        ) from exc
                 except JournalError:
                     self._drop_read()
                     raise
@@ -264,7 +318,9 @@ class PostgresJournal:
         """Wait until everything queued so far is committed (reads that must see it)."""
         marker = self._enqueue(None)
         if not marker.done.wait(self.begin_timeout_s):
-            raise JournalError(f"journal database unreachable ({self._where()}: {self._last_error})")
+            raise JournalError(
+                f"journal database unreachable ({self._where()}: {self._last_error})"
+            )
 
     def _write_loop(self) -> None:
         while True:
@@ -326,13 +382,20 @@ class PostgresJournal:
         import psycopg
 
         try:
-            return psycopg.connect(self.url, autocommit=True, connect_timeout=CONNECT_TIMEOUT_S,
-                                   application_name=f"cellrunner {self.cell or 'jobs'}"[:63])
+            return psycopg.connect(
+                self.url,
+                autocommit=True,
+                connect_timeout=CONNECT_TIMEOUT_S,
+                application_name=f"cellrunner {self.cell or 'jobs'}"[:63],
+            )
         except psycopg.Error as exc:
-            raise JournalError(f"cannot reach the journal database {self._where()}: {_first_line(exc)}") from exc
+            raise JournalError(
+                f"cannot reach the journal database {self._where()}: {_first_line(exc)}"
+            ) from exc
 
     def _where(self) -> str:
         return display_location(self.url)
+
 
 def _first_line(exc: BaseException) -> str:
     text = str(exc).strip()

@@ -26,7 +26,9 @@ MAX_LAG_S = 0.5
 class ControlLoop:
     """Ticks one :class:`CellController`; see the module docstring."""
 
-    def __init__(self, cell: CellController, *, realtime: bool = False, observers: tuple[Observer, ...] = ()):
+    def __init__(
+        self, cell: CellController, *, realtime: bool = False, observers: tuple[Observer, ...] = ()
+    ):
         self.cell = cell
         self.realtime = realtime
         self.period_s = 1.0 / cell.backend.rate_hz

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import sys
 import threading
-from typing import IO, Callable
+from collections.abc import Callable
+from typing import IO
 
 import numpy as np
 
@@ -43,8 +44,13 @@ class EnterGate:
     shows what comes next. Call :meth:`start` once; :meth:`__call__` is the job runner's
     gate and never blocks (it runs on the control thread)."""
 
-    def __init__(self, describe: Callable[[Step], str], source: IO[str] | None = None,
-                 out: IO[str] | None = None, on_end: Callable[[], None] | None = None):
+    def __init__(
+        self,
+        describe: Callable[[Step], str],
+        source: IO[str] | None = None,
+        out: IO[str] | None = None,
+        on_end: Callable[[], None] | None = None,
+    ):
         self.describe = describe
         self.on_end = on_end  # called (once) when a step waits and the input has ended
         self.source = source if source is not None else sys.stdin
@@ -66,7 +72,9 @@ class EnterGate:
             self._asked = step.index
             while self._lines.acquire(blocking=False):
                 pass  # Enters typed ahead of the question do not count
-            self.out.write(f"next: {self.describe(step)}\n  press Enter to run it (Ctrl-C aborts)\n")
+            self.out.write(
+                f"next: {self.describe(step)}\n  press Enter to run it (Ctrl-C aborts)\n"
+            )
             self.out.flush()
         if self._lines.acquire(blocking=False):
             return True
@@ -84,8 +92,10 @@ def describe_step(step: Step) -> str:
     text = step.label
     if step.T_world_tcp is not None:
         xyz, rpy = step.T_world_tcp[:3, 3], rpy_deg_of(step.T_world_tcp[:3, :3])
-        text += (f": TCP to xyz [{', '.join(f'{v:.4f}' for v in xyz)}] m, "
-                 f"rpy [{', '.join(f'{v:.2f}' for v in rpy)}] deg in world")
+        text += (
+            f": TCP to xyz [{', '.join(f'{v:.4f}' for v in xyz)}] m, "
+            f"rpy [{', '.join(f'{v:.2f}' for v in rpy)}] deg in world"
+        )
     elif step.q_goal_deg is not None:
         text += f": joints to [{', '.join(f'{v:.2f}' for v in step.q_goal_deg)}] deg"
     elif step.is_motion:

@@ -53,15 +53,36 @@ COMMANDS: dict[tuple[State, Command], State] = {
     (S.SUSPENDED, C.UNSUSPEND): S.UNSUSPENDING,
     (S.ABORTED, C.CLEAR): S.CLEARING,
 }
-_STOPPABLE = {S.IDLE, S.STARTING, S.EXECUTE, S.COMPLETING, S.COMPLETE, S.HOLDING, S.HELD,
-              S.UNHOLDING, S.SUSPENDING, S.SUSPENDED, S.UNSUSPENDING, S.RESETTING}
+_STOPPABLE = {
+    S.IDLE,
+    S.STARTING,
+    S.EXECUTE,
+    S.COMPLETING,
+    S.COMPLETE,
+    S.HOLDING,
+    S.HELD,
+    S.UNHOLDING,
+    S.SUSPENDING,
+    S.SUSPENDED,
+    S.UNSUSPENDING,
+    S.RESETTING,
+}
 for _s in _STOPPABLE:
     COMMANDS[(_s, C.STOP)] = S.STOPPING
 for _s in _STOPPABLE | {S.STOPPING, S.STOPPED, S.CLEARING}:
     COMMANDS[(_s, C.ABORT)] = S.ABORTING
 
 #: states a job is under way in (after Starting)
-_RUNNING = {S.STARTING, S.EXECUTE, S.HOLDING, S.HELD, S.UNHOLDING, S.SUSPENDING, S.SUSPENDED, S.UNSUSPENDING}
+_RUNNING = {
+    S.STARTING,
+    S.EXECUTE,
+    S.HOLDING,
+    S.HELD,
+    S.UNHOLDING,
+    S.SUSPENDING,
+    S.SUSPENDED,
+    S.UNSUSPENDING,
+}
 #: states a fault may strike in (everything but Aborting/Aborted)
 _ABORTABLE = set(State) - {S.ABORTING, S.ABORTED}
 
@@ -108,15 +129,19 @@ class StateMachine:
         nxt = COMMANDS.get((self.state, command))
         if nxt is None:
             allowed = ", ".join(c.value for c in self.allowed()) or "none"
-            raise TransitionRefused(f"{command.value} is not allowed in state {self.state.display_name}; "
-                                    f"allowed: {allowed}")
+            raise TransitionRefused(
+                f"{command.value} is not allowed in state {self.state.display_name}; "
+                f"allowed: {allowed}"
+            )
         self.state = nxt
         return nxt
 
     def state_complete(self) -> State:
         nxt = COMPLETES.get(self.state)
         if nxt is None:
-            raise TransitionRefused(f"state {self.state.display_name} is a wait state; it has no completion")
+            raise TransitionRefused(
+                f"state {self.state.display_name} is a wait state; it has no completion"
+            )
         self.state = nxt
         return nxt
 
@@ -128,7 +153,9 @@ class StateMachine:
         nxt = EVENTS.get((self.state, event))
         if nxt is None:
             allowed = ", ".join(e.value for (s, e) in EVENTS if s == self.state) or "none"
-            raise TransitionRefused(f"event {event.value} cannot happen in state {self.state.display_name}; "
-                                    f"possible: {allowed}")
+            raise TransitionRefused(
+                f"event {event.value} cannot happen in state {self.state.display_name}; "
+                f"possible: {allowed}"
+            )
         self.state = nxt
         return nxt

@@ -20,7 +20,9 @@ if TYPE_CHECKING:
 HOME_SNAP_RAD = 1e-3
 
 
-def job_planner(world, *, use_cache: bool = True, speed: float = 1.0, joined: bool = True) -> Planner:
+def job_planner(
+    world, *, use_cache: bool = True, speed: float = 1.0, joined: bool = True
+) -> Planner:
     """``speed`` < 1 streams the approved motions slower, in time only (run --speed);
     ``joined=False`` plans every motion to end at rest (run --step)."""
     from cellrunner.execution.pacing import PacedMotions
@@ -36,7 +38,9 @@ def job_planner(world, *, use_cache: bool = True, speed: float = 1.0, joined: bo
             raise InfeasibleError("; ".join(task_plan.errors))
         _verify_ahead(task_plan)
         # the task's on_error steps ride along, marked, for the runner to keep for a failure
-        steps = task_plan.steps + expand_on_error(task, world.loaded.cell, params, len(task_plan.steps) + 1)
+        steps = task_plan.steps + expand_on_error(
+            task, world.loaded.cell, params, len(task_plan.steps) + 1
+        )
         if speed != 1.0:
             return JobPlan(steps, PacedMotions(task_plan, speed), task_plan.cycle_time_s / speed)
         return JobPlan(steps, task_plan, task_plan.cycle_time_s)
@@ -63,7 +67,15 @@ def warm_up(world) -> None:
     before it raises READY)."""
     import importlib
 
-    for module in ("task_plan", "timing", "verify", "joint_path", "cartesian", "collision", "cache"):
+    for module in (
+        "task_plan",
+        "timing",
+        "verify",
+        "joint_path",
+        "cartesian",
+        "collision",
+        "cache",
+    ):
         importlib.import_module(f"cellrunner.planning.{module}")
     world.kinematics.T_world_tcp(world.q_home_rad)
     _ = world.collision, world.limits

@@ -9,14 +9,14 @@ is noticed by the jaw sensor and the load falling away.
 from __future__ import annotations
 
 import math
+from collections.abc import Generator
 from dataclasses import dataclass
-from typing import Generator
 
 import numpy as np
 
 from cellrunner.execution.context import Carry, JobContext
-from cellrunner.model.codes import ResultCode
 from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock
+from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.force_steps import FORCE_KINDS
 
@@ -41,7 +41,7 @@ class Outcome:
     message: str = ""
 
     @staticmethod
-    def failed(code: ResultCode, message: str) -> "Outcome":
+    def failed(code: ResultCode, message: str) -> Outcome:
         return Outcome(False, code, message)
 
 
@@ -53,20 +53,37 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     does not stand at the trajectory's start (after a stop or a retry)."""
     if step.kind in FORCE_KINDS:  # a guarded line
         from cellrunner.execution.force import run_force
+
         return (yield from run_force(ctx, step, resume))
     q_now = ctx.state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
     # the last set-point streamed is this trajectory's start: the arm is on its way there
     # (servo lag, more under load), so the approved trajectory continues; else it must stand there
-    on_its_way = approved is not None and ctx.commanded_q is not None and np.array_equal(
-        approved.trajectory.q_rad[0], ctx.commanded_q)
-    if approved is None or (not on_its_way and np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD) \
-            or (ctx.motions.continues(step) and not (on_its_way and _streamed_into(ctx, approved))
-                and _at_rest_for(approved, ctx.state)):
+    on_its_way = (
+        approved is not None
+        and ctx.commanded_q is not None
+        and np.array_equal(approved.trajectory.q_rad[0], ctx.commanded_q)
+    )
+    if (
+        approved is None
+        or (
+            not on_its_way
+            and np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD
+        )
+        or (
+            ctx.motions.continues(step)
+            and not (on_its_way and _streamed_into(ctx, approved))
+            and _at_rest_for(approved, ctx.state)
+        )
+    ):
         approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
     q = approved.trajectory.q_rad
     # a non-stop continuation starts on the set-point just streamed: don't send it twice
-    first = 1 if ctx.commanded_q is not None and len(q) > 1 and np.array_equal(q[0], ctx.commanded_q) else 0
+    first = (
+        1
+        if ctx.commanded_q is not None and len(q) > 1 and np.array_equal(q[0], ctx.commanded_q)
+        else 0
+    )
     for i in range(first, len(q)):
         ctx.backend.servo(approved, i)
         ctx.commanded_q = q[i]
@@ -76,7 +93,9 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
             if lost:
                 ctx.backend.stop_motion()
                 return Outcome.failed(ResultCode.PART_LOST, lost)
-    ctx.notes["end_rad_s"] = float(np.abs(q[-1] - q[-2]).max()) * approved.trajectory.rate_hz if len(q) > 1 else 0.0
+    ctx.notes["end_rad_s"] = (
+        float(np.abs(q[-1] - q[-2]).max()) * approved.trajectory.rate_hz if len(q) > 1 else 0.0
+    )
     return check_place(ctx, step)
 
 
@@ -93,9 +112,12 @@ def check_place(ctx: JobContext, step: Step) -> Outcome:
     name, offset_m, angle_deg = found
     tol_m, tol_deg = target["tolerance"]
     if offset_m > tol_m or angle_deg > tol_deg:
-        return Outcome.failed(ResultCode.PLACE_FAILED, f"place failed: part {name!r} is {offset_m * 1000:.1f} mm "
-                              f"and {angle_deg:.1f} deg from its target (tolerance {tol_m * 1000:g} mm, "
-                              f"{tol_deg:g} deg)")
+        return Outcome.failed(
+            ResultCode.PLACE_FAILED,
+            f"place failed: part {name!r} is {offset_m * 1000:.1f} mm "
+            f"and {angle_deg:.1f} deg from its target (tolerance {tol_m * 1000:g} mm, "
+            f"{tol_deg:g} deg)",
+        )
     return OK
 
 
@@ -118,7 +140,10 @@ def _at_rest_for(approved, state) -> bool:
     if len(q) < 2:
         return False
     planned_rad_s = float(np.abs(q[1] - q[0]).max()) * approved.trajectory.rate_hz
-    return planned_rad_s > CONTINUATION_MIN_RAD_S and float(np.abs(state.qd_rad_s).max()) < 0.5 * planned_rad_s
+    return (
+        planned_rad_s > CONTINUATION_MIN_RAD_S
+        and float(np.abs(state.qd_rad_s).max()) < 0.5 * planned_rad_s
+    )
 
 
 def run_grip(ctx: JobContext, step: Step) -> StepGen:
@@ -132,7 +157,9 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
         if ctx.now_s - t0 >= SETTLE_S:
             samples.append(np.array(ctx.state.wrench_N[:3], dtype=float))
         yield
-    baseline = np.mean(samples, axis=0) if samples else np.array(ctx.state.wrench_N[:3], dtype=float)
+    baseline = (
+        np.mean(samples, axis=0) if samples else np.array(ctx.state.wrench_N[:3], dtype=float)
+    )
     channel, value = ctx.gripper_close
     ctx.backend.set_output(channel, value)
     confirm = ctx.inputs.get(args.confirm) if args.confirm else ctx.gripper_closed_sensor
@@ -143,8 +170,11 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
     else:
         while not ctx.state.inputs.get(confirm):
             if ctx.now_s - t0 >= args.timeout:
-                return Outcome.failed(ResultCode.NO_PART, f"{args.confirm or 'closed sensor'} not true "
-                                      f"within {args.timeout:g} s ({_gripped_nothing(ctx)})")
+                return Outcome.failed(
+                    ResultCode.NO_PART,
+                    f"{args.confirm or 'closed sensor'} not true "
+                    f"within {args.timeout:g} s ({_gripped_nothing(ctx)})",
+                )
             yield
     force_min = args.force.min if args.force else 0.0
     ctx.notes.pop("sensor_false_since", None)
@@ -154,7 +184,11 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
 
 
 def _gripped_nothing(ctx: JobContext) -> str:
-    return "no vacuum: the cups sealed on nothing" if ctx.gripper_kind == "vacuum" else "jaws closed on nothing"
+    return (
+        "no vacuum: the cups sealed on nothing"
+        if ctx.gripper_kind == "vacuum"
+        else "jaws closed on nothing"
+    )
 
 
 def run_weigh(ctx: JobContext, step: Step) -> StepGen:
@@ -170,8 +204,10 @@ def run_weigh(ctx: JobContext, step: Step) -> StepGen:
     ctx.carry.load_N = load
     hi = window.max if window.max is not None else float("inf")
     if not window.min <= load <= hi:
-        return Outcome.failed(ResultCode.NO_PART, f"load {load:.1f} N after lift is outside "
-                              f"[{window.min:g}, {hi:g}] N")
+        return Outcome.failed(
+            ResultCode.NO_PART,
+            f"load {load:.1f} N after lift is outside [{window.min:g}, {hi:g}] N",
+        )
     return OK
 
 
@@ -194,12 +230,19 @@ def run_release(ctx: JobContext, step: Step) -> StepGen:
         ctx.backend.set_output(channel, False)
     confirm = ctx.inputs.get(args.confirm) if args.confirm else None
     watch = confirm or ctx.gripper_closed_sensor
-    while ctx.now_s - t0 < ctx.gripper_open_s or (watch and _release_pending(ctx, watch, confirm is not None)):
+    while ctx.now_s - t0 < ctx.gripper_open_s or (
+        watch and _release_pending(ctx, watch, confirm is not None)
+    ):
         if ctx.now_s - t0 >= args.timeout:
             if confirm is not None:
-                return Outcome.failed(ResultCode.PLACE_FAILED, f"place failed: {args.confirm} not true within "
-                                      f"{args.timeout:g} s after the release")
-            return Outcome.failed(ResultCode.PLACE_FAILED, f"release not confirmed within {args.timeout:g} s")
+                return Outcome.failed(
+                    ResultCode.PLACE_FAILED,
+                    f"place failed: {args.confirm} not true within "
+                    f"{args.timeout:g} s after the release",
+                )
+            return Outcome.failed(
+                ResultCode.PLACE_FAILED, f"release not confirmed within {args.timeout:g} s"
+            )
         yield
     return check_place(ctx, step)
 
@@ -231,10 +274,13 @@ def run_wait_input(ctx: JobContext, step: Step) -> StepGen:
     channel = ctx.inputs[args.input]
     t0 = ctx.now_s
     while ctx.state.inputs.get(channel) != args.value and not (
-            isinstance(args.value, bool) and bool(ctx.state.inputs.get(channel)) == args.value):
+        isinstance(args.value, bool) and bool(ctx.state.inputs.get(channel)) == args.value
+    ):
         if ctx.now_s - t0 >= args.timeout:
-            return Outcome.failed(ResultCode.STEP_TIMEOUT, f"input {args.input} did not read "
-                                  f"{args.value} within {args.timeout:g} s")
+            return Outcome.failed(
+                ResultCode.STEP_TIMEOUT,
+                f"input {args.input} did not read {args.value} within {args.timeout:g} s",
+            )
         yield
     return OK
 

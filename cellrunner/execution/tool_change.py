@@ -8,7 +8,7 @@ context's gripper channels are the new tool's; between the two, none.
 
 from __future__ import annotations
 
-from typing import Generator
+from collections.abc import Generator
 
 from cellrunner.execution.context import JobContext, use_gripper
 from cellrunner.model.codes import ResultCode
@@ -51,7 +51,10 @@ def _drive(ctx: JobContext, step: Step, lock: bool) -> Generator[None, None, obj
     while bool(ctx.state.inputs.get(channel)) != lock:
         if ctx.now_s - t0 >= args.timeout:
             what = "lock" if lock else "release"
-            return Outcome.failed(ResultCode.STEP_TIMEOUT, f"the tool changer did not {what} tool "
-                                  f"{step.name!r}: {args.confirm} not {str(lock).lower()} within {args.timeout:g} s")
+            return Outcome.failed(
+                ResultCode.STEP_TIMEOUT,
+                f"the tool changer did not {what} tool "
+                f"{step.name!r}: {args.confirm} not {str(lock).lower()} within {args.timeout:g} s",
+            )
         yield
     return OK

@@ -19,8 +19,9 @@ Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_\-]*$", min_length=1,
 class Strict(BaseModel):
     """Base of every file model: unknown keys are errors, values are not coerced loosely."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True,
-                              use_attribute_docstrings=True)  # a field's docstring: its schema description
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, populate_by_name=True, use_attribute_docstrings=True
+    )  # a field's docstring: its schema description
 
 
 class Pose(Strict):
@@ -75,12 +76,13 @@ class Shaped(Strict):
     """A triangle mesh (STL). Example: `{file: meshes/fence.stl}`"""
 
     @model_validator(mode="after")
-    def _one_shape(self) -> "Shaped":
+    def _one_shape(self) -> Shaped:
         given = [k for k in SHAPE_KEYS if getattr(self, k) is not None]
         if len(given) != 1:
             what = "none" if not given else ", ".join(given)
             raise PydanticCustomError(
-                "shape", f"needs exactly one shape of box, cylinder, sphere, mesh; got {what}")
+                "shape", f"needs exactly one shape of box, cylinder, sphere, mesh; got {what}"
+            )
         return self
 
     @property
@@ -109,10 +111,11 @@ class PlacedShape(Shaped):
     """Rotation in degrees, XYZ fixed axes (short form of pose.rpy). Example: `[0, 90, 0]`"""
 
     @model_validator(mode="after")
-    def _one_pose_form(self) -> "PlacedShape":
+    def _one_pose_form(self) -> PlacedShape:
         if self.pose is not None and (self.xyz is not None or self.rpy is not None):
             raise PydanticCustomError(
-                "pose", "give the pose either as 'pose: {xyz, rpy}' or as 'xyz'/'rpy', not both")
+                "pose", "give the pose either as 'pose: {xyz, rpy}' or as 'xyz'/'rpy', not both"
+            )
         return self
 
     def matrix(self) -> np.ndarray:

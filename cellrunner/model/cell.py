@@ -11,8 +11,16 @@ from cellrunner.model.base import Name, PlacedShape, Pose, Shaped, Strict, Vec3
 from cellrunner.model.robots import ROBOTS
 from cellrunner.model.sim_inputs import SimBlock
 from cellrunner.model.units import (
-    Angle, AngularAccel, AngularSpeed, Duration, Force, Fraction, Mass, PositiveDuration,
-    PositiveLength, Speed,
+    Angle,
+    AngularAccel,
+    AngularSpeed,
+    Duration,
+    Force,
+    Fraction,
+    Mass,
+    PositiveDuration,
+    PositiveLength,
+    Speed,
 )
 
 RobotModel = Literal["ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur16e"]
@@ -24,9 +32,13 @@ Joints = Annotated[list[Angle], Field(min_length=6, max_length=6)]
 class Limits(Strict):
     """Motion limits plans may use, never above the controller's (checked per model)."""
 
-    joint_speed: AngularSpeed | Annotated[list[AngularSpeed], Field(min_length=6, max_length=6)] | None = None
+    joint_speed: (
+        AngularSpeed | Annotated[list[AngularSpeed], Field(min_length=6, max_length=6)] | None
+    ) = None
     """Joint speed limit in deg/s, one value or six (never above the controller's). Example: `120`"""
-    joint_accel: AngularAccel | Annotated[list[AngularAccel], Field(min_length=6, max_length=6)] | None = None
+    joint_accel: (
+        AngularAccel | Annotated[list[AngularAccel], Field(min_length=6, max_length=6)] | None
+    ) = None
     """Joint acceleration limit in deg/s^2, one value or six. Example: `300`"""
     tcp_speed: Speed | None = None
     """TCP speed cap in m/s. Example: `1.0`"""
@@ -178,9 +190,12 @@ class Modbus(Strict):
 
 SecurityPolicy = Literal[
     "none",
-    "Basic256Sha256_Sign", "Basic256Sha256_SignAndEncrypt",
-    "Aes128Sha256RsaOaep_Sign", "Aes128Sha256RsaOaep_SignAndEncrypt",
-    "Aes256Sha256RsaPss_Sign", "Aes256Sha256RsaPss_SignAndEncrypt",
+    "Basic256Sha256_Sign",
+    "Basic256Sha256_SignAndEncrypt",
+    "Aes128Sha256RsaOaep_Sign",
+    "Aes128Sha256RsaOaep_SignAndEncrypt",
+    "Aes256Sha256RsaPss_Sign",
+    "Aes256Sha256RsaPss_SignAndEncrypt",
 ]
 
 
@@ -188,7 +203,8 @@ class OpcUa(Strict):
     endpoint: str = "opc.tcp://127.0.0.1:4840/cellrunner"
     """Endpoint URL the OPC UA server listens on. Example: `opc.tcp://127.0.0.1:4840/cellrunner`"""
     security: list[SecurityPolicy] = Field(
-        default_factory=lambda: ["Basic256Sha256_SignAndEncrypt"], min_length=1)
+        default_factory=lambda: ["Basic256Sha256_SignAndEncrypt"], min_length=1
+    )
     """Security policies offered; none only when written here. Example: `[Basic256Sha256_SignAndEncrypt]`"""
     users: str | None = None
     """Users file (user -> salted hash), written by `cellrunner users add`. Example: `secrets/opcua-users.yaml`"""
@@ -200,6 +216,7 @@ class OpcUa(Strict):
     def _endpoint(cls, v: str) -> str:
         if not v.startswith("opc.tcp://"):
             from pydantic_core import PydanticCustomError
+
             raise PydanticCustomError("endpoint", f"endpoint {v!r} must start with opc.tcp://")
         return v
 
@@ -266,4 +283,3 @@ class Cell(Strict):
             if isinstance(name, str) and name in data["tools"]:
                 data = {**data, "tool": data["tools"][name]}
         return data
-

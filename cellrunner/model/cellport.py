@@ -25,7 +25,6 @@ from typing import Protocol, runtime_checkable
 
 from cellrunner.model.codes import PackMLState, ResultCode  # noqa: F401 (re-exported)
 
-
 #: Codes with which a job *completed* (OK or NOK, not a fault): the PLC sees DONE.
 COMPLETED_CODES = frozenset({0, 1, 2, 3})
 #: Codes that reject a job before it starts (JobTicket.reject_code).

@@ -84,16 +84,27 @@ def message_of(error: dict, root: type[BaseModel]) -> tuple[str, bool, tuple]:
         return f"missing required key {loc[-1]!r}", True, loc[:-1]
     if kind == "extra_forbidden":
         known = fields_at(root, loc[:-1]) or []
-        return (f"unknown key {loc[-1]!r}{did_you_mean(loc[-1], known)}; known: {known_list(known)}",
-                True, loc)
+        return (
+            f"unknown key {loc[-1]!r}{did_you_mean(loc[-1], known)}; known: {known_list(known)}",
+            True,
+            loc,
+        )
     if kind == "literal_error":
         expected = str(ctx.get("expected", "")).replace("'", "").replace(" or ", ", ")
         what = "robot model" if loc and loc[-1] == "model" else "value"
         words = [w.strip() for w in expected.split(",")]
-        return f"unknown {what} {value!r}{did_you_mean(value, words)}; known: {expected}", False, loc
+        return (
+            f"unknown {what} {value!r}{did_you_mean(value, words)}; known: {expected}",
+            False,
+            loc,
+        )
     if kind == "string_pattern_mismatch":
-        return (f"bad name {value!r}: names use letters, digits, '_' and '-', starting with a "
-                "letter or '_'", False, loc)
+        return (
+            f"bad name {value!r}: names use letters, digits, '_' and '-', starting with a "
+            "letter or '_'",
+            False,
+            loc,
+        )
     if kind in ("model_type", "model_attributes_type", "dict_type"):
         return f"expected a mapping of keys, got {_describe(value)}", False, loc
     if kind in ("list_type", "tuple_type"):
@@ -102,7 +113,11 @@ def message_of(error: dict, root: type[BaseModel]) -> tuple[str, bool, tuple]:
         want = ctx.get("min_length") if kind == "too_short" else ctx.get("max_length")
         got = ctx.get("actual_length")
         field = ctx.get("field_type", "List").lower()
-        return f"expected {'at least' if kind == 'too_short' else 'at most'} {want} items in this {field}, got {got}", False, loc
+        return (
+            f"expected {'at least' if kind == 'too_short' else 'at most'} {want} items in this {field}, got {got}",
+            False,
+            loc,
+        )
     if kind in ("string_type",):
         return f"expected text, got {_describe(value)}", False, loc
     if kind in ("bool_type", "bool_parsing"):
@@ -112,8 +127,12 @@ def message_of(error: dict, root: type[BaseModel]) -> tuple[str, bool, tuple]:
     if kind in ("float_type", "float_parsing"):
         return f"expected a number, got {_describe(value)}", False, loc
     if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
-        word = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<",
-                "less_than_equal": "<="}[kind]
+        word = {
+            "greater_than": ">",
+            "greater_than_equal": ">=",
+            "less_than": "<",
+            "less_than_equal": "<=",
+        }[kind]
         bound = next(iter(ctx.values()), "?")
         bound = f"{bound:g}" if isinstance(bound, (int, float)) else bound
         return f"must be {word} {bound}, got {_describe(value)}", False, loc
@@ -123,8 +142,9 @@ def message_of(error: dict, root: type[BaseModel]) -> tuple[str, bool, tuple]:
     return msg, False, loc
 
 
-def diagnostics_of(exc: ValidationError, source: Source, root: type[BaseModel],
-                   prefix: PathKey = ()) -> list[Diagnostic]:
+def diagnostics_of(
+    exc: ValidationError, source: Source, root: type[BaseModel], prefix: PathKey = ()
+) -> list[Diagnostic]:
     """Located diagnostics for every error of ``exc``; ``prefix`` is where the validated
     data sits in the file."""
     out = []
@@ -142,4 +162,6 @@ def diagnostics_of(exc: ValidationError, source: Source, root: type[BaseModel],
 
 def _clean(loc: tuple) -> tuple:
     """Drop pydantic's internal loc parts (union member names, '[key]')."""
-    return tuple(p for p in loc if isinstance(p, int) or ("[" not in str(p) and "function-" not in str(p)))
+    return tuple(
+        p for p in loc if isinstance(p, int) or ("[" not in str(p) and "function-" not in str(p))
+    )

@@ -16,12 +16,17 @@ import numpy as np
 from cellrunner.errors import InputError
 from cellrunner.model import geometry
 from cellrunner.model.cell import Cell
+from cellrunner.model.force_steps import FORCE_KINDS
 from cellrunner.model.load import LoadedTask, StepSpec
 from cellrunner.model.task import (
-    ApproachArgs, DistanceArgs, GripArgs, LinearArgs, Offset, Pattern, TaskFile,
+    ApproachArgs,
+    DistanceArgs,
+    GripArgs,
+    LinearArgs,
+    Offset,
+    Pattern,
+    TaskFile,
 )
-
-from cellrunner.model.force_steps import FORCE_KINDS
 
 MOTION_KINDS = ("move", "approach", "descend", "linear", "lift", "retreat", *FORCE_KINDS)
 PLANNED_KINDS = ("move", "approach")  # collision-free planned joint moves
@@ -34,7 +39,7 @@ class RetryPlan:
     from ``redo_from`` (1-based expanded index), at most ``attempts`` times in all."""
 
     attempts: int
-    between: tuple["Step", ...]
+    between: tuple[Step, ...]
     redo_from: int
 
 
@@ -65,7 +70,11 @@ class Step:
     @property
     def label(self) -> str:
         """``step 5 approach 'far_away'``, as messages name a step."""
-        return f"step {self.index} {self.kind} {self.name!r}" if self.name != self.kind else f"step {self.index} {self.kind}"
+        return (
+            f"step {self.index} {self.kind} {self.name!r}"
+            if self.name != self.kind
+            else f"step {self.index} {self.kind}"
+        )
 
 
 def frame_pose(cell: Cell, name: str) -> np.ndarray:
@@ -109,12 +118,18 @@ def expand(loaded: LoadedTask, cell: Cell, params: dict[str, Any]) -> list[Step]
     return builder.steps
 
 
-def expand_on_error(loaded: LoadedTask, cell: Cell, params: dict[str, Any], first_index: int) -> list[Step]:
+def expand_on_error(
+    loaded: LoadedTask, cell: Cell, params: dict[str, Any], first_index: int
+) -> list[Step]:
     """The task's ``on_error`` steps, numbered from ``first_index``, marked with the macro
     ``on_error`` (the job runner keeps them for after a failure)."""
     builder = _Builder(cell, params, loaded.task.params)
-    return [builder.primitive(s.kind, s.bind(loaded.task.params, params), s.path, first_index + i, ON_ERROR)
-            for i, s in enumerate(loaded.on_error)]
+    return [
+        builder.primitive(
+            s.kind, s.bind(loaded.task.params, params), s.path, first_index + i, ON_ERROR
+        )
+        for i, s in enumerate(loaded.on_error)
+    ]
 
 
 ON_ERROR = "on_error"
@@ -137,12 +152,20 @@ class _Builder:
             self._place(spec, args)
         elif kind == "change_tool":
             from cellrunner.model.tool_change import expand_change_tool
+
             self.tool = expand_change_tool(self, spec, self.tool)
         else:
             self.steps.append(self.primitive(kind, args, spec.path, self._next()))
 
-    def primitive(self, kind: str, args: Any, path: tuple, index: int, macro: str | None = None,
-                  retry: RetryPlan | None = None) -> Step:
+    def primitive(
+        self,
+        kind: str,
+        args: Any,
+        path: tuple,
+        index: int,
+        macro: str | None = None,
+        retry: RetryPlan | None = None,
+    ) -> Step:
         name, T, q = kind, None, None
         if kind == "move":
             if isinstance(args.to, list):
@@ -153,11 +176,18 @@ class _Builder:
                 name, T = args.to, frame_pose(self.cell, args.to) @ _offset(args.offset)
         elif kind == "approach":
             name = args.to
-            T = frame_pose(self.cell, args.to) @ _offset(args.offset) @ geometry.pose_matrix((0, 0, -args.distance))
+            T = (
+                frame_pose(self.cell, args.to)
+                @ _offset(args.offset)
+                @ geometry.pose_matrix((0, 0, -args.distance))
+            )
         elif kind in ("descend", "linear"):
             name, T = args.to, frame_pose(self.cell, args.to) @ _offset(args.offset)
         elif kind == "insert":  # the line ends ``depth`` past the frame, along its Z
-            name, T = args.to, frame_pose(self.cell, args.to) @ geometry.pose_matrix((0, 0, args.depth))
+            name, T = (
+                args.to,
+                frame_pose(self.cell, args.to) @ geometry.pose_matrix((0, 0, args.depth)),
+            )
         elif kind == "set_output":
             name = ", ".join(f"{k}={v}" for k, v in args.values.items())
         elif kind == "wait_input":
@@ -166,8 +196,9 @@ class _Builder:
             name = f"{args.seconds:g} s"
         return Step(index, kind, name, args, path, macro, T, q, retry)
 
-    def _target(self, at: str, offset: Offset | None, pattern: Pattern | None,
-                at_offset: str | None = None) -> tuple[np.ndarray, str]:
+    def _target(
+        self, at: str, offset: Offset | None, pattern: Pattern | None, at_offset: str | None = None
+    ) -> tuple[np.ndarray, str]:
         T = frame_pose(self.cell, at)
         name = at
         if pattern is not None:
@@ -175,7 +206,9 @@ class _Builder:
             dx, dy, dz, _ = pattern.offset_m(slot)
             T = geometry.pose_matrix((0, 0, dz)) @ T @ geometry.pose_matrix((dx, dy, 0))
             name = f"{at}[{pattern.index}={slot}]"
-        if at_offset is not None:  # a pose param: where the camera saw the part, in the frame's axes
+        if (
+            at_offset is not None
+        ):  # a pose param: where the camera saw the part, in the frame's axes
             pose = self.params[at_offset]
             T = T @ geometry.pose_matrix(pose["xyz"], pose["rpy"])
             name = f"{at}+{at_offset}"
@@ -186,39 +219,99 @@ class _Builder:
         macro = f"pick {name}"
         path = spec.path
         approach_i = self._next()
-        self.steps.append(Step(approach_i, "approach", name, ApproachArgs(to=a.at, distance=a.approach), path,
-                               macro, T @ geometry.pose_matrix((0, 0, -a.approach))))
+        self.steps.append(
+            Step(
+                approach_i,
+                "approach",
+                name,
+                ApproachArgs(to=a.at, distance=a.approach),
+                path,
+                macro,
+                T @ geometry.pose_matrix((0, 0, -a.approach)),
+            )
+        )
         descend_i = self._next()
-        self.steps.append(Step(descend_i, "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T))
+        self.steps.append(
+            Step(descend_i, "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T)
+        )
         retry = None
         if a.retry is not None and a.retry.attempts > 1:
-            between = tuple(self.primitive(s.kind, s.bind(self.specs, self.params), s.path, descend_i + 1, macro)
-                            for s in spec.between)
+            between = tuple(
+                self.primitive(
+                    s.kind, s.bind(self.specs, self.params), s.path, descend_i + 1, macro
+                )
+                for s in spec.between
+            )
             retry = RetryPlan(a.retry.attempts, between, descend_i)
-        self.steps.append(Step(self._next(), "grip", name, a.grip, path, macro, retry=retry,
-                               extra={"part_at": a.at}))
+        self.steps.append(
+            Step(
+                self._next(),
+                "grip",
+                name,
+                a.grip,
+                path,
+                macro,
+                retry=retry,
+                extra={"part_at": a.at},
+            )
+        )
         lift = a.lift if a.lift is not None else a.approach
         if lift > 0:
-            self.steps.append(Step(self._next(), "lift", name, DistanceArgs(distance=lift, speed=a.speed),
-                                   path, macro))
+            self.steps.append(
+                Step(
+                    self._next(),
+                    "lift",
+                    name,
+                    DistanceArgs(distance=lift, speed=a.speed),
+                    path,
+                    macro,
+                )
+            )
 
     def _place(self, spec: StepSpec, a) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"place {name}"
         path = spec.path
-        self.steps.append(Step(self._next(), "approach", name, ApproachArgs(to=a.at, distance=a.approach), path,
-                               macro, T @ geometry.pose_matrix((0, 0, -a.approach))))
-        self.steps.append(Step(self._next(), "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T))
-        release = a.release if a.confirm is None else a.release.model_copy(update={"confirm": a.confirm})
+        self.steps.append(
+            Step(
+                self._next(),
+                "approach",
+                name,
+                ApproachArgs(to=a.at, distance=a.approach),
+                path,
+                macro,
+                T @ geometry.pose_matrix((0, 0, -a.approach)),
+            )
+        )
+        self.steps.append(
+            Step(self._next(), "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T)
+        )
+        release = (
+            a.release if a.confirm is None else a.release.model_copy(update={"confirm": a.confirm})
+        )
         tolerance = self.cell.place_tolerance
         # the twin compares the part's pose with this once the gripper has left it
-        check = {"place_check": {"T_world_tcp": T, "tolerance": (tolerance.distance, tolerance.angle)}}
+        check = {
+            "place_check": {"T_world_tcp": T, "tolerance": (tolerance.distance, tolerance.angle)}
+        }
         back = a.retreat if a.retreat is not None else a.approach
-        self.steps.append(Step(self._next(), "release", name, release, path, macro,
-                               extra={} if back > 0 else check))
+        self.steps.append(
+            Step(
+                self._next(), "release", name, release, path, macro, extra={} if back > 0 else check
+            )
+        )
         if back > 0:
-            self.steps.append(Step(self._next(), "retreat", name, DistanceArgs(distance=back, speed=a.speed),
-                                   path, macro, extra=check))
+            self.steps.append(
+                Step(
+                    self._next(),
+                    "retreat",
+                    name,
+                    DistanceArgs(distance=back, speed=a.speed),
+                    path,
+                    macro,
+                    extra=check,
+                )
+            )
 
 
 def _offset(offset: Offset | None) -> np.ndarray:
@@ -247,5 +340,18 @@ def box_params(loaded: LoadedTask) -> dict[str, list[dict]]:
     return out
 
 
-__all__ = ["box_params", "Step", "RetryPlan", "expand", "frame_pose", "resolve_params", "pattern_params",
-           "MOTION_KINDS", "PLANNED_KINDS", "LINEAR_KINDS", "GripArgs", "expand_on_error", "ON_ERROR"]
+__all__ = [
+    "LINEAR_KINDS",
+    "MOTION_KINDS",
+    "ON_ERROR",
+    "PLANNED_KINDS",
+    "GripArgs",
+    "RetryPlan",
+    "Step",
+    "box_params",
+    "expand",
+    "expand_on_error",
+    "frame_pose",
+    "pattern_params",
+    "resolve_params",
+]

@@ -25,7 +25,8 @@ class MoveUntilContactArgs(Strict):
     comes within ``max_distance`` (m)."""
 
     direction: Annotated[list[float], Field(min_length=3, max_length=3)] = Field(
-        default_factory=lambda: [0.0, 0.0, 1.0])
+        default_factory=lambda: [0.0, 0.0, 1.0]
+    )
     """Direction of travel in the `frame` axes (normalised). Example: `[0, 0, 1]`"""
     frame: Literal["tool", "world"] = "tool"
     """Axes of `direction`: the TCP's (tool) or the world's. Example: `tool`"""
@@ -41,7 +42,9 @@ class MoveUntilContactArgs(Strict):
     def _nonzero(cls, v: list[float]) -> list[float]:
         norm = sum(x * x for x in v) ** 0.5
         if norm < 1e-9:
-            raise PydanticCustomError("direction", "direction [0, 0, 0] has no length; e.g. [0, 0, 1] (tool Z)")
+            raise PydanticCustomError(
+                "direction", "direction [0, 0, 0] has no length; e.g. [0, 0, 1] (tool Z)"
+            )
         return [x / norm for x in v]
 
 
@@ -68,14 +71,18 @@ class InsertArgs(Strict):
     """Depth window [min, max] in m the insert must end in, else the place failed (3). Example: `[0.018, 0.021]`"""
 
     @model_validator(mode="after")
-    def _window(self) -> "InsertArgs":
+    def _window(self) -> InsertArgs:
         if self.expect_depth is not None:
             lo, hi = self.expect_depth
             if lo > hi:
-                raise PydanticCustomError("expect_depth", f"expect_depth min {lo:g} m is above max {hi:g} m")
+                raise PydanticCustomError(
+                    "expect_depth", f"expect_depth min {lo:g} m is above max {hi:g} m"
+                )
             if lo > self.depth:
                 raise PydanticCustomError(
-                    "expect_depth", f"expect_depth min {lo:g} m is deeper than the insert's depth {self.depth:g} m")
+                    "expect_depth",
+                    f"expect_depth min {lo:g} m is deeper than the insert's depth {self.depth:g} m",
+                )
         return self
 
     @property

@@ -53,7 +53,14 @@ class Placed:
 def rot_rpy_deg(rpy_deg: tuple[float, float, float] | list[float]) -> np.ndarray:
     """Rotation matrix of XYZ fixed-axis roll, pitch, yaw in degrees: Rz @ Ry @ Rx."""
     r, p, y = (math.radians(v) for v in rpy_deg)
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(r),
+        math.sin(r),
+        math.cos(p),
+        math.sin(p),
+        math.cos(y),
+        math.sin(y),
+    )
     return np.array(
         [
             [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
@@ -95,4 +102,7 @@ def tcp_pose_of(T: np.ndarray) -> tuple[float, ...]:
     """A UR pose ``[x, y, z, rx, ry, rz]`` (m, rotation vector in rad) of a transform."""
     from scipy.spatial.transform import Rotation
 
-    return (*(float(v) for v in T[:3, 3]), *(float(v) for v in Rotation.from_matrix(T[:3, :3]).as_rotvec()))
+    return (
+        *(float(v) for v in T[:3, 3]),
+        *(float(v) for v in Rotation.from_matrix(T[:3, :3]).as_rotvec()),
+    )

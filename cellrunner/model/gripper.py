@@ -29,7 +29,13 @@ def open_pads(stroke_m: float, T_flange_tcp: np.ndarray) -> list[Placed]:
     pads = []
     for name, sign in (("jaw_a", 1.0), ("jaw_b", -1.0)):
         x = sign * (stroke_m / 2 + t / 2)
-        pads.append(Placed(name, Box((t, w, z1 - z0)), T_flange_tcp @ geometry.pose_matrix((x, 0.0, (z0 + z1) / 2))))
+        pads.append(
+            Placed(
+                name,
+                Box((t, w, z1 - z0)),
+                T_flange_tcp @ geometry.pose_matrix((x, 0.0, (z0 + z1) / 2)),
+            )
+        )
     return pads
 
 
@@ -41,9 +47,15 @@ def cup_shapes(cups, T_flange_tcp: np.ndarray) -> list[Placed]:
     """Each cup as a cylinder in the flange frame, its face at the cup's point (TCP frame)
     and its body reaching back along the TCP's -Z."""
     from cellrunner.model.geometry import Cylinder
-    return [Placed(f"cup{i}", Cylinder(float(c.radius), CUP_LENGTH_M),
-                   T_flange_tcp @ geometry.pose_matrix((c.xyz[0], c.xyz[1], c.xyz[2] - CUP_LENGTH_M / 2)))
-            for i, c in enumerate(cups)]
+
+    return [
+        Placed(
+            f"cup{i}",
+            Cylinder(float(c.radius), CUP_LENGTH_M),
+            T_flange_tcp @ geometry.pose_matrix((c.xyz[0], c.xyz[1], c.xyz[2] - CUP_LENGTH_M / 2)),
+        )
+        for i, c in enumerate(cups)
+    ]
 
 
 def gripper_shapes(gripper, T_flange_tcp: np.ndarray) -> list[Placed]:
@@ -63,6 +75,7 @@ def part_center_depth_m(gripper, shape) -> float:
     if gripper is None or gripper.kind != "vacuum":
         return 0.0
     from cellrunner.model.geometry import Box, Cylinder, Sphere
+
     cups_z = max((float(c.xyz[2]) for c in gripper.cups), default=0.0)
     if isinstance(shape, Box):
         return cups_z + float(shape.size_m[2]) / 2
@@ -80,7 +93,9 @@ def gripper_channels(gripper, outputs: dict[str, str], inputs: dict[str, str]):
     if gripper is None:
         return None, None, None
     if gripper.kind == "vacuum":  # suction on "closes", the vacuum switch confirms
-        close = (outputs[gripper.suction.output], gripper.suction.value) if gripper.suction else None
+        close = (
+            (outputs[gripper.suction.output], gripper.suction.value) if gripper.suction else None
+        )
         return close, None, inputs[gripper.vacuum_ok] if gripper.vacuum_ok else None
     if gripper.kind == "robotiq" and gripper.close is None:
         sensor = inputs[gripper.closed_sensor] if gripper.closed_sensor else ROBOTIQ_OBJECT

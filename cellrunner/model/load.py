@@ -16,7 +16,7 @@ from pydantic import ValidationError
 
 from cellrunner.errors import Diagnostic, InputError
 from cellrunner.model.cell import Cell
-from cellrunner.model.diagnose import did_you_mean, diagnostics_of, dotted, known_list
+from cellrunner.model.diagnose import diagnostics_of, did_you_mean, dotted, known_list
 from cellrunner.model.robots import robot_spec
 from cellrunner.model.source import PathKey, Source, load_yaml
 from cellrunner.model.task import MACROS, STEP_MODELS, TaskFile, widen_step_args
@@ -37,12 +37,14 @@ class Report:
 
     def error(self, path: PathKey, message: str, *, at_key: bool = False) -> None:
         where = dotted(path)
-        self.errors.append(self.source.diagnostic(path, f"{where}: {message}" if where else message,
-                                                  at_key=at_key))
+        self.errors.append(
+            self.source.diagnostic(path, f"{where}: {message}" if where else message, at_key=at_key)
+        )
 
     def warn(self, path: PathKey, message: str) -> None:
-        self.warnings.append(self.source.diagnostic(path, f"{dotted(path)}: {message}",
-                                                    severity="warning"))
+        self.warnings.append(
+            self.source.diagnostic(path, f"{dotted(path)}: {message}", severity="warning")
+        )
 
     def raise_if_errors(self) -> None:
         if self.errors:
@@ -74,13 +76,19 @@ class LoadedCell:
         """The declared geometry of ``tool`` (default: the mounted one) as placed shapes in
         the flange frame."""
         from cellrunner.model.geometry import Placed
+
         geometry = (tool or self.cell.tool).geometry
-        return [Placed(f"tool{i}" if len(geometry) > 1 else "gripper", g.to_shape(self.resolve), g.matrix())
-                for i, g in enumerate(geometry)]
+        return [
+            Placed(
+                f"tool{i}" if len(geometry) > 1 else "gripper", g.to_shape(self.resolve), g.matrix()
+            )
+            for i, g in enumerate(geometry)
+        ]
 
     def fixture_shapes(self) -> list:
         """The fixtures as placed shapes in the world."""
         from cellrunner.model.geometry import Placed
+
         return [Placed(f.name, f.to_shape(self.resolve), f.matrix()) for f in self.cell.fixtures]
 
     def resolve(self, relative: str) -> Path:
@@ -103,7 +111,7 @@ class StepSpec:
     kind: str
     args: Any
     path: PathKey
-    between: list["StepSpec"] = field(default_factory=list)  # pick retry.between steps
+    between: list[StepSpec] = field(default_factory=list)  # pick retry.between steps
     raw: Any = None  # the widened arguments as written, when they name float params
     refs: frozenset[str] = frozenset()  # the float params they name
 
@@ -112,6 +120,7 @@ class StepSpec:
         if not self.refs:
             return self.args
         from cellrunner.model.params import substitute
+
         return STEP_MODELS[self.kind].model_validate(substitute(self.raw, params, values)[0])
 
 
@@ -157,12 +166,16 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     _check_radians(raw, ("robot", "home"), report)
     for i, (lo, hi, q) in enumerate(zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home)):
         if not lo <= q <= hi:
-            report.error(("robot", "home", i), f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]")
+            report.error(
+                ("robot", "home", i), f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]"
+            )
     for path, tool in _tools(cell):
         if tool.payload.mass > spec.payload_max_kg:
-            report.error(path + ("payload", "mass"),
-                         f"{tool.payload.mass:g} kg is above the {spec.name.upper()} payload "
-                         f"of {spec.payload_max_kg:g} kg")
+            report.error(
+                path + ("payload", "mass"),
+                f"{tool.payload.mass:g} kg is above the {spec.name.upper()} payload "
+                f"of {spec.payload_max_kg:g} kg",
+            )
     _check_io(cell, report)
     for path, tool in _tools(cell):
         _check_gripper(cell, tool, path, report)
@@ -173,19 +186,24 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
         if fixture.mesh is not None:
             f = loaded.resolve(fixture.mesh.file)
             if not f.is_file():
-                report.error(("fixtures", i, "mesh", "file"), f"mesh file {fixture.mesh.file!r} not found "
-                             f"(looked under {loaded.root})")
+                report.error(
+                    ("fixtures", i, "mesh", "file"),
+                    f"mesh file {fixture.mesh.file!r} not found (looked under {loaded.root})",
+                )
     from cellrunner.model.sim_inputs import check_sim_block
+
     check_sim_block(cell, report)
     for i, part in enumerate(cell.parts):
         if part.at not in cell.frames:
             report.error(("parts", i, "at"), _unknown("frame", part.at, cell.frames))
     from cellrunner.model import sanity
+
     sanity.check_cell(loaded, report)
     for number, task_path in cell.tasks.items():
         if not loaded.resolve(task_path).is_file():
-            report.error(("tasks", number), f"task file {task_path!r} not found "
-                         f"(looked under {loaded.root})")
+            report.error(
+                ("tasks", number), f"task file {task_path!r} not found (looked under {loaded.root})"
+            )
 
 
 def serve_file_warnings(loaded: LoadedCell) -> list[Diagnostic]:
@@ -194,8 +212,10 @@ def serve_file_warnings(loaded: LoadedCell) -> list[Diagnostic]:
     report = Report(loaded.source)
     opcua = loaded.cell.plc.opcua
     if opcua and opcua.users and not loaded.resolve(opcua.users).exists():
-        report.warn(("plc", "opcua", "users"), f"users file {opcua.users!r} does not exist yet; "
-                    "create it with 'cellrunner users add'")
+        report.warn(
+            ("plc", "opcua", "users"),
+            f"users file {opcua.users!r} does not exist yet; create it with 'cellrunner users add'",
+        )
     return report.warnings
 
 
@@ -208,31 +228,53 @@ def _check_limits(cell: Cell, spec, report: Report) -> None:
     limits = cell.robot.limits
     model = spec.name.upper()
     if limits.joint_speed is not None:
-        values = limits.joint_speed if isinstance(limits.joint_speed, list) else [limits.joint_speed] * 6
+        values = (
+            limits.joint_speed if isinstance(limits.joint_speed, list) else [limits.joint_speed] * 6
+        )
         for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s)):
             if v > cap + 1e-9:
-                path = ("robot", "limits", "joint_speed") + ((i,) if isinstance(limits.joint_speed, list) else ())
-                report.error(path, f"{v:g} deg/s on joint {i + 1} ({_joint(i)}) is above the {model} "
-                             f"controller's {cap:g} deg/s")
+                path = ("robot", "limits", "joint_speed") + (
+                    (i,) if isinstance(limits.joint_speed, list) else ()
+                )
+                report.error(
+                    path,
+                    f"{v:g} deg/s on joint {i + 1} ({_joint(i)}) is above the {model} "
+                    f"controller's {cap:g} deg/s",
+                )
                 if not isinstance(limits.joint_speed, list):
                     break
     if limits.joint_accel is not None:
-        values = limits.joint_accel if isinstance(limits.joint_accel, list) else [limits.joint_accel] * 6
+        values = (
+            limits.joint_accel if isinstance(limits.joint_accel, list) else [limits.joint_accel] * 6
+        )
         for i, v in enumerate(values):
             if v > spec.joint_accel_max_deg_s2 + 1e-9:
-                path = ("robot", "limits", "joint_accel") + ((i,) if isinstance(limits.joint_accel, list) else ())
-                report.error(path, f"{v:g} deg/s^2 is above the {model} controller's "
-                             f"{spec.joint_accel_max_deg_s2:.0f} deg/s^2")
+                path = ("robot", "limits", "joint_accel") + (
+                    (i,) if isinstance(limits.joint_accel, list) else ()
+                )
+                report.error(
+                    path,
+                    f"{v:g} deg/s^2 is above the {model} controller's "
+                    f"{spec.joint_accel_max_deg_s2:.0f} deg/s^2",
+                )
                 break
     if limits.tcp_speed is not None and limits.tcp_speed > spec.tcp_speed_max_mps + 1e-9:
-        slip = (f"; did you mean {limits.tcp_speed:g} mm/s = {limits.tcp_speed / 1000:g} m/s? (write "
-                f"'{limits.tcp_speed:g} mm/s')" if limits.tcp_speed / 1000 <= spec.tcp_speed_max_mps else "")
-        report.error(("robot", "limits", "tcp_speed"), f"{limits.tcp_speed:g} m/s is above the {model} "
-                     f"controller's {spec.tcp_speed_max_mps:g} m/s{slip}")
+        slip = (
+            f"; did you mean {limits.tcp_speed:g} mm/s = {limits.tcp_speed / 1000:g} m/s? (write "
+            f"'{limits.tcp_speed:g} mm/s')"
+            if limits.tcp_speed / 1000 <= spec.tcp_speed_max_mps
+            else ""
+        )
+        report.error(
+            ("robot", "limits", "tcp_speed"),
+            f"{limits.tcp_speed:g} m/s is above the {model} "
+            f"controller's {spec.tcp_speed_max_mps:g} m/s{slip}",
+        )
 
 
 def _joint(i: int) -> str:
     from cellrunner.model.robots import JOINT_NAMES
+
     return JOINT_NAMES[i]
 
 
@@ -245,10 +287,15 @@ def _check_radians(raw: Any, path: PathKey, report: Report) -> None:
             value = value[part]
         except (KeyError, IndexError, TypeError):
             return
-    if isinstance(value, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+    if isinstance(value, list) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+    ):
         if looks_like_radians([float(v) for v in value]):
-            report.warn(path, f"{value} looks like radians; angles are in degrees "
-                        "(write e.g. '1.57 rad' if you mean radians)")
+            report.warn(
+                path,
+                f"{value} looks like radians; angles are in degrees "
+                "(write e.g. '1.57 rad' if you mean radians)",
+            )
 
 
 def _check_io(cell: Cell, report: Report) -> None:
@@ -258,33 +305,49 @@ def _check_io(cell: Cell, report: Report) -> None:
             m = _CHANNEL.match(channel)
             want_out = side == "outputs"
             if not m:
-                report.error(("io", side, name), f"bad channel {channel!r} for {name!r}; use {_CHANNEL_HELP}")
+                report.error(
+                    ("io", side, name), f"bad channel {channel!r} for {name!r}; use {_CHANNEL_HELP}"
+                )
                 continue
             prefix, number = m.group(1), int(m.group(2))
             if (prefix[1] == "O") != want_out:
-                report.error(("io", side, name), f"channel {channel!r} is an {'input' if want_out else 'output'}; "
-                             f"{side} use {'DO, CO, TO, AO' if want_out else 'DI, CI, TI, AI'}")
+                report.error(
+                    ("io", side, name),
+                    f"channel {channel!r} is an {'input' if want_out else 'output'}; "
+                    f"{side} use {'DO, CO, TO, AO' if want_out else 'DI, CI, TI, AI'}",
+                )
             elif number >= _CHANNEL_COUNT[prefix]:
-                report.error(("io", side, name), f"channel {channel!r} does not exist; "
-                             f"{prefix} goes from {prefix}0 to {prefix}{_CHANNEL_COUNT[prefix] - 1}")
+                report.error(
+                    ("io", side, name),
+                    f"channel {channel!r} does not exist; "
+                    f"{prefix} goes from {prefix}0 to {prefix}{_CHANNEL_COUNT[prefix] - 1}",
+                )
             elif channel in used:
-                report.error(("io", side, name), f"channel {channel} is already used by {used[channel]!r}")
+                report.error(
+                    ("io", side, name), f"channel {channel} is already used by {used[channel]!r}"
+                )
             used[channel] = name
     both = set(cell.io.outputs) & set(cell.io.inputs)
     for name in sorted(both):
-        report.error(("io", "inputs", name), f"name {name!r} is both an output and an input", at_key=True)
+        report.error(
+            ("io", "inputs", name), f"name {name!r} is both an output and an input", at_key=True
+        )
 
 
-def check_io_name(cell: Cell, name: str, side: str, path: PathKey, report: Report,
-                  at_key: bool = False) -> None:
+def check_io_name(
+    cell: Cell, name: str, side: str, path: PathKey, report: Report, at_key: bool = False
+) -> None:
     """Report ``name`` unless it is a known IO of ``side`` ('inputs' or 'outputs')."""
     table = getattr(cell.io, side)
     if name in table:
         return
     other = "outputs" if side == "inputs" else "inputs"
     if name in getattr(cell.io, other):
-        report.error(path, f"{name!r} is an {other[:-1]}, not an {side[:-1]}; known {side}: "
-                     f"{known_list(table)}", at_key=at_key)
+        report.error(
+            path,
+            f"{name!r} is an {other[:-1]}, not an {side[:-1]}; known {side}: {known_list(table)}",
+            at_key=at_key,
+        )
     else:
         report.error(path, _unknown(side[:-1], name, table), at_key=at_key)
 
@@ -304,8 +367,12 @@ def _check_gripper(cell: Cell, tool, path: PathKey, report: Report) -> None:
     if g.kind == "io" and g.close is None:
         report.error(base, "an io gripper needs 'close: {output, value}'")
     if g.kind == "vacuum":
-        for key, example in (("suction", "suction: {output, value}"), ("vacuum_ok", "vacuum_ok: INPUT"),
-                             ("cups", "cups: [{xyz, radius}]"), ("holding_force", "holding_force: N")):
+        for key, example in (
+            ("suction", "suction: {output, value}"),
+            ("vacuum_ok", "vacuum_ok: INPUT"),
+            ("cups", "cups: [{xyz, radius}]"),
+            ("holding_force", "holding_force: N"),
+        ):
             if not getattr(g, key):
                 report.error(base, f"a vacuum gripper needs '{example}'")
         if g.suction is not None:
@@ -331,13 +398,19 @@ def _check_tool_names(cell: Cell, raw: Any, report: Report) -> None:
         if isinstance(raw, dict) and "tool" in raw:  # (the model copies the mounted one into tool)
             report.error(("tool",), "give either 'tool:' or 'tools:', not both", at_key=True)
         if cell.robot.tool is None:
-            report.error(("robot",), f"with 'tools:', robot.tool names the tool mounted at start; "
-                         f"known: {known_list(names)}")
+            report.error(
+                ("robot",),
+                f"with 'tools:', robot.tool names the tool mounted at start; "
+                f"known: {known_list(names)}",
+            )
         elif cell.robot.tool not in cell.tools:
             report.error(("robot", "tool"), _unknown("tool", cell.robot.tool, names))
     elif cell.robot.tool is not None:
-        report.error(("robot", "tool"), f"robot.tool {cell.robot.tool!r} names a tool but the cell has no "
-                     "'tools:' (give tools: {NAME: TOOL})")
+        report.error(
+            ("robot", "tool"),
+            f"robot.tool {cell.robot.tool!r} names a tool but the cell has no "
+            "'tools:' (give tools: {NAME: TOOL})",
+        )
     changer = cell.tool_changer
     if changer is None:
         return
@@ -352,8 +425,11 @@ def _check_tool_names(cell: Cell, raw: Any, report: Report) -> None:
             report.error(base + ("rack", name), _unknown("frame", frame, cell.frames))
     missing = [n for n in names if n not in changer.rack]
     if missing:
-        report.error(base + ("rack",), f"the rack has no place for tool(s) {', '.join(map(repr, missing))}; "
-                     f"give each a frame: rack: {{{', '.join(f'{n}: FRAME' for n in names)}}}")
+        report.error(
+            base + ("rack",),
+            f"the rack has no place for tool(s) {', '.join(map(repr, missing))}; "
+            f"give each a frame: rack: {{{', '.join(f'{n}: FRAME' for n in names)}}}",
+        )
 
 
 def _check_names(cell: Cell, report: Report) -> None:
@@ -362,24 +438,32 @@ def _check_names(cell: Cell, report: Report) -> None:
         for i, item in enumerate(items):
             key = f"{kind}s"
             if item.name in seen:
-                report.error((key, i, "name"), f"name {item.name!r} is already used by a {seen[item.name]}")
+                report.error(
+                    (key, i, "name"), f"name {item.name!r} is already used by a {seen[item.name]}"
+                )
             seen[item.name] = kind
     for name in cell.frames:
         if name in ("home", "world"):
-            report.error(("frames", name), f"{name!r} is reserved and cannot name a frame", at_key=True)
+            report.error(
+                ("frames", name), f"{name!r} is reserved and cannot name a frame", at_key=True
+            )
 
 
 def _check_frames(cell: Cell, report: Report) -> None:
     for name, frame in cell.frames.items():
         if frame.parent != "world" and frame.parent not in cell.frames:
-            report.error(("frames", name, "parent"), _unknown("parent frame", frame.parent,
-                                                               ["world", *cell.frames]))
+            report.error(
+                ("frames", name, "parent"),
+                _unknown("parent frame", frame.parent, ["world", *cell.frames]),
+            )
             continue
         seen, cur = {name}, frame.parent
         while cur != "world" and cur in cell.frames:
             if cur in seen:
-                report.error(("frames", name, "parent"), f"frame {name!r} is its own ancestor "
-                             f"(cycle through {cur!r})")
+                report.error(
+                    ("frames", name, "parent"),
+                    f"frame {name!r} is its own ancestor (cycle through {cur!r})",
+                )
                 break
             seen.add(cur)
             cur = cell.frames[cur].parent
@@ -408,19 +492,24 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
         report.raise_if_errors()
         raise AssertionError("unreachable")  # pragma: no cover
     steps = _parse_steps(header.steps, ("steps",), report, allow_macros=True, params=header.params)
-    on_error = _parse_steps(header.on_error, ("on_error",), report, allow_macros=False, params=header.params)
+    on_error = _parse_steps(
+        header.on_error, ("on_error",), report, allow_macros=False, params=header.params
+    )
     loaded = LoadedTask(header, path, source, steps, report.warnings, on_error)
     if not report.errors:
         from cellrunner.model.references import check_task_references
+
         check_task_references(loaded, cell, report)
         from cellrunner.model import sanity
+
         sanity.check_task(loaded, cell, report)
     report.raise_if_errors()
     return loaded
 
 
-def _parse_steps(raw: list, base: PathKey, report: Report, *, allow_macros: bool,
-                 params: dict | None = None) -> list[StepSpec]:
+def _parse_steps(
+    raw: list, base: PathKey, report: Report, *, allow_macros: bool, params: dict | None = None
+) -> list[StepSpec]:
     out = []
     for i, item in enumerate(raw):
         spec = _parse_step(item, base + (i,), report, allow_macros, params or {})
@@ -429,29 +518,44 @@ def _parse_steps(raw: list, base: PathKey, report: Report, *, allow_macros: bool
     return out
 
 
-def _parse_step(item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict) -> StepSpec | None:
+def _parse_step(
+    item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict
+) -> StepSpec | None:
     known = [k for k in STEP_MODELS if allow_macros or k not in MACROS]
     if isinstance(item, str):
         item = {item: None}
     if not isinstance(item, dict) or len(item) != 1:
-        report.error(path, f"a step is one {{KIND: ARGS}} mapping or a bare KIND; known kinds: "
-                     f"{known_list(known)}")
+        report.error(
+            path,
+            f"a step is one {{KIND: ARGS}} mapping or a bare KIND; known kinds: "
+            f"{known_list(known)}",
+        )
         return None
     kind, args = next(iter(item.items()))
     if kind not in known:
-        hint = "" if kind not in MACROS else (" (on_error takes primitive steps)" if path[0] == "on_error"
-                                              else " (pick and place cannot be nested)")
+        hint = (
+            ""
+            if kind not in MACROS
+            else (
+                " (on_error takes primitive steps)"
+                if path[0] == "on_error"
+                else " (pick and place cannot be nested)"
+            )
+        )
         report.error(path + (kind,), _unknown("step", kind, known) + hint, at_key=True)
         return None
     model = STEP_MODELS[kind]
     raw = widen_step_args(kind, args)
     from cellrunner.model.params import substitute
+
     refs: set[str] = set()
     try:
         # a float param stands for a quantity: its default, min and max must all read there
         parsed = None
         for bound in ("default", "min", "max"):
-            values = {n: getattr(p, bound) for n, p in params.items() if getattr(p, bound) is not None}
+            values = {
+                n: getattr(p, bound) for n, p in params.items() if getattr(p, bound) is not None
+            }
             args_b, refs = substitute(raw, params, values)
             checked = model.model_validate(args_b)
             parsed = parsed or checked
@@ -462,6 +566,11 @@ def _parse_step(item: Any, path: PathKey, report: Report, allow_macros: bool, pa
         return None
     spec = StepSpec(kind, parsed, path + (kind,), raw=raw if refs else None, refs=frozenset(refs))
     if kind == "pick" and parsed.retry is not None:
-        spec.between = _parse_steps(parsed.retry.between, path + (kind, "retry", "between"), report,
-                                    allow_macros=False, params=params)
+        spec.between = _parse_steps(
+            parsed.retry.between,
+            path + (kind, "retry", "between"),
+            report,
+            allow_macros=False,
+            params=params,
+        )
     return spec

@@ -24,8 +24,9 @@ from cellrunner.model.base import Strict
 from cellrunner.model.units import UNITS, parse_quantity
 
 #: unit spelling -> quantity kind, for float params
-UNIT_KINDS: dict[str, str] = {u: kind for kind in ("time", "length", "speed", "angle", "force")
-                              for u in UNITS[kind][1]}
+UNIT_KINDS: dict[str, str] = {
+    u: kind for kind in ("time", "length", "speed", "angle", "force") for u in UNITS[kind][1]
+}
 POSE_AXES = ("x", "y", "z", "rx", "ry", "rz")
 
 PoseValue = dict  # {"xyz": [m, m, m], "rpy": [deg, deg, deg]}
@@ -57,7 +58,9 @@ class Param(Strict):
         if kind != "float":
             raise PydanticCustomError("param", f"only float params take a unit, not {kind} params")
         if unit not in UNIT_KINDS:
-            raise PydanticCustomError("param", f"unknown unit {unit!r}; known: {', '.join(UNIT_KINDS)}")
+            raise PydanticCustomError(
+                "param", f"unknown unit {unit!r}; known: {', '.join(UNIT_KINDS)}"
+            )
         out = dict(data)
         for key in ("min", "max", "default"):
             v = out.get(key)
@@ -67,7 +70,7 @@ class Param(Strict):
         return out
 
     @model_validator(mode="after")
-    def _consistent(self) -> "Param":
+    def _consistent(self) -> Param:
         if self.type == "pose":
             return self._pose_box()
         for key in ("min", "max", "default"):
@@ -87,15 +90,18 @@ class Param(Strict):
         if d is not None and self.type != "bool" and not isinstance(d, bool):
             if (self.min is not None and d < self.min) or (self.max is not None and d > self.max):
                 raise PydanticCustomError(
-                    "param", f"default {d:g} is outside [{self.min:g}, {self.max:g}]"
-                    if self.min is not None and self.max is not None else
-                    f"default {d:g} is outside its bounds")
+                    "param",
+                    f"default {d:g} is outside [{self.min:g}, {self.max:g}]"
+                    if self.min is not None and self.max is not None
+                    else f"default {d:g} is outside its bounds",
+                )
         return self
 
-    def _pose_box(self) -> "Param":
+    def _pose_box(self) -> Param:
         if self.min is None or self.max is None:
-            raise PydanticCustomError("param", "a pose param needs min and max: [x, y, z, rx, ry, rz] "
-                                      "in m and deg")
+            raise PydanticCustomError(
+                "param", "a pose param needs min and max: [x, y, z, rx, ry, rz] in m and deg"
+            )
         lo, hi = (_six(self.min, "min"), _six(self.max, "max"))
         for axis, a, b in zip(POSE_AXES, lo, hi):
             if a > b:
@@ -142,7 +148,9 @@ class Param(Strict):
             except (TypeError, ValueError):
                 x = None
         if x is None or (self.type == "int" and x != int(x)):
-            raise ValueError(f"param {name!r} must be {'an int' if self.type == 'int' else 'a number'}, got {value!r}")
+            raise ValueError(
+                f"param {name!r} must be {'an int' if self.type == 'int' else 'a number'}, got {value!r}"
+            )
         out: int | float = int(x) if self.type == "int" else x
         if (self.min is not None and out < self.min) or (self.max is not None and out > self.max):
             lo = "-inf" if self.min is None else f"{self.min:g}"
@@ -159,21 +167,27 @@ class Param(Strict):
                 value = json.loads(value)
             except ValueError:
                 raise PydanticCustomError(
-                    "param", f"param {name!r} must be a pose {{\"xyz\": [x, y, z], \"rpy\": [rx, ry, rz]}} "
-                    f"(m, deg), got {value!r}") from None
+                    "param",
+                    f'param {name!r} must be a pose {{"xyz": [x, y, z], "rpy": [rx, ry, rz]}} '
+                    f"(m, deg), got {value!r}",
+                ) from None
         if isinstance(value, (list, tuple)):
             six = _six(value, name)
         elif isinstance(value, dict) and set(value) <= {"xyz", "rpy"}:
             six = _six([*value.get("xyz", [0, 0, 0]), *value.get("rpy", [0, 0, 0])], name)
         else:
             raise PydanticCustomError(
-                "param", f"param {name!r} must be a pose {{\"xyz\": [x, y, z], \"rpy\": [rx, ry, rz]}} "
-                f"(m, deg), got {value!r}")
+                "param",
+                f'param {name!r} must be a pose {{"xyz": [x, y, z], "rpy": [rx, ry, rz]}} '
+                f"(m, deg), got {value!r}",
+            )
         for axis, v, a, b in zip(POSE_AXES, six, self.min, self.max):
             if not a - 1e-9 <= v <= b + 1e-9:
                 unit = "deg" if axis.startswith("r") else "m"
                 raise PydanticCustomError(
-                    "param", f"param {name!r} {axis} = {v:g} {unit} is outside [{a:g}, {b:g}] {unit}")
+                    "param",
+                    f"param {name!r} {axis} = {v:g} {unit} is outside [{a:g}, {b:g}] {unit}",
+                )
         return pose_value(six)
 
     def box_values(self) -> list[PoseValue]:
@@ -186,8 +200,9 @@ class Param(Strict):
 
 def _six(value: Any, what: str) -> list[float]:
     if not isinstance(value, (list, tuple)) or len(value) != 6:
-        raise PydanticCustomError("param", f"{what} must be 6 numbers [x, y, z, rx, ry, rz] (m, deg), "
-                                  f"got {value!r}")
+        raise PydanticCustomError(
+            "param", f"{what} must be 6 numbers [x, y, z, rx, ry, rz] (m, deg), got {value!r}"
+        )
     out = []
     for axis, v in zip(POSE_AXES, value):
         kind = "angle" if axis.startswith("r") else "length"

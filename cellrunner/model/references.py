@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
-from cellrunner.model.load import LoadedCell, LoadedTask, Report, StepSpec, _check_radians, _unknown, check_io_name
+from cellrunner.model.load import (
+    LoadedCell,
+    LoadedTask,
+    Report,
+    StepSpec,
+    _check_radians,
+    _unknown,
+    check_io_name,
+)
 
 _LINEAR_KINDS = ("descend", "linear")
 
@@ -34,7 +42,13 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             needs_gripper = True
             grip = args.grip if kind == "pick" else args.release
             if grip.confirm is not None:
-                check_io_name(cell, grip.confirm, "inputs", path + ("grip" if kind == "pick" else "release", "confirm"), report)
+                check_io_name(
+                    cell,
+                    grip.confirm,
+                    "inputs",
+                    path + ("grip" if kind == "pick" else "release", "confirm"),
+                    report,
+                )
         elif kind in ("grip", "release"):
             needs_gripper = True
             if args.confirm is not None:
@@ -48,11 +62,17 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             _check_change_tool(cell, args.tool, path, report)
     _check_tool_at_end(task, cell, report)
     if needs_gripper and cell.tool.gripper is None:
-        report.error(("steps",), f"the task grips and releases but cell {cell.cell!r} has no tool.gripper")
+        report.error(
+            ("steps",), f"the task grips and releases but cell {cell.cell!r} has no tool.gripper"
+        )
     for name, param in task.task.params.items():
         if param.default is None:
-            report.error(("params", name), f"param {name!r} needs a default (the value used when "
-                         "the PLC or the CLI gives none)", at_key=True)
+            report.error(
+                ("params", name),
+                f"param {name!r} needs a default (the value used when "
+                "the PLC or the CLI gives none)",
+                at_key=True,
+            )
 
 
 def _is_short(report: Report, path) -> bool:
@@ -76,29 +96,45 @@ def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
         return
     param = params[pattern.index]
     if param.type != "int":
-        report.error(path + ("index",), f"pattern index param {pattern.index!r} must be of type int, "
-                     f"not {param.type}")
+        report.error(
+            path + ("index",),
+            f"pattern index param {pattern.index!r} must be of type int, not {param.type}",
+        )
         return
     lo = param.min if param.min is not None else None
     hi = param.max if param.max is not None else None
     if lo is None or hi is None:
-        report.error(("params", pattern.index), f"param {pattern.index!r} indexes a pattern and needs "
-                     f"min and max (0..{pattern.slots - 1})", at_key=True)
+        report.error(
+            ("params", pattern.index),
+            f"param {pattern.index!r} indexes a pattern and needs "
+            f"min and max (0..{pattern.slots - 1})",
+            at_key=True,
+        )
     elif lo < 0 or hi > pattern.slots - 1:
         grid = " x ".join(str(g) for g in pattern.grid)
-        report.error(("params", pattern.index), f"param {pattern.index!r} range [{lo:g}, {hi:g}] "
-                     f"does not fit the {grid} pattern's slots 0..{pattern.slots - 1}", at_key=True)
+        report.error(
+            ("params", pattern.index),
+            f"param {pattern.index!r} range [{lo:g}, {hi:g}] "
+            f"does not fit the {grid} pattern's slots 0..{pattern.slots - 1}",
+            at_key=True,
+        )
 
 
 def _check_change_tool(cell, tool: str, path, report: Report) -> None:
     if tool not in cell.tools:
         known = list(cell.tools)
-        report.error(path + ("tool",) if not _is_short(report, path) else path,
-                     _unknown("tool", tool, known) if known else
-                     f"unknown tool {tool!r}: the cell has no 'tools:' to change between")
+        report.error(
+            path + ("tool",) if not _is_short(report, path) else path,
+            _unknown("tool", tool, known)
+            if known
+            else f"unknown tool {tool!r}: the cell has no 'tools:' to change between",
+        )
     elif cell.tool_changer is None:
-        report.error(path, f"change_tool needs the cell's tool_changer: {{lock: OUTPUT, locked: INPUT, "
-                     f"rack: {{NAME: FRAME}}}}; cell {cell.cell!r} has none")
+        report.error(
+            path,
+            f"change_tool needs the cell's tool_changer: {{lock: OUTPUT, locked: INPUT, "
+            f"rack: {{NAME: FRAME}}}}; cell {cell.cell!r} has none",
+        )
 
 
 def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
@@ -108,8 +144,11 @@ def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
         if step.kind == "change_tool" and step.args.tool in cell.tools:
             last = step
     if last is not None and last.args.tool != cell.robot.tool:
-        report.error(last.path, f"the task ends with tool {last.args.tool!r} mounted, but every job starts "
-                     f"with {cell.robot.tool!r} (robot.tool); add 'change_tool: {cell.robot.tool}' before the end")
+        report.error(
+            last.path,
+            f"the task ends with tool {last.args.tool!r} mounted, but every job starts "
+            f"with {cell.robot.tool!r} (robot.tool); add 'change_tool: {cell.robot.tool}' before the end",
+        )
 
 
 def _check_pose_param(task: LoadedTask, name: str, path, report: Report) -> None:

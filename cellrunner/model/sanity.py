@@ -72,8 +72,11 @@ def check_cell(loaded, report) -> None:
     for i, fixture in enumerate(cell.fixtures):
         base = ("fixtures", i)
         if fixture.pose is None and fixture.xyz is None:
-            report.warn(base, f"fixture {fixture.name!r} has no pose: it stands at the world origin, "
-                        "where the robot is usually mounted; give it 'pose: {xyz: [x, y, z]}' (m)")
+            report.warn(
+                base,
+                f"fixture {fixture.name!r} has no pose: it stands at the world origin, "
+                "where the robot is usually mounted; give it 'pose: {xyz: [x, y, z]}' (m)",
+            )
         _shape(raw, base, CELL_EXTENT_M, report)
     for i, _ in enumerate(cell.parts):
         _shape(raw, ("parts", i), TOOL_EXTENT_M, report)
@@ -87,22 +90,32 @@ def check_cell(loaded, report) -> None:
         distance_m = float(np.linalg.norm(np.asarray(frame.xyz) - shoulder))
         values = _get(raw, ("frames", name, "xyz"))
         bare = isinstance(values, list) and all(_number(v) is not None for v in values)
-        if bare and distance_m > 10 * spec.reach_m and _mm_within(frame.xyz, shoulder, 2 * spec.reach_m):
+        if (
+            bare
+            and distance_m > 10 * spec.reach_m
+            and _mm_within(frame.xyz, shoulder, 2 * spec.reach_m)
+        ):
             slips[name] = distance_m
         elif distance_m > 2 * spec.reach_m:
             far[name] = distance_m
     reach = f"(reach {spec.reach_m:.2f} m)"
     for name, distance_m in slips.items():
-        report.warn(("frames", name, "xyz"), f"frame {name!r} is {distance_m:.2f} m from the {model}'s shoulder "
-                    f"{reach}; {_vector_mm([float(v) for v in cell.frames[name].xyz])}")
+        report.warn(
+            ("frames", name, "xyz"),
+            f"frame {name!r} is {distance_m:.2f} m from the {model}'s shoulder "
+            f"{reach}; {_vector_mm([float(v) for v in cell.frames[name].xyz])}",
+        )
     if far:
         centre = np.mean([cell.frames[name].xyz for name in far], axis=0)
         mount = cell.robot.mount.xyz
         for name, distance_m in far.items():
-            report.warn(("frames", name, "xyz"), f"frame {name!r} is {distance_m:.2f} m from the {model}'s "
-                        f"shoulder {reach}: is the cell in the wrong place, or the robot? robot.mount is at "
-                        f"{_fmt_xyz(mount)}; did you mean a mount near {_fmt_xyz([centre[0], centre[1], mount[2]])}, "
-                        "among the frames?")
+            report.warn(
+                ("frames", name, "xyz"),
+                f"frame {name!r} is {distance_m:.2f} m from the {model}'s "
+                f"shoulder {reach}: is the cell in the wrong place, or the robot? robot.mount is at "
+                f"{_fmt_xyz(mount)}; did you mean a mount near {_fmt_xyz([centre[0], centre[1], mount[2]])}, "
+                "among the frames?",
+            )
 
 
 def _mm_within(xyz, shoulder: np.ndarray, limit_m: float) -> bool:
@@ -121,20 +134,32 @@ def _vector(raw: Any, path: PathKey, limit_m: float, report, what: str) -> None:
     if any(n is None for n in numbers):
         return
     if max(abs(n) for n in numbers) > limit_m:
-        report.warn(path, f"{_fmt_xyz(numbers)} m is too large for {what} (over {limit_m:g} m); "
-                    f"{_vector_mm(numbers)}")
+        report.warn(
+            path,
+            f"{_fmt_xyz(numbers)} m is too large for {what} (over {limit_m:g} m); "
+            f"{_vector_mm(numbers)}",
+        )
 
 
 def _shape(raw: Any, base: PathKey, limit_m: float, report) -> None:
     """Sizes of a box, cylinder or sphere and a placed shape's xyz, written inline or as pose."""
-    for key, sizes in (("box", ("size",)), ("cylinder", ("radius", "length")), ("sphere", ("radius",))):
+    for key, sizes in (
+        ("box", ("size",)),
+        ("cylinder", ("radius", "length")),
+        ("sphere", ("radius",)),
+    ):
         for size in sizes:
             path = (*base, key, size)
             value = _get(raw, path)
             if isinstance(value, list):
                 _vector(raw, path, limit_m, report, f"a {key}'s size")
-            elif (n := _number(value)) is not None and n > (limit := limit_m / 4 if size == "radius" else limit_m):
-                report.warn(path, f"{n:g} m is larger than any {key} {size} in a cell (over {limit:g} m); {_mm(n)}")
+            elif (n := _number(value)) is not None and n > (
+                limit := limit_m / 4 if size == "radius" else limit_m
+            ):
+                report.warn(
+                    path,
+                    f"{n:g} m is larger than any {key} {size} in a cell (over {limit:g} m); {_mm(n)}",
+                )
     for path in ((*base, "xyz"), (*base, "pose", "xyz")):
         _vector(raw, path, limit_m, report, "a shape's position")
 
@@ -156,15 +181,24 @@ def _walk(node: Any, path: PathKey, spec, model: str, report) -> None:
             here = (*path, key)
             n = _number(value)
             if key in STEP_LENGTH_KEYS and n is not None and n > spec.reach_m:
-                report.warn(here, f"{n:g} m is longer than the {model}'s reach ({spec.reach_m:.2f} m); {_mm(n)}")
+                report.warn(
+                    here,
+                    f"{n:g} m is longer than the {model}'s reach ({spec.reach_m:.2f} m); {_mm(n)}",
+                )
             elif key in STEP_SPEED_KEYS and n is not None and n > spec.tcp_speed_max_mps:
-                report.warn(here, f"{n:g} m/s is above the {model}'s {spec.tcp_speed_max_mps:g} m/s; did you mean "
-                            f"{n:g} mm/s = {n / 1000:g} m/s? (write '{n:g} mm/s')")
+                report.warn(
+                    here,
+                    f"{n:g} m/s is above the {model}'s {spec.tcp_speed_max_mps:g} m/s; did you mean "
+                    f"{n:g} mm/s = {n / 1000:g} m/s? (write '{n:g} mm/s')",
+                )
             elif key == "pitch" and isinstance(value, list):
                 numbers = [_number(v) for v in value]
                 if all(x is not None for x in numbers) and max(numbers) > spec.reach_m:
-                    report.warn(here, f"pitch {_fmt_xyz(numbers)} m spans more than the {model}'s reach; "
-                                f"{_vector_mm(numbers)}")
+                    report.warn(
+                        here,
+                        f"pitch {_fmt_xyz(numbers)} m spans more than the {model}'s reach; "
+                        f"{_vector_mm(numbers)}",
+                    )
             elif key == "offset" and isinstance(value, dict):
                 _vector(value, ("xyz",), spec.reach_m, _Prefixed(report, here), "an offset")
             else:

@@ -33,35 +33,66 @@ _BARE = ("grip", "release")
 
 #: what each step kind does and an example of its arguments (hover text and completion)
 STEP_HELP: dict[str, tuple[str, Any]] = {
-    "move": ("Planned, collision-free joint move to a frame, 'home' or six joint angles (deg); "
-             "or {to, offset, speed (fraction of the limits)}.", "home"),
-    "approach": ("Planned move to `distance` back from a frame along its Z.", {"to": "infeed", "distance": 0.1}),
+    "move": (
+        "Planned, collision-free joint move to a frame, 'home' or six joint angles (deg); "
+        "or {to, offset, speed (fraction of the limits)}.",
+        "home",
+    ),
+    "approach": (
+        "Planned move to `distance` back from a frame along its Z.",
+        {"to": "infeed", "distance": 0.1},
+    ),
     "descend": ("Straight TCP line to a frame (speed in m/s).", "infeed"),
-    "linear": ("Straight TCP line to a frame (speed in m/s).", {"to": "pallet", "offset": [0, 0, 0.02]}),
+    "linear": (
+        "Straight TCP line to a frame (speed in m/s).",
+        {"to": "pallet", "offset": [0, 0, 0.02]},
+    ),
     "lift": ("Straight line up world +Z by `distance` (m).", 0.1),
     "retreat": ("Straight line back along the tool's -Z by `distance` (m).", 0.05),
-    "grip": ("Close the jaws, then check the confirmation input and the measured force window.",
-             {"confirm": "gripper_closed", "force": {"min": 2, "max": 40}, "timeout": 1.5}),
+    "grip": (
+        "Close the jaws, then check the confirmation input and the measured force window.",
+        {"confirm": "gripper_closed", "force": {"min": 2, "max": 40}, "timeout": 1.5},
+    ),
     "release": ("Open the jaws (optionally confirmed by an input).", {"timeout": 1.0}),
     "set_output": ("Set outputs by their cell IO names.", {"beacon": True}),
-    "wait_input": ("Wait until an input reads `value`, failing the step after `timeout` (s).",
-                   {"input": "part_present", "value": True, "timeout": 10}),
+    "wait_input": (
+        "Wait until an input reads `value`, failing the step after `timeout` (s).",
+        {"input": "part_present", "value": True, "timeout": 10},
+    ),
     "wait": ("Wait this long, s.", 0.5),
-    "move_until_contact": ("Straight line along `direction` until the wrist force rises by `force` (N); "
-                           "fails without contact within `max_distance` (m).",
-                           {"direction": [0, 0, 1], "frame": "tool", "speed": 0.01, "force": 10,
-                            "max_distance": 0.05}),
-    "insert": ("Straight in to a frame and `depth` (m) past it under a force limit; ending outside "
-               "`expect_depth` is a failed place (3).",
-               {"to": "hole", "depth": 0.02, "speed": 0.005, "force": {"max": 20},
-                "expect_depth": [0.018, 0.021]}),
-    "change_tool": ("Macro: park the mounted tool in its rack, take the named tool, switch TCP, "
-                    "payload and collision geometry.", "cup"),
-    "pick": ("Macro: approach -> descend -> grip -> lift.",
-             {"at": "infeed", "approach": 0.1, "grip": {"confirm": "gripper_closed"}}),
-    "place": ("Macro: approach -> descend -> release -> retreat.",
-              {"at": "pallet", "approach": 0.1, "pattern": {"grid": [3, 4], "pitch": [0.07, 0.07],
-                                                            "index": "slot"}}),
+    "move_until_contact": (
+        "Straight line along `direction` until the wrist force rises by `force` (N); "
+        "fails without contact within `max_distance` (m).",
+        {"direction": [0, 0, 1], "frame": "tool", "speed": 0.01, "force": 10, "max_distance": 0.05},
+    ),
+    "insert": (
+        "Straight in to a frame and `depth` (m) past it under a force limit; ending outside "
+        "`expect_depth` is a failed place (3).",
+        {
+            "to": "hole",
+            "depth": 0.02,
+            "speed": 0.005,
+            "force": {"max": 20},
+            "expect_depth": [0.018, 0.021],
+        },
+    ),
+    "change_tool": (
+        "Macro: park the mounted tool in its rack, take the named tool, switch TCP, "
+        "payload and collision geometry.",
+        "cup",
+    ),
+    "pick": (
+        "Macro: approach -> descend -> grip -> lift.",
+        {"at": "infeed", "approach": 0.1, "grip": {"confirm": "gripper_closed"}},
+    ),
+    "place": (
+        "Macro: approach -> descend -> release -> retreat.",
+        {
+            "at": "pallet",
+            "approach": 0.1,
+            "pattern": {"grid": [3, 4], "pitch": [0.07, 0.07], "index": "slot"},
+        },
+    ),
 }
 
 
@@ -75,13 +106,28 @@ def _steps_schema(defs: dict, allow_macros: bool = True) -> dict:
             continue
         args = _json_schema(Optional[model] if kind in _BARE else model, defs)
         if kind in _SHORT_FORMS:  # the mapping form, else the short form: errors name the one meant
-            args = {"if": {"type": "object"}, "then": args, "else": _json_schema(_SHORT_FORMS[kind], defs)}
+            args = {
+                "if": {"type": "object"},
+                "then": args,
+                "else": _json_schema(_SHORT_FORMS[kind], defs),
+            }
         description, example = STEP_HELP.get(kind, ((model.__doc__ or kind).strip(), None))
-        kinds[kind] = {**args, "title": kind, "description": description,
-                       **({"examples": [example]} if example is not None else {})}
-    step = {"type": "object", "title": "step", "description": "One step: {KIND: ARGS}.",
-            "properties": kinds, "propertyNames": {"enum": list(kinds)}, "additionalProperties": False,
-            "minProperties": 1, "maxProperties": 1}
+        kinds[kind] = {
+            **args,
+            "title": kind,
+            "description": description,
+            **({"examples": [example]} if example is not None else {}),
+        }
+    step = {
+        "type": "object",
+        "title": "step",
+        "description": "One step: {KIND: ARGS}.",
+        "properties": kinds,
+        "propertyNames": {"enum": list(kinds)},
+        "additionalProperties": False,
+        "minProperties": 1,
+        "maxProperties": 1,
+    }
     bare = {"type": "string", "enum": list(_BARE), "description": "A step without arguments."}
     return {"type": "array", "items": {"if": {"type": "string"}, "then": bare, "else": step}}
 
@@ -107,9 +153,11 @@ def _with_examples(node: Any) -> Any:
     if isinstance(text, str) and (m := _EXAMPLE.search(text)):
         from ruamel.yaml import YAML
 
-        out["description"] = text[:m.start()].rstrip()
+        out["description"] = text[: m.start()].rstrip()
         example = YAML(typ="safe", pure=True).load(m.group(1))
-        out["examples"] = [json.loads(json.dumps(example))]  # as a JSON file holds it (keys are strings)
+        out["examples"] = [
+            json.loads(json.dumps(example))
+        ]  # as a JSON file holds it (keys are strings)
     return out
 
 
@@ -121,8 +169,15 @@ def _offset_short_form(node: Any) -> Any:
         return node
     out = {k: _offset_short_form(v) for k, v in node.items()}
     if {"$ref": "#/$defs/Offset"} in out.get("anyOf", []):
-        out["anyOf"] = [*out["anyOf"], {"type": "array", "minItems": 3, "maxItems": 3,
-                                        "items": {"type": ["number", "string"]}}]
+        out["anyOf"] = [
+            *out["anyOf"],
+            {
+                "type": "array",
+                "minItems": 3,
+                "maxItems": 3,
+                "items": {"type": ["number", "string"]},
+            },
+        ]
     return out
 
 
@@ -140,15 +195,22 @@ def task_schema() -> dict:
     schema = _offset_short_form(_with_examples(TaskFile.model_json_schema()))
     defs = schema.setdefault("$defs", {})
     steps = schema["properties"]["steps"]
-    schema["properties"]["steps"] = {**_steps_schema(defs), "minItems": 1, "title": "Steps",
-                                     "description": steps.get("description", "The steps, in order."),
-                                     **({"examples": steps["examples"]} if "examples" in steps else {})}
+    schema["properties"]["steps"] = {
+        **_steps_schema(defs),
+        "minItems": 1,
+        "title": "Steps",
+        "description": steps.get("description", "The steps, in order."),
+        **({"examples": steps["examples"]} if "examples" in steps else {}),
+    }
     between = defs["Retry"]["properties"]["between"]  # retry.between holds primitive steps
-    defs["Retry"]["properties"]["between"] = {**_steps_schema(defs, allow_macros=False), "title": "Between",
-                                              **{k: between[k] for k in ("description", "examples") if k in between}}
+    defs["Retry"]["properties"]["between"] = {
+        **_steps_schema(defs, allow_macros=False),
+        "title": "Between",
+        **{k: between[k] for k in ("description", "examples") if k in between},
+    }
     schema["$schema"] = DRAFT
     schema["title"] = "cellrunner task file"
     return schema
 
 
-__all__ = ["cell_schema", "task_schema", "NonNegativeLength"]
+__all__ = ["NonNegativeLength", "cell_schema", "task_schema"]

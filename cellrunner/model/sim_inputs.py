@@ -41,12 +41,14 @@ class InputRule(Strict):
     """Drive the input inverted. Example: `false`"""
 
     @model_validator(mode="after")
-    def _one_rule(self) -> "InputRule":
+    def _one_rule(self) -> InputRule:
         given = [k for k in ("part_at", "follows", "pulse_after") if getattr(self, k) is not None]
         if len(given) != 1:
             raise PydanticCustomError(
-                "sim", f"an input rule needs exactly one of part_at, follows, pulse_after; got "
-                f"{', '.join(given) or 'none'}")
+                "sim",
+                f"an input rule needs exactly one of part_at, follows, pulse_after; got "
+                f"{', '.join(given) or 'none'}",
+            )
         return self
 
 

@@ -38,8 +38,9 @@ class Source:
             path, at_key = path[:-1], False
         return self.value_pos.get((), (1, 1))
 
-    def diagnostic(self, path: PathKey, message: str, *, at_key: bool = False,
-                   severity: str = "error") -> Diagnostic:
+    def diagnostic(
+        self, path: PathKey, message: str, *, at_key: bool = False, severity: str = "error"
+    ) -> Diagnostic:
         line, col = self.locate(path, at_key=at_key)
         return Diagnostic(self.file, line, col, message, severity)
 
@@ -96,23 +97,40 @@ def _build(node, path: PathKey, source: Source, yaml, errors: list[Diagnostic]) 
         for key_node, value_node in node.value:
             if not isinstance(key_node, ScalarNode):
                 km = key_node.start_mark
-                errors.append(Diagnostic(source.file, km.line + 1, km.column + 1,
-                                         "a key must be a plain value, not a list or mapping"))
+                errors.append(
+                    Diagnostic(
+                        source.file,
+                        km.line + 1,
+                        km.column + 1,
+                        "a key must be a plain value, not a list or mapping",
+                    )
+                )
                 continue
             key = yaml.constructor.construct_object(key_node, deep=True)
             km = key_node.start_mark
             if key in out:
                 first = source.key_pos[path + (key,)]
-                errors.append(Diagnostic(source.file, km.line + 1, km.column + 1,
-                                         f"duplicate key {key!r} (first at line {first[0]})"))
+                errors.append(
+                    Diagnostic(
+                        source.file,
+                        km.line + 1,
+                        km.column + 1,
+                        f"duplicate key {key!r} (first at line {first[0]})",
+                    )
+                )
                 continue
             source.key_pos[path + (key,)] = (km.line + 1, km.column + 1)
             out[key] = _build(value_node, path + (key,), source, yaml, errors)
         return out
     if isinstance(node, SequenceNode):
-        return [_build(item, path + (i,), source, yaml, errors) for i, item in enumerate(node.value)]
-    if node.tag and node.tag.startswith("!") :
-        errors.append(Diagnostic(source.file, mark.line + 1, mark.column + 1,
-                                 f"unsupported YAML tag {node.tag}"))
+        return [
+            _build(item, path + (i,), source, yaml, errors) for i, item in enumerate(node.value)
+        ]
+    if node.tag and node.tag.startswith("!"):
+        errors.append(
+            Diagnostic(
+                source.file, mark.line + 1, mark.column + 1, f"unsupported YAML tag {node.tag}"
+            )
+        )
         return None
     return yaml.constructor.construct_object(node, deep=True)

@@ -15,10 +15,17 @@ from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Pose, Strict, Vec3
 from cellrunner.model.force_steps import InsertArgs, MoveUntilContactArgs
-from cellrunner.model.tool_steps import ChangeToolArgs
 from cellrunner.model.params import Param
+from cellrunner.model.tool_steps import ChangeToolArgs
 from cellrunner.model.units import (
-    Duration, Force, Fraction, Length, NonNegativeLength, PositiveDuration, PositiveLength, Speed,
+    Duration,
+    Force,
+    Fraction,
+    Length,
+    NonNegativeLength,
+    PositiveDuration,
+    PositiveLength,
+    Speed,
     parse_quantity,
 )
 
@@ -30,7 +37,8 @@ def parse_target(value: Any) -> str | list[float]:
     if isinstance(value, list):
         if len(value) != 6:
             raise PydanticCustomError(
-                "target", f"a joint target needs 6 angles in degrees, got {len(value)}")
+                "target", f"a joint target needs 6 angles in degrees, got {len(value)}"
+            )
         out = []
         for i, v in enumerate(value):
             try:
@@ -39,18 +47,27 @@ def parse_target(value: Any) -> str | list[float]:
                 raise PydanticCustomError("target", f"joint {i + 1}: {exc.message()}") from None
         return out
     raise PydanticCustomError(
-        "target", f"expected a frame name, 'home' or 6 joint angles in degrees, got {value!r}")
+        "target", f"expected a frame name, 'home' or 6 joint angles in degrees, got {value!r}"
+    )
 
 
 Target = Annotated[
     str | list[float],
     BeforeValidator(parse_target),
-    WithJsonSchema({
-        "description": "a frame name, 'home', or 6 joint angles in degrees",
-        "anyOf": [{"type": "string"},
-                  {"type": "array", "minItems": 6, "maxItems": 6,
-                   "items": {"type": ["number", "string"]}}],
-    }),
+    WithJsonSchema(
+        {
+            "description": "a frame name, 'home', or 6 joint angles in degrees",
+            "anyOf": [
+                {"type": "string"},
+                {
+                    "type": "array",
+                    "minItems": 6,
+                    "maxItems": 6,
+                    "items": {"type": ["number", "string"]},
+                },
+            ],
+        }
+    ),
 ]
 
 
@@ -113,10 +130,11 @@ class ForceWindow(Strict):
     """Most load allowed, N. Example: `40`"""
 
     @model_validator(mode="after")
-    def _ordered(self) -> "ForceWindow":
+    def _ordered(self) -> ForceWindow:
         if self.max is not None and self.max < self.min:
             raise PydanticCustomError(
-                "force", f"force window min {self.min:g} N is above max {self.max:g} N")
+                "force", f"force window min {self.min:g} N is above max {self.max:g} N"
+            )
         return self
 
 
@@ -152,14 +170,16 @@ class SetOutputArgs(Strict):
     """Set the outputs, hold them this long (s), set them back. Example: `0.2`"""
 
     @model_validator(mode="after")
-    def _values(self) -> "SetOutputArgs":
+    def _values(self) -> SetOutputArgs:
         extra = self.model_extra or {}
         if not extra:
             raise PydanticCustomError("set_output", "set_output needs at least one {NAME: value}")
         for name, value in extra.items():
             if not isinstance(value, (bool, int, float)):
                 raise PydanticCustomError(
-                    "set_output", f"output {name!r}: value must be true/false or a number, got {value!r}")
+                    "set_output",
+                    f"output {name!r}: value must be true/false or a number, got {value!r}",
+                )
         return self
 
     @property
@@ -183,7 +203,7 @@ class Pattern(Strict):
     """The param that picks the slot (0-based). Example: `slot`"""
 
     @model_validator(mode="after")
-    def _dims(self) -> "Pattern":
+    def _dims(self) -> Pattern:
         if len(self.grid) == 3 and len(self.pitch) != 3:
             raise PydanticCustomError("pattern", "a grid with layers needs 3 pitches [x, y, z]")
         return self
@@ -220,7 +240,9 @@ def _at_frame(data: Any) -> Any:
     unknown = set(at) - {"frame", "offset"}
     if unknown or "frame" not in at:
         raise PydanticCustomError(
-            "at", f"'at' is a frame name or {{frame: FRAME, offset: POSE_PARAM}}; got keys {sorted(at)}")
+            "at",
+            f"'at' is a frame name or {{frame: FRAME, offset: POSE_PARAM}}; got keys {sorted(at)}",
+        )
     out = {**data, "at": at["frame"]}
     offset = at.get("offset")
     if isinstance(offset, str):
@@ -233,16 +255,34 @@ def _at_frame(data: Any) -> Any:
 
 
 #: ``at``: a frame name, or (widened by :func:`_at_frame`) ``{frame, offset}``
-AtFrame = Annotated[Name, WithJsonSchema({
-    "description": "a frame name, or {frame: FRAME, offset: POSE_PARAM or {xyz, rpy}}",
-    "anyOf": [{"type": "string"},
-              {"type": "object", "required": ["frame"], "additionalProperties": False,
-               "properties": {
-                   "frame": {"type": "string", "description": "the frame", "examples": ["infeed"]},
-                   "offset": {"type": ["string", "object", "array"],
-                              "description": "a pose param's name, or a literal {xyz, rpy}",
-                              "examples": ["part_pose"]}}}],
-})]
+AtFrame = Annotated[
+    Name,
+    WithJsonSchema(
+        {
+            "description": "a frame name, or {frame: FRAME, offset: POSE_PARAM or {xyz, rpy}}",
+            "anyOf": [
+                {"type": "string"},
+                {
+                    "type": "object",
+                    "required": ["frame"],
+                    "additionalProperties": False,
+                    "properties": {
+                        "frame": {
+                            "type": "string",
+                            "description": "the frame",
+                            "examples": ["infeed"],
+                        },
+                        "offset": {
+                            "type": ["string", "object", "array"],
+                            "description": "a pose param's name, or a literal {xyz, rpy}",
+                            "examples": ["part_pose"],
+                        },
+                    },
+                },
+            ],
+        }
+    ),
+]
 
 
 class PickArgs(Strict):

@@ -18,7 +18,9 @@ def close_time_s(gripper, part_shape=None) -> float:
     if gripper is None:
         return 0.0
     width = _width_m(part_shape)
-    fraction = 1.0 if width is None else min(1.0, max(0.05, (gripper.stroke - width) / gripper.stroke))
+    fraction = (
+        1.0 if width is None else min(1.0, max(0.05, (gripper.stroke - width) / gripper.stroke))
+    )
     return fraction * gripper.close_time
 
 

@@ -39,11 +39,23 @@ def expand_change_tool(builder, spec, current: str | None) -> str | None:
     T_rack_b = frame_pose(cell, changer.rack[target]) @ np.linalg.inv(tcp_b) @ tcp_a
     back = geometry.pose_matrix((0, 0, -d))
     rows = [
-        ("approach", f"rack[{current}]", ApproachArgs(to=changer.rack[current], distance=d), T_rack_a @ back, current),
+        (
+            "approach",
+            f"rack[{current}]",
+            ApproachArgs(to=changer.rack[current], distance=d),
+            T_rack_a @ back,
+            current,
+        ),
         ("descend", f"rack[{current}]", LinearArgs(to=changer.rack[current]), T_rack_a, current),
         ("tool_unlock", current, GripArgs(confirm=changer.locked, timeout=2.0), None, None),
         ("retreat", f"rack[{current}]", DistanceArgs(distance=d), None, None),
-        ("approach", f"rack[{target}]", ApproachArgs(to=changer.rack[target], distance=d), T_rack_b @ back, None),
+        (
+            "approach",
+            f"rack[{target}]",
+            ApproachArgs(to=changer.rack[target], distance=d),
+            T_rack_b @ back,
+            None,
+        ),
         ("descend", f"rack[{target}]", LinearArgs(to=changer.rack[target]), T_rack_b, None),
         ("tool_lock", target, GripArgs(confirm=changer.locked, timeout=2.0), None, target),
         ("retreat", f"rack[{target}]", DistanceArgs(distance=d), None, target),

@@ -54,14 +54,18 @@ def parse_quantity(value: Any, kind: str) -> float:
     units = ", ".join(u for u in table if u) or "none"
     noun = kind.replace("_", " ")
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-        raise _fail(f"expected a {noun} (a number in {unit0 or 'plain units'}, or a string "
-                    f"with a unit: {units}), got {value!r}")
+        raise _fail(
+            f"expected a {noun} (a number in {unit0 or 'plain units'}, or a string "
+            f"with a unit: {units}), got {value!r}"
+        )
     if isinstance(value, str):
         match = _NUMBER_UNIT.match(value)
         unit = (match.group(2) or "").strip() if match else None
         if match is None or unit not in table:
-            raise _fail(f"cannot read {value!r} as a {noun}; write a number with one of the "
-                        f"units {units}, e.g. '{_example(kind)}'")
+            raise _fail(
+                f"cannot read {value!r} as a {noun}; write a number with one of the "
+                f"units {units}, e.g. '{_example(kind)}'"
+            )
         number = float(match.group(1)) * table[unit]
     else:
         number = float(value)
@@ -74,22 +78,39 @@ def parse_quantity(value: Any, kind: str) -> float:
 
 def _example(kind: str) -> str:
     return {
-        "length": "500 mm", "time": "1.5 s", "force": "20 N", "mass": "300 g",
-        "speed": "250 mm/s", "accel": "1200 mm/s^2", "angle": "1.2 rad",
-        "angular_speed": "90 deg/s", "angular_accel": "300 deg/s^2", "fraction": "50%",
+        "length": "500 mm",
+        "time": "1.5 s",
+        "force": "20 N",
+        "mass": "300 g",
+        "speed": "250 mm/s",
+        "accel": "1200 mm/s^2",
+        "angle": "1.2 rad",
+        "angular_speed": "90 deg/s",
+        "angular_accel": "300 deg/s^2",
+        "fraction": "50%",
     }[kind]
 
 
-def quantity(kind: str, *, gt: float | None = None, ge: float | None = None,
-             le: float | None = None, lt: float | None = None):
+def quantity(
+    kind: str,
+    *,
+    gt: float | None = None,
+    ge: float | None = None,
+    le: float | None = None,
+    lt: float | None = None,
+):
     """An annotated float type for pydantic: parses units and checks bounds."""
     unit0 = UNITS[kind][0]
 
     def validate(value: Any) -> float:
         x = parse_quantity(value, kind)
         shown = f"{_fmt(x)} {unit0}".strip()
-        for bound, ok, word in ((gt, lambda b: x > b, ">"), (ge, lambda b: x >= b, ">="),
-                                (lt, lambda b: x < b, "<"), (le, lambda b: x <= b, "<=")):
+        for bound, ok, word in (
+            (gt, lambda b: x > b, ">"),
+            (ge, lambda b: x >= b, ">="),
+            (lt, lambda b: x < b, "<"),
+            (le, lambda b: x <= b, "<="),
+        ):
             if bound is not None and not ok(bound):
                 raise _fail(f"must be {word} {_fmt(bound)} {unit0}".rstrip() + f", got {shown}")
         return x
@@ -98,18 +119,26 @@ def quantity(kind: str, *, gt: float | None = None, ge: float | None = None,
         "anyOf": [
             {"type": "number", **_json_bounds(gt, ge, lt, le)},
             {"type": "string", "pattern": _unit_pattern(kind)},
-            {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_\-]*$",
-             "description": "the name of a task param of type float (with a unit of this kind)"},
+            {
+                "type": "string",
+                "pattern": r"^[A-Za-z_][A-Za-z0-9_\-]*$",
+                "description": "the name of a task param of type float (with a unit of this kind)",
+            },
         ],
         "description": f"{kind.replace('_', ' ')} in {unit0 or 'plain units'}, or a string with "
-                       f"a unit ({', '.join(u for u in UNITS[kind][1] if u)})",
+        f"a unit ({', '.join(u for u in UNITS[kind][1] if u)})",
     }
     return Annotated[float, BeforeValidator(validate), WithJsonSchema(schema)]
 
 
 def _json_bounds(gt, ge, lt, le) -> dict[str, float]:
     out = {}
-    for key, v in (("exclusiveMinimum", gt), ("minimum", ge), ("exclusiveMaximum", lt), ("maximum", le)):
+    for key, v in (
+        ("exclusiveMinimum", gt),
+        ("minimum", ge),
+        ("exclusiveMaximum", lt),
+        ("maximum", le),
+    ):
         if v is not None:
             out[key] = v
     return out

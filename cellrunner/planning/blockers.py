@@ -67,7 +67,9 @@ class Blockers:
         return "blocked by " + "; ".join(pieces)
 
 
-def blocking_summary(collision, q_states: Iterable[np.ndarray], max_states: int = MAX_STATES) -> Blockers:
+def blocking_summary(
+    collision, q_states: Iterable[np.ndarray], max_states: int = MAX_STATES
+) -> Blockers:
     """Count, over up to ``max_states`` of ``q_states`` (evenly picked), the pairs each
     state violates (:meth:`CollisionModel.violations`). A pair is reported as (robot
     part, obstacle): the fixture, or the other link for self-collisions."""
@@ -98,6 +100,7 @@ def line_states(q_from: np.ndarray, q_to: np.ndarray, n: int = 24) -> list[np.nd
 
 # -- IK branches --------------------------------------------------------------------------------
 
+
 def branch_name(q_rad: np.ndarray) -> str:
     """'elbow up, wrist down (q1 -51 deg)': the branch by the signs of q3 and q5, and the
     base angle that tells the two shoulder branches apart."""
@@ -107,8 +110,14 @@ def branch_name(q_rad: np.ndarray) -> str:
     return f"{elbow}, {wrist} (q1 {math.degrees(q[0]):.0f} deg)"
 
 
-def explain_ik_branches(kinematics, collision, T_world_tcp: np.ndarray, q_near_rad: np.ndarray,
-                        *, min_singular_deg: float = 0.0) -> list[str]:
+def explain_ik_branches(
+    kinematics,
+    collision,
+    T_world_tcp: np.ndarray,
+    q_near_rad: np.ndarray,
+    *,
+    min_singular_deg: float = 0.0,
+) -> list[str]:
     """One line per IK branch of ``T_world_tcp`` saying why it cannot be used (empty list:
     no branch at all). Reasons: a joint outside the cell's range (``joint_range`` or the
     controller's), a collision (the pair and depth), a singularity."""
@@ -121,8 +130,10 @@ def explain_ik_branches(kinematics, collision, T_world_tcp: np.ndarray, q_near_r
             deg = np.degrees(np.asarray(raw, float))
             bad = [j for j in range(6) if not _wrappable(deg[j], q_min[j], q_max[j])]
             j = bad[0] if bad else 0
-            lines.append(f"{name}: joint {j + 1} at {deg[j]:.0f} deg is outside its range "
-                         f"[{q_min[j]:.0f}, {q_max[j]:.0f}] (joint_range)")
+            lines.append(
+                f"{name}: joint {j + 1} at {deg[j]:.0f} deg is outside its range "
+                f"[{q_min[j]:.0f}, {q_max[j]:.0f}] (joint_range)"
+            )
             continue
         hits = collision.violations(q)
         if hits:
@@ -151,6 +162,7 @@ def _wrappable(value_deg: float, lo: float, hi: float) -> bool:
 
 # -- fixes --------------------------------------------------------------------------------------
 
+
 def fix_hint(kind: str, obstacles: Sequence[str] = ()) -> str:
     """A suggestion for a failure ``kind``: "path" (a joint move finds no way), "goal"
     (every branch at the target collides), "line" (a straight move hits something),
@@ -161,22 +173,37 @@ def fix_hint(kind: str, obstacles: Sequence[str] = ()) -> str:
     if kind == "reach":
         return "fix: move the frame toward the robot, or widen robot.joint_range if a joint limit refuses it"
     if first is None and links:
-        return ("fix: the arm folds into itself here; move the frame, or approach from another "
-                "direction (offset rpy)")
+        return (
+            "fix: the arm folds into itself here; move the frame, or approach from another "
+            "direction (offset rpy)"
+        )
     if kind == "path":
-        return (f"fix: move {first or 'the obstacle'} away from the arm's way, raise the approach "
-                "(a larger approach distance), or add a move through a free waypoint before this step")
+        return (
+            f"fix: move {first or 'the obstacle'} away from the arm's way, raise the approach "
+            "(a larger approach distance), or add a move through a free waypoint before this step"
+        )
     if kind == "goal":
-        return (f"fix: move the frame away from {first or 'the obstacle'}, or approach from another "
-                "direction (turn the frame's rpy)")
-    return (f"fix: move the frame or {first or 'the obstacle'} so the straight line keeps its clearance, "
-            "or approach from another direction")
+        return (
+            f"fix: move the frame away from {first or 'the obstacle'}, or approach from another "
+            "direction (turn the frame's rpy)"
+        )
+    return (
+        f"fix: move the frame or {first or 'the obstacle'} so the straight line keeps its clearance, "
+        "or approach from another direction"
+    )
 
 
 # -- the errors ---------------------------------------------------------------------------------
 
-def unreachable(label: str, kinematics, collision, T_world_tcp: np.ndarray, q_near_rad: np.ndarray,
-                approach_m: float | None = None):
+
+def unreachable(
+    label: str,
+    kinematics,
+    collision,
+    T_world_tcp: np.ndarray,
+    q_near_rad: np.ndarray,
+    approach_m: float | None = None,
+):
     """The error for a pose with no IK branch inside the joint ranges: the reach, or each
     branch and the joint that refuses it. ``approach_m``: the step's approach distance,
     named when it is what puts the pose out of reach (a length written in mm)."""
@@ -192,23 +219,32 @@ def unreachable(label: str, kinematics, collision, T_world_tcp: np.ndarray, q_ne
         fix = "fix: write the frame's xyz in metres, or each with its unit ('450 mm')"
     if approach_m is not None and approach_m > reach_m:
         reason = reason.split(": did you mean mm?")[0]
-        fix = (f"the approach distance {approach_m:g} m is longer than the reach: did you mean "
-               f"{approach_m:g} mm = {approach_m / 1000:g} m? (write '{approach_m:g} mm')")
+        fix = (
+            f"the approach distance {approach_m:g} m is longer than the reach: did you mean "
+            f"{approach_m:g} mm = {approach_m / 1000:g} m? (write '{approach_m:g} mm')"
+        )
     return InfeasibleError(f"{label}: {reason}; {fix}")
 
 
-def every_branch_collides(label: str, kinematics, collision, T_world_tcp: np.ndarray,
-                          q_near_rad: np.ndarray):
+def every_branch_collides(
+    label: str, kinematics, collision, T_world_tcp: np.ndarray, q_near_rad: np.ndarray
+):
     """The error for a pose whose every IK branch collides: each branch and its pair."""
     from cellrunner.errors import InfeasibleError
 
     lines = explain_ik_branches(kinematics, collision, T_world_tcp, q_near_rad)
-    reachable = [q for q in (kinematics.wrap_near(r, q_near_rad) for r in kinematics.ik_raw(T_world_tcp))
-                 if q is not None]
+    reachable = [
+        q
+        for q in (kinematics.wrap_near(r, q_near_rad) for r in kinematics.ik_raw(T_world_tcp))
+        if q is not None
+    ]
     blockers = blocking_summary(collision, reachable)
     obstacle, n = blockers.obstacles[0] if blockers.obstacles else ("an obstacle", 0)
     part = next((p for (p, o), _ in blockers.counts if o == obstacle), "arm")
     return InfeasibleError(
         f"{label}: every IK branch collides, {n} of {len(lines)} with {obstacle} (mostly the {part}); "
-        + "; ".join(lines) + "; "
-        f"{fix_hint('goal', blockers.names)}", blockers.names)
+        + "; ".join(lines)
+        + "; "
+        f"{fix_hint('goal', blockers.names)}",
+        blockers.names,
+    )

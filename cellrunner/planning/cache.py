@@ -40,8 +40,9 @@ def _code_digest() -> bytes:
     return h.digest()
 
 
-def plan_key(world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.ndarray,
-             joined: bool = True) -> str:
+def plan_key(
+    world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.ndarray, joined: bool = True
+) -> str:
     h = hashlib.sha256()
     h.update(_code_digest())
     if not joined:
@@ -56,6 +57,7 @@ def plan_key(world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.n
 
 def _meshes(world: CellWorld):
     from cellrunner.model.geometry import Mesh
+
     return [p.shape for p in [*world.fixtures, *world.tool] if isinstance(p.shape, Mesh)]
 
 
@@ -63,8 +65,16 @@ def cache_dir(world: CellWorld) -> Path:
     return world.loaded.root / "var" / "plan-cache"
 
 
-def plan_cached(world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.ndarray,
-                *, use_cache: bool = True, joined: bool = True, on_step=None) -> TaskPlan:
+def plan_cached(
+    world: CellWorld,
+    task: LoadedTask,
+    params: dict,
+    q_start_rad: np.ndarray,
+    *,
+    use_cache: bool = True,
+    joined: bool = True,
+    on_step=None,
+) -> TaskPlan:
     """The plan of ``task`` with ``params`` from ``q_start_rad``: from the cache when the
     same inputs were planned before, else planned (and stored when feasible).
     ``on_step(step)``: called per step as it is planned (all at once for a cached plan)."""
@@ -96,10 +106,16 @@ def _store(path: Path, plan: TaskPlan) -> None:
     arrays: dict[str, np.ndarray] = {}
     meta = []
     for i, row in enumerate(plan.rows):
-        entry = {"status": row.status, "message": row.message, "duration_s": row.duration_s,
-                 "part": row.carrying.name if row.carrying is not None else None,
-                 "allow": [[a.fixture, a.robot_part, a.min_clearance_m] for a in row.allowances],
-                 "tool": list(row.world.tool_key) if row.world is not None and row.world.tool_key else None}
+        entry = {
+            "status": row.status,
+            "message": row.message,
+            "duration_s": row.duration_s,
+            "part": row.carrying.name if row.carrying is not None else None,
+            "allow": [[a.fixture, a.robot_part, a.min_clearance_m] for a in row.allowances],
+            "tool": list(row.world.tool_key)
+            if row.world is not None and row.world.tool_key
+            else None,
+        }
         if row.carrying is not None:
             arrays[f"part{i}"] = row.carrying.T_parent_shape
         if row.q_end_rad is not None:
@@ -110,7 +126,9 @@ def _store(path: Path, plan: TaskPlan) -> None:
             arrays[f"prev{i}"] = np.asarray(inputs["previous_q_rad"])
             if inputs["line_m"] is not None:
                 arrays[f"line{i}"] = np.asarray(inputs["line_m"])
-            entry.update(previous_moving=inputs["previous_moving"], ends_at_rest=inputs["ends_at_rest"])
+            entry.update(
+                previous_moving=inputs["previous_moving"], ends_at_rest=inputs["ends_at_rest"]
+            )
         meta.append(entry)
     buffer = io.BytesIO()
     np.savez(buffer, meta=np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8), **arrays)
@@ -142,7 +160,9 @@ def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
             row = StepPlan(step, entry["status"], entry["message"], entry["duration_s"])
             if entry["part"] is not None:
                 shape = next(p for p in world.loaded.cell.parts if p.name == entry["part"])
-                row.carrying = Placed(shape.name, shape.to_shape(world.loaded.resolve), data[f"part{i}"])
+                row.carrying = Placed(
+                    shape.name, shape.to_shape(world.loaded.resolve), data[f"part{i}"]
+                )
             row.allowances = tuple(ContactAllowance(*a) for a in entry["allow"])
             row.world = world.with_tool(*entry["tool"]) if entry.get("tool") else world
             if f"qend{i}" in data:
@@ -150,9 +170,12 @@ def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
             if f"q{i}" in data:
                 q = data[f"q{i}"]
                 row.trajectory = Trajectory(rate, np.arange(len(q)) / rate, q)
-                row.verify_inputs = dict(previous_q_rad=data[f"prev{i}"], previous_moving=entry["previous_moving"],
-                                         ends_at_rest=entry["ends_at_rest"],
-                                         line_m=tuple(data[f"line{i}"]) if f"line{i}" in data else None)
+                row.verify_inputs = dict(
+                    previous_q_rad=data[f"prev{i}"],
+                    previous_moving=entry["previous_moving"],
+                    ends_at_rest=entry["ends_at_rest"],
+                    line_m=tuple(data[f"line{i}"]) if f"line{i}" in data else None,
+                )
             rows.append(row)
     except (KeyError, StopIteration, ValueError):
         return None

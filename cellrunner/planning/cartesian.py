@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from cellrunner.errors import InfeasibleError
 from cellrunner.planning.collision import CollisionModel
 from cellrunner.planning.kinematics import ArmKinematics, rotation_angle_rad
@@ -75,11 +76,13 @@ def quaternion(R: np.ndarray) -> np.ndarray:
 def rotation_matrix(q: np.ndarray) -> np.ndarray:
     """Rotation matrix of the unit quaternion ``q`` (w, x, y, z)."""
     w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def slerp(q0: np.ndarray, q1: np.ndarray, u: float) -> np.ndarray:
@@ -127,7 +130,9 @@ def plan_linear(
         q = kinematics.ik_track(pose(u), q_prev)
         where = f"{u * length_m * 1000:.0f} mm along the {length_m * 1000:.0f} mm line"
         if q is None:
-            raise InfeasibleError(f"line leaves the workspace {where}: {kinematics.unreachable_reason(pose(u))}")
+            raise InfeasibleError(
+                f"line leaves the workspace {where}: {kinematics.unreachable_reason(pose(u))}"
+            )
         jump = float(np.abs(q - q_prev).max())
         if jump > MAX_JOINT_STEP_RAD:
             joint = int(np.abs(q - q_prev).argmax()) + 1
@@ -135,7 +140,9 @@ def plan_linear(
                 f"line needs a configuration flip {where} (joint {joint} jumps "
                 f"{np.degrees(jump):.0f} deg between samples)"
             )
-        reason = kinematics.singularity_distance(q).violation(min_singularity_angle_deg, min_shoulder_distance_m)
+        reason = kinematics.singularity_distance(q).violation(
+            min_singularity_angle_deg, min_shoulder_distance_m
+        )
         if reason is not None:
             raise InfeasibleError(f"line passes near the {reason} {where}")
         return q
@@ -156,8 +163,11 @@ def plan_linear(
             c = result.clearance
             names = (c.b, c.a) if c is not None else ()
             detail = c.describe() if c is not None else "collision"
-            raise InfeasibleError(f"{detail} {u_hit * length_m * 1000:.0f} mm along the line; "
-                                  f"{fix_hint('line', names)}", names)
+            raise InfeasibleError(
+                f"{detail} {u_hit * length_m * 1000:.0f} mm along the line; "
+                f"{fix_hint('line', names)}",
+                names,
+            )
     return LinearPath(q_path, np.array(us), p0.copy(), p1.copy())
 
 

@@ -107,7 +107,16 @@ KNOT_STEP_RAD = 0.2
 #: derived models (carried part x contact allowances) kept per cell
 VARIANTS_KEPT = 64
 
-ARM_BODY_NAMES = ("base", "shoulder", "upper_arm", "elbow", "forearm", "wrist_1", "wrist_2", "wrist_3")
+ARM_BODY_NAMES = (
+    "base",
+    "shoulder",
+    "upper_arm",
+    "elbow",
+    "forearm",
+    "wrist_1",
+    "wrist_2",
+    "wrist_3",
+)
 
 #: Arm bodies the tool is rigidly attached to or adjacent to (never checked against it).
 TOOL_ADJACENT_BODIES = frozenset({5, 6})
@@ -147,12 +156,16 @@ class Clearance:
         'upper_arm is too close to fixture 'wall' (1.96 mm apart, 0.14 mm short of 2.1 mm)':
         the shortfall is printed with enough digits never to read as no shortfall."""
         if self.distance_m <= 0:
-            return (f"{self.a} collides with {self.b} ({-self.distance_m * 1000:.1f} mm deep; "
-                    f"must keep {self.required_m * 1000:.1f} mm)")
+            return (
+                f"{self.a} collides with {self.b} ({-self.distance_m * 1000:.1f} mm deep; "
+                f"must keep {self.required_m * 1000:.1f} mm)"
+            )
         short_mm = (self.required_m - self.distance_m) * 1000
         digits = 1 if short_mm >= 0.1 else 2 if short_mm >= 0.01 else 3
-        return (f"{self.a} is too close to {self.b} ({self.distance_m * 1000:.{digits}f} mm apart, "
-                f"{short_mm:.{digits}f} mm short of the {self.required_m * 1000:.1f} mm it must keep)")
+        return (
+            f"{self.a} is too close to {self.b} ({self.distance_m * 1000:.{digits}f} mm apart, "
+            f"{short_mm:.{digits}f} mm short of the {self.required_m * 1000:.1f} mm it must keep)"
+        )
 
 
 @dataclass(frozen=True)
@@ -229,18 +242,27 @@ class CollisionModel:
         """The same cell and part with these contact allowances (replacing earlier ones)."""
         return self._variant(self.part, tuple(allowances))
 
-    def _variant(self, part: Placed | None, allowances: tuple[ContactAllowance, ...]) -> CollisionModel:
+    def _variant(
+        self, part: Placed | None, allowances: tuple[ContactAllowance, ...]
+    ) -> CollisionModel:
         """The model of this cell with ``part`` and ``allowances``, built once per cell and
         such state and shared by every model derived from the same one (models keep no
         state between queries)."""
         key = (_placed_key(part), allowances)
         if key == (_placed_key(self.part), self.allowances):
             return self
-        model = self._variants.get(key) if _hashable(key) else None  # a shape holding a list: not kept
+        model = (
+            self._variants.get(key) if _hashable(key) else None
+        )  # a shape holding a list: not kept
         if model is None:
             model = CollisionModel(
-                self.kinematics, self.tool, self.fixtures, self.clearance_m,
-                part=part, allowances=allowances, _geometry_cache=self._geometry_cache,
+                self.kinematics,
+                self.tool,
+                self.fixtures,
+                self.clearance_m,
+                part=part,
+                allowances=allowances,
+                _geometry_cache=self._geometry_cache,
             )
             model._variants = self._variants
             if _hashable(key):
@@ -269,31 +291,55 @@ class CollisionModel:
             p0, p1 = np.array(capsule.p0_m, float), np.array(capsule.p1_m, float)
             T = _segment_frame(p0, p1)
             length = float(np.linalg.norm(p1 - p0))
-            objects.append(_Object(
-                ARM_BODY_NAMES[index], "arm", capsule.body,
-                coal.Capsule(capsule.radius_m, length), T,
-                radius_m=length / 2 + capsule.radius_m,
-            ))
+            objects.append(
+                _Object(
+                    ARM_BODY_NAMES[index],
+                    "arm",
+                    capsule.body,
+                    coal.Capsule(capsule.radius_m, length),
+                    T,
+                    radius_m=length / 2 + capsule.radius_m,
+                )
+            )
         T_joint6_flange = model.frames[kin.flange_frame_id].placement.homogeneous
         for placed in self.tool:
             geometry, radius = self._coal_shape(placed.shape)
-            objects.append(_Object(
-                f"tool {placed.name!r}", "tool", 6, geometry,
-                T_joint6_flange @ placed.T_parent_shape, radius_m=radius,
-            ))
+            objects.append(
+                _Object(
+                    f"tool {placed.name!r}",
+                    "tool",
+                    6,
+                    geometry,
+                    T_joint6_flange @ placed.T_parent_shape,
+                    radius_m=radius,
+                )
+            )
         if self.part is not None:
             geometry, radius = self._coal_shape(self.part.shape)
             T_joint6_tcp = T_joint6_flange @ kin.T_flange_tcp
-            objects.append(_Object(
-                f"part {self.part.name!r}", "part", 6, geometry,
-                T_joint6_tcp @ self.part.T_parent_shape, radius_m=radius,
-            ))
+            objects.append(
+                _Object(
+                    f"part {self.part.name!r}",
+                    "part",
+                    6,
+                    geometry,
+                    T_joint6_tcp @ self.part.T_parent_shape,
+                    radius_m=radius,
+                )
+            )
         for placed in self.fixtures:
             geometry, radius = self._coal_shape(placed.shape)
-            objects.append(_Object(
-                f"fixture {placed.name!r}", "fixture", -1, geometry,
-                np.asarray(placed.T_parent_shape, float), radius_m=radius, fixture=placed.name,
-            ))
+            objects.append(
+                _Object(
+                    f"fixture {placed.name!r}",
+                    "fixture",
+                    -1,
+                    geometry,
+                    np.asarray(placed.T_parent_shape, float),
+                    radius_m=radius,
+                    fixture=placed.name,
+                )
+            )
         self._objects = objects
 
         geom_model = pin.GeometryModel()
@@ -304,7 +350,9 @@ class CollisionModel:
                 joint, placement = 0, kin.T_world_base @ obj.placement
             else:
                 joint, placement = obj.body, obj.placement
-            geom_model.addGeometryObject(pin.GeometryObject(f"g{k}", joint, pin.SE3(placement), obj.geometry))
+            geom_model.addGeometryObject(
+                pin.GeometryObject(f"g{k}", joint, pin.SE3(placement), obj.geometry)
+            )
 
         pairs: list[tuple[int, int]] = []
         required: list[float] = []
@@ -328,7 +376,9 @@ class CollisionModel:
             req.num_max_contacts = 1
         # AABB culling before the exact tests; pinocchio inflates each object's box by the
         # largest security margin of its pairs, so no pair within its clearance is culled
-        self._broadphase = pin.BroadPhaseManager_NaiveCollisionManager(model, geom_model, self._geom_data)
+        self._broadphase = pin.BroadPhaseManager_NaiveCollisionManager(
+            model, geom_model, self._geom_data
+        )
         self._prepare_bounds()
 
     def _checked(self, a: _Object, b: _Object) -> bool:
@@ -379,18 +429,26 @@ class CollisionModel:
         # support points of the moving objects, for per-segment radial extents
         movers = np.flatnonzero(self._is_mover)
         self._movers = movers
-        self._support_all = np.concatenate([support[k][0] for k in movers]) if len(movers) else np.zeros((0, 3))
+        self._support_all = (
+            np.concatenate([support[k][0] for k in movers]) if len(movers) else np.zeros((0, 3))
+        )
         counts = [len(support[k][0]) for k in movers]
         self._support_start = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
         self._support_body = np.repeat(self._body[movers], counts)
-        self._support_moved = (np.arange(1, 7)[None, :] <= self._support_body[:, None]).astype(float)
+        self._support_moved = (np.arange(1, 7)[None, :] <= self._support_body[:, None]).astype(
+            float
+        )
         self._support_pad = np.array([support[k][1] for k in movers])
         # static objects: world AABBs (fixtures, base)
         self._aabb_lo = np.full((n, 3), np.nan)
         self._aabb_hi = np.full((n, 3), np.nan)
         for k, obj in enumerate(self._objects):
             if obj.group == "fixture" or obj.body == 0:
-                T = obj.placement if obj.group == "fixture" else self.kinematics.T_world_base @ obj.placement
+                T = (
+                    obj.placement
+                    if obj.group == "fixture"
+                    else self.kinematics.T_world_base @ obj.placement
+                )
                 lo, hi = _world_aabb(obj.geometry, T)
                 self._aabb_lo[k], self._aabb_hi[k] = lo, hi
         a, b = self._pairs[:, 0], self._pairs[:, 1]
@@ -427,25 +485,42 @@ class CollisionModel:
         owner_arr = np.array(owner, dtype=int)
         self._sphere_local = np.concatenate(centers) if centers else np.zeros((0, 3))
         self._sphere_r = np.concatenate(radii) if radii else np.zeros(0)
-        self._sphere_body = self._body[self._movers][owner_arr] if len(owner_arr) else np.zeros(0, int)
+        self._sphere_body = (
+            self._body[self._movers][owner_arr] if len(owner_arr) else np.zeros(0, int)
+        )
         self._sphere_start = np.searchsorted(owner_arr, np.arange(len(self._movers)))
         statics = np.flatnonzero(~self._is_mover)
         self._static_mid = tuple((0.5 * (self._aabb_lo[statics] + self._aabb_hi[statics])).T.copy())
-        self._static_half = tuple((0.5 * (self._aabb_hi[statics] - self._aabb_lo[statics])).T.copy())
+        self._static_half = tuple(
+            (0.5 * (self._aabb_hi[statics] - self._aabb_lo[statics])).T.copy()
+        )
         static_col = {int(k): i for i, k in enumerate(statics)}
         mover_row = {int(k): i for i, k in enumerate(self._movers)}
         st = self._pair_other_static
         self._lb_static_pair = np.flatnonzero(st)
-        self._lb_static_rows = np.array([mover_row[int(m)] for m in self._pair_mover[st]], dtype=int)
-        self._lb_static_cols = np.array([static_col[int(o)] for o in self._pair_other[st]], dtype=int)
+        self._lb_static_rows = np.array(
+            [mover_row[int(m)] for m in self._pair_mover[st]], dtype=int
+        )
+        self._lb_static_cols = np.array(
+            [static_col[int(o)] for o in self._pair_other[st]], dtype=int
+        )
         self._lb_moving_pair = np.flatnonzero(~st)
         self._lb_moving_a = np.array([mover_row[int(m)] for m in self._pair_mover[~st]], dtype=int)
         self._lb_moving_b = np.array([mover_row[int(o)] for o in self._pair_other[~st]], dtype=int)
         # sphere combinations of the pairs of two moving objects, grouped by pair
-        spheres_of = [np.arange(self._sphere_start[i], self._sphere_start[i + 1] if i + 1 < len(self._movers)
-                                else len(self._sphere_r)) for i in range(len(self._movers))]
-        combos = [(a, b, n) for n, (ra, rb) in enumerate(zip(self._lb_moving_a, self._lb_moving_b))
-                  for a in spheres_of[ra] for b in spheres_of[rb]]
+        spheres_of = [
+            np.arange(
+                self._sphere_start[i],
+                self._sphere_start[i + 1] if i + 1 < len(self._movers) else len(self._sphere_r),
+            )
+            for i in range(len(self._movers))
+        ]
+        combos = [
+            (a, b, n)
+            for n, (ra, rb) in enumerate(zip(self._lb_moving_a, self._lb_moving_b))
+            for a in spheres_of[ra]
+            for b in spheres_of[rb]
+        ]
         combo = np.array(combos, dtype=int).reshape(-1, 3)
         self._combo_a, self._combo_b = combo[:, 0], combo[:, 1]
         self._combo_r = self._sphere_r[combo[:, 0]] + self._sphere_r[combo[:, 1]]
@@ -475,7 +550,11 @@ class CollisionModel:
 
     def _update(self, q_rad: np.ndarray) -> None:
         pin.updateGeometryPlacements(
-            self.kinematics.model, self._data, self._geom_model, self._geom_data, np.asarray(q_rad, float)
+            self.kinematics.model,
+            self._data,
+            self._geom_model,
+            self._geom_data,
+            np.asarray(q_rad, float),
         )
 
     def is_valid(self, q_rad: np.ndarray) -> bool:
@@ -483,7 +562,11 @@ class CollisionModel:
         if not len(self._pairs):
             return True
         pin.updateGeometryPlacements(
-            self.kinematics.model, self._data, self._geom_model, self._geom_data, np.asarray(q_rad, float)
+            self.kinematics.model,
+            self._data,
+            self._geom_model,
+            self._geom_data,
+            np.asarray(q_rad, float),
         )
         self._broadphase.update(False)
         return not pin.computeCollisions(self._broadphase, True)
@@ -496,8 +579,12 @@ class CollisionModel:
         distances = self._exact(np.arange(len(self._pairs)))
         k = int(np.argmin(distances - self._required))
         a, b = self._pairs[k]
-        return Clearance(float(distances[k]), float(self._required[k]),
-                         self._objects[a].label, self._objects[b].label)
+        return Clearance(
+            float(distances[k]),
+            float(self._required[k]),
+            self._objects[a].label,
+            self._objects[b].label,
+        )
 
     def pair_distances(self, q_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance (m) and required clearance (m) of every checked pair at
@@ -514,8 +601,14 @@ class CollisionModel:
         out = []
         for k in np.flatnonzero(distances - required < STALL_M):
             a, b = self._pairs[k]
-            out.append(Clearance(float(distances[k]), float(required[k]),
-                                 self._objects[a].label, self._objects[b].label))
+            out.append(
+                Clearance(
+                    float(distances[k]),
+                    float(required[k]),
+                    self._objects[a].label,
+                    self._objects[b].label,
+                )
+            )
         return sorted(out, key=lambda c: c.margin_m)
 
     def min_distance(self, q_rad: np.ndarray) -> tuple[float, str, str]:
@@ -553,7 +646,9 @@ class CollisionModel:
         in [0, 1]."""
         return self._knots(q0_rad, q1_rad, pieces)[0]
 
-    def _knots(self, q0_rad: np.ndarray, q1_rad: np.ndarray, pieces: int) -> tuple[np.ndarray, np.ndarray]:
+    def _knots(
+        self, q0_rad: np.ndarray, q1_rad: np.ndarray, pieces: int
+    ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`segment_bounds` (pieces, pairs) and, at the ``pieces + 1`` part ends,
         lower bounds of every pair's signed distance (pieces + 1, pairs), in m."""
         q0 = np.asarray(q0_rad, float)
@@ -570,18 +665,27 @@ class CollisionModel:
         frames = self.joint_frames(q)  # (knots, 7, 4, 4)
         # every point in every joint frame by one product, then each in its own joint's
         every = (frames[:, :, :3, :].reshape(-1, 4) @ self._point_local.T).reshape(knots, 7, 3, -1)
-        pts = every.transpose(0, 3, 1, 2).reshape(knots, -1, 3)[:, self._point_pick]  # (knots, points, 3)
+        pts = every.transpose(0, 3, 1, 2).reshape(knots, -1, 3)[
+            :, self._point_pick
+        ]  # (knots, points, 3)
         n_support = len(self._support_all)
         support = pts[:, :n_support]
         # distances of the support points from the axes of the joints that move them:
         # |p - o|^2 - ((p - o) . z)^2, with the dot products as batched matrix products
         origins, axes = frames[:, 1:, :3, 3], frames[:, 1:, :3, 2]  # (knots, 6, 3)
         along = support @ axes.transpose(0, 2, 1) - (origins * axes).sum(axis=2)[:, None, :]
-        square = ((support * support).sum(axis=2)[:, :, None] - 2 * (support @ origins.transpose(0, 2, 1))
-                  + (origins * origins).sum(axis=2)[:, None, :] - along * along)
+        square = (
+            (support * support).sum(axis=2)[:, :, None]
+            - 2 * (support @ origins.transpose(0, 2, 1))
+            + (origins * origins).sum(axis=2)[:, None, :]
+            - along * along
+        )
         across = np.sqrt(np.maximum(square, 0.0)) * self._support_moved
         # + 1 um for the rounding of the expanded squares (far below STALL_M)
-        rho = np.maximum.reduceat(across, self._support_start, axis=1) + (self._support_pad + 1e-6)[:, None]
+        rho = (
+            np.maximum.reduceat(across, self._support_start, axis=1)
+            + (self._support_pad + 1e-6)[:, None]
+        )
         reach = self._reach_movers  # (movers, 6)
         weighted = reach[None] * adq[:, None, :]  # (pieces, movers, 6)
         after = np.cumsum(weighted[:, :, ::-1], axis=2)[:, :, ::-1] - weighted  # A[:, :, j]
@@ -623,7 +727,9 @@ class CollisionModel:
                 np.maximum(gap, 0.0, out=gap)
                 square = square + gap * gap
             dist = np.sqrt(square) - r[:, None]  # (knots, spheres, statics)
-            per_object = np.minimum.reduceat(dist, self._sphere_start, axis=1)  # (knots, movers, statics)
+            per_object = np.minimum.reduceat(
+                dist, self._sphere_start, axis=1
+            )  # (knots, movers, statics)
             lb[:, self._lb_static_pair] = per_object[:, self._lb_static_rows, self._lb_static_cols]
         if len(self._lb_moving_pair):
             diff = centers[:, self._combo_a] - centers[:, self._combo_b]  # (knots, combos, 3)
@@ -706,9 +812,17 @@ class CollisionModel:
     def _blocked(self, s: float, k: int, margin: float, queries: int) -> MotionCheck:
         a, b = self._pairs[k]
         required = float(self._required[k])
-        return MotionCheck(False, s, Clearance(
-            float(margin) + required, required + STALL_M, self._objects[a].label, self._objects[b].label
-        ), queries)
+        return MotionCheck(
+            False,
+            s,
+            Clearance(
+                float(margin) + required,
+                required + STALL_M,
+                self._objects[a].label,
+                self._objects[b].label,
+            ),
+            queries,
+        )
 
     def check_path(self, q_rad: np.ndarray) -> MotionCheck:
         """:meth:`check_motion` over the polyline through ``q_rad`` (N x 6), proven the same
@@ -745,14 +859,19 @@ class CollisionModel:
             pairs = due.pop(j)
             self._update(q[j])
             for k in pairs:
-                m = pin.computeDistance(self._geom_model, self._geom_data, k).min_distance - self._required_list[k]
+                m = (
+                    pin.computeDistance(self._geom_model, self._geom_data, k).min_distance
+                    - self._required_list[k]
+                )
                 queries += 1
                 if m < STALL_M:
                     return self._blocked(float(j), k, m, queries)
                 last = int(cum[k].searchsorted(cum[k, j] + m - STALL_M, side="right")) - 1
                 if last <= j:
                     # this pair alone, advanced along the segment by its own bound
-                    s_blocked, m_blocked, used = self._advance_pair(k, q[j], q[j + 1], float(seg[k, j]), m)
+                    s_blocked, m_blocked, used = self._advance_pair(
+                        k, q[j], q[j + 1], float(seg[k, j]), m
+                    )
                     queries += used
                     if s_blocked is not None:
                         return self._blocked(j + s_blocked, k, m_blocked, queries)
@@ -762,8 +881,9 @@ class CollisionModel:
                     due.setdefault(last, []).append(k)
         return MotionCheck(True, distance_queries=queries)
 
-    def _advance_pair(self, k: int, qa: np.ndarray, qb: np.ndarray, shrink_m: float,
-                      margin_m: float) -> tuple[float | None, float, int]:
+    def _advance_pair(
+        self, k: int, qa: np.ndarray, qb: np.ndarray, shrink_m: float, margin_m: float
+    ) -> tuple[float | None, float, int]:
         """Conservative advancement of pair ``k`` alone along qa -> qb, where its distance
         shrinks by at most ``shrink_m`` and it has ``margin_m`` at qa: (the blocked
         fraction or None, the margin there, exact queries made)."""
@@ -796,7 +916,9 @@ def _hashable(value) -> bool:
     return True
 
 
-def _support_points(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray) -> tuple[np.ndarray, float]:
+def _support_points(
+    geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray
+) -> tuple[np.ndarray, float]:
     """Points (n x 3, parent frame) and a pad (m) such that the shape lies within ``pad``
     of their convex hull: capsule and cylinder axis ends + radius, sphere centre + radius,
     box corners, else the corners of the local AABB. Any convex function of the point
@@ -809,7 +931,9 @@ def _support_points(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray
         local, pad = np.zeros((1, 3)), float(geometry.radius)
     else:
         lo, hi = _local_aabb(geometry)
-        local = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        local = np.array(
+            [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+        )
         pad = 0.0
     T = np.asarray(T_parent_shape, float)
     return local @ T[:3, :3].T + T[:3, 3], pad
@@ -824,7 +948,9 @@ def _local_aabb(geometry: coal.CollisionGeometry) -> tuple[np.ndarray, np.ndarra
     return np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
 
 
-def _cover_spheres(geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _cover_spheres(
+    geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Spheres (centres n x 3 in the parent frame, radii n) whose union contains the shape:
     a capsule or cylinder as balls along its axis (spacing at most its radius), anything
     else as the ball around its local AABB."""
@@ -883,7 +1009,9 @@ def _advance(cum: list[float], pieces: int, s: float, margin: float) -> float:
     return (j + (target - cum[j]) / (cum[j + 1] - cum[j])) / pieces
 
 
-def _next_due(cum: list[float], open_parts: list[bool], pieces: int, s: float, margin: float) -> float:
+def _next_due(
+    cum: list[float], open_parts: list[bool], pieces: int, s: float, margin: float
+) -> float:
     """Where a pair measured at s with ``margin`` must be measured next: its horizon
     (:func:`_advance`), or, when that falls in a part already proven by lower bounds, the
     start of the next part that is not (1.0: none left)."""
@@ -897,6 +1025,7 @@ def _next_due(cum: list[float], open_parts: list[bool], pieces: int, s: float, m
         if open_parts[later]:
             return later / pieces
     return 1.0
+
 
 def _bisection_order(n: int) -> list[float]:
     """Interior fractions k/n, k = 1..n-1, coarse to fine (midpoint first)."""
@@ -914,13 +1043,16 @@ def _bisection_order(n: int) -> list[float]:
 
 # -- shapes -------------------------------------------------------------------------------
 
+
 def _make_coal_shape(shape: Shape) -> tuple[coal.CollisionGeometry, float]:
     """A coal geometry and its bounding-sphere radius about the shape origin (m)."""
     if isinstance(shape, Box):
         x, y, z = shape.size_m
         return coal.Box(x, y, z), 0.5 * math.sqrt(x * x + y * y + z * z)
     if isinstance(shape, Cylinder):
-        return coal.Cylinder(shape.radius_m, shape.length_m), math.hypot(shape.radius_m, shape.length_m / 2)
+        return coal.Cylinder(shape.radius_m, shape.length_m), math.hypot(
+            shape.radius_m, shape.length_m / 2
+        )
     if isinstance(shape, Sphere):
         return coal.Sphere(shape.radius_m), shape.radius_m
     if isinstance(shape, Mesh):
@@ -975,11 +1107,15 @@ def _segment_frame(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
     return T
 
 
-def _world_aabb(geometry: coal.CollisionGeometry, T_world_shape: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _world_aabb(
+    geometry: coal.CollisionGeometry, T_world_shape: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Axis-aligned box in the world around ``geometry`` placed at ``T_world_shape``."""
     geometry.computeLocalAABB()
     box = geometry.aabb_local
     lo, hi = np.array(box.min_), np.array(box.max_)
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    corners = np.array(
+        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    )
     world = corners @ T_world_shape[:3, :3].T + T_world_shape[:3, 3]
     return world.min(axis=0), world.max(axis=0)

@@ -40,16 +40,25 @@ def contact_allowances(planner, step, T_goal: np.ndarray) -> tuple:
     mover, label = ("part", "part '") if planner.part is not None else ("tool", "tool ")
     # while looking for the mover's contacts, the tool's own are left for the line check
     # to report (as the collision it is)
-    others = tuple(ContactAllowance(f.name, "tool", -1.0) for f in planner.world.fixtures) if mover == "part" else ()
+    others = (
+        tuple(ContactAllowance(f.name, "tool", -1.0) for f in planner.world.fixtures)
+        if mover == "part"
+        else ()
+    )
     allowances: list = []
     for _ in range(8):  # one pair per round, a line meets few
         model = planner.collision(tuple(allowances) + others)
         clearance = model.clearance(q_end)
-        if clearance.distance_m >= clearance.required_m or not clearance.b.startswith("fixture '") \
-                or not clearance.a.startswith(label):
+        if (
+            clearance.distance_m >= clearance.required_m
+            or not clearance.b.startswith("fixture '")
+            or not clearance.a.startswith(label)
+        ):
             break
-        fixture = clearance.b[len("fixture '"):-1]
-        allowances.append(ContactAllowance(fixture, mover, min(clearance.distance_m, 0.0) - CONTACT_SLACK_M))
+        fixture = clearance.b[len("fixture '") : -1]
+        allowances.append(
+            ContactAllowance(fixture, mover, min(clearance.distance_m, 0.0) - CONTACT_SLACK_M)
+        )
     return tuple(allowances)
 
 

@@ -72,7 +72,9 @@ def plan_joint_path(
         if not kin.within_limits(q):
             raise InfeasibleError(f"{label} configuration outside the joint limits: {_deg(q)}")
         if not collision.is_valid(q):
-            raise InfeasibleError(f"{label} configuration in collision: {collision.clearance(q).describe()}")
+            raise InfeasibleError(
+                f"{label} configuration in collision: {collision.clearance(q).describe()}"
+            )
     if collision.check_motion(q0, q1, explain=False).ok:
         return JointPath(np.array([q0, q1]), "direct", time.perf_counter() - t0)
     # Fast pass: search with sampled edge checks, then certify every edge of the
@@ -114,7 +116,11 @@ def round_corners(collision: CollisionModel, q_rad: np.ndarray) -> np.ndarray:
 
 
 def shortcut(
-    collision: CollisionModel, q_rad: np.ndarray, *, edges_checked: bool = True, direct_blocked: bool = False
+    collision: CollisionModel,
+    q_rad: np.ndarray,
+    *,
+    edges_checked: bool = True,
+    direct_blocked: bool = False,
 ) -> np.ndarray | None:
     """Greedy shortcutting: from each kept waypoint, jump to the farthest later waypoint
     reachable by a conservatively checked straight segment. Deterministic; never
@@ -130,7 +136,9 @@ def shortcut(
             if direct_blocked and i == 0 and j == len(q) - 1 and j > 1:
                 continue
             edge = j == i + 1
-            if (edge and edges_checked) or collision.check_motion(q[i], q[j], explain=False, probe=not edge).ok:
+            if (edge and edges_checked) or collision.check_motion(
+                q[i], q[j], explain=False, probe=not edge
+            ).ok:
                 kept.append(j)
                 i = j
                 break
@@ -198,31 +206,51 @@ def _rrt_connect(
     try:
         status = setup.solve(time_budget_s)
         solved = setup.haveExactSolutionPath()
-        best = np.array([as_array(s) for s in setup.getSolutionPath().getStates()]) if setup.haveSolutionPath() else None
+        best = (
+            np.array([as_array(s) for s in setup.getSolutionPath().getStates()])
+            if setup.haveSolutionPath()
+            else None
+        )
     finally:
         # break the Python <-> C++ reference cycles so nothing outlives the call
         setup.setStateValidityChecker(ob.AllValidStateValidityChecker(si))
     if not solved:
-        raise _no_path(collision, q0, q1, best, in_collision, f"within {time_budget_s:.1f} s (RRTConnect: {status})")
+        raise _no_path(
+            collision,
+            q0,
+            q1,
+            best,
+            in_collision,
+            f"within {time_budget_s:.1f} s (RRTConnect: {status})",
+        )
     path = best
     path[0], path[-1] = q0, q1
     return path
 
 
-def _no_path(collision: CollisionModel, q0: np.ndarray, q1: np.ndarray, best: np.ndarray | None,
-             refused: list[np.ndarray], how: str) -> InfeasibleError:
+def _no_path(
+    collision: CollisionModel,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    best: np.ndarray | None,
+    refused: list[np.ndarray],
+    how: str,
+) -> InfeasibleError:
     """The error of a failed search, naming what blocks it: the pairs in collision along
     the gap between the best attempt's nearest state and the goal (or the straight move
     when there was none), and in the states the search refused."""
     from cellrunner.planning.blockers import blocking_summary, fix_hint, line_states
 
-    near = q0 if best is None or not len(best) else best[np.argmin(np.linalg.norm(best - q1, axis=1))]
+    near = (
+        q0 if best is None or not len(best) else best[np.argmin(np.linalg.norm(best - q1, axis=1))]
+    )
     gap = line_states(near, q1)
     blockers = blocking_summary(collision, gap + refused[:: max(1, len(refused) // 36)])
     return InfeasibleError(
         f"no collision-free joint path found {how}: {blockers.describe()}; "
         f"{fix_hint('path', blockers.names)}; start {_deg(q0)}, goal {_deg(q1)}",
-        blockers.names)
+        blockers.names,
+    )
 
 
 def _deg(q: np.ndarray) -> str:

@@ -115,9 +115,17 @@ class ArmKinematics:
         model.upperPositionLimit = np.radians(spec.joint_max_deg)
         model.velocityLimit = np.radians(spec.joint_speed_max_deg_s)
         last = model.nframes - 1
-        flange = model.addFrame(pin.Frame("flange", parent, last, placement, pin.FrameType.OP_FRAME))
+        flange = model.addFrame(
+            pin.Frame("flange", parent, last, placement, pin.FrameType.OP_FRAME)
+        )
         model.addFrame(
-            pin.Frame("tcp", parent, flange, placement * pin.SE3(self.T_flange_tcp), pin.FrameType.OP_FRAME)
+            pin.Frame(
+                "tcp",
+                parent,
+                flange,
+                placement * pin.SE3(self.T_flange_tcp),
+                pin.FrameType.OP_FRAME,
+            )
         )
         return model
 
@@ -156,8 +164,13 @@ class ArmKinematics:
     @functools.cached_property
     def _chain(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """Each joint's placement in its parent (rotation, translation), base to wrist 3."""
-        return [(self.model.jointPlacements[j].rotation.copy(), self.model.jointPlacements[j].translation.copy())
-                for j in range(1, 7)]
+        return [
+            (
+                self.model.jointPlacements[j].rotation.copy(),
+                self.model.jointPlacements[j].translation.copy(),
+            )
+            for j in range(1, 7)
+        ]
 
     @functools.cached_property
     def _p_joint6_tcp(self) -> np.ndarray:
@@ -200,7 +213,9 @@ class ArmKinematics:
         """Every verified IK branch for ``T_world_tcp``, each wrapped (by multiples of 2 pi
         per joint) nearest to ``q_near_rad`` within the joint limits, sorted by distance to
         ``q_near_rad``. Empty when the pose is unreachable."""
-        T_base_flange = invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        T_base_flange = (
+            invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        )
         q_near = np.asarray(q_near_rad, dtype=float)
         found: list[np.ndarray] = []
         for raw in self._solve(T_base_flange):
@@ -225,7 +240,9 @@ class ArmKinematics:
     def ik_track(self, T_world_tcp: np.ndarray, q_prev_rad: np.ndarray) -> np.ndarray | None:
         """The IK solution nearest ``q_prev_rad`` (largest joint difference), for tracking a
         path sample by sample; None when there is none inside the limits."""
-        T_base_flange = invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        T_base_flange = (
+            invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        )
         raw = self._solve(T_base_flange)
         if not raw:
             return None
@@ -240,14 +257,19 @@ class ArmKinematics:
 
     def unreachable_reason(self, T_world_tcp: np.ndarray) -> str:
         """Why ``T_world_tcp`` has no IK solution inside the limits, with numbers."""
-        T_base_flange = invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        T_base_flange = (
+            invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        )
         p = T_base_flange[:3, 3]
         from_shoulder_m = float(np.linalg.norm(p - np.array([0.0, 0.0, self.spec.d_m[0]])))
         model = self.spec.name.upper().replace("E", "e")
         if from_shoulder_m > self.spec.reach_m:
             mm = from_shoulder_m / 1000
-            hint = (f": did you mean mm? (read as mm, {from_shoulder_m:.2f} m is {mm:.3f} m)"
-                    if from_shoulder_m > 10 * self.spec.reach_m else "")
+            hint = (
+                f": did you mean mm? (read as mm, {from_shoulder_m:.2f} m is {mm:.3f} m)"
+                if from_shoulder_m > 10 * self.spec.reach_m
+                else ""
+            )
             return (
                 f"out of reach ({from_shoulder_m:.2f} m from the shoulder, "
                 f"{model} reach {self.spec.reach_m:.2f} m){hint}"
@@ -264,7 +286,9 @@ class ArmKinematics:
     def ik_raw(self, T_world_tcp: np.ndarray) -> list[np.ndarray]:
         """Every closed-form IK solution of ``T_world_tcp`` verified by FK, unwrapped and
         unchecked against the joint limits (for diagnostics: why each branch is refused)."""
-        T_base_flange = invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        T_base_flange = (
+            invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
+        )
         raw = [np.asarray(q, float) for q in self._solve(T_base_flange)]
         return [q for q in raw if self._verify(q, np.asarray(T_world_tcp))]
 

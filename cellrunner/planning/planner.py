@@ -90,7 +90,9 @@ class MotionPlanner:
         self.seed = seed
         self._worlds: dict[tuple, CollisionModel] = {}
 
-    def world(self, carried: Placed | None = None, allow: Sequence[ContactAllowance] = ()) -> CollisionModel:
+    def world(
+        self, carried: Placed | None = None, allow: Sequence[ContactAllowance] = ()
+    ) -> CollisionModel:
         """The collision world with ``carried`` (placed in the TCP frame) and allowances."""
         key = (id(carried), tuple(allow))
         model = self._worlds.get(key)
@@ -99,8 +101,14 @@ class MotionPlanner:
             self._worlds[key] = model
         return model
 
-    def ik(self, T_world_tcp: np.ndarray, q_near_rad: np.ndarray, *, carried: Placed | None = None,
-           allow: Sequence[ContactAllowance] = ()) -> np.ndarray:
+    def ik(
+        self,
+        T_world_tcp: np.ndarray,
+        q_near_rad: np.ndarray,
+        *,
+        carried: Placed | None = None,
+        allow: Sequence[ContactAllowance] = (),
+    ) -> np.ndarray:
         """The collision-free IK branch nearest ``q_near_rad`` for ``T_world_tcp``."""
         world = self.world(carried, allow)
         solutions = self.kinematics.ik_all(T_world_tcp, q_near_rad)
@@ -129,10 +137,24 @@ class MotionPlanner:
         ``T_world_tcp`` (solved on the collision-free IK branch nearest the start)."""
         world = self.world(carried, allow)
         goal = np.asarray(goal, float)
-        q_goal = self.ik(goal, q_start_rad, carried=carried, allow=allow) if goal.shape == (4, 4) else goal
-        path = plan_joint_path(world, q_start_rad, q_goal, time_budget_s=self.time_budget_s, seed=self.seed)
-        return Segment("joint", path.q_rad, world, self.limits.scaled(speed_fraction),
-                       step_index, step_name, None, path.planner)
+        q_goal = (
+            self.ik(goal, q_start_rad, carried=carried, allow=allow)
+            if goal.shape == (4, 4)
+            else goal
+        )
+        path = plan_joint_path(
+            world, q_start_rad, q_goal, time_budget_s=self.time_budget_s, seed=self.seed
+        )
+        return Segment(
+            "joint",
+            path.q_rad,
+            world,
+            self.limits.scaled(speed_fraction),
+            step_index,
+            step_name,
+            None,
+            path.planner,
+        )
 
     def plan_linear(
         self,
@@ -148,8 +170,16 @@ class MotionPlanner:
         """A straight TCP line from FK(q_start) to ``T_world_tcp_goal`` at most ``speed_mps``."""
         world = self.world(carried, allow)
         path = plan_linear(self.kinematics, world, q_start_rad, T_world_tcp_goal)
-        return Segment("linear", path.q_rad, world, self.limits.scaled(1.0, speed_mps),
-                       step_index, step_name, (path.p_start_m, path.p_goal_m), "linear")
+        return Segment(
+            "linear",
+            path.q_rad,
+            world,
+            self.limits.scaled(1.0, speed_mps),
+            step_index,
+            step_name,
+            (path.p_start_m, path.p_goal_m),
+            "linear",
+        )
 
     def time_and_verify(
         self,
@@ -177,13 +207,19 @@ class MotionPlanner:
             previous = out[-1]
         return out
 
-    def _timed(self, segments: Sequence[Segment], previous: ApprovedTrajectory | None) -> list[ApprovedTrajectory]:
+    def _timed(
+        self, segments: Sequence[Segment], previous: ApprovedTrajectory | None
+    ) -> list[ApprovedTrajectory]:
         waypoints = [segments[0].q_rad]
         for seg in segments[1:]:
             if np.abs(seg.q_rad[0] - waypoints[-1][-1]).max() > 1e-9:
-                raise InfeasibleError(f"step {seg.step_index} {seg.step_name}: does not start where the previous motion ends")
+                raise InfeasibleError(
+                    f"step {seg.step_index} {seg.step_name}: does not start where the previous motion ends"
+                )
             waypoints.append(seg.q_rad[1:])
-        junction_index = np.cumsum([len(seg.q_rad) - (0 if i == 0 else 1) for i, seg in enumerate(segments)]) - 1
+        junction_index = (
+            np.cumsum([len(seg.q_rad) - (0 if i == 0 else 1) for i, seg in enumerate(segments)]) - 1
+        )
         limits = MotionLimits(
             np.min([s.limits.joint_speed_rad_s for s in segments], axis=0),
             np.min([s.limits.joint_accel_rad_s2 for s in segments], axis=0),
@@ -209,10 +245,16 @@ class MotionPlanner:
             q = timed.q_rad[bounds[i] : bounds[i + 1] + 1]
             traj = Trajectory(self.spec.rate_hz, np.arange(len(q)) / self.spec.rate_hz, q)
             approved = verify_trajectory(
-                traj, step_index=seg.step_index, step_name=seg.step_name, kinematics=self.kinematics,
-                limits=limits, collision=seg.collision,
+                traj,
+                step_index=seg.step_index,
+                step_name=seg.step_name,
+                kinematics=self.kinematics,
+                limits=limits,
+                collision=seg.collision,
                 previous_q_rad=prev_q if prev_q is not None else seg.q_start_rad,
-                previous_moving=prev_moving, ends_at_rest=i == len(segments) - 1, line_m=seg.line_m,
+                previous_moving=prev_moving,
+                ends_at_rest=i == len(segments) - 1,
+                line_m=seg.line_m,
             )
             out.append(approved)
             prev_q = q[-2:] if len(q) >= 2 else q

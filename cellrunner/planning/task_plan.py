@@ -62,8 +62,12 @@ class StepPlan:
     q_end_rad: np.ndarray | None = None
     carrying: Placed | None = None
     allowances: tuple = ()
-    verify_inputs: dict | None = None  # what verify_trajectory was given, to re-verify a cached plan
-    world: CellWorld | None = None  # the world (mounted tool) the step was planned in; None: the plan's
+    verify_inputs: dict | None = (
+        None  # what verify_trajectory was given, to re-verify a cached plan
+    )
+    world: CellWorld | None = (
+        None  # the world (mounted tool) the step was planned in; None: the plan's
+    )
 
 
 @dataclass
@@ -119,7 +123,9 @@ class TaskPlan:
         same goal as planned (after a stop), or, for a relative move planned nowhere (a
         retry's retreat), its distance from where the arm stands."""
         row = self.row(step)
-        part = row.carrying if row is not None else (self._carried_before(step) if carrying else None)
+        part = (
+            row.carrying if row is not None else (self._carried_before(step) if carrying else None)
+        )
         allowances = row.allowances if row is not None else ()
         world = self._world_of(step)
         planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
@@ -141,8 +147,14 @@ class TaskPlan:
         return rows[-1].carrying if rows else None
 
 
-def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray, *, joined: bool = True,
-              on_step: Callable[[Step], None] | None = None) -> TaskPlan:
+def plan_task(
+    world: CellWorld,
+    steps: list[Step],
+    q_start_rad: np.ndarray,
+    *,
+    joined: bool = True,
+    on_step: Callable[[Step], None] | None = None,
+) -> TaskPlan:
     """Plan every step of a job; failures are recorded per step (the rest is not planned).
     ``joined=False`` (run --step) ends every motion at rest: the same waypoints, each
     timed from rest to rest, so that the job can pause between any two steps.
@@ -169,8 +181,10 @@ def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray, *, j
                 on_step(step)
             then = rows[i + 1].step if i + 1 < len(rows) else None
             if step.is_motion:
-                if group and (not _joins(group[-1].row.step, step)
-                              or not _same_limits(group[-1].limits, planner.limits_for(step))):
+                if group and (
+                    not _joins(group[-1].row.step, step)
+                    or not _same_limits(group[-1].limits, planner.limits_for(step))
+                ):
                     flush()
                 group.append(planner.motion(row, then=then))
                 if step.kind in ("descend", "linear", *FORCE_KINDS) or _weighed(rows, i):
@@ -192,7 +206,9 @@ def plan_task(world: CellWorld, steps: list[Step], q_start_rad: np.ndarray, *, j
         failed.status, failed.message = "failed", _strip_label(str(exc))
         plan.errors.append(f"{failed.step.label}: {failed.message}")
         for r in rows:
-            if r is not failed and (r.step.index > failed.step.index or (r.step.is_motion and r.approved is None)):
+            if r is not failed and (
+                r.step.index > failed.step.index or (r.step.is_motion and r.approved is None)
+            ):
                 r.status, r.approved = "not planned", None
     return plan
 
@@ -216,8 +232,13 @@ class _StepPlanner:
         model = self.world.collision.carrying(self.part)
         return model.allowing(*allowances) if allowances else model
 
-    def motion(self, row: StepPlan, goal_q: np.ndarray | None = None, allowances: tuple | None = None,
-               then: Step | None = None) -> _Motion:
+    def motion(
+        self,
+        row: StepPlan,
+        goal_q: np.ndarray | None = None,
+        allowances: tuple | None = None,
+        then: Step | None = None,
+    ) -> _Motion:
         from cellrunner.planning.cartesian import plan_linear
         from cellrunner.planning.joint_path import plan_joint_path
 
@@ -225,8 +246,11 @@ class _StepPlanner:
         T_now = kin.T_world_tcp(self.q)
         if step.kind in ("move", "approach"):
             if goal_q is None:
-                goal_q = (np.radians(step.q_goal_deg) if step.q_goal_deg is not None
-                          else self._ik(step.T_world_tcp, step, then))
+                goal_q = (
+                    np.radians(step.q_goal_deg)
+                    if step.q_goal_deg is not None
+                    else self._ik(step.T_world_tcp, step, then)
+                )
             collision = self.collision()
             path = plan_joint_path(collision, self.q, goal_q).q_rad
             line = None
@@ -235,6 +259,7 @@ class _StepPlanner:
             if allowances is None:
                 if step.kind in FORCE_KINDS:  # contact is what the step is for, where its line ends
                     from cellrunner.planning.force_plan import contact_allowances
+
                     allowances = self.contact + contact_allowances(self, step, T_goal)
                 else:
                     allowances = self._place_allowances(step, T_goal) + self.contact
@@ -246,6 +271,7 @@ class _StepPlanner:
         row.carrying = self.part
         if step.kind in FORCE_KINDS:
             from cellrunner.planning.force_plan import describe
+
             row.message = describe(step, line, row.allowances)
         motion = _Motion(row, path, self.limits_for(step), line, collision, self.world)
         row.world = self.world
@@ -280,15 +306,23 @@ class _StepPlanner:
         """The branch nearest the current configuration that is collision-free and, when
         a straight descend follows, from which that descend's goal is on the same branch
         and collision-free too."""
-        from cellrunner.planning.blockers import unreachable, every_branch_collides
+        from cellrunner.planning.blockers import every_branch_collides, unreachable
 
         kin = self.world.kinematics
         branches = kin.ik_all(T_world_tcp, self.q)
         collision = self.collision()
         if not branches:
-            raise unreachable(step.label, kin, collision, T_world_tcp, self.q,
-                              getattr(step.args, "distance", None) if step.kind == "approach" else None)
-        follow = then.T_world_tcp if then is not None and then.kind in ("descend", "linear") else None
+            raise unreachable(
+                step.label,
+                kin,
+                collision,
+                T_world_tcp,
+                self.q,
+                getattr(step.args, "distance", None) if step.kind == "approach" else None,
+            )
+        follow = (
+            then.T_world_tcp if then is not None and then.kind in ("descend", "linear") else None
+        )
         valid = [q for q in branches if collision.is_valid(q)]
         if not valid:
             raise every_branch_collides(step.label, kin, collision, T_world_tcp, self.q)
@@ -307,6 +341,7 @@ class _StepPlanner:
             return T_now @ geometry.pose_matrix((0, 0, -step.args.distance))
         if step.kind == "move_until_contact":
             from cellrunner.planning.force_plan import contact_line_goal
+
             return contact_line_goal(step.args, T_now)
         return step.T_world_tcp
 
@@ -314,6 +349,7 @@ class _StepPlanner:
         """The carried part may touch the fixture it rests on where a straight move starts
         (lifting it off) or ends (setting it down), and only that fixture."""
         from cellrunner.planning.collision import ContactAllowance
+
         if self.part is None or step.kind not in LINEAR_KINDS:
             return ()
         q_goal = self._try_ik(T_goal)
@@ -324,16 +360,22 @@ class _StepPlanner:
             model = self.collision(tuple(allowances))
             for _ in range(3):
                 clearance = model.clearance(q)
-                if clearance.distance_m >= clearance.required_m or clearance.a != f"part '{self.part.name}'" \
-                        or not clearance.b.startswith("fixture '"):
+                if (
+                    clearance.distance_m >= clearance.required_m
+                    or clearance.a != f"part '{self.part.name}'"
+                    or not clearance.b.startswith("fixture '")
+                ):
                     break
                 if clearance.distance_m < -SET_DOWN_PRESS_M:
                     depth_mm = -clearance.distance_m * 1000
                     raise InfeasibleError(
                         f"{step.label}: at its {end} the part '{self.part.name}' would be {depth_mm:.1f} mm inside "
                         f"{clearance.b} (setting a part down may press {SET_DOWN_PRESS_M * 1000:.0f} mm at most); "
-                        f"move the target up by {depth_mm - SET_DOWN_PRESS_M * 1000:.1f} mm or more")
-                allowances.append(ContactAllowance(clearance.b[len("fixture '"):-1], "part", -SET_DOWN_PRESS_M))
+                        f"move the target up by {depth_mm - SET_DOWN_PRESS_M * 1000:.1f} mm or more"
+                    )
+                allowances.append(
+                    ContactAllowance(clearance.b[len("fixture '") : -1], "part", -SET_DOWN_PRESS_M)
+                )
                 model = self.collision(tuple(allowances))
         return tuple(allowances)
 
@@ -344,7 +386,9 @@ class _StepPlanner:
             return None
 
 
-def _time_group(world: CellWorld, group: list[_Motion], q_start: np.ndarray, joined: bool = True) -> None:
+def _time_group(
+    world: CellWorld, group: list[_Motion], q_start: np.ndarray, joined: bool = True
+) -> None:
     """Time a group of motions as one non-stop trajectory with its corners blended
     (:func:`_blend`); if that fails verification, or not ``joined``, one by one from rest."""
     if len(group) > 1 and joined:
@@ -372,8 +416,12 @@ def _weighed(rows: list[StepPlan], i: int) -> bool:
     """A lift right after a grip with a force window: the engine weighs the part at rest
     after it (execution.job), so the lift ends at rest."""
     step = rows[i].step
-    return (step.kind == "lift" and i > 0 and rows[i - 1].step.kind == "grip"
-            and getattr(rows[i - 1].step.args, "force", None) is not None)
+    return (
+        step.kind == "lift"
+        and i > 0
+        and rows[i - 1].step.kind == "grip"
+        and getattr(rows[i - 1].step.args, "force", None) is not None
+    )
 
 
 def _blend(world: CellWorld, group: list[_Motion]) -> list[_Motion]:
@@ -386,7 +434,10 @@ def _blend(world: CellWorld, group: list[_Motion]) -> list[_Motion]:
     edge. The arc belongs to the joint move and is checked with its collision model; the
     straight step keeps its (shorter) line, verified straight. Corners no arc clears stay
     sharp."""
-    out = [_Motion(m.row, np.asarray(m.waypoints, float), m.limits, m.line_m, m.collision, m.world) for m in group]
+    out = [
+        _Motion(m.row, np.asarray(m.waypoints, float), m.limits, m.line_m, m.collision, m.world)
+        for m in group
+    ]
     kin = group[0].world.kinematics  # the tool mounted for this group
     for a, b in zip(out[:-1], out[1:]):
         a_line, b_line = a.line_m is not None, b.line_m is not None
@@ -445,7 +496,7 @@ def _corner_arc(kin, a: _Motion, b: _Motion, shrink: float):
         start = a.waypoints[k]
         end = along(corner, b.waypoints[1], float(np.linalg.norm(corner - start)))
         arc = rounded(start, end)
-        return a.waypoints[:k + 1], np.vstack([arc, b.waypoints[1:]]), arc
+        return a.waypoints[: k + 1], np.vstack([arc, b.waypoints[1:]]), arc
     if b.line_m is not None:  # joint -> straight
         if len(a.waypoints) < 2:
             return None
@@ -474,7 +525,11 @@ def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray
 def _apply(world: CellWorld, group: list[_Motion], pieces: list[dict]) -> None:
     for motion, piece in zip(group, pieces):
         row = motion.row
-        row.approved, row.trajectory, row.verify_inputs = piece["approved"], piece["trajectory"], piece["inputs"]
+        row.approved, row.trajectory, row.verify_inputs = (
+            piece["approved"],
+            piece["trajectory"],
+            piece["inputs"],
+        )
         # every piece starts on the set-point before it (the start state, or the last
         # sample of the piece it continues), which the engine does not stream twice
         row.duration_s = (len(piece["q"]) - 1) / world.spec.rate_hz
@@ -486,11 +541,22 @@ def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -
     a job share their first motions, and a grip's retry path is the same for all): the
     same waypoints, limits, lines, collision models, step and start give the same
     verified pieces, since timing and verification are deterministic."""
-    key = (np.asarray(q_start, float).tobytes(), tuple(
-        (m.row.step.index, m.row.step.name, np.asarray(m.waypoints, float).tobytes(), id(m.collision),
-         None if m.line_m is None else np.asarray(m.line_m, float).tobytes(),
-         m.limits.joint_speed_rad_s.tobytes(), m.limits.joint_accel_rad_s2.tobytes(), m.limits.tcp_speed_mps)
-        for m in group))
+    key = (
+        np.asarray(q_start, float).tobytes(),
+        tuple(
+            (
+                m.row.step.index,
+                m.row.step.name,
+                np.asarray(m.waypoints, float).tobytes(),
+                id(m.collision),
+                None if m.line_m is None else np.asarray(m.line_m, float).tobytes(),
+                m.limits.joint_speed_rad_s.tobytes(),
+                m.limits.joint_accel_rad_s2.tobytes(),
+                m.limits.tcp_speed_mps,
+            )
+            for m in group
+        ),
+    )
     memo = world.timing_memo
     hit = memo.get(key)
     if hit is not None and all(a is m.collision for a, m in zip(hit[0], group)):
@@ -510,22 +576,34 @@ def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) ->
 
     world = group[0].world  # the tool mounted for this group (a tool change flushes groups)
     waypoints = np.vstack([group[0].waypoints, *[m.waypoints[1:] for m in group[1:]]])
-    s_waypoints = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(waypoints, axis=0), axis=1))])
+    s_waypoints = np.concatenate(
+        [[0.0], np.cumsum(np.linalg.norm(np.diff(waypoints, axis=0), axis=1))]
+    )
     timed = time_path(world.kinematics, waypoints, group[0].limits, world.spec.rate_hz)
     cuts = _cut_indices(timed.s, group, s_waypoints)
     previous = np.asarray(q_start, float)
     start = 0
     pieces = []
     for i, (motion, end) in enumerate(zip(group, cuts)):
-        q = timed.q_rad[start:end + 1]
+        q = timed.q_rad[start : end + 1]
         if i == 0:
             q = np.vstack([previous[None, :], q[1:]]) if len(q) > 1 else previous[None, :]
         trajectory = Trajectory(world.spec.rate_hz, np.arange(len(q)) / world.spec.rate_hz, q)
-        inputs = dict(previous_q_rad=previous, previous_moving=i > 0, ends_at_rest=i == len(group) - 1,
-                      line_m=motion.line_m)
+        inputs = dict(
+            previous_q_rad=previous,
+            previous_moving=i > 0,
+            ends_at_rest=i == len(group) - 1,
+            line_m=motion.line_m,
+        )
         approved = verify_trajectory(
-            trajectory, step_index=motion.row.step.index, step_name=motion.row.step.name,
-            kinematics=world.kinematics, limits=motion.limits, collision=motion.collision, **inputs)
+            trajectory,
+            step_index=motion.row.step.index,
+            step_name=motion.row.step.name,
+            kinematics=world.kinematics,
+            limits=motion.limits,
+            collision=motion.collision,
+            **inputs,
+        )
         pieces.append({"q": q, "trajectory": trajectory, "approved": approved, "inputs": inputs})
         previous = q[-2:] if len(q) >= 2 else q
         start = end  # the next piece shares this boundary sample
@@ -539,13 +617,22 @@ def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
     world = row.world or world
     planner = _StepPlanner(world, row.trajectory.q_rad[0], row.carrying)
     return verify_trajectory(
-        row.trajectory, step_index=row.step.index, step_name=row.step.name, kinematics=world.kinematics,
-        limits=planner.limits_for(row.step), collision=planner.collision(row.allowances), **row.verify_inputs)
+        row.trajectory,
+        step_index=row.step.index,
+        step_name=row.step.name,
+        kinematics=world.kinematics,
+        limits=planner.limits_for(row.step),
+        collision=planner.collision(row.allowances),
+        **row.verify_inputs,
+    )
 
 
 def _same_limits(a, b) -> bool:
-    return (np.array_equal(a.joint_speed_rad_s, b.joint_speed_rad_s)
-            and np.array_equal(a.joint_accel_rad_s2, b.joint_accel_rad_s2) and a.tcp_speed_mps == b.tcp_speed_mps)
+    return (
+        np.array_equal(a.joint_speed_rad_s, b.joint_speed_rad_s)
+        and np.array_equal(a.joint_accel_rad_s2, b.joint_accel_rad_s2)
+        and a.tcp_speed_mps == b.tcp_speed_mps
+    )
 
 
 def _cut_indices(s_samples: np.ndarray, group: list[_Motion], s_waypoints: np.ndarray) -> list[int]:

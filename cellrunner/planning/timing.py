@@ -71,21 +71,38 @@ class MotionLimits:
         if not 0 < margin <= 1:
             raise ValueError(f"margin must be in (0, 1], not {margin}")
         speed = np.broadcast_to(
-            np.asarray(joint_speed_deg_s if joint_speed_deg_s is not None else spec.joint_speed_max_deg_s, float), (6,)
+            np.asarray(
+                joint_speed_deg_s if joint_speed_deg_s is not None else spec.joint_speed_max_deg_s,
+                float,
+            ),
+            (6,),
         )
         accel = np.broadcast_to(
-            np.asarray(joint_accel_deg_s2 if joint_accel_deg_s2 is not None else spec.joint_accel_max_deg_s2, float), (6,)
+            np.asarray(
+                joint_accel_deg_s2
+                if joint_accel_deg_s2 is not None
+                else spec.joint_accel_max_deg_s2,
+                float,
+            ),
+            (6,),
         )
         speed = np.minimum(speed, spec.joint_speed_max_deg_s)
         accel = np.minimum(accel, spec.joint_accel_max_deg_s2)
-        tcp = min(tcp_speed_mps if tcp_speed_mps is not None else spec.tcp_speed_max_mps, spec.tcp_speed_max_mps)
+        tcp = min(
+            tcp_speed_mps if tcp_speed_mps is not None else spec.tcp_speed_max_mps,
+            spec.tcp_speed_max_mps,
+        )
         return cls(np.radians(speed) * margin, np.radians(accel) * margin, tcp * margin)
 
-    def scaled(self, speed_fraction: float = 1.0, tcp_speed_mps: float | None = None) -> MotionLimits:
+    def scaled(
+        self, speed_fraction: float = 1.0, tcp_speed_mps: float | None = None
+    ) -> MotionLimits:
         """Slower limits for one move: joint speeds and accelerations x ``speed_fraction``,
         TCP speed capped at ``tcp_speed_mps`` (never above this one)."""
         f = float(min(max(speed_fraction, 1e-3), 1.0))
-        tcp = self.tcp_speed_mps if tcp_speed_mps is None else min(tcp_speed_mps, self.tcp_speed_mps)
+        tcp = (
+            self.tcp_speed_mps if tcp_speed_mps is None else min(tcp_speed_mps, self.tcp_speed_mps)
+        )
         return MotionLimits(self.joint_speed_rad_s * f, self.joint_accel_rad_s2 * f, tcp)
 
 
@@ -101,8 +118,13 @@ class TimedPath:
     s_waypoints: np.ndarray
 
 
-def sample_measures(kin: ArmKinematics, q_rad: np.ndarray, rate_hz: float,
-                    rest_before: bool = True, rest_after: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def sample_measures(
+    kin: ArmKinematics,
+    q_rad: np.ndarray,
+    rate_hz: float,
+    rest_before: bool = True,
+    rest_after: bool = True,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Finite-difference joint speeds (rad/s), accelerations (rad/s^2) and TCP speeds (m/s)
     of samples taken every 1/rate_hz s; ``rest_before``/``rest_after`` pad with the robot
     at rest on the first/last sample."""
@@ -151,8 +173,9 @@ def time_path(
     raise InfeasibleError(f"trajectory exceeds its limits after resampling (x{excess.max():.3f})")
 
 
-def optimal_duration_s(kin: ArmKinematics, q_path_rad: np.ndarray, limits: MotionLimits,
-                       grid_points: int = 2000) -> float:
+def optimal_duration_s(
+    kin: ArmKinematics, q_path_rad: np.ndarray, limits: MotionLimits, grid_points: int = 2000
+) -> float:
     """The time-optimal rest-to-rest duration (s) of the path through the configurations
     ``q_path_rad`` (N x 6, e.g. a streamed trajectory), by TOPP-RA on a fine grid with no
     resampling: a lower bound for any trajectory on that path within ``limits``."""
@@ -175,15 +198,25 @@ class _Problem:
     """The spline path through the waypoints, its TOPP-RA grid and the TCP path-speed cap
     on that grid (rad/s of path speed)."""
 
-    def __init__(self, kin: ArmKinematics, wp: np.ndarray, limits: MotionLimits, *, grid_points: int = 0,
-                 densify: bool = True, tightening: float = TOPPRA_TIGHTENING):
+    def __init__(
+        self,
+        kin: ArmKinematics,
+        wp: np.ndarray,
+        limits: MotionLimits,
+        *,
+        grid_points: int = 0,
+        densify: bool = True,
+        tightening: float = TOPPRA_TIGHTENING,
+    ):
         ta = _import_toppra()
         self.wp, self.limits, self.tightening = wp, limits, tightening
         if densify:
             dense, s_dense, self.s_waypoints = _densify(wp)
         else:
             dense = wp
-            s_dense = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(wp, axis=0), axis=1))])
+            s_dense = np.concatenate(
+                [[0.0], np.cumsum(np.linalg.norm(np.diff(wp, axis=0), axis=1))]
+            )
             self.s_waypoints = s_dense
         self.path = ta.SplineInterpolator(s_dense, dense, bc_type="natural")
         if grid_points:
@@ -195,11 +228,16 @@ class _Problem:
         self.grid = grid
         self.dq_ds = np.abs(self.path(grid, 1))
         h = 1e-6
-        dp = kin.p_world_tcp_many(self.path(np.minimum(grid + h, s_dense[-1]))) \
-            - kin.p_world_tcp_many(self.path(np.maximum(grid - h, 0.0)))
+        dp = kin.p_world_tcp_many(
+            self.path(np.minimum(grid + h, s_dense[-1]))
+        ) - kin.p_world_tcp_many(self.path(np.maximum(grid - h, 0.0)))
         width = np.minimum(grid + h, s_dense[-1]) - np.maximum(grid - h, 0.0)
         tcp_per_s = np.linalg.norm(dp, axis=1) / width
-        self.tcp_cap = np.where(tcp_per_s < 1e-9, np.inf, limits.tcp_speed_mps * tightening / np.maximum(tcp_per_s, 1e-12))
+        self.tcp_cap = np.where(
+            tcp_per_s < 1e-9,
+            np.inf,
+            limits.tcp_speed_mps * tightening / np.maximum(tcp_per_s, 1e-12),
+        )
 
     def solve(self, cap: np.ndarray) -> np.ndarray:
         """TOPP-RA's path speeds (s_dot) on the grid under the joint limits and ``cap``."""
@@ -222,14 +260,24 @@ class _Problem:
                 self.dof = len(alim)
 
             def compute_constraint_params(self, path, gridpoints):
-                return None, None, None, None, None, None, np.column_stack([np.zeros(len(x_max)), x_max])
+                return (
+                    None,
+                    None,
+                    None,
+                    None,
+                    None,
+                    None,
+                    np.column_stack([np.zeros(len(x_max)), x_max]),
+                )
 
         constraints = [
             PathSpeedBound(),
             constraint.JointAccelerationConstraint(np.column_stack([-alim, alim])),
         ]
         try:
-            instance = algo.TOPPRA(constraints, self.path, gridpoints=self.grid, parametrizer="ParametrizeConstAccel")
+            instance = algo.TOPPRA(
+                constraints, self.path, gridpoints=self.grid, parametrizer="ParametrizeConstAccel"
+            )
             _, sd, _ = instance.compute_parameterization(0.0, 0.0)
         except Exception as exc:  # toppra raises its own exception types from its solvers
             raise InfeasibleError(f"time parameterization failed (TOPP-RA: {exc})") from exc
@@ -270,8 +318,9 @@ def _excess(kin: ArmKinematics, q: np.ndarray, limits: MotionLimits, rate_hz: fl
     return per_sample
 
 
-def _capped_locally(grid: np.ndarray, sd: np.ndarray, cap: np.ndarray, s: np.ndarray,
-                    excess: np.ndarray) -> np.ndarray:
+def _capped_locally(
+    grid: np.ndarray, sd: np.ndarray, cap: np.ndarray, s: np.ndarray, excess: np.ndarray
+) -> np.ndarray:
     """``cap`` lowered on the grid points around each sample over its limits to the speed
     there divided by the excess (and the headroom)."""
     cap = cap.copy()
@@ -288,14 +337,17 @@ def _import_toppra():
     algorithm module imports at the top for plotting helpers we never call: while toppra
     loads, ``matplotlib.pyplot`` is a stand-in that imports the real module on first use."""
     import sys
+
     if "toppra" in sys.modules or "matplotlib.pyplot" in sys.modules:
         import toppra
+
         return toppra
     import types
 
     class _LazyPyplot(types.ModuleType):
         def __getattr__(self, name: str):
             import importlib
+
             sys.modules.pop("matplotlib.pyplot", None)
             real = importlib.import_module("matplotlib.pyplot")
             return getattr(real, name)

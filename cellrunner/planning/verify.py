@@ -62,7 +62,9 @@ def verify_trajectory(
     if len(q) == 0:
         raise fail("empty trajectory")
     if abs(rate - kinematics.spec.rate_hz) > 1e-9:
-        raise fail(f"sampled at {rate:g} Hz, the {kinematics.spec.name} controller runs at {kinematics.spec.rate_hz:g} Hz")
+        raise fail(
+            f"sampled at {rate:g} Hz, the {kinematics.spec.name} controller runs at {kinematics.spec.rate_hz:g} Hz"
+        )
     grid = np.arange(len(q)) / rate
     if np.abs(np.asarray(trajectory.t_s) - grid).max() > 1e-9:
         raise fail("samples are not on the controller's time grid t = k / rate")
@@ -71,19 +73,25 @@ def verify_trajectory(
     above = q > kinematics.q_max_rad + 1e-12
     if below.any() or above.any():
         k, i = np.argwhere(below | above)[0]
-        raise fail(f"{JOINT_NAMES[i]} at {np.degrees(q[k, i]):.1f} deg outside its limits "
-                   f"[{np.degrees(kinematics.q_min_rad[i]):.0f}, {np.degrees(kinematics.q_max_rad[i]):.0f}] deg (sample {k})")
+        raise fail(
+            f"{JOINT_NAMES[i]} at {np.degrees(q[k, i]):.1f} deg outside its limits "
+            f"[{np.degrees(kinematics.q_min_rad[i]):.0f}, {np.degrees(kinematics.q_max_rad[i]):.0f}] deg (sample {k})"
+        )
 
     head = None
     if previous_q_rad is not None:
         prev = np.atleast_2d(np.asarray(previous_q_rad, float))
         jump = float(np.abs(q[0] - prev[-1]).max())
         if jump > CONTINUITY_RAD:
-            raise fail(f"starts {np.degrees(jump):.4f} deg away from where the previous motion ended")
+            raise fail(
+                f"starts {np.degrees(jump):.4f} deg away from where the previous motion ended"
+            )
         if previous_moving and len(prev) >= 2:
             head = prev[-2:-1]
     padded = q if head is None else np.vstack([head, q])
-    v, a, tcp = sample_measures(kinematics, padded, rate, rest_before=head is None, rest_after=ends_at_rest)
+    v, a, tcp = sample_measures(
+        kinematics, padded, rate, rest_before=head is None, rest_after=ends_at_rest
+    )
     tol = 1 + RELATIVE_TOLERANCE
     for name, values, limit, unit, scale in (
         ("speed", v, limits.joint_speed_rad_s, "deg/s", np.degrees(1.0)),
@@ -92,8 +100,10 @@ def verify_trajectory(
         ratio = np.abs(values) / limit
         if ratio.size and ratio.max() > tol:
             k, i = np.unravel_index(int(ratio.argmax()), ratio.shape)
-            raise fail(f"{JOINT_NAMES[i]} {name} {abs(values[k, i]) * scale:.1f} {unit} exceeds "
-                       f"the limit {limit[i] * scale:.1f} {unit} (sample {k})")
+            raise fail(
+                f"{JOINT_NAMES[i]} {name} {abs(values[k, i]) * scale:.1f} {unit} exceeds "
+                f"the limit {limit[i] * scale:.1f} {unit} (sample {k})"
+            )
     if len(tcp) and tcp.max() > limits.tcp_speed_mps * tol:
         raise fail(f"TCP speed {tcp.max():.3f} m/s exceeds the cap {limits.tcp_speed_mps:.3f} m/s")
 
@@ -101,8 +111,10 @@ def verify_trajectory(
         p = kinematics.p_world_tcp_many(q)
         off = distance_to_segment_m(p, np.asarray(line_m[0]), np.asarray(line_m[1]))
         if off.max() > STRAIGHTNESS_M:
-            raise fail(f"TCP leaves the straight line by {off.max() * 1000:.2f} mm "
-                       f"(allowed {STRAIGHTNESS_M * 1000:.1f} mm, sample {int(off.argmax())})")
+            raise fail(
+                f"TCP leaves the straight line by {off.max() * 1000:.2f} mm "
+                f"(allowed {STRAIGHTNESS_M * 1000:.1f} mm, sample {int(off.argmax())})"
+            )
 
     result = collision.check_path(q)
     if not result.ok:

@@ -20,8 +20,10 @@ class CellWorld:
     """Everything planning needs from a cell file, in SI and radians."""
 
     loaded: LoadedCell
-    tool_key: tuple | None = None  # (tool, tcp_of) of a world made by with_tool; None: as the cell file mounts it
-    base: "CellWorld | None" = None  # the world with_tool made this one from
+    tool_key: tuple | None = (
+        None  # (tool, tcp_of) of a world made by with_tool; None: as the cell file mounts it
+    )
+    base: CellWorld | None = None  # the world with_tool made this one from
 
     @property
     def spec(self) -> RobotSpec:
@@ -30,6 +32,7 @@ class CellWorld:
     @cached_property
     def kinematics(self):
         from cellrunner.planning.kinematics import ArmKinematics
+
         c = self.loaded.cell
         return ArmKinematics(self.spec, c.robot.mount.matrix(), c.tool.tcp.matrix())
 
@@ -40,7 +43,7 @@ class CellWorld:
         shapes = self.loaded.tool_shapes()
         return shapes + gripper_shapes(tool.gripper, tool.tcp.matrix())
 
-    def with_tool(self, name: str | None, tcp_of: str | None = None) -> "CellWorld":
+    def with_tool(self, name: str | None, tcp_of: str | None = None) -> CellWorld:
         """The same cell with tool ``name`` mounted (from ``tools:``); None: the bare
         flange, carrying tool ``tcp_of``'s TCP as a virtual point (no geometry, no payload)."""
         if self.base is not None:
@@ -51,6 +54,7 @@ class CellWorld:
         worlds = self._tool_worlds
         if key not in worlds:
             from cellrunner.model.cell import Tool
+
             cell = self.loaded.cell
             tool = cell.tools[name] if name is not None else Tool(tcp=cell.tools[tcp_of].tcp)
             loaded = dataclasses.replace(self.loaded, cell=cell.model_copy(update={"tool": tool}))
@@ -68,16 +72,23 @@ class CellWorld:
     @cached_property
     def collision(self):
         from cellrunner.planning.collision import CollisionModel
+
         return CollisionModel(self.kinematics, self.tool, self.fixtures)
 
     @cached_property
     def limits(self):
         from cellrunner.planning.timing import MotionLimits
+
         lim = self.loaded.cell.robot.limits
         speed = tuple(lim.joint_speed) if isinstance(lim.joint_speed, list) else lim.joint_speed
         accel = tuple(lim.joint_accel) if isinstance(lim.joint_accel, list) else lim.joint_accel
-        return MotionLimits.from_cell(self.spec, joint_speed_deg_s=speed, joint_accel_deg_s2=accel,
-                                      tcp_speed_mps=lim.tcp_speed, margin=lim.margin)
+        return MotionLimits.from_cell(
+            self.spec,
+            joint_speed_deg_s=speed,
+            joint_accel_deg_s2=accel,
+            tcp_speed_mps=lim.tcp_speed,
+            margin=lim.margin,
+        )
 
     @cached_property
     def timing_memo(self) -> dict:
@@ -91,11 +102,14 @@ class CellWorld:
     def part_at(self, frame: str, T_world_tcp: np.ndarray) -> Placed | None:
         """The part spawned at ``frame``, placed in the TCP frame of a grip at ``T_world_tcp``."""
         from cellrunner.model.expand import frame_pose
+
         for part in self.loaded.cell.parts:
             if part.at == frame:
                 shape = part.to_shape(self.loaded.resolve)
                 depth = part_center_depth_m(self.loaded.cell.tool.gripper, shape)
-                T_world_part = frame_pose(self.loaded.cell, frame) @ geometry.pose_matrix((0, 0, depth))
+                T_world_part = frame_pose(self.loaded.cell, frame) @ geometry.pose_matrix(
+                    (0, 0, depth)
+                )
                 T_tcp_part = geometry.invert(T_world_tcp) @ T_world_part
                 return Placed(part.name, shape, T_tcp_part)
         return None

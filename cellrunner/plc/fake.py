@@ -17,7 +17,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime, timezone
 
 from cellrunner.plc.port import (
     COMMANDS,
@@ -282,7 +282,13 @@ class FakeCell:
             self._enter(S.CLEARING, S.STOPPED)
         elif name == "reset" and st in (S.STOPPED, S.COMPLETE):
             self._enter(S.RESETTING, S.IDLE)
-        elif name == "stop" and st not in (S.STOPPED, S.STOPPING, S.ABORTING, S.ABORTED, S.CLEARING):
+        elif name == "stop" and st not in (
+            S.STOPPED,
+            S.STOPPING,
+            S.ABORTING,
+            S.ABORTED,
+            S.CLEARING,
+        ):
             job = self._job or self._queued
             if job is not None:
                 job.end_code = 106
@@ -310,7 +316,7 @@ class FakeCell:
             result_code=code,
             result_text=_RESULT_TEXT.get(code, f"result {code}"),
             cycle_time_s=self.clock() - job.started_s,
-            end_time=datetime.now(timezone.utc),
+            end_time=datetime.now(UTC),
             retries=1 if code == 1 else 0,
             task=job.task.name,
             client_job_id=job.client_job_id,
@@ -397,4 +403,3 @@ def _check_params(task: FakeTask, params: dict[str, int | float]) -> str:
         if not spec.min <= value <= spec.max:
             return f"param {name}={value} outside [{spec.min:g}, {spec.max:g}]"
     return ""
-

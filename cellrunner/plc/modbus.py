@@ -24,7 +24,14 @@ from typing import Any
 
 from cellrunner.errors import CellrunnerError, InputError
 from cellrunner.plc.param_registers import N_PARAM_REGS, PARAM_FIRST, decode_params, to_int16
-from cellrunner.plc.port import COMPLETED_CODES, CellPort, CellStatus, JobResult, PackMLState, ResultCode
+from cellrunner.plc.port import (
+    COMPLETED_CODES,
+    CellPort,
+    CellStatus,
+    JobResult,
+    PackMLState,
+    ResultCode,
+)
 
 # -- register map (SPEC section 7) -------------------------------------------------
 HR_HEARTBEAT = 0
@@ -137,7 +144,9 @@ class ModbusLink:
         self._cell_heartbeat_s = 0.0
         self._reset_until_s: float | None = None  # a RESET edge still being carried out
         self._clear_sent = False
-        self._replay: JobResult | None = None  # the last Modbus job's result, owed to a re-sent request
+        self._replay: JobResult | None = (
+            None  # the last Modbus job's result, owed to a re-sent request
+        )
         self.ack_times_s: dict[int, float] = {}  # PLC job id -> time of ACK (bench)
 
     # -- start-up ------------------------------------------------------------------
@@ -285,10 +294,15 @@ class ModbusLink:
         plc_id = self.regs[HR_JOB_ID]
         task = self.regs[HR_TASK]
         if self._active_job is not None:
-            if plc_id == self._active_plc_id:  # JOB_REQ toggled for the job that runs: still ACK+BUSY
+            if (
+                plc_id == self._active_plc_id
+            ):  # JOB_REQ toggled for the job that runs: still ACK+BUSY
                 self._set_handshake(ST_JOB_ACK | ST_BUSY)
             else:  # another request while busy: refused without touching the running job's bits
-                self.regs[HR_RESULT_JOB_ID], self.regs[HR_RESULT_CODE] = plc_id, int(ResultCode.REJECT_NOT_READY)
+                self.regs[HR_RESULT_JOB_ID], self.regs[HR_RESULT_CODE] = (
+                    plc_id,
+                    int(ResultCode.REJECT_NOT_READY),
+                )
                 self.regs[HR_STATUS] |= ST_ERROR | ST_REJECTED
             return
         self.regs[HR_JOB_ID_ECHO] = plc_id
@@ -330,7 +344,9 @@ class ModbusLink:
     def _set_handshake(self, bits: int) -> None:
         self.regs[HR_STATUS] = (self.regs[HR_STATUS] & ~(HANDSHAKE_BITS | ST_READY)) | bits
 
-    def _write_result(self, result: JobResult, status: CellStatus, plc_job_id: int | None = None) -> None:
+    def _write_result(
+        self, result: JobResult, status: CellStatus, plc_job_id: int | None = None
+    ) -> None:
         if plc_job_id is None:
             plc_job_id = _plc_job_id(result)
         self.regs[HR_RESULT_JOB_ID] = plc_job_id
@@ -405,7 +421,11 @@ def _make_context(link: ModbusLink) -> Any:
             return ExcCodes(values) if isinstance(values, int) else values
 
         async def async_setValues(  # noqa: N802
-            self, device_id: int, func_code: int, address: int, values: Sequence[int] | Sequence[bool]
+            self,
+            device_id: int,
+            func_code: int,
+            address: int,
+            values: Sequence[int] | Sequence[bool],
         ) -> ExcCodes | None:
             if func_code not in WRITE_FCS:
                 return ExcCodes.ILLEGAL_FUNCTION

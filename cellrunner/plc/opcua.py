@@ -35,7 +35,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime, timezone
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlparse
@@ -140,7 +140,7 @@ LOGIN_BURST, LOGINS_PER_S = 10, 5.0
 MAX_TEXT = {"TaskName": 64, "ClientJobId": 128, "Parameters": 1024}
 #: how deep a Parameters JSON value may nest (a flat object of numbers is 1)
 MAX_JSON_DEPTH = 3  # {name: {xyz: [...]}}: an object of pose params
-NULL_DATETIME = datetime(1601, 1, 1, tzinfo=timezone.utc)  # OPC UA's "no time"
+NULL_DATETIME = datetime(1601, 1, 1, tzinfo=UTC)  # OPC UA's "no time"
 
 # (browse name, VariantType name, initial value) of Objects/Cell's variables
 _CELL_VARIABLES = (
@@ -195,8 +195,10 @@ def parse_job_parameters(text: str) -> dict[str, int | float | str | dict] | Non
     for name, value in data.items():
         if isinstance(value, dict):
             if not set(value) <= {"xyz", "rpy"} or not all(
-                    isinstance(v, list) and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v)
-                    for v in value.values()):
+                isinstance(v, list)
+                and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v)
+                for v in value.values()
+            ):
                 return None
         elif isinstance(value, bool) or not isinstance(value, int | float | str):
             return None
@@ -222,7 +224,9 @@ class LoginBudget:
     """A token bucket for password checks: ``burst`` at once, refilled at ``per_s``.
     Thread-safe; ``clock`` returns monotonic seconds."""
 
-    def __init__(self, burst: int = LOGIN_BURST, per_s: float = LOGINS_PER_S, clock: Any = time.monotonic) -> None:
+    def __init__(
+        self, burst: int = LOGIN_BURST, per_s: float = LOGINS_PER_S, clock: Any = time.monotonic
+    ) -> None:
         self.burst, self.per_s, self.clock = burst, per_s, clock
         self._tokens = float(burst)
         self._at = clock()
@@ -248,7 +252,9 @@ class HashedUserManager:
     The users file is re-read when it changes, so ``users add`` works while serving.
     """
 
-    def __init__(self, users_file: Path, pki: Any, allow_insecure: bool, budget: LoginBudget | None = None) -> None:
+    def __init__(
+        self, users_file: Path, pki: Any, allow_insecure: bool, budget: LoginBudget | None = None
+    ) -> None:
         self.users_file = users_file
         self.pki = pki
         self.allow_insecure = allow_insecure
@@ -272,7 +278,13 @@ class HashedUserManager:
             _log.warning("users file %s unreadable; keeping the previous users", self.users_file)
         return self._users
 
-    def get_user(self, iserver: Any, username: str | None = None, password: str | None = None, certificate: Any = None) -> Any:
+    def get_user(
+        self,
+        iserver: Any,
+        username: str | None = None,
+        password: str | None = None,
+        certificate: Any = None,
+    ) -> Any:
         from asyncua.crypto.permission_rules import User, UserRole
         from cryptography import x509
 
@@ -369,7 +381,9 @@ class OpcUaServer:
         except CellrunnerError:
             raise
         except Exception as exc:
-            raise CellrunnerError(f"OPC UA server failed to start on {self.config.endpoint}: {exc}") from exc
+            raise CellrunnerError(
+                f"OPC UA server failed to start on {self.config.endpoint}: {exc}"
+            ) from exc
         self._server = server
         loop = asyncio.get_running_loop()
         self._results = asyncio.Queue()
@@ -400,14 +414,24 @@ class OpcUaServer:
 
         self._aspace = server.iserver.aspace
         idx = await server.register_namespace(NAMESPACE_URI)
-        cell = await server.nodes.objects.add_object(ua.NodeId("Cell", idx), ua.QualifiedName("Cell", idx))
-        last = await cell.add_object(ua.NodeId("Cell.LastJob", idx), ua.QualifiedName("LastJob", idx))
-        for parent, prefix, table in ((cell, "", _CELL_VARIABLES), (last, "LastJob.", _LAST_JOB_VARIABLES)):
+        cell = await server.nodes.objects.add_object(
+            ua.NodeId("Cell", idx), ua.QualifiedName("Cell", idx)
+        )
+        last = await cell.add_object(
+            ua.NodeId("Cell.LastJob", idx), ua.QualifiedName("LastJob", idx)
+        )
+        for parent, prefix, table in (
+            (cell, "", _CELL_VARIABLES),
+            (last, "LastJob.", _LAST_JOB_VARIABLES),
+        ):
             for name, vtype, initial in table:
                 key = prefix + name
                 variant_type = getattr(ua.VariantType, vtype)
                 node = await parent.add_variable(
-                    ua.NodeId(f"Cell.{key}", idx), ua.QualifiedName(name, idx), initial, variant_type
+                    ua.NodeId(f"Cell.{key}", idx),
+                    ua.QualifiedName(name, idx),
+                    initial,
+                    variant_type,
                 )
                 self._nodes[key] = node
                 self._types[key] = variant_type
@@ -416,21 +440,34 @@ class OpcUaServer:
             ua.NodeId("Cell.StartJob", idx),
             ua.QualifiedName("StartJob", idx),
             self._start_job_method,
-            [_argument("TaskName", string, "task name or PLC task number"),
-             _argument("Parameters", string, "JSON object of task params"),
-             _argument("ClientJobId", string, "caller's id; the same id returns the first job")],
-            [_argument("JobId", string, "the cell's job id"),
-             _argument("ReturnCode", int32, "0 accepted, else reject code 10/11/12")],
+            [
+                _argument("TaskName", string, "task name or PLC task number"),
+                _argument("Parameters", string, "JSON object of task params"),
+                _argument("ClientJobId", string, "caller's id; the same id returns the first job"),
+            ],
+            [
+                _argument("JobId", string, "the cell's job id"),
+                _argument("ReturnCode", int32, "0 accepted, else reject code 10/11/12"),
+            ],
         )
         for name, command in _COMMAND_METHODS.items():
             await cell.add_method(
-                ua.NodeId(f"Cell.{name}", idx), ua.QualifiedName(name, idx), self._command_method(command), [], []
+                ua.NodeId(f"Cell.{name}", idx),
+                ua.QualifiedName(name, idx),
+                self._command_method(command),
+                [],
+                [],
             )
         etype = await server.create_custom_event_type(
             idx,
             "JobCompletedEventType",
             ua.ObjectIds.BaseEventType,
-            [("JobId", string), ("ResultCode", int32), ("ResultText", string), ("ClientJobId", string)],
+            [
+                ("JobId", string),
+                ("ResultCode", int32),
+                ("ResultText", string),
+                ("ClientJobId", string),
+            ],
         )
         self._event = await server.get_event_generator(etype, cell)
         await server.nodes.server.set_event_notifier([ua.EventNotifier.SubscribeToEvents])
@@ -440,7 +477,11 @@ class OpcUaServer:
         from asyncua import ua
 
         if len(args) != 3:
-            return ua.StatusCode(ua.StatusCodes.BadArgumentsMissing if len(args) < 3 else ua.StatusCodes.BadTooManyArguments)
+            return ua.StatusCode(
+                ua.StatusCodes.BadArgumentsMissing
+                if len(args) < 3
+                else ua.StatusCodes.BadTooManyArguments
+            )
         if not all(isinstance(getattr(a, "Value", a), str | None) for a in args):
             return ua.StatusCode(ua.StatusCodes.BadTypeMismatch)  # every argument is a String
         task_name, params_text, client_job_id = (_text(a) for a in args)
@@ -450,9 +491,18 @@ class OpcUaServer:
     def start_job(self, task_name: str, params_text: str, client_job_id: str) -> tuple[str, int]:
         """StartJob's logic: (JobId, ReturnCode); idempotent per non-empty ClientJobId.
         Over-long strings are refused with 11 (bad params) before anything else."""
-        for name, text in (("TaskName", task_name), ("Parameters", params_text), ("ClientJobId", client_job_id)):
+        for name, text in (
+            ("TaskName", task_name),
+            ("Parameters", params_text),
+            ("ClientJobId", client_job_id),
+        ):
             if len(text) > MAX_TEXT[name]:
-                _log.warning("StartJob refused: %s of %d characters (at most %d)", name, len(text), MAX_TEXT[name])
+                _log.warning(
+                    "StartJob refused: %s of %d characters (at most %d)",
+                    name,
+                    len(text),
+                    MAX_TEXT[name],
+                )
                 return "", int(ResultCode.REJECT_BAD_PARAMS)
         if client_job_id and client_job_id in self._client_jobs:
             return self._client_jobs[client_job_id]
@@ -487,7 +537,9 @@ class OpcUaServer:
         assert self._results is not None
         while True:
             try:
-                result: JobResult | None = await asyncio.wait_for(self._results.get(), REFRESH_PERIOD_S)
+                result: JobResult | None = await asyncio.wait_for(
+                    self._results.get(), REFRESH_PERIOD_S
+                )
             except TimeoutError:
                 result = None
             try:

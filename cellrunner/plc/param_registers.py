@@ -28,7 +28,9 @@ def from_int16(value: int) -> int:
     return value & 0xFFFF
 
 
-def decode_params(layout: Sequence[tuple[str, str, str | None]], registers: Sequence[int]) -> dict[str, Any]:
+def decode_params(
+    layout: Sequence[tuple[str, str, str | None]], registers: Sequence[int]
+) -> dict[str, Any]:
     """Param values from the window's ``registers`` for ``layout`` = (name, type, unit)
     in the task's order: ints, ``"250 ms"`` strings for params with a unit, pose dicts
     ``{"xyz": [m], "rpy": [deg]}``. The task's param check judges the values."""
@@ -38,11 +40,13 @@ def decode_params(layout: Sequence[tuple[str, str, str | None]], registers: Sequ
         width = POSE_REGS if kind == "pose" else 1
         if i + width > len(registers):
             break
-        words = [to_int16(r) for r in registers[i:i + width]]
+        words = [to_int16(r) for r in registers[i : i + width]]
         i += width
         if kind == "pose":
-            out[name] = {"xyz": [w * MM_PER_COUNT / 1000.0 for w in words[:3]],
-                         "rpy": [w * DEG_PER_COUNT for w in words[3:]]}
+            out[name] = {
+                "xyz": [w * MM_PER_COUNT / 1000.0 for w in words[:3]],
+                "rpy": [w * DEG_PER_COUNT for w in words[3:]],
+            }
         elif unit:
             out[name] = f"{words[0]} {unit}"
         else:
@@ -52,7 +56,9 @@ def decode_params(layout: Sequence[tuple[str, str, str | None]], registers: Sequ
 
 def encode_pose(xyz_m: Sequence[float], rpy_deg: Sequence[float]) -> list[int]:
     """Six register words (uint16 as written on the wire) for a pose param."""
-    counts = [round(v * 1000.0 / MM_PER_COUNT) for v in xyz_m] + [round(v / DEG_PER_COUNT) for v in rpy_deg]
+    counts = [round(v * 1000.0 / MM_PER_COUNT) for v in xyz_m] + [
+        round(v / DEG_PER_COUNT) for v in rpy_deg
+    ]
     for c in counts:
         if not -0x8000 <= c <= 0x7FFF:
             raise ValueError(f"pose value {c} counts does not fit an int16 register")

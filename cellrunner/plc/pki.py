@@ -65,7 +65,9 @@ class Pki:
             raise CellrunnerError(f"cannot create the OPC UA PKI under {self.root}: {exc}") from exc
 
     # -- own certificate ----------------------------------------------------------------
-    def ensure_server_certificate(self, application_uri: str, hosts: list[str]) -> tuple[Path, Path]:
+    def ensure_server_certificate(
+        self, application_uri: str, hosts: list[str]
+    ) -> tuple[Path, Path]:
         """(cert, key) paths; both are created when the key or the certificate is absent."""
         self.ensure_dirs()
         if self.cert_file.is_file() and self.key_file.is_file():
@@ -73,7 +75,9 @@ class Pki:
         key = rsa.generate_private_key(public_exponent=65537, key_size=2048)
         cert = make_certificate(key, "cellrunner", application_uri, hosts, server=True)
         key_pem = key.private_bytes(
-            serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()
+            serialization.Encoding.PEM,
+            serialization.PrivateFormat.PKCS8,
+            serialization.NoEncryption(),
         )
         _write_private(self.key_file, key_pem)
         self.cert_file.write_bytes(cert.public_bytes(serialization.Encoding.DER))
@@ -92,7 +96,7 @@ class Pki:
 
     def is_trusted(self, cert: x509.Certificate, now: dt.datetime | None = None) -> bool:
         """In ``trusted/`` (itself, or its issuing CA), and within its validity dates."""
-        now = now or dt.datetime.now(dt.timezone.utc)
+        now = now or dt.datetime.now(dt.UTC)
         if not cert.not_valid_before_utc <= now <= cert.not_valid_after_utc:
             return False
         der = cert.public_bytes(serialization.Encoding.DER)
@@ -152,7 +156,7 @@ def make_certificate(
             alt.append(x509.IPAddress(ipaddress.ip_address(host)))
         except ValueError:
             alt.append(x509.DNSName(host))
-    now = dt.datetime.now(dt.timezone.utc)
+    now = dt.datetime.now(dt.UTC)
     usage = ExtendedKeyUsageOID.SERVER_AUTH if server else ExtendedKeyUsageOID.CLIENT_AUTH
     builder = (
         x509.CertificateBuilder()
@@ -166,14 +170,24 @@ def make_certificate(
         .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
         .add_extension(
             x509.KeyUsage(
-                digital_signature=True, content_commitment=True, key_encipherment=True,
-                data_encipherment=True, key_agreement=False, key_cert_sign=False,
-                crl_sign=False, encipher_only=False, decipher_only=False,
+                digital_signature=True,
+                content_commitment=True,
+                key_encipherment=True,
+                data_encipherment=True,
+                key_agreement=False,
+                key_cert_sign=False,
+                crl_sign=False,
+                encipher_only=False,
+                decipher_only=False,
             ),
             critical=True,
         )
         .add_extension(
-            x509.ExtendedKeyUsage([ExtendedKeyUsageOID.SERVER_AUTH, ExtendedKeyUsageOID.CLIENT_AUTH] if server else [usage]),
+            x509.ExtendedKeyUsage(
+                [ExtendedKeyUsageOID.SERVER_AUTH, ExtendedKeyUsageOID.CLIENT_AUTH]
+                if server
+                else [usage]
+            ),
             critical=False,
         )
         .add_extension(x509.SubjectKeyIdentifier.from_public_key(key.public_key()), critical=False)

@@ -52,13 +52,17 @@ class _ServerThread:
 
     def start(self, timeout_s: float) -> None:
         started: Future[None] = Future()
-        self._thread = threading.Thread(target=self._run, args=(started,), name=self.name, daemon=True)
+        self._thread = threading.Thread(
+            target=self._run, args=(started,), name=self.name, daemon=True
+        )
         self._thread.start()
         try:
             started.result(timeout=timeout_s)
         except TimeoutError as exc:
             self.stop()
-            raise CellrunnerError(f"the {self.name} server did not start within {timeout_s:g} s") from exc
+            raise CellrunnerError(
+                f"the {self.name} server did not start within {timeout_s:g} s"
+            ) from exc
         except CellrunnerError:
             self.join()
             raise

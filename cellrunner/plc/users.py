@@ -46,7 +46,9 @@ def hash_password(password: str, *, salt: bytes | None = None) -> str:
     return f"{SCHEME}${SCRYPT_N}${SCRYPT_R}${SCRYPT_P}${_b64(salt)}${_b64(key)}"
 
 
-_DUMMY_HASH = f"{SCHEME}${SCRYPT_N}${SCRYPT_R}${SCRYPT_P}${_b64(bytes(SALT_BYTES))}${_b64(bytes(KEY_BYTES))}"
+_DUMMY_HASH = (
+    f"{SCHEME}${SCRYPT_N}${SCRYPT_R}${SCRYPT_P}${_b64(bytes(SALT_BYTES))}${_b64(bytes(KEY_BYTES))}"
+)
 
 
 def verify_password(stored: str | None, password: str) -> bool:
@@ -58,8 +60,13 @@ def verify_password(stored: str | None, password: str) -> bool:
             return False
         salt, expected = base64.b64decode(salt_b64), base64.b64decode(key_b64)
         key = hashlib.scrypt(
-            password.encode("utf-8"), salt=salt, n=int(n), r=int(r), p=int(p),
-            dklen=len(expected), maxmem=256 * 1024 * 1024,
+            password.encode("utf-8"),
+            salt=salt,
+            n=int(n),
+            r=int(r),
+            p=int(p),
+            dklen=len(expected),
+            maxmem=256 * 1024 * 1024,
         )
     except (ValueError, TypeError):
         return False
@@ -78,7 +85,9 @@ def load_users(path: Path | str) -> dict[str, str]:
             file=path,
         ) from exc
     except OSError as exc:
-        raise InputError(f"cannot read OPC UA users file {path}: {exc.strerror}", file=path) from exc
+        raise InputError(
+            f"cannot read OPC UA users file {path}: {exc.strerror}", file=path
+        ) from exc
     from ruamel.yaml import YAML
     from ruamel.yaml.error import YAMLError
 
@@ -92,7 +101,11 @@ def load_users(path: Path | str) -> dict[str, str]:
         raise InputError("users file must be a mapping of user name -> hash", file=path)
     users: dict[str, str] = {}
     for name, value in data.items():
-        if not isinstance(name, str) or not isinstance(value, str) or not value.startswith(SCHEME + "$"):
+        if (
+            not isinstance(name, str)
+            or not isinstance(value, str)
+            or not value.startswith(SCHEME + "$")
+        ):
             raise InputError(
                 f"user {name!r}: expected a '{SCHEME}$...' hash written by `cellrunner users add`",
                 file=path,
@@ -133,7 +146,9 @@ def configure_users_parser(parser: argparse.ArgumentParser) -> None:
     add.add_argument("file", type=Path, metavar="FILE", help="users file (plc.opcua.users)")
     add.add_argument("name", metavar="NAME", help="user name")
     add.add_argument(
-        "--password-stdin", action="store_true", help="read the password from the first line of stdin"
+        "--password-stdin",
+        action="store_true",
+        help="read the password from the first line of stdin",
     )
     add.set_defaults(handler=run_users_command)
 

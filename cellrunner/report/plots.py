@@ -12,9 +12,19 @@ from typing import Any
 import numpy as np
 
 #: step kinds and the colour of their bar in the steps lane
-KIND_COLOURS = {"move": "#8da0cb", "approach": "#66c2a5", "descend": "#fc8d62", "lift": "#e78ac3",
-                "retreat": "#e78ac3", "linear": "#fc8d62", "grip": "#a6d854", "release": "#ffd92f",
-                "wait": "#cccccc", "wait_input": "#cccccc", "set_output": "#b3b3b3"}
+KIND_COLOURS = {
+    "move": "#8da0cb",
+    "approach": "#66c2a5",
+    "descend": "#fc8d62",
+    "lift": "#e78ac3",
+    "retreat": "#e78ac3",
+    "linear": "#fc8d62",
+    "grip": "#a6d854",
+    "release": "#ffd92f",
+    "wait": "#cccccc",
+    "wait_input": "#cccccc",
+    "set_output": "#b3b3b3",
+}
 #: points closer than this (m) share one label in the path plots
 LABEL_MERGE_M = 0.015
 
@@ -33,6 +43,7 @@ def save(fig: Any, path: Path) -> Path:
 
 # -- the TCP path over the fixtures -------------------------------------------------------------
 
+
 def shape_points_world(placed) -> np.ndarray:
     """Points on a placed shape's surface in the world (m): box corners, rings of a
     cylinder's ends, a sphere's bounding box, a mesh's vertices."""
@@ -45,15 +56,25 @@ def shape_points_world(placed) -> np.ndarray:
     elif isinstance(shape, Cylinder):
         a = np.linspace(0, 2 * np.pi, 32, endpoint=False)
         ring = np.column_stack([shape.radius_m * np.cos(a), shape.radius_m * np.sin(a)])
-        local = np.vstack([np.column_stack([ring, np.full(32, z)]) for z in (-shape.length_m / 2, shape.length_m / 2)])
+        local = np.vstack(
+            [
+                np.column_stack([ring, np.full(32, z)])
+                for z in (-shape.length_m / 2, shape.length_m / 2)
+            ]
+        )
     elif isinstance(shape, Sphere):
         r = shape.radius_m
         a = np.linspace(0, 2 * np.pi, 32, endpoint=False)
-        local = np.vstack([np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros(32)]),
-                           np.column_stack([r * np.cos(a), np.zeros(32), r * np.sin(a)]),
-                           np.column_stack([np.zeros(32), r * np.cos(a), r * np.sin(a)])])
+        local = np.vstack(
+            [
+                np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros(32)]),
+                np.column_stack([r * np.cos(a), np.zeros(32), r * np.sin(a)]),
+                np.column_stack([np.zeros(32), r * np.cos(a), r * np.sin(a)]),
+            ]
+        )
     else:
         from cellrunner.planning.collision import read_stl
+
         vertices, _ = read_stl(shape.path)
         local = np.asarray(vertices, float).reshape(-1, 3) * getattr(shape, "scale", 1.0)
     T = np.asarray(placed.T_parent_shape, float)
@@ -86,8 +107,14 @@ def merged_labels(points: list[tuple[str, np.ndarray]]) -> list[tuple[str, np.nd
     return [(", ".join(labels), p) for labels, p in out]
 
 
-def plot_tcp_path(path: Path, tcp_m: np.ndarray, fixtures: list, base_m: np.ndarray,
-                  step_points: list[tuple[str, np.ndarray]], title: str) -> Path:
+def plot_tcp_path(
+    path: Path,
+    tcp_m: np.ndarray,
+    fixtures: list,
+    base_m: np.ndarray,
+    step_points: list[tuple[str, np.ndarray]],
+    title: str,
+) -> Path:
     """The TCP path seen from above (x-y) and from the side (x-z, and y-z), the fixtures
     drawn as their outlines, the robot base as a disc, each step's start labelled."""
     tcp = np.asarray(tcp_m, float)
@@ -102,12 +129,29 @@ def plot_tcp_path(path: Path, tcp_m: np.ndarray, fixtures: list, base_m: np.ndar
         for placed in fixtures:
             pts = shape_points_world(placed)
             outline = _outline(pts[:, [i, j]])
-            ax.fill(outline[:, 0], outline[:, 1], color="#c9a66b", alpha=0.35, lw=1.0, ec="#8b6d3f", zorder=1)
+            ax.fill(
+                outline[:, 0],
+                outline[:, 1],
+                color="#c9a66b",
+                alpha=0.35,
+                lw=1.0,
+                ec="#8b6d3f",
+                zorder=1,
+            )
             # under the middle of its top edge, inside the frame: labels of nested outlines part
             top_y = float(outline[:, 1].max())
             top_x = float(np.mean(outline[outline[:, 1] > top_y - 1e-6, 0]))
-            ax.text(min(max(top_x, x0 + 0.1 * (x1 - x0)), x1 - 0.1 * (x1 - x0)), min(top_y, y1), placed.name,
-                    fontsize=8, color="#6b4f25", ha="center", va="top", zorder=2, clip_on=True)
+            ax.text(
+                min(max(top_x, x0 + 0.1 * (x1 - x0)), x1 - 0.1 * (x1 - x0)),
+                min(top_y, y1),
+                placed.name,
+                fontsize=8,
+                color="#6b4f25",
+                ha="center",
+                va="top",
+                zorder=2,
+                clip_on=True,
+            )
         ax.scatter([base_m[i]], [base_m[j]], s=160, color="#4a78c2", alpha=0.5, zorder=2)
         ax.text(base_m[i], base_m[j], " robot", fontsize=8, color="#2b4f8c", va="bottom", zorder=2)
         ax.plot(tcp[:, i], tcp[:, j], lw=1.6, color="#d62728", zorder=3, label="TCP")
@@ -121,8 +165,16 @@ def plot_tcp_path(path: Path, tcp_m: np.ndarray, fixtures: list, base_m: np.ndar
             ax.scatter([p[i]], [p[j]], s=12, color="#333333", zorder=4)
             xy = ax.transData.transform((p[i], p[j]))
             offset = free_offset(xy, label, placed_boxes, 7)
-            ax.annotate(label, (p[i], p[j]), xytext=offset, textcoords="offset pixels", fontsize=7,
-                        color="#222222", zorder=5, arrowprops={"arrowstyle": "-", "color": "#999999", "lw": 0.5})
+            ax.annotate(
+                label,
+                (p[i], p[j]),
+                xytext=offset,
+                textcoords="offset pixels",
+                fontsize=7,
+                color="#222222",
+                zorder=5,
+                arrowprops={"arrowstyle": "-", "color": "#999999", "lw": 0.5},
+            )
         ax.set_xlabel(f"{'xyz'[i]} [m]")
         ax.set_ylabel(f"{'xyz'[j]} [m]")
         ax.set_title(name, fontsize=10)
@@ -134,7 +186,18 @@ def plot_tcp_path(path: Path, tcp_m: np.ndarray, fixtures: list, base_m: np.ndar
 
 
 #: label offsets tried (pixels, right/up), nearest first
-_OFFSETS = [(8, 8), (8, -16), (-8, 8), (-8, -16), (8, 24), (8, -32), (-8, 24), (-8, -32), (8, 40), (8, -48)]
+_OFFSETS = [
+    (8, 8),
+    (8, -16),
+    (-8, 8),
+    (-8, -16),
+    (8, 24),
+    (8, -32),
+    (-8, 24),
+    (-8, -32),
+    (8, 40),
+    (8, -48),
+]
 
 
 def free_offset(xy_px, label: str, placed: list, font_pt: float) -> tuple[float, float]:
@@ -169,7 +232,10 @@ def _frame_axes(ax: Any, pts: np.ndarray, pad_m: float = 0.12) -> None:
 
 # -- against time ----------------------------------------------------------------------------------
 
-def step_spans(marks: list[tuple[float, int, str, str]], t_end_s: float) -> list[tuple[float, float, int, str]]:
+
+def step_spans(
+    marks: list[tuple[float, int, str, str]], t_end_s: float
+) -> list[tuple[float, float, int, str]]:
     """(start s, end s, index, kind) of each step from its start marks."""
     spans = []
     for k, (t, index, kind, _name) in enumerate(marks):
@@ -183,7 +249,9 @@ def draw_steps_lane(ax: Any, marks: list, t_end_s: float) -> None:
     alternating between two rows so that short steps' labels never overlap."""
     for k, (t0, t1, index, kind) in enumerate(step_spans(marks, t_end_s)):
         row = k % 2
-        ax.barh(row, t1 - t0, left=t0, height=0.8, color=KIND_COLOURS.get(kind, "#dddddd"), ec="white")
+        ax.barh(
+            row, t1 - t0, left=t0, height=0.8, color=KIND_COLOURS.get(kind, "#dddddd"), ec="white"
+        )
         text = f"{index} {kind}" if (t1 - t0) > 0.06 * t_end_s else str(index)
         ax.text((t0 + t1) / 2, row, text, ha="center", va="center", fontsize=7, clip_on=True)
     ax.set_ylim(-0.5, 1.5)
@@ -192,21 +260,33 @@ def draw_steps_lane(ax: Any, marks: list, t_end_s: float) -> None:
     ax.set_xlim(0, t_end_s)
 
 
-def plot_joints(path: Path, t_s: np.ndarray, q_rad: np.ndarray, qd_rad_s: np.ndarray, q_cmd_rad: np.ndarray,
-                marks: list, title: str) -> Path:
+def plot_joints(
+    path: Path,
+    t_s: np.ndarray,
+    q_rad: np.ndarray,
+    qd_rad_s: np.ndarray,
+    q_cmd_rad: np.ndarray,
+    marks: list,
+    title: str,
+) -> Path:
     """Joint positions (deg; commanded dashed) and speeds (deg/s) under the steps lane."""
     fig = figure(12, 8)
     lane, ax_q, ax_qd = fig.subplots(3, 1, sharex=True, gridspec_kw={"height_ratios": [0.6, 3, 2]})
     draw_steps_lane(lane, marks, float(t_s[-1]))
     for j in range(6):
-        line, = ax_q.plot(t_s, np.degrees(q_rad[:, j]), lw=1.3, label=f"q{j + 1}")
+        (line,) = ax_q.plot(t_s, np.degrees(q_rad[:, j]), lw=1.3, label=f"q{j + 1}")
         ax_q.plot(t_s, np.degrees(q_cmd_rad[:, j]), lw=0.8, ls="--", color=line.get_color())
         ax_qd.plot(t_s, np.degrees(qd_rad_s[:, j]), lw=1.1, color=line.get_color())
     ax_q.set_ylabel("position [deg]")
     ax_qd.set_ylabel("speed [deg/s]")
     ax_qd.set_xlabel("time [s]")
-    ax_q.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.005, 1.0), title="measured\n(commanded --)",
-                title_fontsize=7)
+    ax_q.legend(
+        fontsize=8,
+        loc="upper left",
+        bbox_to_anchor=(1.005, 1.0),
+        title="measured\n(commanded --)",
+        title_fontsize=7,
+    )
     for ax in (ax_q, ax_qd):
         ax.grid(alpha=0.3)
         for t0, *_ in marks:
@@ -216,8 +296,15 @@ def plot_joints(path: Path, t_s: np.ndarray, q_rad: np.ndarray, qd_rad_s: np.nda
     return save(fig, path)
 
 
-def plot_timelines(path: Path, t_s: np.ndarray, force_N: np.ndarray, io: dict[str, np.ndarray], marks: list,
-                   title: str, force_window_N: tuple[float | None, float | None] | None = None) -> Path:
+def plot_timelines(
+    path: Path,
+    t_s: np.ndarray,
+    force_N: np.ndarray,
+    io: dict[str, np.ndarray],
+    marks: list,
+    title: str,
+    force_window_N: tuple[float | None, float | None] | None = None,
+) -> Path:
     """Wrist force magnitude (N) and one lane per IO signal (outputs and inputs) under
     the steps lane; ``force_window_N``: the grip's (min, max) shaded."""
     names = list(io)
@@ -232,7 +319,14 @@ def plot_timelines(path: Path, t_s: np.ndarray, force_N: np.ndarray, io: dict[st
         for bound, what in zip(force_window_N, ("min", "max")):
             if bound is not None:
                 ax_f.axhline(bound, color="#9467bd", ls=":", lw=1.0)
-                ax_f.text(t_end, bound, f" grip {what} {bound:g} N", fontsize=7, va="center", color="#6b3fa0")
+                ax_f.text(
+                    t_end,
+                    bound,
+                    f" grip {what} {bound:g} N",
+                    fontsize=7,
+                    va="center",
+                    color="#6b3fa0",
+                )
     ax_f.set_ylabel("wrist force [N]")
     ax_f.grid(alpha=0.3)
     for ax, name in zip(lanes, names):
@@ -251,7 +345,9 @@ def plot_timelines(path: Path, t_s: np.ndarray, force_N: np.ndarray, io: dict[st
     return save(fig, path)
 
 
-def plot_slot_cycles(path: Path, cycles: list[tuple[int, float | None]], param: str, title: str) -> Path:
+def plot_slot_cycles(
+    path: Path, cycles: list[tuple[int, float | None]], param: str, title: str
+) -> Path:
     """Planned cycle time per slot (s), the worst slot in red, infeasible slots marked."""
     fig = figure(9, 3.6)
     ax = fig.subplots()
@@ -259,14 +355,26 @@ def plot_slot_cycles(path: Path, cycles: list[tuple[int, float | None]], param: 
     worst = max(feasible, key=lambda sc: sc[1])[0] if feasible else None
     for slot, cycle in cycles:
         if cycle is None:  # at the foot of the axis, whatever its range
-            ax.text(slot, 0.03, "infeasible", ha="center", va="bottom", color="red", fontsize=8, rotation=90,
-                    transform=ax.get_xaxis_transform())
+            ax.text(
+                slot,
+                0.03,
+                "infeasible",
+                ha="center",
+                va="bottom",
+                color="red",
+                fontsize=8,
+                rotation=90,
+                transform=ax.get_xaxis_transform(),
+            )
             continue
         ax.bar(slot, cycle, color="#d62728" if slot == worst else "#7f9fcf")
         ax.text(slot, cycle, f"{cycle:.2f}", ha="center", va="bottom", fontsize=7)
     if feasible:  # the differences between slots matter here, not the bars' full height
         low, high = min(c for _, c in feasible), max(c for _, c in feasible)
-        ax.set_ylim(max(0.0, low - max(0.5 * (high - low), 0.05 * low)), high + max(0.25 * (high - low), 0.01 * high))
+        ax.set_ylim(
+            max(0.0, low - max(0.5 * (high - low), 0.05 * low)),
+            high + max(0.25 * (high - low), 0.01 * high),
+        )
     ax.set_xlabel(param)
     ax.set_ylabel("planned cycle [s] (axis not from 0)" if feasible else "planned cycle [s]")
     ax.set_xticks([s for s, _ in cycles])
@@ -276,8 +384,9 @@ def plot_slot_cycles(path: Path, cycles: list[tuple[int, float | None]], param: 
     return save(fig, path)
 
 
-def plot_wrist_force(path: Path, trace: list[tuple[float, int, float]], limits_N: dict[int, float],
-                     title: str = "") -> Path:
+def plot_wrist_force(
+    path: Path, trace: list[tuple[float, int, float]], limits_N: dict[int, float], title: str = ""
+) -> Path:
     """The wrist force rise (N, above the step's standing baseline) against time (s) during
     the force steps (move_until_contact, insert), one line per step, its stop limit dashed."""
     fig = figure(8, 4)
@@ -286,7 +395,7 @@ def plot_wrist_force(path: Path, trace: list[tuple[float, int, float]], limits_N
     t0 = data[0, 0]
     for index in sorted({int(i) for i in data[:, 1]}):
         rows = data[data[:, 1] == index]
-        line, = ax.plot(rows[:, 0] - t0, rows[:, 2], lw=1.5, label=f"step {index}")
+        (line,) = ax.plot(rows[:, 0] - t0, rows[:, 2], lw=1.5, label=f"step {index}")
         if index in limits_N:
             ax.axhline(limits_N[index], ls="--", lw=1.0, color=line.get_color())
     ax.set_xlabel("t [s]")

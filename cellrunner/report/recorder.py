@@ -41,19 +41,28 @@ class RunRecorder:
         """Is a sample due at ``time_s`` (s)? (``SAMPLE_HZ`` samples per simulated second)"""
         return time_s >= self._next_s
 
-    def sample(self, state, q_cmd_rad: np.ndarray | None, p_world_tcp_m: np.ndarray,
-               io_names: dict[str, str]) -> None:
+    def sample(
+        self,
+        state,
+        q_cmd_rad: np.ndarray | None,
+        p_world_tcp_m: np.ndarray,
+        io_names: dict[str, str],
+    ) -> None:
         """Keep ``state`` (a RobotState); ``io_names``: IO name -> channel."""
         self._next_s = state.time_s + 1.0 / SAMPLE_HZ
         self.t.append(state.time_s)
         self.q.append(state.q_rad.copy())
         self.qd.append(state.qd_rad_s.copy())
-        self.q_cmd.append(state.q_rad.copy() if q_cmd_rad is None else np.asarray(q_cmd_rad, float).copy())
+        self.q_cmd.append(
+            state.q_rad.copy() if q_cmd_rad is None else np.asarray(q_cmd_rad, float).copy()
+        )
         self.tcp.append(np.asarray(p_world_tcp_m, float).copy())
         self.force_N.append(float(np.linalg.norm(state.wrench_N[:3])))
         values = {**state.outputs, **state.inputs}
         for name, channel in io_names.items():
-            self.io.setdefault(f"{name} ({channel})", []).append(float(values.get(channel, values.get(name, 0.0)) or 0.0))
+            self.io.setdefault(f"{name} ({channel})", []).append(
+                float(values.get(channel, values.get(name, 0.0)) or 0.0)
+            )
 
     @property
     def t0(self) -> float:
@@ -61,8 +70,14 @@ class RunRecorder:
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The samples as arrays, time from the first sample."""
-        return {"t": np.array(self.t) - self.t0, "q": np.array(self.q), "qd": np.array(self.qd),
-                "q_cmd": np.array(self.q_cmd), "tcp": np.array(self.tcp), "force": np.array(self.force_N)}
+        return {
+            "t": np.array(self.t) - self.t0,
+            "q": np.array(self.q),
+            "qd": np.array(self.qd),
+            "q_cmd": np.array(self.q_cmd),
+            "tcp": np.array(self.tcp),
+            "force": np.array(self.force_N),
+        }
 
     def step_marks(self) -> list[tuple[float, int, str, str]]:
         """Marks with time from the first sample."""

@@ -31,8 +31,14 @@ def slot_cycles(world, task, params: dict) -> tuple[str, list[SlotCycle]] | None
     for slot in slots:
         plan = plan_cached(world, task, {**params, name: slot}, world.q_home_rad)
         steps = {r.step.index: r.duration_s for r in plan.rows}
-        rows.append(SlotCycle(slot, plan.cycle_time_s if plan.ok else None, steps,
-                              plan.errors[0] if plan.errors else ""))
+        rows.append(
+            SlotCycle(
+                slot,
+                plan.cycle_time_s if plan.ok else None,
+                steps,
+                plan.errors[0] if plan.errors else "",
+            )
+        )
     return name, rows
 
 

@@ -48,8 +48,14 @@ def camera_axes(view: CameraView) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     return head, forward, up, right
 
 
-def project(points_m: np.ndarray, view: CameraView, width: int, height: int, fovy_deg: float,
-            ortho_height_m: float | None = None) -> np.ndarray:
+def project(
+    points_m: np.ndarray,
+    view: CameraView,
+    width: int,
+    height: int,
+    fovy_deg: float,
+    ortho_height_m: float | None = None,
+) -> np.ndarray:
     """Pixel (u right, v down) of each world point; NaN behind the camera."""
     head, forward, up, right = camera_axes(view)
     d = np.atleast_2d(points_m) - head
@@ -90,7 +96,9 @@ def _segment_hits_box(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarr
     return True
 
 
-def occluders(view: CameraView, work_m: np.ndarray, fixtures: list, stop_short_m: float = 0.03) -> dict[str, int]:
+def occluders(
+    view: CameraView, work_m: np.ndarray, fixtures: list, stop_short_m: float = 0.03
+) -> dict[str, int]:
     """Fixtures between the camera and the work points: name -> how many points each
     hides (the segment to a point stops ``stop_short_m`` before it, so the surface a
     part rests on does not count)."""
@@ -107,8 +115,9 @@ def occluders(view: CameraView, work_m: np.ndarray, fixtures: list, stop_short_m
     return hidden
 
 
-def choose_shots(work_m: np.ndarray, base_m: np.ndarray, reach_m: float, fixtures: list,
-                 fovy_deg: float) -> list[Shot]:
+def choose_shots(
+    work_m: np.ndarray, base_m: np.ndarray, reach_m: float, fixtures: list, fovy_deg: float
+) -> list[Shot]:
     """The top view and the 3/4 view (the azimuth that hides the fewest work points),
     both framed on the work and the robot's base."""
     pts = np.vstack([work_m, base_m[None, :], base_m[None, :] + [0, 0, 0.6 * reach_m]])
@@ -117,10 +126,16 @@ def choose_shots(work_m: np.ndarray, base_m: np.ndarray, reach_m: float, fixture
     tan_half = math.tan(math.radians(fovy_deg) / 2)
     radius = max(float(np.linalg.norm(hi - lo)) / 2, 0.3)
     fit_m = radius / tan_half * 1.05
-    half_m = max(float(hi[0] - lo[0]) * 0.75, float(hi[1] - lo[1])) / 2 + 0.1  # 4:3 picture, 10 cm margins
+    half_m = (
+        max(float(hi[0] - lo[0]) * 0.75, float(hi[1] - lo[1])) / 2 + 0.1
+    )  # 4:3 picture, 10 cm margins
     # perspective: the lowest work fits the picture, higher work looks a little larger
-    top = CameraView((centre[0], centre[1], float(lo[2])), half_m / tan_half + float(hi[2] - lo[2]),
-                     90.0, TOP_ELEVATION_DEG)
+    top = CameraView(
+        (centre[0], centre[1], float(lo[2])),
+        half_m / tan_half + float(hi[2] - lo[2]),
+        90.0,
+        TOP_ELEVATION_DEG,
+    )
     sample = work_m[:: max(1, len(work_m) // 80)]
     best = None
     for az in AZIMUTHS_DEG:
@@ -131,11 +146,22 @@ def choose_shots(work_m: np.ndarray, base_m: np.ndarray, reach_m: float, fixture
             best = (score, view, hidden)
     _, side, hidden = best
     top_hidden = occluders(top, sample, fixtures)
-    return [Shot("top", top, tuple(sorted(top_hidden))), Shot("three_quarter", side, tuple(sorted(hidden)))]
+    return [
+        Shot("top", top, tuple(sorted(top_hidden))),
+        Shot("three_quarter", side, tuple(sorted(hidden))),
+    ]
 
 
-def render_shot(sim_world, shot: Shot, path: Path, tcp_m: np.ndarray, step_points: list[tuple[str, np.ndarray]],
-                caption: str, width: int = 1000, height: int = 750) -> Path:
+def render_shot(
+    sim_world,
+    shot: Shot,
+    path: Path,
+    tcp_m: np.ndarray,
+    step_points: list[tuple[str, np.ndarray]],
+    caption: str,
+    width: int = 1000,
+    height: int = 750,
+) -> Path:
     """Render ``shot`` of the scene as it stands, occluders see-through, with the TCP path
     and step labels drawn over it; writes a PNG."""
     model = sim_world.model
@@ -167,15 +193,24 @@ def render_shot(sim_world, shot: Shot, path: Path, tcp_m: np.ndarray, step_point
     ax.set_ylim(height, 0)
     boxes: list = []
     for label, p in merged_labels(step_points):
-        (u, v), = project(np.asarray(p, float)[None, :], shot.view, width, height, fovy, shot.ortho_height_m)
+        ((u, v),) = project(
+            np.asarray(p, float)[None, :], shot.view, width, height, fovy, shot.ortho_height_m
+        )
         if not (0 <= u < width and 0 <= v < height):
             continue
         ax.scatter([u], [v], s=14, color="black", zorder=3)
         offset = free_offset(ax.transData.transform((u, v)), label, boxes, 8)
-        ax.annotate(label, (u, v), xytext=offset, textcoords="offset pixels", fontsize=8,
-                    color="black", zorder=4, bbox={"boxstyle": "round,pad=0.2", "fc": "white", "alpha": 0.8,
-                                                    "lw": 0},
-                    arrowprops={"arrowstyle": "-", "color": "#555555", "lw": 0.6})
+        ax.annotate(
+            label,
+            (u, v),
+            xytext=offset,
+            textcoords="offset pixels",
+            fontsize=8,
+            color="black",
+            zorder=4,
+            bbox={"boxstyle": "round,pad=0.2", "fc": "white", "alpha": 0.8, "lw": 0},
+            arrowprops={"arrowstyle": "-", "color": "#555555", "lw": 0.6},
+        )
     ax.set_xlim(0, width)
     ax.set_ylim(height, 0)
     ax.set_axis_off()

@@ -18,8 +18,17 @@ PLOT_FILES = ("tcp_path.png", "joints.png", "timelines.png", "slots.png")
 NO_PICTURES = "NO_PICTURES.txt"
 
 
-def write_report(folder: Path, recorder: RunRecorder, payload: dict, *, sim_world, world, task, params: dict,
-                 step_rows: list[dict]) -> bool:
+def write_report(
+    folder: Path,
+    recorder: RunRecorder,
+    payload: dict,
+    *,
+    sim_world,
+    world,
+    task,
+    params: dict,
+    step_rows: list[dict],
+) -> bool:
     """Write the report of one dry-run into ``folder``; returns whether it holds rendered
     pictures. ``sim_world``: the twin's SimWorld as the run left it; ``world``: the
     planning CellWorld; ``step_rows``: the --json step rows of the run."""
@@ -36,22 +45,43 @@ def write_report(folder: Path, recorder: RunRecorder, payload: dict, *, sim_worl
         step_points = _step_points(a, marks)
         fixtures = world.loaded.fixture_shapes()
         base = world.kinematics.T_world_base[:3, 3]
-        plots.plot_tcp_path(folder / "tcp_path.png", a["tcp"], fixtures, base, step_points, f"{title}: TCP path")
-        plots.plot_joints(folder / "joints.png", a["t"], a["q"], a["qd"], a["q_cmd"], marks, f"{title}: joints")
+        plots.plot_tcp_path(
+            folder / "tcp_path.png", a["tcp"], fixtures, base, step_points, f"{title}: TCP path"
+        )
+        plots.plot_joints(
+            folder / "joints.png", a["t"], a["q"], a["qd"], a["q_cmd"], marks, f"{title}: joints"
+        )
         io = {name: np.array(values) for name, values in recorder.io.items()}
-        plots.plot_timelines(folder / "timelines.png", a["t"], a["force"], io, marks,
-                             f"{title}: wrist force and IO", _force_window(task))
-        plot_list += [("tcp_path.png", "TCP path over the fixtures: top, side and front; steps labelled where they start"),
-                      ("timelines.png", "wrist force magnitude and every IO signal against time"),
-                      ("joints.png", "joint positions (commanded dashed) and speeds")]
+        plots.plot_timelines(
+            folder / "timelines.png",
+            a["t"],
+            a["force"],
+            io,
+            marks,
+            f"{title}: wrist force and IO",
+            _force_window(task),
+        )
+        plot_list += [
+            (
+                "tcp_path.png",
+                "TCP path over the fixtures: top, side and front; steps labelled where they start",
+            ),
+            ("timelines.png", "wrist force magnitude and every IO signal against time"),
+            ("joints.png", "joint positions (commanded dashed) and speeds"),
+        ]
     if slots is not None:
         name, slot_rows = slots
-        plots.plot_slot_cycles(folder / "slots.png", [(r.slot, r.cycle_s) for r in slot_rows], name,
-                               f"{title}: planned cycle per {name} (worst in red)")
+        plots.plot_slot_cycles(
+            folder / "slots.png",
+            [(r.slot, r.cycle_s) for r in slot_rows],
+            name,
+            f"{title}: planned cycle per {name} (worst in red)",
+        )
         plot_list.append(("slots.png", f"planned cycle time per {name}"))
         _write_slots_csv(folder / "slots.csv", name, slot_rows)
     views, notes = _render_views(folder, recorder, sim_world, world, step_points)
     from cellrunner.report.page import write_index
+
     write_index(folder, payload, rows, views, plot_list, slots, notes)
     (folder / NO_PICTURES).unlink(missing_ok=True)
     if not views:
@@ -98,8 +128,9 @@ def _write_slots_csv(path: Path, name: str, rows) -> None:
             w.writerow([r.slot, "" if r.cycle_s is None else f"{r.cycle_s:.4f}", r.error])
 
 
-def _render_views(folder: Path, recorder: RunRecorder, sim_world, world,
-                  step_points: list) -> tuple[list[tuple[str, str]], list[str]]:
+def _render_views(
+    folder: Path, recorder: RunRecorder, sim_world, world, step_points: list
+) -> tuple[list[tuple[str, str]], list[str]]:
     """Top and 3/4 views at the end, and the 3/4 view at the recorded moments (grip,
     release); returns (file, caption) pairs and notes (why there are none)."""
     from cellrunner.backends.sim.render import RenderUnavailable
@@ -114,16 +145,36 @@ def _render_views(folder: Path, recorder: RunRecorder, sim_world, world,
     top, side = choose_shots(tcp, base, world.spec.reach_m, fixtures, fovy)
     out: list[tuple[str, str]] = []
     try:
-        render_shot(sim_world, top, folder / "top.png", tcp, step_points, "top view at the end (x to the right, y up; TCP path in red)")
+        render_shot(
+            sim_world,
+            top,
+            folder / "top.png",
+            tcp,
+            step_points,
+            "top view at the end (x to the right, y up; TCP path in red)",
+        )
         out.append(("top.png", "from above: the TCP path and where each step starts"))
-        render_shot(sim_world, side, folder / "end.png", tcp, step_points,
-                    f"3/4 view at the end (azimuth {side.view.azimuth_deg:.0f} deg)")
+        render_shot(
+            sim_world,
+            side,
+            folder / "end.png",
+            tcp,
+            step_points,
+            f"3/4 view at the end (azimuth {side.view.azimuth_deg:.0f} deg)",
+        )
         out.append(("end.png", "3/4 view, chosen where fixtures hide the least of the work"))
         final_q = sim_world.data.qpos.copy()
         try:
             for name, qpos in recorder.moments:
                 _pose(sim_world, qpos)
-                render_shot(sim_world, side, folder / f"{name}.png", tcp, step_points, name.replace("_", " "))
+                render_shot(
+                    sim_world,
+                    side,
+                    folder / f"{name}.png",
+                    tcp,
+                    step_points,
+                    name.replace("_", " "),
+                )
                 out.append((f"{name}.png", name.replace("_", " ")))
         finally:
             _pose(sim_world, final_q)

@@ -13,8 +13,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m cellrunner.twin", description=__doc__)
     parser.add_argument("model", choices=sorted(ROBOTS))
     parser.add_argument("--host", default="127.0.0.2")
-    parser.add_argument("--unlock-delay", type=float, default=5.0, help="protective stop unlock delay, s")
-    parser.add_argument("--power-off", action="store_true", help="start powered off, brakes engaged")
+    parser.add_argument(
+        "--unlock-delay", type=float, default=5.0, help="protective stop unlock delay, s"
+    )
+    parser.add_argument(
+        "--power-off", action="store_true", help="start powered off, brakes engaged"
+    )
     args = parser.parse_args(argv)
 
     from cellrunner.twin.server import run_twin

@@ -29,7 +29,12 @@ import numpy as np
 
 from cellrunner.model.robots import RobotSpec
 from cellrunner.twin import motion as mo
-from cellrunner.twin.kinematics import Kinematics, matrix_to_pose, matrix_to_rotvec, rotvec_to_matrix
+from cellrunner.twin.kinematics import (
+    Kinematics,
+    matrix_to_pose,
+    matrix_to_rotvec,
+    rotvec_to_matrix,
+)
 from cellrunner.twin.physics import KinematicPhysics, Measurement, Physics
 
 
@@ -163,7 +168,9 @@ class Controller:
         self.programs_started = 0
         self.motion: Any = None
         self.speed_slider = 1.0
-        self.servo_record: list[tuple[float, ...]] | None = None  # (time_s, q1..q6 rad) per servoJ package
+        self.servo_record: list[tuple[float, ...]] | None = (
+            None  # (time_s, q1..q6 rad) per servoJ package
+        )
         # IO image
         self.standard_do = 0  # DO0-7
         self.configurable_do = 0  # CO0-7
@@ -211,7 +218,12 @@ class Controller:
 
     @property
     def robot_status_bits(self) -> int:
-        powered = self.robot_mode in (RobotMode.POWER_ON, RobotMode.IDLE, RobotMode.RUNNING, RobotMode.BACKDRIVE)
+        powered = self.robot_mode in (
+            RobotMode.POWER_ON,
+            RobotMode.IDLE,
+            RobotMode.RUNNING,
+            RobotMode.BACKDRIVE,
+        )
         running = self.runtime_state == RuntimeState.PLAYING
         return int(powered) | int(running) << 1
 
@@ -240,7 +252,9 @@ class Controller:
         return 239
 
     def seconds_since_protective_stop(self) -> float | None:
-        return None if self.protective_stop_time is None else self.time_s - self.protective_stop_time
+        return (
+            None if self.protective_stop_time is None else self.time_s - self.protective_stop_time
+        )
 
     def add_log(self, text: str) -> None:
         self.log.append(f"{self.time_s:10.3f} {text}")
@@ -293,7 +307,9 @@ class Controller:
 
     def press_estop(self, system: bool = False) -> None:
         self.estop_pressed = True
-        self.safety_mode = SafetyMode.SYSTEM_EMERGENCY_STOP if system else SafetyMode.ROBOT_EMERGENCY_STOP
+        self.safety_mode = (
+            SafetyMode.SYSTEM_EMERGENCY_STOP if system else SafetyMode.ROBOT_EMERGENCY_STOP
+        )
         self.add_log("emergency stop pressed")
         self._halt_program("emergency stop")
         self.motion = None
@@ -388,7 +404,9 @@ class Controller:
             self.reg.input_double[int(index)] = float(value)
         elif kind == "input_bit_register":
             bit = int(index)
-            self.reg.input_bits = self.reg.input_bits | (1 << bit) if value else self.reg.input_bits & ~(1 << bit)
+            self.reg.input_bits = (
+                self.reg.input_bits | (1 << bit) if value else self.reg.input_bits & ~(1 << bit)
+            )
         elif name == "input_bit_registers0_to_31":
             self.reg.input_bits = self.reg.input_bits & ~0xFFFFFFFF | int(value)
         elif name == "input_bit_registers32_to_63":
@@ -399,13 +417,18 @@ class Controller:
     def apply_io_package(self, fields: dict[str, Any]) -> None:
         """Masks and values of one RTDE input package (standard/configurable/tool IO...)."""
         if "standard_digital_output_mask" in fields:
-            self.set_standard_outputs(fields["standard_digital_output_mask"], fields.get("standard_digital_output", 0))
+            self.set_standard_outputs(
+                fields["standard_digital_output_mask"], fields.get("standard_digital_output", 0)
+            )
         if "configurable_digital_output_mask" in fields:
             self.set_configurable_outputs(
-                fields["configurable_digital_output_mask"], fields.get("configurable_digital_output", 0)
+                fields["configurable_digital_output_mask"],
+                fields.get("configurable_digital_output", 0),
             )
         if "tool_digital_output_mask" in fields:
-            self.set_tool_outputs(fields["tool_digital_output_mask"], fields.get("tool_digital_output", 0))
+            self.set_tool_outputs(
+                fields["tool_digital_output_mask"], fields.get("tool_digital_output", 0)
+            )
         if fields.get("speed_slider_mask", 0) & 1:
             self.speed_slider = min(1.0, max(0.0, float(fields.get("speed_slider_fraction", 1.0))))
         mask = fields.get("standard_analog_output_mask", 0)
@@ -443,7 +466,9 @@ class Controller:
 
     def is_steady(self) -> bool:
         """At rest: measured and commanded joint speeds (almost) zero."""
-        return bool(np.max(np.abs(self.meas.qd_rad_s)) < 1e-4 and np.max(np.abs(self.target_qd)) < 1e-4)
+        return bool(
+            np.max(np.abs(self.meas.qd_rad_s)) < 1e-4 and np.max(np.abs(self.target_qd)) < 1e-4
+        )
 
     def tool_contact(self, threshold_N: float = 10.0) -> bool:
         """The zeroed TCP force exceeds ``threshold_N`` (what ``tool_contact`` reports)."""

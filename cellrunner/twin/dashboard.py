@@ -116,7 +116,9 @@ def handle(ctl: Controller, line: str) -> tuple[str, bool]:
         ctl.loaded_program = name
         return f"Loading program: {name}", False
     if cmd == "get loaded program":
-        return (f"Loaded program: {ctl.loaded_program}" if ctl.loaded_program else "No program loaded"), False
+        return (
+            f"Loaded program: {ctl.loaded_program}" if ctl.loaded_program else "No program loaded"
+        ), False
     if cmd == "isprogramsaved":
         return f"true {ctl.loaded_program}".rstrip(), False
     if cmd.startswith("addtolog "):

@@ -29,7 +29,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cellrunner.twin.kinematics import Kinematics, matrix_to_rotvec, pose_to_matrix, rotvec_to_matrix
+from cellrunner.twin.kinematics import (
+    Kinematics,
+    matrix_to_rotvec,
+    pose_to_matrix,
+    rotvec_to_matrix,
+)
 
 
 class MotionError(Exception):
@@ -145,7 +150,11 @@ class _Scheduled:
     @property
     def segment_index(self) -> int:
         """Index of the latest segment that has started (for async progress)."""
-        return max(i for i, s in enumerate(self._segments) if s.start_s <= self.t_s) if self._segments else 0
+        return (
+            max(i for i, s in enumerate(self._segments) if s.start_s <= self.t_s)
+            if self._segments
+            else 0
+        )
 
 
 @dataclass
@@ -155,7 +164,9 @@ class JointPath(_Scheduled):
     _deltas: list[np.ndarray] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        points = [np.asarray(self.q_start, float)] + [np.asarray(w[0], float) for w in self.waypoints]
+        points = [np.asarray(self.q_start, float)] + [
+            np.asarray(w[0], float) for w in self.waypoints
+        ]
         profiles, blends_rad = [], []
         for k, (q, v, a, r) in enumerate(self.waypoints):
             delta = points[k + 1] - points[k]
@@ -165,15 +176,22 @@ class JointPath(_Scheduled):
             v_eff = v * self.speed_scale
             moving = np.abs(delta) > 1e-12
             if distance > 0 and np.any(moving):
-                v_eff = min(v_eff, float(np.min(self.qd_max[moving] * distance / np.abs(delta[moving]))))
-            profiles.append(Trapezoid(distance, max(v_eff, 1e-9), max(a * self.speed_scale**2, 1e-9)))
+                v_eff = min(
+                    v_eff, float(np.min(self.qd_max[moving] * distance / np.abs(delta[moving])))
+                )
+            profiles.append(
+                Trapezoid(distance, max(v_eff, 1e-9), max(a * self.speed_scale**2, 1e-9))
+            )
             tcp_m = float(
                 np.linalg.norm(
-                    self.kinematics.tcp(points[k + 1])[:3, 3] - self.kinematics.tcp(points[k])[:3, 3]
+                    self.kinematics.tcp(points[k + 1])[:3, 3]
+                    - self.kinematics.tcp(points[k])[:3, 3]
                 )
             )
             blends_rad.append(r * distance / tcp_m if tcp_m > 1e-9 and r > 0 else 0.0)
-        overlaps = [_overlap(profiles[k], profiles[k + 1], blends_rad[k]) for k in range(len(profiles) - 1)]
+        overlaps = [
+            _overlap(profiles[k], profiles[k + 1], blends_rad[k]) for k in range(len(profiles) - 1)
+        ]
         self._segments = _schedule(profiles, overlaps)
 
     def _q_at(self, t: float) -> np.ndarray:
@@ -183,7 +201,9 @@ class JointPath(_Scheduled):
                 q = q + delta * (seg.profile.position(t - seg.start_s) / seg.profile.distance)
         return q
 
-    def advance(self, q: np.ndarray, qd: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    def advance(
+        self, q: np.ndarray, qd: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, bool]:
         self.t_s += dt
         q_new = self._q_at(self.t_s)
         return q_new, (q_new - q) / dt, self.t_s >= self.duration_s
@@ -211,10 +231,14 @@ class LinearPath(_Scheduled):
             # the orientation change uses the same numbers as rad/s and rad/s^2; the
             # slower of the two profiles sets the pace of the segment
             by_position, by_rotation = Trapezoid(lin, v_eff, a_eff), Trapezoid(ang, v_eff, a_eff)
-            profiles.append(by_position if by_position.duration >= by_rotation.duration else by_rotation)
+            profiles.append(
+                by_position if by_position.duration >= by_rotation.duration else by_rotation
+            )
             blends.append(r if by_position.duration >= by_rotation.duration else 0.0)
             p_prev, R_prev = T[:3, 3], T[:3, :3]
-        overlaps = [_overlap(profiles[k], profiles[k + 1], blends[k]) for k in range(len(profiles) - 1)]
+        overlaps = [
+            _overlap(profiles[k], profiles[k + 1], blends[k]) for k in range(len(profiles) - 1)
+        ]
         self._segments = _schedule(profiles, overlaps)
 
     def _pose_at(self, t: float) -> np.ndarray:
@@ -228,7 +252,9 @@ class LinearPath(_Scheduled):
         T[:3, :3], T[:3, 3] = R, p
         return T
 
-    def advance(self, q: np.ndarray, qd: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    def advance(
+        self, q: np.ndarray, qd: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, bool]:
         self.t_s += dt
         q_new = self.kinematics.inverse(self._pose_at(self.t_s), q, iterations=20)
         if q_new is None:
@@ -250,7 +276,9 @@ class Stop:
 
     decel: float
 
-    def advance(self, q: np.ndarray, qd: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    def advance(
+        self, q: np.ndarray, qd: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, bool]:
         peak = float(np.max(np.abs(qd)))
         if peak <= self.decel * dt or peak == 0.0:
             return q, np.zeros(6), True
@@ -271,7 +299,9 @@ class Servo:
     gain: float = 300.0
     _age_s: float = 0.0
 
-    def set_target(self, q_rad: np.ndarray, period_s: float, lookahead_s: float, gain: float) -> None:
+    def set_target(
+        self, q_rad: np.ndarray, period_s: float, lookahead_s: float, gain: float
+    ) -> None:
         q_rad = np.asarray(q_rad, dtype=float)
         period_s = max(period_s, 1e-3)
         if self.target is not None and np.array_equal(q_rad, self.target):
@@ -283,7 +313,9 @@ class Servo:
         self.target, self.period_s, self._age_s = q_rad, period_s, 0.0
         self.lookahead_s, self.gain = lookahead_s, gain
 
-    def advance(self, q: np.ndarray, qd: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    def advance(
+        self, q: np.ndarray, qd: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, bool]:
         if self.target is None:
             return q, np.zeros(6), False
         self._age_s += dt
@@ -307,7 +339,9 @@ class SpeedJ:
     accel: float
     qd_max: np.ndarray
 
-    def advance(self, q: np.ndarray, qd: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    def advance(
+        self, q: np.ndarray, qd: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, bool]:
         target = _clip_speed(np.asarray(self.qd_target, float), self.qd_max)
         dqd = target - qd
         peak = float(np.max(np.abs(dqd)))
@@ -327,7 +361,9 @@ class SpeedL:
     qd_max: np.ndarray
     xd: np.ndarray = field(default_factory=lambda: np.zeros(6))
 
-    def advance(self, q: np.ndarray, qd: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    def advance(
+        self, q: np.ndarray, qd: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, bool]:
         dxd = np.asarray(self.xd_target, float) - self.xd
         peak = float(np.max(np.abs(dxd)))
         if peak > self.accel * dt:
@@ -348,7 +384,9 @@ class UntilContact:
     decel: float = 3.0
     stop: Stop | None = None
 
-    def advance(self, q: np.ndarray, qd: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    def advance(
+        self, q: np.ndarray, qd: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, bool]:
         if self.stop is None and self.in_contact():
             self.stop = Stop(self.decel)
         if self.stop is not None:

@@ -18,7 +18,12 @@ _BIT_OF_PREFIX = {"D": 0, "C": 8, "T": 16}
 
 
 def _bit(channel: str) -> int | None:
-    if len(channel) < 3 or channel[0] not in _BIT_OF_PREFIX or channel[1] not in "IO" or not channel[2:].isdigit():
+    if (
+        len(channel) < 3
+        or channel[0] not in _BIT_OF_PREFIX
+        or channel[1] not in "IO"
+        or not channel[2:].isdigit()
+    ):
         return None
     return _BIT_OF_PREFIX[channel[0]] + int(channel[2:])
 
@@ -81,5 +86,10 @@ class MujocoPhysics:
             bit = _bit(channel)
             if bit is not None and value:
                 bits |= 1 << bit
-        return Measurement(q_rad=state.q_rad, qd_rad_s=state.qd_rad_s, wrench_flange=np.asarray(state.wrench_N),
-                           digital_inputs=bits, contact=self._contact)
+        return Measurement(
+            q_rad=state.q_rad,
+            qd_rad_s=state.qd_rad_s,
+            wrench_flange=np.asarray(state.wrench_N),
+            digital_inputs=bits,
+            contact=self._contact,
+        )

@@ -86,8 +86,12 @@ def _output_table() -> dict[str, OutputVar]:
         "target_speed_fraction": OutputVar("DOUBLE", lambda c: c.speed_slider),
         "actual_momentum": OutputVar("DOUBLE", lambda c: 0.0),
         "actual_main_voltage": OutputVar("DOUBLE", lambda c: 48.0),
-        "actual_robot_voltage": OutputVar("DOUBLE", lambda c: 48.0 if c.robot_status_bits & 1 else 0.0),
-        "actual_robot_current": OutputVar("DOUBLE", lambda c: 0.5 if c.robot_status_bits & 1 else 0.0),
+        "actual_robot_voltage": OutputVar(
+            "DOUBLE", lambda c: 48.0 if c.robot_status_bits & 1 else 0.0
+        ),
+        "actual_robot_current": OutputVar(
+            "DOUBLE", lambda c: 0.5 if c.robot_status_bits & 1 else 0.0
+        ),
         "actual_joint_voltage": OutputVar("VECTOR6D", lambda c: [48.0] * 6),
         "actual_digital_output_bits": OutputVar("UINT64", lambda c: c.digital_output_bits),
         "runtime_state": OutputVar("UINT32", lambda c: int(c.runtime_state)),
@@ -113,10 +117,16 @@ def _output_table() -> dict[str, OutputVar]:
         "tool_output_current": OutputVar("DOUBLE", lambda c: 0.0),
         "tool_temperature": OutputVar("DOUBLE", lambda c: 30.0),
         "tcp_force_scalar": OutputVar("DOUBLE", lambda c: float(np.linalg.norm(c.wrench[:3]))),
-        "output_bit_registers0_to_31": OutputVar("UINT32", lambda c: c.reg.output_bits & 0xFFFFFFFF),
-        "output_bit_registers32_to_63": OutputVar("UINT32", lambda c: c.reg.output_bits >> 32 & 0xFFFFFFFF),
+        "output_bit_registers0_to_31": OutputVar(
+            "UINT32", lambda c: c.reg.output_bits & 0xFFFFFFFF
+        ),
+        "output_bit_registers32_to_63": OutputVar(
+            "UINT32", lambda c: c.reg.output_bits >> 32 & 0xFFFFFFFF
+        ),
         "input_bit_registers0_to_31": OutputVar("UINT32", lambda c: c.reg.input_bits & 0xFFFFFFFF),
-        "input_bit_registers32_to_63": OutputVar("UINT32", lambda c: c.reg.input_bits >> 32 & 0xFFFFFFFF),
+        "input_bit_registers32_to_63": OutputVar(
+            "UINT32", lambda c: c.reg.input_bits >> 32 & 0xFFFFFFFF
+        ),
         "tool_output_mode": OutputVar("UINT8", lambda c: 0, (5, 3), None),
         "tool_digital_output0_mode": OutputVar("UINT8", lambda c: 1, (5, 3), None),
         "tool_digital_output1_mode": OutputVar("UINT8", lambda c: 1, (5, 3), None),
@@ -131,13 +141,23 @@ def _output_table() -> dict[str, OutputVar]:
     }
     for i in range(48):
         since = ((5, 3), (3, 9)) if i >= 24 else ((5, 0), (3, 4))
-        t[f"output_int_register_{i}"] = OutputVar("INT32", lambda c, i=i: c.reg.output_int[i], *since)
-        t[f"output_double_register_{i}"] = OutputVar("DOUBLE", lambda c, i=i: c.reg.output_double[i], *since)
+        t[f"output_int_register_{i}"] = OutputVar(
+            "INT32", lambda c, i=i: c.reg.output_int[i], *since
+        )
+        t[f"output_double_register_{i}"] = OutputVar(
+            "DOUBLE", lambda c, i=i: c.reg.output_double[i], *since
+        )
         t[f"input_int_register_{i}"] = OutputVar("INT32", lambda c, i=i: c.reg.input_int[i], *since)
-        t[f"input_double_register_{i}"] = OutputVar("DOUBLE", lambda c, i=i: c.reg.input_double[i], *since)
+        t[f"input_double_register_{i}"] = OutputVar(
+            "DOUBLE", lambda c, i=i: c.reg.input_double[i], *since
+        )
     for i in range(64, 128):
-        t[f"output_bit_register_{i}"] = OutputVar("BOOL", lambda c, i=i: bool(c.reg.output_bits >> i & 1))
-        t[f"input_bit_register_{i}"] = OutputVar("BOOL", lambda c, i=i: bool(c.reg.input_bits >> i & 1))
+        t[f"output_bit_register_{i}"] = OutputVar(
+            "BOOL", lambda c, i=i: bool(c.reg.output_bits >> i & 1)
+        )
+        t[f"input_bit_register_{i}"] = OutputVar(
+            "BOOL", lambda c, i=i: bool(c.reg.input_bits >> i & 1)
+        )
     return t
 
 
@@ -304,7 +324,9 @@ class RtdeSession:
         recipe_id = self._new_recipe_id("out")
         fmt = ">" + "".join(_FORMATS[t] for t in types)
         getters = [(OUTPUTS[n].get, t in _VECTOR) for n, t in zip(names, types)]
-        self.outputs.append(_OutputRecipe(recipe_id, getters, struct.Struct(fmt), frequency / self.ctl.spec.rate_hz))
+        self.outputs.append(
+            _OutputRecipe(recipe_id, getters, struct.Struct(fmt), frequency / self.ctl.spec.rate_hz)
+        )
         return self.message(O, struct.pack(">B", recipe_id) + ",".join(types).encode())
 
     def _setup_inputs(self, payload: bytes) -> bytes:
@@ -339,7 +361,13 @@ class RtdeSession:
         fields: dict[str, Any] = {}
         k = 0
         for name, type_ in zip(recipe.names, recipe.types):
-            width = 6 if type_ in ("VECTOR6D", "VECTOR6INT32", "VECTOR6UINT32") else 3 if type_ == "VECTOR3D" else 1
+            width = (
+                6
+                if type_ in ("VECTOR6D", "VECTOR6INT32", "VECTOR6UINT32")
+                else 3
+                if type_ == "VECTOR3D"
+                else 1
+            )
             fields[name] = values[k] if width == 1 else list(values[k : k + width])
             k += width
         with self.ctl.lock:

@@ -152,7 +152,9 @@ class Sequence:
     current: Any = None
     index: int = -1
 
-    def advance(self, q: np.ndarray, qd: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    def advance(
+        self, q: np.ndarray, qd: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, bool]:
         if self.current is None:
             self.index += 1
             self.current = self.factories[self.index](q)
@@ -167,7 +169,11 @@ class Sequence:
         if self.index < 0:
             return self.progress_of[0][0] if self.progress_of and self.progress_of[0] else 0
         group = self.progress_of[self.index]
-        seg = getattr(self.current, "segment_index", len(group) - 1) if self.current is not None else len(group) - 1
+        seg = (
+            getattr(self.current, "segment_index", len(group) - 1)
+            if self.current is not None
+            else len(group) - 1
+        )
         return group[min(seg, len(group) - 1)]
 
 
@@ -193,7 +199,9 @@ def _path_factory(ctl: Controller, group: list[PathEntry]) -> Callable[[np.ndarr
                 if e.is_pose:
                     q_ik = ctl.kinematics.inverse(pose_to_matrix(target), q_seed)
                     if q_ik is None:
-                        raise mo.MotionError(f"movej: no inverse kinematics solution for p{list(e.target)}")
+                        raise mo.MotionError(
+                            f"movej: no inverse kinematics solution for p{list(e.target)}"
+                        )
                     target = q_ik
                 q_seed = target
             elif not e.is_pose:
@@ -206,12 +214,22 @@ def _path_factory(ctl: Controller, group: list[PathEntry]) -> Callable[[np.ndarr
 
 
 def movej(ctl: Controller, q: np.ndarray, v: float, a: float) -> mo.JointPath:
-    return mo.JointPath(ctl.target_q, [(np.asarray(q, float), v, a, 0.0)], ctl.kinematics, ctl.qd_max, ctl.speed_slider)
+    return mo.JointPath(
+        ctl.target_q,
+        [(np.asarray(q, float), v, a, 0.0)],
+        ctl.kinematics,
+        ctl.qd_max,
+        ctl.speed_slider,
+    )
 
 
 def movel(ctl: Controller, pose: np.ndarray, v: float, a: float) -> mo.LinearPath:
     return mo.LinearPath(
-        ctl.target_q, [(np.asarray(pose, float), v, a, 0.0)], ctl.kinematics, ctl.qd_max, ctl.speed_slider
+        ctl.target_q,
+        [(np.asarray(pose, float), v, a, 0.0)],
+        ctl.kinematics,
+        ctl.qd_max,
+        ctl.speed_slider,
     )
 
 
@@ -364,7 +382,11 @@ class RtdeControlProgram:
         self._move_joints(ctl, q)
 
     def _move_joints(self, ctl: Controller, q: np.ndarray) -> None:
-        v, a, asynchronous = self._in_double(ctl, 6), self._in_double(ctl, 7), self._in_int(ctl, 1) == 1
+        v, a, asynchronous = (
+            self._in_double(ctl, 6),
+            self._in_double(ctl, 7),
+            self._in_int(ctl, 1) == 1,
+        )
         self._stop_async_move(ctl)
         self._start(ctl, movej(ctl, q, v, a), asynchronous)
 
@@ -381,7 +403,11 @@ class RtdeControlProgram:
         self._move_line(ctl, ctl.kinematics.tcp_pose(self._in_q(ctl, 0)))
 
     def _move_line(self, ctl: Controller, pose: np.ndarray) -> None:
-        v, a, asynchronous = self._in_double(ctl, 6), self._in_double(ctl, 7), self._in_int(ctl, 1) == 1
+        v, a, asynchronous = (
+            self._in_double(ctl, 6),
+            self._in_double(ctl, 7),
+            self._in_int(ctl, 1) == 1,
+        )
         self._stop_async_move(ctl)
         self._start(ctl, movel(ctl, pose, v, a), asynchronous)
 
@@ -411,7 +437,9 @@ class RtdeControlProgram:
         servo = ctl.motion
         if not isinstance(servo, mo.Servo):
             servo = ctl.start_motion(mo.Servo(ctl.qd_max, ctl.accel_max))
-        servo.set_target(q, self._in_double(ctl, 8), self._in_double(ctl, 9), self._in_double(ctl, 10))
+        servo.set_target(
+            q, self._in_double(ctl, 8), self._in_double(ctl, 9), self._in_double(ctl, 10)
+        )
 
     def _speedj(self, ctl: Controller) -> None:
         qd, a = self._in_q(ctl, 0), self._in_double(ctl, 6)
@@ -524,7 +552,9 @@ class RtdeControlProgram:
         if isinstance(ctl.motion, mo.SpeedL):
             ctl.motion.xd_target = xd
         else:
-            ctl.start_motion(mo.SpeedL(xd, self._in_double(ctl, 7) or 0.5, ctl.kinematics, ctl.qd_max))
+            ctl.start_motion(
+                mo.SpeedL(xd, self._in_double(ctl, 7) or 0.5, ctl.kinematics, ctl.qd_max)
+            )
 
     def _jog_stop(self, ctl: Controller) -> None:
         self.busy = ctl.stop_motion(1.2)
@@ -555,7 +585,9 @@ class RtdeControlProgram:
         self.force_mode_gain_scaling = self._in_double(ctl, 0)
 
     def _unsupported(self, ctl: Controller) -> None:
-        ctl.add_log(f"rtde_control: command {self._in_int(ctl, 0)} accepted but not simulated by the twin")
+        ctl.add_log(
+            f"rtde_control: command {self._in_int(ctl, 0)} accepted but not simulated by the twin"
+        )
 
 
 def _within_joint_limits(ctl: Controller, q: np.ndarray) -> bool:
@@ -666,7 +698,9 @@ class SimpleProgram:
             if kwargs.get("_pose"):
                 q = ctl.kinematics.inverse(pose_to_matrix(target), ctl.target_q)
                 if q is None:
-                    raise mo.MotionError(f"movej: no inverse kinematics solution for p{list(target)}")
+                    raise mo.MotionError(
+                        f"movej: no inverse kinematics solution for p{list(target)}"
+                    )
                 target = q
             self.waiting = ctl.start_motion(movej(ctl, target, arg(2, "v", 1.05), arg(1, "a", 1.4)))
         elif name == "movel":
@@ -691,7 +725,9 @@ class SimpleProgram:
             ctl.reg.output_double[int(args[0])] = float(args[1])
         elif name == "write_output_boolean_register":
             bit = int(args[0])
-            ctl.reg.output_bits = ctl.reg.output_bits | (1 << bit) if args[1] else ctl.reg.output_bits & ~(1 << bit)
+            ctl.reg.output_bits = (
+                ctl.reg.output_bits | (1 << bit) if args[1] else ctl.reg.output_bits & ~(1 << bit)
+            )
         elif name == "set_tcp":
             ctl.set_tcp(np.array(args[0], float))
         elif name == "set_payload":

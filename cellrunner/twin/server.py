@@ -32,7 +32,13 @@ from typing import Any
 
 from cellrunner.model.robots import RobotSpec, robot_spec
 from cellrunner.twin import dashboard
-from cellrunner.twin.controller import Controller, ControllerConfig, RobotMode, RuntimeState, SafetyMode
+from cellrunner.twin.controller import (
+    Controller,
+    ControllerConfig,
+    RobotMode,
+    RuntimeState,
+    SafetyMode,
+)
 from cellrunner.twin.physics import KinematicPhysics, Physics
 from cellrunner.twin.rtde import InputOwners, RtdeError, RtdeSession
 from cellrunner.twin.script import ScriptError, SimpleProgram, parse_program
@@ -152,7 +158,11 @@ class TwinServer:
 
     def start(self) -> None:
         self._selector = selectors.DefaultSelector()
-        roles = [(self.ports.dashboard, "dashboard"), (self.ports.rtde, "rtde"), (self.ports.fault, "fault")]
+        roles = [
+            (self.ports.dashboard, "dashboard"),
+            (self.ports.rtde, "rtde"),
+            (self.ports.fault, "fault"),
+        ]
         roles += [(p, "script") for p in self.ports.script]
         try:
             for port, role in roles:
@@ -196,7 +206,9 @@ class TwinServer:
         period = self.ctl.period_s
         realtime = self.realtime and _try_realtime_priority()
         spin_s = 0.00005 if realtime else 0.0002  # sleep until this close, then spin
-        self.ctl.add_log(f"real-time loop at {1 / period:g} Hz, SCHED_FIFO {'on' if realtime else 'off'}")
+        self.ctl.add_log(
+            f"real-time loop at {1 / period:g} Hz, SCHED_FIFO {'on' if realtime else 'off'}"
+        )
         deadline = time.perf_counter() + period
         last = time.perf_counter()
         while not self._stop.is_set():
@@ -452,8 +464,10 @@ class TwinServer:
             if cmd == "remote":
                 ctl.remote_control = args[0].lower() == "on"
                 return f"remote {args[0].lower()}"
-        raise ValueError(f"unknown command {cmd!r}; known: " + ", ".join(
-            ln.split()[0] for ln in FAULT_COMMANDS.splitlines()))
+        raise ValueError(
+            f"unknown command {cmd!r}; known: "
+            + ", ".join(ln.split()[0] for ln in FAULT_COMMANDS.splitlines())
+        )
 
     def _record(self, args: list[str]) -> str:
         """The servo set-points as received (for tests that compare them with a plan)."""
@@ -466,6 +480,7 @@ class TwinServer:
             return "record off"
         if args[:1] == ["save"] and len(args) == 2:
             import numpy as np
+
             rows = list(ctl.servo_record or [])
             np.save(args[1], np.array(rows, dtype=float).reshape(len(rows), 7))
             return str(len(rows))

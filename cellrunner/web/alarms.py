@@ -10,41 +10,42 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from cellrunner.model.cellport import CellStatus, JobResult
-from cellrunner.model.codes import PackMLState as S, ResultCode
+from cellrunner.model.codes import PackMLState as S
+from cellrunner.model.codes import ResultCode
 
 #: what to do after a job ended with each code (OK has none)
 FIX: dict[ResultCode, str] = {
     ResultCode.NO_PART: "Check that a part is at the pick frame and that the gripper's closed "
-                        "sensor switches; the next job runs when the PLC asks.",
+    "sensor switches; the next job runs when the PLC asks.",
     ResultCode.PART_LOST: "Find the dropped part and remove it from the cell; check the jaws, "
-                          "the grip force and the part's weight.",
+    "the grip force and the part's weight.",
     ResultCode.PLACE_FAILED: "Check the place position for an obstacle or a misplaced part; clear "
-                             "it before the next job.",
+    "it before the next job.",
     ResultCode.PROTECTIVE_STOP: "Look for what the arm touched and move it clear, then Clear and "
-                                "Reset (PLC RESET bit).",
+    "Reset (PLC RESET bit).",
     ResultCode.ESTOP: "Make the cell safe and release the emergency stop, then Clear and Reset "
-                      "(PLC RESET bit).",
+    "(PLC RESET bit).",
     ResultCode.ROBOT_CONNECTION_LOST: "Check that the controller is on, in remote control, and its "
-                                      "network cable; then Clear and Reset.",
+    "network cable; then Clear and Reset.",
     ResultCode.PLANNING_FAILED: "The job could not be planned from where the arm stands: check the "
-                                "job's parameters and the cell for a moved fixture; run "
-                                "`cellrunner check` on the task.",
+    "job's parameters and the cell for a moved fixture; run "
+    "`cellrunner check` on the task.",
     ResultCode.LIMIT_VIOLATION: "A trajectory broke a joint or speed limit: run `cellrunner check` "
-                                "on the task and report it; Clear and Reset to continue.",
+    "on the task and report it; Clear and Reset to continue.",
     ResultCode.STEP_TIMEOUT: "A step did not finish in time: check the input it waited for "
-                             "(sensor, door, conveyor), then Clear and Reset.",
+    "(sensor, door, conveyor), then Clear and Reset.",
     ResultCode.ABORTED_BY_PLC: "The PLC aborted the job: find out why on the HMI, then Clear and Reset.",
     ResultCode.INTERRUPTED: "cellrunner restarted during this job: check where the part is and "
-                            "remove it if needed before the next job.",
+    "remove it if needed before the next job.",
 }
 
 _STATE_FIX = {
     "estop": "Make the cell safe and release the emergency stop, then Clear and Reset (PLC RESET bit).",
     "protective_stop": "Find what the arm touched and move it clear; the job resumes by itself "
-                       "after the controller's 5 s unlock delay if the task allows it, "
-                       "else Clear and Reset.",
+    "after the controller's 5 s unlock delay if the task allows it, "
+    "else Clear and Reset.",
     "held": "The cell is held (HOLD from the PLC or its heartbeat stopped): fix the cause, then "
-            "UNHOLD from the PLC.",
+    "UNHOLD from the PLC.",
     "aborted": "Fix the cause shown below, then Clear and Reset (PLC RESET bit).",
     "stopped": "Reset (PLC RESET bit) to bring the cell to Idle.",
 }
@@ -69,41 +70,71 @@ def active_alarms(status: CellStatus, plc_links: dict[str, bool]) -> list[Alarm]
     alarms: list[Alarm] = []
     state = S(status.state)
     if status.estop:
-        alarms.append(Alarm("fault", "Emergency stop", "The emergency stop is pressed.", _STATE_FIX["estop"]))
+        alarms.append(
+            Alarm("fault", "Emergency stop", "The emergency stop is pressed.", _STATE_FIX["estop"])
+        )
     if status.protective_stop:
-        alarms.append(Alarm("fault", "Protective stop", "The controller stopped the arm (contact or "
-                            "safety limit).", _STATE_FIX["protective_stop"]))
+        alarms.append(
+            Alarm(
+                "fault",
+                "Protective stop",
+                "The controller stopped the arm (contact or safety limit).",
+                _STATE_FIX["protective_stop"],
+            )
+        )
     if status.held and not status.protective_stop:
-        alarms.append(Alarm("warning", f"Cell {state.display_name}", "The running job is held.",
-                            _STATE_FIX["held"]))
+        alarms.append(
+            Alarm(
+                "warning",
+                f"Cell {state.display_name}",
+                "The running job is held.",
+                _STATE_FIX["held"],
+            )
+        )
     if state in (S.ABORTING, S.ABORTED) and not status.estop:
-        alarms.append(Alarm("fault", f"Cell {state.display_name}", _last_text(status.last_result),
-                            _STATE_FIX["aborted"]))
+        alarms.append(
+            Alarm(
+                "fault",
+                f"Cell {state.display_name}",
+                _last_text(status.last_result),
+                _STATE_FIX["aborted"],
+            )
+        )
     if state is S.STOPPED:
-        alarms.append(Alarm("warning", "Cell Stopped", "The cell does not take jobs.", _STATE_FIX["stopped"]))
+        alarms.append(
+            Alarm("warning", "Cell Stopped", "The cell does not take jobs.", _STATE_FIX["stopped"])
+        )
     for name, up in sorted(plc_links.items()):
         if not up:
-            alarms.append(Alarm("warning", f"PLC link down ({name})", _LINK_DETAIL[name], _LINK_FIX[name]))
+            alarms.append(
+                Alarm("warning", f"PLC link down ({name})", _LINK_DETAIL[name], _LINK_FIX[name])
+            )
     result = status.last_result
     if result is not None and result.result_code != ResultCode.OK:
         code = _code(result.result_code)
         fix = FIX.get(code, "") if code is not None else ""
         severity = "fault" if code is not None and code.is_fault else "warning"
-        alarms.append(Alarm(severity, f"Last job {result.result_code}: {_code_text(result.result_code)}",
-                            _last_text(result), fix))
+        alarms.append(
+            Alarm(
+                severity,
+                f"Last job {result.result_code}: {_code_text(result.result_code)}",
+                _last_text(result),
+                fix,
+            )
+        )
     return alarms
 
 
 _LINK_DETAIL = {
     "modbus": "The PLC heartbeat (register 0) has not changed within the heartbeat timeout, or no "
-              "PLC has written it yet.",
+    "PLC has written it yet.",
     "opcua": "No OPC UA client is connected.",
 }
 _LINK_FIX = {
     "modbus": "Check that the PLC program runs and increments register 0, and the network between "
-              "PLC and cell; new jobs are refused until the heartbeat moves again.",
+    "PLC and cell; new jobs are refused until the heartbeat moves again.",
     "opcua": "Check that the PLC or SCADA client is running and its certificate and user are "
-             "accepted (pki/rejected holds refused certificates).",
+    "accepted (pki/rejected holds refused certificates).",
 }
 
 

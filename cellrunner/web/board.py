@@ -12,7 +12,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from datetime import datetime, timezone
+from datetime import UTC, datetime, timezone
 from typing import Any
 
 from cellrunner.execution.journal import JobRecord, JournalBackend
@@ -29,8 +29,15 @@ class StatusBoard:
     """Builds snapshots of one cell. ``plc_links`` returns ``{link: up}`` for each
     configured PLC link (empty when none is configured)."""
 
-    def __init__(self, port: CellPort, journal: JournalBackend, cell_name: str, *,
-                 plc_links: Callable[[], dict[str, bool]] = dict, max_age_s: float = 0.2):
+    def __init__(
+        self,
+        port: CellPort,
+        journal: JournalBackend,
+        cell_name: str,
+        *,
+        plc_links: Callable[[], dict[str, bool]] = dict,
+        max_age_s: float = 0.2,
+    ):
         self.port, self.journal, self.cell_name = port, journal, cell_name
         self.plc_links = plc_links
         self.max_age_s = max_age_s
@@ -39,7 +46,7 @@ class StatusBoard:
         self._cached: tuple[float, dict] | None = None
         self._remove_listener: Callable[[], None] | None = None
 
-    def setup(self) -> "StatusBoard":
+    def setup(self) -> StatusBoard:
         """Open the journal connection and start counting finished jobs."""
         self.journal.open()
         self._remove_listener = self.port.add_result_listener(self.jobs.record)
@@ -75,15 +82,21 @@ class StatusBoard:
         finished = [r for r in recent if r.ended_at is not None]
         return {
             "cell": self.cell_name,
-            "time": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "time": datetime.now(UTC).isoformat(timespec="seconds"),
             "state": {"number": status.state, "name": status.state_name},
-            "ready": status.ready, "busy": status.busy, "held": status.held,
-            "protective_stop": status.protective_stop, "estop": status.estop,
+            "ready": status.ready,
+            "busy": status.busy,
+            "held": status.held,
+            "protective_stop": status.protective_stop,
+            "estop": status.estop,
             "plc_links": links,
             "job": job,
             "last_results": [_result_row(r) for r in reversed(finished[-LAST_RESULTS:])],
-            "cycle_times": [{"job_id": r.job_id, "cycle_time_s": r.cycle_time_s, "result_code": r.result_code}
-                            for r in finished[-TREND_JOBS:] if r.cycle_time_s],
+            "cycle_times": [
+                {"job_id": r.job_id, "cycle_time_s": r.cycle_time_s, "result_code": r.result_code}
+                for r in finished[-TREND_JOBS:]
+                if r.cycle_time_s
+            ],
             "parts": {"processed": status.parts_processed, "defective": status.parts_defective},
             "alarms": [a.to_json() for a in active_alarms(status, links)],
             "journal_error": journal_error,
@@ -96,8 +109,14 @@ class StatusBoard:
         rows = self.journal.steps_of(status.job_id)
         steps: dict[int, dict] = {}
         for index, kind, name, step_status, attempt, _at, message in rows:
-            steps[index] = {"index": index, "kind": kind, "name": name, "status": step_status,
-                            "attempt": attempt, "message": message or ""}
+            steps[index] = {
+                "index": index,
+                "kind": kind,
+                "name": name,
+                "status": step_status,
+                "attempt": attempt,
+                "message": message or "",
+            }
         current = steps.get(status.step_index)
         return {
             "job_id": status.job_id,
@@ -119,7 +138,15 @@ class StatusBoard:
 
 
 def _result_row(r: JobRecord) -> dict[str, Any]:
-    return {"job_id": r.job_id, "task": r.task, "params": r.params, "source": r.source,
-            "client_job_id": r.client_job_id or "", "result_code": r.result_code,
-            "result_text": r.result_text or "", "cycle_time_s": r.cycle_time_s, "retries": r.retries,
-            "ended_at": datetime.fromtimestamp(r.ended_at, timezone.utc).isoformat(timespec="seconds")}
+    return {
+        "job_id": r.job_id,
+        "task": r.task,
+        "params": r.params,
+        "source": r.source,
+        "client_job_id": r.client_job_id or "",
+        "result_code": r.result_code,
+        "result_text": r.result_text or "",
+        "cycle_time_s": r.cycle_time_s,
+        "retries": r.retries,
+        "ended_at": datetime.fromtimestamp(r.ended_at, UTC).isoformat(timespec="seconds"),
+    }

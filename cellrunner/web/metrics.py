@@ -49,38 +49,82 @@ def render(cell: str, status: CellStatus, jobs: JobMetrics, plc_links: dict[str,
     base = {"cell": cell}
     out: list[str] = []
 
-    def family(name: str, kind: str, help_text: str, samples: list[tuple[str, dict, float]]) -> None:
+    def family(
+        name: str, kind: str, help_text: str, samples: list[tuple[str, dict, float]]
+    ) -> None:
         out.append(f"# HELP {name} {help_text}")
         out.append(f"# TYPE {name} {kind}")
         for suffix, labels, value in samples:
             out.append(f"{name}{suffix}{_labels({**base, **labels})} {_number(value)}")
 
     codes = sorted(set(by_code) | {int(ResultCode.OK)})
-    family("cellrunner_jobs_total", "counter", "Jobs finished since cellrunner started, by result code (SPEC 7).",
-           [("", {"code": str(c), "result": _text(c)}, by_code.get(c, 0)) for c in codes])
+    family(
+        "cellrunner_jobs_total",
+        "counter",
+        "Jobs finished since cellrunner started, by result code (SPEC 7).",
+        [("", {"code": str(c), "result": _text(c)}, by_code.get(c, 0)) for c in codes],
+    )
     cumulative, samples = 0, []
     for bound, count in zip([*jobs.buckets_s, float("inf")], buckets):
         cumulative += count
         samples.append(("_bucket", {"le": _number(bound)}, cumulative))
     samples += [("_sum", {}, cycle_sum_s), ("_count", {}, cumulative)]
     family("cellrunner_cycle_time_seconds", "histogram", "Cycle time of finished jobs, s.", samples)
-    family("cellrunner_packml_state", "gauge", "PackML StateCurrent number (SPEC 6).",
-           [("", {}, status.state)])
-    family("cellrunner_packml_state_info", "gauge", "1 for the current PackML state.",
-           [("", {"state": PackMLState(status.state).display_name}, 1)])
+    family(
+        "cellrunner_packml_state",
+        "gauge",
+        "PackML StateCurrent number (SPEC 6).",
+        [("", {}, status.state)],
+    )
+    family(
+        "cellrunner_packml_state_info",
+        "gauge",
+        "1 for the current PackML state.",
+        [("", {"state": PackMLState(status.state).display_name}, 1)],
+    )
     family("cellrunner_busy", "gauge", "1 while a job runs.", [("", {}, int(status.busy))])
-    family("cellrunner_ready", "gauge", "1 while the cell would accept a job.", [("", {}, int(status.ready))])
-    family("cellrunner_protective_stop", "gauge", "1 during a protective stop.",
-           [("", {}, int(status.protective_stop))])
-    family("cellrunner_estop", "gauge", "1 while the emergency stop is pressed.", [("", {}, int(status.estop))])
-    family("cellrunner_current_step", "gauge", "1-based expanded step under way, 0 when none.",
-           [("", {}, status.step_index)])
-    family("cellrunner_parts_processed_total", "counter", "Parts processed (OK jobs) in the journal.",
-           [("", {}, status.parts_processed)])
-    family("cellrunner_parts_defective_total", "counter", "Jobs that ended NOK (codes 1-3) in the journal.",
-           [("", {}, status.parts_defective)])
-    family("cellrunner_plc_link_up", "gauge", "1 while the PLC link is up (Modbus: heartbeat moving; "
-           "OPC UA: a client connected).", [("", {"link": name}, int(up)) for name, up in sorted(plc_links.items())])
+    family(
+        "cellrunner_ready",
+        "gauge",
+        "1 while the cell would accept a job.",
+        [("", {}, int(status.ready))],
+    )
+    family(
+        "cellrunner_protective_stop",
+        "gauge",
+        "1 during a protective stop.",
+        [("", {}, int(status.protective_stop))],
+    )
+    family(
+        "cellrunner_estop",
+        "gauge",
+        "1 while the emergency stop is pressed.",
+        [("", {}, int(status.estop))],
+    )
+    family(
+        "cellrunner_current_step",
+        "gauge",
+        "1-based expanded step under way, 0 when none.",
+        [("", {}, status.step_index)],
+    )
+    family(
+        "cellrunner_parts_processed_total",
+        "counter",
+        "Parts processed (OK jobs) in the journal.",
+        [("", {}, status.parts_processed)],
+    )
+    family(
+        "cellrunner_parts_defective_total",
+        "counter",
+        "Jobs that ended NOK (codes 1-3) in the journal.",
+        [("", {}, status.parts_defective)],
+    )
+    family(
+        "cellrunner_plc_link_up",
+        "gauge",
+        "1 while the PLC link is up (Modbus: heartbeat moving; OPC UA: a client connected).",
+        [("", {"link": name}, int(up)) for name, up in sorted(plc_links.items())],
+    )
     return "\n".join(out) + "\n"
 
 

@@ -26,7 +26,9 @@ def parse_address(text: str) -> tuple[str, int]:
     host, sep, port_text = text.rpartition(":")
     host = host.strip("[]") if sep else ""
     if not port_text.isdigit() or not 0 <= int(port_text) <= 65535:
-        raise UsageError(f"--http {text!r}: give [HOST:]PORT with PORT 0-65535, e.g. 127.0.0.1:8080")
+        raise UsageError(
+            f"--http {text!r}: give [HOST:]PORT with PORT 0-65535, e.g. 127.0.0.1:8080"
+        )
     return host or DEFAULT_HOST, int(port_text)
 
 
@@ -58,10 +60,16 @@ class StatusServer:
         try:
             self._httpd = ThreadingHTTPServer((self.host, self.port), handler)
         except OSError as exc:
-            raise CellrunnerError(f"cannot serve the status page on {self.host}:{self.port}: {exc}") from exc
+            raise CellrunnerError(
+                f"cannot serve the status page on {self.host}:{self.port}: {exc}"
+            ) from exc
         self._httpd.daemon_threads = True
-        self._thread = threading.Thread(target=self._httpd.serve_forever, kwargs={"poll_interval": 0.2},
-                                        name="status-http", daemon=True)
+        self._thread = threading.Thread(
+            target=self._httpd.serve_forever,
+            kwargs={"poll_interval": 0.2},
+            name="status-http",
+            daemon=True,
+        )
         self._thread.start()
 
     def stop(self) -> None:
@@ -93,7 +101,9 @@ class _Handler(BaseHTTPRequestHandler):
         elif path == "/metrics":
             self._send(200, METRICS_TYPE, self.board.metrics().encode())
         else:
-            self._send(404, "text/plain; charset=utf-8", b"not found: try /, /status.json or /metrics\n")
+            self._send(
+                404, "text/plain; charset=utf-8", b"not found: try /, /status.json or /metrics\n"
+            )
 
     def do_HEAD(self) -> None:  # noqa: N802
         self.do_GET()

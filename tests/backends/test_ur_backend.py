@@ -90,7 +90,9 @@ def twin():
 
 @pytest.fixture(scope="module")
 def backend(twin):
-    b = URBackend(twin.host, UR5E, tcp_pose=(0, 0, 0.15, 0, 0, 0), payload_kg=1.2, payload_cog_m=(0, 0, 0.05))
+    b = URBackend(
+        twin.host, UR5E, tcp_pose=(0, 0, 0.15, 0, 0, 0), payload_kg=1.2, payload_cog_m=(0, 0, 0.05)
+    )
     b.connect()
     yield b
     b.close()
@@ -156,7 +158,9 @@ def test_protective_stop_recovery_resumes_streaming(backend, twin):
     assert stop.value.safety == Safety.PROTECTIVE_STOP
     assert i < 300  # noticed within a few cycles
     assert backend.read_state().safety == Safety.PROTECTIVE_STOP
-    with pytest.raises(BackendError, match="Cannot unlock protective stop until 5s after occurrence"):
+    with pytest.raises(
+        BackendError, match="Cannot unlock protective stop until 5s after occurrence"
+    ):
         backend.unlock_protective_stop()
     backend.recover_from_protective_stop(timeout_s=8.0)
     assert time.monotonic() - twin_stopped_at >= 5.0
@@ -223,7 +227,6 @@ def test_cb3_streams_at_125_hz():
                 backend.zero_ft_sensor()
         finally:
             backend.close()
-
 
 
 def test_powered_off_arm_connects_and_powers_up_on_request():

@@ -21,7 +21,9 @@ def files(tmp_path_factory):
     (d / "c.yaml").write_text(CELL)
     (d / "t.yaml").write_text(TASK)
     (d / "touch.yaml").write_text(TOUCH)
-    (d / "touch_jaws.yaml").write_text(TOUCH.replace("  - change_tool: cup\n", "").replace("  - change_tool: jaws\n", ""))
+    (d / "touch_jaws.yaml").write_text(
+        TOUCH.replace("  - change_tool: cup\n", "").replace("  - change_tool: jaws\n", "")
+    )
     return d / "c.yaml", d / "t.yaml"
 
 
@@ -33,8 +35,16 @@ def test_change_tool_expands_and_plans_with_the_new_tcp(files):
 
     cell = load_cell(files[0])
     steps = expand(load_task(files[1], cell), cell.cell, {})
-    assert [s.kind for s in steps[1:9]] == ["approach", "descend", "tool_unlock", "retreat", "approach", "descend",
-                                            "tool_lock", "retreat"]
+    assert [s.kind for s in steps[1:9]] == [
+        "approach",
+        "descend",
+        "tool_unlock",
+        "retreat",
+        "approach",
+        "descend",
+        "tool_lock",
+        "retreat",
+    ]
     world = CellWorld(cell)
     plan = plan_task(world, steps, world.q_home_rad)
     assert plan.ok, plan.errors
@@ -53,9 +63,14 @@ def test_change_tool_expands_and_plans_with_the_new_tcp(files):
 
 
 def dry_run(cell, task) -> dict:
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "dry-run", str(cell), str(task), "--json"],
-                       capture_output=True, text=True, cwd=ROOT, timeout=300,
-                       env={**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"})
+    r = subprocess.run(
+        [sys.executable, "-m", "cellrunner.cli.main", "dry-run", str(cell), str(task), "--json"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+        env={**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"},
+    )
     return json.loads(r.stdout)
 
 

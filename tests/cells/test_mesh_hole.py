@@ -12,9 +12,13 @@ from tests.cells.test_reference_cells import PEG, dry_run
 from tests.conftest import ROOT
 
 #: the block around the hole, as (centre, size) boxes: four walls and the floor (m)
-BOXES = [((0.2695, 0.15, 0.82), (0.039, 0.10, 0.04)), ((0.3305, 0.15, 0.82), (0.039, 0.10, 0.04)),
-         ((0.30, 0.1195, 0.82), (0.022, 0.039, 0.04)), ((0.30, 0.1805, 0.82), (0.022, 0.039, 0.04)),
-         ((0.30, 0.15, 0.805), (0.022, 0.022, 0.01))]
+BOXES = [
+    ((0.2695, 0.15, 0.82), (0.039, 0.10, 0.04)),
+    ((0.3305, 0.15, 0.82), (0.039, 0.10, 0.04)),
+    ((0.30, 0.1195, 0.82), (0.022, 0.039, 0.04)),
+    ((0.30, 0.1805, 0.82), (0.022, 0.039, 0.04)),
+    ((0.30, 0.15, 0.805), (0.022, 0.022, 0.01)),
+]
 
 
 def box_triangles(centre, size) -> list[np.ndarray]:
@@ -30,8 +34,14 @@ def box_triangles(centre, size) -> list[np.ndarray]:
             p[u] += su * h[u]
             p[v] += sv * h[v]
             corners.append(p)
-        quad = corners if np.dot(np.cross(corners[1] - corners[0], corners[2] - corners[0]),
-                                 np.eye(3)[axis] * sign) > 0 else corners[::-1]
+        quad = (
+            corners
+            if np.dot(
+                np.cross(corners[1] - corners[0], corners[2] - corners[0]), np.eye(3)[axis] * sign
+            )
+            > 0
+            else corners[::-1]
+        )
         out += [np.array([quad[0], quad[1], quad[2]]), np.array([quad[0], quad[2], quad[3]])]
     return out
 
@@ -47,9 +57,14 @@ def test_peg_goes_into_a_mesh_hole(tmp_path):
     (tmp_path / "cells").mkdir()
     (tmp_path / "tasks").mkdir()
     write_stl(tmp_path / "hole_block.stl", [t for b in BOXES for t in box_triangles(*b)])
-    lines = [ln for ln in (ROOT / PEG[0]).read_text().splitlines(keepends=True)
-             if not ln.lstrip().startswith(("- {name: wall_", "- {name: hole_floor"))]
-    cell = "".join(lines).replace("fixtures:\n", "fixtures:\n  - {name: block, mesh: {file: hole_block.stl}}\n")
+    lines = [
+        ln
+        for ln in (ROOT / PEG[0]).read_text().splitlines(keepends=True)
+        if not ln.lstrip().startswith(("- {name: wall_", "- {name: hole_floor"))
+    ]
+    cell = "".join(lines).replace(
+        "fixtures:\n", "fixtures:\n  - {name: block, mesh: {file: hole_block.stl}}\n"
+    )
     (tmp_path / "cells" / "peg.yaml").write_text(cell)
     (tmp_path / "tasks" / "peg_insert.yaml").write_text((ROOT / PEG[1]).read_text())
     out = dry_run(str(tmp_path / "cells" / "peg.yaml"), str(tmp_path / "tasks" / "peg_insert.yaml"))

@@ -17,9 +17,14 @@ PEG = ("cells/peg_ur3e.yaml", "tasks/peg_insert.yaml")
 
 
 def dry_run(cell: str, task: str, *extra: str) -> dict:
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "dry-run", cell, task, "--json", *extra],
-                       capture_output=True, text=True, cwd=ROOT, timeout=300,
-                       env={**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"})
+    r = subprocess.run(
+        [sys.executable, "-m", "cellrunner.cli.main", "dry-run", cell, task, "--json", *extra],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+        env={**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"},
+    )
     assert r.returncode in (0, 1), r.stderr[-3000:]
     out = json.loads(r.stdout)
     assert (r.returncode == 0) == (out["result_code"] == 0)
@@ -43,9 +48,17 @@ def test_palletizer_grip_miss_is_no_part():
     out = dry_run(*PALLETIZER, "--inject", "grip_miss@grip")
     assert out["result_code"] == 1
     assert out["retries"] == 1
-    assert failed(out) == [(4, "attempt 1 failed: vacuum_ok not true within 1 s (no vacuum: the cups sealed on "
-                               "nothing); vacuum_ok not true within 1 s (no vacuum: the cups sealed on nothing)")] \
+    assert (
+        failed(out)
+        == [
+            (
+                4,
+                "attempt 1 failed: vacuum_ok not true within 1 s (no vacuum: the cups sealed on "
+                "nothing); vacuum_ok not true within 1 s (no vacuum: the cups sealed on nothing)",
+            )
+        ]
         or failed(out)[0][0] == 4
+    )
 
 
 def test_palletizer_part_slip_is_part_lost():
@@ -91,9 +104,14 @@ def shallow(tmp_path_factory):
     root = tmp_path_factory.mktemp("shallow")
     (root / "cells").mkdir()
     (root / "tasks").mkdir()
-    cell = (ROOT / PEG[0]).read_text().replace(
-        "{name: hole_floor, box: {size: [0.022, 0.022, 0.01]}, pose: {xyz: [0.30, 0.15, 0.805]}}",
-        "{name: hole_floor, box: {size: [0.022, 0.022, 0.03]}, pose: {xyz: [0.30, 0.15, 0.815]}}")
+    cell = (
+        (ROOT / PEG[0])
+        .read_text()
+        .replace(
+            "{name: hole_floor, box: {size: [0.022, 0.022, 0.01]}, pose: {xyz: [0.30, 0.15, 0.805]}}",
+            "{name: hole_floor, box: {size: [0.022, 0.022, 0.03]}, pose: {xyz: [0.30, 0.15, 0.815]}}",
+        )
+    )
     (root / "cells" / "peg.yaml").write_text(cell)
     (root / "tasks" / "peg_insert.yaml").write_text((ROOT / PEG[1]).read_text())
     probe = """task: probe
@@ -107,14 +125,17 @@ steps:
     (root / "tasks" / "probe_far.yaml").write_text(probe.replace("DIST", "0.02"))
     (root / "tasks" / "probe.yaml").write_text(probe.replace("DIST", "0.1"))
     (root / "tasks" / "probe_world.yaml").write_text(
-        probe.replace("DIST", "0.1").replace("direction: [0, 0, 1]", "direction: [0, 0, -1], frame: world"))
+        probe.replace("DIST", "0.1").replace(
+            "direction: [0, 0, 1]", "direction: [0, 0, -1], frame: world"
+        )
+    )
     return root
 
 
 def test_insert_blocked_early_is_place_failed(shallow):
     out = dry_run(str(shallow / "cells" / "peg.yaml"), str(shallow / "tasks" / "peg_insert.yaml"))
     assert out["result_code"] == 3
-    (index, message), = failed(out)
+    ((index, message),) = failed(out)
     assert index == 7
     assert message.startswith("inserted ") and "expected 22.0-26.0 mm (stopped at " in message
     depth_mm = float(message.split()[1])
@@ -132,8 +153,12 @@ def test_move_until_contact_in_world_axes(shallow):
 
 
 def test_report_plots_the_wrist_force(shallow, tmp_path):
-    out = dry_run(str(shallow / "cells" / "peg.yaml"), str(shallow / "tasks" / "peg_insert.yaml"),
-                  "--report", str(tmp_path / "report"))
+    out = dry_run(
+        str(shallow / "cells" / "peg.yaml"),
+        str(shallow / "tasks" / "peg_insert.yaml"),
+        "--report",
+        str(tmp_path / "report"),
+    )
     assert out["result_code"] == 3
     plot = tmp_path / "report" / "wrist_force.png"
     assert plot.is_file() and plot.stat().st_size > 10_000
@@ -146,8 +171,13 @@ def test_move_until_contact_without_contact_fails(shallow):
 
 
 def check_json(cell: str, task: str) -> tuple[int, dict]:
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "check", cell, task, "--json"],
-                       capture_output=True, text=True, cwd=ROOT, timeout=300)
+    r = subprocess.run(
+        [sys.executable, "-m", "cellrunner.cli.main", "check", cell, task, "--json"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+    )
     return r.returncode, json.loads(r.stdout)
 
 
@@ -155,16 +185,22 @@ def test_check_verifies_the_insert_line_and_names_the_contact():
     code, out = check_json(*PEG)
     assert code == 0
     row = next(s for s in out["steps"] if s["kind"] == "insert")
-    assert row["message"] == ("guarded: stops above 10 N; 55 mm line checked; contact allowed with: "
-                              "wall_xm, wall_xp, wall_ym, wall_yp")
+    assert row["message"] == (
+        "guarded: stops above 10 N; 55 mm line checked; contact allowed with: "
+        "wall_xm, wall_xp, wall_ym, wall_yp"
+    )
 
 
 def test_check_refuses_an_insert_that_drives_the_gripper_into_the_block(tmp_path):
     """Only the carried part may make the insert's contact: 40 mm deep, the jaws would
     reach 10 mm into the block around the hole."""
     task = tmp_path / "deep.yaml"
-    task.write_text((ROOT / PEG[1]).read_text().replace("depth: 0.025", "depth: 0.04")
-                    .replace("expect_depth: [0.022, 0.026]", "expect_depth: [0.035, 0.041]"))
+    task.write_text(
+        (ROOT / PEG[1])
+        .read_text()
+        .replace("depth: 0.025", "depth: 0.04")
+        .replace("expect_depth: [0.022, 0.026]", "expect_depth: [0.035, 0.041]")
+    )
     code, out = check_json(PEG[0], str(task))
     assert code == 1
     row = next(s for s in out["steps"] if s["kind"] == "insert")

@@ -20,8 +20,14 @@ ENV = {**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"}
 
 @contextmanager
 def twin(cell: str, host: str):
-    proc = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "twin", cell, "--host", host],
-                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=ENV)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cellrunner.cli.main", "twin", cell, "--host", host],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=ENV,
+    )
     try:
         deadline = time.monotonic() + 60
         line = ""
@@ -36,9 +42,27 @@ def twin(cell: str, host: str):
 
 
 def run(cell: str, task: str, host: str, *extra: str) -> dict:
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "run", cell, task, "--backend", "ur",
-                        "--robot-host", host, "--json", *extra], capture_output=True, text=True, cwd=ROOT,
-                       timeout=300, env=ENV)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "run",
+            cell,
+            task,
+            "--backend",
+            "ur",
+            "--robot-host",
+            host,
+            "--json",
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+        env=ENV,
+    )
     assert r.returncode in (0, 1), r.stderr[-3000:]
     return json.loads(r.stdout)
 
@@ -78,9 +102,14 @@ def test_peg_insert_through_ur_rtde(tmp_path):
     (tmp_path / "cells").mkdir()
     (tmp_path / "tasks").mkdir()
     cell = tmp_path / "cells" / "peg.yaml"
-    cell.write_text((ROOT / PEG[0]).read_text().replace(
-        "{name: hole_floor, box: {size: [0.022, 0.022, 0.01]}, pose: {xyz: [0.30, 0.15, 0.805]}}",
-        "{name: hole_floor, box: {size: [0.022, 0.022, 0.03]}, pose: {xyz: [0.30, 0.15, 0.815]}}"))
+    cell.write_text(
+        (ROOT / PEG[0])
+        .read_text()
+        .replace(
+            "{name: hole_floor, box: {size: [0.022, 0.022, 0.01]}, pose: {xyz: [0.30, 0.15, 0.805]}}",
+            "{name: hole_floor, box: {size: [0.022, 0.022, 0.03]}, pose: {xyz: [0.30, 0.15, 0.815]}}",
+        )
+    )
     (tmp_path / "tasks" / "peg_insert.yaml").write_text((ROOT / PEG[1]).read_text())
     with twin(str(cell), "127.0.0.113"):
         out = run(str(cell), str(tmp_path / "tasks" / "peg_insert.yaml"), "127.0.0.113")
@@ -117,7 +146,9 @@ def test_change_tool_through_ur_rtde(tmp_path):
     from cellrunner.twin.server import FaultClient
     from tests.cells.two_tools import CELL, TOUCH
 
-    (tmp_path / "c.yaml").write_text(CELL.replace("  backend: sim\n", "  backend: sim\n  host: 127.0.0.115\n"))
+    (tmp_path / "c.yaml").write_text(
+        CELL.replace("  backend: sim\n", "  backend: sim\n  host: 127.0.0.115\n")
+    )
     (tmp_path / "touch.yaml").write_text(TOUCH)
     host = "127.0.0.115"
     with twin(str(tmp_path / "c.yaml"), host):

@@ -8,8 +8,8 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
 
 from tests.conftest import ROOT
 
@@ -58,15 +58,26 @@ def write_project(root: Path, cell: str = CELL, task: str = TASK) -> tuple[Path,
 
 
 def cli(*args: str, timeout_s: float = 110, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "cellrunner.cli.main", *args], capture_output=True, text=True,
-                          cwd=ROOT, timeout=timeout_s, **kw)
+    return subprocess.run(
+        [sys.executable, "-m", "cellrunner.cli.main", *args],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=timeout_s,
+        **kw,
+    )
 
 
 @contextlib.contextmanager
 def twin(cell: Path, host: str) -> Iterator[subprocess.Popen]:
     """`cellrunner twin CELL --host HOST` until the block ends."""
-    proc = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", host],
-                            cwd=ROOT, stderr=subprocess.PIPE, text=True, env={**os.environ, "MUJOCO_GL": "osmesa"})
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", host],
+        cwd=ROOT,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
     try:
         deadline = time.monotonic() + 60
         line = ""
@@ -82,4 +93,5 @@ def twin(cell: Path, host: str) -> Iterator[subprocess.Popen]:
 
 def fault(host: str, command: str) -> str:
     from cellrunner.twin.server import FaultClient
+
     return FaultClient(host, timeout_s=10.0).command(command)

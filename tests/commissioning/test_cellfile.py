@@ -19,20 +19,26 @@ def cell(tmp_path):
 
 def test_an_existing_flow_frame_changes_in_place(cell):
     edit = pose_edit(cell, ("frames", "drop"), [0.1, -0.2, 0.3000004], [179.99991, 0, -90])
-    assert edit.after == CELL.replace("drop:   {xyz: [0.7, 0.4, 0.835], rpy: [180, 0, 0]}   # keep",
-                                      "drop:   {xyz: [0.1, -0.2, 0.3], rpy: [179.9999, 0, -90]}   # keep")
+    assert edit.after == CELL.replace(
+        "drop:   {xyz: [0.7, 0.4, 0.835], rpy: [180, 0, 0]}   # keep",
+        "drop:   {xyz: [0.1, -0.2, 0.3], rpy: [179.9999, 0, -90]}   # keep",
+    )
     assert cell.read_text() == CELL, "nothing written before apply()"
     edit.apply()
     assert cell.read_text() == edit.after
 
 
 def test_a_block_pose_keeps_its_comments_and_gains_a_missing_rpy(cell):
-    text = CELL.replace("  tcp: {xyz: [0, 0, 0.17]}          # nominal, from the drawing\n",
-                        "  tcp:   # from the drawing\n    xyz: [0, 0, 0.17]   # nominal\n")
+    text = CELL.replace(
+        "  tcp: {xyz: [0, 0, 0.17]}          # nominal, from the drawing\n",
+        "  tcp:   # from the drawing\n    xyz: [0, 0, 0.17]   # nominal\n",
+    )
     cell.write_text(text)
     edit = pose_edit(cell, ("tool", "tcp"), [0.01, 0, 0.2], [0, 0, 90])
-    assert edit.after == text.replace("    xyz: [0, 0, 0.17]   # nominal\n",
-                                      "    xyz: [0.01, 0, 0.2]   # nominal\n    rpy: [0, 0, 90]\n")
+    assert edit.after == text.replace(
+        "    xyz: [0, 0, 0.17]   # nominal\n",
+        "    xyz: [0.01, 0, 0.2]   # nominal\n    rpy: [0, 0, 90]\n",
+    )
 
 
 def test_a_new_pose_is_the_first_entry_of_its_parent(cell):
@@ -44,15 +50,21 @@ def test_a_new_pose_is_the_first_entry_of_its_parent(cell):
 
 
 def test_an_inline_parent_is_refused_with_the_place(cell):
-    cell.write_text(CELL.replace("frames:\n  pick: {xyz: [0.7, -0.4, 0.83], rpy: [180, 0, 45]}   # infeed\n"
-                                 "  drop:   {xyz: [0.7, 0.4, 0.835], rpy: [180, 0, 0]}   # keep: hand aligned\n",
-                                 "frames: {pick: {xyz: [0.7, -0.4, 0.83]}}\n"))
+    cell.write_text(
+        CELL.replace(
+            "frames:\n  pick: {xyz: [0.7, -0.4, 0.83], rpy: [180, 0, 45]}   # infeed\n"
+            "  drop:   {xyz: [0.7, 0.4, 0.835], rpy: [180, 0, 0]}   # keep: hand aligned\n",
+            "frames: {pick: {xyz: [0.7, -0.4, 0.83]}}\n",
+        )
+    )
     with pytest.raises(CellFileError, match=r"c\.yaml:20:10: frames is written inline"):
         pose_edit(cell, ("frames", "new"), [0, 0, 0], [0, 0, 0])
 
 
 def test_three_points_make_a_right_handed_frame():
-    T = frame_from_points([1, 1, 0], [1, 2, 0], [0, 1.5, 0])  # X along world +Y, plane point on world -X
+    T = frame_from_points(
+        [1, 1, 0], [1, 2, 0], [0, 1.5, 0]
+    )  # X along world +Y, plane point on world -X
     assert np.allclose(T[:3, :3], [[0, -1, 0], [1, 0, 0], [0, 0, 1]])
     assert np.allclose(T[:3, 3], [1, 1, 0])
 

@@ -34,7 +34,9 @@ def test_cartesian_jog_moves_the_tcp_along_the_asked_axis(world, mode, axis):
     w = R.T @ np.array([dR[2, 1] - dR[1, 2], dR[0, 2] - dR[2, 0], dR[1, 0] - dR[0, 1]]) / (2 * dt)
     twist = np.concatenate([v, w])
     expected = np.zeros(6)
-    expected[axis] = 0.5 * (jog.LINEAR_SPEED_MPS if axis < 3 else np.radians(jog.ANGULAR_SPEED_DEG_S))
+    expected[axis] = 0.5 * (
+        jog.LINEAR_SPEED_MPS if axis < 3 else np.radians(jog.ANGULAR_SPEED_DEG_S)
+    )
     assert np.allclose(twist, expected, atol=0.02 * abs(expected[axis]))
 
 

@@ -6,7 +6,8 @@ import io
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cellrunner.execution.pacing import EnterGate
 from cellrunner.model.trajectory import Trajectory, approve, time_scaled

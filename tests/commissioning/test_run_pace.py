@@ -52,11 +52,16 @@ def test_quarter_speed_streams_the_approved_set_points_four_times_slower(project
     for j in (1, 2, 3):  # the ones between lie on the approved segment, in order
         assert np.allclose(qq[j::4], q1[:-1] + j / 4 * (q1[1:] - q1[:-1]), atol=1e-12)
     period_s = 1.0 / plan["rate_hz"]
-    assert np.median(np.diff(at_q[:, 0])) == pytest.approx(period_s), "one set-point per controller period"
+    assert np.median(np.diff(at_q[:, 0])) == pytest.approx(period_s), (
+        "one set-point per controller period"
+    )
     # 4x the set-points at one per controller period is 4x the time. Measured times add the
     # client's pacing delays on a loaded machine (late set-points only ever stretch them),
     # so they are bounded from below here
-    span_1, span_q = at_1[-1, 0] - at_1[0, 0], at_q[-1, 0] - at_q[0, 0]  # controller time at arrival
+    span_1, span_q = (
+        at_1[-1, 0] - at_1[0, 0],
+        at_q[-1, 0] - at_q[0, 0],
+    )  # controller time at arrival
     assert (len(qq) - 1) * period_s == pytest.approx(4 * (len(q1) - 1) * period_s)
     assert span_q / span_1 > 3.6
     assert slow["cycle_time_s"] / full["cycle_time_s"] > 3.6
@@ -68,7 +73,9 @@ def test_speed_outside_zero_to_one_is_an_input_error(project):
     for bad in ("0", "1.5", "-0.2"):
         r = cli("run", str(cell), str(task), "--robot-host", HOST, "--speed", bad)
         assert r.returncode == 2 and "Traceback" not in r.stderr
-        assert f"--speed {float(bad):g}: give a fraction of the approved pace, 0 < F <= 1" in r.stderr
+        assert (
+            f"--speed {float(bad):g}: give a fraction of the approved pace, 0 < F <= 1" in r.stderr
+        )
 
 
 def _read_until(stream, needle: str, timeout_s: float) -> list[str]:
@@ -87,10 +94,26 @@ def _read_until(stream, needle: str, timeout_s: float) -> list[str]:
 def test_step_mode_waits_for_enter_before_each_step(project, tmp_path):
     cell, task = project
     with twin(cell, HOST):
-        proc = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "run", str(cell), str(task),
-                                 "--robot-host", HOST, "--step", "--json"], cwd=ROOT, stdin=subprocess.PIPE,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                env={**os.environ, "COLUMNS": "200"})
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "cellrunner.cli.main",
+                "run",
+                str(cell),
+                str(task),
+                "--robot-host",
+                HOST,
+                "--step",
+                "--json",
+            ],
+            cwd=ROOT,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "COLUMNS": "200"},
+        )
         try:
             shown = []
             for n in range(4):
@@ -98,7 +121,9 @@ def test_step_mode_waits_for_enter_before_each_step(project, tmp_path):
                 shown.append(next(line for line in lines if line.startswith("next: ")))
                 fault(HOST, "record on")
                 time.sleep(0.5)
-                assert fault(HOST, f"record save {tmp_path / 'idle.npy'}") == "0", "nothing streamed before Enter"
+                assert fault(HOST, f"record save {tmp_path / 'idle.npy'}") == "0", (
+                    "nothing streamed before Enter"
+                )
                 proc.stdin.write("\n")
                 proc.stdin.flush()
             fault(HOST, "record off")
@@ -107,16 +132,32 @@ def test_step_mode_waits_for_enter_before_each_step(project, tmp_path):
             proc.kill() if proc.poll() is None else None
     assert proc.returncode == 0, err[-2000:]
     assert json.loads(out)["result_code"] == 0
-    assert shown[0].startswith("next: step 1 approach 'pick': TCP to xyz [0.7000, -0.4000, 0.9300] m, rpy [180.00, ")
-    assert shown[1].startswith("next: step 2 descend 'pick': TCP to xyz [0.7000, -0.4000, 0.8300] m")
+    assert shown[0].startswith(
+        "next: step 1 approach 'pick': TCP to xyz [0.7000, -0.4000, 0.9300] m, rpy [180.00, "
+    )
+    assert shown[1].startswith(
+        "next: step 2 descend 'pick': TCP to xyz [0.7000, -0.4000, 0.8300] m"
+    )
     assert shown[2] == "next: step 3 lift: 0.1 m straight\n"
-    assert shown[3] == "next: step 4 move 'home': joints to [0.00, -90.00, 90.00, -90.00, -90.00, 0.00] deg\n"
+    assert (
+        shown[3]
+        == "next: step 4 move 'home': joints to [0.00, -90.00, 90.00, -90.00, -90.00, 0.00] deg\n"
+    )
 
 
 def test_step_mode_aborts_when_no_one_can_press_enter(project):
     cell, task = project
     with twin(cell, HOST):
-        r = cli("run", str(cell), str(task), "--robot-host", HOST, "--step", "--json", stdin=subprocess.DEVNULL)
+        r = cli(
+            "run",
+            str(cell),
+            str(task),
+            "--robot-host",
+            HOST,
+            "--step",
+            "--json",
+            stdin=subprocess.DEVNULL,
+        )
     assert r.returncode == 1, r.stderr[-2000:]
     assert "end of input: no one can confirm the next step; aborting" in r.stderr
     out = json.loads(r.stdout)

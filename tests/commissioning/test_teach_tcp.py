@@ -30,7 +30,9 @@ class Hand:
         from cellrunner.planning.world import CellWorld
 
         self.kinematics = CellWorld(load_cell(cell_path)).kinematics
-        self.T_flange_tcp = self.kinematics.T_flange_tcp if hasattr(self.kinematics, "T_flange_tcp") else None
+        self.T_flange_tcp = (
+            self.kinematics.T_flange_tcp if hasattr(self.kinematics, "T_flange_tcp") else None
+        )
         self.control = rtde_control.RTDEControlInterface(HOST)
         self.q = np.radians([0, -90, 90, -90, -90, 0])
 
@@ -47,8 +49,14 @@ class Hand:
 def _session(args, on_prompt):
     """Run a commissioning command, calling ``on_prompt(n)`` before answering its n-th
     Enter prompt; returns (exit code, stdout, stderr)."""
-    proc = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", *args], cwd=ROOT, stdin=subprocess.PIPE,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cellrunner.cli.main", *args],
+        cwd=ROOT,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     seen = []
     try:
         deadline = time.monotonic() + 100
@@ -87,8 +95,10 @@ def test_a_frame_taught_from_three_points_matches_the_true_frame(tmp_path):
     with twin(cell, HOST):
         hand = Hand(cell)
         try:
-            code, out, err = _session(["teach", str(cell), "plate", "--robot-host", HOST, "--points", "3", "--yes"],
-                                      lambda n: hand.tcp_to(_tcp_pose(points[n])))
+            code, out, err = _session(
+                ["teach", str(cell), "plate", "--robot-host", HOST, "--points", "3", "--yes"],
+                lambda n: hand.tcp_to(_tcp_pose(points[n])),
+            )
         finally:
             hand.close()
     assert code == 0, err[-2000:]
@@ -98,6 +108,7 @@ def test_a_frame_taught_from_three_points_matches_the_true_frame(tmp_path):
     assert after.replace(added[0], "") == CELL, "every other byte as it was"
     assert out.count("\n+  plate: {xyz:") == 1  # the diff, on stdout
     from cellrunner.model.load import load_cell
+
     frame = load_cell(cell).cell.frames["plate"]
     T = frame.matrix()
     assert np.linalg.norm(T[:3, 3] - T_true[:3, 3]) < 0.5e-3
@@ -112,15 +123,46 @@ def test_teach_one_point_rewrites_only_that_frame_and_asks_first(tmp_path):
         hand = Hand(cell)
         try:
             hand.tcp_to(T_goal)
-            proc = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "teach", str(cell), "pick",
-                                   "--robot-host", HOST], input="\nn\n", capture_output=True, text=True, cwd=ROOT,
-                                  timeout=100)
+            proc = subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "cellrunner.cli.main",
+                    "teach",
+                    str(cell),
+                    "pick",
+                    "--robot-host",
+                    HOST,
+                ],
+                input="\nn\n",
+                capture_output=True,
+                text=True,
+                cwd=ROOT,
+                timeout=100,
+            )
             assert proc.returncode == 0, proc.stderr
             assert cell.read_text() == CELL, "answered n: nothing written"
-            assert "left unchanged" in proc.stderr and "-  pick: {xyz: [0.7, -0.4, 0.83]" in proc.stdout
-            proc = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "teach", str(cell), "pick",
-                                   "--robot-host", HOST], input="\ny\n", capture_output=True, text=True, cwd=ROOT,
-                                  timeout=100)
+            assert (
+                "left unchanged" in proc.stderr
+                and "-  pick: {xyz: [0.7, -0.4, 0.83]" in proc.stdout
+            )
+            proc = subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "cellrunner.cli.main",
+                    "teach",
+                    str(cell),
+                    "pick",
+                    "--robot-host",
+                    HOST,
+                ],
+                input="\ny\n",
+                capture_output=True,
+                text=True,
+                cwd=ROOT,
+                timeout=100,
+            )
         finally:
             hand.close()
     assert proc.returncode == 0, proc.stderr
@@ -130,6 +172,7 @@ def test_teach_one_point_rewrites_only_that_frame_and_asks_first(tmp_path):
     assert len(old) == len(new) and len(changed) == 1
     assert new[changed[0]].endswith("]}   # infeed\n"), "the comment after the frame stays"
     from cellrunner.model.load import load_cell
+
     T = load_cell(cell).cell.frames["pick"].matrix()
     assert np.linalg.norm(T[:3, 3] - T_goal[:3, 3]) < 0.5e-3
     assert "mm and" in proc.stderr and "from the pose in the file" in proc.stderr
@@ -139,7 +182,14 @@ def test_calibrate_tcp_recovers_a_hidden_tcp(tmp_path):
     cell, _ = write_project(tmp_path)
     hidden_m = np.array([0.012, -0.008, 0.183])  # the real tool; the file says [0, 0, 0.17]
     point = np.array([0.6, 0.1, 0.95])
-    tilts = [[0, 0, 0], [0, 0, 0], [25, 0, 0], [0, 25, 0], [-15, -15, 30], [10, -20, -60]]  # the 2nd repeats
+    tilts = [
+        [0, 0, 0],
+        [0, 0, 0],
+        [25, 0, 0],
+        [0, 25, 0],
+        [-15, -15, 30],
+        [10, -20, -60],
+    ]  # the 2nd repeats
     T_flange_tcp_file = pose_matrix([0, 0, 0.17])
 
     def touch(n):
@@ -150,16 +200,23 @@ def test_calibrate_tcp_recovers_a_hidden_tcp(tmp_path):
     with twin(cell, HOST):
         hand = Hand(cell)
         try:
-            code, out, err = _session(["calibrate-tcp", str(cell), "--robot-host", HOST, "--poses", "5", "--yes"],
-                                      touch)
+            code, out, err = _session(
+                ["calibrate-tcp", str(cell), "--robot-host", HOST, "--poses", "5", "--yes"], touch
+            )
         finally:
             hand.close()
     assert code == 0, err[-2000:]
-    assert "refused: this pose is turned only 0.0 deg from pose 1; turn the tool at least 15 deg" in err
+    assert (
+        "refused: this pose is turned only 0.0 deg from pose 1; turn the tool at least 15 deg"
+        in err
+    )
     from cellrunner.model.load import load_cell
+
     tcp = np.array(load_cell(cell).cell.tool.tcp.xyz)
     assert np.linalg.norm(tcp - hidden_m) < 0.5e-3, tcp
-    assert cell.read_text() == CELL.replace("tcp: {xyz: [0, 0, 0.17]}", "tcp: {xyz: [0.012, -0.008, 0.183]}")
+    assert cell.read_text() == CELL.replace(
+        "tcp: {xyz: [0, 0, 0.17]}", "tcp: {xyz: [0.012, -0.008, 0.183]}"
+    )
     assert "residual rms 0.0" in err
 
 
@@ -171,7 +228,9 @@ def test_calibrate_tcp_refuses_poses_about_one_axis():
     for angle in (0, 30, 60, 90):  # all about the flange's Z: the TCP's Z is not observable
         R = DOWN @ rot_rpy_deg([0, 0, angle])
         poses.append(_tcp_pose(np.array([0.5, 0, 1.0]) - R @ hidden, R))
-    with pytest.raises(TcpError, match=r"the poses turn the tool about too few axes \(conditioning 0\.0"):
+    with pytest.raises(
+        TcpError, match=r"the poses turn the tool about too few axes \(conditioning 0\.0"
+    ):
         solve_tcp(poses)
 
 

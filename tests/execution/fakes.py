@@ -46,11 +46,21 @@ class ScriptedArm:
     _lifted: bool = False  # the fake's lift raises joint 3 above 0
     _target: np.ndarray | None = None
 
-    def connect(self): pass
-    def reconnect(self, timeout_s=None): pass
-    def close(self): pass
-    def zero_ft_sensor(self): pass
-    def set_tool(self, T_flange_tcp, payload_kg, payload_cog_m): pass
+    def connect(self):
+        pass
+
+    def reconnect(self, timeout_s=None):
+        pass
+
+    def close(self):
+        pass
+
+    def zero_ft_sensor(self):
+        pass
+
+    def set_tool(self, T_flange_tcp, payload_kg, payload_cog_m):
+        pass
+
     def recover_from_estop(self):
         if self.safety is Safety.EMERGENCY_STOP:
             raise BackendError("emergency stop is still pressed; a person must release it first")
@@ -62,9 +72,16 @@ class ScriptedArm:
         wrench[2] = -20.0  # the tool's own weight
         if closed_on_part and self._lifted:  # off the table: the wrist carries the part
             wrench[2] -= self.part_mass_kg * 9.81
-        return RobotState(self.t, self.q.copy(), self.qd.copy(), wrench, self.safety,
-                          inputs={self.sensor_channel: closed_on_part}, outputs=dict(self.outputs),
-                          powered=self.powered)
+        return RobotState(
+            self.t,
+            self.q.copy(),
+            self.qd.copy(),
+            wrench,
+            self.safety,
+            inputs={self.sensor_channel: closed_on_part},
+            outputs=dict(self.outputs),
+            powered=self.powered,
+        )
 
     def servo(self, approved, index):
         if not approved.is_sealed:
@@ -102,8 +119,11 @@ class ScriptedArm:
             self._closing_ticks += 1
             if self._closing_ticks >= self.close_ticks and self.part_present:
                 self._holding_part = True
-        for attr, effect in (("protective_stop_at_s", Safety.PROTECTIVE_STOP),
-                             ("estop_at_s", Safety.EMERGENCY_STOP), ("disconnect_at_s", Safety.DISCONNECTED)):
+        for attr, effect in (
+            ("protective_stop_at_s", Safety.PROTECTIVE_STOP),
+            ("estop_at_s", Safety.EMERGENCY_STOP),
+            ("disconnect_at_s", Safety.DISCONNECTED),
+        ):
             at = getattr(self, attr)
             if at is not None and self.t >= at:
                 setattr(self, attr, None)
@@ -142,7 +162,9 @@ class LineMotions:
     def _line(self, step, q0, q1):
         n = max(2, int(self.duration_s * RATE))
         s = np.linspace(0, 1, n)[:, None]
-        return approve(Trajectory(RATE, np.arange(n) / RATE, q0 + s * (q1 - q0)), step.index, step.name)
+        return approve(
+            Trajectory(RATE, np.arange(n) / RATE, q0 + s * (q1 - q0)), step.index, step.name
+        )
 
     def continues(self, step):
         return False  # every line starts and ends at rest

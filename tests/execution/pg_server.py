@@ -22,8 +22,10 @@ USER = "cellrunner"
 
 def pg_bin(name: str) -> str | None:
     """The newest installed PostgreSQL's ``name`` (pg_ctl, initdb), or None."""
-    found = sorted(glob.glob(f"/usr/lib/postgresql/*/bin/{name}"),
-                   key=lambda p: int(p.split("/")[4]) if p.split("/")[4].isdigit() else 0)
+    found = sorted(
+        glob.glob(f"/usr/lib/postgresql/*/bin/{name}"),
+        key=lambda p: int(p.split("/")[4]) if p.split("/")[4].isdigit() else 0,
+    )
     return found[-1] if found else shutil.which(name)
 
 
@@ -48,14 +50,18 @@ class PgServer:
     def url(self) -> str:
         return f"postgresql://{USER}@{self.host}:{self.port}/postgres"
 
-    def __enter__(self) -> "PgServer":
+    def __enter__(self) -> PgServer:
         initdb = pg_bin("initdb")
-        assert initdb and pg_bin("pg_ctl"), ("PostgreSQL server binaries not found: install Debian's "
-                                             "postgresql package (scripts/test does, as root)")
+        assert initdb and pg_bin("pg_ctl"), (
+            "PostgreSQL server binaries not found: install Debian's "
+            "postgresql package (scripts/test does, as root)"
+        )
         if self._as_postgres:
             shutil.chown(self.root, "postgres", "postgres")
             os.chmod(self.root, 0o700)
-        self._run(initdb, "-D", str(self.data), "-U", USER, "--auth=trust", "-E", "UTF8", "--no-sync")
+        self._run(
+            initdb, "-D", str(self.data), "-U", USER, "--auth=trust", "-E", "UTF8", "--no-sync"
+        )
         self.start()
         return self
 
@@ -69,8 +75,19 @@ class PgServer:
         options = f"-c listen_addresses={self.host} -p {self.port} -k {self.root}"
         if not self.durable:
             options += " -c fsync=off -c full_page_writes=off"
-        self._run(pg_bin("pg_ctl"), "-D", str(self.data), "-l", str(self.root / "log"), "-w", "-t", "60",
-                  "-o", options, "start")
+        self._run(
+            pg_bin("pg_ctl"),
+            "-D",
+            str(self.data),
+            "-l",
+            str(self.root / "log"),
+            "-w",
+            "-t",
+            "60",
+            "-o",
+            options,
+            "start",
+        )
 
     def stop(self, mode: str = "fast") -> None:
         """``fast`` ends sessions cleanly, ``immediate`` is a crash (recovery at the next start)."""

@@ -38,19 +38,32 @@ def test_a_stop_in_a_blended_approach_replans_the_descend_from_rest():
     world = CellWorld(cell)
     steps = expand(task, cell.cell, resolve_params(task.task, {}))
     plan = plan_task(world, steps, world.q_home_rad)
-    approach, descend = (next(s for s in steps if s.kind == k and "pallet" in s.name) for k in ("approach", "descend"))
+    approach, descend = (
+        next(s for s in steps if s.kind == k and "pallet" in s.name)
+        for k in ("approach", "descend")
+    )
     assert plan.continues(descend) and not plan.continues(approach)
     arm = RecordingArm(q=world.q_home_rad.copy())
-    ctx = JobContext(backend=arm, motions=plan, outputs={"gripper_close": "DO0", "beacon": "DO3"},
-                     inputs={"gripper_closed": "DI0", "part_present": "DI1"}, gripper_close=("DO0", True),
-                     gripper_open=None, gripper_closed_sensor="DI0")
+    ctx = JobContext(
+        backend=arm,
+        motions=plan,
+        outputs={"gripper_close": "DO0", "beacon": "DO3"},
+        inputs={"gripper_closed": "DI0", "part_present": "DI1"},
+        gripper_close=("DO0", True),
+        gripper_open=None,
+        gripper_closed_sensor="DI0",
+    )
     runner = JobRunner(ctx, steps, task.task.on_protective_stop)
     runner.start()
     for _ in range(200_000):
         if runner.done:
             break
-        if arm.protective_stop_at_s is None and runner.protective_stops == 0 \
-                and arm.sent and arm.sent[-1][0] == approach.index:
+        if (
+            arm.protective_stop_at_s is None
+            and runner.protective_stops == 0
+            and arm.sent
+            and arm.sent[-1][0] == approach.index
+        ):
             arm.protective_stop_at_s = arm.t + 0.5  # half a second into the pallet approach
         arm.wait_period()
         runner.tick()
@@ -58,8 +71,12 @@ def test_a_stop_in_a_blended_approach_replans_the_descend_from_rest():
     assert runner.protective_stops == 1
     streamed = np.array([q for index, q in arm.sent if index == descend.index])
     nominal = plan.nominal(descend).trajectory.q_rad
-    assert not np.allclose(streamed[:len(nominal)][:5], nominal[1:6])  # not the planned, moving start
+    assert not np.allclose(
+        streamed[: len(nominal)][:5], nominal[1:6]
+    )  # not the planned, moving start
     # from rest: every joint within its acceleration limit from the first set-point on
     before = np.array([q for index, q in arm.sent if index == approach.index])[-1]
-    _, accel, _ = sample_measures(world.kinematics, np.vstack([before, streamed]), world.spec.rate_hz)
+    _, accel, _ = sample_measures(
+        world.kinematics, np.vstack([before, streamed]), world.spec.rate_hz
+    )
     assert (np.abs(accel) <= world.limits.joint_accel_rad_s2 * (1 + 1e-6)).all()

@@ -6,7 +6,8 @@ import pytest
 
 from cellrunner.execution.cell import CellController, JobPlan, run_until_done
 from cellrunner.execution.journal import Journal
-from cellrunner.model.codes import PackMLState as S, ResultCode
+from cellrunner.model.codes import PackMLState as S
+from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import expand
 from cellrunner.model.load import load_cell, load_task
 from tests.conftest import DEMO_CELL
@@ -63,7 +64,10 @@ def test_rejects(tmp_path):
     cell, _ = make_cell(tmp_path)
     assert cell.start_job(9, {}, "1", "modbus").reject_code == ResultCode.REJECT_UNKNOWN_TASK
     bad = cell.start_job(1, {"slot": 12}, "2", "modbus")
-    assert (bad.reject_code, bad.message) == (ResultCode.REJECT_BAD_PARAMS, "param 'slot' = 12 is outside [0, 11]")
+    assert (bad.reject_code, bad.message) == (
+        ResultCode.REJECT_BAD_PARAMS,
+        "param 'slot' = 12 is outside [0, 11]",
+    )
     assert cell.start_job("pick_place", {}, "3", "modbus").accepted
     assert cell.start_job(1, {}, "4", "modbus").reject_code == ResultCode.REJECT_NOT_READY
 

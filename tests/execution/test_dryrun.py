@@ -65,9 +65,23 @@ def project(tmp_path_factory) -> tuple[Path, Path]:
 
 def dry_run(project, *extra) -> tuple[int, dict]:
     cell, task = project
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "dry-run", str(cell), str(task), "--json", *extra],
-                       capture_output=True, text=True, cwd=ROOT, timeout=600,
-                       env={**os.environ, "MUJOCO_GL": "osmesa"})
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "dry-run",
+            str(cell),
+            str(task),
+            "--json",
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=600,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
     assert "Traceback" not in r.stderr, r.stderr
     return r.returncode, json.loads(r.stdout)
 
@@ -83,8 +97,18 @@ def test_normal_job_completes_and_tracks_the_plan(project):
     assert out["max_tracking_error_m"] < 0.005
     planned, simulated = out["planned_cycle_time_s"], out["cycle_time_s"]
     assert abs(simulated - planned) / planned < 0.05, (planned, simulated)
-    assert {"ok", "cell", "task", "params", "cycle_time_s", "steps", "errors", "planned_cycle_time_s",
-            "max_tracking_error_m", "result_code"} <= set(out)
+    assert {
+        "ok",
+        "cell",
+        "task",
+        "params",
+        "cycle_time_s",
+        "steps",
+        "errors",
+        "planned_cycle_time_s",
+        "max_tracking_error_m",
+        "result_code",
+    } <= set(out)
 
 
 def test_grip_miss_ends_with_no_part_after_the_attempts(project):
@@ -111,7 +135,9 @@ def test_protective_stop_is_held_then_resumed_after_5s(project):
 
 
 def test_second_protective_stop_beyond_max_is_100(project):
-    code, out = dry_run(project, "--inject", "protective_stop@approach#1", "--inject", "protective_stop@approach#2")
+    code, out = dry_run(
+        project, "--inject", "protective_stop@approach#1", "--inject", "protective_stop@approach#2"
+    )
     assert (code, out["result_code"]) == (1, 100)
 
 
@@ -128,8 +154,22 @@ def test_robot_disconnect_is_102(project):
 
 def test_bad_injection_is_exit_2(project):
     cell, task = project
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "dry-run", str(cell), str(task),
-                        "--inject", "grip_mis@grip"], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "dry-run",
+            str(cell),
+            str(task),
+            "--inject",
+            "grip_mis@grip",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+    )
     assert r.returncode == 2
     assert "unknown fault 'grip_mis'; known: grip_miss, part_slip" in r.stderr
 
@@ -146,12 +186,30 @@ def test_report_has_pictures_and_plots(project, tmp_path):
 
 def test_json_logs_are_bound_with_cell_job_step_attempt(project):
     cell, task = project
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "--log-format", "json", "dry-run", str(cell),
-                        str(task), "--inject", "grip_miss@grip"], capture_output=True, text=True, cwd=ROOT,
-                       timeout=600, env={**os.environ, "MUJOCO_GL": "osmesa"})
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "--log-format",
+            "json",
+            "dry-run",
+            str(cell),
+            str(task),
+            "--inject",
+            "grip_miss@grip",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=600,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
     events = [json.loads(line) for line in r.stderr.splitlines() if line.startswith("{")]
     steps = [e for e in events if e["event"] == "step"]
-    assert steps and all({"cell", "job_id", "step", "attempt", "timestamp"} <= set(e) for e in steps)
+    assert steps and all(
+        {"cell", "job_id", "step", "attempt", "timestamp"} <= set(e) for e in steps
+    )
     assert {e["cell"] for e in events} == {"dryrun-cell"}
     assert max(e["attempt"] for e in steps if e["step"] == 4) == 2  # the grip's retry
     assert any(e["event"] == "retry" for e in events)

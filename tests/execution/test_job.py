@@ -21,9 +21,15 @@ def make(arm: ScriptedArm, policy=None, task=PICK_PLACE, **kw):
     loaded = load_task(task, cell)
     steps = expand(loaded, cell.cell, resolve_params(loaded.task, {}))
     motions = LineMotions(steps)
-    ctx = JobContext(backend=arm, motions=motions, outputs={"gripper_close": "DO0", "beacon": "DO3"},
-                     inputs={"gripper_closed": "DI0", "part_present": "DI1"}, gripper_close=("DO0", True),
-                     gripper_open=None, gripper_closed_sensor="DI0")
+    ctx = JobContext(
+        backend=arm,
+        motions=motions,
+        outputs={"gripper_close": "DO0", "beacon": "DO3"},
+        inputs={"gripper_closed": "DI0", "part_present": "DI1"},
+        gripper_close=("DO0", True),
+        gripper_open=None,
+        gripper_closed_sensor="DI0",
+    )
     runner = JobRunner(ctx, steps, policy or loaded.task.on_protective_stop, **kw)
     return runner, motions
 
@@ -104,7 +110,9 @@ def test_part_slip_in_transit_is_part_lost():
         runner.tick()
     assert runner.result is ResultCode.PART_LOST
     assert runner.records[6].status == "failed"
-    assert runner.message.startswith("part lost in transit: the ")  # jaw sensor or wrist load, whichever first
+    assert runner.message.startswith(
+        "part lost in transit: the "
+    )  # jaw sensor or wrist load, whichever first
 
 
 def test_protective_stop_is_held_5s_then_resumed():
@@ -181,7 +189,9 @@ def test_hold_unhold_and_abort_requests():
 
 def test_wait_input_timeout_is_105(tmp_path):
     task = tmp_path / "t.yaml"
-    task.write_text("task: t\nsteps:\n  - wait_input: {input: part_present, value: true, timeout: 0.5}\n")
+    task.write_text(
+        "task: t\nsteps:\n  - wait_input: {input: part_present, value: true, timeout: 0.5}\n"
+    )
     arm = ScriptedArm()
     runner, _ = make(arm, task=task)
     run(runner, arm)

@@ -45,8 +45,11 @@ def test_a_full_disk_refuses_the_job_and_serve_goes_on(tmp_path):
     cell.journal.db.execute(f"PRAGMA max_page_count = {pages}")
     with pytest.raises(sqlite3.OperationalError, match="full"):  # fill every page's last byte
         for i in range(100_000):
-            cell.journal.db.execute("INSERT INTO jobs (job_id, cell, task, params, source, started_at) "
-                                    "VALUES (?, 'c', 't', '{}', 'filler', 0)", (f"f{i}",))
+            cell.journal.db.execute(
+                "INSERT INTO jobs (job_id, cell, task, params, source, started_at) "
+                "VALUES (?, 'c', 't', '{}', 'filler', 0)",
+                (f"f{i}",),
+            )
     ticket = cell.start_job(1, {}, "9", "modbus")
     assert ticket.reject_code == ResultCode.REJECT_NOT_READY and "journal" in ticket.message
     tick(cell, 5)

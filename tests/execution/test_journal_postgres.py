@@ -48,7 +48,12 @@ def test_jobs_steps_and_results_per_cell(clean):
         assert b.by_client_id("opcua", "X").job_id == "b1" and a.by_client_id("opcua", "X") is None
         assert [r.job_id for r in a.last(10)] == ["a1", "a2"]
         record = a.get("a1")
-        assert (record.params, record.result_code, record.cycle_time_s, record.client_job_id) == ({"slot": 3}, 0, 6.5, "17")
+        assert (record.params, record.result_code, record.cycle_time_s, record.client_job_id) == (
+            {"slot": 3},
+            0,
+            6.5,
+            "17",
+        )
         assert [(s[0], s[3]) for s in a.steps_of("a1")] == [(1, "running"), (1, "ok")]
         assert b.last_finished().job_id == "b1"
     finally:
@@ -64,7 +69,11 @@ def test_jobs_steps_and_results_per_cell(clean):
     assert a.counters() == (1, 0)
     a.close()
     everyone = PostgresJournal(clean.url, None).open()
-    assert sorted((r.cell, r.job_id) for r in everyone.last(10)) == [("cell-a", "a1"), ("cell-a", "a2"), ("cell-b", "b1")]
+    assert sorted((r.cell, r.job_id) for r in everyone.last(10)) == [
+        ("cell-a", "a1"),
+        ("cell-a", "a2"),
+        ("cell-b", "b1"),
+    ]
     everyone.close()
 
 
@@ -80,7 +89,9 @@ def test_writes_survive_a_server_restart_exactly_once(clean):
         journal.end_job("j1", ResultCode.OK, 4.2, 0)
         assert time.monotonic() - t0 < 0.1
         with pytest.raises(JournalError, match="could not be journaled|unreachable"):
-            journal.begin_job("j2", "cell-a", "pick", {}, "modbus", "2")  # nothing unjournaled is accepted
+            journal.begin_job(
+                "j2", "cell-a", "pick", {}, "modbus", "2"
+            )  # nothing unjournaled is accepted
         t0 = time.monotonic()
         with pytest.raises(JournalError, match="unreachable"):
             journal.begin_job("j3", "cell-a", "pick", {}, "modbus", "3")
@@ -109,7 +120,9 @@ def test_an_unreachable_database_is_a_clear_error(pg):
     with pytest.raises(JournalError) as exc:
         journal.open()
     text = str(exc.value)
-    assert text.startswith(f"cannot reach the journal database postgresql://cellrunner@{HOST}:1/plant: ")
+    assert text.startswith(
+        f"cannot reach the journal database postgresql://cellrunner@{HOST}:1/plant: "
+    )
     assert "secret" not in text and exc.value.exit_code == 3
 
 
@@ -123,4 +136,5 @@ def test_jobs_command_on_an_unreachable_database_is_exit_3(tmp_path, capsys):
     assert main(["jobs", str(cell), "--all-cells"]) == 3
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(
-        f"cellrunner jobs: error: cannot reach the journal database postgresql://cellrunner@{HOST}:1/plant: ")
+        f"cellrunner jobs: error: cannot reach the journal database postgresql://cellrunner@{HOST}:1/plant: "
+    )

@@ -8,7 +8,15 @@ import itertools
 
 import pytest
 
-from cellrunner.execution.packml import COMMANDS, COMPLETES, EVENTS, Command, Event, StateMachine, TransitionRefused
+from cellrunner.execution.packml import (
+    COMMANDS,
+    COMPLETES,
+    EVENTS,
+    Command,
+    Event,
+    StateMachine,
+    TransitionRefused,
+)
 from cellrunner.model.codes import PackMLState as S
 
 #: SPEC section 6's moves, written out by hand (the table is checked against this, not itself)
@@ -22,12 +30,35 @@ EXPECTED_COMMANDS = {
     (S.SUSPENDED, Command.UNSUSPEND): S.UNSUSPENDING,
     (S.ABORTED, Command.CLEAR): S.CLEARING,
 }
-STOPPABLE = {S.IDLE, S.STARTING, S.EXECUTE, S.COMPLETING, S.COMPLETE, S.HOLDING, S.HELD, S.UNHOLDING,
-             S.SUSPENDING, S.SUSPENDED, S.UNSUSPENDING, S.RESETTING}
+STOPPABLE = {
+    S.IDLE,
+    S.STARTING,
+    S.EXECUTE,
+    S.COMPLETING,
+    S.COMPLETE,
+    S.HOLDING,
+    S.HELD,
+    S.UNHOLDING,
+    S.SUSPENDING,
+    S.SUSPENDED,
+    S.UNSUSPENDING,
+    S.RESETTING,
+}
 EXPECTED_COMMANDS |= {(s, Command.STOP): S.STOPPING for s in STOPPABLE}
-EXPECTED_COMMANDS |= {(s, Command.ABORT): S.ABORTING for s in STOPPABLE | {S.STOPPING, S.STOPPED, S.CLEARING}}
+EXPECTED_COMMANDS |= {
+    (s, Command.ABORT): S.ABORTING for s in STOPPABLE | {S.STOPPING, S.STOPPED, S.CLEARING}
+}
 
-RUNNING = {S.STARTING, S.EXECUTE, S.HOLDING, S.HELD, S.UNHOLDING, S.SUSPENDING, S.SUSPENDED, S.UNSUSPENDING}
+RUNNING = {
+    S.STARTING,
+    S.EXECUTE,
+    S.HOLDING,
+    S.HELD,
+    S.UNHOLDING,
+    S.SUSPENDING,
+    S.SUSPENDED,
+    S.UNSUSPENDING,
+}
 EXPECTED_EVENTS = {
     (S.EXECUTE, Event.HOLD_STARTED): S.HOLDING,
     (S.HOLDING, Event.RESUMED): S.UNHOLDING,
@@ -40,9 +71,17 @@ for s in set(S) - {S.ABORTING, S.ABORTED}:
         EXPECTED_EVENTS[(s, e)] = S.ABORTING
 
 EXPECTED_COMPLETES = {
-    S.STARTING: S.EXECUTE, S.EXECUTE: S.COMPLETING, S.COMPLETING: S.COMPLETE, S.RESETTING: S.IDLE,
-    S.HOLDING: S.HELD, S.UNHOLDING: S.EXECUTE, S.SUSPENDING: S.SUSPENDED, S.UNSUSPENDING: S.EXECUTE,
-    S.STOPPING: S.STOPPED, S.ABORTING: S.ABORTED, S.CLEARING: S.STOPPED,
+    S.STARTING: S.EXECUTE,
+    S.EXECUTE: S.COMPLETING,
+    S.COMPLETING: S.COMPLETE,
+    S.RESETTING: S.IDLE,
+    S.HOLDING: S.HELD,
+    S.UNHOLDING: S.EXECUTE,
+    S.SUSPENDING: S.SUSPENDED,
+    S.UNSUSPENDING: S.EXECUTE,
+    S.STOPPING: S.STOPPED,
+    S.ABORTING: S.ABORTED,
+    S.CLEARING: S.STOPPED,
 }
 
 
@@ -57,7 +96,9 @@ def test_every_command_in_every_state(state, command):
     sm = StateMachine(state)
     expected = EXPECTED_COMMANDS.get((state, command))
     if expected is None:
-        with pytest.raises(TransitionRefused, match=f"{command.value} is not allowed in state {state.display_name}"):
+        with pytest.raises(
+            TransitionRefused, match=f"{command.value} is not allowed in state {state.display_name}"
+        ):
             sm.command(command)
         assert sm.state is state  # a refused command changes nothing
     else:
@@ -70,7 +111,10 @@ def test_every_event_in_every_state(state, event):
     expected = EXPECTED_EVENTS.get((state, event))
     assert sm.can(event) is (expected is not None)
     if expected is None:
-        with pytest.raises(TransitionRefused, match=f"event {event.value} cannot happen in state {state.display_name}"):
+        with pytest.raises(
+            TransitionRefused,
+            match=f"event {event.value} cannot happen in state {state.display_name}",
+        ):
             sm.on(event)
         assert sm.state is state
     else:
@@ -95,9 +139,39 @@ def test_refusal_lists_what_is_allowed():
 
 def test_a_job_cycle_with_a_protective_stop_and_an_estop():
     sm = StateMachine(S.STOPPED)
-    path = [sm.command(Command.RESET), sm.state_complete(), sm.command(Command.START), sm.state_complete(),
-            sm.on(Event.HOLD_STARTED), sm.state_complete(), sm.on(Event.RESUMED), sm.state_complete(),
-            sm.on(Event.ESTOP), sm.state_complete(), sm.command(Command.CLEAR), sm.on(Event.CLEAR_FAILED),
-            sm.command(Command.CLEAR), sm.state_complete(), sm.command(Command.RESET), sm.state_complete()]
-    assert path == [S.RESETTING, S.IDLE, S.STARTING, S.EXECUTE, S.HOLDING, S.HELD, S.UNHOLDING, S.EXECUTE,
-                    S.ABORTING, S.ABORTED, S.CLEARING, S.ABORTED, S.CLEARING, S.STOPPED, S.RESETTING, S.IDLE]
+    path = [
+        sm.command(Command.RESET),
+        sm.state_complete(),
+        sm.command(Command.START),
+        sm.state_complete(),
+        sm.on(Event.HOLD_STARTED),
+        sm.state_complete(),
+        sm.on(Event.RESUMED),
+        sm.state_complete(),
+        sm.on(Event.ESTOP),
+        sm.state_complete(),
+        sm.command(Command.CLEAR),
+        sm.on(Event.CLEAR_FAILED),
+        sm.command(Command.CLEAR),
+        sm.state_complete(),
+        sm.command(Command.RESET),
+        sm.state_complete(),
+    ]
+    assert path == [
+        S.RESETTING,
+        S.IDLE,
+        S.STARTING,
+        S.EXECUTE,
+        S.HOLDING,
+        S.HELD,
+        S.UNHOLDING,
+        S.EXECUTE,
+        S.ABORTING,
+        S.ABORTED,
+        S.CLEARING,
+        S.ABORTED,
+        S.CLEARING,
+        S.STOPPED,
+        S.RESETTING,
+        S.IDLE,
+    ]

@@ -14,8 +14,14 @@ from tests.execution.test_dryrun import project  # noqa: F401 (fixture)
 
 
 def cli(*args, cwd=ROOT):
-    return subprocess.run([sys.executable, "-m", "cellrunner.cli.main", *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=600, env={**os.environ, "MUJOCO_GL": "osmesa"})
+    return subprocess.run(
+        [sys.executable, "-m", "cellrunner.cli.main", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=600,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
 
 
 def test_run_on_the_twin_is_journaled(project):  # noqa: F811
@@ -28,17 +34,25 @@ def test_run_on_the_twin_is_journaled(project):  # noqa: F811
     assert r.returncode == 0, r.stderr
     rows = list(csv.DictReader(io.StringIO(r.stdout)))
     assert rows[-1]["job_id"] == out["job_id"]
-    assert rows[-1]["result_code"] == "0" and rows[-1]["source"] == "cli" and float(rows[-1]["cycle_time_s"]) > 3
+    assert (
+        rows[-1]["result_code"] == "0"
+        and rows[-1]["source"] == "cli"
+        and float(rows[-1]["cycle_time_s"]) > 3
+    )
 
 
 def test_jobs_without_a_journal(tmp_path):
-    (tmp_path / "c.yaml").write_text("cell: c\nrobot: {model: ur5e, home: [0, -90, 90, -90, -90, 0]}\n")
+    (tmp_path / "c.yaml").write_text(
+        "cell: c\nrobot: {model: ur5e, home: [0, -90, 90, -90, -90, 0]}\n"
+    )
     r = cli("jobs", str(tmp_path / "c.yaml"))
     assert r.returncode == 0 and "no journal yet" in r.stderr
 
 
 def test_ur_backend_without_a_host_is_an_input_error(tmp_path):
-    (tmp_path / "c.yaml").write_text("cell: c\nrobot: {model: ur5e, home: [0, -90, 90, -90, -90, 0]}\n")
+    (tmp_path / "c.yaml").write_text(
+        "cell: c\nrobot: {model: ur5e, home: [0, -90, 90, -90, -90, 0]}\n"
+    )
     (tmp_path / "t.yaml").write_text("task: t\nsteps: [{move: home}]\n")
     r = cli("run", str(tmp_path / "c.yaml"), str(tmp_path / "t.yaml"))
     assert r.returncode == 2

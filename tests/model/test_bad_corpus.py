@@ -24,7 +24,11 @@ def test_bad_file_is_located(path, in_repo, capsys):
     assert expect, f"{path.name}: first line must be '# expect: LINE:COL: TEXT'"
     where, text = expect.groups()
     rel = path.relative_to(ROOT)
-    argv = ["validate", str(rel)] if path.name.startswith("cell_") else ["validate", str(DEMO_CELL.relative_to(ROOT)), str(rel)]
+    argv = (
+        ["validate", str(rel)]
+        if path.name.startswith("cell_")
+        else ["validate", str(DEMO_CELL.relative_to(ROOT)), str(rel)]
+    )
     code = main(argv)
     err = capsys.readouterr().err
     assert code == 2, err
@@ -35,4 +39,5 @@ def test_bad_file_is_located(path, in_repo, capsys):
         assert re.match(r"^[^:]+:\d+:\d+: error: \S", line), line
     prefix = f"{rel}:{where}: error: " if where != "*" else f"{rel}:"
     assert any(line.startswith(prefix) and text in line for line in lines), (
-        f"expected {prefix}...{text}\ngot:\n{err}")
+        f"expected {prefix}...{text}\ngot:\n{err}"
+    )

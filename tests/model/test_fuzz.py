@@ -7,7 +7,8 @@ import io
 import tempfile
 from pathlib import Path
 
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from ruamel.yaml import YAML
 
 from cellrunner.errors import InputError
@@ -20,9 +21,14 @@ CELL = yaml.load(DEMO_CELL.read_text())
 TASK = yaml.load(PICK_PLACE.read_text())
 
 values = st.one_of(
-    st.none(), st.booleans(), st.integers(-10**6, 10**6), st.floats(allow_nan=True),
-    st.text(max_size=12), st.sampled_from(["500 mm", "1 rad", "ur5e", "infeed", "DO0", "home", "-1", ""]),
-    st.lists(st.integers(-400, 400), max_size=7), st.dictionaries(st.text(max_size=5), st.integers(), max_size=2),
+    st.none(),
+    st.booleans(),
+    st.integers(-(10**6), 10**6),
+    st.floats(allow_nan=True),
+    st.text(max_size=12),
+    st.sampled_from(["500 mm", "1 rad", "ur5e", "infeed", "DO0", "home", "-1", ""]),
+    st.lists(st.integers(-400, 400), max_size=7),
+    st.dictionaries(st.text(max_size=5), st.integers(), max_size=2),
 )
 
 
@@ -74,7 +80,11 @@ def test_mutated_cells_and_tasks_only_raise_input_error(data):
         cell_text = _dump(_mutate(CELL, data))
         if data.draw(st.booleans()):  # also raw text damage
             i = data.draw(st.integers(0, max(0, len(cell_text) - 1)))
-            cell_text = cell_text[:i] + data.draw(st.sampled_from(["", ":", "- ", "{", "\t", "]"])) + cell_text[i + 1:]
+            cell_text = (
+                cell_text[:i]
+                + data.draw(st.sampled_from(["", ":", "- ", "{", "\t", "]"]))
+                + cell_text[i + 1 :]
+            )
         (folder / "cell.yaml").write_text(cell_text)
         try:
             cell = load_cell(folder / "cell.yaml")

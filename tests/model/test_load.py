@@ -51,11 +51,19 @@ def test_minimal_cell_gets_defaults(tmp_path):
 
 
 def test_several_errors_all_reported_in_file_order(tmp_path):
-    text = MINIMAL.replace("ur10e", "ur11e") + "frames:\n  a: {xyz: [0, 0], rpy: [0, 0, 0]}\nfixtures: 3\n"
+    text = (
+        MINIMAL.replace("ur10e", "ur11e")
+        + "frames:\n  a: {xyz: [0, 0], rpy: [0, 0, 0]}\nfixtures: 3\n"
+    )
     lines = errors_of(load_cell, write(tmp_path, "c.yaml", text))
     assert len(lines) == 3
-    assert lines[0].startswith(f"{tmp_path}/c.yaml:2:16: error: robot.model: unknown robot model 'ur11e'")
-    assert lines[1] == f"{tmp_path}/c.yaml:4:12: error: frames.a.xyz: expected at least 3 items in this list, got 2"
+    assert lines[0].startswith(
+        f"{tmp_path}/c.yaml:2:16: error: robot.model: unknown robot model 'ur11e'"
+    )
+    assert (
+        lines[1]
+        == f"{tmp_path}/c.yaml:4:12: error: frames.a.xyz: expected at least 3 items in this list, got 2"
+    )
     assert lines[2] == f"{tmp_path}/c.yaml:5:11: error: fixtures: expected a list, got 3"
 
 
@@ -63,8 +71,10 @@ def test_ur10e_speed_cap_is_per_joint(tmp_path):
     text = MINIMAL + "  \n"
     text = text.replace("home:", "limits: {joint_speed: [120, 130, 180, 180, 180, 180]}, home:")
     lines = errors_of(load_cell, write(tmp_path, "c.yaml", text))
-    assert lines == [f"{tmp_path}/c.yaml:2:51: error: robot.limits.joint_speed[1]: 130 deg/s on joint 2 "
-                     "(shoulder_lift) is above the UR10E controller's 120 deg/s"]
+    assert lines == [
+        f"{tmp_path}/c.yaml:2:51: error: robot.limits.joint_speed[1]: 130 deg/s on joint 2 "
+        "(shoulder_lift) is above the UR10E controller's 120 deg/s"
+    ]
 
 
 def test_radians_by_mistake_warns_but_loads(tmp_path):
@@ -72,11 +82,14 @@ def test_radians_by_mistake_warns_but_loads(tmp_path):
     cell = load_cell(write(tmp_path, "c.yaml", text))
     assert [str(w) for w in cell.warnings] == [
         f"{tmp_path}/c.yaml:2:29: warning: robot.home: [0, -1.57, 1.57, -1.57, -1.57, 0] looks like "
-        "radians; angles are in degrees (write e.g. '1.57 rad' if you mean radians)"]
+        "radians; angles are in degrees (write e.g. '1.57 rad' if you mean radians)"
+    ]
 
 
 def test_units_in_strings(tmp_path):
-    text = MINIMAL.replace("home:", "limits: {tcp_speed: '250 mm/s', joint_speed: '1 rad/s'}, home:")
+    text = MINIMAL.replace(
+        "home:", "limits: {tcp_speed: '250 mm/s', joint_speed: '1 rad/s'}, home:"
+    )
     limits = load_cell(write(tmp_path, "c.yaml", text)).cell.robot.limits
     assert limits.tcp_speed == pytest.approx(0.25)
     assert limits.joint_speed == pytest.approx(57.29577951308232)
@@ -86,8 +99,18 @@ def test_pick_place_expansion():
     cell = load_cell(DEMO_CELL)
     task = load_task(PICK_PLACE, cell)
     steps = expand(task, cell.cell, resolve_params(task.task, {"slot": "7"}))
-    assert [s.kind for s in steps] == ["move", "approach", "descend", "grip", "lift", "approach", "descend",
-                                       "release", "retreat", "move"]
+    assert [s.kind for s in steps] == [
+        "move",
+        "approach",
+        "descend",
+        "grip",
+        "lift",
+        "approach",
+        "descend",
+        "release",
+        "retreat",
+        "move",
+    ]
     assert [s.index for s in steps] == list(range(1, 11))
     grip = steps[3]
     assert grip.retry.attempts == 3 and grip.retry.redo_from == 3
@@ -114,15 +137,22 @@ def test_params_are_checked():
 
 
 def test_frame_parent_chain(tmp_path):
-    text = MINIMAL + "frames:\n  base: {xyz: [1, 0, 0], rpy: [0, 0, 90]}\n  child: {parent: base, xyz: [1, 0, 0]}\n"
+    text = (
+        MINIMAL
+        + "frames:\n  base: {xyz: [1, 0, 0], rpy: [0, 0, 90]}\n  child: {parent: base, xyz: [1, 0, 0]}\n"
+    )
     cell = load_cell(write(tmp_path, "c.yaml", text)).cell
     np.testing.assert_allclose(frame_pose(cell, "child")[:3, 3], [1, 1, 0], atol=1e-12)
 
 
 def test_short_forms(tmp_path):
     cell = load_cell(DEMO_CELL)
-    task = write(tmp_path, "t.yaml", "task: t\nsteps:\n  - move: [0, -90, 90, -90, -90, '0 rad']\n"
-                 "  - lift: '50 mm'\n  - wait: 0.5\n  - release\n  - approach: infeed\n")
+    task = write(
+        tmp_path,
+        "t.yaml",
+        "task: t\nsteps:\n  - move: [0, -90, 90, -90, -90, '0 rad']\n"
+        "  - lift: '50 mm'\n  - wait: 0.5\n  - release\n  - approach: infeed\n",
+    )
     steps = expand(load_task(task, cell), cell.cell, {})
     assert steps[0].q_goal_deg == (0, -90, 90, -90, -90, 0)
     assert steps[1].args.distance == pytest.approx(0.05)

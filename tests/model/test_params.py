@@ -12,7 +12,14 @@ import pytest
 
 from cellrunner.errors import InputError
 from cellrunner.model import geometry
-from cellrunner.model.expand import ON_ERROR, box_params, expand, expand_on_error, frame_pose, resolve_params
+from cellrunner.model.expand import (
+    ON_ERROR,
+    box_params,
+    expand,
+    expand_on_error,
+    frame_pose,
+    resolve_params,
+)
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.model.params import Param
 from tests.conftest import DEMO_CELL
@@ -41,7 +48,9 @@ def errors(tmp_path: Path, text: str) -> list[str]:
 
 
 def test_float_param_with_a_unit_reads_its_bounds_in_that_unit_and_stands_for_a_quantity(tmp_path):
-    t = task(tmp_path, """task: t
+    t = task(
+        tmp_path,
+        """task: t
 params:
   dwell: {type: float, unit: ms, min: 50, max: 2000, default: 250}
   clearance: {type: float, unit: mm, min: 20, max: 150, default: 80}
@@ -50,7 +59,8 @@ steps:
   - pick: {at: infeed, approach: clearance}
   - wait: "200 ms"
   - set_output: {beacon: true, pulse: "0.3 s"}
-""")
+""",
+    )
     p = t.task.params["dwell"]
     assert (p.min, p.max, p.default) == (0.05, 2.0, 0.25)
     params = resolve_params(t.task, {"dwell": "1.5 s", "clearance": 0.12})
@@ -58,7 +68,9 @@ steps:
     steps = expand(t, load_cell(DEMO_CELL).cell, params)
     assert steps[0].args.seconds == 1.5
     approach = steps[1]
-    assert approach.T_world_tcp[2, 3] == pytest.approx(frame_pose(load_cell(DEMO_CELL).cell, "infeed")[2, 3] + 0.12)
+    assert approach.T_world_tcp[2, 3] == pytest.approx(
+        frame_pose(load_cell(DEMO_CELL).cell, "infeed")[2, 3] + 0.12
+    )
     assert [s.name for s in steps][-2:] == ["0.2 s", "beacon=True"]
     assert steps[-1].args.pulse == 0.3
     # the default stands where no value is given
@@ -66,23 +78,31 @@ steps:
 
 
 def test_a_param_of_the_wrong_quantity_is_refused_where_it_is_used(tmp_path):
-    lines = errors(tmp_path, """task: t
+    lines = errors(
+        tmp_path,
+        """task: t
 params:
   dwell: {type: float, unit: s, min: 0.1, max: 2, default: 1}
 steps:
   - pick: {at: infeed, approach: dwell}
-""")
-    assert lines == ["steps[0].pick.approach: cannot read '1.0 s' as a length; write a number with one of the "
-                     "units m, cm, mm, e.g. '500 mm'"]
+""",
+    )
+    assert lines == [
+        "steps[0].pick.approach: cannot read '1.0 s' as a length; write a number with one of the "
+        "units m, cm, mm, e.g. '500 mm'"
+    ]
 
 
 def test_a_param_bound_outside_what_the_step_accepts_is_refused(tmp_path):
-    lines = errors(tmp_path, """task: t
+    lines = errors(
+        tmp_path,
+        """task: t
 params:
   pulse_len: {type: float, unit: ms, min: 0, max: 500, default: 100}
 steps:
   - set_output: {beacon: true, pulse: pulse_len}
-""")
+""",
+    )
     assert lines == ["steps[0].set_output.pulse: must be > 0 s, got 0 s"]
 
 
@@ -102,12 +122,16 @@ def test_pose_param_box_corners_centre_and_values():
     assert len(box) == 1 + 8  # x, y and rz vary
     assert box[0] == p.default
     assert {"xyz": [0.05, -0.02, 0.0], "rpy": [0.0, 0.0, -30.0]} in box
-    assert p.coerce("pose", '{"xyz": [0.01, 0, 0], "rpy": [0, 0, 10]}') == {"xyz": [0.01, 0.0, 0.0],
-                                                                          "rpy": [0.0, 0.0, 10.0]}
+    assert p.coerce("pose", '{"xyz": [0.01, 0, 0], "rpy": [0, 0, 10]}') == {
+        "xyz": [0.01, 0.0, 0.0],
+        "rpy": [0.0, 0.0, 10.0],
+    }
     assert p.coerce("pose", {"xyz": ["10 mm", 0, 0]})["xyz"] == [0.01, 0.0, 0.0]
     with pytest.raises(ValueError, match=r"^param 'pose' rz = 40 deg is outside \[-30, 30\] deg$"):
         p.coerce("pose", {"rpy": [0, 0, 40]})
-    with pytest.raises(ValueError, match=r"^param 'pose' must be a pose \{\"xyz\": \[x, y, z\], \"rpy\": "):
+    with pytest.raises(
+        ValueError, match=r"^param 'pose' must be a pose \{\"xyz\": \[x, y, z\], \"rpy\": "
+    ):
         p.coerce("pose", 3)
     with pytest.raises(Exception, match="a pose param needs min and max"):
         Param(type="pose")
@@ -141,23 +165,29 @@ def test_pick_at_a_pose_param_is_the_frame_moved_in_its_own_axes(tmp_path):
 
 
 def test_offset_refers_to_a_pose_param(tmp_path):
-    lines = errors(tmp_path, """task: t
+    lines = errors(
+        tmp_path,
+        """task: t
 params:
   n: {type: int, min: 0, max: 3, default: 0}
 steps:
   - pick: {at: {frame: infeed, offset: n}}
   - pick: {at: {frame: infeed, offset: nope}}
-""")
+""",
+    )
     assert lines == [
         "steps[0].pick.at.offset: offset param 'n' must be of type pose, not int",
         "steps[1].pick.at.offset: unknown param 'nope'; known: n",
     ]
     assert errors(tmp_path, "task: t\nsteps:\n  - pick: {at: {frame: infeed, where: 1}}\n") == [
-        "steps[0].pick: 'at' is a frame name or {frame: FRAME, offset: POSE_PARAM}; got keys ['frame', 'where']"]
+        "steps[0].pick: 'at' is a frame name or {frame: FRAME, offset: POSE_PARAM}; got keys ['frame', 'where']"
+    ]
 
 
 def test_on_error_steps_are_checked_and_expanded_after_the_task(tmp_path):
-    t = task(tmp_path, """task: t
+    t = task(
+        tmp_path,
+        """task: t
 steps:
   - move: home
   - wait: 0.5
@@ -165,40 +195,56 @@ on_error:
   - set_output: {beacon: false}
   - retreat: 0.03
   - move: home
-""")
+""",
+    )
     cell = load_cell(DEMO_CELL).cell
     cleanup = expand_on_error(t, cell, {}, 3)
-    assert [(s.index, s.kind, s.macro) for s in cleanup] == [(3, "set_output", ON_ERROR), (4, "retreat", ON_ERROR),
-                                                             (5, "move", ON_ERROR)]
-    assert errors(tmp_path, "task: t\nsteps: [{move: home}]\non_error:\n  - set_output: {door: false}\n") == [
-        "on_error[0].set_output.door: unknown output 'door'; known: gripper_close, beacon"]
-    assert errors(tmp_path, "task: t\nsteps: [{move: home}]\non_error:\n  - place: {at: pallet}\n") == [
+    assert [(s.index, s.kind, s.macro) for s in cleanup] == [
+        (3, "set_output", ON_ERROR),
+        (4, "retreat", ON_ERROR),
+        (5, "move", ON_ERROR),
+    ]
+    assert errors(
+        tmp_path, "task: t\nsteps: [{move: home}]\non_error:\n  - set_output: {door: false}\n"
+    ) == ["on_error[0].set_output.door: unknown output 'door'; known: gripper_close, beacon"]
+    assert errors(
+        tmp_path, "task: t\nsteps: [{move: home}]\non_error:\n  - place: {at: pallet}\n"
+    ) == [
         "on_error[0].place: unknown step 'place'; known: move, approach, descend, linear, lift, retreat, grip, "
-        "release, set_output, wait_input, wait, move_until_contact, insert (on_error takes primitive steps)"]
+        "release, set_output, wait_input, wait, move_until_contact, insert (on_error takes primitive steps)"
+    ]
 
 
 def test_sim_block_and_place_tolerance_in_the_cell(tmp_path):
-    text = Path(DEMO_CELL).read_text() + """place_tolerance: {distance: "2 mm", angle: 3}
+    text = (
+        Path(DEMO_CELL).read_text()
+        + """place_tolerance: {distance: "2 mm", angle: 3}
 sim:
   inputs:
     part_present: {part_at: infeed}
     gripper_closed: {follows: beacon, delay: "300 ms"}
 """
+    )
     cell = load_cell(write(tmp_path, "c.yaml", text)).cell
     assert (cell.place_tolerance.distance, cell.place_tolerance.angle) == (0.002, 3.0)
     assert cell.sim.inputs["gripper_closed"].delay == 0.3
-    bad = Path(DEMO_CELL).read_text() + """sim:
+    bad = (
+        Path(DEMO_CELL).read_text()
+        + """sim:
   inputs:
     door_open: {follows: door_cmd}
     part_present: {part_at: infed}
     beacon: {pulse_after: gripper_close, delay: 1}
     gripper_closed: {follows: beacon, part_at: infeed}
 """
+    )
     with pytest.raises(InputError) as exc:
         load_cell(write(tmp_path, "c.yaml", bad))
     lines = [d.message for d in exc.value.diagnostics]
-    assert lines == ["sim.inputs.gripper_closed: an input rule needs exactly one of part_at, follows, pulse_after; "
-                     "got part_at, follows"]
+    assert lines == [
+        "sim.inputs.gripper_closed: an input rule needs exactly one of part_at, follows, pulse_after; "
+        "got part_at, follows"
+    ]
     bad = bad.replace("    gripper_closed: {follows: beacon, part_at: infeed}\n", "")
     with pytest.raises(InputError) as exc:
         load_cell(write(tmp_path, "c.yaml", bad))
@@ -216,5 +262,6 @@ def test_wait_accepts_units_and_refuses_other_quantities(tmp_path):
     assert [s.args.seconds for s in t.steps] == [0.2, 90.0]
     assert errors(tmp_path, "task: t\nsteps:\n  - wait: '20 mm'\n") == [
         "steps[0].wait.seconds: cannot read '20 mm' as a time; write a number with one of the units s, ms, min, "
-        "e.g. '1.5 s'"]
+        "e.g. '1.5 s'"
+    ]
     assert math.isclose(task(tmp_path, "task: t\nsteps:\n  - wait: 0\n").steps[0].args.seconds, 0.0)

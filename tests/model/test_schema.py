@@ -37,7 +37,9 @@ journal: var/jobs.sqlite
 def test_published_schema_is_current():
     for kind, schema in (("cell", cell_schema()), ("task", task_schema())):
         published = json.loads((ROOT / "schema" / f"{kind}.schema.json").read_text())
-        assert published == schema, f"schema/{kind}.schema.json is stale: run cellrunner schema --write schema"
+        assert published == schema, (
+            f"schema/{kind}.schema.json is stale: run cellrunner schema --write schema"
+        )
 
 
 def test_schema_accepts_valid_files():
@@ -81,7 +83,8 @@ def test_every_key_has_a_description_and_an_example_that_validates():
         for path, sub in props:
             assert sub.get("description") and sub.get("examples"), (
                 f"{path}: give the field a docstring ending in Example: `YAML` (a step kind: STEP_HELP "
-                "in cellrunner/model/schema.py)")
+                "in cellrunner/model/schema.py)"
+            )
             assert "Example:" not in sub["description"], path
             check = jsonschema.Draft7Validator({**sub, "$defs": schema.get("$defs", {})})
             for example in sub["examples"]:
@@ -89,15 +92,21 @@ def test_every_key_has_a_description_and_an_example_that_validates():
 
 
 def _first_error(schema, instance):
-    return jsonschema.exceptions.best_match(jsonschema.Draft7Validator(schema).iter_errors(instance))
+    return jsonschema.exceptions.best_match(
+        jsonschema.Draft7Validator(schema).iter_errors(instance)
+    )
 
 
 def test_step_kinds_discriminate_so_errors_name_the_step():
     schema = task_schema()
-    error = _first_error(schema, {"task": "t", "steps": [{"move": "home"}, {"move": {"to": "home", "sped": 1}}]})
+    error = _first_error(
+        schema, {"task": "t", "steps": [{"move": "home"}, {"move": {"to": "home", "sped": 1}}]}
+    )
     assert list(error.absolute_path) == ["steps", 1, "move"]
     assert error.message == "Additional properties are not allowed ('sped' was unexpected)"
-    error = _first_error(schema, {"task": "t", "steps": [{"pick": {"at": "infeed", "grip": {"timeout": [1]}}}]})
+    error = _first_error(
+        schema, {"task": "t", "steps": [{"pick": {"at": "infeed", "grip": {"timeout": [1]}}}]}
+    )
     assert list(error.absolute_path)[:4] == ["steps", 0, "pick", "grip"]
     error = _first_error(schema, {"task": "t", "steps": [{"mvoe": "home"}]})
     assert error.message.startswith("'mvoe' is not one of ['move', 'approach', 'descend', 'linear'")
@@ -105,16 +114,35 @@ def test_step_kinds_discriminate_so_errors_name_the_step():
     assert error.message == "'gripp' is not one of ['grip', 'release']"
     error = _first_error(schema, {"task": "t", "steps": [{"move": "home", "wait": 1}]})
     assert "has too many properties" in error.message  # one step per list item
-    between = _first_error(schema, {"task": "t", "steps": [{"pick": {"at": "a", "retry": {"between": [{"pick": {"at": "a"}}]}}}]})
-    assert "'pick'" in between.message and "between" in list(between.absolute_path)  # no macros between retries
-    assert schema["properties"]["steps"]["items"]["else"]["properties"]["pick"]["description"].startswith("Macro:")
+    between = _first_error(
+        schema,
+        {
+            "task": "t",
+            "steps": [{"pick": {"at": "a", "retry": {"between": [{"pick": {"at": "a"}}]}}}],
+        },
+    )
+    assert "'pick'" in between.message and "between" in list(
+        between.absolute_path
+    )  # no macros between retries
+    assert schema["properties"]["steps"]["items"]["else"]["properties"]["pick"][
+        "description"
+    ].startswith("Macro:")
 
 
 def test_schema_is_what_yaml_language_server_reads():
     """yaml-language-server (VS Code YAML) validates draft-07 schemas: declare it, and use
     no keyword from later drafts; step kinds are property names an editor completes."""
-    newer = {"prefixItems", "$dynamicRef", "$dynamicAnchor", "unevaluatedProperties", "unevaluatedItems",
-             "dependentSchemas", "dependentRequired", "$recursiveRef", "$anchor"}
+    newer = {
+        "prefixItems",
+        "$dynamicRef",
+        "$dynamicAnchor",
+        "unevaluatedProperties",
+        "unevaluatedItems",
+        "dependentSchemas",
+        "dependentRequired",
+        "$recursiveRef",
+        "$anchor",
+    }
     for schema in (cell_schema(), task_schema()):
         assert schema["$schema"] == "http://json-schema.org/draft-07/schema#"
         jsonschema.Draft7Validator.check_schema(schema)

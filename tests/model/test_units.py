@@ -1,18 +1,37 @@
 import math
 
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 from pydantic import TypeAdapter, ValidationError
 
-from cellrunner.model.units import Angle, Fraction, PositiveLength, Speed, looks_like_radians, parse_quantity
+from cellrunner.model.units import (
+    Angle,
+    Fraction,
+    PositiveLength,
+    Speed,
+    looks_like_radians,
+    parse_quantity,
+)
 
 
-@pytest.mark.parametrize("text,kind,expected", [
-    ("500 mm", "length", 0.5), ("50cm", "length", 0.5), ("1.2 rad", "angle", math.degrees(1.2)),
-    ("250 mm/s", "speed", 0.25), ("90 deg/s", "angular_speed", 90.0), ("1 rad/s", "angular_speed", math.degrees(1)),
-    ("300 g", "mass", 0.3), ("1500 ms", "time", 1.5), ("2 kN", "force", 2000.0), ("50%", "fraction", 0.5),
-    (0.3, "length", 0.3), (7, "time", 7.0),
-])
+@pytest.mark.parametrize(
+    "text,kind,expected",
+    [
+        ("500 mm", "length", 0.5),
+        ("50cm", "length", 0.5),
+        ("1.2 rad", "angle", math.degrees(1.2)),
+        ("250 mm/s", "speed", 0.25),
+        ("90 deg/s", "angular_speed", 90.0),
+        ("1 rad/s", "angular_speed", math.degrees(1)),
+        ("300 g", "mass", 0.3),
+        ("1500 ms", "time", 1.5),
+        ("2 kN", "force", 2000.0),
+        ("50%", "fraction", 0.5),
+        (0.3, "length", 0.3),
+        (7, "time", 7.0),
+    ],
+)
 def test_units_parse(text, kind, expected):
     assert parse_quantity(text, kind) == pytest.approx(expected)
 
@@ -25,7 +44,8 @@ def _msg(adapter, value):
 
 def test_wrong_unit_message_names_value_and_valid_units():
     assert _msg(TypeAdapter(PositiveLength), "5 kg") == (
-        "cannot read '5 kg' as a length; write a number with one of the units m, cm, mm, e.g. '500 mm'")
+        "cannot read '5 kg' as a length; write a number with one of the units m, cm, mm, e.g. '500 mm'"
+    )
 
 
 def test_bound_message():
@@ -38,7 +58,10 @@ def test_booleans_are_not_numbers():
 
 
 def test_angle_over_360_is_an_error():
-    assert _msg(TypeAdapter(Angle), 361) == "angle 361 deg is out of range [-360, 360]; angles are in degrees"
+    assert (
+        _msg(TypeAdapter(Angle), 361)
+        == "angle 361 deg is out of range [-360, 360]; angles are in degrees"
+    )
     assert TypeAdapter(Angle).validate_python(-360) == -360
 
 

@@ -95,16 +95,26 @@ def test_no_blend_where_the_arc_is_not_collision_free(demo, monkeypatch):
 def test_slots_share_their_first_motions_timed_once(demo):
     world, _, plan = demo
     from cellrunner.cli.common import load as load_files
+
     with contextlib.redirect_stderr(io.StringIO()):
-        cell, task = load_files(str(ROOT / "cells/demo_ur5e.yaml"), str(ROOT / "tasks/pick_place.yaml"))
-    other = task_plan.plan_task(world, expand(task, cell.cell, parse_params(["slot=2"], task)), world.q_home_rad)
+        cell, task = load_files(
+            str(ROOT / "cells/demo_ur5e.yaml"), str(ROOT / "tasks/pick_place.yaml")
+        )
+    other = task_plan.plan_task(
+        world, expand(task, cell.cell, parse_params(["slot=2"], task)), world.q_home_rad
+    )
     assert other.ok
     # the pick is the same for every slot: the same verified pieces, not timed again
     assert _row(other, "descend", 1).approved is _row(plan, "descend", 1).approved
     # the place differs
-    assert not np.array_equal(_row(other, "descend", 2).trajectory.q_rad, _row(plan, "descend", 2).trajectory.q_rad)
+    assert not np.array_equal(
+        _row(other, "descend", 2).trajectory.q_rad, _row(plan, "descend", 2).trajectory.q_rad
+    )
     # another cell object (its own collision models) times afresh
-    fresh = task_plan.plan_task(CellWorld(cell), expand(task, cell.cell, parse_params(["slot=5"], task)),
-                                world.q_home_rad)
+    fresh = task_plan.plan_task(
+        CellWorld(cell), expand(task, cell.cell, parse_params(["slot=5"], task)), world.q_home_rad
+    )
     assert _row(fresh, "descend", 1).approved is not _row(plan, "descend", 1).approved
-    assert np.array_equal(_row(fresh, "descend", 1).trajectory.q_rad, _row(plan, "descend", 1).trajectory.q_rad)
+    assert np.array_equal(
+        _row(fresh, "descend", 1).trajectory.q_rad, _row(plan, "descend", 1).trajectory.q_rad
+    )

@@ -56,8 +56,22 @@ def project(tmp_path: Path, task: str) -> tuple[Path, Path]:
 
 
 def check(cell: Path, task: Path, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "check", str(cell), str(task), "--json", *extra],
-                          capture_output=True, text=True, cwd=ROOT, timeout=300)
+    return subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "check",
+            str(cell),
+            str(task),
+            "--json",
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+    )
 
 
 PICK_PLACE = """task: t
@@ -76,9 +90,21 @@ def test_feasible_task_and_saved_plan_pass_an_independent_check(tmp_path):
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["ok"] and out["errors"] == [] and out["cycle_time_s"] > 0
-    assert [s["kind"] for s in out["steps"]] == ["move", "approach", "descend", "grip", "lift", "approach",
-                                                 "descend", "release", "retreat", "move"]
-    assert {"index", "name", "kind", "duration_s", "status", "message", "attempts"} <= set(out["steps"][0])
+    assert [s["kind"] for s in out["steps"]] == [
+        "move",
+        "approach",
+        "descend",
+        "grip",
+        "lift",
+        "approach",
+        "descend",
+        "release",
+        "retreat",
+        "move",
+    ]
+    assert {"index", "name", "kind", "duration_s", "status", "message", "attempts"} <= set(
+        out["steps"][0]
+    )
     plan = json.loads(plan_file.read_text())
     assert plan["model"] == "ur5e" and plan["rate_hz"] == 500 and len(plan["joint_names"]) == 6
     _independent_check(plan, speed_deg_s=100 * 0.9, accel_deg_s2=250 * 0.9, tcp_mps=0.8 * 0.9)
@@ -127,7 +153,9 @@ def _independent_check(plan: dict, speed_deg_s: float, accel_deg_s2: float, tcp_
 
 
 def test_out_of_reach_is_refused_naming_the_step(tmp_path):
-    cell, task = project(tmp_path, "task: t\nsteps:\n  - move: home\n  - approach: {to: far_away, distance: 0.1}\n")
+    cell, task = project(
+        tmp_path, "task: t\nsteps:\n  - move: home\n  - approach: {to: far_away, distance: 0.1}\n"
+    )
     r = check(cell, task)
     assert r.returncode == 1
     out = json.loads(r.stdout)
@@ -202,7 +230,9 @@ def test_cached_plan_is_verified_before_use(tmp_path):
     assert check(cell, task).returncode == 0
     npz = next((tmp_path / "var" / "plan-cache").glob("*.npz"))
     data = dict(np.load(npz))
-    data["q2"] = data["q2"] + np.radians(5) * np.linspace(0, 1, len(data["q2"]))[:, None]  # tampered
+    data["q2"] = (
+        data["q2"] + np.radians(5) * np.linspace(0, 1, len(data["q2"]))[:, None]
+    )  # tampered
     np.savez(npz, **data)
     loaded = load_cell(cell)
     world = CellWorld(loaded)

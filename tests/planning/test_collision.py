@@ -19,7 +19,9 @@ def kin():
 
 
 def test_home_is_free_and_reports_the_closest_pair():
-    world = CollisionModel(kin(), TOOL, [Placed("table", Box((1.2, 1.2, 0.04)), pose_matrix((0, 0, -0.02)))])
+    world = CollisionModel(
+        kin(), TOOL, [Placed("table", Box((1.2, 1.2, 0.04)), pose_matrix((0, 0, -0.02)))]
+    )
     assert world.is_valid(HOME)
     d, a, b = world.min_distance(HOME)
     assert d > 0.0 and a and b
@@ -43,14 +45,21 @@ def test_touching_obstacle_needs_an_allowance():
     assert not world.is_valid(HOME)
     allowed = world.allowing(ContactAllowance("pallet", "part", -0.001))
     assert allowed.is_valid(HOME)
-    assert not allowed.carrying(Placed("deep", Box((0.04, 0.04, 0.04)), pose_matrix((0, 0, 0.03)))).allowing(
-        ContactAllowance("pallet", "part", -0.001)).is_valid(HOME)  # 10 mm into the pallet
+    assert (
+        not allowed.carrying(Placed("deep", Box((0.04, 0.04, 0.04)), pose_matrix((0, 0, 0.03))))
+        .allowing(ContactAllowance("pallet", "part", -0.001))
+        .is_valid(HOME)
+    )  # 10 mm into the pallet
 
 
 def test_unknown_fixture_in_allowance_lists_known():
     with pytest.raises(ValueError, match="unknown fixture 'palet'; known: pallet"):
-        CollisionModel(kin(), TOOL, [Placed("pallet", Box((1, 1, 1)), pose_matrix((3, 0, 0)))],
-                       allowances=[ContactAllowance("palet")])
+        CollisionModel(
+            kin(),
+            TOOL,
+            [Placed("pallet", Box((1, 1, 1)), pose_matrix((3, 0, 0)))],
+            allowances=[ContactAllowance("palet")],
+        )
 
 
 def _thin_plate_world(thickness):
@@ -100,7 +109,13 @@ def test_free_motion_is_accepted_and_bound_is_sound():
 
 def test_binary_stl_is_read(tmp_path):
     tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype="<f4")
-    data = bytearray(80) + np.uint32(1).tobytes() + np.zeros(3, "<f4").tobytes() + tri.tobytes() + bytes(2)
+    data = (
+        bytearray(80)
+        + np.uint32(1).tobytes()
+        + np.zeros(3, "<f4").tobytes()
+        + tri.tobytes()
+        + bytes(2)
+    )
     path = tmp_path / "t.stl"
     path.write_bytes(bytes(data))
     vertices, triangles = read_stl(path)
@@ -122,7 +137,10 @@ def _sample_points(obj, rng, n=40):
         local = np.column_stack([np.zeros(n), np.zeros(n), t]) + g.radius * u
     elif isinstance(g, coal.Box):
         local = rng.uniform(-1, 1, (n, 3)) * np.asarray(g.halfSide)
-        local[: min(n, 8)] = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])[: min(n, 8)] * g.halfSide
+        local[: min(n, 8)] = (
+            np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])[: min(n, 8)]
+            * g.halfSide
+        )
     else:
         local = np.zeros((1, 3))
     T = obj.placement
@@ -162,20 +180,32 @@ def test_segment_bounds_bound_the_motion_of_every_point(q0, dq, pieces):
         pin_fk(model, data, q0 + si * (q1 - q0))
         frames.append([data.oMi[j].homogeneous.copy() for j in range(7)])
     points = {k: _sample_points(o, rng) for k, o in enumerate(world._objects) if world._is_mover[k]}
-    for p, (mover, high, joints) in enumerate(zip(world._pair_mover, world._pair_high, world._pair_joints)):
+    for p, (mover, high, joints) in enumerate(
+        zip(world._pair_mover, world._pair_high, world._pair_joints)
+    ):
         body = world._body[high]
-        low = 0 if world._pair_other_static[p] else int(min(world._body[mover], world._body[world._pair_other[p]]))
+        low = (
+            0
+            if world._pair_other_static[p]
+            else int(min(world._body[mover], world._body[world._pair_other[p]]))
+        )
         pts = points[high]
         for i in range(pieces):
             moved = 0.0
             for a in range(i * steps, (i + 1) * steps):
                 A = np.linalg.inv(frames[a][low]) @ frames[a][body]
                 B = np.linalg.inv(frames[a + 1][low]) @ frames[a + 1][body]
-                moved = max(moved, float(np.linalg.norm(
-                    (pts @ B[:3, :3].T + B[:3, 3]) - (pts @ A[:3, :3].T + A[:3, 3]), axis=1).max()))
+                moved = max(
+                    moved,
+                    float(
+                        np.linalg.norm(
+                            (pts @ B[:3, :3].T + B[:3, 3]) - (pts @ A[:3, :3].T + A[:3, 3]), axis=1
+                        ).max()
+                    ),
+                )
             # moved is over 1/steps of the part; the bound is for the whole part
             assert moved * steps <= rates[i, p] * (1 + 1e-6) + 1e-9, world.pair_labels[p]
-        assert joints[: low].sum() == 0
+        assert joints[:low].sum() == 0
 
 
 def pin_fk(model, data, q):
@@ -234,7 +264,9 @@ def test_knot_lower_bounds_never_exceed_the_exact_distances(q):
     _, lower = world._knots(q, q, 1)  # both knots at q
     world._update(q)
     exact = world._exact(np.arange(len(world._pairs)))
-    assert np.all(lower <= exact[None, :] + 1e-12), world.pair_labels[int(np.argmax(lower[0] - exact))]
+    assert np.all(lower <= exact[None, :] + 1e-12), world.pair_labels[
+        int(np.argmax(lower[0] - exact))
+    ]
 
 
 def test_joint_frames_match_pinocchio():
@@ -259,8 +291,20 @@ def _write_stl_box(path, size):
 
     hx, hy, hz = (s / 2 for s in size)
     v = [np.array([x, y, z]) for x, y, z in itertools.product((-hx, hx), (-hy, hy), (-hz, hz))]
-    faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
-             (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]
+    faces = [
+        (0, 1, 3),
+        (0, 3, 2),
+        (4, 6, 7),
+        (4, 7, 5),
+        (0, 4, 5),
+        (0, 5, 1),
+        (2, 3, 7),
+        (2, 7, 6),
+        (0, 2, 6),
+        (0, 6, 4),
+        (1, 5, 7),
+        (1, 7, 3),
+    ]
     with open(path, "wb") as f:
         f.write(b"\0" * 80 + struct.pack("<I", len(faces)))
         for a, b, c in faces:
@@ -295,9 +339,9 @@ def test_stl_mesh_fixture_matches_the_same_box(tmp_path):
 
 def test_derived_models_are_built_once_per_part_and_allowances():
     from cellrunner.model.geometry import Box, Placed, pose_matrix
+    from cellrunner.model.robots import ROBOTS
     from cellrunner.planning.collision import CollisionModel, ContactAllowance
     from cellrunner.planning.kinematics import ArmKinematics
-    from cellrunner.model.robots import ROBOTS
 
     kin = ArmKinematics(ROBOTS["ur5e"], np.eye(4), pose_matrix((0, 0, 0.15)))
     table = Placed("table", Box((1.0, 1.0, 0.04)), pose_matrix((0.4, 0, -0.03)))
@@ -311,7 +355,9 @@ def test_derived_models_are_built_once_per_part_and_allowances():
     assert held.carrying(None) is root.carrying(None)
     allowed = held.allowing(ContactAllowance("table", "part", -0.001))
     assert allowed is root.carrying(again).allowing(ContactAllowance("table", "part", -0.001))
-    assert allowed.part is part and allowed.allowances == (ContactAllowance("table", "part", -0.001),)
+    assert allowed.part is part and allowed.allowances == (
+        ContactAllowance("table", "part", -0.001),
+    )
     assert allowed.allowing() is held
     # the cached models answer as fresh ones do
     fresh = CollisionModel(kin, (), [table], part=moved)

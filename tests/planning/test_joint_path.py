@@ -62,8 +62,10 @@ def test_round_corners_never_lengthens_the_path():
 
 
 @settings(max_examples=25, deadline=None)
-@given(start=st.lists(st.floats(-2.5, 2.5), min_size=6, max_size=6),
-       steps=st.lists(st.lists(st.floats(-0.3, 0.3), min_size=6, max_size=6), min_size=1, max_size=6))
+@given(
+    start=st.lists(st.floats(-2.5, 2.5), min_size=6, max_size=6),
+    steps=st.lists(st.lists(st.floats(-0.3, 0.3), min_size=6, max_size=6), min_size=1, max_size=6),
+)
 def test_check_path_lower_bound_pruning_changes_no_verdict(start, steps):
     world = _world()
     q = np.cumsum(np.vstack([start, steps]), axis=0)

@@ -40,7 +40,9 @@ def test_flange_fk_matches_ur_analytic_ik(model):
 
     kin = ArmKinematics(ROBOTS[model], np.eye(4), np.eye(4))
     q = np.array([0.3, -1.1, 1.4, -0.7, 1.2, 0.5])
-    assert np.allclose(kin.T_world_flange(q), getattr(ur_analytic_ik, model).forward_kinematics(*q), atol=1e-10)
+    assert np.allclose(
+        kin.T_world_flange(q), getattr(ur_analytic_ik, model).forward_kinematics(*q), atol=1e-10
+    )
 
 
 @settings(max_examples=20, deadline=None)
@@ -61,7 +63,9 @@ def test_jacobian_matches_finite_differences(q):
 
 def test_far_target_is_out_of_reach_with_numbers():
     kin = ArmKinematics(ROBOTS["ur5e"], pose_matrix((0, 0, 0.9)), pose_matrix((0, 0, 0.15)))
-    with pytest.raises(InfeasibleError, match=r"out of reach \(1\.\d\d m from the shoulder, UR5e reach 0\.85 m\)"):
+    with pytest.raises(
+        InfeasibleError, match=r"out of reach \(1\.\d\d m from the shoulder, UR5e reach 0\.85 m\)"
+    ):
         kin.ik_nearest(pose_matrix((1.9, 0.3, 1.0), (180, 0, 0)), np.zeros(6))
 
 
@@ -76,4 +80,6 @@ def test_singularity_distances_name_the_wrist():
     sd = kin.singularity_distance(np.array([0, -1.2, 1.2, -1.0, 0.01, 0]))
     assert sd.wrist_deg == pytest.approx(np.degrees(0.01))
     assert "wrist singularity" in sd.violation(3.0, 0.02)
-    assert kin.singularity_distance(np.radians([0, -90, 90, -90, -90, 0])).violation(3.0, 0.02) is None
+    assert (
+        kin.singularity_distance(np.radians([0, -90, 90, -90, -90, 0])).violation(3.0, 0.02) is None
+    )

@@ -20,7 +20,9 @@ HOME = np.radians([180, -90, 90, -90, -90, 0])
 TCP = pose_matrix((0, 0, 0.15))
 TOOL = (Placed("gripper", Cylinder(0.04, 0.15), pose_matrix((0, 0, 0.075))),)
 TABLE = Placed("table", Box((1.6, 1.6, 0.04)), pose_matrix((0, 0, -0.02)))
-LIMITS = MotionLimits.from_cell(SPEC, joint_speed_deg_s=120, joint_accel_deg_s2=300, tcp_speed_mps=1.0)
+LIMITS = MotionLimits.from_cell(
+    SPEC, joint_speed_deg_s=120, joint_accel_deg_s2=300, tcp_speed_mps=1.0
+)
 
 
 def down(x, y, z):
@@ -49,7 +51,9 @@ def test_linear_move_into_the_table_is_refused_naming_the_pair():
 
 def test_timing_keeps_limits_at_every_sample_and_ends_on_the_grid():
     kin = ArmKinematics(SPEC, np.eye(4), TCP)
-    wp = np.radians([[180, -90, 90, -90, -90, 0], [120, -60, 100, -80, -90, 40], [60, -100, 80, -90, -80, 0]])
+    wp = np.radians(
+        [[180, -90, 90, -90, -90, 0], [120, -60, 100, -80, -90, 40], [60, -100, 80, -90, -80, 0]]
+    )
     timed = time_path(kin, wp, LIMITS, SPEC.rate_hz)
     assert np.allclose(timed.t_s, np.arange(len(timed.t_s)) / 500.0)
     assert np.array_equal(timed.q_rad[-1], wp[-1]) and np.array_equal(timed.q_rad[0], wp[0])
@@ -71,24 +75,38 @@ def test_tcp_speed_cap_is_kept():
 def test_toppra_failure_becomes_our_error(monkeypatch):
     import toppra.algorithm as algo
 
-    monkeypatch.setattr(algo.TOPPRA, "compute_parameterization", lambda self, a, b: (None, None, None))
+    monkeypatch.setattr(
+        algo.TOPPRA, "compute_parameterization", lambda self, a, b: (None, None, None)
+    )
     kin = ArmKinematics(SPEC, np.eye(4), TCP)
     with pytest.raises(InfeasibleError, match="time parameterization failed"):
-        time_path(kin, np.radians([[0, -90, 90, -90, -90, 0], [30, -90, 90, -90, -90, 0]]), LIMITS, 500.0)
+        time_path(
+            kin, np.radians([[0, -90, 90, -90, -90, 0], [30, -90, 90, -90, -90, 0]]), LIMITS, 500.0
+        )
 
 
 def _verify(q, **kw):
     kin = ArmKinematics(SPEC, np.eye(4), TCP)
     world = CollisionModel(kin, TOOL, [TABLE])
     traj = Trajectory(500.0, np.arange(len(q)) / 500.0, q)
-    return verify_trajectory(traj, step_index=3, step_name="transfer", kinematics=kin, limits=LIMITS,
-                             collision=world, **kw)
+    return verify_trajectory(
+        traj,
+        step_index=3,
+        step_name="transfer",
+        kinematics=kin,
+        limits=LIMITS,
+        collision=world,
+        **kw,
+    )
 
 
 def test_verifier_refuses_a_jump_with_numbers():
     q = np.repeat(HOME[None], 10, axis=0)
     q[5:, 0] += 0.05
-    with pytest.raises(InfeasibleError, match=r"step 3 transfer: shoulder_pan speed 1432\.4 deg/s exceeds the limit 114\.0 deg/s"):
+    with pytest.raises(
+        InfeasibleError,
+        match=r"step 3 transfer: shoulder_pan speed 1432\.4 deg/s exceeds the limit 114\.0 deg/s",
+    ):
         _verify(q)
 
 
@@ -98,8 +116,14 @@ def test_verifier_refuses_a_discontinuity_and_a_wrong_rate():
         _verify(q, previous_q_rad=HOME + [0.1, 0, 0, 0, 0, 0])
     kin = ArmKinematics(SPEC, np.eye(4), TCP)
     with pytest.raises(InfeasibleError, match="125 Hz"):
-        verify_trajectory(Trajectory(125.0, np.arange(3) / 125.0, q), step_index=1, step_name="x",
-                          kinematics=kin, limits=LIMITS, collision=CollisionModel(kin))
+        verify_trajectory(
+            Trajectory(125.0, np.arange(3) / 125.0, q),
+            step_index=1,
+            step_name="x",
+            kinematics=kin,
+            limits=LIMITS,
+            collision=CollisionModel(kin),
+        )
 
 
 def test_planner_approves_a_pick_and_place_chain():
@@ -109,12 +133,28 @@ def test_planner_approves_a_pick_and_place_chain():
     pick, place = down(0.45, -0.25, 0.06), down(0.45, 0.25, 0.045)
     above_pick, above_place = down(0.45, -0.25, 0.40), down(0.45, 0.25, 0.40)
     approach = planner.plan_joint(HOME, above_pick, step_index=1, step_name="approach")
-    descend = planner.plan_linear(approach.q_end_rad, pick, speed_mps=0.2, step_index=2, step_name="descend",
-                                  allow=(ContactAllowance("table", "tool", 0.0),))
-    lift = planner.plan_linear(descend.q_end_rad, above_pick, carried=part, step_index=3, step_name="lift")
-    transfer = planner.plan_joint(lift.q_end_rad, above_place, carried=part, step_index=4, step_name="transfer")
-    put = planner.plan_linear(transfer.q_end_rad, place, carried=part, step_index=5, step_name="descend",
-                              allow=(ContactAllowance("table", "part", -0.001),))
+    descend = planner.plan_linear(
+        approach.q_end_rad,
+        pick,
+        speed_mps=0.2,
+        step_index=2,
+        step_name="descend",
+        allow=(ContactAllowance("table", "tool", 0.0),),
+    )
+    lift = planner.plan_linear(
+        descend.q_end_rad, above_pick, carried=part, step_index=3, step_name="lift"
+    )
+    transfer = planner.plan_joint(
+        lift.q_end_rad, above_place, carried=part, step_index=4, step_name="transfer"
+    )
+    put = planner.plan_linear(
+        transfer.q_end_rad,
+        place,
+        carried=part,
+        step_index=5,
+        step_name="descend",
+        allow=(ContactAllowance("table", "part", -0.001),),
+    )
     approved = planner.time_and_verify([approach, descend])
     approved += planner.time_and_verify([lift, transfer], previous=approved[-1])
     approved += planner.time_and_verify([put], previous=approved[-1])

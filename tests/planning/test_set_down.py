@@ -32,8 +32,11 @@ def test_a_set_down_touch_is_approved_and_placed(tmp_path, dz):
 
 def test_a_part_pushed_into_the_table_is_refused_by_check(tmp_path):
     task = tmp_path / "t.yaml"
-    task.write_text(PLACE.format(dz="0.02"))  # the pallet frame's Z points down: 17 mm into the table
+    task.write_text(
+        PLACE.format(dz="0.02")
+    )  # the pallet frame's Z points down: 17 mm into the table
     out = cli("check", str(DEMO_CELL), str(task), "--no-cache")
     assert out["errors"] == [
         "step 7 descend 'pallet': at its end the part 'block' would be 17.0 mm inside fixture 'table' (setting a "
-        "part down may press 1 mm at most); move the target up by 16.0 mm or more"]
+        "part down may press 1 mm at most); move the target up by 16.0 mm or more"
+    ]

@@ -17,12 +17,16 @@ from tests.conftest import ROOT
 
 SPEC = ROBOTS["ur5e"]
 KIN = ArmKinematics(SPEC, np.eye(4), np.eye(4))
-LIMITS = MotionLimits.from_cell(SPEC, joint_speed_deg_s=120, joint_accel_deg_s2=300, tcp_speed_mps=1.0)
+LIMITS = MotionLimits.from_cell(
+    SPEC, joint_speed_deg_s=120, joint_accel_deg_s2=300, tcp_speed_mps=1.0
+)
 
 
 def _cornered_path() -> np.ndarray:
     """Two long joint moves joined by a short, tight arc (what corner rounding makes)."""
-    a, w, b = np.radians([[0, -90, 90, -90, -90, 0], [60, -70, 60, -90, -90, 40], [100, -100, 110, -70, -90, 0]])
+    a, w, b = np.radians(
+        [[0, -90, 90, -90, -90, 0], [60, -70, 60, -90, -90, 40], [100, -100, 110, -70, -90, 0]]
+    )
     t = np.linspace(0, 1, 32)[:, None]
     p1, p2 = w + 0.05 * (a - w), w + 0.05 * (b - w)
     arc = (1 - t) ** 2 * p1 + 2 * (1 - t) * t * w + t**2 * p2
@@ -31,8 +35,11 @@ def _cornered_path() -> np.ndarray:
 
 def _worst_ratio(q: np.ndarray, limits: MotionLimits) -> float:
     v, a, tcp = sample_measures(KIN, q, SPEC.rate_hz)
-    return max(float((np.abs(v) / limits.joint_speed_rad_s).max()),
-               float((np.abs(a) / limits.joint_accel_rad_s2).max()), float(tcp.max() / limits.tcp_speed_mps))
+    return max(
+        float((np.abs(v) / limits.joint_speed_rad_s).max()),
+        float((np.abs(a) / limits.joint_accel_rad_s2).max()),
+        float(tcp.max() / limits.tcp_speed_mps),
+    )
 
 
 def test_timed_path_keeps_every_limit_and_is_within_two_percent_of_the_optimum():
@@ -59,22 +66,30 @@ def test_a_violation_slows_down_only_the_grid_points_around_it():
 
 
 def test_toppra_loads_without_matplotlib():
-    code = ("import sys; from cellrunner.planning.timing import _import_toppra; t = _import_toppra(); "
-            "import toppra.algorithm; assert 'matplotlib' not in sys.modules, 'matplotlib'; "
-            "assert 'matplotlib.pyplot' not in sys.modules; print('clean')")
-    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    code = (
+        "import sys; from cellrunner.planning.timing import _import_toppra; t = _import_toppra(); "
+        "import toppra.algorithm; assert 'matplotlib' not in sys.modules, 'matplotlib'; "
+        "assert 'matplotlib.pyplot' not in sys.modules; print('clean')"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "clean"
 
 
 def _modules_after(tmp_path, *commands: list[str]) -> list[str]:
     """The heavy modules loaded after running ``commands`` through the CLI in one process."""
-    code = ("import sys, contextlib, io\n"
-            "from cellrunner.cli.main import main\n"
-            "with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):\n"
-            + "".join(f"    assert main({c!r}) == 0\n" for c in commands)
-            + "print(sorted(m for m in sys.modules if m.startswith(('matplotlib', 'scipy', 'toppra'))))\n")
-    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    code = (
+        "import sys, contextlib, io\n"
+        "from cellrunner.cli.main import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):\n"
+        + "".join(f"    assert main({c!r}) == 0\n" for c in commands)
+        + "print(sorted(m for m in sys.modules if m.startswith(('matplotlib', 'scipy', 'toppra'))))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     return ast.literal_eval(done.stdout.strip())
 

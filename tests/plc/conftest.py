@@ -33,7 +33,16 @@ class PlcProcess:
     def __init__(self, lib: str, host: str, port: int) -> None:
         self.lib = lib
         self.proc = subprocess.Popen(
-            [sys.executable, str(HERE / "modbus_repl.py"), "--lib", lib, "--host", host, "--port", str(port)],
+            [
+                sys.executable,
+                str(HERE / "modbus_repl.py"),
+                "--lib",
+                lib,
+                "--host",
+                host,
+                "--port",
+                str(port),
+            ],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             text=True,
@@ -66,7 +75,9 @@ class PlcProcess:
     def write(self, addr: int, values: list[int]) -> dict[str, Any]:
         return self.call("write", addr=addr, values=values)
 
-    def wait_bits(self, mask: int, value: int, timeout: float = 5.0, addr: int = 101) -> dict[str, Any]:
+    def wait_bits(
+        self, mask: int, value: int, timeout: float = 5.0, addr: int = 101
+    ) -> dict[str, Any]:
         return self.call("wait", addr=addr, mask=mask, value=value, timeout=timeout)
 
     def close(self) -> None:
@@ -86,7 +97,11 @@ class PlcProcess:
 
 def plc_test_tasks() -> list[FakeTask]:
     return [
-        FakeTask(1, "pick_place", (FakeParam("slot", "int", 0, 11, 0), FakeParam("depth", "int", -50, 50, 0))),
+        FakeTask(
+            1,
+            "pick_place",
+            (FakeParam("slot", "int", 0, 11, 0), FakeParam("depth", "int", -50, 50, 0)),
+        ),
         FakeTask(2, "home", (), (0.02,)),
         FakeTask(3, "slow", (), (0.4, 0.4, 0.4)),
     ]

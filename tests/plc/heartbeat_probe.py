@@ -32,7 +32,9 @@ def main() -> None:
     args = ap.parse_args()
     from pyModbusTCP.client import ModbusClient
 
-    client = ModbusClient(host=args.host, port=args.port, timeout=2.0, auto_open=True, auto_close=False)
+    client = ModbusClient(
+        host=args.host, port=args.port, timeout=2.0, auto_open=True, auto_close=False
+    )
     done = threading.Event()
     threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
     t0 = time.monotonic()
@@ -72,8 +74,19 @@ def main() -> None:
         max_gap = max(max_gap, tail)
         if tail > 0.15:
             gaps.append([round(time.monotonic() - t0, 3), round(tail, 3)])
-    print(json.dumps({"samples": samples, "changes": changes, "read_errors": errors, "max_gap_s": round(max_gap, 3),
-                      "max_read_s": round(max_read_s, 3), "gaps": gaps}), flush=True)
+    print(
+        json.dumps(
+            {
+                "samples": samples,
+                "changes": changes,
+                "read_errors": errors,
+                "max_gap_s": round(max_gap, 3),
+                "max_read_s": round(max_read_s, 3),
+                "gaps": gaps,
+            }
+        ),
+        flush=True,
+    )
 
 
 if __name__ == "__main__":

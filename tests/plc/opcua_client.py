@@ -76,8 +76,18 @@ async def scenario_job(client: Any) -> dict[str, Any]:
         return await cell.call_method(f"{ns}:StartJob", task, params, cid)
 
     out["types"] = {}
-    for name in ("State", "StateName", "Ready", "Busy", "ProtectiveStop", "EmergencyStop",
-                 "CurrentJobId", "CurrentStep", "ProdProcessed", "ProdDefective"):
+    for name in (
+        "State",
+        "StateName",
+        "Ready",
+        "Busy",
+        "ProtectiveStop",
+        "EmergencyStop",
+        "CurrentJobId",
+        "CurrentStep",
+        "ProdProcessed",
+        "ProdDefective",
+    ):
         dv = await (await cell.get_child(f"{ns}:{name}")).read_data_value()
         out["types"][name] = dv.Value.VariantType.name
     last = await cell.get_child(f"{ns}:LastJob")
@@ -131,9 +141,13 @@ async def scenario_run(client: Any, task: str, params: str, wait_s: float) -> di
     while not events.received and time.monotonic() < deadline:
         await asyncio.sleep(0.05)
     last = await cell.get_child(f"{ns}:LastJob")
-    out = {"job_id": job_id, "return_code": code, "events": events.received,
-           "last_result": await (await last.get_child(f"{ns}:ResultCode")).read_value(),
-           "cycle_time": await (await last.get_child(f"{ns}:CycleTime")).read_value()}
+    out = {
+        "job_id": job_id,
+        "return_code": code,
+        "events": events.received,
+        "last_result": await (await last.get_child(f"{ns}:ResultCode")).read_value(),
+        "cycle_time": await (await last.get_child(f"{ns}:CycleTime")).read_value(),
+    }
     await sub.delete()
     return out
 
@@ -144,7 +158,10 @@ async def scenario_write(client: Any) -> dict[str, Any]:
     ns = await client.get_namespace_index("urn:cellrunner")
     cell = await client.nodes.objects.get_child(f"{ns}:Cell")
     out: dict[str, Any] = {}
-    for name, value, vtype in (("State", 6, ua.VariantType.Int32), ("Ready", True, ua.VariantType.Boolean)):
+    for name, value, vtype in (
+        ("State", 6, ua.VariantType.Int32),
+        ("Ready", True, ua.VariantType.Boolean),
+    ):
         node = await cell.get_child(f"{ns}:{name}")
         try:
             await node.write_value(ua.DataValue(ua.Variant(value, vtype)))
@@ -230,7 +247,9 @@ async def main() -> None:
     args = ap.parse_args()
     result: dict[str, Any] = {"connected": False}
     if args.scenario == "register":
-        print(json.dumps({"register": await asyncio.wait_for(register_unauthenticated(args.url), 15)}))
+        print(
+            json.dumps({"register": await asyncio.wait_for(register_unauthenticated(args.url), 15)})
+        )
         return
     try:
         client = await asyncio.wait_for(connect(args), 15)
@@ -243,7 +262,11 @@ async def main() -> None:
         if args.scenario == "job":
             result.update(await asyncio.wait_for(scenario_job(client), 30))
         elif args.scenario == "run":
-            result.update(await asyncio.wait_for(scenario_run(client, args.task, args.params, args.wait), args.wait + 20))
+            result.update(
+                await asyncio.wait_for(
+                    scenario_run(client, args.task, args.params, args.wait), args.wait + 20
+                )
+            )
         elif args.scenario == "hostile":
             result.update(await asyncio.wait_for(scenario_hostile(client), 60))
         elif args.scenario == "write":

@@ -47,8 +47,16 @@ async def main() -> None:
 
     t0 = time.monotonic()
     results = await asyncio.gather(*(one() for _ in range(args.logins)))
-    print(json.dumps({"attempts": len(results), "accepted": sum(results), "refused": len(results) - sum(results),
-                      "elapsed_s": round(time.monotonic() - t0, 2)}))
+    print(
+        json.dumps(
+            {
+                "attempts": len(results),
+                "accepted": sum(results),
+                "refused": len(results) - sum(results),
+                "elapsed_s": round(time.monotonic() - t0, 2),
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

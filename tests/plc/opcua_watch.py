@@ -35,7 +35,7 @@ async def main() -> None:
         try:
             await client.connect()
             break
-        except (OSError, asyncio.TimeoutError):
+        except (TimeoutError, OSError):
             if attempt == 59:
                 raise
             await asyncio.sleep(0.5)
@@ -64,8 +64,18 @@ async def main() -> None:
                 kinds.append(type(exc).__name__)
         await asyncio.sleep(args.period)
     await client.disconnect()
-    print(json.dumps({"reads": reads, "errors": errors, "max_gap_s": round(max_gap, 3), "states": states,
-                      "error_kinds": kinds}), flush=True)
+    print(
+        json.dumps(
+            {
+                "reads": reads,
+                "errors": errors,
+                "max_gap_s": round(max_gap, 3),
+                "states": states,
+                "error_kinds": kinds,
+            }
+        ),
+        flush=True,
+    )
 
 
 if __name__ == "__main__":

@@ -101,7 +101,12 @@ def test_fault_ends_with_error(plc: PlcProcess, cell: FakeCell) -> None:
 
 
 def test_rejects_unknown_task_bad_params_not_ready(plc: PlcProcess, cell: FakeCell) -> None:
-    for job_id, task, params, code in [(21, 99, [], 10), (22, 1, [50], 11), (23, 1, [0, -51], 11), (0, 1, [], 11)]:
+    for job_id, task, params, code in [
+        (21, 99, [], 10),
+        (22, 1, [50], 11),
+        (23, 1, [0, -51], 11),
+        (0, 1, [], 11),
+    ]:
         regs = raise_job_req(plc, job_id, task, params)
         assert regs[1] & (ST_ERROR | ST_REJECTED) == ST_ERROR | ST_REJECTED, (job_id, regs)
         assert not regs[1] & (ST_JOB_ACK | ST_BUSY)
@@ -178,7 +183,15 @@ def test_hold_unhold_abort_bits(plc: PlcProcess, cell: FakeCell) -> None:
 
 def test_writes_outside_plc_registers_get_exception_02(plc: PlcProcess) -> None:
     before = plc.read(101, 13)
-    for addr, values in [(100, [1]), (101, [0, 0]), (105, [7]), (119, [1]), (19, [0, 0]), (20, [1]), (200, [1])]:
+    for addr, values in [
+        (100, [1]),
+        (101, [0, 0]),
+        (105, [7]),
+        (119, [1]),
+        (19, [0, 0]),
+        (20, [1]),
+        (200, [1]),
+    ]:
         reply = plc.write(addr, values)
         assert not reply["ok"] and reply["exception"] == ILLEGAL_DATA_ADDRESS, (addr, reply)
     assert plc.read(19)[0] == 0  # the refused 19-20 write changed nothing

@@ -8,13 +8,23 @@ import struct
 import time
 
 from cellrunner.plc.fake import FakeCell
-from cellrunner.plc.modbus import CMD_JOB_REQ, ST_BUSY, ST_DONE, ST_ERROR, ST_JOB_ACK, ST_READY, ST_REJECTED
+from cellrunner.plc.modbus import (
+    CMD_JOB_REQ,
+    ST_BUSY,
+    ST_DONE,
+    ST_ERROR,
+    ST_JOB_ACK,
+    ST_READY,
+    ST_REJECTED,
+)
 from cellrunner.plc.service import PlcService
 from tests.plc.conftest import PlcProcess
 from tests.plc.test_modbus import drop_job_req, raise_job_req, wait_end
 
 
-def test_job_req_toggled_fast_with_the_same_id_never_shows_a_reject(plc: PlcProcess, cell: FakeCell) -> None:
+def test_job_req_toggled_fast_with_the_same_id_never_shows_a_reject(
+    plc: PlcProcess, cell: FakeCell
+) -> None:
     regs = raise_job_req(plc, 31, 3)  # task 3 runs ~1.2 s
     assert regs[1] & (ST_JOB_ACK | ST_BUSY) == ST_JOB_ACK | ST_BUSY
     for _ in range(5):  # 1-0-1 as fast as the PLC can
@@ -28,12 +38,18 @@ def test_job_req_toggled_fast_with_the_same_id_never_shows_a_reject(plc: PlcProc
     assert [j.client_job_id for j in cell.finished] == ["31"]
 
 
-def test_a_trigger_while_busy_keeps_the_running_jobs_ack_and_busy(plc: PlcProcess, cell: FakeCell) -> None:
+def test_a_trigger_while_busy_keeps_the_running_jobs_ack_and_busy(
+    plc: PlcProcess, cell: FakeCell
+) -> None:
     raise_job_req(plc, 41, 3)
     assert plc.write(1, [0])["ok"]  # the PLC drops the request early (job still running)...
-    assert plc.write(2, [42, 2])["ok"] and plc.write(1, [CMD_JOB_REQ])["ok"]  # ...and asks for another
+    assert (
+        plc.write(2, [42, 2])["ok"] and plc.write(1, [CMD_JOB_REQ])["ok"]
+    )  # ...and asks for another
     regs = plc.read(100, 14)
-    assert regs[1] & (ST_JOB_ACK | ST_BUSY) == ST_JOB_ACK | ST_BUSY, regs  # the running job's bits stay
+    assert regs[1] & (ST_JOB_ACK | ST_BUSY) == ST_JOB_ACK | ST_BUSY, (
+        regs
+    )  # the running job's bits stay
     assert regs[1] & ST_REJECTED and (regs[4], regs[5]) == (42, 12), regs  # the new one is refused
     assert regs[3] == 41  # the echo still names the running job
     assert plc.write(1, [0])["ok"]
@@ -47,7 +63,9 @@ def test_a_trigger_while_busy_keeps_the_running_jobs_ack_and_busy(plc: PlcProces
     assert [j.client_job_id for j in cell.finished] == ["41"]
 
 
-def test_the_same_id_after_its_job_ended_gets_the_result_not_a_second_run(plc: PlcProcess, cell: FakeCell) -> None:
+def test_the_same_id_after_its_job_ended_gets_the_result_not_a_second_run(
+    plc: PlcProcess, cell: FakeCell
+) -> None:
     raise_job_req(plc, 51, 2)
     assert wait_end(plc)[5] == 0
     drop_job_req(plc)
@@ -93,7 +111,7 @@ def test_pipelined_requests_in_one_segment_are_all_answered(modbus_service: PlcS
         data, deadline = b"", time.monotonic() + 3
         while len(data) < 3 * 13 and time.monotonic() < deadline:
             data += sock.recv(4096)
-    tids = [struct.unpack(">H", data[i:i + 2])[0] for i in range(0, len(data), 13)]
+    tids = [struct.unpack(">H", data[i : i + 2])[0] for i in range(0, len(data), 13)]
     assert tids == [1, 2, 3], data.hex()
 
 

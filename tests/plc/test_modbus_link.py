@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from datetime import datetime, timezone
+from datetime import UTC, datetime, timezone
 
 import pytest
 
@@ -124,8 +124,13 @@ def test_watchdog_arms_on_first_heartbeat_change_and_clears_on_next() -> None:
 
 def test_job_interrupted_by_restart_is_published_and_replayed_once() -> None:
     interrupted = JobResult(
-        job_id="J000041", result_code=107, result_text="interrupted", retries=0,
-        end_time=datetime.now(timezone.utc), client_job_id="41", source="modbus",
+        job_id="J000041",
+        result_code=107,
+        result_text="interrupted",
+        retries=0,
+        end_time=datetime.now(UTC),
+        client_job_id="41",
+        source="modbus",
     )
     cell, link, clock = make(last_result=interrupted)
     assert link.regs[104:106] == [41, 107]
@@ -143,7 +148,10 @@ def test_job_interrupted_by_restart_is_published_and_replayed_once() -> None:
 @pytest.mark.parametrize(
     ("data", "expected"),
     [
-        ({"bind": "0.0.0.0", "port": 1502, "heartbeat_timeout": 2}, ModbusConfig("0.0.0.0", 1502, 2.0)),
+        (
+            {"bind": "0.0.0.0", "port": 1502, "heartbeat_timeout": 2},
+            ModbusConfig("0.0.0.0", 1502, 2.0),
+        ),
         ({}, ModbusConfig("127.0.0.1", 502, 1.5)),
     ],
 )
@@ -163,5 +171,7 @@ def test_port_in_use_is_a_cellrunner_error() -> None:
         port = taken.getsockname()[1]
         with FakeCell() as cell:
             service = PlcService(cell, {"modbus": {"bind": "127.0.0.1", "port": port}})
-            with pytest.raises(CellrunnerError, match=f"cannot listen for Modbus TCP on 127.0.0.1:{port}"):
+            with pytest.raises(
+                CellrunnerError, match=f"cannot listen for Modbus TCP on 127.0.0.1:{port}"
+            ):
                 service.start(timeout_s=10)

@@ -36,7 +36,11 @@ def write_client_cert(directory: Path, name: str) -> tuple[Path, Path]:
     cert_path, key_path = directory / f"{name}.der", directory / f"{name}.pem"
     cert_path.write_bytes(cert.public_bytes(serialization.Encoding.DER))
     key_path.write_bytes(
-        key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption())
+        key.private_bytes(
+            serialization.Encoding.PEM,
+            serialization.PrivateFormat.PKCS8,
+            serialization.NoEncryption(),
+        )
     )
     return cert_path, key_path
 
@@ -52,8 +56,13 @@ class Setup:
 
     def args(self, **kw: Any) -> list[str]:
         opts = {
-            "url": self.url, "scenario": "connect", "policy": "Basic256Sha256_SignAndEncrypt",
-            "cert": str(self.trusted_cert), "key": str(self.trusted_key), "user": USER, "password": PASSWORD,
+            "url": self.url,
+            "scenario": "connect",
+            "policy": "Basic256Sha256_SignAndEncrypt",
+            "cert": str(self.trusted_cert),
+            "key": str(self.trusted_key),
+            "user": USER,
+            "password": PASSWORD,
         }
         opts.update(kw)
         argv = [sys.executable, str(HERE / "opcua_client.py")]
@@ -65,7 +74,12 @@ class Setup:
 
 def run_clients(argvs: list[list[str]], timeout_s: float = 60) -> list[dict[str, Any]]:
     """Run client processes in parallel; each prints one JSON object."""
-    procs = [subprocess.Popen(a, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=child_env()) for a in argvs]
+    procs = [
+        subprocess.Popen(
+            a, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=child_env()
+        )
+        for a in argvs
+    ]
     results = []
     for proc in procs:
         try:
@@ -74,7 +88,9 @@ def run_clients(argvs: list[list[str]], timeout_s: float = 60) -> list[dict[str,
             proc.kill()
             out, err = proc.communicate()
         lines = [line for line in out.splitlines() if line.startswith("{")]
-        results.append(json.loads(lines[-1]) if lines else {"connected": False, "error": err[-2000:]})
+        results.append(
+            json.loads(lines[-1]) if lines else {"connected": False, "error": err[-2000:]}
+        )
     return results
 
 
@@ -107,11 +123,21 @@ def test_encrypted_user_session_runs_a_job_and_gets_the_completion_event(opcua: 
     [out] = run_clients([opcua.args(scenario="job")])
     assert out["connected"], out
     assert out["types"] == {
-        "State": "Int32", "StateName": "String", "Ready": "Boolean", "Busy": "Boolean",
-        "ProtectiveStop": "Boolean", "EmergencyStop": "Boolean", "CurrentJobId": "String",
-        "CurrentStep": "Int32", "ProdProcessed": "UInt32", "ProdDefective": "UInt32",
-        "LastJob.JobId": "String", "LastJob.ResultCode": "Int32", "LastJob.ResultText": "String",
-        "LastJob.CycleTime": "Double", "LastJob.EndTime": "DateTime",
+        "State": "Int32",
+        "StateName": "String",
+        "Ready": "Boolean",
+        "Busy": "Boolean",
+        "ProtectiveStop": "Boolean",
+        "EmergencyStop": "Boolean",
+        "CurrentJobId": "String",
+        "CurrentStep": "Int32",
+        "ProdProcessed": "UInt32",
+        "ProdDefective": "UInt32",
+        "LastJob.JobId": "String",
+        "LastJob.ResultCode": "Int32",
+        "LastJob.ResultText": "String",
+        "LastJob.CycleTime": "Double",
+        "LastJob.EndTime": "DateTime",
     }
     job_id, code = out["first"]
     assert code == 0 and job_id
@@ -166,7 +192,14 @@ def test_none_endpoint_only_when_written(tmp_path: Path) -> None:
     users = tmp_path / "users.yaml"
     add_user(users, USER, PASSWORD)
     url = f"opc.tcp://127.0.0.1:{free_port()}/cellrunner"
-    config = {"opcua": {"endpoint": url, "users": str(users), "security": ["none"], "pki": str(tmp_path / "pki")}}
+    config = {
+        "opcua": {
+            "endpoint": url,
+            "users": str(users),
+            "security": ["none"],
+            "pki": str(tmp_path / "pki"),
+        }
+    }
     with FakeCell(tasks=plc_test_tasks()) as cell, PlcService(cell, config):
         argv = [sys.executable, str(HERE / "opcua_client.py"), "--url", url, "--policy", "none"]
         ok, anonymous = run_clients([argv + ["--user", USER, "--password", PASSWORD], argv])

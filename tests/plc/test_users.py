@@ -12,7 +12,13 @@ import pytest
 from cellrunner.errors import InputError
 from cellrunner.plc.opcua import HashedUserManager, LoginBudget
 from cellrunner.plc.pki import Pki
-from cellrunner.plc.users import add_user, configure_users_parser, load_users, run_users_command, verify_password
+from cellrunner.plc.users import (
+    add_user,
+    configure_users_parser,
+    load_users,
+    run_users_command,
+    verify_password,
+)
 
 
 def test_add_user_writes_salted_hashes_only(tmp_path: Path) -> None:
@@ -39,10 +45,13 @@ def test_add_user_replaces_a_password(tmp_path: Path) -> None:
     assert list(users) == ["plc1"] and verify_password(users["plc1"], "new")
 
 
-@pytest.mark.parametrize(("name", "password", "message"), [
-    ("bad name", "pw", "user name 'bad name' is not valid; use 1-64 of A-Z a-z 0-9 _ . @ -"),
-    ("plc1", "", "empty password; give a non-empty password on stdin"),
-])
+@pytest.mark.parametrize(
+    ("name", "password", "message"),
+    [
+        ("bad name", "pw", "user name 'bad name' is not valid; use 1-64 of A-Z a-z 0-9 _ . @ -"),
+        ("plc1", "", "empty password; give a non-empty password on stdin"),
+    ],
+)
 def test_add_user_refuses_bad_input(tmp_path: Path, name: str, password: str, message: str) -> None:
     with pytest.raises(InputError) as err:
         add_user(tmp_path / "users.yaml", name, password)
@@ -67,10 +76,18 @@ def test_cli_entry_reads_the_password_from_stdin(tmp_path: Path) -> None:
 def test_user_manager_refuses_everything_but_a_known_password(tmp_path: Path) -> None:
     path = tmp_path / "users.yaml"
     add_user(path, "plc1", "pw")
-    manager = HashedUserManager(path, Pki(tmp_path / "pki"), allow_insecure=True, budget=LoginBudget(burst=100))
+    manager = HashedUserManager(
+        path, Pki(tmp_path / "pki"), allow_insecure=True, budget=LoginBudget(burst=100)
+    )
     manager.load()
     assert manager.get_user(None, "plc1", "pw").name == "plc1"
-    for username, password in [("plc1", "nope"), ("admin", "pw"), ("admin", ""), (None, None), ("plc1", None)]:
+    for username, password in [
+        ("plc1", "nope"),
+        ("admin", "pw"),
+        ("admin", ""),
+        (None, None),
+        ("plc1", None),
+    ]:
         assert manager.get_user(None, username, password) is None
     strict = HashedUserManager(path, Pki(tmp_path / "pki"), allow_insecure=False)
     strict.load()
@@ -83,8 +100,12 @@ def test_a_login_flood_is_refused_without_hashing_until_the_budget_refills(tmp_p
     path = tmp_path / "users.yaml"
     add_user(path, "plc1", "pw")
     now = [0.0]
-    manager = HashedUserManager(path, Pki(tmp_path / "pki"), allow_insecure=True,
-                                budget=LoginBudget(burst=2, per_s=4.0, clock=lambda: now[0]))
+    manager = HashedUserManager(
+        path,
+        Pki(tmp_path / "pki"),
+        allow_insecure=True,
+        budget=LoginBudget(burst=2, per_s=4.0, clock=lambda: now[0]),
+    )
     manager.load()
     assert manager.get_user(None, "plc1", "wrong") is None
     assert manager.get_user(None, "plc1", "pw") is not None

@@ -12,7 +12,6 @@ from cellrunner.backends.sim.backend import SimBackend
 from cellrunner.backends.sim.description import TwinDescription, dh_forward
 from cellrunner.model.trajectory import approve
 
-
 # Import MuJoCo the package's way first (the root conftest chose its GL backend already).
 load_mujoco()
 
@@ -27,13 +26,16 @@ class Driver:
         self.errors_m: list[float] = []
 
     def tcp_of(self, q: np.ndarray) -> np.ndarray:
-        return (self.desc.T_world_base @ dh_forward(self.desc.spec, q) @ self.desc.T_flange_tcp)[:3, 3]
+        return (self.desc.T_world_base @ dh_forward(self.desc.spec, q) @ self.desc.T_flange_tcp)[
+            :3, 3
+        ]
 
     def move_joints(self, q_to: np.ndarray, duration_s: float, name: str = "move") -> float:
         """Stream a quintic to ``q_to``; returns the max TCP tracking error (m)."""
         rate = self.backend.rate_hz
-        approved = approve(demo.to_trajectory(demo.quintic_blend(self.q, q_to, duration_s, rate),
-                                              rate), 0, name)
+        approved = approve(
+            demo.to_trajectory(demo.quintic_blend(self.q, q_to, duration_s, rate), rate), 0, name
+        )
         worst = 0.0
         for i, q_ref in enumerate(approved.trajectory.q_rad):
             self.backend.servo(approved, i)

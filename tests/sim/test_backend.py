@@ -42,8 +42,11 @@ def test_pick_place_motion_is_tracked_within_a_millimetre(driver) -> None:
     driver.move_joints(np.array(driver.desc.q_home_rad), 1.8, "home")
     assert max(driver.errors_m) < 1e-3, driver.errors_m  # spec: < 5 mm
     # and the motion was real: the TCP went where it was told
-    np.testing.assert_allclose(driver.backend.world.tcp_pose_world()[:3, 3],
-                               driver.tcp_of(np.array(driver.desc.q_home_rad)), atol=1e-3)
+    np.testing.assert_allclose(
+        driver.backend.world.tcp_pose_world()[:3, 3],
+        driver.tcp_of(np.array(driver.desc.q_home_rad)),
+        atol=1e-3,
+    )
 
 
 def test_sim_clock_advances_one_period_per_wait(backend: SimBackend) -> None:
@@ -67,9 +70,12 @@ def test_set_point_jumps_beyond_the_speed_limit_are_refused(backend: SimBackend,
     q = np.array(cell.q_home_rad)
     far = q + np.radians([0, 0, 5, 0, 0, 0])
     jumpy = approve(demo.to_trajectory(np.vstack([q, far]), backend.rate_hz), 3, "jumpy")
-    with pytest.raises(BackendError, match=r"set-point 1 of step 3 \(jumpy\) jumps 5.00 deg on "
-                                           r"joint 3 in one period; the joint speed limit allows "
-                                           r"0.54 deg"):
+    with pytest.raises(
+        BackendError,
+        match=r"set-point 1 of step 3 \(jumpy\) jumps 5.00 deg on "
+        r"joint 3 in one period; the joint speed limit allows "
+        r"0.54 deg",
+    ):
         backend.servo(jumpy, 0)
     # a smooth trajectory that starts away from where the arm is
     elsewhere = approve(demo.to_trajectory(np.vstack([far, far]), backend.rate_hz), 4, "elsewhere")
@@ -77,8 +83,11 @@ def test_set_point_jumps_beyond_the_speed_limit_are_refused(backend: SimBackend,
         backend.servo(elsewhere, 0)
     # skipping set-points is a jump too
     q_to = q + np.radians([0, 0, 20, 0, 0, 0])
-    smooth = approve(demo.to_trajectory(demo.quintic_blend(q, q_to, 1.0, backend.rate_hz),
-                                        backend.rate_hz), 5, "smooth")
+    smooth = approve(
+        demo.to_trajectory(demo.quintic_blend(q, q_to, 1.0, backend.rate_hz), backend.rate_hz),
+        5,
+        "smooth",
+    )
     backend.servo(smooth, 0)
     backend.wait_period()
     with pytest.raises(BackendError, match=r"set-point 250 of step 5 \(smooth\) jumps"):
@@ -142,9 +151,9 @@ def test_scripted_inputs_and_sensor_inputs(backend: SimBackend) -> None:
 
 
 def test_cb3_arm_at_125_hz_tracks_too() -> None:
-    from cellrunner.model.robots import robot_spec
-
     from conftest import Driver
+
+    from cellrunner.model.robots import robot_spec
 
     desc = demo.demo_description(spec=robot_spec("ur5"), parts=())
     b = SimBackend(desc)
@@ -157,9 +166,9 @@ def test_cb3_arm_at_125_hz_tracks_too() -> None:
 
 
 def test_cb3_at_125_hz_carries_a_part_through_a_brisk_lift() -> None:
-    from cellrunner.model.robots import robot_spec
-
     from conftest import Driver
+
+    from cellrunner.model.robots import robot_spec
 
     desc = demo.demo_description(spec=robot_spec("ur5"))
     b = SimBackend(desc)

@@ -100,8 +100,11 @@ def test_protective_stop_unlock_waits_five_simulated_seconds(driver) -> None:
     t_stop = b.sim_time_s
     assert b.read_state().safety is Safety.PROTECTIVE_STOP
     driver.wait(UNLOCK_DELAY_S - 0.1)
-    with pytest.raises(BackendError, match=r"protective stop cannot be unlocked yet: 4.90 s since "
-                                           r"the stop, the controller needs 5 s"):
+    with pytest.raises(
+        BackendError,
+        match=r"protective stop cannot be unlocked yet: 4.90 s since "
+        r"the stop, the controller needs 5 s",
+    ):
         b.unlock_protective_stop()
     driver.wait(0.1)
     assert b.sim_time_s - t_stop >= UNLOCK_DELAY_S
@@ -117,8 +120,9 @@ def test_protective_stop_mid_motion_decelerates_to_standstill(driver) -> None:
     q_to = demo.solve_ik(driver.desc, demo.tcp_down_at((0.3, 0.3, 1.1)), driver.q)
     from cellrunner.model.trajectory import approve
 
-    approved = approve(demo.to_trajectory(demo.quintic_blend(driver.q, q_to, 2.0, rate), rate),
-                       0, "move")
+    approved = approve(
+        demo.to_trajectory(demo.quintic_blend(driver.q, q_to, 2.0, rate), rate), 0, "move"
+    )
     for i in range(500):  # half way, full speed
         b.servo(approved, i)
         b.wait_period()
@@ -167,19 +171,23 @@ def test_robot_disconnect_reports_disconnected_until_reconnected(driver) -> None
 
 
 def test_unknown_fault_lists_the_known_ones(backend) -> None:
-    with pytest.raises(ValueError, match=r"unknown fault 'gremlins'; known: grip_miss, part_slip, "
-                                         r"protective_stop, estop, robot_disconnect"):
+    with pytest.raises(
+        ValueError,
+        match=r"unknown fault 'gremlins'; known: grip_miss, part_slip, "
+        r"protective_stop, estop, robot_disconnect",
+    ):
         backend.inject_fault("gremlins")
 
 
 def test_presence_sensor_sees_the_part_leave(cell) -> None:
+    from conftest import Driver
+
     from cellrunner.backends.sim.backend import SimBackend
     from cellrunner.backends.sim.description import PresenceSensor
 
-    from conftest import Driver
-
     desc = dataclasses.replace(
-        cell, presence_sensors=(PresenceSensor("DI2", demo.CUBE_XYZ_M, (0.04, 0.04, 0.04)),))
+        cell, presence_sensors=(PresenceSensor("DI2", demo.CUBE_XYZ_M, (0.04, 0.04, 0.04)),)
+    )
     b = SimBackend(desc)
     b.connect()
     assert b.read_state().inputs["DI2"] is True

@@ -35,22 +35,30 @@ def test_follows_copies_the_output_after_its_delay() -> None:
 
 
 def test_pulse_after_rises_once_per_rise_of_the_output() -> None:
-    rules = InputRules((InputRuleDescription("DI3", "pulse_after", output="DO2", delay_s=2.0, width_s=0.5),))
-    samples = _run(rules, lambda t: {"DO2": 0.5 <= t < 0.7 or 5.0 <= t}, 9.0)
+    rules = InputRules(
+        (InputRuleDescription("DI3", "pulse_after", output="DO2", delay_s=2.0, width_s=0.5),)
+    )
+    samples = _run(rules, lambda t: {"DO2": 0.5 <= t < 0.7 or t >= 5.0}, 9.0)
     assert _edges(samples, "DI3") == [(2.5, True), (3.0, False), (7.0, True), (7.5, False)]
 
 
 def test_part_at_sees_a_part_within_its_radius() -> None:
-    rules = InputRules((InputRuleDescription("DI1", "part_at", point_world_m=(0.4, 0.0, 0.9), within_m=0.02),))
+    rules = InputRules(
+        (InputRuleDescription("DI1", "part_at", point_world_m=(0.4, 0.0, 0.9), within_m=0.02),)
+    )
     assert rules.evaluate(0.0, {}, [(0.41, 0.01, 0.9)]) == {"DI1": True}
     assert rules.evaluate(0.0, {}, [(0.43, 0.0, 0.9)]) == {"DI1": False}
     assert rules.evaluate(0.0, {}, []) == {"DI1": False}
 
 
 def test_the_twin_drives_ruled_inputs_and_refuses_to_script_them() -> None:
-    rules = (InputRuleDescription("DI3", "part_at", point_world_m=demo.CUBE_XYZ_M),
-             InputRuleDescription("DI2", "follows", output="DO0", delay_s=0.1))
-    backend = SimBackend(demo.demo_description(input_rules=rules, io_inputs=("DI0", "DI1", "DI2", "DI3")))
+    rules = (
+        InputRuleDescription("DI3", "part_at", point_world_m=demo.CUBE_XYZ_M),
+        InputRuleDescription("DI2", "follows", output="DO0", delay_s=0.1),
+    )
+    backend = SimBackend(
+        demo.demo_description(input_rules=rules, io_inputs=("DI0", "DI1", "DI2", "DI3"))
+    )
     backend.connect()
     try:
         assert backend.read_state().inputs["DI3"] is True  # the cube lies at its spot

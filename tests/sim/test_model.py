@@ -61,10 +61,14 @@ def test_fixtures_parts_and_mesh_are_in_the_model(tmp_path) -> None:
     stl = tmp_path / "wedge.stl"
     stl.write_text(_ascii_stl_tetrahedron())
     desc = demo.demo_description(
-        fixtures=(*demo.demo_description().fixtures,
-                  demo.Placed("wedge", Mesh(stl, scale=0.1), pose_matrix((0.0, 0.6, 0.9)))),
-        parts=(PartDescription("a", Box((0.04, 0.04, 0.04)), 0.2, pose_matrix((0.3, 0.1, 0.92))),
-               PartDescription("b", Box((0.04, 0.04, 0.04)), 0.5, pose_matrix((0.3, 0.2, 0.92)))),
+        fixtures=(
+            *demo.demo_description().fixtures,
+            demo.Placed("wedge", Mesh(stl, scale=0.1), pose_matrix((0.0, 0.6, 0.9))),
+        ),
+        parts=(
+            PartDescription("a", Box((0.04, 0.04, 0.04)), 0.2, pose_matrix((0.3, 0.1, 0.92))),
+            PartDescription("b", Box((0.04, 0.04, 0.04)), 0.5, pose_matrix((0.3, 0.2, 0.92))),
+        ),
     )
     model = compile_model(desc)
     assert model.body("part:a").mass[0] == pytest.approx(0.2)
@@ -74,7 +78,9 @@ def test_fixtures_parts_and_mesh_are_in_the_model(tmp_path) -> None:
 
 
 def test_twin_description_rejects_unknown_gripper_channels() -> None:
-    with pytest.raises(ValueError, match=r"gripper close output 'DO7' is not an output; known: DO0"):
+    with pytest.raises(
+        ValueError, match=r"gripper close output 'DO7' is not an output; known: DO0"
+    ):
         demo.demo_description(io_outputs=("DO0",), gripper=GripperDescription(close_output="DO7"))
 
 
@@ -98,8 +104,10 @@ def test_wrist_reads_zero_at_rest_in_any_pose_payload_compensated() -> None:
 
 
 def test_importing_the_package_does_not_import_mujoco() -> None:
-    code = ("import sys, cellrunner.backends.sim.backend, cellrunner.backends.sim.render; "
-            "print('mujoco' in sys.modules)")
+    code = (
+        "import sys, cellrunner.backends.sim.backend, cellrunner.backends.sim.render; "
+        "print('mujoco' in sys.modules)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 
@@ -116,8 +124,12 @@ def _ascii_stl_tetrahedron() -> str:
 
 
 def test_description_field_defaults_are_consistent() -> None:
-    desc = TwinDescription(spec=ROBOTS["ur10e"], T_world_base=np.eye(4),
-                           T_flange_tcp=pose_matrix((0, 0, 0.2)), q_home_rad=(0.0,) * 6)
+    desc = TwinDescription(
+        spec=ROBOTS["ur10e"],
+        T_world_base=np.eye(4),
+        T_flange_tcp=pose_matrix((0, 0, 0.2)),
+        q_home_rad=(0.0,) * 6,
+    )
     assert desc.rate_hz == 500.0
     model = compile_model(desc)
     assert model.opt.timestep == pytest.approx(0.002)

@@ -44,7 +44,9 @@ def test_a_part_dropped_from_above_its_target_is_off_by_the_fall(driver) -> None
     _release(driver)
     driver.move_tcp(high + (0, 0, 0.1), 0.8, "retreat")
     _, offset_m, _ = driver.backend.placed_offset(demo.tcp_down_at(high))
-    assert offset_m == pytest.approx(0.040 - PLACE_DROP_M, abs=0.004)  # a short fall onto the table is free
+    assert offset_m == pytest.approx(
+        0.040 - PLACE_DROP_M, abs=0.004
+    )  # a short fall onto the table is free
 
 
 def test_no_part_released_means_nothing_to_inspect(backend) -> None:
@@ -57,7 +59,9 @@ def test_a_carried_part_pushed_into_the_table_is_a_protective_stop(driver) -> No
     with pytest.raises(BackendError, match="safety state is protective_stop"):
         driver.move_tcp(TABLE_SPOT - (0, 0, 0.025), 1.5, "push")  # the cube 30 mm into the table
     assert b.read_state().safety is Safety.PROTECTIVE_STOP
-    assert "part:cube" in b.world.last_contact.geoms  # pressed onto the table, or forced against a finger
+    assert (
+        "part:cube" in b.world.last_contact.geoms
+    )  # pressed onto the table, or forced against a finger
 
 
 def test_setting_a_part_down_with_a_light_press_is_no_contact(driver) -> None:

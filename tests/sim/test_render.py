@@ -35,7 +35,9 @@ def test_render_produces_a_png_showing_the_cell(backend, tmp_path) -> None:
     assert image.shape == (360, 480, 3)
     assert image.std() > 20  # not a blank frame
     # the orange cube is in the picture
-    orange = (image[..., 0] > 200) & (image[..., 1] > 100) & (image[..., 1] < 170) & (image[..., 2] < 80)
+    orange = (
+        (image[..., 0] > 200) & (image[..., 1] > 100) & (image[..., 1] < 170) & (image[..., 2] < 80)
+    )
     assert orange.sum() > 20
     assert path.read_bytes()[:8] == PNG_MAGIC and path.stat().st_size > 10_000
 
@@ -58,8 +60,9 @@ def test_missing_gl_backend_is_a_clear_error_not_a_crash(tmp_path) -> None:
         "    print('UNAVAILABLE', e)\n"
     )
     env = dict(os.environ, MUJOCO_GL="glfw", DISPLAY="", PYTHONPATH=os.getcwd())
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
-                         timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
+    )
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith("UNAVAILABLE cannot render offscreen with MUJOCO_GL=glfw")
     assert "libosmesa6" in out.stdout
@@ -73,8 +76,14 @@ def test_joint_and_tcp_plots_are_written(tmp_path) -> None:
     p1 = plot_joints(tmp_path / "joints.png", t, q, qd, q + 0.01, marks, "demo")
     xyz = np.stack([0.4 + 0.1 * np.cos(t), 0.1 * np.sin(t), 1.0 + 0.05 * t], axis=1)
     table = Placed("table", Box((1.2, 0.8, 0.04)), pose_matrix((0.4, 0, 0.88)))
-    p2 = plot_tcp_path(tmp_path / "tcp.png", xyz, [table], np.array([0.0, 0.0, 0.9]),
-                       [("2 grip", np.array([0.45, -0.35, 0.93]))], "demo")
+    p2 = plot_tcp_path(
+        tmp_path / "tcp.png",
+        xyz,
+        [table],
+        np.array([0.0, 0.0, 0.9]),
+        [("2 grip", np.array([0.45, -0.35, 0.93]))],
+        "demo",
+    )
     for p in (p1, p2):
         assert p.read_bytes()[:8] == PNG_MAGIC
         assert _read_png(p).std() > 0.05

@@ -28,7 +28,9 @@ def build(holding_force_N: float | None = None):
     loaded = load_cell(CELL)
     desc = description_of(loaded)
     if holding_force_N is not None:
-        desc = dataclasses.replace(desc, vacuum=dataclasses.replace(desc.vacuum, holding_force_N=holding_force_N))
+        desc = dataclasses.replace(
+            desc, vacuum=dataclasses.replace(desc.vacuum, holding_force_N=holding_force_N)
+        )
     world = SimWorld(desc)
     world.build()
     return world, CellWorld(loaded), loaded
@@ -36,8 +38,11 @@ def build(holding_force_N: float | None = None):
 
 def put_tcp(world, cell_world, T_world_tcp) -> np.ndarray:
     """Stand the arm (at rest) with its TCP at ``T_world_tcp``, on a collision-free branch."""
-    q = next(q for q in cell_world.kinematics.ik_all(T_world_tcp, world.q_measured())
-             if cell_world.collision.is_valid(q))
+    q = next(
+        q
+        for q in cell_world.kinematics.ik_all(T_world_tcp, world.q_measured())
+        if cell_world.collision.is_valid(q)
+    )
     world.data.qpos[:6] = q
     world.data.qvel[:6] = 0.0
     world.q_ref = world._q_prev_ref = q.copy()
@@ -62,11 +67,15 @@ def settle(world, seconds: float) -> None:
         world.step_period()
 
 
-def grip_and_lift(world, kin, loaded, lift_m: float = 0.1, tilt_deg: float = 0.0,
-                  above_m: float = 0.001) -> tuple[float, float]:
+def grip_and_lift(
+    world, kin, loaded, lift_m: float = 0.1, tilt_deg: float = 0.0, above_m: float = 0.001
+) -> tuple[float, float]:
     """TCP ``above_m`` over the carton's top face, suction on, lift; (carton rise m, wrist load N)."""
-    T = geometry.pose_matrix((0, 0, above_m)) @ frame_pose(loaded.cell, "infeed") \
+    T = (
+        geometry.pose_matrix((0, 0, above_m))
+        @ frame_pose(loaded.cell, "infeed")
         @ geometry.pose_matrix((0, 0, 0), (tilt_deg, 0, 0))
+    )
     put_tcp(world, kin, T)
     settle(world, 0.2)
     world.zero_ft_sensor()
@@ -100,7 +109,9 @@ def test_suction_off_drops_the_carton_and_blow_off_breaks_the_seal():
     grip_and_lift(world, kin, loaded)
     world.set_output(VACUUM_ON, False)
     settle(world, 0.5)
-    assert world.part_pose_world("carton")[2, 3] == pytest.approx(0.65, abs=0.003)  # back on the conveyor
+    assert world.part_pose_world("carton")[2, 3] == pytest.approx(
+        0.65, abs=0.003
+    )  # back on the conveyor
     assert world.measure().inputs[VACUUM_OK] is False
     world, kin, loaded = build()
     grip_and_lift(world, kin, loaded)

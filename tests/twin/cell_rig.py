@@ -53,16 +53,32 @@ def write_project(root: Path, *, opcua: bool = False) -> tuple[Path, int, str]:
     (root / "cells").mkdir(exist_ok=True)
     (root / "tasks").mkdir(exist_ok=True)
     port = free_port(MODBUS_HOST)
-    text = CELL + ("tasks: {1: tasks/t.yaml}\nplc:\n"
-                   f"  modbus: {{bind: {MODBUS_HOST}, port: {port}, heartbeat_timeout: 5.0}}\n")
+    text = CELL + (
+        "tasks: {1: tasks/t.yaml}\nplc:\n"
+        f"  modbus: {{bind: {MODBUS_HOST}, port: {port}, heartbeat_timeout: 5.0}}\n"
+    )
     url = ""
     if opcua:
         url = f"opc.tcp://{MODBUS_HOST}:{free_port(MODBUS_HOST)}/cellrunner"
         text += f"  opcua:\n    endpoint: {url}\n    security: [none]\n    users: secrets/users.yaml\n    pki: pki\n"
         users = root / "secrets" / "users.yaml"
-        r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "users", "add", str(users), "line3",
-                            "--password-stdin"], input="s3cret pass\n", capture_output=True, text=True,
-                           cwd=ROOT, timeout=60)
+        r = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "cellrunner.cli.main",
+                "users",
+                "add",
+                str(users),
+                "line3",
+                "--password-stdin",
+            ],
+            input="s3cret pass\n",
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            timeout=60,
+        )
         assert r.returncode == 0, r.stderr
     (root / "cells" / "c.yaml").write_text(text)
     (root / "tasks" / "t.yaml").write_text(TOUR)
@@ -85,13 +101,42 @@ class Rig:
 
     def __enter__(self) -> Rig:
         env = {**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"}
-        self.twin = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "twin", str(self.cell), "--host",
-                                      self.twin_host], cwd=ROOT, stderr=subprocess.PIPE, text=True, env=env)
+        self.twin = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "cellrunner.cli.main",
+                "twin",
+                str(self.cell),
+                "--host",
+                self.twin_host,
+            ],
+            cwd=ROOT,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
         assert "virtual" in self.twin.stderr.readline()
         self._log = self.serve_log.open("w")
-        self.serve = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "--log-format", "json", "serve",
-                                       str(self.cell), "--backend", "ur", "--robot-host", self.twin_host], cwd=ROOT,
-                                      stdout=subprocess.DEVNULL, stderr=self._log, env=env)
+        self.serve = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "cellrunner.cli.main",
+                "--log-format",
+                "json",
+                "serve",
+                str(self.cell),
+                "--backend",
+                "ur",
+                "--robot-host",
+                self.twin_host,
+            ],
+            cwd=ROOT,
+            stdout=subprocess.DEVNULL,
+            stderr=self._log,
+            env=env,
+        )
         self.client = ModbusClient(host=MODBUS_HOST, port=self.port, timeout=2.0, auto_open=True)
         deadline = time.monotonic() + 60
         while not self.client.read_holding_registers(100, 14):
@@ -120,16 +165,38 @@ class Rig:
 
     # ------------------------------------------------------------------ probe
     def start_probe(self) -> None:
-        self.probe = subprocess.Popen([sys.executable, str(ROOT / "tests" / "plc" / "heartbeat_probe.py"), "--host",
-                                       MODBUS_HOST, "--port", str(self.port)], stdin=subprocess.PIPE,
-                                      stdout=subprocess.PIPE, text=True)
+        self.probe = subprocess.Popen(
+            [
+                sys.executable,
+                str(ROOT / "tests" / "plc" / "heartbeat_probe.py"),
+                "--host",
+                MODBUS_HOST,
+                "--port",
+                str(self.port),
+            ],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
         assert json.loads(self.probe.stdout.readline()) == {"started": True}
 
     def start_watch(self) -> None:
         """An OPC UA client (its own process) reading Cell.State every 50 ms."""
-        self.watch = subprocess.Popen([sys.executable, str(ROOT / "tests" / "plc" / "opcua_watch.py"), "--url",
-                                       self.opcua_url, "--user", "line3", "--password", "s3cret pass"],
-                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.watch = subprocess.Popen(
+            [
+                sys.executable,
+                str(ROOT / "tests" / "plc" / "opcua_watch.py"),
+                "--url",
+                self.opcua_url,
+                "--user",
+                "line3",
+                "--password",
+                "s3cret pass",
+            ],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
         assert json.loads(self.watch.stdout.readline()) == {"started": True}
 
     def stop_watch(self) -> dict[str, Any]:
@@ -151,11 +218,15 @@ class Rig:
     def wait(self, predicate: Any, timeout_s: float, what: str) -> list[int]:
         deadline = time.monotonic() + timeout_s
         while True:
-            assert self.serve is not None and self.serve.poll() is None, f"serve died\n{self.log_tail()}"
+            assert self.serve is not None and self.serve.poll() is None, (
+                f"serve died\n{self.log_tail()}"
+            )
             regs = self.regs()
             if predicate(regs):
                 return regs
-            assert time.monotonic() < deadline, f"{what} not seen within {timeout_s} s: {regs}\n{self.log_tail()}"
+            assert time.monotonic() < deadline, (
+                f"{what} not seen within {timeout_s} s: {regs}\n{self.log_tail()}"
+            )
             time.sleep(0.05)
 
     def trigger(self, job_id: int) -> list[int]:

@@ -22,9 +22,14 @@ HOST = "127.0.0.23"
 @pytest.fixture
 def twin(project):  # noqa: F811
     cell, _ = project
-    proc = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", HOST],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "MUJOCO_GL": "osmesa"})
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", HOST],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
     deadline = time.monotonic() + 60
     line = ""
     while time.monotonic() < deadline and "virtual" not in line:
@@ -38,9 +43,26 @@ def twin(project):  # noqa: F811
 
 def run_job(project, *extra):  # noqa: F811
     cell, task = project
-    return subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "run", str(cell), str(task), "--backend", "ur",
-                           "--robot-host", HOST, "--json", *extra], capture_output=True, text=True, cwd=ROOT,
-                          timeout=300)
+    return subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "run",
+            str(cell),
+            str(task),
+            "--backend",
+            "ur",
+            "--robot-host",
+            HOST,
+            "--json",
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+    )
 
 
 def test_run_through_ur_rtde_on_the_twin(project, twin):  # noqa: F811
@@ -91,16 +113,37 @@ def test_serve_with_the_ur_backend_runs_a_plc_job(tmp_path):
     (tmp_path / "cells").mkdir()
     (tmp_path / "tasks").mkdir()
     cell = tmp_path / "cells" / "c.yaml"
-    cell.write_text(CELL + f"tasks: {{1: tasks/t.yaml}}\nplc:\n  modbus: {{bind: 127.0.0.5, port: {port}}}\n")
+    cell.write_text(
+        CELL + f"tasks: {{1: tasks/t.yaml}}\nplc:\n  modbus: {{bind: 127.0.0.5, port: {port}}}\n"
+    )
     (tmp_path / "tasks" / "t.yaml").write_text(TASK)
-    twin = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", HOST],
-                            cwd=ROOT, stderr=subprocess.PIPE, text=True, env={**os.environ, "MUJOCO_GL": "osmesa"})
+    twin = subprocess.Popen(
+        [sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", HOST],
+        cwd=ROOT,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
     serve = None
     try:
         assert "virtual" in twin.stderr.readline()
-        serve = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "serve", str(cell), "--backend", "ur",
-                                  "--robot-host", HOST], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                 text=True)
+        serve = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "cellrunner.cli.main",
+                "serve",
+                str(cell),
+                "--backend",
+                "ur",
+                "--robot-host",
+                HOST,
+            ],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         client = connect(port)
         regs = job(client, 9, 1, [], [0])
         assert regs[1] & DONE and (regs[4], regs[5]) == (9, 0), regs
@@ -122,24 +165,66 @@ def test_robotiq_gripper_through_its_socket(tmp_path):
     (tmp_path / "cells").mkdir()
     (tmp_path / "tasks").mkdir()
     cell = tmp_path / "cells" / "c.yaml"
-    cell.write_text(CELL.replace("gripper: {kind: io, close: {output: jaws, value: true}, closed_sensor: jaws_closed, "
-                                 "stroke: 0.08, close_time: 0.25}", "gripper: {kind: robotiq, stroke: 0.085}"))
+    cell.write_text(
+        CELL.replace(
+            "gripper: {kind: io, close: {output: jaws, value: true}, closed_sensor: jaws_closed, "
+            "stroke: 0.08, close_time: 0.25}",
+            "gripper: {kind: robotiq, stroke: 0.085}",
+        )
+    )
     task = tmp_path / "tasks" / "t.yaml"
     task.write_text(TASK.replace("grip: {confirm: jaws_closed, ", "grip: {"))
     host = "127.0.0.32"
-    twin = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", host],
-                            cwd=ROOT, stderr=subprocess.PIPE, text=True, env={**os.environ, "MUJOCO_GL": "osmesa"})
+    twin = subprocess.Popen(
+        [sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", host],
+        cwd=ROOT,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
     try:
         assert "virtual" in twin.stderr.readline()
-        r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "run", str(cell), str(task), "--backend", "ur",
-                            "--robot-host", host, "--json"], capture_output=True, text=True, cwd=ROOT, timeout=300)
+        r = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "cellrunner.cli.main",
+                "run",
+                str(cell),
+                str(task),
+                "--backend",
+                "ur",
+                "--robot-host",
+                host,
+                "--json",
+            ],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            timeout=300,
+        )
         assert r.returncode == 0, r.stderr[-3000:]
         assert json.loads(r.stdout)["result_code"] == 0
     finally:
         twin.terminate()
         twin.communicate(timeout=30)
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "dry-run", str(cell), str(task), "--json",
-                        "--inject", "grip_miss@grip"], capture_output=True, text=True, cwd=ROOT, timeout=300,
-                       env={**os.environ, "MUJOCO_GL": "osmesa"})
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "dry-run",
+            str(cell),
+            str(task),
+            "--json",
+            "--inject",
+            "grip_miss@grip",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
     out = json.loads(r.stdout)
     assert (r.returncode, out["result_code"], out["retries"]) == (1, 1, 1)

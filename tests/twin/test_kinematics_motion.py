@@ -7,7 +7,12 @@ import pytest
 
 from cellrunner.model.robots import robot_spec
 from cellrunner.twin import motion as mo
-from cellrunner.twin.kinematics import Kinematics, matrix_to_rotvec, pose_to_matrix, rotvec_to_matrix
+from cellrunner.twin.kinematics import (
+    Kinematics,
+    matrix_to_rotvec,
+    pose_to_matrix,
+    rotvec_to_matrix,
+)
 
 SPEC = robot_spec("ur5e")
 Q_HOME = np.array([0.1, -1.4, 1.5, -1.7, -1.5, 0.3])

@@ -21,9 +21,14 @@ SEEN = '{"xyz": [0.03, -0.02, 0], "rpy": [0, 0, 20]}'
 
 
 def start_twin(cell: str, host: str) -> subprocess.Popen:
-    proc = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "twin", str(ROOT / cell), "--host", host],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "MUJOCO_GL": "osmesa"})
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cellrunner.cli.main", "twin", str(ROOT / cell), "--host", host],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
     deadline = time.monotonic() + 60
     line = ""
     while time.monotonic() < deadline and "virtual" not in line:
@@ -39,9 +44,25 @@ def stop_twin(proc: subprocess.Popen) -> None:
 
 
 def run_job(files: tuple[str, str], host: str, *extra: str) -> dict:
-    r = subprocess.run([sys.executable, "-m", "cellrunner.cli.main", "run", *(str(ROOT / f) for f in files),
-                        "--backend", "ur", "--robot-host", host, "--json", *extra],
-                       capture_output=True, text=True, cwd=ROOT, timeout=400)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "run",
+            *(str(ROOT / f) for f in files),
+            "--backend",
+            "ur",
+            "--robot-host",
+            host,
+            "--json",
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=400,
+    )
     assert r.stdout, r.stderr[-3000:]
     out = json.loads(r.stdout)
     assert r.returncode == (0 if out["result_code"] == 0 else 1), r.stderr[-3000:]
@@ -92,6 +113,11 @@ def test_vision_pick_through_ur_rtde_with_the_pose_param(vision_twin):
 
 
 def test_vision_pick_where_the_part_is_not_on_the_twin(vision_twin):
-    out = run_job(VISION, vision_twin, "-p", 'part_pose={"xyz": [-0.04, 0.05, 0], "rpy": [0, 0, 0]}')
+    out = run_job(
+        VISION, vision_twin, "-p", 'part_pose={"xyz": [-0.04, 0.05, 0], "rpy": [0, 0, 0]}'
+    )
     assert out["result_code"] == 1
-    assert out["result_text"] == "jaws_closed not true within 1 s (jaws closed on nothing); on_error done"
+    assert (
+        out["result_text"]
+        == "jaws_closed not true within 1 s (jaws closed on nothing); on_error done"
+    )

@@ -18,7 +18,11 @@ def session(owners: InputOwners | None = None, sid: int = 1) -> RtdeSession:
 
 def test_feed_handles_byte_by_byte_and_coalesced_input():
     s = session()
-    stream = msg("V", struct.pack(">H", 2)) + msg("v") + msg("I", b"input_int_register_0,input_double_register_0")
+    stream = (
+        msg("V", struct.pack(">H", 2))
+        + msg("v")
+        + msg("I", b"input_int_register_0,input_double_register_0")
+    )
     replies = []
     for i in range(len(stream)):
         replies += s.feed(stream[i : i + 1])
@@ -36,7 +40,9 @@ def test_inputs_used_by_another_connection_are_in_use():
     a.feed(msg("V", struct.pack(">H", 2)))
     b.feed(msg("V", struct.pack(">H", 2)))
     assert a.feed(msg("I", b"input_int_register_5"))[0][3:] == b"\x01INT32"
-    assert b.feed(msg("I", b"input_int_register_5,input_int_register_6"))[0][3:] == b"\x00IN_USE,INT32"
+    assert (
+        b.feed(msg("I", b"input_int_register_5,input_int_register_6"))[0][3:] == b"\x00IN_USE,INT32"
+    )
     a.close()
     assert b.feed(msg("I", b"input_int_register_5"))[0][3:] == b"\x01INT32"
 

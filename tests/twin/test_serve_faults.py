@@ -46,8 +46,21 @@ def test_heartbeat_never_stalls_through_faults(tmp_path):
         regs = rig.finish()
         assert regs[1] & DONE and regs[5] == 0, regs  # reconnected and resumed
         # a flood of OPC UA logins (wrong password)
-        flood = subprocess.run([sys.executable, str(ROOT / "tests" / "plc" / "opcua_flood.py"), "--url", rig.opcua_url,
-                                "--logins", "60", "--concurrency", "20"], capture_output=True, text=True, timeout=90)
+        flood = subprocess.run(
+            [
+                sys.executable,
+                str(ROOT / "tests" / "plc" / "opcua_flood.py"),
+                "--url",
+                rig.opcua_url,
+                "--logins",
+                "60",
+                "--concurrency",
+                "20",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=90,
+        )
         flooded = json.loads(flood.stdout.strip().splitlines()[-1])
         assert flooded["accepted"] == 0 and flooded["refused"] == 60, flooded
         rig.trigger(105)

@@ -276,7 +276,9 @@ def test_io_interface_outputs_show_on_receive_side(twin, receive):
     try:
         assert io.setStandardDigitalOut(3, True)
         assert io.setToolDigitalOut(1, True)
-        assert wait_until(lambda: receive.getDigitalOutState(3) and receive.getDigitalOutState(17), 1.0)
+        assert wait_until(
+            lambda: receive.getDigitalOutState(3) and receive.getDigitalOutState(17), 1.0
+        )
         assert not receive.getDigitalOutState(2)
         assert io.setStandardDigitalOut(3, False)
         assert wait_until(lambda: not receive.getDigitalOutState(3), 1.0)
@@ -429,7 +431,9 @@ def test_kinematics_queries_and_rotation_only_movel(control, receive):
     assert np.linalg.norm(np.array(with_tool[:3]) - pose[:3]) == pytest.approx(0.1, abs=1e-6)
     assert np.allclose(control.getInverseKinematics(pose, q), q, atol=1e-5)
     assert control.getInverseKinematicsHasSolution(pose)
-    assert np.allclose(control.poseTrans([0, 0, 0.1, 0, 0, 0], [0.1, 0, 0, 0, 0, 0]), [0.1, 0, 0.1, 0, 0, 0])
+    assert np.allclose(
+        control.poseTrans([0, 0, 0.1, 0, 0, 0], [0.1, 0, 0, 0, 0, 0]), [0.1, 0, 0.1, 0, 0, 0]
+    )
     target = list(q)
     target[5] += 0.2  # the TCP turns in place (flange on the wrist-3 axis)
     assert control.moveL_FK(target, 0.25, 1.2)
@@ -496,8 +500,10 @@ def test_script_port_runs_simple_programs_and_refuses_others():
                 assert np.allclose(receive.getActualQ(), target, atol=1e-5)
                 assert wait_until(lambda: receive.getDigitalInState(0), 1.0)  # DO0 -> DI0 wiring
                 assert receive.getOutputIntRegister(13) == 7
-                sock.sendall(b"socket_open(\"10.0.0.1\", 80)\n")
-                assert wait_until(lambda: "program refused: unsupported statement" in twin.fault("log"), 1.0)
+                sock.sendall(b'socket_open("10.0.0.1", 80)\n')
+                assert wait_until(
+                    lambda: "program refused: unsupported statement" in twin.fault("log"), 1.0
+                )
         finally:
             receive.disconnect()
 

@@ -18,14 +18,28 @@ import time
 import urllib.request
 from pathlib import Path
 
-FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         "--disable-dev-shm-usage", "--hide-scrollbars", "--remote-debugging-address=127.0.0.1",
-         "--remote-debugging-port=0")
+FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-dev-shm-usage",
+    "--hide-scrollbars",
+    "--remote-debugging-address=127.0.0.1",
+    "--remote-debugging-port=0",
+)
 
 
 def chromium_path() -> str | None:
-    return shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+    return (
+        shutil.which("chromium")
+        or shutil.which("chromium-browser")
+        or shutil.which("google-chrome")
+    )
 
 
 class Chromium:
@@ -39,14 +53,22 @@ class Chromium:
         self._stack = contextlib.ExitStack()
         self._ids = itertools.count(1)
 
-    def __enter__(self) -> "Chromium":
+    def __enter__(self) -> Chromium:
         from websockets.sync.client import connect
 
         exe = chromium_path()
         assert exe, "chromium is not installed (scripts/test installs it when run as root)"
-        self._proc = subprocess.Popen([exe, *FLAGS, f"--user-data-dir={self._profile}",
-                                       f"--window-size={self.width},{self.height}", self.url],
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self._proc = subprocess.Popen(
+            [
+                exe,
+                *FLAGS,
+                f"--user-data-dir={self._profile}",
+                f"--window-size={self.width},{self.height}",
+                self.url,
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         port = self._devtools_port()
         deadline = time.monotonic() + self.timeout_s
         while True:
@@ -57,9 +79,15 @@ class Chromium:
             time.sleep(0.1)
         assert pages, "chromium opened no page"
         self._ws = self._stack.enter_context(
-            connect(pages[0]["webSocketDebuggerUrl"], max_size=64 * 2**20, open_timeout=10))
-        self.call("Emulation.setDeviceMetricsOverride", width=self.width, height=self.height,
-                  deviceScaleFactor=1, mobile=False)
+            connect(pages[0]["webSocketDebuggerUrl"], max_size=64 * 2**20, open_timeout=10)
+        )
+        self.call(
+            "Emulation.setDeviceMetricsOverride",
+            width=self.width,
+            height=self.height,
+            deviceScaleFactor=1,
+            mobile=False,
+        )
         return self
 
     def __exit__(self, *exc) -> None:
@@ -94,7 +122,9 @@ class Chromium:
         return result["result"].get("value")
 
     def text(self, element_id: str) -> str:
-        return self.evaluate(f"(document.getElementById({json.dumps(element_id)}) || {{}}).textContent || ''")
+        return self.evaluate(
+            f"(document.getElementById({json.dumps(element_id)}) || {{}}).textContent || ''"
+        )
 
     def screenshot(self, path: Path) -> Path:
         data = self.call("Page.captureScreenshot", format="png", captureBeyondViewport=True)["data"]

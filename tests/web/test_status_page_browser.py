@@ -54,13 +54,31 @@ def serving(tmp_path):
     (tmp_path / "cells").mkdir()
     (tmp_path / "tasks").mkdir()
     cell = tmp_path / "cells" / "c.yaml"
-    cell.write_text(CELL + f"tasks: {{1: tasks/t.yaml}}\nplc:\n  modbus: {{bind: {HOST}, port: {modbus_port}, "
-                           "heartbeat_timeout: 2.0}\n")
+    cell.write_text(
+        CELL + f"tasks: {{1: tasks/t.yaml}}\nplc:\n  modbus: {{bind: {HOST}, port: {modbus_port}, "
+        "heartbeat_timeout: 2.0}\n"
+    )
     (tmp_path / "tasks" / "t.yaml").write_text(TASK)
-    proc = subprocess.Popen([sys.executable, "-m", "cellrunner.cli.main", "--log-format", "json", "serve", str(cell),
-                             "--backend", "sim", "--http", f"{HOST}:{http_port}"], cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "MUJOCO_GL": "osmesa"})
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "--log-format",
+            "json",
+            "serve",
+            str(cell),
+            "--backend",
+            "sim",
+            "--http",
+            f"{HOST}:{http_port}",
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
     url = f"http://{HOST}:{http_port}/"
     try:
         plc = Plc(modbus_port)
@@ -89,7 +107,9 @@ def test_page_follows_a_running_job_in_chromium(serving, tmp_path):
         deadline = time.monotonic() + 30
         while page.text("state") != "Idle" or "PLC modbus up" not in page.text("links"):
             plc.poll()  # the heartbeat moving is what brings the link up
-            assert time.monotonic() < deadline, f"page shows {page.text('state')!r}, {page.text('links')!r}"
+            assert time.monotonic() < deadline, (
+                f"page shows {page.text('state')!r}, {page.text('links')!r}"
+            )
             time.sleep(0.1)
         assert page.text("cell") == "dryrun-cell"
 
@@ -126,7 +146,9 @@ def test_page_follows_a_running_job_in_chromium(serving, tmp_path):
             plc.poll()
             assert time.monotonic() < deadline, page.text("results")
             time.sleep(0.1)
-        row = page.evaluate("[...document.querySelectorAll('#results tr:first-child td')].map(td => td.textContent)")
+        row = page.evaluate(
+            "[...document.querySelectorAll('#results tr:first-child td')].map(td => td.textContent)"
+        )
         assert row[2:5] == ["modbus 501", "move_can", ""] and row[5] == "0", row
         assert page.evaluate("document.querySelectorAll('#trend svg rect').length") == 1
         keep_artifact(page.screenshot(tmp_path / "status_page_done.png"))
@@ -135,7 +157,11 @@ def test_page_follows_a_running_job_in_chromium(serving, tmp_path):
         families = {f.name: f for f in text_string_to_metric_families(res.read().decode())}
     jobs = {s.labels["code"]: s.value for s in families["cellrunner_jobs"].samples}
     assert jobs["0"] == 1
-    count = [s.value for s in families["cellrunner_cycle_time_seconds"].samples if s.name.endswith("_count")]
+    count = [
+        s.value
+        for s in families["cellrunner_cycle_time_seconds"].samples
+        if s.name.endswith("_count")
+    ]
     assert count == [1]
     assert [s.value for s in families["cellrunner_plc_link_up"].samples] == [1]
     assert families["cellrunner_parts_processed"].samples[0].value == 1
@@ -149,8 +175,12 @@ def test_alarms_show_their_fix_in_chromium(tmp_path):
     from cellrunner.web.server import StatusServer
 
     with FakeCell(results=[1]) as cell:
-        board = StatusBoard(cell, Journal(tmp_path / "jobs.sqlite"), "line3-cell2",
-                            plc_links=lambda: {"modbus": False}).setup()
+        board = StatusBoard(
+            cell,
+            Journal(tmp_path / "jobs.sqlite"),
+            "line3-cell2",
+            plc_links=lambda: {"modbus": False},
+        ).setup()
         server = StatusServer(board, HOST, 0)
         server.start()
         try:
@@ -162,13 +192,25 @@ def test_alarms_show_their_fix_in_chromium(tmp_path):
             cell.inject_estop()
             with Chromium(server.url) as page:
                 deadline = time.monotonic() + 15
-                while page.evaluate("document.querySelectorAll('#alarms li.fault, #alarms li.warning').length") < 3:
+                while (
+                    page.evaluate(
+                        "document.querySelectorAll('#alarms li.fault, #alarms li.warning').length"
+                    )
+                    < 3
+                ):
                     assert time.monotonic() < deadline, page.text("alarms")
                     time.sleep(0.1)
-                titles = page.evaluate("[...document.querySelectorAll('#alarms .title')].map(e => e.textContent)")
-                assert titles == ["Emergency stop", "PLC link down (modbus)",
-                                  "Last job 1: no part (grip failed after retries)"], titles
-                fixes = page.evaluate("[...document.querySelectorAll('#alarms .fix')].map(e => e.textContent)")
+                titles = page.evaluate(
+                    "[...document.querySelectorAll('#alarms .title')].map(e => e.textContent)"
+                )
+                assert titles == [
+                    "Emergency stop",
+                    "PLC link down (modbus)",
+                    "Last job 1: no part (grip failed after retries)",
+                ], titles
+                fixes = page.evaluate(
+                    "[...document.querySelectorAll('#alarms .fix')].map(e => e.textContent)"
+                )
                 assert len(fixes) == 3 and "release the emergency stop" in fixes[0], fixes
                 assert "a part is at the pick frame" in fixes[2], fixes
                 assert "PLC modbus down" in page.text("links")

@@ -33,16 +33,23 @@ def metrics(url: str) -> dict[str, dict]:
     """{family name: {(sample name, frozen labels): value}}."""
     status, ctype, body = get(url + "metrics")
     assert status == 200 and ctype.startswith("text/plain; version=0.0.4")
-    return {f.name: {(s.name, tuple(sorted(s.labels.items()))): s.value for s in f.samples}
-            for f in text_string_to_metric_families(body)}
+    return {
+        f.name: {(s.name, tuple(sorted(s.labels.items()))): s.value for s in f.samples}
+        for f in text_string_to_metric_families(body)
+    }
 
 
 @pytest.fixture
 def served(tmp_path):
     links = {"modbus": True}
     with FakeCell(results=[0, 1]) as cell:
-        board = StatusBoard(cell, Journal(tmp_path / "jobs.sqlite"), "line3-cell2",
-                            plc_links=lambda: dict(links), max_age_s=0.0).setup()
+        board = StatusBoard(
+            cell,
+            Journal(tmp_path / "jobs.sqlite"),
+            "line3-cell2",
+            plc_links=lambda: dict(links),
+            max_age_s=0.0,
+        ).setup()
         server = StatusServer(board, HOST, 0)
         server.start()
         try:
@@ -69,9 +76,21 @@ def test_snapshot_and_metrics_follow_the_jobs(served):
     assert snap["cell"] == "line3-cell2" and snap["state"] == {"number": 4, "name": "Idle"}
     assert snap["job"] is None and snap["alarms"] == [] and snap["plc_links"] == {"modbus": True}
     m = metrics(url)
-    assert m["cellrunner_packml_state"][("cellrunner_packml_state", (("cell", "line3-cell2"),))] == 4
-    assert m["cellrunner_jobs"][("cellrunner_jobs_total", (("cell", "line3-cell2"), ("code", "0"), ("result", "OK")))] == 0
-    assert m["cellrunner_plc_link_up"][("cellrunner_plc_link_up", (("cell", "line3-cell2"), ("link", "modbus")))] == 1
+    assert (
+        m["cellrunner_packml_state"][("cellrunner_packml_state", (("cell", "line3-cell2"),))] == 4
+    )
+    assert (
+        m["cellrunner_jobs"][
+            ("cellrunner_jobs_total", (("cell", "line3-cell2"), ("code", "0"), ("result", "OK")))
+        ]
+        == 0
+    )
+    assert (
+        m["cellrunner_plc_link_up"][
+            ("cellrunner_plc_link_up", (("cell", "line3-cell2"), ("link", "modbus")))
+        ]
+        == 1
+    )
 
     for n in (1, 2):
         assert cell.start_job(1, {"slot": 3}, str(n), "modbus").accepted
@@ -82,8 +101,16 @@ def test_snapshot_and_metrics_follow_the_jobs(served):
     assert jobs == {"0": 1, "1": 1}
     hist = m["cellrunner_cycle_time_seconds"]
     assert hist[("cellrunner_cycle_time_seconds_count", (("cell", "line3-cell2"),))] == 2
-    assert hist[("cellrunner_cycle_time_seconds_bucket", (("cell", "line3-cell2"), ("le", "+Inf")))] == 2
-    assert m["cellrunner_plc_link_up"][("cellrunner_plc_link_up", (("cell", "line3-cell2"), ("link", "modbus")))] == 0
+    assert (
+        hist[("cellrunner_cycle_time_seconds_bucket", (("cell", "line3-cell2"), ("le", "+Inf")))]
+        == 2
+    )
+    assert (
+        m["cellrunner_plc_link_up"][
+            ("cellrunner_plc_link_up", (("cell", "line3-cell2"), ("link", "modbus")))
+        ]
+        == 0
+    )
 
     alarms = json.loads(get(url + "status.json")[2])["alarms"]
     titles = [a["title"] for a in alarms]
@@ -130,8 +157,10 @@ def test_serve_refuses_a_bad_http_address_before_starting(capsys):
 
     assert main(["serve", str(DEMO_CELL), "--http", "127.0.0.1:port"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == ["cellrunner serve: error: --http '127.0.0.1:port': give [HOST:]PORT with PORT 0-65535, "
-                   "e.g. 127.0.0.1:8080"]
+    assert err == [
+        "cellrunner serve: error: --http '127.0.0.1:port': give [HOST:]PORT with PORT 0-65535, "
+        "e.g. 127.0.0.1:8080"
+    ]
 
 
 def test_plc_link_is_up_while_the_heartbeat_moves():
@@ -143,8 +172,12 @@ def test_plc_link_is_up_while_the_heartbeat_moves():
     from tests.test_serve import free_port
 
     port = free_port(HOST)
-    with FakeCell() as cell, PlcService(cell, {"modbus": {"bind": HOST, "port": port,
-                                                          "heartbeat_timeout": 0.5}}) as service:
+    with (
+        FakeCell() as cell,
+        PlcService(
+            cell, {"modbus": {"bind": HOST, "port": port, "heartbeat_timeout": 0.5}}
+        ) as service,
+    ):
         assert service.links() == {"modbus": False}
         client = ModbusClient(host=HOST, port=port, timeout=2.0, auto_open=True)
         for beat in range(1, 6):

@@ -22,13 +22,7 @@ GL_BACKENDS = ("egl", "osmesa")
 GL_ADVICE = "apt-get install libosmesa6"
 _OFF = ("disable", "disabled", "off", "false", "0")
 _PROBE_TIMEOUT_S = 60.0
-_PROBE = (
-    "import mujoco\n"
-    "c = mujoco.GLContext(16, 16)\n"
-    "c.make_current()\n"
-    "c.free()\n"
-    "print('gl-ok')\n"
-)
+_PROBE = "import mujoco\nc = mujoco.GLContext(16, 16)\nc.make_current()\nc.free()\nprint('gl-ok')\n"
 
 
 def load_mujoco() -> ModuleType:
@@ -79,8 +73,14 @@ def _context_works(backend: str) -> bool:
     """Can MuJoCo make a GL context with ``backend`` here? (tried in a child process)"""
     env = {**os.environ, "MUJOCO_GL": backend}
     try:
-        done = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True,
-                              text=True, timeout=_PROBE_TIMEOUT_S, check=False)
+        done = subprocess.run(
+            [sys.executable, "-c", _PROBE],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=_PROBE_TIMEOUT_S,
+            check=False,
+        )
     except (OSError, subprocess.TimeoutExpired):
         return False
     return done.returncode == 0 and "gl-ok" in done.stdout

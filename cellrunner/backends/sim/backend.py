@@ -13,7 +13,6 @@ notice a missed or slipped part through the jaw sensor and the wrist load.
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from cellrunner.backends.base import BackendError, RobotState, Safety
@@ -44,8 +43,11 @@ class SimBackend:
         # the trajectory servo last accepted, with its positions and speeds
         self._accepted: tuple[ApprovedTrajectory, np.ndarray, np.ndarray] | None = None
         self._next_index, self._last_q = -1, None
-        self._max_step_rad = np.radians(description.spec.joint_speed_max_deg_s) / self.rate_hz \
+        self._max_step_rad = (
+            np.radians(description.spec.joint_speed_max_deg_s)
+            / self.rate_hz
             * SET_POINT_JUMP_MARGIN
+        )
 
     # -- lifecycle --------------------------------------------------------------------------
     def connect(self) -> None:
@@ -84,10 +86,17 @@ class SimBackend:
         if self._link_lost:
             last = self._last_state
             assert last is not None
-            return RobotState(time_s=world.time_s, q_rad=last.q_rad, qd_rad_s=last.qd_rad_s,
-                              wrench_N=last.wrench_N, safety=Safety.DISCONNECTED,
-                              inputs=last.inputs, outputs=last.outputs,
-                              powered=last.powered, brakes_released=last.brakes_released)
+            return RobotState(
+                time_s=world.time_s,
+                q_rad=last.q_rad,
+                qd_rad_s=last.qd_rad_s,
+                wrench_N=last.wrench_N,
+                safety=Safety.DISCONNECTED,
+                inputs=last.inputs,
+                outputs=last.outputs,
+                powered=last.powered,
+                brakes_released=last.brakes_released,
+            )
         self._require_connection()
         if self._fresh is not None:  # measured this period, nothing changed since
             return self._fresh
@@ -118,7 +127,8 @@ class SimBackend:
                 raise BackendError(
                     f"set-point {index} of step {trajectory.step_index} ({trajectory.step_name}) "
                     f"jumps {np.degrees(jump[j]):.2f} deg on joint {j + 1} in one period; the "
-                    f"joint speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg")
+                    f"joint speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg"
+                )
         world.command(q, qd_all[index])
         self._next_index, self._last_q = index + 1, q
 
@@ -141,7 +151,9 @@ class SimBackend:
         self._require_connection()
         self._world().zero_ft_sensor()
 
-    def set_tool(self, T_flange_tcp: np.ndarray, payload_kg: float, payload_cog_m: tuple[float, float, float]) -> None:
+    def set_tool(
+        self, T_flange_tcp: np.ndarray, payload_kg: float, payload_cog_m: tuple[float, float, float]
+    ) -> None:
         """Nothing to tell the twin: its tool changer swaps TCP, payload and shapes itself,
         driven by the changer's lock output, as the real changer does."""
         self._require_connection()
@@ -218,10 +230,15 @@ class SimBackend:
 
     def _require_connection(self) -> None:
         if not self._connected:
-            raise BackendError("robot connection lost" if self._link_lost
-                               else "sim backend is not connected; call connect() first")
+            raise BackendError(
+                "robot connection lost"
+                if self._link_lost
+                else "sim backend is not connected; call connect() first"
+            )
 
-    def _accept(self, trajectory: ApprovedTrajectory) -> tuple[ApprovedTrajectory, np.ndarray, np.ndarray]:
+    def _accept(
+        self, trajectory: ApprovedTrajectory
+    ) -> tuple[ApprovedTrajectory, np.ndarray, np.ndarray]:
         """Check an approved trajectory once (seal, rate, speed) and remember it with its
         joint positions and speeds.
 
@@ -231,18 +248,22 @@ class SimBackend:
         if not isinstance(trajectory, ApprovedTrajectory) or not trajectory.is_sealed:
             raise BackendError(
                 "refusing an unsealed trajectory: only trajectories approved by check can move "
-                "the robot")
+                "the robot"
+            )
         traj = trajectory.trajectory
         if abs(traj.rate_hz - self.rate_hz) > 1e-9:
-            raise BackendError(f"trajectory sampled at {traj.rate_hz:g} Hz, the controller runs "
-                               f"at {self.rate_hz:g} Hz")
+            raise BackendError(
+                f"trajectory sampled at {traj.rate_hz:g} Hz, the controller runs "
+                f"at {self.rate_hz:g} Hz"
+            )
         steps = np.abs(np.diff(traj.q_rad, axis=0))
         if len(steps) and (steps > self._max_step_rad).any():
             i, j = np.unravel_index(int(np.argmax(steps - self._max_step_rad)), steps.shape)
             raise BackendError(
                 f"set-point {i + 1} of step {trajectory.step_index} ({trajectory.step_name}) "
                 f"jumps {np.degrees(steps[i, j]):.2f} deg on joint {j + 1} in one period; the "
-                f"joint speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg")
+                f"joint speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg"
+            )
         self._accepted = (trajectory, traj.q_rad, traj.qd_rad_s)
         self._next_index, self._last_q = -1, None
         return self._accepted

@@ -35,16 +35,16 @@ def demo_description(**overrides: object) -> TwinDescription:
         T_world_base=pose_matrix((0.0, 0.0, 0.9)),
         T_flange_tcp=pose_matrix((0.0, 0.0, 0.15)),
         q_home_rad=tuple(math.radians(v) for v in HOME_DEG),
-        tool_geometry=(
-            Placed("body", Cylinder(0.04, 0.10), pose_matrix((0.0, 0.0, 0.05))),
-        ),
+        tool_geometry=(Placed("body", Cylinder(0.04, 0.10), pose_matrix((0.0, 0.0, 0.05))),),
         payload_mass_kg=1.2,
         payload_cog_m=(0.0, 0.0, 0.06),
-        gripper=GripperDescription(stroke_m=0.085, close_output="DO0",
-                                   closed_sensor_input="DI0", open_sensor_input="DI1"),
+        gripper=GripperDescription(
+            stroke_m=0.085, close_output="DO0", closed_sensor_input="DI0", open_sensor_input="DI1"
+        ),
         fixtures=(Placed("table", Box((1.2, 0.8, 0.04)), pose_matrix((0.4, 0.0, 0.88))),),
-        parts=(PartDescription("cube", Box((0.05, 0.05, 0.05)), CUBE_MASS_KG,
-                               pose_matrix(CUBE_XYZ_M)),),
+        parts=(
+            PartDescription("cube", Box((0.05, 0.05, 0.05)), CUBE_MASS_KG, pose_matrix(CUBE_XYZ_M)),
+        ),
         io_outputs=("DO0", "DO1", "DO2", "DO3"),
         io_inputs=("DI0", "DI1", "DI2"),
     )
@@ -56,8 +56,10 @@ def demo_description(**overrides: object) -> TwinDescription:
 # A tiny numerical IK and quintic joint blends, enough to drive the demo cell in tests and
 # benchmarks; real jobs get their trajectories from cellrunner.planning.
 
-def solve_ik(desc: TwinDescription, T_world_tcp: np.ndarray, q_seed_rad: np.ndarray,
-             tol_m: float = 1e-6) -> np.ndarray:
+
+def solve_ik(
+    desc: TwinDescription, T_world_tcp: np.ndarray, q_seed_rad: np.ndarray, tol_m: float = 1e-6
+) -> np.ndarray:
     """Joint angles (rad) putting the TCP at ``T_world_tcp``, near ``q_seed_rad``
     (damped least squares on the DH model; raises ValueError when it does not converge)."""
     T_base_flange = invert(desc.T_world_base) @ T_world_tcp @ invert(desc.T_flange_tcp)
@@ -81,8 +83,9 @@ def _pose_error(T: np.ndarray, T_goal: np.ndarray) -> np.ndarray:
     return np.concatenate([T[:3, 3] - T_goal[:3, 3], 0.3 * (T[:3, :3] - T_goal[:3, :3]).ravel()])
 
 
-def quintic_blend(q0_rad: np.ndarray, q1_rad: np.ndarray, duration_s: float,
-                  rate_hz: float) -> np.ndarray:
+def quintic_blend(
+    q0_rad: np.ndarray, q1_rad: np.ndarray, duration_s: float, rate_hz: float
+) -> np.ndarray:
     """Samples (N x 6) of a rest-to-rest quintic from q0 to q1 at ``rate_hz``."""
     n = max(2, int(round(duration_s * rate_hz)) + 1)
     s = np.linspace(0.0, 1.0, n)

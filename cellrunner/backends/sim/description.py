@@ -110,15 +110,24 @@ class TwinDescription:
     io_inputs: tuple[str, ...] = ("DI0",)
     presence_sensors: tuple[PresenceSensor, ...] = ()
     vacuum: Any = None  # a VacuumDescription (backends.sim.vacuum) for a suction gripper
-    tool_changer: Any = None  # a ToolChangerDescription (backends.sim.tool_changer) for several tools
+    tool_changer: Any = (
+        None  # a ToolChangerDescription (backends.sim.tool_changer) for several tools
+    )
     input_rules: tuple = ()  # InputRuleDescription: inputs the cell's sim: block drives
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"
 
     def __post_init__(self) -> None:
-        for attr in ("tool_geometry", "fixtures", "parts", "io_outputs", "io_inputs",
-                     "presence_sensors", "input_rules"):
+        for attr in (
+            "tool_geometry",
+            "fixtures",
+            "parts",
+            "io_outputs",
+            "io_inputs",
+            "presence_sensors",
+            "input_rules",
+        ):
             object.__setattr__(self, attr, tuple(getattr(self, attr)))
         if len(self.q_home_rad) != 6:
             raise ValueError(f"q_home_rad needs 6 values, got {len(self.q_home_rad)}")
@@ -132,12 +141,16 @@ class TwinDescription:
         if self.gripper is not None:
             g = self.gripper
             if g.close_output not in self.io_outputs:
-                raise ValueError(f"gripper close output {g.close_output!r} is not an output; "  # noqa: E501
-                                 f"known: {', '.join(self.io_outputs)}")
+                raise ValueError(
+                    f"gripper close output {g.close_output!r} is not an output; "  # noqa: E501
+                    f"known: {', '.join(self.io_outputs)}"
+                )
             for ch in (g.closed_sensor_input, g.open_sensor_input):
                 if ch is not None and ch not in self.io_inputs:
-                    raise ValueError(f"gripper sensor input {ch!r} is not an input; "
-                                     f"known: {', '.join(self.io_inputs)}")
+                    raise ValueError(
+                        f"gripper sensor input {ch!r} is not an input; "
+                        f"known: {', '.join(self.io_inputs)}"
+                    )
 
     @property
     def rate_hz(self) -> float:
@@ -151,10 +164,14 @@ def dh_forward(spec: RobotSpec, q_rad: np.ndarray) -> np.ndarray:
         ct, st = math.cos(q_rad[i]), math.sin(q_rad[i])
         ca, sa = math.cos(spec.alpha_rad[i]), math.sin(spec.alpha_rad[i])
         a, d = spec.a_m[i], spec.d_m[i]
-        T = T @ np.array([[ct, -st * ca, st * sa, a * ct],
-                          [st, ct * ca, -ct * sa, a * st],
-                          [0.0, sa, ca, d],
-                          [0.0, 0.0, 0.0, 1.0]])
+        T = T @ np.array(
+            [
+                [ct, -st * ca, st * sa, a * ct],
+                [st, ct * ca, -ct * sa, a * st],
+                [0.0, sa, ca, d],
+                [0.0, 0.0, 0.0, 1.0],
+            ]
+        )
     return T
 
 

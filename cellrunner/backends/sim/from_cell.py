@@ -18,8 +18,13 @@ def description_of(loaded: LoadedCell):
 
     c = loaded.cell
     outputs, inputs = c.io.outputs, c.io.inputs
-    io_outputs, io_inputs = list(dict.fromkeys(outputs.values())), list(dict.fromkeys(inputs.values()))
-    changer = _changer(loaded, io_outputs, io_inputs) if c.tools and c.tool_changer is not None else None
+    io_outputs, io_inputs = (
+        list(dict.fromkeys(outputs.values())),
+        list(dict.fromkeys(inputs.values())),
+    )
+    changer = (
+        _changer(loaded, io_outputs, io_inputs) if c.tools and c.tool_changer is not None else None
+    )
     tools = list(c.tools.values()) if changer is not None else [c.tool]
     suction = next((t for t in tools if t.gripper is not None and t.gripper.kind == "vacuum"), None)
     jaws = [t for t in tools if t.gripper is not None and t.gripper.kind != "vacuum"]
@@ -28,13 +33,23 @@ def description_of(loaded: LoadedCell):
     vacuum = _cups(suction, c) if suction is not None else None
     parts = [_part(loaded, p, c.tool.gripper) for p in c.parts]
     return TwinDescription(
-        spec=loaded.spec, T_world_base=c.robot.mount.matrix(), T_flange_tcp=c.tool.tcp.matrix(),
+        spec=loaded.spec,
+        T_world_base=c.robot.mount.matrix(),
+        T_flange_tcp=c.tool.tcp.matrix(),
         q_home_rad=tuple(np.radians(c.robot.home)),
         tool_geometry=tuple(loaded.tool_shapes()) if changer is None else (),
-        payload_mass_kg=max(c.tool.payload.mass, 0.1), payload_cog_m=tuple(c.tool.payload.cog),
-        gripper=gripper, vacuum=vacuum, tool_changer=changer, fixtures=tuple(loaded.fixture_shapes()),
-        parts=tuple(parts), io_outputs=tuple(io_outputs), io_inputs=tuple(io_inputs),
-        input_rules=_input_rules(c), name=c.cell)
+        payload_mass_kg=max(c.tool.payload.mass, 0.1),
+        payload_cog_m=tuple(c.tool.payload.cog),
+        gripper=gripper,
+        vacuum=vacuum,
+        tool_changer=changer,
+        fixtures=tuple(loaded.fixture_shapes()),
+        parts=tuple(parts),
+        io_outputs=tuple(io_outputs),
+        io_inputs=tuple(io_inputs),
+        input_rules=_input_rules(c),
+        name=c.cell,
+    )
 
 
 def _part(loaded: LoadedCell, part, gripper):
@@ -45,7 +60,9 @@ def _part(loaded: LoadedCell, part, gripper):
     if part.offset is not None:
         T_world_grip = T_world_grip @ part.offset.matrix()
     shape = part.to_shape(loaded.resolve)
-    return PartDescription(part.name, shape, part.mass, _part_pose(T_world_grip, gripper, shape), part.friction)
+    return PartDescription(
+        part.name, shape, part.mass, _part_pose(T_world_grip, gripper, shape), part.friction
+    )
 
 
 def _input_rules(cell) -> tuple:
@@ -59,42 +76,68 @@ def _input_rules(cell) -> tuple:
         channel = cell.io.inputs[name]
         if rule.part_at is not None:
             point = tuple(float(v) for v in frame_pose(cell, rule.part_at)[:3, 3])
-            out.append(InputRuleDescription(channel, "part_at", point_world_m=point, within_m=rule.within,
-                                            invert=rule.invert))
+            out.append(
+                InputRuleDescription(
+                    channel,
+                    "part_at",
+                    point_world_m=point,
+                    within_m=rule.within,
+                    invert=rule.invert,
+                )
+            )
         else:
             kind = "follows" if rule.follows is not None else "pulse_after"
             output = cell.io.outputs[rule.follows or rule.pulse_after]
-            out.append(InputRuleDescription(channel, kind, output=output, delay_s=rule.delay, width_s=rule.width,
-                                            invert=rule.invert))
+            out.append(
+                InputRuleDescription(
+                    channel,
+                    kind,
+                    output=output,
+                    delay_s=rule.delay,
+                    width_s=rule.width,
+                    invert=rule.invert,
+                )
+            )
     return tuple(out)
 
 
 def _jaws(tool, cell, io_outputs: list, io_inputs: list):
     from cellrunner.backends.sim.description import GripperDescription
+
     g = tool.gripper
     close, _, sensor = gripper_channels(g, cell.io.outputs, cell.io.inputs)
     io_outputs += [close[0]] if close[0] not in io_outputs else []
     io_inputs += [sensor] if sensor and sensor not in io_inputs else []
     return GripperDescription(
-        stroke_m=g.stroke, jaw_speed_mps=g.stroke / 2 / g.close_time,
-        close_output=close[0], close_value=close[1], closed_sensor_input=sensor,
+        stroke_m=g.stroke,
+        jaw_speed_mps=g.stroke / 2 / g.close_time,
+        close_output=close[0],
+        close_value=close[1],
+        closed_sensor_input=sensor,
         open_sensor_input=cell.io.inputs.get(g.open_sensor) if g.open_sensor else None,
-        T_flange_tcp=tool.tcp.matrix())
+        T_flange_tcp=tool.tcp.matrix(),
+    )
 
 
 def _cups(tool, cell):
     from cellrunner.backends.sim.vacuum import VacuumDescription
+
     g = tool.gripper
     close, _, sensor = gripper_channels(g, cell.io.outputs, cell.io.inputs)
     return VacuumDescription(
-        cups=tuple((tuple(cup.xyz), cup.radius) for cup in g.cups), suction_output=close[0],
-        suction_value=close[1], vacuum_ok_input=sensor,
+        cups=tuple((tuple(cup.xyz), cup.radius) for cup in g.cups),
+        suction_output=close[0],
+        suction_value=close[1],
+        vacuum_ok_input=sensor,
         blow_off_output=cell.io.outputs[g.blow_off.output] if g.blow_off else None,
-        holding_force_N=g.holding_force or 100.0, T_flange_tcp=tool.tcp.matrix())
+        holding_force_N=g.holding_force or 100.0,
+        T_flange_tcp=tool.tcp.matrix(),
+    )
 
 
 def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
     from cellrunner.backends.sim.tool_changer import ChangerTool, ToolChangerDescription
+
     c = loaded.cell
     changer = c.tool_changer
     tools = []
@@ -102,12 +145,24 @@ def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
         g = tool.gripper
         kind = None if g is None else "vacuum" if g.kind == "vacuum" else "jaws"
         shapes = loaded.tool_shapes(tool)
-        tools.append(ChangerTool(name, tool.tcp.matrix(), tuple(shapes), max(tool.payload.mass, 0.1),
-                                 tuple(tool.payload.cog), kind, frame_pose(c, changer.rack[name]),
-                                 _jaws(tool, c, io_outputs, io_inputs) if kind == "jaws" else None))
-    return ToolChangerDescription(c.io.outputs[changer.lock],
-                                  c.io.inputs[changer.locked] if changer.locked else None,
-                                  tuple(tools), c.robot.tool)
+        tools.append(
+            ChangerTool(
+                name,
+                tool.tcp.matrix(),
+                tuple(shapes),
+                max(tool.payload.mass, 0.1),
+                tuple(tool.payload.cog),
+                kind,
+                frame_pose(c, changer.rack[name]),
+                _jaws(tool, c, io_outputs, io_inputs) if kind == "jaws" else None,
+            )
+        )
+    return ToolChangerDescription(
+        c.io.outputs[changer.lock],
+        c.io.inputs[changer.locked] if changer.locked else None,
+        tuple(tools),
+        c.robot.tool,
+    )
 
 
 def _part_pose(T_world_grip: np.ndarray, gripper, shape) -> np.ndarray:

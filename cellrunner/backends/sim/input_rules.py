@@ -40,7 +40,9 @@ class InputRules:
     def channels(self) -> set[str]:
         return {r.channel for r in self.rules}
 
-    def evaluate(self, t_s: float, outputs: dict[str, bool | float], part_positions) -> dict[str, bool | float]:
+    def evaluate(
+        self, t_s: float, outputs: dict[str, bool | float], part_positions
+    ) -> dict[str, bool | float]:
         """The driven inputs at ``t_s`` (s) given the outputs now and the parts' world
         positions (an iterable of 3-sequences in m)."""
         for rule in self.rules:
@@ -63,7 +65,10 @@ class InputRules:
                 value = self._value_at(rule.output, t_s - rule.delay_s)
             else:
                 rose = self._rise_s.get(rule.output)
-                value = rose is not None and rose + rule.delay_s <= t_s < rose + rule.delay_s + rule.width_s
+                value = (
+                    rose is not None
+                    and rose + rule.delay_s <= t_s < rose + rule.delay_s + rule.width_s
+                )
             out[rule.channel] = (not value) if rule.invert and isinstance(value, bool) else value
         return out
 

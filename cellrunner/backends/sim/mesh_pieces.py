@@ -28,6 +28,7 @@ def triangles_of(stl_bytes: bytes, scale: float) -> np.ndarray:
 def is_convex(triangles: np.ndarray) -> bool:
     """Whether the closed mesh fills its convex hull (volumes within HULL_EXCESS)."""
     from scipy.spatial import ConvexHull
+
     a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
     volume = abs(float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0)
     try:

@@ -42,14 +42,27 @@ from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.robots import JOINT_NAMES
 
 # Arm masses (kg) and joint torque limits (N m, base..wrist 3), datasheets / UR manuals.
-ARM_MASS_KG = {"ur3": 11.0, "ur5": 18.4, "ur10": 28.9,
-               "ur3e": 11.2, "ur5e": 20.6, "ur10e": 33.5, "ur16e": 33.1}
+ARM_MASS_KG = {
+    "ur3": 11.0,
+    "ur5": 18.4,
+    "ur10": 28.9,
+    "ur3e": 11.2,
+    "ur5e": 20.6,
+    "ur10e": 33.5,
+    "ur16e": 33.1,
+}
 _TORQUE_SMALL = (56.0, 56.0, 28.0, 12.0, 12.0, 12.0)
 _TORQUE_MEDIUM = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)
 _TORQUE_LARGE = (330.0, 330.0, 150.0, 56.0, 56.0, 56.0)
-JOINT_TORQUE_MAX_NM = {"ur3": _TORQUE_SMALL, "ur3e": _TORQUE_SMALL,
-                       "ur5": _TORQUE_MEDIUM, "ur5e": _TORQUE_MEDIUM,
-                       "ur10": _TORQUE_LARGE, "ur10e": _TORQUE_LARGE, "ur16e": _TORQUE_LARGE}
+JOINT_TORQUE_MAX_NM = {
+    "ur3": _TORQUE_SMALL,
+    "ur3e": _TORQUE_SMALL,
+    "ur5": _TORQUE_MEDIUM,
+    "ur5e": _TORQUE_MEDIUM,
+    "ur10": _TORQUE_LARGE,
+    "ur10e": _TORQUE_LARGE,
+    "ur16e": _TORQUE_LARGE,
+}
 # Reflected rotor inertia of the harmonic drives (kg m^2), scaled by arm size.
 _ARMATURE_UR5 = (0.6, 0.6, 0.3, 0.06, 0.06, 0.06)
 
@@ -155,14 +168,18 @@ def binary_stl(path: Path) -> bytes:
     text = raw.decode("ascii", errors="replace")
     if not text.lstrip().lower().startswith("solid"):
         raise ValueError(f"mesh {path} is neither a binary nor an ASCII STL file")
-    vertices = [tuple(float(v) for v in line.split()[1:4])
-                for line in text.splitlines() if line.strip().lower().startswith("vertex")]
+    vertices = [
+        tuple(float(v) for v in line.split()[1:4])
+        for line in text.splitlines()
+        if line.strip().lower().startswith("vertex")
+    ]
     if not vertices or len(vertices) % 3:
         raise ValueError(f"mesh {path}: ASCII STL with {len(vertices)} vertices, not triangles")
     out = bytearray(80) + struct.pack("<I", len(vertices) // 3)
     for k in range(0, len(vertices), 3):
-        out += struct.pack("<12fH", 0.0, 0.0, 0.0, *vertices[k], *vertices[k + 1],
-                           *vertices[k + 2], 0)
+        out += struct.pack(
+            "<12fH", 0.0, 0.0, 0.0, *vertices[k], *vertices[k + 1], *vertices[k + 2], 0
+        )
     return bytes(out)
 
 
@@ -176,7 +193,9 @@ def _flat_mesh_box(mesh: Mesh) -> tuple[np.ndarray, np.ndarray] | None:
     raw = binary_stl(mesh.path)
     count = struct.unpack_from("<I", raw, 80)[0]
     record = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-    vertices = np.frombuffer(raw, dtype=record, count=count, offset=84)["v"].reshape(-1, 3) * mesh.scale
+    vertices = (
+        np.frombuffer(raw, dtype=record, count=count, offset=84)["v"].reshape(-1, 3) * mesh.scale
+    )
     if not len(vertices):
         return None
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
@@ -205,19 +224,33 @@ class _Builder:
 
     def build(self) -> str:
         d, o = self.desc, self.options
-        ET.SubElement(self.root, "compiler", angle="radian", autolimits="true",
-                      inertiafromgeom="auto", fusestatic="false")
+        ET.SubElement(
+            self.root,
+            "compiler",
+            angle="radian",
+            autolimits="true",
+            inertiafromgeom="auto",
+            fusestatic="false",
+        )
         substeps = max(1, math.ceil(1.0 / d.rate_hz / o.max_timestep_s - 1e-9))
         self.timestep_s = 1.0 / d.rate_hz / substeps
         # Grasp contacts (pads, parts) as stiff as the step allows (time constant 2 dt):
         # softer ones let a gripped part creep and spring away when the jaws open.
         self.grasp_solref = f"{2 * self.timestep_s:.6g} 1"
         option = ET.SubElement(
-            self.root, "option", timestep=f"{self.timestep_s:.9g}", integrator="implicitfast",
-            cone=o.cone, impratio=f"{o.impratio:g}", solver="Newton",
-            iterations=str(o.solver_iterations), ls_iterations="10", tolerance="1e-8",
+            self.root,
+            "option",
+            timestep=f"{self.timestep_s:.9g}",
+            integrator="implicitfast",
+            cone=o.cone,
+            impratio=f"{o.impratio:g}",
+            solver="Newton",
+            iterations=str(o.solver_iterations),
+            ls_iterations="10",
+            tolerance="1e-8",
             noslip_iterations=str(o.noslip_iterations),
-            gravity="0 0 -9.81")
+            gravity="0 0 -9.81",
+        )
         if o.sleep:  # parts at rest stop costing solver time until something touches them
             ET.SubElement(option, "flag", sleep="enable")
         visual = ET.SubElement(self.root, "visual")
@@ -225,16 +258,36 @@ class _Builder:
         ET.SubElement(visual, "quality", shadowsize="2048", offsamples="4")
         # a wider shadow clip than the default avoids shadow acne on the floor far out
         ET.SubElement(visual, "map", shadowclip="3", shadowscale="0.6")
-        ET.SubElement(visual, "headlight", ambient="0.35 0.35 0.35", diffuse="0.5 0.5 0.5",
-                      specular="0.1 0.1 0.1")
+        ET.SubElement(
+            visual,
+            "headlight",
+            ambient="0.35 0.35 0.35",
+            diffuse="0.5 0.5 0.5",
+            specular="0.1 0.1 0.1",
+        )
         self._assets()
         world = ET.SubElement(self.root, "worldbody")
-        ET.SubElement(world, "light", name="sun", pos="0 0 4", dir="0.2 0.3 -1",
-                      directional="true", diffuse="0.6 0.6 0.6", castshadow="true")
+        ET.SubElement(
+            world,
+            "light",
+            name="sun",
+            pos="0 0 4",
+            dir="0.2 0.3 -1",
+            directional="true",
+            diffuse="0.6 0.6 0.6",
+            castshadow="true",
+        )
         if d.floor:
-            ET.SubElement(world, "geom", name="floor", type="plane", size="0 0 0.05",
-                          material="floor", contype=str(STATIC),
-                          conaffinity=str(ROBOT | PADS | PARTS))
+            ET.SubElement(
+                world,
+                "geom",
+                name="floor",
+                type="plane",
+                size="0 0 0.05",
+                material="floor",
+                contype=str(STATIC),
+                conaffinity=str(ROBOT | PADS | PARTS),
+            )
         for fixture in d.fixtures:
             self._static_geom(world, fixture)
         self._arm(world)
@@ -242,6 +295,7 @@ class _Builder:
             self._part(world, part)
         if d.vacuum is not None and d.parts:
             from cellrunner.backends.sim.vacuum import add_welds
+
             add_welds(self.root, d.parts)
         self._actuators_and_sensors()
         ET.indent(self.root)
@@ -250,13 +304,34 @@ class _Builder:
     # -- assets ---------------------------------------------------------------------
     def _assets(self) -> None:
         a = self.assets = ET.SubElement(self.root, "asset")
-        ET.SubElement(a, "texture", name="grid", type="2d", builtin="checker", width="512",
-                      height="512", rgb1="0.80 0.80 0.78", rgb2="0.74 0.74 0.72")
-        ET.SubElement(a, "material", name="floor", texture="grid", texrepeat="2 2",
-                      texuniform="true", reflectance="0")
-        for name, rgba in (("arm", "0.78 0.80 0.82 1"), ("joint", "0.20 0.45 0.70 1"),
-                           ("tool", "0.25 0.25 0.28 1"), ("pad", "0.10 0.10 0.10 1"),
-                           ("fixture", "0.62 0.52 0.40 1"), ("part", "0.95 0.55 0.10 1")):
+        ET.SubElement(
+            a,
+            "texture",
+            name="grid",
+            type="2d",
+            builtin="checker",
+            width="512",
+            height="512",
+            rgb1="0.80 0.80 0.78",
+            rgb2="0.74 0.74 0.72",
+        )
+        ET.SubElement(
+            a,
+            "material",
+            name="floor",
+            texture="grid",
+            texrepeat="2 2",
+            texuniform="true",
+            reflectance="0",
+        )
+        for name, rgba in (
+            ("arm", "0.78 0.80 0.82 1"),
+            ("joint", "0.20 0.45 0.70 1"),
+            ("tool", "0.25 0.25 0.28 1"),
+            ("pad", "0.10 0.10 0.10 1"),
+            ("fixture", "0.62 0.52 0.40 1"),
+            ("part", "0.95 0.55 0.10 1"),
+        ):
             ET.SubElement(a, "material", name=name, rgba=rgba, specular="0.3")
 
     def _mesh_asset(self, mesh: Mesh) -> str:
@@ -265,8 +340,9 @@ class _Builder:
             name = f"mesh{len(self._meshes)}"
             assert self.assets is not None
             self.mesh_files[f"{name}.stl"] = binary_stl(mesh.path)
-            ET.SubElement(self.assets, "mesh", name=name, file=f"{name}.stl",
-                          scale=_fmt([mesh.scale] * 3))
+            ET.SubElement(
+                self.assets, "mesh", name=name, file=f"{name}.stl", scale=_fmt([mesh.scale] * 3)
+            )
             self._meshes[key] = name
         return self._meshes[key]
 
@@ -292,14 +368,22 @@ class _Builder:
             T = T.copy()
             T[:3, 3] = T[:3, :3] @ center + T[:3, 3]
             shape = Box(tuple(size))
-        ET.SubElement(parent, "geom", name=f"fixture:{placed.name}", material="fixture",
-                      contype=str(STATIC), conaffinity=str(ROBOT | PADS | PARTS),
-                      **self._shape_attrs(shape), **_pose_attrs(T))
+        ET.SubElement(
+            parent,
+            "geom",
+            name=f"fixture:{placed.name}",
+            material="fixture",
+            contype=str(STATIC),
+            conaffinity=str(ROBOT | PADS | PARTS),
+            **self._shape_attrs(shape),
+            **_pose_attrs(T),
+        )
 
     def _mesh_pieces(self, parent: ET.Element, placed: Placed) -> bool:
         """A non-convex mesh fixture as one thin prism per triangle (see :mod:`.mesh_pieces`);
         False when the mesh is convex (or too big), to be built as usual."""
         from cellrunner.backends.sim import mesh_pieces
+
         triangles = mesh_pieces.triangles_of(binary_stl(placed.shape.path), placed.shape.scale)
         if len(triangles) > mesh_pieces.MAX_TRIANGLES or mesh_pieces.is_convex(triangles):
             return False
@@ -307,17 +391,28 @@ class _Builder:
         for k, vertices in enumerate(mesh_pieces.prisms(triangles)):
             name = f"{placed.name}_piece{k}"
             ET.SubElement(self.assets, "mesh", name=name, vertex=_fmt(vertices))
-            ET.SubElement(parent, "geom", name=f"fixture:{placed.name}:{k}", material="fixture", type="mesh",
-                          mesh=name, contype=str(STATIC), conaffinity=str(ROBOT | PADS | PARTS),
-                          **_pose_attrs(placed.T_parent_shape))
+            ET.SubElement(
+                parent,
+                "geom",
+                name=f"fixture:{placed.name}:{k}",
+                material="fixture",
+                type="mesh",
+                mesh=name,
+                contype=str(STATIC),
+                conaffinity=str(ROBOT | PADS | PARTS),
+                **_pose_attrs(placed.T_parent_shape),
+            )
         return True
 
     def _arm(self, world: ET.Element) -> None:
         d = self.desc
         spec = d.spec
         capsules = spec.capsules()
-        volume = sum(math.pi * c.radius_m**2 * math.dist(c.p0_m, c.p1_m)
-                     + 4 / 3 * math.pi * c.radius_m**3 for c in capsules if c.body > 0)
+        volume = sum(
+            math.pi * c.radius_m**2 * math.dist(c.p0_m, c.p1_m) + 4 / 3 * math.pi * c.radius_m**3
+            for c in capsules
+            if c.body > 0
+        )
         density = ARM_MASS_KG.get(spec.name, 20.0) / volume
         scale = (spec.reach_m / 0.85) ** 2
         torque = JOINT_TORQUE_MAX_NM.get(spec.name, _TORQUE_MEDIUM)
@@ -330,27 +425,40 @@ class _Builder:
                     T[:3, 3] = (spec.a_m[i - 2], 0.0, spec.d_m[i - 2])
                     ca, sa = math.cos(spec.alpha_rad[i - 2]), math.sin(spec.alpha_rad[i - 2])
                     T[:3, :3] = [[1, 0, 0], [0, ca, -sa], [0, sa, ca]]
-                body = ET.SubElement(parent, "body", name=f"link{i}", gravcomp="1",
-                                     **_pose_attrs(T))
-                ET.SubElement(body, "joint", name=JOINT_NAMES[i - 1], type="hinge",
-                              axis="0 0 1", armature=f"{_ARMATURE_UR5[i - 1] * scale:.6g}",
-                              damping="0.5", range=_fmt(np.radians([spec.joint_min_deg[i - 1],
-                                                                    spec.joint_max_deg[i - 1]])),
-                              actuatorfrcrange=_fmt([-torque[i - 1], torque[i - 1]]))
+                body = ET.SubElement(
+                    parent, "body", name=f"link{i}", gravcomp="1", **_pose_attrs(T)
+                )
+                ET.SubElement(
+                    body,
+                    "joint",
+                    name=JOINT_NAMES[i - 1],
+                    type="hinge",
+                    axis="0 0 1",
+                    armature=f"{_ARMATURE_UR5[i - 1] * scale:.6g}",
+                    damping="0.5",
+                    range=_fmt(np.radians([spec.joint_min_deg[i - 1], spec.joint_max_deg[i - 1]])),
+                    actuatorfrcrange=_fmt([-torque[i - 1], torque[i - 1]]),
+                )
             for k, c in enumerate(x for x in capsules if x.body == i):
                 bits = (0, 0) if i == 0 else (ROBOT, STATIC | PARTS)
-                ET.SubElement(body, "geom", name=f"arm{i}_{k}", type="capsule",
-                              fromto=_fmt([*c.p0_m, *c.p1_m]), size=f"{c.radius_m:.6g}",
-                              density=f"{density if i > 0 else 0:.6g}",
-                              material="joint" if k == 0 and i in (1, 4, 5) else "arm",
-                              contype=str(bits[0]), conaffinity=str(bits[1]))
+                ET.SubElement(
+                    body,
+                    "geom",
+                    name=f"arm{i}_{k}",
+                    type="capsule",
+                    fromto=_fmt([*c.p0_m, *c.p1_m]),
+                    size=f"{c.radius_m:.6g}",
+                    density=f"{density if i > 0 else 0:.6g}",
+                    material="joint" if k == 0 and i in (1, 4, 5) else "arm",
+                    contype=str(bits[0]),
+                    conaffinity=str(bits[1]),
+                )
             parent = body
         flange_T = np.eye(4)
         flange_T[:3, 3] = (spec.a_m[5], 0.0, spec.d_m[5])
         ca, sa = math.cos(spec.alpha_rad[5]), math.sin(spec.alpha_rad[5])
         flange_T[:3, :3] = [[1, 0, 0], [0, ca, -sa], [0, sa, ca]]
-        flange = ET.SubElement(parent, "body", name="flange", gravcomp="1",
-                               **_pose_attrs(flange_T))
+        flange = ET.SubElement(parent, "body", name="flange", gravcomp="1", **_pose_attrs(flange_T))
         ET.SubElement(flange, "inertial", pos="0 0 0", mass="1e-3", diaginertia="1e-7 1e-7 1e-7")
         self._tool(flange)
 
@@ -361,23 +469,39 @@ class _Builder:
         tool_kg = max(d.payload_mass_kg - fingers_kg, 0.02)
         tool = ET.SubElement(flange, "body", name="tool", gravcomp="1")
         r = 0.03  # inertia of the payload as a 3 cm radius solid sphere at its cog
-        ET.SubElement(tool, "inertial", pos=_fmt(d.payload_cog_m), mass=f"{tool_kg:.6g}",
-                      diaginertia=_fmt([0.4 * tool_kg * r * r] * 3))
+        ET.SubElement(
+            tool,
+            "inertial",
+            pos=_fmt(d.payload_cog_m),
+            mass=f"{tool_kg:.6g}",
+            diaginertia=_fmt([0.4 * tool_kg * r * r] * 3),
+        )
         ET.SubElement(tool, "site", name="ft", pos="0 0 0", size="0.01", rgba="0 0 0 0")
-        ET.SubElement(tool, "site", name="tcp", size="0.006", rgba="1 0 0 0.6",
-                      **_pose_attrs(d.T_flange_tcp))
+        ET.SubElement(
+            tool, "site", name="tcp", size="0.006", rgba="1 0 0 0.6", **_pose_attrs(d.T_flange_tcp)
+        )
         for k, placed in enumerate(d.tool_geometry):
-            ET.SubElement(tool, "geom", name=f"tool:{placed.name or k}", material="tool",
-                          density="0", contype=str(TOOL), conaffinity=str(STATIC),
-                          **self._shape_attrs(placed.shape), **_pose_attrs(placed.T_parent_shape))
+            ET.SubElement(
+                tool,
+                "geom",
+                name=f"tool:{placed.name or k}",
+                material="tool",
+                density="0",
+                contype=str(TOOL),
+                conaffinity=str(STATIC),
+                **self._shape_attrs(placed.shape),
+                **_pose_attrs(placed.T_parent_shape),
+            )
         if g is not None:
             self._gripper(tool, g)
         if d.vacuum is not None:
             from cellrunner.backends.sim.vacuum import add_cups
+
             T = d.vacuum.T_flange_tcp if d.vacuum.T_flange_tcp is not None else d.T_flange_tcp
             add_cups(self, tool, d.vacuum, T, PADS, STATIC | PARTS)
         if d.tool_changer is not None:
             from cellrunner.backends.sim.tool_changer import add_tools
+
             add_tools(self, tool, self.root.find("worldbody"), d.tool_changer, TOOL, STATIC)
 
     def _gripper(self, tool: ET.Element, g: Any) -> None:
@@ -388,40 +512,93 @@ class _Builder:
         # Visual rail across the fingers' tops, fixed to the tool at the TCP frame.
         T_flange_jaws = g.T_flange_tcp if g.T_flange_tcp is not None else d.T_flange_tcp
         rail = ET.SubElement(tool, "body", name="gripper", **_pose_attrs(T_flange_jaws))
-        ET.SubElement(rail, "geom", name="gripper:rail", type="box", material="tool",
-                      pos=_fmt([0, 0, z0 - 0.02]), size=_fmt([half_stroke + t + 0.01, w / 2 + 0.004, 0.008]),
-                      contype="0", conaffinity="0", density="0", group="1")
+        ET.SubElement(
+            rail,
+            "geom",
+            name="gripper:rail",
+            type="box",
+            material="tool",
+            pos=_fmt([0, 0, z0 - 0.02]),
+            size=_fmt([half_stroke + t + 0.01, w / 2 + 0.004, 0.008]),
+            contype="0",
+            conaffinity="0",
+            density="0",
+            group="1",
+        )
         ET.SubElement(rail, "inertial", pos="0 0 0", mass="1e-3", diaginertia="1e-7 1e-7 1e-7")
         for jaw, sign in (("jaw_a", 1.0), ("jaw_b", -1.0)):
             body = ET.SubElement(rail, "body", name=jaw)
-            ET.SubElement(body, "joint", name=jaw, type="slide", axis=_fmt([-sign, 0, 0]),
-                          range=_fmt([0.0, half_stroke]), armature="0.2",
-                          solreflimit="0.004 1", solimplimit="0.99 0.999 0.001",
-                          damping=f"{g.grip_force_N / g.jaw_speed_mps:.6g}")
+            ET.SubElement(
+                body,
+                "joint",
+                name=jaw,
+                type="slide",
+                axis=_fmt([-sign, 0, 0]),
+                range=_fmt([0.0, half_stroke]),
+                armature="0.2",
+                solreflimit="0.004 1",
+                solimplimit="0.99 0.999 0.001",
+                damping=f"{g.grip_force_N / g.jaw_speed_mps:.6g}",
+            )
             x = sign * (half_stroke + t / 2)
-            ET.SubElement(body, "geom", name=f"pad:{jaw}", type="box", material="pad",
-                          pos=_fmt([x, 0, (z0 + z1) / 2]), size=_fmt([t / 2, w / 2, (z1 - z0) / 2]),
-                          friction=f"{g.friction:g} 0.01 0.0001", condim="4",
-                          solref=self.grasp_solref,
-                          contype=str(PADS), conaffinity=str(STATIC | PARTS),
-                          mass=f"{g.finger_mass_kg:.6g}")
-            ET.SubElement(body, "geom", name=f"stem:{jaw}", type="box", material="tool",
-                          pos=_fmt([x, 0, z0 - 0.012]), size=_fmt([t / 2, w / 2, 0.012]),
-                          contype="0", conaffinity="0", density="0", group="1")
+            ET.SubElement(
+                body,
+                "geom",
+                name=f"pad:{jaw}",
+                type="box",
+                material="pad",
+                pos=_fmt([x, 0, (z0 + z1) / 2]),
+                size=_fmt([t / 2, w / 2, (z1 - z0) / 2]),
+                friction=f"{g.friction:g} 0.01 0.0001",
+                condim="4",
+                solref=self.grasp_solref,
+                contype=str(PADS),
+                conaffinity=str(STATIC | PARTS),
+                mass=f"{g.finger_mass_kg:.6g}",
+            )
+            ET.SubElement(
+                body,
+                "geom",
+                name=f"stem:{jaw}",
+                type="box",
+                material="tool",
+                pos=_fmt([x, 0, z0 - 0.012]),
+                size=_fmt([t / 2, w / 2, 0.012]),
+                contype="0",
+                conaffinity="0",
+                density="0",
+                group="1",
+            )
         eq = self.root.find("equality")
         if eq is None:
             eq = ET.SubElement(self.root, "equality")
-        ET.SubElement(eq, "joint", name="jaw_sync", joint1="jaw_a", joint2="jaw_b",
-                      solref=f"{2 * self.timestep_s:.6g} 1")
+        ET.SubElement(
+            eq,
+            "joint",
+            name="jaw_sync",
+            joint1="jaw_a",
+            joint2="jaw_b",
+            solref=f"{2 * self.timestep_s:.6g} 1",
+        )
 
     def _part(self, world: ET.Element, part: Any) -> None:
-        body = ET.SubElement(world, "body", name=f"part:{part.name}", **_pose_attrs(part.T_world_part))
+        body = ET.SubElement(
+            world, "body", name=f"part:{part.name}", **_pose_attrs(part.T_world_part)
+        )
         ET.SubElement(body, "freejoint", name=f"part:{part.name}")
-        ET.SubElement(body, "geom", name=f"part:{part.name}", material="part",
-                      mass=f"{part.mass_kg:.6g}", friction=f"{part.friction:g} 0.01 0.0001",
-                      condim="4", solref=self.grasp_solref,
-                      contype=str(PARTS), conaffinity=str(STATIC | ROBOT | PADS | PARTS),
-                      **self._shape_attrs(part.shape))
+        ET.SubElement(
+            body,
+            "geom",
+            name=f"part:{part.name}",
+            material="part",
+            mass=f"{part.mass_kg:.6g}",
+            friction=f"{part.friction:g} 0.01 0.0001",
+            condim="4",
+            solref=self.grasp_solref,
+            contype=str(PARTS),
+            conaffinity=str(STATIC | ROBOT | PADS | PARTS),
+            **self._shape_attrs(part.shape),
+        )
 
     def _actuators_and_sensors(self) -> None:
         d = self.desc
@@ -434,8 +611,14 @@ class _Builder:
             # Pneumatic-like jaws: a constant force, with viscous damping on the slide
             # (joint damping) that limits the free closing speed to jaw_speed_mps.
             for jaw in ("jaw_a", "jaw_b"):
-                ET.SubElement(act, "motor", name=f"drive:{jaw}", joint=jaw, gear="1",
-                              ctrlrange=_fmt([-g.grip_force_N, g.grip_force_N]))
+                ET.SubElement(
+                    act,
+                    "motor",
+                    name=f"drive:{jaw}",
+                    joint=jaw,
+                    gear="1",
+                    ctrlrange=_fmt([-g.grip_force_N, g.grip_force_N]),
+                )
         sensors = ET.SubElement(self.root, "sensor")
         ET.SubElement(sensors, "force", name="ft_force", site="ft")
         ET.SubElement(sensors, "torque", name="ft_torque", site="ft")

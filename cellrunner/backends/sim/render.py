@@ -50,8 +50,10 @@ def default_view(world: Any) -> CameraView:
     centre = (lo + hi) / 2
     centre[2] = base[2] + 0.2 * reach
     extent = float(np.linalg.norm(hi - lo))
-    return CameraView((float(centre[0]), float(centre[1]), float(centre[2])),
-                      float(np.clip(1.5 * extent, 1.2, 6.0)))
+    return CameraView(
+        (float(centre[0]), float(centre[1]), float(centre[2])),
+        float(np.clip(1.5 * extent, 1.2, 6.0)),
+    )
 
 
 class CellRenderer:
@@ -75,13 +77,16 @@ class CellRenderer:
             mujoco = load_mujoco()
             backend = gl_backend()
             if backend is None:
-                raise RenderUnavailable(f"no OpenGL backend for pictures here ({GL_ADVICE} gives one)")
+                raise RenderUnavailable(
+                    f"no OpenGL backend for pictures here ({GL_ADVICE} gives one)"
+                )
             try:
                 self._renderer = mujoco.Renderer(self.world.model, self.height, self.width)
             except Exception as exc:  # GL backends fail with many exception types
                 raise RenderUnavailable(
                     f"cannot render offscreen with MUJOCO_GL={backend}: {exc} ({GL_ADVICE} gives "
-                    "a software backend; MUJOCO_GL=egl needs a GPU or Mesa's EGL)") from exc
+                    "a software backend; MUJOCO_GL=egl needs a GPU or Mesa's EGL)"
+                ) from exc
         return self._renderer
 
     def render(self, view: CameraView | None = None) -> np.ndarray:
@@ -98,8 +103,7 @@ class CellRenderer:
         renderer.update_scene(self.world.data, camera=cam)
         return np.array(renderer.render())
 
-    def save_png(self, path: str | Path, caption: str = "",
-                 view: CameraView | None = None) -> Path:
+    def save_png(self, path: str | Path, caption: str = "", view: CameraView | None = None) -> Path:
         """Render and write a PNG (with an optional caption line); returns the path."""
         image = self.render(view)
         path = Path(path)
@@ -119,8 +123,9 @@ class CellRenderer:
             self._renderer = None
 
 
-def render_png(world: Any, path: str | Path, caption: str = "", width: int = 1024,
-               height: int = 768) -> Path:
+def render_png(
+    world: Any, path: str | Path, caption: str = "", width: int = 1024, height: int = 768
+) -> Path:
     """One PNG of the cell now (opens and closes a GL context)."""
     with CellRenderer(world, width, height) as renderer:
         return renderer.save_png(path, caption)

@@ -50,22 +50,46 @@ class ToolChangerDescription:
     mounted: str
 
 
-def add_tools(builder: Any, tool_body: ET.Element, world_body: ET.Element, changer: ToolChangerDescription,
-              tool_kind: int, static_kind: int) -> None:
+def add_tools(
+    builder: Any,
+    tool_body: ET.Element,
+    world_body: ET.Element,
+    changer: ToolChangerDescription,
+    tool_kind: int,
+    static_kind: int,
+) -> None:
     """Each tool's shapes on the tool body (only the mounted one collides and shows) and,
     drawn only, in its rack place (MJCF)."""
     from cellrunner.backends.sim.mjcf import _pose_attrs
+
     for tool in changer.tools:
         mounted = tool.name == changer.mounted
         T_world_flange = tool.T_world_rack_tcp @ np.linalg.inv(tool.T_flange_tcp)
         for k, placed in enumerate(tool.geometry):
-            ET.SubElement(tool_body, "geom", name=f"tool@{tool.name}:{k}", material="tool", density="0",
-                          contype=str(tool_kind if mounted else 0), conaffinity=str(static_kind if mounted else 0),
-                          rgba="0.25 0.25 0.28 1" if mounted else "0.25 0.25 0.28 0",
-                          **builder._shape_attrs(placed.shape), **_pose_attrs(placed.T_parent_shape))
-            ET.SubElement(world_body, "geom", name=f"rack@{tool.name}:{k}", material="tool", contype="0",
-                          conaffinity="0", group="1", rgba="0.25 0.25 0.28 0" if mounted else "0.25 0.25 0.28 1",
-                          **builder._shape_attrs(placed.shape), **_pose_attrs(T_world_flange @ placed.T_parent_shape))
+            ET.SubElement(
+                tool_body,
+                "geom",
+                name=f"tool@{tool.name}:{k}",
+                material="tool",
+                density="0",
+                contype=str(tool_kind if mounted else 0),
+                conaffinity=str(static_kind if mounted else 0),
+                rgba="0.25 0.25 0.28 1" if mounted else "0.25 0.25 0.28 0",
+                **builder._shape_attrs(placed.shape),
+                **_pose_attrs(placed.T_parent_shape),
+            )
+            ET.SubElement(
+                world_body,
+                "geom",
+                name=f"rack@{tool.name}:{k}",
+                material="tool",
+                contype="0",
+                conaffinity="0",
+                group="1",
+                rgba="0.25 0.25 0.28 0" if mounted else "0.25 0.25 0.28 1",
+                **builder._shape_attrs(placed.shape),
+                **_pose_attrs(T_world_flange @ placed.T_parent_shape),
+            )
 
 
 class ToolChanger:
@@ -75,10 +99,16 @@ class ToolChanger:
         self.world, self.desc = world, desc
         m = world.model
         self.tools = {t.name: t for t in desc.tools}
-        self.geoms = {t.name: [m.geom(f"tool@{t.name}:{k}").id for k in range(len(t.geometry))] for t in desc.tools}
-        self.rack_geoms = {t.name: [m.geom(f"rack@{t.name}:{k}").id for k in range(len(t.geometry))]
-                           for t in desc.tools}
+        self.geoms = {
+            t.name: [m.geom(f"tool@{t.name}:{k}").id for k in range(len(t.geometry))]
+            for t in desc.tools
+        }
+        self.rack_geoms = {
+            t.name: [m.geom(f"rack@{t.name}:{k}").id for k in range(len(t.geometry))]
+            for t in desc.tools
+        }
         from cellrunner.backends.sim.mjcf import PADS, PARTS, STATIC, TOOL
+
         self.tool_kind = (TOOL, STATIC)
         self.pad_kind = (PADS, STATIC | PARTS)
         self.mounted: str | None = None
@@ -111,12 +141,17 @@ class ToolChanger:
 
     def _at_rack(self, tool: ChangerTool) -> bool:
         T_world_tcp = self._T_world_flange() @ tool.T_flange_tcp
-        return float(np.linalg.norm(T_world_tcp[:3, 3] - tool.T_world_rack_tcp[:3, 3])) < RACK_TOLERANCE_M
+        return (
+            float(np.linalg.norm(T_world_tcp[:3, 3] - tool.T_world_rack_tcp[:3, 3]))
+            < RACK_TOLERANCE_M
+        )
 
     def _fit_jaws(self, tool: ChangerTool) -> None:
         """The twin's pair of jaws becomes this tool's: its IO, stroke and place at its TCP."""
         import dataclasses
+
         from cellrunner.backends.sim.mjcf import quat_of
+
         w = self.world
         m = w.model
         g = tool.jaws
@@ -142,6 +177,7 @@ class ToolChanger:
 
     def _mount(self, name: str) -> None:
         from cellrunner.backends.sim.mjcf import quat_of
+
         tool = self.tools[name]
         w = self.world
         m = w.model

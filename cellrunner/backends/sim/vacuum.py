@@ -28,7 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from cellrunner.model.gripper import CUP_LENGTH_M  # a cup's body above its face, as planning checks it
+from cellrunner.model.gripper import (
+    CUP_LENGTH_M,
+)  # a cup's body above its face, as planning checks it
 
 #: a cup seals on a face this close (m) ...
 SEAL_GAP_M = 0.002
@@ -58,17 +60,35 @@ class VacuumDescription:
     holding_force_N: float = 100.0
 
 
-def add_cups(builder: Any, tool: ET.Element, vac: VacuumDescription, T_flange_tcp: np.ndarray,
-             pads_kind: int, hits: int) -> None:
+def add_cups(
+    builder: Any,
+    tool: ET.Element,
+    vac: VacuumDescription,
+    T_flange_tcp: np.ndarray,
+    pads_kind: int,
+    hits: int,
+) -> None:
     """The cups as geoms of the tool body (MJCF)."""
     from cellrunner.backends.sim.mjcf import _pose_attrs
     from cellrunner.model import geometry
+
     for i, ((x, y, z), r) in enumerate(vac.cups):
         T = T_flange_tcp @ geometry.pose_matrix((x, y, z - CUP_LENGTH_M / 2))
-        ET.SubElement(tool, "geom", name=f"cup:{i}", type="cylinder", size=f"{r:.6g} {CUP_LENGTH_M / 2:.6g}",
-                      material="pad", density="0", friction="1 0.01 0.0001", condim="4",
-                      solref=CUP_SOLREF, contype=str(pads_kind), conaffinity=str(hits),
-                      **_pose_attrs(T))
+        ET.SubElement(
+            tool,
+            "geom",
+            name=f"cup:{i}",
+            type="cylinder",
+            size=f"{r:.6g} {CUP_LENGTH_M / 2:.6g}",
+            material="pad",
+            density="0",
+            friction="1 0.01 0.0001",
+            condim="4",
+            solref=CUP_SOLREF,
+            contype=str(pads_kind),
+            conaffinity=str(hits),
+            **_pose_attrs(T),
+        )
 
 
 def add_welds(root: ET.Element, parts) -> None:
@@ -77,8 +97,15 @@ def add_welds(root: ET.Element, parts) -> None:
     if eq is None:
         eq = ET.SubElement(root, "equality")
     for part in parts:
-        ET.SubElement(eq, "weld", name=f"vac:{part.name}", body1="tool", body2=f"part:{part.name}",
-                      active="false", solref="0.004 1")
+        ET.SubElement(
+            eq,
+            "weld",
+            name=f"vac:{part.name}",
+            body1="tool",
+            body2=f"part:{part.name}",
+            active="false",
+            solref="0.004 1",
+        )
 
 
 class VacuumCups:
@@ -99,7 +126,9 @@ class VacuumCups:
         self._pull_lp: dict[str, float] = {}
         self.last_pull_N = 0.0
         self.enabled = True
-        self._cup_bits = [(int(m.geom_contype[g]), int(m.geom_conaffinity[g])) for g in self.cup_geoms]
+        self._cup_bits = [
+            (int(m.geom_contype[g]), int(m.geom_conaffinity[g])) for g in self.cup_geoms
+        ]
 
     def set_enabled(self, on: bool) -> None:
         """Mounted (a tool changer took the vacuum tool) or parked: cups collide and seal only when on."""
@@ -157,6 +186,7 @@ class VacuumCups:
     def _in_air(self, part: str) -> bool:
         """Held by the cups alone, clear of fixtures and the floor."""
         from cellrunner.backends.sim.mjcf import PADS
+
         w = self.world
         return all(k == PADS for k in w._contacts_of(part)) and w._clear_of_static(part)
 
@@ -210,7 +240,9 @@ class VacuumCups:
         d = w.data
         eq = self.weld[name]
         n = d.nefc
-        rows = np.flatnonzero((d.efc_type[:n] == self._mj.mjtConstraint.mjCNSTR_EQUALITY) & (d.efc_id[:n] == eq))
+        rows = np.flatnonzero(
+            (d.efc_type[:n] == self._mj.mjtConstraint.mjCNSTR_EQUALITY) & (d.efc_id[:n] == eq)
+        )
         if len(rows) < 3:
             return self._pull_lp.get(name, 0.0)
         f_on_part = -np.asarray(d.efc_force[rows[:3]])

@@ -21,7 +21,15 @@ from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.backends.sim._mj import load_mujoco
 from cellrunner.backends.sim.description import TwinDescription
 from cellrunner.backends.sim.input_rules import InputRules
-from cellrunner.backends.sim.mjcf import PARTS, PADS, ROBOT, STATIC, TOOL, PhysicsOptions, compile_model
+from cellrunner.backends.sim.mjcf import (
+    PADS,
+    PARTS,
+    ROBOT,
+    STATIC,
+    TOOL,
+    PhysicsOptions,
+    compile_model,
+)
 from cellrunner.model.robots import JOINT_NAMES
 
 UNLOCK_DELAY_S = 5.0  # UR: a protective stop can be unlocked 5 s after it happened
@@ -152,7 +160,9 @@ class SimWorld:
         self.inputs: dict[str, float | bool] = {c: _zero(c) for c in d.io_inputs}
         self._scripted_inputs: dict[str, float | bool] = {}
         self._rules = InputRules(d.input_rules) if d.input_rules else None
-        self._held_at: dict[str, np.ndarray] = {}  # gripped part -> T_tcp_part while no fixture presses it
+        self._held_at: dict[
+            str, np.ndarray
+        ] = {}  # gripped part -> T_tcp_part while no fixture presses it
         self._held_last: dict[str, np.ndarray] = {}  # the same, of the parts released last
         self._closing = False
         self._jaws_driven = False  # jaw forces not written to ctrl yet
@@ -168,7 +178,7 @@ class SimWorld:
         self._servo_ctrl = self.data.ctrl[0:6]
         self._ctrl_tmp = np.zeros(6)
         self._R_site_flat = self.data.site_xmat[ids.ft_site]  # row-major 3x3
-        self._ft_flat = self.data.sensordata[ids.force_adr:ids.force_adr + 6]  # force, torque
+        self._ft_flat = self.data.sensordata[ids.force_adr : ids.force_adr + 6]  # force, torque
         self._tool_com = self.data.subtree_com[ids.tool_body]
         self._site_pos = self.data.site_xpos[ids.ft_site]
         self._pad_a = ids.pad_geoms[0]
@@ -176,7 +186,9 @@ class SimWorld:
         self._force6 = np.zeros(6)
         self._fromto6 = np.zeros(6)
         self._static_geoms = [g for g, k in enumerate(self._kind) if k == STATIC]
-        self._robot_or_pad_geoms = frozenset(g for g, k in enumerate(self._kind) if k & (ROBOT | PADS | TOOL))
+        self._robot_or_pad_geoms = frozenset(
+            g for g, k in enumerate(self._kind) if k & (ROBOT | PADS | TOOL)
+        )
         # The arm settles one physics step ahead of its servo input (measured), hence -h.
         self._ff_lead = ids.ff_gain - self.period_s / self.substeps
         self._q_prev_ref = self.q_ref.copy()
@@ -199,10 +211,12 @@ class SimWorld:
         self.jaws_enabled = True
         if self.description.vacuum is not None:
             from cellrunner.backends.sim.vacuum import VacuumCups
+
             self.vacuum = VacuumCups(self, self.description.vacuum)
         self.changer = None
         if self.description.tool_changer is not None:
             from cellrunner.backends.sim.tool_changer import ToolChanger
+
             self.changer = ToolChanger(self, self.description.tool_changer)
         self._update_inputs()
 
@@ -236,15 +250,18 @@ class SimWorld:
             ff_gain=kv / kp,
             jaw_qpos=m.jnt_qposadr[jaws].copy() if gripper else np.zeros(0, int),
             jaw_dof=m.jnt_dofadr[jaws].copy() if gripper else np.zeros(0, int),
-            jaw_act=np.array([m.actuator(f"drive:{j}").id for j in ("jaw_a", "jaw_b")]
-                             if gripper else [], dtype=int),
+            jaw_act=np.array(
+                [m.actuator(f"drive:{j}").id for j in ("jaw_a", "jaw_b")] if gripper else [],
+                dtype=int,
+            ),
             pad_geoms=pads,
             pad_friction=m.geom_friction[list(pads)].copy() if gripper else np.zeros((0, 3)),
             part_bodies={p.name: m.body(f"part:{p.name}").id for p in d.parts},
             part_qpos={p.name: int(m.jnt_qposadr[m.joint(f"part:{p.name}").id]) for p in d.parts},
             part_geom={p.name: m.geom(f"part:{p.name}").id for p in d.parts},
-            part_friction={p.name: m.geom_friction[m.geom(f"part:{p.name}").id].copy()
-                           for p in d.parts},
+            part_friction={
+                p.name: m.geom_friction[m.geom(f"part:{p.name}").id].copy() for p in d.parts
+            },
             geom_kind=geom_kind,
             tool_body=tool,
             ft_site=m.site("ft").id,
@@ -300,7 +317,8 @@ class SimWorld:
         if elapsed < UNLOCK_DELAY_S:
             raise BackendError(
                 f"protective stop cannot be unlocked yet: {elapsed:.2f} s since the stop, "
-                f"the controller needs {UNLOCK_DELAY_S:.0f} s")
+                f"the controller needs {UNLOCK_DELAY_S:.0f} s"
+            )
         self._resume()
 
     def press_estop(self) -> None:
@@ -384,7 +402,11 @@ class SimWorld:
             if self.qd_ref is _ZERO6:
                 self._servo_ctrl[:] = self.q_ref
             else:  # ctrl = q_ref + ff_lead * qd_ref, with no temporaries
-                np.add(np.multiply(self._ff_lead, self.qd_ref, self._ctrl_tmp), self.q_ref, self._servo_ctrl)
+                np.add(
+                    np.multiply(self._ff_lead, self.qd_ref, self._ctrl_tmp),
+                    self.q_ref,
+                    self._servo_ctrl,
+                )
             self._mj.mj_step(self.model, data)
         else:
             # cubic Hermite between the last and this set-point (positions and speeds),
@@ -435,10 +457,14 @@ class SimWorld:
     def contacts_changed(self) -> None:
         """Geoms were switched on or off (a tool change): take their collision kinds anew."""
         m = self.model
-        self._kind = [int(m.geom_contype[g]) if (m.geom_contype[g] or m.geom_conaffinity[g]) else 0
-                      for g in range(m.ngeom)]
+        self._kind = [
+            int(m.geom_contype[g]) if (m.geom_contype[g] or m.geom_conaffinity[g]) else 0
+            for g in range(m.ngeom)
+        ]
         self._static_geoms = [g for g, k in enumerate(self._kind) if k == STATIC]
-        self._robot_or_pad_geoms = frozenset(g for g, k in enumerate(self._kind) if k & (ROBOT | PADS | TOOL))
+        self._robot_or_pad_geoms = frozenset(
+            g for g, k in enumerate(self._kind) if k & (ROBOT | PADS | TOOL)
+        )
         self._clean_pairs, self._clean_gripped = None, _NONE
 
     def _check_contacts(self) -> frozenset[str]:
@@ -489,16 +515,24 @@ class SimWorld:
         # a finger landing on a part it does not hold (judged by force, like the tool);
         # a held part that loses one pad's contact for a moment is still held
         held = self._held_at
-        suspicious += [i for i, g in pad_parts if g not in gripped_geoms and self._part_of_geom[g] not in held]
+        suspicious += [
+            i for i, g in pad_parts if g not in gripped_geoms and self._part_of_geom[g] not in held
+        ]
         # a carried part pushed into a fixture is a contact like the tool's own; the
         # light touch of setting it down is not (judged each period, so never cached)
-        pressed = [i for i in part_static if pairs[i][0] in gripped_geoms or pairs[i][1] in gripped_geoms]
+        pressed = [
+            i for i in part_static if pairs[i][0] in gripped_geoms or pairs[i][1] in gripped_geoms
+        ]
         if pressed and self.safety is Safety.NORMAL:
             self._judge_pressed(pressed, gripped_geoms)
         if suspicious and self.safety is Safety.NORMAL:
             self._judge_contacts(suspicious)
-        gripped = frozenset(self._part_of_geom[g] for g in gripped_geoms) if gripped_geoms else _NONE
-        self._clean_pairs, self._clean_gripped = (None, _NONE) if suspicious or pressed else (pairs, gripped)
+        gripped = (
+            frozenset(self._part_of_geom[g] for g in gripped_geoms) if gripped_geoms else _NONE
+        )
+        self._clean_pairs, self._clean_gripped = (
+            (None, _NONE) if suspicious or pressed else (pairs, gripped)
+        )
         self._pressed = bool(pressed)
         return gripped
 
@@ -524,7 +558,9 @@ class SimWorld:
         for i in indices:
             self._mj.mj_contactForce(self.model, self.data, i, force)
             total += abs(force[0])
-        slide = max((self._slide_in_jaws_m(self._part_of_geom[g]) for g in gripped_geoms), default=0.0)
+        slide = max(
+            (self._slide_in_jaws_m(self._part_of_geom[g]) for g in gripped_geoms), default=0.0
+        )
         if slide > JAM_SLIDE_M or total > JAM_FORCE_N:
             g1, g2 = (self.model.geom(int(g)).name for g in self.data.contact.geom[indices[0]])
             self.last_contact = ContactEvent(self.time_s, total, (g1, g2))
@@ -591,8 +627,11 @@ class SimWorld:
         """Kinds of the geoms the part touches."""
         g = self._ids.part_geom[part]
         kind = self._kind
-        return [kind[g2 if g1 == g else g1]
-                for g1, g2 in self.data.contact.geom[:self.data.ncon].tolist() if g in (g1, g2)]
+        return [
+            kind[g2 if g1 == g else g1]
+            for g1, g2 in self.data.contact.geom[: self.data.ncon].tolist()
+            if g in (g1, g2)
+        ]
 
     def _in_air(self, part: str) -> bool:
         """True when the part touches the finger pads only and is clear of the fixtures."""
@@ -629,10 +668,10 @@ class SimWorld:
             return
         adr = ids.part_qpos[best]
         base_xy = self.description.T_world_base[:2, 3]
-        direction = base_xy - data.qpos[adr:adr + 2]
+        direction = base_xy - data.qpos[adr : adr + 2]
         norm = float(np.linalg.norm(direction))
         direction = direction / norm if norm > 1e-6 else np.array([-1.0, 0.0])
-        data.qpos[adr:adr + 2] += 0.15 * direction
+        data.qpos[adr : adr + 2] += 0.15 * direction
         data.qvel[self.model.jnt_dofadr[self.model.joint(f"part:{best}").id] + np.arange(6)] = 0.0
         self._mj.mj_forward(self.model, data)
 
@@ -695,12 +734,19 @@ class SimWorld:
         for sensor in self.description.presence_sensors:
             c = np.asarray(sensor.center_world_m)
             h = np.asarray(sensor.half_extents_m)
-            self.inputs[sensor.channel] = any(bool(np.all(np.abs(self.data.xpos[b] - c) <= h))
-                                              for b in self._ids.part_bodies.values())
+            self.inputs[sensor.channel] = any(
+                bool(np.all(np.abs(self.data.xpos[b] - c) <= h))
+                for b in self._ids.part_bodies.values()
+            )
         if self._rules is not None:
             xpos = self.data.xpos
-            self.inputs.update(self._rules.evaluate(
-                self.time_s, self.outputs, (xpos[b].tolist() for b in self._ids.part_bodies.values())))
+            self.inputs.update(
+                self._rules.evaluate(
+                    self.time_s,
+                    self.outputs,
+                    (xpos[b].tolist() for b in self._ids.part_bodies.values()),
+                )
+            )
 
     def _raw_wrench_base(self) -> list[float]:
         """External wrench on the tool (payload compensated), base axes, torque at flange:
@@ -726,18 +772,31 @@ class SimWorld:
         my = -mg * (cx - sx) - (r10 * tx + r11 * ty + r12 * tz)
         mz = -(r20 * tx + r21 * ty + r22 * tz)
         b00, b01, b02, b10, b11, b12, b20, b21, b22 = self._R_base_world_flat
-        return [b00 * ex + b01 * ey + b02 * ez, b10 * ex + b11 * ey + b12 * ez,
-                b20 * ex + b21 * ey + b22 * ez, b00 * mx + b01 * my + b02 * mz,
-                b10 * mx + b11 * my + b12 * mz, b20 * mx + b21 * my + b22 * mz]
+        return [
+            b00 * ex + b01 * ey + b02 * ez,
+            b10 * ex + b11 * ey + b12 * ez,
+            b20 * ex + b21 * ey + b22 * ez,
+            b00 * mx + b01 * my + b02 * mz,
+            b10 * mx + b11 * my + b12 * mz,
+            b20 * mx + b21 * my + b22 * mz,
+        ]
 
     def measure(self) -> RobotState:
         """This period's measurements, as the controller reports them."""
         w = self._raw_wrench_base()
         o0, o1, o2, o3, o4, o5 = self._ft_offset
         wrench = np.array((w[0] - o0, w[1] - o1, w[2] - o2, w[3] - o3, w[4] - o4, w[5] - o5))
-        return RobotState(self._periods / self._rate_hz, self._q_view.copy(),
-                          self._qd_view.copy(), wrench, self.safety, self.inputs.copy(),
-                          self.outputs.copy(), self.powered, self.powered)
+        return RobotState(
+            self._periods / self._rate_hz,
+            self._q_view.copy(),
+            self._qd_view.copy(),
+            wrench,
+            self.safety,
+            self.inputs.copy(),
+            self.outputs.copy(),
+            self.powered,
+            self.powered,
+        )
 
     # -- introspection for tests, reports and the renderer (never for the engine) ---------
     def q_measured(self) -> np.ndarray:
@@ -765,9 +824,9 @@ class SimWorld:
                 continue
             adr = self._ids.part_qpos[part.name]
             x, y, z, w = Rotation.from_matrix(spawn[:3, :3]).as_quat()
-            self.data.qpos[adr:adr + 7] = [*spawn[:3, 3], w, x, y, z]
+            self.data.qpos[adr : adr + 7] = [*spawn[:3, 3], w, x, y, z]
             dof = self.model.jnt_dofadr[self.model.joint(f"part:{part.name}").id]
-            self.data.qvel[dof:dof + 6] = 0.0
+            self.data.qvel[dof : dof + 6] = 0.0
             fed.append(part.name)
         if fed:
             mujoco.mj_forward(self.model, self.data)
@@ -809,10 +868,24 @@ def _hermite_table(substeps: int, period_s: float) -> tuple[np.ndarray, np.ndarr
     from (q0, qd0, q1, qd1) of a cubic Hermite segment over one period."""
     tau = np.arange(1, substeps + 1) / substeps
     T = period_s
-    pos = np.stack([2 * tau**3 - 3 * tau**2 + 1, (tau**3 - 2 * tau**2 + tau) * T,
-                    -2 * tau**3 + 3 * tau**2, (tau**3 - tau**2) * T], axis=1)
-    vel = np.stack([(6 * tau**2 - 6 * tau) / T, 3 * tau**2 - 4 * tau + 1,
-                    (-6 * tau**2 + 6 * tau) / T, 3 * tau**2 - 2 * tau], axis=1)
+    pos = np.stack(
+        [
+            2 * tau**3 - 3 * tau**2 + 1,
+            (tau**3 - 2 * tau**2 + tau) * T,
+            -2 * tau**3 + 3 * tau**2,
+            (tau**3 - tau**2) * T,
+        ],
+        axis=1,
+    )
+    vel = np.stack(
+        [
+            (6 * tau**2 - 6 * tau) / T,
+            3 * tau**2 - 4 * tau + 1,
+            (-6 * tau**2 + 6 * tau) / T,
+            3 * tau**2 - 2 * tau,
+        ],
+        axis=1,
+    )
     return pos, vel
 
 
