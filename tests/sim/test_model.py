@@ -1,4 +1,4 @@
-"""The MJCF twin matches the DH model, planning's capsules and the description."""
+"""The MJCF twin matches the DH model, planning's arm parts and the description."""
 
 from __future__ import annotations
 
@@ -40,21 +40,29 @@ def test_tcp_site_follows_the_dh_forward_kinematics(model_name: str) -> None:
         np.testing.assert_allclose(data.site_xmat[site].reshape(3, 3), T[:3, :3], atol=1e-9)
 
 
-def test_arm_geoms_are_the_planning_capsules() -> None:
+def test_arm_geoms_are_the_planning_parts() -> None:
+    from cellrunner.model.arm_geometry import arm_geometry
+
     desc = demo.demo_description(parts=())
     model = compile_model(desc)
+    parts = arm_geometry(desc.spec.name).parts
     for body in range(7):
-        expected = [c for c in desc.spec.capsules() if c.body == body]
-        for k, cap in enumerate(expected):
+        expected = [p for p in parts if p.body == body]
+        assert expected
+        for k, part in enumerate(expected):
             g = model.geom(f"arm{body}_{k}")
-            assert g.type[0] == mujoco.mjtGeom.mjGEOM_CAPSULE
-            assert g.size[0] == pytest.approx(cap.radius_m)
-            # capsule ends in the body frame: pos +- half-length along the geom's z axis
+            assert g.type[0] == mujoco.mjtGeom.mjGEOM_MESH
+            mesh = g.dataid[0]
+            start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+            local = model.mesh_vert[start : start + count]
+            # MuJoCo moves a mesh to its inertial frame: back to the body frame
             R = np.zeros(9)
             mujoco.mju_quat2Mat(R, g.quat)
-            axis = R.reshape(3, 3)[:, 2] * g.size[1]
-            ends = {tuple(np.round(g.pos + axis, 9)), tuple(np.round(g.pos - axis, 9))}
-            assert ends == {tuple(np.round(cap.p0_m, 9)), tuple(np.round(cap.p1_m, 9))}
+            in_body = local @ R.reshape(3, 3).T + g.pos
+            assert count == len(part.vertices_m)
+            np.testing.assert_allclose(
+                np.sort(in_body, axis=0), np.sort(part.vertices_m, axis=0), atol=1e-6
+            )
 
 
 def test_fixtures_parts_and_mesh_are_in_the_model(tmp_path) -> None:
