@@ -324,7 +324,7 @@ def _plan_split(
     if found is None or len(found) != len(theirs):
         return [*_slot_errors(world, task, theirs, use_cache, progress), *results]
     progress.skip(len(theirs))
-    return [*zip(theirs, found), *results]
+    return [*zip(theirs, found, strict=True), *results]
 
 
 #: how long the parent waits for the child's slots before planning them itself (s)

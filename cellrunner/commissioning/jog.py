@@ -77,10 +77,7 @@ def requested_qd(
     twist[axis] = (
         sign * speed * (LINEAR_SPEED_MPS if axis < 3 else math.radians(ANGULAR_SPEED_DEG_S))
     )
-    if mode == "base":
-        R = kinematics.T_world_base[:3, :3]
-    else:
-        R = kinematics.T_world_tcp(q_rad)[:3, :3]
+    R = kinematics.T_world_base[:3, :3] if mode == "base" else kinematics.T_world_tcp(q_rad)[:3, :3]
     twist_world = np.concatenate([R @ twist[:3], R @ twist[3:]])
     J = kinematics.jacobian_tcp(q_rad)
     return J.T @ np.linalg.solve(J @ J.T + DAMPING**2 * np.eye(6), twist_world)

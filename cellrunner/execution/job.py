@@ -9,6 +9,7 @@ holding -> held -> unholding -> execute, or -> aborting; ``done`` at the end wit
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import math
 import time
@@ -447,10 +448,8 @@ class JobRunner:
         if self._cleanup is not None:
             return self._end_cleanup(code, message)
         if code is not ResultCode.OK and code.is_fault:
-            try:
+            with contextlib.suppress(BackendError):
                 self.ctx.backend.stop_motion()
-            except BackendError:
-                pass
         if self._current is not None and code is not ResultCode.OK:
             record = self.records[self._current.step.index]
             if record.status is StepStatus.RUNNING:
@@ -511,10 +510,8 @@ class JobRunner:
                 self.ctx.commanded_q = None
                 return self._next_item()
             if code.is_fault:
-                try:
+                with contextlib.suppress(BackendError):
                     self.ctx.backend.stop_motion()
-                except BackendError:
-                    pass
         failures = self._cleanup_failures
         note = "on_error done" if not failures else f"on_error failed: {'; '.join(failures)}"
         for record in self.records.values():

@@ -21,6 +21,7 @@ psycopg (3) is imported only when a ``postgresql://`` journal is used.
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import sys
 import threading
@@ -301,10 +302,8 @@ class PostgresJournal:
 
     def _drop_read(self) -> None:
         if self._read_conn is not None:
-            try:
+            with contextlib.suppress(Exception):
                 self._read_conn.close()
-            except Exception:
-                pass
         self._read_conn = None
 
     def _enqueue(self, sql: str | None, args: tuple = ()) -> _Write:
@@ -372,10 +371,8 @@ class PostgresJournal:
 
     def _drop_write(self) -> None:
         if self._write_conn is not None:
-            try:
+            with contextlib.suppress(Exception):
                 self._write_conn.close()
-            except Exception:
-                pass
         self._write_conn = None
 
     def _connect(self) -> Any:

@@ -14,7 +14,6 @@ from cellrunner.model.units import (
     Angle,
     AngularAccel,
     AngularSpeed,
-    Duration,
     Force,
     Fraction,
     Mass,

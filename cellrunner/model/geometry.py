@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Union
 
 import numpy as np
 
@@ -38,7 +37,7 @@ class Mesh:
     scale: float = 1.0  # file units -> m
 
 
-Shape = Union[Box, Cylinder, Sphere, Mesh]
+Shape = Box | Cylinder | Sphere | Mesh
 
 
 @dataclass(frozen=True, eq=False)

@@ -164,7 +164,9 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     raw = loaded.source.data
     _check_limits(cell, spec, report)
     _check_radians(raw, ("robot", "home"), report)
-    for i, (lo, hi, q) in enumerate(zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home)):
+    for i, (lo, hi, q) in enumerate(
+        zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home, strict=True)
+    ):
         if not lo <= q <= hi:
             report.error(
                 ("robot", "home", i), f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]"
@@ -231,7 +233,7 @@ def _check_limits(cell: Cell, spec, report: Report) -> None:
         values = (
             limits.joint_speed if isinstance(limits.joint_speed, list) else [limits.joint_speed] * 6
         )
-        for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s)):
+        for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s, strict=True)):
             if v > cap + 1e-9:
                 path = ("robot", "limits", "joint_speed") + (
                     (i,) if isinstance(limits.joint_speed, list) else ()
@@ -287,15 +289,16 @@ def _check_radians(raw: Any, path: PathKey, report: Report) -> None:
             value = value[part]
         except (KeyError, IndexError, TypeError):
             return
-    if isinstance(value, list) and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+    if (
+        isinstance(value, list)
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+        and looks_like_radians([float(v) for v in value])
     ):
-        if looks_like_radians([float(v) for v in value]):
-            report.warn(
-                path,
-                f"{value} looks like radians; angles are in degrees "
-                "(write e.g. '1.57 rad' if you mean radians)",
-            )
+        report.warn(
+            path,
+            f"{value} looks like radians; angles are in degrees "
+            "(write e.g. '1.57 rad' if you mean radians)",
+        )
 
 
 def _check_io(cell: Cell, report: Report) -> None:
@@ -490,7 +493,7 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
         steps_raw = source.data.get("steps") if isinstance(source.data.get("steps"), list) else []
         _parse_steps(steps_raw, ("steps",), report, allow_macros=True)
         report.raise_if_errors()
-        raise AssertionError("unreachable")  # pragma: no cover
+        raise AssertionError("unreachable") from exc  # pragma: no cover
     steps = _parse_steps(header.steps, ("steps",), report, allow_macros=True, params=header.params)
     on_error = _parse_steps(
         header.on_error, ("on_error",), report, allow_macros=False, params=header.params

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import re
-from typing import Any, Optional
+from typing import Any
 
 from pydantic import TypeAdapter
 
@@ -104,7 +104,7 @@ def _steps_schema(defs: dict, allow_macros: bool = True) -> dict:
     for kind, model in STEP_MODELS.items():
         if not allow_macros and kind in MACROS:
             continue
-        args = _json_schema(Optional[model] if kind in _BARE else model, defs)
+        args = _json_schema(model | None if kind in _BARE else model, defs)
         if kind in _SHORT_FORMS:  # the mapping form, else the short form: errors name the one meant
             args = {
                 "if": {"type": "object"},

@@ -156,7 +156,7 @@ def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
     rows = []
     rate = world.spec.rate_hz
     try:
-        for i, (step, entry) in enumerate(zip(steps, meta)):
+        for i, (step, entry) in enumerate(zip(steps, meta, strict=True)):
             row = StepPlan(step, entry["status"], entry["message"], entry["duration_s"])
             if entry["part"] is not None:
                 shape = next(p for p in world.loaded.cell.parts if p.name == entry["part"])

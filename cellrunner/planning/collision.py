@@ -462,7 +462,7 @@ class CollisionModel:
         # relative to the other (distances are the same in the lower body's frame)
         self._pair_high = self._pair_mover.copy()  # the object whose motion counts
         self._pair_joints = np.ones((len(self._pairs), 6))  # 1 for the joints that count
-        for p, (m, o) in enumerate(zip(self._pair_mover, self._pair_other)):
+        for p, (m, o) in enumerate(zip(self._pair_mover, self._pair_other, strict=True)):
             if not self._pair_other_static[p]:
                 low, high = (m, o) if self._body[m] <= self._body[o] else (o, m)
                 self._pair_high[p] = high
@@ -517,7 +517,7 @@ class CollisionModel:
         ]
         combos = [
             (a, b, n)
-            for n, (ra, rb) in enumerate(zip(self._lb_moving_a, self._lb_moving_b))
+            for n, (ra, rb) in enumerate(zip(self._lb_moving_a, self._lb_moving_b, strict=True))
             for a in spheres_of[ra]
             for b in spheres_of[rb]
         ]
@@ -759,10 +759,10 @@ class CollisionModel:
             return MotionCheck(True)
         largest = float(np.abs(dq).max())
         if probe:
-            for s in _bisection_order(int(math.ceil(largest / PROBE_STEP_RAD))):
+            for s in _bisection_order(math.ceil(largest / PROBE_STEP_RAD)):
                 if not self.is_valid(q0 + s * dq):
                     return MotionCheck(False, s, self.clearance(q0 + s * dq) if explain else None)
-        pieces = max(1, int(math.ceil(largest / KNOT_STEP_RAD)))
+        pieces = max(1, math.ceil(largest / KNOT_STEP_RAD))
         rates, lower = self._knots(q0, q0 + dq, pieces)
         rates = np.maximum(rates, 1e-12)  # (pieces, pairs)
         # a part is proven for a pair by the lower bounds at its two ends alone when even
@@ -960,7 +960,7 @@ def _cover_spheres(
         # a point at most r from the axis and step / 2 along it from a centre is within
         # hypot(r, step / 2); a capsule's end caps lie within r of the end centres
         h, r = float(geometry.halfLength), float(geometry.radius)
-        n = max(1, int(math.ceil(h / max(r, 1e-3))))
+        n = max(1, math.ceil(h / max(r, 1e-3)))
         step = 2 * h / n
         z = -h + step * np.arange(n + 1)
         local = np.column_stack([np.zeros(n + 1), np.zeros(n + 1), z])

@@ -27,6 +27,7 @@ given a stand-in that imports the real pyplot on first use (:func:`_import_toppr
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -292,7 +293,7 @@ class _Problem:
 def _resample(problem: _Problem, s_of_t, duration: float, scale: float, rate_hz: float):
     """Samples at ``t = k / rate_hz`` of the profile stretched by ``scale``, ending
     exactly on the last waypoint: (t, s, q)."""
-    n = max(1, int(math.ceil(duration * scale * rate_hz - 1e-9)))
+    n = max(1, math.ceil(duration * scale * rate_hz - 1e-9))
     t = np.arange(n + 1) / rate_hz
     tau = np.minimum(t * duration / (n / rate_hz), duration)
     s = s_of_t(tau)
@@ -399,8 +400,8 @@ def _densify(wp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     cumulative joint-space distance, and that of the original waypoints."""
     points, s_points, s_wp = [wp[0]], [0.0], [0.0]
     s = 0.0
-    for a, b in zip(wp[:-1], wp[1:]):
-        n = max(1, int(math.ceil(np.abs(b - a).max() / DENSIFY_STEP_RAD)))
+    for a, b in itertools.pairwise(wp):
+        n = max(1, math.ceil(np.abs(b - a).max() / DENSIFY_STEP_RAD))
         length = float(np.linalg.norm(b - a))
         for k in range(1, n + 1):
             points.append(a + (b - a) * k / n)

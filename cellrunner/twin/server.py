@@ -374,7 +374,7 @@ class TwinServer:
                 self.ctl.add_log("program ignored: robot in local control")
                 return
             try:
-                kind, program = parse_program(text)
+                _kind, program = parse_program(text)
             except ScriptError as exc:
                 self.ctl.add_log(f"program refused: {exc}")
                 return

@@ -37,7 +37,7 @@ def tick(cell, n=1):
 
 
 def test_job_goes_through_packml_and_is_journaled(tmp_path):
-    cell, arm = make_cell(tmp_path)
+    cell, _arm = make_cell(tmp_path)
     assert cell.status().state == S.IDLE and cell.status().ready
     results = []
     cell.add_result_listener(results.append)

@@ -88,7 +88,7 @@ def test_writes_survive_a_server_restart_exactly_once(clean):
             journal.step("j1", index, "linear", f"s{index}", "running", 1)
         journal.end_job("j1", ResultCode.OK, 4.2, 0)
         assert time.monotonic() - t0 < 0.1
-        with pytest.raises(JournalError, match="could not be journaled|unreachable"):
+        with pytest.raises(JournalError, match=r"could not be journaled|unreachable"):
             journal.begin_job(
                 "j2", "cell-a", "pick", {}, "modbus", "2"
             )  # nothing unjournaled is accepted

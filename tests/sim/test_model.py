@@ -32,7 +32,7 @@ def test_tcp_site_follows_the_dh_forward_kinematics(model_name: str) -> None:
     site = model.site("tcp").id
     for _ in range(20):
         q = rng.uniform(-np.pi, np.pi, 6)
-        for name, value in zip(JOINT_NAMES, q):
+        for name, value in zip(JOINT_NAMES, q, strict=True):
             data.qpos[model.jnt_qposadr[model.joint(name).id]] = value
         mujoco.mj_kinematics(model, data)
         T = desc.T_world_base @ dh_forward(desc.spec, q) @ desc.T_flange_tcp

@@ -134,7 +134,7 @@ class VacuumCups:
         """Mounted (a tool changer took the vacuum tool) or parked: cups collide and seal only when on."""
         self.enabled = on
         m = self.world.model
-        for g, bits in zip(self.cup_geoms, self._cup_bits):
+        for g, bits in zip(self.cup_geoms, self._cup_bits, strict=True):
             m.geom_contype[g], m.geom_conaffinity[g] = bits if on else (0, 0)
             m.geom_rgba[g, 3] = 1.0 if on else 0.0
         if not on:
