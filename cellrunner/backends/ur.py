@@ -132,7 +132,7 @@ class URBackend:
         tcp_pose: tuple[float, ...] | None = None,
         payload_kg: float | None = None,
         payload_cog_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    ):
+    ) -> None:
         self.host = host
         self.spec = spec
         self.rate_hz = spec.rate_hz

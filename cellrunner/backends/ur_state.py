@@ -46,7 +46,7 @@ class RtdeStateReader:
         *,
         port: int = 30004,
         timeout_s: float = 3.0,
-    ):
+    ) -> None:
         self.host, self.rate_hz, self.variables, self.port, self.timeout_s = (
             host,
             rate_hz,

@@ -90,7 +90,7 @@ def _ramp(value: float, slow: float, stop: float) -> float:
 class Governor:
     """Scales a requested joint velocity near singularities and obstacles."""
 
-    def __init__(self, kinematics, collision):
+    def __init__(self, kinematics, collision) -> None:
         self.kinematics, self.collision = kinematics, collision
         self._fixture_pairs: list[int] | None = None
 
@@ -177,7 +177,7 @@ class Governor:
 class DeadMan:
     """Which jog key is held, judged from key events and their auto-repeat."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.key: str | None = None
         self.last_s = 0.0
         self.repeats = 0

@@ -98,7 +98,7 @@ class PostgresJournal:
         *,
         begin_timeout_s: float = BEGIN_TIMEOUT_S,
         flush_timeout_s: float = FLUSH_TIMEOUT_S,
-    ):
+    ) -> None:
         self.url, self.cell = url, cell
         self.begin_timeout_s, self.flush_timeout_s = begin_timeout_s, flush_timeout_s
         self._queue: queue.Queue[_Write | None] = queue.Queue()

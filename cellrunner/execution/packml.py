@@ -119,7 +119,7 @@ COMPLETES: dict[State, State] = {
 class StateMachine:
     """The current PackML state and its legal moves; knows nothing of robots."""
 
-    def __init__(self, initial: State = S.STOPPED):
+    def __init__(self, initial: State = S.STOPPED) -> None:
         self.state = initial
 
     def allowed(self) -> list[Command]:

@@ -136,7 +136,7 @@ ON_ERROR = "on_error"
 
 
 class _Builder:
-    def __init__(self, cell: Cell, params: dict[str, Any], specs: dict | None = None):
+    def __init__(self, cell: Cell, params: dict[str, Any], specs: dict | None = None) -> None:
         self.cell, self.params, self.specs = cell, params, specs or {}
         self.steps: list[Step] = []
         self.tool = cell.robot.tool  # the mounted tool's name (with ``tools:``)

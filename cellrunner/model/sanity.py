@@ -211,7 +211,7 @@ def _walk(node: Any, path: PathKey, spec, model: str, report) -> None:
 class _Prefixed:
     """A report whose paths are taken under ``prefix`` (for a sub-mapping's checks)."""
 
-    def __init__(self, report, prefix: PathKey):
+    def __init__(self, report, prefix: PathKey) -> None:
         self.report, self.prefix = report, prefix
 
     def warn(self, path: PathKey, message: str) -> None:

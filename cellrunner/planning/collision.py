@@ -78,7 +78,7 @@ else:
         """Imports ``name`` on first attribute access and takes its place in this module's
         globals: ``ContactAllowance`` and the cache need no pinocchio or coal (~0.1-0.4 s)."""
 
-        def __init__(self, name: str, alias: str):
+        def __init__(self, name: str, alias: str) -> None:
             self._name, self._alias = name, alias
 
         def __getattr__(self, attr: str):
@@ -210,7 +210,7 @@ class CollisionModel:
         part: Placed | None = None,
         allowances: Sequence[ContactAllowance] = (),
         _geometry_cache: dict | None = None,
-    ):
+    ) -> None:
         self.kinematics = kinematics
         self.tool = tuple(tool)
         self.fixtures = tuple(fixtures)

@@ -82,7 +82,7 @@ class MotionPlanner:
         clearance_m: float = 0.002,
         time_budget_s: float = 2.0,
         seed: int = 1,
-    ):
+    ) -> None:
         self.spec = spec
         self.kinematics = ArmKinematics(spec, T_world_base, T_flange_tcp)
         self.collision = CollisionModel(self.kinematics, tool, fixtures, clearance_m)

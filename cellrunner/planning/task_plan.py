@@ -217,7 +217,7 @@ def plan_task(
 class _StepPlanner:
     """Walks the steps, tracking the configuration and the carried part."""
 
-    def __init__(self, world: CellWorld, q: np.ndarray, part: Placed | None):
+    def __init__(self, world: CellWorld, q: np.ndarray, part: Placed | None) -> None:
         self.world, self.q, self.part = world, q, part
         self.allowances: tuple = ()
         self.contact: tuple = ()  # a force step's contacts, which the next straight move leaves

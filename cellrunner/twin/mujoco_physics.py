@@ -33,7 +33,7 @@ def _bit(channel: str) -> int | None:
 class MujocoPhysics:
     """The MuJoCo twin of a cell as the virtual controller's physics."""
 
-    def __init__(self, description):
+    def __init__(self, description) -> None:
         from cellrunner.backends.sim.world import SimWorld
 
         self.description = description

@@ -246,7 +246,7 @@ class RtdeError(Exception):
 class RtdeSession:
     """One RTDE connection's protocol state (no socket)."""
 
-    def __init__(self, session_id: int, ctl: Controller, owners: InputOwners):
+    def __init__(self, session_id: int, ctl: Controller, owners: InputOwners) -> None:
         self.session_id = session_id
         self.ctl = ctl
         self.owners = owners

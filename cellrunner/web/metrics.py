@@ -24,7 +24,7 @@ class JobMetrics:
     """Jobs finished by this process: a counter per result code and a cycle time
     histogram. :meth:`record` is a result listener (any thread, never blocks long)."""
 
-    def __init__(self, buckets_s: Iterable[float] = CYCLE_BUCKETS_S):
+    def __init__(self, buckets_s: Iterable[float] = CYCLE_BUCKETS_S) -> None:
         self.buckets_s = tuple(sorted(buckets_s))
         self._lock = threading.Lock()
         self._by_code: dict[int, int] = {}

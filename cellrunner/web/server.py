@@ -45,7 +45,7 @@ class StatusServer:
     """Construct (no I/O), :meth:`start` (binds, raises CellrunnerError when it
     cannot), :meth:`stop`."""
 
-    def __init__(self, board: StatusBoard, host: str = DEFAULT_HOST, port: int = 8080):
+    def __init__(self, board: StatusBoard, host: str = DEFAULT_HOST, port: int = 8080) -> None:
         self.board, self.host, self.port = board, host, port
         self._httpd: ThreadingHTTPServer | None = None
         self._thread: threading.Thread | None = None

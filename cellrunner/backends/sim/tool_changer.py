@@ -95,7 +95,7 @@ def add_tools(
 class ToolChanger:
     """The changer of one built SimWorld."""
 
-    def __init__(self, world: Any, desc: ToolChangerDescription):
+    def __init__(self, world: Any, desc: ToolChangerDescription) -> None:
         self.world, self.desc = world, desc
         m = world.model
         self.tools = {t.name: t for t in desc.tools}

@@ -111,7 +111,7 @@ def add_welds(root: ET.Element, parts) -> None:
 class VacuumCups:
     """The cups of one built SimWorld (constructed after its model is compiled)."""
 
-    def __init__(self, world: Any, vac: VacuumDescription):
+    def __init__(self, world: Any, vac: VacuumDescription) -> None:
         self.world, self.vac = world, vac
         m = world.model
         self._mj = world._mj
