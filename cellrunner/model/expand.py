@@ -18,6 +18,8 @@ from cellrunner.model import geometry
 from cellrunner.model.cell import Cell
 from cellrunner.model.force_steps import FORCE_KINDS
 from cellrunner.model.load import LoadedTask, StepSpec
+from cellrunner.model.params import Param, ParamValue, PoseValue
+from cellrunner.model.source import PathKey
 from cellrunner.model.task import (
     ApproachArgs,
     DistanceArgs,
@@ -25,6 +27,8 @@ from cellrunner.model.task import (
     LinearArgs,
     Offset,
     Pattern,
+    PickArgs,
+    PlaceArgs,
     TaskFile,
 )
 
@@ -56,12 +60,12 @@ class Step:
     kind: str
     name: str
     args: Any
-    file_path: tuple
+    file_path: PathKey
     macro: str | None = None
     T_world_tcp: np.ndarray | None = None
     q_goal_deg: tuple[float, ...] | None = None
     retry: RetryPlan | None = None
-    extra: dict = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def is_motion(self) -> bool:
@@ -91,10 +95,10 @@ def frame_pose(cell: Cell, name: str) -> np.ndarray:
     return T
 
 
-def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, int | float | bool]:
+def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, ParamValue]:
     """The task's params: defaults overridden by ``given`` (strings from the CLI are
     accepted); raises InputError naming the bad param and its bounds."""
-    out: dict[str, int | float | bool] = {}
+    out: dict[str, ParamValue] = {}
     problems = []
     for name in given:
         if name not in task.params:
@@ -136,7 +140,9 @@ ON_ERROR = "on_error"
 
 
 class _Builder:
-    def __init__(self, cell: Cell, params: dict[str, Any], specs: dict | None = None) -> None:
+    def __init__(
+        self, cell: Cell, params: dict[str, Any], specs: dict[str, Param] | None = None
+    ) -> None:
         self.cell, self.params, self.specs = cell, params, specs or {}
         self.steps: list[Step] = []
         self.tool = cell.robot.tool  # the mounted tool's name (with ``tools:``)
@@ -161,7 +167,7 @@ class _Builder:
         self,
         kind: str,
         args: Any,
-        path: tuple,
+        path: PathKey,
         index: int,
         macro: str | None = None,
         retry: RetryPlan | None = None,
@@ -214,7 +220,7 @@ class _Builder:
             name = f"{at}+{at_offset}"
         return T @ _offset(offset), name
 
-    def _pick(self, spec: StepSpec, a) -> None:
+    def _pick(self, spec: StepSpec, a: PickArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"pick {name}"
         path = spec.path
@@ -268,7 +274,7 @@ class _Builder:
                 )
             )
 
-    def _place(self, spec: StepSpec, a) -> None:
+    def _place(self, spec: StepSpec, a: PlaceArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"place {name}"
         path = spec.path
@@ -329,10 +335,10 @@ def pattern_params(loaded: LoadedTask) -> dict[str, range]:
     return out
 
 
-def box_params(loaded: LoadedTask) -> dict[str, list[dict]]:
+def box_params(loaded: LoadedTask) -> dict[str, list[PoseValue]]:
     """Every pose param a pick or place is offset by, with the poses ``check`` must cover:
     the centre and the corners of its box."""
-    out: dict[str, list[dict]] = {}
+    out: dict[str, list[PoseValue]] = {}
     for spec in loaded.steps:
         name = getattr(spec.args, "at_offset", None)
         if name is not None:

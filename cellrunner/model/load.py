@@ -8,19 +8,24 @@ warnings (e.g. angles that look like radians) are kept on the loaded object.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
 from cellrunner.errors import Diagnostic, InputError
-from cellrunner.model.cell import Cell
+from cellrunner.model.cell import Cell, Fixture, Part, Tool
 from cellrunner.model.diagnose import diagnostics_of, did_you_mean, dotted, known_list
-from cellrunner.model.robots import robot_spec
+from cellrunner.model.robots import RobotSpec, robot_spec
 from cellrunner.model.source import PathKey, Source, load_yaml
-from cellrunner.model.task import MACROS, STEP_MODELS, TaskFile, widen_step_args
+from cellrunner.model.task import MACROS, STEP_MODELS, PickArgs, TaskFile, widen_step_args
 from cellrunner.model.units import looks_like_radians
+
+if TYPE_CHECKING:
+    from cellrunner.model.geometry import Placed
+    from cellrunner.model.params import Param
 
 _CHANNEL = re.compile(r"^(DO|CO|TO|AO|DI|CI|TI|AI)(\d+)$")
 _CHANNEL_COUNT = {"DO": 8, "CO": 8, "TO": 2, "AO": 2, "DI": 8, "CI": 8, "TI": 2, "AI": 2}
@@ -63,7 +68,7 @@ class LoadedCell:
         return self.path.parent
 
     @property
-    def spec(self):
+    def spec(self) -> RobotSpec:
         return robot_spec(self.cell.robot.model)
 
     @property
@@ -72,7 +77,7 @@ class LoadedCell:
         folder = self.path.resolve().parent
         return folder.parent if folder.name == "cells" else folder
 
-    def tool_shapes(self, tool=None) -> list:
+    def tool_shapes(self, tool: Tool | None = None) -> list[Placed]:
         """The declared geometry of ``tool`` (default: the mounted one) as placed shapes in
         the flange frame."""
         from cellrunner.model.geometry import Placed
@@ -85,7 +90,7 @@ class LoadedCell:
             for i, g in enumerate(geometry)
         ]
 
-    def fixture_shapes(self) -> list:
+    def fixture_shapes(self) -> list[Placed]:
         """The fixtures as placed shapes in the world."""
         from cellrunner.model.geometry import Placed
 
@@ -115,7 +120,7 @@ class StepSpec:
     raw: Any = None  # the widened arguments as written, when they name float params
     refs: frozenset[str] = frozenset()  # the float params they name
 
-    def bind(self, params: dict, values: dict) -> Any:
+    def bind(self, params: dict[str, Param], values: dict[str, Any]) -> Any:
         """The arguments with the named params' values (``args`` when none are named)."""
         if not self.refs:
             return self.args
@@ -221,12 +226,12 @@ def serve_file_warnings(loaded: LoadedCell) -> list[Diagnostic]:
     return report.warnings
 
 
-def _unknown(what: str, name: Any, known) -> str:
-    known = list(known)
-    return f"unknown {what} {name!r}{did_you_mean(name, known)}; known: {known_list(known)}"
+def _unknown(what: str, name: Any, known: Iterable[object]) -> str:
+    words = list(known)
+    return f"unknown {what} {name!r}{did_you_mean(name, words)}; known: {known_list(words)}"
 
 
-def _check_limits(cell: Cell, spec, report: Report) -> None:
+def _check_limits(cell: Cell, spec: RobotSpec, report: Report) -> None:
     limits = cell.robot.limits
     model = spec.name.upper()
     if limits.joint_speed is not None:
@@ -362,7 +367,7 @@ def _tools(cell: Cell) -> list[tuple[PathKey, Any]]:
     return [(("tool",), cell.tool)]
 
 
-def _check_gripper(cell: Cell, tool, path: PathKey, report: Report) -> None:
+def _check_gripper(cell: Cell, tool: Tool, path: PathKey, report: Report) -> None:
     g = tool.gripper
     if g is None:
         return
@@ -437,7 +442,11 @@ def _check_tool_names(cell: Cell, raw: Any, report: Report) -> None:
 
 def _check_names(cell: Cell, report: Report) -> None:
     seen: dict[str, str] = {}
-    for kind, items in (("fixture", cell.fixtures), ("part", cell.parts)):
+    named: tuple[tuple[str, Sequence[Fixture | Part]], ...] = (
+        ("fixture", cell.fixtures),
+        ("part", cell.parts),
+    )
+    for kind, items in named:
         for i, item in enumerate(items):
             key = f"{kind}s"
             if item.name in seen:
@@ -511,7 +520,12 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
 
 
 def _parse_steps(
-    raw: list, base: PathKey, report: Report, *, allow_macros: bool, params: dict | None = None
+    raw: list[Any],
+    base: PathKey,
+    report: Report,
+    *,
+    allow_macros: bool,
+    params: dict[str, Param] | None = None,
 ) -> list[StepSpec]:
     out = []
     for i, item in enumerate(raw):
@@ -522,7 +536,7 @@ def _parse_steps(
 
 
 def _parse_step(
-    item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict
+    item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict[str, Param]
 ) -> StepSpec | None:
     known = [k for k in STEP_MODELS if allow_macros or k not in MACROS]
     if isinstance(item, str):
@@ -568,7 +582,7 @@ def _parse_step(
         report.errors.extend(diagnostics_of(exc, report.source, model, prefix=path + (kind,)))
         return None
     spec = StepSpec(kind, parsed, path + (kind,), raw=raw if refs else None, refs=frozenset(refs))
-    if kind == "pick" and parsed.retry is not None:
+    if isinstance(parsed, PickArgs) and parsed.retry is not None:
         spec.between = _parse_steps(
             parsed.retry.between,
             path + (kind, "retry", "between"),

@@ -29,7 +29,9 @@ UNIT_KINDS: dict[str, str] = {
 }
 POSE_AXES = ("x", "y", "z", "rx", "ry", "rz")
 
-PoseValue = dict  # {"xyz": [m, m, m], "rpy": [deg, deg, deg]}
+PoseValue = dict[str, list[float]]  # {"xyz": [m, m, m], "rpy": [deg, deg, deg]}
+#: a param's value as jobs use it
+ParamValue = int | float | bool | PoseValue
 
 
 class Param(Strict):
@@ -120,7 +122,7 @@ class Param(Strict):
         """The quantity kind of a float param with a unit (``time``, ``length``, ...)."""
         return UNIT_KINDS.get(self.unit) if self.unit else None
 
-    def coerce(self, name: str, value: Any) -> int | float | bool | PoseValue:
+    def coerce(self, name: str, value: Any) -> ParamValue:
         """``value`` as this param's type, or ValueError naming the bounds. A param's
         ``unit`` applies to its min, max and default in the task file and to its Modbus
         register; values given here are SI numbers (s, m, N, deg) or strings with a unit."""

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
+from cellrunner.model.cell import Cell
 from cellrunner.model.load import (
     LoadedCell,
     LoadedTask,
@@ -11,6 +14,8 @@ from cellrunner.model.load import (
     _unknown,
     check_io_name,
 )
+from cellrunner.model.source import PathKey
+from cellrunner.model.task import Pattern
 
 _LINEAR_KINDS = ("descend", "linear")
 
@@ -75,7 +80,7 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             )
 
 
-def _is_short(report: Report, path) -> bool:
+def _is_short(report: Report, path: PathKey) -> bool:
     """True when the step at ``path`` was written in short form (``move: [..]``)."""
     value = report.source.data
     for part in path:
@@ -83,13 +88,13 @@ def _is_short(report: Report, path) -> bool:
     return not isinstance(value, dict)
 
 
-def _all_steps(steps: list[StepSpec]):
+def _all_steps(steps: list[StepSpec]) -> Iterator[StepSpec]:
     for step in steps:
         yield step
         yield from step.between
 
 
-def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
+def _check_pattern(task: LoadedTask, pattern: Pattern, path: PathKey, report: Report) -> None:
     params = task.task.params
     if pattern.index not in params:
         report.error(path + ("index",), _unknown("param", pattern.index, params))
@@ -120,7 +125,7 @@ def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
         )
 
 
-def _check_change_tool(cell, tool: str, path, report: Report) -> None:
+def _check_change_tool(cell: Cell, tool: str, path: PathKey, report: Report) -> None:
     if tool not in cell.tools:
         known = list(cell.tools)
         report.error(
@@ -137,7 +142,7 @@ def _check_change_tool(cell, tool: str, path, report: Report) -> None:
         )
 
 
-def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
+def _check_tool_at_end(task: LoadedTask, cell: Cell, report: Report) -> None:
     """Every job starts with ``robot.tool`` mounted, so a task must end with it."""
     last = None
     for step in task.steps:
@@ -151,7 +156,7 @@ def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
         )
 
 
-def _check_pose_param(task: LoadedTask, name: str, path, report: Report) -> None:
+def _check_pose_param(task: LoadedTask, name: str, path: PathKey, report: Report) -> None:
     params = task.task.params
     if name not in params:
         report.error(path, _unknown("param", name, params))

@@ -15,11 +15,17 @@ Names are the cell's IO names; :mod:`cellrunner.model.references`-style checks a
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Strict
 from cellrunner.model.units import Duration, PositiveDuration, PositiveLength
+
+if TYPE_CHECKING:
+    from cellrunner.model.cell import Cell
+    from cellrunner.model.load import Report
 
 
 class InputRule(Strict):
@@ -57,7 +63,7 @@ class SimBlock(Strict):
     """Input names to the rule that drives them in rehearsal. Example: `{part_present: {part_at: infeed}}`"""
 
 
-def check_sim_block(cell, report) -> None:
+def check_sim_block(cell: Cell, report: Report) -> None:
     """Report rule inputs, outputs and frames the cell does not know."""
     from cellrunner.model.load import _unknown, check_io_name
 
