@@ -612,13 +612,3 @@ def _result_of(record: JobRecord) -> JobResult:
         record.client_job_id or "",
         record.source,
     )
-
-
-def run_until_done(
-    cell: CellController, *, max_s: float, stop: threading.Event | None = None
-) -> None:
-    """Tick ``cell`` until its job ended or ``max_s`` of backend time passed (see
-    :meth:`~cellrunner.execution.loop.ControlLoop.run_job`)."""
-    from cellrunner.execution.loop import ControlLoop
-
-    ControlLoop(cell).run_job(max_s=max_s, stop=stop)

@@ -22,9 +22,12 @@ from cellrunner.backends.base import BackendError, Safety
 from cellrunner.errors import CellrunnerError, InfeasibleError, PeerUnreachable
 from cellrunner.execution import steps as behaviours
 from cellrunner.execution.context import JobContext
+from cellrunner.execution.force import run_force
 from cellrunner.execution.steps import Outcome, run_motion, run_weigh
+from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import ON_ERROR, Step
+from cellrunner.model.force_steps import FORCE_KINDS
 from cellrunner.model.task import ProtectiveStopPolicy
 
 #: the controller refuses to unlock a protective stop sooner (UR e-Series and CB3)
@@ -39,6 +42,13 @@ UNLOCK_RETRY_S = 0.25
 RECONNECT_FIRST_DELAY_S = 0.2
 
 _NORMAL = Safety.NORMAL  # looked up once: tick runs every period
+
+#: the behaviour of each step kind that is not a motion
+_BEHAVIOURS = {
+    **behaviours.BEHAVIOURS,
+    "tool_lock": run_tool_lock,
+    "tool_unlock": run_tool_unlock,
+}
 
 
 class JobPhase(enum.StrEnum):
@@ -346,10 +356,12 @@ class JobRunner:
             self._gen = run_weigh(self.ctx, step)
         elif item.behaviour == "still":
             self._gen = _stand_still(self.ctx)
+        elif step.kind in FORCE_KINDS:  # a guarded line
+            self._gen = run_force(self.ctx, step, resume=item.resume)
         elif step.is_motion:
             self._gen = run_motion(self.ctx, step, resume=item.resume)
         else:
-            self._gen = behaviours.BEHAVIOURS[step.kind](self.ctx, step)
+            self._gen = _BEHAVIOURS[step.kind](self.ctx, step)
 
     def _await_gate(self, item: _Item):
         """Stand still until the gate opens, then start the item (its own behaviour runs

@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cellrunner.model import geometry
+from cellrunner.model.frames import frame_pose
+from cellrunner.model.step import Step, StepKind
 from cellrunner.model.task import ApproachArgs, DistanceArgs, GripArgs, LinearArgs
 
 if TYPE_CHECKING:
@@ -28,8 +30,6 @@ if TYPE_CHECKING:
 
 def expand_change_tool(builder: _Builder, spec: StepSpec, current: str | None) -> str | None:
     """Append the steps of ``spec`` (a change_tool) to ``builder``; return the new tool."""
-    from cellrunner.model.expand import Step, frame_pose
-
     cell = builder.cell
     target: str = spec.args.tool
     if target == current:
@@ -70,7 +70,9 @@ def expand_change_tool(builder: _Builder, spec: StepSpec, current: str | None) -
     ]
     for kind, name, args, T, tool in rows:
         extra = {"tool": tool, "tcp_of": current, "lock_output": changer.lock}
-        builder.steps.append(Step(builder._next(), kind, name, args, path, macro, T, extra=extra))
+        builder.steps.append(
+            Step(builder._next(), StepKind(kind), name, args, path, macro, T, extra=extra)
+        )
     return target
 
 

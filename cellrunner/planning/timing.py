@@ -125,19 +125,21 @@ def sample_measures(
     rate_hz: float,
     rest_before: bool = True,
     rest_after: bool = True,
+    p_world_tcp_m: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Finite-difference joint speeds (rad/s), accelerations (rad/s^2) and TCP speeds (m/s)
     of samples taken every 1/rate_hz s; ``rest_before``/``rest_after`` pad with the robot
-    at rest on the first/last sample."""
+    at rest on the first/last sample. ``p_world_tcp_m``: the samples' TCP positions
+    (N x 3), when the caller has them already."""
     q = np.asarray(q_rad, float)
+    p = kin.p_world_tcp_many(q) if p_world_tcp_m is None else np.asarray(p_world_tcp_m, float)
     if rest_before:
-        q = np.vstack([q[:1], q])
+        q, p = np.vstack([q[:1], q]), np.vstack([p[:1], p])
     if rest_after:
-        q = np.vstack([q, q[-1:]])
+        q, p = np.vstack([q, q[-1:]]), np.vstack([p, p[-1:]])
     dt = 1.0 / rate_hz
     v = np.diff(q, axis=0) / dt
     a = np.diff(v, axis=0) / dt
-    p = kin.p_world_tcp_many(q)
     tcp = np.linalg.norm(np.diff(p, axis=0), axis=1) / dt
     return v, a, tcp
 

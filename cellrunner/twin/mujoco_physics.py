@@ -33,8 +33,8 @@ def _bit(channel: str) -> int | None:
 class MujocoPhysics:
     """The MuJoCo twin of a cell as the virtual controller's physics."""
 
-    def __init__(self, description) -> None:
-        from cellrunner.backends.sim.world import SimWorld
+    def __init__(self, description):
+        from cellrunner.sim.world import SimWorld
 
         self.description = description
         self.world = SimWorld(description)

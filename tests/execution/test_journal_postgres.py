@@ -8,7 +8,8 @@ import time
 
 import pytest
 
-from cellrunner.execution.journal import JournalError, SqliteJournal, journal_for
+from cellrunner.execution.journal import JournalError, SqliteJournal
+from cellrunner.execution.journal_open import journal_for
 from cellrunner.execution.journal_postgres import PostgresJournal
 from cellrunner.model.codes import ResultCode
 from tests.execution.pg_server import PgServer
