@@ -64,7 +64,8 @@ class LoadedCell:
 
     @property
     def spec(self):
-        return robot_spec(self.cell.robot.model)
+        """The arm with the cell's ``robot.joint_range`` applied (checked on loading)."""
+        return robot_spec(self.cell.robot.model).narrowed(self.cell.robot.joint_range)
 
     @property
     def root(self) -> Path:
@@ -160,14 +161,21 @@ def load_cell(path: str | Path) -> LoadedCell:
 
 
 def _check_cell(loaded: LoadedCell, report: Report) -> None:
-    cell, spec = loaded.cell, loaded.spec
+    cell, spec = loaded.cell, robot_spec(loaded.cell.robot.model)
     raw = loaded.source.data
     _check_limits(cell, spec, report)
     _check_radians(raw, ("robot", "home"), report)
-    for i, (lo, hi, q) in enumerate(zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home)):
+    ranges_ok = _check_joint_range(cell, spec, report)
+    where = ""
+    if ranges_ok and cell.robot.joint_range is not None:
+        spec, where = loaded.spec, " (robot.joint_range)"
+    for i, (lo, hi, q) in enumerate(
+        zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home, strict=True)
+    ):
         if not lo <= q <= hi:
             report.error(
-                ("robot", "home", i), f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]"
+                ("robot", "home", i),
+                f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]{where}",
             )
     for path, tool in _tools(cell):
         if tool.payload.mass > spec.payload_max_kg:
@@ -224,6 +232,31 @@ def _unknown(what: str, name: Any, known) -> str:
     return f"unknown {what} {name!r}{did_you_mean(name, known)}; known: {known_list(known)}"
 
 
+def _check_joint_range(cell: Cell, spec, report: Report) -> bool:
+    """``robot.joint_range``: each [min, max] with min < max inside the arm's own range.
+    True when there is none or every range is good."""
+    ranges = cell.robot.joint_range
+    if ranges is None:
+        return True
+    ok = True
+    for i, (lo, hi) in enumerate(ranges):
+        hw_lo, hw_hi = spec.joint_min_deg[i], spec.joint_max_deg[i]
+        if lo >= hi:
+            report.error(
+                ("robot", "joint_range", i),
+                f"joint {i + 1} range [{lo:g}, {hi:g}]: min must be below max",
+            )
+            ok = False
+        elif lo < hw_lo - 1e-9 or hi > hw_hi + 1e-9:
+            report.error(
+                ("robot", "joint_range", i),
+                f"joint {i + 1} range [{lo:g}, {hi:g}] is outside the {spec.label}'s "
+                f"[{hw_lo:g}, {hw_hi:g}] deg; joint_range can only narrow it",
+            )
+            ok = False
+    return ok
+
+
 def _check_limits(cell: Cell, spec, report: Report) -> None:
     limits = cell.robot.limits
     model = spec.name.upper()
@@ -231,7 +264,7 @@ def _check_limits(cell: Cell, spec, report: Report) -> None:
         values = (
             limits.joint_speed if isinstance(limits.joint_speed, list) else [limits.joint_speed] * 6
         )
-        for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s)):
+        for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s, strict=True)):
             if v > cap + 1e-9:
                 path = ("robot", "limits", "joint_speed") + (
                     (i,) if isinstance(limits.joint_speed, list) else ()
@@ -287,15 +320,15 @@ def _check_radians(raw: Any, path: PathKey, report: Report) -> None:
             value = value[part]
         except (KeyError, IndexError, TypeError):
             return
-    if isinstance(value, list) and all(
+    numbers = isinstance(value, list) and all(
         isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
-    ):
-        if looks_like_radians([float(v) for v in value]):
-            report.warn(
-                path,
-                f"{value} looks like radians; angles are in degrees "
-                "(write e.g. '1.57 rad' if you mean radians)",
-            )
+    )
+    if numbers and looks_like_radians([float(v) for v in value]):
+        report.warn(
+            path,
+            f"{value} looks like radians; angles are in degrees "
+            "(write e.g. '1.57 rad' if you mean radians)",
+        )
 
 
 def _check_io(cell: Cell, report: Report) -> None:
@@ -490,7 +523,7 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
         steps_raw = source.data.get("steps") if isinstance(source.data.get("steps"), list) else []
         _parse_steps(steps_raw, ("steps",), report, allow_macros=True)
         report.raise_if_errors()
-        raise AssertionError("unreachable")  # pragma: no cover
+        raise AssertionError("unreachable") from None  # pragma: no cover
     steps = _parse_steps(header.steps, ("steps",), report, allow_macros=True, params=header.params)
     on_error = _parse_steps(
         header.on_error, ("on_error",), report, allow_macros=False, params=header.params

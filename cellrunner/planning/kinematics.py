@@ -262,7 +262,7 @@ class ArmKinematics:
         )
         p = T_base_flange[:3, 3]
         from_shoulder_m = float(np.linalg.norm(p - np.array([0.0, 0.0, self.spec.d_m[0]])))
-        model = self.spec.name.upper().replace("E", "e")
+        model = self.spec.label
         if from_shoulder_m > self.spec.reach_m:
             mm = from_shoulder_m / 1000
             hint = (
@@ -309,9 +309,9 @@ class ArmKinematics:
             base = q_raw[i] + 2 * math.pi * round((q_near[i] - q_raw[i]) / (2 * math.pi))
             for k in (0, -1, 1, -2, 2):
                 cand = base + 2 * math.pi * k
-                if self.q_min_rad[i] - 1e-9 <= cand <= self.q_max_rad[i] + 1e-9:
-                    if best is None or abs(cand - q_near[i]) < abs(best - q_near[i]):
-                        best = cand
+                inside = self.q_min_rad[i] - 1e-9 <= cand <= self.q_max_rad[i] + 1e-9
+                if inside and (best is None or abs(cand - q_near[i]) < abs(best - q_near[i])):
+                    best = cand
             if best is None:
                 return None
             q[i] = min(max(best, self.q_min_rad[i]), self.q_max_rad[i])
