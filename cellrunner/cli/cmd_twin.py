@@ -17,7 +17,7 @@ def run(args) -> int:
     cell = load_cell(args.cell)
     for w in cell.warnings:
         sys.stderr.write(f"{w}\n")
-    from cellrunner.backends.sim.from_cell import description_of
+    from cellrunner.sim.from_cell import description_of
     from cellrunner.twin.mujoco_physics import MujocoPhysics
     from cellrunner.twin.server import run_twin
 

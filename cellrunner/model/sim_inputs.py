@@ -19,6 +19,8 @@ from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Strict
+from cellrunner.model.checks import check_io_name
+from cellrunner.model.diagnose import unknown_name
 from cellrunner.model.units import Duration, PositiveDuration, PositiveLength
 
 
@@ -59,15 +61,13 @@ class SimBlock(Strict):
 
 def check_sim_block(cell, report) -> None:
     """Report rule inputs, outputs and frames the cell does not know."""
-    from cellrunner.model.load import _unknown, check_io_name
-
     if cell.sim is None:
         return
     for name, rule in cell.sim.inputs.items():
         base = ("sim", "inputs", name)
         check_io_name(cell, name, "inputs", base, report, at_key=True)
         if rule.part_at is not None and rule.part_at not in cell.frames:
-            report.error(base + ("part_at",), _unknown("frame", rule.part_at, cell.frames))
+            report.error(base + ("part_at",), unknown_name("frame", rule.part_at, cell.frames))
         for key in ("follows", "pulse_after"):
             output = getattr(rule, key)
             if output is not None:

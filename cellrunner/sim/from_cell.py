@@ -14,7 +14,7 @@ def description_of(loaded: LoadedCell):
 
     With ``tools:`` and a tool changer every tool is built (each enabled while mounted):
     the jaws of the first tool with jaws, the cups of the first vacuum tool."""
-    from cellrunner.backends.sim.description import TwinDescription
+    from cellrunner.sim.description import TwinDescription
 
     c = loaded.cell
     outputs, inputs = c.io.outputs, c.io.inputs
@@ -54,7 +54,7 @@ def description_of(loaded: LoadedCell):
 
 def _part(loaded: LoadedCell, part, gripper):
     """A part where a TCP at its frame grips it, moved by its twin-only ``offset``."""
-    from cellrunner.backends.sim.description import PartDescription
+    from cellrunner.sim.description import PartDescription
 
     T_world_grip = frame_pose(loaded.cell, part.at)
     if part.offset is not None:
@@ -67,7 +67,7 @@ def _part(loaded: LoadedCell, part, gripper):
 
 def _input_rules(cell) -> tuple:
     """The ``sim: inputs`` rules in channels and world metres."""
-    from cellrunner.backends.sim.input_rules import InputRuleDescription
+    from cellrunner.sim.input_rules import InputRuleDescription
 
     if cell.sim is None:
         return ()
@@ -102,7 +102,7 @@ def _input_rules(cell) -> tuple:
 
 
 def _jaws(tool, cell, io_outputs: list, io_inputs: list):
-    from cellrunner.backends.sim.description import GripperDescription
+    from cellrunner.sim.description import GripperDescription
 
     g = tool.gripper
     close, _, sensor = gripper_channels(g, cell.io.outputs, cell.io.inputs)
@@ -120,7 +120,7 @@ def _jaws(tool, cell, io_outputs: list, io_inputs: list):
 
 
 def _cups(tool, cell):
-    from cellrunner.backends.sim.vacuum import VacuumDescription
+    from cellrunner.sim.vacuum import VacuumDescription
 
     g = tool.gripper
     close, _, sensor = gripper_channels(g, cell.io.outputs, cell.io.inputs)
@@ -136,7 +136,7 @@ def _cups(tool, cell):
 
 
 def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
-    from cellrunner.backends.sim.tool_changer import ChangerTool, ToolChangerDescription
+    from cellrunner.sim.tool_changer import ChangerTool, ToolChangerDescription
 
     c = loaded.cell
     changer = c.tool_changer

@@ -18,10 +18,11 @@ from typing import Any
 import numpy as np
 
 from cellrunner.backends.base import BackendError, RobotState, Safety
-from cellrunner.backends.sim._mj import load_mujoco
-from cellrunner.backends.sim.description import TwinDescription
-from cellrunner.backends.sim.input_rules import InputRules
-from cellrunner.backends.sim.mjcf import (
+from cellrunner.model.robots import JOINT_NAMES
+from cellrunner.sim._mj import load_mujoco
+from cellrunner.sim.description import TwinDescription
+from cellrunner.sim.input_rules import InputRules
+from cellrunner.sim.mjcf import (
     PADS,
     PARTS,
     ROBOT,
@@ -30,7 +31,6 @@ from cellrunner.backends.sim.mjcf import (
     PhysicsOptions,
     compile_model,
 )
-from cellrunner.model.robots import JOINT_NAMES
 
 UNLOCK_DELAY_S = 5.0  # UR: a protective stop can be unlocked 5 s after it happened
 STOP_DECEL_RAD_S2 = 30.0  # category 2 stop ramp (protective stop, stopJ default)
@@ -210,12 +210,12 @@ class SimWorld:
         self.vacuum = None
         self.jaws_enabled = True
         if self.description.vacuum is not None:
-            from cellrunner.backends.sim.vacuum import VacuumCups
+            from cellrunner.sim.vacuum import VacuumCups
 
             self.vacuum = VacuumCups(self, self.description.vacuum)
         self.changer = None
         if self.description.tool_changer is not None:
-            from cellrunner.backends.sim.tool_changer import ToolChanger
+            from cellrunner.sim.tool_changer import ToolChanger
 
             self.changer = ToolChanger(self, self.description.tool_changer)
         self._update_inputs()

@@ -69,8 +69,8 @@ def add_cups(
     hits: int,
 ) -> None:
     """The cups as geoms of the tool body (MJCF)."""
-    from cellrunner.backends.sim.mjcf import _pose_attrs
     from cellrunner.model import geometry
+    from cellrunner.sim.mjcf import _pose_attrs
 
     for i, ((x, y, z), r) in enumerate(vac.cups):
         T = T_flange_tcp @ geometry.pose_matrix((x, y, z - CUP_LENGTH_M / 2))
@@ -185,7 +185,7 @@ class VacuumCups:
     # -- helpers ------------------------------------------------------------------------
     def _in_air(self, part: str) -> bool:
         """Held by the cups alone, clear of fixtures and the floor."""
-        from cellrunner.backends.sim.mjcf import PADS
+        from cellrunner.sim.mjcf import PADS
 
         w = self.world
         return all(k == PADS for k in w._contacts_of(part)) and w._clear_of_static(part)
