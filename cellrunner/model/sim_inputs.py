@@ -28,9 +28,11 @@ class InputRule(Strict):
     """One input's rule: exactly one of ``part_at``, ``follows``, ``pulse_after``."""
 
     part_at: Name | None = None
-    """True while a part's centre lies within `within` of this frame. Example: `infeed`"""
+    """True while a part lies at this frame (its centre within `within` of where a part
+    `at:` this frame sits: at the frame for jaws, under it by half its height for suction).
+    Example: `infeed`"""
     within: PositiveLength = 0.02
-    """How close a part's centre must be to the `part_at` frame, m. Example: `0.02`"""
+    """How close a part's centre must be to where it lies at the `part_at` frame, m. Example: `0.02`"""
     follows: Name | None = None
     """Takes this output's value `delay` s later. Example: `door_cmd`"""
     pulse_after: Name | None = None
