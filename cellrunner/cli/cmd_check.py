@@ -359,6 +359,9 @@ def _save_plan(path: Path, world, plan) -> None:
         "model": c.robot.model,
         "rate_hz": world.spec.rate_hz,
         "joint_names": list(JOINT_NAMES),
+        "joint_range_deg": [
+            list(r) for r in zip(world.spec.joint_min_deg, world.spec.joint_max_deg, strict=True)
+        ],
         "mount": {"xyz": list(c.robot.mount.xyz), "rpy": list(c.robot.mount.rpy)},
         "tcp": {"xyz": list(c.tool.tcp.xyz), "rpy": list(c.tool.tcp.rpy)},
         "steps": steps,
