@@ -133,3 +133,14 @@ def test_description_field_defaults_are_consistent() -> None:
     assert desc.rate_hz == 500.0
     model = compile_model(desc)
     assert model.opt.timestep == pytest.approx(0.002)
+
+
+@pytest.mark.parametrize("model_name", ["ur3e", "ur20", "ur30", "ur15"])
+def test_joint_ranges_are_the_cells_joint_range(model_name: str) -> None:
+    ranges = [[-170, 170], [-180, 0], [-160, 160], [-270, 90], [-180, 0], [-180, 180]]
+    desc = demo.demo_description(spec=ROBOTS[model_name].narrowed(ranges), parts=())
+    model = compile_model(desc)
+    for name, (lo, hi) in zip(JOINT_NAMES, ranges, strict=True):
+        joint = model.joint(name)
+        assert joint.limited[0] == 1
+        np.testing.assert_allclose(joint.range, np.radians([lo, hi]), atol=1e-6)
