@@ -164,7 +164,9 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     raw = loaded.source.data
     _check_limits(cell, spec, report)
     _check_radians(raw, ("robot", "home"), report)
-    for i, (lo, hi, q) in enumerate(zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home)):
+    for i, (lo, hi, q) in enumerate(
+        zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home, strict=False)
+    ):
         if not lo <= q <= hi:
             report.error(
                 ("robot", "home", i), f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]"
@@ -182,6 +184,7 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     _check_tool_names(cell, raw, report)
     _check_names(cell, report)
     _check_frames(cell, report)
+    _check_cameras(cell, report)
     for i, fixture in enumerate(cell.fixtures):
         if fixture.mesh is not None:
             f = loaded.resolve(fixture.mesh.file)
@@ -231,7 +234,7 @@ def _check_limits(cell: Cell, spec, report: Report) -> None:
         values = (
             limits.joint_speed if isinstance(limits.joint_speed, list) else [limits.joint_speed] * 6
         )
-        for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s)):
+        for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s, strict=False)):
             if v > cap + 1e-9:
                 path = ("robot", "limits", "joint_speed") + (
                     (i,) if isinstance(limits.joint_speed, list) else ()
@@ -287,15 +290,16 @@ def _check_radians(raw: Any, path: PathKey, report: Report) -> None:
             value = value[part]
         except (KeyError, IndexError, TypeError):
             return
-    if isinstance(value, list) and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+    if (
+        isinstance(value, list)
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+        and looks_like_radians([float(v) for v in value])
     ):
-        if looks_like_radians([float(v) for v in value]):
-            report.warn(
-                path,
-                f"{value} looks like radians; angles are in degrees "
-                "(write e.g. '1.57 rad' if you mean radians)",
-            )
+        report.warn(
+            path,
+            f"{value} looks like radians; angles are in degrees "
+            "(write e.g. '1.57 rad' if you mean radians)",
+        )
 
 
 def _check_io(cell: Cell, report: Report) -> None:
@@ -470,6 +474,24 @@ def _check_frames(cell: Cell, report: Report) -> None:
         _check_radians(report.source.data, ("frames", name, "rpy"), report)
 
 
+def _check_cameras(cell: Cell, report: Report) -> None:
+    """Camera and board mounts name world, flange or a frame; a frame cannot be 'flange'."""
+    known = ["world", "flange", *cell.frames]
+    if "flange" in cell.frames:
+        report.error(
+            ("frames", "flange"),
+            "'flange' is reserved (camera mounts) and cannot name a frame",
+            at_key=True,
+        )
+    for name, camera in cell.cameras.items():
+        if camera.mount not in known:
+            report.error(("cameras", name, "mount"), _unknown("mount", camera.mount, known))
+        if camera.board is not None and camera.board.mount not in known:
+            report.error(
+                ("cameras", name, "board", "mount"), _unknown("mount", camera.board.mount, known)
+            )
+
+
 # ---------------------------------------------------------------------------- task
 
 
@@ -490,7 +512,7 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
         steps_raw = source.data.get("steps") if isinstance(source.data.get("steps"), list) else []
         _parse_steps(steps_raw, ("steps",), report, allow_macros=True)
         report.raise_if_errors()
-        raise AssertionError("unreachable")  # pragma: no cover
+        raise AssertionError("unreachable") from exc  # pragma: no cover
     steps = _parse_steps(header.steps, ("steps",), report, allow_macros=True, params=header.params)
     on_error = _parse_steps(
         header.on_error, ("on_error",), report, allow_macros=False, params=header.params
