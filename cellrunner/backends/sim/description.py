@@ -114,6 +114,7 @@ class TwinDescription:
         None  # a ToolChangerDescription (backends.sim.tool_changer) for several tools
     )
     input_rules: tuple = ()  # InputRuleDescription: inputs the cell's sim: block drives
+    cameras: tuple = ()  # CameraDescription (backends.sim.cameras): cameras and their boards
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"
@@ -127,6 +128,7 @@ class TwinDescription:
             "io_inputs",
             "presence_sensors",
             "input_rules",
+            "cameras",
         ):
             object.__setattr__(self, attr, tuple(getattr(self, attr)))
         if len(self.q_home_rad) != 6:

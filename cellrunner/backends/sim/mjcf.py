@@ -297,6 +297,10 @@ class _Builder:
             from cellrunner.backends.sim.vacuum import add_welds
 
             add_welds(self.root, d.parts)
+        if d.cameras:
+            from cellrunner.backends.sim.cameras import add_cameras
+
+            add_cameras(self, d.cameras)
         self._actuators_and_sensors()
         ET.indent(self.root)
         return ET.tostring(self.root, encoding="unicode")
