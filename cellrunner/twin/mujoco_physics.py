@@ -9,6 +9,7 @@ allows it.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 
 import numpy as np
@@ -85,10 +86,10 @@ class MujocoPhysics:
         qd = (q_cmd - self._q_prev) / dt_s if self._q_prev is not None else np.zeros(6)
         self._q_prev = q_cmd
         if world.safety is Safety.PROTECTIVE_STOP:
-            try:  # the controller decides when a stop ends (its 5 s rule); the twin follows
+            # the controller decides when a stop ends (its 5 s rule); the twin follows, unless
+            # the twin's own 5 s have not passed yet either
+            with contextlib.suppress(BackendError):
                 world.unlock_protective_stop()
-            except BackendError:
-                pass  # the twin's own 5 s have not passed yet either
         if world.safety is Safety.NORMAL and world._stop is None:
             world.command(q_cmd, qd)
         world.step_period()

@@ -74,7 +74,7 @@ def printed_size_m(board: Board) -> tuple[float, float]:
 
 def picture(board: Board) -> np.ndarray:
     """The printed sheet as a grey image (rows top to bottom: the sheet's +Y edge first)."""
-    margin_px = int(round(MARGIN_SQUARES * PX_PER_SQUARE))
+    margin_px = round(MARGIN_SQUARES * PX_PER_SQUARE)
     size = (
         board.squares[0] * PX_PER_SQUARE + 2 * margin_px,
         board.squares[1] * PX_PER_SQUARE + 2 * margin_px,

@@ -114,9 +114,7 @@ def solve(
     rms = float(np.sqrt(np.mean(result.fun.reshape(n, 2) ** 2) * 2))
     sigma_m, sigma_deg = _sigma(result, rms)
     spread_m, spread_deg = _spread(eye_in_hand, T_world_flange, views, A, B)
-    return HandEye(
-        eye_in_hand, A, B, rms, spread_m, spread_deg, sigma_m, sigma_deg, len(views)
-    )
+    return HandEye(eye_in_hand, A, B, rms, spread_m, spread_deg, sigma_m, sigma_deg, len(views))
 
 
 def check_fit(fit: HandEye) -> None:
@@ -195,10 +193,7 @@ def _spread(eye_in_hand, T_world_flange, views, A, B) -> tuple[float, float]:
     """RMS of how far each view's own board pose lands from the solved one (m, deg)."""
     d_m, d_deg = [], []
     for F, view in zip(T_world_flange, views, strict=True):
-        if eye_in_hand:
-            G = F @ A @ view.T_camera_board
-        else:
-            G = invert(F) @ A @ view.T_camera_board
+        G = F @ A @ view.T_camera_board if eye_in_hand else invert(F) @ A @ view.T_camera_board
         D = invert(B) @ G
         d_m.append(np.linalg.norm(D[:3, 3]))
         d_deg.append(_angle_deg(D[:3, :3]))

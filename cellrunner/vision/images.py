@@ -43,9 +43,7 @@ class ImageSource(Protocol):
 class TwinCamera:
     """Camera ``name`` of a ``cellrunner twin`` at ``host`` (port 29991)."""
 
-    def __init__(
-        self, name: str, host: str, port: int = TWIN_CAMERA_PORT, timeout_s: float = 30.0
-    ):
+    def __init__(self, name: str, host: str, port: int = TWIN_CAMERA_PORT, timeout_s: float = 30.0):
         self.name, self.host, self.port, self.timeout_s = name, host, port, timeout_s
         self._sock: socket.socket | None = None
         self._buffer = b""

@@ -20,7 +20,7 @@ import numpy as np
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.camera import FLANGE, Camera
 from cellrunner.model.expand import frame_pose
-from cellrunner.model.geometry import invert, pose_matrix
+from cellrunner.model.geometry import invert
 from cellrunner.vision.board import printed_size_m
 
 #: the board's printed width spans this fraction of the image width

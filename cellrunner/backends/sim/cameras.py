@@ -79,9 +79,7 @@ def describe_cameras(loaded: Any) -> tuple[CameraDescription, ...]:
             from cellrunner.vision.board import picture, printed_size_m
 
             on_flange, T = parent(cam.board.mount, cam.board.pose.matrix())
-            board = BoardDescription(
-                on_flange, T, printed_size_m(cam.board), picture(cam.board)
-            )
+            board = BoardDescription(on_flange, T, printed_size_m(cam.board), picture(cam.board))
         on_flange, T = parent(cam.mount, cam.pose.matrix())
         out.append(
             CameraDescription(
@@ -189,6 +187,8 @@ class CameraImager:
         self.data = self._mj.MjData(model)
         self._renderer: Any = None
         self._map = _ideal_map(camera)
+        self._options = self._mj.MjvOption()
+        self._options.sitegroup[:] = 0  # sites (the TCP marker, sensors) are not physical
 
     def image(self, qpos: np.ndarray) -> np.ndarray:
         from cellrunner.backends.sim.render import RenderUnavailable
@@ -203,7 +203,9 @@ class CameraImager:
         self.data.qpos[:] = qpos
         self._mj.mj_kinematics(self.model, self.data)
         self._mj.mj_camlight(self.model, self.data)
-        self._renderer.update_scene(self.data, camera=f"camera:{self.camera.name}")
+        self._renderer.update_scene(
+            self.data, camera=f"camera:{self.camera.name}", scene_option=self._options
+        )
         ideal = np.array(self._renderer.render())
         if self._map is None:
             return ideal

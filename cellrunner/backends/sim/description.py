@@ -144,7 +144,7 @@ class TwinDescription:
             g = self.gripper
             if g.close_output not in self.io_outputs:
                 raise ValueError(
-                    f"gripper close output {g.close_output!r} is not an output; "  # noqa: E501
+                    f"gripper close output {g.close_output!r} is not an output; "
                     f"known: {', '.join(self.io_outputs)}"
                 )
             for ch in (g.closed_sensor_input, g.open_sensor_input):
