@@ -18,12 +18,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cellrunner.backends.sim import demo
 from cellrunner.backends.sim.backend import SimBackend
-from cellrunner.backends.sim.description import TwinDescription, dh_forward
-from cellrunner.backends.sim.mjcf import PhysicsOptions
 from cellrunner.model.robots import robot_spec
 from cellrunner.model.trajectory import ApprovedTrajectory, approve
+from cellrunner.sim import demo
+from cellrunner.sim.description import TwinDescription, dh_forward
+from cellrunner.sim.mjcf import PhysicsOptions
 
 
 @dataclass

@@ -17,7 +17,7 @@ def run(args) -> int:
     cell = load_cell(args.cell)
     for w in cell.warnings:
         sys.stderr.write(f"{w}\n")
-    from cellrunner.backends.sim.from_cell import description_of
+    from cellrunner.sim.from_cell import description_of
     from cellrunner.twin.mujoco_physics import MujocoPhysics
     from cellrunner.twin.server import run_twin
 
@@ -25,7 +25,7 @@ def run(args) -> int:
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
     if cell.cell.cameras:
-        from cellrunner.backends.sim._mj import enable_pictures
+        from cellrunner.sim._mj import enable_pictures
 
         enable_pictures()  # before MuJoCo is imported; without GL a grab says so
     physics = MujocoPhysics(description_of(cell))

@@ -2,7 +2,7 @@
 step transition after it, so no result is ever lost.
 
 Two backends behind one :class:`JournalBackend` Protocol, picked by the cell file's
-``journal:`` (:func:`journal_for`): a SQLite file (the default, :class:`SqliteJournal`)
+``journal:`` (:func:`~cellrunner.execution.journal_open.journal_for`): a SQLite file (the default, :class:`SqliteJournal`)
 or a ``postgresql://`` URL, one database shared by many cells
 (:class:`~cellrunner.execution.journal_postgres.PostgresJournal`). A journal opened for
 a cell sees that cell's jobs only (several cells may share one journal); one opened
@@ -129,21 +129,6 @@ class JournalBackend(Protocol):
     def last_finished(self) -> JobRecord | None: ...
     def counters(self) -> tuple[int, int]: ...
     def steps_of(self, job_id: str) -> list[tuple]: ...
-
-
-def journal_for(location: str, cell: str | None, resolve=Path) -> JournalBackend:
-    """The journal the cell file's ``journal:`` names: a ``postgresql://`` URL, else a
-    SQLite file (``resolve`` turns the written path into a file path)."""
-    if location.startswith(POSTGRES_SCHEMES):
-        from cellrunner.execution.journal_postgres import PostgresJournal
-
-        return PostgresJournal(location, cell)
-    return SqliteJournal(resolve(location), cell)
-
-
-def cell_journal(cell, *, all_cells: bool = False) -> JournalBackend:
-    """The journal of a loaded cell (``LoadedCell``); ``all_cells`` reads every cell's jobs."""
-    return journal_for(cell.cell.journal, None if all_cells else cell.cell.cell, cell.resolve)
 
 
 def is_database_url(location: str) -> bool:

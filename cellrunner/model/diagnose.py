@@ -165,3 +165,9 @@ def _clean(loc: tuple) -> tuple:
     return tuple(
         p for p in loc if isinstance(p, int) or ("[" not in str(p) and "function-" not in str(p))
     )
+
+
+def unknown_name(what: str, name: Any, known) -> str:
+    """``unknown frame 'x' (did you mean 'y'?); known: ...``"""
+    known = list(known)
+    return f"unknown {what} {name!r}{did_you_mean(name, known)}; known: {known_list(known)}"

@@ -8,7 +8,6 @@ planning and execution work from one list of :class:`Step` objects.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -16,8 +15,16 @@ import numpy as np
 from cellrunner.errors import InputError
 from cellrunner.model import geometry
 from cellrunner.model.cell import Cell
-from cellrunner.model.force_steps import FORCE_KINDS
+from cellrunner.model.frames import frame_pose
 from cellrunner.model.load import LoadedTask, StepSpec
+from cellrunner.model.step import (
+    LINEAR_KINDS,
+    MOTION_KINDS,
+    PLANNED_KINDS,
+    RetryPlan,
+    Step,
+    StepKind,
+)
 from cellrunner.model.task import (
     ApproachArgs,
     DistanceArgs,
@@ -27,68 +34,7 @@ from cellrunner.model.task import (
     Pattern,
     TaskFile,
 )
-
-MOTION_KINDS = ("move", "approach", "descend", "linear", "lift", "retreat", *FORCE_KINDS)
-PLANNED_KINDS = ("move", "approach")  # collision-free planned joint moves
-LINEAR_KINDS = ("descend", "linear", "lift", "retreat", *FORCE_KINDS)  # straight TCP lines
-
-
-@dataclass(frozen=True)
-class RetryPlan:
-    """What a grip does when its confirmation fails: run ``between``, then redo the steps
-    from ``redo_from`` (1-based expanded index), at most ``attempts`` times in all."""
-
-    attempts: int
-    between: tuple[Step, ...]
-    redo_from: int
-
-
-@dataclass(frozen=True, eq=False)
-class Step:
-    """One expanded primitive step.
-
-    ``T_world_tcp`` is the goal pose of the TCP for frame targets (approach point for
-    ``approach``); ``q_goal_deg`` for joint targets (``home`` included); both None for
-    relative motions (lift, retreat) and non-motion steps.
-    """
-
-    index: int
-    kind: str
-    name: str
-    args: Any
-    file_path: tuple
-    macro: str | None = None
-    T_world_tcp: np.ndarray | None = None
-    q_goal_deg: tuple[float, ...] | None = None
-    retry: RetryPlan | None = None
-    extra: dict = field(default_factory=dict)
-
-    @property
-    def is_motion(self) -> bool:
-        return self.kind in MOTION_KINDS
-
-    @property
-    def label(self) -> str:
-        """``step 5 approach 'far_away'``, as messages name a step."""
-        return (
-            f"step {self.index} {self.kind} {self.name!r}"
-            if self.name != self.kind
-            else f"step {self.index} {self.kind}"
-        )
-
-
-def frame_pose(cell: Cell, name: str) -> np.ndarray:
-    """T_world_frame of a named frame, following parents up to the world."""
-    T = np.eye(4)
-    seen = set()
-    while name != "world":
-        if name in seen or name not in cell.frames:
-            raise KeyError(name)
-        seen.add(name)
-        frame = cell.frames[name]
-        T = frame.matrix() @ T
-        name = frame.parent
-    return T
+from cellrunner.model.tool_change import expand_change_tool
 
 
 def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, int | float | bool]:
@@ -151,8 +97,6 @@ class _Builder:
         elif kind == "place":
             self._place(spec, args)
         elif kind == "change_tool":
-            from cellrunner.model.tool_change import expand_change_tool
-
             self.tool = expand_change_tool(self, spec, self.tool)
         else:
             self.steps.append(self.primitive(kind, args, spec.path, self._next()))
@@ -348,6 +292,7 @@ __all__ = [
     "GripArgs",
     "RetryPlan",
     "Step",
+    "StepKind",
     "box_params",
     "expand",
     "expand_on_error",

@@ -16,11 +16,12 @@ from pydantic import ValidationError
 
 from cellrunner.errors import Diagnostic, InputError
 from cellrunner.model.cell import Cell
-from cellrunner.model.diagnose import diagnostics_of, did_you_mean, dotted, known_list
+from cellrunner.model.checks import check_io_name, check_radians
+from cellrunner.model.diagnose import diagnostics_of, dotted, known_list, unknown_name
+from cellrunner.model.references import check_task_references
 from cellrunner.model.robots import robot_spec
 from cellrunner.model.source import PathKey, Source, load_yaml
 from cellrunner.model.task import MACROS, STEP_MODELS, TaskFile, widen_step_args
-from cellrunner.model.units import looks_like_radians
 
 _CHANNEL = re.compile(r"^(DO|CO|TO|AO|DI|CI|TI|AI)(\d+)$")
 _CHANNEL_COUNT = {"DO": 8, "CO": 8, "TO": 2, "AO": 2, "DI": 8, "CI": 8, "TI": 2, "AI": 2}
@@ -163,7 +164,7 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     cell, spec = loaded.cell, loaded.spec
     raw = loaded.source.data
     _check_limits(cell, spec, report)
-    _check_radians(raw, ("robot", "home"), report)
+    check_radians(raw, ("robot", "home"), report)
     for i, (lo, hi, q) in enumerate(
         zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home, strict=False)
     ):
@@ -198,7 +199,7 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     check_sim_block(cell, report)
     for i, part in enumerate(cell.parts):
         if part.at not in cell.frames:
-            report.error(("parts", i, "at"), _unknown("frame", part.at, cell.frames))
+            report.error(("parts", i, "at"), unknown_name("frame", part.at, cell.frames))
     from cellrunner.model import sanity
 
     sanity.check_cell(loaded, report)
@@ -220,11 +221,6 @@ def serve_file_warnings(loaded: LoadedCell) -> list[Diagnostic]:
             f"users file {opcua.users!r} does not exist yet; create it with 'cellrunner users add'",
         )
     return report.warnings
-
-
-def _unknown(what: str, name: Any, known) -> str:
-    known = list(known)
-    return f"unknown {what} {name!r}{did_you_mean(name, known)}; known: {known_list(known)}"
 
 
 def _check_limits(cell: Cell, spec, report: Report) -> None:
@@ -281,27 +277,6 @@ def _joint(i: int) -> str:
     return JOINT_NAMES[i]
 
 
-def _check_radians(raw: Any, path: PathKey, report: Report) -> None:
-    value = raw
-    for part in path:
-        if not isinstance(value, (dict, list)):
-            return
-        try:
-            value = value[part]
-        except (KeyError, IndexError, TypeError):
-            return
-    if (
-        isinstance(value, list)
-        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-        and looks_like_radians([float(v) for v in value])
-    ):
-        report.warn(
-            path,
-            f"{value} looks like radians; angles are in degrees "
-            "(write e.g. '1.57 rad' if you mean radians)",
-        )
-
-
 def _check_io(cell: Cell, report: Report) -> None:
     used: dict[str, str] = {}
     for side, table in (("outputs", cell.io.outputs), ("inputs", cell.io.inputs)):
@@ -336,24 +311,6 @@ def _check_io(cell: Cell, report: Report) -> None:
         report.error(
             ("io", "inputs", name), f"name {name!r} is both an output and an input", at_key=True
         )
-
-
-def check_io_name(
-    cell: Cell, name: str, side: str, path: PathKey, report: Report, at_key: bool = False
-) -> None:
-    """Report ``name`` unless it is a known IO of ``side`` ('inputs' or 'outputs')."""
-    table = getattr(cell.io, side)
-    if name in table:
-        return
-    other = "outputs" if side == "inputs" else "inputs"
-    if name in getattr(cell.io, other):
-        report.error(
-            path,
-            f"{name!r} is an {other[:-1]}, not an {side[:-1]}; known {side}: {known_list(table)}",
-            at_key=at_key,
-        )
-    else:
-        report.error(path, _unknown(side[:-1], name, table), at_key=at_key)
 
 
 def _tools(cell: Cell) -> list[tuple[PathKey, Any]]:
@@ -408,7 +365,7 @@ def _check_tool_names(cell: Cell, raw: Any, report: Report) -> None:
                 f"known: {known_list(names)}",
             )
         elif cell.robot.tool not in cell.tools:
-            report.error(("robot", "tool"), _unknown("tool", cell.robot.tool, names))
+            report.error(("robot", "tool"), unknown_name("tool", cell.robot.tool, names))
     elif cell.robot.tool is not None:
         report.error(
             ("robot", "tool"),
@@ -424,9 +381,9 @@ def _check_tool_names(cell: Cell, raw: Any, report: Report) -> None:
         check_io_name(cell, changer.locked, "inputs", base + ("locked",), report)
     for name, frame in changer.rack.items():
         if name not in cell.tools:
-            report.error(base + ("rack", name), _unknown("tool", name, names), at_key=True)
+            report.error(base + ("rack", name), unknown_name("tool", name, names), at_key=True)
         if frame not in cell.frames:
-            report.error(base + ("rack", name), _unknown("frame", frame, cell.frames))
+            report.error(base + ("rack", name), unknown_name("frame", frame, cell.frames))
     missing = [n for n in names if n not in changer.rack]
     if missing:
         report.error(
@@ -458,7 +415,7 @@ def _check_frames(cell: Cell, report: Report) -> None:
         if frame.parent != "world" and frame.parent not in cell.frames:
             report.error(
                 ("frames", name, "parent"),
-                _unknown("parent frame", frame.parent, ["world", *cell.frames]),
+                unknown_name("parent frame", frame.parent, ["world", *cell.frames]),
             )
             continue
         seen, cur = {name}, frame.parent
@@ -471,7 +428,7 @@ def _check_frames(cell: Cell, report: Report) -> None:
                 break
             seen.add(cur)
             cur = cell.frames[cur].parent
-        _check_radians(report.source.data, ("frames", name, "rpy"), report)
+        check_radians(report.source.data, ("frames", name, "rpy"), report)
 
 
 def _check_cameras(cell: Cell, report: Report) -> None:
@@ -485,10 +442,11 @@ def _check_cameras(cell: Cell, report: Report) -> None:
         )
     for name, camera in cell.cameras.items():
         if camera.mount not in known:
-            report.error(("cameras", name, "mount"), _unknown("mount", camera.mount, known))
+            report.error(("cameras", name, "mount"), unknown_name("mount", camera.mount, known))
         if camera.board is not None and camera.board.mount not in known:
             report.error(
-                ("cameras", name, "board", "mount"), _unknown("mount", camera.board.mount, known)
+                ("cameras", name, "board", "mount"),
+                unknown_name("mount", camera.board.mount, known),
             )
 
 
@@ -519,8 +477,6 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
     )
     loaded = LoadedTask(header, path, source, steps, report.warnings, on_error)
     if not report.errors:
-        from cellrunner.model.references import check_task_references
-
         check_task_references(loaded, cell, report)
         from cellrunner.model import sanity
 
@@ -564,7 +520,7 @@ def _parse_step(
                 else " (pick and place cannot be nested)"
             )
         )
-        report.error(path + (kind,), _unknown("step", kind, known) + hint, at_key=True)
+        report.error(path + (kind,), unknown_name("step", kind, known) + hint, at_key=True)
         return None
     model = STEP_MODELS[kind]
     raw = widen_step_args(kind, args)

@@ -17,13 +17,13 @@ from __future__ import annotations
 import numpy as np
 
 from cellrunner.model import geometry
+from cellrunner.model.frames import frame_pose
+from cellrunner.model.step import Step
 from cellrunner.model.task import ApproachArgs, DistanceArgs, GripArgs, LinearArgs
 
 
 def expand_change_tool(builder, spec, current: str | None) -> str | None:
     """Append the steps of ``spec`` (a change_tool) to ``builder``; return the new tool."""
-    from cellrunner.model.expand import Step, frame_pose
-
     cell = builder.cell
     target = spec.args.tool
     if target == current:

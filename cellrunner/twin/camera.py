@@ -101,7 +101,7 @@ class CameraServer:
             return f"error unknown camera {name!r}; known: {known}\n".encode()
         try:
             if name not in imagers:
-                from cellrunner.backends.sim.cameras import CameraImager
+                from cellrunner.sim.cameras import CameraImager
 
                 imagers[name] = CameraImager(self.physics.world.model, self.cameras[name])
             image = imagers[name].image(self.physics.snapshot_qpos())

@@ -35,7 +35,7 @@ class MujocoPhysics:
     """The MuJoCo twin of a cell as the virtual controller's physics."""
 
     def __init__(self, description):
-        from cellrunner.backends.sim.world import SimWorld
+        from cellrunner.sim.world import SimWorld
 
         self.description = description
         self.world = SimWorld(description)

@@ -83,3 +83,14 @@ def test_singularity_distances_name_the_wrist():
     assert (
         kin.singularity_distance(np.radians([0, -90, 90, -90, -90, 0])).violation(3.0, 0.02) is None
     )
+
+
+@pytest.mark.parametrize("model", sorted(ROBOTS))
+def test_batched_tcp_positions_match_pinocchio_fk_per_sample(model):
+    """The vectorized FK the verifier and the TCP cap use is the same FK, sample by sample."""
+    kin = ArmKinematics(ROBOTS[model], MOUNT, TCP)
+    q = np.random.default_rng(3).uniform(-6.2, 6.2, (300, 6))
+    batched = kin.p_world_tcp_many(q)
+    assert batched.shape == (300, 3)
+    assert np.abs(batched - [kin.p_world_tcp(qi) for qi in q]).max() < 1e-12
+    assert np.allclose(kin.p_world_tcp_many(q[0]), kin.p_world_tcp(q[0]), atol=1e-12)

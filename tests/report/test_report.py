@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cellrunner.backends.sim._mj import load_mujoco
-from cellrunner.backends.sim.render import CameraView, CellRenderer
 from cellrunner.model.geometry import Box, Placed, pose_matrix
 from cellrunner.report.plots import free_offset, merged_labels
 from cellrunner.report.views import choose_shots, occluders, project
+from cellrunner.sim._mj import load_mujoco
+from cellrunner.sim.render import CameraView, CellRenderer
 from tests.conftest import GL_BACKEND, ROOT
 
 load_mujoco()
@@ -79,8 +79,8 @@ def test_step_labels_at_one_spot_are_merged_and_boxes_never_overlap():
     GL_BACKEND is None, reason="needs an offscreen GL backend (scripts/test installs libosmesa6)"
 )
 def test_projection_lands_on_the_rendered_part():
-    from cellrunner.backends.sim import demo
     from cellrunner.backends.sim.backend import SimBackend
+    from cellrunner.sim import demo
 
     backend = SimBackend(demo.demo_description())
     backend.connect()

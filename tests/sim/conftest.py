@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cellrunner.backends.sim import demo
-from cellrunner.backends.sim._mj import load_mujoco
 from cellrunner.backends.sim.backend import SimBackend
-from cellrunner.backends.sim.description import TwinDescription, dh_forward
 from cellrunner.model.trajectory import approve
+from cellrunner.sim import demo
+from cellrunner.sim._mj import load_mujoco
+from cellrunner.sim.description import TwinDescription, dh_forward
 
 # Import MuJoCo the package's way first (the root conftest chose its GL backend already).
 load_mujoco()

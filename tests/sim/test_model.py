@@ -8,17 +8,17 @@ import sys
 import numpy as np
 import pytest
 
-from cellrunner.backends.sim import demo
-from cellrunner.backends.sim.description import (
+from cellrunner.model.geometry import Box, Mesh, pose_matrix
+from cellrunner.model.robots import JOINT_NAMES, ROBOTS
+from cellrunner.sim import demo
+from cellrunner.sim.description import (
     GripperDescription,
     PartDescription,
     TwinDescription,
     dh_forward,
 )
-from cellrunner.backends.sim.mjcf import build_mjcf, compile_model
-from cellrunner.backends.sim.world import SimWorld
-from cellrunner.model.geometry import Box, Mesh, pose_matrix
-from cellrunner.model.robots import JOINT_NAMES, ROBOTS
+from cellrunner.sim.mjcf import build_mjcf, compile_model
+from cellrunner.sim.world import SimWorld
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -105,7 +105,7 @@ def test_wrist_reads_zero_at_rest_in_any_pose_payload_compensated() -> None:
 
 def test_importing_the_package_does_not_import_mujoco() -> None:
     code = (
-        "import sys, cellrunner.backends.sim.backend, cellrunner.backends.sim.render; "
+        "import sys, cellrunner.backends.sim.backend, cellrunner.sim.render; "
         "print('mujoco' in sys.modules)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

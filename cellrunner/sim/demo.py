@@ -10,15 +10,15 @@ import math
 
 import numpy as np
 
-from cellrunner.backends.sim.description import (
+from cellrunner.model.geometry import Box, Cylinder, Placed, invert, pose_matrix
+from cellrunner.model.robots import robot_spec
+from cellrunner.model.trajectory import Trajectory
+from cellrunner.sim.description import (
     GripperDescription,
     PartDescription,
     TwinDescription,
     dh_forward,
 )
-from cellrunner.model.geometry import Box, Cylinder, Placed, invert, pose_matrix
-from cellrunner.model.robots import robot_spec
-from cellrunner.model.trajectory import Trajectory
 
 TABLE_TOP_Z_M = 0.90
 CUBE_XYZ_M = (0.45, -0.35, 0.925)

@@ -109,12 +109,10 @@ class TwinDescription:
     io_outputs: tuple[str, ...] = ("DO0",)
     io_inputs: tuple[str, ...] = ("DI0",)
     presence_sensors: tuple[PresenceSensor, ...] = ()
-    vacuum: Any = None  # a VacuumDescription (backends.sim.vacuum) for a suction gripper
-    tool_changer: Any = (
-        None  # a ToolChangerDescription (backends.sim.tool_changer) for several tools
-    )
+    vacuum: Any = None  # a VacuumDescription (sim.vacuum) for a suction gripper
+    tool_changer: Any = None  # a ToolChangerDescription (sim.tool_changer) for several tools
     input_rules: tuple = ()  # InputRuleDescription: inputs the cell's sim: block drives
-    cameras: tuple = ()  # CameraDescription (backends.sim.cameras): cameras and their boards
+    cameras: tuple = ()  # CameraDescription (sim.cameras): cameras and their boards
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"

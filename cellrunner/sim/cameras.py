@@ -107,7 +107,7 @@ def _png(grey: np.ndarray) -> bytes:
 def add_cameras(builder: Any, cameras: tuple[CameraDescription, ...]) -> None:
     """Add each camera, and each board as a textured slab, to the MJCF being built
     (world mounts in the worldbody, flange mounts in the ``tool`` body)."""
-    from cellrunner.backends.sim.mjcf import _fmt, _pose_attrs
+    from cellrunner.sim.mjcf import _fmt, _pose_attrs
 
     root = builder.root
     world = root.find("worldbody")
@@ -180,7 +180,7 @@ class CameraImager:
     thread, and ``close()`` it."""
 
     def __init__(self, model: Any, camera: CameraDescription):
-        from cellrunner.backends.sim._mj import load_mujoco
+        from cellrunner.sim._mj import load_mujoco
 
         self._mj = load_mujoco()
         self.model, self.camera = model, camera
@@ -191,7 +191,7 @@ class CameraImager:
         self._options.sitegroup[:] = 0  # sites (the TCP marker, sensors) are not physical
 
     def image(self, qpos: np.ndarray) -> np.ndarray:
-        from cellrunner.backends.sim.render import RenderUnavailable
+        from cellrunner.sim.render import RenderUnavailable
 
         if self._renderer is None:
             try:

@@ -36,10 +36,10 @@ from typing import Any
 
 import numpy as np
 
-from cellrunner.backends.sim._mj import load_mujoco
-from cellrunner.backends.sim.description import TwinDescription
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.robots import JOINT_NAMES
+from cellrunner.sim._mj import load_mujoco
+from cellrunner.sim.description import TwinDescription
 
 # Arm masses (kg) and joint torque limits (N m, base..wrist 3), datasheets / UR manuals.
 ARM_MASS_KG = {
@@ -294,11 +294,11 @@ class _Builder:
         for part in d.parts:
             self._part(world, part)
         if d.vacuum is not None and d.parts:
-            from cellrunner.backends.sim.vacuum import add_welds
+            from cellrunner.sim.vacuum import add_welds
 
             add_welds(self.root, d.parts)
         if d.cameras:
-            from cellrunner.backends.sim.cameras import add_cameras
+            from cellrunner.sim.cameras import add_cameras
 
             add_cameras(self, d.cameras)
         self._actuators_and_sensors()
@@ -386,7 +386,7 @@ class _Builder:
     def _mesh_pieces(self, parent: ET.Element, placed: Placed) -> bool:
         """A non-convex mesh fixture as one thin prism per triangle (see :mod:`.mesh_pieces`);
         False when the mesh is convex (or too big), to be built as usual."""
-        from cellrunner.backends.sim import mesh_pieces
+        from cellrunner.sim import mesh_pieces
 
         triangles = mesh_pieces.triangles_of(binary_stl(placed.shape.path), placed.shape.scale)
         if len(triangles) > mesh_pieces.MAX_TRIANGLES or mesh_pieces.is_convex(triangles):
@@ -499,12 +499,12 @@ class _Builder:
         if g is not None:
             self._gripper(tool, g)
         if d.vacuum is not None:
-            from cellrunner.backends.sim.vacuum import add_cups
+            from cellrunner.sim.vacuum import add_cups
 
             T = d.vacuum.T_flange_tcp if d.vacuum.T_flange_tcp is not None else d.T_flange_tcp
             add_cups(self, tool, d.vacuum, T, PADS, STATIC | PARTS)
         if d.tool_changer is not None:
-            from cellrunner.backends.sim.tool_changer import add_tools
+            from cellrunner.sim.tool_changer import add_tools
 
             add_tools(self, tool, self.root.find("worldbody"), d.tool_changer, TOOL, STATIC)
 
