@@ -119,7 +119,7 @@ def take_shots(
     """Move through ``views`` (then home) as a job on the arm at ``host``; the shots."""
     from cellrunner.backends.factory import make_backend
     from cellrunner.execution.cell import CellController
-    from cellrunner.execution.journal import cell_journal
+    from cellrunner.execution.journal_open import cell_journal
     from cellrunner.execution.loop import ControlLoop
     from cellrunner.execution.planner import job_planner
     from cellrunner.model.codes import ResultCode
