@@ -23,7 +23,22 @@ from cellrunner.model.units import (
     Speed,
 )
 
-RobotModel = Literal["ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur16e"]
+RobotModel = Literal[
+    "ur3",
+    "ur5",
+    "ur10",
+    "ur3e",
+    "ur5e",
+    "ur7e",
+    "ur10e",
+    "ur12e",
+    "ur16e",
+    "ur15",
+    "ur18",
+    "ur20",
+    "ur30",
+    "ur8long",
+]
 assert set(RobotModel.__args__) == set(ROBOTS)  # type: ignore[attr-defined]
 
 Joints = Annotated[list[Angle], Field(min_length=6, max_length=6)]
@@ -59,6 +74,14 @@ class Robot(Strict):
     """Home joint angles in degrees, base to wrist 3. Example: `[0, -90, 90, -90, -90, 0]`"""
     limits: Limits = Field(default_factory=Limits)
     """Motion limits plans may use. Example: `{joint_speed: 120, joint_accel: 300, tcp_speed: 1.0, margin: 0.95}`"""
+    joint_range: (
+        Annotated[
+            list[Annotated[list[Angle], Field(min_length=2, max_length=2)]],
+            Field(min_length=6, max_length=6),
+        ]
+        | None
+    ) = None
+    """Per-joint [min, max] in degrees, base to wrist 3, inside the arm's own ranges: narrows them (a cable that allows only +-180 deg on wrist 3, a safety joint limit); IK, planning, check and the twin keep to it. Example: `[[-180, 180], [-180, 0], [-160, 160], [-360, 360], [-360, 360], [-180, 180]]`"""
     tool: Name | None = None
     """With `tools:`, the tool mounted at start. Example: `jaws`"""
 

@@ -65,7 +65,8 @@ class LoadedCell:
 
     @property
     def spec(self):
-        return robot_spec(self.cell.robot.model)
+        """The arm with the cell's ``robot.joint_range`` applied (checked on loading)."""
+        return robot_spec(self.cell.robot.model).narrowed(self.cell.robot.joint_range)
 
     @property
     def root(self) -> Path:
@@ -161,16 +162,21 @@ def load_cell(path: str | Path) -> LoadedCell:
 
 
 def _check_cell(loaded: LoadedCell, report: Report) -> None:
-    cell, spec = loaded.cell, loaded.spec
+    cell, spec = loaded.cell, robot_spec(loaded.cell.robot.model)
     raw = loaded.source.data
     _check_limits(cell, spec, report)
     check_radians(raw, ("robot", "home"), report)
+    ranges_ok = _check_joint_range(cell, spec, report)
+    where = ""
+    if ranges_ok and cell.robot.joint_range is not None:
+        spec, where = loaded.spec, " (robot.joint_range)"
     for i, (lo, hi, q) in enumerate(
         zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home, strict=False)
     ):
         if not lo <= q <= hi:
             report.error(
-                ("robot", "home", i), f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]"
+                ("robot", "home", i),
+                f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]{where}",
             )
     for path, tool in _tools(cell):
         if tool.payload.mass > spec.payload_max_kg:
@@ -221,6 +227,31 @@ def serve_file_warnings(loaded: LoadedCell) -> list[Diagnostic]:
             f"users file {opcua.users!r} does not exist yet; create it with 'cellrunner users add'",
         )
     return report.warnings
+
+
+def _check_joint_range(cell: Cell, spec, report: Report) -> bool:
+    """``robot.joint_range``: each [min, max] with min < max inside the arm's own range.
+    True when there is none or every range is good."""
+    ranges = cell.robot.joint_range
+    if ranges is None:
+        return True
+    ok = True
+    for i, (lo, hi) in enumerate(ranges):
+        hw_lo, hw_hi = spec.joint_min_deg[i], spec.joint_max_deg[i]
+        if lo >= hi:
+            report.error(
+                ("robot", "joint_range", i),
+                f"joint {i + 1} range [{lo:g}, {hi:g}]: min must be below max",
+            )
+            ok = False
+        elif lo < hw_lo - 1e-9 or hi > hw_hi + 1e-9:
+            report.error(
+                ("robot", "joint_range", i),
+                f"joint {i + 1} range [{lo:g}, {hi:g}] is outside the {spec.label}'s "
+                f"[{hw_lo:g}, {hw_hi:g}] deg; joint_range can only narrow it",
+            )
+            ok = False
+    return ok
 
 
 def _check_limits(cell: Cell, spec, report: Report) -> None:

@@ -64,7 +64,7 @@ def check_cell(loaded, report) -> None:
     raw = loaded.source.data
     cell = loaded.cell
     spec = loaded.spec
-    model = spec.name.upper().replace("E", "e")
+    model = spec.label
     _vector(raw, ("robot", "mount", "xyz"), CELL_EXTENT_M, report, "the robot's mount")
     _vector(raw, ("tool", "tcp", "xyz"), TOOL_EXTENT_M, report, "a tool centre point offset")
     for i, _ in enumerate(cell.tool.geometry):
@@ -169,7 +169,7 @@ def check_task(loaded_task, cell, report) -> None:
     from cellrunner.model.robots import robot_spec
 
     spec = robot_spec(cell.cell.robot.model)
-    model = spec.name.upper().replace("E", "e")
+    model = spec.label
     steps = _get(loaded_task.source.data, ("steps",))
     if isinstance(steps, list):
         _walk(steps, ("steps",), spec, model, report)

@@ -267,7 +267,7 @@ class ArmKinematics:
         )
         p = T_base_flange[:3, 3]
         from_shoulder_m = float(np.linalg.norm(p - np.array([0.0, 0.0, self.spec.d_m[0]])))
-        model = self.spec.name.upper().replace("E", "e")
+        model = self.spec.label
         if from_shoulder_m > self.spec.reach_m:
             mm = from_shoulder_m / 1000
             hint = (
