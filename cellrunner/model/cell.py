@@ -8,6 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from cellrunner.model.base import Name, PlacedShape, Pose, Shaped, Strict, Vec3
+from cellrunner.model.camera import Camera
 from cellrunner.model.robots import ROBOTS
 from cellrunner.model.sim_inputs import SimBlock
 from cellrunner.model.units import (
@@ -294,6 +295,8 @@ class Cell(Strict):
     """How far a placed part may end from its target in the twin before the place fails (3). Example: `{distance: 0.005, angle: 5}`"""
     sim: SimBlock | None = None
     """Inputs the twin drives in rehearsal (dry-run and twin). Example: `{inputs: {part_present: {part_at: infeed}}}`"""
+    cameras: dict[Name, Camera] = Field(default_factory=dict)
+    """Cameras by name: intrinsics, image size, mount (world, a frame, flange) and pose, calibration board. Example: `{top: {intrinsics: {fx: 600, fy: 600, cx: 320, cy: 240}, image_size: [640, 480], pose: {xyz: [0.6, 0, 1.6], rpy: [180, 0, 90]}}}`"""
 
     @model_validator(mode="before")
     @classmethod

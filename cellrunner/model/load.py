@@ -196,6 +196,7 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     _check_tool_names(cell, raw, report)
     _check_names(cell, report)
     _check_frames(cell, report)
+    _check_cameras(cell, report)
     for i, fixture in enumerate(cell.fixtures):
         if fixture.mesh is not None:
             f = loaded.resolve(fixture.mesh.file)
@@ -468,6 +469,25 @@ def _check_frames(cell: Cell, report: Report) -> None:
             seen.add(cur)
             cur = cell.frames[cur].parent
         check_radians(report.source.data, ("frames", name, "rpy"), report)
+
+
+def _check_cameras(cell: Cell, report: Report) -> None:
+    """Camera and board mounts name world, flange or a frame; a frame cannot be 'flange'."""
+    known = ["world", "flange", *cell.frames]
+    if "flange" in cell.frames:
+        report.error(
+            ("frames", "flange"),
+            "'flange' is reserved (camera mounts) and cannot name a frame",
+            at_key=True,
+        )
+    for name, camera in cell.cameras.items():
+        if camera.mount not in known:
+            report.error(("cameras", name, "mount"), unknown_name("mount", camera.mount, known))
+        if camera.board is not None and camera.board.mount not in known:
+            report.error(
+                ("cameras", name, "board", "mount"),
+                unknown_name("mount", camera.board.mount, known),
+            )
 
 
 # ---------------------------------------------------------------------------- task

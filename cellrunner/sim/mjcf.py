@@ -313,6 +313,10 @@ class _Builder:
             from cellrunner.sim.vacuum import add_welds
 
             add_welds(self.root, d.parts)
+        if d.cameras:
+            from cellrunner.sim.cameras import add_cameras
+
+            add_cameras(self, d.cameras)
         self._actuators_and_sensors()
         ET.indent(self.root)
         return ET.tostring(self.root, encoding="unicode")
