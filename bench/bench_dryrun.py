@@ -24,13 +24,13 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from cellrunner.backends.sim.backend import SimBackend  # noqa: E402
-from cellrunner.backends.sim.from_cell import description_of  # noqa: E402
 from cellrunner.execution.cell import CellController  # noqa: E402
 from cellrunner.execution.journal import Journal  # noqa: E402
 from cellrunner.execution.loop import ControlLoop  # noqa: E402
 from cellrunner.execution.planner import job_planner  # noqa: E402
 from cellrunner.model.load import load_cell, load_task  # noqa: E402
 from cellrunner.planning.world import CellWorld  # noqa: E402
+from cellrunner.sim.from_cell import description_of  # noqa: E402
 
 CASES = [
     ("demo UR5e pick/place slot 0", "cells/demo_ur5e.yaml", "tasks/pick_place.yaml", {"slot": 0}),

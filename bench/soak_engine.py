@@ -16,13 +16,13 @@ import time
 from pathlib import Path
 
 from cellrunner.backends.sim.backend import SimBackend
-from cellrunner.backends.sim.from_cell import description_of
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.planning.world import CellWorld
+from cellrunner.sim.from_cell import description_of
 
 ROOT = Path(__file__).resolve().parent.parent
 FAULTS = ("grip_miss", "part_slip", "protective_stop", "estop", "robot_disconnect")

@@ -16,7 +16,7 @@ def make_backend(cell: LoadedCell, kind: str, host: str | None = None, **kw):
     """The backend for ``cell``: ``sim`` (the MuJoCo twin in-process) or ``ur``."""
     if kind == "sim":
         from cellrunner.backends.sim.backend import SimBackend
-        from cellrunner.backends.sim.from_cell import description_of
+        from cellrunner.sim.from_cell import description_of
 
         return SimBackend(description_of(cell), **kw)
     if kind == "ur":

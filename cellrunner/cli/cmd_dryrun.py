@@ -47,12 +47,12 @@ def run(args) -> int:
     steps = expanded(cell, task, params)
     injections = parse_injections(args.inject, steps)
     if args.report:
-        from cellrunner.backends.sim._mj import enable_pictures
+        from cellrunner.sim._mj import enable_pictures
 
         enable_pictures()  # before MuJoCo is imported: it reads its GL backend once
     from cellrunner.backends.sim.backend import SimBackend
-    from cellrunner.backends.sim.from_cell import description_of
     from cellrunner.planning.world import CellWorld
+    from cellrunner.sim.from_cell import description_of
 
     world = CellWorld(cell)
     backend = SimBackend(description_of(cell))
@@ -60,7 +60,7 @@ def run(args) -> int:
     report = Path(args.report) if args.report else None
     recorder = RunRecorder()
 
-    def on_step_start(step, attempt):
+    def on_step_start(step, attempt) -> None:
         now = backend.read_state().time_s
         recorder.mark(now, step)
         for inj in injections:
@@ -189,7 +189,7 @@ def run(args) -> int:
         if report is not None:
             out.print(f"report written to {report}/index.html", markup=False)
     if not has_pictures:
-        from cellrunner.backends.sim._mj import GL_ADVICE
+        from cellrunner.sim._mj import GL_ADVICE
 
         out.print(
             f"no pictures in the report: no OpenGL backend here ({GL_ADVICE} gives one)",

@@ -8,15 +8,24 @@ so an editor checks ARGS against that kind alone and names it in its message.
 
 from __future__ import annotations
 
+import ast
+import functools
+import inspect
 import json
 import re
-from typing import Any, Optional
+import sys
+from typing import Any
 
-from pydantic import TypeAdapter
+from pydantic import BaseModel, TypeAdapter
+from pydantic.json_schema import GenerateJsonSchema, JsonSchemaValue
+from pydantic_core import core_schema
 
 from cellrunner.model.cell import Cell
 from cellrunner.model.task import MACROS, STEP_MODELS, Target, TaskFile
 from cellrunner.model.units import NonNegativeLength, PositiveLength
+
+#: a JSON Schema document (or part of one)
+JsonDict = dict[str, Any]
 
 _SHORT_FORMS: dict[str, Any] = {
     "move": Target,
@@ -96,15 +105,15 @@ STEP_HELP: dict[str, tuple[str, Any]] = {
 }
 
 
-def _steps_schema(defs: dict, allow_macros: bool = True) -> dict:
+def _steps_schema(defs: JsonDict, allow_macros: bool = True) -> JsonDict:
     """A list of steps: each a one-key mapping ``{KIND: ARGS}`` whose key names the step
     (the discriminator: an editor validates ARGS against that kind's schema alone and
     lists the known kinds for an unknown one), or a bare ``grip``/``release``."""
-    kinds: dict[str, dict] = {}
+    kinds: dict[str, JsonDict] = {}
     for kind, model in STEP_MODELS.items():
         if not allow_macros and kind in MACROS:
             continue
-        args = _json_schema(Optional[model] if kind in _BARE else model, defs)
+        args = _json_schema(model | None if kind in _BARE else model, defs)
         if kind in _SHORT_FORMS:  # the mapping form, else the short form: errors name the one meant
             args = {
                 "if": {"type": "object"},
@@ -132,8 +141,62 @@ def _steps_schema(defs: dict, allow_macros: bool = True) -> dict:
     return {"type": "array", "items": {"if": {"type": "string"}, "then": bare, "else": step}}
 
 
-def _json_schema(value_type: Any, defs: dict) -> dict:
-    schema = _offset_short_form(_with_examples(TypeAdapter(value_type).json_schema()))
+class _WithFieldDocstrings(GenerateJsonSchema):
+    """Pydantic's schema with each field's docstring as its description, as
+    ``use_attribute_docstrings`` would give; read here, when a schema is asked for, rather
+    than at every model class's creation (that parse cost every command ~45 ms at start)."""
+
+    def model_schema(self, schema: core_schema.ModelSchema) -> JsonSchemaValue:
+        json_schema = super().model_schema(schema)
+        cls = schema["cls"]
+        properties = json_schema.get("properties", {})
+        for name, field in cls.model_fields.items():
+            doc = field_docstring(cls, name)
+            key = field.alias if field.alias is not None else name
+            if doc is not None and field.description is None and key in properties:
+                properties[key]["description"] = doc
+        return json_schema
+
+
+def field_docstring(cls: type[BaseModel], name: str) -> str | None:
+    """The docstring written under field ``name`` in ``cls`` or the first base that
+    declares it (cleaned as ``inspect.cleandoc``), or None."""
+    for base in cls.__mro__:
+        if name in getattr(base, "__annotations__", {}):
+            return _module_docstrings(base.__module__).get(base.__qualname__, {}).get(name)
+    return None
+
+
+@functools.cache
+def _module_docstrings(module: str) -> dict[str, dict[str, str]]:
+    """{class qualname: {field: docstring}} of the classes in ``module``'s source."""
+    found: dict[str, dict[str, str]] = {}
+
+    def visit(body: list[ast.stmt], prefix: str) -> None:
+        for node in body:
+            if not isinstance(node, ast.ClassDef):
+                continue
+            qualname = f"{prefix}{node.name}"
+            docs = found.setdefault(qualname, {})
+            for stmt, after in zip(node.body, [*node.body[1:], None], strict=True):
+                if (
+                    isinstance(stmt, ast.AnnAssign)
+                    and isinstance(stmt.target, ast.Name)
+                    and isinstance(after, ast.Expr)
+                    and isinstance(after.value, ast.Constant)
+                    and isinstance(after.value.value, str)
+                ):
+                    docs[stmt.target.id] = inspect.cleandoc(after.value.value)
+            visit(node.body, f"{qualname}.")
+
+    visit(ast.parse(inspect.getsource(sys.modules[module])).body, "")
+    return found
+
+
+def _json_schema(value_type: Any, defs: JsonDict) -> JsonDict:
+    schema: JsonDict = _offset_short_form(
+        _with_examples(TypeAdapter(value_type).json_schema(schema_generator=_WithFieldDocstrings))
+    )
     defs.update(schema.pop("$defs", {}))
     return schema
 
@@ -184,15 +247,17 @@ def _offset_short_form(node: Any) -> Any:
 _EXAMPLE = re.compile(r"\s*Example: `([^`]+)`\s*$")
 
 
-def cell_schema() -> dict:
-    schema = _with_examples(Cell.model_json_schema())
+def cell_schema() -> JsonDict:
+    schema: JsonDict = _with_examples(Cell.model_json_schema(schema_generator=_WithFieldDocstrings))
     schema["$schema"] = DRAFT
     schema["title"] = "cellrunner cell file"
     return schema
 
 
-def task_schema() -> dict:
-    schema = _offset_short_form(_with_examples(TaskFile.model_json_schema()))
+def task_schema() -> JsonDict:
+    schema: JsonDict = _offset_short_form(
+        _with_examples(TaskFile.model_json_schema(schema_generator=_WithFieldDocstrings))
+    )
     defs = schema.setdefault("$defs", {})
     steps = schema["properties"]["steps"]
     schema["properties"]["steps"] = {

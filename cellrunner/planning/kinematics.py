@@ -89,7 +89,7 @@ def _dh_link(d: float, a: float, alpha: float) -> pin.SE3:
 class ArmKinematics:
     """Kinematics of one UR arm mounted at ``T_world_base`` carrying a tool ``T_flange_tcp``."""
 
-    def __init__(self, spec: RobotSpec, T_world_base: np.ndarray, T_flange_tcp: np.ndarray):
+    def __init__(self, spec: RobotSpec, T_world_base: np.ndarray, T_flange_tcp: np.ndarray) -> None:
         self.spec = spec
         self.T_world_base = np.array(T_world_base, dtype=float)
         self.T_flange_tcp = np.array(T_flange_tcp, dtype=float)
@@ -150,16 +150,21 @@ class ArmKinematics:
         """TCP positions in the world (N x 3) for configurations ``q_rad`` (N x 6), computed
         for all N at once (the joint chain as arrays of rotations)."""
         q = np.asarray(q_rad, dtype=float).reshape(-1, 6)
-        R = np.broadcast_to(np.eye(3), (len(q), 3, 3)).copy()
-        p = np.zeros((len(q), 3))
+        n = len(q)
+        R = np.empty((n, 3, 3))
+        R[:] = np.eye(3)
+        p = np.zeros((n, 3))
+        cos, sin = np.cos(q), np.sin(q)
+        # (n, 3, 3) @ (3, 3) as one (3n, 3) product: numpy's broadcast matmul of small
+        # matrices loops per sample (4x slower on 1000 samples, measured)
         for j, (R_link, p_link) in enumerate(self._chain):
-            p += R @ p_link
-            R = R @ R_link
-            c, s = np.cos(q[:, j])[:, None], np.sin(q[:, j])[:, None]
-            x, y = R[:, :, 0].copy(), R[:, :, 1]
+            p += (R.reshape(-1, 3) @ p_link).reshape(n, 3)
+            R = (R.reshape(-1, 3) @ R_link).reshape(n, 3, 3)
+            c, s = cos[:, j, None], sin[:, j, None]
+            x, y = R[:, :, 0].copy(), R[:, :, 1].copy()
             R[:, :, 0] = c * x + s * y  # R @ Rz(q_j)
             R[:, :, 1] = c * y - s * x
-        return p + R @ self._p_joint6_tcp
+        return p + (R.reshape(-1, 3) @ self._p_joint6_tcp).reshape(n, 3)
 
     @functools.cached_property
     def _chain(self) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -262,7 +267,7 @@ class ArmKinematics:
         )
         p = T_base_flange[:3, 3]
         from_shoulder_m = float(np.linalg.norm(p - np.array([0.0, 0.0, self.spec.d_m[0]])))
-        model = self.spec.name.upper().replace("E", "e")
+        model = self.spec.label
         if from_shoulder_m > self.spec.reach_m:
             mm = from_shoulder_m / 1000
             hint = (
@@ -309,9 +314,10 @@ class ArmKinematics:
             base = q_raw[i] + 2 * math.pi * round((q_near[i] - q_raw[i]) / (2 * math.pi))
             for k in (0, -1, 1, -2, 2):
                 cand = base + 2 * math.pi * k
-                if self.q_min_rad[i] - 1e-9 <= cand <= self.q_max_rad[i] + 1e-9:
-                    if best is None or abs(cand - q_near[i]) < abs(best - q_near[i]):
-                        best = cand
+                if self.q_min_rad[i] - 1e-9 <= cand <= self.q_max_rad[i] + 1e-9 and (
+                    best is None or abs(cand - q_near[i]) < abs(best - q_near[i])
+                ):
+                    best = cand
             if best is None:
                 return None
             q[i] = min(max(best, self.q_min_rad[i]), self.q_max_rad[i])

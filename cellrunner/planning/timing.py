@@ -27,6 +27,7 @@ given a stand-in that imports the real pyplot on first use (:func:`_import_toppr
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -124,19 +125,21 @@ def sample_measures(
     rate_hz: float,
     rest_before: bool = True,
     rest_after: bool = True,
+    p_world_tcp_m: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Finite-difference joint speeds (rad/s), accelerations (rad/s^2) and TCP speeds (m/s)
     of samples taken every 1/rate_hz s; ``rest_before``/``rest_after`` pad with the robot
-    at rest on the first/last sample."""
+    at rest on the first/last sample. ``p_world_tcp_m``: the samples' TCP positions
+    (N x 3), when the caller has them already."""
     q = np.asarray(q_rad, float)
+    p = kin.p_world_tcp_many(q) if p_world_tcp_m is None else np.asarray(p_world_tcp_m, float)
     if rest_before:
-        q = np.vstack([q[:1], q])
+        q, p = np.vstack([q[:1], q]), np.vstack([p[:1], p])
     if rest_after:
-        q = np.vstack([q, q[-1:]])
+        q, p = np.vstack([q, q[-1:]]), np.vstack([p, p[-1:]])
     dt = 1.0 / rate_hz
     v = np.diff(q, axis=0) / dt
     a = np.diff(v, axis=0) / dt
-    p = kin.p_world_tcp_many(q)
     tcp = np.linalg.norm(np.diff(p, axis=0), axis=1) / dt
     return v, a, tcp
 
@@ -207,7 +210,7 @@ class _Problem:
         grid_points: int = 0,
         densify: bool = True,
         tightening: float = TOPPRA_TIGHTENING,
-    ):
+    ) -> None:
         ta = _import_toppra()
         self.wp, self.limits, self.tightening = wp, limits, tightening
         if densify:
@@ -255,7 +258,7 @@ class _Problem:
         class PathSpeedBound(constraint.LinearConstraint):
             """s_dot^2 <= x_max on each grid point (computed above for the whole grid)."""
 
-            def __init__(self):
+            def __init__(self) -> None:
                 super().__init__()
                 self.dof = len(alim)
 
@@ -292,7 +295,7 @@ class _Problem:
 def _resample(problem: _Problem, s_of_t, duration: float, scale: float, rate_hz: float):
     """Samples at ``t = k / rate_hz`` of the profile stretched by ``scale``, ending
     exactly on the last waypoint: (t, s, q)."""
-    n = max(1, int(math.ceil(duration * scale * rate_hz - 1e-9)))
+    n = max(1, math.ceil(duration * scale * rate_hz - 1e-9))
     t = np.arange(n + 1) / rate_hz
     tau = np.minimum(t * duration / (n / rate_hz), duration)
     s = s_of_t(tau)
@@ -399,8 +402,8 @@ def _densify(wp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     cumulative joint-space distance, and that of the original waypoints."""
     points, s_points, s_wp = [wp[0]], [0.0], [0.0]
     s = 0.0
-    for a, b in zip(wp[:-1], wp[1:]):
-        n = max(1, int(math.ceil(np.abs(b - a).max() / DENSIFY_STEP_RAD)))
+    for a, b in itertools.pairwise(wp):
+        n = max(1, math.ceil(np.abs(b - a).max() / DENSIFY_STEP_RAD))
         length = float(np.linalg.norm(b - a))
         for k in range(1, n + 1):
             points.append(a + (b - a) * k / n)

@@ -73,9 +73,11 @@ def verify_trajectory(
     above = q > kinematics.q_max_rad + 1e-12
     if below.any() or above.any():
         k, i = np.argwhere(below | above)[0]
+        source = "robot.joint_range" if kinematics.spec.joint_range_narrowed else "the controller's"
         raise fail(
-            f"{JOINT_NAMES[i]} at {np.degrees(q[k, i]):.1f} deg outside its limits "
-            f"[{np.degrees(kinematics.q_min_rad[i]):.0f}, {np.degrees(kinematics.q_max_rad[i]):.0f}] deg (sample {k})"
+            f"joint {i + 1} ({JOINT_NAMES[i]}) at {np.degrees(q[k, i]):.1f} deg is outside "
+            f"its range [{np.degrees(kinematics.q_min_rad[i]):.0f}, "
+            f"{np.degrees(kinematics.q_max_rad[i]):.0f}] deg ({source}) at sample {k}"
         )
 
     head = None
@@ -89,8 +91,14 @@ def verify_trajectory(
         if previous_moving and len(prev) >= 2:
             head = prev[-2:-1]
     padded = q if head is None else np.vstack([head, q])
+    p_tcp = kinematics.p_world_tcp_many(padded)  # for the TCP speed and the straightness
     v, a, tcp = sample_measures(
-        kinematics, padded, rate, rest_before=head is None, rest_after=ends_at_rest
+        kinematics,
+        padded,
+        rate,
+        rest_before=head is None,
+        rest_after=ends_at_rest,
+        p_world_tcp_m=p_tcp,
     )
     tol = 1 + RELATIVE_TOLERANCE
     for name, values, limit, unit, scale in (
@@ -108,7 +116,7 @@ def verify_trajectory(
         raise fail(f"TCP speed {tcp.max():.3f} m/s exceeds the cap {limits.tcp_speed_mps:.3f} m/s")
 
     if line_m is not None:
-        p = kinematics.p_world_tcp_many(q)
+        p = p_tcp if head is None else p_tcp[1:]
         off = distance_to_segment_m(p, np.asarray(line_m[0]), np.asarray(line_m[1]))
         if off.max() > STRAIGHTNESS_M:
             raise fail(

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cellrunner.backends.sim.render import CameraView, CellRenderer
 from cellrunner.report.plots import figure, free_offset, merged_labels, save, shape_points_world
+from cellrunner.sim.render import CameraView, CellRenderer
 
 #: azimuths tried for the 3/4 view (deg), the first wins ties: from the front left
 AZIMUTHS_DEG = (135.0, 45.0, 225.0, 315.0, 90.0, 180.0, 270.0, 0.0)

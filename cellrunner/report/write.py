@@ -133,8 +133,8 @@ def _render_views(
 ) -> tuple[list[tuple[str, str]], list[str]]:
     """Top and 3/4 views at the end, and the 3/4 view at the recorded moments (grip,
     release); returns (file, caption) pairs and notes (why there are none)."""
-    from cellrunner.backends.sim.render import RenderUnavailable
     from cellrunner.report.views import choose_shots, render_shot
+    from cellrunner.sim.render import RenderUnavailable
 
     if sim_world is None or not recorder.tcp:
         return [], []
@@ -185,7 +185,7 @@ def _render_views(
 
 def _pose(sim_world, qpos: np.ndarray) -> None:
     """Put the scene in a recorded pose for a picture (kinematics only; the run is over)."""
-    from cellrunner.backends.sim._mj import load_mujoco
+    from cellrunner.sim._mj import load_mujoco
 
     mujoco = load_mujoco()
     sim_world.data.qpos[:] = qpos

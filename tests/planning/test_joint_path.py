@@ -1,5 +1,7 @@
 """Joint paths: direct or searched, certified edges, rounded corners."""
 
+import itertools
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -40,7 +42,7 @@ def test_path_around_a_wall_is_certified_and_rounded():
     path = plan_joint_path(world, a, b, seed=1)
     assert path.planner == "rrtconnect"
     assert np.allclose(path.q_rad[0], a) and np.allclose(path.q_rad[-1], b)
-    for p, q in zip(path.q_rad[:-1], path.q_rad[1:]):
+    for p, q in zip(path.q_rad[:-1], path.q_rad[1:], strict=True):
         assert world.check_motion(p, q).ok  # every edge, arcs included, proven
     assert len(path.q_rad) >= 2 + CORNER_POINTS  # at least one corner became an arc
 
@@ -77,3 +79,24 @@ def test_check_path_lower_bound_pruning_changes_no_verdict(start, steps):
     finally:
         collision_module.PATH_BOUNDS_MAX_SAMPLES = saved
     assert pruned == plain
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    start=st.lists(st.floats(-2.5, 2.5), min_size=6, max_size=6),
+    turn=st.lists(st.floats(-1.2, 1.2), min_size=6, max_size=6),
+    samples=st.integers(60, 400),
+)
+def test_check_path_on_dense_samples_agrees_with_every_segment_checked_alone(start, turn, samples):
+    """The verifier's shared-query schedule (pairs measured at shared samples, horizons
+    from the summed bounds) accepts exactly the dense polylines whose every segment
+    ``check_motion`` proves on its own, and rejects the others."""
+    world = _world()
+    s = np.linspace(0.0, 1.0, samples) ** 2  # uneven spacing, as a timed trajectory
+    q = np.asarray(start) + s[:, None] * np.asarray(turn) + 0.1 * np.sin(3 * s)[:, None]
+    result = world.check_path(q)
+    alone = all(world.check_motion(a, b, probe=False).ok for a, b in itertools.pairwise(q))
+    assert result.ok == alone
+    if not result.ok:  # the reported place is a sample or a point between two
+        assert 0.0 <= result.s_blocked <= samples - 1
+        assert not world.check_path(q[: int(result.s_blocked) + 2]).ok

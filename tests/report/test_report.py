@@ -6,16 +6,15 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from cellrunner.backends.sim._mj import load_mujoco
-from cellrunner.backends.sim.render import CameraView, CellRenderer
 from cellrunner.model.geometry import Box, Placed, pose_matrix
 from cellrunner.report.plots import free_offset, merged_labels
 from cellrunner.report.views import choose_shots, occluders, project
+from cellrunner.sim._mj import load_mujoco
+from cellrunner.sim.render import CameraView, CellRenderer
 from tests.conftest import GL_BACKEND, ROOT
 
 load_mujoco()
@@ -79,8 +78,8 @@ def test_step_labels_at_one_spot_are_merged_and_boxes_never_overlap():
     GL_BACKEND is None, reason="needs an offscreen GL backend (scripts/test installs libosmesa6)"
 )
 def test_projection_lands_on_the_rendered_part():
-    from cellrunner.backends.sim import demo
     from cellrunner.backends.sim.backend import SimBackend
+    from cellrunner.sim import demo
 
     backend = SimBackend(demo.demo_description())
     backend.connect()
@@ -91,7 +90,7 @@ def test_projection_lands_on_the_rendered_part():
     with CellRenderer(world, 400, 300) as renderer:
         image = renderer.render(view)
     ((u, v),) = project(part[None, :], view, 400, 300, float(world.model.vis.global_.fovy))
-    r, g, b = (int(c) for c in image[int(round(v)), int(round(u))])
+    r, g, b = (int(c) for c in image[round(v), round(u)])
     backend.close()
     assert r > 120 and r > 1.4 * g and b < 60, (
         u,

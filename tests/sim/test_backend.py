@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from cellrunner.backends.base import BackendError, RobotBackend, Safety
-from cellrunner.backends.sim import demo
 from cellrunner.backends.sim.backend import SimBackend
 from cellrunner.model.trajectory import ApprovedTrajectory, approve
+from cellrunner.sim import demo
 
 pytest.importorskip("mujoco")
 

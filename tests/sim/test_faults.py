@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from cellrunner.backends.base import BackendError, RobotState, Safety
-from cellrunner.backends.sim import demo
-from cellrunner.backends.sim.world import UNLOCK_DELAY_S
+from cellrunner.sim import demo
+from cellrunner.sim.world import UNLOCK_DELAY_S
 
 pytest.importorskip("mujoco")
 
@@ -183,7 +183,7 @@ def test_presence_sensor_sees_the_part_leave(cell) -> None:
     from conftest import Driver
 
     from cellrunner.backends.sim.backend import SimBackend
-    from cellrunner.backends.sim.description import PresenceSensor
+    from cellrunner.sim.description import PresenceSensor
 
     desc = dataclasses.replace(
         cell, presence_sensors=(PresenceSensor("DI2", demo.CUBE_XYZ_M, (0.04, 0.04, 0.04)),)

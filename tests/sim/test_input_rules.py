@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from cellrunner.backends.sim import demo
 from cellrunner.backends.sim.backend import SimBackend
-from cellrunner.backends.sim.input_rules import InputRuleDescription, InputRules
+from cellrunner.sim import demo
+from cellrunner.sim.input_rules import InputRuleDescription, InputRules
 
 
 def _run(rules: InputRules, outputs_at, until_s: float, rate_hz: float = 500.0):

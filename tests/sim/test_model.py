@@ -8,17 +8,17 @@ import sys
 import numpy as np
 import pytest
 
-from cellrunner.backends.sim import demo
-from cellrunner.backends.sim.description import (
+from cellrunner.model.geometry import Box, Mesh, pose_matrix
+from cellrunner.model.robots import JOINT_NAMES, ROBOTS
+from cellrunner.sim import demo
+from cellrunner.sim.description import (
     GripperDescription,
     PartDescription,
     TwinDescription,
     dh_forward,
 )
-from cellrunner.backends.sim.mjcf import build_mjcf, compile_model
-from cellrunner.backends.sim.world import SimWorld
-from cellrunner.model.geometry import Box, Mesh, pose_matrix
-from cellrunner.model.robots import JOINT_NAMES, ROBOTS
+from cellrunner.sim.mjcf import build_mjcf, compile_model
+from cellrunner.sim.world import SimWorld
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -32,7 +32,7 @@ def test_tcp_site_follows_the_dh_forward_kinematics(model_name: str) -> None:
     site = model.site("tcp").id
     for _ in range(20):
         q = rng.uniform(-np.pi, np.pi, 6)
-        for name, value in zip(JOINT_NAMES, q):
+        for name, value in zip(JOINT_NAMES, q, strict=True):
             data.qpos[model.jnt_qposadr[model.joint(name).id]] = value
         mujoco.mj_kinematics(model, data)
         T = desc.T_world_base @ dh_forward(desc.spec, q) @ desc.T_flange_tcp
@@ -113,7 +113,7 @@ def test_wrist_reads_zero_at_rest_in_any_pose_payload_compensated() -> None:
 
 def test_importing_the_package_does_not_import_mujoco() -> None:
     code = (
-        "import sys, cellrunner.backends.sim.backend, cellrunner.backends.sim.render; "
+        "import sys, cellrunner.backends.sim.backend, cellrunner.sim.render; "
         "print('mujoco' in sys.modules)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -141,3 +141,14 @@ def test_description_field_defaults_are_consistent() -> None:
     assert desc.rate_hz == 500.0
     model = compile_model(desc)
     assert model.opt.timestep == pytest.approx(0.002)
+
+
+@pytest.mark.parametrize("model_name", ["ur3e", "ur20", "ur30", "ur15"])
+def test_joint_ranges_are_the_cells_joint_range(model_name: str) -> None:
+    ranges = [[-170, 170], [-180, 0], [-160, 160], [-270, 90], [-180, 0], [-180, 180]]
+    desc = demo.demo_description(spec=ROBOTS[model_name].narrowed(ranges), parts=())
+    model = compile_model(desc)
+    for name, (lo, hi) in zip(JOINT_NAMES, ranges, strict=True):
+        joint = model.joint(name)
+        assert joint.limited[0] == 1
+        np.testing.assert_allclose(joint.range, np.radians([lo, hi]), atol=1e-6)

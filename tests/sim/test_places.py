@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from cellrunner.backends.base import BackendError, Safety
-from cellrunner.backends.sim import demo
-from cellrunner.backends.sim.world import PLACE_DROP_M
+from cellrunner.sim import demo
+from cellrunner.sim.world import PLACE_DROP_M
 
 pytest.importorskip("mujoco")
 

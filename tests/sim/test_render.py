@@ -9,12 +9,12 @@ import sys
 import numpy as np
 import pytest
 
-from cellrunner.backends.sim.render import (
+from cellrunner.model.geometry import Box, Placed, pose_matrix
+from cellrunner.report.plots import plot_joints, plot_tcp_path
+from cellrunner.sim.render import (
     CellRenderer,
     default_view,
 )
-from cellrunner.model.geometry import Box, Placed, pose_matrix
-from cellrunner.report.plots import plot_joints, plot_tcp_path
 
 pytest.importorskip("mujoco")
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -50,9 +50,9 @@ def test_default_view_frames_robot_and_fixtures(backend) -> None:
 
 def test_missing_gl_backend_is_a_clear_error_not_a_crash(tmp_path) -> None:
     code = (
-        "from cellrunner.backends.sim import demo\n"
-        "from cellrunner.backends.sim.world import SimWorld\n"
-        "from cellrunner.backends.sim.render import render_png, RenderUnavailable\n"
+        "from cellrunner.sim import demo\n"
+        "from cellrunner.sim.world import SimWorld\n"
+        "from cellrunner.sim.render import render_png, RenderUnavailable\n"
         "w = SimWorld(demo.demo_description()); w.build()\n"
         "try:\n"
         f"    render_png(w, {str(tmp_path / 'x.png')!r})\n"

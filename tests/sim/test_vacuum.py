@@ -21,9 +21,9 @@ VACUUM_ON, BLOW_OFF, VACUUM_OK = "DO0", "DO1", "DI0"
 
 
 def build(holding_force_N: float | None = None):
-    from cellrunner.backends.sim.from_cell import description_of
-    from cellrunner.backends.sim.world import SimWorld
     from cellrunner.planning.world import CellWorld
+    from cellrunner.sim.from_cell import description_of
+    from cellrunner.sim.world import SimWorld
 
     loaded = load_cell(CELL)
     desc = description_of(loaded)

@@ -16,11 +16,11 @@ from __future__ import annotations
 import numpy as np
 
 from cellrunner.backends.base import BackendError, RobotState, Safety
-from cellrunner.backends.sim.description import TwinDescription, dh_forward
-from cellrunner.backends.sim.mjcf import PhysicsOptions
-from cellrunner.backends.sim.world import Fault, SimWorld
 from cellrunner.errors import PeerUnreachable
 from cellrunner.model.trajectory import ApprovedTrajectory
+from cellrunner.sim.description import TwinDescription, dh_forward
+from cellrunner.sim.mjcf import PhysicsOptions
+from cellrunner.sim.world import Fault, SimWorld
 
 # servoJ set-points further apart than the joint speed limit allows (with this margin)
 # are refused, as the controller would protective-stop on them.
@@ -31,9 +31,9 @@ class SimBackend:
     """The MuJoCo twin as a robot. Construct (no work), ``connect()`` (builds the model),
     then ``servo``/``wait_period`` cycles, ``close()``."""
 
-    def __init__(self, description: TwinDescription, options: PhysicsOptions = PhysicsOptions()):
+    def __init__(self, description: TwinDescription, options: PhysicsOptions | None = None) -> None:
         self.description = description
-        self.options = options
+        self.options = options if options is not None else PhysicsOptions()
         self.rate_hz = description.rate_hz
         self.world: SimWorld | None = None
         self._connected = False

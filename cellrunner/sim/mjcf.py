@@ -38,11 +38,11 @@ from typing import Any
 
 import numpy as np
 
-from cellrunner.backends.sim._mj import load_mujoco
-from cellrunner.backends.sim.description import TwinDescription
 from cellrunner.model.arm_geometry import arm_geometry
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.robots import JOINT_NAMES
+from cellrunner.sim._mj import load_mujoco
+from cellrunner.sim.description import TwinDescription
 
 # Arm masses (kg) and joint torque limits (N m, base..wrist 3), datasheets / UR manuals.
 ARM_MASS_KG = {
@@ -53,10 +53,19 @@ ARM_MASS_KG = {
     "ur5e": 20.6,
     "ur10e": 33.5,
     "ur16e": 33.1,
+    "ur7e": 20.6,  # the UR5e renamed
+    "ur12e": 33.5,  # the UR10e renamed
+    "ur15": 40.2,  # sums of ur_description's link masses (UR15, UR18); UR8 Long assumed
+    "ur18": 39.5,
+    "ur8long": 42.0,
+    "ur20": 64.0,  # datasheets
+    "ur30": 63.5,
 }
 _TORQUE_SMALL = (56.0, 56.0, 28.0, 12.0, 12.0, 12.0)
 _TORQUE_MEDIUM = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)
 _TORQUE_LARGE = (330.0, 330.0, 150.0, 56.0, 56.0, 56.0)
+_TORQUE_UR18 = (433.0, 433.0, 204.0, 70.0, 70.0, 70.0)  # ur_description max_effort
+_TORQUE_UR20 = (738.0, 738.0, 433.0, 107.0, 107.0, 107.0)  # ur_description max_effort
 JOINT_TORQUE_MAX_NM = {
     "ur3": _TORQUE_SMALL,
     "ur3e": _TORQUE_SMALL,
@@ -65,6 +74,13 @@ JOINT_TORQUE_MAX_NM = {
     "ur10": _TORQUE_LARGE,
     "ur10e": _TORQUE_LARGE,
     "ur16e": _TORQUE_LARGE,
+    "ur7e": _TORQUE_MEDIUM,
+    "ur12e": _TORQUE_LARGE,
+    "ur15": _TORQUE_UR18,  # assumed: the UR18's joint sizes (same DH d1, d4-d6)
+    "ur18": _TORQUE_UR18,
+    "ur8long": _TORQUE_UR18,  # assumed, as the UR15
+    "ur20": _TORQUE_UR20,
+    "ur30": _TORQUE_UR20,
 }
 # Reflected rotor inertia of the harmonic drives (kg m^2), scaled by arm size.
 _ARMATURE_UR5 = (0.6, 0.6, 0.3, 0.06, 0.06, 0.06)
@@ -217,7 +233,7 @@ def _pose_attrs(T: np.ndarray) -> dict[str, str]:
 
 
 class _Builder:
-    def __init__(self, desc: TwinDescription, options: PhysicsOptions):
+    def __init__(self, desc: TwinDescription, options: PhysicsOptions) -> None:
         self.desc = desc
         self.options = options
         self.root = ET.Element("mujoco", model=desc.name)
@@ -297,9 +313,13 @@ class _Builder:
         for part in d.parts:
             self._part(world, part)
         if d.vacuum is not None and d.parts:
-            from cellrunner.backends.sim.vacuum import add_welds
+            from cellrunner.sim.vacuum import add_welds
 
             add_welds(self.root, d.parts)
+        if d.cameras:
+            from cellrunner.sim.cameras import add_cameras
+
+            add_cameras(self, d.cameras)
         self._actuators_and_sensors()
         ET.indent(self.root)
         return ET.tostring(self.root, encoding="unicode")
@@ -385,7 +405,7 @@ class _Builder:
     def _mesh_pieces(self, parent: ET.Element, placed: Placed) -> bool:
         """A non-convex mesh fixture as one thin prism per triangle (see :mod:`.mesh_pieces`);
         False when the mesh is convex (or too big), to be built as usual."""
-        from cellrunner.backends.sim import mesh_pieces
+        from cellrunner.sim import mesh_pieces
 
         triangles = mesh_pieces.triangles_of(binary_stl(placed.shape.path), placed.shape.scale)
         if len(triangles) > mesh_pieces.MAX_TRIANGLES or mesh_pieces.is_convex(triangles):
@@ -496,12 +516,12 @@ class _Builder:
         if g is not None:
             self._gripper(tool, g)
         if d.vacuum is not None:
-            from cellrunner.backends.sim.vacuum import add_cups
+            from cellrunner.sim.vacuum import add_cups
 
             T = d.vacuum.T_flange_tcp if d.vacuum.T_flange_tcp is not None else d.T_flange_tcp
             add_cups(self, tool, d.vacuum, T, PADS, STATIC | PARTS)
         if d.tool_changer is not None:
-            from cellrunner.backends.sim.tool_changer import add_tools
+            from cellrunner.sim.tool_changer import add_tools
 
             add_tools(self, tool, self.root.find("worldbody"), d.tool_changer, TOOL, STATIC)
 

@@ -60,7 +60,7 @@ def add_tools(
 ) -> None:
     """Each tool's shapes on the tool body (only the mounted one collides and shows) and,
     drawn only, in its rack place (MJCF)."""
-    from cellrunner.backends.sim.mjcf import _pose_attrs
+    from cellrunner.sim.mjcf import _pose_attrs
 
     for tool in changer.tools:
         mounted = tool.name == changer.mounted
@@ -95,7 +95,7 @@ def add_tools(
 class ToolChanger:
     """The changer of one built SimWorld."""
 
-    def __init__(self, world: Any, desc: ToolChangerDescription):
+    def __init__(self, world: Any, desc: ToolChangerDescription) -> None:
         self.world, self.desc = world, desc
         m = world.model
         self.tools = {t.name: t for t in desc.tools}
@@ -107,7 +107,7 @@ class ToolChanger:
             t.name: [m.geom(f"rack@{t.name}:{k}").id for k in range(len(t.geometry))]
             for t in desc.tools
         }
-        from cellrunner.backends.sim.mjcf import PADS, PARTS, STATIC, TOOL
+        from cellrunner.sim.mjcf import PADS, PARTS, STATIC, TOOL
 
         self.tool_kind = (TOOL, STATIC)
         self.pad_kind = (PADS, STATIC | PARTS)
@@ -150,7 +150,7 @@ class ToolChanger:
         """The twin's pair of jaws becomes this tool's: its IO, stroke and place at its TCP."""
         import dataclasses
 
-        from cellrunner.backends.sim.mjcf import quat_of
+        from cellrunner.sim.mjcf import quat_of
 
         w = self.world
         m = w.model
@@ -160,7 +160,7 @@ class ToolChanger:
         m.body_pos[rail] = tool.T_flange_tcp[:3, 3]
         m.body_quat[rail] = quat_of(tool.T_flange_tcp[:3, :3])
         half = g.stroke_m / 2
-        for jaw, sign, pad in zip(("jaw_a", "jaw_b"), (1.0, -1.0), w._ids.pad_geoms):
+        for jaw, sign, pad in zip(("jaw_a", "jaw_b"), (1.0, -1.0), w._ids.pad_geoms, strict=True):
             m.jnt_range[m.joint(jaw).id] = (0.0, half)
             m.geom_pos[pad, 0] = sign * (half + g.finger_size_m[0] / 2)
         w._jaws_driven = False
@@ -176,7 +176,7 @@ class ToolChanger:
         self.mounted = None
 
     def _mount(self, name: str) -> None:
-        from cellrunner.backends.sim.mjcf import quat_of
+        from cellrunner.sim.mjcf import quat_of
 
         tool = self.tools[name]
         w = self.world
