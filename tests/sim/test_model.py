@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from cellrunner.model.geometry import Box, Mesh, pose_matrix
+from cellrunner.model.arm_geometry import available_models
 from cellrunner.model.robots import JOINT_NAMES, ROBOTS
 from cellrunner.sim import demo
 from cellrunner.sim.description import (
@@ -23,7 +24,7 @@ from cellrunner.sim.world import SimWorld
 mujoco = pytest.importorskip("mujoco")
 
 
-@pytest.mark.parametrize("model_name", sorted(ROBOTS))
+@pytest.mark.parametrize("model_name", available_models())
 def test_tcp_site_follows_the_dh_forward_kinematics(model_name: str) -> None:
     desc = demo.demo_description(spec=ROBOTS[model_name], parts=())
     model = compile_model(desc)
@@ -143,7 +144,7 @@ def test_description_field_defaults_are_consistent() -> None:
     assert model.opt.timestep == pytest.approx(0.002)
 
 
-@pytest.mark.parametrize("model_name", ["ur3e", "ur20", "ur30", "ur15"])
+@pytest.mark.parametrize("model_name", ["ur3e", "ur20", "ur30"])
 def test_joint_ranges_are_the_cells_joint_range(model_name: str) -> None:
     ranges = [[-170, 170], [-180, 0], [-160, 160], [-270, 90], [-180, 0], [-180, 180]]
     desc = demo.demo_description(spec=ROBOTS[model_name].narrowed(ranges), parts=())

@@ -10,8 +10,9 @@ Self-collision pairs (:meth:`ArmGeometry.self_pair_checked`): for every two part
 different links the file holds what the derivation proved over the joints' whole ranges: a
 lower bound of their distance (none: they can touch), and for adjacent links the largest
 distance sampled over their joint's turn. A pair is checked at clearance c unless its lower
-bound exceeds c, or it belongs to adjacent links and is within c at every angle of their
-joint (that is the joint itself, where the meshes meet by construction).
+bound exceeds c, or it belongs to adjacent links that are within c of each other at every
+angle of their joint (some pair of their parts is: the links meet there, by construction;
+that is the joint itself, and none of their pairs is checked).
 
 Pure data: numpy, json and gzip only (``validate`` loads none of this).
 """
@@ -65,13 +66,24 @@ class ArmGeometry:
     source: dict[str, Any]
     over_approximation_mm: dict[str, Any]
 
+    @functools.cached_property
+    def link_joint_max_m(self) -> dict[tuple[int, int], float]:
+        """Adjacent links (a, a + 1) -> the largest, over their joint's turn, of their
+        distance (m): at most the smallest of their part pairs' largest distances."""
+        out: dict[tuple[int, int], float] = {}
+        for (a, b), largest in self.joint_max_m.items():
+            bodies = (self.parts[a].body, self.parts[b].body)
+            out[bodies] = min(out.get(bodies, np.inf), largest)
+        return out
+
     def self_pair_checked(self, a: int, b: int, clearance_m: float) -> bool:
         """Whether parts ``a`` and ``b`` (indices into :attr:`parts`) must be checked against
         each other when every pair keeps ``clearance_m``."""
         key = (min(a, b), max(a, b))
         if self.parts[a].body == self.parts[b].body:
             return False
-        if self.joint_max_m.get(key, np.inf) <= clearance_m:
+        bodies = (self.parts[key[0]].body, self.parts[key[1]].body)
+        if self.link_joint_max_m.get(bodies, np.inf) <= clearance_m:
             return False  # the joint between adjacent links
         return self.pair_lower_bound_m.get(key, -np.inf) <= clearance_m
 
