@@ -226,7 +226,8 @@ class OpcUa(Strict):
     endpoint: str = "opc.tcp://127.0.0.1:4840/cellrunner"
     """Endpoint URL the OPC UA server listens on. Example: `opc.tcp://127.0.0.1:4840/cellrunner`"""
     security: list[SecurityPolicy] = Field(
-        default_factory=lambda: ["Basic256Sha256_SignAndEncrypt"], min_length=1
+        default_factory=lambda: ["Basic256Sha256_SignAndEncrypt"],  # type: ignore[arg-type]  # mypy widens the literal in a lambda
+        min_length=1,
     )
     """Security policies offered; none only when written here. Example: `[Basic256Sha256_SignAndEncrypt]`"""
     users: str | None = None

@@ -230,7 +230,7 @@ def _pose_attrs(T: np.ndarray) -> dict[str, str]:
 
 
 class _Builder:
-    def __init__(self, desc: TwinDescription, options: PhysicsOptions):
+    def __init__(self, desc: TwinDescription, options: PhysicsOptions) -> None:
         self.desc = desc
         self.options = options
         self.root = ET.Element("mujoco", model=desc.name)
