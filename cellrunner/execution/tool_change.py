@@ -33,8 +33,7 @@ def run_tool_lock(ctx: JobContext, step: Step) -> Generator[None, None, Outcome]
     if outcome.ok:
         tool = ctx.tools[step.extra["tool"]]
         use_gripper(ctx, tool.gripper)
-        cx, cy, cz = tool.payload.cog
-        ctx.backend.set_tool(tool.tcp.matrix(), tool.payload.mass, (cx, cy, cz))
+        ctx.backend.set_tool(tool.tcp.matrix(), tool.payload.mass, tool.payload.cog_m)
     return outcome
 
 
