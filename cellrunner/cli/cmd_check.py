@@ -60,7 +60,7 @@ def run(args) -> int:
             "message": r.message,
             "attempts": 0,
         }
-        for r in plan.rows
+        for r in [*plan.rows, *plan.on_error]  # on_error's rows: verified from every state
     ]
     if args.save_plan and not errors:
         _save_plan(Path(args.save_plan), world, plan)
@@ -145,7 +145,7 @@ class _Counter:
     """What a progress bar is told: a plan starts (``plan(label)`` returns its ``on_step``),
     or plans finished elsewhere (``skip(n)``, e.g. in a forked child)."""
 
-    def __init__(self, progress=None, steps_per_plan: int = 0):
+    def __init__(self, progress=None, steps_per_plan: int = 0) -> None:
         self._progress, self._steps_per_plan = progress, steps_per_plan
         self._started = 0
 

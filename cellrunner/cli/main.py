@@ -188,6 +188,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--yes", action="store_true", help="write the change without asking")
     p.set_defaults(module="calibrate_tcp")
 
+    p = sub.add_parser(
+        "calibrate-camera",
+        help="commissioning: a camera's pose from views of its board (hand-eye), into the cell file",
+    )
+    p.add_argument("cell")
+    p.add_argument("camera")
+    p.add_argument("--robot-host", metavar="H")
+    p.add_argument(
+        "--views", type=int, default=12, metavar="N", help="views to take, 6 to 40 (default 12)"
+    )
+    p.add_argument(
+        "--image-source",
+        metavar="S",
+        help="twin (default: the twin's rendered camera on the robot host) or MODULE:FACTORY, "
+        "a camera driver (see README)",
+    )
+    p.add_argument("--yes", action="store_true", help="write the change without asking")
+    p.set_defaults(module="calibrate_camera")
+
     p = sub.add_parser("schema", help="JSON Schema of cell and task files")
     p.add_argument("kind", nargs="?", choices=("cell", "task"), help="only this one")
     p.add_argument(
