@@ -148,7 +148,7 @@ class CellController:
         on_step_start: Callable[[Step, int], None] | None = None,
         on_job_start: Callable[[], None] | None = None,
         gate: Callable[[Step], bool] | None = None,
-    ):
+    ) -> None:
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
         self.planner, self.log = planner, log
         self.wait_for_unhold = wait_for_unhold

@@ -152,7 +152,7 @@ class SqliteJournal:
     FULL), so a crash right after a call never loses what it wrote. ``cell`` scopes
     what is read and closed to one cell (None: every cell in the file)."""
 
-    def __init__(self, path: str | Path, cell: str | None = None):
+    def __init__(self, path: str | Path, cell: str | None = None) -> None:
         self.path = Path(path)
         self.cell = cell
         self._db: sqlite3.Connection | None = None

@@ -8,6 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from cellrunner.model.base import Name, PlacedShape, Pose, Shaped, Strict, Vec3
+from cellrunner.model.camera import Camera
 from cellrunner.model.robots import ROBOTS
 from cellrunner.model.sim_inputs import SimBlock
 from cellrunner.model.units import (
@@ -225,7 +226,8 @@ class OpcUa(Strict):
     endpoint: str = "opc.tcp://127.0.0.1:4840/cellrunner"
     """Endpoint URL the OPC UA server listens on. Example: `opc.tcp://127.0.0.1:4840/cellrunner`"""
     security: list[SecurityPolicy] = Field(
-        default_factory=lambda: ["Basic256Sha256_SignAndEncrypt"], min_length=1
+        default_factory=lambda: ["Basic256Sha256_SignAndEncrypt"],  # type: ignore[arg-type]  # mypy widens the literal in a lambda
+        min_length=1,
     )
     """Security policies offered; none only when written here. Example: `[Basic256Sha256_SignAndEncrypt]`"""
     users: str | None = None
@@ -293,6 +295,8 @@ class Cell(Strict):
     """How far a placed part may end from its target in the twin before the place fails (3). Example: `{distance: 0.005, angle: 5}`"""
     sim: SimBlock | None = None
     """Inputs the twin drives in rehearsal (dry-run and twin). Example: `{inputs: {part_present: {part_at: infeed}}}`"""
+    cameras: dict[Name, Camera] = Field(default_factory=dict)
+    """Cameras by name: intrinsics, image size, mount (world, a frame, flange) and pose, calibration board. Example: `{top: {intrinsics: {fx: 600, fy: 600, cx: 320, cy: 240}, image_size: [640, 480], pose: {xyz: [0.6, 0, 1.6], rpy: [180, 0, 90]}}}`"""
 
     @model_validator(mode="before")
     @classmethod

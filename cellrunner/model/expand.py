@@ -17,6 +17,8 @@ from cellrunner.model import geometry
 from cellrunner.model.cell import Cell
 from cellrunner.model.frames import frame_pose
 from cellrunner.model.load import LoadedTask, StepSpec
+from cellrunner.model.params import Param, ParamValue, PoseValue
+from cellrunner.model.source import PathKey
 from cellrunner.model.step import (
     LINEAR_KINDS,
     MOTION_KINDS,
@@ -32,15 +34,17 @@ from cellrunner.model.task import (
     LinearArgs,
     Offset,
     Pattern,
+    PickArgs,
+    PlaceArgs,
     TaskFile,
 )
 from cellrunner.model.tool_change import expand_change_tool
 
 
-def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, int | float | bool]:
+def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, ParamValue]:
     """The task's params: defaults overridden by ``given`` (strings from the CLI are
     accepted); raises InputError naming the bad param and its bounds."""
-    out: dict[str, int | float | bool] = {}
+    out: dict[str, ParamValue] = {}
     problems = []
     for name in given:
         if name not in task.params:
@@ -82,7 +86,9 @@ ON_ERROR = "on_error"
 
 
 class _Builder:
-    def __init__(self, cell: Cell, params: dict[str, Any], specs: dict | None = None):
+    def __init__(
+        self, cell: Cell, params: dict[str, Any], specs: dict[str, Param] | None = None
+    ) -> None:
         self.cell, self.params, self.specs = cell, params, specs or {}
         self.steps: list[Step] = []
         self.tool = cell.robot.tool  # the mounted tool's name (with ``tools:``)
@@ -105,7 +111,7 @@ class _Builder:
         self,
         kind: str,
         args: Any,
-        path: tuple,
+        path: PathKey,
         index: int,
         macro: str | None = None,
         retry: RetryPlan | None = None,
@@ -138,7 +144,7 @@ class _Builder:
             name = args.input
         elif kind == "wait":
             name = f"{args.seconds:g} s"
-        return Step(index, kind, name, args, path, macro, T, q, retry)
+        return Step(index, StepKind(kind), name, args, path, macro, T, q, retry)
 
     def _target(
         self, at: str, offset: Offset | None, pattern: Pattern | None, at_offset: str | None = None
@@ -158,7 +164,7 @@ class _Builder:
             name = f"{at}+{at_offset}"
         return T @ _offset(offset), name
 
-    def _pick(self, spec: StepSpec, a) -> None:
+    def _pick(self, spec: StepSpec, a: PickArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"pick {name}"
         path = spec.path
@@ -166,7 +172,7 @@ class _Builder:
         self.steps.append(
             Step(
                 approach_i,
-                "approach",
+                StepKind.APPROACH,
                 name,
                 ApproachArgs(to=a.at, distance=a.approach),
                 path,
@@ -176,7 +182,15 @@ class _Builder:
         )
         descend_i = self._next()
         self.steps.append(
-            Step(descend_i, "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T)
+            Step(
+                descend_i,
+                StepKind.DESCEND,
+                name,
+                LinearArgs(to=a.at, speed=a.speed),
+                path,
+                macro,
+                T,
+            )
         )
         retry = None
         if a.retry is not None and a.retry.attempts > 1:
@@ -190,7 +204,7 @@ class _Builder:
         self.steps.append(
             Step(
                 self._next(),
-                "grip",
+                StepKind.GRIP,
                 name,
                 a.grip,
                 path,
@@ -204,7 +218,7 @@ class _Builder:
             self.steps.append(
                 Step(
                     self._next(),
-                    "lift",
+                    StepKind.LIFT,
                     name,
                     DistanceArgs(distance=lift, speed=a.speed),
                     path,
@@ -212,14 +226,14 @@ class _Builder:
                 )
             )
 
-    def _place(self, spec: StepSpec, a) -> None:
+    def _place(self, spec: StepSpec, a: PlaceArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"place {name}"
         path = spec.path
         self.steps.append(
             Step(
                 self._next(),
-                "approach",
+                StepKind.APPROACH,
                 name,
                 ApproachArgs(to=a.at, distance=a.approach),
                 path,
@@ -228,7 +242,15 @@ class _Builder:
             )
         )
         self.steps.append(
-            Step(self._next(), "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T)
+            Step(
+                self._next(),
+                StepKind.DESCEND,
+                name,
+                LinearArgs(to=a.at, speed=a.speed),
+                path,
+                macro,
+                T,
+            )
         )
         release = (
             a.release if a.confirm is None else a.release.model_copy(update={"confirm": a.confirm})
@@ -241,14 +263,20 @@ class _Builder:
         back = a.retreat if a.retreat is not None else a.approach
         self.steps.append(
             Step(
-                self._next(), "release", name, release, path, macro, extra={} if back > 0 else check
+                self._next(),
+                StepKind.RELEASE,
+                name,
+                release,
+                path,
+                macro,
+                extra={} if back > 0 else check,
             )
         )
         if back > 0:
             self.steps.append(
                 Step(
                     self._next(),
-                    "retreat",
+                    StepKind.RETREAT,
                     name,
                     DistanceArgs(distance=back, speed=a.speed),
                     path,
@@ -273,10 +301,10 @@ def pattern_params(loaded: LoadedTask) -> dict[str, range]:
     return out
 
 
-def box_params(loaded: LoadedTask) -> dict[str, list[dict]]:
+def box_params(loaded: LoadedTask) -> dict[str, list[PoseValue]]:
     """Every pose param a pick or place is offset by, with the poses ``check`` must cover:
     the centre and the corners of its box."""
-    out: dict[str, list[dict]] = {}
+    out: dict[str, list[PoseValue]] = {}
     for spec in loaded.steps:
         name = getattr(spec.args, "at_offset", None)
         if name is not None:

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 from cellrunner.model.checks import check_io_name, check_radians
 from cellrunner.model.diagnose import unknown_name
 
 if TYPE_CHECKING:
+    from cellrunner.model.cell import Cell
     from cellrunner.model.load import LoadedCell, LoadedTask, Report, StepSpec
+    from cellrunner.model.source import PathKey
+    from cellrunner.model.task import Pattern
 
 _LINEAR_KINDS = ("descend", "linear")
 
@@ -73,7 +77,7 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             )
 
 
-def _is_short(report: Report, path) -> bool:
+def _is_short(report: Report, path: PathKey) -> bool:
     """True when the step at ``path`` was written in short form (``move: [..]``)."""
     value = report.source.data
     for part in path:
@@ -81,13 +85,13 @@ def _is_short(report: Report, path) -> bool:
     return not isinstance(value, dict)
 
 
-def _all_steps(steps: list[StepSpec]):
+def _all_steps(steps: list[StepSpec]) -> Iterator[StepSpec]:
     for step in steps:
         yield step
         yield from step.between
 
 
-def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
+def _check_pattern(task: LoadedTask, pattern: Pattern, path: PathKey, report: Report) -> None:
     params = task.task.params
     if pattern.index not in params:
         report.error(path + ("index",), unknown_name("param", pattern.index, params))
@@ -118,7 +122,7 @@ def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
         )
 
 
-def _check_change_tool(cell, tool: str, path, report: Report) -> None:
+def _check_change_tool(cell: Cell, tool: str, path: PathKey, report: Report) -> None:
     if tool not in cell.tools:
         known = list(cell.tools)
         report.error(
@@ -135,7 +139,7 @@ def _check_change_tool(cell, tool: str, path, report: Report) -> None:
         )
 
 
-def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
+def _check_tool_at_end(task: LoadedTask, cell: Cell, report: Report) -> None:
     """Every job starts with ``robot.tool`` mounted, so a task must end with it."""
     last = None
     for step in task.steps:
@@ -149,7 +153,7 @@ def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
         )
 
 
-def _check_pose_param(task: LoadedTask, name: str, path, report: Report) -> None:
+def _check_pose_param(task: LoadedTask, name: str, path: PathKey, report: Report) -> None:
     params = task.task.params
     if name not in params:
         report.error(path, unknown_name("param", name, params))

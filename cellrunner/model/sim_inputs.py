@@ -15,6 +15,8 @@ Names are the cell's IO names; :mod:`cellrunner.model.references`-style checks a
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
@@ -22,6 +24,10 @@ from cellrunner.model.base import Name, Strict
 from cellrunner.model.checks import check_io_name
 from cellrunner.model.diagnose import unknown_name
 from cellrunner.model.units import Duration, PositiveDuration, PositiveLength
+
+if TYPE_CHECKING:
+    from cellrunner.model.cell import Cell
+    from cellrunner.model.load import Report
 
 
 class InputRule(Strict):
@@ -61,7 +67,7 @@ class SimBlock(Strict):
     """Input names to the rule that drives them in rehearsal. Example: `{part_present: {part_at: infeed}}`"""
 
 
-def check_sim_block(cell, report) -> None:
+def check_sim_block(cell: Cell, report: Report) -> None:
     """Report rule inputs, outputs and frames the cell does not know."""
     if cell.sim is None:
         return

@@ -89,7 +89,7 @@ def _dh_link(d: float, a: float, alpha: float) -> pin.SE3:
 class ArmKinematics:
     """Kinematics of one UR arm mounted at ``T_world_base`` carrying a tool ``T_flange_tcp``."""
 
-    def __init__(self, spec: RobotSpec, T_world_base: np.ndarray, T_flange_tcp: np.ndarray):
+    def __init__(self, spec: RobotSpec, T_world_base: np.ndarray, T_flange_tcp: np.ndarray) -> None:
         self.spec = spec
         self.T_world_base = np.array(T_world_base, dtype=float)
         self.T_flange_tcp = np.array(T_flange_tcp, dtype=float)

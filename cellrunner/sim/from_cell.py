@@ -48,8 +48,17 @@ def description_of(loaded: LoadedCell):
         io_outputs=tuple(io_outputs),
         io_inputs=tuple(io_inputs),
         input_rules=_input_rules(loaded),
+        cameras=_cameras(loaded),
         name=c.cell,
     )
+
+
+def _cameras(loaded: LoadedCell) -> tuple:
+    if not loaded.cell.cameras:
+        return ()
+    from cellrunner.sim.cameras import describe_cameras
+
+    return describe_cameras(loaded)
 
 
 def _part(loaded: LoadedCell, part, gripper):

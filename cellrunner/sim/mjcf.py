@@ -230,7 +230,7 @@ def _pose_attrs(T: np.ndarray) -> dict[str, str]:
 
 
 class _Builder:
-    def __init__(self, desc: TwinDescription, options: PhysicsOptions):
+    def __init__(self, desc: TwinDescription, options: PhysicsOptions) -> None:
         self.desc = desc
         self.options = options
         self.root = ET.Element("mujoco", model=desc.name)
@@ -313,6 +313,10 @@ class _Builder:
             from cellrunner.sim.vacuum import add_welds
 
             add_welds(self.root, d.parts)
+        if d.cameras:
+            from cellrunner.sim.cameras import add_cameras
+
+            add_cameras(self, d.cameras)
         self._actuators_and_sensors()
         ET.indent(self.root)
         return ET.tostring(self.root, encoding="unicode")

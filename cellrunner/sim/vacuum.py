@@ -111,7 +111,7 @@ def add_welds(root: ET.Element, parts) -> None:
 class VacuumCups:
     """The cups of one built SimWorld (constructed after its model is compiled)."""
 
-    def __init__(self, world: Any, vac: VacuumDescription):
+    def __init__(self, world: Any, vac: VacuumDescription) -> None:
         self.world, self.vac = world, vac
         m = world.model
         self._mj = world._mj
@@ -135,7 +135,7 @@ class VacuumCups:
         """Mounted (a tool changer took the vacuum tool) or parked: cups collide and seal only when on."""
         self.enabled = on
         m = self.world.model
-        for g, bits in zip(self.cup_geoms, self._cup_bits):
+        for g, bits in zip(self.cup_geoms, self._cup_bits, strict=True):
             m.geom_contype[g], m.geom_conaffinity[g] = bits if on else (0, 0)
             m.geom_rgba[g, 3] = 1.0 if on else 0.0
         if not on:

@@ -44,7 +44,7 @@ JAM_SLIDE_M = 0.005  # a gripped part forced back this far in the jaws by a fixt
 JAM_FORCE_N = 150.0  # or pressed onto a fixture this hard (UR's default force limit)
 
 
-class Fault(str, enum.Enum):
+class Fault(enum.StrEnum):
     """Faults the twin can make physically happen (SPEC section 5, robot side)."""
 
     GRIP_MISS = "grip_miss"  # the part is moved away when the jaws start to close
@@ -62,7 +62,7 @@ class Fault(str, enum.Enum):
             raise ValueError(f"unknown fault {name!r}; known: {known}") from None
 
 
-class StopReason(str, enum.Enum):
+class StopReason(enum.StrEnum):
     CONTACT = "contact"
     INJECTED = "injected"
     REQUESTED = "requested"
@@ -124,9 +124,9 @@ class _Faults:
 class SimWorld:
     """The twin: construct with a description, ``build()``, then ``step_period()``."""
 
-    def __init__(self, description: TwinDescription, options: PhysicsOptions = PhysicsOptions()):
+    def __init__(self, description: TwinDescription, options: PhysicsOptions | None = None) -> None:
         self.description = description
-        self.options = options
+        self.options = options if options is not None else PhysicsOptions()
         self._rate_hz = description.rate_hz
         self.period_s = 1.0 / self._rate_hz
         self.substeps = max(1, math.ceil(self.period_s / options.max_timestep_s - 1e-9))
@@ -231,7 +231,7 @@ class SimWorld:
         return self._periods / self._rate_hz
 
     def _lookup_ids(self) -> _Ids:
-        m, mj, d = self.model, self._mj, self.description
+        m, _mj, d = self.model, self._mj, self.description
         joints = [m.joint(n).id for n in JOINT_NAMES]
         servo = np.array([m.actuator(f"servo:{n}").id for n in JOINT_NAMES])
         kp = m.actuator_gainprm[servo, 0]
@@ -767,8 +767,8 @@ class SimWorld:
         """
         fx, fy, fz, tx, ty, tz = self._ft_flat.tolist()
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = self._R_site_flat.tolist()
-        cx, cy, cz = self._tool_com.tolist()
-        sx, sy, sz = self._site_pos.tolist()
+        cx, cy, _cz = self._tool_com.tolist()
+        sx, sy, _sz = self._site_pos.tolist()
         mg = self._tool_weight_N
         # world axes: minus the sensed wrench (site -> world), minus the tool's weight
         # (0, 0, -mg) and its moment about the flange, (c - s) x (0, 0, -mg)
