@@ -81,7 +81,8 @@ def plan_cached(
     ``on_step(step)``: called per step as it is planned (all at once for a cached plan)."""
     steps = expand(task, world.loaded.cell, params)
     if not use_cache:
-        return plan_task(world, steps, q_start_rad, joined=joined, on_step=on_step)
+        plan = plan_task(world, steps, q_start_rad, joined=joined, on_step=on_step)
+        return _verify_on_error(plan, task, params)
     key = plan_key(world, task, params, q_start_rad, joined)
     plan = _MEMORY[key] if key in _MEMORY and _MEMORY[key].world is world else None
     if plan is not None:
@@ -89,17 +90,38 @@ def plan_cached(
             on_step(step)
         return plan
     path = cache_dir(world) / f"{key}.npz"
-    plan = _load(path, world, steps, q_start_rad) if path.is_file() else None
+    cleanup = _on_error_steps(task, world, params, len(steps))
+    plan = _load(path, world, steps, q_start_rad, cleanup) if path.is_file() else None
     if plan is not None and on_step is not None:
         for step in steps:
             on_step(step)
     if plan is None:
-        plan = plan_task(world, steps, q_start_rad, joined=joined, on_step=on_step)
+        plan = _verify_on_error(
+            plan_task(world, steps, q_start_rad, joined=joined, on_step=on_step), task, params
+        )
         if plan.ok:
             _store(path, plan)
     if len(_MEMORY) >= _MEMORY_MAX:
         _MEMORY.pop(next(iter(_MEMORY)))
     _MEMORY[key] = plan
+    return plan
+
+
+def _on_error_steps(task: LoadedTask, world: CellWorld, params: dict, n_steps: int) -> list:
+    from cellrunner.model.expand import expand_on_error
+
+    return expand_on_error(task, world.loaded.cell, params, n_steps + 1) if task.on_error else []
+
+
+def _verify_on_error(plan: TaskPlan, task: LoadedTask, params: dict) -> TaskPlan:
+    """The task's on_error steps verified from every state the plan can fail in; an
+    infeasible one makes the plan infeasible (an error naming the step)."""
+    from cellrunner.planning.on_error import on_error_errors, verify_on_error
+
+    cleanup = _on_error_steps(task, plan.world, params, len(plan.steps))
+    if cleanup:
+        plan.on_error = verify_on_error(plan, cleanup)
+        plan.errors.extend(on_error_errors(plan.on_error))
     return plan
 
 
@@ -142,7 +164,8 @@ def _store(path: Path, plan: TaskPlan) -> None:
         if arrays
         else np.zeros(0)
     )
-    header = json.dumps({"rows": meta, "arrays": index}).encode()
+    on_error = [[r.status, r.message] for r in plan.on_error]
+    header = json.dumps({"rows": meta, "arrays": index, "on_error": on_error}).encode()
     buffer = io.BytesIO()
     np.savez(buffer, meta=np.frombuffer(header, dtype=np.uint8), blob=blob)
     try:
@@ -154,7 +177,7 @@ def _store(path: Path, plan: TaskPlan) -> None:
         pass  # a read-only project: the cache is an optimisation only
 
 
-def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
+def _load(path: Path, world: CellWorld, steps, q_start_rad, cleanup: list) -> TaskPlan | None:
     """The stored plan with its trajectories unsealed: :meth:`TaskPlan.nominal` verifies
     each one again before it can be streamed."""
     from cellrunner.planning.collision import ContactAllowance
@@ -164,13 +187,14 @@ def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
             header = json.loads(bytes(stored["meta"]).decode())
             blob = stored["blob"]
         meta = header["rows"]
+        verified = header["on_error"]
         data = {
             name: blob[offset : offset + math.prod(shape)].reshape(shape)
             for name, (offset, shape) in header["arrays"].items()
         }
     except (OSError, ValueError, KeyError, TypeError):
         return None
-    if len(meta) != len(steps):
+    if len(meta) != len(steps) or len(verified) != len(cleanup):
         return None
     rows = []
     rate = world.spec.rate_hz
@@ -198,4 +222,7 @@ def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
             rows.append(row)
     except (KeyError, StopIteration, ValueError):
         return None
-    return TaskPlan(world, steps, rows, np.asarray(q_start_rad, float))
+    on_error = [
+        StepPlan(s, status, message) for s, (status, message) in zip(cleanup, verified, strict=True)
+    ]
+    return TaskPlan(world, steps, rows, np.asarray(q_start_rad, float), on_error=on_error)

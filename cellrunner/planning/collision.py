@@ -96,9 +96,11 @@ STALL_M = 1e-4
 #: Spacing (largest joint move, rad) of the cheap rejection probes in check_motion.
 PROBE_STEP_RAD = 0.15
 
-#: check_path proves pairs from the samples' lower bounds first on paths up to this long (on the
-#: dense 500 Hz samples the verifier checks, the exact queries' jumps are cheaper: measured)
-PATH_BOUNDS_MAX_SAMPLES = 40
+#: check_path proves pairs from the samples' lower bounds first on paths up to this long. Off:
+#: with capsule arm links the exact queries' jumps were cheaper on the verifier's dense samples
+#: and on the planner's 32-point corner arcs too (bench_planning: median 6.5 -> 5.0 ms CPU,
+#: measured); re-measure when exact queries get dearer (convex link parts)
+PATH_BOUNDS_MAX_SAMPLES = 0
 
 #: Largest joint move (rad) of one part of a segment over which check_motion bounds each
 #: object's distance from the joint axes afresh (shorter parts: tighter bounds, more FK).

@@ -36,6 +36,9 @@ from cellrunner.model.robots import JOINT_NAMES, RobotSpec
 #: FK residual above which an IK solution is rejected (position m, rotation rad).
 IK_TOLERANCE_M = 1e-6
 IK_TOLERANCE_RAD = 1e-6
+#: how far (rad about the flange Z, m along its Y) a pose is nudged when the solver
+#: dropped branches at it; well inside the tolerance FK verifies IK with
+IK_NUDGE = 1e-7
 
 
 @dataclass(frozen=True)
@@ -303,8 +306,20 @@ class ArmKinematics:
         return self._wrap_near(np.asarray(q_raw, float), np.asarray(q_near_rad, float))
 
     def _solve(self, T_base_flange: np.ndarray) -> list[np.ndarray]:
+        """The closed-form branches. At poses where a branch sits exactly on the edge of
+        its formula (UR's usual home, tool straight down with the wrist axes square, is
+        one) the solver's rounding can drop that branch; fewer than eight branches are
+        searched again at poses ``IK_NUDGE`` off (about the flange Z, along its Y), and
+        what is found there is kept when FK verifies it against the pose asked for."""
         with _stdout_silenced():
-            return list(self._ik.inverse_kinematics(np.ascontiguousarray(T_base_flange)))
+            raw = list(self._ik.inverse_kinematics(np.ascontiguousarray(T_base_flange)))
+            if len(raw) >= 8:
+                return raw
+            for nudge in _NUDGES:
+                for q in self._ik.inverse_kinematics(np.ascontiguousarray(T_base_flange @ nudge)):
+                    if not any(np.allclose(q, r, atol=1e-5) for r in raw):
+                        raw.append(q)
+        return raw
 
     def _wrap_near(self, q_raw: np.ndarray, q_near: np.ndarray) -> np.ndarray | None:
         """Shift each joint by a multiple of 2 pi to be nearest q_near within limits."""
@@ -364,3 +379,14 @@ def _ik_module(model_name: str):
         return getattr(ur_analytic_ik, model_name)
     except AttributeError:
         raise InfeasibleError(f"no closed-form IK for robot model {model_name!r}") from None
+
+
+def _nudge(angle_rad: float, y_m: float) -> np.ndarray:
+    c, s_ = math.cos(angle_rad), math.sin(angle_rad)
+    T = np.eye(4)
+    T[:2, :2] = ((c, -s_), (s_, c))
+    T[1, 3] = y_m
+    return T
+
+
+_NUDGES = (_nudge(IK_NUDGE, 0.0), _nudge(0.0, IK_NUDGE))

@@ -92,6 +92,7 @@ class TaskPlan:
     rows: list[StepPlan]
     q_start_rad: np.ndarray
     errors: list[str] = field(default_factory=list)
+    on_error: list[StepPlan] = field(default_factory=list)  # verified from the plan's states
 
     @property
     def ok(self) -> bool:
