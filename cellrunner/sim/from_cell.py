@@ -2,14 +2,24 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
+from cellrunner.model.cell import Gripper
 from cellrunner.model.expand import frame_pose
 from cellrunner.model.gripper import gripper_channels, part_center_depth_m
-from cellrunner.model.load import LoadedCell
+from cellrunner.model.load import LoadedCell, LoadedTask
+
+if TYPE_CHECKING:
+    from cellrunner.sim.description import TwinDescription
+    from cellrunner.sim.input_rules import InputRuleDescription
+
+#: frame -> the gripper of the tool that picks parts there
+Picks = dict[str, Gripper | None]
 
 
-def description_of(loaded: LoadedCell, tasks: tuple = ()):
+def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> TwinDescription:
     """A :class:`TwinDescription` of ``loaded``: arm, mount, tool, gripper, fixtures, parts, IO.
 
     With ``tools:`` and a tool changer every tool is built (each enabled while mounted):
@@ -33,7 +43,7 @@ def description_of(loaded: LoadedCell, tasks: tuple = ()):
     jaws.sort(key=lambda t: t is not c.tool)  # the mounted tool's jaws first
     gripper = _jaws(jaws[0], c, io_outputs, io_inputs) if jaws else None
     vacuum = _cups(suction, c) if suction is not None else None
-    picks = _picking_grippers(loaded, tasks) if c.tools else {}
+    picks: Picks = _picking_grippers(loaded, tasks) if c.tools else {}
     parts = [_part(loaded, p, picks.get(p.at, c.tool.gripper)) for p in c.parts]
     return TwinDescription(
         spec=loaded.spec,
@@ -77,7 +87,7 @@ def _part(loaded: LoadedCell, part, gripper):
     )
 
 
-def _input_rules(loaded: LoadedCell, picks: dict) -> tuple:
+def _input_rules(loaded: LoadedCell, picks: Picks) -> tuple[InputRuleDescription, ...]:
     """The ``sim: inputs`` rules in channels and world metres."""
     from cellrunner.sim.input_rules import InputRuleDescription
 
@@ -114,7 +124,7 @@ def _input_rules(loaded: LoadedCell, picks: dict) -> tuple:
     return tuple(out)
 
 
-def _picking_grippers(loaded: LoadedCell, tasks: tuple) -> dict:
+def _picking_grippers(loaded: LoadedCell, tasks: tuple[LoadedTask, ...]) -> Picks:
     """frame -> the gripper of the tool mounted where a task picks at that frame (the
     tasks' steps with their params' defaults; a task that does not load is skipped)."""
     from cellrunner.errors import CellrunnerError
@@ -128,7 +138,7 @@ def _picking_grippers(loaded: LoadedCell, tasks: tuple) -> dict:
             found.append(load_task(loaded.resolve(path), loaded))
         except (CellrunnerError, OSError):
             continue
-    picks: dict = {}
+    picks: Picks = {}
     for task in found:
         try:
             steps = expand(task, c, resolve_params(task.task, {}))
@@ -143,7 +153,7 @@ def _picking_grippers(loaded: LoadedCell, tasks: tuple) -> dict:
     return picks
 
 
-def _part_at_point(loaded: LoadedCell, frame: str, picks: dict) -> tuple[float, float, float]:
+def _part_at_point(loaded: LoadedCell, frame: str, picks: Picks) -> tuple[float, float, float]:
     """Where the centre of a part lying at ``frame`` is, as parts ``at:`` a frame lie: the
     frame itself for jaws, half the part's height under it for suction (the frame is the
     top face). The part that spawns at the frame is measured, else the cell's first part."""

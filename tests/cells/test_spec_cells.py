@@ -165,6 +165,7 @@ def test_press_runs_in_the_twin(press):
 
 def test_float_params_take_plain_si_numbers_on_the_command_line(press):
     code, out = run_json("dry-run", *press, "-p", "push=25", "-p", "dwell=0", "-p", "reach=0.02")
+    assert code == 1
     assert out["params"] == {"push": 25.0, "dwell": 0.0, "reach": 0.02}
     # 20 mm falls 30 mm short of the block: the carried pin touches nothing
     assert out["result_text"] == "no contact within 20.0 mm (force stayed under 25 N)"
