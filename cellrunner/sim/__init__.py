@@ -13,4 +13,8 @@ rendered.
   parts of the world a cell may add
 - :mod:`.render` -- offscreen PNGs for dry-run reports
 - :mod:`.demo` -- a demo cell and demo motions for tests and benchmarks
+- :mod:`.mujoco_loader` -- the one place MuJoCo is imported (GL off unless pictures are asked for)
+
+Other packages use the world through its public methods and attributes only
+(``tests/test_package_boundaries.py`` checks that no module reaches into its privates).
 """
