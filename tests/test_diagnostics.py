@@ -124,7 +124,7 @@ def test_every_unit_slip_in_a_cell_and_task_gets_a_did_you_mean():
         ),
     ]
     assert len(lines) == len(expected), "\n".join(lines)
-    for line, (start, part) in zip(lines, expected):
+    for line, (start, part) in zip(lines, expected, strict=True):
         assert line.startswith(start), line
         assert part in line, line
 

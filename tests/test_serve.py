@@ -127,7 +127,7 @@ def test_serve_runs_plc_jobs_and_stops_on_sigterm(project):
         wait(client, READY, 10, beat)
     finally:
         proc.send_signal(signal.SIGTERM)
-        out, err = proc.communicate(timeout=60)
+        _out, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err[-2000:]
     assert '"event": "stopped"' in err
 

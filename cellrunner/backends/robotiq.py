@@ -23,7 +23,7 @@ POLL_S = 0.02
 class RobotiqClient:
     """Construct (no I/O), ``connect()`` (activates the gripper), ``close()``."""
 
-    def __init__(self, host: str, port: int = PORT, timeout_s: float = 2.0):
+    def __init__(self, host: str, port: int = PORT, timeout_s: float = 2.0) -> None:
         self.host, self.port, self.timeout_s = host, port, timeout_s
         self._sock: socket.socket | None = None
         self._lock = threading.Lock()
@@ -77,7 +77,7 @@ class RobotiqClient:
 
 def serve_robotiq(
     host: str, world, stop: threading.Event, port: int = PORT, ready: threading.Event | None = None
-):
+) -> None:
     """The gripper's socket for the twin: commands drive the twin's jaws (``RQ0``),
     ``GET OBJ`` reports its object sensor (``RQ_OBJ``). Runs until ``stop`` is set."""
     from cellrunner.model.gripper import ROBOTIQ_CLOSE, ROBOTIQ_OBJECT

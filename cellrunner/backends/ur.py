@@ -36,6 +36,7 @@ ur_rtde's exceptions (``RuntimeError``/``logic_error`` with text) are translated
 
 from __future__ import annotations
 
+import contextlib
 import re
 import time
 from typing import Any
@@ -47,7 +48,7 @@ from cellrunner.backends.ur_control import ControlLost, ControlProcess
 from cellrunner.backends.ur_io import IoConnectionLost, RtdeOutputWriter
 from cellrunner.backends.ur_probe import controller_version, generation_of
 from cellrunner.backends.ur_state import RtdeStateReader
-from cellrunner.errors import (  # noqa: F401 (re-exported)
+from cellrunner.errors import (  # re-exported
     ConnectionLost,
     ControllerMismatch,
     PeerUnreachable,
@@ -131,7 +132,7 @@ class URBackend:
         tcp_pose: tuple[float, ...] | None = None,
         payload_kg: float | None = None,
         payload_cog_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    ):
+    ) -> None:
         self.host = host
         self.spec = spec
         self.rate_hz = spec.rate_hz
@@ -197,12 +198,16 @@ class URBackend:
                     f"the controller at {self.host} drives a {self.robot_model} "
                     f"but the cell's robot is {self.spec.name} ({expected})"
                 )
-            if self.require_remote_control and versions[0] == 5 and versions[1] >= 6:
-                if not self._dashboard.isInRemoteControl():
-                    raise RemoteControlOff(
-                        f"the controller at {self.host} is in local control; "
-                        "switch the teach pendant to Remote Control"
-                    )
+            if (
+                self.require_remote_control
+                and versions[0] == 5
+                and versions[1] >= 6
+                and not self._dashboard.isInRemoteControl()
+            ):
+                raise RemoteControlOff(
+                    f"the controller at {self.host} is in local control; "
+                    "switch the teach pendant to Remote Control"
+                )
             self._receive = RtdeStateReader(
                 self.host, self.rate_hz, RECEIVE_VARIABLES, timeout_s=self.connect_timeout_s
             )
@@ -328,15 +333,11 @@ class URBackend:
         self._drop_control()
         receive, self._receive = self._receive, None
         if receive is not None:
-            try:
+            with contextlib.suppress(RuntimeError):
                 receive.disconnect()
-            except RuntimeError:
-                pass
         if self._dashboard is not None:
-            try:
+            with contextlib.suppress(RuntimeError):
                 self._dashboard.disconnect()
-            except RuntimeError:
-                pass
             self._dashboard = None
 
     def reconnect(self, timeout_s: float | None = None) -> None:

@@ -21,6 +21,7 @@ from the parent's threads).
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import signal
@@ -59,7 +60,7 @@ def _serve(conn: Any, host: str, rate_hz: float) -> None:
         import rtde_control
 
         control = rtde_control.RTDEControlInterface(host, rate_hz)
-    except Exception as exc:  # noqa: BLE001 - reported to the parent, which translates
+    except Exception as exc:  # reported to the parent, which translates
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
         return
     conn.send(("ok", None))
@@ -72,7 +73,7 @@ def _serve(conn: Any, host: str, rate_hz: float) -> None:
             break
         try:
             conn.send(("ok", getattr(control, name)(*args)))
-        except Exception as exc:  # noqa: BLE001 - ur_rtde raises RuntimeError with text
+        except Exception as exc:  # ur_rtde raises RuntimeError with text
             conn.send(("error", str(exc)))
     os._exit(0)  # skip the library's destructor: its threads may be reconnecting
 
@@ -81,7 +82,7 @@ class ControlProcess:
     """The parent's handle on one child; construct (no I/O), :meth:`start`, calls,
     :meth:`close`. Not thread-safe: the backend's control thread is its only user."""
 
-    def __init__(self, host: str, rate_hz: float, start_timeout_s: float):
+    def __init__(self, host: str, rate_hz: float, start_timeout_s: float) -> None:
         self.host = host
         self.rate_hz = rate_hz
         self.start_timeout_s = start_timeout_s
@@ -142,10 +143,8 @@ class ControlProcess:
         process, conn = self._process, self._conn
         self._process = self._conn = None
         if conn is not None:
-            try:
+            with contextlib.suppress(OSError, ValueError):
                 conn.send(("quit", ()))
-            except (OSError, ValueError):
-                pass
         if process is not None:
             process.join(0.2)
             if process.is_alive():

@@ -9,7 +9,6 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
-from rich.text import Text
 
 from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, step_table
 from cellrunner.model.expand import box_params, pattern_params
@@ -84,6 +83,8 @@ def run(args) -> int:
             }
         )
     else:
+        from rich.text import Text  # human output only: --json needs no rich
+
         title = f"check {task.name} on {cell.cell.cell} ({cell.cell.robot.model})" + (
             f"  params: {_params_text(params)}" if params else ""
         )
@@ -144,7 +145,7 @@ class _Counter:
     """What a progress bar is told: a plan starts (``plan(label)`` returns its ``on_step``),
     or plans finished elsewhere (``skip(n)``, e.g. in a forked child)."""
 
-    def __init__(self, progress=None, steps_per_plan: int = 0):
+    def __init__(self, progress=None, steps_per_plan: int = 0) -> None:
         self._progress, self._steps_per_plan = progress, steps_per_plan
         self._started = 0
 
@@ -324,7 +325,7 @@ def _plan_split(
     if found is None or len(found) != len(theirs):
         return [*_slot_errors(world, task, theirs, use_cache, progress), *results]
     progress.skip(len(theirs))
-    return [*zip(theirs, found), *results]
+    return [*zip(theirs, found, strict=True), *results]
 
 
 #: how long the parent waits for the child's slots before planning them itself (s)
@@ -358,6 +359,9 @@ def _save_plan(path: Path, world, plan) -> None:
         "model": c.robot.model,
         "rate_hz": world.spec.rate_hz,
         "joint_names": list(JOINT_NAMES),
+        "joint_range_deg": [
+            list(r) for r in zip(world.spec.joint_min_deg, world.spec.joint_max_deg, strict=True)
+        ],
         "mount": {"xyz": list(c.robot.mount.xyz), "rpy": list(c.robot.mount.rpy)},
         "tcp": {"xyz": list(c.tool.tcp.xyz), "rpy": list(c.tool.tcp.rpy)},
         "steps": steps,

@@ -60,7 +60,7 @@ def run(args) -> int:
     report = Path(args.report) if args.report else None
     recorder = RunRecorder()
 
-    def on_step_start(step, attempt):
+    def on_step_start(step, attempt) -> None:
         now = backend.read_state().time_s
         recorder.mark(now, step)
         for inj in injections:

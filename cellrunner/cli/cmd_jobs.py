@@ -9,7 +9,8 @@ import sys
 from datetime import datetime
 
 from cellrunner.errors import UsageError
-from cellrunner.execution.journal import cell_journal, display_location, is_database_url
+from cellrunner.execution.journal import display_location, is_database_url
+from cellrunner.execution.journal_open import cell_journal
 from cellrunner.model.load import load_cell
 
 COLUMNS = (

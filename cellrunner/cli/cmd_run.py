@@ -9,7 +9,7 @@ from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
 from cellrunner.errors import UsageError
 from cellrunner.execution.cell import CellController
-from cellrunner.execution.journal import cell_journal
+from cellrunner.execution.journal_open import cell_journal
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode

@@ -10,7 +10,8 @@ import threading
 from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.logs import configure
 from cellrunner.execution.cell import CellController
-from cellrunner.execution.journal import cell_journal, is_database_url
+from cellrunner.execution.journal import is_database_url
+from cellrunner.execution.journal_open import cell_journal
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner, warm_up
 from cellrunner.model.load import load_cell, load_task, serve_file_warnings

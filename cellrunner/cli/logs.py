@@ -35,7 +35,7 @@ class _JsonLines(logging.Handler):
 
     def emit(self, record: logging.LogRecord) -> None:
         import json
-        from datetime import datetime, timezone
+        from datetime import datetime
 
         try:
             line = json.dumps(
@@ -47,7 +47,7 @@ class _JsonLines(logging.Handler):
                 }
             )
             sys.stderr.write(line + "\n")
-        except Exception:  # noqa: BLE001 - logging must never raise
+        except Exception:  # logging must never raise
             self.handleError(record)
 
 

@@ -25,7 +25,7 @@ STILL_RAD_S = 1e-3
 class ArmReader:
     """Measured joint angles of the arm at ``host``; ``connect`` before reading."""
 
-    def __init__(self, cell: LoadedCell, host: str, connect_timeout_s: float = 3.0):
+    def __init__(self, cell: LoadedCell, host: str, connect_timeout_s: float = 3.0) -> None:
         self.cell, self.host, self.connect_timeout_s = cell, host, connect_timeout_s
         self._receive = None
 

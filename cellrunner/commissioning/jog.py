@@ -77,10 +77,7 @@ def requested_qd(
     twist[axis] = (
         sign * speed * (LINEAR_SPEED_MPS if axis < 3 else math.radians(ANGULAR_SPEED_DEG_S))
     )
-    if mode == "base":
-        R = kinematics.T_world_base[:3, :3]
-    else:
-        R = kinematics.T_world_tcp(q_rad)[:3, :3]
+    R = kinematics.T_world_base[:3, :3] if mode == "base" else kinematics.T_world_tcp(q_rad)[:3, :3]
     twist_world = np.concatenate([R @ twist[:3], R @ twist[3:]])
     J = kinematics.jacobian_tcp(q_rad)
     return J.T @ np.linalg.solve(J @ J.T + DAMPING**2 * np.eye(6), twist_world)
@@ -93,7 +90,7 @@ def _ramp(value: float, slow: float, stop: float) -> float:
 class Governor:
     """Scales a requested joint velocity near singularities and obstacles."""
 
-    def __init__(self, kinematics, collision):
+    def __init__(self, kinematics, collision) -> None:
         self.kinematics, self.collision = kinematics, collision
         self._fixture_pairs: list[int] | None = None
 
@@ -180,7 +177,7 @@ class Governor:
 class DeadMan:
     """Which jog key is held, judged from key events and their auto-repeat."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.key: str | None = None
         self.last_s = 0.0
         self.repeats = 0

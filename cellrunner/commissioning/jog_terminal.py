@@ -31,7 +31,7 @@ MAX_SESSION_S = 4 * 3600.0
 class JogSession:
     """Construct, :meth:`connect`, :meth:`run` (until Esc), :meth:`close`."""
 
-    def __init__(self, world, host: str, mode: str = "joint", out=None):
+    def __init__(self, world, host: str, mode: str = "joint", out=None) -> None:
         self.world, self.host, self.mode = world, host, mode
         self.kinematics = world.kinematics
         self.governor = jog.Governor(self.kinematics, world.collision)

@@ -15,13 +15,14 @@ PLC commands as commands, what the robot and the job do as events.
 
 from __future__ import annotations
 
+import contextlib
 import sqlite3
 import threading
 import uuid
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, replace
-from datetime import UTC, datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 
@@ -147,7 +148,7 @@ class CellController:
         on_step_start: Callable[[Step, int], None] | None = None,
         on_job_start: Callable[[], None] | None = None,
         gate: Callable[[Step], bool] | None = None,
-    ):
+    ) -> None:
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
         self.planner, self.log = planner, log
         self.wait_for_unhold = wait_for_unhold
@@ -194,10 +195,8 @@ class CellController:
         job = self._job
         if job is None:
             return
-        try:
+        with contextlib.suppress(Exception):  # stopping is best effort; the job is closed below
             self.backend.stop_motion()
-        except Exception:  # noqa: BLE001 - stopping is best effort; the job is closed below
-            pass
         for _ in range(max_ticks):
             state = self.backend.read_state()
             if float(np.max(np.abs(state.qd_rad_s))) < 1e-3:
@@ -446,7 +445,7 @@ class CellController:
         assert job.plan is not None
         try:
             plan: JobPlan = job.plan.result()
-        except Exception as exc:  # noqa: BLE001 - a planner bug must still close the job with a code
+        except Exception as exc:  # a planner bug must still close the job with a code
             message = (
                 str(exc) if isinstance(exc, CellrunnerError) else f"{type(exc).__name__}: {exc}"
             )
@@ -543,10 +542,8 @@ class CellController:
         self._mark_entered()
         self._log("job_end", job_id=job.job_id, result_code=int(code), message=message)
         for listener in list(self._listeners):
-            try:
+            with contextlib.suppress(Exception):  # a listener must never take the cell down
                 listener(self._last)
-            except Exception:  # a listener must never take the cell down
-                pass
 
     # ------------------------------------------------------------------ helpers
     def _enter_command(self, command: Command) -> None:
@@ -615,13 +612,3 @@ def _result_of(record: JobRecord) -> JobResult:
         record.client_job_id or "",
         record.source,
     )
-
-
-def run_until_done(
-    cell: CellController, *, max_s: float, stop: threading.Event | None = None
-) -> None:
-    """Tick ``cell`` until its job ended or ``max_s`` of backend time passed (see
-    :meth:`~cellrunner.execution.loop.ControlLoop.run_job`)."""
-    from cellrunner.execution.loop import ControlLoop
-
-    ControlLoop(cell).run_job(max_s=max_s, stop=stop)

@@ -9,6 +9,7 @@ holding -> held -> unholding -> execute, or -> aborting; ``done`` at the end wit
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import math
 import time
@@ -21,9 +22,12 @@ from cellrunner.backends.base import BackendError, Safety
 from cellrunner.errors import CellrunnerError, InfeasibleError, PeerUnreachable
 from cellrunner.execution import steps as behaviours
 from cellrunner.execution.context import JobContext
+from cellrunner.execution.force import run_force
 from cellrunner.execution.steps import Outcome, run_motion, run_weigh
+from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import ON_ERROR, Step
+from cellrunner.model.force_steps import FORCE_KINDS
 from cellrunner.model.task import ProtectiveStopPolicy
 
 #: the controller refuses to unlock a protective stop sooner (UR e-Series and CB3)
@@ -38,6 +42,13 @@ UNLOCK_RETRY_S = 0.25
 RECONNECT_FIRST_DELAY_S = 0.2
 
 _NORMAL = Safety.NORMAL  # looked up once: tick runs every period
+
+#: the behaviour of each step kind that is not a motion
+_BEHAVIOURS = {
+    **behaviours.BEHAVIOURS,
+    "tool_lock": run_tool_lock,
+    "tool_unlock": run_tool_unlock,
+}
 
 
 class JobPhase(enum.StrEnum):
@@ -345,10 +356,12 @@ class JobRunner:
             self._gen = run_weigh(self.ctx, step)
         elif item.behaviour == "still":
             self._gen = _stand_still(self.ctx)
+        elif step.kind in FORCE_KINDS:  # a guarded line
+            self._gen = run_force(self.ctx, step, resume=item.resume)
         elif step.is_motion:
             self._gen = run_motion(self.ctx, step, resume=item.resume)
         else:
-            self._gen = behaviours.BEHAVIOURS[step.kind](self.ctx, step)
+            self._gen = _BEHAVIOURS[step.kind](self.ctx, step)
 
     def _await_gate(self, item: _Item):
         """Stand still until the gate opens, then start the item (its own behaviour runs
@@ -447,10 +460,8 @@ class JobRunner:
         if self._cleanup is not None:
             return self._end_cleanup(code, message)
         if code is not ResultCode.OK and code.is_fault:
-            try:
+            with contextlib.suppress(BackendError):
                 self.ctx.backend.stop_motion()
-            except BackendError:
-                pass
         if self._current is not None and code is not ResultCode.OK:
             record = self.records[self._current.step.index]
             if record.status is StepStatus.RUNNING:
@@ -511,10 +522,8 @@ class JobRunner:
                 self.ctx.commanded_q = None
                 return self._next_item()
             if code.is_fault:
-                try:
+                with contextlib.suppress(BackendError):
                     self.ctx.backend.stop_motion()
-                except BackendError:
-                    pass
         failures = self._cleanup_failures
         note = "on_error done" if not failures else f"on_error failed: {'; '.join(failures)}"
         for record in self.records.values():

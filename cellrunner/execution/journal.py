@@ -2,7 +2,7 @@
 step transition after it, so no result is ever lost.
 
 Two backends behind one :class:`JournalBackend` Protocol, picked by the cell file's
-``journal:`` (:func:`journal_for`): a SQLite file (the default, :class:`SqliteJournal`)
+``journal:`` (:func:`~cellrunner.execution.journal_open.journal_for`): a SQLite file (the default, :class:`SqliteJournal`)
 or a ``postgresql://`` URL, one database shared by many cells
 (:class:`~cellrunner.execution.journal_postgres.PostgresJournal`). A journal opened for
 a cell sees that cell's jobs only (several cells may share one journal); one opened
@@ -131,21 +131,6 @@ class JournalBackend(Protocol):
     def steps_of(self, job_id: str) -> list[tuple]: ...
 
 
-def journal_for(location: str, cell: str | None, resolve=Path) -> JournalBackend:
-    """The journal the cell file's ``journal:`` names: a ``postgresql://`` URL, else a
-    SQLite file (``resolve`` turns the written path into a file path)."""
-    if location.startswith(POSTGRES_SCHEMES):
-        from cellrunner.execution.journal_postgres import PostgresJournal
-
-        return PostgresJournal(location, cell)
-    return SqliteJournal(resolve(location), cell)
-
-
-def cell_journal(cell, *, all_cells: bool = False) -> JournalBackend:
-    """The journal of a loaded cell (``LoadedCell``); ``all_cells`` reads every cell's jobs."""
-    return journal_for(cell.cell.journal, None if all_cells else cell.cell.cell, cell.resolve)
-
-
 def is_database_url(location: str) -> bool:
     return location.startswith(POSTGRES_SCHEMES)
 
@@ -167,7 +152,7 @@ class SqliteJournal:
     FULL), so a crash right after a call never loses what it wrote. ``cell`` scopes
     what is read and closed to one cell (None: every cell in the file)."""
 
-    def __init__(self, path: str | Path, cell: str | None = None):
+    def __init__(self, path: str | Path, cell: str | None = None) -> None:
         self.path = Path(path)
         self.cell = cell
         self._db: sqlite3.Connection | None = None

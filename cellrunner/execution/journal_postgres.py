@@ -21,6 +21,7 @@ psycopg (3) is imported only when a ``postgresql://`` journal is used.
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import sys
 import threading
@@ -97,7 +98,7 @@ class PostgresJournal:
         *,
         begin_timeout_s: float = BEGIN_TIMEOUT_S,
         flush_timeout_s: float = FLUSH_TIMEOUT_S,
-    ):
+    ) -> None:
         self.url, self.cell = url, cell
         self.begin_timeout_s, self.flush_timeout_s = begin_timeout_s, flush_timeout_s
         self._queue: queue.Queue[_Write | None] = queue.Queue()
@@ -301,10 +302,8 @@ class PostgresJournal:
 
     def _drop_read(self) -> None:
         if self._read_conn is not None:
-            try:
+            with contextlib.suppress(Exception):
                 self._read_conn.close()
-            except Exception:
-                pass
         self._read_conn = None
 
     def _enqueue(self, sql: str | None, args: tuple = ()) -> _Write:
@@ -372,10 +371,8 @@ class PostgresJournal:
 
     def _drop_write(self) -> None:
         if self._write_conn is not None:
-            try:
+            with contextlib.suppress(Exception):
                 self._write_conn.close()
-            except Exception:
-                pass
         self._write_conn = None
 
     def _connect(self) -> Any:

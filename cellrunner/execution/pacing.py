@@ -20,7 +20,7 @@ class PacedMotions:
     """A job's :class:`Motions` streamed at ``speed`` x the approved pace: the very path
     ``check`` approved, stretched in time only (see :func:`time_scaled`)."""
 
-    def __init__(self, motions: Motions, speed: float):
+    def __init__(self, motions: Motions, speed: float) -> None:
         if not 0.0 < speed <= 1.0:
             raise ValueError(f"speed {speed:g} is outside (0, 1]")
         self.motions, self.speed = motions, speed
@@ -50,7 +50,7 @@ class EnterGate:
         source: IO[str] | None = None,
         out: IO[str] | None = None,
         on_end: Callable[[], None] | None = None,
-    ):
+    ) -> None:
         self.describe = describe
         self.on_end = on_end  # called (once) when a step waits and the input has ended
         self.source = source if source is not None else sys.stdin

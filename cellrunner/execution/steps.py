@@ -15,10 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from cellrunner.execution.context import Carry, JobContext
-from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
-from cellrunner.model.force_steps import FORCE_KINDS
 
 StepGen = Generator[None, None, "Outcome"]
 
@@ -50,11 +48,8 @@ OK = Outcome(True)
 
 def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     """Stream the approved trajectory of ``step``; replan from where the arm is when it
-    does not stand at the trajectory's start (after a stop or a retry)."""
-    if step.kind in FORCE_KINDS:  # a guarded line
-        from cellrunner.execution.force import run_force
-
-        return (yield from run_force(ctx, step, resume))
+    does not stand at the trajectory's start (after a stop or a retry). Force steps run
+    through :func:`~cellrunner.execution.force.run_force` instead."""
     q_now = ctx.state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
     # the last set-point streamed is this trajectory's start: the arm is on its way there
@@ -323,8 +318,6 @@ def _part_lost(ctx: JobContext) -> str | None:
 
 
 BEHAVIOURS = {
-    "tool_lock": run_tool_lock,
-    "tool_unlock": run_tool_unlock,
     "grip": run_grip,
     "release": run_release,
     "set_output": run_set_output,

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Generator
 
 from cellrunner.execution.context import JobContext, use_gripper
+from cellrunner.execution.steps import OK, Outcome
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 
@@ -18,7 +19,7 @@ from cellrunner.model.expand import Step
 UNCONFIRMED_S = 0.15
 
 
-def run_tool_unlock(ctx: JobContext, step: Step) -> Generator[None, None, object]:
+def run_tool_unlock(ctx: JobContext, step: Step) -> Generator[None, None, Outcome]:
     outcome = yield from _drive(ctx, step, lock=False)
     if outcome.ok:
         use_gripper(ctx, None)
@@ -27,7 +28,7 @@ def run_tool_unlock(ctx: JobContext, step: Step) -> Generator[None, None, object
     return outcome
 
 
-def run_tool_lock(ctx: JobContext, step: Step) -> Generator[None, None, object]:
+def run_tool_lock(ctx: JobContext, step: Step) -> Generator[None, None, Outcome]:
     outcome = yield from _drive(ctx, step, lock=True)
     if outcome.ok:
         tool = ctx.tools[step.extra["tool"]]
@@ -36,9 +37,7 @@ def run_tool_lock(ctx: JobContext, step: Step) -> Generator[None, None, object]:
     return outcome
 
 
-def _drive(ctx: JobContext, step: Step, lock: bool) -> Generator[None, None, object]:
-    from cellrunner.execution.steps import OK, Outcome
-
+def _drive(ctx: JobContext, step: Step, lock: bool) -> Generator[None, None, Outcome]:
     lock_channel = ctx.outputs[step.extra["lock_output"]]
     ctx.backend.set_output(lock_channel, lock)
     args = step.args

@@ -8,7 +8,6 @@ planning and execution work from one list of :class:`Step` objects.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -16,8 +15,18 @@ import numpy as np
 from cellrunner.errors import InputError
 from cellrunner.model import geometry
 from cellrunner.model.cell import Cell
-from cellrunner.model.force_steps import FORCE_KINDS
+from cellrunner.model.frames import frame_pose
 from cellrunner.model.load import LoadedTask, StepSpec
+from cellrunner.model.params import Param, ParamValue, PoseValue
+from cellrunner.model.source import PathKey
+from cellrunner.model.step import (
+    LINEAR_KINDS,
+    MOTION_KINDS,
+    PLANNED_KINDS,
+    RetryPlan,
+    Step,
+    StepKind,
+)
 from cellrunner.model.task import (
     ApproachArgs,
     DistanceArgs,
@@ -25,76 +34,17 @@ from cellrunner.model.task import (
     LinearArgs,
     Offset,
     Pattern,
+    PickArgs,
+    PlaceArgs,
     TaskFile,
 )
-
-MOTION_KINDS = ("move", "approach", "descend", "linear", "lift", "retreat", *FORCE_KINDS)
-PLANNED_KINDS = ("move", "approach")  # collision-free planned joint moves
-LINEAR_KINDS = ("descend", "linear", "lift", "retreat", *FORCE_KINDS)  # straight TCP lines
+from cellrunner.model.tool_change import expand_change_tool
 
 
-@dataclass(frozen=True)
-class RetryPlan:
-    """What a grip does when its confirmation fails: run ``between``, then redo the steps
-    from ``redo_from`` (1-based expanded index), at most ``attempts`` times in all."""
-
-    attempts: int
-    between: tuple[Step, ...]
-    redo_from: int
-
-
-@dataclass(frozen=True, eq=False)
-class Step:
-    """One expanded primitive step.
-
-    ``T_world_tcp`` is the goal pose of the TCP for frame targets (approach point for
-    ``approach``); ``q_goal_deg`` for joint targets (``home`` included); both None for
-    relative motions (lift, retreat) and non-motion steps.
-    """
-
-    index: int
-    kind: str
-    name: str
-    args: Any
-    file_path: tuple
-    macro: str | None = None
-    T_world_tcp: np.ndarray | None = None
-    q_goal_deg: tuple[float, ...] | None = None
-    retry: RetryPlan | None = None
-    extra: dict = field(default_factory=dict)
-
-    @property
-    def is_motion(self) -> bool:
-        return self.kind in MOTION_KINDS
-
-    @property
-    def label(self) -> str:
-        """``step 5 approach 'far_away'``, as messages name a step."""
-        return (
-            f"step {self.index} {self.kind} {self.name!r}"
-            if self.name != self.kind
-            else f"step {self.index} {self.kind}"
-        )
-
-
-def frame_pose(cell: Cell, name: str) -> np.ndarray:
-    """T_world_frame of a named frame, following parents up to the world."""
-    T = np.eye(4)
-    seen = set()
-    while name != "world":
-        if name in seen or name not in cell.frames:
-            raise KeyError(name)
-        seen.add(name)
-        frame = cell.frames[name]
-        T = frame.matrix() @ T
-        name = frame.parent
-    return T
-
-
-def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, int | float | bool]:
+def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, ParamValue]:
     """The task's params: defaults overridden by ``given`` (strings from the CLI are
     accepted); raises InputError naming the bad param and its bounds."""
-    out: dict[str, int | float | bool] = {}
+    out: dict[str, ParamValue] = {}
     problems = []
     for name in given:
         if name not in task.params:
@@ -136,7 +86,9 @@ ON_ERROR = "on_error"
 
 
 class _Builder:
-    def __init__(self, cell: Cell, params: dict[str, Any], specs: dict | None = None):
+    def __init__(
+        self, cell: Cell, params: dict[str, Any], specs: dict[str, Param] | None = None
+    ) -> None:
         self.cell, self.params, self.specs = cell, params, specs or {}
         self.steps: list[Step] = []
         self.tool = cell.robot.tool  # the mounted tool's name (with ``tools:``)
@@ -151,8 +103,6 @@ class _Builder:
         elif kind == "place":
             self._place(spec, args)
         elif kind == "change_tool":
-            from cellrunner.model.tool_change import expand_change_tool
-
             self.tool = expand_change_tool(self, spec, self.tool)
         else:
             self.steps.append(self.primitive(kind, args, spec.path, self._next()))
@@ -161,7 +111,7 @@ class _Builder:
         self,
         kind: str,
         args: Any,
-        path: tuple,
+        path: PathKey,
         index: int,
         macro: str | None = None,
         retry: RetryPlan | None = None,
@@ -194,7 +144,7 @@ class _Builder:
             name = args.input
         elif kind == "wait":
             name = f"{args.seconds:g} s"
-        return Step(index, kind, name, args, path, macro, T, q, retry)
+        return Step(index, StepKind(kind), name, args, path, macro, T, q, retry)
 
     def _target(
         self, at: str, offset: Offset | None, pattern: Pattern | None, at_offset: str | None = None
@@ -214,7 +164,7 @@ class _Builder:
             name = f"{at}+{at_offset}"
         return T @ _offset(offset), name
 
-    def _pick(self, spec: StepSpec, a) -> None:
+    def _pick(self, spec: StepSpec, a: PickArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"pick {name}"
         path = spec.path
@@ -222,7 +172,7 @@ class _Builder:
         self.steps.append(
             Step(
                 approach_i,
-                "approach",
+                StepKind.APPROACH,
                 name,
                 ApproachArgs(to=a.at, distance=a.approach),
                 path,
@@ -232,7 +182,15 @@ class _Builder:
         )
         descend_i = self._next()
         self.steps.append(
-            Step(descend_i, "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T)
+            Step(
+                descend_i,
+                StepKind.DESCEND,
+                name,
+                LinearArgs(to=a.at, speed=a.speed),
+                path,
+                macro,
+                T,
+            )
         )
         retry = None
         if a.retry is not None and a.retry.attempts > 1:
@@ -246,7 +204,7 @@ class _Builder:
         self.steps.append(
             Step(
                 self._next(),
-                "grip",
+                StepKind.GRIP,
                 name,
                 a.grip,
                 path,
@@ -260,7 +218,7 @@ class _Builder:
             self.steps.append(
                 Step(
                     self._next(),
-                    "lift",
+                    StepKind.LIFT,
                     name,
                     DistanceArgs(distance=lift, speed=a.speed),
                     path,
@@ -268,14 +226,14 @@ class _Builder:
                 )
             )
 
-    def _place(self, spec: StepSpec, a) -> None:
+    def _place(self, spec: StepSpec, a: PlaceArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"place {name}"
         path = spec.path
         self.steps.append(
             Step(
                 self._next(),
-                "approach",
+                StepKind.APPROACH,
                 name,
                 ApproachArgs(to=a.at, distance=a.approach),
                 path,
@@ -284,7 +242,15 @@ class _Builder:
             )
         )
         self.steps.append(
-            Step(self._next(), "descend", name, LinearArgs(to=a.at, speed=a.speed), path, macro, T)
+            Step(
+                self._next(),
+                StepKind.DESCEND,
+                name,
+                LinearArgs(to=a.at, speed=a.speed),
+                path,
+                macro,
+                T,
+            )
         )
         release = (
             a.release if a.confirm is None else a.release.model_copy(update={"confirm": a.confirm})
@@ -297,14 +263,20 @@ class _Builder:
         back = a.retreat if a.retreat is not None else a.approach
         self.steps.append(
             Step(
-                self._next(), "release", name, release, path, macro, extra={} if back > 0 else check
+                self._next(),
+                StepKind.RELEASE,
+                name,
+                release,
+                path,
+                macro,
+                extra={} if back > 0 else check,
             )
         )
         if back > 0:
             self.steps.append(
                 Step(
                     self._next(),
-                    "retreat",
+                    StepKind.RETREAT,
                     name,
                     DistanceArgs(distance=back, speed=a.speed),
                     path,
@@ -329,10 +301,10 @@ def pattern_params(loaded: LoadedTask) -> dict[str, range]:
     return out
 
 
-def box_params(loaded: LoadedTask) -> dict[str, list[dict]]:
+def box_params(loaded: LoadedTask) -> dict[str, list[PoseValue]]:
     """Every pose param a pick or place is offset by, with the poses ``check`` must cover:
     the centre and the corners of its box."""
-    out: dict[str, list[dict]] = {}
+    out: dict[str, list[PoseValue]] = {}
     for spec in loaded.steps:
         name = getattr(spec.args, "at_offset", None)
         if name is not None:
@@ -348,6 +320,7 @@ __all__ = [
     "GripArgs",
     "RetryPlan",
     "Step",
+    "StepKind",
     "box_params",
     "expand",
     "expand_on_error",

@@ -13,10 +13,8 @@ from pydantic import Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Strict
+from cellrunner.model.step import FORCE_KINDS as FORCE_KINDS
 from cellrunner.model.units import Force, Length, PositiveLength, Speed
-
-#: kinds of the force steps (straight lines stopped by the wrist force)
-FORCE_KINDS = ("move_until_contact", "insert")
 
 
 class MoveUntilContactArgs(Strict):

@@ -8,19 +8,25 @@ warnings (e.g. angles that look like radians) are kept on the loaded object.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
 from cellrunner.errors import Diagnostic, InputError
-from cellrunner.model.cell import Cell
-from cellrunner.model.diagnose import diagnostics_of, did_you_mean, dotted, known_list
-from cellrunner.model.robots import robot_spec
+from cellrunner.model.cell import Cell, Fixture, Part, Tool
+from cellrunner.model.checks import check_io_name, check_radians
+from cellrunner.model.diagnose import diagnostics_of, dotted, known_list, unknown_name
+from cellrunner.model.references import check_task_references
+from cellrunner.model.robots import RobotSpec, robot_spec
 from cellrunner.model.source import PathKey, Source, load_yaml
-from cellrunner.model.task import MACROS, STEP_MODELS, TaskFile, widen_step_args
-from cellrunner.model.units import looks_like_radians
+from cellrunner.model.task import MACROS, STEP_MODELS, PickArgs, TaskFile, widen_step_args
+
+if TYPE_CHECKING:
+    from cellrunner.model.geometry import Placed
+    from cellrunner.model.params import Param
 
 _CHANNEL = re.compile(r"^(DO|CO|TO|AO|DI|CI|TI|AI)(\d+)$")
 _CHANNEL_COUNT = {"DO": 8, "CO": 8, "TO": 2, "AO": 2, "DI": 8, "CI": 8, "TI": 2, "AI": 2}
@@ -63,8 +69,9 @@ class LoadedCell:
         return self.path.parent
 
     @property
-    def spec(self):
-        return robot_spec(self.cell.robot.model)
+    def spec(self) -> RobotSpec:
+        """The arm with the cell's ``robot.joint_range`` applied (checked on loading)."""
+        return robot_spec(self.cell.robot.model).narrowed(self.cell.robot.joint_range)
 
     @property
     def root(self) -> Path:
@@ -72,7 +79,7 @@ class LoadedCell:
         folder = self.path.resolve().parent
         return folder.parent if folder.name == "cells" else folder
 
-    def tool_shapes(self, tool=None) -> list:
+    def tool_shapes(self, tool: Tool | None = None) -> list[Placed]:
         """The declared geometry of ``tool`` (default: the mounted one) as placed shapes in
         the flange frame."""
         from cellrunner.model.geometry import Placed
@@ -85,7 +92,7 @@ class LoadedCell:
             for i, g in enumerate(geometry)
         ]
 
-    def fixture_shapes(self) -> list:
+    def fixture_shapes(self) -> list[Placed]:
         """The fixtures as placed shapes in the world."""
         from cellrunner.model.geometry import Placed
 
@@ -115,7 +122,7 @@ class StepSpec:
     raw: Any = None  # the widened arguments as written, when they name float params
     refs: frozenset[str] = frozenset()  # the float params they name
 
-    def bind(self, params: dict, values: dict) -> Any:
+    def bind(self, params: dict[str, Param], values: dict[str, Any]) -> Any:
         """The arguments with the named params' values (``args`` when none are named)."""
         if not self.refs:
             return self.args
@@ -160,14 +167,21 @@ def load_cell(path: str | Path) -> LoadedCell:
 
 
 def _check_cell(loaded: LoadedCell, report: Report) -> None:
-    cell, spec = loaded.cell, loaded.spec
+    cell, spec = loaded.cell, robot_spec(loaded.cell.robot.model)
     raw = loaded.source.data
     _check_limits(cell, spec, report)
-    _check_radians(raw, ("robot", "home"), report)
-    for i, (lo, hi, q) in enumerate(zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home)):
+    check_radians(raw, ("robot", "home"), report)
+    ranges_ok = _check_joint_range(cell, spec, report)
+    where = ""
+    if ranges_ok and cell.robot.joint_range is not None:
+        spec, where = loaded.spec, " (robot.joint_range)"
+    for i, (lo, hi, q) in enumerate(
+        zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home, strict=True)
+    ):
         if not lo <= q <= hi:
             report.error(
-                ("robot", "home", i), f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]"
+                ("robot", "home", i),
+                f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]{where}",
             )
     for path, tool in _tools(cell):
         if tool.payload.mass > spec.payload_max_kg:
@@ -182,6 +196,7 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     _check_tool_names(cell, raw, report)
     _check_names(cell, report)
     _check_frames(cell, report)
+    _check_cameras(cell, report)
     for i, fixture in enumerate(cell.fixtures):
         if fixture.mesh is not None:
             f = loaded.resolve(fixture.mesh.file)
@@ -195,7 +210,7 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     check_sim_block(cell, report)
     for i, part in enumerate(cell.parts):
         if part.at not in cell.frames:
-            report.error(("parts", i, "at"), _unknown("frame", part.at, cell.frames))
+            report.error(("parts", i, "at"), unknown_name("frame", part.at, cell.frames))
     from cellrunner.model import sanity
 
     sanity.check_cell(loaded, report)
@@ -219,19 +234,39 @@ def serve_file_warnings(loaded: LoadedCell) -> list[Diagnostic]:
     return report.warnings
 
 
-def _unknown(what: str, name: Any, known) -> str:
-    known = list(known)
-    return f"unknown {what} {name!r}{did_you_mean(name, known)}; known: {known_list(known)}"
+def _check_joint_range(cell: Cell, spec: RobotSpec, report: Report) -> bool:
+    """``robot.joint_range``: each [min, max] with min < max inside the arm's own range.
+    True when there is none or every range is good."""
+    ranges = cell.robot.joint_range
+    if ranges is None:
+        return True
+    ok = True
+    for i, (lo, hi) in enumerate(ranges):
+        hw_lo, hw_hi = spec.joint_min_deg[i], spec.joint_max_deg[i]
+        if lo >= hi:
+            report.error(
+                ("robot", "joint_range", i),
+                f"joint {i + 1} range [{lo:g}, {hi:g}]: min must be below max",
+            )
+            ok = False
+        elif lo < hw_lo - 1e-9 or hi > hw_hi + 1e-9:
+            report.error(
+                ("robot", "joint_range", i),
+                f"joint {i + 1} range [{lo:g}, {hi:g}] is outside the {spec.label}'s "
+                f"[{hw_lo:g}, {hw_hi:g}] deg; joint_range can only narrow it",
+            )
+            ok = False
+    return ok
 
 
-def _check_limits(cell: Cell, spec, report: Report) -> None:
+def _check_limits(cell: Cell, spec: RobotSpec, report: Report) -> None:
     limits = cell.robot.limits
     model = spec.name.upper()
     if limits.joint_speed is not None:
         values = (
             limits.joint_speed if isinstance(limits.joint_speed, list) else [limits.joint_speed] * 6
         )
-        for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s)):
+        for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s, strict=True)):
             if v > cap + 1e-9:
                 path = ("robot", "limits", "joint_speed") + (
                     (i,) if isinstance(limits.joint_speed, list) else ()
@@ -278,26 +313,6 @@ def _joint(i: int) -> str:
     return JOINT_NAMES[i]
 
 
-def _check_radians(raw: Any, path: PathKey, report: Report) -> None:
-    value = raw
-    for part in path:
-        if not isinstance(value, (dict, list)):
-            return
-        try:
-            value = value[part]
-        except (KeyError, IndexError, TypeError):
-            return
-    if isinstance(value, list) and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
-    ):
-        if looks_like_radians([float(v) for v in value]):
-            report.warn(
-                path,
-                f"{value} looks like radians; angles are in degrees "
-                "(write e.g. '1.57 rad' if you mean radians)",
-            )
-
-
 def _check_io(cell: Cell, report: Report) -> None:
     used: dict[str, str] = {}
     for side, table in (("outputs", cell.io.outputs), ("inputs", cell.io.inputs)):
@@ -334,24 +349,6 @@ def _check_io(cell: Cell, report: Report) -> None:
         )
 
 
-def check_io_name(
-    cell: Cell, name: str, side: str, path: PathKey, report: Report, at_key: bool = False
-) -> None:
-    """Report ``name`` unless it is a known IO of ``side`` ('inputs' or 'outputs')."""
-    table = getattr(cell.io, side)
-    if name in table:
-        return
-    other = "outputs" if side == "inputs" else "inputs"
-    if name in getattr(cell.io, other):
-        report.error(
-            path,
-            f"{name!r} is an {other[:-1]}, not an {side[:-1]}; known {side}: {known_list(table)}",
-            at_key=at_key,
-        )
-    else:
-        report.error(path, _unknown(side[:-1], name, table), at_key=at_key)
-
-
 def _tools(cell: Cell) -> list[tuple[PathKey, Any]]:
     """Every tool of the cell with its path in the file (``tools.NAME`` or ``tool``)."""
     if cell.tools:
@@ -359,7 +356,7 @@ def _tools(cell: Cell) -> list[tuple[PathKey, Any]]:
     return [(("tool",), cell.tool)]
 
 
-def _check_gripper(cell: Cell, tool, path: PathKey, report: Report) -> None:
+def _check_gripper(cell: Cell, tool: Tool, path: PathKey, report: Report) -> None:
     g = tool.gripper
     if g is None:
         return
@@ -404,7 +401,7 @@ def _check_tool_names(cell: Cell, raw: Any, report: Report) -> None:
                 f"known: {known_list(names)}",
             )
         elif cell.robot.tool not in cell.tools:
-            report.error(("robot", "tool"), _unknown("tool", cell.robot.tool, names))
+            report.error(("robot", "tool"), unknown_name("tool", cell.robot.tool, names))
     elif cell.robot.tool is not None:
         report.error(
             ("robot", "tool"),
@@ -420,9 +417,9 @@ def _check_tool_names(cell: Cell, raw: Any, report: Report) -> None:
         check_io_name(cell, changer.locked, "inputs", base + ("locked",), report)
     for name, frame in changer.rack.items():
         if name not in cell.tools:
-            report.error(base + ("rack", name), _unknown("tool", name, names), at_key=True)
+            report.error(base + ("rack", name), unknown_name("tool", name, names), at_key=True)
         if frame not in cell.frames:
-            report.error(base + ("rack", name), _unknown("frame", frame, cell.frames))
+            report.error(base + ("rack", name), unknown_name("frame", frame, cell.frames))
     missing = [n for n in names if n not in changer.rack]
     if missing:
         report.error(
@@ -434,7 +431,11 @@ def _check_tool_names(cell: Cell, raw: Any, report: Report) -> None:
 
 def _check_names(cell: Cell, report: Report) -> None:
     seen: dict[str, str] = {}
-    for kind, items in (("fixture", cell.fixtures), ("part", cell.parts)):
+    named: tuple[tuple[str, Sequence[Fixture | Part]], ...] = (
+        ("fixture", cell.fixtures),
+        ("part", cell.parts),
+    )
+    for kind, items in named:
         for i, item in enumerate(items):
             key = f"{kind}s"
             if item.name in seen:
@@ -454,7 +455,7 @@ def _check_frames(cell: Cell, report: Report) -> None:
         if frame.parent != "world" and frame.parent not in cell.frames:
             report.error(
                 ("frames", name, "parent"),
-                _unknown("parent frame", frame.parent, ["world", *cell.frames]),
+                unknown_name("parent frame", frame.parent, ["world", *cell.frames]),
             )
             continue
         seen, cur = {name}, frame.parent
@@ -467,7 +468,26 @@ def _check_frames(cell: Cell, report: Report) -> None:
                 break
             seen.add(cur)
             cur = cell.frames[cur].parent
-        _check_radians(report.source.data, ("frames", name, "rpy"), report)
+        check_radians(report.source.data, ("frames", name, "rpy"), report)
+
+
+def _check_cameras(cell: Cell, report: Report) -> None:
+    """Camera and board mounts name world, flange or a frame; a frame cannot be 'flange'."""
+    known = ["world", "flange", *cell.frames]
+    if "flange" in cell.frames:
+        report.error(
+            ("frames", "flange"),
+            "'flange' is reserved (camera mounts) and cannot name a frame",
+            at_key=True,
+        )
+    for name, camera in cell.cameras.items():
+        if camera.mount not in known:
+            report.error(("cameras", name, "mount"), unknown_name("mount", camera.mount, known))
+        if camera.board is not None and camera.board.mount not in known:
+            report.error(
+                ("cameras", name, "board", "mount"),
+                unknown_name("mount", camera.board.mount, known),
+            )
 
 
 # ---------------------------------------------------------------------------- task
@@ -490,15 +510,13 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
         steps_raw = source.data.get("steps") if isinstance(source.data.get("steps"), list) else []
         _parse_steps(steps_raw, ("steps",), report, allow_macros=True)
         report.raise_if_errors()
-        raise AssertionError("unreachable")  # pragma: no cover
+        raise AssertionError("unreachable") from exc  # pragma: no cover
     steps = _parse_steps(header.steps, ("steps",), report, allow_macros=True, params=header.params)
     on_error = _parse_steps(
         header.on_error, ("on_error",), report, allow_macros=False, params=header.params
     )
     loaded = LoadedTask(header, path, source, steps, report.warnings, on_error)
     if not report.errors:
-        from cellrunner.model.references import check_task_references
-
         check_task_references(loaded, cell, report)
         from cellrunner.model import sanity
 
@@ -508,7 +526,12 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
 
 
 def _parse_steps(
-    raw: list, base: PathKey, report: Report, *, allow_macros: bool, params: dict | None = None
+    raw: list[Any],
+    base: PathKey,
+    report: Report,
+    *,
+    allow_macros: bool,
+    params: dict[str, Param] | None = None,
 ) -> list[StepSpec]:
     out = []
     for i, item in enumerate(raw):
@@ -519,7 +542,7 @@ def _parse_steps(
 
 
 def _parse_step(
-    item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict
+    item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict[str, Param]
 ) -> StepSpec | None:
     known = [k for k in STEP_MODELS if allow_macros or k not in MACROS]
     if isinstance(item, str):
@@ -542,7 +565,7 @@ def _parse_step(
                 else " (pick and place cannot be nested)"
             )
         )
-        report.error(path + (kind,), _unknown("step", kind, known) + hint, at_key=True)
+        report.error(path + (kind,), unknown_name("step", kind, known) + hint, at_key=True)
         return None
     model = STEP_MODELS[kind]
     raw = widen_step_args(kind, args)
@@ -565,7 +588,7 @@ def _parse_step(
         report.errors.extend(diagnostics_of(exc, report.source, model, prefix=path + (kind,)))
         return None
     spec = StepSpec(kind, parsed, path + (kind,), raw=raw if refs else None, refs=frozenset(refs))
-    if kind == "pick" and parsed.retry is not None:
+    if isinstance(parsed, PickArgs) and parsed.retry is not None:
         spec.between = _parse_steps(
             parsed.retry.between,
             path + (kind, "retry", "between"),

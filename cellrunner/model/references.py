@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
-from cellrunner.model.load import (
-    LoadedCell,
-    LoadedTask,
-    Report,
-    StepSpec,
-    _check_radians,
-    _unknown,
-    check_io_name,
-)
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
+from cellrunner.model.checks import check_io_name, check_radians
+from cellrunner.model.diagnose import unknown_name
+
+if TYPE_CHECKING:
+    from cellrunner.model.cell import Cell
+    from cellrunner.model.load import LoadedCell, LoadedTask, Report, StepSpec
+    from cellrunner.model.source import PathKey
+    from cellrunner.model.task import Pattern
 
 _LINEAR_KINDS = ("descend", "linear")
 
@@ -23,16 +25,16 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
         kind, args, path = step.kind, step.args, step.path
         if kind == "move":
             if isinstance(args.to, str) and args.to != "home" and args.to not in cell.frames:
-                report.error(path + ("to",), _unknown("target", args.to, ["home", *frames]))
+                report.error(path + ("to",), unknown_name("target", args.to, ["home", *frames]))
             if isinstance(args.to, list):
                 raw_path = path if _is_short(report, path) else path + ("to",)
-                _check_radians(report.source.data, raw_path, report)
+                check_radians(report.source.data, raw_path, report)
         elif kind in ("approach", "insert", *_LINEAR_KINDS):
             if args.to not in cell.frames:
-                report.error(path + ("to",), _unknown("frame", args.to, frames))
+                report.error(path + ("to",), unknown_name("frame", args.to, frames))
         elif kind in ("pick", "place"):
             if args.at not in cell.frames:
-                report.error(path + ("at",), _unknown("frame", args.at, frames))
+                report.error(path + ("at",), unknown_name("frame", args.at, frames))
             if args.pattern is not None:
                 _check_pattern(task, args.pattern, path + ("pattern",), report)
             if args.at_offset is not None:
@@ -75,7 +77,7 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             )
 
 
-def _is_short(report: Report, path) -> bool:
+def _is_short(report: Report, path: PathKey) -> bool:
     """True when the step at ``path`` was written in short form (``move: [..]``)."""
     value = report.source.data
     for part in path:
@@ -83,16 +85,16 @@ def _is_short(report: Report, path) -> bool:
     return not isinstance(value, dict)
 
 
-def _all_steps(steps: list[StepSpec]):
+def _all_steps(steps: list[StepSpec]) -> Iterator[StepSpec]:
     for step in steps:
         yield step
         yield from step.between
 
 
-def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
+def _check_pattern(task: LoadedTask, pattern: Pattern, path: PathKey, report: Report) -> None:
     params = task.task.params
     if pattern.index not in params:
-        report.error(path + ("index",), _unknown("param", pattern.index, params))
+        report.error(path + ("index",), unknown_name("param", pattern.index, params))
         return
     param = params[pattern.index]
     if param.type != "int":
@@ -120,12 +122,12 @@ def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
         )
 
 
-def _check_change_tool(cell, tool: str, path, report: Report) -> None:
+def _check_change_tool(cell: Cell, tool: str, path: PathKey, report: Report) -> None:
     if tool not in cell.tools:
         known = list(cell.tools)
         report.error(
             path + ("tool",) if not _is_short(report, path) else path,
-            _unknown("tool", tool, known)
+            unknown_name("tool", tool, known)
             if known
             else f"unknown tool {tool!r}: the cell has no 'tools:' to change between",
         )
@@ -137,7 +139,7 @@ def _check_change_tool(cell, tool: str, path, report: Report) -> None:
         )
 
 
-def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
+def _check_tool_at_end(task: LoadedTask, cell: Cell, report: Report) -> None:
     """Every job starts with ``robot.tool`` mounted, so a task must end with it."""
     last = None
     for step in task.steps:
@@ -151,9 +153,9 @@ def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
         )
 
 
-def _check_pose_param(task: LoadedTask, name: str, path, report: Report) -> None:
+def _check_pose_param(task: LoadedTask, name: str, path: PathKey, report: Report) -> None:
     params = task.task.params
     if name not in params:
-        report.error(path, _unknown("param", name, params))
+        report.error(path, unknown_name("param", name, params))
     elif params[name].type != "pose":
         report.error(path, f"offset param {name!r} must be of type pose, not {params[name].type}")

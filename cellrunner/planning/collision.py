@@ -78,7 +78,7 @@ else:
         """Imports ``name`` on first attribute access and takes its place in this module's
         globals: ``ContactAllowance`` and the cache need no pinocchio or coal (~0.1-0.4 s)."""
 
-        def __init__(self, name: str, alias: str):
+        def __init__(self, name: str, alias: str) -> None:
             self._name, self._alias = name, alias
 
         def __getattr__(self, attr: str):
@@ -210,7 +210,7 @@ class CollisionModel:
         part: Placed | None = None,
         allowances: Sequence[ContactAllowance] = (),
         _geometry_cache: dict | None = None,
-    ):
+    ) -> None:
         self.kinematics = kinematics
         self.tool = tuple(tool)
         self.fixtures = tuple(fixtures)
@@ -462,7 +462,7 @@ class CollisionModel:
         # relative to the other (distances are the same in the lower body's frame)
         self._pair_high = self._pair_mover.copy()  # the object whose motion counts
         self._pair_joints = np.ones((len(self._pairs), 6))  # 1 for the joints that count
-        for p, (m, o) in enumerate(zip(self._pair_mover, self._pair_other, strict=False)):
+        for p, (m, o) in enumerate(zip(self._pair_mover, self._pair_other, strict=True)):
             if not self._pair_other_static[p]:
                 low, high = (m, o) if self._body[m] <= self._body[o] else (o, m)
                 self._pair_high[p] = high
@@ -517,7 +517,7 @@ class CollisionModel:
         ]
         combos = [
             (a, b, n)
-            for n, (ra, rb) in enumerate(zip(self._lb_moving_a, self._lb_moving_b, strict=False))
+            for n, (ra, rb) in enumerate(zip(self._lb_moving_a, self._lb_moving_b, strict=True))
             for a in spheres_of[ra]
             for b in spheres_of[rb]
         ]

@@ -102,7 +102,7 @@ def round_corners(collision: CollisionModel, q_rad: np.ndarray) -> np.ndarray:
         return q
     out = [q[0]]
     t = np.linspace(0.0, 1.0, CORNER_POINTS)[:, None]
-    for a, w, b in zip(q[:-2], q[1:-1], q[2:]):
+    for a, w, b in zip(q[:-2], q[1:-1], q[2:], strict=True):
         arc = None
         for f in CORNER_FRACTIONS:
             p1, p2 = w + f * (a - w), w + f * (b - w)
@@ -189,7 +189,7 @@ def _rrt_connect(
     setup.setStateValidityChecker(valid)
 
     class ConservativeMotionValidator(ob.MotionValidator):
-        def checkMotion(self, a, b) -> bool:  # noqa: N802 (OMPL's name)
+        def checkMotion(self, a, b) -> bool:  # OMPL's name
             return collision.check_motion(as_array(a), as_array(b), explain=False).ok
 
     if conservative:

@@ -89,7 +89,7 @@ def _dh_link(d: float, a: float, alpha: float) -> pin.SE3:
 class ArmKinematics:
     """Kinematics of one UR arm mounted at ``T_world_base`` carrying a tool ``T_flange_tcp``."""
 
-    def __init__(self, spec: RobotSpec, T_world_base: np.ndarray, T_flange_tcp: np.ndarray):
+    def __init__(self, spec: RobotSpec, T_world_base: np.ndarray, T_flange_tcp: np.ndarray) -> None:
         self.spec = spec
         self.T_world_base = np.array(T_world_base, dtype=float)
         self.T_flange_tcp = np.array(T_flange_tcp, dtype=float)
@@ -267,7 +267,7 @@ class ArmKinematics:
         )
         p = T_base_flange[:3, 3]
         from_shoulder_m = float(np.linalg.norm(p - np.array([0.0, 0.0, self.spec.d_m[0]])))
-        model = self.spec.name.upper().replace("E", "e")
+        model = self.spec.label
         if from_shoulder_m > self.spec.reach_m:
             mm = from_shoulder_m / 1000
             hint = (

@@ -20,6 +20,7 @@ which the caller adds; ``time_and_verify``: "step N name: ...").
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -81,7 +82,7 @@ class MotionPlanner:
         clearance_m: float = 0.002,
         time_budget_s: float = 2.0,
         seed: int = 1,
-    ):
+    ) -> None:
         self.spec = spec
         self.kinematics = ArmKinematics(spec, T_world_base, T_flange_tcp)
         self.collision = CollisionModel(self.kinematics, tool, fixtures, clearance_m)
@@ -265,6 +266,6 @@ class MotionPlanner:
 def _waypoint_s(waypoints: np.ndarray, timed) -> np.ndarray:
     """Path position s of every input waypoint (duplicates collapsed as time_path does)."""
     s = [0.0]
-    for a, b in zip(waypoints[:-1], waypoints[1:]):
+    for a, b in itertools.pairwise(waypoints):
         s.append(s[-1] + float(np.linalg.norm(b - a)))
     return np.array(s)

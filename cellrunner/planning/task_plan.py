@@ -18,6 +18,7 @@ Rules (SPEC section 10):
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -216,7 +217,7 @@ def plan_task(
 class _StepPlanner:
     """Walks the steps, tracking the configuration and the carried part."""
 
-    def __init__(self, world: CellWorld, q: np.ndarray, part: Placed | None):
+    def __init__(self, world: CellWorld, q: np.ndarray, part: Placed | None) -> None:
         self.world, self.q, self.part = world, q, part
         self.allowances: tuple = ()
         self.contact: tuple = ()  # a force step's contacts, which the next straight move leaves
@@ -439,7 +440,7 @@ def _blend(world: CellWorld, group: list[_Motion]) -> list[_Motion]:
         for m in group
     ]
     kin = group[0].world.kinematics  # the tool mounted for this group
-    for a, b in zip(out[:-1], out[1:]):
+    for a, b in itertools.pairwise(out):
         a_line, b_line = a.line_m is not None, b.line_m is not None
         if (a_line and b_line) or _still(a.waypoints) or _still(b.waypoints):
             continue
@@ -523,7 +524,7 @@ def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray
 
 
 def _apply(world: CellWorld, group: list[_Motion], pieces: list[dict]) -> None:
-    for motion, piece in zip(group, pieces):
+    for motion, piece in zip(group, pieces, strict=True):
         row = motion.row
         row.approved, row.trajectory, row.verify_inputs = (
             piece["approved"],
@@ -559,7 +560,7 @@ def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -
     )
     memo = world.timing_memo
     hit = memo.get(key)
-    if hit is not None and all(a is m.collision for a, m in zip(hit[0], group)):
+    if hit is not None and all(a is m.collision for a, m in zip(hit[0], group, strict=True)):
         return hit[1]
     pieces = _time_pieces(world, group, q_start)
     if len(memo) >= TIMING_MEMO_SIZE:
@@ -584,7 +585,7 @@ def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) ->
     previous = np.asarray(q_start, float)
     start = 0
     pieces = []
-    for i, (motion, end) in enumerate(zip(group, cuts)):
+    for i, (motion, end) in enumerate(zip(group, cuts, strict=True)):
         q = timed.q_rad[start : end + 1]
         if i == 0:
             q = np.vstack([previous[None, :], q[1:]]) if len(q) > 1 else previous[None, :]

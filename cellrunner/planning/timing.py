@@ -210,7 +210,7 @@ class _Problem:
         grid_points: int = 0,
         densify: bool = True,
         tightening: float = TOPPRA_TIGHTENING,
-    ):
+    ) -> None:
         ta = _import_toppra()
         self.wp, self.limits, self.tightening = wp, limits, tightening
         if densify:
@@ -258,7 +258,7 @@ class _Problem:
         class PathSpeedBound(constraint.LinearConstraint):
             """s_dot^2 <= x_max on each grid point (computed above for the whole grid)."""
 
-            def __init__(self):
+            def __init__(self) -> None:
                 super().__init__()
                 self.dof = len(alim)
 

@@ -17,6 +17,7 @@ then::
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import threading
 from collections.abc import Callable
@@ -70,10 +71,8 @@ class _ServerThread:
     def stop(self, timeout_s: float = 10.0) -> None:
         loop, stopped = self._loop, self._stopped
         if loop is not None and stopped is not None and not loop.is_closed():
-            try:
+            with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(stopped.set)
-            except RuntimeError:
-                pass
         self.join(timeout_s)
 
     def join(self, timeout_s: float = 10.0) -> None:
@@ -85,7 +84,7 @@ class _ServerThread:
         _raise_thread_priority()
         try:
             asyncio.run(self._serve(started))
-        except BaseException as exc:  # noqa: BLE001 - reported through the future
+        except BaseException as exc:  # reported through the future
             if not started.done():
                 started.set_exception(_translate(exc))
 

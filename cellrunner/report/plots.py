@@ -123,7 +123,7 @@ def plot_tcp_path(
     views = (("top (x-y)", 0, 1), ("side (x-z)", 0, 2), ("front (y-z)", 1, 2))
     labels = merged_labels(step_points)
     work = np.vstack([tcp, base_m[None, :]])
-    for ax, (name, i, j) in zip(axes, views):
+    for ax, (name, i, j) in zip(axes, views, strict=True):
         _frame_axes(ax, work[:, [i, j]])
         (x0, x1), (_, y1) = ax.get_xlim(), ax.get_ylim()
         for placed in fixtures:
@@ -316,7 +316,7 @@ def plot_timelines(
     draw_steps_lane(lane, marks, t_end)
     ax_f.plot(t_s, force_N, lw=1.2, color="#9467bd")
     if force_window_N is not None:
-        for bound, what in zip(force_window_N, ("min", "max")):
+        for bound, what in zip(force_window_N, ("min", "max"), strict=True):
             if bound is not None:
                 ax_f.axhline(bound, color="#9467bd", ls=":", lw=1.0)
                 ax_f.text(
@@ -329,7 +329,7 @@ def plot_timelines(
                 )
     ax_f.set_ylabel("wrist force [N]")
     ax_f.grid(alpha=0.3)
-    for ax, name in zip(lanes, names):
+    for ax, name in zip(lanes, names, strict=True):
         values = np.asarray(io[name], float)
         ax.fill_between(t_s, 0, values, step="post", color="#2ca02c", alpha=0.6)
         ax.step(t_s, values, where="post", color="#1a661a", lw=0.8)

@@ -87,7 +87,7 @@ def quintic_blend(
     q0_rad: np.ndarray, q1_rad: np.ndarray, duration_s: float, rate_hz: float
 ) -> np.ndarray:
     """Samples (N x 6) of a rest-to-rest quintic from q0 to q1 at ``rate_hz``."""
-    n = max(2, int(round(duration_s * rate_hz)) + 1)
+    n = max(2, round(duration_s * rate_hz) + 1)
     s = np.linspace(0.0, 1.0, n)
     blend = 10 * s**3 - 15 * s**4 + 6 * s**5
     return np.asarray(q0_rad) + np.outer(blend, np.asarray(q1_rad) - np.asarray(q0_rad))

@@ -112,6 +112,7 @@ class TwinDescription:
     vacuum: Any = None  # a VacuumDescription (sim.vacuum) for a suction gripper
     tool_changer: Any = None  # a ToolChangerDescription (sim.tool_changer) for several tools
     input_rules: tuple = ()  # InputRuleDescription: inputs the cell's sim: block drives
+    cameras: tuple = ()  # CameraDescription (sim.cameras): cameras and their boards
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"
@@ -125,6 +126,7 @@ class TwinDescription:
             "io_inputs",
             "presence_sensors",
             "input_rules",
+            "cameras",
         ):
             object.__setattr__(self, attr, tuple(getattr(self, attr)))
         if len(self.q_home_rad) != 6:
@@ -140,7 +142,7 @@ class TwinDescription:
             g = self.gripper
             if g.close_output not in self.io_outputs:
                 raise ValueError(
-                    f"gripper close output {g.close_output!r} is not an output; "  # noqa: E501
+                    f"gripper close output {g.close_output!r} is not an output; "
                     f"known: {', '.join(self.io_outputs)}"
                 )
             for ch in (g.closed_sensor_input, g.open_sensor_input):

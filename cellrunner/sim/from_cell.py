@@ -47,9 +47,18 @@ def description_of(loaded: LoadedCell):
         parts=tuple(parts),
         io_outputs=tuple(io_outputs),
         io_inputs=tuple(io_inputs),
-        input_rules=_input_rules(c),
+        input_rules=_input_rules(loaded),
+        cameras=_cameras(loaded),
         name=c.cell,
     )
+
+
+def _cameras(loaded: LoadedCell) -> tuple:
+    if not loaded.cell.cameras:
+        return ()
+    from cellrunner.sim.cameras import describe_cameras
+
+    return describe_cameras(loaded)
 
 
 def _part(loaded: LoadedCell, part, gripper):
@@ -65,17 +74,18 @@ def _part(loaded: LoadedCell, part, gripper):
     )
 
 
-def _input_rules(cell) -> tuple:
+def _input_rules(loaded: LoadedCell) -> tuple:
     """The ``sim: inputs`` rules in channels and world metres."""
     from cellrunner.sim.input_rules import InputRuleDescription
 
+    cell = loaded.cell
     if cell.sim is None:
         return ()
     out = []
     for name, rule in cell.sim.inputs.items():
         channel = cell.io.inputs[name]
         if rule.part_at is not None:
-            point = tuple(float(v) for v in frame_pose(cell, rule.part_at)[:3, 3])
+            point = _part_at_point(loaded, rule.part_at)
             out.append(
                 InputRuleDescription(
                     channel,
@@ -99,6 +109,18 @@ def _input_rules(cell) -> tuple:
                 )
             )
     return tuple(out)
+
+
+def _part_at_point(loaded: LoadedCell, frame: str) -> tuple[float, float, float]:
+    """Where the centre of a part lying at ``frame`` is, as parts ``at:`` a frame lie: the
+    frame itself for jaws, half the part's height under it for suction (the frame is the
+    top face). The part that spawns at the frame is measured, else the cell's first part."""
+    cell = loaded.cell
+    x, y, z = (float(v) for v in frame_pose(cell, frame)[:3, 3])
+    part = next((p for p in cell.parts if p.at == frame), cell.parts[0] if cell.parts else None)
+    if part is not None:
+        z -= part_center_depth_m(cell.tool.gripper, part.to_shape(loaded.resolve))
+    return (x, y, z)
 
 
 def _jaws(tool, cell, io_outputs: list, io_inputs: list):

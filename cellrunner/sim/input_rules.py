@@ -31,7 +31,7 @@ class InputRuleDescription:
 class InputRules:
     """The state of every rule: the output history they need, their current values."""
 
-    def __init__(self, rules: tuple[InputRuleDescription, ...]):
+    def __init__(self, rules: tuple[InputRuleDescription, ...]) -> None:
         self.rules = rules
         self._changes: dict[str, list[tuple[float, bool | float]]] = {}  # output -> (t, value)
         self._last: dict[str, bool | float] = {}

@@ -50,10 +50,19 @@ ARM_MASS_KG = {
     "ur5e": 20.6,
     "ur10e": 33.5,
     "ur16e": 33.1,
+    "ur7e": 20.6,  # the UR5e renamed
+    "ur12e": 33.5,  # the UR10e renamed
+    "ur15": 40.2,  # sums of ur_description's link masses (UR15, UR18); UR8 Long assumed
+    "ur18": 39.5,
+    "ur8long": 42.0,
+    "ur20": 64.0,  # datasheets
+    "ur30": 63.5,
 }
 _TORQUE_SMALL = (56.0, 56.0, 28.0, 12.0, 12.0, 12.0)
 _TORQUE_MEDIUM = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)
 _TORQUE_LARGE = (330.0, 330.0, 150.0, 56.0, 56.0, 56.0)
+_TORQUE_UR18 = (433.0, 433.0, 204.0, 70.0, 70.0, 70.0)  # ur_description max_effort
+_TORQUE_UR20 = (738.0, 738.0, 433.0, 107.0, 107.0, 107.0)  # ur_description max_effort
 JOINT_TORQUE_MAX_NM = {
     "ur3": _TORQUE_SMALL,
     "ur3e": _TORQUE_SMALL,
@@ -62,6 +71,13 @@ JOINT_TORQUE_MAX_NM = {
     "ur10": _TORQUE_LARGE,
     "ur10e": _TORQUE_LARGE,
     "ur16e": _TORQUE_LARGE,
+    "ur7e": _TORQUE_MEDIUM,
+    "ur12e": _TORQUE_LARGE,
+    "ur15": _TORQUE_UR18,  # assumed: the UR18's joint sizes (same DH d1, d4-d6)
+    "ur18": _TORQUE_UR18,
+    "ur8long": _TORQUE_UR18,  # assumed, as the UR15
+    "ur20": _TORQUE_UR20,
+    "ur30": _TORQUE_UR20,
 }
 # Reflected rotor inertia of the harmonic drives (kg m^2), scaled by arm size.
 _ARMATURE_UR5 = (0.6, 0.6, 0.3, 0.06, 0.06, 0.06)
@@ -214,7 +230,7 @@ def _pose_attrs(T: np.ndarray) -> dict[str, str]:
 
 
 class _Builder:
-    def __init__(self, desc: TwinDescription, options: PhysicsOptions):
+    def __init__(self, desc: TwinDescription, options: PhysicsOptions) -> None:
         self.desc = desc
         self.options = options
         self.root = ET.Element("mujoco", model=desc.name)
@@ -297,6 +313,10 @@ class _Builder:
             from cellrunner.sim.vacuum import add_welds
 
             add_welds(self.root, d.parts)
+        if d.cameras:
+            from cellrunner.sim.cameras import add_cameras
+
+            add_cameras(self, d.cameras)
         self._actuators_and_sensors()
         ET.indent(self.root)
         return ET.tostring(self.root, encoding="unicode")

@@ -61,7 +61,7 @@ class CellRenderer:
 
     Holds one GL context; ``close()`` it (or use it as a context manager)."""
 
-    def __init__(self, world: Any, width: int = 1024, height: int = 768):
+    def __init__(self, world: Any, width: int = 1024, height: int = 768) -> None:
         self.world = world
         self.width, self.height = width, height
         self._renderer: Any = None

@@ -95,7 +95,7 @@ def add_tools(
 class ToolChanger:
     """The changer of one built SimWorld."""
 
-    def __init__(self, world: Any, desc: ToolChangerDescription):
+    def __init__(self, world: Any, desc: ToolChangerDescription) -> None:
         self.world, self.desc = world, desc
         m = world.model
         self.tools = {t.name: t for t in desc.tools}
@@ -160,7 +160,7 @@ class ToolChanger:
         m.body_pos[rail] = tool.T_flange_tcp[:3, 3]
         m.body_quat[rail] = quat_of(tool.T_flange_tcp[:3, :3])
         half = g.stroke_m / 2
-        for jaw, sign, pad in zip(("jaw_a", "jaw_b"), (1.0, -1.0), w._ids.pad_geoms):
+        for jaw, sign, pad in zip(("jaw_a", "jaw_b"), (1.0, -1.0), w._ids.pad_geoms, strict=True):
             m.jnt_range[m.joint(jaw).id] = (0.0, half)
             m.geom_pos[pad, 0] = sign * (half + g.finger_size_m[0] / 2)
         w._jaws_driven = False

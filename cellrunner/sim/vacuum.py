@@ -111,7 +111,7 @@ def add_welds(root: ET.Element, parts) -> None:
 class VacuumCups:
     """The cups of one built SimWorld (constructed after its model is compiled)."""
 
-    def __init__(self, world: Any, vac: VacuumDescription):
+    def __init__(self, world: Any, vac: VacuumDescription) -> None:
         self.world, self.vac = world, vac
         m = world.model
         self._mj = world._mj
@@ -124,6 +124,7 @@ class VacuumCups:
         self.grip_miss_armed = False
         self.slip_armed = False
         self._pull_lp: dict[str, float] = {}
+        self.held_at: dict[str, np.ndarray] = {}  # held part -> T_tcp_part as the cups sealed
         self.last_pull_N = 0.0
         self.enabled = True
         self._cup_bits = [
@@ -134,7 +135,7 @@ class VacuumCups:
         """Mounted (a tool changer took the vacuum tool) or parked: cups collide and seal only when on."""
         self.enabled = on
         m = self.world.model
-        for g, bits in zip(self.cup_geoms, self._cup_bits):
+        for g, bits in zip(self.cup_geoms, self._cup_bits, strict=True):
             m.geom_contype[g], m.geom_conaffinity[g] = bits if on else (0, 0)
             m.geom_rgba[g, 3] = 1.0 if on else 0.0
         if not on:
@@ -224,11 +225,18 @@ class VacuumCups:
         d.eq_active[eq] = 1
         self.held = self.held | {name}
         self._pull_lp[name] = 0.0
+        # where the part sits under the cups: a place puts it at its target through this
+        self.held_at[name] = w._part_in_tcp(name)
+        w.contacts_changed_held()
 
     def _drop(self, name: str) -> None:
-        self.world.data.eq_active[self.weld[name]] = 0
+        w = self.world
+        w.data.eq_active[self.weld[name]] = 0
         self.held = self.held - {name}
         self._pull_lp.pop(name, None)
+        # handed to the place check: the part released last, as it was held
+        w._held_last = {name: self.held_at.pop(name)}
+        w.contacts_changed_held()
 
     def _drop_all(self) -> None:
         for name in list(self.held):

@@ -44,7 +44,7 @@ JAM_SLIDE_M = 0.005  # a gripped part forced back this far in the jaws by a fixt
 JAM_FORCE_N = 150.0  # or pressed onto a fixture this hard (UR's default force limit)
 
 
-class Fault(str, enum.Enum):
+class Fault(enum.StrEnum):
     """Faults the twin can make physically happen (SPEC section 5, robot side)."""
 
     GRIP_MISS = "grip_miss"  # the part is moved away when the jaws start to close
@@ -62,7 +62,7 @@ class Fault(str, enum.Enum):
             raise ValueError(f"unknown fault {name!r}; known: {known}") from None
 
 
-class StopReason(str, enum.Enum):
+class StopReason(enum.StrEnum):
     CONTACT = "contact"
     INJECTED = "injected"
     REQUESTED = "requested"
@@ -124,12 +124,12 @@ class _Faults:
 class SimWorld:
     """The twin: construct with a description, ``build()``, then ``step_period()``."""
 
-    def __init__(self, description: TwinDescription, options: PhysicsOptions = PhysicsOptions()):
+    def __init__(self, description: TwinDescription, options: PhysicsOptions | None = None) -> None:
         self.description = description
-        self.options = options
+        self.options = options if options is not None else PhysicsOptions()
         self._rate_hz = description.rate_hz
         self.period_s = 1.0 / self._rate_hz
-        self.substeps = max(1, math.ceil(self.period_s / options.max_timestep_s - 1e-9))
+        self.substeps = max(1, math.ceil(self.period_s / self.options.max_timestep_s - 1e-9))
         self.model: Any = None
         self.data: Any = None
         self._mj: Any = None
@@ -198,6 +198,7 @@ class SimWorld:
         self._R_base_world_flat = tuple(R_world_base.T.ravel().tolist())
         self._tool_weight_N = GRAVITY_MPS2 * ids.tool_mass_kg
         self._gripped: frozenset[str] = _NONE
+        self._vac_geoms: frozenset[int] = frozenset()  # part geoms the cups hold
         # geom pairs of the last contact check that found nothing suspicious, and its
         # verdict (the gripped parts)
         self._clean_pairs: list[list[int]] | None = None
@@ -230,7 +231,7 @@ class SimWorld:
         return self._periods / self._rate_hz
 
     def _lookup_ids(self) -> _Ids:
-        m, mj, d = self.model, self._mj, self.description
+        m, _mj, d = self.model, self._mj, self.description
         joints = [m.joint(n).id for n in JOINT_NAMES]
         servo = np.array([m.actuator(f"servo:{n}").id for n in JOINT_NAMES])
         kp = m.actuator_gainprm[servo, 0]
@@ -483,6 +484,13 @@ class SimWorld:
         )
         self._clean_pairs, self._clean_gripped = None, _NONE
 
+    def contacts_changed_held(self) -> None:
+        """The cups sealed on or let go of a part: the verdict on the same contact pairs
+        changes (a part held by suction pressed onto a fixture is judged like a gripped one)."""
+        held = self.vacuum.held if self.vacuum is not None else _NONE
+        self._vac_geoms = frozenset(self._ids.part_geom[n] for n in held)
+        self._clean_pairs, self._clean_gripped = None, _NONE
+
     def _check_contacts(self) -> frozenset[str]:
         """Raise a protective stop on unexpected contact; return the gripped parts.
 
@@ -498,7 +506,7 @@ class SimWorld:
         pairs = data.contact.geom.tolist()
         if pairs == self._clean_pairs:
             return self._clean_gripped
-        watched = self._robot_or_pad_geoms
+        watched = self._robot_or_pad_geoms | self._vac_geoms
         for g1, g2 in pairs:
             if g1 in watched or g2 in watched:
                 break
@@ -527,6 +535,7 @@ class SimWorld:
             elif both == ROBOT | PARTS:
                 robot_parts.append((i, g2 if k2 == PARTS else g1))
         gripped_geoms = {g for g, hits in pad_hits.items() if hits == 3}
+        carried = gripped_geoms | self._vac_geoms
         suspicious += [i for i, g in robot_parts if g not in gripped_geoms]
         # a finger landing on a part it does not hold (judged by force, like the tool);
         # a held part that loses one pad's contact for a moment is still held
@@ -536,9 +545,7 @@ class SimWorld:
         ]
         # a carried part pushed into a fixture is a contact like the tool's own; the
         # light touch of setting it down is not (judged each period, so never cached)
-        pressed = [
-            i for i in part_static if pairs[i][0] in gripped_geoms or pairs[i][1] in gripped_geoms
-        ]
+        pressed = [i for i in part_static if pairs[i][0] in carried or pairs[i][1] in carried]
         if pressed and self.safety is Safety.NORMAL:
             self._judge_pressed(pressed, gripped_geoms)
         if suspicious and self.safety is Safety.NORMAL:
@@ -776,8 +783,8 @@ class SimWorld:
         """
         fx, fy, fz, tx, ty, tz = self._ft_flat.tolist()
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = self._R_site_flat.tolist()
-        cx, cy, cz = self._tool_com.tolist()
-        sx, sy, sz = self._site_pos.tolist()
+        cx, cy, _cz = self._tool_com.tolist()
+        sx, sy, _sz = self._site_pos.tolist()
         mg = self._tool_weight_N
         # world axes: minus the sensed wrench (site -> world), minus the tool's weight
         # (0, 0, -mg) and its moment about the flange, (c - s) x (0, 0, -mg)

@@ -140,7 +140,7 @@ class _Registers:
 class Controller:
     """A virtual UR controller; construct, then drive :meth:`tick` from a real-time loop."""
 
-    def __init__(self, config: ControllerConfig, physics: Physics | None = None):
+    def __init__(self, config: ControllerConfig, physics: Physics | None = None) -> None:
         self.config = config
         self.spec = config.spec
         self.period_s = config.period_s

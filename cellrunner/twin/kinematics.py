@@ -60,7 +60,7 @@ def matrix_to_pose(T: np.ndarray) -> np.ndarray:
 class Kinematics:
     """FK, Jacobian and numeric IK of one arm with a settable TCP offset (flange -> TCP)."""
 
-    def __init__(self, spec: RobotSpec):
+    def __init__(self, spec: RobotSpec) -> None:
         self.spec = spec
         self._d = np.array(spec.d_m, dtype=float)
         self._a = np.array(spec.a_m, dtype=float)

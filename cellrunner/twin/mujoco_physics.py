@@ -9,6 +9,9 @@ allows it.
 
 from __future__ import annotations
 
+import contextlib
+import threading
+
 import numpy as np
 
 from cellrunner.backends.base import BackendError, Safety
@@ -38,8 +41,19 @@ class MujocoPhysics:
         self.world = SimWorld(description)
         self._q_prev: np.ndarray | None = None
         self._contact = False
+        self._lock = threading.Lock()  # qpos for the camera thread (twin.camera)
+
+    def snapshot_qpos(self) -> np.ndarray:
+        """A copy of the whole MuJoCo state's positions (arm, fingers, parts), taken between
+        two physics steps."""
+        with self._lock:
+            return self.world.data.qpos.copy()
 
     def reset(self, q_rad: np.ndarray) -> None:
+        with self._lock:
+            self._reset(q_rad)
+
+    def _reset(self, q_rad: np.ndarray) -> None:
         if not self.world.built:
             self.world.build()
         q = np.array(q_rad, dtype=float)
@@ -59,15 +73,19 @@ class MujocoPhysics:
                     self.world.set_output(channel, value)
 
     def step(self, q_cmd_rad: np.ndarray, dt_s: float) -> None:
+        with self._lock:
+            self._step(q_cmd_rad, dt_s)
+
+    def _step(self, q_cmd_rad: np.ndarray, dt_s: float) -> None:
         world = self.world
         q_cmd = np.asarray(q_cmd_rad, float)
         qd = (q_cmd - self._q_prev) / dt_s if self._q_prev is not None else np.zeros(6)
         self._q_prev = q_cmd
         if world.safety is Safety.PROTECTIVE_STOP:
-            try:  # the controller decides when a stop ends (its 5 s rule); the twin follows
+            # the controller decides when a stop ends (its 5 s rule); the twin follows, unless
+            # the twin's own 5 s have not passed yet either
+            with contextlib.suppress(BackendError):
                 world.unlock_protective_stop()
-            except BackendError:
-                pass  # the twin's own 5 s have not passed yet either
         if world.safety is Safety.NORMAL and not world.stopping:
             world.command(q_cmd, qd)
         world.step_period()

@@ -246,7 +246,7 @@ class RtdeError(Exception):
 class RtdeSession:
     """One RTDE connection's protocol state (no socket)."""
 
-    def __init__(self, session_id: int, ctl: Controller, owners: InputOwners):
+    def __init__(self, session_id: int, ctl: Controller, owners: InputOwners) -> None:
         self.session_id = session_id
         self.ctl = ctl
         self.owners = owners
@@ -323,7 +323,7 @@ class RtdeSession:
             return self.message(O, struct.pack(">B", 0) + ",".join(types).encode())
         recipe_id = self._new_recipe_id("out")
         fmt = ">" + "".join(_FORMATS[t] for t in types)
-        getters = [(OUTPUTS[n].get, t in _VECTOR) for n, t in zip(names, types)]
+        getters = [(OUTPUTS[n].get, t in _VECTOR) for n, t in zip(names, types, strict=True)]
         self.outputs.append(
             _OutputRecipe(recipe_id, getters, struct.Struct(fmt), frequency / self.ctl.spec.rate_hz)
         )
@@ -336,7 +336,7 @@ class RtdeSession:
             return self.message(I, struct.pack(">B", 0) + ",".join(types).encode())
         taken = set(self.owners.claim(self.session_id, names))
         if taken:
-            types = ["IN_USE" if n in taken else t for n, t in zip(names, types)]
+            types = ["IN_USE" if n in taken else t for n, t in zip(names, types, strict=True)]
             return self.message(I, struct.pack(">B", 0) + ",".join(types).encode())
         recipe_id = self._new_recipe_id("in")
         fmt = ">" + "".join(_FORMATS[t] for t in types)
@@ -360,7 +360,7 @@ class RtdeSession:
         values = recipe.unpacker.unpack_from(payload, offset)
         fields: dict[str, Any] = {}
         k = 0
-        for name, type_ in zip(recipe.names, recipe.types):
+        for name, type_ in zip(recipe.names, recipe.types, strict=True):
             width = (
                 6
                 if type_ in ("VECTOR6D", "VECTOR6INT32", "VECTOR6UINT32")

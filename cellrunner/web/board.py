@@ -12,7 +12,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from datetime import UTC, datetime, timezone
+from datetime import UTC, datetime
 from typing import Any
 
 from cellrunner.execution.journal import JobRecord, JournalBackend
@@ -37,7 +37,7 @@ class StatusBoard:
         *,
         plc_links: Callable[[], dict[str, bool]] = dict,
         max_age_s: float = 0.2,
-    ):
+    ) -> None:
         self.port, self.journal, self.cell_name = port, journal, cell_name
         self.plc_links = plc_links
         self.max_age_s = max_age_s

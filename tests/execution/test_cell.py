@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from cellrunner.execution.cell import CellController, JobPlan, run_until_done
+from cellrunner.execution.cell import CellController, JobPlan
 from cellrunner.execution.journal import Journal
+from cellrunner.execution.loop import ControlLoop
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import expand
@@ -37,7 +38,7 @@ def tick(cell, n=1):
 
 
 def test_job_goes_through_packml_and_is_journaled(tmp_path):
-    cell, arm = make_cell(tmp_path)
+    cell, _arm = make_cell(tmp_path)
     assert cell.status().state == S.IDLE and cell.status().ready
     results = []
     cell.add_result_listener(results.append)
@@ -94,7 +95,7 @@ def test_estop_aborts_and_needs_release_clear_reset(tmp_path):
     arm = ScriptedArm(estop_at_s=0.2)
     cell, _ = make_cell(tmp_path, arm)
     ticket = cell.start_job(1, {}, "1", "modbus")
-    run_until_done(cell, max_s=30)
+    ControlLoop(cell).run_job(max_s=30)
     tick(cell, 3)
     assert cell.journal.get(ticket.job_id).result_code == ResultCode.ESTOP
     assert cell.status().state == S.ABORTED and cell.status().estop and not cell.status().ready

@@ -8,7 +8,8 @@ import time
 
 import pytest
 
-from cellrunner.execution.journal import JournalError, SqliteJournal, journal_for
+from cellrunner.execution.journal import JournalError, SqliteJournal
+from cellrunner.execution.journal_open import journal_for
 from cellrunner.execution.journal_postgres import PostgresJournal
 from cellrunner.model.codes import ResultCode
 from tests.execution.pg_server import PgServer
@@ -88,7 +89,7 @@ def test_writes_survive_a_server_restart_exactly_once(clean):
             journal.step("j1", index, "linear", f"s{index}", "running", 1)
         journal.end_job("j1", ResultCode.OK, 4.2, 0)
         assert time.monotonic() - t0 < 0.1
-        with pytest.raises(JournalError, match="could not be journaled|unreachable"):
+        with pytest.raises(JournalError, match=r"could not be journaled|unreachable"):
             journal.begin_job(
                 "j2", "cell-a", "pick", {}, "modbus", "2"
             )  # nothing unjournaled is accepted

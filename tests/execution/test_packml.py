@@ -133,7 +133,7 @@ def test_every_completion(state):
 
 
 def test_refusal_lists_what_is_allowed():
-    with pytest.raises(TransitionRefused, match="allowed: stop, abort|allowed: abort, stop"):
+    with pytest.raises(TransitionRefused, match=r"allowed: stop, abort|allowed: abort, stop"):
         StateMachine(S.STARTING).command(Command.HOLD)
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import subprocess
 import sys
 from pathlib import Path
@@ -230,9 +229,9 @@ def test_cached_plan_is_verified_before_use(tmp_path):
     assert check(cell, task).returncode == 0
     npz = next((tmp_path / "var" / "plan-cache").glob("*.npz"))
     data = dict(np.load(npz))
-    data["q2"] = (
-        data["q2"] + np.radians(5) * np.linspace(0, 1, len(data["q2"]))[:, None]
-    )  # tampered
+    offset, shape = json.loads(bytes(data["meta"]).decode())["arrays"]["q2"]
+    q2 = data["blob"][offset : offset + shape[0] * shape[1]].reshape(shape)
+    q2 += np.radians(5) * np.linspace(0, 1, shape[0])[:, None]  # tampered, in the blob
     np.savez(npz, **data)
     loaded = load_cell(cell)
     world = CellWorld(loaded)

@@ -42,7 +42,7 @@ def test_path_around_a_wall_is_certified_and_rounded():
     path = plan_joint_path(world, a, b, seed=1)
     assert path.planner == "rrtconnect"
     assert np.allclose(path.q_rad[0], a) and np.allclose(path.q_rad[-1], b)
-    for p, q in zip(path.q_rad[:-1], path.q_rad[1:], strict=False):
+    for p, q in zip(path.q_rad[:-1], path.q_rad[1:], strict=True):
         assert world.check_motion(p, q).ok  # every edge, arcs included, proven
     assert len(path.q_rad) >= 2 + CORNER_POINTS  # at least one corner became an arc
 

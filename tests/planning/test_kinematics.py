@@ -34,15 +34,32 @@ def test_ik_round_trip_returns_a_configuration_with_the_same_pose(model, q):
     assert np.abs(solutions[0] - q).max() < 1e-5  # the nearest branch is the one we came from
 
 
-@pytest.mark.parametrize("model", ["ur5e", "ur10", "ur3e"])
+def test_every_arm_ur_analytic_ik_solves_is_supported():
+    import ur_analytic_ik
+
+    solved = {
+        n for n in dir(ur_analytic_ik) if hasattr(getattr(ur_analytic_ik, n), "forward_kinematics")
+    }
+    assert solved == set(ROBOTS)
+
+
+@pytest.mark.parametrize("model", sorted(ROBOTS))
 def test_flange_fk_matches_ur_analytic_ik(model):
     import ur_analytic_ik
 
     kin = ArmKinematics(ROBOTS[model], np.eye(4), np.eye(4))
-    q = np.array([0.3, -1.1, 1.4, -0.7, 1.2, 0.5])
-    assert np.allclose(
-        kin.T_world_flange(q), getattr(ur_analytic_ik, model).forward_kinematics(*q), atol=1e-10
-    )
+    fk = getattr(ur_analytic_ik, model).forward_kinematics
+    for q in np.random.default_rng(9).uniform(-2 * np.pi, 2 * np.pi, (40, 6)):
+        assert np.allclose(kin.T_world_flange(q), fk(*q), atol=1e-10)
+
+
+@pytest.mark.parametrize("model", sorted(ROBOTS))
+def test_controller_rate_and_limits_per_generation(model):
+    spec = ROBOTS[model]
+    assert spec.rate_hz == (125.0 if model in ("ur3", "ur5", "ur10") else 500.0)
+    assert len(spec.joint_speed_max_deg_s) == 6 and min(spec.joint_speed_max_deg_s) >= 120
+    assert spec.joint_min_deg == (-360.0,) * 6 and spec.joint_max_deg == (360.0,) * 6
+    assert 0.5 <= spec.reach_m <= 1.75 and 3 <= spec.payload_max_kg <= 30
 
 
 @settings(max_examples=20, deadline=None)

@@ -1,6 +1,8 @@
 """Linear moves stay straight, timing keeps every limit at every sample, the verifier
 refuses what breaks a rule, and the planner façade approves a pick-and-place chain."""
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -45,7 +47,7 @@ def test_linear_move_into_the_table_is_refused_naming_the_pair():
     kin = ArmKinematics(SPEC, np.eye(4), TCP)
     world = CollisionModel(kin, TOOL, [TABLE])
     q0 = kin.ik_nearest(down(0.4, -0.1, 0.2), HOME)
-    with pytest.raises(InfeasibleError, match="tool 'gripper' .* fixture 'table'"):
+    with pytest.raises(InfeasibleError, match=r"tool 'gripper' .* fixture 'table'"):
         plan_linear(kin, world, q0, down(0.4, -0.1, -0.05))
 
 
@@ -112,7 +114,7 @@ def test_verifier_refuses_a_jump_with_numbers():
 
 def test_verifier_refuses_a_discontinuity_and_a_wrong_rate():
     q = np.repeat(HOME[None], 3, axis=0)
-    with pytest.raises(InfeasibleError, match="starts 5.7296 deg away"):
+    with pytest.raises(InfeasibleError, match=r"starts 5\.7296 deg away"):
         _verify(q, previous_q_rad=HOME + [0.1, 0, 0, 0, 0, 0])
     kin = ArmKinematics(SPEC, np.eye(4), TCP)
     with pytest.raises(InfeasibleError, match="125 Hz"):
@@ -160,7 +162,7 @@ def test_planner_approves_a_pick_and_place_chain():
     approved += planner.time_and_verify([put], previous=approved[-1])
     assert [a.step_index for a in approved] == [1, 2, 3, 4, 5]
     assert all(a.is_sealed for a in approved)
-    for before, after in zip(approved, approved[1:]):
+    for before, after in itertools.pairwise(approved):
         assert np.array_equal(before.trajectory.q_rad[-1], after.trajectory.q_rad[0])
     # lift runs into transfer without stopping: its last samples still move (slowly: the
     # joint-space corner between them is sharp here; task plans blend such corners)

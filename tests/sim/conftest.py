@@ -51,7 +51,7 @@ class Driver:
         return self.move_joints(q_to, duration_s, name)
 
     def wait(self, seconds: float) -> None:
-        for _ in range(int(round(seconds * self.backend.rate_hz))):
+        for _ in range(round(seconds * self.backend.rate_hz)):
             self.backend.wait_period()
 
     def pick_cube(self) -> None:

@@ -32,7 +32,7 @@ def test_tcp_site_follows_the_dh_forward_kinematics(model_name: str) -> None:
     site = model.site("tcp").id
     for _ in range(20):
         q = rng.uniform(-np.pi, np.pi, 6)
-        for name, value in zip(JOINT_NAMES, q):
+        for name, value in zip(JOINT_NAMES, q, strict=True):
             data.qpos[model.jnt_qposadr[model.joint(name).id]] = value
         mujoco.mj_kinematics(model, data)
         T = desc.T_world_base @ dh_forward(desc.spec, q) @ desc.T_flange_tcp
@@ -132,3 +132,14 @@ def test_description_field_defaults_are_consistent() -> None:
     assert desc.rate_hz == 500.0
     model = compile_model(desc)
     assert model.opt.timestep == pytest.approx(0.002)
+
+
+@pytest.mark.parametrize("model_name", ["ur3e", "ur20", "ur30", "ur15"])
+def test_joint_ranges_are_the_cells_joint_range(model_name: str) -> None:
+    ranges = [[-170, 170], [-180, 0], [-160, 160], [-270, 90], [-180, 0], [-180, 180]]
+    desc = demo.demo_description(spec=ROBOTS[model_name].narrowed(ranges), parts=())
+    model = compile_model(desc)
+    for name, (lo, hi) in zip(JOINT_NAMES, ranges, strict=True):
+        joint = model.joint(name)
+        assert joint.limited[0] == 1
+        np.testing.assert_allclose(joint.range, np.radians([lo, hi]), atol=1e-6)

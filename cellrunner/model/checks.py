@@ -1,0 +1,54 @@
+"""Checks shared by the cell file, the task file and the ``sim:`` rules: IO names and
+angles that look like radians."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from cellrunner.model.diagnose import known_list, unknown_name
+from cellrunner.model.source import PathKey
+from cellrunner.model.units import looks_like_radians
+
+if TYPE_CHECKING:
+    from cellrunner.model.cell import Cell
+    from cellrunner.model.load import Report
+
+
+def check_io_name(
+    cell: Cell, name: str, side: str, path: PathKey, report: Report, at_key: bool = False
+) -> None:
+    """Report ``name`` unless it is a known IO of ``side`` ('inputs' or 'outputs')."""
+    table = getattr(cell.io, side)
+    if name in table:
+        return
+    other = "outputs" if side == "inputs" else "inputs"
+    if name in getattr(cell.io, other):
+        report.error(
+            path,
+            f"{name!r} is an {other[:-1]}, not an {side[:-1]}; known {side}: {known_list(table)}",
+            at_key=at_key,
+        )
+    else:
+        report.error(path, unknown_name(side[:-1], name, table), at_key=at_key)
+
+
+def check_radians(raw: Any, path: PathKey, report: Report) -> None:
+    """Warn when the number list at ``path`` of ``raw`` looks like radians."""
+    value = raw
+    for part in path:
+        if not isinstance(value, (dict, list)):
+            return
+        try:
+            value = value[part]
+        except (KeyError, IndexError, TypeError):
+            return
+    if (
+        isinstance(value, list)
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+        and looks_like_radians([float(v) for v in value])
+    ):
+        report.warn(
+            path,
+            f"{value} looks like radians; angles are in degrees "
+            "(write e.g. '1.57 rad' if you mean radians)",
+        )
