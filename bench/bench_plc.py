@@ -241,10 +241,13 @@ def run_bench(
                 raise RuntimeError(record["fatal"])
             else:
                 observed.append(record)
-                if len(observed) == RSS_BASELINE_JOBS:
-                    rss_mib[RSS_BASELINE_JOBS] = rss_now_mib()
-                if len(observed) % 50 == 0:
-                    print(f"  {len(observed)}/{jobs} jobs", file=sys.stderr)
+                if len(observed) % RSS_BASELINE_JOBS == 0:
+                    rss_mib[len(observed)] = rss_now_mib()
+                    print(
+                        f"  {len(observed)}/{jobs} jobs, resident {rss_mib[len(observed)]:.0f} MiB",
+                        file=sys.stderr,
+                        flush=True,
+                    )
         proc.wait(timeout=10)
         time.sleep(0.2)  # the last result listener call
         rss_mib[len(observed)] = rss_now_mib()

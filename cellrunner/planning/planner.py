@@ -23,6 +23,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -34,7 +35,7 @@ from cellrunner.planning.cartesian import plan_linear
 from cellrunner.planning.collision import CollisionModel, ContactAllowance
 from cellrunner.planning.joint_path import plan_joint_path
 from cellrunner.planning.kinematics import ArmKinematics
-from cellrunner.planning.timing import MotionLimits, time_path
+from cellrunner.planning.timing import MotionLimits, TimedPath, time_path
 from cellrunner.planning.verify import verify_trajectory
 
 
@@ -55,11 +56,11 @@ class Segment:
 
     @property
     def q_start_rad(self) -> np.ndarray:
-        return self.q_rad[0]
+        return np.asarray(self.q_rad[0])
 
     @property
     def q_end_rad(self) -> np.ndarray:
-        return self.q_rad[-1]
+        return np.asarray(self.q_rad[-1])
 
 
 class MotionPlanner:
@@ -89,7 +90,7 @@ class MotionPlanner:
         self.limits = limits
         self.time_budget_s = time_budget_s
         self.seed = seed
-        self._worlds: dict[tuple, CollisionModel] = {}
+        self._worlds: dict[tuple[Any, ...], CollisionModel] = {}
 
     def world(
         self, carried: Placed | None = None, allow: Sequence[ContactAllowance] = ()
@@ -263,7 +264,7 @@ class MotionPlanner:
         return out
 
 
-def _waypoint_s(waypoints: np.ndarray, timed) -> np.ndarray:
+def _waypoint_s(waypoints: np.ndarray, timed: TimedPath) -> np.ndarray:
     """Path position s of every input waypoint (duplicates collapsed as time_path does)."""
     s = [0.0]
     for a, b in itertools.pairwise(waypoints):

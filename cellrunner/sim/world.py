@@ -129,7 +129,7 @@ class SimWorld:
         self.options = options if options is not None else PhysicsOptions()
         self._rate_hz = description.rate_hz
         self.period_s = 1.0 / self._rate_hz
-        self.substeps = max(1, math.ceil(self.period_s / options.max_timestep_s - 1e-9))
+        self.substeps = max(1, math.ceil(self.period_s / self.options.max_timestep_s - 1e-9))
         self.model: Any = None
         self.data: Any = None
         self._mj: Any = None
