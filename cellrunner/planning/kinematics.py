@@ -25,6 +25,7 @@ import os
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -84,7 +85,7 @@ def _dh_link(d: float, a: float, alpha: float) -> pin.SE3:
     """The fixed part of a DH link: translate d along z, a along x, rotate alpha about x."""
     T = np.eye(4)
     ca, sa = math.cos(alpha), math.sin(alpha)
-    T[:3, :3] = [[1, 0, 0], [0, ca, -sa], [0, sa, ca]]
+    T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
     T[:3, 3] = [a, 0, d]
     return pin.SE3(T)
 
@@ -137,17 +138,17 @@ class ArmKinematics:
     def T_world_tcp(self, q_rad: np.ndarray) -> np.ndarray:
         """Pose of the TCP in the world at ``q_rad``."""
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q_rad, dtype=float))
-        return self.data.oMf[self.tcp_frame_id].homogeneous.copy()
+        return np.asarray(self.data.oMf[self.tcp_frame_id].homogeneous.copy())
 
     def p_world_tcp(self, q_rad: np.ndarray) -> np.ndarray:
         """Position of the TCP in the world at ``q_rad`` (m)."""
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q_rad, dtype=float))
-        return self.data.oMf[self.tcp_frame_id].translation.copy()
+        return np.asarray(self.data.oMf[self.tcp_frame_id].translation.copy())
 
     def T_world_flange(self, q_rad: np.ndarray) -> np.ndarray:
         """Pose of the flange (tool0) in the world at ``q_rad``."""
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q_rad, dtype=float))
-        return self.data.oMf[self.flange_frame_id].homogeneous.copy()
+        return np.asarray(self.data.oMf[self.flange_frame_id].homogeneous.copy())
 
     def p_world_tcp_many(self, q_rad: np.ndarray) -> np.ndarray:
         """TCP positions in the world (N x 3) for configurations ``q_rad`` (N x 6), computed
@@ -167,7 +168,7 @@ class ArmKinematics:
             x, y = R[:, :, 0].copy(), R[:, :, 1].copy()
             R[:, :, 0] = c * x + s * y  # R @ Rz(q_j)
             R[:, :, 1] = c * y - s * x
-        return p + (R.reshape(-1, 3) @ self._p_joint6_tcp).reshape(n, 3)
+        return np.asarray(p + (R.reshape(-1, 3) @ self._p_joint6_tcp).reshape(n, 3))
 
     @functools.cached_property
     def _chain(self) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -182,15 +183,16 @@ class ArmKinematics:
 
     @functools.cached_property
     def _p_joint6_tcp(self) -> np.ndarray:
-        return self.model.frames[self.tcp_frame_id].placement.translation.copy()
+        return np.asarray(self.model.frames[self.tcp_frame_id].placement.translation.copy())
 
     def jacobian_tcp(self, q_rad: np.ndarray) -> np.ndarray:
         """6x6 Jacobian of the TCP: rows 0-2 its linear velocity in world axes (m/s per
         rad/s), rows 3-5 its angular velocity in world axes (rad/s per rad/s)."""
         q = np.asarray(q_rad, dtype=float)
-        return pin.computeFrameJacobian(
+        J: np.ndarray = pin.computeFrameJacobian(
             self.model, self.data, q, self.tcp_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         ).copy()
+        return J
 
     def manipulability(self, q_rad: np.ndarray) -> float:
         """Smallest singular value of the TCP position Jacobian (m/rad): the slowest TCP
@@ -260,7 +262,7 @@ class ArmKinematics:
         order = np.argsort(np.abs(cand - q_prev).max(axis=1))
         for k in order:
             if self.within_limits(cand[k]) and self._verify(cand[k], np.asarray(T_world_tcp)):
-                return cand[k]
+                return np.asarray(cand[k])
         return None
 
     def unreachable_reason(self, T_world_tcp: np.ndarray) -> str:
@@ -342,7 +344,7 @@ class ArmKinematics:
         T = self.T_world_tcp(q)
         dp = np.linalg.norm(T[:3, 3] - T_world_tcp[:3, 3])
         dR = rotation_angle_rad(T[:3, :3].T @ np.asarray(T_world_tcp)[:3, :3])
-        return dp < IK_TOLERANCE_M * 10 and dR < IK_TOLERANCE_RAD * 10
+        return bool(dp < IK_TOLERANCE_M * 10 and dR < IK_TOLERANCE_RAD * 10)
 
 
 def rotation_angle_rad(R: np.ndarray) -> float:
@@ -372,7 +374,7 @@ def _stdout_silenced() -> Iterator[None]:
         os.close(devnull)
 
 
-def _ik_module(model_name: str):
+def _ik_module(model_name: str) -> Any:  # a ur_analytic_ik solver module (untyped)
     import ur_analytic_ik
 
     try:

@@ -95,7 +95,7 @@ def _starts(plan: TaskPlan) -> list[_Start]:
     return states
 
 
-def _key(q: np.ndarray, world: CellWorld, part: Placed | None) -> tuple:
+def _key(q: np.ndarray, world: CellWorld, part: Placed | None) -> tuple[object, ...]:
     return (
         np.round(q, 6).tobytes(),
         world.tool_key,
