@@ -12,9 +12,13 @@ from __future__ import annotations
 
 import socket
 import threading
+from typing import TYPE_CHECKING
 
 from cellrunner.backends.base import BackendError
 from cellrunner.errors import PeerUnreachable
+
+if TYPE_CHECKING:
+    from cellrunner.sim.world import SimWorld
 
 PORT = 63352
 POLL_S = 0.02
@@ -76,7 +80,11 @@ class RobotiqClient:
 
 
 def serve_robotiq(
-    host: str, world, stop: threading.Event, port: int = PORT, ready: threading.Event | None = None
+    host: str,
+    world: SimWorld,
+    stop: threading.Event,
+    port: int = PORT,
+    ready: threading.Event | None = None,
 ) -> None:
     """The gripper's socket for the twin: commands drive the twin's jaws (``RQ0``),
     ``GET OBJ`` reports its object sensor (``RQ_OBJ``). Runs until ``stop`` is set."""

@@ -39,7 +39,7 @@ from __future__ import annotations
 import contextlib
 import re
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -58,6 +58,9 @@ from cellrunner.errors import (  # re-exported
 from cellrunner.model.gripper import ROBOTIQ_CLOSE, ROBOTIQ_OBJECT
 from cellrunner.model.robots import RobotSpec
 from cellrunner.model.trajectory import ApprovedTrajectory
+
+if TYPE_CHECKING:
+    from cellrunner.backends.robotiq import RobotiqClient
 
 RECEIVE_VARIABLES = [
     "timestamp",
@@ -143,7 +146,7 @@ class URBackend:
         self.reconnect_timeout_s = reconnect_timeout_s
         self.require_remote_control = require_remote_control
         self.robotiq_port = robotiq_port  # a Robotiq 2F on this controller's socket, or None
-        self._robotiq = None
+        self._robotiq: RobotiqClient | None = None
         # set on the controller at every connect: TCP as a UR pose in the flange frame
         # (m, rotation vector rad), payload mass (kg) and centre of gravity (m, flange)
         self.tcp_pose = tcp_pose
@@ -241,7 +244,8 @@ class URBackend:
         from cellrunner.model.geometry import tcp_pose_of
 
         self.tcp_pose = tcp_pose_of(T_flange_tcp)
-        self.payload_kg, self.payload_cog_m = payload_kg, tuple(payload_cog_m)
+        cx, cy, cz = payload_cog_m  # a list from a caller becomes the tuple kept
+        self.payload_kg, self.payload_cog_m = payload_kg, (cx, cy, cz)
         if self._control is None:
             return  # set at the next connect
         if self._servoing:  # standing still at a tool change; leave servo mode first

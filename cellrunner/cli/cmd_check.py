@@ -60,7 +60,7 @@ def run(args) -> int:
             "message": r.message,
             "attempts": 0,
         }
-        for r in plan.rows
+        for r in [*plan.rows, *plan.on_error]  # on_error's rows: verified from every state
     ]
     if args.save_plan and not errors:
         _save_plan(Path(args.save_plan), world, plan)

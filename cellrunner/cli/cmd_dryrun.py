@@ -47,7 +47,7 @@ def run(args) -> int:
     steps = expanded(cell, task, params)
     injections = parse_injections(args.inject, steps)
     if args.report:
-        from cellrunner.sim._mj import enable_pictures
+        from cellrunner.sim.mujoco_loader import enable_pictures
 
         enable_pictures()  # before MuJoCo is imported: it reads its GL backend once
     from cellrunner.backends.sim.backend import SimBackend
@@ -55,7 +55,7 @@ def run(args) -> int:
     from cellrunner.sim.from_cell import description_of
 
     world = CellWorld(cell)
-    backend = SimBackend(description_of(cell))
+    backend = SimBackend(description_of(cell, (task,)))
     pending: list[tuple[Injection, float]] = []
     report = Path(args.report) if args.report else None
     recorder = RunRecorder()
@@ -189,7 +189,7 @@ def run(args) -> int:
         if report is not None:
             out.print(f"report written to {report}/index.html", markup=False)
     if not has_pictures:
-        from cellrunner.sim._mj import GL_ADVICE
+        from cellrunner.sim.mujoco_loader import GL_ADVICE
 
         out.print(
             f"no pictures in the report: no OpenGL backend here ({GL_ADVICE} gives one)",

@@ -35,8 +35,8 @@ class PacedMotions:
     def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
         return time_scaled(self.motions.replan(step, q_now_rad, carrying), self.speed)
 
-    def tcp_position_m(self, q_rad: np.ndarray) -> np.ndarray:
-        return self.motions.tcp_position_m(q_rad)
+    def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
+        return self.motions.tcp_position_m(q_rad, step)
 
 
 class EnterGate:

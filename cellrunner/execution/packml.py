@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import enum
 
-from cellrunner.errors import TransitionRefused  # re-exported
+from cellrunner.errors import TransitionRefused as TransitionRefused  # re-exported
 from cellrunner.model.codes import PackMLState as State
 
 

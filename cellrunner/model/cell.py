@@ -92,6 +92,12 @@ class Payload(Strict):
     cog: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     """Centre of gravity in the flange frame, m. Example: `[0, 0, 0.05]`"""
 
+    @property
+    def cog_m(self) -> tuple[float, float, float]:
+        """``cog`` as an (x, y, z) tuple in m."""
+        x, y, z = self.cog
+        return (x, y, z)
+
 
 class OutputValue(Strict):
     output: Name

@@ -65,7 +65,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -102,9 +102,11 @@ STALL_M = 1e-4
 #: Spacing (largest joint move, rad) of the cheap rejection probes in check_motion.
 PROBE_STEP_RAD = 0.15
 
-#: check_path proves pairs from the samples' lower bounds first on paths up to this long (on the
-#: dense 500 Hz samples the verifier checks, the exact queries' jumps are cheaper: measured)
-PATH_BOUNDS_MAX_SAMPLES = 40
+#: check_path proves pairs from the samples' lower bounds first on paths up to this long. Off:
+#: with capsule arm links the exact queries' jumps were cheaper on the verifier's dense samples
+#: and on the planner's 32-point corner arcs too (bench_planning: median 6.5 -> 5.0 ms CPU,
+#: measured); re-measure when exact queries get dearer (convex link parts)
+PATH_BOUNDS_MAX_SAMPLES = 0
 
 #: Largest joint move (rad) of one part of a segment over which check_motion bounds each
 #: object's distance from the joint axes afresh (shorter parts: tighter bounds, more FK).
@@ -205,7 +207,7 @@ class CollisionModel:
         *,
         part: Placed | None = None,
         allowances: Sequence[ContactAllowance] = (),
-        _geometry_cache: dict | None = None,
+        _geometry_cache: dict[Any, Any] | None = None,
     ) -> None:
         self.kinematics = kinematics
         self.tool = tuple(tool)
@@ -226,7 +228,7 @@ class CollisionModel:
         self._geometry_cache = _geometry_cache if _geometry_cache is not None else {}
         self._build()
         key = (_placed_key(part), self.allowances)
-        self._variants: dict = {key: self} if _hashable(key) else {}
+        self._variants: dict[Any, CollisionModel] = {key: self} if _hashable(key) else {}
 
     # -- derived models -------------------------------------------------------------------
 
@@ -375,7 +377,7 @@ class CollisionModel:
                 if not self._checked(a, b):
                     continue
                 pairs.append((i, j))
-                required.append(self._required(a, b))
+                required.append(self._required_m(a, b))
         for i, j in pairs:
             geom_model.addCollisionPair(pin.CollisionPair(i, j))
         self._geom_model = geom_model
@@ -416,7 +418,7 @@ class CollisionModel:
             return other.body not in TOOL_ADJACENT_BODIES
         return other.body != 6  # part against the arm
 
-    def _required(self, a: _Object, b: _Object) -> float:
+    def _required_m(self, a: _Object, b: _Object) -> float:
         fixture = a if a.group == "fixture" else b if b.group == "fixture" else None
         if fixture is not None:
             mover = b if fixture is a else a
@@ -654,7 +656,7 @@ class CollisionModel:
         """Per pair, the bound on how much its distance can shrink over the whole segment
         with joint displacement ``dq_rad`` (m), valid for any segment; see the module
         docstring."""
-        return self._pair_reach @ np.abs(np.asarray(dq_rad, float))
+        return np.asarray(self._pair_reach @ np.abs(np.asarray(dq_rad, float)))
 
     def segment_bounds(self, q0_rad: np.ndarray, q1_rad: np.ndarray, pieces: int = 1) -> np.ndarray:
         """Per pair, a bound on how much its distance can shrink along the segment q0 -> q1
@@ -943,14 +945,14 @@ class CollisionModel:
                 return s, m, used
 
 
-def _placed_key(placed: Placed | None) -> tuple | None:
+def _placed_key(placed: Placed | None) -> tuple[str, Shape, bytes] | None:
     """What a placed shape is, by value (a part placed again in the same pose is the same)."""
     if placed is None:
         return None
     return placed.name, placed.shape, np.asarray(placed.T_parent_shape, float).tobytes()
 
 
-def _hashable(value) -> bool:
+def _hashable(value: object) -> bool:
     try:
         hash(value)
     except TypeError:
@@ -1152,14 +1154,14 @@ def read_stl(path: Path) -> tuple[np.ndarray, np.ndarray]:
             corners = np.frombuffer(raw, dtype=record, count=count, offset=84)["v"].reshape(-1, 3)
             return _dedupe(corners.astype(float))
     text = raw.decode("ascii", errors="replace")
-    corners = [
+    vertex_lines = [
         [float(v) for v in line.split()[1:4]]
         for line in text.splitlines()
         if line.strip().startswith("vertex")
     ]
-    if not corners or len(corners) % 3:
+    if not vertex_lines or len(vertex_lines) % 3:
         raise ValueError(f"{path}: not an STL file (no triangles found)")
-    return _dedupe(np.array(corners, dtype=float))
+    return _dedupe(np.array(vertex_lines, dtype=float))
 
 
 def _dedupe(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

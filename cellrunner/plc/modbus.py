@@ -447,7 +447,7 @@ def _server_class() -> Any:
     from pymodbus.server import ModbusTcpServer
     from pymodbus.server.requesthandler import ServerRequestHandler
 
-    class PipelinedHandler(ServerRequestHandler):  # type: ignore[misc]
+    class PipelinedHandler(ServerRequestHandler):
         def callback_data(self, data: bytes, addr: tuple[str, int] | None = None) -> int:
             used = 0
             while used < len(data):
@@ -469,7 +469,7 @@ def _server_class() -> Any:
             try:
                 while self._pending:
                     self.last_pdu, self.last_addr = self._pending.pop(0)
-                    await self.handle_request()
+                    await self.handle_request()  # type: ignore[no-untyped-call]  # pymodbus: unannotated
             finally:
                 self.last_pdu, self._draining = None, False
 
@@ -477,11 +477,14 @@ def _server_class() -> Any:
         def _pending(self) -> list[tuple[Any, Any]]:
             if "_queue" not in self.__dict__:
                 self.__dict__["_queue"] = []
-            return self.__dict__["_queue"]
+            queue: list[tuple[Any, Any]] = self.__dict__["_queue"]
+            return queue
 
-    class PipelinedTcpServer(ModbusTcpServer):  # type: ignore[misc]
+    class PipelinedTcpServer(ModbusTcpServer):
         def callback_new_connection(self) -> Any:
-            return PipelinedHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
+            return PipelinedHandler(  # type: ignore[no-untyped-call]  # pymodbus: unannotated
+                self, self.trace_packet, self.trace_pdu, self.trace_connect
+            )
 
     return PipelinedTcpServer
 

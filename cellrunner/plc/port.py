@@ -2,4 +2,4 @@
 PLC servers (it lives in ``model`` so that both import it inward)."""
 
 from cellrunner.model.cellport import *  # noqa: F403
-from cellrunner.model.cellport import COMMANDS, COMPLETED_CODES, REJECT_CODES  # noqa: F401
+from cellrunner.model.cellport import __all__ as __all__

@@ -71,14 +71,15 @@ def test_round_corners_never_lengthens_the_path():
 def test_check_path_lower_bound_pruning_changes_no_verdict(start, steps):
     world = _world()
     q = np.cumsum(np.vstack([start, steps]), axis=0)
-    pruned = world.check_path(q).ok
     saved = collision_module.PATH_BOUNDS_MAX_SAMPLES
-    collision_module.PATH_BOUNDS_MAX_SAMPLES = 0
-    try:
-        plain = world.check_path(q).ok
-    finally:
-        collision_module.PATH_BOUNDS_MAX_SAMPLES = saved
-    assert pruned == plain
+    verdicts = []
+    for limit in (0, 1000):  # pruning off, pruning on every path
+        collision_module.PATH_BOUNDS_MAX_SAMPLES = limit
+        try:
+            verdicts.append(world.check_path(q).ok)
+        finally:
+            collision_module.PATH_BOUNDS_MAX_SAMPLES = saved
+    assert verdicts[0] == verdicts[1]
 
 
 @settings(max_examples=30, deadline=None)

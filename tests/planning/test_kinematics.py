@@ -111,3 +111,18 @@ def test_batched_tcp_positions_match_pinocchio_fk_per_sample(model):
     assert batched.shape == (300, 3)
     assert np.abs(batched - [kin.p_world_tcp(qi) for qi in q]).max() < 1e-12
     assert np.allclose(kin.p_world_tcp_many(q[0]), kin.p_world_tcp(q[0]), atol=1e-12)
+
+
+@pytest.mark.parametrize("model", ["ur5e", "ur10e", "ur3e"])
+def test_ik_at_home_on_a_turned_mount_finds_home_itself(model):
+    """UR's usual home (tool straight down) sits on the edge of a branch's formula, where
+    the closed-form solver's rounding dropped the branch: a straight line from home then
+    needed a 150 deg shoulder flip."""
+    kin = ArmKinematics(
+        ROBOTS[model], pose_matrix((0, 0, 0.9), (0, 0, 180)), pose_matrix((0, 0, 0.15))
+    )
+    home = np.radians([0, -90, 90, -90, -90, 0])
+    T = kin.T_world_tcp(home)
+    assert np.allclose(kin.ik_all(T, home)[0], home, atol=1e-6)
+    up = pose_matrix((0, 0, 0.004)) @ T
+    assert np.max(np.abs(kin.ik_track(up, home) - home)) < np.radians(2.0)

@@ -107,7 +107,7 @@ class SimBackend:
     def servo(self, trajectory: ApprovedTrajectory, index: int) -> None:
         world = self.world
         if world is None or not self._connected:
-            self._world()
+            world = self._world()
             self._require_connection()
         accepted = self._accepted
         if accepted is None or accepted[0] is not trajectory:
