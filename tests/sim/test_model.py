@@ -8,8 +8,8 @@ import sys
 import numpy as np
 import pytest
 
-from cellrunner.model.geometry import Box, Mesh, pose_matrix
 from cellrunner.model.arm_geometry import available_models
+from cellrunner.model.geometry import Box, Mesh, pose_matrix
 from cellrunner.model.robots import JOINT_NAMES, ROBOTS
 from cellrunner.sim import demo
 from cellrunner.sim.description import (
