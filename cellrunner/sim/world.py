@@ -538,10 +538,11 @@ class SimWorld:
         carried = gripped_geoms | self._vac_geoms
         suspicious += [i for i, g in robot_parts if g not in gripped_geoms]
         # a finger landing on a part it does not hold (judged by force, like the tool);
-        # a held part that loses one pad's contact for a moment is still held
+        # a held part that loses one pad's contact for a moment is still held, and the
+        # cups pressing on the part they hold are how suction carries it
         held = self._held_at
         suspicious += [
-            i for i, g in pad_parts if g not in gripped_geoms and self._part_of_geom[g] not in held
+            i for i, g in pad_parts if g not in carried and self._part_of_geom[g] not in held
         ]
         # a carried part pushed into a fixture is a contact like the tool's own; the
         # light touch of setting it down is not (judged each period, so never cached)
