@@ -540,7 +540,8 @@ class SimWorld:
         carried = gripped_geoms | self._vac_geoms
         suspicious += [i for i, g in robot_parts if g not in carried]
         # a finger landing on a part it does not hold (judged by force, like the tool);
-        # a held part that loses one pad's contact for a moment is still held
+        # a held part that loses one pad's contact for a moment is still held, and the
+        # cups pressing on the part they hold are how suction carries it
         held = self._held_at
         suspicious += [
             i for i, g in pad_parts if g not in carried and self._part_of_geom[g] not in held
