@@ -302,6 +302,13 @@ def run_bench(
         "reconciliation": rec,
         "rss_mib": rss_mib,
         "unholds": unholds,
+        "never_ready_in": dict(
+            Counter(
+                f"state {o['state']} status {o['status_bits']}"
+                for o in observed
+                if o.get("outcome") == "never_ready"
+            )
+        ),
     }
 
 
@@ -370,6 +377,8 @@ def main(argv: list[str] | None = None) -> int:
         f"  (target p99 < 50 ms: {'met' if lat['p99'] < 50 else 'MISSED'})"
     )
     print(f"outcomes: {report['outcomes']}  result codes: {report['result_codes']}")
+    if report["never_ready_in"]:
+        print(f"the cell never became READY in: {report['never_ready_in']}")
     if report["unholds"]:
         print(
             f"the PLC pressed UNHOLD {report['unholds']} times (the cell holds a job when the "

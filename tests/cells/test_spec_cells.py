@@ -116,6 +116,61 @@ sim:
     box_placed: {part_at: dropoff}
 tasks: {1: tasks/t.yaml}
 """
+#: a pose param from a camera, an insert, a release confirmed by a part_at sensor, on_error
+#: with a release, and the SPEC's own sim: example (the cycle pulse goes unused)
+CAM_CELL = """cell: cam-insert
+robot:
+  model: ur5e
+  mount: {xyz: [0, 0, 0.9], rpy: [0, 0, 180]}
+  home: [0, -90, 90, -90, -90, 0]
+tool:
+  tcp: {xyz: [0, 0, 0.15]}
+  payload: {mass: 1.0, cog: [0, 0, 0.05]}
+  gripper:
+    kind: io
+    close: {output: grip, value: true}
+    closed_sensor: grip_closed
+    stroke: 0.05
+  geometry: [{cylinder: {radius: 0.035, length: 0.1}, xyz: [0, 0, 0.05]}]
+io:
+  outputs: {grip: DO0, cnc_start: DO1, door_cmd: DO2}
+  inputs: {grip_closed: DI0, part_present: DI1, door_open: DI2, cycle_done: DI3, seated: DI4}
+fixtures:
+  - {name: table, box: {size: [0.8, 0.8, 0.04]}, pose: {xyz: [0.45, 0, 0.88]}}
+  - {name: plate_a, box: {size: [0.04, 0.1, 0.04]}, pose: {xyz: [0.5, 0.25, 0.92]}}
+  - {name: plate_b, box: {size: [0.04, 0.1, 0.04]}, pose: {xyz: [0.58, 0.25, 0.92]}}
+  - {name: plate_c, box: {size: [0.04, 0.04, 0.04]}, pose: {xyz: [0.54, 0.32, 0.92]}}
+  - {name: plate_d, box: {size: [0.04, 0.04, 0.04]}, pose: {xyz: [0.54, 0.18, 0.92]}}
+frames:
+  infeed: {xyz: [0.45, -0.25, 0.93], rpy: [180, 0, 0]}
+  hole: {xyz: [0.54, 0.25, 0.97], rpy: [180, 0, 90]}
+parts:
+  - {name: plug, box: {size: [0.03, 0.03, 0.06]}, mass: 0.1, at: infeed, offset: {xyz: [0.01, -0.01, 0], rpy: [0, 0, 10]}}
+sim:
+  inputs:
+    part_present: {part_at: infeed, within: 0.03}
+    seated: {part_at: hole, within: 0.05}
+    door_open: {follows: door_cmd, delay: 1.5}
+    cycle_done: {pulse_after: cnc_start, delay: 20, width: 0.5}
+tasks: {1: tasks/t.yaml}
+"""
+CAM_TASK = """task: cam_insert
+params:
+  seen: {type: pose, min: [-0.02, -0.02, 0, 0, 0, -15], max: [0.02, 0.02, 0, 0, 0, 15], default: {xyz: [0.01, -0.01, 0], rpy: [0, 0, 10]}}
+steps:
+  - move: home
+  - wait_input: {input: part_present, value: true, timeout: 1}
+  - pick: {at: {frame: infeed, offset: seen}, approach: 0.1, grip: {confirm: grip_closed, force: {min: 0.3, max: 5}}}
+  - approach: {to: hole, distance: 0.05}
+  - insert: {to: hole, depth: 0.025, speed: 0.01, force: {max: 15}, expect_depth: [0.02, 0.03]}
+  - release: {confirm: seated}
+  - retreat: 0.08
+  - move: home
+on_error:
+  - release
+  - retreat: 0.05
+  - move: home
+"""
 TOOLS_TASK = """task: swap_and_move
 steps:
   - move: home
@@ -138,7 +193,12 @@ def tools(tmp_path_factory) -> tuple[str, str]:
     return project(tmp_path_factory.mktemp("tools"), TOOLS_CELL, TOOLS_TASK)
 
 
-@pytest.mark.parametrize("cell", ["press", "tools"])
+@pytest.fixture(scope="module")
+def cam(tmp_path_factory) -> tuple[str, str]:
+    return project(tmp_path_factory.mktemp("cam"), CAM_CELL, CAM_TASK)
+
+
+@pytest.mark.parametrize("cell", ["press", "tools", "cam"])
 def test_spec_cells_validate(request, cell, capsys):
     assert main(["validate", *request.getfixturevalue(cell)]) == 0
 
@@ -177,3 +237,38 @@ def test_second_tool_picks_the_part_laid_for_its_cups_and_confirms_the_place(too
     code, out = run_json("dry-run", *tools)
     assert (code, out["result_code"]) == (0, 0), (out["result_text"], out["steps"])
     assert out["parts_end_m"]["box"] == pytest.approx([0.6, 0.1, 0.05], abs=0.003)
+
+
+def test_camera_pose_insert_and_confirmed_release(cam):
+    code, out = run_json("check", *cam)
+    assert code == 0, out["errors"]
+    assert len(out["slots_checked"]["seen"]) == 9  # the pose box's centre and corners
+    assert [s["message"] for s in out["steps"][-3:]] == [
+        "on_error: verified from 9 states the job can fail in"
+    ] * 3
+    code, out = run_json("dry-run", *cam)
+    assert (code, out["result_code"]) == (0, 0), (out["result_text"], out["steps"])
+    assert out["parts_end_m"]["plug"][:2] == pytest.approx([0.54, 0.25], abs=0.002)
+
+
+@pytest.mark.parametrize(
+    "fault, code, text",
+    [
+        ("grip_miss@grip", 1, "grip_closed not true within 1.5 s (jaws closed on nothing)"),
+        ("part_slip@approach#2", 2, "part lost in transit: the jaw sensor dropped"),
+        ("estop@insert", 101, "e-stop during step 8 insert 'hole'"),
+    ],
+)
+def test_camera_cell_faults_give_the_spec_codes(cam, fault, code, text):
+    _, out = run_json("dry-run", *cam, "--inject", fault)
+    assert out["result_code"] == code
+    assert out["result_text"] == (text if code >= 100 else f"{text}; on_error done")
+
+
+def test_a_release_whose_sensor_never_sees_the_part_is_place_failed(tmp_path):
+    task = CAM_TASK.replace("release: {confirm: seated}", "release: {confirm: part_present}")
+    _, out = run_json("dry-run", *project(tmp_path, CAM_CELL, task))
+    assert (out["result_code"], out["result_text"]) == (
+        3,
+        "place failed: part_present not true within 1.5 s after the release; on_error done",
+    )
