@@ -58,8 +58,8 @@ class MujocoPhysics:
             self.world.build()
         world = self.world
         q = np.asarray(q_rad, float)
-        world.data.qpos[world._ids.qpos] = q
-        world.data.qvel[world._ids.dof] = 0.0
+        world.data.qpos[world.ids.qpos] = q
+        world.data.qvel[world.ids.dof] = 0.0
         world.q_ref = world._q_prev_ref = q.copy()
         world.qd_ref = np.zeros(6)
         self._q_prev = q.copy()
