@@ -85,8 +85,8 @@ def _camera_board(eye_in_hand: bool, F: np.ndarray, A: np.ndarray, B: np.ndarray
     """T_camera_board of a view at flange pose F, given the unknowns A (the camera in its
     mount) and B (the board in its mount)."""
     if eye_in_hand:
-        return invert(F @ A) @ B
-    return invert(A) @ F @ B
+        return np.asarray(invert(F @ A) @ B)
+    return np.asarray(invert(A) @ F @ B)
 
 
 def solve(
