@@ -65,4 +65,4 @@ class ArmReader:
             else:
                 readings.append(list(self._receive.getActualQ()))
             time.sleep(period_s)
-        return np.mean(np.array(readings), axis=0)
+        return np.asarray(np.mean(np.array(readings), axis=0))

@@ -80,7 +80,7 @@ def requested_qd(
     R = kinematics.T_world_base[:3, :3] if mode == "base" else kinematics.T_world_tcp(q_rad)[:3, :3]
     twist_world = np.concatenate([R @ twist[:3], R @ twist[3:]])
     J = kinematics.jacobian_tcp(q_rad)
-    return J.T @ np.linalg.solve(J @ J.T + DAMPING**2 * np.eye(6), twist_world)
+    return np.asarray(J.T @ np.linalg.solve(J @ J.T + DAMPING**2 * np.eye(6), twist_world))
 
 
 def _ramp(value: float, slow: float, stop: float) -> float:
@@ -167,7 +167,7 @@ class Governor:
         if not self._fixture_pairs:
             return np.empty(0)
         distances, required = self.collision.pair_distances(q_rad)
-        return distances[self._fixture_pairs] - required[self._fixture_pairs]
+        return np.asarray(distances[self._fixture_pairs] - required[self._fixture_pairs])
 
     def _pair_name(self, k: int) -> str:
         a, b = self._labels[self._fixture_pairs[k]]

@@ -78,7 +78,7 @@ def shape_points_world(placed) -> np.ndarray:
         vertices, _ = read_stl(shape.path)
         local = np.asarray(vertices, float).reshape(-1, 3) * getattr(shape, "scale", 1.0)
     T = np.asarray(placed.T_parent_shape, float)
-    return local @ T[:3, :3].T + T[:3, 3]
+    return np.asarray(local @ T[:3, :3].T + T[:3, 3])
 
 
 def _outline(points_2d: np.ndarray) -> np.ndarray:
