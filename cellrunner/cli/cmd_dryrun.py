@@ -150,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
     if report is not None:
         from cellrunner.report import write_report
 
+        assert backend.world is not None  # the run connected the twin
         has_pictures = write_report(
             report,
             recorder,
