@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     steps = expanded(cell, task, params)
     injections = parse_injections(args.inject, steps)
     if args.report:
-        from cellrunner.sim._mj import enable_pictures
+        from cellrunner.sim.mujoco_loader import enable_pictures
 
         enable_pictures()  # before MuJoCo is imported: it reads its GL backend once
     from cellrunner.backends.sim.backend import SimBackend
@@ -197,7 +197,7 @@ def run(args: argparse.Namespace) -> int:
         if report is not None:
             out.print(f"report written to {report}/index.html", markup=False)
     if not has_pictures:
-        from cellrunner.sim._mj import GL_ADVICE
+        from cellrunner.sim.mujoco_loader import GL_ADVICE
 
         out.print(
             f"no pictures in the report: no OpenGL backend here ({GL_ADVICE} gives one)",

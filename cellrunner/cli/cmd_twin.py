@@ -30,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
     if cell.cell.cameras:
-        from cellrunner.sim._mj import enable_pictures
+        from cellrunner.sim.mujoco_loader import enable_pictures
 
         enable_pictures()  # before MuJoCo is imported; without GL a grab says so
     physics = MujocoPhysics(description_of(cell))

@@ -41,6 +41,15 @@ from cellrunner.model.task import (
 from cellrunner.model.tool_change import expand_change_tool
 
 
+def camera_pose(cell: Cell, name: str) -> np.ndarray:
+    """T_world_camera of a camera fixed in the world or on a frame (the camera frame is
+    OpenCV's: Z out of the lens, X right, Y down)."""
+    camera = cell.cameras[name]
+    if camera.mount == "world":
+        return camera.pose.matrix()
+    return np.asarray(frame_pose(cell, camera.mount) @ camera.pose.matrix())
+
+
 def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, ParamValue]:
     """The task's params: defaults overridden by ``given`` (strings from the CLI are
     accepted); raises InputError naming the bad param and its bounds."""
@@ -160,7 +169,10 @@ class _Builder:
             at_offset is not None
         ):  # a pose param: where the camera saw the part, in the frame's axes
             pose = self.params[at_offset]
-            T = T @ geometry.pose_matrix(pose["xyz"], pose["rpy"])
+            camera = self.specs[at_offset].camera if at_offset in self.specs else None
+            T_pose = geometry.pose_matrix(pose["xyz"], pose["rpy"])
+            # a camera's detection: where the camera saw the part, through its pose
+            T = camera_pose(self.cell, camera) @ T_pose if camera is not None else T @ T_pose
             name = f"{at}+{at_offset}"
         return T @ _offset(offset), name
 
@@ -322,6 +334,7 @@ __all__ = [
     "Step",
     "StepKind",
     "box_params",
+    "camera_pose",
     "expand",
     "expand_on_error",
     "frame_pose",

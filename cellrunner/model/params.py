@@ -6,7 +6,8 @@
   s, N, deg, m/s); the param's name may stand wherever a quantity of that kind is read
   (``wait: dwell``, ``approach: clearance``), see :func:`substitute`.
 - ``pose``: a part's pose from a camera or MES, ``{xyz: [m], rpy: [deg]}`` in the frame
-  that uses it (``at: {frame: infeed, offset: PARAM}``), bounded by a box
+  that uses it (``at: {frame: infeed, offset: PARAM}``) or, with ``camera: NAME``, in that
+  camera's frame (the target is then ``T_world_camera @ value``), bounded by a box
   ``min: [x, y, z, rx, ry, rz]``, ``max: [...]``; ``check`` verifies the box's corners
   and centre (:meth:`Param.box_values`), its default is the box's centre.
 """
@@ -47,6 +48,8 @@ class Param(Strict):
     """Value when the PLC or CLI gives none (a pose: the box's centre). Example: `0`"""
     description: str | None = None
     """What the param means, for people. Example: `pallet slot, row by row`"""
+    camera: str | None = None
+    """Pose params: the value is the part's pose in this camera's frame (as the vision system reports it, min and max too); it becomes the pose in the world through the camera's calibrated pose. Example: `overhead`"""
 
     @model_validator(mode="before")
     @classmethod
@@ -73,6 +76,10 @@ class Param(Strict):
 
     @model_validator(mode="after")
     def _consistent(self) -> Param:
+        if self.camera is not None and self.type != "pose":
+            raise PydanticCustomError(
+                "param", f"only pose params take a camera, not {self.type} params"
+            )
         if self.type == "pose":
             return self._pose_box()
         for key in ("min", "max", "default"):

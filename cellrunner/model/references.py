@@ -38,7 +38,7 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             if args.pattern is not None:
                 _check_pattern(task, args.pattern, path + ("pattern",), report)
             if args.at_offset is not None:
-                _check_pose_param(task, args.at_offset, path + ("at", "offset"), report)
+                _check_pose_param(task, cell, args.at_offset, path + ("at", "offset"), report)
             if kind == "place" and args.confirm is not None:
                 check_io_name(cell, args.confirm, "inputs", path + ("confirm",), report)
             needs_gripper = True
@@ -153,9 +153,26 @@ def _check_tool_at_end(task: LoadedTask, cell: Cell, report: Report) -> None:
         )
 
 
-def _check_pose_param(task: LoadedTask, name: str, path: PathKey, report: Report) -> None:
+def _check_param_camera(cell: Cell, name: str, camera: str, report: Report) -> None:
+    cameras = cell.cameras
+    path = ("params", name, "camera")
+    if camera not in cameras:
+        report.error(path, unknown_name("camera", camera, cameras))
+    elif cameras[camera].mount == "flange":
+        report.error(
+            path,
+            f"camera {camera!r} rides on the flange: where it saw the part depends on where the "
+            "arm stood; give the pose in a frame (or use a camera fixed in the world)",
+        )
+
+
+def _check_pose_param(
+    task: LoadedTask, cell: Cell, name: str, path: PathKey, report: Report
+) -> None:
     params = task.task.params
     if name not in params:
         report.error(path, unknown_name("param", name, params))
     elif params[name].type != "pose":
         report.error(path, f"offset param {name!r} must be of type pose, not {params[name].type}")
+    elif (camera := params[name].camera) is not None:
+        _check_param_camera(cell, name, camera, report)

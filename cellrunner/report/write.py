@@ -203,7 +203,7 @@ def _render_views(
 
 def _pose(sim_world: SimWorld, qpos: np.ndarray) -> None:
     """Put the scene in a recorded pose for a picture (kinematics only; the run is over)."""
-    from cellrunner.sim._mj import load_mujoco
+    from cellrunner.sim.mujoco_loader import load_mujoco
 
     mujoco = load_mujoco()
     sim_world.data.qpos[:] = qpos

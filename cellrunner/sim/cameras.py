@@ -180,7 +180,7 @@ class CameraImager:
     thread, and ``close()`` it."""
 
     def __init__(self, model: Any, camera: CameraDescription):
-        from cellrunner.sim._mj import load_mujoco
+        from cellrunner.sim.mujoco_loader import load_mujoco
 
         self._mj = load_mujoco()
         self.model, self.camera = model, camera

@@ -38,8 +38,8 @@ import numpy as np
 
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.robots import JOINT_NAMES
-from cellrunner.sim._mj import load_mujoco
 from cellrunner.sim.description import TwinDescription
+from cellrunner.sim.mujoco_loader import load_mujoco
 
 # Arm masses (kg) and joint torque limits (N m, base..wrist 3), datasheets / UR manuals.
 ARM_MASS_KG = {

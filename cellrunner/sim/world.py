@@ -20,7 +20,6 @@ import numpy as np
 
 from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.model.robots import JOINT_NAMES
-from cellrunner.sim._mj import load_mujoco
 from cellrunner.sim.description import TwinDescription
 from cellrunner.sim.input_rules import InputRules
 from cellrunner.sim.mjcf import (
@@ -32,6 +31,7 @@ from cellrunner.sim.mjcf import (
     PhysicsOptions,
     compile_model,
 )
+from cellrunner.sim.mujoco_loader import load_mujoco
 
 UNLOCK_DELAY_S = 5.0  # UR: a protective stop can be unlocked 5 s after it happened
 STOP_DECEL_RAD_S2 = 30.0  # category 2 stop ramp (protective stop, stopJ default)
@@ -288,11 +288,27 @@ class SimWorld:
         self.q_ref = q_ref_rad
         self.qd_ref = qd_ref_rad_s
 
+    def place_arm(self, q_rad: np.ndarray) -> None:
+        """Put the arm at ``q_rad`` standing still, the servo set-point there (a controller
+        that starts, or resets its model, with the arm at ``q_rad``)."""
+        assert self._ids is not None, "build() first"
+        q = np.array(q_rad, dtype=float)
+        self.data.qpos[self._ids.qpos] = q
+        self.data.qvel[self._ids.dof] = 0.0
+        self.q_ref = self._q_prev_ref = q.copy()
+        self.qd_ref = self._qd_prev_ref = _ZERO6
+        self._mj.mj_forward(self.model, self.data)
+
+    @property
+    def stopping(self) -> bool:
+        """Whether a stop ramp (stopJ, a protective or emergency stop) is still running."""
+        return self._stop is not None
+
     def check_can_move(self) -> None:
         """Raise BackendError unless the controller would accept motion commands now."""
         if self.safety is not Safety.NORMAL:
             raise BackendError(f"robot cannot move: safety state is {self.safety.value}")
-        if self._stop is not None:
+        if self.stopping:
             raise BackendError("robot is stopping (stopJ); wait until it stands still")
 
     def stop_motion(self, decel_rad_s2: float = STOP_DECEL_RAD_S2) -> None:

@@ -61,13 +61,9 @@ class MujocoPhysics:
     def _reset(self, q_rad: np.ndarray) -> None:
         if not self.world.built:
             self.world.build()
-        world = self.world
-        q = np.asarray(q_rad, float)
-        world.data.qpos[world.ids.qpos] = q
-        world.data.qvel[world.ids.dof] = 0.0
-        world.q_ref = world._q_prev_ref = q.copy()
-        world.qd_ref = np.zeros(6)
-        self._q_prev = q.copy()
+        q = np.array(q_rad, dtype=float)
+        self.world.place_arm(q)
+        self._q_prev = q
 
     def inject_fault(self, fault: str) -> None:
         """grip_miss or part_slip, made to happen in the MuJoCo twin (as dry-run does)."""
@@ -95,7 +91,7 @@ class MujocoPhysics:
             # the twin's own 5 s have not passed yet either
             with contextlib.suppress(BackendError):
                 world.unlock_protective_stop()
-        if world.safety is Safety.NORMAL and world._stop is None:
+        if world.safety is Safety.NORMAL and not world.stopping:
             world.command(q_cmd, qd)
         world.step_period()
         self._contact = world.safety is Safety.PROTECTIVE_STOP

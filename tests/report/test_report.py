@@ -13,7 +13,7 @@ import pytest
 from cellrunner.model.geometry import Box, Placed, pose_matrix
 from cellrunner.report.plots import free_offset, merged_labels
 from cellrunner.report.views import choose_shots, occluders, project
-from cellrunner.sim._mj import load_mujoco
+from cellrunner.sim.mujoco_loader import load_mujoco
 from cellrunner.sim.render import CameraView, CellRenderer
 from tests.conftest import GL_BACKEND, ROOT
 

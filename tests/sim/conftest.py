@@ -9,8 +9,8 @@ import pytest
 from cellrunner.backends.sim.backend import SimBackend
 from cellrunner.model.trajectory import approve
 from cellrunner.sim import demo
-from cellrunner.sim._mj import load_mujoco
 from cellrunner.sim.description import TwinDescription, dh_forward
+from cellrunner.sim.mujoco_loader import load_mujoco
 
 # Import MuJoCo the package's way first (the root conftest chose its GL backend already).
 load_mujoco()

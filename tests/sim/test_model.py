@@ -94,8 +94,7 @@ def test_wrist_reads_zero_at_rest_in_any_pose_payload_compensated() -> None:
     world = SimWorld(demo.demo_description(parts=()))
     world.build()
     for q in ([0, -1.57, 1.57, -1.57, -1.57, 0], [0.7, -1.2, 1.0, 0.3, 1.1, 2.0]):
-        world.q_ref = np.array(q, dtype=float)
-        world.data.qpos[world._ids.qpos] = q
+        world.place_arm(np.array(q, dtype=float))
         for _ in range(200):
             world.step_period()
         wrench = world.measure().wrench_N

@@ -43,11 +43,7 @@ def put_tcp(world, cell_world, T_world_tcp) -> np.ndarray:
         for q in cell_world.kinematics.ik_all(T_world_tcp, world.q_measured())
         if cell_world.collision.is_valid(q)
     )
-    world.data.qpos[:6] = q
-    world.data.qvel[:6] = 0.0
-    world.q_ref = world._q_prev_ref = q.copy()
-    world.qd_ref = np.zeros(6)
-    world._mj.mj_forward(world.model, world.data)
+    world.place_arm(q)
     return q
 
 
