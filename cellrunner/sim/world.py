@@ -43,6 +43,7 @@ AIR_CLEARANCE_M = 0.01  # "in the air": this far from every fixture and the floo
 PLACE_DROP_M = 0.01  # a part released this far above its support lands where it was put
 JAM_SLIDE_M = 0.005  # a gripped part forced back this far in the jaws by a fixture: a collision
 JAM_FORCE_N = 150.0  # or pressed onto a fixture this hard (UR's default force limit)
+GRAVITY_M_S2 = 9.81
 
 
 class Fault(enum.StrEnum):
@@ -191,6 +192,7 @@ class SimWorld:
         self._site_pos = self.data.site_xpos[ids.ft_site]
         self._pad_a = ids.pad_geoms[0]
         self._part_of_geom = {g: name for name, g in ids.part_geom.items()}
+        self._part_mass_kg = {p.name: p.mass_kg for p in self.description.parts}
         self._force6 = np.zeros(6)
         self._fromto6 = np.zeros(6)
         self._static_geoms = [g for g, k in enumerate(self._kind) if k == STATIC]
@@ -544,12 +546,13 @@ class SimWorld:
                 robot_parts.append((i, g2 if k2 == PARTS else g1))
         gripped_geoms = {g for g, hits in pad_hits.items() if hits == 3}
         carried = gripped_geoms | self._vac_geoms
-        suspicious += [i for i, g in robot_parts if g not in gripped_geoms]
+        suspicious += [i for i, g in robot_parts if g not in carried]
         # a finger landing on a part it does not hold (judged by force, like the tool);
-        # a held part that loses one pad's contact for a moment is still held
+        # a held part that loses one pad's contact for a moment is still held, and the
+        # cups pressing on the part they hold are how suction carries it
         held = self._held_at
         suspicious += [
-            i for i, g in pad_parts if g not in gripped_geoms and self._part_of_geom[g] not in held
+            i for i, g in pad_parts if g not in carried and self._part_of_geom[g] not in held
         ]
         # a carried part pushed into a fixture is a contact like the tool's own; the
         # light touch of setting it down is not (judged each period, so never cached)
@@ -583,12 +586,17 @@ class SimWorld:
     def _judge_pressed(self, indices: list[int], gripped_geoms: set[int]) -> None:
         """A gripped part against a fixture: a protective stop when it is forced back in
         the jaws by more than ``JAM_SLIDE_M`` since it was last free of fixtures (pushed
-        into the fixture, not set down on it), or pressed harder than ``JAM_FORCE_N``."""
+        into the fixture, not set down on it), or pressed harder than ``JAM_FORCE_N`` beyond
+        the parts' own weight (a 12 kg case resting on its conveyor while the cups seal is
+        not the arm pressing: UR's force limit sees what the arm adds)."""
         force = self._force6
         total = 0.0
+        parts: set[str | None] = set()  # None: a geom of no part
         for i in indices:
             self._mj.mj_contactForce(self.model, self.data, i, force)
             total += abs(force[0])
+            parts.update(self._part_of_geom.get(int(g)) for g in self.data.contact.geom[i])
+        total -= GRAVITY_M_S2 * sum(self._part_mass_kg.get(p, 0.0) for p in parts if p is not None)
         slide = max(
             (self._slide_in_jaws_m(self._part_of_geom[g]) for g in gripped_geoms), default=0.0
         )
