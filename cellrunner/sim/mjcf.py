@@ -3,8 +3,10 @@
 Model layout (names are what :mod:`.world` looks up):
 
 - ``base`` body at ``T_world_base``; ``link1``..``link6`` form the DH chain, each body's
-  frame being "DH frame i-1 turned by joint i" -- exactly the frame of
-  :meth:`RobotSpec.capsules`, so the twin collides with the very capsules planning uses.
+  frame being "DH frame i-1 turned by joint i" -- exactly the frame of the arm's convex
+  parts (:mod:`cellrunner.model.arm_geometry`), so the twin collides with the very parts
+  planning uses (mesh geoms ``arm<body>_<k>``; MuJoCo takes a mesh's convex hull, and each
+  part is convex).
   Hinge joints are named as :data:`cellrunner.model.robots.JOINT_NAMES`.
 - ``flange`` (DH frame 6) -> ``tool`` body (welded; carries the tool geometry, the
   payload inertia, the ``ft`` site of the wrist force/torque sensor and the ``tcp`` site)
@@ -32,10 +34,11 @@ import struct
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
+from cellrunner.model.arm_geometry import arm_geometry
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.sim.description import TwinDescription
@@ -225,7 +228,22 @@ def _fmt(values: Any) -> str:
     return " ".join(f"{float(v):.9g}" for v in np.ravel(values))
 
 
-def _pose_attrs(T: np.ndarray) -> dict[str, str]:
+class PoseAttrs(TypedDict):
+    """An MJCF element's pose attributes."""
+
+    pos: str
+    quat: str
+
+
+class ShapeAttrs(TypedDict, total=False):
+    """An MJCF geom's shape attributes."""
+
+    type: str
+    size: str
+    mesh: str
+
+
+def _pose_attrs(T: np.ndarray) -> PoseAttrs:
     return {"pos": _fmt(T[:3, 3]), "quat": _fmt(quat_of(T[:3, :3]))}
 
 
@@ -366,7 +384,7 @@ class _Builder:
             self._meshes[key] = name
         return self._meshes[key]
 
-    def _shape_attrs(self, shape: Shape) -> dict[str, str]:
+    def _shape_attrs(self, shape: Shape) -> ShapeAttrs:
         if isinstance(shape, Box):
             return {"type": "box", "size": _fmt(np.asarray(shape.size_m) / 2)}
         if isinstance(shape, Cylinder):
@@ -404,7 +422,9 @@ class _Builder:
         False when the mesh is convex (or too big), to be built as usual."""
         from cellrunner.sim import mesh_pieces
 
-        triangles = mesh_pieces.triangles_of(binary_stl(placed.shape.path), placed.shape.scale)
+        mesh = placed.shape
+        assert isinstance(mesh, Mesh)  # called for mesh fixtures
+        triangles = mesh_pieces.triangles_of(binary_stl(mesh.path), mesh.scale)
         if len(triangles) > mesh_pieces.MAX_TRIANGLES or mesh_pieces.is_convex(triangles):
             return False
         assert self.assets is not None
@@ -427,12 +447,8 @@ class _Builder:
     def _arm(self, world: ET.Element) -> None:
         d = self.desc
         spec = d.spec
-        capsules = spec.capsules()
-        volume = sum(
-            math.pi * c.radius_m**2 * math.dist(c.p0_m, c.p1_m) + 4 / 3 * math.pi * c.radius_m**3
-            for c in capsules
-            if c.body > 0
-        )
+        parts = arm_geometry(spec.name).parts
+        volume = sum(p.volume_m3 for p in parts if p.body > 0)
         density = ARM_MASS_KG.get(spec.name, 20.0) / volume
         scale = (spec.reach_m / 0.85) ** 2
         torque = JOINT_TORQUE_MAX_NM.get(spec.name, _TORQUE_MEDIUM)
@@ -444,7 +460,7 @@ class _Builder:
                 if i > 1:
                     T[:3, 3] = (spec.a_m[i - 2], 0.0, spec.d_m[i - 2])
                     ca, sa = math.cos(spec.alpha_rad[i - 2]), math.sin(spec.alpha_rad[i - 2])
-                    T[:3, :3] = [[1, 0, 0], [0, ca, -sa], [0, sa, ca]]
+                    T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
                 body = ET.SubElement(
                     parent, "body", name=f"link{i}", gravcomp="1", **_pose_attrs(T)
                 )
@@ -459,17 +475,19 @@ class _Builder:
                     range=_fmt(np.radians([spec.joint_min_deg[i - 1], spec.joint_max_deg[i - 1]])),
                     actuatorfrcrange=_fmt([-torque[i - 1], torque[i - 1]]),
                 )
-            for k, c in enumerate(x for x in capsules if x.body == i):
+            assert self.assets is not None
+            for k, part in enumerate(x for x in parts if x.body == i):
                 bits = (0, 0) if i == 0 else (ROBOT, STATIC | PARTS)
+                name = f"arm{i}_{k}"
+                ET.SubElement(self.assets, "mesh", name=name, vertex=_fmt(part.vertices_m.ravel()))
                 ET.SubElement(
                     body,
                     "geom",
-                    name=f"arm{i}_{k}",
-                    type="capsule",
-                    fromto=_fmt([*c.p0_m, *c.p1_m]),
-                    size=f"{c.radius_m:.6g}",
+                    name=name,
+                    type="mesh",
+                    mesh=name,
                     density=f"{density if i > 0 else 0:.6g}",
-                    material="joint" if k == 0 and i in (1, 4, 5) else "arm",
+                    material="arm",
                     contype=str(bits[0]),
                     conaffinity=str(bits[1]),
                 )
@@ -477,7 +495,7 @@ class _Builder:
         flange_T = np.eye(4)
         flange_T[:3, 3] = (spec.a_m[5], 0.0, spec.d_m[5])
         ca, sa = math.cos(spec.alpha_rad[5]), math.sin(spec.alpha_rad[5])
-        flange_T[:3, :3] = [[1, 0, 0], [0, ca, -sa], [0, sa, ca]]
+        flange_T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
         flange = ET.SubElement(parent, "body", name="flange", gravcomp="1", **_pose_attrs(flange_T))
         ET.SubElement(flange, "inertial", pos="0 0 0", mass="1e-3", diaginertia="1e-7 1e-7 1e-7")
         self._tool(flange)
@@ -522,7 +540,9 @@ class _Builder:
         if d.tool_changer is not None:
             from cellrunner.sim.tool_changer import add_tools
 
-            add_tools(self, tool, self.root.find("worldbody"), d.tool_changer, TOOL, STATIC)
+            worldbody = self.root.find("worldbody")
+            assert worldbody is not None  # built before the tool
+            add_tools(self, tool, worldbody, d.tool_changer, TOOL, STATIC)
 
     def _gripper(self, tool: ET.Element, g: Any) -> None:
         d = self.desc
