@@ -448,7 +448,7 @@ class _Builder:
     def _arm(self, world: ET.Element) -> None:
         d = self.desc
         spec = d.spec
-        parts = arm_geometry(spec.name).parts
+        parts = arm_geometry(spec.arm).parts
         volume = sum(p.volume_m3 for p in parts if p.body > 0)
         density = ARM_MASS_KG.get(spec.name, 20.0) / volume
         scale = (spec.reach_m / 0.85) ** 2
