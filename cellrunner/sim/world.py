@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Set
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -136,6 +137,13 @@ class SimWorld:
         self._mj: Any = None
         self._ids: _Ids | None = None
 
+    @property
+    def ids(self) -> _Ids:
+        """The built model's indices (joints, parts, pads, sites)."""
+        if self._ids is None:
+            raise RuntimeError("the twin's model is not built yet; call build() first")
+        return self._ids
+
     # -- lifecycle ----------------------------------------------------------------------
     def build(self) -> None:
         """Compile the model and put the arm at home and the parts at their frames."""
@@ -144,7 +152,7 @@ class SimWorld:
         self.data = self._mj.MjData(self.model)
         self._ids = self._lookup_ids()
         self._periods = 0
-        ids = self._ids
+        ids = self.ids
         self.data.qpos[ids.qpos] = self.description.q_home_rad
         self._mj.mj_forward(self.model, self.data)
         self.q_ref = np.array(self.description.q_home_rad, dtype=float)
@@ -369,7 +377,7 @@ class SimWorld:
             # A collision: hold where the arm was just before (backing off 20 ms of the
             # motion, as UR arms back off) rather than ramp on into the obstacle.
             self._stop = None
-            q, qd = self.data.qpos[self._ids.qpos], self.data.qvel[self._ids.dof]
+            q, qd = self.data.qpos[self.ids.qpos], self.data.qvel[self.ids.dof]
             self.q_ref = self._q_prev_ref = q - COLLISION_BACKOFF_S * qd
             self.qd_ref = self._qd_prev_ref = _ZERO6
         else:
@@ -490,7 +498,7 @@ class SimWorld:
         """The cups sealed on or let go of a part: the verdict on the same contact pairs
         changes (a part held by suction pressed onto a fixture is judged like a gripped one)."""
         held = self.vacuum.held if self.vacuum is not None else _NONE
-        self._vac_geoms = frozenset(self._ids.part_geom[n] for n in held)
+        self._vac_geoms = frozenset(self.ids.part_geom[n] for n in held)
         self._clean_pairs, self._clean_gripped = None, _NONE
 
     def _check_contacts(self) -> frozenset[str]:
@@ -583,12 +591,12 @@ class SimWorld:
         not the arm pressing: UR's force limit sees what the arm adds)."""
         force = self._force6
         total = 0.0
-        parts = set()
+        parts: set[str | None] = set()  # None: a geom of no part
         for i in indices:
             self._mj.mj_contactForce(self.model, self.data, i, force)
             total += abs(force[0])
             parts.update(self._part_of_geom.get(int(g)) for g in self.data.contact.geom[i])
-        total -= GRAVITY_M_S2 * sum(self._part_mass_kg.get(p, 0.0) for p in parts)
+        total -= GRAVITY_M_S2 * sum(self._part_mass_kg.get(p, 0.0) for p in parts if p is not None)
         slide = max(
             (self._slide_in_jaws_m(self._part_of_geom[g]) for g in gripped_geoms), default=0.0
         )
@@ -629,16 +637,16 @@ class SimWorld:
                 self._held_at[name] = self._part_in_tcp(name)
 
     # -- faults ---------------------------------------------------------------------------
-    def _update_faults(self, gripped: set[str]) -> None:
+    def _update_faults(self, gripped: Set[str]) -> None:
         f = self._faults
         if f.slip_armed:
             self._maybe_slip({p for p in gripped if self._in_air(p)})
         for name in list(f.slipping):
             if not self._touches_pads(name):
-                self.model.geom_friction[self._ids.part_geom[name]] = self._ids.part_friction[name]
+                self.model.geom_friction[self.ids.part_geom[name]] = self.ids.part_friction[name]
                 f.slipping.discard(name)
-        if not f.slipping and self._ids.pad_geoms[0] >= 0:
-            self.model.geom_friction[list(self._ids.pad_geoms)] = self._ids.pad_friction
+        if not f.slipping and self.ids.pad_geoms[0] >= 0:
+            self.model.geom_friction[list(self.ids.pad_geoms)] = self.ids.pad_friction
 
     def _maybe_slip(self, candidates: set[str]) -> None:
         if not candidates:
@@ -649,14 +657,14 @@ class SimWorld:
         for name in candidates:
             self._faults.slipping.add(name)
             # friction such that the two pads hold only a fraction of the weight
-            weight = self.model.body_mass[self._ids.part_bodies[name]] * GRAVITY_MPS2
+            weight = self.model.body_mass[self.ids.part_bodies[name]] * GRAVITY_MPS2
             mu = SLIP_HOLD_FRACTION * weight / (2.0 * g.grip_force_N)
-            self.model.geom_friction[self._ids.part_geom[name], 0] = mu
-            self.model.geom_friction[list(self._ids.pad_geoms), 0] = mu
+            self.model.geom_friction[self.ids.part_geom[name], 0] = mu
+            self.model.geom_friction[list(self.ids.pad_geoms), 0] = mu
 
     def _contacts_of(self, part: str) -> list[int]:
         """Kinds of the geoms the part touches."""
-        g = self._ids.part_geom[part]
+        g = self.ids.part_geom[part]
         kind = self._kind
         return [
             kind[g2 if g1 == g else g1]
@@ -673,7 +681,7 @@ class SimWorld:
 
     def _clear_of_static(self, part: str) -> bool:
         """True when the part is ``AIR_CLEARANCE_M`` clear of every fixture and the floor."""
-        g = self._ids.part_geom[part]
+        g = self.ids.part_geom[part]
         fromto = self._fromto6
         for other in self._static_geoms:
             d = self._mj.mj_geomDistance(self.model, self.data, g, other, AIR_CLEARANCE_M, fromto)
@@ -687,9 +695,12 @@ class SimWorld:
     def _move_part_away(self, reach_m: float | None = None) -> None:
         """grip_miss: the part at the gripper (within ``reach_m`` of the TCP; default: the
         jaws' half stroke + 5 cm) is moved 0.15 m towards the robot base."""
-        ids, data, g = self._ids, self.data, self.description.gripper
+        ids, data, g = self.ids, self.data, self.description.gripper
         tcp = data.site_xpos[ids.tcp_site]
-        reach = reach_m if reach_m is not None else g.stroke_m / 2 + 0.05
+        if reach_m is None:
+            assert g is not None  # grip_miss without a reach is a jaw gripper's
+            reach_m = g.stroke_m / 2 + 0.05
+        reach = reach_m
         best, best_d = None, reach
         for name, body in ids.part_bodies.items():
             dist = float(np.linalg.norm(data.xpos[body] - tcp))
@@ -716,7 +727,7 @@ class SimWorld:
         self.safety = Safety.NORMAL
         self.stop_time_s = None
         self._stop = None
-        self.q_ref = self._q_prev_ref = self.data.qpos[self._ids.qpos].copy()
+        self.q_ref = self._q_prev_ref = self.data.qpos[self.ids.qpos].copy()
         self.qd_ref = self._qd_prev_ref = _ZERO6
 
     # -- measurements ---------------------------------------------------------------------
@@ -739,7 +750,7 @@ class SimWorld:
         if g is None:
             return 0.0
         a, b = self._jaw_adr
-        return g.stroke_m - (self._qpos.item(a) + self._qpos.item(b))
+        return float(g.stroke_m - (self._qpos.item(a) + self._qpos.item(b)))
 
     def _update_inputs(self) -> None:
         g = self.description.gripper
@@ -767,7 +778,7 @@ class SimWorld:
             h = np.asarray(sensor.half_extents_m)
             self.inputs[sensor.channel] = any(
                 bool(np.all(np.abs(self.data.xpos[b] - c) <= h))
-                for b in self._ids.part_bodies.values()
+                for b in self.ids.part_bodies.values()
             )
         if self._rules is not None:
             xpos = self.data.xpos
@@ -775,7 +786,7 @@ class SimWorld:
                 self._rules.evaluate(
                     self.time_s,
                     self.outputs,
-                    (xpos[b].tolist() for b in self._ids.part_bodies.values()),
+                    (xpos[b].tolist() for b in self.ids.part_bodies.values()),
                 )
             )
 
@@ -831,12 +842,12 @@ class SimWorld:
 
     # -- introspection for tests, reports and the renderer (never for the engine) ---------
     def q_measured(self) -> np.ndarray:
-        return self._q_view.copy()
+        return np.array(self._q_view)
 
     def tcp_pose_world(self) -> np.ndarray:
         T = np.eye(4)
-        T[:3, :3] = self.data.site_xmat[self._ids.tcp_site].reshape(3, 3)
-        T[:3, 3] = self.data.site_xpos[self._ids.tcp_site]
+        T[:3, :3] = self.data.site_xmat[self.ids.tcp_site].reshape(3, 3)
+        T[:3, 3] = self.data.site_xpos[self.ids.tcp_site]
         return T
 
     def feed_parts(self, moved_m: float = 0.01) -> list[str]:
@@ -853,7 +864,7 @@ class SimWorld:
             spawn = part.T_world_part
             if np.linalg.norm(self.part_pose_world(part.name)[:3, 3] - spawn[:3, 3]) <= moved_m:
                 continue
-            adr = self._ids.part_qpos[part.name]
+            adr = self.ids.part_qpos[part.name]
             x, y, z, w = Rotation.from_matrix(spawn[:3, :3]).as_quat()
             self.data.qpos[adr : adr + 7] = [*spawn[:3, 3], w, x, y, z]
             dof = self.model.jnt_dofadr[self.model.joint(f"part:{part.name}").id]
@@ -882,7 +893,7 @@ class SimWorld:
         return found
 
     def part_pose_world(self, name: str) -> np.ndarray:
-        body = self._ids.part_bodies[name]
+        body = self.ids.part_bodies[name]
         T = np.eye(4)
         T[:3, :3] = self.data.xmat[body].reshape(3, 3)
         T[:3, 3] = self.data.xpos[body]
