@@ -25,6 +25,7 @@ Targets: real-time factor >= 0.8x the raw mj_step rate; |simulated - planned| cy
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import sys
 import time
@@ -200,7 +201,9 @@ def raw_stream(cell, task, params) -> tuple[float, float]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--json", type=Path, help="also write the results here")
     args = ap.parse_args()
+    report = []
     print(
         f"{'case':30s} {'engine RTF':>10s} {'stream RTF':>10s} {'mj_step RTF':>11s} "
         f"{'engine/mj_step':>14s} {'(wall)':>7s} {'planned s':>9s} {'simulated s':>11s} "
@@ -229,6 +232,17 @@ def main() -> int:
         p = statistics.median(physics)
         ew, pw = statistics.median(engine_wall), statistics.median(physics_wall)
         worst_rtf, worst_diff = min(worst_rtf, e / p), max(worst_diff, d)
+        report.append(
+            {
+                "case": name,
+                "engine_rtf": e,
+                "stream_rtf": r,
+                "mj_step_rtf": p,
+                "ratio": e / p,
+                "ratio_wall": ew / pw,
+                "cycle_diff_pct": d,
+            }
+        )
         print(
             f"{name:30s} {e:9.1f}x {r:9.1f}x {p:10.1f}x {e / p:13.2f}x {ew / pw:6.2f}x "
             f"{planned:9.2f} {simulated:11.2f} {d:6.2f}"
@@ -248,6 +262,18 @@ def main() -> int:
             f"  {name}: {us['loop']:.0f} in all = physics (mj_step) {us['mj_step']:.0f} + twin "
             f"Python around it {twin_python:.0f} + engine tick {us['engine tick']:.0f} + "
             f"state reads {us['state reads']:.0f} + loop and observers {rest:.0f}"
+        )
+    if args.json:
+        args.json.write_text(
+            json.dumps(
+                {
+                    "runs": args.runs,
+                    "cases": report,
+                    "worst_ratio": worst_rtf,
+                    "worst_cycle_diff_pct": worst_diff,
+                },
+                indent=2,
+            )
         )
     return 0
 

@@ -55,7 +55,7 @@ def run(args) -> int:
     from cellrunner.sim.from_cell import description_of
 
     world = CellWorld(cell)
-    backend = SimBackend(description_of(cell))
+    backend = SimBackend(description_of(cell, (task,)))
     pending: list[tuple[Injection, float]] = []
     report = Path(args.report) if args.report else None
     recorder = RunRecorder()

@@ -423,12 +423,16 @@ class CellController:
             self._publish()
 
     def _recover(self) -> None:
-        """Clearing (on the control thread): reconnect a lost link, re-arm after an
-        e-stop (power, brakes); bounded by the backend."""
+        """Clearing (on the control thread): reconnect a lost link, unlock a protective stop
+        the job left behind (a job that ends in one, or is aborted while held), re-arm
+        after an e-stop (power, brakes); bounded by the backend. The controller refuses an
+        unlock within 5 s of the stop: Clear fails then, and the next Clear tries again."""
         error = None
         try:
             if self._safety is Safety.DISCONNECTED:
                 self.backend.connect()
+            if self.backend.read_state().safety is Safety.PROTECTIVE_STOP:
+                self.backend.unlock_protective_stop()
             self.backend.recover_from_estop()
         except CellrunnerError as exc:  # e.g. the e-stop is still pressed
             error = exc

@@ -147,6 +147,8 @@ class Param(Strict):
                 return bool(value)
             raise ValueError(f"param {name!r} must be true or false, got {value!r}")
         x = None
+        if isinstance(value, str) and _plain_number(value):  # -p dwell=0.3: an SI number
+            value = float(value)
         if isinstance(value, str) and self.kind is not None:
             try:
                 x = parse_quantity(value, self.kind)
@@ -246,3 +248,11 @@ def substitute(raw: Any, params: dict[str, Param], values: dict[str, Any]) -> tu
         return v
 
     return walk(raw), used
+
+
+def _plain_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True

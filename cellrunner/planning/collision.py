@@ -2,16 +2,19 @@
 
 Objects and frames:
 
-- arm: the capsules of :meth:`RobotSpec.capsules`, on pinocchio joint i (body 0 = base,
-  fixed at the mount). Names: ``base``, ``shoulder``, ``upper_arm``, ``elbow``,
-  ``forearm``, ``wrist_1``, ``wrist_2``, ``wrist_3``.
+- arm: the convex parts of :func:`cellrunner.model.arm_geometry.arm_geometry` (derived from
+  Universal Robots' collision meshes, which they contain), on pinocchio joint i (body 0 =
+  base, fixed at the mount). Names: the links', ``base``, ``shoulder``, ``upper_arm``,
+  ``forearm``, ``wrist_1``, ``wrist_2``, ``wrist_3``. A model without derived geometry is
+  refused (:class:`InfeasibleError`), never guessed.
 - tool: shapes placed in the flange frame (``Placed.T_parent_shape`` = ``T_flange_shape``).
 - part: the carried part, placed in the TCP frame (``T_tcp_shape``); see
   :meth:`CollisionModel.carrying`.
 - fixtures: shapes placed in the world (``T_world_shape``): box, cylinder, sphere, STL mesh.
 
-Pairs never checked (they touch by construction or are rigidly joined): adjacent arm
-bodies (``RobotSpec.ALLOWED_SELF_CONTACT``), the base against every fixture (the robot is
+Pairs never checked (they touch by construction or are rigidly joined): arm parts that the
+derivation proved apart by more than the clearance over the joints' ranges, or that are the
+joint between adjacent links (:meth:`ArmGeometry.self_pair_checked`), the base against every fixture (the robot is
 mounted on one), the tool against the wrist 2 and wrist 3 bodies, the part against the
 tool and wrist 3, fixtures against each other.
 
@@ -32,8 +35,8 @@ distance of p from that axis. We bound r_j(p) for every configuration by ``R[obj
 components across axis j of the fixed link offsets t_m (their x-y part while the axes of
 joints j..m-1 stay parallel to axis j, their whole length after that) plus the largest
 distance of the object from joint k's origin, or from its axis when that is parallel too,
-taken over the object's support points (:func:`_support_points`: capsule ends + radius,
-box corners, ...). Hence over any sub-segment [s, s + ds] no point of the object moves
+taken over the object's support points (:func:`_support_points`: a convex part's vertices,
+capsule ends + radius, box corners, ...), whose hull (plus the pad) contains the object. Hence over any sub-segment [s, s + ds] no point of the object moves
 more than ``ds * sum_j R[obj, j] |q1_j - q0_j|``, and the distance of a pair shrinks by
 at most ``ds * c_pair``, with ``c_pair`` that bound for the moving object against a static
 one; for two objects carried by arm bodies a < b the distance is measured in body a's
@@ -57,6 +60,7 @@ from __future__ import annotations
 import bisect
 import heapq
 import importlib
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -65,6 +69,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cellrunner.errors import InfeasibleError
+from cellrunner.model.arm_geometry import ArmGeometry, ArmGeometryMissing, ConvexPart, arm_geometry
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 
 if TYPE_CHECKING:
@@ -108,17 +114,6 @@ KNOT_STEP_RAD = 0.2
 
 #: derived models (carried part x contact allowances) kept per cell
 VARIANTS_KEPT = 64
-
-ARM_BODY_NAMES = (
-    "base",
-    "shoulder",
-    "upper_arm",
-    "elbow",
-    "forearm",
-    "wrist_1",
-    "wrist_2",
-    "wrist_3",
-)
 
 #: Arm bodies the tool is rigidly attached to or adjacent to (never checked against it).
 TOOL_ADJACENT_BODIES = frozenset({5, 6})
@@ -191,6 +186,7 @@ class _Object:
     placement: np.ndarray = field(compare=False)  # T_joint_shape (fixtures: T_world_shape)
     radius_m: float = 0.0  # bounding sphere radius about the shape origin
     fixture: str = ""
+    part: ConvexPart | None = field(default=None, compare=False)  # arm parts: the polytope
 
 
 class CollisionModel:
@@ -284,23 +280,40 @@ class CollisionModel:
         self._geometry_cache[key] = (shape, geometry, radius)
         return geometry, radius
 
+    @staticmethod
+    def _arm_geometry(model: str) -> ArmGeometry:
+        try:
+            return arm_geometry(model)
+        except ArmGeometryMissing as exc:
+            raise InfeasibleError(str(exc)) from None
+
+    def _convex(self, part: ConvexPart) -> coal.CollisionGeometry:
+        """The coal polytope of an arm part (built once per cell and shared by variants)."""
+        key = ("arm part", id(part))
+        cached = self._geometry_cache.get(key)
+        if cached is None or cached[0] is not part:
+            vertices = coal.StdVec_Vec3s()
+            vertices.extend(list(part.vertices_m))
+            cached = (part, coal.Convex.convexHull(vertices, False, ""), 0.0)
+            self._geometry_cache[key] = cached
+        return cached[1]
+
     def _build(self) -> None:
         kin = self.kinematics
         model = kin.model
         spec = kin.spec
         objects: list[_Object] = []
-        for index, capsule in enumerate(spec.capsules()):
-            p0, p1 = np.array(capsule.p0_m, float), np.array(capsule.p1_m, float)
-            T = _segment_frame(p0, p1)
-            length = float(np.linalg.norm(p1 - p0))
+        self._arm = self._arm_geometry(spec.name)
+        for part in self._arm.parts:
             objects.append(
                 _Object(
-                    ARM_BODY_NAMES[index],
+                    part.link,
                     "arm",
-                    capsule.body,
-                    coal.Capsule(capsule.radius_m, length),
-                    T,
-                    radius_m=length / 2 + capsule.radius_m,
+                    part.body,
+                    self._convex(part),
+                    np.eye(4),
+                    radius_m=float(np.linalg.norm(part.vertices_m, axis=1).max()),
+                    part=part,
                 )
             )
         T_joint6_flange = model.frames[kin.flange_frame_id].placement.homogeneous
@@ -391,8 +404,10 @@ class CollisionModel:
             robot = a if b.group == "fixture" else b
             return robot.body != 0
         if a.group == b.group == "arm":
-            pair = (min(a.body, b.body), max(a.body, b.body))
-            return a.body != b.body and pair not in self.kinematics.spec.ALLOWED_SELF_CONTACT
+            assert a.part is not None and b.part is not None
+            return self._arm.self_pair_checked(
+                self._arm.parts.index(a.part), self._arm.parts.index(b.part), self.clearance_m
+            )
         if groups == {"tool"} or groups == {"part"}:
             return False
         if groups == {"tool", "part"}:
@@ -425,7 +440,11 @@ class CollisionModel:
         for k, obj in enumerate(self._objects):
             self._center_local[k] = obj.placement[:3, 3]
             self._radius[k] = obj.radius_m
-            support.append(_support_points(obj.geometry, obj.placement))
+            support.append(
+                (obj.part.vertices_m, 0.0)
+                if obj.part is not None
+                else _support_points(obj.geometry, obj.placement)
+            )
             if self._is_mover[k]:
                 self._reach[k] = _joint_reach(model, obj.body, *support[k])
         # support points of the moving objects, for per-segment radial extents
@@ -480,7 +499,11 @@ class CollisionModel:
         centers, radii, owner = [], [], []
         for row, k in enumerate(self._movers):
             obj = self._objects[k]
-            c, r = _cover_spheres(obj.geometry, obj.placement)
+            c, r = (
+                _polytope_cover_spheres(obj.part.vertices_m, obj.part.faces)
+                if obj.part is not None
+                else _cover_spheres(obj.geometry, obj.placement)
+            )
             centers.append(c)
             radii.append(r)
             owner += [row] * len(r)
@@ -992,6 +1015,39 @@ def _cover_spheres(
         lo, hi = _local_aabb(geometry)
         local, radius = ((lo + hi) / 2)[None, :], np.array([float(np.linalg.norm(hi - lo)) / 2])
     return local @ T[:3, :3].T + T[:3, 3], radius
+
+
+def _polytope_cover_spheres(
+    vertices: np.ndarray, faces: np.ndarray, width_m: float = 0.06
+) -> tuple[np.ndarray, np.ndarray]:
+    """Spheres whose union contains the convex polytope (``vertices``, triangle ``faces``):
+    the polytope cut into slabs along its longest axis, each slab's ball around the corners
+    of the polytope's part in it (its vertices there and its edges' crossings of the slab's
+    planes; the part is the hull of those, and a ball is convex)."""
+    v = np.asarray(vertices, float)
+    axis = np.linalg.svd(v - v.mean(axis=0), full_matrices=False)[2][0]
+    s = v @ axis
+    n = max(1, math.ceil((s.max() - s.min()) / width_m))
+    cuts = np.linspace(s.min(), s.max(), n + 1)
+    f = np.asarray(faces, int)
+    edges = np.unique(
+        np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0
+    )
+    a, b = edges[:, 0], edges[:, 1]
+    centres, radii = [], []
+    for lo, hi in itertools.pairwise(cuts):
+        corners = [v[(s >= lo) & (s <= hi)]]
+        for plane in (lo, hi):
+            cross = (s[a] - plane) * (s[b] - plane) < 0
+            t = (plane - s[a][cross]) / (s[b][cross] - s[a][cross])
+            corners.append(v[a][cross] + t[:, None] * (v[b][cross] - v[a][cross]))
+        pts = np.concatenate(corners)
+        if not len(pts):
+            continue
+        centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+        centres.append(centre)
+        radii.append(float(np.linalg.norm(pts - centre, axis=1).max()) + 1e-9)
+    return np.array(centres), np.array(radii)
 
 
 def _joint_reach(model: pin.Model, body: int, points: np.ndarray, pad: float) -> np.ndarray:

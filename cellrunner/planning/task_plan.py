@@ -273,6 +273,7 @@ class _StepPlanner:
         step, kin = row.step, self.world.kinematics
         T_now = kin.T_world_tcp(self.q)
         if step.kind in ("move", "approach"):
+            self.contact = ()  # a joint move leaves a force step's contact behind
             if goal_q is None and step.q_goal_deg is not None:
                 goal_q = np.radians(step.q_goal_deg)
             elif goal_q is None:
@@ -289,7 +290,7 @@ class _StepPlanner:
 
                     allowances = self.contact + contact_allowances(self, step, T_goal)
                 else:
-                    allowances = self._place_allowances(step, T_goal) + self.contact
+                    allowances = self._place_allowances(step, T_goal)  # with self.contact
                 self.contact = allowances if step.kind in FORCE_KINDS else ()
             collision = self.collision(allowances)
             path = plan_linear(kin, collision, self.q, T_goal).q_rad
@@ -379,9 +380,11 @@ class _StepPlanner:
         from cellrunner.planning.collision import ContactAllowance
 
         if self.part is None or step.kind not in LINEAR_KINDS:
-            return ()
+            return self.contact
         q_goal = self._try_ik(T_goal)
-        allowances: list[ContactAllowance] = []
+        # a force step's contact comes first: the part leaves it as deep as the step let it
+        # go (the set-down rule below is for the surfaces it is lifted off or set down on)
+        allowances: list[ContactAllowance] = list(self.contact)
         for end, q in (("start", self.q), ("end", q_goal)):
             if q is None:
                 continue

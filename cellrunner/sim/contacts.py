@@ -18,6 +18,7 @@ import numpy as np
 
 from cellrunner.backends.base import Safety
 from cellrunner.sim.mjcf import PADS, PARTS, ROBOT, STATIC, TOOL
+from cellrunner.sim.wrist import GRAVITY_MPS2
 
 if TYPE_CHECKING:
     from cellrunner.sim.world import SimWorld
@@ -53,6 +54,9 @@ class ContactMonitor:
         self.pressed = False
         self._pad_a = ids.pad_geoms[0]
         self._part_of_geom = {g: name for name, g in ids.part_geom.items()}
+        self._part_mass_kg: dict[str, float] = {
+            p.name: float(p.mass_kg) for p in world.description.parts
+        }
         self._force6 = np.zeros(6)
         self._fromto6 = np.zeros(6)
         self._vac_geoms: frozenset[int] = frozenset()  # part geoms the cups hold
@@ -130,12 +134,13 @@ class ContactMonitor:
                 robot_parts.append((i, g2 if k2 == PARTS else g1))
         gripped_geoms = {g for g, hits in pad_hits.items() if hits == 3}
         carried = gripped_geoms | self._vac_geoms
-        suspicious += [i for i, g in robot_parts if g not in gripped_geoms]
+        suspicious += [i for i, g in robot_parts if g not in carried]
         # a finger landing on a part it does not hold (judged by force, like the tool);
-        # a held part that loses one pad's contact for a moment is still held
+        # a held part that loses one pad's contact for a moment is still held, and the
+        # cups pressing on the part they hold are how suction carries it
         held = self.held_at
         suspicious += [
-            i for i, g in pad_parts if g not in gripped_geoms and self._part_of_geom[g] not in held
+            i for i, g in pad_parts if g not in carried and self._part_of_geom[g] not in held
         ]
         # a carried part pushed into a fixture is a contact like the tool's own; the
         # light touch of setting it down is not (judged each period, so never cached)
@@ -165,12 +170,21 @@ class ContactMonitor:
     def _judge_pressed(self, indices: list[int], gripped_geoms: set[int]) -> None:
         """A gripped part against a fixture: a protective stop when it is forced back in
         the jaws by more than ``JAM_SLIDE_M`` since it was last free of fixtures (pushed
-        into the fixture, not set down on it), or pressed harder than ``JAM_FORCE_N``."""
+        into the fixture, not set down on it), or pressed harder than ``JAM_FORCE_N`` beyond
+        the parts' own weight (a 12 kg case resting on its conveyor while the cups seal is
+        not the arm pressing: UR's force limit sees what the arm adds)."""
         w, force = self.world, self._force6
         total = 0.0
+        parts: set[str] = set()
         for i in indices:
             w.mujoco.mj_contactForce(w.model, w.data, i, force)
             total += abs(force[0])
+            parts.update(
+                self._part_of_geom[int(g)]
+                for g in w.data.contact.geom[i]
+                if int(g) in self._part_of_geom
+            )
+        total -= GRAVITY_MPS2 * sum(self._part_mass_kg[p] for p in parts)
         slide = max(
             (self._slide_in_jaws_m(self._part_of_geom[g]) for g in gripped_geoms), default=0.0
         )

@@ -2,18 +2,30 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
+from cellrunner.model.cell import Gripper
 from cellrunner.model.expand import frame_pose
 from cellrunner.model.gripper import gripper_channels, part_center_depth_m
-from cellrunner.model.load import LoadedCell
+from cellrunner.model.load import LoadedCell, LoadedTask
+
+if TYPE_CHECKING:
+    from cellrunner.sim.description import TwinDescription
+    from cellrunner.sim.input_rules import InputRuleDescription
+
+#: frame -> the gripper of the tool that picks parts there
+Picks = dict[str, Gripper | None]
 
 
-def description_of(loaded: LoadedCell):
+def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> TwinDescription:
     """A :class:`TwinDescription` of ``loaded``: arm, mount, tool, gripper, fixtures, parts, IO.
 
     With ``tools:`` and a tool changer every tool is built (each enabled while mounted):
-    the jaws of the first tool with jaws, the cups of the first vacuum tool."""
+    the jaws of the first tool with jaws, the cups of the first vacuum tool. A part then
+    lies as the tool that picks it at its frame holds it (jaws: centred; cups: top face),
+    found in ``tasks`` (loaded tasks) and the cell's own ``tasks:``."""
     from cellrunner.sim.description import TwinDescription
 
     c = loaded.cell
@@ -31,7 +43,8 @@ def description_of(loaded: LoadedCell):
     jaws.sort(key=lambda t: t is not c.tool)  # the mounted tool's jaws first
     gripper = _jaws(jaws[0], c, io_outputs, io_inputs) if jaws else None
     vacuum = _cups(suction, c) if suction is not None else None
-    parts = [_part(loaded, p, c.tool.gripper) for p in c.parts]
+    picks: Picks = _picking_grippers(loaded, tasks) if c.tools else {}
+    parts = [_part(loaded, p, picks.get(p.at, c.tool.gripper)) for p in c.parts]
     return TwinDescription(
         spec=loaded.spec,
         T_world_base=c.robot.mount.matrix(),
@@ -47,7 +60,7 @@ def description_of(loaded: LoadedCell):
         parts=tuple(parts),
         io_outputs=tuple(io_outputs),
         io_inputs=tuple(io_inputs),
-        input_rules=_input_rules(loaded),
+        input_rules=_input_rules(loaded, picks),
         cameras=_cameras(loaded),
         name=c.cell,
     )
@@ -74,7 +87,7 @@ def _part(loaded: LoadedCell, part, gripper):
     )
 
 
-def _input_rules(loaded: LoadedCell) -> tuple:
+def _input_rules(loaded: LoadedCell, picks: Picks) -> tuple[InputRuleDescription, ...]:
     """The ``sim: inputs`` rules in channels and world metres."""
     from cellrunner.sim.input_rules import InputRuleDescription
 
@@ -85,7 +98,7 @@ def _input_rules(loaded: LoadedCell) -> tuple:
     for name, rule in cell.sim.inputs.items():
         channel = cell.io.inputs[name]
         if rule.part_at is not None:
-            point = _part_at_point(loaded, rule.part_at)
+            point = _part_at_point(loaded, rule.part_at, picks)
             out.append(
                 InputRuleDescription(
                     channel,
@@ -111,7 +124,36 @@ def _input_rules(loaded: LoadedCell) -> tuple:
     return tuple(out)
 
 
-def _part_at_point(loaded: LoadedCell, frame: str) -> tuple[float, float, float]:
+def _picking_grippers(loaded: LoadedCell, tasks: tuple[LoadedTask, ...]) -> Picks:
+    """frame -> the gripper of the tool mounted where a task picks at that frame (the
+    tasks' steps with their params' defaults; a task that does not load is skipped)."""
+    from cellrunner.errors import CellrunnerError
+    from cellrunner.model.expand import expand, resolve_params
+    from cellrunner.model.load import load_task
+
+    c = loaded.cell
+    found = list(tasks)
+    for path in c.tasks.values():
+        try:
+            found.append(load_task(loaded.resolve(path), loaded))
+        except (CellrunnerError, OSError):
+            continue
+    picks: Picks = {}
+    for task in found:
+        try:
+            steps = expand(task, c, resolve_params(task.task, {}))
+        except (CellrunnerError, ValueError):
+            continue
+        tool = c.robot.tool
+        for step in steps:
+            if step.kind == "tool_lock":
+                tool = step.extra["tool"]
+            elif step.kind == "grip" and isinstance(step.extra.get("part_at"), str):
+                picks.setdefault(step.extra["part_at"], c.tools[tool].gripper if tool else None)
+    return picks
+
+
+def _part_at_point(loaded: LoadedCell, frame: str, picks: Picks) -> tuple[float, float, float]:
     """Where the centre of a part lying at ``frame`` is, as parts ``at:`` a frame lie: the
     frame itself for jaws, half the part's height under it for suction (the frame is the
     top face). The part that spawns at the frame is measured, else the cell's first part."""
@@ -119,7 +161,8 @@ def _part_at_point(loaded: LoadedCell, frame: str) -> tuple[float, float, float]
     x, y, z = (float(v) for v in frame_pose(cell, frame)[:3, 3])
     part = next((p for p in cell.parts if p.at == frame), cell.parts[0] if cell.parts else None)
     if part is not None:
-        z -= part_center_depth_m(cell.tool.gripper, part.to_shape(loaded.resolve))
+        gripper = picks.get(part.at, cell.tool.gripper)
+        z -= part_center_depth_m(gripper, part.to_shape(loaded.resolve))
     return (x, y, z)
 
 

@@ -3,8 +3,10 @@
 Model layout (names are what :mod:`.model_ids` looks up):
 
 - ``base`` body at ``T_world_base``; ``link1``..``link6`` form the DH chain, each body's
-  frame being "DH frame i-1 turned by joint i" -- exactly the frame of
-  :meth:`RobotSpec.capsules`, so the twin collides with the very capsules planning uses.
+  frame being "DH frame i-1 turned by joint i" -- exactly the frame of the arm's convex
+  parts (:mod:`cellrunner.model.arm_geometry`), so the twin collides with the very parts
+  planning uses (mesh geoms ``arm<body>_<k>``; MuJoCo takes a mesh's convex hull, and each
+  part is convex).
   Hinge joints are named as :data:`cellrunner.model.robots.JOINT_NAMES`.
 - ``flange`` (DH frame 6) -> ``tool`` body (welded; carries the tool geometry, the
   payload inertia, the ``ft`` site of the wrist force/torque sensor and the ``tcp`` site)
@@ -36,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from cellrunner.model.arm_geometry import arm_geometry
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.sim.description import TwinDescription
@@ -427,12 +430,8 @@ class _Builder:
     def _arm(self, world: ET.Element) -> None:
         d = self.desc
         spec = d.spec
-        capsules = spec.capsules()
-        volume = sum(
-            math.pi * c.radius_m**2 * math.dist(c.p0_m, c.p1_m) + 4 / 3 * math.pi * c.radius_m**3
-            for c in capsules
-            if c.body > 0
-        )
+        parts = arm_geometry(spec.name).parts
+        volume = sum(p.volume_m3 for p in parts if p.body > 0)
         density = ARM_MASS_KG.get(spec.name, 20.0) / volume
         scale = (spec.reach_m / 0.85) ** 2
         torque = JOINT_TORQUE_MAX_NM.get(spec.name, _TORQUE_MEDIUM)
@@ -459,17 +458,19 @@ class _Builder:
                     range=_fmt(np.radians([spec.joint_min_deg[i - 1], spec.joint_max_deg[i - 1]])),
                     actuatorfrcrange=_fmt([-torque[i - 1], torque[i - 1]]),
                 )
-            for k, c in enumerate(x for x in capsules if x.body == i):
+            assert self.assets is not None
+            for k, part in enumerate(x for x in parts if x.body == i):
                 bits = (0, 0) if i == 0 else (ROBOT, STATIC | PARTS)
+                name = f"arm{i}_{k}"
+                ET.SubElement(self.assets, "mesh", name=name, vertex=_fmt(part.vertices_m.ravel()))
                 ET.SubElement(
                     body,
                     "geom",
-                    name=f"arm{i}_{k}",
-                    type="capsule",
-                    fromto=_fmt([*c.p0_m, *c.p1_m]),
-                    size=f"{c.radius_m:.6g}",
+                    name=name,
+                    type="mesh",
+                    mesh=name,
                     density=f"{density if i > 0 else 0:.6g}",
-                    material="joint" if k == 0 and i in (1, 4, 5) else "arm",
+                    material="arm",
                     contype=str(bits[0]),
                     conaffinity=str(bits[1]),
                 )

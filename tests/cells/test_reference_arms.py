@@ -119,3 +119,16 @@ def test_spec_example_passes_check(tmp_path):
     # a 1.2 m x 1 m guard panel standing on the table's far edge
     write_stl(tmp_path / "meshes" / "fence.stl", box_triangles((0.3, 0, 0.5), (1.2, 0.02, 1.0)))
     _check_example(tmp_path, cell, task)
+
+
+def test_ur20_palletizer_through_ur_rtde():
+    """`cellrunner run --backend ur` against `cellrunner twin` of the UR20 cell: the
+    unmodified ur_rtde client streams the approved plan at 500 Hz to the virtual UR20."""
+    from tests.cells.test_reference_cells_ur import run, twin
+
+    cell, task, param, _, _ = CELLS["ur20"]
+    host = "127.0.0.199"
+    with twin(cell, host):
+        out = run(cell, task, host, "-p", f"{param}=5")
+    assert out["result_code"] == 0, (out["result_text"], out["steps"])
+    assert all(s["status"] == "ok" for s in out["steps"])

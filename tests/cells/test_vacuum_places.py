@@ -59,6 +59,19 @@ def test_a_carton_stacked_on_another_is_placed(stacked):
     assert out["parts_end_m"]["carton"][2] == pytest.approx(0.29, abs=0.003)
 
 
+def test_the_third_layer_on_two_stacked_cartons_is_placed(tmp_path):
+    """The pallet as two earlier jobs left it (slots 0 and 4): slot 8 goes on top."""
+    stock = CARTON + "".join(
+        CARTON.replace("carton", name).replace(
+            "at: infeed}", f"at: pallet_slot0, offset: {{xyz: [0, 0, {-0.10 * k:g}]}}}}"
+        )
+        for k, name in enumerate(("layer1", "layer2"))
+    )
+    out = dry_run(*project(tmp_path, PALLET_CELL.replace(CARTON, stock)), "-p", "slot=8")
+    assert out["result_code"] == 0, (out["result_text"], out["steps"])
+    assert out["parts_end_m"]["carton"][2] == pytest.approx(0.39, abs=0.003)  # layer 3
+
+
 def test_a_carton_released_onto_another_a_layer_low_is_place_failed(stacked):
     out = dry_run(*stacked, "-p", "slot=8")  # layer 3 with layer 2 empty: lands on the stock
     assert place_failed_mm(out) == pytest.approx(90.0, abs=2.0)

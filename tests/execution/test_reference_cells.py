@@ -233,12 +233,12 @@ def test_vision_pose_outside_its_box_is_an_input_error(project, capsys):
 @pytest.mark.parametrize(
     "files, fault",
     [
-        (CNC, "protective_stop@descend#3"),  # held at the tool rack
-        (VISION, "protective_stop@approach#2"),
-        (CNC, "plc_disconnect@approach#2"),
-        (PALLETIZER, "plc_disconnect@approach#2"),  # suction held through the outage
-        (PALLETIZER, "part_slip@approach#2"),
-        (PEG, "protective_stop@insert"),
+        pytest.param(CNC, "protective_stop@descend#3", id="cnc-held-at-the-rack"),
+        pytest.param(VISION, "protective_stop@approach#2", id="vision-stop"),
+        pytest.param(CNC, "plc_disconnect@approach#2", id="cnc-plc"),
+        pytest.param(PALLETIZER, "plc_disconnect@approach#2", id="palletizer-plc"),
+        pytest.param(PALLETIZER, "part_slip@approach#2", id="palletizer-slip"),
+        pytest.param(PEG, "protective_stop@insert", id="peg-stop"),
     ],
 )
 def test_twenty_identical_dry_runs_give_identical_results(tmp_path, files, fault):

@@ -127,7 +127,11 @@ def _sample_points(obj, rng, n=40):
     import coal
 
     g = obj.geometry
-    if isinstance(g, (coal.Capsule, coal.Cylinder)):
+    if obj.part is not None:  # a convex arm part: its vertices and points inside
+        v = obj.part.vertices_m
+        w = rng.dirichlet(np.full(len(v), 0.05), n)
+        local = np.concatenate([v, w @ v])
+    elif isinstance(g, (coal.Capsule, coal.Cylinder)):
         t = rng.uniform(-g.halfLength, g.halfLength, n)
         u = rng.normal(size=(n, 3))
         u /= np.linalg.norm(u, axis=1)[:, None]

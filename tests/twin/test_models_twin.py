@@ -16,7 +16,8 @@ rtde_control = pytest.importorskip("rtde_control")
 rtde_receive = pytest.importorskip("rtde_receive")
 
 RANGE = [[-170, 170], [-180, 0], [-160, 160], [-270, 90], [-180, 0], [-180, 180]]
-CASES = [("ur20", "127.0.0.190"), ("ur8long", "127.0.0.191"), ("ur10", "127.0.0.192")]
+MODELS = ["ur20", "ur8long", "ur10", "ur3", "ur15", "ur18", "ur30", "ur7e", "ur12e"]
+CASES = [(model, f"127.0.0.{190 + k}") for k, model in enumerate(MODELS)]
 
 
 @pytest.mark.parametrize(("model", "host"), CASES)
