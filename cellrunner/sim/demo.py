@@ -67,7 +67,7 @@ def solve_ik(
     for _ in range(200):
         err = _pose_error(dh_forward(desc.spec, q), T_base_flange)
         if np.linalg.norm(err) < tol_m:
-            return q_seed_rad + (q - q_seed_rad + np.pi) % (2 * np.pi) - np.pi
+            return np.asarray(q_seed_rad + (q - q_seed_rad + np.pi) % (2 * np.pi) - np.pi)
         J = np.zeros((12, 6))
         for j in range(6):
             dq = np.zeros(6)

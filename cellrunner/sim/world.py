@@ -144,10 +144,9 @@ class SimWorld:
     def place_arm(self, q_rad: np.ndarray) -> None:
         """Put the arm at ``q_rad`` standing still, the servo set-point there (a controller
         that starts, or resets its model, with the arm at ``q_rad``)."""
-        assert self._ids is not None, "build() first"
         q = np.array(q_rad, dtype=float)
-        self.data.qpos[self._ids.qpos] = q
-        self.data.qvel[self._ids.dof] = 0.0
+        self.data.qpos[self.ids.qpos] = q
+        self.data.qvel[self.ids.dof] = 0.0
         self.q_ref = self._q_prev_ref = q.copy()
         self.qd_ref = self._qd_prev_ref = _ZERO6
         self._mj.mj_forward(self.model, self.data)
@@ -228,7 +227,7 @@ class SimWorld:
             # A collision: hold where the arm was just before (backing off 20 ms of the
             # motion, as UR arms back off) rather than ramp on into the obstacle.
             self._stop = None
-            q, qd = self.data.qpos[self._ids.qpos], self.data.qvel[self._ids.dof]
+            q, qd = self.data.qpos[self.ids.qpos], self.data.qvel[self.ids.dof]
             self.q_ref = self._q_prev_ref = q - COLLISION_BACKOFF_S * qd
             self.qd_ref = self._qd_prev_ref = _ZERO6
         else:
@@ -331,7 +330,7 @@ class SimWorld:
         self.safety = Safety.NORMAL
         self.stop_time_s = None
         self._stop = None
-        self.q_ref = self._q_prev_ref = self.data.qpos[self._ids.qpos].copy()
+        self.q_ref = self._q_prev_ref = self.data.qpos[self.ids.qpos].copy()
         self.qd_ref = self._qd_prev_ref = _ZERO6
 
     # -- measurements ---------------------------------------------------------------------
@@ -363,7 +362,7 @@ class SimWorld:
             h = np.asarray(sensor.half_extents_m)
             self.inputs[sensor.channel] = any(
                 bool(np.all(np.abs(self.data.xpos[b] - c) <= h))
-                for b in self._ids.part_bodies.values()
+                for b in self.ids.part_bodies.values()
             )
         if self._rules is not None:
             xpos = self.data.xpos
@@ -371,7 +370,7 @@ class SimWorld:
                 self._rules.evaluate(
                     self.time_s,
                     self.outputs,
-                    (xpos[b].tolist() for b in self._ids.part_bodies.values()),
+                    (xpos[b].tolist() for b in self.ids.part_bodies.values()),
                 )
             )
 
@@ -391,12 +390,12 @@ class SimWorld:
 
     # -- introspection for tests, reports and the renderer (never for the engine) ---------
     def q_measured(self) -> np.ndarray:
-        return self._q_view.copy()
+        return np.array(self._q_view)
 
     def tcp_pose_world(self) -> np.ndarray:
         T = np.eye(4)
-        T[:3, :3] = self.data.site_xmat[self._ids.tcp_site].reshape(3, 3)
-        T[:3, 3] = self.data.site_xpos[self._ids.tcp_site]
+        T[:3, :3] = self.data.site_xmat[self.ids.tcp_site].reshape(3, 3)
+        T[:3, 3] = self.data.site_xpos[self.ids.tcp_site]
         return T
 
     def feed_parts(self, moved_m: float = 0.01) -> list[str]:
@@ -413,7 +412,7 @@ class SimWorld:
             spawn = part.T_world_part
             if np.linalg.norm(self.part_pose_world(part.name)[:3, 3] - spawn[:3, 3]) <= moved_m:
                 continue
-            adr = self._ids.part_qpos[part.name]
+            adr = self.ids.part_qpos[part.name]
             x, y, z, w = Rotation.from_matrix(spawn[:3, :3]).as_quat()
             self.data.qpos[adr : adr + 7] = [*spawn[:3, 3], w, x, y, z]
             dof = self.model.jnt_dofadr[self.model.joint(f"part:{part.name}").id]
@@ -428,7 +427,7 @@ class SimWorld:
         return self.contacts.placed_offset(T_world_tcp)
 
     def part_pose_world(self, name: str) -> np.ndarray:
-        body = self._ids.part_bodies[name]
+        body = self.ids.part_bodies[name]
         T = np.eye(4)
         T[:3, :3] = self.data.xmat[body].reshape(3, 3)
         T[:3, 3] = self.data.xpos[body]

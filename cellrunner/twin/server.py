@@ -570,7 +570,8 @@ class FaultClient:
         return text[3:]
 
     def state(self) -> dict[str, Any]:
-        return json.loads(self.command("state"))
+        state: dict[str, Any] = json.loads(self.command("state"))
+        return state
 
 
 # ---------------------------------------------------------------------- entry point
