@@ -1,6 +1,6 @@
 """Build the MJCF model of a cell from a :class:`TwinDescription`, and compile it.
 
-Model layout (names are what :mod:`.world` looks up):
+Model layout (names are what :mod:`.model_ids` looks up):
 
 - ``base`` body at ``T_world_base``; ``link1``..``link6`` form the DH chain, each body's
   frame being "DH frame i-1 turned by joint i" -- exactly the frame of the arm's convex
