@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+import argparse
+
 import numpy as np
 
 from cellrunner.commissioning.arm import ArmReader
@@ -16,7 +18,7 @@ from cellrunner.model.geometry import invert, rpy_deg_of
 from cellrunner.model.load import load_cell
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     cell = load_cell(args.cell)
     cameras = cell.cell.cameras
     if args.camera not in cameras:

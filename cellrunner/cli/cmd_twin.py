@@ -4,16 +4,21 @@ that ``run``/``serve --backend ur`` and the unmodified ur_rtde client work witho
 
 from __future__ import annotations
 
+import argparse
 import signal
 import sys
 import threading
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cellrunner.model.load import load_cell
 
+if TYPE_CHECKING:
+    from cellrunner.model.robots import RobotSpec
 
-def run(args) -> int:
+
+def run(args: argparse.Namespace) -> int:
     cell = load_cell(args.cell)
     for w in cell.warnings:
         sys.stderr.write(f"{w}\n")
@@ -66,7 +71,7 @@ def run(args) -> int:
 
 
 def _announce(
-    ready: threading.Event, stop: threading.Event, host: str, spec, cameras: bool
+    ready: threading.Event, stop: threading.Event, host: str, spec: RobotSpec, cameras: bool
 ) -> None:
     if ready.wait(timeout=60) and not stop.is_set():
         from cellrunner.twin.camera import CAMERA_PORT

@@ -10,6 +10,7 @@ import argparse
 import importlib
 import os
 import sys
+from typing import NoReturn
 
 from cellrunner import __version__
 
@@ -31,7 +32,7 @@ def _skip_pydantic_plugin_loader() -> None:
         import types
 
         loader = types.ModuleType("pydantic.plugin._loader")
-        loader.get_plugins = lambda: ()  # type: ignore[attr-defined]
+        loader.get_plugins = lambda: ()  # type: ignore[attr-defined]  # a stand-in module
         sys.modules["pydantic.plugin._loader"] = loader
 
 
@@ -43,13 +44,19 @@ EPILOG = """exit codes: 0 success, 1 task infeasible or job failed, 2 invalid in
 3 cannot reach the robot or a peer"""
 
 
+class _UsageExit(SystemExit):
+    """argparse's usage error as an exit 2 that keeps its one-line message (for --json)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(EXIT_INPUT)
+        self.message = message
+
+
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # argparse's own usage errors: exit 2, one line
+    def error(self, message: str) -> NoReturn:  # argparse's own usage errors: exit 2, one line
         self.print_usage(sys.stderr)
         sys.stderr.write(f"{self.prog}: error: {message}\n")
-        exit_ = SystemExit(EXIT_INPUT)
-        exit_.message = f"{self.prog}: error: {message}"  # for --json
-        raise exit_
+        raise _UsageExit(f"{self.prog}: error: {message}")
 
 
 def _params(p: argparse.ArgumentParser) -> None:

@@ -49,7 +49,7 @@ class EnterGate:
         describe: Callable[[Step], str],
         source: IO[str] | None = None,
         out: IO[str] | None = None,
-        on_end: Callable[[], None] | None = None,
+        on_end: Callable[[], object] | None = None,
     ) -> None:
         self.describe = describe
         self.on_end = on_end  # called (once) when a step waits and the input has ended

@@ -47,7 +47,7 @@ def camera_pose(cell: Cell, name: str) -> np.ndarray:
     camera = cell.cameras[name]
     if camera.mount == "world":
         return camera.pose.matrix()
-    return frame_pose(cell, camera.mount) @ camera.pose.matrix()
+    return np.asarray(frame_pose(cell, camera.mount) @ camera.pose.matrix())
 
 
 def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, ParamValue]:

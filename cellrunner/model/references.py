@@ -174,5 +174,5 @@ def _check_pose_param(
         report.error(path, unknown_name("param", name, params))
     elif params[name].type != "pose":
         report.error(path, f"offset param {name!r} must be of type pose, not {params[name].type}")
-    elif params[name].camera is not None:
-        _check_param_camera(cell, name, params[name].camera, report)
+    elif (camera := params[name].camera) is not None:
+        _check_param_camera(cell, name, camera, report)

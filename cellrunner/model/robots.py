@@ -60,6 +60,8 @@ JOINT_NAMES = (
 )
 DH_ALPHA_RAD = (math.pi / 2, 0.0, 0.0, math.pi / 2, -math.pi / 2, 0.0)
 JOINT_ACCEL_MAX_DEG_S2 = math.degrees(40.0)
+#: models that are another model's arm under a new name (see RobotSpec.arm)
+RENAMED = {"ur7e": "ur5e", "ur12e": "ur10e"}
 TCP_SPEED_MAX_MPS = 3.0
 
 
@@ -100,6 +102,12 @@ class RobotSpec:
     def rate_hz(self) -> float:
         """Controller cycle rate: 500 Hz e-Series, 125 Hz CB3."""
         return 500.0 if self.generation == "e-Series" else 125.0
+
+    @property
+    def arm(self) -> str:
+        """The physical arm: UR7e and UR12e are the UR5e and UR10e renamed (2025), the same
+        links and meshes; anything looked up per arm (collision geometry, twin masses) uses it."""
+        return RENAMED.get(self.name, self.name)
 
     @property
     def label(self) -> str:

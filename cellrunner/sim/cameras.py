@@ -236,7 +236,8 @@ def _ideal_map(camera: CameraDescription) -> tuple[np.ndarray, np.ndarray] | Non
     u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
     pixels = np.stack([u.ravel(), v.ravel()], axis=1).reshape(-1, 1, 2)
     criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10)
-    rays = cv2.undistortPointsIter(pixels, K, camera.distortion, None, None, criteria)
+    # OpenCV's stubs do not allow None for R and P (no rectification), its bindings do
+    rays = cv2.undistortPointsIter(pixels, K, camera.distortion, None, None, criteria)  # type: ignore[call-overload]
     rays = rays.reshape(-1, 2)
     map_x = (f * rays[:, 0] + (W - 1) / 2).reshape(H, W).astype(np.float32)
     map_y = (f * rays[:, 1] + (H - 1) / 2).reshape(H, W).astype(np.float32)

@@ -49,6 +49,7 @@ def demo_description(**overrides: object) -> TwinDescription:
         io_inputs=("DI0", "DI1", "DI2"),
     )
     fields.update(overrides)
+    # fields: keyword arguments of mixed types (the dataclass's own), not one value type
     return TwinDescription(**fields)  # type: ignore[arg-type]
 
 
@@ -67,7 +68,7 @@ def solve_ik(
     for _ in range(200):
         err = _pose_error(dh_forward(desc.spec, q), T_base_flange)
         if np.linalg.norm(err) < tol_m:
-            return q_seed_rad + (q - q_seed_rad + np.pi) % (2 * np.pi) - np.pi
+            return np.asarray(q_seed_rad + (q - q_seed_rad + np.pi) % (2 * np.pi) - np.pi)
         J = np.zeros((12, 6))
         for j in range(6):
             dq = np.zeros(6)

@@ -18,6 +18,15 @@ if TYPE_CHECKING:
 #: frame -> the gripper of the tool that picks parts there
 Picks = dict[str, Gripper | None]
 
+if TYPE_CHECKING:
+    from cellrunner.model.cell import Cell, Gripper, Part, Tool
+    from cellrunner.model.geometry import Shape
+    from cellrunner.sim.cameras import CameraDescription
+    from cellrunner.sim.description import GripperDescription, PartDescription, TwinDescription
+    from cellrunner.sim.input_rules import InputRuleDescription
+    from cellrunner.sim.tool_changer import ToolChangerDescription
+    from cellrunner.sim.vacuum import VacuumDescription
+
 
 def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> TwinDescription:
     """A :class:`TwinDescription` of ``loaded``: arm, mount, tool, gripper, fixtures, parts, IO.
@@ -52,7 +61,7 @@ def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> Tw
         q_home_rad=tuple(np.radians(c.robot.home)),
         tool_geometry=tuple(loaded.tool_shapes()) if changer is None else (),
         payload_mass_kg=max(c.tool.payload.mass, 0.1),
-        payload_cog_m=tuple(c.tool.payload.cog),
+        payload_cog_m=c.tool.payload.cog_m,
         gripper=gripper,
         vacuum=vacuum,
         tool_changer=changer,
@@ -66,7 +75,7 @@ def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> Tw
     )
 
 
-def _cameras(loaded: LoadedCell) -> tuple:
+def _cameras(loaded: LoadedCell) -> tuple[CameraDescription, ...]:
     if not loaded.cell.cameras:
         return ()
     from cellrunner.sim.cameras import describe_cameras
@@ -74,7 +83,7 @@ def _cameras(loaded: LoadedCell) -> tuple:
     return describe_cameras(loaded)
 
 
-def _part(loaded: LoadedCell, part, gripper):
+def _part(loaded: LoadedCell, part: Part, gripper: Gripper | None) -> PartDescription:
     """A part where a TCP at its frame grips it, moved by its twin-only ``offset``."""
     from cellrunner.sim.description import PartDescription
 
@@ -110,7 +119,9 @@ def _input_rules(loaded: LoadedCell, picks: Picks) -> tuple[InputRuleDescription
             )
         else:
             kind = "follows" if rule.follows is not None else "pulse_after"
-            output = cell.io.outputs[rule.follows or rule.pulse_after]
+            source = rule.follows or rule.pulse_after
+            assert source is not None  # a rule is part_at, follows or pulse_after (validated)
+            output = cell.io.outputs[source]
             out.append(
                 InputRuleDescription(
                     channel,
@@ -166,11 +177,15 @@ def _part_at_point(loaded: LoadedCell, frame: str, picks: Picks) -> tuple[float,
     return (x, y, z)
 
 
-def _jaws(tool, cell, io_outputs: list, io_inputs: list):
+def _jaws(
+    tool: Tool, cell: Cell, io_outputs: list[str], io_inputs: list[str]
+) -> GripperDescription:
     from cellrunner.sim.description import GripperDescription
 
     g = tool.gripper
+    assert g is not None  # called for tools with jaws
     close, _, sensor = gripper_channels(g, cell.io.outputs, cell.io.inputs)
+    assert close is not None  # jaws close on an output (validated)
     io_outputs += [close[0]] if close[0] not in io_outputs else []
     io_inputs += [sensor] if sensor and sensor not in io_inputs else []
     return GripperDescription(
@@ -184,13 +199,15 @@ def _jaws(tool, cell, io_outputs: list, io_inputs: list):
     )
 
 
-def _cups(tool, cell):
+def _cups(tool: Tool, cell: Cell) -> VacuumDescription:
     from cellrunner.sim.vacuum import VacuumDescription
 
     g = tool.gripper
+    assert g is not None  # called for a vacuum tool
     close, _, sensor = gripper_channels(g, cell.io.outputs, cell.io.inputs)
+    assert close is not None  # suction switches on through an output (validated)
     return VacuumDescription(
-        cups=tuple((tuple(cup.xyz), cup.radius) for cup in g.cups),
+        cups=tuple(((cup.xyz[0], cup.xyz[1], cup.xyz[2]), cup.radius) for cup in g.cups),
         suction_output=close[0],
         suction_value=close[1],
         vacuum_ok_input=sensor,
@@ -200,11 +217,15 @@ def _cups(tool, cell):
     )
 
 
-def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
+def _changer(
+    loaded: LoadedCell, io_outputs: list[str], io_inputs: list[str]
+) -> ToolChangerDescription:
     from cellrunner.sim.tool_changer import ChangerTool, ToolChangerDescription
 
     c = loaded.cell
     changer = c.tool_changer
+    assert changer is not None and c.robot.tool is not None  # called for a tool changer
+    mounted = c.robot.tool
     tools = []
     for name, tool in c.tools.items():
         g = tool.gripper
@@ -216,7 +237,7 @@ def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
                 tool.tcp.matrix(),
                 tuple(shapes),
                 max(tool.payload.mass, 0.1),
-                tuple(tool.payload.cog),
+                tool.payload.cog_m,
                 kind,
                 frame_pose(c, changer.rack[name]),
                 _jaws(tool, c, io_outputs, io_inputs) if kind == "jaws" else None,
@@ -226,11 +247,11 @@ def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
         c.io.outputs[changer.lock],
         c.io.inputs[changer.locked] if changer.locked else None,
         tuple(tools),
-        c.robot.tool,
+        mounted,
     )
 
 
-def _part_pose(T_world_grip: np.ndarray, gripper, shape) -> np.ndarray:
+def _part_pose(T_world_grip: np.ndarray, gripper: Gripper | None, shape: Shape) -> np.ndarray:
     """A part lies upright where a TCP at ``T_world_grip`` grips it: centred (jaws) or
     with its top face there (suction)."""
     T = _upright(T_world_grip)

@@ -1,6 +1,6 @@
 """Build the MJCF model of a cell from a :class:`TwinDescription`, and compile it.
 
-Model layout (names are what :mod:`.world` looks up):
+Model layout (names are what :mod:`.model_ids` looks up):
 
 - ``base`` body at ``T_world_base``; ``link1``..``link6`` form the DH chain, each body's
   frame being "DH frame i-1 turned by joint i" -- exactly the frame of the arm's convex
@@ -34,7 +34,7 @@ import struct
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -171,7 +171,8 @@ def quat_of(R: np.ndarray) -> tuple[float, float, float, float]:
         s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
         q = ((m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s)
     n = math.sqrt(sum(v * v for v in q))
-    return tuple(v / n for v in q)  # type: ignore[return-value]
+    a, b, c, d = (v / n for v in q)
+    return (a, b, c, d)
 
 
 def binary_stl(path: Path) -> bytes:
@@ -228,7 +229,22 @@ def _fmt(values: Any) -> str:
     return " ".join(f"{float(v):.9g}" for v in np.ravel(values))
 
 
-def _pose_attrs(T: np.ndarray) -> dict[str, str]:
+class PoseAttrs(TypedDict):
+    """An MJCF element's pose attributes."""
+
+    pos: str
+    quat: str
+
+
+class ShapeAttrs(TypedDict, total=False):
+    """An MJCF geom's shape attributes."""
+
+    type: str
+    size: str
+    mesh: str
+
+
+def _pose_attrs(T: np.ndarray) -> PoseAttrs:
     return {"pos": _fmt(T[:3, 3]), "quat": _fmt(quat_of(T[:3, :3]))}
 
 
@@ -369,7 +385,7 @@ class _Builder:
             self._meshes[key] = name
         return self._meshes[key]
 
-    def _shape_attrs(self, shape: Shape) -> dict[str, str]:
+    def _shape_attrs(self, shape: Shape) -> ShapeAttrs:
         if isinstance(shape, Box):
             return {"type": "box", "size": _fmt(np.asarray(shape.size_m) / 2)}
         if isinstance(shape, Cylinder):
@@ -407,7 +423,9 @@ class _Builder:
         False when the mesh is convex (or too big), to be built as usual."""
         from cellrunner.sim import mesh_pieces
 
-        triangles = mesh_pieces.triangles_of(binary_stl(placed.shape.path), placed.shape.scale)
+        mesh = placed.shape
+        assert isinstance(mesh, Mesh)  # called for mesh fixtures
+        triangles = mesh_pieces.triangles_of(binary_stl(mesh.path), mesh.scale)
         if len(triangles) > mesh_pieces.MAX_TRIANGLES or mesh_pieces.is_convex(triangles):
             return False
         assert self.assets is not None
@@ -430,7 +448,7 @@ class _Builder:
     def _arm(self, world: ET.Element) -> None:
         d = self.desc
         spec = d.spec
-        parts = arm_geometry(spec.name).parts
+        parts = arm_geometry(spec.arm).parts
         volume = sum(p.volume_m3 for p in parts if p.body > 0)
         density = ARM_MASS_KG.get(spec.name, 20.0) / volume
         scale = (spec.reach_m / 0.85) ** 2
@@ -443,7 +461,7 @@ class _Builder:
                 if i > 1:
                     T[:3, 3] = (spec.a_m[i - 2], 0.0, spec.d_m[i - 2])
                     ca, sa = math.cos(spec.alpha_rad[i - 2]), math.sin(spec.alpha_rad[i - 2])
-                    T[:3, :3] = [[1, 0, 0], [0, ca, -sa], [0, sa, ca]]
+                    T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
                 body = ET.SubElement(
                     parent, "body", name=f"link{i}", gravcomp="1", **_pose_attrs(T)
                 )
@@ -478,7 +496,7 @@ class _Builder:
         flange_T = np.eye(4)
         flange_T[:3, 3] = (spec.a_m[5], 0.0, spec.d_m[5])
         ca, sa = math.cos(spec.alpha_rad[5]), math.sin(spec.alpha_rad[5])
-        flange_T[:3, :3] = [[1, 0, 0], [0, ca, -sa], [0, sa, ca]]
+        flange_T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
         flange = ET.SubElement(parent, "body", name="flange", gravcomp="1", **_pose_attrs(flange_T))
         ET.SubElement(flange, "inertial", pos="0 0 0", mass="1e-3", diaginertia="1e-7 1e-7 1e-7")
         self._tool(flange)
@@ -523,7 +541,9 @@ class _Builder:
         if d.tool_changer is not None:
             from cellrunner.sim.tool_changer import add_tools
 
-            add_tools(self, tool, self.root.find("worldbody"), d.tool_changer, TOOL, STATIC)
+            worldbody = self.root.find("worldbody")
+            assert worldbody is not None  # built before the tool
+            add_tools(self, tool, worldbody, d.tool_changer, TOOL, STATIC)
 
     def _gripper(self, tool: ET.Element, g: Any) -> None:
         d = self.desc

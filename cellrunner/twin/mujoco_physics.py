@@ -11,10 +11,15 @@ from __future__ import annotations
 
 import contextlib
 import threading
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cellrunner.backends.base import BackendError, Safety
+
+if TYPE_CHECKING:
+    from cellrunner.sim.description import TwinDescription
+    from cellrunner.twin.physics import Measurement
 
 #: RTDE digital bit layout: DO/DI 0-7 standard, 8-15 configurable, 16-17 tool
 _BIT_OF_PREFIX = {"D": 0, "C": 8, "T": 16}
@@ -34,7 +39,7 @@ def _bit(channel: str) -> int | None:
 class MujocoPhysics:
     """The MuJoCo twin of a cell as the virtual controller's physics."""
 
-    def __init__(self, description):
+    def __init__(self, description: TwinDescription) -> None:
         from cellrunner.sim.world import SimWorld
 
         self.description = description
@@ -47,7 +52,7 @@ class MujocoPhysics:
         """A copy of the whole MuJoCo state's positions (arm, fingers, parts), taken between
         two physics steps."""
         with self._lock:
-            return self.world.data.qpos.copy()
+            return np.asarray(self.world.data.qpos.copy())
 
     def reset(self, q_rad: np.ndarray) -> None:
         with self._lock:
@@ -91,7 +96,7 @@ class MujocoPhysics:
         world.step_period()
         self._contact = world.safety is Safety.PROTECTIVE_STOP
 
-    def measure(self):
+    def measure(self) -> Measurement:
         from cellrunner.twin.physics import Measurement
 
         state = self.world.measure()

@@ -51,6 +51,16 @@ class OutputVar:
     min_cb3: tuple[int, int] | None = (3, 0)  # on CB3; None: absent
 
 
+def _register(name: str, i: int) -> Callable[[Controller], Any]:
+    """The getter of element ``i`` of the controller's register list ``name``."""
+    return lambda c: getattr(c.reg, name)[i]
+
+
+def _bit_register(name: str, i: int) -> Callable[[Controller], bool]:
+    """The getter of bit ``i`` of the controller's bit register ``name``."""
+    return lambda c: bool(getattr(c.reg, name) >> i & 1)
+
+
 def _zeros6(ctl: Controller) -> list[float]:
     return [0.0] * 6
 
@@ -141,23 +151,15 @@ def _output_table() -> dict[str, OutputVar]:
     }
     for i in range(48):
         since = ((5, 3), (3, 9)) if i >= 24 else ((5, 0), (3, 4))
-        t[f"output_int_register_{i}"] = OutputVar(
-            "INT32", lambda c, i=i: c.reg.output_int[i], *since
-        )
+        t[f"output_int_register_{i}"] = OutputVar("INT32", _register("output_int", i), *since)
         t[f"output_double_register_{i}"] = OutputVar(
-            "DOUBLE", lambda c, i=i: c.reg.output_double[i], *since
+            "DOUBLE", _register("output_double", i), *since
         )
-        t[f"input_int_register_{i}"] = OutputVar("INT32", lambda c, i=i: c.reg.input_int[i], *since)
-        t[f"input_double_register_{i}"] = OutputVar(
-            "DOUBLE", lambda c, i=i: c.reg.input_double[i], *since
-        )
+        t[f"input_int_register_{i}"] = OutputVar("INT32", _register("input_int", i), *since)
+        t[f"input_double_register_{i}"] = OutputVar("DOUBLE", _register("input_double", i), *since)
     for i in range(64, 128):
-        t[f"output_bit_register_{i}"] = OutputVar(
-            "BOOL", lambda c, i=i: bool(c.reg.output_bits >> i & 1)
-        )
-        t[f"input_bit_register_{i}"] = OutputVar(
-            "BOOL", lambda c, i=i: bool(c.reg.input_bits >> i & 1)
-        )
+        t[f"output_bit_register_{i}"] = OutputVar("BOOL", _bit_register("output_bits", i))
+        t[f"input_bit_register_{i}"] = OutputVar("BOOL", _bit_register("input_bits", i))
     return t
 
 

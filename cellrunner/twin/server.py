@@ -253,6 +253,7 @@ class TwinServer:
             for key, _ in events:
                 data = key.data
                 if isinstance(data, tuple):
+                    # a tuple key: one of our listening sockets (registered as such)
                     self._accept(key.fileobj, data[1])  # type: ignore[arg-type]
                 else:
                     self._read(data)
@@ -570,7 +571,8 @@ class FaultClient:
         return text[3:]
 
     def state(self) -> dict[str, Any]:
-        return json.loads(self.command("state"))
+        state: dict[str, Any] = json.loads(self.command("state"))
+        return state
 
 
 # ---------------------------------------------------------------------- entry point

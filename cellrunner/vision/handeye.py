@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 from scipy.spatial.transform import Rotation
 
 from cellrunner.errors import CellrunnerError
@@ -85,8 +85,8 @@ def _camera_board(eye_in_hand: bool, F: np.ndarray, A: np.ndarray, B: np.ndarray
     """T_camera_board of a view at flange pose F, given the unknowns A (the camera in its
     mount) and B (the board in its mount)."""
     if eye_in_hand:
-        return invert(F @ A) @ B
-    return invert(A) @ F @ B
+        return np.asarray(invert(F @ A) @ B)
+    return np.asarray(invert(A) @ F @ B)
 
 
 def solve(
@@ -160,7 +160,15 @@ def _initial(
     return A, B
 
 
-def _refine(eye_in_hand, T_world_flange, views, K, distortion, A, B):
+def _refine(
+    eye_in_hand: bool,
+    T_world_flange: list[np.ndarray],
+    views: list[BoardView],
+    K: np.ndarray,
+    distortion: np.ndarray,
+    A: np.ndarray,
+    B: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, OptimizeResult]:
     cv = cv2()
 
     def residuals(x: np.ndarray) -> np.ndarray:
@@ -177,7 +185,7 @@ def _refine(eye_in_hand, T_world_flange, views, K, distortion, A, B):
     return A @ _pose(result.x[:6]), B @ _pose(result.x[6:]), result
 
 
-def _sigma(result, rms_px: float) -> tuple[float, float]:
+def _sigma(result: OptimizeResult, rms_px: float) -> tuple[float, float]:
     """1-sigma of the camera's position (m) and orientation (deg), largest axis, from the
     fit's Jacobian and its pixel noise."""
     J = result.jac
@@ -189,7 +197,13 @@ def _sigma(result, rms_px: float) -> tuple[float, float]:
     return float(np.sqrt(var[3:].max())), float(np.degrees(np.sqrt(var[:3].max())))
 
 
-def _spread(eye_in_hand, T_world_flange, views, A, B) -> tuple[float, float]:
+def _spread(
+    eye_in_hand: bool,
+    T_world_flange: list[np.ndarray],
+    views: list[BoardView],
+    A: np.ndarray,
+    B: np.ndarray,
+) -> tuple[float, float]:
     """RMS of how far each view's own board pose lands from the solved one (m, deg)."""
     d_m, d_deg = [], []
     for F, view in zip(T_world_flange, views, strict=True):

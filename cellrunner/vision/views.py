@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,6 +23,10 @@ from cellrunner.model.camera import FLANGE, Camera
 from cellrunner.model.expand import frame_pose
 from cellrunner.model.geometry import invert
 from cellrunner.vision.board import printed_size_m
+
+if TYPE_CHECKING:
+    from cellrunner.model.cell import Cell
+    from cellrunner.planning.world import CellWorld
 
 #: the board's printed width spans this fraction of the image width
 FILL = 0.5
@@ -46,7 +51,7 @@ class View:
     label: str
 
 
-def mounts(cell, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+def mounts(cell: Cell, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     """Nominal (camera, board) poses in their mounts: the flange one as is, the other in
     the world."""
     assert camera.board is not None
@@ -59,9 +64,12 @@ def mounts(cell, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     )
 
 
-def board_in_camera(camera: Camera, tilt_deg: float, azimuth_deg: float, roll_deg: float):
+def board_in_camera(
+    camera: Camera, tilt_deg: float, azimuth_deg: float, roll_deg: float
+) -> np.ndarray:
     """The board ``distance`` in front of the camera, facing it, tilted by ``tilt_deg``
     about an axis at ``azimuth_deg`` in the image plane, rolled by ``roll_deg``."""
+    assert camera.board is not None  # calibration views need the camera's board
     width_m, _ = printed_size_m(camera.board)
     distance_m = camera.intrinsics.fx * width_m / (FILL * camera.image_size[0])
     facing = np.diag([1.0, -1.0, -1.0, 1.0])  # board Z towards the camera, X along image X
@@ -80,6 +88,7 @@ def board_in_camera(camera: Camera, tilt_deg: float, azimuth_deg: float, roll_de
 
 def in_image(camera: Camera, T_camera_board: np.ndarray) -> bool:
     """Every corner of the printed board projects inside the image, off its edges."""
+    assert camera.board is not None  # calibration views need the camera's board
     w, h = (s / 2 for s in printed_size_m(camera.board))
     K = camera.intrinsics.matrix()
     W, H = camera.image_size
@@ -95,7 +104,7 @@ def in_image(camera: Camera, T_camera_board: np.ndarray) -> bool:
     return True
 
 
-def plan_views(world, camera: Camera, count: int, q_start_rad: np.ndarray) -> list[View]:
+def plan_views(world: CellWorld, camera: Camera, count: int, q_start_rad: np.ndarray) -> list[View]:
     """Up to ``count`` views, each reachable from the last by the nearest IK branch, in
     the joint limits, collision-free in ``world`` (which carries a flange-mounted board
     as tool geometry)."""

@@ -50,7 +50,7 @@ def render(cell: str, status: CellStatus, jobs: JobMetrics, plc_links: dict[str,
     out: list[str] = []
 
     def family(
-        name: str, kind: str, help_text: str, samples: list[tuple[str, dict, float]]
+        name: str, kind: str, help_text: str, samples: list[tuple[str, dict[str, str], float]]
     ) -> None:
         out.append(f"# HELP {name} {help_text}")
         out.append(f"# TYPE {name} {kind}")
@@ -64,7 +64,8 @@ def render(cell: str, status: CellStatus, jobs: JobMetrics, plc_links: dict[str,
         "Jobs finished since cellrunner started, by result code (SPEC 7).",
         [("", {"code": str(c), "result": _text(c)}, by_code.get(c, 0)) for c in codes],
     )
-    cumulative, samples = 0, []
+    cumulative = 0
+    samples: list[tuple[str, dict[str, str], float]] = []
     for bound, count in zip([*jobs.buckets_s, float("inf")], buckets, strict=True):
         cumulative += count
         samples.append(("_bucket", {"le": _number(bound)}, cumulative))

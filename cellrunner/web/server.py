@@ -13,6 +13,7 @@ import json
 import threading
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
+from typing import Any
 
 from cellrunner.errors import CellrunnerError, UsageError
 from cellrunner.web.board import StatusBoard
@@ -53,7 +54,8 @@ class StatusServer:
     @property
     def url(self) -> str:
         host, port = self._httpd.server_address[:2] if self._httpd else (self.host, self.port)
-        return f"http://{host}:{port}/"
+        name = host if isinstance(host, str) else host.decode()
+        return f"http://{name}:{port}/"
 
     def start(self) -> None:
         handler = type("Handler", (_Handler,), {"board": self.board, "page": _page()})
@@ -124,5 +126,5 @@ class _Handler(BaseHTTPRequestHandler):
         if self.command != "HEAD":
             self.wfile.write(body)
 
-    def log_message(self, format: str, *args) -> None:  # requests are not logged
+    def log_message(self, format: str, *args: Any) -> None:  # requests are not logged
         pass

@@ -126,3 +126,10 @@ def test_ik_at_home_on_a_turned_mount_finds_home_itself(model):
     assert np.allclose(kin.ik_all(T, home)[0], home, atol=1e-6)
     up = pose_matrix((0, 0, 0.004)) @ T
     assert np.max(np.abs(kin.ik_track(up, home) - home)) < np.radians(2.0)
+
+
+def test_renamed_arms_are_their_originals():
+    for new, old in (("ur7e", "ur5e"), ("ur12e", "ur10e")):
+        a, b = ROBOTS[new], ROBOTS[old]
+        assert a.arm == old and b.arm == old
+        assert (a.d_m, a.a_m, a.joint_speed_max_deg_s) == (b.d_m, b.a_m, b.joint_speed_max_deg_s)
