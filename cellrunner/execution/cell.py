@@ -371,6 +371,12 @@ class CellController:
                 return False  # Clear first (it finds out whether the e-stop was released)
             if name == "reset" and self.sm.state is S.ABORTED:
                 return False
+            if name == "reset" and job is None and self._safety is Safety.PROTECTIVE_STOP:
+                # a stop latched with no job to hold (in Idle, or left by a job that ended
+                # with 100): Reset is the PLC's only way to clear it
+                self._actions.append(self._unlock_idle_stop)
+                if self.sm.state is S.IDLE:
+                    return True
             command = {
                 "reset": Command.RESET,
                 "clear": Command.CLEAR,
@@ -443,6 +449,18 @@ class CellController:
                 if self.sm.can(Event.CLEAR_FAILED):
                     self.sm.on(Event.CLEAR_FAILED)
                     self._mark_entered()
+            self._safety = safety
+
+    def _unlock_idle_stop(self) -> None:
+        """Reset with no job (on the control thread): unlock a latched protective stop. The
+        controller refuses within 5 s of the stop; the next Reset tries again."""
+        try:
+            self.backend.unlock_protective_stop()
+        except CellrunnerError as exc:
+            with self._lock:
+                self._log("unlock_failed", error=str(exc))
+        safety = self.backend.read_state().safety
+        with self._lock:
             self._safety = safety
 
     def _start_runner(self, job: _Job) -> JobRunner | None:

@@ -282,6 +282,8 @@ class FakeCell:
             self._enter(S.CLEARING, S.STOPPED)
         elif name == "reset" and st in (S.STOPPED, S.COMPLETE):
             self._enter(S.RESETTING, S.IDLE)
+        elif name == "reset" and st == S.IDLE and self._injected.protective_stop:
+            self._injected.protective_stop = False  # the cell unlocks a stop latched in Idle
         elif name == "stop" and st not in (
             S.STOPPED,
             S.STOPPING,

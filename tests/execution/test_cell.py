@@ -116,9 +116,16 @@ def test_estop_aborts_and_needs_release_clear_reset(tmp_path):
 def test_clear_unlocks_a_protective_stop_an_aborted_job_left(tmp_path):
     """A job aborted while held by a protective stop leaves the arm stopped: Clear unlocks
     it (once the controller allows, 5 s after the stop), so Reset reaches a ready Idle."""
-    arm = ScriptedArm(protective_stop_at_s=0.1)
+    arm = ScriptedArm()
     cell, _ = make_cell(tmp_path, arm)
     ticket = cell.start_job(1, {}, "1", "modbus")
+    tick(cell)  # planning starts on the control thread's tick
+    assert cell.wait_for_plan(60.0)
+    for _ in range(50):  # Starting -> Execute
+        tick(cell)
+    # stop once the job runs: planning takes wall time, and ticks meanwhile would let the
+    # controller's 5 s unlock delay pass before the first Clear
+    arm.protective_stop_at_s = arm.t + 0.01
     for _ in range(5000):
         tick(cell)
         if cell.status().state == S.HELD:
@@ -138,6 +145,34 @@ def test_clear_unlocks_a_protective_stop_an_aborted_job_left(tmp_path):
     assert cell.command("reset")
     tick(cell, 3)
     assert cell.status().state == S.IDLE and cell.status().ready
+
+
+def test_reset_unlocks_a_protective_stop_latched_in_idle(tmp_path):
+    """A protective stop with no job (the arm bumped while idle, or left by a job that
+    ended with 100) keeps the cell not READY; the PLC's Reset unlocks it once the
+    controller allows (5 s after the stop), and the cell is READY again."""
+    arm = ScriptedArm(protective_stop_at_s=0.1)
+    cell, _ = make_cell(tmp_path, arm)
+    tick(cell, 100)  # 0.2 s at 500 Hz
+    status = cell.status()
+    assert status.state == S.IDLE and status.protective_stop and not status.ready
+    assert cell.command("reset")  # within 5 s of the stop: the controller refuses
+    tick(cell, 3)
+    assert cell.status().protective_stop and arm.unlock_refusals == 1
+    tick(cell, 3000)  # 6 s
+    assert cell.command("reset")
+    tick(cell, 3)
+    status = cell.status()
+    assert status.state == S.IDLE and not status.protective_stop and status.ready
+    ticket = cell.start_job(1, {}, "2", "modbus")
+    for _ in range(5000):
+        tick(cell)
+        if (
+            cell.status().state == S.IDLE
+            and cell.journal.get(ticket.job_id).result_code is not None
+        ):
+            break
+    assert cell.journal.get(ticket.job_id).result_code == ResultCode.OK
 
 
 def test_abort_by_plc_is_106(tmp_path):
