@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from cellrunner.sim.mjcf_attrs import PADS, PARTS, STATIC, TOOL, pose_attrs, quat_of
+
 #: the flange must stand this close to a rack place to park or take a tool (m)
 RACK_TOLERANCE_M = 0.005
 
@@ -60,7 +62,6 @@ def add_tools(
 ) -> None:
     """Each tool's shapes on the tool body (only the mounted one collides and shows) and,
     drawn only, in its rack place (MJCF)."""
-    from cellrunner.sim.mjcf import _pose_attrs
 
     for tool in changer.tools:
         mounted = tool.name == changer.mounted
@@ -76,7 +77,7 @@ def add_tools(
                 conaffinity=str(static_kind if mounted else 0),
                 rgba="0.25 0.25 0.28 1" if mounted else "0.25 0.25 0.28 0",
                 **builder._shape_attrs(placed.shape),
-                **_pose_attrs(placed.T_parent_shape),
+                **pose_attrs(placed.T_parent_shape),
             )
             ET.SubElement(
                 world_body,
@@ -88,7 +89,7 @@ def add_tools(
                 group="1",
                 rgba="0.25 0.25 0.28 0" if mounted else "0.25 0.25 0.28 1",
                 **builder._shape_attrs(placed.shape),
-                **_pose_attrs(T_world_flange @ placed.T_parent_shape),
+                **pose_attrs(T_world_flange @ placed.T_parent_shape),
             )
 
 
@@ -107,7 +108,6 @@ class ToolChanger:
             t.name: [m.geom(f"rack@{t.name}:{k}").id for k in range(len(t.geometry))]
             for t in desc.tools
         }
-        from cellrunner.sim.mjcf import PADS, PARTS, STATIC, TOOL
 
         self.tool_kind = (TOOL, STATIC)
         self.pad_kind = (PADS, STATIC | PARTS)
@@ -150,8 +150,6 @@ class ToolChanger:
         """The twin's pair of jaws becomes this tool's: its IO, stroke and place at its TCP."""
         import dataclasses
 
-        from cellrunner.sim.mjcf import quat_of
-
         w = self.world
         m = w.model
         g = tool.jaws
@@ -176,7 +174,6 @@ class ToolChanger:
         self.mounted = None
 
     def _mount(self, name: str) -> None:
-        from cellrunner.sim.mjcf import quat_of
 
         tool = self.tools[name]
         w = self.world

@@ -22,15 +22,8 @@ from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.sim._mj import load_mujoco
 from cellrunner.sim.description import TwinDescription
 from cellrunner.sim.input_rules import InputRules
-from cellrunner.sim.mjcf import (
-    PADS,
-    PARTS,
-    ROBOT,
-    STATIC,
-    TOOL,
-    PhysicsOptions,
-    compile_model,
-)
+from cellrunner.sim.mjcf import PhysicsOptions, compile_model
+from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC, TOOL
 
 UNLOCK_DELAY_S = 5.0  # UR: a protective stop can be unlocked 5 s after it happened
 STOP_DECEL_RAD_S2 = 30.0  # category 2 stop ramp (protective stop, stopJ default)
