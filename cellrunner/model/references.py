@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 from cellrunner.model.checks import check_io_name, check_radians
 from cellrunner.model.diagnose import unknown_name
+from cellrunner.model.step import StepKind
 
 if TYPE_CHECKING:
     from cellrunner.model.load import LoadedCell, LoadedTask, Report, StepSpec
@@ -139,7 +140,7 @@ def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
     """Every job starts with ``robot.tool`` mounted, so a task must end with it."""
     last = None
     for step in task.steps:
-        if step.kind == "change_tool" and step.args.tool in cell.tools:
+        if step.kind == StepKind.CHANGE_TOOL and step.args.tool in cell.tools:
             last = step
     if last is not None and last.args.tool != cell.robot.tool:
         report.error(

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from cellrunner.model import geometry
+from cellrunner.model.step import StepKind
 
 #: contact allowed beyond the depth measured at the line's end (m)
 CONTACT_SLACK_M = 0.001
@@ -64,7 +65,7 @@ def contact_allowances(planner, step, T_goal: np.ndarray) -> tuple:
 
 def describe(step, line_m, allowances: tuple) -> str:
     """The row message of a force step: its stop force, the line checked, the contact allowed."""
-    limit = step.args.force if step.kind == "move_until_contact" else step.args.force.max
+    limit = step.args.force if step.kind == StepKind.MOVE_UNTIL_CONTACT else step.args.force.max
     length_mm = float(np.linalg.norm(line_m[1] - line_m[0])) * 1000 if line_m is not None else 0.0
     where = ", ".join(sorted({a.fixture for a in allowances if a.min_clearance_m < 0})) or "none"
     return f"guarded: stops above {limit:g} N; {length_mm:.0f} mm line checked; contact allowed with: {where}"

@@ -18,6 +18,7 @@ Rules (SPEC section 10):
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -28,6 +29,7 @@ from cellrunner.model import geometry
 from cellrunner.model.expand import LINEAR_KINDS, Step
 from cellrunner.model.force_steps import FORCE_KINDS
 from cellrunner.model.geometry import Placed
+from cellrunner.model.step import StepKind
 from cellrunner.model.timing import close_time_s, release_time_s
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory
 from cellrunner.planning.world import CellWorld
@@ -187,7 +189,9 @@ def plan_task(
                 ):
                     flush()
                 group.append(planner.motion(row, then=then))
-                if step.kind in ("descend", "linear", *FORCE_KINDS) or _weighed(rows, i):
+                if step.kind in (StepKind.DESCEND, StepKind.LINEAR, *FORCE_KINDS) or _weighed(
+                    rows, i
+                ):
                     flush()  # ends at rest: something happens at its end (a grip, weighing the part, a contact)
             else:
                 flush()
@@ -224,7 +228,7 @@ class _StepPlanner:
     def limits_for(self, step: Step):
         limits = self.world.limits
         speed = getattr(step.args, "speed", None)
-        if step.kind in ("move", "approach"):
+        if step.kind in (StepKind.MOVE, StepKind.APPROACH):
             return limits.scaled(speed_fraction=speed if speed is not None else 1.0)
         return limits.scaled(tcp_speed_mps=speed)
 
@@ -244,7 +248,7 @@ class _StepPlanner:
 
         step, kin = row.step, self.world.kinematics
         T_now = kin.T_world_tcp(self.q)
-        if step.kind in ("move", "approach"):
+        if step.kind in (StepKind.MOVE, StepKind.APPROACH):
             if goal_q is None:
                 goal_q = (
                     np.radians(step.q_goal_deg)
@@ -282,22 +286,22 @@ class _StepPlanner:
     def act(self, row: StepPlan) -> None:
         step = row.step
         gripper = self.world.loaded.cell.tool.gripper
-        if step.kind == "grip":
+        if step.kind == StepKind.GRIP:
             T = self.world.kinematics.T_world_tcp(self.q)
             self.part = self.world.part_at(step.extra.get("part_at", ""), T)
             weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
             close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
             row.duration_s = WRIST_SETTLE_S + close_s + weigh
-        elif step.kind == "release":
+        elif step.kind == StepKind.RELEASE:
             row.duration_s = release_time_s(gripper)
             self.part = None
-        elif step.kind == "wait":
+        elif step.kind == StepKind.WAIT:
             row.duration_s = step.args.seconds
-        elif step.kind == "set_output":
+        elif step.kind == StepKind.SET_OUTPUT:
             row.duration_s = (step.args.pulse or 0.0) + 1.0 / self.world.spec.rate_hz
-        elif step.kind == "wait_input":
+        elif step.kind == StepKind.WAIT_INPUT:
             row.message = f"waits up to {step.args.timeout:g} s for {step.args.input}"
-        elif step.kind in ("tool_unlock", "tool_lock"):
+        elif step.kind in (StepKind.TOOL_UNLOCK, StepKind.TOOL_LOCK):
             self.world = self.world.with_tool(step.extra["tool"], tcp_of=step.extra["tcp_of"])
             row.world = self.world
             row.duration_s = WRIST_SETTLE_S
@@ -318,7 +322,7 @@ class _StepPlanner:
                 collision,
                 T_world_tcp,
                 self.q,
-                getattr(step.args, "distance", None) if step.kind == "approach" else None,
+                getattr(step.args, "distance", None) if step.kind == StepKind.APPROACH else None,
             )
         follow = (
             then.T_world_tcp if then is not None and then.kind in ("descend", "linear") else None
@@ -335,11 +339,11 @@ class _StepPlanner:
         return valid[0]  # the descend that follows will say what is wrong with it
 
     def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
-        if step.kind == "lift":
+        if step.kind == StepKind.LIFT:
             return geometry.pose_matrix((0, 0, step.args.distance)) @ T_now
-        if step.kind == "retreat":
+        if step.kind == StepKind.RETREAT:
             return T_now @ geometry.pose_matrix((0, 0, -step.args.distance))
-        if step.kind == "move_until_contact":
+        if step.kind == StepKind.MOVE_UNTIL_CONTACT:
             from cellrunner.planning.force_plan import contact_line_goal
 
             return contact_line_goal(step.args, T_now)
@@ -417,9 +421,9 @@ def _weighed(rows: list[StepPlan], i: int) -> bool:
     after it (execution.job), so the lift ends at rest."""
     step = rows[i].step
     return (
-        step.kind == "lift"
+        step.kind == StepKind.LIFT
         and i > 0
-        and rows[i - 1].step.kind == "grip"
+        and rows[i - 1].step.kind == StepKind.GRIP
         and getattr(rows[i - 1].step.args, "force", None) is not None
     )
 
@@ -439,7 +443,7 @@ def _blend(world: CellWorld, group: list[_Motion]) -> list[_Motion]:
         for m in group
     ]
     kin = group[0].world.kinematics  # the tool mounted for this group
-    for a, b in zip(out[:-1], out[1:]):
+    for a, b in itertools.pairwise(out):
         a_line, b_line = a.line_m is not None, b.line_m is not None
         if (a_line and b_line) or _still(a.waypoints) or _still(b.waypoints):
             continue
@@ -523,7 +527,7 @@ def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray
 
 
 def _apply(world: CellWorld, group: list[_Motion], pieces: list[dict]) -> None:
-    for motion, piece in zip(group, pieces):
+    for motion, piece in zip(group, pieces, strict=False):
         row = motion.row
         row.approved, row.trajectory, row.verify_inputs = (
             piece["approved"],
@@ -559,7 +563,7 @@ def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -
     )
     memo = world.timing_memo
     hit = memo.get(key)
-    if hit is not None and all(a is m.collision for a, m in zip(hit[0], group)):
+    if hit is not None and all(a is m.collision for a, m in zip(hit[0], group, strict=False)):
         return hit[1]
     pieces = _time_pieces(world, group, q_start)
     if len(memo) >= TIMING_MEMO_SIZE:
@@ -584,7 +588,7 @@ def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) ->
     previous = np.asarray(q_start, float)
     start = 0
     pieces = []
-    for i, (motion, end) in enumerate(zip(group, cuts)):
+    for i, (motion, end) in enumerate(zip(group, cuts, strict=False)):
         q = timed.q_rad[start : end + 1]
         if i == 0:
             q = np.vstack([previous[None, :], q[1:]]) if len(q) > 1 else previous[None, :]

@@ -598,10 +598,10 @@ class OpcUaServer:
         if not ticket.accepted:
             return "", ticket.reject_code or int(ResultCode.REJECT_NOT_READY)
         if client_job_id:
-            self._client_jobs[client_job_id] = (ticket.job_id, 0)
+            self._client_jobs[client_job_id] = (ticket.job_id, int(ResultCode.OK))
             while len(self._client_jobs) > MAX_REMEMBERED_CLIENT_JOBS:
                 self._client_jobs.popitem(last=False)
-        return ticket.job_id, 0
+        return ticket.job_id, int(ResultCode.OK)
 
     def _command_method(self, command: str) -> Callable[..., Any]:
         async def call(parent: Any, *args: Any) -> Any:
@@ -677,7 +677,7 @@ class OpcUaServer:
         gen.event.ResultCode = result.result_code
         gen.event.ResultText = result.result_text
         gen.event.ClientJobId = result.client_job_id
-        gen.event.Severity = 100 if result.result_code == 0 else 500
+        gen.event.Severity = 100 if result.result_code == ResultCode.OK else 500
         await gen.trigger(message=f"job {result.job_id} ended with {result.result_code}")
         # the same event (same EventId) for clients subscribed on the Server object
         cell_node = gen.event.emitting_node

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cellrunner.model.step import StepKind
 from cellrunner.report import plots
 from cellrunner.report.recorder import RunRecorder
 from cellrunner.report.slots import slot_cycles
@@ -113,7 +114,9 @@ def _step_points(a: dict, marks: list) -> list[tuple[str, np.ndarray]]:
 
 def _force_window(task) -> tuple[float | None, float | None] | None:
     for spec in task.steps:
-        grip = getattr(spec.args, "grip", None) or (spec.args if spec.kind == "grip" else None)
+        grip = getattr(spec.args, StepKind.GRIP, None) or (
+            spec.args if spec.kind == StepKind.GRIP else None
+        )
         force = getattr(grip, "force", None)
         if force is not None:
             return getattr(force, "min", None), getattr(force, "max", None)
