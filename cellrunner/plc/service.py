@@ -17,6 +17,7 @@ then::
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import threading
 from collections.abc import Callable
@@ -70,10 +71,8 @@ class _ServerThread:
     def stop(self, timeout_s: float = 10.0) -> None:
         loop, stopped = self._loop, self._stopped
         if loop is not None and stopped is not None and not loop.is_closed():
-            try:
+            with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
                 loop.call_soon_threadsafe(stopped.set)
-            except RuntimeError:
-                pass
         self.join(timeout_s)
 
     def join(self, timeout_s: float = 10.0) -> None:
@@ -82,10 +81,10 @@ class _ServerThread:
             self._thread = None
 
     def _run(self, started: Future[None]) -> None:
-        _raise_thread_priority()
+        raise_thread_priority()
         try:
             asyncio.run(self._serve(started))
-        except BaseException as exc:  # noqa: BLE001 - reported through the future
+        except BaseException as exc:  # reported through the future
             if not started.done():
                 started.set_exception(_translate(exc))
 
@@ -215,9 +214,10 @@ def _translate(exc: BaseException) -> BaseException:
 PLC_THREAD_NICE = -10
 
 
-def _raise_thread_priority() -> bool:
-    """Run the calling (PLC server) thread at :data:`PLC_THREAD_NICE`; False where the OS
-    does not allow it (no CAP_SYS_NICE, not Linux), which leaves the default priority."""
+def raise_thread_priority() -> bool:
+    """Run the calling thread at :data:`PLC_THREAD_NICE`; False where the OS does not allow
+    it (no CAP_SYS_NICE, not Linux), which leaves the default priority. Threads it starts
+    afterwards inherit the priority (Linux)."""
     try:
         os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), PLC_THREAD_NICE)
         return True
