@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import itertools
 import sys
 import time
 from pathlib import Path
@@ -106,8 +107,7 @@ def polyscope_program(world, plan, taught) -> tuple[list, list[float], list[floa
             parts = [polyscope.movel(kin, waypoints, limits, rate)]
         else:
             parts = [
-                polyscope.movej(kin, a, b, limits, rate)
-                for a, b in zip(waypoints[:-1], waypoints[1:])
+                polyscope.movej(kin, a, b, limits, rate) for a, b in itertools.pairwise(waypoints)
             ]
         parts = [m for m in parts if m.duration_s > 0]
         weighed = (
@@ -126,7 +126,7 @@ def polyscope_program(world, plan, taught) -> tuple[list, list[float], list[floa
         stops_after[-1] = True
     radii = [
         polyscope.blend_radius(m, n, stop=s, via=v)
-        for m, n, s, v in zip(moves[:-1], moves[1:], stops_after[:-1], vias[:-1])
+        for m, n, s, v in zip(moves[:-1], moves[1:], stops_after[:-1], vias[:-1], strict=True)
     ]
     return moves, radii, fixed, labels
 
@@ -184,7 +184,7 @@ def run(cell_path: str, task_path: str, verbose: bool = True) -> dict:
     ours = plan.cycle_time_s
     if verbose:
         print(f"  {cell_path} {Path(task_path).name} {params}: PolyScope program")
-        for move, label, r, s in zip(moves, labels, [*radii, 0.0], [*saved, 0.0]):
+        for move, label, r, s in zip(moves, labels, [*radii, 0.0], [*saved, 0.0], strict=True):
             print(
                 f"    {move.kind} {label[:40]:40s} {move.duration_s:6.2f} s   blend {r * 1000:5.0f} mm saves {s:5.2f} s"
             )

@@ -24,10 +24,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from cellrunner.execution.journal import SqliteJournal  # noqa: E402
-from cellrunner.execution.journal_postgres import PostgresJournal  # noqa: E402
-from cellrunner.model.codes import ResultCode  # noqa: E402
-from tests.execution.pg_server import PgServer  # noqa: E402
+from cellrunner.execution.journal import SqliteJournal
+from cellrunner.execution.journal_postgres import PostgresJournal
+from cellrunner.model.codes import ResultCode
+from tests.execution.pg_server import PgServer
 
 STEPS_PER_JOB = 24  # the demo pick-and-place: 12 expanded steps, running + ok each
 

@@ -2,7 +2,9 @@
 
 Run: ``python bench/bench_planning.py [--reps 3]`` from the repository root (or all the
 planning benches: ``python bench/run_all.py``). Scenes: bench/scenes.py (UR5e, cluttered
-table, shelf, bins), 20 start/goal pairs.
+table, shelf, bins), 20 start/goal pairs: the headline figures and targets. ``--large``
+adds 15 problems for the large arms (a UR20 palletizing, a UR30 tending a machine through
+its door, a UR15 at a tall rack), reported per arm beside the headline.
 
 Fairness: both planners solve each problem in the same process and run, on the identical
 pinocchio model and collision geometry (the same capsules, tool, fixtures and checked
@@ -17,6 +19,10 @@ conservative certification of every returned edge (nothing slips between checks;
 cellrunner/planning/collision.py), which pyroboplan's 0.05 rad sampling does not do.
 Each problem is run ``--reps`` times per planner, interleaved, after one warm-up each
 (imports); the per-problem time is the median of the repetitions.
+
+Times are CPU time of this process (``time.process_time``): both planners are
+single-threaded, and on a shared machine wall time mostly measures the other processes
+(at load 14 on 2 cores the same runs took 5x longer by the wall clock).
 """
 
 from __future__ import annotations
@@ -33,13 +39,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from scenes import HOME_DEG, T_FLANGE_TCP, scenes, tool  # noqa: E402
+from scenes import HOME_DEG, T_FLANGE_TCP, large_arm_scenes, scenes, tool
 
-from cellrunner.errors import InfeasibleError  # noqa: E402
-from cellrunner.model.robots import robot_spec  # noqa: E402
-from cellrunner.planning.collision import CollisionModel  # noqa: E402
-from cellrunner.planning.joint_path import plan_joint_path  # noqa: E402
-from cellrunner.planning.kinematics import ArmKinematics  # noqa: E402
+from cellrunner.errors import InfeasibleError
+from cellrunner.model.robots import robot_spec
+from cellrunner.planning.collision import CollisionModel
+from cellrunner.planning.joint_path import plan_joint_path
+from cellrunner.planning.kinematics import ArmKinematics
 
 CLEARANCE_M = 0.002
 SEED = 1
@@ -48,6 +54,7 @@ SEED = 1
 @dataclass
 class Row:
     name: str
+    model: str
     ours_s: float
     ours_ok: bool
     ours_how: str
@@ -56,10 +63,10 @@ class Row:
     base_shortcut_s: float | None = None
 
 
-def problems():
-    kin = ArmKinematics(robot_spec("ur5e"), np.eye(4), T_FLANGE_TCP)
+def problems(large: bool = False):
     home = np.radians(HOME_DEG)
-    for scene in scenes():
+    for scene in (*scenes(), *(large_arm_scenes() if large else ())):
+        kin = ArmKinematics(robot_spec(scene.model), np.eye(4), T_FLANGE_TCP)
         world = CollisionModel(kin, tool(), scene.fixtures, CLEARANCE_M)
         q = {}
         for name, T in scene.targets:
@@ -68,18 +75,22 @@ def problems():
                 q[name] = valid[0]
         for a, b in scene.problems:
             if a in q and b in q:
-                yield f"{scene.name}:{a}->{b}", kin, world, q[a], q[b]
+                yield f"{scene.name}:{a}->{b}", scene.model, kin, world, q[a], q[b]
             else:
                 print(f"  (skipped {scene.name}:{a}->{b}: no collision-free IK)")
 
 
+#: the clock of every planning time (module docstring)
+CLOCK = time.process_time
+
+
 def ours(world, q0, q1) -> tuple[bool, str, float]:
-    t = time.perf_counter()
+    t = CLOCK()
     try:
         path = plan_joint_path(world, q0, q1, time_budget_s=5.0, seed=SEED)
     except InfeasibleError:
-        return False, "FAIL", time.perf_counter() - t
-    return True, path.planner, time.perf_counter() - t
+        return False, "FAIL", CLOCK() - t
+    return True, path.planner, CLOCK() - t
 
 
 def pyroboplan_runner():
@@ -103,25 +114,27 @@ def pyroboplan_runner():
         )
         planner = RRTPlanner(kin.model, world.pinocchio_geometry, options)
         with contextlib.redirect_stdout(io.StringIO()):  # it prints progress
-            t = time.perf_counter()
+            t = CLOCK()
             path = planner.plan(q0, q1)
-            plan_s = time.perf_counter() - t
+            plan_s = CLOCK() - t
             shortcut_s = None
             if path:
-                t = time.perf_counter()
+                t = CLOCK()
                 shortcut_path(kin.model, world.pinocchio_geometry, path)
-                shortcut_s = time.perf_counter() - t
+                shortcut_s = CLOCK() - t
         return bool(path), plan_s, shortcut_s
 
     return run, ""
 
 
-def run(reps: int = 3, verbose: bool = True) -> dict:
-    """Plan every problem ``reps`` times with both planners; per-problem medians."""
-    cases = list(problems())
+def run(reps: int = 3, verbose: bool = True, large: bool = False) -> dict:
+    """Plan every problem ``reps`` times with both planners; per-problem medians. The
+    headline figures cover the UR5e problems; ``large`` adds the large arms' problems,
+    summarised per arm under ``"arms"``."""
+    cases = list(problems(large))
     baseline, why = pyroboplan_runner()
     # warm-up: imports (OMPL, pyroboplan) are not planning time
-    _, kin, world, q0, q1 = cases[0]
+    _, _, kin, world, q0, q1 = cases[0]
     ours(world, q0, q1)
     if baseline is not None:
         try:
@@ -129,7 +142,7 @@ def run(reps: int = 3, verbose: bool = True) -> dict:
         except Exception as exc:
             why, baseline = f"pyroboplan failed: {type(exc).__name__}: {exc}", None
     rows = []
-    for name, kin, world, q0, q1 in cases:
+    for name, model, kin, world, q0, q1 in cases:
         times, base_times, short_times = [], [], []
         ok, how, base_ok = True, "", None
         for _ in range(reps):
@@ -147,6 +160,7 @@ def run(reps: int = 3, verbose: bool = True) -> dict:
                     short_times.append(s_t)
         row = Row(
             name,
+            model,
             statistics.median(times),
             ok,
             how if ok else "FAIL",
@@ -171,6 +185,16 @@ def run(reps: int = 3, verbose: bool = True) -> dict:
             print(
                 f"  {name:30s} {row.ours_how:10s} {row.ours_s * 1000:7.1f} ms   {base}", flush=True
             )
+    result = _summary([r for r in rows if r.model == "ur5e"], reps, why)
+    result["arms"] = {
+        model: _summary([r for r in rows if r.model == model], reps, why)
+        for model in sorted({r.model for r in rows} - {"ur5e"})
+    }
+    return result
+
+
+def _summary(rows: list[Row], reps: int, why: str) -> dict:
+    """Success, medians and the ratio to pyroboplan over ``rows``."""
     ours_t = [r.ours_s for r in rows]
     result = {
         "problems": len(rows),
@@ -197,7 +221,8 @@ def run(reps: int = 3, verbose: bool = True) -> dict:
 
 def summary_lines(r: dict) -> list[str]:
     lines = [
-        f"planning, {r['problems']} UR5e problems (table/shelf/bin), median of {r['reps']} runs each:",
+        f"planning, {r['problems']} UR5e problems (table/shelf/bin), median of {r['reps']} runs "
+        "each, CPU time:",
         f"  cellrunner   success {r['ours_success']}/{r['problems']}  median {r['ours_median_ms']:6.1f} ms  "
         f"p95 {r['ours_p95_ms']:6.1f} ms  (certified, shortened; {r['ours_direct']} direct)",
     ]
@@ -210,18 +235,31 @@ def summary_lines(r: dict) -> list[str]:
             f"({r['ratio_shortcut']:.1f}x with its shortening)",
         ]
     else:
-        lines.append(f"  pyroboplan   not run: {r['baseline']}")
+        lines.append(
+            f"  pyroboplan   MISSING: the ratio is not measured ({r['baseline']}); "
+            "pip install pyroboplan"
+        )
+    for model, a in r.get("arms", {}).items():
+        ratio = f"  {a['ratio']:.1f}x pyroboplan (medians)" if "ratio" in a else ""
+        lines.append(
+            f"  {model.upper():11s}  success {a['ours_success']}/{a['problems']}  median "
+            f"{a['ours_median_ms']:6.1f} ms  p95 {a['ours_p95_ms']:6.1f} ms{ratio}"
+        )
     return lines
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reps", type=int, default=3, help="runs per problem and planner (median)")
+    parser.add_argument(
+        "--large", action="store_true", help="add the UR15/UR20/UR30 problems (reported per arm)"
+    )
     args = parser.parse_args(argv)
-    result = run(args.reps)
+    result = run(args.reps, large=args.large)
     print()
     print("\n".join(summary_lines(result)))
-    return 0 if result["ours_success"] == result["problems"] else 1
+    solved = [result, *result["arms"].values()]
+    return 0 if all(r["ours_success"] == r["problems"] for r in solved) else 1
 
 
 if __name__ == "__main__":

@@ -37,7 +37,9 @@ if str(REPO) not in sys.path:
 
 # -- the PLC (child process) -----------------------------------------------------------------
 READY, ACK, BUSY, DONE, ERROR, REJECTED = 1, 2, 4, 8, 16, 512
-JOB_REQ, RESET = 1, 2
+ESTOP, WATCHDOG = 128, 256
+JOB_REQ, RESET, UNHOLD = 1, 2, 16
+HELD_STATE = 11
 
 
 def plc_main(host: str, port: int, jobs: int, tasks: list[list[int]], job_timeout_s: float) -> None:
@@ -65,7 +67,11 @@ def plc_main(host: str, port: int, jobs: int, tasks: list[list[int]], job_timeou
             raise RuntimeError(f"read {addr} failed: {rr}")
         return list(rr.registers)
 
+    commanded = [0]  # what this PLC last wrote to the command register (1)
+
     def write(addr: int, values: list[int]) -> None:
+        if addr == 1:
+            commanded[0] = values[0]
         with lock:
             rr = (
                 client.write_registers(addr, values)
@@ -75,12 +81,26 @@ def plc_main(host: str, port: int, jobs: int, tasks: list[list[int]], job_timeou
         if rr.isError():
             raise RuntimeError(f"write {addr} failed: {rr}")
 
+    unholds = [0]
+
+    def unhold_if_held(r: list[int]) -> None:
+        """The cell holds the job when the heartbeat lapses (a starved PLC process on a
+        loaded machine): once the heartbeat is back (no watchdog bit) and no e-stop is
+        pressed, a PLC program presses UNHOLD (a rising edge, then released)."""
+        if r[2] == HELD_STATE and not r[1] & (WATCHDOG | ESTOP):
+            command = commanded[0] & ~UNHOLD
+            write(1, [command | UNHOLD])
+            time.sleep(0.05)
+            write(1, [command])
+            unholds[0] += 1
+
     def wait(pred: Any, timeout_s: float) -> list[int] | None:
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             r = regs()
             if pred(r):
                 return r
+            unhold_if_held(r)
             time.sleep(0.001)
         return None
 
@@ -101,8 +121,9 @@ def plc_main(host: str, port: int, jobs: int, tasks: list[list[int]], job_timeou
                 write(1, [RESET])
                 time.sleep(0.05)
                 write(1, [0])
+            unhold_if_held(r)
             if time.monotonic() > deadline:
-                record["outcome"] = "never_ready"
+                record.update(outcome="never_ready", state=r[2], status_bits=r[1])
                 break
             time.sleep(0.005)
         if record.get("outcome"):
@@ -136,7 +157,12 @@ def plc_main(host: str, port: int, jobs: int, tasks: list[list[int]], job_timeou
         write(1, [0])
         wait(lambda r: not r[1] & (ACK | DONE | ERROR | REJECTED), 5.0)
         print(json.dumps(record), flush=True)
-    print(json.dumps({"summary": True, "elapsed_s": time.monotonic() - t_start}), flush=True)
+    print(
+        json.dumps(
+            {"summary": True, "elapsed_s": time.monotonic() - t_start, "unholds": unholds[0]}
+        ),
+        flush=True,
+    )
     stop.set()
     client.close()
 
@@ -219,7 +245,7 @@ def run_bench(
     host, mb_port = service.modbus_address or ("127.0.0.1", 0)
     observed: list[dict[str, Any]] = []
     rss_mib: dict[int, float] = {}
-    elapsed = float("nan")
+    elapsed, unholds = float("nan"), 0
     try:
         cmd = [
             sys.executable,
@@ -236,15 +262,18 @@ def run_bench(
         for line in proc.stdout:
             record = json.loads(line)
             if record.get("summary"):
-                elapsed = record["elapsed_s"]
+                elapsed, unholds = record["elapsed_s"], record.get("unholds", 0)
             elif "fatal" in record:
                 raise RuntimeError(record["fatal"])
             else:
                 observed.append(record)
-                if len(observed) == RSS_BASELINE_JOBS:
-                    rss_mib[RSS_BASELINE_JOBS] = rss_now_mib()
-                if len(observed) % 50 == 0:
-                    print(f"  {len(observed)}/{jobs} jobs", file=sys.stderr)
+                if len(observed) % RSS_BASELINE_JOBS == 0:
+                    rss_mib[len(observed)] = rss_now_mib()
+                    print(
+                        f"  {len(observed)}/{jobs} jobs, resident {rss_mib[len(observed)]:.0f} MiB",
+                        file=sys.stderr,
+                        flush=True,
+                    )
         proc.wait(timeout=10)
         time.sleep(0.2)  # the last result listener call
         rss_mib[len(observed)] = rss_now_mib()
@@ -272,6 +301,14 @@ def run_bench(
         "result_codes": {str(k): v for k, v in sorted(codes.items(), key=lambda kv: str(kv[0]))},
         "reconciliation": rec,
         "rss_mib": rss_mib,
+        "unholds": unholds,
+        "never_ready_in": dict(
+            Counter(
+                f"state {o['state']} status {o['status_bits']}"
+                for o in observed
+                if o.get("outcome") == "never_ready"
+            )
+        ),
     }
 
 
@@ -340,6 +377,13 @@ def main(argv: list[str] | None = None) -> int:
         f"  (target p99 < 50 ms: {'met' if lat['p99'] < 50 else 'MISSED'})"
     )
     print(f"outcomes: {report['outcomes']}  result codes: {report['result_codes']}")
+    if report["never_ready_in"]:
+        print(f"the cell never became READY in: {report['never_ready_in']}")
+    if report["unholds"]:
+        print(
+            f"the PLC pressed UNHOLD {report['unholds']} times (the cell holds a job when the "
+            "PLC heartbeat lapses for 1.5 s, as a starved PLC process does on a loaded machine)"
+        )
     rss = report["rss_mib"]
     if RSS_BASELINE_JOBS in rss and len(rss) > 1:
         end = max(rss)

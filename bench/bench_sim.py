@@ -80,7 +80,7 @@ def run(desc: TwinDescription, options: PhysicsOptions) -> dict[str, float]:
     for seg in program:
         if seg.trajectory is None:
             backend.set_output("DO0", bool(seg.gripper_closed))
-            for _ in range(int(round(seg.dwell_s * backend.rate_hz))):
+            for _ in range(round(seg.dwell_s * backend.rate_hz)):
                 backend.wait_period()
                 backend.read_state()
             continue
@@ -96,7 +96,7 @@ def run(desc: TwinDescription, options: PhysicsOptions) -> dict[str, float]:
     placed = backend.world.part_pose_world("cube")[:3, 3]
     backend.close()
     tcp = lambda q: (dh_forward(desc.spec, q) @ desc.T_flange_tcp)[:3, 3]  # noqa: E731
-    err = np.array([np.linalg.norm(tcp(a) - tcp(r)) for a, r in zip(q_log, ref_log)])
+    err = np.array([np.linalg.norm(tcp(a) - tcp(r)) for a, r in zip(q_log, ref_log, strict=True)])
     return {
         "build_s": build_s,
         "sim_s": sim_s,

@@ -115,7 +115,7 @@ def _profile(distance: float, speed: float, accel: float) -> tuple[float, float]
 
 
 def _samples(duration_s: float, rate_hz: float) -> np.ndarray:
-    n = max(1, int(math.ceil(duration_s * rate_hz - 1e-9)))
+    n = max(1, math.ceil(duration_s * rate_hz - 1e-9))
     return np.minimum(np.arange(n + 1) / rate_hz, duration_s)
 
 
@@ -127,7 +127,7 @@ def movej(kin, q_from_rad: np.ndarray, q_to_rad: np.ndarray, limits, rate_hz: fl
     dq = q1 - q0
     times = [
         _profile(abs(d), v, a)
-        for d, v, a in zip(dq, limits.joint_speed_rad_s, limits.joint_accel_rad_s2)
+        for d, v, a in zip(dq, limits.joint_speed_rad_s, limits.joint_accel_rad_s2, strict=True)
     ]
     duration, accel_s = max(times)
     if duration == 0.0:
@@ -208,7 +208,7 @@ def program_time_s(
     """Duration (s) of ``moves`` run one after the other, blended at the waypoint after
     move i with radius ``radii_m[i]`` (0 = stop), and the time saved at each waypoint."""
     saved = []
-    for i, (move, r) in enumerate(zip(moves[:-1], radii_m)):
+    for i, (move, r) in enumerate(zip(moves[:-1], radii_m, strict=True)):
         if r <= 0.0:
             saved.append(0.0)
             continue

@@ -12,11 +12,13 @@ Run from the repository root::
    plan (bench_check.py).
 
 ``--all`` then runs the others, each as its own process: the dry-run real-time factor and
-planned-vs-simulated cycle (bench_dryrun.py), the PLC soak of 200 Modbus jobs on the real
-engine and twin with random faults (bench_plc.py), and servoJ streaming through ur_rtde
-into the virtual controller (bench_servo.py).
+planned-vs-simulated cycle (bench_dryrun.py), the PLC soak of 500 Modbus jobs on the real
+engine and twin with random faults, with serve's resident memory after 50 and after 500
+(bench_plc.py), and servoJ streaming through ur_rtde into the virtual controller
+(bench_servo.py). The last lines are one table of every target.
 
-``--quick`` does fewer repetitions (1 planning run per problem, 1 cold and 3 warm checks).
+``--quick`` does fewer repetitions (1 planning run per problem, 1 cold and 3 warm checks,
+100 soak jobs).
 Exit status 1 when a target is missed: planning 100% success, median <= 5 ms, >= 15x
 pyroboplan; cycle <= 0.95x PolyScope blended, <= 0.85x stopping, <= 1.02x the bound on
 every cell; cold check <= 1.5 s, warm <= 0.3 s, validate <= 0.25 s, re-verify <= 1 ms
@@ -70,47 +72,142 @@ def main(argv: list[str] | None = None) -> int:
     ]:
         print(line)
     results = targets(planning, cycle, check)
-    print("targets: " + ", ".join(f"{name} {'met' if ok else 'MISSED'}" for name, ok in results))
     ok = all(good for _, good in results)
+    others: dict = {}
     if args.all:
-        ok = run_others(args.quick) and ok
+        ok = run_others(args.quick, others) and ok
+    print("\n== targets (medians; every ratio against a peer measured in the same run)")
+    print("\n".join(target_table(planning, cycle, check, others)))
     return 0 if ok else 1
 
 
-def run_others(quick: bool) -> bool:
-    """The engine, PLC and servo benches, each in its own process (they own their threads)."""
+def target_table(planning: dict, cycle: list[dict], check: dict, others: dict) -> list[str]:
+    """One row per issue-11 target: what was measured, against what, and the verdict."""
+    moving = [r for r in cycle if r.get("motion")]
+    rows = [("measure", "measured", "peer (same run)", "ratio", "target", "")]
+
+    def row(name, measured, peer, ratio, target, good) -> None:
+        rows.append((name, measured, peer, ratio, target, "met" if good else "MISSED"))
+
+    if "ratio" in planning:
+        row(
+            "planning, 20 UR5e problems (CPU)",
+            f"median {planning['ours_median_ms']:.1f} ms",
+            f"pyroboplan {planning['base_median_ms']:.1f} ms",
+            f"{planning['ratio']:.1f}x",
+            ">= 15x, <= 5 ms",
+            planning["ratio"] >= 15 and planning["ours_median_ms"] <= 5,
+        )
+    else:
+        row(
+            "planning",
+            f"median {planning['ours_median_ms']:.1f} ms",
+            "pyroboplan MISSING",
+            "-",
+            ">= 15x",
+            False,
+        )
+    for key, label, limit in (
+        ("ratio_blended", "PolyScope blended", bench_cycle.TARGET_BLENDED),
+        ("ratio_stopping", "PolyScope stopping", bench_cycle.TARGET_STOPPING),
+        ("ratio_bound", "time-optimal bound", bench_cycle.TARGET_BOUND),
+    ):
+        worst = max((r[key] for r in moving), default=float("nan"))
+        row(
+            f"cycle, worst of {len(moving)} jobs",
+            "",
+            label,
+            f"{worst:.3f}x",
+            f"<= {limit}x",
+            worst <= limit,
+        )
+    for key, cpu, label, limit in (
+        ("cold_s", "cold_cpu_s", "check cold, whole process", 1.5),
+        ("warm_s", "warm_cpu_s", "check warm, whole process", 0.3),
+        ("validate_s", "validate_cpu_s", "validate, whole process", 0.25),
+    ):
+        row(
+            label,
+            f"{check[key]:.2f} s (CPU {check[cpu]:.2f} s)",
+            f"load {check['load_average']:.1f}",
+            "-",
+            f"<= {limit} s",
+            check[key] <= limit,
+        )
+    row(
+        "re-verify a cached plan (CPU)",
+        f"{check['reverify_ms_per_step']:.2f} ms/step",
+        "-",
+        "-",
+        "<= 1 ms",
+        check["reverify_ms_per_step"] <= 1.0,
+    )
+    if "dryrun" in others:
+        d = others["dryrun"]
+        row(
+            "dry-run real-time factor (CPU)",
+            f"{min(c['engine_rtf'] for c in d['cases']):.0f}x",
+            f"raw mj_step {min(c['mj_step_rtf'] for c in d['cases']):.0f}x",
+            f"{d['worst_ratio']:.2f}x",
+            ">= 0.8x",
+            d["worst_ratio"] >= 0.8,
+        )
+    if "plc" in others:
+        rss = {int(k): v for k, v in others["plc"]["rss_mib"].items()}
+        end = max(rss)
+        base = rss.get(50, float("nan"))
+        row(
+            f"serve RSS, {end} jobs vs 50",
+            f"{rss[end]:.0f} MiB",
+            f"{base:.0f} MiB",
+            f"{rss[end] / base:.3f}x",
+            "within 10 % at 500",
+            end >= 500 and abs(rss[end] / base - 1) <= 0.10,
+        )
+    widths = [max(len(r[i]) for r in rows) for i in range(6)]
+    return ["  " + "  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+
+
+def run_others(quick: bool, results: dict) -> bool:
+    """The engine, PLC and servo benches, each in its own process (they own their threads);
+    their JSON reports go into ``results`` ("dryrun", "plc")."""
+    import json
     import os
     import subprocess
+    import tempfile
 
     env = {
         **os.environ,
         "PYTHONPATH": str(HERE.parent),
-        "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa"),
+        "MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable"),
     }
+    out = Path(tempfile.mkdtemp(prefix="cellrunner-bench-"))
     runs = [
-        ("(4) dry-run", ["bench_dryrun.py", "--runs", "3" if quick else "5"]),
+        ("(4) dry-run", "dryrun", ["bench_dryrun.py", "--runs", "3" if quick else "5"]),
         (
-            "(5) PLC soak",
+            "(5) PLC soak: serve's cell, engine and twin over Modbus",
+            "plc",
             [
                 "bench_plc.py",
                 "--cell",
                 "bench.soak_engine:make",
                 "--jobs",
-                "50" if quick else "200",
+                "100" if quick else "500",
             ],
         ),
-        ("(6) servoJ streaming", ["bench_servo.py"]),
+        ("(6) servoJ streaming", None, ["bench_servo.py"]),
     ]
     ok = True
-    for title, argv in runs:
+    for title, key, argv in runs:
         print(f"\n== {title}", flush=True)
-        ok = (
-            subprocess.run(
-                [sys.executable, str(HERE / argv[0]), *argv[1:]], cwd=HERE.parent, env=env
-            ).returncode
-            == 0
-            and ok
+        report = out / f"{key}.json"
+        extra = ["--json", str(report)] if key else []
+        done = subprocess.run(
+            [sys.executable, str(HERE / argv[0]), *argv[1:], *extra], cwd=HERE.parent, env=env
         )
+        ok = done.returncode == 0 and ok
+        if key and report.is_file():
+            results[key] = json.loads(report.read_text())
     return ok
 
 

@@ -1,7 +1,8 @@
-"""Cluttered UR5e scenes for the planning benchmark: a table with a wall and clutter, a
-shelf, two bins. The robot base is the world frame, standing on the table top (z = 0).
-Each problem is a pair of TCP poses (tool pointing down, or into the shelf), solved by IK
-on the branch nearest a reference configuration."""
+"""Cluttered scenes for the planning benchmark: for a UR5e a table with a wall and clutter,
+a shelf, two bins; for the large arms a UR20 palletizing cell, a UR30 tending a machine
+through its door and a UR15 at a tall rack. The robot base is the world frame (z = 0 on
+its table or pedestal). Each problem is a pair of TCP poses (tool pointing down, or into
+the shelf or machine), solved by IK on the branch nearest a reference configuration."""
 
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ class Scene:
     fixtures: tuple[Placed, ...]
     targets: tuple[tuple[str, np.ndarray], ...]  # named T_world_tcp poses
     problems: tuple[tuple[str, str], ...]  # (start target, goal target)
+    model: str = "ur5e"  # the arm (cellrunner.model.robots)
 
 
 def box(name: str, size, xyz, rpy=(0.0, 0.0, 0.0)) -> Placed:
@@ -130,5 +132,102 @@ def bin_scene() -> Scene:
     return Scene("bin", tuple(fixtures), targets, problems)
 
 
+def palletizing_scene_ur20() -> Scene:
+    """A UR20 on a 0.3 m pedestal: infeed conveyor on its right, a pallet half stacked
+    (two layers of cases) in front, fences behind and on the left."""
+    fixtures = (
+        box("floor", (4.0, 4.0, 0.04), (0.0, 0.0, -0.32)),
+        box("pedestal", (0.40, 0.40, 0.30), (0.0, 0.0, -0.15)),
+        box("conveyor", (0.50, 1.60, 0.75), (0.40, -1.10, 0.075)),
+        box("pallet", (0.80, 1.20, 0.144), (0.95, 0.35, -0.228)),
+        box("stack", (0.62, 0.82, 0.44), (0.86, 0.16, 0.064)),
+        box("fence_back", (0.05, 3.4, 2.0), (-0.70, 0.0, 0.70)),
+        box("fence_side", (2.3, 0.05, 2.0), (0.45, 1.25, 0.70)),
+    )
+    targets = (
+        ("infeed", pose_matrix((0.40, -0.80, 0.62), DOWN)),
+        ("stack_top_near", pose_matrix((0.70, 0.0, 0.52), DOWN)),
+        ("stack_top_far", pose_matrix((1.05, 0.40, 0.52), DOWN)),
+        ("pallet_free", pose_matrix((0.85, 0.78, 0.08), (180, 0, 90))),
+        ("pallet_free_far", pose_matrix((1.15, 0.78, 0.08), (180, 0, 90))),
+    )
+    problems = (
+        ("infeed", "stack_top_near"),
+        ("stack_top_far", "infeed"),
+        ("infeed", "pallet_free"),
+        ("pallet_free_far", "infeed"),
+        ("stack_top_near", "pallet_free_far"),
+    )
+    return Scene("ur20_pallet", fixtures, targets, problems, model="ur20")
+
+
+def machine_scene_ur30() -> Scene:
+    """A UR30 beside a machine tool: the part goes from a raw-parts table through the
+    machine's door opening (0.5 m x 0.5 m) onto the vise, and out to a finished table."""
+    x0, t = 0.85, 0.03
+    fixtures = (
+        box("floor", (4.0, 4.0, 0.04), (0.0, 0.0, -0.72)),
+        box("raw_table", (0.6, 0.5, 0.04), (0.25, -0.75, -0.02)),
+        box("done_table", (0.6, 0.5, 0.04), (0.25, 0.75, -0.02)),
+        box("door_left", (t, 0.35, 1.2), (x0, 0.425, 0.20)),
+        box("door_right", (t, 0.35, 1.2), (x0, -0.425, 0.20)),
+        box("door_sill", (t, 0.5, 0.50), (x0, 0.0, -0.15)),
+        box("door_lintel", (t, 0.5, 0.20), (x0, 0.0, 0.70)),
+        box("machine_roof", (0.70, 1.2, t), (x0 + 0.35, 0.0, 0.80)),
+        box("machine_back", (t, 1.2, 1.2), (x0 + 0.70, 0.0, 0.20)),
+        box("vise", (0.20, 0.16, 0.20), (x0 + 0.38, 0.0, 0.0)),
+    )
+    targets = (
+        ("raw", pose_matrix((0.25, -0.75, 0.08), DOWN)),
+        ("done", pose_matrix((0.25, 0.75, 0.08), DOWN)),
+        ("vise_top", pose_matrix((x0 + 0.38, 0.0, 0.16), DOWN)),
+        ("at_door", pose_matrix((x0 - 0.12, 0.0, 0.35), FORWARD)),
+        ("vise_front", pose_matrix((x0 + 0.20, 0.0, 0.32), FORWARD)),
+    )
+    problems = (
+        ("raw", "vise_top"),
+        ("vise_top", "done"),
+        ("done", "raw"),
+        ("at_door", "vise_front"),
+        ("vise_front", "raw"),
+    )
+    return Scene("ur30_machine", fixtures, targets, problems, model="ur30")
+
+
+def rack_scene_ur15() -> Scene:
+    """A UR15 on a 0.6 m pedestal in front of a four-level rack, 1.1 m wide."""
+    x0, depth, width = 0.70, 0.35, 1.10
+    fixtures = [
+        box("floor", (4.0, 4.0, 0.04), (0.0, 0.0, -0.62)),
+        box("pedestal", (0.30, 0.30, 0.60), (0.0, 0.0, -0.30)),
+        box("rack_back", (0.02, width, 1.60), (x0 + depth, 0.0, 0.20)),
+    ]
+    for side, y in (("left", width / 2), ("right", -width / 2)):
+        fixtures.append(box(f"rack_{side}", (depth, 0.02, 1.60), (x0 + depth / 2, y, 0.20)))
+    for k, z in enumerate((-0.40, -0.05, 0.30, 0.65, 1.00)):
+        fixtures.append(box(f"board_{k}", (depth, width, 0.02), (x0 + depth / 2, 0.0, z)))
+    fixtures.append(box("divider", (depth, 0.02, 0.70), (x0 + depth / 2, 0.0, 0.30)))
+    targets = (
+        ("low_left", pose_matrix((0.80, 0.30, -0.30), FORWARD)),
+        ("mid_right", pose_matrix((0.80, -0.30, 0.05), FORWARD)),
+        ("mid_left", pose_matrix((0.80, 0.30, 0.40), FORWARD)),
+        ("high_right", pose_matrix((0.78, -0.30, 0.75), FORWARD)),
+        ("floor_tote", pose_matrix((0.10, -0.70, -0.40), DOWN)),
+    )
+    problems = (
+        ("low_left", "high_right"),
+        ("mid_right", "mid_left"),
+        ("high_right", "low_left"),
+        ("floor_tote", "mid_left"),
+        ("mid_right", "floor_tote"),
+    )
+    return Scene("ur15_rack", tuple(fixtures), targets, problems, model="ur15")
+
+
 def scenes() -> tuple[Scene, ...]:
     return (table_scene(), shelf_scene(), bin_scene())
+
+
+def large_arm_scenes() -> tuple[Scene, ...]:
+    """Scenes for the UR15, UR20 and UR30 (reported apart from the UR5e headline)."""
+    return (palletizing_scene_ur20(), machine_scene_ur30(), rack_scene_ur15())

@@ -51,7 +51,7 @@ class InputError(CellrunnerError):
 
     exit_code = 2
 
-    def __init__(self, diagnostics: list[Diagnostic] | str, file: str | Path | None = None):
+    def __init__(self, diagnostics: list[Diagnostic] | str, file: str | Path | None = None) -> None:
         if isinstance(diagnostics, str):
             diagnostics = [Diagnostic(str(file or "<input>"), 1, 1, diagnostics)]
         self.diagnostics = list(diagnostics)
@@ -61,7 +61,7 @@ class InputError(CellrunnerError):
 class UsageError(InputError):
     """A bad command-line value (``-p slot=12``); printed as ``cellrunner CMD: error: ...``."""
 
-    def __init__(self, message: str):
+    def __init__(self, message: str) -> None:
         super().__init__([Diagnostic("<command line>", 1, 1, message)])
         self.message = message
 
@@ -72,7 +72,7 @@ class InfeasibleError(CellrunnerError):
 
     exit_code = 1
 
-    def __init__(self, message: str, blockers: tuple[str, ...] = ()):
+    def __init__(self, message: str, blockers: tuple[str, ...] = ()) -> None:
         super().__init__(message)
         self.blockers = tuple(blockers)
 
@@ -82,7 +82,7 @@ class JobFailed(CellrunnerError):
 
     exit_code = 1
 
-    def __init__(self, message: str, result_code: int):
+    def __init__(self, message: str, result_code: int) -> None:
         self.result_code = result_code
         super().__init__(message)
 
@@ -113,7 +113,7 @@ class RemoteControlOff(BackendError):
 class SafetyStop(BackendError):
     """The controller stopped the arm; ``safety`` (a ``backends.base.Safety``) says how."""
 
-    def __init__(self, message: str, safety: object):
+    def __init__(self, message: str, safety: object) -> None:
         super().__init__(message)
         self.safety = safety
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from cellrunner.sim._mj import enable_pictures
+from cellrunner.sim.mujoco_loader import enable_pictures
 
 # The tests render pictures in this process: choose MuJoCo's offscreen GL backend before
 # anything imports MuJoCo (it reads MUJOCO_GL once).

@@ -39,6 +39,28 @@ def test_help_and_validate_import_nothing_heavy():
         assert r.stdout.strip().splitlines()[-1] == "[]", r.stdout
 
 
+def test_warm_check_imports_only_what_reading_cached_plans_needs():
+    """With every slot's plan cached, ``check --json`` loads the files and the plans: no
+    planning stack, no solver, no plotting, no rich, no importlib.metadata."""
+    argv = ["check", str(DEMO_CELL), str(ROOT / "tasks" / "pick_place.yaml"), "--json"]
+    assert _run(*argv).returncode == 0  # fills the plan cache (cold or warm)
+    unneeded = (*HEAVY, "scipy", "matplotlib", "coal", "rich", "importlib.metadata")
+    code = (
+        "import sys\nfrom cellrunner.cli.main import main\ntry:\n    rc = main(%r)\n"
+        "except SystemExit as e:\n    rc = e.code\n"
+        "print([m for m in %r if m in sys.modules])\nsys.exit(rc)"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code % (argv, unneeded)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+    )
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip().splitlines()[-1] == "[]", r.stdout[-300:]
+
+
 def test_validate_ok():
     r = _run("validate", "cells/demo_ur5e.yaml")
     assert r.returncode == 0, r.stderr

@@ -42,7 +42,7 @@ def test_conveyor_near_the_shoulder_is_named_with_the_links_it_blocks():
         "(mostly the "
     ), first
     assert first.count("elbow up") + first.count("elbow down") == 8  # each branch and why
-    assert "elbow in fixture 'conveyor'" in first and "mm deep" in first
+    assert "forearm in fixture 'conveyor'" in first and "mm deep" in first
     assert first.endswith(
         "fix: move the frame away from fixture 'conveyor', or approach from another direction "
         "(turn the frame's rpy)"
@@ -124,7 +124,7 @@ def test_every_unit_slip_in_a_cell_and_task_gets_a_did_you_mean():
         ),
     ]
     assert len(lines) == len(expected), "\n".join(lines)
-    for line, (start, part) in zip(lines, expected):
+    for line, (start, part) in zip(lines, expected, strict=True):
         assert line.startswith(start), line
         assert part in line, line
 

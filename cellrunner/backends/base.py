@@ -17,7 +17,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from cellrunner.errors import BackendError  # noqa: F401 (re-exported: backends raise it)
+from cellrunner.errors import BackendError as BackendError  # re-exported: backends raise it
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 

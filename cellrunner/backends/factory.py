@@ -4,6 +4,9 @@ for the backend in use."""
 
 from __future__ import annotations
 
+from typing import Any
+
+from cellrunner.backends.base import RobotBackend
 from cellrunner.errors import UsageError
 from cellrunner.model.load import LoadedCell
 
@@ -12,7 +15,7 @@ def backend_kind(cell: LoadedCell, override: str | None) -> str:
     return override or cell.cell.robot.backend
 
 
-def make_backend(cell: LoadedCell, kind: str, host: str | None = None, **kw):
+def make_backend(cell: LoadedCell, kind: str, host: str | None = None, **kw: Any) -> RobotBackend:
     """The backend for ``cell``: ``sim`` (the MuJoCo twin in-process) or ``ur``."""
     if kind == "sim":
         from cellrunner.backends.sim.backend import SimBackend
@@ -36,7 +39,7 @@ def make_backend(cell: LoadedCell, kind: str, host: str | None = None, **kw):
             cell.spec,
             tcp_pose=tcp_pose_of(c.tool.tcp.matrix()),
             payload_kg=c.tool.payload.mass,
-            payload_cog_m=tuple(c.tool.payload.cog),
+            payload_cog_m=c.tool.payload.cog_m,
             robotiq_port=robotiq,
             **kw,
         )

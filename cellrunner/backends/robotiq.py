@@ -12,9 +12,13 @@ from __future__ import annotations
 
 import socket
 import threading
+from typing import TYPE_CHECKING
 
 from cellrunner.backends.base import BackendError
 from cellrunner.errors import PeerUnreachable
+
+if TYPE_CHECKING:
+    from cellrunner.sim.world import SimWorld
 
 PORT = 63352
 POLL_S = 0.02
@@ -23,7 +27,7 @@ POLL_S = 0.02
 class RobotiqClient:
     """Construct (no I/O), ``connect()`` (activates the gripper), ``close()``."""
 
-    def __init__(self, host: str, port: int = PORT, timeout_s: float = 2.0):
+    def __init__(self, host: str, port: int = PORT, timeout_s: float = 2.0) -> None:
         self.host, self.port, self.timeout_s = host, port, timeout_s
         self._sock: socket.socket | None = None
         self._lock = threading.Lock()
@@ -76,8 +80,12 @@ class RobotiqClient:
 
 
 def serve_robotiq(
-    host: str, world, stop: threading.Event, port: int = PORT, ready: threading.Event | None = None
-):
+    host: str,
+    world: SimWorld,
+    stop: threading.Event,
+    port: int = PORT,
+    ready: threading.Event | None = None,
+) -> None:
     """The gripper's socket for the twin: commands drive the twin's jaws (``RQ0``),
     ``GET OBJ`` reports its object sensor (``RQ_OBJ``). Runs until ``stop`` is set."""
     from cellrunner.model.gripper import ROBOTIQ_CLOSE, ROBOTIQ_OBJECT

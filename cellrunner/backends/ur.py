@@ -40,7 +40,7 @@ import contextlib
 import re
 import time
 from collections.abc import Generator, Iterator
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -49,7 +49,7 @@ from cellrunner.backends.ur_control import ControlLost, ControlProcess
 from cellrunner.backends.ur_io import IoConnectionLost, RtdeOutputWriter
 from cellrunner.backends.ur_probe import controller_version, generation_of
 from cellrunner.backends.ur_state import RtdeStateReader
-from cellrunner.errors import (
+from cellrunner.errors import (  # re-exported
     ConnectionLost,
     ControllerMismatch,
     PeerUnreachable,
@@ -71,9 +71,13 @@ def _drive(steps: Generator[None, None, _T]) -> _T:
         try:
             next(steps)
         except StopIteration as stop:
-            return stop.value
+            value: _T = stop.value
+            return value
         time.sleep(_POLL_S)
 
+
+if TYPE_CHECKING:
+    from cellrunner.backends.robotiq import RobotiqClient
 
 RECEIVE_VARIABLES = [
     "timestamp",
@@ -148,7 +152,7 @@ class URBackend:
         tcp_pose: tuple[float, ...] | None = None,
         payload_kg: float | None = None,
         payload_cog_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    ):
+    ) -> None:
         self.host = host
         self.spec = spec
         self.rate_hz = spec.rate_hz
@@ -159,7 +163,7 @@ class URBackend:
         self.reconnect_timeout_s = reconnect_timeout_s
         self.require_remote_control = require_remote_control
         self.robotiq_port = robotiq_port  # a Robotiq 2F on this controller's socket, or None
-        self._robotiq = None
+        self._robotiq: RobotiqClient | None = None
         # set on the controller at every connect: TCP as a UR pose in the flange frame
         # (m, rotation vector rad), payload mass (kg) and centre of gravity (m, flange)
         self.tcp_pose = tcp_pose
@@ -257,7 +261,8 @@ class URBackend:
         from cellrunner.model.geometry import tcp_pose_of
 
         self.tcp_pose = tcp_pose_of(T_flange_tcp)
-        self.payload_kg, self.payload_cog_m = payload_kg, tuple(payload_cog_m)
+        cx, cy, cz = payload_cog_m  # a list from a caller becomes the tuple kept
+        self.payload_kg, self.payload_cog_m = payload_kg, (cx, cy, cz)
         if self._control is None:
             return  # set at the next connect
         if self._servoing:  # standing still at a tool change; leave servo mode first

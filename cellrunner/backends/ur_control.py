@@ -86,7 +86,7 @@ class ControlProcess:
     """The parent's handle on one child; construct (no I/O), :meth:`start`, calls,
     :meth:`close`. Not thread-safe: the backend's control thread is its only user."""
 
-    def __init__(self, host: str, rate_hz: float, start_timeout_s: float):
+    def __init__(self, host: str, rate_hz: float, start_timeout_s: float) -> None:
         self.host = host
         self.rate_hz = rate_hz
         self.start_timeout_s = start_timeout_s

@@ -35,7 +35,7 @@ class IoConnectionLost(ConnectionLost):
 class RtdeOutputWriter:
     """Set controller outputs over one RTDE connection; construct, ``connect``, ``close``."""
 
-    def __init__(self, host: str, port: int = 30004, timeout_s: float = 3.0):
+    def __init__(self, host: str, port: int = 30004, timeout_s: float = 3.0) -> None:
         self.host, self.port, self.timeout_s = host, port, timeout_s
         self._sock: socket.socket | None = None
         self._recipe_ids: dict[str, int] = {}

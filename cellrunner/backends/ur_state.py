@@ -10,6 +10,7 @@ backend uses. ``isConnected()`` turns False the moment the controller closes the
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import struct
 import threading
@@ -45,7 +46,7 @@ class RtdeStateReader:
         *,
         port: int = 30004,
         timeout_s: float = 3.0,
-    ):
+    ) -> None:
         self.host, self.rate_hz, self.variables, self.port, self.timeout_s = (
             host,
             rate_hz,
@@ -124,7 +125,7 @@ class RtdeStateReader:
         finally:
             self._connected = False
 
-    def isConnected(self) -> bool:  # noqa: N802 - ur_rtde's name, so the backend reads either
+    def isConnected(self) -> bool:  # ur_rtde's name, so the backend reads either
         return self._connected
 
     def disconnect(self) -> None:
@@ -132,59 +133,57 @@ class RtdeStateReader:
         sock, self._sock = self._sock, None
         self._connected = False
         if sock is not None:
-            try:
+            with contextlib.suppress(OSError):
                 sock.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
             sock.close()
 
     def _get(self, name: str) -> Any:
         return self._latest[name]
 
-    def getTimestamp(self) -> float:  # noqa: N802
+    def getTimestamp(self) -> float:
         return float(self._get("timestamp"))
 
-    def getActualQ(self) -> list[float]:  # noqa: N802
+    def getActualQ(self) -> list[float]:
         return list(self._get("actual_q"))
 
-    def getActualQd(self) -> list[float]:  # noqa: N802
+    def getActualQd(self) -> list[float]:
         return list(self._get("actual_qd"))
 
-    def getTargetQ(self) -> list[float]:  # noqa: N802
+    def getTargetQ(self) -> list[float]:
         return list(self._get("target_q"))
 
-    def getActualTCPForce(self) -> list[float]:  # noqa: N802
+    def getActualTCPForce(self) -> list[float]:
         return list(self._get("actual_TCP_force"))
 
-    def getRobotMode(self) -> int:  # noqa: N802
+    def getRobotMode(self) -> int:
         return int(self._get("robot_mode"))
 
-    def getSafetyMode(self) -> int:  # noqa: N802
+    def getSafetyMode(self) -> int:
         return int(self._get("safety_mode"))
 
-    def getRobotStatus(self) -> int:  # noqa: N802
+    def getRobotStatus(self) -> int:
         return int(self._get("robot_status_bits"))
 
-    def getSafetyStatusBits(self) -> int:  # noqa: N802
+    def getSafetyStatusBits(self) -> int:
         return int(self._get("safety_status_bits"))
 
-    def getRuntimeState(self) -> int:  # noqa: N802
+    def getRuntimeState(self) -> int:
         return int(self._get("runtime_state"))
 
-    def getActualDigitalInputBits(self) -> int:  # noqa: N802
+    def getActualDigitalInputBits(self) -> int:
         return int(self._get("actual_digital_input_bits"))
 
-    def getActualDigitalOutputBits(self) -> int:  # noqa: N802
+    def getActualDigitalOutputBits(self) -> int:
         return int(self._get("actual_digital_output_bits"))
 
-    def getStandardAnalogInput0(self) -> float:  # noqa: N802
+    def getStandardAnalogInput0(self) -> float:
         return float(self._get("standard_analog_input0"))
 
-    def getStandardAnalogInput1(self) -> float:  # noqa: N802
+    def getStandardAnalogInput1(self) -> float:
         return float(self._get("standard_analog_input1"))
 
-    def getStandardAnalogOutput0(self) -> float:  # noqa: N802
+    def getStandardAnalogOutput0(self) -> float:
         return float(self._get("standard_analog_output0"))
 
-    def getStandardAnalogOutput1(self) -> float:  # noqa: N802
+    def getStandardAnalogOutput1(self) -> float:
         return float(self._get("standard_analog_output1"))

@@ -4,6 +4,9 @@ poses touching one fixed point, least squares with its residual, written into
 
 from __future__ import annotations
 
+import argparse
+from typing import TYPE_CHECKING
+
 from cellrunner.commissioning.arm import ArmReader
 from cellrunner.commissioning.cellfile import pose_edit
 from cellrunner.commissioning.session import Operator, offer
@@ -11,11 +14,14 @@ from cellrunner.commissioning.tcp import MIN_POSES, solve_tcp, too_alike
 from cellrunner.errors import UsageError
 from cellrunner.model.load import load_cell
 
+if TYPE_CHECKING:
+    import numpy as np
+
 #: refused poses allowed in one session before giving up
 MAX_REFUSED = 20
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     cell = load_cell(args.cell)
     host = args.robot_host or cell.cell.robot.host
     if not host:
@@ -28,7 +34,8 @@ def run(args) -> int:
     operator = Operator()
     reader = ArmReader(cell, host)
     reader.connect()
-    taken, refused = [], 0
+    taken: list[np.ndarray] = []
+    refused = 0
     try:
         while len(taken) < args.poses:
             operator.ask(

@@ -2,21 +2,33 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import re
 import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from rich.text import Text
 
 from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, step_table
 from cellrunner.model.expand import box_params, pattern_params
 from cellrunner.model.robots import JOINT_NAMES
 
+if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.progress import Progress, TaskID
 
-def run(args) -> int:
+    from cellrunner.model.load import LoadedTask
+    from cellrunner.model.params import ParamValue
+    from cellrunner.model.step import Step
+    from cellrunner.planning.task_plan import TaskPlan
+    from cellrunner.planning.world import CellWorld
+
+
+def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     cell, task = load(args.cell, args.task)
     params = parse_params(args.param, task)
@@ -49,9 +61,15 @@ def run(args) -> int:
     slots_checked = {name: list(slots) for name, slots in checked_params.items()}
     pattern = next(iter(pattern_params(task)), None)
     requested = [(pattern, params[pattern], e) for e in plan.errors] if pattern is not None else []
-    grouped = group_slot_failures([f for f in requested + failures if not isinstance(f[1], dict)])
+    grouped = group_slot_failures(
+        [
+            (n, s, e)
+            for n, s, e in requested + failures
+            if not isinstance(s, dict) and isinstance(s, int)
+        ]
+    )
     poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, dict)]
-    rows = [
+    rows: list[dict[str, Any]] = [
         {
             "index": r.step.index,
             "name": r.step.name,
@@ -61,7 +79,7 @@ def run(args) -> int:
             "message": r.message,
             "attempts": 0,
         }
-        for r in plan.rows
+        for r in [*plan.rows, *plan.on_error]  # on_error's rows: verified from every state
     ]
     if args.save_plan and not errors:
         _save_plan(Path(args.save_plan), world, plan)
@@ -84,6 +102,10 @@ def run(args) -> int:
             }
         )
     else:
+        from rich.text import Text  # human output only: --json needs no rich
+
+        assert out is not None  # a console unless --json
+
         title = f"check {task.name} on {cell.cell.cell} ({cell.cell.robot.model})" + (
             f"  params: {_params_text(params)}" if params else ""
         )
@@ -136,7 +158,7 @@ def _lines(message: str) -> str:
     return first + "".join(f"\n    {part}" for part in rest)
 
 
-def _params_text(params: dict) -> str:
+def _params_text(params: dict[str, Any]) -> str:
     return ", ".join(f"{k}={v}" for k, v in params.items())
 
 
@@ -144,11 +166,15 @@ class _Counter:
     """What a progress bar is told: a plan starts (``plan(label)`` returns its ``on_step``),
     or plans finished elsewhere (``skip(n)``, e.g. in a forked child)."""
 
-    def __init__(self, progress=None, steps_per_plan: int = 0):
+    def __init__(
+        self,
+        progress: tuple[Progress, tuple[TaskID, TaskID]] | None = None,
+        steps_per_plan: int = 0,
+    ) -> None:
         self._progress, self._steps_per_plan = progress, steps_per_plan
         self._started = 0
 
-    def plan(self, label: str):
+    def plan(self, label: str) -> Callable[[Step], None] | None:
         if self._progress is None:
             return None
         progress, (slots, steps) = self._progress
@@ -163,7 +189,7 @@ class _Counter:
         self._started += 1
         progress.update(slots, detail=label)
 
-        def on_step(step) -> None:
+        def on_step(step: Step) -> None:
             progress.advance(steps)
             progress.update(steps, detail=step.label)
 
@@ -177,7 +203,7 @@ class _Counter:
 
 
 @contextmanager
-def _progress(out, n_plans: int, steps_per_plan: int):
+def _progress(out: Console | None, n_plans: int, steps_per_plan: int) -> Iterator[_Counter]:
     """A progress bar over the plans (slots) and their steps on ``out`` (none when None);
     yields a :class:`_Counter`."""
     if out is None:
@@ -235,8 +261,13 @@ def slot_range_text(name: str, slots: list[int]) -> str:
 
 
 def _check_other_slots(
-    world, task, params, others: list[dict], use_cache: bool, progress: _Counter
-) -> list[tuple[str, int, str]]:
+    world: CellWorld,
+    task: LoadedTask,
+    params: dict[str, ParamValue],
+    others: list[dict[str, ParamValue]],
+    use_cache: bool,
+    progress: _Counter,
+) -> list[tuple[str, ParamValue, str]]:
     """Every other slot of every pattern (``others``: their params); the slots to plan
     afresh are shared with a forked child when a second core is free (:func:`_plan_split`).
     Returns (param, slot, error) for each error found."""
@@ -263,8 +294,12 @@ def _check_other_slots(
 
 
 def _slot_errors(
-    world, task, slots: list[dict], use_cache: bool, progress: _Counter | None = None
-) -> list[tuple[dict, list[str]]]:
+    world: CellWorld,
+    task: LoadedTask,
+    slots: list[dict[str, ParamValue]],
+    use_cache: bool,
+    progress: _Counter | None = None,
+) -> list[tuple[dict[str, ParamValue], list[str]]]:
     from cellrunner.planning.cache import plan_cached
 
     progress = progress or _Counter()
@@ -285,8 +320,12 @@ def _slot_errors(
 
 
 def _plan_split(
-    world, task, slots: list[dict], use_cache: bool, progress: _Counter
-) -> list[tuple[dict, list[str]]]:
+    world: CellWorld,
+    task: LoadedTask,
+    slots: list[dict[str, ParamValue]],
+    use_cache: bool,
+    progress: _Counter,
+) -> list[tuple[dict[str, ParamValue], list[str]]]:
     """``_slot_errors`` of every slot, half of them in a forked child process when this
     process may run on more than one core (planning is single-threaded Python). The
     child inherits the loaded cell; it sends back only the errors. If it fails, the
@@ -324,20 +363,20 @@ def _plan_split(
     if found is None or len(found) != len(theirs):
         return [*_slot_errors(world, task, theirs, use_cache, progress), *results]
     progress.skip(len(theirs))
-    return [*zip(theirs, found), *results]
+    return [*zip(theirs, found, strict=True), *results]
 
 
 #: how long the parent waits for the child's slots before planning them itself (s)
 CHILD_TIMEOUT_S = 120.0
 
 
-def _shown(value) -> str:
+def _shown(value: object) -> str:
     if isinstance(value, dict):
         return json.dumps(value, separators=(",", ":"))
     return str(value)
 
 
-def _save_plan(path: Path, world, plan) -> None:
+def _save_plan(path: Path, world: CellWorld, plan: TaskPlan) -> None:
     """The approved motion as streamed: one sample per controller period, degrees."""
     c = world.loaded.cell
     steps = []
@@ -358,6 +397,9 @@ def _save_plan(path: Path, world, plan) -> None:
         "model": c.robot.model,
         "rate_hz": world.spec.rate_hz,
         "joint_names": list(JOINT_NAMES),
+        "joint_range_deg": [
+            list(r) for r in zip(world.spec.joint_min_deg, world.spec.joint_max_deg, strict=True)
+        ],
         "mount": {"xyz": list(c.robot.mount.xyz), "rpy": list(c.robot.mount.rpy)},
         "tcp": {"xyz": list(c.tool.tcp.xyz), "rpy": list(c.tool.tcp.rpy)},
         "steps": steps,

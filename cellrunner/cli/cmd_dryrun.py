@@ -3,10 +3,11 @@ MuJoCo twin, with faults made to happen physically (``--inject FAULT@STEP``)."""
 
 from __future__ import annotations
 
+import argparse
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.markup import escape
 
@@ -29,26 +30,31 @@ from cellrunner.model.codes import ResultCode
 from cellrunner.model.step import StepKind
 from cellrunner.report.recorder import RunRecorder
 
+if TYPE_CHECKING:
+    from cellrunner.backends.sim.backend import SimBackend
+    from cellrunner.model.step import Step
+
 #: e-stop faults are released by the "operator" this long after they struck (sim s)
 PLC_OUTAGE_S = 2.0
 
 
-def _parts_end(backend) -> dict[str, list[float]]:
+def _parts_end(backend: SimBackend) -> dict[str, list[float]]:
     """Where each part of the twin ended (world position, m)."""
     world = backend.world
+    assert world is not None  # the run connected the backend
     return {
         p.name: [round(float(v), 5) for v in world.part_pose_world(p.name)[:3, 3]]
         for p in backend.description.parts
     }
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     cell, task = load(args.cell, args.task)
     params = parse_params(args.param, task)
     steps = expanded(cell, task, params)
     injections = parse_injections(args.inject, steps)
     if args.report:
-        from cellrunner.sim._mj import enable_pictures
+        from cellrunner.sim.mujoco_loader import enable_pictures
 
         enable_pictures()  # before MuJoCo is imported: it reads its GL backend once
     from cellrunner.backends.sim.backend import SimBackend
@@ -56,12 +62,12 @@ def run(args) -> int:
     from cellrunner.sim.from_cell import description_of
 
     world = CellWorld(cell)
-    backend = SimBackend(description_of(cell))
+    backend = SimBackend(description_of(cell, (task,)))
     pending: list[tuple[Injection, float]] = []
     report = Path(args.report) if args.report else None
     recorder = RunRecorder()
 
-    def on_step_start(step, attempt):
+    def on_step_start(step: Step, attempt: int) -> None:
         now = backend.read_state().time_s
         recorder.mark(now, step)
         for inj in injections:
@@ -118,6 +124,7 @@ def run(args) -> int:
         wall_run_s = time.perf_counter() - t_run
     job = controller.last_job
     result = controller.status().last_result
+    assert result is not None  # run_job returns once the job has ended
     code = ResultCode(result.result_code)
     rows = record_rows(job, steps)
     tracking = job.tracking_error_m if job else 0.0
@@ -144,6 +151,7 @@ def run(args) -> int:
     if report is not None:
         from cellrunner.report import write_report
 
+        assert backend.world is not None  # the run connected the twin
         has_pictures = write_report(
             report,
             recorder,
@@ -190,7 +198,7 @@ def run(args) -> int:
         if report is not None:
             out.print(f"report written to {report}/index.html", markup=False)
     if not has_pictures:
-        from cellrunner.sim._mj import GL_ADVICE
+        from cellrunner.sim.mujoco_loader import GL_ADVICE
 
         out.print(
             f"no pictures in the report: no OpenGL backend here ({GL_ADVICE} gives one)",
@@ -205,12 +213,12 @@ class _Rehearsal:
     progress, and records the run for the report (``recorder`` None: no report)."""
 
     backend: Any
-    pending: list
+    pending: list[tuple[Injection, float]]
     recorder: RunRecorder | None
     status: Any
-    steps: list
+    steps: list[Step]
     world: Any
-    io_names: dict  # IO name -> channel, for the report's IO lanes
+    io_names: dict[str, str]  # IO name -> channel, for the report's IO lanes
     plc_back_at: float | None = None
     last_step: int = -1
 

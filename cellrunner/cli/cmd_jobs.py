@@ -4,6 +4,7 @@ PostgreSQL one)."""
 
 from __future__ import annotations
 
+import argparse
 import csv
 import sys
 from datetime import datetime
@@ -27,7 +28,7 @@ COLUMNS = (
 )
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     if args.last < 1:
         raise UsageError(f"--last {args.last}: give a positive number of jobs")
     cell = load_cell(args.cell)

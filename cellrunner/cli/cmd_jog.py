@@ -3,13 +3,14 @@ terminal (see :mod:`cellrunner.commissioning.jog` for keys, dead-man and thresho
 
 from __future__ import annotations
 
+import argparse
 import sys
 
 from cellrunner.errors import UsageError
 from cellrunner.model.load import load_cell
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     cell = load_cell(args.cell)
     host = args.robot_host or cell.cell.robot.host
     if not host:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 
 from cellrunner.backends.factory import backend_kind, make_backend
@@ -15,7 +16,7 @@ from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     speed = getattr(args, "speed", 1.0)
     if not 0.0 < speed <= 1.0:
         raise UsageError(
@@ -70,6 +71,7 @@ def run(args) -> int:
         result = controller.status().last_result
     finally:
         controller.close()
+    assert result is not None  # run_job returns once the job has ended
     code = ResultCode(result.result_code)
     rows = record_rows(job)
     payload = {

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -9,7 +10,7 @@ from pathlib import Path
 from cellrunner.model.schema import cell_schema, task_schema
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     schemas = {"cell": cell_schema(), "task": task_schema()}
     if args.write:
         folder = Path(args.write)

@@ -3,9 +3,11 @@ journal, until SIGTERM (which stops motion, closes the running job with 107, exi
 
 from __future__ import annotations
 
+import argparse
 import signal
 import sys
 import threading
+from typing import TYPE_CHECKING
 
 from cellrunner.backends.factory import backend_kind, make_backend
 from cellrunner.cli.logs import configure
@@ -14,11 +16,16 @@ from cellrunner.execution.journal import is_database_url
 from cellrunner.execution.journal_open import cell_journal
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner, warm_up
-from cellrunner.model.load import load_cell, load_task, serve_file_warnings
+from cellrunner.model.load import LoadedCell, load_cell, load_task, serve_file_warnings
 from cellrunner.plc.service import raise_thread_priority
 
+if TYPE_CHECKING:
+    from cellrunner.execution.context import EventLog
+    from cellrunner.plc.service import PlcService
+    from cellrunner.web.server import StatusServer
 
-def run(args) -> int:
+
+def run(args: argparse.Namespace) -> int:
     http = None
     if getattr(args, "http", None):
         from cellrunner.web.server import parse_address
@@ -87,7 +94,13 @@ def run(args) -> int:
     return 0
 
 
-def _status_page(controller: CellController, cell, service, address: tuple[str, int], log):
+def _status_page(
+    controller: CellController,
+    cell: LoadedCell,
+    service: PlcService | None,
+    address: tuple[str, int],
+    log: EventLog,
+) -> StatusServer:
     """The status page and /metrics on their own thread, reading the journal through
     their own connection."""
     from cellrunner.web.board import StatusBoard
@@ -116,7 +129,7 @@ def _status_page(controller: CellController, cell, service, address: tuple[str, 
     return server
 
 
-def _plc_service(controller: CellController, cell):
+def _plc_service(controller: CellController, cell: LoadedCell) -> PlcService | None:
     plc = cell.cell.plc
     if plc.modbus is None and plc.opcua is None:
         return None

@@ -4,6 +4,7 @@ cell file after showing the diff."""
 
 from __future__ import annotations
 
+import argparse
 import re
 
 import numpy as np
@@ -27,7 +28,7 @@ PROMPTS = (
 FRAME_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     if not FRAME_NAME.match(args.frame) or len(args.frame) > 64 or args.frame == "world":
         raise UsageError(
             f"frame name {args.frame!r}: use letters, digits, _ and - (not starting with a digit "

@@ -4,16 +4,21 @@ that ``run``/``serve --backend ur`` and the unmodified ur_rtde client work witho
 
 from __future__ import annotations
 
+import argparse
 import signal
 import sys
 import threading
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cellrunner.model.load import load_cell
 
+if TYPE_CHECKING:
+    from cellrunner.model.robots import RobotSpec
 
-def run(args) -> int:
+
+def run(args: argparse.Namespace) -> int:
     cell = load_cell(args.cell)
     for w in cell.warnings:
         sys.stderr.write(f"{w}\n")
@@ -24,9 +29,22 @@ def run(args) -> int:
     stop, ready = threading.Event(), threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
+    if cell.cell.cameras:
+        from cellrunner.sim.mujoco_loader import enable_pictures
+
+        enable_pictures()  # before MuJoCo is imported; without GL a grab says so
     physics = MujocoPhysics(description_of(cell))
     spec = cell.spec
-    threading.Thread(target=_announce, args=(ready, stop, args.host, spec), daemon=True).start()
+    cameras = None
+    if cell.cell.cameras:
+        from cellrunner.twin.camera import CameraServer
+
+        physics.reset(np.radians(cell.cell.robot.home))  # builds the world the cameras see
+        cameras = CameraServer(physics, args.host)
+        cameras.start()
+    threading.Thread(
+        target=_announce, args=(ready, stop, args.host, spec, cameras is not None), daemon=True
+    ).start()
     g = cell.cell.tool.gripper
     if g is not None and g.kind == "robotiq" and g.close is None:
         from cellrunner.backends.robotiq import serve_robotiq
@@ -37,20 +55,30 @@ def run(args) -> int:
         threading.Thread(
             target=serve_robotiq, args=(args.host, physics.world, stop, g.port), daemon=True
         ).start()
-    run_twin(
-        spec,
-        host=args.host,
-        physics=physics,
-        stop_event=stop,
-        ready=ready,
-        q_initial_rad=tuple(np.radians(cell.cell.robot.home)),
-    )
+    try:
+        run_twin(
+            spec,
+            host=args.host,
+            physics=physics,
+            stop_event=stop,
+            ready=ready,
+            q_initial_rad=tuple(np.radians(cell.cell.robot.home)),
+        )
+    finally:
+        if cameras is not None:
+            cameras.stop()
     return 0
 
 
-def _announce(ready: threading.Event, stop: threading.Event, host: str, spec) -> None:
+def _announce(
+    ready: threading.Event, stop: threading.Event, host: str, spec: RobotSpec, cameras: bool
+) -> None:
     if ready.wait(timeout=60) and not stop.is_set():
+        from cellrunner.twin.camera import CAMERA_PORT
+
         sys.stderr.write(
             f"virtual {spec.name.upper()} controller ({spec.generation}, {spec.rate_hz:g} Hz) on {host}: "
-            "dashboard 29999, RTDE 30004, script 30001-30003, faults 29990\n"
+            "dashboard 29999, RTDE 30004, script 30001-30003, faults 29990"
+            + (f", cameras {CAMERA_PORT}" if cameras else "")
+            + "\n"
         )

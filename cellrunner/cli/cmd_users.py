@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import argparse
 
-def run(args) -> int:
+
+def run(args: argparse.Namespace) -> int:
     from cellrunner.plc.users import run_users_command
 
     return run_users_command(args)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 
 from cellrunner.errors import Diagnostic, InputError
@@ -9,7 +10,7 @@ from cellrunner.model.load import load_cell, load_task, serve_file_warnings
 from cellrunner.model.source import display_name
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     errors: list[Diagnostic] = []
     try:
         cell = load_cell(args.cell)

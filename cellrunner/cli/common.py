@@ -5,11 +5,18 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cellrunner.errors import InputError, UsageError
 from cellrunner.model.expand import Step, expand, resolve_params
 from cellrunner.model.load import LoadedCell, LoadedTask, load_cell, load_task
+from cellrunner.model.params import ParamValue
+
+if TYPE_CHECKING:
+    from rich.console import Console, JustifyMethod
+    from rich.table import Table
+
+    from cellrunner.execution.cell import JobView
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -43,15 +50,15 @@ def parse_params(pairs: list[str], task: LoadedTask) -> dict[str, Any]:
         raise UsageError(exc.diagnostics[0].message) from None
 
 
-def expanded(cell: LoadedCell, task: LoadedTask, params: dict) -> list[Step]:
+def expanded(cell: LoadedCell, task: LoadedTask, params: dict[str, ParamValue]) -> list[Step]:
     return expand(task, cell.cell, params)
 
 
-def emit_json(payload: dict) -> None:
+def emit_json(payload: dict[str, Any]) -> None:
     sys.stdout.write(json.dumps(payload, indent=2, default=_default) + "\n")
 
 
-def _default(value):
+def _default(value: object) -> object:
     import numpy as np
 
     if isinstance(value, np.ndarray):
@@ -61,19 +68,21 @@ def _default(value):
     raise TypeError(type(value).__name__)
 
 
-def console():
+def console() -> Console:
     """A rich console on stderr (human output never pollutes --json on stdout)."""
     from rich.console import Console
 
     return Console(stderr=True, highlight=False)
 
 
-def step_table(title: str, rows: list[dict], extra_columns: tuple[str, ...] = ()):
+def step_table(
+    title: str, rows: list[dict[str, Any]], extra_columns: tuple[str, ...] = ()
+) -> Table:
     from rich.table import Table
     from rich.text import Text
 
     table = Table(title=title, title_justify="left", show_lines=False, pad_edge=False)
-    for name, justify in (
+    columns: tuple[tuple[str, JustifyMethod], ...] = (
         ("#", "right"),
         ("kind", "left"),
         ("name", "left"),
@@ -81,7 +90,8 @@ def step_table(title: str, rows: list[dict], extra_columns: tuple[str, ...] = ()
         ("status", "left"),
         *[(c, "right") for c in extra_columns],
         ("message", "left"),
-    ):
+    )
+    for name, justify in columns:
         table.add_column(name, justify=justify, overflow="fold")
     colors = {"ok": "green", "failed": "bold red", "not planned": "dim", "skipped": "dim"}
     for r in rows:
@@ -98,7 +108,7 @@ def step_table(title: str, rows: list[dict], extra_columns: tuple[str, ...] = ()
     return table
 
 
-def record_rows(job, steps=None) -> list[dict]:
+def record_rows(job: JobView | None, steps: list[Step] | None = None) -> list[dict[str, Any]]:
     """The ``steps`` of a ``--json`` report from a job's step records (a
     :class:`~cellrunner.execution.cell.JobView`; rows with status "not run" for ``steps``
     when the job has none, e.g. planning failed)."""

@@ -5,9 +5,10 @@ from __future__ import annotations
 import logging
 import sys
 from datetime import UTC
+from typing import Any
 
 
-def configure(fmt: str, cell: str):
+def configure(fmt: str, cell: str) -> Any:  # a structlog logger bound with the cell
     """A logger bound with ``cell``; events carry job_id, step and attempt when bound."""
     import structlog
 
@@ -35,7 +36,7 @@ class _JsonLines(logging.Handler):
 
     def emit(self, record: logging.LogRecord) -> None:
         import json
-        from datetime import datetime, timezone
+        from datetime import datetime
 
         try:
             line = json.dumps(
@@ -47,7 +48,7 @@ class _JsonLines(logging.Handler):
                 }
             )
             sys.stderr.write(line + "\n")
-        except Exception:  # noqa: BLE001 - logging must never raise
+        except Exception:  # logging must never raise
             self.handleError(record)
 
 
@@ -55,9 +56,9 @@ def _route_stdlib_logging(fmt: str) -> None:
     """Warnings and errors of the libraries through one handler: JSON lines with
     ``--log-format json`` (never a raw pymodbus line in a JSON log), plain text otherwise."""
     root = logging.getLogger()
-    for handler in list(root.handlers):
-        if getattr(handler, "_cellrunner", False):
-            root.removeHandler(handler)
+    for old in list(root.handlers):
+        if getattr(old, "_cellrunner", False):
+            root.removeHandler(old)
     handler: logging.Handler = _JsonLines() if fmt == "json" else logging.StreamHandler(sys.stderr)
     handler._cellrunner = True  # type: ignore[attr-defined]
     handler.setLevel(logging.WARNING)

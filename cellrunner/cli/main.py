@@ -10,6 +10,7 @@ import argparse
 import importlib
 import os
 import sys
+from typing import NoReturn
 
 from cellrunner import __version__
 
@@ -20,19 +21,42 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 # pydantic would scan every installed distribution for plugins at the first model (~10 ms)
 os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "1")
 
+
+def _skip_pydantic_plugin_loader() -> None:
+    """With plugins disabled, pydantic still imports its plugin loader at the first model,
+    and the loader imports importlib.metadata (~28 ms of CPU, measured) only to learn that
+    there are none: stand in for it with a loader that has none."""
+    if os.environ["PYDANTIC_DISABLE_PLUGINS"] not in ("1", "true", "__all__"):
+        return
+    if "pydantic.plugin._loader" not in sys.modules:
+        import types
+
+        loader = types.ModuleType("pydantic.plugin._loader")
+        loader.get_plugins = lambda: ()  # type: ignore[attr-defined]
+        sys.modules["pydantic.plugin._loader"] = loader
+
+
+_skip_pydantic_plugin_loader()
+
 EXIT_OK, EXIT_FAILED, EXIT_INPUT, EXIT_UNREACHABLE = 0, 1, 2, 3
 
 EPILOG = """exit codes: 0 success, 1 task infeasible or job failed, 2 invalid input,
 3 cannot reach the robot or a peer"""
 
 
+class _UsageExit(SystemExit):
+    """argparse's usage error as an exit 2 that keeps its one-line message (for --json)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(EXIT_INPUT)
+        self.message = message
+
+
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # argparse's own usage errors: exit 2, one line
+    def error(self, message: str) -> NoReturn:  # argparse's own usage errors: exit 2, one line
         self.print_usage(sys.stderr)
         sys.stderr.write(f"{self.prog}: error: {message}\n")
-        exit_ = SystemExit(EXIT_INPUT)
-        exit_.message = f"{self.prog}: error: {message}"  # for --json
-        raise exit_
+        raise _UsageExit(f"{self.prog}: error: {message}")
 
 
 def _params(p: argparse.ArgumentParser) -> None:
@@ -170,6 +194,25 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--yes", action="store_true", help="write the change without asking")
     p.set_defaults(module="calibrate_tcp")
+
+    p = sub.add_parser(
+        "calibrate-camera",
+        help="commissioning: a camera's pose from views of its board (hand-eye), into the cell file",
+    )
+    p.add_argument("cell")
+    p.add_argument("camera")
+    p.add_argument("--robot-host", metavar="H")
+    p.add_argument(
+        "--views", type=int, default=12, metavar="N", help="views to take, 6 to 40 (default 12)"
+    )
+    p.add_argument(
+        "--image-source",
+        metavar="S",
+        help="twin (default: the twin's rendered camera on the robot host) or MODULE:FACTORY, "
+        "a camera driver (see README)",
+    )
+    p.add_argument("--yes", action="store_true", help="write the change without asking")
+    p.set_defaults(module="calibrate_camera")
 
     p = sub.add_parser("schema", help="JSON Schema of cell and task files")
     p.add_argument("kind", nargs="?", choices=("cell", "task"), help="only this one")

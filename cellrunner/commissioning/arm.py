@@ -10,6 +10,7 @@ has set.
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 
@@ -25,9 +26,9 @@ STILL_RAD_S = 1e-3
 class ArmReader:
     """Measured joint angles of the arm at ``host``; ``connect`` before reading."""
 
-    def __init__(self, cell: LoadedCell, host: str, connect_timeout_s: float = 3.0):
+    def __init__(self, cell: LoadedCell, host: str, connect_timeout_s: float = 3.0) -> None:
         self.cell, self.host, self.connect_timeout_s = cell, host, connect_timeout_s
-        self._receive = None
+        self._receive: Any = None  # ur_rtde's RTDEReceiveInterface (untyped bindings)
 
     def connect(self) -> None:
         from cellrunner.backends.ur_probe import controller_version
@@ -65,4 +66,4 @@ class ArmReader:
             else:
                 readings.append(list(self._receive.getActualQ()))
             time.sleep(period_s)
-        return np.mean(np.array(readings), axis=0)
+        return np.asarray(np.mean(np.array(readings), axis=0))

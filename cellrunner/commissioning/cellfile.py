@@ -9,12 +9,17 @@ back and must carry exactly the new pose and nothing else changed, or nothing is
 from __future__ import annotations
 
 import difflib
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cellrunner.errors import CellrunnerError
+
+if TYPE_CHECKING:
+    from ruamel.yaml.comments import CommentedMap
 
 #: decimals written: 0.01 mm for xyz (m), 0.0001 deg for rpy
 XYZ_DECIMALS, RPY_DECIMALS = 5, 4
@@ -54,11 +59,16 @@ def _number(value: float, decimals: int) -> str:
     return "0" if text in ("-0", "") else text
 
 
-def _seq(values, decimals: int) -> str:
+def _seq(values: Iterable[float], decimals: int) -> str:
     return "[" + ", ".join(_number(float(v), decimals) for v in values) + "]"
 
 
-def pose_edit(path: Path, keys: tuple[str, ...], xyz_m, rpy_deg=None) -> PoseEdit:
+def pose_edit(
+    path: Path,
+    keys: tuple[str, ...],
+    xyz_m: Iterable[float],
+    rpy_deg: Iterable[float] | None = None,
+) -> PoseEdit:
     """The cell file at ``path`` with the pose at ``keys`` (``("frames", "pick")``,
     ``("tool", "tcp")``) set to ``xyz_m`` and, unless None, ``rpy_deg``; a missing pose
     is added as the first entry of its parent mapping. Raises CellFileError when the
@@ -79,7 +89,7 @@ def pose_edit(path: Path, keys: tuple[str, ...], xyz_m, rpy_deg=None) -> PoseEdi
     return PoseEdit(path, text, after)
 
 
-def _round_trip(text: str, path: Path):
+def _round_trip(text: str, path: Path) -> Any:  # ruamel's round-trip document
     from ruamel.yaml import YAML
     from ruamel.yaml.error import YAMLError
 
@@ -89,13 +99,15 @@ def _round_trip(text: str, path: Path):
         raise CellFileError(f"{path}: not valid YAML: {exc}") from None
 
 
-def _mapping_at(root, keys: tuple[str, ...], path: Path):
+def _mapping_at(root: Any, keys: tuple[str, ...], path: Path) -> CommentedMap | None:
+    from ruamel.yaml.comments import CommentedMap
+
     node = root
     for key in keys:
         if not hasattr(node, "get") or node.get(key) is None:
             return None
         node = node[key]
-    if not hasattr(node, "lc"):
+    if not isinstance(node, CommentedMap):  # a mapping keeps its line and column (lc)
         raise CellFileError(f"{path}: {'.'.join(keys)} is not a mapping")
     return node
 
@@ -117,7 +129,14 @@ def _flow_end(text: str, start: int, open_: str, close: str) -> int:
     raise ValueError("unbalanced brackets")
 
 
-def _splice(text: str, lines: list[str], node, keys, values: dict[str, str], path: Path) -> str:
+def _splice(
+    text: str,
+    lines: list[str],
+    node: CommentedMap,
+    keys: tuple[str, ...],
+    values: dict[str, str],
+    path: Path,
+) -> str:
     """Replace the xyz/rpy values of an existing pose mapping, flow or block."""
     where = ".".join(keys)
     edits = []  # (start, end, replacement)
@@ -152,7 +171,14 @@ def _splice(text: str, lines: list[str], node, keys, values: dict[str, str], pat
     return text
 
 
-def _insert(text: str, lines: list[str], root, keys, values: dict[str, str], path: Path) -> str:
+def _insert(
+    text: str,
+    lines: list[str],
+    root: Any,
+    keys: tuple[str, ...],
+    values: dict[str, str],
+    path: Path,
+) -> str:
     """Add a pose that is not in the file yet, as the first entry of its parent."""
     flow = "{" + ", ".join(f"{k}: {v}" for k, v in values.items()) + "}"
     parent = _mapping_at(root, keys[:-1], path)
@@ -174,7 +200,9 @@ def _insert(text: str, lines: list[str], root, keys, values: dict[str, str], pat
     return text[:at] + f"{' ' * col}{keys[-1]}: {flow}\n" + text[at:]
 
 
-def _check(path: Path, before: str, after: str, keys, values: dict[str, str]) -> None:
+def _check(
+    path: Path, before: str, after: str, keys: tuple[str, ...], values: dict[str, str]
+) -> None:
     """The edit changed the pose at ``keys`` to ``values`` and nothing else."""
     from ruamel.yaml import YAML
 

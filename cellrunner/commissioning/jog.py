@@ -15,8 +15,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from cellrunner.planning.collision import CollisionModel
+    from cellrunner.planning.kinematics import ArmKinematics
 
 #: dead-man: stop when no key repeat came within this long (s)
 DEADMAN_S = 0.2
@@ -64,7 +69,7 @@ class Verdict:
 
 
 def requested_qd(
-    kinematics, q_rad: np.ndarray, mode: str, axis: int, sign: int, speed: float
+    kinematics: ArmKinematics, q_rad: np.ndarray, mode: str, axis: int, sign: int, speed: float
 ) -> np.ndarray:
     """Joint speeds (rad/s) for jogging ``axis`` by ``sign`` at ``speed`` (fraction) in
     ``mode``: joints directly; base and tool as a TCP twist through a damped inverse of
@@ -77,13 +82,10 @@ def requested_qd(
     twist[axis] = (
         sign * speed * (LINEAR_SPEED_MPS if axis < 3 else math.radians(ANGULAR_SPEED_DEG_S))
     )
-    if mode == "base":
-        R = kinematics.T_world_base[:3, :3]
-    else:
-        R = kinematics.T_world_tcp(q_rad)[:3, :3]
+    R = kinematics.T_world_base[:3, :3] if mode == "base" else kinematics.T_world_tcp(q_rad)[:3, :3]
     twist_world = np.concatenate([R @ twist[:3], R @ twist[3:]])
     J = kinematics.jacobian_tcp(q_rad)
-    return J.T @ np.linalg.solve(J @ J.T + DAMPING**2 * np.eye(6), twist_world)
+    return np.asarray(J.T @ np.linalg.solve(J @ J.T + DAMPING**2 * np.eye(6), twist_world))
 
 
 def _ramp(value: float, slow: float, stop: float) -> float:
@@ -93,7 +95,7 @@ def _ramp(value: float, slow: float, stop: float) -> float:
 class Governor:
     """Scales a requested joint velocity near singularities and obstacles."""
 
-    def __init__(self, kinematics, collision):
+    def __init__(self, kinematics: ArmKinematics, collision: CollisionModel) -> None:
         self.kinematics, self.collision = kinematics, collision
         self._fixture_pairs: list[int] | None = None
 
@@ -148,7 +150,7 @@ class Governor:
         for k in closing:
             s = _ramp(m_then[k], CLEARANCE_SLOW_M, CLEARANCE_STOP_M)
             if s < scale:
-                scale, reason = s, f"{self._pair_name(k)} {m_then[k] * 1000:.0f} mm"
+                scale, reason = s, f"{self._pair_name(int(k))} {m_then[k] * 1000:.0f} mm"
         nearest = int(np.argmin(m_now)) if len(m_now) else None
         singularity = f"wrist {now.wrist_deg:.1f} deg, elbow {now.elbow_deg:.1f} deg, shoulder {now.shoulder_m * 1000:.0f} mm"
         if scale < MIN_SCALE:
@@ -170,9 +172,10 @@ class Governor:
         if not self._fixture_pairs:
             return np.empty(0)
         distances, required = self.collision.pair_distances(q_rad)
-        return distances[self._fixture_pairs] - required[self._fixture_pairs]
+        return np.asarray(distances[self._fixture_pairs] - required[self._fixture_pairs])
 
     def _pair_name(self, k: int) -> str:
+        assert self._fixture_pairs is not None  # named after the margins were measured
         a, b = self._labels[self._fixture_pairs[k]]
         return f"{a} to {b}"
 
@@ -180,7 +183,7 @@ class Governor:
 class DeadMan:
     """Which jog key is held, judged from key events and their auto-repeat."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.key: str | None = None
         self.last_s = 0.0
         self.repeats = 0

@@ -14,12 +14,16 @@ import sys
 import termios
 import time
 import tty
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
 from cellrunner.commissioning import jog
 from cellrunner.errors import PeerUnreachable
 from cellrunner.model.geometry import rpy_deg_of
+
+if TYPE_CHECKING:
+    from cellrunner.planning.world import CellWorld
 
 #: screen refresh and governor check period (s); the stream itself runs every period
 SCREEN_S = 0.1
@@ -31,13 +35,17 @@ MAX_SESSION_S = 4 * 3600.0
 class JogSession:
     """Construct, :meth:`connect`, :meth:`run` (until Esc), :meth:`close`."""
 
-    def __init__(self, world, host: str, mode: str = "joint", out=None):
+    def __init__(
+        self, world: CellWorld, host: str, mode: str = "joint", out: TextIO | None = None
+    ) -> None:
         self.world, self.host, self.mode = world, host, mode
         self.kinematics = world.kinematics
         self.governor = jog.Governor(self.kinematics, world.collision)
         self.speed_index = 1
         self.out = out if out is not None else sys.stdout
-        self._control = self._receive = None
+        # ur_rtde's RTDEControlInterface and RTDEReceiveInterface (untyped bindings)
+        self._control: Any = None
+        self._receive: Any = None
         self.status = "stopped"
 
     def connect(self) -> None:
@@ -132,7 +140,7 @@ class JogSession:
         name = f"J{axis + 1}" if self.mode == "joint" else ("X", "Y", "Z", "RX", "RY", "RZ")[axis]
         return f"{'+' if sign > 0 else '-'}{name}"
 
-    def _draw(self, q: np.ndarray, verdict) -> None:
+    def _draw(self, q: np.ndarray, verdict: jog.Verdict | None) -> None:
         T = self.kinematics.T_world_tcp(q)
         if verdict is None:
             verdict = self.governor.judge(q, np.zeros(6))

@@ -17,7 +17,7 @@ class Aborted(CellrunnerError):
 class Operator:
     """Questions on ``out``, answers read from ``source`` one line each."""
 
-    def __init__(self, source: IO[str] | None = None, out: IO[str] | None = None):
+    def __init__(self, source: IO[str] | None = None, out: IO[str] | None = None) -> None:
         self.source = source if source is not None else sys.stdin
         self.out = out if out is not None else sys.stderr
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from cellrunner.errors import CellrunnerError
 from cellrunner.model import geometry
+from cellrunner.model.cell import Cell
 from cellrunner.model.expand import frame_pose
 
 #: three taught points closer than this cannot fix a frame's axes (m)
@@ -46,7 +47,7 @@ def frame_from_points(p_origin: np.ndarray, p_x: np.ndarray, p_plane: np.ndarray
     return T
 
 
-def in_parent(cell, frame: str, T_world_frame: np.ndarray) -> tuple[list[float], list[float]]:
+def in_parent(cell: Cell, frame: str, T_world_frame: np.ndarray) -> tuple[list[float], list[float]]:
     """``xyz`` (m) and ``rpy`` (deg) of a frame as the cell file writes it: relative to its
     parent when it has one."""
     existing = cell.frames.get(frame)

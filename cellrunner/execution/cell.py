@@ -23,12 +23,13 @@ from collections.abc import Callable, Generator
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
+from typing import Any
 
 import numpy as np
 
 from cellrunner.backends.base import RobotBackend, Safety
 from cellrunner.errors import CellrunnerError, InputError
-from cellrunner.execution.context import JobContext, Motions, use_gripper
+from cellrunner.execution.context import EventLog, JobContext, Motions, use_gripper
 from cellrunner.execution.job import JobPhase, JobRunner, StepRecord
 from cellrunner.execution.journal import JobRecord, JournalBackend, JournalError
 from cellrunner.execution.packml import Command, Event, StateMachine, TransitionRefused
@@ -44,6 +45,7 @@ from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step, resolve_params
 from cellrunner.model.gripper import gripper_channels
 from cellrunner.model.load import LoadedCell, LoadedTask
+from cellrunner.model.params import ParamValue
 from cellrunner.model.timing import release_time_s
 
 #: Complete is shown this long before the cell resets itself to Idle
@@ -63,7 +65,7 @@ class JobPlan:
     planned_cycle_time_s: float
 
 
-Planner = Callable[[LoadedTask, dict, np.ndarray], JobPlan]
+Planner = Callable[[LoadedTask, dict[str, ParamValue], np.ndarray], JobPlan]
 
 
 @dataclass(frozen=True)
@@ -126,10 +128,10 @@ def _view_of(
 class _Job:
     job_id: str
     task: LoadedTask
-    params: dict
+    params: dict[str, ParamValue]
     client_job_id: str
     source: str
-    plan: Future | None = None
+    plan: Future[JobPlan] | None = None
     runner: JobRunner | None = None
     planned: JobPlan | None = None
 
@@ -143,12 +145,12 @@ class CellController:
         journal: JournalBackend,
         planner: Planner,
         *,
-        log=None,
+        log: EventLog | None = None,
         wait_for_unhold: bool = True,
         on_step_start: Callable[[Step, int], None] | None = None,
         on_job_start: Callable[[], None] | None = None,
         gate: Callable[[Step], bool] | None = None,
-    ):
+    ) -> None:
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
         self.planner, self.log = planner, log
         self.wait_for_unhold = wait_for_unhold
@@ -294,7 +296,7 @@ class CellController:
         return [(n, p.type, p.unit) for n, p in loaded.task.params.items()] if loaded else None
 
     def start_job(
-        self, task: str | int, params: dict, client_job_id: str, source: str
+        self, task: str | int, params: dict[str, Any], client_job_id: str, source: str
     ) -> JobTicket:
         with self._lock:
             if source == "opcua" and client_job_id:
@@ -439,12 +441,18 @@ class CellController:
             self._recovery = None
 
     def _recover(self) -> Generator[None, None, None]:
-        """Clearing (polled by :meth:`tick`): reconnect a lost link, re-arm after an
-        e-stop (power, brakes), each wait bounded by the backend."""
+        """Clearing (polled by :meth:`tick`): reconnect a lost link, unlock a protective stop
+        the job left behind (a job that ends in one, or is aborted while held), re-arm
+        after an e-stop (power, brakes), each wait bounded by the backend. The controller
+        refuses an unlock within 5 s of the stop: Clear fails then, and the next Clear
+        tries again."""
         error = None
         try:
             if self._safety is Safety.DISCONNECTED:
                 self.backend.connect()
+                yield
+            if self.backend.read_state().safety is Safety.PROTECTIVE_STOP:
+                self.backend.unlock_protective_stop()
                 yield
             yield from self.backend.recover_from_estop_steps()
         except CellrunnerError as exc:  # e.g. the e-stop is still pressed
@@ -615,7 +623,7 @@ class CellController:
         except sqlite3.Error as exc:  # disk full: the job goes on; its row is missing a step
             self._log("journal_failed", job_id=job.job_id, error=str(exc))
 
-    def _log(self, event: str, **kw) -> None:
+    def _log(self, event: str, **kw: Any) -> None:
         if self.log is not None:
             self.log.info(event, **kw)
 

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from cellrunner.backends.base import RobotBackend, RobotState
 from cellrunner.model.expand import Step
 from cellrunner.model.trajectory import ApprovedTrajectory
+
+if TYPE_CHECKING:
+    from cellrunner.model.cell import Gripper, Tool
 
 
 class Motions(Protocol):
@@ -28,8 +31,19 @@ class Motions(Protocol):
         """A verified trajectory from ``q_now_rad`` to ``step``'s goal (after a stop, a
         retry); raises InfeasibleError when none passes the checks."""
 
-    def tcp_position_m(self, q_rad: np.ndarray) -> np.ndarray:
-        """World position of the TCP at ``q_rad`` (for tracking error)."""
+    def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
+        """World position of the TCP at ``q_rad`` (for tracking error), with the tool
+        mounted at ``step`` (default: the one mounted at the start)."""
+
+
+class EventLog(Protocol):
+    """Where a job's events go (a structlog logger bound to the cell and job)."""
+
+    def info(self, event: str, **fields: Any) -> Any: ...
+
+    def warning(self, event: str, **fields: Any) -> Any: ...
+
+    def bind(self, **fields: Any) -> EventLog: ...
 
 
 @dataclass
@@ -54,26 +68,35 @@ class JobContext:
     gripper_open_s: float = 0.0  # a release waits at least this long: the jaws clear the part
     gripper_blow_off: tuple[str, float] | None = None  # (channel, pulse s) of a vacuum gripper
     gripper_kind: str = "io"
-    tools: dict = field(default_factory=dict)  # tool name -> its Gripper (change_tool switches)
+    tools: dict[str, Tool] = field(
+        default_factory=dict
+    )  # tool name -> its Gripper (change_tool switches)
     step_timeout_s: float = 60.0
     on_step_start: Callable[[Step, int], None] | None = None
     state: RobotState | None = None
     carry: Carry | None = None
     tracking_error_m: float = 0.0
     commanded_q: np.ndarray | None = None
-    log: object = None
-    notes: dict = field(default_factory=dict)
+    log: EventLog | None = None
+    notes: dict[str, Any] = field(default_factory=dict)
 
     @property
     def now_s(self) -> float:
         return self.state.time_s if self.state is not None else 0.0
+
+    @property
+    def last_state(self) -> RobotState:
+        """The state read last (steps run only after the runner's first read)."""
+        if self.state is None:
+            raise RuntimeError("no robot state has been read yet")
+        return self.state
 
     def read(self) -> RobotState:
         self.state = self.backend.read_state()
         return self.state
 
 
-def use_gripper(ctx: JobContext, gripper) -> None:
+def use_gripper(ctx: JobContext, gripper: Gripper | None) -> None:
     """Point the context's gripper channels at ``gripper`` (None: nothing mounted)."""
     from cellrunner.model.gripper import gripper_channels
     from cellrunner.model.timing import release_time_s

@@ -40,6 +40,10 @@ from cellrunner.execution.steps import (
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.step import StepKind
+from cellrunner.model.trajectory import ApprovedTrajectory
+
+#: one sample of a force step's trace: (time s, step index, wrist force above baseline N)
+ForceSample = tuple[float, int, float]
 
 #: after a contact stop, wait at most this long for the arm to stand still (s)
 STOP_WAIT_S = 1.0
@@ -59,7 +63,7 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
     baseline = yield from _baseline(ctx)
     args = step.args
     limit_N = args.force if step.kind == StepKind.MOVE_UNTIL_CONTACT else args.force.max
-    q_now = ctx.state.q_rad
+    q_now = ctx.last_state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
     if (
         approved is None
@@ -77,7 +81,7 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         if ctx.now_s == t_last:
             continue  # no new measurement this period (a late controller package)
         t_last = ctx.now_s
-        force_N = math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline)
+        force_N = math.dist(np.asarray(ctx.last_state.wrench_N[:3]).tolist(), baseline)
         trace.append((ctx.now_s, step.index, force_N))
         sensor = sensor_dropped(ctx)  # (the wrist load is the contact's business here)
         if sensor is not None:
@@ -120,10 +124,10 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
 
 def _retract(
     ctx: JobContext,
-    approved,
+    approved: ApprovedTrajectory,
     i_from: int,
     i_to: int,
-    trace: list,
+    trace: list[ForceSample],
     step: Step,
     baseline: list[float],
 ) -> Generator[None, None, None]:
@@ -136,7 +140,7 @@ def _retract(
             (
                 ctx.now_s,
                 step.index,
-                math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline),
+                math.dist(np.asarray(ctx.last_state.wrench_N[:3]).tolist(), baseline),
             )
         )
     yield from _until_still(ctx, trace, step, baseline)
@@ -147,15 +151,16 @@ def _baseline(ctx: JobContext) -> Generator[None, None, list[float]]:
     t0 = ctx.now_s
     while ctx.now_s - t0 < SETTLE_S + AVERAGE_S:
         if ctx.now_s - t0 >= SETTLE_S:
-            samples.append(np.asarray(ctx.state.wrench_N[:3], float))
+            samples.append(np.asarray(ctx.last_state.wrench_N[:3], float))
         yield
     if not samples:
-        samples.append(np.asarray(ctx.state.wrench_N[:3], float))
-    return np.mean(samples, axis=0).tolist()
+        samples.append(np.asarray(ctx.last_state.wrench_N[:3], float))
+    mean: list[float] = np.mean(samples, axis=0).tolist()
+    return mean
 
 
 def _until_still(
-    ctx: JobContext, trace: list, step: Step, baseline: list[float]
+    ctx: JobContext, trace: list[ForceSample], step: Step, baseline: list[float]
 ) -> Generator[None, None, None]:
     t0 = ctx.now_s
     while ctx.now_s - t0 < STOP_WAIT_S:
@@ -164,17 +169,18 @@ def _until_still(
             (
                 ctx.now_s,
                 step.index,
-                math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), baseline),
+                math.dist(np.asarray(ctx.last_state.wrench_N[:3]).tolist(), baseline),
             )
         )
-        if ctx.now_s - t0 > 0.05 and np.max(np.abs(ctx.state.qd_rad_s)) < STILL_RAD_S:
+        if ctx.now_s - t0 > 0.05 and np.max(np.abs(ctx.last_state.qd_rad_s)) < STILL_RAD_S:
             return
 
 
 def _depth_m(ctx: JobContext, step: Step) -> float:
     """How far past the insert's frame the TCP stands, along the frame's Z (m)."""
     T_end = step.T_world_tcp
+    assert T_end is not None  # an insert goes to a frame
     z = T_end[:3, 2]
     p_frame = T_end[:3, 3] - step.args.depth * z
-    p_tcp = ctx.motions.tcp_position_m(ctx.state.q_rad, step)
+    p_tcp = ctx.motions.tcp_position_m(ctx.last_state.q_rad, step)
     return float(np.dot(np.asarray(p_tcp) - p_frame, z))

@@ -15,15 +15,16 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from cellrunner.backends.base import BackendError, Safety
-from cellrunner.errors import CellrunnerError, InfeasibleError, PeerUnreachable
+from cellrunner.backends.base import Safety
+from cellrunner.errors import BackendError, CellrunnerError, InfeasibleError, PeerUnreachable
 from cellrunner.execution import steps as behaviours
 from cellrunner.execution.context import JobContext
 from cellrunner.execution.force import run_force
-from cellrunner.execution.steps import Outcome, run_motion, run_weigh
+from cellrunner.execution.steps import Outcome, StepGen, run_motion, run_weigh
 from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import ON_ERROR, Step
@@ -120,7 +121,7 @@ class JobRunner:
         self.records = {s.index: StepRecord(s.index, s.kind, s.name) for s in self.steps}
         self._agenda: list[_Item] = [_Item(s) for s in self.steps]
         self._current: _Item | None = None
-        self._gen = None
+        self._gen: StepGen | None = None
         self._item_started_s = 0.0
         self._item_timeout_s = 0.0
         self._hold_since_s = 0.0
@@ -207,7 +208,7 @@ class JobRunner:
         self._log("hold", reason=reason)
 
     def _tick_held(self) -> None:
-        state = self.ctx.state
+        state = self.ctx.last_state
         if self.phase is JobPhase.HOLDING and np.max(np.abs(state.qd_rad_s)) < 1e-3:
             self.phase = JobPhase.HELD
         if self._hold_reason != "protective stop":
@@ -251,7 +252,7 @@ class JobRunner:
     def _tick_execute(self) -> None:
         if self._current is None:
             return self._finish(*(self._pending_end or (ResultCode.OK, "")))
-        if self.ctx.state.time_s - self._item_started_s > self._item_timeout_s:
+        if self.ctx.last_state.time_s - self._item_started_s > self._item_timeout_s:
             self.ctx.backend.stop_motion()
             return self._finish(ResultCode.STEP_TIMEOUT, f"{self._label()} timed out")
         if self._gen is None:  # a reconnect or hold dropped the step's generator
@@ -364,22 +365,27 @@ class JobRunner:
         else:
             self._gen = _BEHAVIOURS[step.kind](self.ctx, step)
 
-    def _await_gate(self, item: _Item):
+    def _await_gate(self, item: _Item) -> StepGen:
         """Stand still until the gate opens, then start the item (its own behaviour runs
         from the next tick on)."""
-        while not self.gate(item.step):
+        gate = self.gate
+        assert gate is not None  # started only when there is a gate
+        while not gate(item.step):
             yield
         item.gated = True
         self._start_item(item)
         yield
+        return behaviours.OK  # not reached: _start_item replaced this generator
 
     def _on_outcome(self, outcome: Outcome) -> None:
         item = self._current
+        assert item is not None  # an outcome comes from the current item's behaviour
         step = item.step
         record = self.records[step.index]
         if outcome.ok:
             if not item.between and item.behaviour == "step":
                 record.status = StepStatus.OK
+                assert record.started_s is not None  # set when the step started
                 record.duration_s = self.ctx.now_s - record.started_s
                 self._journal(record, item.attempt)
             elif (
@@ -424,7 +430,9 @@ class JobRunner:
         record = self.records[grip.index]
         record.message = f"attempt {attempt - 1} failed: {why}"
         self._log("retry", attempt=attempt, why=why)
-        redo = [s for s in self.steps if grip.retry.redo_from <= s.index <= grip.index]
+        retry = grip.retry
+        assert retry is not None  # only a grip with a retry is retried
+        redo = [s for s in self.steps if retry.redo_from <= s.index <= grip.index]
         # everything after the grip not yet done; a failed weighing also redoes its lift
         rest = [
             _Item(s, attempt)
@@ -433,7 +441,7 @@ class JobRunner:
             and (self.records[s.index].status is StepStatus.PENDING or s.index == grip.index + 1)
         ]
         self._agenda = (
-            [_Item(b, attempt, between=True) for b in grip.retry.between]
+            [_Item(b, attempt, between=True) for b in retry.between]
             + [_Item(s, attempt) for s in redo]
             + rest
         )
@@ -506,6 +514,7 @@ class JobRunner:
         and the next one runs (best effort: outputs, then motions from where the arm
         stands); a fault ends cleanup. The job ends with the failure that started it;
         how on_error went is added to its message (each of its steps is journaled)."""
+        assert self._cleanup is not None  # cleanup ends only after it started
         first, why = self._cleanup
         if code is not ResultCode.OK:
             if self._current is not None:
@@ -549,7 +558,7 @@ class JobRunner:
         if ctx.commanded_q is None:
             return
         p_cmd = ctx.motions.tcp_position_m(ctx.commanded_q)
-        p_meas = ctx.motions.tcp_position_m(ctx.state.q_rad)
+        p_meas = ctx.motions.tcp_position_m(ctx.last_state.q_rad)
         error = math.dist(p_cmd.tolist(), p_meas.tolist())
         if error > ctx.tracking_error_m:
             ctx.tracking_error_m = error
@@ -561,7 +570,7 @@ class JobRunner:
         if self.on_step is not None:
             self.on_step(record, attempt)
 
-    def _log(self, event: str, **kw) -> None:
+    def _log(self, event: str, **kw: Any) -> None:
         """A structlog event bound with the step and attempt under way (the logger already
         carries cell and job_id)."""
         if self.ctx.log is not None:
@@ -574,11 +583,11 @@ class JobRunner:
             self.ctx.log.info(event, **fields)
 
 
-def _stand_still(ctx: JobContext):
+def _stand_still(ctx: JobContext) -> StepGen:
     """Wait (at most 2 s) until the arm stands still: after a failure's stop ramp, before
     the first on_error motion."""
     t0 = ctx.now_s
-    while np.max(np.abs(ctx.state.qd_rad_s)) > 1e-3 and ctx.now_s - t0 < 2.0:
+    while np.max(np.abs(ctx.last_state.qd_rad_s)) > 1e-3 and ctx.now_s - t0 < 2.0:
         yield
     yield
     return behaviours.OK

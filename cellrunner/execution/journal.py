@@ -21,7 +21,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from cellrunner.errors import CellrunnerError
 from cellrunner.model.codes import ResultCode
@@ -65,7 +65,7 @@ class JobRecord:
     client_job_id: str | None
     cell: str
     task: str
-    params: dict
+    params: dict[str, Any]
     source: str
     started_at: float
     ended_at: float | None
@@ -100,7 +100,7 @@ class JournalBackend(Protocol):
         job_id: str,
         cell: str,
         task: str,
-        params: dict,
+        params: dict[str, Any],
         source: str,
         client_job_id: str | None = None,
     ) -> None: ...
@@ -128,7 +128,7 @@ class JournalBackend(Protocol):
     def last(self, n: int = 20) -> list[JobRecord]: ...
     def last_finished(self) -> JobRecord | None: ...
     def counters(self) -> tuple[int, int]: ...
-    def steps_of(self, job_id: str) -> list[tuple]: ...
+    def steps_of(self, job_id: str) -> list[tuple[Any, ...]]: ...
 
 
 def is_database_url(location: str) -> bool:
@@ -152,17 +152,17 @@ class SqliteJournal:
     FULL), so a crash right after a call never loses what it wrote. ``cell`` scopes
     what is read and closed to one cell (None: every cell in the file)."""
 
-    def __init__(self, path: str | Path, cell: str | None = None):
+    def __init__(self, path: str | Path, cell: str | None = None) -> None:
         self.path = Path(path)
         self.cell = cell
         self._db: sqlite3.Connection | None = None
         self._lock = threading.Lock()  # the control thread and the PLC threads share the connection
 
-    def _execute(self, sql: str, args: tuple = ()) -> sqlite3.Cursor:
+    def _execute(self, sql: str, args: tuple[Any, ...] = ()) -> sqlite3.Cursor:
         with self._lock:
             return self.db.execute(sql, args)
 
-    def _fetchall(self, sql: str, args: tuple = ()) -> list[tuple]:
+    def _fetchall(self, sql: str, args: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
         with self._lock:
             return self.db.execute(sql, args).fetchall()
 
@@ -215,7 +215,7 @@ class SqliteJournal:
         job_id: str,
         cell: str,
         task: str,
-        params: dict,
+        params: dict[str, Any],
         source: str,
         client_job_id: str | None = None,
     ) -> None:
@@ -268,7 +268,8 @@ class SqliteJournal:
         open_jobs = self._select("ended_at IS NULL")
         for job in open_jobs:
             self.end_job(job.job_id, ResultCode.INTERRUPTED, None, job.retries)
-        return [self.get(job.job_id) for job in open_jobs]
+        closed = (self.get(job.job_id) for job in open_jobs)
+        return [record for record in closed if record is not None]
 
     def get(self, job_id: str) -> JobRecord | None:
         rows = self._select("job_id = ?", (job_id,))
@@ -300,21 +301,25 @@ class SqliteJournal:
         )
         return int(ok or 0), int(nok or 0)
 
-    def steps_of(self, job_id: str) -> list[tuple]:
+    def steps_of(self, job_id: str) -> list[tuple[Any, ...]]:
         return self._fetchall(
             "SELECT step_index, kind, name, status, attempt, at, message FROM steps WHERE job_id = ? "
             "ORDER BY rowid",
             (job_id,),
         )
 
-    def _where(self, cond: str, args: tuple) -> tuple[str, tuple]:
+    def _where(self, cond: str, args: tuple[Any, ...]) -> tuple[str, tuple[Any, ...]]:
         """``WHERE cond``, narrowed to this journal's cell."""
         if self.cell is None:
             return f"WHERE {cond}", args
         return f"WHERE cell = ? AND ({cond})", (self.cell, *args)
 
     def _select(
-        self, cond: str, args: tuple = (), order: str = "", order_args: tuple = ()
+        self,
+        cond: str,
+        args: tuple[Any, ...] = (),
+        order: str = "",
+        order_args: tuple[Any, ...] = (),
     ) -> list[JobRecord]:
         where, args = self._where(cond, args)
         rows = self._fetchall(

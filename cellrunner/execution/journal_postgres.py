@@ -21,6 +21,7 @@ psycopg (3) is imported only when a ``postgresql://`` journal is used.
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import sys
 import threading
@@ -81,7 +82,7 @@ class _Write:
     """One queued statement (``sql`` None: a marker that only reports the queue drained)."""
 
     sql: str | None
-    args: tuple = ()
+    args: tuple[Any, ...] = ()
     done: threading.Event = field(default_factory=threading.Event)
     cancelled: bool = False
     error: str = ""
@@ -97,7 +98,7 @@ class PostgresJournal:
         *,
         begin_timeout_s: float = BEGIN_TIMEOUT_S,
         flush_timeout_s: float = FLUSH_TIMEOUT_S,
-    ):
+    ) -> None:
         self.url, self.cell = url, cell
         self.begin_timeout_s, self.flush_timeout_s = begin_timeout_s, flush_timeout_s
         self._queue: queue.Queue[_Write | None] = queue.Queue()
@@ -160,7 +161,7 @@ class PostgresJournal:
         job_id: str,
         cell: str,
         task: str,
-        params: dict,
+        params: dict[str, Any],
         source: str,
         client_job_id: str | None = None,
     ) -> None:
@@ -232,7 +233,8 @@ class PostgresJournal:
         for job in open_jobs:
             self.end_job(job.job_id, ResultCode.INTERRUPTED, None, job.retries)
         self._drain()
-        return [self.get(job.job_id) for job in open_jobs]
+        closed = (self.get(job.job_id) for job in open_jobs)
+        return [record for record in closed if record is not None]
 
     # ------------------------------------------------------------------ reads
     def get(self, job_id: str) -> JobRecord | None:
@@ -260,7 +262,7 @@ class PostgresJournal:
         """(parts processed, parts defective) of this cell, kept in memory (no I/O)."""
         return self._counters[0], self._counters[1]
 
-    def steps_of(self, job_id: str) -> list[tuple]:
+    def steps_of(self, job_id: str) -> list[tuple[Any, ...]]:
         return self._read(
             "SELECT step_index, kind, name, status, attempt, at, message FROM cellrunner_steps "
             "WHERE job_id = %s ORDER BY seq",
@@ -269,7 +271,11 @@ class PostgresJournal:
 
     # ------------------------------------------------------------------ internals
     def _select(
-        self, cond: str, args: tuple = (), order: str = "", order_args: tuple = ()
+        self,
+        cond: str,
+        args: tuple[Any, ...] = (),
+        order: str = "",
+        order_args: tuple[Any, ...] = (),
     ) -> list[JobRecord]:
         if self.cell is not None:
             cond, args = f"cell = %s AND ({cond})", (self.cell, *args)
@@ -278,7 +284,7 @@ class PostgresJournal:
         )
         return [JobRecord(*r) for r in rows]
 
-    def _read(self, sql: str, args: tuple) -> list[tuple]:
+    def _read(self, sql: str, args: tuple[Any, ...]) -> list[tuple[Any, ...]]:
         """Run a query on the read connection, reconnecting once if it was lost."""
         import psycopg
 
@@ -287,7 +293,8 @@ class PostgresJournal:
                 try:
                     if self._read_conn is None or self._read_conn.closed:
                         self._read_conn = self._connect()
-                    return self._read_conn.execute(sql, args).fetchall()
+                    rows: list[tuple[Any, ...]] = self._read_conn.execute(sql, args).fetchall()
+                    return rows
                 except (psycopg.OperationalError, psycopg.InterfaceError) as exc:
                     self._drop_read()
                     if attempt == 2:
@@ -301,13 +308,11 @@ class PostgresJournal:
 
     def _drop_read(self) -> None:
         if self._read_conn is not None:
-            try:
+            with contextlib.suppress(Exception):
                 self._read_conn.close()
-            except Exception:
-                pass
         self._read_conn = None
 
-    def _enqueue(self, sql: str | None, args: tuple = ()) -> _Write:
+    def _enqueue(self, sql: str | None, args: tuple[Any, ...] = ()) -> _Write:
         if self._writer is None:
             raise JournalError("journal is not open")
         item = _Write(sql, args)
@@ -372,10 +377,8 @@ class PostgresJournal:
 
     def _drop_write(self) -> None:
         if self._write_conn is not None:
-            try:
+            with contextlib.suppress(Exception):
                 self._write_conn.close()
-            except Exception:
-                pass
         self._write_conn = None
 
     def _connect(self) -> Any:

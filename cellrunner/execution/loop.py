@@ -28,7 +28,7 @@ class ControlLoop:
 
     def __init__(
         self, cell: CellController, *, realtime: bool = False, observers: tuple[Observer, ...] = ()
-    ):
+    ) -> None:
         self.cell = cell
         self.realtime = realtime
         self.period_s = 1.0 / cell.backend.rate_hz

@@ -21,7 +21,7 @@ class PacedMotions:
     """A job's :class:`Motions` streamed at ``speed`` x the approved pace: the very path
     ``check`` approved, stretched in time only (see :func:`time_scaled`)."""
 
-    def __init__(self, motions: Motions, speed: float):
+    def __init__(self, motions: Motions, speed: float) -> None:
         if not 0.0 < speed <= 1.0:
             raise ValueError(f"speed {speed:g} is outside (0, 1]")
         self.motions, self.speed = motions, speed
@@ -36,8 +36,8 @@ class PacedMotions:
     def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
         return time_scaled(self.motions.replan(step, q_now_rad, carrying), self.speed)
 
-    def tcp_position_m(self, q_rad: np.ndarray) -> np.ndarray:
-        return self.motions.tcp_position_m(q_rad)
+    def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
+        return self.motions.tcp_position_m(q_rad, step)
 
 
 class EnterGate:
@@ -50,8 +50,8 @@ class EnterGate:
         describe: Callable[[Step], str],
         source: IO[str] | None = None,
         out: IO[str] | None = None,
-        on_end: Callable[[], None] | None = None,
-    ):
+        on_end: Callable[[], object] | None = None,
+    ) -> None:
         self.describe = describe
         self.on_end = on_end  # called (once) when a step waits and the input has ended
         self.source = source if source is not None else sys.stdin

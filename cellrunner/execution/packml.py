@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import enum
 
-from cellrunner.errors import TransitionRefused  # noqa: F401 (re-exported)
+from cellrunner.errors import TransitionRefused as TransitionRefused  # re-exported
 from cellrunner.model.codes import PackMLState as State
 
 
@@ -119,7 +119,7 @@ COMPLETES: dict[State, State] = {
 class StateMachine:
     """The current PackML state and its legal moves; knows nothing of robots."""
 
-    def __init__(self, initial: State = S.STOPPED):
+    def __init__(self, initial: State = S.STOPPED) -> None:
         self.state = initial
 
     def allowed(self) -> list[Command]:

@@ -11,9 +11,11 @@ import numpy as np
 from cellrunner.errors import InfeasibleError
 from cellrunner.execution.cell import JobPlan, Planner
 from cellrunner.model.load import LoadedTask
+from cellrunner.model.params import ParamValue
 
 if TYPE_CHECKING:
     from cellrunner.planning.task_plan import TaskPlan
+    from cellrunner.planning.world import CellWorld
 
 #: a start this close to home (max over joints, rad) is planned from home, so that jobs
 #: that begin at home reuse the cached plan
@@ -21,7 +23,7 @@ HOME_SNAP_RAD = 1e-3
 
 
 def job_planner(
-    world, *, use_cache: bool = True, speed: float = 1.0, joined: bool = True
+    world: CellWorld, *, use_cache: bool = True, speed: float = 1.0, joined: bool = True
 ) -> Planner:
     """``speed`` < 1 streams the approved motions slower, in time only (run --speed);
     ``joined=False`` plans every motion to end at rest (run --step)."""
@@ -29,7 +31,7 @@ def job_planner(
     from cellrunner.model.expand import expand_on_error
     from cellrunner.planning.cache import plan_cached
 
-    def plan(task: LoadedTask, params: dict, q_now_rad: np.ndarray) -> JobPlan:
+    def plan(task: LoadedTask, params: dict[str, ParamValue], q_now_rad: np.ndarray) -> JobPlan:
         q = np.asarray(q_now_rad, float)
         if np.max(np.abs(q - world.q_home_rad)) < HOME_SNAP_RAD:
             q = world.q_home_rad
@@ -60,7 +62,7 @@ def _verify_ahead(task_plan: TaskPlan) -> None:
                 return
 
 
-def warm_up(world) -> None:
+def warm_up(world: CellWorld) -> None:
     """Do now what the first job's planning would do lazily: import the planning stack
     (pinocchio, coal, OMPL, TOPP-RA) and build the cell's kinematics, collision model and
     limits, so the first job is acknowledged as fast as any other (``serve`` calls this

@@ -14,10 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cellrunner.backends.base import RobotState
 from cellrunner.execution.context import Carry, JobContext
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.step import StepKind
+from cellrunner.model.trajectory import ApprovedTrajectory
 
 StepGen = Generator[None, None, "Outcome"]
 
@@ -51,7 +53,7 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     """Stream the approved trajectory of ``step``; replan from where the arm is when it
     does not stand at the trajectory's start (after a stop or a retry). Force steps run
     through :func:`~cellrunner.execution.force.run_force` instead."""
-    q_now = ctx.state.q_rad
+    q_now = ctx.last_state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
     # the last set-point streamed is this trajectory's start: the arm is on its way there
     # (servo lag, more under load), so the approved trajectory continues; else it must stand there
@@ -69,7 +71,7 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
         or (
             ctx.motions.continues(step)
             and not (on_its_way and _streamed_into(ctx, approved))
-            and _at_rest_for(approved, ctx.state)
+            and _at_rest_for(approved, ctx.last_state)
         )
     ):
         approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
@@ -117,7 +119,7 @@ def check_place(ctx: JobContext, step: Step) -> Outcome:
     return OK
 
 
-def _streamed_into(ctx: JobContext, approved) -> bool:
+def _streamed_into(ctx: JobContext, approved: ApprovedTrajectory) -> bool:
     """The set-points just streamed ran into this continuation at its speed (the motion
     before ended moving, as planned): judged from the commands, not from the measured
     speed, which lags the stream (more so at a reduced pace or under load)."""
@@ -125,10 +127,10 @@ def _streamed_into(ctx: JobContext, approved) -> bool:
     if len(q) < 2:
         return False
     planned_rad_s = float(np.abs(q[1] - q[0]).max()) * approved.trajectory.rate_hz
-    return ctx.notes.get("end_rad_s", 0.0) >= 0.5 * planned_rad_s
+    return bool(ctx.notes.get("end_rad_s", 0.0) >= 0.5 * planned_rad_s)
 
 
-def _at_rest_for(approved, state) -> bool:
+def _at_rest_for(approved: ApprovedTrajectory, state: RobotState) -> bool:
     """A trajectory planned to continue a motion without stopping, while the arm stands
     (the motion before it was interrupted and finished from rest): its first set-points
     would jerk the arm from rest, so the step is replanned from where it stands."""
@@ -151,10 +153,10 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
     t0 = ctx.now_s
     while ctx.now_s - t0 < SETTLE_S + AVERAGE_S:  # settle, then the baseline
         if ctx.now_s - t0 >= SETTLE_S:
-            samples.append(np.array(ctx.state.wrench_N[:3], dtype=float))
+            samples.append(np.array(ctx.last_state.wrench_N[:3], dtype=float))
         yield
     baseline = (
-        np.mean(samples, axis=0) if samples else np.array(ctx.state.wrench_N[:3], dtype=float)
+        np.mean(samples, axis=0) if samples else np.array(ctx.last_state.wrench_N[:3], dtype=float)
     )
     channel, value = ctx.gripper_close
     ctx.backend.set_output(channel, value)
@@ -164,7 +166,7 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
         while ctx.now_s - t0 < min(args.timeout, 0.5):
             yield
     else:
-        while not ctx.state.inputs.get(confirm):
+        while not ctx.last_state.inputs.get(confirm):
             if ctx.now_s - t0 >= args.timeout:
                 return Outcome.failed(
                     ResultCode.NO_PART,
@@ -195,9 +197,11 @@ def run_weigh(ctx: JobContext, step: Step) -> StepGen:
     while ctx.now_s - t0 < SETTLE_S + AVERAGE_S:
         yield
         if ctx.now_s - t0 >= SETTLE_S:
-            samples.append(np.array(ctx.state.wrench_N[:3]))
-    load = float(np.linalg.norm(np.mean(samples, axis=0) - ctx.carry.baseline_N))
-    ctx.carry.load_N = load
+            samples.append(np.array(ctx.last_state.wrench_N[:3]))
+    carry = ctx.carry
+    assert carry is not None  # a weighing follows the grip that set what is carried
+    load = float(np.linalg.norm(np.mean(samples, axis=0) - carry.baseline_N))
+    carry.load_N = load
     hi = window.max if window.max is not None else float("inf")
     if not window.min <= load <= hi:
         return Outcome.failed(
@@ -244,7 +248,7 @@ def run_release(ctx: JobContext, step: Step) -> StepGen:
 
 
 def _release_pending(ctx: JobContext, channel: str, is_open_confirm: bool) -> bool:
-    value = bool(ctx.state.inputs.get(channel))
+    value = bool(ctx.last_state.inputs.get(channel))
     return not value if is_open_confirm else value
 
 
@@ -269,8 +273,8 @@ def run_wait_input(ctx: JobContext, step: Step) -> StepGen:
     args = step.args
     channel = ctx.inputs[args.input]
     t0 = ctx.now_s
-    while ctx.state.inputs.get(channel) != args.value and not (
-        isinstance(args.value, bool) and bool(ctx.state.inputs.get(channel)) == args.value
+    while ctx.last_state.inputs.get(channel) != args.value and not (
+        isinstance(args.value, bool) and bool(ctx.last_state.inputs.get(channel)) == args.value
     ):
         if ctx.now_s - t0 >= args.timeout:
             return Outcome.failed(
@@ -292,7 +296,7 @@ def sensor_dropped(ctx: JobContext) -> str | None:
     """The gripper's sensor ('jaw sensor', 'vacuum switch') when it has read false for
     SENSOR_DEBOUNCE_S while a part is carried, else None."""
     carry = ctx.carry
-    if carry is None or carry.confirm is None or ctx.state.inputs.get(carry.confirm):
+    if carry is None or carry.confirm is None or ctx.last_state.inputs.get(carry.confirm):
         ctx.notes.pop("sensor_false_since", None)
         return None
     since = ctx.notes.setdefault("sensor_false_since", ctx.now_s)
@@ -311,7 +315,9 @@ def _part_lost(ctx: JobContext) -> str | None:
         return f"part lost in transit: the {sensor} dropped"
     if carry.load_N is not None and carry.min_N > 0:
         # plain floats: numpy's per-call cost dwarfs a 3-vector norm, and this runs every tick
-        load = math.dist(np.asarray(ctx.state.wrench_N[:3]).tolist(), carry.baseline_N.tolist())
+        load = math.dist(
+            np.asarray(ctx.last_state.wrench_N[:3]).tolist(), carry.baseline_N.tolist()
+        )
         load_lp = ctx.notes["load_lp"] = 0.9 * ctx.notes.get("load_lp", carry.load_N) + 0.1 * load
         if load_lp < 0.5 * carry.min_N:
             return f"part lost in transit: the wrist load fell to {load_lp:.1f} N"

@@ -33,7 +33,7 @@ def run_tool_lock(ctx: JobContext, step: Step) -> Generator[None, None, Outcome]
     if outcome.ok:
         tool = ctx.tools[step.extra["tool"]]
         use_gripper(ctx, tool.gripper)
-        ctx.backend.set_tool(tool.tcp.matrix(), tool.payload.mass, tuple(tool.payload.cog))
+        ctx.backend.set_tool(tool.tcp.matrix(), tool.payload.mass, tool.payload.cog_m)
     return outcome
 
 
@@ -47,7 +47,7 @@ def _drive(ctx: JobContext, step: Step, lock: bool) -> Generator[None, None, Out
             yield
         return OK
     channel = ctx.inputs[args.confirm]
-    while bool(ctx.state.inputs.get(channel)) != lock:
+    while bool(ctx.last_state.inputs.get(channel)) != lock:
         if ctx.now_s - t0 >= args.timeout:
             what = "lock" if lock else "release"
             return Outcome.failed(

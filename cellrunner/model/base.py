@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
@@ -90,14 +92,16 @@ class Shaped(Strict):
     def shape_key(self) -> str:
         return next(k for k in SHAPE_KEYS if getattr(self, k) is not None)
 
-    def to_shape(self, resolve) -> geometry.Shape:
+    def to_shape(self, resolve: Callable[[str], Path]) -> geometry.Shape:
         """The neutral geometry shape; ``resolve(str) -> Path`` locates mesh files."""
         if self.box:
-            return geometry.Box(tuple(self.box.size))
+            x, y, z = self.box.size
+            return geometry.Box((x, y, z))
         if self.cylinder:
             return geometry.Cylinder(self.cylinder.radius, self.cylinder.length)
         if self.sphere:
             return geometry.Sphere(self.sphere.radius)
+        assert self.mesh is not None  # exactly one shape key is set (validated)
         return geometry.Mesh(resolve(self.mesh.file).resolve(), self.mesh.scale)
 
 

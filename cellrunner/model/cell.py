@@ -8,13 +8,13 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from cellrunner.model.base import Name, PlacedShape, Pose, Shaped, Strict, Vec3
+from cellrunner.model.camera import Camera
 from cellrunner.model.robots import ROBOTS
 from cellrunner.model.sim_inputs import SimBlock
 from cellrunner.model.units import (
     Angle,
     AngularAccel,
     AngularSpeed,
-    Duration,
     Force,
     Fraction,
     Mass,
@@ -23,7 +23,22 @@ from cellrunner.model.units import (
     Speed,
 )
 
-RobotModel = Literal["ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur16e"]
+RobotModel = Literal[
+    "ur3",
+    "ur5",
+    "ur10",
+    "ur3e",
+    "ur5e",
+    "ur7e",
+    "ur10e",
+    "ur12e",
+    "ur16e",
+    "ur15",
+    "ur18",
+    "ur20",
+    "ur30",
+    "ur8long",
+]
 assert set(RobotModel.__args__) == set(ROBOTS)  # type: ignore[attr-defined]
 
 Joints = Annotated[list[Angle], Field(min_length=6, max_length=6)]
@@ -59,6 +74,14 @@ class Robot(Strict):
     """Home joint angles in degrees, base to wrist 3. Example: `[0, -90, 90, -90, -90, 0]`"""
     limits: Limits = Field(default_factory=Limits)
     """Motion limits plans may use. Example: `{joint_speed: 120, joint_accel: 300, tcp_speed: 1.0, margin: 0.95}`"""
+    joint_range: (
+        Annotated[
+            list[Annotated[list[Angle], Field(min_length=2, max_length=2)]],
+            Field(min_length=6, max_length=6),
+        ]
+        | None
+    ) = None
+    """Per-joint [min, max] in degrees, base to wrist 3, inside the arm's own ranges: narrows them (a cable that allows only +-180 deg on wrist 3, a safety joint limit); IK, planning, check and the twin keep to it. Example: `[[-180, 180], [-180, 0], [-160, 160], [-360, 360], [-360, 360], [-180, 180]]`"""
     tool: Name | None = None
     """With `tools:`, the tool mounted at start. Example: `jaws`"""
 
@@ -68,6 +91,12 @@ class Payload(Strict):
     """Tool payload mass in kg. Example: `1.2`"""
     cog: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     """Centre of gravity in the flange frame, m. Example: `[0, 0, 0.05]`"""
+
+    @property
+    def cog_m(self) -> tuple[float, float, float]:
+        """``cog`` as an (x, y, z) tuple in m."""
+        x, y, z = self.cog
+        return (x, y, z)
 
 
 class OutputValue(Strict):
@@ -203,7 +232,8 @@ class OpcUa(Strict):
     endpoint: str = "opc.tcp://127.0.0.1:4840/cellrunner"
     """Endpoint URL the OPC UA server listens on. Example: `opc.tcp://127.0.0.1:4840/cellrunner`"""
     security: list[SecurityPolicy] = Field(
-        default_factory=lambda: ["Basic256Sha256_SignAndEncrypt"], min_length=1
+        default_factory=lambda: ["Basic256Sha256_SignAndEncrypt"],  # type: ignore[arg-type]  # mypy widens the literal in a lambda
+        min_length=1,
     )
     """Security policies offered; none only when written here. Example: `[Basic256Sha256_SignAndEncrypt]`"""
     users: str | None = None
@@ -271,6 +301,8 @@ class Cell(Strict):
     """How far a placed part may end from its target in the twin before the place fails (3). Example: `{distance: 0.005, angle: 5}`"""
     sim: SimBlock | None = None
     """Inputs the twin drives in rehearsal (dry-run and twin). Example: `{inputs: {part_present: {part_at: infeed}}}`"""
+    cameras: dict[Name, Camera] = Field(default_factory=dict)
+    """Cameras by name: intrinsics, image size, mount (world, a frame, flange) and pose, calibration board. Example: `{top: {intrinsics: {fx: 600, fy: 600, cx: 320, cy: 240}, image_size: [640, 480], pose: {xyz: [0.6, 0, 1.6], rpy: [180, 0, 90]}}}`"""
 
     @model_validator(mode="before")
     @classmethod

@@ -21,9 +21,22 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
-from cellrunner.model.codes import PackMLState, ResultCode  # noqa: F401 (re-exported)
+from cellrunner.model.codes import PackMLState, ResultCode
+
+__all__ = [
+    "COMMANDS",
+    "COMPLETED_CODES",
+    "REJECT_CODES",
+    "CellPort",
+    "CellStatus",
+    "JobResult",
+    "JobTicket",
+    "PackMLState",
+    "ResultCode",
+    "ResultListener",
+]
 
 #: Codes with which a job *completed* (OK or NOK, not a fault): the PLC sees DONE.
 COMPLETED_CODES = frozenset(
@@ -101,7 +114,7 @@ class JobTicket:
         return self.reject_code == ResultCode.OK
 
 
-ResultListener = Callable[[JobResult], None]
+ResultListener = Callable[[JobResult], object]  # what it returns is ignored
 
 
 @runtime_checkable
@@ -122,7 +135,7 @@ class CellPort(Protocol):
     def start_job(
         self,
         task: str | int,
-        params: dict[str, int | float],
+        params: dict[str, Any],  # numbers, quantities ("250 ms"), poses
         client_job_id: str,
         source: str,
     ) -> JobTicket:

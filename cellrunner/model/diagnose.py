@@ -5,9 +5,11 @@ from __future__ import annotations
 import difflib
 import types
 import typing
+from collections.abc import Iterable
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
+from pydantic_core import ErrorDetails
 
 from cellrunner.errors import Diagnostic
 from cellrunner.model.source import PathKey, Source
@@ -22,12 +24,12 @@ def dotted(path: PathKey) -> str:
     return out
 
 
-def did_you_mean(word: str, known: list[str]) -> str:
+def did_you_mean(word: object, known: Iterable[object]) -> str:
     close = difflib.get_close_matches(str(word), [str(k) for k in known], n=1, cutoff=0.6)
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
-def known_list(known) -> str:
+def known_list(known: Iterable[object]) -> str:
     return ", ".join(str(k) for k in known) or "(none)"
 
 
@@ -41,11 +43,11 @@ def _unwrap(tp: Any) -> list[Any]:
     return [tp]
 
 
-def fields_at(root: type[BaseModel], loc: tuple) -> list[str] | None:
+def fields_at(root: type[BaseModel], loc: PathKey) -> list[str] | None:
     """The field names of the model reached by ``loc`` from ``root``, if any."""
-    candidates = [root]
+    candidates: list[Any] = [root]
     for part in loc:
-        nxt = []
+        nxt: list[Any] = []
         for tp in candidates:
             for c in _unwrap(tp):
                 origin = typing.get_origin(c)
@@ -76,7 +78,7 @@ def _describe(value: Any) -> str:
     return repr(value)
 
 
-def message_of(error: dict, root: type[BaseModel]) -> tuple[str, bool, tuple]:
+def message_of(error: ErrorDetails, root: type[BaseModel]) -> tuple[str, bool, PathKey]:
     """(message, point-at-key, loc to point at) for one pydantic error."""
     kind, loc, value = error["type"], tuple(error["loc"]), error.get("input")
     ctx = error.get("ctx") or {}
@@ -160,14 +162,14 @@ def diagnostics_of(
     return sorted(out, key=lambda d: (d.line, d.col))
 
 
-def _clean(loc: tuple) -> tuple:
+def _clean(loc: PathKey) -> PathKey:
     """Drop pydantic's internal loc parts (union member names, '[key]')."""
     return tuple(
         p for p in loc if isinstance(p, int) or ("[" not in str(p) and "function-" not in str(p))
     )
 
 
-def unknown_name(what: str, name: Any, known) -> str:
+def unknown_name(what: str, name: Any, known: Iterable[object]) -> str:
     """``unknown frame 'x' (did you mean 'y'?); known: ...``"""
     known = list(known)
     return f"unknown {what} {name!r}{did_you_mean(name, known)}; known: {known_list(known)}"

@@ -17,6 +17,8 @@ from cellrunner.model import geometry
 from cellrunner.model.cell import Cell
 from cellrunner.model.frames import frame_pose
 from cellrunner.model.load import LoadedTask, StepSpec
+from cellrunner.model.params import Param, ParamValue, PoseValue
+from cellrunner.model.source import PathKey
 from cellrunner.model.step import (
     LINEAR_KINDS,
     MOTION_KINDS,
@@ -32,15 +34,26 @@ from cellrunner.model.task import (
     LinearArgs,
     Offset,
     Pattern,
+    PickArgs,
+    PlaceArgs,
     TaskFile,
 )
 from cellrunner.model.tool_change import expand_change_tool
 
 
-def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, int | float | bool]:
+def camera_pose(cell: Cell, name: str) -> np.ndarray:
+    """T_world_camera of a camera fixed in the world or on a frame (the camera frame is
+    OpenCV's: Z out of the lens, X right, Y down)."""
+    camera = cell.cameras[name]
+    if camera.mount == "world":
+        return camera.pose.matrix()
+    return np.asarray(frame_pose(cell, camera.mount) @ camera.pose.matrix())
+
+
+def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, ParamValue]:
     """The task's params: defaults overridden by ``given`` (strings from the CLI are
     accepted); raises InputError naming the bad param and its bounds."""
-    out: dict[str, int | float | bool] = {}
+    out: dict[str, ParamValue] = {}
     problems = []
     for name in given:
         if name not in task.params:
@@ -82,7 +95,9 @@ ON_ERROR = "on_error"
 
 
 class _Builder:
-    def __init__(self, cell: Cell, params: dict[str, Any], specs: dict | None = None):
+    def __init__(
+        self, cell: Cell, params: dict[str, Any], specs: dict[str, Param] | None = None
+    ) -> None:
         self.cell, self.params, self.specs = cell, params, specs or {}
         self.steps: list[Step] = []
         self.tool = cell.robot.tool  # the mounted tool's name (with ``tools:``)
@@ -105,7 +120,7 @@ class _Builder:
         self,
         kind: str,
         args: Any,
-        path: tuple,
+        path: PathKey,
         index: int,
         macro: str | None = None,
         retry: RetryPlan | None = None,
@@ -138,7 +153,7 @@ class _Builder:
             name = args.input
         elif kind == StepKind.WAIT:
             name = f"{args.seconds:g} s"
-        return Step(index, kind, name, args, path, macro, T, q, retry)
+        return Step(index, StepKind(kind), name, args, path, macro, T, q, retry)
 
     def _target(
         self, at: str, offset: Offset | None, pattern: Pattern | None, at_offset: str | None = None
@@ -154,11 +169,14 @@ class _Builder:
             at_offset is not None
         ):  # a pose param: where the camera saw the part, in the frame's axes
             pose = self.params[at_offset]
-            T = T @ geometry.pose_matrix(pose["xyz"], pose["rpy"])
+            camera = self.specs[at_offset].camera if at_offset in self.specs else None
+            T_pose = geometry.pose_matrix(pose["xyz"], pose["rpy"])
+            # a camera's detection: where the camera saw the part, through its pose
+            T = camera_pose(self.cell, camera) @ T_pose if camera is not None else T @ T_pose
             name = f"{at}+{at_offset}"
         return T @ _offset(offset), name
 
-    def _pick(self, spec: StepSpec, a) -> None:
+    def _pick(self, spec: StepSpec, a: PickArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"pick {name}"
         path = spec.path
@@ -166,7 +184,7 @@ class _Builder:
         self.steps.append(
             Step(
                 approach_i,
-                "approach",
+                StepKind.APPROACH,
                 name,
                 ApproachArgs(to=a.at, distance=a.approach),
                 path,
@@ -198,7 +216,7 @@ class _Builder:
         self.steps.append(
             Step(
                 self._next(),
-                "grip",
+                StepKind.GRIP,
                 name,
                 a.grip,
                 path,
@@ -212,7 +230,7 @@ class _Builder:
             self.steps.append(
                 Step(
                     self._next(),
-                    "lift",
+                    StepKind.LIFT,
                     name,
                     DistanceArgs(distance=lift, speed=a.speed),
                     path,
@@ -220,14 +238,14 @@ class _Builder:
                 )
             )
 
-    def _place(self, spec: StepSpec, a) -> None:
+    def _place(self, spec: StepSpec, a: PlaceArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"place {name}"
         path = spec.path
         self.steps.append(
             Step(
                 self._next(),
-                "approach",
+                StepKind.APPROACH,
                 name,
                 ApproachArgs(to=a.at, distance=a.approach),
                 path,
@@ -257,14 +275,20 @@ class _Builder:
         back = a.retreat if a.retreat is not None else a.approach
         self.steps.append(
             Step(
-                self._next(), "release", name, release, path, macro, extra={} if back > 0 else check
+                self._next(),
+                StepKind.RELEASE,
+                name,
+                release,
+                path,
+                macro,
+                extra={} if back > 0 else check,
             )
         )
         if back > 0:
             self.steps.append(
                 Step(
                     self._next(),
-                    "retreat",
+                    StepKind.RETREAT,
                     name,
                     DistanceArgs(distance=back, speed=a.speed),
                     path,
@@ -289,10 +313,10 @@ def pattern_params(loaded: LoadedTask) -> dict[str, range]:
     return out
 
 
-def box_params(loaded: LoadedTask) -> dict[str, list[dict]]:
+def box_params(loaded: LoadedTask) -> dict[str, list[PoseValue]]:
     """Every pose param a pick or place is offset by, with the poses ``check`` must cover:
     the centre and the corners of its box."""
-    out: dict[str, list[dict]] = {}
+    out: dict[str, list[PoseValue]] = {}
     for spec in loaded.steps:
         name = getattr(spec.args, "at_offset", None)
         if name is not None:
@@ -310,6 +334,7 @@ __all__ = [
     "Step",
     "StepKind",
     "box_params",
+    "camera_pose",
     "expand",
     "expand_on_error",
     "frame_pose",

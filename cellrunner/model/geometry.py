@@ -9,9 +9,9 @@ degrees, as SPEC section 3 and PolyScope's RPY display use them.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Union
 
 import numpy as np
 
@@ -38,7 +38,7 @@ class Mesh:
     scale: float = 1.0  # file units -> m
 
 
-Shape = Union[Box, Cylinder, Sphere, Mesh]
+Shape = Box | Cylinder | Sphere | Mesh
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,7 +50,7 @@ class Placed:
     T_parent_shape: np.ndarray
 
 
-def rot_rpy_deg(rpy_deg: tuple[float, float, float] | list[float]) -> np.ndarray:
+def rot_rpy_deg(rpy_deg: Sequence[float] | np.ndarray) -> np.ndarray:
     """Rotation matrix of XYZ fixed-axis roll, pitch, yaw in degrees: Rz @ Ry @ Rx."""
     r, p, y = (math.radians(v) for v in rpy_deg)
     cr, sr, cp, sp, cy, sy = (
@@ -70,7 +70,10 @@ def rot_rpy_deg(rpy_deg: tuple[float, float, float] | list[float]) -> np.ndarray
     )
 
 
-def pose_matrix(xyz_m=(0.0, 0.0, 0.0), rpy_deg=(0.0, 0.0, 0.0)) -> np.ndarray:
+def pose_matrix(
+    xyz_m: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
+    rpy_deg: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
+) -> np.ndarray:
     """4x4 transform from a translation in m and XYZ fixed-axis angles in degrees."""
     T = np.eye(4)
     T[:3, :3] = rot_rpy_deg(rpy_deg)

@@ -8,10 +8,19 @@ around the TCP). Planning checks the pads where they are widest (fully open).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from cellrunner.model import geometry
 from cellrunner.model.geometry import Box, Placed
+
+if TYPE_CHECKING:
+    from cellrunner.model.cell import Cup, Gripper
+
+#: an IO channel and the value that acts on it
+Channel = tuple[str, bool | float]
 
 #: a Robotiq 2F gripper is driven through its own socket, not the robot's IO; the engine
 #: and the backends address it through these two virtual channels
@@ -43,7 +52,7 @@ def open_pads(stroke_m: float, T_flange_tcp: np.ndarray) -> list[Placed]:
 CUP_LENGTH_M = 0.02
 
 
-def cup_shapes(cups, T_flange_tcp: np.ndarray) -> list[Placed]:
+def cup_shapes(cups: Sequence[Cup], T_flange_tcp: np.ndarray) -> list[Placed]:
     """Each cup as a cylinder in the flange frame, its face at the cup's point (TCP frame)
     and its body reaching back along the TCP's -Z."""
     from cellrunner.model.geometry import Cylinder
@@ -58,7 +67,7 @@ def cup_shapes(cups, T_flange_tcp: np.ndarray) -> list[Placed]:
     ]
 
 
-def gripper_shapes(gripper, T_flange_tcp: np.ndarray) -> list[Placed]:
+def gripper_shapes(gripper: Gripper | None, T_flange_tcp: np.ndarray) -> list[Placed]:
     """What planning checks of the gripper: the cups of a vacuum gripper (no fingers),
     else the finger pads fully open."""
     if gripper is None:
@@ -68,7 +77,7 @@ def gripper_shapes(gripper, T_flange_tcp: np.ndarray) -> list[Placed]:
     return open_pads(gripper.stroke, T_flange_tcp)
 
 
-def part_center_depth_m(gripper, shape) -> float:
+def part_center_depth_m(gripper: Gripper | None, shape: geometry.Shape | None) -> float:
     """How far below its frame (along the frame's Z, into the part) a part's centre lies:
     a suction gripper holds a part by its top face, under the cups' faces (at the frame when
     the cups sit at the TCP), jaws by its middle."""
@@ -86,7 +95,9 @@ def part_center_depth_m(gripper, shape) -> float:
     return cups_z
 
 
-def gripper_channels(gripper, outputs: dict[str, str], inputs: dict[str, str]):
+def gripper_channels(
+    gripper: Gripper | None, outputs: dict[str, str], inputs: dict[str, str]
+) -> tuple[Channel | None, Channel | None, str | None]:
     """(close channel and value, open channel and value or None, closed-sensor channel) of
     the cell's gripper: IO channels for ``kind: io``, the virtual Robotiq channels for
     ``kind: robotiq`` (where the cell names no IO of its own)."""
@@ -98,7 +109,9 @@ def gripper_channels(gripper, outputs: dict[str, str], inputs: dict[str, str]):
         )
         return close, None, inputs[gripper.vacuum_ok] if gripper.vacuum_ok else None
     if gripper.kind == "robotiq" and gripper.close is None:
-        sensor = inputs[gripper.closed_sensor] if gripper.closed_sensor else ROBOTIQ_OBJECT
+        sensor: str | None = (
+            inputs[gripper.closed_sensor] if gripper.closed_sensor else ROBOTIQ_OBJECT
+        )
         return (ROBOTIQ_CLOSE, True), None, sensor
     close = (outputs[gripper.close.output], gripper.close.value) if gripper.close else None
     open_ = (outputs[gripper.open.output], gripper.open.value) if gripper.open else None

@@ -8,20 +8,25 @@ warnings (e.g. angles that look like radians) are kept on the loaded object.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
 from cellrunner.errors import Diagnostic, InputError
-from cellrunner.model.cell import Cell
+from cellrunner.model.cell import Cell, Fixture, Part, Tool
 from cellrunner.model.checks import check_io_name, check_radians
 from cellrunner.model.diagnose import diagnostics_of, dotted, known_list, unknown_name
 from cellrunner.model.references import check_task_references
-from cellrunner.model.robots import robot_spec
+from cellrunner.model.robots import RobotSpec, robot_spec
 from cellrunner.model.source import PathKey, Source, load_yaml
-from cellrunner.model.task import MACROS, STEP_MODELS, TaskFile, widen_step_args
+from cellrunner.model.task import MACROS, STEP_MODELS, PickArgs, TaskFile, widen_step_args
+
+if TYPE_CHECKING:
+    from cellrunner.model.geometry import Placed
+    from cellrunner.model.params import Param
 
 _CHANNEL = re.compile(r"^(DO|CO|TO|AO|DI|CI|TI|AI)(\d+)$")
 _CHANNEL_COUNT = {"DO": 8, "CO": 8, "TO": 2, "AO": 2, "DI": 8, "CI": 8, "TI": 2, "AI": 2}
@@ -64,8 +69,9 @@ class LoadedCell:
         return self.path.parent
 
     @property
-    def spec(self):
-        return robot_spec(self.cell.robot.model)
+    def spec(self) -> RobotSpec:
+        """The arm with the cell's ``robot.joint_range`` applied (checked on loading)."""
+        return robot_spec(self.cell.robot.model).narrowed(self.cell.robot.joint_range)
 
     @property
     def root(self) -> Path:
@@ -73,7 +79,7 @@ class LoadedCell:
         folder = self.path.resolve().parent
         return folder.parent if folder.name == "cells" else folder
 
-    def tool_shapes(self, tool=None) -> list:
+    def tool_shapes(self, tool: Tool | None = None) -> list[Placed]:
         """The declared geometry of ``tool`` (default: the mounted one) as placed shapes in
         the flange frame."""
         from cellrunner.model.geometry import Placed
@@ -86,7 +92,7 @@ class LoadedCell:
             for i, g in enumerate(geometry)
         ]
 
-    def fixture_shapes(self) -> list:
+    def fixture_shapes(self) -> list[Placed]:
         """The fixtures as placed shapes in the world."""
         from cellrunner.model.geometry import Placed
 
@@ -116,7 +122,7 @@ class StepSpec:
     raw: Any = None  # the widened arguments as written, when they name float params
     refs: frozenset[str] = frozenset()  # the float params they name
 
-    def bind(self, params: dict, values: dict) -> Any:
+    def bind(self, params: dict[str, Param], values: dict[str, Any]) -> Any:
         """The arguments with the named params' values (``args`` when none are named)."""
         if not self.refs:
             return self.args
@@ -161,16 +167,21 @@ def load_cell(path: str | Path) -> LoadedCell:
 
 
 def _check_cell(loaded: LoadedCell, report: Report) -> None:
-    cell, spec = loaded.cell, loaded.spec
+    cell, spec = loaded.cell, robot_spec(loaded.cell.robot.model)
     raw = loaded.source.data
     _check_limits(cell, spec, report)
     check_radians(raw, ("robot", "home"), report)
+    ranges_ok = _check_joint_range(cell, spec, report)
+    where = ""
+    if ranges_ok and cell.robot.joint_range is not None:
+        spec, where = loaded.spec, " (robot.joint_range)"
     for i, (lo, hi, q) in enumerate(
-        zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home, strict=False)
+        zip(spec.joint_min_deg, spec.joint_max_deg, cell.robot.home, strict=True)
     ):
         if not lo <= q <= hi:
             report.error(
-                ("robot", "home", i), f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]"
+                ("robot", "home", i),
+                f"joint {i + 1} = {q:g} deg is outside [{lo:g}, {hi:g}]{where}",
             )
     for path, tool in _tools(cell):
         if tool.payload.mass > spec.payload_max_kg:
@@ -185,6 +196,7 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     _check_tool_names(cell, raw, report)
     _check_names(cell, report)
     _check_frames(cell, report)
+    _check_cameras(cell, report)
     for i, fixture in enumerate(cell.fixtures):
         if fixture.mesh is not None:
             f = loaded.resolve(fixture.mesh.file)
@@ -222,14 +234,39 @@ def serve_file_warnings(loaded: LoadedCell) -> list[Diagnostic]:
     return report.warnings
 
 
-def _check_limits(cell: Cell, spec, report: Report) -> None:
+def _check_joint_range(cell: Cell, spec: RobotSpec, report: Report) -> bool:
+    """``robot.joint_range``: each [min, max] with min < max inside the arm's own range.
+    True when there is none or every range is good."""
+    ranges = cell.robot.joint_range
+    if ranges is None:
+        return True
+    ok = True
+    for i, (lo, hi) in enumerate(ranges):
+        hw_lo, hw_hi = spec.joint_min_deg[i], spec.joint_max_deg[i]
+        if lo >= hi:
+            report.error(
+                ("robot", "joint_range", i),
+                f"joint {i + 1} range [{lo:g}, {hi:g}]: min must be below max",
+            )
+            ok = False
+        elif lo < hw_lo - 1e-9 or hi > hw_hi + 1e-9:
+            report.error(
+                ("robot", "joint_range", i),
+                f"joint {i + 1} range [{lo:g}, {hi:g}] is outside the {spec.label}'s "
+                f"[{hw_lo:g}, {hw_hi:g}] deg; joint_range can only narrow it",
+            )
+            ok = False
+    return ok
+
+
+def _check_limits(cell: Cell, spec: RobotSpec, report: Report) -> None:
     limits = cell.robot.limits
     model = spec.name.upper()
     if limits.joint_speed is not None:
         values = (
             limits.joint_speed if isinstance(limits.joint_speed, list) else [limits.joint_speed] * 6
         )
-        for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s, strict=False)):
+        for i, (v, cap) in enumerate(zip(values, spec.joint_speed_max_deg_s, strict=True)):
             if v > cap + 1e-9:
                 path = ("robot", "limits", "joint_speed") + (
                     (i,) if isinstance(limits.joint_speed, list) else ()
@@ -319,7 +356,7 @@ def _tools(cell: Cell) -> list[tuple[PathKey, Any]]:
     return [(("tool",), cell.tool)]
 
 
-def _check_gripper(cell: Cell, tool, path: PathKey, report: Report) -> None:
+def _check_gripper(cell: Cell, tool: Tool, path: PathKey, report: Report) -> None:
     g = tool.gripper
     if g is None:
         return
@@ -394,7 +431,11 @@ def _check_tool_names(cell: Cell, raw: Any, report: Report) -> None:
 
 def _check_names(cell: Cell, report: Report) -> None:
     seen: dict[str, str] = {}
-    for kind, items in (("fixture", cell.fixtures), ("part", cell.parts)):
+    named: tuple[tuple[str, Sequence[Fixture | Part]], ...] = (
+        ("fixture", cell.fixtures),
+        ("part", cell.parts),
+    )
+    for kind, items in named:
         for i, item in enumerate(items):
             key = f"{kind}s"
             if item.name in seen:
@@ -428,6 +469,25 @@ def _check_frames(cell: Cell, report: Report) -> None:
             seen.add(cur)
             cur = cell.frames[cur].parent
         check_radians(report.source.data, ("frames", name, "rpy"), report)
+
+
+def _check_cameras(cell: Cell, report: Report) -> None:
+    """Camera and board mounts name world, flange or a frame; a frame cannot be 'flange'."""
+    known = ["world", "flange", *cell.frames]
+    if "flange" in cell.frames:
+        report.error(
+            ("frames", "flange"),
+            "'flange' is reserved (camera mounts) and cannot name a frame",
+            at_key=True,
+        )
+    for name, camera in cell.cameras.items():
+        if camera.mount not in known:
+            report.error(("cameras", name, "mount"), unknown_name("mount", camera.mount, known))
+        if camera.board is not None and camera.board.mount not in known:
+            report.error(
+                ("cameras", name, "board", "mount"),
+                unknown_name("mount", camera.board.mount, known),
+            )
 
 
 # ---------------------------------------------------------------------------- task
@@ -466,7 +526,12 @@ def load_task(path: str | Path, cell: LoadedCell) -> LoadedTask:
 
 
 def _parse_steps(
-    raw: list, base: PathKey, report: Report, *, allow_macros: bool, params: dict | None = None
+    raw: list[Any],
+    base: PathKey,
+    report: Report,
+    *,
+    allow_macros: bool,
+    params: dict[str, Param] | None = None,
 ) -> list[StepSpec]:
     out = []
     for i, item in enumerate(raw):
@@ -477,7 +542,7 @@ def _parse_steps(
 
 
 def _parse_step(
-    item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict
+    item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict[str, Param]
 ) -> StepSpec | None:
     known = [k for k in STEP_MODELS if allow_macros or k not in MACROS]
     if isinstance(item, str):
@@ -523,7 +588,7 @@ def _parse_step(
         report.errors.extend(diagnostics_of(exc, report.source, model, prefix=path + (kind,)))
         return None
     spec = StepSpec(kind, parsed, path + (kind,), raw=raw if refs else None, refs=frozenset(refs))
-    if kind == "pick" and parsed.retry is not None:
+    if isinstance(parsed, PickArgs) and parsed.retry is not None:
         spec.between = _parse_steps(
             parsed.retry.between,
             path + (kind, "retry", "between"),

@@ -6,7 +6,8 @@
   s, N, deg, m/s); the param's name may stand wherever a quantity of that kind is read
   (``wait: dwell``, ``approach: clearance``), see :func:`substitute`.
 - ``pose``: a part's pose from a camera or MES, ``{xyz: [m], rpy: [deg]}`` in the frame
-  that uses it (``at: {frame: infeed, offset: PARAM}``), bounded by a box
+  that uses it (``at: {frame: infeed, offset: PARAM}``) or, with ``camera: NAME``, in that
+  camera's frame (the target is then ``T_world_camera @ value``), bounded by a box
   ``min: [x, y, z, rx, ry, rz]``, ``max: [...]``; ``check`` verifies the box's corners
   and centre (:meth:`Param.box_values`), its default is the box's centre.
 """
@@ -29,7 +30,9 @@ UNIT_KINDS: dict[str, str] = {
 }
 POSE_AXES = ("x", "y", "z", "rx", "ry", "rz")
 
-PoseValue = dict  # {"xyz": [m, m, m], "rpy": [deg, deg, deg]}
+PoseValue = dict[str, list[float]]  # {"xyz": [m, m, m], "rpy": [deg, deg, deg]}
+#: a param's value as jobs use it
+ParamValue = int | float | bool | PoseValue
 
 
 class Param(Strict):
@@ -45,6 +48,8 @@ class Param(Strict):
     """Value when the PLC or CLI gives none (a pose: the box's centre). Example: `0`"""
     description: str | None = None
     """What the param means, for people. Example: `pallet slot, row by row`"""
+    camera: str | None = None
+    """Pose params: the value is the part's pose in this camera's frame (as the vision system reports it, min and max too); it becomes the pose in the world through the camera's calibrated pose. Example: `overhead`"""
 
     @model_validator(mode="before")
     @classmethod
@@ -71,6 +76,10 @@ class Param(Strict):
 
     @model_validator(mode="after")
     def _consistent(self) -> Param:
+        if self.camera is not None and self.type != "pose":
+            raise PydanticCustomError(
+                "param", f"only pose params take a camera, not {self.type} params"
+            )
         if self.type == "pose":
             return self._pose_box()
         for key in ("min", "max", "default"):
@@ -87,14 +96,15 @@ class Param(Strict):
         if self.min is not None and self.max is not None and self.min > self.max:
             raise PydanticCustomError("param", f"min {self.min:g} is above max {self.max:g}")
         d = self.default
-        if d is not None and self.type != "bool" and not isinstance(d, bool):
-            if (self.min is not None and d < self.min) or (self.max is not None and d > self.max):
-                raise PydanticCustomError(
-                    "param",
-                    f"default {d:g} is outside [{self.min:g}, {self.max:g}]"
-                    if self.min is not None and self.max is not None
-                    else f"default {d:g} is outside its bounds",
-                )
+        below = self.min is not None and d is not None and d < self.min
+        above = self.max is not None and d is not None and d > self.max
+        if self.type != "bool" and not isinstance(d, bool) and (below or above):
+            raise PydanticCustomError(
+                "param",
+                f"default {d:g} is outside [{self.min:g}, {self.max:g}]"
+                if self.min is not None and self.max is not None
+                else f"default {d:g} is outside its bounds",
+            )
         return self
 
     def _pose_box(self) -> Param:
@@ -103,14 +113,14 @@ class Param(Strict):
                 "param", "a pose param needs min and max: [x, y, z, rx, ry, rz] in m and deg"
             )
         lo, hi = (_six(self.min, "min"), _six(self.max, "max"))
-        for axis, a, b in zip(POSE_AXES, lo, hi):
+        for axis, a, b in zip(POSE_AXES, lo, hi, strict=True):
             if a > b:
                 raise PydanticCustomError("param", f"min {axis} {a:g} is above max {axis} {b:g}")
         object.__setattr__(self, "min", lo)
         object.__setattr__(self, "max", hi)
         default = self.default
         if default is None:
-            default = pose_value([(a + b) / 2 for a, b in zip(lo, hi)])
+            default = pose_value([(a + b) / 2 for a, b in zip(lo, hi, strict=True)])
         object.__setattr__(self, "default", self._pose("default", default))
         return self
 
@@ -119,7 +129,7 @@ class Param(Strict):
         """The quantity kind of a float param with a unit (``time``, ``length``, ...)."""
         return UNIT_KINDS.get(self.unit) if self.unit else None
 
-    def coerce(self, name: str, value: Any) -> int | float | bool | PoseValue:
+    def coerce(self, name: str, value: Any) -> ParamValue:
         """``value`` as this param's type, or ValueError naming the bounds. A param's
         ``unit`` applies to its min, max and default in the task file and to its Modbus
         register; values given here are SI numbers (s, m, N, deg) or strings with a unit."""
@@ -137,6 +147,8 @@ class Param(Strict):
                 return bool(value)
             raise ValueError(f"param {name!r} must be true or false, got {value!r}")
         x = None
+        if isinstance(value, str) and _plain_number(value):  # -p dwell=0.3: an SI number
+            value = float(value)
         if isinstance(value, str) and self.kind is not None:
             try:
                 x = parse_quantity(value, self.kind)
@@ -181,7 +193,7 @@ class Param(Strict):
                 f'param {name!r} must be a pose {{"xyz": [x, y, z], "rpy": [rx, ry, rz]}} '
                 f"(m, deg), got {value!r}",
             )
-        for axis, v, a, b in zip(POSE_AXES, six, self.min, self.max):
+        for axis, v, a, b in zip(POSE_AXES, six, self.min, self.max, strict=True):
             if not a - 1e-9 <= v <= b + 1e-9:
                 unit = "deg" if axis.startswith("r") else "m"
                 raise PydanticCustomError(
@@ -193,8 +205,8 @@ class Param(Strict):
     def box_values(self) -> list[PoseValue]:
         """The centre and every corner of a pose param's box (axes that do not vary are
         not multiplied out): what ``check`` verifies."""
-        axes = [(a, b) if b > a else (a,) for a, b in zip(self.min, self.max)]
-        centre = pose_value([(a + b) / 2 for a, b in zip(self.min, self.max)])
+        axes = [(a, b) if b > a else (a,) for a, b in zip(self.min, self.max, strict=True)]
+        centre = pose_value([(a + b) / 2 for a, b in zip(self.min, self.max, strict=True)])
         return [centre, *(pose_value(list(c)) for c in itertools.product(*axes))]
 
 
@@ -204,7 +216,7 @@ def _six(value: Any, what: str) -> list[float]:
             "param", f"{what} must be 6 numbers [x, y, z, rx, ry, rz] (m, deg), got {value!r}"
         )
     out = []
-    for axis, v in zip(POSE_AXES, value):
+    for axis, v in zip(POSE_AXES, value, strict=True):
         kind = "angle" if axis.startswith("r") else "length"
         out.append(parse_quantity(v, kind))
     return out
@@ -236,3 +248,11 @@ def substitute(raw: Any, params: dict[str, Param], values: dict[str, Any]) -> tu
         return v
 
     return walk(raw), used
+
+
+def _plain_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 from cellrunner.model.checks import check_io_name, check_radians
@@ -9,7 +10,10 @@ from cellrunner.model.diagnose import unknown_name
 from cellrunner.model.step import StepKind
 
 if TYPE_CHECKING:
+    from cellrunner.model.cell import Cell
     from cellrunner.model.load import LoadedCell, LoadedTask, Report, StepSpec
+    from cellrunner.model.source import PathKey
+    from cellrunner.model.task import Pattern
 
 _LINEAR_KINDS = ("descend", "linear")
 
@@ -35,7 +39,7 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             if args.pattern is not None:
                 _check_pattern(task, args.pattern, path + ("pattern",), report)
             if args.at_offset is not None:
-                _check_pose_param(task, args.at_offset, path + ("at", "offset"), report)
+                _check_pose_param(task, cell, args.at_offset, path + ("at", "offset"), report)
             if kind == "place" and args.confirm is not None:
                 check_io_name(cell, args.confirm, "inputs", path + ("confirm",), report)
             needs_gripper = True
@@ -74,7 +78,7 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             )
 
 
-def _is_short(report: Report, path) -> bool:
+def _is_short(report: Report, path: PathKey) -> bool:
     """True when the step at ``path`` was written in short form (``move: [..]``)."""
     value = report.source.data
     for part in path:
@@ -82,13 +86,13 @@ def _is_short(report: Report, path) -> bool:
     return not isinstance(value, dict)
 
 
-def _all_steps(steps: list[StepSpec]):
+def _all_steps(steps: list[StepSpec]) -> Iterator[StepSpec]:
     for step in steps:
         yield step
         yield from step.between
 
 
-def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
+def _check_pattern(task: LoadedTask, pattern: Pattern, path: PathKey, report: Report) -> None:
     params = task.task.params
     if pattern.index not in params:
         report.error(path + ("index",), unknown_name("param", pattern.index, params))
@@ -119,7 +123,7 @@ def _check_pattern(task: LoadedTask, pattern, path, report: Report) -> None:
         )
 
 
-def _check_change_tool(cell, tool: str, path, report: Report) -> None:
+def _check_change_tool(cell: Cell, tool: str, path: PathKey, report: Report) -> None:
     if tool not in cell.tools:
         known = list(cell.tools)
         report.error(
@@ -136,7 +140,7 @@ def _check_change_tool(cell, tool: str, path, report: Report) -> None:
         )
 
 
-def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
+def _check_tool_at_end(task: LoadedTask, cell: Cell, report: Report) -> None:
     """Every job starts with ``robot.tool`` mounted, so a task must end with it."""
     last = None
     for step in task.steps:
@@ -150,9 +154,26 @@ def _check_tool_at_end(task: LoadedTask, cell, report: Report) -> None:
         )
 
 
-def _check_pose_param(task: LoadedTask, name: str, path, report: Report) -> None:
+def _check_param_camera(cell: Cell, name: str, camera: str, report: Report) -> None:
+    cameras = cell.cameras
+    path = ("params", name, "camera")
+    if camera not in cameras:
+        report.error(path, unknown_name("camera", camera, cameras))
+    elif cameras[camera].mount == "flange":
+        report.error(
+            path,
+            f"camera {camera!r} rides on the flange: where it saw the part depends on where the "
+            "arm stood; give the pose in a frame (or use a camera fixed in the world)",
+        )
+
+
+def _check_pose_param(
+    task: LoadedTask, cell: Cell, name: str, path: PathKey, report: Report
+) -> None:
     params = task.task.params
     if name not in params:
         report.error(path, unknown_name("param", name, params))
     elif params[name].type != "pose":
         report.error(path, f"offset param {name!r} must be of type pose, not {params[name].type}")
+    elif (camera := params[name].camera) is not None:
+        _check_param_camera(cell, name, camera, report)

@@ -16,11 +16,23 @@ Only bare numbers are judged: a value written with a unit says what it means.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from cellrunner.model.source import PathKey
+
+if TYPE_CHECKING:
+    from cellrunner.model.load import LoadedCell, LoadedTask
+    from cellrunner.model.robots import RobotSpec
+
+
+class Warner(Protocol):
+    """Where the warnings go: ``Report`` or a prefixed view of it."""
+
+    def warn(self, path: PathKey, message: str) -> None: ...
+
 
 #: keys of task step arguments that hold a length (m)
 STEP_LENGTH_KEYS = ("approach", "lift", "retreat", "distance", "depth", "max_distance")
@@ -58,13 +70,13 @@ def _vector_mm(values: list[float]) -> str:
     return f"did you mean mm, i.e. [{metres}] m? (write each as e.g. '{example:g} mm')"
 
 
-def check_cell(loaded, report) -> None:
+def check_cell(loaded: LoadedCell, report: Warner) -> None:
     """Warn about a loaded cell's lengths that look like mm, a frame far beyond reach,
     and fixtures without a pose; ``report.warn(path, message)`` receives them."""
     raw = loaded.source.data
     cell = loaded.cell
     spec = loaded.spec
-    model = spec.name.upper().replace("E", "e")
+    model = spec.label
     _vector(raw, ("robot", "mount", "xyz"), CELL_EXTENT_M, report, "the robot's mount")
     _vector(raw, ("tool", "tcp", "xyz"), TOOL_EXTENT_M, report, "a tool centre point offset")
     for i, _ in enumerate(cell.tool.geometry):
@@ -118,20 +130,21 @@ def check_cell(loaded, report) -> None:
             )
 
 
-def _mm_within(xyz, shoulder: np.ndarray, limit_m: float) -> bool:
+def _mm_within(xyz: Iterable[float], shoulder: np.ndarray, limit_m: float) -> bool:
     return float(np.linalg.norm(np.asarray(xyz, float) / 1000 - shoulder)) <= limit_m
 
 
-def _fmt_xyz(xyz) -> str:
+def _fmt_xyz(xyz: Iterable[float]) -> str:
     return "[" + ", ".join(f"{float(v):.4g}" for v in xyz) + "]"
 
 
-def _vector(raw: Any, path: PathKey, limit_m: float, report, what: str) -> None:
+def _vector(raw: Any, path: PathKey, limit_m: float, report: Warner, what: str) -> None:
     values = _get(raw, path)
     if not isinstance(values, list):
         return
-    numbers = [_number(v) for v in values]
-    if any(n is None for n in numbers):
+    maybe = [_number(v) for v in values]
+    numbers = [n for n in maybe if n is not None]
+    if len(numbers) < len(maybe):
         return
     if max(abs(n) for n in numbers) > limit_m:
         report.warn(
@@ -141,7 +154,7 @@ def _vector(raw: Any, path: PathKey, limit_m: float, report, what: str) -> None:
         )
 
 
-def _shape(raw: Any, base: PathKey, limit_m: float, report) -> None:
+def _shape(raw: Any, base: PathKey, limit_m: float, report: Warner) -> None:
     """Sizes of a box, cylinder or sphere and a placed shape's xyz, written inline or as pose."""
     for key, sizes in (
         ("box", ("size",)),
@@ -164,18 +177,18 @@ def _shape(raw: Any, base: PathKey, limit_m: float, report) -> None:
         _vector(raw, path, limit_m, report, "a shape's position")
 
 
-def check_task(loaded_task, cell, report) -> None:
+def check_task(loaded_task: LoadedTask, cell: LoadedCell, report: Warner) -> None:
     """Warn about a task's step lengths and speeds that look like mm (and mm/s)."""
     from cellrunner.model.robots import robot_spec
 
     spec = robot_spec(cell.cell.robot.model)
-    model = spec.name.upper().replace("E", "e")
+    model = spec.label
     steps = _get(loaded_task.source.data, ("steps",))
     if isinstance(steps, list):
         _walk(steps, ("steps",), spec, model, report)
 
 
-def _walk(node: Any, path: PathKey, spec, model: str, report) -> None:
+def _walk(node: Any, path: PathKey, spec: RobotSpec, model: str, report: Warner) -> None:
     if isinstance(node, dict):
         for key, value in node.items():
             here = (*path, key)
@@ -192,8 +205,9 @@ def _walk(node: Any, path: PathKey, spec, model: str, report) -> None:
                     f"{n:g} mm/s = {n / 1000:g} m/s? (write '{n:g} mm/s')",
                 )
             elif key == "pitch" and isinstance(value, list):
-                numbers = [_number(v) for v in value]
-                if all(x is not None for x in numbers) and max(numbers) > spec.reach_m:
+                maybe = [_number(v) for v in value]
+                numbers = [x for x in maybe if x is not None]
+                if numbers and len(numbers) == len(maybe) and max(numbers) > spec.reach_m:
                     report.warn(
                         here,
                         f"pitch {_fmt_xyz(numbers)} m spans more than the {model}'s reach; "
@@ -211,7 +225,7 @@ def _walk(node: Any, path: PathKey, spec, model: str, report) -> None:
 class _Prefixed:
     """A report whose paths are taken under ``prefix`` (for a sub-mapping's checks)."""
 
-    def __init__(self, report, prefix: PathKey):
+    def __init__(self, report: Warner, prefix: PathKey) -> None:
         self.report, self.prefix = report, prefix
 
     def warn(self, path: PathKey, message: str) -> None:

@@ -24,6 +24,9 @@ from cellrunner.model.cell import Cell
 from cellrunner.model.task import MACROS, STEP_MODELS, Target, TaskFile
 from cellrunner.model.units import NonNegativeLength, PositiveLength
 
+#: a JSON Schema document (or part of one)
+JsonDict = dict[str, Any]
+
 _SHORT_FORMS: dict[str, Any] = {
     "move": Target,
     "approach": str,
@@ -102,11 +105,11 @@ STEP_HELP: dict[str, tuple[str, Any]] = {
 }
 
 
-def _steps_schema(defs: dict, allow_macros: bool = True) -> dict:
+def _steps_schema(defs: JsonDict, allow_macros: bool = True) -> JsonDict:
     """A list of steps: each a one-key mapping ``{KIND: ARGS}`` whose key names the step
     (the discriminator: an editor validates ARGS against that kind's schema alone and
     lists the known kinds for an unknown one), or a bare ``grip``/``release``."""
-    kinds: dict[str, dict] = {}
+    kinds: dict[str, JsonDict] = {}
     for kind, model in STEP_MODELS.items():
         if not allow_macros and kind in MACROS:
             continue
@@ -190,8 +193,8 @@ def _module_docstrings(module: str) -> dict[str, dict[str, str]]:
     return found
 
 
-def _json_schema(value_type: Any, defs: dict) -> dict:
-    schema = _offset_short_form(
+def _json_schema(value_type: Any, defs: JsonDict) -> JsonDict:
+    schema: JsonDict = _offset_short_form(
         _with_examples(TypeAdapter(value_type).json_schema(schema_generator=_WithFieldDocstrings))
     )
     defs.update(schema.pop("$defs", {}))
@@ -244,15 +247,15 @@ def _offset_short_form(node: Any) -> Any:
 _EXAMPLE = re.compile(r"\s*Example: `([^`]+)`\s*$")
 
 
-def cell_schema() -> dict:
-    schema = _with_examples(Cell.model_json_schema(schema_generator=_WithFieldDocstrings))
+def cell_schema() -> JsonDict:
+    schema: JsonDict = _with_examples(Cell.model_json_schema(schema_generator=_WithFieldDocstrings))
     schema["$schema"] = DRAFT
     schema["title"] = "cellrunner cell file"
     return schema
 
 
-def task_schema() -> dict:
-    schema = _offset_short_form(
+def task_schema() -> JsonDict:
+    schema: JsonDict = _offset_short_form(
         _with_examples(TaskFile.model_json_schema(schema_generator=_WithFieldDocstrings))
     )
     defs = schema.setdefault("$defs", {})

@@ -15,6 +15,8 @@ Names are the cell's IO names; :mod:`cellrunner.model.references`-style checks a
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
@@ -23,14 +25,20 @@ from cellrunner.model.checks import check_io_name
 from cellrunner.model.diagnose import unknown_name
 from cellrunner.model.units import Duration, PositiveDuration, PositiveLength
 
+if TYPE_CHECKING:
+    from cellrunner.model.cell import Cell
+    from cellrunner.model.load import Report
+
 
 class InputRule(Strict):
     """One input's rule: exactly one of ``part_at``, ``follows``, ``pulse_after``."""
 
     part_at: Name | None = None
-    """True while a part's centre lies within `within` of this frame. Example: `infeed`"""
+    """True while a part lies at this frame (its centre within `within` of where a part
+    `at:` this frame sits: at the frame for jaws, under it by half its height for suction).
+    Example: `infeed`"""
     within: PositiveLength = 0.02
-    """How close a part's centre must be to the `part_at` frame, m. Example: `0.02`"""
+    """How close a part's centre must be to where it lies at the `part_at` frame, m. Example: `0.02`"""
     follows: Name | None = None
     """Takes this output's value `delay` s later. Example: `door_cmd`"""
     pulse_after: Name | None = None
@@ -59,7 +67,7 @@ class SimBlock(Strict):
     """Input names to the rule that drives them in rehearsal. Example: `{part_present: {part_at: infeed}}`"""
 
 
-def check_sim_block(cell, report) -> None:
+def check_sim_block(cell: Cell, report: Report) -> None:
     """Report rule inputs, outputs and frames the cell does not know."""
     if cell.sim is None:
         return

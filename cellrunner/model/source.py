@@ -10,9 +10,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cellrunner.errors import Diagnostic, InputError
+
+if TYPE_CHECKING:
+    from ruamel.yaml import YAML
+    from ruamel.yaml.nodes import Node
 
 PathKey = tuple[Any, ...]
 
@@ -87,7 +91,7 @@ def load_yaml(path: Path) -> Source:
     return source
 
 
-def _build(node, path: PathKey, source: Source, yaml, errors: list[Diagnostic]) -> Any:
+def _build(node: Node, path: PathKey, source: Source, yaml: YAML, errors: list[Diagnostic]) -> Any:
     from ruamel.yaml.nodes import MappingNode, ScalarNode, SequenceNode
 
     mark = node.start_mark

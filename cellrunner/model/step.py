@@ -63,12 +63,12 @@ class Step:
     kind: StepKind
     name: str
     args: Any
-    file_path: tuple
+    file_path: tuple[Any, ...]  # where the step is written in its file (a PathKey)
     macro: str | None = None
     T_world_tcp: np.ndarray | None = None
     q_goal_deg: tuple[float, ...] | None = None
     retry: RetryPlan | None = None
-    extra: dict = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "kind", StepKind(self.kind))  # a kind read from a file

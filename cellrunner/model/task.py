@@ -8,12 +8,12 @@ to the full form by :func:`widen_step_args` before validation.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from pydantic import BeforeValidator, Field, WithJsonSchema, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
-from cellrunner.model.base import Name, Pose, Strict, Vec3
+from cellrunner.model.base import Name, Pose, Strict
 from cellrunner.model.force_steps import InsertArgs, MoveUntilContactArgs
 from cellrunner.model.params import Param
 from cellrunner.model.tool_steps import ChangeToolArgs

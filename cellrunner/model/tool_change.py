@@ -14,21 +14,29 @@ step is planned and run with (None: the bare flange).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from cellrunner.model import geometry
 from cellrunner.model.frames import frame_pose
-from cellrunner.model.step import Step
+from cellrunner.model.step import Step, StepKind
 from cellrunner.model.task import ApproachArgs, DistanceArgs, GripArgs, LinearArgs
 
+if TYPE_CHECKING:
+    from cellrunner.model.expand import _Builder
+    from cellrunner.model.load import StepSpec
 
-def expand_change_tool(builder, spec, current: str | None) -> str | None:
+
+def expand_change_tool(builder: _Builder, spec: StepSpec, current: str | None) -> str | None:
     """Append the steps of ``spec`` (a change_tool) to ``builder``; return the new tool."""
     cell = builder.cell
-    target = spec.args.tool
+    target: str = spec.args.tool
     if target == current:
         return current
     changer = cell.tool_changer
+    # the task check refuses change_tool without a tool changer and a mounted tool
+    assert changer is not None and current is not None
     d = changer.approach
     path = spec.path
     macro = f"change_tool {target}"
@@ -62,7 +70,9 @@ def expand_change_tool(builder, spec, current: str | None) -> str | None:
     ]
     for kind, name, args, T, tool in rows:
         extra = {"tool": tool, "tcp_of": current, "lock_output": changer.lock}
-        builder.steps.append(Step(builder._next(), kind, name, args, path, macro, T, extra=extra))
+        builder.steps.append(
+            Step(builder._next(), StepKind(kind), name, args, path, macro, T, extra=extra)
+        )
     return target
 
 

@@ -44,7 +44,8 @@ class Trajectory:
         """Joint speeds by finite differences (N x 6), zero at the ends' outside."""
         if len(self.q_rad) < 2:
             return np.zeros_like(self.q_rad)
-        return np.gradient(self.q_rad, 1.0 / self.rate_hz, axis=0)
+        qd: np.ndarray = np.gradient(self.q_rad, 1.0 / self.rate_hz, axis=0)
+        return qd
 
     def digest(self) -> str:
         h = hashlib.sha256()

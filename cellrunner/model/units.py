@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Annotated, Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Annotated, Any
 
 from pydantic import BeforeValidator, WithJsonSchema
 from pydantic_core import PydanticCustomError
@@ -98,19 +99,20 @@ def quantity(
     ge: float | None = None,
     le: float | None = None,
     lt: float | None = None,
-):
+) -> Any:  # a type form: Annotated[float, ...]
     """An annotated float type for pydantic: parses units and checks bounds."""
     unit0 = UNITS[kind][0]
 
     def validate(value: Any) -> float:
         x = parse_quantity(value, kind)
         shown = f"{_fmt(x)} {unit0}".strip()
-        for bound, ok, word in (
+        checks: tuple[tuple[float | None, Callable[[float], bool], str], ...] = (
             (gt, lambda b: x > b, ">"),
             (ge, lambda b: x >= b, ">="),
             (lt, lambda b: x < b, "<"),
             (le, lambda b: x <= b, "<="),
-        ):
+        )
+        for bound, ok, word in checks:
             if bound is not None and not ok(bound):
                 raise _fail(f"must be {word} {_fmt(bound)} {unit0}".rstrip() + f", got {shown}")
         return x
@@ -131,7 +133,9 @@ def quantity(
     return Annotated[float, BeforeValidator(validate), WithJsonSchema(schema)]
 
 
-def _json_bounds(gt, ge, lt, le) -> dict[str, float]:
+def _json_bounds(
+    gt: float | None, ge: float | None, lt: float | None, le: float | None
+) -> dict[str, float]:
     out = {}
     for key, v in (
         ("exclusiveMinimum", gt),
@@ -149,18 +153,32 @@ def _unit_pattern(kind: str) -> str:
     return rf"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*({units})\s*$"
 
 
-Length = quantity("length")
-PositiveLength = quantity("length", gt=0)
-NonNegativeLength = quantity("length", ge=0)
-Duration = quantity("time", ge=0)
-PositiveDuration = quantity("time", gt=0)
-Force = quantity("force", ge=0)
-Mass = quantity("mass", ge=0)
-Speed = quantity("speed", gt=0)
-Angle = quantity("angle")
-AngularSpeed = quantity("angular_speed", gt=0)
-AngularAccel = quantity("angular_accel", gt=0)
-Fraction = quantity("fraction", gt=0, le=1)
+if TYPE_CHECKING:  # to a type checker each quantity is the float it validates to
+    Length = float
+    PositiveLength = float
+    NonNegativeLength = float
+    Duration = float
+    PositiveDuration = float
+    Force = float
+    Mass = float
+    Speed = float
+    Angle = float
+    AngularSpeed = float
+    AngularAccel = float
+    Fraction = float
+else:
+    Length = quantity("length")
+    PositiveLength = quantity("length", gt=0)
+    NonNegativeLength = quantity("length", ge=0)
+    Duration = quantity("time", ge=0)
+    PositiveDuration = quantity("time", gt=0)
+    Force = quantity("force", ge=0)
+    Mass = quantity("mass", ge=0)
+    Speed = quantity("speed", gt=0)
+    Angle = quantity("angle")
+    AngularSpeed = quantity("angular_speed", gt=0)
+    AngularAccel = quantity("angular_accel", gt=0)
+    Fraction = quantity("fraction", gt=0, le=1)
 
 
 def looks_like_radians(values: list[float]) -> bool:

@@ -22,8 +22,14 @@ import math
 from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from cellrunner.errors import InfeasibleError
+    from cellrunner.planning.collision import Clearance, CollisionModel
+    from cellrunner.planning.kinematics import ArmKinematics
 
 #: how many sampled states are measured for a summary (each costs one distance query per pair)
 MAX_STATES = 60
@@ -68,7 +74,7 @@ class Blockers:
 
 
 def blocking_summary(
-    collision, q_states: Iterable[np.ndarray], max_states: int = MAX_STATES
+    collision: CollisionModel, q_states: Iterable[np.ndarray], max_states: int = MAX_STATES
 ) -> Blockers:
     """Count, over up to ``max_states`` of ``q_states`` (evenly picked), the pairs each
     state violates (:meth:`CollisionModel.violations`). A pair is reported as (robot
@@ -76,8 +82,8 @@ def blocking_summary(
     states = [np.asarray(q, float) for q in q_states]
     if len(states) > max_states:
         states = [states[int(i)] for i in np.linspace(0, len(states) - 1, max_states)]
-    counts: Counter = Counter()
-    obstacles: Counter = Counter()
+    counts: Counter[tuple[str, str]] = Counter()
+    obstacles: Counter[str] = Counter()
     for q in states:
         pairs = {_ordered(c.a, c.b) for c in collision.violations(q)}
         counts.update(pairs)
@@ -111,8 +117,8 @@ def branch_name(q_rad: np.ndarray) -> str:
 
 
 def explain_ik_branches(
-    kinematics,
-    collision,
+    kinematics: ArmKinematics,
+    collision: CollisionModel,
     T_world_tcp: np.ndarray,
     q_near_rad: np.ndarray,
     *,
@@ -149,7 +155,7 @@ def explain_ik_branches(
     return lines
 
 
-def _short(c) -> str:
+def _short(c: Clearance) -> str:
     """'elbow in fixture 'conveyor' 94 mm deep' / 'wrist_1 1.6 mm from fixture 'x' (keeps 2.0)'."""
     if c.distance_m <= 0:
         return f"{c.a} in {c.b} {-c.distance_m * 1000:.1f} mm deep"
@@ -198,12 +204,12 @@ def fix_hint(kind: str, obstacles: Sequence[str] = ()) -> str:
 
 def unreachable(
     label: str,
-    kinematics,
-    collision,
+    kinematics: ArmKinematics,
+    collision: CollisionModel,
     T_world_tcp: np.ndarray,
     q_near_rad: np.ndarray,
     approach_m: float | None = None,
-):
+) -> InfeasibleError:
     """The error for a pose with no IK branch inside the joint ranges: the reach, or each
     branch and the joint that refuses it. ``approach_m``: the step's approach distance,
     named when it is what puts the pose out of reach (a length written in mm)."""
@@ -227,8 +233,12 @@ def unreachable(
 
 
 def every_branch_collides(
-    label: str, kinematics, collision, T_world_tcp: np.ndarray, q_near_rad: np.ndarray
-):
+    label: str,
+    kinematics: ArmKinematics,
+    collision: CollisionModel,
+    T_world_tcp: np.ndarray,
+    q_near_rad: np.ndarray,
+) -> InfeasibleError:
     """The error for a pose whose every IK branch collides: each branch and its pair."""
     from cellrunner.errors import InfeasibleError
 

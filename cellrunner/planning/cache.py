@@ -14,20 +14,27 @@ import functools
 import hashlib
 import io
 import json
+import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from cellrunner import __version__
 from cellrunner.model.expand import expand
-from cellrunner.model.geometry import Placed
+from cellrunner.model.geometry import Mesh, Placed
 from cellrunner.model.load import LoadedTask
+from cellrunner.model.params import ParamValue
+from cellrunner.model.step import Step
 from cellrunner.model.trajectory import Trajectory
-from cellrunner.planning.task_plan import StepPlan, TaskPlan, plan_task
+from cellrunner.planning.task_plan import StepPlan, TaskPlan, VerifyInputs, plan_task
 from cellrunner.planning.world import CellWorld
 
+#: plans kept in memory (serve), least recently used first. A job that starts where a fault
+#: left the arm has a plan of its own that is rarely used again; with a bound of 64 those
+#: (~0.5 MB each) grew serve's memory by 10 % over 250 soak jobs (bench_plc)
 _MEMORY: dict[str, TaskPlan] = {}
-_MEMORY_MAX = 64
+_MEMORY_MAX = 16
 
 
 @functools.lru_cache(maxsize=1)
@@ -41,7 +48,11 @@ def _code_digest() -> bytes:
 
 
 def plan_key(
-    world: CellWorld, task: LoadedTask, params: dict, q_start_rad: np.ndarray, joined: bool = True
+    world: CellWorld,
+    task: LoadedTask,
+    params: dict[str, ParamValue],
+    q_start_rad: np.ndarray,
+    joined: bool = True,
 ) -> str:
     h = hashlib.sha256()
     h.update(_code_digest())
@@ -55,9 +66,7 @@ def plan_key(
     return h.hexdigest()[:32]
 
 
-def _meshes(world: CellWorld):
-    from cellrunner.model.geometry import Mesh
-
+def _meshes(world: CellWorld) -> list[Mesh]:
     return [p.shape for p in [*world.fixtures, *world.tool] if isinstance(p.shape, Mesh)]
 
 
@@ -68,37 +77,64 @@ def cache_dir(world: CellWorld) -> Path:
 def plan_cached(
     world: CellWorld,
     task: LoadedTask,
-    params: dict,
+    params: dict[str, ParamValue],
     q_start_rad: np.ndarray,
     *,
     use_cache: bool = True,
     joined: bool = True,
-    on_step=None,
+    on_step: Callable[[Step], None] | None = None,
 ) -> TaskPlan:
     """The plan of ``task`` with ``params`` from ``q_start_rad``: from the cache when the
     same inputs were planned before, else planned (and stored when feasible).
     ``on_step(step)``: called per step as it is planned (all at once for a cached plan)."""
     steps = expand(task, world.loaded.cell, params)
     if not use_cache:
-        return plan_task(world, steps, q_start_rad, joined=joined, on_step=on_step)
+        fresh = plan_task(world, steps, q_start_rad, joined=joined, on_step=on_step)
+        return _verify_on_error(fresh, task, params)
     key = plan_key(world, task, params, q_start_rad, joined)
-    plan = _MEMORY[key] if key in _MEMORY and _MEMORY[key].world is world else None
-    if plan is not None:
-        for step in steps if on_step is not None else ():
-            on_step(step)
+    plan = _MEMORY.get(key)
+    if plan is not None and plan.world is world:
+        _MEMORY[key] = _MEMORY.pop(key)  # the most recently used goes last
+        if on_step is not None:
+            for step in steps:
+                on_step(step)
         return plan
     path = cache_dir(world) / f"{key}.npz"
-    plan = _load(path, world, steps, q_start_rad) if path.is_file() else None
+    cleanup = _on_error_steps(task, world, params, len(steps))
+    plan = _load(path, world, steps, q_start_rad, cleanup) if path.is_file() else None
     if plan is not None and on_step is not None:
         for step in steps:
             on_step(step)
     if plan is None:
-        plan = plan_task(world, steps, q_start_rad, joined=joined, on_step=on_step)
+        plan = _verify_on_error(
+            plan_task(world, steps, q_start_rad, joined=joined, on_step=on_step), task, params
+        )
         if plan.ok:
             _store(path, plan)
-    if len(_MEMORY) >= _MEMORY_MAX:
-        _MEMORY.pop(next(iter(_MEMORY)))
+    _MEMORY.pop(key, None)
+    while len(_MEMORY) >= _MEMORY_MAX:
+        _MEMORY.pop(next(iter(_MEMORY)))  # the least recently used
     _MEMORY[key] = plan
+    return plan
+
+
+def _on_error_steps(
+    task: LoadedTask, world: CellWorld, params: dict[str, ParamValue], n_steps: int
+) -> list[Step]:
+    from cellrunner.model.expand import expand_on_error
+
+    return expand_on_error(task, world.loaded.cell, params, n_steps + 1) if task.on_error else []
+
+
+def _verify_on_error(plan: TaskPlan, task: LoadedTask, params: dict[str, ParamValue]) -> TaskPlan:
+    """The task's on_error steps verified from every state the plan can fail in; an
+    infeasible one makes the plan infeasible (an error naming the step)."""
+    from cellrunner.planning.on_error import on_error_errors, verify_on_error
+
+    cleanup = _on_error_steps(task, plan.world, params, len(plan.steps))
+    if cleanup:
+        plan.on_error = verify_on_error(plan, cleanup)
+        plan.errors.extend(on_error_errors(plan.on_error))
     return plan
 
 
@@ -122,6 +158,7 @@ def _store(path: Path, plan: TaskPlan) -> None:
             arrays[f"qend{i}"] = np.asarray(row.q_end_rad)
         if row.trajectory is not None:
             inputs = row.verify_inputs
+            assert inputs is not None  # a planned trajectory keeps what verified it
             arrays[f"q{i}"] = row.trajectory.q_rad
             arrays[f"prev{i}"] = np.asarray(inputs["previous_q_rad"])
             if inputs["line_m"] is not None:
@@ -130,8 +167,21 @@ def _store(path: Path, plan: TaskPlan) -> None:
                 previous_moving=inputs["previous_moving"], ends_at_rest=inputs["ends_at_rest"]
             )
         meta.append(entry)
+    # every array in one float64 blob, indexed in the JSON: reading an .npz member costs
+    # ~0.4 ms (zip entry, header parse), and a plan has ~30 arrays
+    index, offset = {}, 0
+    for name, array in arrays.items():
+        index[name] = [offset, list(np.shape(array))]
+        offset += int(np.size(array))
+    blob = (
+        np.concatenate([np.asarray(a, float).ravel() for a in arrays.values()])
+        if arrays
+        else np.zeros(0)
+    )
+    on_error = [[r.status, r.message] for r in plan.on_error]
+    header = json.dumps({"rows": meta, "arrays": index, "on_error": on_error}).encode()
     buffer = io.BytesIO()
-    np.savez(buffer, meta=np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8), **arrays)
+    np.savez(buffer, meta=np.frombuffer(header, dtype=np.uint8), blob=blob)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp")
@@ -141,22 +191,35 @@ def _store(path: Path, plan: TaskPlan) -> None:
         pass  # a read-only project: the cache is an optimisation only
 
 
-def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
+def _load(
+    path: Path,
+    world: CellWorld,
+    steps: list[Step],
+    q_start_rad: np.ndarray,
+    cleanup: list[Step],
+) -> TaskPlan | None:
     """The stored plan with its trajectories unsealed: :meth:`TaskPlan.nominal` verifies
     each one again before it can be streamed."""
     from cellrunner.planning.collision import ContactAllowance
 
     try:
-        data = np.load(path, allow_pickle=False)
-        meta = json.loads(bytes(data["meta"]).decode())
-    except (OSError, ValueError, KeyError):
+        with np.load(path, allow_pickle=False) as stored:
+            header = json.loads(bytes(stored["meta"]).decode())
+            blob = stored["blob"]
+        meta = header["rows"]
+        verified = header["on_error"]
+        data = {
+            name: blob[offset : offset + math.prod(shape)].reshape(shape)
+            for name, (offset, shape) in header["arrays"].items()
+        }
+    except (OSError, ValueError, KeyError, TypeError):
         return None
-    if len(meta) != len(steps):
+    if len(meta) != len(steps) or len(verified) != len(cleanup):
         return None
     rows = []
     rate = world.spec.rate_hz
     try:
-        for i, (step, entry) in enumerate(zip(steps, meta)):
+        for i, (step, entry) in enumerate(zip(steps, meta, strict=True)):
             row = StepPlan(step, entry["status"], entry["message"], entry["duration_s"])
             if entry["part"] is not None:
                 shape = next(p for p in world.loaded.cell.parts if p.name == entry["part"])
@@ -170,7 +233,7 @@ def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
             if f"q{i}" in data:
                 q = data[f"q{i}"]
                 row.trajectory = Trajectory(rate, np.arange(len(q)) / rate, q)
-                row.verify_inputs = dict(
+                row.verify_inputs = VerifyInputs(
                     previous_q_rad=data[f"prev{i}"],
                     previous_moving=entry["previous_moving"],
                     ends_at_rest=entry["ends_at_rest"],
@@ -179,4 +242,7 @@ def _load(path: Path, world: CellWorld, steps, q_start_rad) -> TaskPlan | None:
             rows.append(row)
     except (KeyError, StopIteration, ValueError):
         return None
-    return TaskPlan(world, steps, rows, np.asarray(q_start_rad, float))
+    on_error = [
+        StepPlan(s, status, message) for s, (status, message) in zip(cleanup, verified, strict=True)
+    ]
+    return TaskPlan(world, steps, rows, np.asarray(q_start_rad, float), on_error=on_error)

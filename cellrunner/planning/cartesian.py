@@ -16,6 +16,7 @@ Guarantees of :func:`plan_linear` (all positions in the world frame, m):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,7 +50,7 @@ def distance_to_segment_m(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nda
     ab = b - a
     n2 = float(ab @ ab)
     t = np.zeros(len(p)) if n2 == 0 else np.clip((p - a) @ ab / n2, 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
+    return np.asarray(np.linalg.norm(p - (a + t[:, None] * ab), axis=1))
 
 
 def quaternion(R: np.ndarray) -> np.ndarray:
@@ -69,8 +70,8 @@ def quaternion(R: np.ndarray) -> np.ndarray:
     else:
         r = np.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1]) * 2
         q = [(R[1, 0] - R[0, 1]) / r, (R[0, 2] + R[2, 0]) / r, (R[1, 2] + R[2, 1]) / r, 0.25 * r]
-    q = np.array(q)
-    return q / np.linalg.norm(q)
+    wxyz = np.array(q)
+    return np.asarray(wxyz / np.linalg.norm(wxyz))
 
 
 def rotation_matrix(q: np.ndarray) -> np.ndarray:
@@ -92,9 +93,9 @@ def slerp(q0: np.ndarray, q1: np.ndarray, u: float) -> np.ndarray:
         q1, dot = -q1, -dot
     if dot > 1 - 1e-12:
         q = q0 + u * (q1 - q0)
-        return q / np.linalg.norm(q)
+        return np.asarray(q / np.linalg.norm(q))
     theta = np.arccos(dot)
-    return (np.sin((1 - u) * theta) * q0 + np.sin(u * theta) * q1) / np.sin(theta)
+    return np.asarray((np.sin((1 - u) * theta) * q0 + np.sin(u * theta) * q1) / np.sin(theta))
 
 
 def plan_linear(
@@ -171,7 +172,17 @@ def plan_linear(
     return LinearPath(q_path, np.array(us), p0.copy(), p1.copy())
 
 
-def _refine(kin, solve, u_a, q_a, u_b, q_b, p0, p1, depth: int = 0):
+def _refine(
+    kin: ArmKinematics,
+    solve: Callable[[float, np.ndarray], np.ndarray],
+    u_a: float,
+    q_a: np.ndarray,
+    u_b: float,
+    q_b: np.ndarray,
+    p0: np.ndarray,
+    p1: np.ndarray,
+    depth: int = 0,
+) -> tuple[list[np.ndarray], list[float]]:
     """Samples after (u_a, q_a) up to (u_b, q_b), subdividing until the joint-space midpoint
     keeps the TCP within CHORD_TOLERANCE_M of the line."""
     mid = kin.T_world_tcp((q_a + q_b) / 2)[:3, 3]

@@ -2,16 +2,19 @@
 
 Objects and frames:
 
-- arm: the capsules of :meth:`RobotSpec.capsules`, on pinocchio joint i (body 0 = base,
-  fixed at the mount). Names: ``base``, ``shoulder``, ``upper_arm``, ``elbow``,
-  ``forearm``, ``wrist_1``, ``wrist_2``, ``wrist_3``.
+- arm: the convex parts of :func:`cellrunner.model.arm_geometry.arm_geometry` (derived from
+  Universal Robots' collision meshes, which they contain), on pinocchio joint i (body 0 =
+  base, fixed at the mount). Names: the links', ``base``, ``shoulder``, ``upper_arm``,
+  ``forearm``, ``wrist_1``, ``wrist_2``, ``wrist_3``. A model without derived geometry is
+  refused (:class:`InfeasibleError`), never guessed.
 - tool: shapes placed in the flange frame (``Placed.T_parent_shape`` = ``T_flange_shape``).
 - part: the carried part, placed in the TCP frame (``T_tcp_shape``); see
   :meth:`CollisionModel.carrying`.
 - fixtures: shapes placed in the world (``T_world_shape``): box, cylinder, sphere, STL mesh.
 
-Pairs never checked (they touch by construction or are rigidly joined): adjacent arm
-bodies (``RobotSpec.ALLOWED_SELF_CONTACT``), the base against every fixture (the robot is
+Pairs never checked (they touch by construction or are rigidly joined): arm parts that the
+derivation proved apart by more than the clearance over the joints' ranges, or that are the
+joint between adjacent links (:meth:`ArmGeometry.self_pair_checked`), the base against every fixture (the robot is
 mounted on one), the tool against the wrist 2 and wrist 3 bodies, the part against the
 tool and wrist 3, fixtures against each other.
 
@@ -32,8 +35,8 @@ distance of p from that axis. We bound r_j(p) for every configuration by ``R[obj
 components across axis j of the fixed link offsets t_m (their x-y part while the axes of
 joints j..m-1 stay parallel to axis j, their whole length after that) plus the largest
 distance of the object from joint k's origin, or from its axis when that is parallel too,
-taken over the object's support points (:func:`_support_points`: capsule ends + radius,
-box corners, ...). Hence over any sub-segment [s, s + ds] no point of the object moves
+taken over the object's support points (:func:`_support_points`: a convex part's vertices,
+capsule ends + radius, box corners, ...), whose hull (plus the pad) contains the object. Hence over any sub-segment [s, s + ds] no point of the object moves
 more than ``ds * sum_j R[obj, j] |q1_j - q0_j|``, and the distance of a pair shrinks by
 at most ``ds * c_pair``, with ``c_pair`` that bound for the moving object against a static
 one; for two objects carried by arm bodies a < b the distance is measured in body a's
@@ -57,14 +60,17 @@ from __future__ import annotations
 import bisect
 import heapq
 import importlib
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cellrunner.errors import InfeasibleError
+from cellrunner.model.arm_geometry import ArmGeometry, ArmGeometryMissing, ConvexPart, arm_geometry
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 
 if TYPE_CHECKING:
@@ -78,7 +84,7 @@ else:
         """Imports ``name`` on first attribute access and takes its place in this module's
         globals: ``ContactAllowance`` and the cache need no pinocchio or coal (~0.1-0.4 s)."""
 
-        def __init__(self, name: str, alias: str):
+        def __init__(self, name: str, alias: str) -> None:
             self._name, self._alias = name, alias
 
         def __getattr__(self, attr: str):
@@ -96,9 +102,11 @@ STALL_M = 1e-4
 #: Spacing (largest joint move, rad) of the cheap rejection probes in check_motion.
 PROBE_STEP_RAD = 0.15
 
-#: check_path proves pairs from the samples' lower bounds first on paths up to this long (on the
-#: dense 500 Hz samples the verifier checks, the exact queries' jumps are cheaper: measured)
-PATH_BOUNDS_MAX_SAMPLES = 40
+#: check_path proves pairs from the samples' lower bounds first on paths up to this long. Off:
+#: with capsule arm links the exact queries' jumps were cheaper on the verifier's dense samples
+#: and on the planner's 32-point corner arcs too (bench_planning: median 6.5 -> 5.0 ms CPU,
+#: measured); re-measure when exact queries get dearer (convex link parts)
+PATH_BOUNDS_MAX_SAMPLES = 0
 
 #: Largest joint move (rad) of one part of a segment over which check_motion bounds each
 #: object's distance from the joint axes afresh (shorter parts: tighter bounds, more FK).
@@ -106,17 +114,6 @@ KNOT_STEP_RAD = 0.2
 
 #: derived models (carried part x contact allowances) kept per cell
 VARIANTS_KEPT = 64
-
-ARM_BODY_NAMES = (
-    "base",
-    "shoulder",
-    "upper_arm",
-    "elbow",
-    "forearm",
-    "wrist_1",
-    "wrist_2",
-    "wrist_3",
-)
 
 #: Arm bodies the tool is rigidly attached to or adjacent to (never checked against it).
 TOOL_ADJACENT_BODIES = frozenset({5, 6})
@@ -189,6 +186,7 @@ class _Object:
     placement: np.ndarray = field(compare=False)  # T_joint_shape (fixtures: T_world_shape)
     radius_m: float = 0.0  # bounding sphere radius about the shape origin
     fixture: str = ""
+    part: ConvexPart | None = field(default=None, compare=False)  # arm parts: the polytope
 
 
 class CollisionModel:
@@ -209,8 +207,8 @@ class CollisionModel:
         *,
         part: Placed | None = None,
         allowances: Sequence[ContactAllowance] = (),
-        _geometry_cache: dict | None = None,
-    ):
+        _geometry_cache: dict[Any, Any] | None = None,
+    ) -> None:
         self.kinematics = kinematics
         self.tool = tuple(tool)
         self.fixtures = tuple(fixtures)
@@ -230,7 +228,7 @@ class CollisionModel:
         self._geometry_cache = _geometry_cache if _geometry_cache is not None else {}
         self._build()
         key = (_placed_key(part), self.allowances)
-        self._variants: dict = {key: self} if _hashable(key) else {}
+        self._variants: dict[Any, CollisionModel] = {key: self} if _hashable(key) else {}
 
     # -- derived models -------------------------------------------------------------------
 
@@ -282,23 +280,40 @@ class CollisionModel:
         self._geometry_cache[key] = (shape, geometry, radius)
         return geometry, radius
 
+    @staticmethod
+    def _arm_geometry(model: str) -> ArmGeometry:
+        try:
+            return arm_geometry(model)
+        except ArmGeometryMissing as exc:
+            raise InfeasibleError(str(exc)) from None
+
+    def _convex(self, part: ConvexPart) -> coal.CollisionGeometry:
+        """The coal polytope of an arm part (built once per cell and shared by variants)."""
+        key = ("arm part", id(part))
+        cached = self._geometry_cache.get(key)
+        if cached is None or cached[0] is not part:
+            vertices = coal.StdVec_Vec3s()
+            vertices.extend(list(part.vertices_m))
+            cached = (part, coal.Convex.convexHull(vertices, False, ""), 0.0)
+            self._geometry_cache[key] = cached
+        return cached[1]
+
     def _build(self) -> None:
         kin = self.kinematics
         model = kin.model
         spec = kin.spec
         objects: list[_Object] = []
-        for index, capsule in enumerate(spec.capsules()):
-            p0, p1 = np.array(capsule.p0_m, float), np.array(capsule.p1_m, float)
-            T = _segment_frame(p0, p1)
-            length = float(np.linalg.norm(p1 - p0))
+        self._arm = self._arm_geometry(spec.name)
+        for part in self._arm.parts:
             objects.append(
                 _Object(
-                    ARM_BODY_NAMES[index],
+                    part.link,
                     "arm",
-                    capsule.body,
-                    coal.Capsule(capsule.radius_m, length),
-                    T,
-                    radius_m=length / 2 + capsule.radius_m,
+                    part.body,
+                    self._convex(part),
+                    np.eye(4),
+                    radius_m=float(np.linalg.norm(part.vertices_m, axis=1).max()),
+                    part=part,
                 )
             )
         T_joint6_flange = model.frames[kin.flange_frame_id].placement.homogeneous
@@ -362,7 +377,7 @@ class CollisionModel:
                 if not self._checked(a, b):
                     continue
                 pairs.append((i, j))
-                required.append(self._required(a, b))
+                required.append(self._required_m(a, b))
         for i, j in pairs:
             geom_model.addCollisionPair(pin.CollisionPair(i, j))
         self._geom_model = geom_model
@@ -389,8 +404,10 @@ class CollisionModel:
             robot = a if b.group == "fixture" else b
             return robot.body != 0
         if a.group == b.group == "arm":
-            pair = (min(a.body, b.body), max(a.body, b.body))
-            return a.body != b.body and pair not in self.kinematics.spec.ALLOWED_SELF_CONTACT
+            assert a.part is not None and b.part is not None
+            return self._arm.self_pair_checked(
+                self._arm.parts.index(a.part), self._arm.parts.index(b.part), self.clearance_m
+            )
         if groups == {"tool"} or groups == {"part"}:
             return False
         if groups == {"tool", "part"}:
@@ -401,7 +418,7 @@ class CollisionModel:
             return other.body not in TOOL_ADJACENT_BODIES
         return other.body != 6  # part against the arm
 
-    def _required(self, a: _Object, b: _Object) -> float:
+    def _required_m(self, a: _Object, b: _Object) -> float:
         fixture = a if a.group == "fixture" else b if b.group == "fixture" else None
         if fixture is not None:
             mover = b if fixture is a else a
@@ -423,7 +440,11 @@ class CollisionModel:
         for k, obj in enumerate(self._objects):
             self._center_local[k] = obj.placement[:3, 3]
             self._radius[k] = obj.radius_m
-            support.append(_support_points(obj.geometry, obj.placement))
+            support.append(
+                (obj.part.vertices_m, 0.0)
+                if obj.part is not None
+                else _support_points(obj.geometry, obj.placement)
+            )
             if self._is_mover[k]:
                 self._reach[k] = _joint_reach(model, obj.body, *support[k])
         # support points of the moving objects, for per-segment radial extents
@@ -462,7 +483,7 @@ class CollisionModel:
         # relative to the other (distances are the same in the lower body's frame)
         self._pair_high = self._pair_mover.copy()  # the object whose motion counts
         self._pair_joints = np.ones((len(self._pairs), 6))  # 1 for the joints that count
-        for p, (m, o) in enumerate(zip(self._pair_mover, self._pair_other, strict=False)):
+        for p, (m, o) in enumerate(zip(self._pair_mover, self._pair_other, strict=True)):
             if not self._pair_other_static[p]:
                 low, high = (m, o) if self._body[m] <= self._body[o] else (o, m)
                 self._pair_high[p] = high
@@ -478,7 +499,11 @@ class CollisionModel:
         centers, radii, owner = [], [], []
         for row, k in enumerate(self._movers):
             obj = self._objects[k]
-            c, r = _cover_spheres(obj.geometry, obj.placement)
+            c, r = (
+                _polytope_cover_spheres(obj.part.vertices_m, obj.part.faces)
+                if obj.part is not None
+                else _cover_spheres(obj.geometry, obj.placement)
+            )
             centers.append(c)
             radii.append(r)
             owner += [row] * len(r)
@@ -517,7 +542,7 @@ class CollisionModel:
         ]
         combos = [
             (a, b, n)
-            for n, (ra, rb) in enumerate(zip(self._lb_moving_a, self._lb_moving_b, strict=False))
+            for n, (ra, rb) in enumerate(zip(self._lb_moving_a, self._lb_moving_b, strict=True))
             for a in spheres_of[ra]
             for b in spheres_of[rb]
         ]
@@ -631,7 +656,7 @@ class CollisionModel:
         """Per pair, the bound on how much its distance can shrink over the whole segment
         with joint displacement ``dq_rad`` (m), valid for any segment; see the module
         docstring."""
-        return self._pair_reach @ np.abs(np.asarray(dq_rad, float))
+        return np.asarray(self._pair_reach @ np.abs(np.asarray(dq_rad, float)))
 
     def segment_bounds(self, q0_rad: np.ndarray, q1_rad: np.ndarray, pieces: int = 1) -> np.ndarray:
         """Per pair, a bound on how much its distance can shrink along the segment q0 -> q1
@@ -920,14 +945,14 @@ class CollisionModel:
                 return s, m, used
 
 
-def _placed_key(placed: Placed | None) -> tuple | None:
+def _placed_key(placed: Placed | None) -> tuple[str, Shape, bytes] | None:
     """What a placed shape is, by value (a part placed again in the same pose is the same)."""
     if placed is None:
         return None
     return placed.name, placed.shape, np.asarray(placed.T_parent_shape, float).tobytes()
 
 
-def _hashable(value) -> bool:
+def _hashable(value: object) -> bool:
     try:
         hash(value)
     except TypeError:
@@ -990,6 +1015,39 @@ def _cover_spheres(
         lo, hi = _local_aabb(geometry)
         local, radius = ((lo + hi) / 2)[None, :], np.array([float(np.linalg.norm(hi - lo)) / 2])
     return local @ T[:3, :3].T + T[:3, 3], radius
+
+
+def _polytope_cover_spheres(
+    vertices: np.ndarray, faces: np.ndarray, width_m: float = 0.06
+) -> tuple[np.ndarray, np.ndarray]:
+    """Spheres whose union contains the convex polytope (``vertices``, triangle ``faces``):
+    the polytope cut into slabs along its longest axis, each slab's ball around the corners
+    of the polytope's part in it (its vertices there and its edges' crossings of the slab's
+    planes; the part is the hull of those, and a ball is convex)."""
+    v = np.asarray(vertices, float)
+    axis = np.linalg.svd(v - v.mean(axis=0), full_matrices=False)[2][0]
+    s = v @ axis
+    n = max(1, math.ceil((s.max() - s.min()) / width_m))
+    cuts = np.linspace(s.min(), s.max(), n + 1)
+    f = np.asarray(faces, int)
+    edges = np.unique(
+        np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0
+    )
+    a, b = edges[:, 0], edges[:, 1]
+    centres, radii = [], []
+    for lo, hi in itertools.pairwise(cuts):
+        corners = [v[(s >= lo) & (s <= hi)]]
+        for plane in (lo, hi):
+            cross = (s[a] - plane) * (s[b] - plane) < 0
+            t = (plane - s[a][cross]) / (s[b][cross] - s[a][cross])
+            corners.append(v[a][cross] + t[:, None] * (v[b][cross] - v[a][cross]))
+        pts = np.concatenate(corners)
+        if not len(pts):
+            continue
+        centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+        centres.append(centre)
+        radii.append(float(np.linalg.norm(pts - centre, axis=1).max()) + 1e-9)
+    return np.array(centres), np.array(radii)
 
 
 def _joint_reach(model: pin.Model, body: int, points: np.ndarray, pad: float) -> np.ndarray:
@@ -1096,14 +1154,14 @@ def read_stl(path: Path) -> tuple[np.ndarray, np.ndarray]:
             corners = np.frombuffer(raw, dtype=record, count=count, offset=84)["v"].reshape(-1, 3)
             return _dedupe(corners.astype(float))
     text = raw.decode("ascii", errors="replace")
-    corners = [
+    vertex_lines = [
         [float(v) for v in line.split()[1:4]]
         for line in text.splitlines()
         if line.strip().startswith("vertex")
     ]
-    if not corners or len(corners) % 3:
+    if not vertex_lines or len(vertex_lines) % 3:
         raise ValueError(f"{path}: not an STL file (no triangles found)")
-    return _dedupe(np.array(corners, dtype=float))
+    return _dedupe(np.array(vertex_lines, dtype=float))
 
 
 def _dedupe(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

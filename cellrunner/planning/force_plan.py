@@ -10,28 +10,36 @@ full clearance.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from cellrunner.model import geometry
 from cellrunner.model.step import StepKind
+from cellrunner.planning.collision import ContactAllowance
+
+if TYPE_CHECKING:
+    from cellrunner.model.force_steps import MoveUntilContactArgs
+    from cellrunner.model.step import Step
+    from cellrunner.planning.task_plan import _StepPlanner
 
 #: contact allowed beyond the depth measured at the line's end (m)
 CONTACT_SLACK_M = 0.001
 
 
-def contact_line_goal(args, T_world_tcp: np.ndarray) -> np.ndarray:
+def contact_line_goal(args: MoveUntilContactArgs, T_world_tcp: np.ndarray) -> np.ndarray:
     """The end of a move_until_contact line from ``T_world_tcp`` (full max_distance)."""
     d = np.asarray(args.direction, float) * args.max_distance
     if args.frame == "tool":
-        return T_world_tcp @ geometry.pose_matrix(tuple(d))
-    return geometry.pose_matrix(tuple(d)) @ T_world_tcp
+        return np.asarray(T_world_tcp @ geometry.pose_matrix(tuple(d)))
+    return np.asarray(geometry.pose_matrix(tuple(d)) @ T_world_tcp)
 
 
-def contact_allowances(planner, step, T_goal: np.ndarray) -> tuple:
+def contact_allowances(
+    planner: _StepPlanner, step: Step, T_goal: np.ndarray
+) -> tuple[ContactAllowance, ...]:
     """Allowances for the fixtures the carried part (or, carrying nothing, the tool) meets
     at the line's end, by no more than it reaches into them there."""
-    from cellrunner.planning.collision import ContactAllowance
-
     try:
         q_end = planner.world.kinematics.ik_nearest(T_goal, planner.q)
     except Exception:  # unreachable: the line planner says why
@@ -46,7 +54,7 @@ def contact_allowances(planner, step, T_goal: np.ndarray) -> tuple:
         if mover == "part"
         else ()
     )
-    allowances: list = []
+    allowances: list[ContactAllowance] = []
     for _ in range(8):  # one pair per round, a line meets few
         model = planner.collision(tuple(allowances) + others)
         clearance = model.clearance(q_end)
@@ -63,7 +71,11 @@ def contact_allowances(planner, step, T_goal: np.ndarray) -> tuple:
     return tuple(allowances)
 
 
-def describe(step, line_m, allowances: tuple) -> str:
+def describe(
+    step: Step,
+    line_m: tuple[np.ndarray, np.ndarray] | None,
+    allowances: tuple[ContactAllowance, ...],
+) -> str:
     """The row message of a force step: its stop force, the line checked, the contact allowed."""
     limit = step.args.force if step.kind == StepKind.MOVE_UNTIL_CONTACT else step.args.force.max
     length_mm = float(np.linalg.norm(line_m[1] - line_m[0])) * 1000 if line_m is not None else 0.0

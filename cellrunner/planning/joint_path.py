@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -87,6 +88,7 @@ def plan_joint_path(
         remaining = max(deadline - time.perf_counter(), 0.1 * time_budget_s)
         strict = _rrt_connect(collision, q0, q1, remaining, seed + 1, conservative=True)
         certified = shortcut(collision, strict, edges_checked=True)
+        assert certified is not None  # with every edge checked, shortcut refuses nothing
     return JointPath(round_corners(collision, certified), "rrtconnect", time.perf_counter() - t0)
 
 
@@ -102,7 +104,7 @@ def round_corners(collision: CollisionModel, q_rad: np.ndarray) -> np.ndarray:
         return q
     out = [q[0]]
     t = np.linspace(0.0, 1.0, CORNER_POINTS)[:, None]
-    for a, w, b in zip(q[:-2], q[1:-1], q[2:]):
+    for a, w, b in zip(q[:-2], q[1:-1], q[2:], strict=True):
         arc = None
         for f in CORNER_FRACTIONS:
             p1, p2 = w + f * (a - w), w + f * (b - w)
@@ -174,12 +176,12 @@ def _rrt_connect(
     setup = og.SimpleSetup(space)
     si = setup.getSpaceInformation()
 
-    def as_array(state) -> np.ndarray:
+    def as_array(state: Any) -> np.ndarray:  # an OMPL state
         return np.array([state[0], state[1], state[2], state[3], state[4], state[5]])
 
     in_collision: list[np.ndarray] = []  # a bounded sample of the refused states, for the message
 
-    def valid(state) -> bool:
+    def valid(state: Any) -> bool:
         q = as_array(state)
         ok = collision.is_valid(q)
         if not ok and len(in_collision) < MAX_REFUSED_KEPT:
@@ -188,8 +190,8 @@ def _rrt_connect(
 
     setup.setStateValidityChecker(valid)
 
-    class ConservativeMotionValidator(ob.MotionValidator):
-        def checkMotion(self, a, b) -> bool:  # noqa: N802 (OMPL's name)
+    class ConservativeMotionValidator(ob.MotionValidator):  # type: ignore[misc]  # OMPL is untyped
+        def checkMotion(self, a: Any, b: Any) -> bool:  # OMPL's name
             return collision.check_motion(as_array(a), as_array(b), explain=False).ok
 
     if conservative:
@@ -223,6 +225,7 @@ def _rrt_connect(
             in_collision,
             f"within {time_budget_s:.1f} s (RRTConnect: {status})",
         )
+    assert best is not None  # an exact solution has a path
     path = best
     path[0], path[-1] = q0, q1
     return path

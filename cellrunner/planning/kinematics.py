@@ -25,6 +25,7 @@ import os
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -36,6 +37,9 @@ from cellrunner.model.robots import JOINT_NAMES, RobotSpec
 #: FK residual above which an IK solution is rejected (position m, rotation rad).
 IK_TOLERANCE_M = 1e-6
 IK_TOLERANCE_RAD = 1e-6
+#: how far (rad about the flange Z, m along its Y) a pose is nudged when the solver
+#: dropped branches at it; well inside the tolerance FK verifies IK with
+IK_NUDGE = 1e-7
 
 
 @dataclass(frozen=True)
@@ -81,7 +85,7 @@ def _dh_link(d: float, a: float, alpha: float) -> pin.SE3:
     """The fixed part of a DH link: translate d along z, a along x, rotate alpha about x."""
     T = np.eye(4)
     ca, sa = math.cos(alpha), math.sin(alpha)
-    T[:3, :3] = [[1, 0, 0], [0, ca, -sa], [0, sa, ca]]
+    T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
     T[:3, 3] = [a, 0, d]
     return pin.SE3(T)
 
@@ -89,7 +93,7 @@ def _dh_link(d: float, a: float, alpha: float) -> pin.SE3:
 class ArmKinematics:
     """Kinematics of one UR arm mounted at ``T_world_base`` carrying a tool ``T_flange_tcp``."""
 
-    def __init__(self, spec: RobotSpec, T_world_base: np.ndarray, T_flange_tcp: np.ndarray):
+    def __init__(self, spec: RobotSpec, T_world_base: np.ndarray, T_flange_tcp: np.ndarray) -> None:
         self.spec = spec
         self.T_world_base = np.array(T_world_base, dtype=float)
         self.T_flange_tcp = np.array(T_flange_tcp, dtype=float)
@@ -134,17 +138,17 @@ class ArmKinematics:
     def T_world_tcp(self, q_rad: np.ndarray) -> np.ndarray:
         """Pose of the TCP in the world at ``q_rad``."""
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q_rad, dtype=float))
-        return self.data.oMf[self.tcp_frame_id].homogeneous.copy()
+        return np.asarray(self.data.oMf[self.tcp_frame_id].homogeneous.copy())
 
     def p_world_tcp(self, q_rad: np.ndarray) -> np.ndarray:
         """Position of the TCP in the world at ``q_rad`` (m)."""
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q_rad, dtype=float))
-        return self.data.oMf[self.tcp_frame_id].translation.copy()
+        return np.asarray(self.data.oMf[self.tcp_frame_id].translation.copy())
 
     def T_world_flange(self, q_rad: np.ndarray) -> np.ndarray:
         """Pose of the flange (tool0) in the world at ``q_rad``."""
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q_rad, dtype=float))
-        return self.data.oMf[self.flange_frame_id].homogeneous.copy()
+        return np.asarray(self.data.oMf[self.flange_frame_id].homogeneous.copy())
 
     def p_world_tcp_many(self, q_rad: np.ndarray) -> np.ndarray:
         """TCP positions in the world (N x 3) for configurations ``q_rad`` (N x 6), computed
@@ -164,7 +168,7 @@ class ArmKinematics:
             x, y = R[:, :, 0].copy(), R[:, :, 1].copy()
             R[:, :, 0] = c * x + s * y  # R @ Rz(q_j)
             R[:, :, 1] = c * y - s * x
-        return p + (R.reshape(-1, 3) @ self._p_joint6_tcp).reshape(n, 3)
+        return np.asarray(p + (R.reshape(-1, 3) @ self._p_joint6_tcp).reshape(n, 3))
 
     @functools.cached_property
     def _chain(self) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -179,15 +183,16 @@ class ArmKinematics:
 
     @functools.cached_property
     def _p_joint6_tcp(self) -> np.ndarray:
-        return self.model.frames[self.tcp_frame_id].placement.translation.copy()
+        return np.asarray(self.model.frames[self.tcp_frame_id].placement.translation.copy())
 
     def jacobian_tcp(self, q_rad: np.ndarray) -> np.ndarray:
         """6x6 Jacobian of the TCP: rows 0-2 its linear velocity in world axes (m/s per
         rad/s), rows 3-5 its angular velocity in world axes (rad/s per rad/s)."""
         q = np.asarray(q_rad, dtype=float)
-        return pin.computeFrameJacobian(
+        J: np.ndarray = pin.computeFrameJacobian(
             self.model, self.data, q, self.tcp_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         ).copy()
+        return J
 
     def manipulability(self, q_rad: np.ndarray) -> float:
         """Smallest singular value of the TCP position Jacobian (m/rad): the slowest TCP
@@ -257,7 +262,7 @@ class ArmKinematics:
         order = np.argsort(np.abs(cand - q_prev).max(axis=1))
         for k in order:
             if self.within_limits(cand[k]) and self._verify(cand[k], np.asarray(T_world_tcp)):
-                return cand[k]
+                return np.asarray(cand[k])
         return None
 
     def unreachable_reason(self, T_world_tcp: np.ndarray) -> str:
@@ -267,7 +272,7 @@ class ArmKinematics:
         )
         p = T_base_flange[:3, 3]
         from_shoulder_m = float(np.linalg.norm(p - np.array([0.0, 0.0, self.spec.d_m[0]])))
-        model = self.spec.name.upper().replace("E", "e")
+        model = self.spec.label
         if from_shoulder_m > self.spec.reach_m:
             mm = from_shoulder_m / 1000
             hint = (
@@ -303,8 +308,20 @@ class ArmKinematics:
         return self._wrap_near(np.asarray(q_raw, float), np.asarray(q_near_rad, float))
 
     def _solve(self, T_base_flange: np.ndarray) -> list[np.ndarray]:
+        """The closed-form branches. At poses where a branch sits exactly on the edge of
+        its formula (UR's usual home, tool straight down with the wrist axes square, is
+        one) the solver's rounding can drop that branch; fewer than eight branches are
+        searched again at poses ``IK_NUDGE`` off (about the flange Z, along its Y), and
+        what is found there is kept when FK verifies it against the pose asked for."""
         with _stdout_silenced():
-            return list(self._ik.inverse_kinematics(np.ascontiguousarray(T_base_flange)))
+            raw = list(self._ik.inverse_kinematics(np.ascontiguousarray(T_base_flange)))
+            if len(raw) >= 8:
+                return raw
+            for nudge in _NUDGES:
+                for q in self._ik.inverse_kinematics(np.ascontiguousarray(T_base_flange @ nudge)):
+                    if not any(np.allclose(q, r, atol=1e-5) for r in raw):
+                        raw.append(q)
+        return raw
 
     def _wrap_near(self, q_raw: np.ndarray, q_near: np.ndarray) -> np.ndarray | None:
         """Shift each joint by a multiple of 2 pi to be nearest q_near within limits."""
@@ -327,7 +344,7 @@ class ArmKinematics:
         T = self.T_world_tcp(q)
         dp = np.linalg.norm(T[:3, 3] - T_world_tcp[:3, 3])
         dR = rotation_angle_rad(T[:3, :3].T @ np.asarray(T_world_tcp)[:3, :3])
-        return dp < IK_TOLERANCE_M * 10 and dR < IK_TOLERANCE_RAD * 10
+        return bool(dp < IK_TOLERANCE_M * 10 and dR < IK_TOLERANCE_RAD * 10)
 
 
 def rotation_angle_rad(R: np.ndarray) -> float:
@@ -357,10 +374,21 @@ def _stdout_silenced() -> Iterator[None]:
         os.close(devnull)
 
 
-def _ik_module(model_name: str):
+def _ik_module(model_name: str) -> Any:  # a ur_analytic_ik solver module (untyped)
     import ur_analytic_ik
 
     try:
         return getattr(ur_analytic_ik, model_name)
     except AttributeError:
         raise InfeasibleError(f"no closed-form IK for robot model {model_name!r}") from None
+
+
+def _nudge(angle_rad: float, y_m: float) -> np.ndarray:
+    c, s_ = math.cos(angle_rad), math.sin(angle_rad)
+    T = np.eye(4)
+    T[:2, :2] = ((c, -s_), (s_, c))
+    T[1, 3] = y_m
+    return T
+
+
+_NUDGES = (_nudge(IK_NUDGE, 0.0), _nudge(0.0, IK_NUDGE))

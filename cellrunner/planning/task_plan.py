@@ -21,6 +21,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
@@ -33,6 +34,11 @@ from cellrunner.model.step import StepKind
 from cellrunner.model.timing import close_time_s, release_time_s
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory
 from cellrunner.planning.world import CellWorld
+
+if TYPE_CHECKING:
+    from cellrunner.planning.collision import CollisionModel, ContactAllowance
+    from cellrunner.planning.kinematics import ArmKinematics
+    from cellrunner.planning.timing import MotionLimits
 
 #: standing still before a grip's wrist baseline, and before weighing after a lift (s);
 #: the execution engine uses the same figures (execution.steps SETTLE_S + AVERAGE_S)
@@ -51,6 +57,22 @@ BLEND_POINTS = 24
 TIMING_MEMO_SIZE = 256
 
 
+class VerifyInputs(TypedDict):
+    """What verify_trajectory was given besides the trajectory and the step."""
+
+    previous_q_rad: np.ndarray
+    previous_moving: bool
+    ends_at_rest: bool
+    line_m: tuple[np.ndarray, np.ndarray] | None
+
+
+class _TimedPiece(TypedDict):
+    q: np.ndarray
+    trajectory: Trajectory
+    approved: ApprovedTrajectory
+    inputs: VerifyInputs
+
+
 @dataclass
 class StepPlan:
     """One row of ``check``: the step and, for motions, its approved trajectory."""
@@ -63,8 +85,8 @@ class StepPlan:
     trajectory: Trajectory | None = None  # what is streamed; sealed in ``approved`` once verified
     q_end_rad: np.ndarray | None = None
     carrying: Placed | None = None
-    allowances: tuple = ()
-    verify_inputs: dict | None = (
+    allowances: tuple[ContactAllowance, ...] = ()
+    verify_inputs: VerifyInputs | None = (
         None  # what verify_trajectory was given, to re-verify a cached plan
     )
     world: CellWorld | None = (
@@ -78,9 +100,9 @@ class _Motion:
 
     row: StepPlan
     waypoints: np.ndarray
-    limits: object
+    limits: MotionLimits
     line_m: tuple[np.ndarray, np.ndarray] | None
-    collision: object
+    collision: CollisionModel
     world: CellWorld
 
 
@@ -93,6 +115,7 @@ class TaskPlan:
     rows: list[StepPlan]
     q_start_rad: np.ndarray
     errors: list[str] = field(default_factory=list)
+    on_error: list[StepPlan] = field(default_factory=list)  # verified from the plan's states
 
     @property
     def ok(self) -> bool:
@@ -133,16 +156,18 @@ class TaskPlan:
         planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
         goal_q = row.q_end_rad if row is not None and row.status == "ok" else None
         motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
-        return _time_and_verify(world, [motion], np.asarray(q_now_rad, float))[0].approved
+        approved = _time_and_verify(world, [motion], np.asarray(q_now_rad, float))[0].approved
+        assert approved is not None  # _time_and_verify approves every row or raises
+        return approved
 
     def _world_of(self, step: Step) -> CellWorld:
-        rows = [r for r in self.rows if r.step.index <= step.index and r.world is not None]
-        return rows[-1].world if rows else self.world
+        worlds = [r.world for r in self.rows if r.step.index <= step.index and r.world is not None]
+        return worlds[-1] if worlds else self.world
 
     def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
         """World TCP position at ``q_rad``, with the tool mounted at ``step`` (default: at start)."""
         world = self.world if step is None else self._world_of(step)
-        return world.kinematics.p_world_tcp(q_rad)
+        return np.asarray(world.kinematics.p_world_tcp(q_rad))
 
     def _carried_before(self, step: Step) -> Placed | None:
         rows = [r for r in self.rows if r.step.index <= step.index]
@@ -220,19 +245,21 @@ def plan_task(
 class _StepPlanner:
     """Walks the steps, tracking the configuration and the carried part."""
 
-    def __init__(self, world: CellWorld, q: np.ndarray, part: Placed | None):
+    def __init__(self, world: CellWorld, q: np.ndarray, part: Placed | None) -> None:
         self.world, self.q, self.part = world, q, part
-        self.allowances: tuple = ()
-        self.contact: tuple = ()  # a force step's contacts, which the next straight move leaves
+        self.allowances: tuple[ContactAllowance, ...] = ()
+        self.contact: tuple[
+            ContactAllowance, ...
+        ] = ()  # a force step's contacts, which the next straight move leaves
 
-    def limits_for(self, step: Step):
+    def limits_for(self, step: Step) -> MotionLimits:
         limits = self.world.limits
         speed = getattr(step.args, "speed", None)
         if step.kind in (StepKind.MOVE, StepKind.APPROACH):
             return limits.scaled(speed_fraction=speed if speed is not None else 1.0)
         return limits.scaled(tcp_speed_mps=speed)
 
-    def collision(self, allowances: tuple = ()):
+    def collision(self, allowances: tuple[ContactAllowance, ...] = ()) -> CollisionModel:
         model = self.world.collision.carrying(self.part)
         return model.allowing(*allowances) if allowances else model
 
@@ -240,7 +267,7 @@ class _StepPlanner:
         self,
         row: StepPlan,
         goal_q: np.ndarray | None = None,
-        allowances: tuple | None = None,
+        allowances: tuple[ContactAllowance, ...] | None = None,
         then: Step | None = None,
     ) -> _Motion:
         from cellrunner.planning.cartesian import plan_linear
@@ -249,12 +276,12 @@ class _StepPlanner:
         step, kin = row.step, self.world.kinematics
         T_now = kin.T_world_tcp(self.q)
         if step.kind in (StepKind.MOVE, StepKind.APPROACH):
-            if goal_q is None:
-                goal_q = (
-                    np.radians(step.q_goal_deg)
-                    if step.q_goal_deg is not None
-                    else self._ik(step.T_world_tcp, step, then)
-                )
+            self.contact = ()  # a joint move leaves a force step's contact behind
+            if goal_q is None and step.q_goal_deg is not None:
+                goal_q = np.radians(step.q_goal_deg)
+            elif goal_q is None:
+                assert step.T_world_tcp is not None  # a move has a joint or a frame target
+                goal_q = self._ik(step.T_world_tcp, step, then)
             collision = self.collision()
             path = plan_joint_path(collision, self.q, goal_q).q_rad
             line = None
@@ -266,7 +293,7 @@ class _StepPlanner:
 
                     allowances = self.contact + contact_allowances(self, step, T_goal)
                 else:
-                    allowances = self._place_allowances(step, T_goal) + self.contact
+                    allowances = self._place_allowances(step, T_goal)  # with self.contact
                 self.contact = allowances if step.kind in FORCE_KINDS else ()
             collision = self.collision(allowances)
             path = plan_linear(kin, collision, self.q, T_goal).q_rad
@@ -330,34 +357,37 @@ class _StepPlanner:
         valid = [q for q in branches if collision.is_valid(q)]
         if not valid:
             raise every_branch_collides(step.label, kin, collision, T_world_tcp, self.q)
-        if follow is not None:
+        if follow is not None and then is not None:
             after = self.collision(self._place_allowances(then, follow))
             for q in valid:
                 q_next = kin.ik_track(follow, q)
                 if q_next is not None and after.is_valid(q_next):
-                    return q
-        return valid[0]  # the descend that follows will say what is wrong with it
+                    return np.asarray(q)
+        return np.asarray(valid[0])  # the descend that follows will say what is wrong with it
 
     def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
         if step.kind == StepKind.LIFT:
-            return geometry.pose_matrix((0, 0, step.args.distance)) @ T_now
+            return np.asarray(geometry.pose_matrix((0, 0, step.args.distance)) @ T_now)
         if step.kind == StepKind.RETREAT:
-            return T_now @ geometry.pose_matrix((0, 0, -step.args.distance))
+            return np.asarray(T_now @ geometry.pose_matrix((0, 0, -step.args.distance)))
         if step.kind == StepKind.MOVE_UNTIL_CONTACT:
             from cellrunner.planning.force_plan import contact_line_goal
 
             return contact_line_goal(step.args, T_now)
+        assert step.T_world_tcp is not None  # descend and linear have a frame target
         return step.T_world_tcp
 
-    def _place_allowances(self, step: Step, T_goal: np.ndarray) -> tuple:
+    def _place_allowances(self, step: Step, T_goal: np.ndarray) -> tuple[ContactAllowance, ...]:
         """The carried part may touch the fixture it rests on where a straight move starts
         (lifting it off) or ends (setting it down), and only that fixture."""
         from cellrunner.planning.collision import ContactAllowance
 
         if self.part is None or step.kind not in LINEAR_KINDS:
-            return ()
+            return self.contact
         q_goal = self._try_ik(T_goal)
-        allowances: list = []
+        # a force step's contact comes first: the part leaves it as deep as the step let it
+        # go (the set-down rule below is for the surfaces it is lifted off or set down on)
+        allowances: list[ContactAllowance] = list(self.contact)
         for end, q in (("start", self.q), ("end", q_goal)):
             if q is None:
                 continue
@@ -385,7 +415,7 @@ class _StepPlanner:
 
     def _try_ik(self, T: np.ndarray) -> np.ndarray | None:
         try:
-            return self.world.kinematics.ik_nearest(T, self.q)
+            return np.asarray(self.world.kinematics.ik_nearest(T, self.q))
         except InfeasibleError:
             return None
 
@@ -452,9 +482,9 @@ def _blend(world: CellWorld, group: list[_Motion]) -> list[_Motion]:
             blended = _corner_arc(kin, a, b, shrink)
             if blended is not None and joint.collision.check_path(blended[2]).ok:
                 a.waypoints, b.waypoints = blended[0], blended[1]
-                if a_line:
+                if a.line_m is not None:
                     a.line_m = (a.line_m[0], kin.p_world_tcp(a.waypoints[-1]))
-                if b_line:
+                if b.line_m is not None:
                     b.line_m = (kin.p_world_tcp(b.waypoints[0]), b.line_m[1])
                 break
     return out
@@ -464,7 +494,9 @@ def _still(q_rad: np.ndarray) -> bool:
     return float(np.abs(q_rad - q_rad[0]).max()) < 1e-9
 
 
-def _corner_arc(kin, a: _Motion, b: _Motion, shrink: float):
+def _corner_arc(
+    kin: ArmKinematics, a: _Motion, b: _Motion, shrink: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """(a's waypoints, b's waypoints, the arc) with the corner between them rounded
     (:func:`_blend`); the arc is the start of the joint move (or its end when b is the
     straight one). None when a side is too short to blend."""
@@ -484,12 +516,12 @@ def _corner_arc(kin, a: _Motion, b: _Motion, shrink: float):
 
     def rounded(start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """The quadratic Bezier arc from ``start`` through the corner's pull to ``end``."""
-        return (1 - t) ** 2 * start + 2 * (1 - t) * t * corner + t**2 * end
+        return np.asarray((1 - t) ** 2 * start + 2 * (1 - t) * t * corner + t**2 * end)
 
     def along(edge_from: np.ndarray, edge_to: np.ndarray, distance: float) -> np.ndarray:
         edge = edge_to - edge_from
         length = float(np.linalg.norm(edge))
-        return edge_from + edge * min(distance / max(length, 1e-12), 0.5)
+        return np.asarray(edge_from + edge * min(distance / max(length, 1e-12), 0.5))
 
     if a.line_m is not None:  # straight -> joint
         if len(b.waypoints) < 2:
@@ -526,8 +558,8 @@ def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray
     return [m.row for m in group]
 
 
-def _apply(world: CellWorld, group: list[_Motion], pieces: list[dict]) -> None:
-    for motion, piece in zip(group, pieces, strict=False):
+def _apply(world: CellWorld, group: list[_Motion], pieces: list[_TimedPiece]) -> None:
+    for motion, piece in zip(group, pieces, strict=True):
         row = motion.row
         row.approved, row.trajectory, row.verify_inputs = (
             piece["approved"],
@@ -540,7 +572,7 @@ def _apply(world: CellWorld, group: list[_Motion], pieces: list[dict]) -> None:
         row.q_end_rad = piece["q"][-1]
 
 
-def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[dict]:
+def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[_TimedPiece]:
     """:func:`_time_pieces`, remembered per cell for the same inputs (the pattern slots of
     a job share their first motions, and a grip's retry path is the same for all): the
     same waypoints, limits, lines, collision models, step and start give the same
@@ -563,8 +595,9 @@ def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -
     )
     memo = world.timing_memo
     hit = memo.get(key)
-    if hit is not None and all(a is m.collision for a, m in zip(hit[0], group, strict=False)):
-        return hit[1]
+    if hit is not None and all(a is m.collision for a, m in zip(hit[0], group, strict=True)):
+        pieces: list[_TimedPiece] = hit[1]
+        return pieces
     pieces = _time_pieces(world, group, q_start)
     if len(memo) >= TIMING_MEMO_SIZE:
         memo.clear()
@@ -572,7 +605,7 @@ def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -
     return pieces
 
 
-def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[dict]:
+def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[_TimedPiece]:
     """TOPP-RA over the group's joined waypoints, cut into one verified piece per motion
     (sharing boundary samples); raises InfeasibleError when a piece fails verification."""
     from cellrunner.planning.timing import time_path
@@ -587,13 +620,13 @@ def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) ->
     cuts = _cut_indices(timed.s, group, s_waypoints)
     previous = np.asarray(q_start, float)
     start = 0
-    pieces = []
-    for i, (motion, end) in enumerate(zip(group, cuts, strict=False)):
+    pieces: list[_TimedPiece] = []
+    for i, (motion, end) in enumerate(zip(group, cuts, strict=True)):
         q = timed.q_rad[start : end + 1]
         if i == 0:
             q = np.vstack([previous[None, :], q[1:]]) if len(q) > 1 else previous[None, :]
         trajectory = Trajectory(world.spec.rate_hz, np.arange(len(q)) / world.spec.rate_hz, q)
-        inputs = dict(
+        inputs = VerifyInputs(
             previous_q_rad=previous,
             previous_moving=i > 0,
             ends_at_rest=i == len(group) - 1,
@@ -619,6 +652,7 @@ def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
     from cellrunner.planning.verify import verify_trajectory
 
     world = row.world or world
+    assert row.trajectory is not None and row.verify_inputs is not None  # a stored motion row
     planner = _StepPlanner(world, row.trajectory.q_rad[0], row.carrying)
     return verify_trajectory(
         row.trajectory,
@@ -631,7 +665,7 @@ def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
     )
 
 
-def _same_limits(a, b) -> bool:
+def _same_limits(a: MotionLimits, b: MotionLimits) -> bool:
     return (
         np.array_equal(a.joint_speed_rad_s, b.joint_speed_rad_s)
         and np.array_equal(a.joint_accel_rad_s2, b.joint_accel_rad_s2)
@@ -664,8 +698,10 @@ def _cut_indices(s_samples: np.ndarray, group: list[_Motion], s_waypoints: np.nd
 def _check_retry_path(world: CellWorld, row: StepPlan, rows: list[StepPlan]) -> None:
     """A grip's retry (its in-between steps, then the descend again) must be feasible too."""
     retry = row.step.retry
+    assert retry is not None  # called for the rows of grips with a retry
     descend = next(r for r in rows if r.step.index == retry.redo_from)
     q_grip = descend.q_end_rad
+    assert q_grip is not None  # the descend was planned before its grip
     world = descend.world or world
     planner = _StepPlanner(world, q_grip, None)
     try:

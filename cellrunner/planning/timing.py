@@ -29,13 +29,19 @@ from __future__ import annotations
 
 import itertools
 import math
+import types
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.robots import RobotSpec
 from cellrunner.planning.kinematics import ArmKinematics
+
+#: path position (rad of joint travel) at the given times (s)
+SOfTime = Callable[[np.ndarray], np.ndarray]
 
 DENSIFY_STEP_RAD = 0.03
 #: Where resampling exceeds a limit, the speed there is lowered this much more (fraction).
@@ -194,7 +200,7 @@ def optimal_duration_s(
             travelled = 0.0
     keep.append(len(q) - 1)
     problem = _Problem(kin, q[keep], limits, grid_points=grid_points, densify=False, tightening=1.0)
-    return _s_of_time(problem.solve(problem.tcp_cap), problem.grid)[1]
+    return float(_s_of_time(problem.solve(problem.tcp_cap), problem.grid)[1])
 
 
 class _Problem:
@@ -210,7 +216,7 @@ class _Problem:
         grid_points: int = 0,
         densify: bool = True,
         tightening: float = TOPPRA_TIGHTENING,
-    ):
+    ) -> None:
         ta = _import_toppra()
         self.wp, self.limits, self.tightening = wp, limits, tightening
         if densify:
@@ -255,14 +261,16 @@ class _Problem:
         sd_max = np.minimum(per_joint.min(axis=1), cap)
         x_max = np.minimum(sd_max, 1e6) ** 2
 
-        class PathSpeedBound(constraint.LinearConstraint):
+        class PathSpeedBound(constraint.LinearConstraint):  # type: ignore[misc]  # toppra is untyped
             """s_dot^2 <= x_max on each grid point (computed above for the whole grid)."""
 
-            def __init__(self):
+            def __init__(self) -> None:
                 super().__init__()
                 self.dof = len(alim)
 
-            def compute_constraint_params(self, path, gridpoints):
+            def compute_constraint_params(
+                self, path: Any, gridpoints: np.ndarray
+            ) -> tuple[np.ndarray | None, ...]:
                 return (
                     None,
                     None,
@@ -292,7 +300,9 @@ class _Problem:
         return np.asarray(sd, float)
 
 
-def _resample(problem: _Problem, s_of_t, duration: float, scale: float, rate_hz: float):
+def _resample(
+    problem: _Problem, s_of_t: SOfTime, duration: float, scale: float, rate_hz: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Samples at ``t = k / rate_hz`` of the profile stretched by ``scale``, ending
     exactly on the last waypoint: (t, s, q)."""
     n = max(1, math.ceil(duration * scale * rate_hz - 1e-9))
@@ -327,7 +337,7 @@ def _capped_locally(
     """``cap`` lowered on the grid points around each sample over its limits to the speed
     there divided by the excess (and the headroom)."""
     cap = cap.copy()
-    for k in np.nonzero(excess > 1.0)[0]:
+    for k in (int(i) for i in np.nonzero(excess > 1.0)[0]):
         lo = max(int(np.searchsorted(grid, s[max(k - 2, 0)])) - 2, 0)
         hi = min(int(np.searchsorted(grid, s[min(k + 2, len(s) - 1)])) + 2, len(grid))
         target = np.maximum(sd[lo:hi], 1e-3) * RESAMPLE_HEADROOM / excess[k]
@@ -335,7 +345,7 @@ def _capped_locally(
     return cap
 
 
-def _import_toppra():
+def _import_toppra() -> Any:  # the toppra module (untyped)
     """toppra, imported without loading ``matplotlib.pyplot`` (0.45 s), which its
     algorithm module imports at the top for plotting helpers we never call: while toppra
     loads, ``matplotlib.pyplot`` is a stand-in that imports the real module on first use."""
@@ -345,10 +355,9 @@ def _import_toppra():
         import toppra
 
         return toppra
-    import types
 
     class _LazyPyplot(types.ModuleType):
-        def __getattr__(self, name: str):
+        def __getattr__(self, name: str) -> Any:
             import importlib
 
             sys.modules.pop("matplotlib.pyplot", None)
@@ -356,7 +365,7 @@ def _import_toppra():
             return getattr(real, name)
 
     stand_in = _LazyPyplot("matplotlib.pyplot")
-    added = {"matplotlib.pyplot": stand_in}
+    added: dict[str, types.ModuleType] = {"matplotlib.pyplot": stand_in}
     if "matplotlib" not in sys.modules:
         parent = types.ModuleType("matplotlib")
         parent.pyplot = stand_in  # type: ignore[attr-defined]
@@ -371,7 +380,7 @@ def _import_toppra():
     return toppra
 
 
-def _s_of_time(sd: np.ndarray, gridpoints: np.ndarray):
+def _s_of_time(sd: np.ndarray, gridpoints: np.ndarray) -> tuple[SOfTime, float]:
     """Path position as a function of time from TOPP-RA's path speeds ``sd`` on its grid,
     with constant path acceleration between grid points (its own parameterization), and
     the total duration (s)."""
@@ -385,7 +394,9 @@ def _s_of_time(sd: np.ndarray, gridpoints: np.ndarray):
         tau = np.asarray(tau, float)
         i = np.clip(np.searchsorted(t_grid, tau, side="right") - 1, 0, len(ds) - 1)
         h = np.clip(tau - t_grid[i], 0.0, dt[i])
-        return np.minimum(gridpoints[i] + sd[i] * h + 0.5 * accel[i] * h * h, gridpoints[i + 1])
+        return np.asarray(
+            np.minimum(gridpoints[i] + sd[i] * h + 0.5 * accel[i] * h * h, gridpoints[i + 1])
+        )
 
     return s_at, float(t_grid[-1])
 

@@ -73,9 +73,11 @@ def verify_trajectory(
     above = q > kinematics.q_max_rad + 1e-12
     if below.any() or above.any():
         k, i = np.argwhere(below | above)[0]
+        source = "robot.joint_range" if kinematics.spec.joint_range_narrowed else "the controller's"
         raise fail(
-            f"{JOINT_NAMES[i]} at {np.degrees(q[k, i]):.1f} deg outside its limits "
-            f"[{np.degrees(kinematics.q_min_rad[i]):.0f}, {np.degrees(kinematics.q_max_rad[i]):.0f}] deg (sample {k})"
+            f"joint {i + 1} ({JOINT_NAMES[i]}) at {np.degrees(q[k, i]):.1f} deg is outside "
+            f"its range [{np.degrees(kinematics.q_min_rad[i]):.0f}, "
+            f"{np.degrees(kinematics.q_max_rad[i]):.0f}] deg ({source}) at sample {k}"
         )
 
     head = None

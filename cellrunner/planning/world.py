@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -12,6 +13,11 @@ from cellrunner.model import geometry
 from cellrunner.model.geometry import Placed
 from cellrunner.model.gripper import gripper_shapes, part_center_depth_m
 from cellrunner.model.load import LoadedCell
+
+if TYPE_CHECKING:
+    from cellrunner.planning.collision import CollisionModel
+    from cellrunner.planning.kinematics import ArmKinematics
+    from cellrunner.planning.timing import MotionLimits
 from cellrunner.model.robots import RobotSpec
 
 
@@ -20,7 +26,7 @@ class CellWorld:
     """Everything planning needs from a cell file, in SI and radians."""
 
     loaded: LoadedCell
-    tool_key: tuple | None = (
+    tool_key: tuple[str | None, str | None] | None = (
         None  # (tool, tcp_of) of a world made by with_tool; None: as the cell file mounts it
     )
     base: CellWorld | None = None  # the world with_tool made this one from
@@ -30,7 +36,7 @@ class CellWorld:
         return self.loaded.spec
 
     @cached_property
-    def kinematics(self):
+    def kinematics(self) -> ArmKinematics:
         from cellrunner.planning.kinematics import ArmKinematics
 
         c = self.loaded.cell
@@ -56,13 +62,17 @@ class CellWorld:
             from cellrunner.model.cell import Tool
 
             cell = self.loaded.cell
-            tool = cell.tools[name] if name is not None else Tool(tcp=cell.tools[tcp_of].tcp)
+            if name is not None:
+                tool = cell.tools[name]
+            else:
+                assert tcp_of is not None  # the bare flange carries some tool's TCP
+                tool = Tool(tcp=cell.tools[tcp_of].tcp)
             loaded = dataclasses.replace(self.loaded, cell=cell.model_copy(update={"tool": tool}))
             worlds[key] = CellWorld(loaded, key, self)
         return worlds[key]
 
     @cached_property
-    def _tool_worlds(self) -> dict:
+    def _tool_worlds(self) -> dict[tuple[str | None, str | None], CellWorld]:
         return {}
 
     @cached_property
@@ -70,13 +80,13 @@ class CellWorld:
         return self.loaded.fixture_shapes()
 
     @cached_property
-    def collision(self):
+    def collision(self) -> CollisionModel:
         from cellrunner.planning.collision import CollisionModel
 
         return CollisionModel(self.kinematics, self.tool, self.fixtures)
 
     @cached_property
-    def limits(self):
+    def limits(self) -> MotionLimits:
         from cellrunner.planning.timing import MotionLimits
 
         lim = self.loaded.cell.robot.limits
@@ -91,7 +101,7 @@ class CellWorld:
         )
 
     @cached_property
-    def timing_memo(self) -> dict:
+    def timing_memo(self) -> dict[Any, Any]:
         """Timed, verified motion groups of this cell by their inputs (task_plan)."""
         return {}
 

@@ -16,6 +16,7 @@ allowed anywhere in 0-119. uint32 values are two registers, high word first.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import time
 from collections.abc import Callable, Sequence
@@ -23,7 +24,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from cellrunner.errors import CellrunnerError, InputError
-from cellrunner.plc.param_registers import N_PARAM_REGS, PARAM_FIRST, decode_params, to_int16
+from cellrunner.plc.param_registers import N_PARAM_REGS, PARAM_FIRST, decode_params
+from cellrunner.plc.param_registers import to_int16 as to_int16  # re-exported: the register codec
 from cellrunner.plc.port import (
     COMPLETED_CODES,
     CellPort,
@@ -412,7 +414,7 @@ def _make_context(link: ModbusLink) -> Any:
         def device_ids(self) -> list[int]:
             return [0]
 
-        async def async_getValues(  # noqa: N802 - pymodbus's name
+        async def async_getValues(  # pymodbus's name
             self, device_id: int, func_code: int, address: int, count: int = 1
         ) -> list[int] | ExcCodes:
             if func_code not in REGISTER_FCS:
@@ -420,7 +422,7 @@ def _make_context(link: ModbusLink) -> Any:
             values = link.read(address, count)
             return ExcCodes(values) if isinstance(values, int) else values
 
-        async def async_setValues(  # noqa: N802
+        async def async_setValues(
             self,
             device_id: int,
             func_code: int,
@@ -445,7 +447,7 @@ def _server_class() -> Any:
     from pymodbus.server import ModbusTcpServer
     from pymodbus.server.requesthandler import ServerRequestHandler
 
-    class PipelinedHandler(ServerRequestHandler):  # type: ignore[misc]
+    class PipelinedHandler(ServerRequestHandler):
         def callback_data(self, data: bytes, addr: tuple[str, int] | None = None) -> int:
             used = 0
             while used < len(data):
@@ -461,13 +463,13 @@ def _server_class() -> Any:
         def handle_later(self) -> None:  # called once per frame by the base class
             if not getattr(self, "_draining", False):
                 self._draining = True
-                asyncio.ensure_future(self._drain())
+                self._drain_task = asyncio.ensure_future(self._drain())
 
         async def _drain(self) -> None:
             try:
                 while self._pending:
                     self.last_pdu, self.last_addr = self._pending.pop(0)
-                    await self.handle_request()
+                    await self.handle_request()  # type: ignore[no-untyped-call]  # pymodbus: unannotated
             finally:
                 self.last_pdu, self._draining = None, False
 
@@ -475,11 +477,14 @@ def _server_class() -> Any:
         def _pending(self) -> list[tuple[Any, Any]]:
             if "_queue" not in self.__dict__:
                 self.__dict__["_queue"] = []
-            return self.__dict__["_queue"]
+            queue: list[tuple[Any, Any]] = self.__dict__["_queue"]
+            return queue
 
-    class PipelinedTcpServer(ModbusTcpServer):  # type: ignore[misc]
+    class PipelinedTcpServer(ModbusTcpServer):
         def callback_new_connection(self) -> Any:
-            return PipelinedHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
+            return PipelinedHandler(  # type: ignore[no-untyped-call]  # pymodbus: unannotated
+                self, self.trace_packet, self.trace_pdu, self.trace_connect
+            )
 
     return PipelinedTcpServer
 
@@ -528,10 +533,8 @@ class ModbusServer:
             self._remove_listener = None
         if self._tick_task is not None:
             self._tick_task.cancel()
-            try:
+            with contextlib.suppress(asyncio.CancelledError):
                 await self._tick_task
-            except asyncio.CancelledError:
-                pass
             self._tick_task = None
         if self._server is not None:
             await self._server.shutdown()

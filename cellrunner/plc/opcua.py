@@ -48,11 +48,15 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from urllib.parse import urlparse
 
 from cellrunner.errors import CellrunnerError, InputError
+from cellrunner.model.params import ParamValue
 from cellrunner.plc.port import CellPort, CellStatus, JobResult, ResultCode
+
+if TYPE_CHECKING:
+    from asyncua import ua
 
 _log = logging.getLogger(__name__)
 
@@ -190,11 +194,26 @@ _COMMAND_METHODS = {
 }
 
 
+def _node_id(identifier: int | str, namespace: int = 0) -> ua.NodeId:
+    """asyncua's NodeId of a plain int or str (its annotations ask for its own Int32 and
+    String subclasses, which plain values are as far as the wire is concerned)."""
+    from asyncua import ua
+
+    return ua.NodeId(identifier, namespace)  # type: ignore[arg-type]
+
+
+def _status(code: int) -> ua.StatusCode:
+    """asyncua's StatusCode of a plain int (its annotation asks for its UInt32 subclass)."""
+    from asyncua import ua
+
+    return ua.StatusCode(code)  # type: ignore[arg-type]
+
+
 def _refuse_constant(name: str) -> float:
     raise ValueError(f"{name} is not a number JSON allows")
 
 
-def parse_job_parameters(text: str) -> dict[str, int | float | str | dict] | None:
+def parse_job_parameters(text: str) -> dict[str, ParamValue | str] | None:
     """StartJob's Parameters: a JSON object of finite numbers, quantities with a unit
     ("250 ms") and poses ({"xyz": [m], "rpy": [deg]}) (empty text = {}); None if not
     (also for NaN/Infinity, over-long text, or nesting deeper than an object of poses,
@@ -209,7 +228,7 @@ def parse_job_parameters(text: str) -> dict[str, int | float | str | dict] | Non
         return None
     if not isinstance(data, dict):
         return None
-    params: dict[str, int | float | str | dict] = {}
+    params: dict[str, ParamValue | str] = {}
     for name, value in data.items():
         if isinstance(value, dict):
             if not set(value) <= {"xyz", "rpy"} or not all(
@@ -429,8 +448,9 @@ class OpcUaServer:
 
     # -- lifecycle -------------------------------------------------------------------------
     async def start(self) -> None:
-        from asyncua import Server, ua
+        from asyncua import ua
         from asyncua.crypto.permission_rules import SimpleRoleRuleset, UserRole
+        from asyncua.server.server import Server
 
         from cellrunner.plc.pki import Pki, default_hosts
 
@@ -441,7 +461,8 @@ class OpcUaServer:
         cert_file, key_file = pki.ensure_server_certificate(
             APPLICATION_URI, default_hosts(urlparse(self.config.endpoint).hostname)
         )
-        server = Server(user_manager=users)  # never asyncua's PermissiveUserManager
+        # never asyncua's PermissiveUserManager; ours is duck-typed (asyncua is imported lazily)
+        server = Server(user_manager=users)  # type: ignore[arg-type]
         try:
             await server.init()
             _bound(server.iserver)
@@ -449,8 +470,8 @@ class OpcUaServer:
             server.set_server_name(f"cellrunner {self.cell_name}")
             await server.set_application_uri(APPLICATION_URI)
             server.allow_remote_admin(False)
-            ruleset = SimpleRoleRuleset()
-            write = ua.NodeId(ua.ObjectIds.WriteRequest_Encoding_DefaultBinary)
+            ruleset = SimpleRoleRuleset()  # type: ignore[no-untyped-call]  # asyncua: unannotated
+            write = _node_id(ua.object_ids.ObjectIds.WriteRequest_Encoding_DefaultBinary)
             ruleset._permission_dict[UserRole.User].discard(write)  # clients never write
             server.set_security_policy(
                 [getattr(ua.SecurityPolicyType, _POLICY_TYPES[p]) for p in self.config.security],
@@ -499,10 +520,10 @@ class OpcUaServer:
         self._aspace = server.iserver.aspace
         idx = await server.register_namespace(NAMESPACE_URI)
         cell = await server.nodes.objects.add_object(
-            ua.NodeId("Cell", idx), ua.QualifiedName("Cell", idx)
+            _node_id("Cell", idx), ua.QualifiedName("Cell", idx)
         )
         last = await cell.add_object(
-            ua.NodeId("Cell.LastJob", idx), ua.QualifiedName("LastJob", idx)
+            _node_id("Cell.LastJob", idx), ua.QualifiedName("LastJob", idx)
         )
         for parent, prefix, table in (
             (cell, "", _CELL_VARIABLES),
@@ -512,7 +533,7 @@ class OpcUaServer:
                 key = prefix + name
                 variant_type = getattr(ua.VariantType, vtype)
                 node = await parent.add_variable(
-                    ua.NodeId(f"Cell.{key}", idx),
+                    _node_id(f"Cell.{key}", idx),
                     ua.QualifiedName(name, idx),
                     initial,
                     variant_type,
@@ -521,7 +542,7 @@ class OpcUaServer:
                 self._types[key] = variant_type
         string, int32 = ua.VariantType.String, ua.VariantType.Int32
         await cell.add_method(
-            ua.NodeId("Cell.StartJob", idx),
+            _node_id("Cell.StartJob", idx),
             ua.QualifiedName("StartJob", idx),
             self._start_job_method,
             [
@@ -536,7 +557,7 @@ class OpcUaServer:
         )
         for name, command in _COMMAND_METHODS.items():
             await cell.add_method(
-                ua.NodeId(f"Cell.{name}", idx),
+                _node_id(f"Cell.{name}", idx),
                 ua.QualifiedName(name, idx),
                 self._command_method(command),
                 [],
@@ -545,7 +566,7 @@ class OpcUaServer:
         etype = await server.create_custom_event_type(
             idx,
             "JobCompletedEventType",
-            ua.ObjectIds.BaseEventType,
+            ua.object_ids.ObjectIds.BaseEventType,
             [
                 ("JobId", string),
                 ("ResultCode", int32),
@@ -561,13 +582,15 @@ class OpcUaServer:
         from asyncua import ua
 
         if len(args) != 3:
-            return ua.StatusCode(
-                ua.StatusCodes.BadArgumentsMissing
+            return _status(
+                ua.status_codes.StatusCodes.BadArgumentsMissing
                 if len(args) < 3
-                else ua.StatusCodes.BadTooManyArguments
+                else ua.status_codes.StatusCodes.BadTooManyArguments
             )
         if not all(isinstance(getattr(a, "Value", a), str | None) for a in args):
-            return ua.StatusCode(ua.StatusCodes.BadTypeMismatch)  # every argument is a String
+            return _status(
+                ua.status_codes.StatusCodes.BadTypeMismatch
+            )  # every argument is a String
         task_name, params_text, client_job_id = (_text(a) for a in args)
         job_id, code = self.start_job(task_name, params_text, client_job_id)
         return [ua.Variant(job_id, ua.VariantType.String), ua.Variant(code, ua.VariantType.Int32)]
@@ -608,9 +631,9 @@ class OpcUaServer:
             from asyncua import ua
 
             if args:
-                return ua.StatusCode(ua.StatusCodes.BadTooManyArguments)
+                return _status(ua.status_codes.StatusCodes.BadTooManyArguments)
             if not self.port.command(command):
-                return ua.StatusCode(ua.StatusCodes.BadInvalidState)
+                return _status(ua.status_codes.StatusCodes.BadInvalidState)
             return []
 
         return call
@@ -666,7 +689,7 @@ class OpcUaServer:
             self._values[key] = value
             variant = ua.Variant(value, self._types[key])
             await aspace.write_attribute_value(
-                self._nodes[key].nodeid, ua.AttributeIds.Value, ua.DataValue(variant)
+                self._nodes[key].nodeid, ua.attribute_ids.AttributeIds.Value, ua.DataValue(variant)
             )
 
     async def _trigger_completion(self, result: JobResult) -> None:
@@ -681,7 +704,7 @@ class OpcUaServer:
         await gen.trigger(message=f"job {result.job_id} ended with {result.result_code}")
         # the same event (same EventId) for clients subscribed on the Server object
         cell_node = gen.event.emitting_node
-        gen.event.emitting_node = ua.NodeId(ua.ObjectIds.Server)
+        gen.event.emitting_node = _node_id(ua.object_ids.ObjectIds.Server)
         try:
             await gen.isession.subscription_service.trigger_event(gen.event)
         finally:
@@ -700,7 +723,7 @@ def _bound(iserver: Any) -> None:
     iserver.max_pending_activation_seconds = LOGIN_GRACE_S
 
     def refuse_registration(*args: Any, **kwargs: Any) -> None:
-        raise ServiceError(ua.StatusCodes.BadServiceUnsupported)
+        raise ServiceError(ua.status_codes.StatusCodes.BadServiceUnsupported)
 
     iserver.register_server = refuse_registration
     _check_logins_off_the_loop()
@@ -723,8 +746,8 @@ def _check_logins_off_the_loop() -> None:
 
     if getattr(UaProcessor, "_cellrunner_logins", False):
         return
-    activate = ua.NodeId(ua.ObjectIds.ActivateSessionRequest_Encoding_DefaultBinary)
-    process = UaProcessor._process_message
+    activate = _node_id(ua.object_ids.ObjectIds.ActivateSessionRequest_Encoding_DefaultBinary)
+    process: Any = UaProcessor._process_message
 
     async def process_message(
         self: Any, typeid: Any, requesthdr: Any, seqhdr: Any, body: Any
@@ -739,8 +762,8 @@ def _check_logins_off_the_loop() -> None:
         finally:
             _VERDICT.reset(token)
 
-    UaProcessor._process_message = process_message
-    UaProcessor._cellrunner_logins = True
+    setattr(UaProcessor, "_process_message", process_message)  # noqa: B010 - patched
+    setattr(UaProcessor, "_cellrunner_logins", True)  # noqa: B010 - installed once
 
 
 async def _login_verdict(
@@ -784,7 +807,7 @@ def _argument(name: str, vtype: Any, description: str) -> Any:
 
     arg = ua.Argument()
     arg.Name = name
-    arg.DataType = ua.NodeId(vtype.value)
+    arg.DataType = _node_id(vtype.value)
     arg.ValueRank = -1
     arg.Description = ua.LocalizedText(description)
     return arg
@@ -805,6 +828,6 @@ def _make_validator(pki: Any) -> Callable[..., Any]:
         if not pki.is_trusted(cert):
             path = pki.reject(cert)
             _log.warning("untrusted OPC UA client certificate filed as %s", path)
-            raise ServiceError(ua.StatusCodes.BadCertificateUntrusted)
+            raise ServiceError(ua.status_codes.StatusCodes.BadCertificateUntrusted)
 
     return validate

@@ -107,7 +107,7 @@ class Pki:
                 try:
                     cert.verify_directly_issued_by(anchor)
                     return True
-                except Exception:  # noqa: BLE001 - any failure means untrusted
+                except Exception:  # any failure means untrusted
                     continue
         return False
 
@@ -115,7 +115,7 @@ class Pki:
         """File ``cert`` in ``rejected/`` (idempotent); returns the path."""
         self.ensure_dirs()
         der = cert.public_bytes(serialization.Encoding.DER)
-        thumb = hashlib.sha1(der).hexdigest()  # noqa: S324 - a file name, OPC UA thumbprint
+        thumb = hashlib.sha1(der).hexdigest()  # a file name, OPC UA thumbprint
         cn = common_name(cert) or "unnamed"
         path = self.rejected / f"{re.sub(r'[^A-Za-z0-9_.-]', '_', cn)[:40]}-{thumb}.der"
         if not path.exists():

@@ -135,7 +135,8 @@ class PlcService:
 
     @property
     def modbus(self) -> ModbusServer | None:
-        return self._server("modbus")
+        server: ModbusServer | None = self._server("modbus")
+        return server
 
     @property
     def opcua(self) -> Any:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import html
 from pathlib import Path
+from typing import Any
 
 from cellrunner.report.slots import SlotCycle, worst
 
@@ -19,14 +20,14 @@ img{max-width:100%;border:1px solid #eee;margin:6px 0} .pics{display:flex;flex-w
 """
 
 
-def _e(value) -> str:
+def _e(value: object) -> str:
     return html.escape(str(value))
 
 
 def write_index(
     folder: Path,
-    payload: dict,
-    step_rows: list[dict],
+    payload: dict[str, Any],
+    step_rows: list[dict[str, Any]],
     views: list[tuple[str, str]],
     plots: list[tuple[str, str]],
     slots: tuple[str, list[SlotCycle]] | None,
@@ -84,7 +85,7 @@ def write_index(
     return path
 
 
-def _slots_table(param: str, rows: list[SlotCycle], step_rows: list[dict]) -> str:
+def _slots_table(param: str, rows: list[SlotCycle], step_rows: list[dict[str, Any]]) -> str:
     worst_row = worst(rows)
     motion = [
         r

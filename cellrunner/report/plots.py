@@ -6,10 +6,18 @@ Positions are in the world frame (m), times from the run's first sample (s).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from cellrunner.model.geometry import Placed
+    from cellrunner.report.recorder import Mark
+
+#: a label's box in display pixels: (x0, y0, x1, y1)
+Box2D = tuple[float, float, float, float]
 
 #: step kinds and the colour of their bar in the steps lane
 KIND_COLOURS = {
@@ -44,7 +52,7 @@ def save(fig: Any, path: Path) -> Path:
 # -- the TCP path over the fixtures -------------------------------------------------------------
 
 
-def shape_points_world(placed) -> np.ndarray:
+def shape_points_world(placed: Placed) -> np.ndarray:
     """Points on a placed shape's surface in the world (m): box corners, rings of a
     cylinder's ends, a sphere's bounding box, a mesh's vertices."""
     from cellrunner.model.geometry import Box, Cylinder, Sphere
@@ -78,7 +86,7 @@ def shape_points_world(placed) -> np.ndarray:
         vertices, _ = read_stl(shape.path)
         local = np.asarray(vertices, float).reshape(-1, 3) * getattr(shape, "scale", 1.0)
     T = np.asarray(placed.T_parent_shape, float)
-    return local @ T[:3, :3].T + T[:3, 3]
+    return np.asarray(local @ T[:3, :3].T + T[:3, 3])
 
 
 def _outline(points_2d: np.ndarray) -> np.ndarray:
@@ -110,7 +118,7 @@ def merged_labels(points: list[tuple[str, np.ndarray]]) -> list[tuple[str, np.nd
 def plot_tcp_path(
     path: Path,
     tcp_m: np.ndarray,
-    fixtures: list,
+    fixtures: list[Placed],
     base_m: np.ndarray,
     step_points: list[tuple[str, np.ndarray]],
     title: str,
@@ -123,7 +131,7 @@ def plot_tcp_path(
     views = (("top (x-y)", 0, 1), ("side (x-z)", 0, 2), ("front (y-z)", 1, 2))
     labels = merged_labels(step_points)
     work = np.vstack([tcp, base_m[None, :]])
-    for ax, (name, i, j) in zip(axes, views):
+    for ax, (name, i, j) in zip(axes, views, strict=True):
         _frame_axes(ax, work[:, [i, j]])
         (x0, x1), (_, y1) = ax.get_xlim(), ax.get_ylim()
         for placed in fixtures:
@@ -160,7 +168,7 @@ def plot_tcp_path(
         ax.scatter(*tcp[0, [i, j]], color="green", s=28, zorder=4, label="start")
         ax.scatter(*tcp[-1, [i, j]], color="black", s=28, marker="x", zorder=4, label="end")
         _frame_axes(ax, work[:, [i, j]])  # again: the fixtures' fills moved the limits
-        placed_boxes: list = []
+        placed_boxes: list[Box2D] = []
         for label, p in labels:
             ax.scatter([p[i]], [p[j]], s=12, color="#333333", zorder=4)
             xy = ax.transData.transform((p[i], p[j]))
@@ -200,20 +208,23 @@ _OFFSETS = [
 ]
 
 
-def free_offset(xy_px, label: str, placed: list, font_pt: float) -> tuple[float, float]:
+def free_offset(
+    xy_px: Sequence[float], label: str, placed: list[Box2D], font_pt: float
+) -> tuple[float, float]:
     """An offset (display pixels, y up) for ``label`` anchored at display point ``xy_px``
     whose box overlaps none of the boxes in ``placed`` (which it then joins); the first
     candidate when all overlap. The box is estimated from the text length."""
     w, h = 0.6 * font_pt * len(label) * 100 / 72 + 4, font_pt * 100 / 72 + 4
-    first = None
+    first: tuple[tuple[float, float], Box2D] | None = None
     for dx, dy in _OFFSETS:
         x0 = xy_px[0] + (dx - w if dx < 0 else dx)
         box = (x0, xy_px[1] + dy, x0 + w, xy_px[1] + dy + h)
-        candidate = ((dx - w if dx < 0 else dx, dy), box)
+        candidate = ((dx - w if dx < 0 else dx, float(dy)), box)
         first = first or candidate
         if all(box[2] < b[0] or box[0] > b[2] or box[3] < b[1] or box[1] > b[3] for b in placed):
             break
     else:
+        assert first is not None  # there are offsets to try
         candidate = first
     placed.append(candidate[1])
     return candidate[0]
@@ -244,7 +255,7 @@ def step_spans(
     return spans
 
 
-def draw_steps_lane(ax: Any, marks: list, t_end_s: float) -> None:
+def draw_steps_lane(ax: Any, marks: list[Mark], t_end_s: float) -> None:
     """A lane of coloured bars, one per step (index inside, kind below when it fits),
     alternating between two rows so that short steps' labels never overlap."""
     for k, (t0, t1, index, kind) in enumerate(step_spans(marks, t_end_s)):
@@ -266,7 +277,7 @@ def plot_joints(
     q_rad: np.ndarray,
     qd_rad_s: np.ndarray,
     q_cmd_rad: np.ndarray,
-    marks: list,
+    marks: list[Mark],
     title: str,
 ) -> Path:
     """Joint positions (deg; commanded dashed) and speeds (deg/s) under the steps lane."""
@@ -301,7 +312,7 @@ def plot_timelines(
     t_s: np.ndarray,
     force_N: np.ndarray,
     io: dict[str, np.ndarray],
-    marks: list,
+    marks: list[Mark],
     title: str,
     force_window_N: tuple[float | None, float | None] | None = None,
 ) -> Path:
@@ -316,7 +327,7 @@ def plot_timelines(
     draw_steps_lane(lane, marks, t_end)
     ax_f.plot(t_s, force_N, lw=1.2, color="#9467bd")
     if force_window_N is not None:
-        for bound, what in zip(force_window_N, ("min", "max")):
+        for bound, what in zip(force_window_N, ("min", "max"), strict=True):
             if bound is not None:
                 ax_f.axhline(bound, color="#9467bd", ls=":", lw=1.0)
                 ax_f.text(
@@ -329,7 +340,7 @@ def plot_timelines(
                 )
     ax_f.set_ylabel("wrist force [N]")
     ax_f.grid(alpha=0.3)
-    for ax, name in zip(lanes, names):
+    for ax, name in zip(lanes, names, strict=True):
         values = np.asarray(io[name], float)
         ax.fill_between(t_s, 0, values, step="post", color="#2ca02c", alpha=0.6)
         ax.step(t_s, values, where="post", color="#1a661a", lw=0.8)

@@ -3,11 +3,20 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from cellrunner.backends.base import RobotState
+    from cellrunner.model.step import Step
+    from cellrunner.sim.world import SimWorld
+
 #: samples per simulated second kept for plots (the controller runs at 125-500 Hz)
 SAMPLE_HZ = 50.0
+
+#: a step start: (time s, step index, kind, name)
+Mark = tuple[float, int, str, str]
 
 
 @dataclass
@@ -17,24 +26,25 @@ class RunRecorder:
     (N), IO values by name; ``marks`` are (time s, step index, kind, name) at step starts
     (a retried step appears again)."""
 
-    t: list = field(default_factory=list)
-    q: list = field(default_factory=list)
-    qd: list = field(default_factory=list)
-    q_cmd: list = field(default_factory=list)
-    tcp: list = field(default_factory=list)
-    force_N: list = field(default_factory=list)
-    io: dict = field(default_factory=dict)  # name -> list of values, aligned with t
-    marks: list = field(default_factory=list)
-    moments: list = field(default_factory=list)  # (name, MuJoCo qpos) to picture afterwards
+    t: list[float] = field(default_factory=list)
+    q: list[np.ndarray] = field(default_factory=list)
+    qd: list[np.ndarray] = field(default_factory=list)
+    q_cmd: list[np.ndarray] = field(default_factory=list)
+    tcp: list[np.ndarray] = field(default_factory=list)
+    force_N: list[float] = field(default_factory=list)
+    io: dict[str, list[float]] = field(default_factory=dict)  # name -> values, aligned with t
+    marks: list[Mark] = field(default_factory=list)
+    # (name, MuJoCo qpos) to picture afterwards
+    moments: list[tuple[str, np.ndarray]] = field(default_factory=list)
     _next_s: float = -1.0
 
-    def moment(self, name: str, sim_world) -> None:
+    def moment(self, name: str, sim_world: SimWorld | None) -> None:
         """Remember the scene's pose now (a grip, a release) to render it after the run;
         the first time only (a grip's weighing after the lift is the grip step again)."""
         if sim_world is not None and all(name != seen for seen, _ in self.moments):
             self.moments.append((name, sim_world.data.qpos.copy()))
 
-    def mark(self, time_s: float, step) -> None:
+    def mark(self, time_s: float, step: Step) -> None:
         self.marks.append((time_s, step.index, step.kind, step.name))
 
     def due(self, time_s: float) -> bool:
@@ -43,7 +53,7 @@ class RunRecorder:
 
     def sample(
         self,
-        state,
+        state: RobotState,
         q_cmd_rad: np.ndarray | None,
         p_world_tcp_m: np.ndarray,
         io_names: dict[str, str],

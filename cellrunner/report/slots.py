@@ -4,6 +4,12 @@ plans it (from the plan cache when ``check`` already did), for line balancing.""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from cellrunner.model.load import LoadedTask
+    from cellrunner.model.params import ParamValue
+    from cellrunner.planning.world import CellWorld
 
 
 @dataclass(frozen=True)
@@ -17,7 +23,9 @@ class SlotCycle:
     error: str = ""
 
 
-def slot_cycles(world, task, params: dict) -> tuple[str, list[SlotCycle]] | None:
+def slot_cycles(
+    world: CellWorld, task: LoadedTask, params: dict[str, ParamValue]
+) -> tuple[str, list[SlotCycle]] | None:
     """(param name, one row per slot) for the task's first pattern param; None when the
     task has no pattern."""
     from cellrunner.model.expand import pattern_params
@@ -43,5 +51,5 @@ def slot_cycles(world, task, params: dict) -> tuple[str, list[SlotCycle]] | None
 
 
 def worst(rows: list[SlotCycle]) -> SlotCycle | None:
-    feasible = [r for r in rows if r.cycle_s is not None]
-    return max(feasible, key=lambda r: r.cycle_s) if feasible else None
+    feasible = [(r.cycle_s, i) for i, r in enumerate(rows) if r.cycle_s is not None]
+    return rows[max(feasible, key=lambda f: f[0])[1]] if feasible else None

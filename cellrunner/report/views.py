@@ -12,11 +12,23 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cellrunner.report.plots import figure, free_offset, merged_labels, save, shape_points_world
+from cellrunner.report.plots import (
+    Box2D,
+    figure,
+    free_offset,
+    merged_labels,
+    save,
+    shape_points_world,
+)
 from cellrunner.sim.render import CameraView, CellRenderer
+
+if TYPE_CHECKING:
+    from cellrunner.model.geometry import Placed
+    from cellrunner.sim.world import SimWorld
 
 #: azimuths tried for the 3/4 view (deg), the first wins ties: from the front left
 AZIMUTHS_DEG = (135.0, 45.0, 225.0, 315.0, 90.0, 180.0, 270.0, 0.0)
@@ -75,7 +87,7 @@ def project(
     return out
 
 
-def _aabb(placed) -> tuple[np.ndarray, np.ndarray]:
+def _aabb(placed: Placed) -> tuple[np.ndarray, np.ndarray]:
     pts = shape_points_world(placed)
     return pts.min(axis=0), pts.max(axis=0)
 
@@ -97,7 +109,7 @@ def _segment_hits_box(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarr
 
 
 def occluders(
-    view: CameraView, work_m: np.ndarray, fixtures: list, stop_short_m: float = 0.03
+    view: CameraView, work_m: np.ndarray, fixtures: list[Placed], stop_short_m: float = 0.03
 ) -> dict[str, int]:
     """Fixtures between the camera and the work points: name -> how many points each
     hides (the segment to a point stops ``stop_short_m`` before it, so the surface a
@@ -116,7 +128,11 @@ def occluders(
 
 
 def choose_shots(
-    work_m: np.ndarray, base_m: np.ndarray, reach_m: float, fixtures: list, fovy_deg: float
+    work_m: np.ndarray,
+    base_m: np.ndarray,
+    reach_m: float,
+    fixtures: list[Placed],
+    fovy_deg: float,
 ) -> list[Shot]:
     """The top view and the 3/4 view (the azimuth that hides the fewest work points),
     both framed on the work and the robot's base."""
@@ -137,13 +153,14 @@ def choose_shots(
         TOP_ELEVATION_DEG,
     )
     sample = work_m[:: max(1, len(work_m) // 80)]
-    best = None
+    best: tuple[int, CameraView, dict[str, int]] | None = None
     for az in AZIMUTHS_DEG:
         view = CameraView(tuple(centre), fit_m, az, ELEVATION_DEG)
         hidden = occluders(view, sample, fixtures)
         score = sum(hidden.values())
         if best is None or score < best[0]:
             best = (score, view, hidden)
+    assert best is not None  # there are azimuths to try
     _, side, hidden = best
     top_hidden = occluders(top, sample, fixtures)
     return [
@@ -153,7 +170,7 @@ def choose_shots(
 
 
 def render_shot(
-    sim_world,
+    sim_world: SimWorld,
     shot: Shot,
     path: Path,
     tcp_m: np.ndarray,
@@ -191,7 +208,7 @@ def render_shot(
     ax.plot(uv[:, 0], uv[:, 1], color="#d62728", lw=1.6, alpha=0.85)
     ax.set_xlim(0, width)
     ax.set_ylim(height, 0)
-    boxes: list = []
+    boxes: list[Box2D] = []
     for label, p in merged_labels(step_points):
         ((u, v),) = project(
             np.asarray(p, float)[None, :], shot.view, width, height, fovy, shot.ortho_height_m
@@ -219,7 +236,7 @@ def render_shot(
     return save(fig, path)
 
 
-def _geom_id(model, name: str) -> int | None:
+def _geom_id(model: Any, name: str) -> int | None:  # a MuJoCo MjModel
     for g in range(model.ngeom):
         if model.geom(g).name == name:
             return g

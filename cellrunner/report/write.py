@@ -5,13 +5,21 @@ from __future__ import annotations
 import csv
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cellrunner.model.step import StepKind
 from cellrunner.report import plots
 from cellrunner.report.recorder import RunRecorder
-from cellrunner.report.slots import slot_cycles
+from cellrunner.report.slots import SlotCycle, slot_cycles
+
+if TYPE_CHECKING:
+    from cellrunner.model.load import LoadedTask
+    from cellrunner.model.params import ParamValue
+    from cellrunner.planning.world import CellWorld
+    from cellrunner.report.recorder import Mark
+    from cellrunner.sim.world import SimWorld
 
 #: plot files every report has (rendered pictures need an OpenGL backend; these do not)
 PLOT_FILES = ("tcp_path.png", "joints.png", "timelines.png", "slots.png")
@@ -22,13 +30,13 @@ NO_PICTURES = "NO_PICTURES.txt"
 def write_report(
     folder: Path,
     recorder: RunRecorder,
-    payload: dict,
+    payload: dict[str, Any],
     *,
-    sim_world,
-    world,
-    task,
-    params: dict,
-    step_rows: list[dict],
+    sim_world: SimWorld,
+    world: CellWorld,
+    task: LoadedTask,
+    params: dict[str, ParamValue],
+    step_rows: list[dict[str, Any]],
 ) -> bool:
     """Write the report of one dry-run into ``folder``; returns whether it holds rendered
     pictures. ``sim_world``: the twin's SimWorld as the run left it; ``world``: the
@@ -90,7 +98,12 @@ def write_report(
     return bool(views)
 
 
-def _with_planned(world, task, params: dict, step_rows: list[dict]) -> list[dict]:
+def _with_planned(
+    world: CellWorld,
+    task: LoadedTask,
+    params: dict[str, ParamValue],
+    step_rows: list[dict[str, Any]],
+) -> list[dict[str, Any]]:
     """The run's step rows with each step's planned duration (s) beside the simulated one
     (a joined, non-stop group of moves is cut into one piece per step when planned)."""
     from cellrunner.planning.cache import plan_cached
@@ -100,9 +113,10 @@ def _with_planned(world, task, params: dict, step_rows: list[dict]) -> list[dict
     return [{**r, "planned_s": planned.get(r["index"], 0.0)} for r in step_rows]
 
 
-def _step_points(a: dict, marks: list) -> list[tuple[str, np.ndarray]]:
+def _step_points(a: dict[str, np.ndarray], marks: list[Mark]) -> list[tuple[str, np.ndarray]]:
     """Where the TCP was as each step started (first attempt of each)."""
-    seen, out = set(), []
+    seen: set[int] = set()
+    out: list[tuple[str, np.ndarray]] = []
     for t, index, kind, _name in marks:
         if index in seen:
             continue
@@ -112,7 +126,7 @@ def _step_points(a: dict, marks: list) -> list[tuple[str, np.ndarray]]:
     return out
 
 
-def _force_window(task) -> tuple[float | None, float | None] | None:
+def _force_window(task: LoadedTask) -> tuple[float | None, float | None] | None:
     for spec in task.steps:
         grip = getattr(spec.args, StepKind.GRIP, None) or (
             spec.args if spec.kind == StepKind.GRIP else None
@@ -123,7 +137,7 @@ def _force_window(task) -> tuple[float | None, float | None] | None:
     return None
 
 
-def _write_slots_csv(path: Path, name: str, rows) -> None:
+def _write_slots_csv(path: Path, name: str, rows: list[SlotCycle]) -> None:
     with path.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow([name, "cycle_s", "error"])
@@ -132,7 +146,11 @@ def _write_slots_csv(path: Path, name: str, rows) -> None:
 
 
 def _render_views(
-    folder: Path, recorder: RunRecorder, sim_world, world, step_points: list
+    folder: Path,
+    recorder: RunRecorder,
+    sim_world: SimWorld,
+    world: CellWorld,
+    step_points: list[tuple[str, np.ndarray]],
 ) -> tuple[list[tuple[str, str]], list[str]]:
     """Top and 3/4 views at the end, and the 3/4 view at the recorded moments (grip,
     release); returns (file, caption) pairs and notes (why there are none)."""
@@ -186,9 +204,9 @@ def _render_views(
     return out, []
 
 
-def _pose(sim_world, qpos: np.ndarray) -> None:
+def _pose(sim_world: SimWorld, qpos: np.ndarray) -> None:
     """Put the scene in a recorded pose for a picture (kinematics only; the run is over)."""
-    from cellrunner.sim._mj import load_mujoco
+    from cellrunner.sim.mujoco_loader import load_mujoco
 
     mujoco = load_mujoco()
     sim_world.data.qpos[:] = qpos

@@ -11,6 +11,10 @@ rendered.
 - :mod:`.world` -- :class:`SimWorld`, the physics stepped one controller period at a time
 - :mod:`.vacuum`, :mod:`.tool_changer`, :mod:`.input_rules`, :mod:`.mesh_pieces` -- the
   parts of the world a cell may add
-- :mod:`.render` -- offscreen PNGs for dry-run reports
+- :mod:`.render` -- offscreen PNGs for dry-run reports; :mod:`.cameras` -- the cell's cameras
 - :mod:`.demo` -- a demo cell and demo motions for tests and benchmarks
+- :mod:`.mujoco_loader` -- the one place MuJoCo is imported (GL off unless pictures are asked for)
+
+Other packages use the world through its public methods and attributes only
+(``tests/test_package_boundaries.py`` checks that no module reaches into its privates).
 """

@@ -67,7 +67,7 @@ def solve_ik(
     for _ in range(200):
         err = _pose_error(dh_forward(desc.spec, q), T_base_flange)
         if np.linalg.norm(err) < tol_m:
-            return q_seed_rad + (q - q_seed_rad + np.pi) % (2 * np.pi) - np.pi
+            return np.asarray(q_seed_rad + (q - q_seed_rad + np.pi) % (2 * np.pi) - np.pi)
         J = np.zeros((12, 6))
         for j in range(6):
             dq = np.zeros(6)
@@ -87,7 +87,7 @@ def quintic_blend(
     q0_rad: np.ndarray, q1_rad: np.ndarray, duration_s: float, rate_hz: float
 ) -> np.ndarray:
     """Samples (N x 6) of a rest-to-rest quintic from q0 to q1 at ``rate_hz``."""
-    n = max(2, int(round(duration_s * rate_hz)) + 1)
+    n = max(2, round(duration_s * rate_hz) + 1)
     s = np.linspace(0.0, 1.0, n)
     blend = 10 * s**3 - 15 * s**4 + 6 * s**5
     return np.asarray(q0_rad) + np.outer(blend, np.asarray(q1_rad) - np.asarray(q0_rad))

@@ -14,13 +14,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.gripper import FINGER_SIZE_M, PAD_Z_M
 from cellrunner.model.robots import RobotSpec
+
+if TYPE_CHECKING:
+    from cellrunner.sim.cameras import CameraDescription
+    from cellrunner.sim.input_rules import InputRuleDescription
 
 
 @dataclass(frozen=True)
@@ -111,7 +115,8 @@ class TwinDescription:
     presence_sensors: tuple[PresenceSensor, ...] = ()
     vacuum: Any = None  # a VacuumDescription (sim.vacuum) for a suction gripper
     tool_changer: Any = None  # a ToolChangerDescription (sim.tool_changer) for several tools
-    input_rules: tuple = ()  # InputRuleDescription: inputs the cell's sim: block drives
+    input_rules: tuple[InputRuleDescription, ...] = ()  # inputs the cell's sim: block drives
+    cameras: tuple[CameraDescription, ...] = ()  # (sim.cameras): cameras and their boards
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"
@@ -125,6 +130,7 @@ class TwinDescription:
             "io_inputs",
             "presence_sensors",
             "input_rules",
+            "cameras",
         ):
             object.__setattr__(self, attr, tuple(getattr(self, attr)))
         if len(self.q_home_rad) != 6:
@@ -140,7 +146,7 @@ class TwinDescription:
             g = self.gripper
             if g.close_output not in self.io_outputs:
                 raise ValueError(
-                    f"gripper close output {g.close_output!r} is not an output; "  # noqa: E501
+                    f"gripper close output {g.close_output!r} is not an output; "
                     f"known: {', '.join(self.io_outputs)}"
                 )
             for ch in (g.closed_sensor_input, g.open_sensor_input):

@@ -2,18 +2,40 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
+from cellrunner.model.cell import Gripper
 from cellrunner.model.expand import frame_pose
 from cellrunner.model.gripper import gripper_channels, part_center_depth_m
-from cellrunner.model.load import LoadedCell
+from cellrunner.model.load import LoadedCell, LoadedTask
+from cellrunner.model.step import StepKind
+
+if TYPE_CHECKING:
+    from cellrunner.sim.description import TwinDescription
+    from cellrunner.sim.input_rules import InputRuleDescription
+
+#: frame -> the gripper of the tool that picks parts there
+Picks = dict[str, Gripper | None]
+
+if TYPE_CHECKING:
+    from cellrunner.model.cell import Cell, Gripper, Part, Tool
+    from cellrunner.model.geometry import Shape
+    from cellrunner.sim.cameras import CameraDescription
+    from cellrunner.sim.description import GripperDescription, PartDescription, TwinDescription
+    from cellrunner.sim.input_rules import InputRuleDescription
+    from cellrunner.sim.tool_changer import ToolChangerDescription
+    from cellrunner.sim.vacuum import VacuumDescription
 
 
-def description_of(loaded: LoadedCell):
+def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> TwinDescription:
     """A :class:`TwinDescription` of ``loaded``: arm, mount, tool, gripper, fixtures, parts, IO.
 
     With ``tools:`` and a tool changer every tool is built (each enabled while mounted):
-    the jaws of the first tool with jaws, the cups of the first vacuum tool."""
+    the jaws of the first tool with jaws, the cups of the first vacuum tool. A part then
+    lies as the tool that picks it at its frame holds it (jaws: centred; cups: top face),
+    found in ``tasks`` (loaded tasks) and the cell's own ``tasks:``."""
     from cellrunner.sim.description import TwinDescription
 
     c = loaded.cell
@@ -31,7 +53,8 @@ def description_of(loaded: LoadedCell):
     jaws.sort(key=lambda t: t is not c.tool)  # the mounted tool's jaws first
     gripper = _jaws(jaws[0], c, io_outputs, io_inputs) if jaws else None
     vacuum = _cups(suction, c) if suction is not None else None
-    parts = [_part(loaded, p, c.tool.gripper) for p in c.parts]
+    picks: Picks = _picking_grippers(loaded, tasks) if c.tools else {}
+    parts = [_part(loaded, p, picks.get(p.at, c.tool.gripper)) for p in c.parts]
     return TwinDescription(
         spec=loaded.spec,
         T_world_base=c.robot.mount.matrix(),
@@ -39,7 +62,7 @@ def description_of(loaded: LoadedCell):
         q_home_rad=tuple(np.radians(c.robot.home)),
         tool_geometry=tuple(loaded.tool_shapes()) if changer is None else (),
         payload_mass_kg=max(c.tool.payload.mass, 0.1),
-        payload_cog_m=tuple(c.tool.payload.cog),
+        payload_cog_m=c.tool.payload.cog_m,
         gripper=gripper,
         vacuum=vacuum,
         tool_changer=changer,
@@ -47,12 +70,21 @@ def description_of(loaded: LoadedCell):
         parts=tuple(parts),
         io_outputs=tuple(io_outputs),
         io_inputs=tuple(io_inputs),
-        input_rules=_input_rules(c),
+        input_rules=_input_rules(loaded, picks),
+        cameras=_cameras(loaded),
         name=c.cell,
     )
 
 
-def _part(loaded: LoadedCell, part, gripper):
+def _cameras(loaded: LoadedCell) -> tuple[CameraDescription, ...]:
+    if not loaded.cell.cameras:
+        return ()
+    from cellrunner.sim.cameras import describe_cameras
+
+    return describe_cameras(loaded)
+
+
+def _part(loaded: LoadedCell, part: Part, gripper: Gripper | None) -> PartDescription:
     """A part where a TCP at its frame grips it, moved by its twin-only ``offset``."""
     from cellrunner.sim.description import PartDescription
 
@@ -65,17 +97,18 @@ def _part(loaded: LoadedCell, part, gripper):
     )
 
 
-def _input_rules(cell) -> tuple:
+def _input_rules(loaded: LoadedCell, picks: Picks) -> tuple[InputRuleDescription, ...]:
     """The ``sim: inputs`` rules in channels and world metres."""
     from cellrunner.sim.input_rules import InputRuleDescription
 
+    cell = loaded.cell
     if cell.sim is None:
         return ()
     out = []
     for name, rule in cell.sim.inputs.items():
         channel = cell.io.inputs[name]
         if rule.part_at is not None:
-            point = tuple(float(v) for v in frame_pose(cell, rule.part_at)[:3, 3])
+            point = _part_at_point(loaded, rule.part_at, picks)
             out.append(
                 InputRuleDescription(
                     channel,
@@ -87,7 +120,9 @@ def _input_rules(cell) -> tuple:
             )
         else:
             kind = "follows" if rule.follows is not None else "pulse_after"
-            output = cell.io.outputs[rule.follows or rule.pulse_after]
+            source = rule.follows or rule.pulse_after
+            assert source is not None  # a rule is part_at, follows or pulse_after (validated)
+            output = cell.io.outputs[source]
             out.append(
                 InputRuleDescription(
                     channel,
@@ -101,11 +136,57 @@ def _input_rules(cell) -> tuple:
     return tuple(out)
 
 
-def _jaws(tool, cell, io_outputs: list, io_inputs: list):
+def _picking_grippers(loaded: LoadedCell, tasks: tuple[LoadedTask, ...]) -> Picks:
+    """frame -> the gripper of the tool mounted where a task picks at that frame (the
+    tasks' steps with their params' defaults; a task that does not load is skipped)."""
+    from cellrunner.errors import CellrunnerError
+    from cellrunner.model.expand import expand, resolve_params
+    from cellrunner.model.load import load_task
+
+    c = loaded.cell
+    found = list(tasks)
+    for path in c.tasks.values():
+        try:
+            found.append(load_task(loaded.resolve(path), loaded))
+        except (CellrunnerError, OSError):
+            continue
+    picks: Picks = {}
+    for task in found:
+        try:
+            steps = expand(task, c, resolve_params(task.task, {}))
+        except (CellrunnerError, ValueError):
+            continue
+        tool = c.robot.tool
+        for step in steps:
+            if step.kind == StepKind.TOOL_LOCK:
+                tool = step.extra["tool"]
+            elif step.kind == StepKind.GRIP and isinstance(step.extra.get("part_at"), str):
+                picks.setdefault(step.extra["part_at"], c.tools[tool].gripper if tool else None)
+    return picks
+
+
+def _part_at_point(loaded: LoadedCell, frame: str, picks: Picks) -> tuple[float, float, float]:
+    """Where the centre of a part lying at ``frame`` is, as parts ``at:`` a frame lie: the
+    frame itself for jaws, half the part's height under it for suction (the frame is the
+    top face). The part that spawns at the frame is measured, else the cell's first part."""
+    cell = loaded.cell
+    x, y, z = (float(v) for v in frame_pose(cell, frame)[:3, 3])
+    part = next((p for p in cell.parts if p.at == frame), cell.parts[0] if cell.parts else None)
+    if part is not None:
+        gripper = picks.get(part.at, cell.tool.gripper)
+        z -= part_center_depth_m(gripper, part.to_shape(loaded.resolve))
+    return (x, y, z)
+
+
+def _jaws(
+    tool: Tool, cell: Cell, io_outputs: list[str], io_inputs: list[str]
+) -> GripperDescription:
     from cellrunner.sim.description import GripperDescription
 
     g = tool.gripper
+    assert g is not None  # called for tools with jaws
     close, _, sensor = gripper_channels(g, cell.io.outputs, cell.io.inputs)
+    assert close is not None  # jaws close on an output (validated)
     io_outputs += [close[0]] if close[0] not in io_outputs else []
     io_inputs += [sensor] if sensor and sensor not in io_inputs else []
     return GripperDescription(
@@ -119,13 +200,15 @@ def _jaws(tool, cell, io_outputs: list, io_inputs: list):
     )
 
 
-def _cups(tool, cell):
+def _cups(tool: Tool, cell: Cell) -> VacuumDescription:
     from cellrunner.sim.vacuum import VacuumDescription
 
     g = tool.gripper
+    assert g is not None  # called for a vacuum tool
     close, _, sensor = gripper_channels(g, cell.io.outputs, cell.io.inputs)
+    assert close is not None  # suction switches on through an output (validated)
     return VacuumDescription(
-        cups=tuple((tuple(cup.xyz), cup.radius) for cup in g.cups),
+        cups=tuple(((cup.xyz[0], cup.xyz[1], cup.xyz[2]), cup.radius) for cup in g.cups),
         suction_output=close[0],
         suction_value=close[1],
         vacuum_ok_input=sensor,
@@ -135,11 +218,15 @@ def _cups(tool, cell):
     )
 
 
-def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
+def _changer(
+    loaded: LoadedCell, io_outputs: list[str], io_inputs: list[str]
+) -> ToolChangerDescription:
     from cellrunner.sim.tool_changer import ChangerTool, ToolChangerDescription
 
     c = loaded.cell
     changer = c.tool_changer
+    assert changer is not None and c.robot.tool is not None  # called for a tool changer
+    mounted = c.robot.tool
     tools = []
     for name, tool in c.tools.items():
         g = tool.gripper
@@ -151,7 +238,7 @@ def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
                 tool.tcp.matrix(),
                 tuple(shapes),
                 max(tool.payload.mass, 0.1),
-                tuple(tool.payload.cog),
+                tool.payload.cog_m,
                 kind,
                 frame_pose(c, changer.rack[name]),
                 _jaws(tool, c, io_outputs, io_inputs) if kind == "jaws" else None,
@@ -161,11 +248,11 @@ def _changer(loaded: LoadedCell, io_outputs: list, io_inputs: list):
         c.io.outputs[changer.lock],
         c.io.inputs[changer.locked] if changer.locked else None,
         tuple(tools),
-        c.robot.tool,
+        mounted,
     )
 
 
-def _part_pose(T_world_grip: np.ndarray, gripper, shape) -> np.ndarray:
+def _part_pose(T_world_grip: np.ndarray, gripper: Gripper | None, shape: Shape) -> np.ndarray:
     """A part lies upright where a TCP at ``T_world_grip`` grips it: centred (jaws) or
     with its top face there (suction)."""
     T = _upright(T_world_grip)

@@ -11,6 +11,7 @@ the same instants every time.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 
@@ -31,7 +32,7 @@ class InputRuleDescription:
 class InputRules:
     """The state of every rule: the output history they need, their current values."""
 
-    def __init__(self, rules: tuple[InputRuleDescription, ...]):
+    def __init__(self, rules: tuple[InputRuleDescription, ...]) -> None:
         self.rules = rules
         self._changes: dict[str, list[tuple[float, bool | float]]] = {}  # output -> (t, value)
         self._last: dict[str, bool | float] = {}
@@ -41,7 +42,10 @@ class InputRules:
         return {r.channel for r in self.rules}
 
     def evaluate(
-        self, t_s: float, outputs: dict[str, bool | float], part_positions
+        self,
+        t_s: float,
+        outputs: dict[str, bool | float],
+        part_positions: Iterable[Sequence[float]],
     ) -> dict[str, bool | float]:
         """The driven inputs at ``t_s`` (s) given the outputs now and the parts' world
         positions (an iterable of 3-sequences in m)."""
@@ -58,12 +62,15 @@ class InputRules:
         out: dict[str, bool | float] = {}
         for rule in self.rules:
             if rule.kind == "part_at":
+                assert rule.point_world_m is not None  # a part_at rule has its point
                 if positions is None:
                     positions = [tuple(p) for p in part_positions]
                 value = any(math.dist(p, rule.point_world_m) <= rule.within_m for p in positions)
             elif rule.kind == "follows":
+                assert rule.output is not None  # follows and pulse_after name an output
                 value = self._value_at(rule.output, t_s - rule.delay_s)
             else:
+                assert rule.output is not None
                 rose = self._rise_s.get(rule.output)
                 value = (
                     rose is not None

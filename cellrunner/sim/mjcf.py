@@ -3,8 +3,10 @@
 Model layout (names are what :mod:`.world` looks up):
 
 - ``base`` body at ``T_world_base``; ``link1``..``link6`` form the DH chain, each body's
-  frame being "DH frame i-1 turned by joint i" -- exactly the frame of
-  :meth:`RobotSpec.capsules`, so the twin collides with the very capsules planning uses.
+  frame being "DH frame i-1 turned by joint i" -- exactly the frame of the arm's convex
+  parts (:mod:`cellrunner.model.arm_geometry`), so the twin collides with the very parts
+  planning uses (mesh geoms ``arm<body>_<k>``; MuJoCo takes a mesh's convex hull, and each
+  part is convex).
   Hinge joints are named as :data:`cellrunner.model.robots.JOINT_NAMES`.
 - ``flange`` (DH frame 6) -> ``tool`` body (welded; carries the tool geometry, the
   payload inertia, the ``ft`` site of the wrist force/torque sensor and the ``tcp`` site)
@@ -36,11 +38,21 @@ from typing import Any
 
 import numpy as np
 
+from cellrunner.model.arm_geometry import arm_geometry
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.robots import JOINT_NAMES
-from cellrunner.sim._mj import load_mujoco
 from cellrunner.sim.description import TwinDescription
-from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC, TOOL, fmt, pose_attrs
+from cellrunner.sim.mjcf_attrs import (
+    PADS,
+    PARTS,
+    ROBOT,
+    STATIC,
+    TOOL,
+    ShapeAttrs,
+    fmt,
+    pose_attrs,
+)
+from cellrunner.sim.mujoco_loader import load_mujoco
 from cellrunner.sim.tool_changer import add_tools
 from cellrunner.sim.vacuum import add_cups, add_welds
 
@@ -53,10 +65,19 @@ ARM_MASS_KG = {
     "ur5e": 20.6,
     "ur10e": 33.5,
     "ur16e": 33.1,
+    "ur7e": 20.6,  # the UR5e renamed
+    "ur12e": 33.5,  # the UR10e renamed
+    "ur15": 40.2,  # sums of ur_description's link masses (UR15, UR18); UR8 Long assumed
+    "ur18": 39.5,
+    "ur8long": 42.0,
+    "ur20": 64.0,  # datasheets
+    "ur30": 63.5,
 }
 _TORQUE_SMALL = (56.0, 56.0, 28.0, 12.0, 12.0, 12.0)
 _TORQUE_MEDIUM = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)
 _TORQUE_LARGE = (330.0, 330.0, 150.0, 56.0, 56.0, 56.0)
+_TORQUE_UR18 = (433.0, 433.0, 204.0, 70.0, 70.0, 70.0)  # ur_description max_effort
+_TORQUE_UR20 = (738.0, 738.0, 433.0, 107.0, 107.0, 107.0)  # ur_description max_effort
 JOINT_TORQUE_MAX_NM = {
     "ur3": _TORQUE_SMALL,
     "ur3e": _TORQUE_SMALL,
@@ -65,6 +86,13 @@ JOINT_TORQUE_MAX_NM = {
     "ur10": _TORQUE_LARGE,
     "ur10e": _TORQUE_LARGE,
     "ur16e": _TORQUE_LARGE,
+    "ur7e": _TORQUE_MEDIUM,
+    "ur12e": _TORQUE_LARGE,
+    "ur15": _TORQUE_UR18,  # assumed: the UR18's joint sizes (same DH d1, d4-d6)
+    "ur18": _TORQUE_UR18,
+    "ur8long": _TORQUE_UR18,  # assumed, as the UR15
+    "ur20": _TORQUE_UR20,
+    "ur30": _TORQUE_UR20,
 }
 # Reflected rotor inertia of the harmonic drives (kg m^2), scaled by arm size.
 _ARMATURE_UR5 = (0.6, 0.6, 0.3, 0.06, 0.06, 0.06)
@@ -187,7 +215,7 @@ def _flat_mesh_box(mesh: Mesh) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 class _Builder:
-    def __init__(self, desc: TwinDescription, options: PhysicsOptions):
+    def __init__(self, desc: TwinDescription, options: PhysicsOptions) -> None:
         self.desc = desc
         self.options = options
         self.root = ET.Element("mujoco", model=desc.name)
@@ -268,6 +296,10 @@ class _Builder:
             self._part(world, part)
         if d.vacuum is not None and d.parts:
             add_welds(self.root, d.parts)
+        if d.cameras:
+            from cellrunner.sim.cameras import add_cameras
+
+            add_cameras(self, d.cameras)
         self._actuators_and_sensors()
         ET.indent(self.root)
         return ET.tostring(self.root, encoding="unicode")
@@ -317,7 +349,7 @@ class _Builder:
             self._meshes[key] = name
         return self._meshes[key]
 
-    def _shape_attrs(self, shape: Shape) -> dict[str, str]:
+    def _shape_attrs(self, shape: Shape) -> ShapeAttrs:
         if isinstance(shape, Box):
             return {"type": "box", "size": fmt(np.asarray(shape.size_m) / 2)}
         if isinstance(shape, Cylinder):
@@ -355,7 +387,9 @@ class _Builder:
         False when the mesh is convex (or too big), to be built as usual."""
         from cellrunner.sim import mesh_pieces
 
-        triangles = mesh_pieces.triangles_of(binary_stl(placed.shape.path), placed.shape.scale)
+        mesh = placed.shape
+        assert isinstance(mesh, Mesh)  # called for mesh fixtures
+        triangles = mesh_pieces.triangles_of(binary_stl(mesh.path), mesh.scale)
         if len(triangles) > mesh_pieces.MAX_TRIANGLES or mesh_pieces.is_convex(triangles):
             return False
         assert self.assets is not None
@@ -378,12 +412,8 @@ class _Builder:
     def _arm(self, world: ET.Element) -> None:
         d = self.desc
         spec = d.spec
-        capsules = spec.capsules()
-        volume = sum(
-            math.pi * c.radius_m**2 * math.dist(c.p0_m, c.p1_m) + 4 / 3 * math.pi * c.radius_m**3
-            for c in capsules
-            if c.body > 0
-        )
+        parts = arm_geometry(spec.name).parts
+        volume = sum(p.volume_m3 for p in parts if p.body > 0)
         density = ARM_MASS_KG.get(spec.name, 20.0) / volume
         scale = (spec.reach_m / 0.85) ** 2
         torque = JOINT_TORQUE_MAX_NM.get(spec.name, _TORQUE_MEDIUM)
@@ -395,7 +425,7 @@ class _Builder:
                 if i > 1:
                     T[:3, 3] = (spec.a_m[i - 2], 0.0, spec.d_m[i - 2])
                     ca, sa = math.cos(spec.alpha_rad[i - 2]), math.sin(spec.alpha_rad[i - 2])
-                    T[:3, :3] = [[1, 0, 0], [0, ca, -sa], [0, sa, ca]]
+                    T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
                 body = ET.SubElement(parent, "body", name=f"link{i}", gravcomp="1", **pose_attrs(T))
                 ET.SubElement(
                     body,
@@ -408,17 +438,19 @@ class _Builder:
                     range=fmt(np.radians([spec.joint_min_deg[i - 1], spec.joint_max_deg[i - 1]])),
                     actuatorfrcrange=fmt([-torque[i - 1], torque[i - 1]]),
                 )
-            for k, c in enumerate(x for x in capsules if x.body == i):
+            assert self.assets is not None
+            for k, part in enumerate(x for x in parts if x.body == i):
                 bits = (0, 0) if i == 0 else (ROBOT, STATIC | PARTS)
+                name = f"arm{i}_{k}"
+                ET.SubElement(self.assets, "mesh", name=name, vertex=fmt(part.vertices_m.ravel()))
                 ET.SubElement(
                     body,
                     "geom",
-                    name=f"arm{i}_{k}",
-                    type="capsule",
-                    fromto=fmt([*c.p0_m, *c.p1_m]),
-                    size=f"{c.radius_m:.6g}",
+                    name=name,
+                    type="mesh",
+                    mesh=name,
                     density=f"{density if i > 0 else 0:.6g}",
-                    material="joint" if k == 0 and i in (1, 4, 5) else "arm",
+                    material="arm",
                     contype=str(bits[0]),
                     conaffinity=str(bits[1]),
                 )
@@ -426,7 +458,7 @@ class _Builder:
         flange_T = np.eye(4)
         flange_T[:3, 3] = (spec.a_m[5], 0.0, spec.d_m[5])
         ca, sa = math.cos(spec.alpha_rad[5]), math.sin(spec.alpha_rad[5])
-        flange_T[:3, :3] = [[1, 0, 0], [0, ca, -sa], [0, sa, ca]]
+        flange_T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
         flange = ET.SubElement(parent, "body", name="flange", gravcomp="1", **pose_attrs(flange_T))
         ET.SubElement(flange, "inertial", pos="0 0 0", mass="1e-3", diaginertia="1e-7 1e-7 1e-7")
         self._tool(flange)
@@ -467,7 +499,9 @@ class _Builder:
             T = d.vacuum.T_flange_tcp if d.vacuum.T_flange_tcp is not None else d.T_flange_tcp
             add_cups(self, tool, d.vacuum, T, PADS, STATIC | PARTS)
         if d.tool_changer is not None:
-            add_tools(self, tool, self.root.find("worldbody"), d.tool_changer, TOOL, STATIC)
+            worldbody = self.root.find("worldbody")
+            assert worldbody is not None  # built before the tool
+            add_tools(self, tool, worldbody, d.tool_changer, TOOL, STATIC)
 
     def _gripper(self, tool: ET.Element, g: Any) -> None:
         d = self.desc

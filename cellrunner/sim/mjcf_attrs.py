@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -36,6 +36,21 @@ def fmt(values: Any) -> str:
     return " ".join(f"{float(v):.9g}" for v in np.ravel(values))
 
 
-def pose_attrs(T: np.ndarray) -> dict[str, str]:
+class PoseAttrs(TypedDict):
+    """An MJCF element's pose attributes."""
+
+    pos: str
+    quat: str
+
+
+class ShapeAttrs(TypedDict, total=False):
+    """An MJCF geom's shape attributes."""
+
+    type: str
+    size: str
+    mesh: str
+
+
+def pose_attrs(T: np.ndarray) -> PoseAttrs:
     """The ``pos`` and ``quat`` attributes of pose ``T``."""
     return {"pos": fmt(T[:3, 3]), "quat": fmt(quat_of(T[:3, :3]))}

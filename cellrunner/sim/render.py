@@ -1,7 +1,7 @@
 """Offscreen MuJoCo renders of the cell (the report's plots are in :mod:`cellrunner.report.plots`).
 
 Offscreen rendering needs an OpenGL backend, chosen by
-:func:`~cellrunner.sim._mj.enable_pictures` before MuJoCo is imported (EGL, then
+:func:`~cellrunner.sim.mujoco_loader.enable_pictures` before MuJoCo is imported (EGL, then
 OSMesa: Debian's ``libosmesa6``, software, works anywhere). Without one,
 :class:`CellRenderer` raises :class:`RenderUnavailable` with that advice instead of
 crashing.
@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from cellrunner.errors import CellrunnerError
-from cellrunner.sim._mj import GL_ADVICE, gl_backend, load_mujoco
+from cellrunner.sim.mujoco_loader import GL_ADVICE, gl_backend, load_mujoco
 
 
 class RenderUnavailable(CellrunnerError):
@@ -61,7 +61,7 @@ class CellRenderer:
 
     Holds one GL context; ``close()`` it (or use it as a context manager)."""
 
-    def __init__(self, world: Any, width: int = 1024, height: int = 768):
+    def __init__(self, world: Any, width: int = 1024, height: int = 768) -> None:
         self.world = world
         self.width, self.height = width, height
         self._renderer: Any = None

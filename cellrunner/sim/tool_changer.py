@@ -19,11 +19,14 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cellrunner.sim.mjcf_attrs import PADS, PARTS, STATIC, TOOL, pose_attrs, quat_of
+
+if TYPE_CHECKING:
+    from cellrunner.model.geometry import Placed
 
 #: the flange must stand this close to a rack place to park or take a tool (m)
 RACK_TOLERANCE_M = 0.005
@@ -36,7 +39,7 @@ class ChangerTool:
 
     name: str
     T_flange_tcp: np.ndarray
-    geometry: tuple
+    geometry: tuple[Placed, ...]
     payload_mass_kg: float
     payload_cog_m: tuple[float, float, float]
     gripper: str | None
@@ -96,7 +99,7 @@ def add_tools(
 class ToolChanger:
     """The changer of one built SimWorld."""
 
-    def __init__(self, world: Any, desc: ToolChangerDescription):
+    def __init__(self, world: Any, desc: ToolChangerDescription) -> None:
         self.world, self.desc = world, desc
         m = world.model
         self.tools = {t.name: t for t in desc.tools}
@@ -133,7 +136,7 @@ class ToolChanger:
     # -- helpers ------------------------------------------------------------------------
     def _T_world_flange(self) -> np.ndarray:
         w = self.world
-        tool_body = w._ids.tool_body
+        tool_body = w.ids.tool_body
         T = np.eye(4)
         T[:3, :3] = w.data.xmat[tool_body].reshape(3, 3)
         T[:3, 3] = w.data.xpos[tool_body]
@@ -158,13 +161,14 @@ class ToolChanger:
         m.body_pos[rail] = tool.T_flange_tcp[:3, 3]
         m.body_quat[rail] = quat_of(tool.T_flange_tcp[:3, :3])
         half = g.stroke_m / 2
-        for jaw, sign, pad in zip(("jaw_a", "jaw_b"), (1.0, -1.0), w._ids.pad_geoms):
+        for jaw, sign, pad in zip(("jaw_a", "jaw_b"), (1.0, -1.0), w.ids.pad_geoms, strict=True):
             m.jnt_range[m.joint(jaw).id] = (0.0, half)
             m.geom_pos[pad, 0] = sign * (half + g.finger_size_m[0] / 2)
         w._jaws_driven = False
 
     def _park(self) -> None:
         name = self.mounted
+        assert name is not None  # parking takes the mounted tool off
         jaws = self.tools[name].jaws
         if jaws is not None and jaws.closed_sensor_input:
             self.world.inputs[jaws.closed_sensor_input] = False
@@ -178,7 +182,7 @@ class ToolChanger:
         tool = self.tools[name]
         w = self.world
         m = w.model
-        site = w._ids.tcp_site
+        site = w.ids.tcp_site
         m.site_pos[site] = tool.T_flange_tcp[:3, 3]
         m.site_quat[site] = quat_of(tool.T_flange_tcp[:3, :3])
         self._show(name, mounted=True)
@@ -203,18 +207,18 @@ class ToolChanger:
         w.jaws_enabled = kind == "jaws"
         if w.vacuum is not None:
             w.vacuum.set_enabled(kind == "vacuum")
-        if w._ids.pad_geoms[0] >= 0:
+        if w.ids.pad_geoms[0] >= 0:
             bits = self.pad_kind if kind == "jaws" else (0, 0)
-            for g in w._ids.pad_geoms:
+            for g in w.ids.pad_geoms:
                 w.model.geom_contype[g], w.model.geom_conaffinity[g] = bits
         w.contacts_changed()
 
-    def _set_payload(self, mass_kg: float, cog_m) -> None:
+    def _set_payload(self, mass_kg: float, cog_m: tuple[float, float, float]) -> None:
         """The tool body's mass (the jaws' fingers keep their own) and the wrist's payload
         compensation, as the controller's setPayload does."""
         w = self.world
         m = w.model
-        body = w._ids.tool_body
+        body = w.ids.tool_body
         below = [b for b in range(m.nbody) if b != body and _descends(m, b, body)]
         fingers = float(sum(m.body_mass[b] for b in below))
         m.body_mass[body] = max(mass_kg - fingers, 0.02)

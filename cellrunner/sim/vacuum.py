@@ -23,8 +23,9 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -36,6 +37,9 @@ from cellrunner.sim.mjcf_attrs import PADS, pose_attrs
 #: a cup seals on a face this close (m) ...
 SEAL_GAP_M = 0.002
 #: ... and this square to the cup's axis (deg)
+
+if TYPE_CHECKING:
+    from cellrunner.sim.description import PartDescription
 SEAL_ANGLE_DEG = 10.0
 #: friction of a sealed cup against shear (lateral force holds up to this x the pull rating)
 CUP_FRICTION = 0.5
@@ -91,7 +95,7 @@ def add_cups(
         )
 
 
-def add_welds(root: ET.Element, parts) -> None:
+def add_welds(root: ET.Element, parts: Iterable[PartDescription]) -> None:
     """One inactive weld per part, tool to part (MJCF)."""
     eq = root.find("equality")
     if eq is None:
@@ -111,12 +115,12 @@ def add_welds(root: ET.Element, parts) -> None:
 class VacuumCups:
     """The cups of one built SimWorld (constructed after its model is compiled)."""
 
-    def __init__(self, world: Any, vac: VacuumDescription):
+    def __init__(self, world: Any, vac: VacuumDescription) -> None:
         self.world, self.vac = world, vac
         m = world.model
         self._mj = world._mj
         self.cup_geoms = [m.geom(f"cup:{i}").id for i in range(len(vac.cups))]
-        self.weld = {name: m.equality(f"vac:{name}").id for name in world._ids.part_bodies}
+        self.weld = {name: m.equality(f"vac:{name}").id for name in world.ids.part_bodies}
         self.held: frozenset[str] = frozenset()
         self.suction = False
         self.leak = False
@@ -124,6 +128,7 @@ class VacuumCups:
         self.grip_miss_armed = False
         self.slip_armed = False
         self._pull_lp: dict[str, float] = {}
+        self.held_at: dict[str, np.ndarray] = {}  # held part -> T_tcp_part as the cups sealed
         self.last_pull_N = 0.0
         self.enabled = True
         self._cup_bits = [
@@ -134,7 +139,7 @@ class VacuumCups:
         """Mounted (a tool changer took the vacuum tool) or parked: cups collide and seal only when on."""
         self.enabled = on
         m = self.world.model
-        for g, bits in zip(self.cup_geoms, self._cup_bits):
+        for g, bits in zip(self.cup_geoms, self._cup_bits, strict=True):
             m.geom_contype[g], m.geom_conaffinity[g] = bits if on else (0, 0)
             m.geom_rgba[g, 3] = 1.0 if on else 0.0
         if not on:
@@ -174,9 +179,9 @@ class VacuumCups:
             self._drop_all()
             return
         if not self.held:
-            name = self._sealed_part()
-            if name is not None:
-                self._weld(name)
+            sealed = self._sealed_part()
+            if sealed is not None:
+                self._weld(sealed)
 
     @property
     def vacuum_ok(self) -> bool:
@@ -192,26 +197,26 @@ class VacuumCups:
     def _sealed_part(self) -> str | None:
         w = self.world
         m, d = w.model, w.data
-        R_tcp = d.site_xmat[w._ids.tcp_site].reshape(3, 3)
+        R_tcp = d.site_xmat[w.ids.tcp_site].reshape(3, 3)
         axis = R_tcp[:, 2]
         cos_max = math.cos(math.radians(SEAL_ANGLE_DEG))
         fromto = np.zeros(6)
-        for name, geom in w._ids.part_geom.items():
+        for name, geom in w.ids.part_geom.items():
             if name in self.torn:
                 continue
-            R_part = d.xmat[w._ids.part_bodies[name]].reshape(3, 3)
+            R_part = d.xmat[w.ids.part_bodies[name]].reshape(3, 3)
             if float(np.max(np.abs(R_part.T @ axis))) < cos_max:
                 continue
             for cup in self.cup_geoms:
                 if self._mj.mj_geomDistance(m, d, cup, geom, 0.01, fromto) < SEAL_GAP_M:
-                    return name
+                    return str(name)
         return None
 
     def _weld(self, name: str) -> None:
         w = self.world
         m, d = w.model, w.data
         eq = self.weld[name]
-        t, p = w._ids.tool_body, w._ids.part_bodies[name]
+        t, p = w.ids.tool_body, w.ids.part_bodies[name]
         R1 = d.xmat[t].reshape(3, 3)
         R2 = d.xmat[p].reshape(3, 3)
         quat = np.zeros(4)
@@ -223,11 +228,18 @@ class VacuumCups:
         d.eq_active[eq] = 1
         self.held = self.held | {name}
         self._pull_lp[name] = 0.0
+        # where the part sits under the cups: a place puts it at its target through this
+        self.held_at[name] = w._part_in_tcp(name)
+        w.contacts_changed_held()
 
     def _drop(self, name: str) -> None:
-        self.world.data.eq_active[self.weld[name]] = 0
+        w = self.world
+        w.data.eq_active[self.weld[name]] = 0
         self.held = self.held - {name}
         self._pull_lp.pop(name, None)
+        # handed to the place check: the part released last, as it was held
+        w._held_last = {name: self.held_at.pop(name)}
+        w.contacts_changed_held()
 
     def _drop_all(self) -> None:
         for name in list(self.held):
@@ -245,11 +257,12 @@ class VacuumCups:
         if len(rows) < 3:
             return self._pull_lp.get(name, 0.0)
         f_on_part = -np.asarray(d.efc_force[rows[:3]])
-        axis = d.site_xmat[w._ids.tcp_site].reshape(3, 3)[:, 2]  # out of the cups, into the part
+        axis = d.site_xmat[w.ids.tcp_site].reshape(3, 3)[:, 2]  # out of the cups, into the part
         pull = float(np.dot(f_on_part, -axis))  # towards the cups: what the seal must hold
         shear = float(np.linalg.norm(f_on_part + pull * axis))
         load = max(pull, 0.0) + shear / CUP_FRICTION
         alpha = min(1.0, w.period_s / PULL_TAU_S)
-        lp = self._pull_lp[name] = (1 - alpha) * self._pull_lp.get(name, load) + alpha * load
+        lp: float = (1 - alpha) * self._pull_lp.get(name, load) + alpha * load
+        self._pull_lp[name] = lp
         self.last_pull_N = lp
         return lp

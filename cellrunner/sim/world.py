@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Set
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,11 +20,11 @@ import numpy as np
 
 from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.model.robots import JOINT_NAMES
-from cellrunner.sim._mj import load_mujoco
 from cellrunner.sim.description import TwinDescription
 from cellrunner.sim.input_rules import InputRules
 from cellrunner.sim.mjcf import PhysicsOptions, compile_model
 from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC, TOOL
+from cellrunner.sim.mujoco_loader import load_mujoco
 
 UNLOCK_DELAY_S = 5.0  # UR: a protective stop can be unlocked 5 s after it happened
 STOP_DECEL_RAD_S2 = 30.0  # category 2 stop ramp (protective stop, stopJ default)
@@ -35,9 +36,10 @@ AIR_CLEARANCE_M = 0.01  # "in the air": this far from every fixture and the floo
 PLACE_DROP_M = 0.01  # a part released this far above its support lands where it was put
 JAM_SLIDE_M = 0.005  # a gripped part forced back this far in the jaws by a fixture: a collision
 JAM_FORCE_N = 150.0  # or pressed onto a fixture this hard (UR's default force limit)
+GRAVITY_M_S2 = 9.81
 
 
-class Fault(str, enum.Enum):
+class Fault(enum.StrEnum):
     """Faults the twin can make physically happen (SPEC section 5, robot side)."""
 
     GRIP_MISS = "grip_miss"  # the part is moved away when the jaws start to close
@@ -55,7 +57,7 @@ class Fault(str, enum.Enum):
             raise ValueError(f"unknown fault {name!r}; known: {known}") from None
 
 
-class StopReason(str, enum.Enum):
+class StopReason(enum.StrEnum):
     CONTACT = "contact"
     INJECTED = "injected"
     REQUESTED = "requested"
@@ -117,16 +119,23 @@ class _Faults:
 class SimWorld:
     """The twin: construct with a description, ``build()``, then ``step_period()``."""
 
-    def __init__(self, description: TwinDescription, options: PhysicsOptions = PhysicsOptions()):
+    def __init__(self, description: TwinDescription, options: PhysicsOptions | None = None) -> None:
         self.description = description
-        self.options = options
+        self.options = options if options is not None else PhysicsOptions()
         self._rate_hz = description.rate_hz
         self.period_s = 1.0 / self._rate_hz
-        self.substeps = max(1, math.ceil(self.period_s / options.max_timestep_s - 1e-9))
+        self.substeps = max(1, math.ceil(self.period_s / self.options.max_timestep_s - 1e-9))
         self.model: Any = None
         self.data: Any = None
         self._mj: Any = None
         self._ids: _Ids | None = None
+
+    @property
+    def ids(self) -> _Ids:
+        """The built model's indices (joints, parts, pads, sites)."""
+        if self._ids is None:
+            raise RuntimeError("the twin's model is not built yet; call build() first")
+        return self._ids
 
     # -- lifecycle ----------------------------------------------------------------------
     def build(self) -> None:
@@ -136,7 +145,7 @@ class SimWorld:
         self.data = self._mj.MjData(self.model)
         self._ids = self._lookup_ids()
         self._periods = 0
-        ids = self._ids
+        ids = self.ids
         self.data.qpos[ids.qpos] = self.description.q_home_rad
         self._mj.mj_forward(self.model, self.data)
         self.q_ref = np.array(self.description.q_home_rad, dtype=float)
@@ -176,6 +185,7 @@ class SimWorld:
         self._site_pos = self.data.site_xpos[ids.ft_site]
         self._pad_a = ids.pad_geoms[0]
         self._part_of_geom = {g: name for name, g in ids.part_geom.items()}
+        self._part_mass_kg = {p.name: p.mass_kg for p in self.description.parts}
         self._force6 = np.zeros(6)
         self._fromto6 = np.zeros(6)
         self._static_geoms = [g for g, k in enumerate(self._kind) if k == STATIC]
@@ -191,6 +201,7 @@ class SimWorld:
         self._R_base_world_flat = tuple(R_world_base.T.ravel().tolist())
         self._tool_weight_N = GRAVITY_MPS2 * ids.tool_mass_kg
         self._gripped: frozenset[str] = _NONE
+        self._vac_geoms: frozenset[int] = frozenset()  # part geoms the cups hold
         # geom pairs of the last contact check that found nothing suspicious, and its
         # verdict (the gripped parts)
         self._clean_pairs: list[list[int]] | None = None
@@ -223,7 +234,7 @@ class SimWorld:
         return self._periods / self._rate_hz
 
     def _lookup_ids(self) -> _Ids:
-        m, mj, d = self.model, self._mj, self.description
+        m, _mj, d = self.model, self._mj, self.description
         joints = [m.joint(n).id for n in JOINT_NAMES]
         servo = np.array([m.actuator(f"servo:{n}").id for n in JOINT_NAMES])
         kp = m.actuator_gainprm[servo, 0]
@@ -272,11 +283,27 @@ class SimWorld:
         self.q_ref = q_ref_rad
         self.qd_ref = qd_ref_rad_s
 
+    def place_arm(self, q_rad: np.ndarray) -> None:
+        """Put the arm at ``q_rad`` standing still, the servo set-point there (a controller
+        that starts, or resets its model, with the arm at ``q_rad``)."""
+        assert self._ids is not None, "build() first"
+        q = np.array(q_rad, dtype=float)
+        self.data.qpos[self._ids.qpos] = q
+        self.data.qvel[self._ids.dof] = 0.0
+        self.q_ref = self._q_prev_ref = q.copy()
+        self.qd_ref = self._qd_prev_ref = _ZERO6
+        self._mj.mj_forward(self.model, self.data)
+
+    @property
+    def stopping(self) -> bool:
+        """Whether a stop ramp (stopJ, a protective or emergency stop) is still running."""
+        return self._stop is not None
+
     def check_can_move(self) -> None:
         """Raise BackendError unless the controller would accept motion commands now."""
         if self.safety is not Safety.NORMAL:
             raise BackendError(f"robot cannot move: safety state is {self.safety.value}")
-        if self._stop is not None:
+        if self.stopping:
             raise BackendError("robot is stopping (stopJ); wait until it stands still")
 
     def stop_motion(self, decel_rad_s2: float = STOP_DECEL_RAD_S2) -> None:
@@ -343,7 +370,7 @@ class SimWorld:
             # A collision: hold where the arm was just before (backing off 20 ms of the
             # motion, as UR arms back off) rather than ramp on into the obstacle.
             self._stop = None
-            q, qd = self.data.qpos[self._ids.qpos], self.data.qvel[self._ids.dof]
+            q, qd = self.data.qpos[self.ids.qpos], self.data.qvel[self.ids.dof]
             self.q_ref = self._q_prev_ref = q - COLLISION_BACKOFF_S * qd
             self.qd_ref = self._qd_prev_ref = _ZERO6
         else:
@@ -460,6 +487,13 @@ class SimWorld:
         )
         self._clean_pairs, self._clean_gripped = None, _NONE
 
+    def contacts_changed_held(self) -> None:
+        """The cups sealed on or let go of a part: the verdict on the same contact pairs
+        changes (a part held by suction pressed onto a fixture is judged like a gripped one)."""
+        held = self.vacuum.held if self.vacuum is not None else _NONE
+        self._vac_geoms = frozenset(self.ids.part_geom[n] for n in held)
+        self._clean_pairs, self._clean_gripped = None, _NONE
+
     def _check_contacts(self) -> frozenset[str]:
         """Raise a protective stop on unexpected contact; return the gripped parts.
 
@@ -475,7 +509,7 @@ class SimWorld:
         pairs = data.contact.geom.tolist()
         if pairs == self._clean_pairs:
             return self._clean_gripped
-        watched = self._robot_or_pad_geoms
+        watched = self._robot_or_pad_geoms | self._vac_geoms
         for g1, g2 in pairs:
             if g1 in watched or g2 in watched:
                 break
@@ -504,18 +538,18 @@ class SimWorld:
             elif both == ROBOT | PARTS:
                 robot_parts.append((i, g2 if k2 == PARTS else g1))
         gripped_geoms = {g for g, hits in pad_hits.items() if hits == 3}
-        suspicious += [i for i, g in robot_parts if g not in gripped_geoms]
+        carried = gripped_geoms | self._vac_geoms
+        suspicious += [i for i, g in robot_parts if g not in carried]
         # a finger landing on a part it does not hold (judged by force, like the tool);
-        # a held part that loses one pad's contact for a moment is still held
+        # a held part that loses one pad's contact for a moment is still held, and the
+        # cups pressing on the part they hold are how suction carries it
         held = self._held_at
         suspicious += [
-            i for i, g in pad_parts if g not in gripped_geoms and self._part_of_geom[g] not in held
+            i for i, g in pad_parts if g not in carried and self._part_of_geom[g] not in held
         ]
         # a carried part pushed into a fixture is a contact like the tool's own; the
         # light touch of setting it down is not (judged each period, so never cached)
-        pressed = [
-            i for i in part_static if pairs[i][0] in gripped_geoms or pairs[i][1] in gripped_geoms
-        ]
+        pressed = [i for i in part_static if pairs[i][0] in carried or pairs[i][1] in carried]
         if pressed and self.safety is Safety.NORMAL:
             self._judge_pressed(pressed, gripped_geoms)
         if suspicious and self.safety is Safety.NORMAL:
@@ -545,12 +579,17 @@ class SimWorld:
     def _judge_pressed(self, indices: list[int], gripped_geoms: set[int]) -> None:
         """A gripped part against a fixture: a protective stop when it is forced back in
         the jaws by more than ``JAM_SLIDE_M`` since it was last free of fixtures (pushed
-        into the fixture, not set down on it), or pressed harder than ``JAM_FORCE_N``."""
+        into the fixture, not set down on it), or pressed harder than ``JAM_FORCE_N`` beyond
+        the parts' own weight (a 12 kg case resting on its conveyor while the cups seal is
+        not the arm pressing: UR's force limit sees what the arm adds)."""
         force = self._force6
         total = 0.0
+        parts: set[str | None] = set()  # None: a geom of no part
         for i in indices:
             self._mj.mj_contactForce(self.model, self.data, i, force)
             total += abs(force[0])
+            parts.update(self._part_of_geom.get(int(g)) for g in self.data.contact.geom[i])
+        total -= GRAVITY_M_S2 * sum(self._part_mass_kg.get(p, 0.0) for p in parts if p is not None)
         slide = max(
             (self._slide_in_jaws_m(self._part_of_geom[g]) for g in gripped_geoms), default=0.0
         )
@@ -591,16 +630,16 @@ class SimWorld:
                 self._held_at[name] = self._part_in_tcp(name)
 
     # -- faults ---------------------------------------------------------------------------
-    def _update_faults(self, gripped: set[str]) -> None:
+    def _update_faults(self, gripped: Set[str]) -> None:
         f = self._faults
         if f.slip_armed:
             self._maybe_slip({p for p in gripped if self._in_air(p)})
         for name in list(f.slipping):
             if not self._touches_pads(name):
-                self.model.geom_friction[self._ids.part_geom[name]] = self._ids.part_friction[name]
+                self.model.geom_friction[self.ids.part_geom[name]] = self.ids.part_friction[name]
                 f.slipping.discard(name)
-        if not f.slipping and self._ids.pad_geoms[0] >= 0:
-            self.model.geom_friction[list(self._ids.pad_geoms)] = self._ids.pad_friction
+        if not f.slipping and self.ids.pad_geoms[0] >= 0:
+            self.model.geom_friction[list(self.ids.pad_geoms)] = self.ids.pad_friction
 
     def _maybe_slip(self, candidates: set[str]) -> None:
         if not candidates:
@@ -611,14 +650,14 @@ class SimWorld:
         for name in candidates:
             self._faults.slipping.add(name)
             # friction such that the two pads hold only a fraction of the weight
-            weight = self.model.body_mass[self._ids.part_bodies[name]] * GRAVITY_MPS2
+            weight = self.model.body_mass[self.ids.part_bodies[name]] * GRAVITY_MPS2
             mu = SLIP_HOLD_FRACTION * weight / (2.0 * g.grip_force_N)
-            self.model.geom_friction[self._ids.part_geom[name], 0] = mu
-            self.model.geom_friction[list(self._ids.pad_geoms), 0] = mu
+            self.model.geom_friction[self.ids.part_geom[name], 0] = mu
+            self.model.geom_friction[list(self.ids.pad_geoms), 0] = mu
 
     def _contacts_of(self, part: str) -> list[int]:
         """Kinds of the geoms the part touches."""
-        g = self._ids.part_geom[part]
+        g = self.ids.part_geom[part]
         kind = self._kind
         return [
             kind[g2 if g1 == g else g1]
@@ -635,7 +674,7 @@ class SimWorld:
 
     def _clear_of_static(self, part: str) -> bool:
         """True when the part is ``AIR_CLEARANCE_M`` clear of every fixture and the floor."""
-        g = self._ids.part_geom[part]
+        g = self.ids.part_geom[part]
         fromto = self._fromto6
         for other in self._static_geoms:
             d = self._mj.mj_geomDistance(self.model, self.data, g, other, AIR_CLEARANCE_M, fromto)
@@ -649,9 +688,12 @@ class SimWorld:
     def _move_part_away(self, reach_m: float | None = None) -> None:
         """grip_miss: the part at the gripper (within ``reach_m`` of the TCP; default: the
         jaws' half stroke + 5 cm) is moved 0.15 m towards the robot base."""
-        ids, data, g = self._ids, self.data, self.description.gripper
+        ids, data, g = self.ids, self.data, self.description.gripper
         tcp = data.site_xpos[ids.tcp_site]
-        reach = reach_m if reach_m is not None else g.stroke_m / 2 + 0.05
+        if reach_m is None:
+            assert g is not None  # grip_miss without a reach is a jaw gripper's
+            reach_m = g.stroke_m / 2 + 0.05
+        reach = reach_m
         best, best_d = None, reach
         for name, body in ids.part_bodies.items():
             dist = float(np.linalg.norm(data.xpos[body] - tcp))
@@ -678,7 +720,7 @@ class SimWorld:
         self.safety = Safety.NORMAL
         self.stop_time_s = None
         self._stop = None
-        self.q_ref = self._q_prev_ref = self.data.qpos[self._ids.qpos].copy()
+        self.q_ref = self._q_prev_ref = self.data.qpos[self.ids.qpos].copy()
         self.qd_ref = self._qd_prev_ref = _ZERO6
 
     # -- measurements ---------------------------------------------------------------------
@@ -701,7 +743,7 @@ class SimWorld:
         if g is None:
             return 0.0
         a, b = self._jaw_adr
-        return g.stroke_m - (self._qpos.item(a) + self._qpos.item(b))
+        return float(g.stroke_m - (self._qpos.item(a) + self._qpos.item(b)))
 
     def _update_inputs(self) -> None:
         g = self.description.gripper
@@ -729,7 +771,7 @@ class SimWorld:
             h = np.asarray(sensor.half_extents_m)
             self.inputs[sensor.channel] = any(
                 bool(np.all(np.abs(self.data.xpos[b] - c) <= h))
-                for b in self._ids.part_bodies.values()
+                for b in self.ids.part_bodies.values()
             )
         if self._rules is not None:
             xpos = self.data.xpos
@@ -737,7 +779,7 @@ class SimWorld:
                 self._rules.evaluate(
                     self.time_s,
                     self.outputs,
-                    (xpos[b].tolist() for b in self._ids.part_bodies.values()),
+                    (xpos[b].tolist() for b in self.ids.part_bodies.values()),
                 )
             )
 
@@ -753,8 +795,8 @@ class SimWorld:
         """
         fx, fy, fz, tx, ty, tz = self._ft_flat.tolist()
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = self._R_site_flat.tolist()
-        cx, cy, cz = self._tool_com.tolist()
-        sx, sy, sz = self._site_pos.tolist()
+        cx, cy, _cz = self._tool_com.tolist()
+        sx, sy, _sz = self._site_pos.tolist()
         mg = self._tool_weight_N
         # world axes: minus the sensed wrench (site -> world), minus the tool's weight
         # (0, 0, -mg) and its moment about the flange, (c - s) x (0, 0, -mg)
@@ -793,12 +835,12 @@ class SimWorld:
 
     # -- introspection for tests, reports and the renderer (never for the engine) ---------
     def q_measured(self) -> np.ndarray:
-        return self._q_view.copy()
+        return np.array(self._q_view)
 
     def tcp_pose_world(self) -> np.ndarray:
         T = np.eye(4)
-        T[:3, :3] = self.data.site_xmat[self._ids.tcp_site].reshape(3, 3)
-        T[:3, 3] = self.data.site_xpos[self._ids.tcp_site]
+        T[:3, :3] = self.data.site_xmat[self.ids.tcp_site].reshape(3, 3)
+        T[:3, 3] = self.data.site_xpos[self.ids.tcp_site]
         return T
 
     def feed_parts(self, moved_m: float = 0.01) -> list[str]:
@@ -815,7 +857,7 @@ class SimWorld:
             spawn = part.T_world_part
             if np.linalg.norm(self.part_pose_world(part.name)[:3, 3] - spawn[:3, 3]) <= moved_m:
                 continue
-            adr = self._ids.part_qpos[part.name]
+            adr = self.ids.part_qpos[part.name]
             x, y, z, w = Rotation.from_matrix(spawn[:3, :3]).as_quat()
             self.data.qpos[adr : adr + 7] = [*spawn[:3, 3], w, x, y, z]
             dof = self.model.jnt_dofadr[self.model.joint(f"part:{part.name}").id]
@@ -844,7 +886,7 @@ class SimWorld:
         return found
 
     def part_pose_world(self, name: str) -> np.ndarray:
-        body = self._ids.part_bodies[name]
+        body = self.ids.part_bodies[name]
         T = np.eye(4)
         T[:3, :3] = self.data.xmat[body].reshape(3, 3)
         T[:3, 3] = self.data.xpos[body]

@@ -140,7 +140,7 @@ class _Registers:
 class Controller:
     """A virtual UR controller; construct, then drive :meth:`tick` from a real-time loop."""
 
-    def __init__(self, config: ControllerConfig, physics: Physics | None = None):
+    def __init__(self, config: ControllerConfig, physics: Physics | None = None) -> None:
         self.config = config
         self.spec = config.spec
         self.period_s = config.period_s
@@ -441,8 +441,13 @@ class Controller:
         for name, value in fields.items():
             if name.startswith(("input_", "external_force_torque")):
                 self.set_input_register(name, value)
-        if self.servo_record is not None and hasattr(self.program, "servo_target"):
-            q = self.program.servo_target(self)
+        program = self.program
+        if (
+            self.servo_record is not None
+            and program is not None
+            and hasattr(program, "servo_target")
+        ):
+            q = program.servo_target(self)
             if q is not None:  # one row per servoJ package received (``record on``)
                 self.servo_record.append((self.time_s, *(float(v) for v in q)))
 

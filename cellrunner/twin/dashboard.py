@@ -24,7 +24,7 @@ class InstalledProgram:
     """A ``.urp`` loaded on the pendant: the twin cannot read it, so playing it runs
     nothing but shows PLAYING until ``stop`` (what a PLC sequence watches)."""
 
-    def __init__(self, name: str):
+    def __init__(self, name: str) -> None:
         self.name = name
 
     def tick(self, ctl: Controller) -> bool:

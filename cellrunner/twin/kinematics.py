@@ -24,7 +24,7 @@ def rotvec_to_matrix(rv: np.ndarray) -> np.ndarray:
         return np.eye(3)
     k = rv / theta
     K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + math.sin(theta) * K + (1 - math.cos(theta)) * (K @ K)
+    return np.asarray(np.eye(3) + math.sin(theta) * K + (1 - math.cos(theta)) * (K @ K))
 
 
 def matrix_to_rotvec(R: np.ndarray) -> np.ndarray:
@@ -60,7 +60,7 @@ def matrix_to_pose(T: np.ndarray) -> np.ndarray:
 class Kinematics:
     """FK, Jacobian and numeric IK of one arm with a settable TCP offset (flange -> TCP)."""
 
-    def __init__(self, spec: RobotSpec):
+    def __init__(self, spec: RobotSpec) -> None:
         self.spec = spec
         self._d = np.array(spec.d_m, dtype=float)
         self._a = np.array(spec.a_m, dtype=float)
@@ -90,7 +90,9 @@ class Kinematics:
 
     def tcp(self, q_rad: np.ndarray, T_flange_tcp: np.ndarray | None = None) -> np.ndarray:
         """``T_base_tcp`` (4x4); ``T_flange_tcp`` defaults to the active TCP offset."""
-        return self.flange(q_rad) @ (self.T_flange_tcp if T_flange_tcp is None else T_flange_tcp)
+        return np.asarray(
+            self.flange(q_rad) @ (self.T_flange_tcp if T_flange_tcp is None else T_flange_tcp)
+        )
 
     def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
         """Active TCP as a UR pose in the base frame."""

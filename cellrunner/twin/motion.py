@@ -168,7 +168,7 @@ class JointPath(_Scheduled):
             np.asarray(w[0], float) for w in self.waypoints
         ]
         profiles, blends_rad = [], []
-        for k, (q, v, a, r) in enumerate(self.waypoints):
+        for k, (_q, v, a, r) in enumerate(self.waypoints):
             delta = points[k + 1] - points[k]
             self._deltas.append(delta)
             distance = float(np.max(np.abs(delta)))
@@ -196,7 +196,7 @@ class JointPath(_Scheduled):
 
     def _q_at(self, t: float) -> np.ndarray:
         q = np.array(self.q_start, dtype=float)
-        for seg, delta in zip(self._segments, self._deltas):
+        for seg, delta in zip(self._segments, self._deltas, strict=True):
             if seg.profile.distance > 0:
                 q = q + delta * (seg.profile.position(t - seg.start_s) / seg.profile.distance)
         return q
@@ -243,7 +243,7 @@ class LinearPath(_Scheduled):
 
     def _pose_at(self, t: float) -> np.ndarray:
         p, R = self._p0.copy(), self._R0.copy()
-        for seg, dp, dw in zip(self._segments, self._dp, self._dw):
+        for seg, dp, dw in zip(self._segments, self._dp, self._dw, strict=True):
             if seg.profile.distance > 0:
                 f = seg.profile.position(t - seg.start_s) / seg.profile.distance
                 p = p + dp * f

@@ -9,9 +9,17 @@ allows it.
 
 from __future__ import annotations
 
+import contextlib
+import threading
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from cellrunner.backends.base import BackendError, Safety
+
+if TYPE_CHECKING:
+    from cellrunner.sim.description import TwinDescription
+    from cellrunner.twin.physics import Measurement
 
 #: RTDE digital bit layout: DO/DI 0-7 standard, 8-15 configurable, 16-17 tool
 _BIT_OF_PREFIX = {"D": 0, "C": 8, "T": 16}
@@ -31,24 +39,31 @@ def _bit(channel: str) -> int | None:
 class MujocoPhysics:
     """The MuJoCo twin of a cell as the virtual controller's physics."""
 
-    def __init__(self, description):
+    def __init__(self, description: TwinDescription) -> None:
         from cellrunner.sim.world import SimWorld
 
         self.description = description
         self.world = SimWorld(description)
         self._q_prev: np.ndarray | None = None
         self._contact = False
+        self._lock = threading.Lock()  # qpos for the camera thread (twin.camera)
+
+    def snapshot_qpos(self) -> np.ndarray:
+        """A copy of the whole MuJoCo state's positions (arm, fingers, parts), taken between
+        two physics steps."""
+        with self._lock:
+            return np.asarray(self.world.data.qpos.copy())
 
     def reset(self, q_rad: np.ndarray) -> None:
+        with self._lock:
+            self._reset(q_rad)
+
+    def _reset(self, q_rad: np.ndarray) -> None:
         if not self.world.built:
             self.world.build()
-        world = self.world
-        q = np.asarray(q_rad, float)
-        world.data.qpos[world._ids.qpos] = q
-        world.data.qvel[world._ids.dof] = 0.0
-        world.q_ref = world._q_prev_ref = q.copy()
-        world.qd_ref = np.zeros(6)
-        self._q_prev = q.copy()
+        q = np.array(q_rad, dtype=float)
+        self.world.place_arm(q)
+        self._q_prev = q
 
     def inject_fault(self, fault: str) -> None:
         """grip_miss or part_slip, made to happen in the MuJoCo twin (as dry-run does)."""
@@ -63,21 +78,25 @@ class MujocoPhysics:
                     self.world.set_output(channel, value)
 
     def step(self, q_cmd_rad: np.ndarray, dt_s: float) -> None:
+        with self._lock:
+            self._step(q_cmd_rad, dt_s)
+
+    def _step(self, q_cmd_rad: np.ndarray, dt_s: float) -> None:
         world = self.world
         q_cmd = np.asarray(q_cmd_rad, float)
         qd = (q_cmd - self._q_prev) / dt_s if self._q_prev is not None else np.zeros(6)
         self._q_prev = q_cmd
         if world.safety is Safety.PROTECTIVE_STOP:
-            try:  # the controller decides when a stop ends (its 5 s rule); the twin follows
+            # the controller decides when a stop ends (its 5 s rule); the twin follows, unless
+            # the twin's own 5 s have not passed yet either
+            with contextlib.suppress(BackendError):
                 world.unlock_protective_stop()
-            except BackendError:
-                pass  # the twin's own 5 s have not passed yet either
-        if world.safety is Safety.NORMAL and world._stop is None:
+        if world.safety is Safety.NORMAL and not world.stopping:
             world.command(q_cmd, qd)
         world.step_period()
         self._contact = world.safety is Safety.PROTECTIVE_STOP
 
-    def measure(self):
+    def measure(self) -> Measurement:
         from cellrunner.twin.physics import Measurement
 
         state = self.world.measure()

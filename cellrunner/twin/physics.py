@@ -67,7 +67,7 @@ class KinematicPhysics:
         tau_s: float = 0.0,
         loopback: dict[int, int] | None = None,
         loopback_delay_s: float = 0.05,
-    ):
+    ) -> None:
         self.spec = spec
         self.tau_s = tau_s
         self.loopback = dict(loopback or {})

@@ -51,6 +51,16 @@ class OutputVar:
     min_cb3: tuple[int, int] | None = (3, 0)  # on CB3; None: absent
 
 
+def _register(name: str, i: int) -> Callable[[Controller], Any]:
+    """The getter of element ``i`` of the controller's register list ``name``."""
+    return lambda c: getattr(c.reg, name)[i]
+
+
+def _bit_register(name: str, i: int) -> Callable[[Controller], bool]:
+    """The getter of bit ``i`` of the controller's bit register ``name``."""
+    return lambda c: bool(getattr(c.reg, name) >> i & 1)
+
+
 def _zeros6(ctl: Controller) -> list[float]:
     return [0.0] * 6
 
@@ -141,23 +151,15 @@ def _output_table() -> dict[str, OutputVar]:
     }
     for i in range(48):
         since = ((5, 3), (3, 9)) if i >= 24 else ((5, 0), (3, 4))
-        t[f"output_int_register_{i}"] = OutputVar(
-            "INT32", lambda c, i=i: c.reg.output_int[i], *since
-        )
+        t[f"output_int_register_{i}"] = OutputVar("INT32", _register("output_int", i), *since)
         t[f"output_double_register_{i}"] = OutputVar(
-            "DOUBLE", lambda c, i=i: c.reg.output_double[i], *since
+            "DOUBLE", _register("output_double", i), *since
         )
-        t[f"input_int_register_{i}"] = OutputVar("INT32", lambda c, i=i: c.reg.input_int[i], *since)
-        t[f"input_double_register_{i}"] = OutputVar(
-            "DOUBLE", lambda c, i=i: c.reg.input_double[i], *since
-        )
+        t[f"input_int_register_{i}"] = OutputVar("INT32", _register("input_int", i), *since)
+        t[f"input_double_register_{i}"] = OutputVar("DOUBLE", _register("input_double", i), *since)
     for i in range(64, 128):
-        t[f"output_bit_register_{i}"] = OutputVar(
-            "BOOL", lambda c, i=i: bool(c.reg.output_bits >> i & 1)
-        )
-        t[f"input_bit_register_{i}"] = OutputVar(
-            "BOOL", lambda c, i=i: bool(c.reg.input_bits >> i & 1)
-        )
+        t[f"output_bit_register_{i}"] = OutputVar("BOOL", _bit_register("output_bits", i))
+        t[f"input_bit_register_{i}"] = OutputVar("BOOL", _bit_register("input_bits", i))
     return t
 
 
@@ -246,7 +248,7 @@ class RtdeError(Exception):
 class RtdeSession:
     """One RTDE connection's protocol state (no socket)."""
 
-    def __init__(self, session_id: int, ctl: Controller, owners: InputOwners):
+    def __init__(self, session_id: int, ctl: Controller, owners: InputOwners) -> None:
         self.session_id = session_id
         self.ctl = ctl
         self.owners = owners
@@ -323,7 +325,7 @@ class RtdeSession:
             return self.message(O, struct.pack(">B", 0) + ",".join(types).encode())
         recipe_id = self._new_recipe_id("out")
         fmt = ">" + "".join(_FORMATS[t] for t in types)
-        getters = [(OUTPUTS[n].get, t in _VECTOR) for n, t in zip(names, types)]
+        getters = [(OUTPUTS[n].get, t in _VECTOR) for n, t in zip(names, types, strict=True)]
         self.outputs.append(
             _OutputRecipe(recipe_id, getters, struct.Struct(fmt), frequency / self.ctl.spec.rate_hz)
         )
@@ -336,7 +338,7 @@ class RtdeSession:
             return self.message(I, struct.pack(">B", 0) + ",".join(types).encode())
         taken = set(self.owners.claim(self.session_id, names))
         if taken:
-            types = ["IN_USE" if n in taken else t for n, t in zip(names, types)]
+            types = ["IN_USE" if n in taken else t for n, t in zip(names, types, strict=True)]
             return self.message(I, struct.pack(">B", 0) + ",".join(types).encode())
         recipe_id = self._new_recipe_id("in")
         fmt = ">" + "".join(_FORMATS[t] for t in types)
@@ -360,7 +362,7 @@ class RtdeSession:
         values = recipe.unpacker.unpack_from(payload, offset)
         fields: dict[str, Any] = {}
         k = 0
-        for name, type_ in zip(recipe.names, recipe.types):
+        for name, type_ in zip(recipe.names, recipe.types, strict=True):
             width = (
                 6
                 if type_ in ("VECTOR6D", "VECTOR6INT32", "VECTOR6UINT32")

@@ -88,7 +88,7 @@ def parse_channel(name: str) -> int:
 class _Conn:
     """One accepted socket: its role, buffers and (for RTDE) its protocol session."""
 
-    def __init__(self, sock: socket.socket, role: str):
+    def __init__(self, sock: socket.socket, role: str) -> None:
         self.sock = sock
         self.role = role
         self.inbuf = bytearray()
@@ -138,7 +138,7 @@ class TwinServer:
         host: str = "127.0.0.2",
         ports: TwinPorts | None = None,
         realtime: bool = True,
-    ):
+    ) -> None:
         self.ctl = controller
         self.realtime = realtime  # try SCHED_FIFO for the loop thread (ignored if not permitted)
         self.host = host
@@ -374,7 +374,7 @@ class TwinServer:
                 self.ctl.add_log("program ignored: robot in local control")
                 return
             try:
-                kind, program = parse_program(text)
+                _kind, program = parse_program(text)
             except ScriptError as exc:
                 self.ctl.add_log(f"program refused: {exc}")
                 return
@@ -552,7 +552,7 @@ class FaultClient:
     ``FaultClient("127.0.0.2").command("protective_stop")`` -> reply text after ``ok``;
     a refused command raises ValueError, an unreachable twin OSError."""
 
-    def __init__(self, host: str, port: int = TwinPorts.fault, timeout_s: float = 3.0):
+    def __init__(self, host: str, port: int = TwinPorts.fault, timeout_s: float = 3.0) -> None:
         self.host, self.port, self.timeout_s = host, port, timeout_s
 
     def command(self, line: str) -> str:
@@ -570,7 +570,8 @@ class FaultClient:
         return text[3:]
 
     def state(self) -> dict[str, Any]:
-        return json.loads(self.command("state"))
+        state: dict[str, Any] = json.loads(self.command("state"))
+        return state
 
 
 # ---------------------------------------------------------------------- entry point

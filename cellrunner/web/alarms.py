@@ -8,6 +8,7 @@ the fix an operator can carry out without opening the logs.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 from cellrunner.model.cellport import CellStatus, JobResult
 from cellrunner.model.codes import PackMLState as S
@@ -61,7 +62,7 @@ class Alarm:
     detail: str
     fix: str
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return asdict(self)
 
 

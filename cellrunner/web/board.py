@@ -12,7 +12,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from datetime import UTC, datetime, timezone
+from datetime import UTC, datetime
 from typing import Any
 
 from cellrunner.execution.journal import JobRecord, JournalBackend
@@ -37,13 +37,13 @@ class StatusBoard:
         *,
         plc_links: Callable[[], dict[str, bool]] = dict,
         max_age_s: float = 0.2,
-    ):
+    ) -> None:
         self.port, self.journal, self.cell_name = port, journal, cell_name
         self.plc_links = plc_links
         self.max_age_s = max_age_s
         self.jobs = JobMetrics()
         self._lock = threading.Lock()
-        self._cached: tuple[float, dict] | None = None
+        self._cached: tuple[float, dict[str, Any]] | None = None
         self._remove_listener: Callable[[], None] | None = None
 
     def setup(self) -> StatusBoard:
@@ -107,7 +107,7 @@ class StatusBoard:
             return None
         record = self.journal.get(status.job_id)
         rows = self.journal.steps_of(status.job_id)
-        steps: dict[int, dict] = {}
+        steps: dict[int, dict[str, Any]] = {}
         for index, kind, name, step_status, attempt, _at, message in rows:
             steps[index] = {
                 "index": index,
@@ -138,6 +138,7 @@ class StatusBoard:
 
 
 def _result_row(r: JobRecord) -> dict[str, Any]:
+    assert r.ended_at is not None  # a result is a finished job
     return {
         "job_id": r.job_id,
         "task": r.task,

@@ -24,7 +24,7 @@ class JobMetrics:
     """Jobs finished by this process: a counter per result code and a cycle time
     histogram. :meth:`record` is a result listener (any thread, never blocks long)."""
 
-    def __init__(self, buckets_s: Iterable[float] = CYCLE_BUCKETS_S):
+    def __init__(self, buckets_s: Iterable[float] = CYCLE_BUCKETS_S) -> None:
         self.buckets_s = tuple(sorted(buckets_s))
         self._lock = threading.Lock()
         self._by_code: dict[int, int] = {}
@@ -50,7 +50,7 @@ def render(cell: str, status: CellStatus, jobs: JobMetrics, plc_links: dict[str,
     out: list[str] = []
 
     def family(
-        name: str, kind: str, help_text: str, samples: list[tuple[str, dict, float]]
+        name: str, kind: str, help_text: str, samples: list[tuple[str, dict[str, str], float]]
     ) -> None:
         out.append(f"# HELP {name} {help_text}")
         out.append(f"# TYPE {name} {kind}")
@@ -64,8 +64,9 @@ def render(cell: str, status: CellStatus, jobs: JobMetrics, plc_links: dict[str,
         "Jobs finished since cellrunner started, by result code (SPEC 7).",
         [("", {"code": str(c), "result": _text(c)}, by_code.get(c, 0)) for c in codes],
     )
-    cumulative, samples = 0, []
-    for bound, count in zip([*jobs.buckets_s, float("inf")], buckets):
+    cumulative = 0
+    samples: list[tuple[str, dict[str, str], float]] = []
+    for bound, count in zip([*jobs.buckets_s, float("inf")], buckets, strict=True):
         cumulative += count
         samples.append(("_bucket", {"le": _number(bound)}, cumulative))
     samples += [("_sum", {}, cycle_sum_s), ("_count", {}, cumulative)]

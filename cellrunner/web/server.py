@@ -13,6 +13,7 @@ import json
 import threading
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
+from typing import Any
 
 from cellrunner.errors import CellrunnerError, UsageError
 from cellrunner.web.board import StatusBoard
@@ -45,7 +46,7 @@ class StatusServer:
     """Construct (no I/O), :meth:`start` (binds, raises CellrunnerError when it
     cannot), :meth:`stop`."""
 
-    def __init__(self, board: StatusBoard, host: str = DEFAULT_HOST, port: int = 8080):
+    def __init__(self, board: StatusBoard, host: str = DEFAULT_HOST, port: int = 8080) -> None:
         self.board, self.host, self.port = board, host, port
         self._httpd: ThreadingHTTPServer | None = None
         self._thread: threading.Thread | None = None
@@ -53,7 +54,8 @@ class StatusServer:
     @property
     def url(self) -> str:
         host, port = self._httpd.server_address[:2] if self._httpd else (self.host, self.port)
-        return f"http://{host}:{port}/"
+        name = host if isinstance(host, str) else host.decode()
+        return f"http://{name}:{port}/"
 
     def start(self) -> None:
         handler = type("Handler", (_Handler,), {"board": self.board, "page": _page()})
@@ -91,7 +93,7 @@ class _Handler(BaseHTTPRequestHandler):
     page: bytes
     server_version = "cellrunner"
 
-    def do_GET(self) -> None:  # noqa: N802 - http.server's name
+    def do_GET(self) -> None:  # http.server's name
         path = self.path.split("?", 1)[0]
         if path in ("/", "/index.html"):
             self._send(200, "text/html; charset=utf-8", self.page)
@@ -105,13 +107,13 @@ class _Handler(BaseHTTPRequestHandler):
                 404, "text/plain; charset=utf-8", b"not found: try /, /status.json or /metrics\n"
             )
 
-    def do_HEAD(self) -> None:  # noqa: N802
+    def do_HEAD(self) -> None:
         self.do_GET()
 
     def _refuse(self) -> None:
         self._send(405, "text/plain; charset=utf-8", b"read-only: GET only\n", allow="GET, HEAD")
 
-    do_POST = do_PUT = do_DELETE = do_PATCH = _refuse  # noqa: N815
+    do_POST = do_PUT = do_DELETE = do_PATCH = _refuse
 
     def _send(self, code: int, content_type: str, body: bytes, **headers: str) -> None:
         self.send_response(code)
@@ -124,5 +126,5 @@ class _Handler(BaseHTTPRequestHandler):
         if self.command != "HEAD":
             self.wfile.write(body)
 
-    def log_message(self, format: str, *args) -> None:  # noqa: A002 - requests are not logged
+    def log_message(self, format: str, *args: Any) -> None:  # requests are not logged
         pass

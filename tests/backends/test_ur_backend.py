@@ -67,12 +67,12 @@ def test_unreachable_controller_is_peer_unreachable_quickly():
 
 def test_generation_mismatch_is_refused_both_ways():
     with TwinProcess("ur5") as cb3:
-        with pytest.raises(ControllerMismatch, match="is CB3 .* ur5e is e-Series"):
+        with pytest.raises(ControllerMismatch, match=r"is CB3 .* ur5e is e-Series"):
             URBackend(cb3.host, UR5E).connect()
         with pytest.raises(ControllerMismatch, match="drives a UR5 but the cell's robot is ur10"):
             URBackend(cb3.host, robot_spec("ur10")).connect()
     with TwinProcess("ur5e") as eseries:
-        with pytest.raises(ControllerMismatch, match="is e-Series .* ur5 is CB3"):
+        with pytest.raises(ControllerMismatch, match=r"is e-Series .* ur5 is CB3"):
             URBackend(eseries.host, robot_spec("ur5")).connect()
 
 
@@ -126,7 +126,7 @@ def test_refuses_unsealed_and_wrong_rate_trajectories(backend):
     forged = ApprovedTrajectory(trajectory, 0, "forged", "0" * 64)
     with pytest.raises(BackendError, match="did not approve"):
         backend.servo(forged, 0)
-    with pytest.raises(BackendError, match="sampled at 125.0 Hz"):
+    with pytest.raises(BackendError, match=r"sampled at 125\.0 Hz"):
         backend.servo(approve(wave(125.0, 0.1, backend.read_state().q_rad), 0, "cb3"), 0)
 
 

@@ -52,19 +52,19 @@ def test_palletizer_grip_miss_is_no_part():
         failed(out)
         == [
             (
-                4,
+                5,
                 "attempt 1 failed: vacuum_ok not true within 1 s (no vacuum: the cups sealed on "
                 "nothing); vacuum_ok not true within 1 s (no vacuum: the cups sealed on nothing)",
             )
         ]
-        or failed(out)[0][0] == 4
+        or failed(out)[0][0] == 5
     )
 
 
 def test_palletizer_part_slip_is_part_lost():
     out = dry_run(*PALLETIZER, "--inject", "part_slip@approach#2")
     assert out["result_code"] == 2
-    assert failed(out) == [(6, "part lost in transit: the vacuum switch dropped")]
+    assert failed(out) == [(7, "part lost in transit: the vacuum switch dropped")]
 
 
 def test_palletizer_plc_disconnect_holds_and_resumes_with_suction():

@@ -18,7 +18,7 @@ def test_palletizer_through_ur_rtde():
     with twin(PALLETIZER[0], host):
         out = run_ur(*PALLETIZER, host, "-p", "slot=2")
         assert out["result_code"] == 0, (out["result_text"], out["steps"])
-        assert [s["status"] for s in out["steps"]] == ["ok"] * 10
+        assert [s["status"] for s in out["steps"]] == ["ok"] * 11
     host = "127.0.0.114"  # a fresh twin: the first carton is on the pallet
     with twin(PALLETIZER[0], host):
         fault(host, "part_slip")  # fires once the carton hangs in the air

@@ -70,7 +70,7 @@ def test_three_points_make_a_right_handed_frame():
 
 
 def test_points_on_one_line_or_too_close_are_refused():
-    with pytest.raises(TeachError, match="the plane point lies 0.0 deg off the X axis"):
+    with pytest.raises(TeachError, match=r"the plane point lies 0\.0 deg off the X axis"):
         frame_from_points([0, 0, 0], [0.1, 0, 0], [0.3, 0, 0])
     with pytest.raises(TeachError, match=r"the \+X point is 2.0 mm from another point"):
         frame_from_points([0, 0, 0], [0.002, 0, 0], [0, 0.1, 0])

@@ -117,7 +117,9 @@ def test_jog_stops_before_the_wall_and_before_the_wrist_singularity(tmp_path):
             assert _state()["safety_mode"] == "NORMAL"
             distances, _ = world.collision.pair_distances(q)
             to_wall = [
-                d for d, (a, b) in zip(distances, world.collision.pair_labels) if "'wall'" in a + b
+                d
+                for d, (a, b) in zip(distances, world.collision.pair_labels, strict=True)
+                if "'wall'" in a + b
             ]
             assert 0.0 < min(to_wall) < 0.12, "stopped before contact, near the wall"
             # dead-man: keys released -> stopped, the arm stays

@@ -116,7 +116,7 @@ def test_step_mode_waits_for_enter_before_each_step(project, tmp_path):
         )
         try:
             shown = []
-            for n in range(4):
+            for _n in range(4):
                 lines = _read_until(proc.stderr, "press Enter", 60)
                 shown.append(next(line for line in lines if line.startswith("next: ")))
                 fault(HOST, "record on")

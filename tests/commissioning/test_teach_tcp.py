@@ -168,7 +168,7 @@ def test_teach_one_point_rewrites_only_that_frame_and_asks_first(tmp_path):
     assert proc.returncode == 0, proc.stderr
     old = CELL.splitlines(True)
     new = cell.read_text().splitlines(True)
-    changed = [i for i, (a, b) in enumerate(zip(old, new)) if a != b]
+    changed = [i for i, (a, b) in enumerate(zip(old, new, strict=True)) if a != b]
     assert len(old) == len(new) and len(changed) == 1
     assert new[changed[0]].endswith("]}   # infeed\n"), "the comment after the frame stays"
     from cellrunner.model.load import load_cell
@@ -200,7 +200,7 @@ def test_calibrate_tcp_recovers_a_hidden_tcp(tmp_path):
     with twin(cell, HOST):
         hand = Hand(cell)
         try:
-            code, out, err = _session(
+            code, _out, err = _session(
                 ["calibrate-tcp", str(cell), "--robot-host", HOST, "--poses", "5", "--yes"], touch
             )
         finally:

@@ -143,6 +143,33 @@ def test_rearming_after_an_estop_is_polled_by_tick_and_never_blocks_it(tmp_path)
     assert cell.status().state == S.IDLE and cell.status().ready
 
 
+def test_clear_unlocks_a_protective_stop_an_aborted_job_left(tmp_path):
+    """A job aborted while held by a protective stop leaves the arm stopped: Clear unlocks
+    it (once the controller allows, 5 s after the stop), so Reset reaches a ready Idle."""
+    arm = ScriptedArm(protective_stop_at_s=0.1)
+    cell, _ = make_cell(tmp_path, arm)
+    ticket = cell.start_job(1, {}, "1", "modbus")
+    for _ in range(5000):
+        tick(cell)
+        if cell.status().state == S.HELD:
+            break
+    assert cell.status().state == S.HELD and cell.status().protective_stop
+    assert cell.command("abort")
+    tick(cell, 3)
+    assert cell.journal.get(ticket.job_id).result_code == ResultCode.ABORTED_BY_PLC
+    assert cell.status().state == S.ABORTED and cell.status().protective_stop
+    assert cell.command("clear")  # within 5 s of the stop: the controller refuses the unlock
+    tick(cell, 3)
+    assert cell.status().state == S.ABORTED and arm.unlock_refusals == 1
+    tick(cell, 3000)  # 6 s at 500 Hz
+    assert cell.command("clear")
+    tick(cell, 3)
+    assert cell.status().state == S.STOPPED and not cell.status().protective_stop
+    assert cell.command("reset")
+    tick(cell, 3)
+    assert cell.status().state == S.IDLE and cell.status().ready
+
+
 def test_abort_by_plc_is_106(tmp_path):
     cell, _ = make_cell(tmp_path)
     ticket = cell.start_job(1, {}, "1", "modbus")

@@ -175,7 +175,7 @@ def test_bad_injection_is_exit_2(project):
 
 
 def test_report_has_pictures_and_plots(project, tmp_path):
-    code, out = dry_run(project, "--report", str(tmp_path / "rep"))
+    code, _out = dry_run(project, "--report", str(tmp_path / "rep"))
     assert code == 0
     files = {p.name for p in (tmp_path / "rep").iterdir()}
     assert {"result.json", "joints.png", "tcp_path.png", "end.png"} <= files

@@ -22,6 +22,8 @@ pytest.importorskip("mujoco")
 
 CNC = ("cells/cnc_tending_ur5e.yaml", "tasks/cnc_tend.yaml")
 VISION = ("cells/vision_pick_ur10e.yaml", "tasks/vision_pick.yaml")
+PALLETIZER = ("cells/palletizer_ur10e.yaml", "tasks/palletize.yaml")
+PEG = ("cells/peg_ur3e.yaml", "tasks/peg_insert.yaml")
 REPEATS = 20
 
 
@@ -63,66 +65,103 @@ def statuses(result: dict, first: int, last: int) -> list[str]:
 
 # -- CNC tending ---------------------------------------------------------------------------
 
+N_CNC = 45  # expanded steps of the job; on_error's three come after
 
-def test_cnc_normal_job_waits_on_the_machine_and_completes(project):
+
+def test_cnc_normal_job_changes_grippers_waits_on_the_machine_and_completes(project):
     r = dry_run(project, CNC)
     assert (r["result_code"], r["result_text"]) == (0, "OK")
     rows = {s["index"]: s for s in r["steps"]}
-    assert len(rows) == 29  # no on_error rows when nothing failed
+    assert len(rows) == N_CNC  # no on_error rows when nothing failed
     assert rows[8]["name"] == "door_open" and rows[8]["duration_s"] == pytest.approx(
         1.5, abs=0.01
     )  # follows, 1.5 s
     assert rows[16]["name"] == "cnc_start=True" and rows[16]["duration_s"] == pytest.approx(
         0.2, abs=0.01
     )  # pulse
-    assert rows[17]["name"] == "cycle_done" and rows[17]["duration_s"] == pytest.approx(
-        3.8, abs=0.01
-    )  # 4 s after
+    # the raw-part gripper goes to the rack and the finished-part one is locked while the
+    # machine cuts; the cycle-done lamp lights 4 s after the start pulse rose
+    assert [(rows[i]["kind"], rows[i]["name"]) for i in (19, 23, 39, 43)] == [
+        ("tool_unlock", "raw"),
+        ("tool_lock", "finished"),
+        ("tool_unlock", "finished"),
+        ("tool_lock", "raw"),
+    ]
+    assert rows[25]["name"] == "cycle_done"
+    assert sum(rows[i]["duration_s"] for i in range(16, 26)) == pytest.approx(4.0, abs=0.01)
+    assert r["parts_end_m"]["blank"] == pytest.approx([0.25, -0.30, 0.93], abs=0.003)  # outfeed
     assert r["max_tracking_error_m"] < 0.002
 
 
+ON_ERROR_ROWS = [
+    ("set_output", "door_cmd=False, cnc_start=False", "ok"),
+    ("lift", "lift", "ok"),
+    ("move", "home", "ok"),
+]
+
+
 @pytest.mark.parametrize(
-    "fault, code, text",
+    "fault, code, text, failed_step",
     [
         (
             "grip_miss@grip",
             1,
-            "gripper_closed not true within 1 s (jaws closed on nothing); on_error done",
+            "raw_closed not true within 1 s (jaws closed on nothing); on_error done",
+            5,
         ),
-        ("part_slip@approach#2", 2, "part lost in transit: the jaw sensor dropped; on_error done"),
-        ("protective_stop@approach#2", 0, "OK"),
-        ("plc_disconnect@approach#2", 0, "OK"),
-        ("estop@move#2", 101, "e-stop during step 13 move 'home'"),
+        (  # the finished-part gripper, at the vise
+            "grip_miss@grip#2",
+            1,
+            "finished_closed not true within 1 s (jaws closed on nothing); on_error done",
+            30,
+        ),
+        (
+            "part_slip@approach#2",
+            2,
+            "part lost in transit: the jaw sensor dropped; on_error done",
+            9,
+        ),
+        (
+            "part_slip@approach#6",
+            2,
+            "part lost in transit: the jaw sensor dropped; on_error done",
+            32,
+        ),
+        ("protective_stop@approach#2", 0, "OK", None),
+        ("protective_stop@descend#3", 0, "OK", None),  # at the rack, while the machine cuts
+        ("plc_disconnect@approach#2", 0, "OK", None),
+        ("estop@move#2", 101, "e-stop during step 13 move 'home'", 13),
         (
             "robot_disconnect@lift",
             102,
             "robot connection lost; the twin's robot link was cut (robot_disconnect) and "
             "stays down",
+            6,
         ),
     ],
 )
-def test_cnc_faults_give_their_codes_and_clean_up(project, fault, code, text):
+def test_cnc_faults_give_their_codes_and_clean_up(project, fault, code, text, failed_step):
     r = dry_run(project, CNC, "--inject", fault)
     assert (r["result_code"], r["result_text"]) == (code, text)
-    if text.endswith("on_error done"):  # door command dropped, backed out, home
-        assert [(s["kind"], s["name"], s["status"]) for s in r["steps"] if s["index"] > 29] == [
-            ("set_output", "door_cmd=False, cnc_start=False", "ok"),
-            ("retreat", "retreat", "ok"),
-            ("move", "home", "ok"),
-        ]
-    elif code >= 100:  # the arm cannot move: no on_error
-        assert all(s["index"] <= 29 for s in r["steps"])
+    failed = [s["index"] for s in r["steps"] if s["status"] == "failed"]
+    assert failed == ([failed_step] if failed_step else [])
+    cleanup = [(s["kind"], s["name"], s["status"]) for s in r["steps"] if s["index"] > N_CNC]
+    if text.endswith("on_error done"):  # outputs off, backed out, home
+        assert cleanup == ON_ERROR_ROWS
+    else:  # OK, or the arm cannot move: no on_error
+        assert cleanup == []
 
 
-def test_cnc_machine_that_never_finishes_times_out_and_on_error_goes_on_past_a_failed_step(project):
-    r = dry_run(project, CNC, "-p", "cycle_time=2 s")
-    assert r["result_code"] == 105
-    assert r["result_text"] == (
-        "input cycle_done did not read True within 2 s; on_error failed: step 31 retreat: "
-        "line needs a configuration flip 4 mm along the 30 mm line (joint 6 jumps 150 deg "
-        "between samples)"
+def test_cnc_door_that_stays_shut_times_out_and_on_error_backs_out_with_the_blank(project):
+    r = dry_run(project, CNC, "-p", "door_time=1 s")  # the door takes 1.5 s
+    assert (r["result_code"], r["result_text"]) == (
+        105,
+        "input door_open did not read True within 1 s; on_error done",
     )
-    assert statuses(r, 30, 32) == ["ok", "failed", "ok"]  # the door output is off, the arm at home
+    assert [(s["kind"], s["name"], s["status"]) for s in r["steps"] if s["index"] > N_CNC] == (
+        ON_ERROR_ROWS
+    )
+    assert r["parts_end_m"]["blank"][2] > 1.0  # still in the raw-part gripper, lifted with it
 
 
 # -- vision pick ---------------------------------------------------------------------------
@@ -194,9 +233,12 @@ def test_vision_pose_outside_its_box_is_an_input_error(project, capsys):
 @pytest.mark.parametrize(
     "files, fault",
     [
-        (CNC, "protective_stop@approach#2"),
-        (VISION, "protective_stop@approach#2"),
-        (CNC, "plc_disconnect@approach#2"),
+        pytest.param(CNC, "protective_stop@descend#3", id="cnc-held-at-the-rack"),
+        pytest.param(VISION, "protective_stop@approach#2", id="vision-stop"),
+        pytest.param(CNC, "plc_disconnect@approach#2", id="cnc-plc"),
+        pytest.param(PALLETIZER, "plc_disconnect@approach#2", id="palletizer-plc"),
+        pytest.param(PALLETIZER, "part_slip@approach#2", id="palletizer-slip"),
+        pytest.param(PEG, "protective_stop@insert", id="peg-stop"),
     ],
 )
 def test_twenty_identical_dry_runs_give_identical_results(tmp_path, files, fault):

@@ -62,7 +62,7 @@ def test_a_weighed_lift_ends_at_rest_and_the_retreat_runs_into_the_move_home(dem
 
 
 def test_blends_pay_off(demo):
-    world, steps, plan = demo
+    world, _steps, plan = demo
     joined = _row(plan, "approach", 2), _row(plan, "descend", 2)
     rest_to_rest = 0.0
     q = joined[0].trajectory.q_rad[0]
@@ -77,7 +77,7 @@ def test_blends_pay_off(demo):
 
 
 def test_no_blend_where_the_arc_is_not_collision_free(demo, monkeypatch):
-    world, steps, plan = demo
+    world, _steps, plan = demo
     approach, descend = _row(plan, "approach", 2), _row(plan, "descend", 2)
     q0 = approach.trajectory.q_rad[0]
     planner = task_plan._StepPlanner(world, q0, approach.carrying)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import subprocess
 import sys
 from pathlib import Path
@@ -230,12 +229,34 @@ def test_cached_plan_is_verified_before_use(tmp_path):
     assert check(cell, task).returncode == 0
     npz = next((tmp_path / "var" / "plan-cache").glob("*.npz"))
     data = dict(np.load(npz))
-    data["q2"] = (
-        data["q2"] + np.radians(5) * np.linspace(0, 1, len(data["q2"]))[:, None]
-    )  # tampered
+    offset, shape = json.loads(bytes(data["meta"]).decode())["arrays"]["q2"]
+    q2 = data["blob"][offset : offset + shape[0] * shape[1]].reshape(shape)
+    q2 += np.radians(5) * np.linspace(0, 1, shape[0])[:, None]  # tampered, in the blob
     np.savez(npz, **data)
     loaded = load_cell(cell)
     world = CellWorld(loaded)
     plan = cache.plan_cached(world, load_task(task, loaded), {}, world.q_home_rad)
     with pytest.raises(InfeasibleError):
         plan.nominal(plan.rows[2].step)
+
+
+def test_memory_cache_keeps_the_most_recently_used_plans(monkeypatch):
+    """serve's in-memory plans are bounded, and a plan in use stays while one-off plans
+    (a job starting where a fault left the arm) come and go."""
+    from cellrunner.model.load import load_cell, load_task
+    from cellrunner.planning import cache
+    from cellrunner.planning.world import CellWorld
+
+    loaded = load_cell(ROOT / "cells" / "demo_ur5e.yaml")
+    task = load_task(ROOT / "tasks" / "pick_place.yaml", loaded)
+    world = CellWorld(loaded)
+    monkeypatch.setattr(cache, "_MEMORY", {})
+    monkeypatch.setattr(cache, "_MEMORY_MAX", 2)
+    home = world.q_home_rad
+    plans = {s: cache.plan_cached(world, task, {"slot": s}, home) for s in (0, 1)}
+    assert cache.plan_cached(world, task, {"slot": 0}, home) is plans[0]  # used again
+    cache.plan_cached(world, task, {"slot": 2}, home)
+    kept = set(cache._MEMORY)
+    assert len(kept) == 2
+    assert cache.plan_key(world, task, {"slot": 0}, home) in kept
+    assert cache.plan_key(world, task, {"slot": 1}, home) not in kept

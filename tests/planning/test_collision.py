@@ -86,7 +86,7 @@ def test_check_motion_never_misses_a_2mm_plate(a, b):
 
 
 def test_naive_sampling_would_miss_the_plate_the_check_finds():
-    k, world = _thin_plate_world(0.002)
+    _k, world = _thin_plate_world(0.002)
     q0, q1 = HOME.copy(), HOME.copy()
     q0[0], q1[0] = -0.5, 0.7
     samples = [q0 + s * (q1 - q0) for s in np.linspace(0, 1, 4)]
@@ -127,7 +127,11 @@ def _sample_points(obj, rng, n=40):
     import coal
 
     g = obj.geometry
-    if isinstance(g, (coal.Capsule, coal.Cylinder)):
+    if obj.part is not None:  # a convex arm part: its vertices and points inside
+        v = obj.part.vertices_m
+        w = rng.dirichlet(np.full(len(v), 0.05), n)
+        local = np.concatenate([v, w @ v])
+    elif isinstance(g, (coal.Capsule, coal.Cylinder)):
         t = rng.uniform(-g.halfLength, g.halfLength, n)
         u = rng.normal(size=(n, 3))
         u /= np.linalg.norm(u, axis=1)[:, None]
@@ -181,7 +185,7 @@ def test_segment_bounds_bound_the_motion_of_every_point(q0, dq, pieces):
         frames.append([data.oMi[j].homogeneous.copy() for j in range(7)])
     points = {k: _sample_points(o, rng) for k, o in enumerate(world._objects) if world._is_mover[k]}
     for p, (mover, high, joints) in enumerate(
-        zip(world._pair_mover, world._pair_high, world._pair_joints)
+        zip(world._pair_mover, world._pair_high, world._pair_joints, strict=True)
     ):
         body = world._body[high]
         low = (
@@ -330,7 +334,7 @@ def test_stl_mesh_fixture_matches_the_same_box(tmp_path):
     rng = np.random.default_rng(3)
     for _ in range(20):
         q = rng.uniform(-np.pi, np.pi, 6)
-        d_mesh, _, b_mesh = as_mesh.min_distance(q)
+        d_mesh, _, _b_mesh = as_mesh.min_distance(q)
         d_box, _, _ = as_box.min_distance(q)
         if d_box > 0:  # outside: the mesh surface and the box agree
             assert abs(d_mesh - d_box) < 1e-6, (d_mesh, d_box)

@@ -42,7 +42,7 @@ def test_path_around_a_wall_is_certified_and_rounded():
     path = plan_joint_path(world, a, b, seed=1)
     assert path.planner == "rrtconnect"
     assert np.allclose(path.q_rad[0], a) and np.allclose(path.q_rad[-1], b)
-    for p, q in zip(path.q_rad[:-1], path.q_rad[1:], strict=False):
+    for p, q in zip(path.q_rad[:-1], path.q_rad[1:], strict=True):
         assert world.check_motion(p, q).ok  # every edge, arcs included, proven
     assert len(path.q_rad) >= 2 + CORNER_POINTS  # at least one corner became an arc
 
@@ -71,14 +71,15 @@ def test_round_corners_never_lengthens_the_path():
 def test_check_path_lower_bound_pruning_changes_no_verdict(start, steps):
     world = _world()
     q = np.cumsum(np.vstack([start, steps]), axis=0)
-    pruned = world.check_path(q).ok
     saved = collision_module.PATH_BOUNDS_MAX_SAMPLES
-    collision_module.PATH_BOUNDS_MAX_SAMPLES = 0
-    try:
-        plain = world.check_path(q).ok
-    finally:
-        collision_module.PATH_BOUNDS_MAX_SAMPLES = saved
-    assert pruned == plain
+    verdicts = []
+    for limit in (0, 1000):  # pruning off, pruning on every path
+        collision_module.PATH_BOUNDS_MAX_SAMPLES = limit
+        try:
+            verdicts.append(world.check_path(q).ok)
+        finally:
+            collision_module.PATH_BOUNDS_MAX_SAMPLES = saved
+    assert verdicts[0] == verdicts[1]
 
 
 @settings(max_examples=30, deadline=None)

@@ -34,15 +34,32 @@ def test_ik_round_trip_returns_a_configuration_with_the_same_pose(model, q):
     assert np.abs(solutions[0] - q).max() < 1e-5  # the nearest branch is the one we came from
 
 
-@pytest.mark.parametrize("model", ["ur5e", "ur10", "ur3e"])
+def test_every_arm_ur_analytic_ik_solves_is_supported():
+    import ur_analytic_ik
+
+    solved = {
+        n for n in dir(ur_analytic_ik) if hasattr(getattr(ur_analytic_ik, n), "forward_kinematics")
+    }
+    assert solved == set(ROBOTS)
+
+
+@pytest.mark.parametrize("model", sorted(ROBOTS))
 def test_flange_fk_matches_ur_analytic_ik(model):
     import ur_analytic_ik
 
     kin = ArmKinematics(ROBOTS[model], np.eye(4), np.eye(4))
-    q = np.array([0.3, -1.1, 1.4, -0.7, 1.2, 0.5])
-    assert np.allclose(
-        kin.T_world_flange(q), getattr(ur_analytic_ik, model).forward_kinematics(*q), atol=1e-10
-    )
+    fk = getattr(ur_analytic_ik, model).forward_kinematics
+    for q in np.random.default_rng(9).uniform(-2 * np.pi, 2 * np.pi, (40, 6)):
+        assert np.allclose(kin.T_world_flange(q), fk(*q), atol=1e-10)
+
+
+@pytest.mark.parametrize("model", sorted(ROBOTS))
+def test_controller_rate_and_limits_per_generation(model):
+    spec = ROBOTS[model]
+    assert spec.rate_hz == (125.0 if model in ("ur3", "ur5", "ur10") else 500.0)
+    assert len(spec.joint_speed_max_deg_s) == 6 and min(spec.joint_speed_max_deg_s) >= 120
+    assert spec.joint_min_deg == (-360.0,) * 6 and spec.joint_max_deg == (360.0,) * 6
+    assert 0.5 <= spec.reach_m <= 1.75 and 3 <= spec.payload_max_kg <= 30
 
 
 @settings(max_examples=20, deadline=None)
@@ -94,3 +111,25 @@ def test_batched_tcp_positions_match_pinocchio_fk_per_sample(model):
     assert batched.shape == (300, 3)
     assert np.abs(batched - [kin.p_world_tcp(qi) for qi in q]).max() < 1e-12
     assert np.allclose(kin.p_world_tcp_many(q[0]), kin.p_world_tcp(q[0]), atol=1e-12)
+
+
+@pytest.mark.parametrize("model", ["ur5e", "ur10e", "ur3e"])
+def test_ik_at_home_on_a_turned_mount_finds_home_itself(model):
+    """UR's usual home (tool straight down) sits on the edge of a branch's formula, where
+    the closed-form solver's rounding dropped the branch: a straight line from home then
+    needed a 150 deg shoulder flip."""
+    kin = ArmKinematics(
+        ROBOTS[model], pose_matrix((0, 0, 0.9), (0, 0, 180)), pose_matrix((0, 0, 0.15))
+    )
+    home = np.radians([0, -90, 90, -90, -90, 0])
+    T = kin.T_world_tcp(home)
+    assert np.allclose(kin.ik_all(T, home)[0], home, atol=1e-6)
+    up = pose_matrix((0, 0, 0.004)) @ T
+    assert np.max(np.abs(kin.ik_track(up, home) - home)) < np.radians(2.0)
+
+
+def test_renamed_arms_are_their_originals():
+    for new, old in (("ur7e", "ur5e"), ("ur12e", "ur10e")):
+        a, b = ROBOTS[new], ROBOTS[old]
+        assert a.arm == old and b.arm == old
+        assert (a.d_m, a.a_m, a.joint_speed_max_deg_s) == (b.d_m, b.a_m, b.joint_speed_max_deg_s)

@@ -1,5 +1,5 @@
-"""Linear moves stay straight, timing keeps every limit at every sample, the verifier
-refuses what breaks a rule, and the planner façade approves a pick-and-place chain."""
+"""Linear moves stay straight, timing keeps every limit at every sample, and the verifier
+refuses what breaks a rule (a whole task's plan: tests/planning/test_task_plan.py)."""
 
 import numpy as np
 import pytest
@@ -9,9 +9,8 @@ from cellrunner.model.geometry import Box, Cylinder, Placed, pose_matrix
 from cellrunner.model.robots import ROBOTS
 from cellrunner.model.trajectory import Trajectory
 from cellrunner.planning.cartesian import distance_to_segment_m, plan_linear
-from cellrunner.planning.collision import CollisionModel, ContactAllowance
+from cellrunner.planning.collision import CollisionModel
 from cellrunner.planning.kinematics import ArmKinematics
-from cellrunner.planning.planner import MotionPlanner
 from cellrunner.planning.timing import MotionLimits, sample_measures, time_path
 from cellrunner.planning.verify import verify_trajectory
 
@@ -45,7 +44,7 @@ def test_linear_move_into_the_table_is_refused_naming_the_pair():
     kin = ArmKinematics(SPEC, np.eye(4), TCP)
     world = CollisionModel(kin, TOOL, [TABLE])
     q0 = kin.ik_nearest(down(0.4, -0.1, 0.2), HOME)
-    with pytest.raises(InfeasibleError, match="tool 'gripper' .* fixture 'table'"):
+    with pytest.raises(InfeasibleError, match=r"tool 'gripper' .* fixture 'table'"):
         plan_linear(kin, world, q0, down(0.4, -0.1, -0.05))
 
 
@@ -112,7 +111,7 @@ def test_verifier_refuses_a_jump_with_numbers():
 
 def test_verifier_refuses_a_discontinuity_and_a_wrong_rate():
     q = np.repeat(HOME[None], 3, axis=0)
-    with pytest.raises(InfeasibleError, match="starts 5.7296 deg away"):
+    with pytest.raises(InfeasibleError, match=r"starts 5\.7296 deg away"):
         _verify(q, previous_q_rad=HOME + [0.1, 0, 0, 0, 0, 0])
     kin = ArmKinematics(SPEC, np.eye(4), TCP)
     with pytest.raises(InfeasibleError, match="125 Hz"):
@@ -124,44 +123,3 @@ def test_verifier_refuses_a_discontinuity_and_a_wrong_rate():
             limits=LIMITS,
             collision=CollisionModel(kin),
         )
-
-
-def test_planner_approves_a_pick_and_place_chain():
-    blocker = Placed("wall", Box((0.4, 0.03, 0.3)), pose_matrix((0.5, 0.0, 0.15)))
-    part = Placed("block", Box((0.04, 0.04, 0.04)), pose_matrix((0, 0, 0.02)))
-    planner = MotionPlanner(SPEC, np.eye(4), TCP, TOOL, [TABLE, blocker], LIMITS)
-    pick, place = down(0.45, -0.25, 0.06), down(0.45, 0.25, 0.045)
-    above_pick, above_place = down(0.45, -0.25, 0.40), down(0.45, 0.25, 0.40)
-    approach = planner.plan_joint(HOME, above_pick, step_index=1, step_name="approach")
-    descend = planner.plan_linear(
-        approach.q_end_rad,
-        pick,
-        speed_mps=0.2,
-        step_index=2,
-        step_name="descend",
-        allow=(ContactAllowance("table", "tool", 0.0),),
-    )
-    lift = planner.plan_linear(
-        descend.q_end_rad, above_pick, carried=part, step_index=3, step_name="lift"
-    )
-    transfer = planner.plan_joint(
-        lift.q_end_rad, above_place, carried=part, step_index=4, step_name="transfer"
-    )
-    put = planner.plan_linear(
-        transfer.q_end_rad,
-        place,
-        carried=part,
-        step_index=5,
-        step_name="descend",
-        allow=(ContactAllowance("table", "part", -0.001),),
-    )
-    approved = planner.time_and_verify([approach, descend])
-    approved += planner.time_and_verify([lift, transfer], previous=approved[-1])
-    approved += planner.time_and_verify([put], previous=approved[-1])
-    assert [a.step_index for a in approved] == [1, 2, 3, 4, 5]
-    assert all(a.is_sealed for a in approved)
-    for before, after in zip(approved, approved[1:]):
-        assert np.array_equal(before.trajectory.q_rad[-1], after.trajectory.q_rad[0])
-    # lift runs into transfer without stopping: its last samples still move (slowly: the
-    # joint-space corner between them is sharp here; task plans blend such corners)
-    assert np.abs(np.diff(approved[2].trajectory.q_rad[-2:], axis=0)).max() > 0

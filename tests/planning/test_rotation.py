@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
@@ -18,7 +20,7 @@ def test_quaternion_round_trip_and_slerp_match_scipy():
     matrices = np.concatenate([rotations.as_matrix(), extra.as_matrix()])
     for R in matrices:
         assert np.allclose(rotation_matrix(quaternion(R)), R, atol=1e-12)
-    for R0, R1 in zip(matrices[:-1], matrices[1:]):
+    for R0, R1 in itertools.pairwise(matrices):
         ours = [
             rotation_matrix(slerp(quaternion(R0), quaternion(R1), u)) for u in (0.0, 0.3, 0.5, 1.0)
         ]

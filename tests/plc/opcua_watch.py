@@ -58,7 +58,7 @@ async def main() -> None:
             reads += 1
             if value not in states:
                 states.append(value)
-        except Exception as exc:  # noqa: BLE001 - counted, the first kinds named
+        except Exception as exc:  # counted, the first kinds named
             errors += 1
             if len(kinds) < 5 and type(exc).__name__ not in kinds:
                 kinds.append(type(exc).__name__)

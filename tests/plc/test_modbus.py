@@ -5,6 +5,7 @@ Every test runs twice: with pymodbus's client and with pyModbusTCP (independent)
 
 from __future__ import annotations
 
+import itertools
 import time
 
 from cellrunner.plc.fake import FakeCell
@@ -213,5 +214,5 @@ def test_cell_heartbeat_increments_at_least_every_200ms(plc: PlcProcess) -> None
             changes.append(time.monotonic())
             last = value
         time.sleep(0.005)
-    gaps = [b - a for a, b in zip(changes, changes[1:])]
+    gaps = [b - a for a, b in itertools.pairwise(changes)]
     assert len(changes) >= 5 and max(gaps) <= 0.2, gaps

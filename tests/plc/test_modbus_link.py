@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from datetime import UTC, datetime, timezone
+from datetime import UTC, datetime
 
 import pytest
 
@@ -108,7 +108,7 @@ def test_early_drop_of_job_req_keeps_busy_then_publishes_without_done() -> None:
 
 
 def test_watchdog_arms_on_first_heartbeat_change_and_clears_on_next() -> None:
-    cell, link, clock = make()
+    _cell, link, clock = make()
     clock.t += 5.0
     link.tick()
     assert not link.regs[101] & ST_PLC_WATCHDOG  # never seen a heartbeat: not armed
@@ -132,7 +132,7 @@ def test_job_interrupted_by_restart_is_published_and_replayed_once() -> None:
         client_job_id="41",
         source="modbus",
     )
-    cell, link, clock = make(last_result=interrupted)
+    cell, link, _clock = make(last_result=interrupted)
     assert link.regs[104:106] == [41, 107]
     link.write(2, [41, 1])  # the PLC, restarted with us, still asks for job 41
     link.write(1, [CMD_JOB_REQ])

@@ -178,7 +178,7 @@ def test_security_negatives_are_all_refused(opcua: Setup) -> None:
         "sign only (not offered)": opcua.args(policy="Basic256Sha256_Sign"),
     }
     results = run_clients(list(cases.values()))
-    for name, out in zip(cases, results):
+    for name, out in zip(cases, results, strict=True):
         assert not out["connected"], (name, out)
     rejected = list((opcua.pki / "rejected").iterdir())
     assert [p.name for p in rejected if p.name.startswith("stranger-")], rejected

@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +13,7 @@ import pytest
 from cellrunner.model.geometry import Box, Placed, pose_matrix
 from cellrunner.report.plots import free_offset, merged_labels
 from cellrunner.report.views import choose_shots, occluders, project
-from cellrunner.sim._mj import load_mujoco
+from cellrunner.sim.mujoco_loader import load_mujoco
 from cellrunner.sim.render import CameraView, CellRenderer
 from tests.conftest import GL_BACKEND, ROOT
 
@@ -91,7 +90,7 @@ def test_projection_lands_on_the_rendered_part():
     with CellRenderer(world, 400, 300) as renderer:
         image = renderer.render(view)
     ((u, v),) = project(part[None, :], view, 400, 300, float(world.model.vis.global_.fovy))
-    r, g, b = (int(c) for c in image[int(round(v)), int(round(u))])
+    r, g, b = (int(c) for c in image[round(v), round(u)])
     backend.close()
     assert r > 120 and r > 1.4 * g and b < 60, (
         u,

@@ -9,8 +9,8 @@ import pytest
 from cellrunner.backends.sim.backend import SimBackend
 from cellrunner.model.trajectory import approve
 from cellrunner.sim import demo
-from cellrunner.sim._mj import load_mujoco
 from cellrunner.sim.description import TwinDescription, dh_forward
+from cellrunner.sim.mujoco_loader import load_mujoco
 
 # Import MuJoCo the package's way first (the root conftest chose its GL backend already).
 load_mujoco()
@@ -51,7 +51,7 @@ class Driver:
         return self.move_joints(q_to, duration_s, name)
 
     def wait(self, seconds: float) -> None:
-        for _ in range(int(round(seconds * self.backend.rate_hz))):
+        for _ in range(round(seconds * self.backend.rate_hz)):
             self.backend.wait_period()
 
     def pick_cube(self) -> None:

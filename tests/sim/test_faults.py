@@ -60,8 +60,8 @@ def test_part_slip_drops_the_part_in_transit(driver) -> None:
     assert state.inputs["DI0"] is False  # jaws closed past the part
     assert b.world.part_pose_world("cube")[2, 3] < 0.96  # it fell to the table
     # friction is back to normal once the part left the fingers
-    ids = b.world._ids
-    assert b.world.model.geom_friction[ids.part_geom["cube"], 0] == pytest.approx(0.8)
+    cube = b.world.model.geom("part:cube").id
+    assert b.world.model.geom_friction[cube, 0] == pytest.approx(0.8)
 
 
 def test_part_slip_while_carrying_drops_it_at_once(driver) -> None:

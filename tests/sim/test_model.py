@@ -1,4 +1,4 @@
-"""The MJCF twin matches the DH model, planning's capsules and the description."""
+"""The MJCF twin matches the DH model, planning's arm parts and the description."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pytest
 
+from cellrunner.model.arm_geometry import available_models
 from cellrunner.model.geometry import Box, Mesh, pose_matrix
 from cellrunner.model.robots import JOINT_NAMES, ROBOTS
 from cellrunner.sim import demo
@@ -23,7 +24,7 @@ from cellrunner.sim.world import SimWorld
 mujoco = pytest.importorskip("mujoco")
 
 
-@pytest.mark.parametrize("model_name", sorted(ROBOTS))
+@pytest.mark.parametrize("model_name", available_models())
 def test_tcp_site_follows_the_dh_forward_kinematics(model_name: str) -> None:
     desc = demo.demo_description(spec=ROBOTS[model_name], parts=())
     model = compile_model(desc)
@@ -32,7 +33,7 @@ def test_tcp_site_follows_the_dh_forward_kinematics(model_name: str) -> None:
     site = model.site("tcp").id
     for _ in range(20):
         q = rng.uniform(-np.pi, np.pi, 6)
-        for name, value in zip(JOINT_NAMES, q):
+        for name, value in zip(JOINT_NAMES, q, strict=True):
             data.qpos[model.jnt_qposadr[model.joint(name).id]] = value
         mujoco.mj_kinematics(model, data)
         T = desc.T_world_base @ dh_forward(desc.spec, q) @ desc.T_flange_tcp
@@ -40,21 +41,29 @@ def test_tcp_site_follows_the_dh_forward_kinematics(model_name: str) -> None:
         np.testing.assert_allclose(data.site_xmat[site].reshape(3, 3), T[:3, :3], atol=1e-9)
 
 
-def test_arm_geoms_are_the_planning_capsules() -> None:
+def test_arm_geoms_are_the_planning_parts() -> None:
+    from cellrunner.model.arm_geometry import arm_geometry
+
     desc = demo.demo_description(parts=())
     model = compile_model(desc)
+    parts = arm_geometry(desc.spec.name).parts
     for body in range(7):
-        expected = [c for c in desc.spec.capsules() if c.body == body]
-        for k, cap in enumerate(expected):
+        expected = [p for p in parts if p.body == body]
+        assert expected
+        for k, part in enumerate(expected):
             g = model.geom(f"arm{body}_{k}")
-            assert g.type[0] == mujoco.mjtGeom.mjGEOM_CAPSULE
-            assert g.size[0] == pytest.approx(cap.radius_m)
-            # capsule ends in the body frame: pos +- half-length along the geom's z axis
+            assert g.type[0] == mujoco.mjtGeom.mjGEOM_MESH
+            mesh = g.dataid[0]
+            start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+            local = model.mesh_vert[start : start + count]
+            # MuJoCo moves a mesh to its inertial frame: back to the body frame
             R = np.zeros(9)
             mujoco.mju_quat2Mat(R, g.quat)
-            axis = R.reshape(3, 3)[:, 2] * g.size[1]
-            ends = {tuple(np.round(g.pos + axis, 9)), tuple(np.round(g.pos - axis, 9))}
-            assert ends == {tuple(np.round(cap.p0_m, 9)), tuple(np.round(cap.p1_m, 9))}
+            in_body = local @ R.reshape(3, 3).T + g.pos
+            assert count == len(part.vertices_m)
+            np.testing.assert_allclose(
+                np.sort(in_body, axis=0), np.sort(part.vertices_m, axis=0), atol=1e-6
+            )
 
 
 def test_fixtures_parts_and_mesh_are_in_the_model(tmp_path) -> None:
@@ -94,8 +103,7 @@ def test_wrist_reads_zero_at_rest_in_any_pose_payload_compensated() -> None:
     world = SimWorld(demo.demo_description(parts=()))
     world.build()
     for q in ([0, -1.57, 1.57, -1.57, -1.57, 0], [0.7, -1.2, 1.0, 0.3, 1.1, 2.0]):
-        world.q_ref = np.array(q, dtype=float)
-        world.data.qpos[world._ids.qpos] = q
+        world.place_arm(np.array(q, dtype=float))
         for _ in range(200):
             world.step_period()
         wrench = world.measure().wrench_N
@@ -133,3 +141,14 @@ def test_description_field_defaults_are_consistent() -> None:
     assert desc.rate_hz == 500.0
     model = compile_model(desc)
     assert model.opt.timestep == pytest.approx(0.002)
+
+
+@pytest.mark.parametrize("model_name", ["ur3e", "ur20", "ur30"])
+def test_joint_ranges_are_the_cells_joint_range(model_name: str) -> None:
+    ranges = [[-170, 170], [-180, 0], [-160, 160], [-270, 90], [-180, 0], [-180, 180]]
+    desc = demo.demo_description(spec=ROBOTS[model_name].narrowed(ranges), parts=())
+    model = compile_model(desc)
+    for name, (lo, hi) in zip(JOINT_NAMES, ranges, strict=True):
+        joint = model.joint(name)
+        assert joint.limited[0] == 1
+        np.testing.assert_allclose(joint.range, np.radians([lo, hi]), atol=1e-6)

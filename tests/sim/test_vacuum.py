@@ -43,11 +43,7 @@ def put_tcp(world, cell_world, T_world_tcp) -> np.ndarray:
         for q in cell_world.kinematics.ik_all(T_world_tcp, world.q_measured())
         if cell_world.collision.is_valid(q)
     )
-    world.data.qpos[:6] = q
-    world.data.qvel[:6] = 0.0
-    world.q_ref = world._q_prev_ref = q.copy()
-    world.qd_ref = np.zeros(6)
-    world._mj.mj_forward(world.model, world.data)
+    world.place_arm(q)
     return q
 
 
@@ -142,3 +138,33 @@ def test_grip_miss_leaves_the_cups_on_nothing():
     rise, load = grip_and_lift(world, kin, loaded)
     assert rise < 0.01 and load < 1.0
     assert world.measure().inputs[VACUUM_OK] is False
+
+
+def test_a_carton_held_by_suction_pushed_into_the_conveyor_is_a_protective_stop():
+    """Set back down on the conveyor and driven 30 mm on: a contact, as for jaws."""
+    from cellrunner.backends.base import BackendError, Safety
+
+    world, kin, loaded = build()
+    grip_and_lift(world, kin, loaded, lift_m=0.05)
+    T_down = geometry.pose_matrix((0, 0, -0.03)) @ frame_pose(loaded.cell, "infeed")
+    with pytest.raises(BackendError, match="safety state is protective_stop"):
+        move_tcp(world, kin, T_down, 1.5)
+    assert world.safety is Safety.PROTECTIVE_STOP
+    # judged on the carton against the conveyor, over the force UR stops at
+    assert set(world.last_contact.geoms) == {"fixture:conveyor", "part:carton"}
+    assert world.last_contact.force_N > 150.0
+
+
+def test_a_carton_set_down_by_suction_and_released_is_measured_against_its_target():
+    world, kin, loaded = build()
+    grip_and_lift(world, kin, loaded, lift_m=0.05)
+    T_high = geometry.pose_matrix((0, 0, 0.04)) @ frame_pose(loaded.cell, "infeed")
+    move_tcp(world, kin, T_high, 1.0)  # 40 mm above where it was picked
+    world.set_output(VACUUM_ON, False)
+    settle(world, 0.5)
+    name, offset_m, angle_deg = world.placed_offset(T_high)
+    assert name == "carton"
+    assert offset_m == pytest.approx(0.041 - 0.01, abs=0.003)  # fell 41 mm, 10 mm are free
+    assert angle_deg < 1.0
+    name, offset_m, _ = world.placed_offset(frame_pose(loaded.cell, "infeed"))
+    assert offset_m < 0.002  # back where the TCP picked it

@@ -85,7 +85,7 @@ def test_protective_stop_on_the_twin_is_recovered(project, twin):  # noqa: F811
         while time.monotonic() < deadline:
             q = json.loads(client.command("state"))["q_rad"]
             q0 = q0 or q
-            if max(abs(a - b) for a, b in zip(q, q0)) > 0.02:
+            if max(abs(a - b) for a, b in zip(q, q0, strict=True)) > 0.02:
                 break
             time.sleep(0.02)
         client.command("protective_stop")

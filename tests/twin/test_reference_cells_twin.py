@@ -30,24 +30,42 @@ def vision_twin():
 
 def test_cnc_tending_through_ur_rtde_on_the_twin(cnc_twin):
     out = run_ur(*CNC, cnc_twin)
-    assert (out["backend"], out["result_code"]) == ("ur", 0)
+    assert (out["backend"], out["result_code"]) == ("ur", 0), out["result_text"]
     rows = {s["index"]: s for s in out["steps"]}
-    assert all(s["status"] == "ok" for s in out["steps"]) and len(rows) == 29
-    # the twin's sim: rules answered over RTDE: the door after 1.5 s, the cycle 4 s after the start pulse
+    assert all(s["status"] == "ok" for s in out["steps"]) and len(rows) == 45
+    # the twin's sim: rules answered over RTDE: the door after 1.5 s, the cycle-done lamp
+    # 4 s after the start pulse (the tool change to the finished-part gripper runs
+    # meanwhile: when it took longer, the lamp was on when the wait began)
     assert rows[8]["duration_s"] == pytest.approx(1.5, abs=0.1)
-    assert rows[17]["duration_s"] == pytest.approx(3.8, abs=0.1)
+    assert (rows[19]["name"], rows[23]["name"]) == ("raw", "finished")
+    since_start = sum(rows[i]["duration_s"] for i in range(16, 26))
+    assert since_start > 3.85
+    assert since_start < 4.15 or rows[25]["duration_s"] < 0.1, (since_start, rows[25])
+
+
+def test_cnc_door_timeout_on_the_twin_runs_on_error_through_ur_rtde(cnc_twin):
+    out = run_ur(*CNC, cnc_twin, "-p", "door_time=1 s")  # the door takes 1.5 s
+    assert (out["result_code"], out["result_text"]) == (
+        105,
+        "input door_open did not read True within 1 s; on_error done",
+    )
+    assert [(s["kind"], s["status"]) for s in out["steps"] if s["index"] > 45] == [
+        ("set_output", "ok"),
+        ("lift", "ok"),
+        ("move", "ok"),
+    ]
 
 
 def test_cnc_estop_on_the_twin_is_101_without_cleanup(cnc_twin):
     def press_later():
-        time.sleep(6.0)  # the job is under way
+        time.sleep(12.0)  # the job (23 s) is under way: planned, started, not yet done
         fault(cnc_twin, "estop press")
 
     threading.Thread(target=press_later, daemon=True).start()
     out = run_ur(*CNC, cnc_twin)
     assert out["result_code"] == 101
     assert out["result_text"].startswith("e-stop during step ")
-    assert all(s["index"] <= 29 for s in out["steps"])  # the arm cannot move: no on_error
+    assert all(s["index"] <= 45 for s in out["steps"])  # the arm cannot move: no on_error
 
 
 def test_vision_pick_through_ur_rtde_with_the_pose_param(vision_twin):

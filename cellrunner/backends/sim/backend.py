@@ -33,9 +33,9 @@ class SimBackend:
     """The MuJoCo twin as a robot. Construct (no work), ``connect()`` (builds the model),
     then ``servo``/``wait_period`` cycles, ``close()``."""
 
-    def __init__(self, description: TwinDescription, options: PhysicsOptions = PhysicsOptions()):
+    def __init__(self, description: TwinDescription, options: PhysicsOptions | None = None) -> None:
         self.description = description
-        self.options = options
+        self.options = options if options is not None else PhysicsOptions()
         self.rate_hz = description.rate_hz
         self.world: SimWorld | None = None
         self._connected = False
@@ -109,7 +109,7 @@ class SimBackend:
     def servo(self, trajectory: ApprovedTrajectory, index: int) -> None:
         world = self.world
         if world is None or not self._connected:
-            self._world()
+            world = self._world()
             self._require_connection()
         accepted = self._accepted
         if accepted is None or accepted[0] is not trajectory:

@@ -37,7 +37,8 @@ def load_mujoco() -> ModuleType:
             os.environ["PYOPENGL_PLATFORM"] = backend
     import mujoco
 
-    return mujoco
+    module: ModuleType = mujoco  # untyped bindings
+    return module
 
 
 def gl_backend() -> str | None:

@@ -1,0 +1,154 @@
+"""Suction places verified in the twin (SPEC section 11): a part released off its target
+(off the pallet, in the air above an empty layer, onto another part) gives 3 with the
+measured offset, never 0; a part pressed onto another one stops the arm. Run on the
+palletizer and on a second, smaller vacuum cell written from the SPEC alone."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.cells.test_reference_cells import PALLETIZER, dry_run
+from tests.conftest import ROOT
+
+pytest.importorskip("mujoco")
+
+PALLET_CELL = (ROOT / PALLETIZER[0]).read_text()
+PALLET_TASK = (ROOT / PALLETIZER[1]).read_text()
+CARTON = "  - {name: carton, box: {size: [0.20, 0.15, 0.10]}, mass: 2.0, at: infeed}\n"
+
+
+def place_failed_mm(out: dict) -> float:
+    """The offset (mm) a result-3 message measured."""
+    assert out["result_code"] == 3, (out["result_text"], out["steps"])
+    text = out["result_text"]
+    assert text.startswith("place failed: part ") and "from its target (tolerance 5 mm" in text
+    return float(text.split(" is ")[1].split(" mm")[0])
+
+
+def project(tmp_path, cell: str, task: str = PALLET_TASK) -> tuple[str, str]:
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "tasks").mkdir()
+    (tmp_path / "cells" / "c.yaml").write_text(cell)
+    (tmp_path / "tasks" / "t.yaml").write_text(task)
+    return str(tmp_path / "cells" / "c.yaml"), str(tmp_path / "tasks" / "t.yaml")
+
+
+def test_palletizer_carton_released_above_an_empty_layer_falls_and_is_place_failed():
+    out = dry_run(*PALLETIZER, "-p", "slot=4")  # layer 2 over slot 0: nothing under it
+    assert place_failed_mm(out) == pytest.approx(90.0, abs=2.0)  # 100 mm fall, 10 mm is free
+    assert out["parts_end_m"]["carton"][2] == pytest.approx(0.19, abs=0.003)  # on the pallet
+
+
+def test_palletizer_carton_released_off_the_pallet_is_place_failed(tmp_path):
+    wide = PALLET_TASK.replace("pitch: [0.22, 0.17, 0.10]", "pitch: [0.22, 0.40, 0.10]")
+    out = dry_run(*project(tmp_path, PALLET_CELL, wide), "-p", "slot=1")  # 1 cm on the pallet
+    assert place_failed_mm(out) > 50.0
+    assert out["parts_end_m"]["carton"][2] < 0.14  # tipped off the pallet's top
+
+
+@pytest.fixture(scope="module")
+def stacked(tmp_path_factory) -> tuple[str, str]:
+    """The palletizer with a carton already on slot 0 of the first layer."""
+    stock = CARTON + CARTON.replace("carton", "stock").replace("infeed", "pallet_slot0")
+    return project(tmp_path_factory.mktemp("stacked"), PALLET_CELL.replace(CARTON, stock))
+
+
+def test_a_carton_stacked_on_another_is_placed(stacked):
+    out = dry_run(*stacked, "-p", "slot=4")  # layer 2, on the stock carton
+    assert out["result_code"] == 0, (out["result_text"], out["steps"])
+    assert out["parts_end_m"]["carton"][2] == pytest.approx(0.29, abs=0.003)
+
+
+def test_the_third_layer_on_two_stacked_cartons_is_placed(tmp_path):
+    """The pallet as two earlier jobs left it (slots 0 and 4): slot 8 goes on top."""
+    stock = CARTON + "".join(
+        CARTON.replace("carton", name).replace(
+            "at: infeed}", f"at: pallet_slot0, offset: {{xyz: [0, 0, {-0.10 * k:g}]}}}}"
+        )
+        for k, name in enumerate(("layer1", "layer2"))
+    )
+    out = dry_run(*project(tmp_path, PALLET_CELL.replace(CARTON, stock)), "-p", "slot=8")
+    assert out["result_code"] == 0, (out["result_text"], out["steps"])
+    assert out["parts_end_m"]["carton"][2] == pytest.approx(0.39, abs=0.003)  # layer 3
+
+
+def test_a_carton_released_onto_another_a_layer_low_is_place_failed(stacked):
+    out = dry_run(*stacked, "-p", "slot=8")  # layer 3 with layer 2 empty: lands on the stock
+    assert place_failed_mm(out) == pytest.approx(90.0, abs=2.0)
+    assert out["parts_end_m"]["carton"][2] == pytest.approx(0.29, abs=0.003)
+
+
+def test_a_carton_pressed_onto_another_stops_the_arm(stacked):
+    out = dry_run(*stacked, "-p", "slot=0")  # slot 0 is taken: pushed into the stock carton
+    assert out["result_code"] == 100, (out["result_text"], out["steps"])
+    assert out["result_text"].startswith("protective stop during step 8 descend")
+
+
+def test_an_empty_conveyor_times_out_at_the_part_present_wait(tmp_path):
+    away = CARTON.replace("at: infeed}", "at: infeed, offset: {xyz: [0, 0.3, 0]}}")
+    out = dry_run(*project(tmp_path, PALLET_CELL.replace(CARTON, away)))
+    assert (out["result_code"], out["result_text"]) == (
+        105,
+        "input part_present did not read True within 5 s",
+    )
+
+
+# a second vacuum cell, written from the SPEC's text alone
+SUCTION_CELL = """cell: suction-ur5e
+robot:
+  model: ur5e
+  mount: {xyz: [0, 0, 0.90], rpy: [0, 0, 0]}
+  home: [0, -90, 90, -90, -90, 0]
+tool:
+  tcp: {xyz: [0, 0, 0.12]}
+  payload: {mass: 0.8, cog: [0, 0, 0.05]}
+  gripper:
+    kind: vacuum
+    suction: {output: vac, value: true}
+    vacuum_ok: vac_ok
+    blow_off: {output: blow, pulse: 0.1}
+    cups: [{xyz: [0, 0, 0], radius: 0.015}]
+    holding_force: 60
+  geometry: [{cylinder: {radius: 0.03, length: 0.12}, xyz: [0, 0, 0.06]}]
+io:
+  outputs: {vac: DO0, blow: DO1}
+  inputs: {vac_ok: DI0, part_present: DI1}
+fixtures:
+  - {name: table, box: {size: [0.6, 0.8, 0.04]}, pose: {xyz: [0.45, 0, 0.88]}}
+frames:
+  infeed: {xyz: [0.45, -0.25, 0.94], rpy: [180, 0, 0]}
+  tray: {xyz: [0.45, 0.25, 0.94], rpy: [180, 0, 0]}
+  past_edge: {xyz: [0.78, 0.25, 0.94], rpy: [180, 0, 0]}
+  in_the_air: {xyz: [0.45, 0.25, 0.99], rpy: [180, 0, 0]}
+parts:
+  - {name: lid, box: {size: [0.08, 0.08, 0.04]}, mass: 0.4, at: infeed}
+sim:
+  inputs:
+    part_present: {part_at: infeed}
+tasks: {1: tasks/t.yaml}
+"""
+SUCTION_TASK = """task: move_lid
+steps:
+  - move: home
+  - wait_input: {input: part_present, value: true, timeout: "500 ms"}
+  - pick:
+      at: infeed
+      approach: 0.08
+      grip: {confirm: vac_ok, force: {min: 1, max: 20}, timeout: 1}
+  - place: {at: tray, approach: 0.08}
+  - move: home
+"""
+
+
+@pytest.mark.parametrize(
+    "target, code, offset_mm",
+    [("tray", 0, None), ("past_edge", 3, (60.0, 200.0)), ("in_the_air", 3, (38.0, 42.0))],
+)
+def test_second_vacuum_cell_verifies_its_place(tmp_path, target, code, offset_mm):
+    task = SUCTION_TASK.replace("at: tray", f"at: {target}")
+    out = dry_run(*project(tmp_path, SUCTION_CELL, task))
+    assert out["result_code"] == code, (out["result_text"], out["steps"])
+    if offset_mm is not None:
+        assert offset_mm[0] < place_failed_mm(out) < offset_mm[1]
+    else:
+        assert out["parts_end_m"]["lid"] == pytest.approx([0.45, 0.25, 0.92], abs=0.002)

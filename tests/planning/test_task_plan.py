@@ -1,0 +1,53 @@
+"""What ``check`` approves for a whole pick and place: every motion step verified and
+sealed, in step order, each starting where the motion before it ended, with the gripped
+part carried from the grip to the release (and collision-checked as carried)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import itertools
+
+import numpy as np
+import pytest
+
+from cellrunner.cli.common import load, parse_params
+from cellrunner.model.expand import expand
+from cellrunner.planning import task_plan
+from cellrunner.planning.world import CellWorld
+from tests.conftest import ROOT
+
+
+@pytest.fixture(scope="module")
+def plan() -> task_plan.TaskPlan:
+    with contextlib.redirect_stderr(io.StringIO()):
+        cell, task = load(str(ROOT / "cells/demo_ur5e.yaml"), str(ROOT / "tasks/pick_place.yaml"))
+    world = CellWorld(cell)
+    steps = expand(task, cell.cell, parse_params(["slot=2"], task))
+    result = task_plan.plan_task(world, steps, world.q_home_rad)
+    assert result.ok, result.errors
+    return result
+
+
+def test_every_motion_is_approved_sealed_and_starts_where_the_last_one_ended(plan) -> None:
+    motions = [r for r in plan.rows if r.trajectory is not None]
+    assert [r.step.kind for r in motions] == [
+        "move", "approach", "descend", "lift", "approach", "descend", "retreat", "move",
+    ]  # fmt: skip
+    approved = [plan.nominal(r.step) for r in motions]
+    assert all(a is not None and a.is_sealed for a in approved)
+    assert [a.step_index for a in approved] == [r.step.index for r in motions]
+    assert [r.status for r in plan.rows] == ["ok"] * len(plan.rows)
+    np.testing.assert_array_equal(approved[0].trajectory.q_rad[0], plan.q_start_rad)
+    for before, after in itertools.pairwise(approved):
+        np.testing.assert_array_equal(before.trajectory.q_rad[-1], after.trajectory.q_rad[0])
+
+
+def test_the_part_is_carried_from_the_grip_to_the_release(plan) -> None:
+    kinds = [r.step.kind for r in plan.rows]
+    grip, release = kinds.index("grip"), kinds.index("release")
+    for i, row in enumerate(plan.rows):
+        if row.trajectory is None:
+            continue
+        carried = grip < i < release
+        assert (row.carrying is not None) == carried, (row.step.label, row.carrying)
