@@ -303,7 +303,7 @@ class CollisionModel:
         model = kin.model
         spec = kin.spec
         objects: list[_Object] = []
-        self._arm = self._arm_geometry(spec.name)
+        self._arm = self._arm_geometry(spec.arm)
         for part in self._arm.parts:
             objects.append(
                 _Object(

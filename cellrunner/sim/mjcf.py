@@ -1,6 +1,6 @@
 """Build the MJCF model of a cell from a :class:`TwinDescription`, and compile it.
 
-Model layout (names are what :mod:`.world` looks up):
+Model layout (names are what :mod:`.model_ids` looks up):
 
 - ``base`` body at ``T_world_base``; ``link1``..``link6`` form the DH chain, each body's
   frame being "DH frame i-1 turned by joint i" -- exactly the frame of the arm's convex
@@ -412,7 +412,7 @@ class _Builder:
     def _arm(self, world: ET.Element) -> None:
         d = self.desc
         spec = d.spec
-        parts = arm_geometry(spec.name).parts
+        parts = arm_geometry(spec.arm).parts
         volume = sum(p.volume_m3 for p in parts if p.body > 0)
         density = ARM_MASS_KG.get(spec.name, 20.0) / volume
         scale = (spec.reach_m / 0.85) ** 2

@@ -28,7 +28,8 @@ def quat_of(R: np.ndarray) -> tuple[float, float, float, float]:
         s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
         q = ((m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s)
     n = math.sqrt(sum(v * v for v in q))
-    return tuple(v / n for v in q)  # type: ignore[return-value]
+    a, b, c, d = (v / n for v in q)
+    return (a, b, c, d)
 
 
 def fmt(values: Any) -> str:

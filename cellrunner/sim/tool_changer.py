@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cellrunner.sim.mjcf_attrs import PADS, PARTS, STATIC, TOOL, pose_attrs, quat_of
+from cellrunner.sim.wrist import GRAVITY_MPS2
 
 if TYPE_CHECKING:
     from cellrunner.model.geometry import Placed
@@ -164,7 +165,8 @@ class ToolChanger:
         for jaw, sign, pad in zip(("jaw_a", "jaw_b"), (1.0, -1.0), w.ids.pad_geoms, strict=True):
             m.jnt_range[m.joint(jaw).id] = (0.0, half)
             m.geom_pos[pad, 0] = sign * (half + g.finger_size_m[0] / 2)
-        w._jaws_driven = False
+        if w.jaws is not None:
+            w.jaws.driven = False
 
     def _park(self) -> None:
         name = self.mounted
@@ -204,7 +206,8 @@ class ToolChanger:
 
     def _set_gripper(self, kind: str | None) -> None:
         w = self.world
-        w.jaws_enabled = kind == "jaws"
+        if w.jaws is not None:
+            w.jaws.enabled = kind == "jaws"
         if w.vacuum is not None:
             w.vacuum.set_enabled(kind == "vacuum")
         if w.ids.pad_geoms[0] >= 0:
@@ -225,7 +228,7 @@ class ToolChanger:
         m.body_ipos[body] = cog_m
         subtree = float(m.body_mass[body]) + fingers
         m.body_subtreemass[body] = subtree
-        w._tool_weight_N = 9.81 * subtree
+        w.wrist.tool_weight_N = GRAVITY_MPS2 * subtree
 
 
 def _descends(m: Any, body: int, ancestor: int) -> bool:

@@ -118,7 +118,7 @@ class VacuumCups:
     def __init__(self, world: Any, vac: VacuumDescription) -> None:
         self.world, self.vac = world, vac
         m = world.model
-        self._mj = world._mj
+        self._mj = world.mujoco
         self.cup_geoms = [m.geom(f"cup:{i}").id for i in range(len(vac.cups))]
         self.weld = {name: m.equality(f"vac:{name}").id for name in world.ids.part_bodies}
         self.held: frozenset[str] = frozenset()
@@ -158,7 +158,7 @@ class VacuumCups:
             self.torn.clear()
             if self.grip_miss_armed:
                 self.grip_miss_armed = False
-                w._move_part_away(reach_m=0.1)
+                w.grip_faults.move_part_away(reach_m=0.1)
         self.suction = on
         if not on and self.held:
             self._drop_all()
@@ -192,7 +192,9 @@ class VacuumCups:
         """Held by the cups alone, clear of fixtures and the floor."""
 
         w = self.world
-        return all(k == PADS for k in w._contacts_of(part)) and w._clear_of_static(part)
+        return all(
+            k == PADS for k in w.contacts.kinds_touching(part)
+        ) and w.contacts.clear_of_static(part)
 
     def _sealed_part(self) -> str | None:
         w = self.world
@@ -229,7 +231,7 @@ class VacuumCups:
         self.held = self.held | {name}
         self._pull_lp[name] = 0.0
         # where the part sits under the cups: a place puts it at its target through this
-        self.held_at[name] = w._part_in_tcp(name)
+        self.held_at[name] = w.contacts.part_in_tcp(name)
         w.contacts_changed_held()
 
     def _drop(self, name: str) -> None:
@@ -238,7 +240,7 @@ class VacuumCups:
         self.held = self.held - {name}
         self._pull_lp.pop(name, None)
         # handed to the place check: the part released last, as it was held
-        w._held_last = {name: self.held_at.pop(name)}
+        w.contacts.held_last = {name: self.held_at.pop(name)}
         w.contacts_changed_held()
 
     def _drop_all(self) -> None:

@@ -1,6 +1,7 @@
 """Every arm that has no reference cell of its own plans, checks and rehearses a pick and
 place scaled to its reach: `check --save-plan` at the arm's controller rate, and the
-twin runs it (`dry-run`) for a CB3 and a UR Series arm."""
+twin runs it (`dry-run`) for a CB3 and a UR Series arm. Arms without published collision
+meshes are refused with the reason."""
 
 from __future__ import annotations
 
@@ -16,9 +17,10 @@ from cellrunner.model.robots import ROBOTS
 from tests.conftest import ROOT
 
 ENV = {**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"}
-#: arms without a reference cell in cells/ (the UR5 and UR10 CB3 wait for the arm geometry
-#: derived from Universal Robots' meshes: their capsules refuse every configuration)
-ARMS = ["ur3", "ur7e", "ur12e", "ur15", "ur16e", "ur18", "ur30", "ur8long"]
+#: arms without a reference cell in cells/ (UR7e and UR12e: the UR5e's and UR10e's geometry)
+ARMS = ["ur3", "ur10", "ur7e", "ur12e", "ur16e", "ur30"]
+#: arms whose collision meshes Universal Robots does not publish: check refuses to guess
+NO_MESHES = ["ur15", "ur18", "ur8long"]
 
 TASK = """task: t
 steps:
@@ -87,6 +89,18 @@ def test_check_plans_at_the_arms_rate(tmp_path, model):
         "descend",
         "grip",
     ]
+
+
+@pytest.mark.parametrize("model", NO_MESHES)
+def test_check_refuses_an_arm_without_published_meshes(tmp_path, model):
+    cell, task = write_cell(tmp_path, model)
+    r = cli("check", str(cell), str(task), "--json")
+    assert r.returncode == 1, r.stdout[-3000:] + r.stderr[-2000:]
+    (error,) = json.loads(r.stdout)["errors"]
+    assert error.startswith(
+        f"step 1 move 'home': no collision geometry for robot model '{model}': Universal "
+        "Robots publishes no collision meshes for it, and cellrunner does not guess"
+    )
 
 
 @pytest.mark.parametrize("model", ["ur3", "ur30"])

@@ -22,6 +22,13 @@ ENV = {**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"}
 
 #: (cell, task, param, slot count, {slot: where the part must end, world m})
 CELLS = {
+    "ur5": (
+        "cells/bin_to_shelf_ur5.yaml",
+        "tasks/bin_to_shelf_ur5.yaml",
+        "slot",
+        6,
+        {0: (0.59, -0.22, 0.86), 5: (0.59, 0.22, 1.11)},
+    ),
     "ur20": (
         "cells/case_palletizer_ur20.yaml",
         "tasks/palletize_cases.yaml",

@@ -21,8 +21,9 @@ from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.errors import PeerUnreachable
 from cellrunner.model.trajectory import ApprovedTrajectory
 from cellrunner.sim.description import TwinDescription, dh_forward
+from cellrunner.sim.faults import Fault
 from cellrunner.sim.mjcf import PhysicsOptions
-from cellrunner.sim.world import Fault, SimWorld
+from cellrunner.sim.world import SimWorld
 
 # servoJ set-points further apart than the joint speed limit allows (with this margin)
 # are refused, as the controller would protective-stop on them.
