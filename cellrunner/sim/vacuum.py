@@ -32,6 +32,7 @@ import numpy as np
 from cellrunner.model.gripper import (
     CUP_LENGTH_M,
 )  # a cup's body above its face, as planning checks it
+from cellrunner.sim.mjcf_attrs import PADS, pose_attrs
 
 #: a cup seals on a face this close (m) ...
 SEAL_GAP_M = 0.002
@@ -74,7 +75,6 @@ def add_cups(
 ) -> None:
     """The cups as geoms of the tool body (MJCF)."""
     from cellrunner.model import geometry
-    from cellrunner.sim.mjcf import _pose_attrs
 
     for i, ((x, y, z), r) in enumerate(vac.cups):
         T = T_flange_tcp @ geometry.pose_matrix((x, y, z - CUP_LENGTH_M / 2))
@@ -91,7 +91,7 @@ def add_cups(
             solref=CUP_SOLREF,
             contype=str(pads_kind),
             conaffinity=str(hits),
-            **_pose_attrs(T),
+            **pose_attrs(T),
         )
 
 
@@ -190,7 +190,6 @@ class VacuumCups:
     # -- helpers ------------------------------------------------------------------------
     def _in_air(self, part: str) -> bool:
         """Held by the cups alone, clear of fixtures and the floor."""
-        from cellrunner.sim.mjcf import PADS
 
         w = self.world
         return all(

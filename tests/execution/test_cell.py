@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import pytest
 
 from cellrunner.execution.cell import CellController, JobPlan
@@ -108,6 +110,34 @@ def test_estop_aborts_and_needs_release_clear_reset(tmp_path):
     tick(cell, 3)
     assert arm.powered  # re-armed on the control thread during Clearing
     assert cell.status().state == S.STOPPED
+    assert cell.command("reset")
+    tick(cell, 3)
+    assert cell.status().state == S.IDLE and cell.status().ready
+
+
+def test_rearming_after_an_estop_is_polled_by_tick_and_never_blocks_it(tmp_path):
+    """A real arm takes seconds to power up and release its brakes: Clearing lasts that
+    long while every tick returns at once and the status keeps answering."""
+    arm = ScriptedArm(estop_at_s=0.2, power_up_ticks=300)
+    cell, _ = make_cell(tmp_path, arm)
+    cell.start_job(1, {}, "1", "modbus")
+    ControlLoop(cell).run_job(max_s=30)
+    arm.estop_released = True
+    tick(cell, 3)
+    arm.powered = False  # the e-stop cut the power
+    assert cell.command("clear")
+    longest_tick_s, clearing_ticks = 0.0, 0
+    for _ in range(400):
+        t0 = time.perf_counter()
+        tick(cell)
+        longest_tick_s = max(longest_tick_s, time.perf_counter() - t0)
+        if cell.status().state != S.CLEARING:
+            break
+        clearing_ticks += 1
+        assert not arm.powered
+    assert 290 <= clearing_ticks <= 305, clearing_ticks  # one recovery step per tick
+    assert arm.powered and cell.status().state == S.STOPPED
+    assert longest_tick_s < 0.05, longest_tick_s
     assert cell.command("reset")
     tick(cell, 3)
     assert cell.status().state == S.IDLE and cell.status().ready
