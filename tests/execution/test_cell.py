@@ -149,6 +149,8 @@ def test_clear_unlocks_a_protective_stop_an_aborted_job_left(tmp_path):
     arm = ScriptedArm(protective_stop_at_s=0.1)
     cell, _ = make_cell(tmp_path, arm)
     ticket = cell.start_job(1, {}, "1", "modbus")
+    tick(cell)
+    assert cell.wait_for_plan(timeout_s=60)  # the arm's clock waits for the plan (no race)
     for _ in range(5000):
         tick(cell)
         if cell.status().state == S.HELD:
