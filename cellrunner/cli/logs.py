@@ -60,7 +60,7 @@ def _route_stdlib_logging(fmt: str) -> None:
         if getattr(old, "_cellrunner", False):
             root.removeHandler(old)
     handler: logging.Handler = _JsonLines() if fmt == "json" else logging.StreamHandler(sys.stderr)
-    handler._cellrunner = True  # type: ignore[attr-defined]
+    handler._cellrunner = True  # type: ignore[attr-defined]  # our mark, read with getattr
     handler.setLevel(logging.WARNING)
     root.addHandler(handler)
     if root.level > logging.WARNING or root.level == logging.NOTSET:

@@ -32,7 +32,7 @@ def _skip_pydantic_plugin_loader() -> None:
         import types
 
         loader = types.ModuleType("pydantic.plugin._loader")
-        loader.get_plugins = lambda: ()  # type: ignore[attr-defined]
+        loader.get_plugins = lambda: ()  # type: ignore[attr-defined]  # a stand-in module
         sys.modules["pydantic.plugin._loader"] = loader
 
 

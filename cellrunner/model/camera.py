@@ -25,6 +25,7 @@ from cellrunner.model.units import PositiveLength
 DICTIONARIES = tuple(
     f"DICT_{bits}X{bits}_{n}" for bits in (4, 5, 6, 7) for n in (50, 100, 250, 1000)
 )
+# a Literal of the names above: pydantic reads it at run time; to mypy it is no type
 Dictionary = Literal[DICTIONARIES]  # type: ignore[valid-type]
 #: mounts that are not frames: the world, and the arm's flange (moves with the arm)
 FLANGE, WORLD = "flange", "world"

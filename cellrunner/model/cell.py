@@ -3,7 +3,7 @@ checked in :mod:`cellrunner.model.references`."""
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 from pydantic import Field, field_validator, model_validator
 
@@ -39,7 +39,7 @@ RobotModel = Literal[
     "ur30",
     "ur8long",
 ]
-assert set(RobotModel.__args__) == set(ROBOTS)  # type: ignore[attr-defined]
+assert set(get_args(RobotModel)) == set(ROBOTS)
 
 Joints = Annotated[list[Angle], Field(min_length=6, max_length=6)]
 

@@ -368,7 +368,7 @@ def _import_toppra() -> Any:  # the toppra module (untyped)
     added: dict[str, types.ModuleType] = {"matplotlib.pyplot": stand_in}
     if "matplotlib" not in sys.modules:
         parent = types.ModuleType("matplotlib")
-        parent.pyplot = stand_in  # type: ignore[attr-defined]
+        parent.pyplot = stand_in  # type: ignore[attr-defined]  # a stand-in module's attribute
         added["matplotlib"] = parent
     sys.modules.update(added)
     try:

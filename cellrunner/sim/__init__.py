@@ -8,7 +8,10 @@ rendered.
 - :mod:`.description` -- :class:`TwinDescription` and friends, what the world is built from
 - :mod:`.from_cell` -- the description of a loaded cell file
 - :mod:`.mjcf` -- the MJCF model of a description
-- :mod:`.world` -- :class:`SimWorld`, the physics stepped one controller period at a time
+- :mod:`.world` -- :class:`SimWorld`, the physics stepped one controller period at a time,
+  with its parts: :mod:`.wrist` (the force/torque sensor), :mod:`.contacts` (contact
+  rules, the place check), :mod:`.jaws`, :mod:`.faults` (grip_miss, part_slip),
+  :mod:`.safety` (stop ramps), :mod:`.servo` (set-point interpolation), :mod:`.model_ids`
 - :mod:`.vacuum`, :mod:`.tool_changer`, :mod:`.input_rules`, :mod:`.mesh_pieces` -- the
   parts of the world a cell may add
 - :mod:`.render` -- offscreen PNGs for dry-run reports; :mod:`.cameras` -- the cell's cameras

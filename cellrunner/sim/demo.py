@@ -49,6 +49,7 @@ def demo_description(**overrides: object) -> TwinDescription:
         io_inputs=("DI0", "DI1", "DI2"),
     )
     fields.update(overrides)
+    # fields: keyword arguments of mixed types (the dataclass's own), not one value type
     return TwinDescription(**fields)  # type: ignore[arg-type]
 
 

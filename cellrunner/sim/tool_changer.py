@@ -23,6 +23,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cellrunner.sim.mjcf_attrs import PADS, PARTS, STATIC, TOOL, pose_attrs, quat_of
+from cellrunner.sim.wrist import GRAVITY_MPS2
+
 if TYPE_CHECKING:
     from cellrunner.model.geometry import Placed
 
@@ -63,7 +66,6 @@ def add_tools(
 ) -> None:
     """Each tool's shapes on the tool body (only the mounted one collides and shows) and,
     drawn only, in its rack place (MJCF)."""
-    from cellrunner.sim.mjcf import _pose_attrs
 
     for tool in changer.tools:
         mounted = tool.name == changer.mounted
@@ -79,7 +81,7 @@ def add_tools(
                 conaffinity=str(static_kind if mounted else 0),
                 rgba="0.25 0.25 0.28 1" if mounted else "0.25 0.25 0.28 0",
                 **builder._shape_attrs(placed.shape),
-                **_pose_attrs(placed.T_parent_shape),
+                **pose_attrs(placed.T_parent_shape),
             )
             ET.SubElement(
                 world_body,
@@ -91,7 +93,7 @@ def add_tools(
                 group="1",
                 rgba="0.25 0.25 0.28 0" if mounted else "0.25 0.25 0.28 1",
                 **builder._shape_attrs(placed.shape),
-                **_pose_attrs(T_world_flange @ placed.T_parent_shape),
+                **pose_attrs(T_world_flange @ placed.T_parent_shape),
             )
 
 
@@ -110,7 +112,6 @@ class ToolChanger:
             t.name: [m.geom(f"rack@{t.name}:{k}").id for k in range(len(t.geometry))]
             for t in desc.tools
         }
-        from cellrunner.sim.mjcf import PADS, PARTS, STATIC, TOOL
 
         self.tool_kind = (TOOL, STATIC)
         self.pad_kind = (PADS, STATIC | PARTS)
@@ -153,8 +154,6 @@ class ToolChanger:
         """The twin's pair of jaws becomes this tool's: its IO, stroke and place at its TCP."""
         import dataclasses
 
-        from cellrunner.sim.mjcf import quat_of
-
         w = self.world
         m = w.model
         g = tool.jaws
@@ -166,7 +165,8 @@ class ToolChanger:
         for jaw, sign, pad in zip(("jaw_a", "jaw_b"), (1.0, -1.0), w.ids.pad_geoms, strict=True):
             m.jnt_range[m.joint(jaw).id] = (0.0, half)
             m.geom_pos[pad, 0] = sign * (half + g.finger_size_m[0] / 2)
-        w._jaws_driven = False
+        if w.jaws is not None:
+            w.jaws.driven = False
 
     def _park(self) -> None:
         name = self.mounted
@@ -180,7 +180,6 @@ class ToolChanger:
         self.mounted = None
 
     def _mount(self, name: str) -> None:
-        from cellrunner.sim.mjcf import quat_of
 
         tool = self.tools[name]
         w = self.world
@@ -207,7 +206,8 @@ class ToolChanger:
 
     def _set_gripper(self, kind: str | None) -> None:
         w = self.world
-        w.jaws_enabled = kind == "jaws"
+        if w.jaws is not None:
+            w.jaws.enabled = kind == "jaws"
         if w.vacuum is not None:
             w.vacuum.set_enabled(kind == "vacuum")
         if w.ids.pad_geoms[0] >= 0:
@@ -228,7 +228,7 @@ class ToolChanger:
         m.body_ipos[body] = cog_m
         subtree = float(m.body_mass[body]) + fingers
         m.body_subtreemass[body] = subtree
-        w._tool_weight_N = 9.81 * subtree
+        w.wrist.tool_weight_N = GRAVITY_MPS2 * subtree
 
 
 def _descends(m: Any, body: int, ancestor: int) -> bool:

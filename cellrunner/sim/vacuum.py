@@ -32,6 +32,7 @@ import numpy as np
 from cellrunner.model.gripper import (
     CUP_LENGTH_M,
 )  # a cup's body above its face, as planning checks it
+from cellrunner.sim.mjcf_attrs import PADS, pose_attrs
 
 #: a cup seals on a face this close (m) ...
 SEAL_GAP_M = 0.002
@@ -74,7 +75,6 @@ def add_cups(
 ) -> None:
     """The cups as geoms of the tool body (MJCF)."""
     from cellrunner.model import geometry
-    from cellrunner.sim.mjcf import _pose_attrs
 
     for i, ((x, y, z), r) in enumerate(vac.cups):
         T = T_flange_tcp @ geometry.pose_matrix((x, y, z - CUP_LENGTH_M / 2))
@@ -91,7 +91,7 @@ def add_cups(
             solref=CUP_SOLREF,
             contype=str(pads_kind),
             conaffinity=str(hits),
-            **_pose_attrs(T),
+            **pose_attrs(T),
         )
 
 
@@ -118,7 +118,7 @@ class VacuumCups:
     def __init__(self, world: Any, vac: VacuumDescription) -> None:
         self.world, self.vac = world, vac
         m = world.model
-        self._mj = world._mj
+        self._mj = world.mujoco
         self.cup_geoms = [m.geom(f"cup:{i}").id for i in range(len(vac.cups))]
         self.weld = {name: m.equality(f"vac:{name}").id for name in world.ids.part_bodies}
         self.held: frozenset[str] = frozenset()
@@ -158,7 +158,7 @@ class VacuumCups:
             self.torn.clear()
             if self.grip_miss_armed:
                 self.grip_miss_armed = False
-                w._move_part_away(reach_m=0.1)
+                w.grip_faults.move_part_away(reach_m=0.1)
         self.suction = on
         if not on and self.held:
             self._drop_all()
@@ -190,10 +190,11 @@ class VacuumCups:
     # -- helpers ------------------------------------------------------------------------
     def _in_air(self, part: str) -> bool:
         """Held by the cups alone, clear of fixtures and the floor."""
-        from cellrunner.sim.mjcf import PADS
 
         w = self.world
-        return all(k == PADS for k in w._contacts_of(part)) and w._clear_of_static(part)
+        return all(
+            k == PADS for k in w.contacts.kinds_touching(part)
+        ) and w.contacts.clear_of_static(part)
 
     def _sealed_part(self) -> str | None:
         w = self.world
@@ -230,7 +231,7 @@ class VacuumCups:
         self.held = self.held | {name}
         self._pull_lp[name] = 0.0
         # where the part sits under the cups: a place puts it at its target through this
-        self.held_at[name] = w._part_in_tcp(name)
+        self.held_at[name] = w.contacts.part_in_tcp(name)
         w.contacts_changed_held()
 
     def _drop(self, name: str) -> None:
@@ -239,7 +240,7 @@ class VacuumCups:
         self.held = self.held - {name}
         self._pull_lp.pop(name, None)
         # handed to the place check: the part released last, as it was held
-        w._held_last = {name: self.held_at.pop(name)}
+        w.contacts.held_last = {name: self.held_at.pop(name)}
         w.contacts_changed_held()
 
     def _drop_all(self) -> None:

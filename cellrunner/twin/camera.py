@@ -58,7 +58,8 @@ class CameraServer:
         try:
             while not self._stop.is_set():
                 try:
-                    conn, _ = self._listener.accept()  # type: ignore[union-attr]
+                    assert self._listener is not None  # serving starts after listening
+                    conn, _ = self._listener.accept()
                 except TimeoutError:
                     continue
                 except OSError:

@@ -253,6 +253,7 @@ class TwinServer:
             for key, _ in events:
                 data = key.data
                 if isinstance(data, tuple):
+                    # a tuple key: one of our listening sockets (registered as such)
                     self._accept(key.fileobj, data[1])  # type: ignore[arg-type]
                 else:
                     self._read(data)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import importlib
 import socket
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -89,7 +89,8 @@ class TwinCamera:
         return data
 
     def _fill(self) -> None:
-        chunk = self._sock.recv(1 << 20)  # type: ignore[union-attr]
+        assert self._sock is not None  # reads follow connect()
+        chunk = self._sock.recv(1 << 20)
         if not chunk:
             raise OSError("the twin closed the connection")
         self._buffer += chunk
@@ -106,7 +107,7 @@ def image_source(spec: str | None, name: str, camera: Camera, host: str | None) 
     if not module_name or not attr:
         raise UsageError(f"--image-source {spec!r}: give twin, or MODULE:FACTORY")
     try:
-        factory: Callable[..., Any] = getattr(importlib.import_module(module_name), attr)
+        factory: Callable[..., ImageSource] = getattr(importlib.import_module(module_name), attr)
     except (ImportError, AttributeError) as exc:
         raise UsageError(f"--image-source {spec!r}: cannot load it ({exc})") from None
-    return factory(name, camera, host)  # type: ignore[no-any-return]
+    return factory(name, camera, host)

@@ -5,6 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from cellrunner.model.arm_geometry import available_models
 from cellrunner.model.geometry import Box, Cylinder, Placed, pose_matrix
 from cellrunner.model.robots import ROBOTS
 from cellrunner.planning.collision import CollisionModel, ContactAllowance, read_stl
@@ -14,8 +15,8 @@ HOME = np.radians([0, -90, 90, -90, -90, 0])
 TOOL = (Placed("gripper", Cylinder(0.04, 0.15), pose_matrix((0, 0, 0.075))),)
 
 
-def kin():
-    return ArmKinematics(ROBOTS["ur5e"], np.eye(4), pose_matrix((0, 0, 0.15)))
+def kin(model: str = "ur5e"):
+    return ArmKinematics(ROBOTS[model], np.eye(4), pose_matrix((0, 0, 0.15)))
 
 
 def test_home_is_free_and_reports_the_closest_pair():
@@ -151,25 +152,27 @@ def _sample_points(obj, rng, n=40):
     return local @ T[:3, :3].T + T[:3, 3]
 
 
-def _cluttered_world():
+def _cluttered_world(model: str = "ur5e"):
     fixtures = [
         Placed("table", Box((1.2, 1.2, 0.04)), pose_matrix((0, 0, -0.02))),
         Placed("post", Cylinder(0.03, 0.6), pose_matrix((0.4, 0.3, 0.3))),
     ]
     part = Placed("block", Box((0.05, 0.04, 0.06)), pose_matrix((0.01, 0, 0.03)))
-    return CollisionModel(kin(), TOOL, fixtures).carrying(part)
+    return CollisionModel(kin(model), TOOL, fixtures).carrying(part)
 
 
+@pytest.mark.parametrize("model", available_models())
 @settings(max_examples=25, deadline=None)
 @given(
     q0=st.lists(st.floats(-3.0, 3.0), min_size=6, max_size=6),
     dq=st.lists(st.floats(-1.5, 1.5), min_size=6, max_size=6),
     pieces=st.integers(1, 4),
 )
-def test_segment_bounds_bound_the_motion_of_every_point(q0, dq, pieces):
+def test_segment_bounds_bound_the_motion_of_every_point(model, q0, dq, pieces):
     """Along a segment, no point of any object moves (relative to what it is checked
-    against) faster than its pair's bound for that part of the segment says."""
-    world = _cluttered_world()
+    against) faster than its pair's bound for that part of the segment says; on every arm
+    model with derived geometry (each has its own parts, so its own bounds)."""
+    world = _cluttered_world(model)
     q0, q1 = np.array(q0), np.array(q0) + np.array(dq)
     rates = world.segment_bounds(q0, q1, pieces)  # (pieces, pairs), per unit part
     static = world.motion_coefficients(q1 - q0)

@@ -9,7 +9,7 @@ import pytest
 
 from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.sim import demo
-from cellrunner.sim.world import UNLOCK_DELAY_S
+from cellrunner.sim.safety import UNLOCK_DELAY_S
 
 pytest.importorskip("mujoco")
 

@@ -8,7 +8,7 @@ import pytest
 
 from cellrunner.backends.base import BackendError, Safety
 from cellrunner.sim import demo
-from cellrunner.sim.world import PLACE_DROP_M
+from cellrunner.sim.contacts import PLACE_DROP_M
 
 pytest.importorskip("mujoco")
 

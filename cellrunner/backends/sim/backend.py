@@ -13,14 +13,17 @@ notice a missed or slipped part through the jaw sensor and the wrist load.
 
 from __future__ import annotations
 
+from collections.abc import Generator
+
 import numpy as np
 
 from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.errors import PeerUnreachable
 from cellrunner.model.trajectory import ApprovedTrajectory
 from cellrunner.sim.description import TwinDescription, dh_forward
+from cellrunner.sim.faults import Fault
 from cellrunner.sim.mjcf import PhysicsOptions
-from cellrunner.sim.world import Fault, SimWorld
+from cellrunner.sim.world import SimWorld
 
 # servoJ set-points further apart than the joint speed limit allows (with this margin)
 # are refused, as the controller would protective-stop on them.
@@ -167,6 +170,11 @@ class SimBackend:
         self._fresh = None
         self._require_connection()
         self._world().recover_from_estop()
+
+    def recover_from_estop_steps(self) -> Generator[None, None, None]:
+        """The twin re-arms at once: one step."""
+        self.recover_from_estop()
+        yield
 
     # -- the simulated world around the robot ---------------------------------------------
     def inject_fault(self, fault: str | Fault) -> None:

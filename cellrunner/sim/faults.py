@@ -1,0 +1,121 @@
+"""Faults the twin makes physically happen (SPEC section 5, robot side): what the engine
+must notice through the jaw sensor and the wrist, never through a flag.
+
+- ``grip_miss``: the part at the gripper is moved away as the jaws start to close;
+- ``part_slip``: once a gripped part is in the air, the pads lose their grip on it (their
+  friction drops until they hold a fraction of its weight) and it falls; the friction
+  comes back once it left the fingers.
+"""
+
+from __future__ import annotations
+
+import enum
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from cellrunner.sim.wrist import GRAVITY_MPS2
+
+if TYPE_CHECKING:
+    from cellrunner.sim.world import SimWorld
+
+SLIP_HOLD_FRACTION = 0.25  # a slipping grip holds only this fraction of the part's weight
+GRIP_MISS_MOVE_M = 0.15  # how far grip_miss moves the part, towards the robot base
+
+
+class Fault(enum.StrEnum):
+    """Faults the twin can make physically happen (SPEC section 5, robot side)."""
+
+    GRIP_MISS = "grip_miss"  # the part is moved away when the jaws start to close
+    PART_SLIP = "part_slip"  # a gripped part loses its grip once in the air, and falls
+    PROTECTIVE_STOP = "protective_stop"
+    ESTOP = "estop"
+    ROBOT_DISCONNECT = "robot_disconnect"  # handled by the backend (connection lost)
+
+    @classmethod
+    def parse(cls, name: str | Fault) -> Fault:
+        try:
+            return cls(name)
+        except ValueError:
+            known = ", ".join(f.value for f in cls)
+            raise ValueError(f"unknown fault {name!r}; known: {known}") from None
+
+
+class GripFaults:
+    """grip_miss and part_slip of one built :class:`SimWorld` (the jaws'; the cups keep
+    their own, and use :meth:`move_part_away`)."""
+
+    def __init__(self, world: SimWorld) -> None:
+        self.world = world
+        self.grip_miss_armed = False
+        self.slip_armed = False
+        self.slipping: set[str] = set()
+
+    @property
+    def active(self) -> bool:
+        """Whether :meth:`update` has anything to do this period."""
+        return self.slip_armed or bool(self.slipping)
+
+    def arm_slip(self, gripped: frozenset[str]) -> None:
+        """Fires once a gripped part is in the air (at once if one is)."""
+        self.slip_armed = True
+        self._maybe_slip({p for p in gripped if self.world.contacts.in_air(p)})
+
+    def jaws_closing(self) -> None:
+        """The jaws start to close: an armed grip_miss moves the part away now."""
+        if self.grip_miss_armed:
+            self.grip_miss_armed = False
+            self.move_part_away()
+
+    def update(self, gripped: frozenset[str]) -> None:
+        """After the physics step: slip an armed part in the air, restore the friction of
+        parts that left the fingers."""
+        w, ids = self.world, self.world.ids
+        if self.slip_armed:
+            self._maybe_slip({p for p in gripped if w.contacts.in_air(p)})
+        for name in list(self.slipping):
+            if not w.contacts.touches_pads(name):
+                w.model.geom_friction[ids.part_geom[name]] = ids.part_friction[name]
+                self.slipping.discard(name)
+        if not self.slipping and ids.pad_geoms[0] >= 0:
+            w.model.geom_friction[list(ids.pad_geoms)] = ids.pad_friction
+
+    def _maybe_slip(self, candidates: set[str]) -> None:
+        if not candidates:
+            return
+        self.slip_armed = False
+        w, ids = self.world, self.world.ids
+        g = w.description.gripper
+        assert g is not None
+        for name in candidates:
+            self.slipping.add(name)
+            # friction such that the two pads hold only a fraction of the weight
+            weight = w.model.body_mass[ids.part_bodies[name]] * GRAVITY_MPS2
+            mu = SLIP_HOLD_FRACTION * weight / (2.0 * g.grip_force_N)
+            w.model.geom_friction[ids.part_geom[name], 0] = mu
+            w.model.geom_friction[list(ids.pad_geoms), 0] = mu
+
+    def move_part_away(self, reach_m: float | None = None) -> None:
+        """grip_miss: the part at the gripper (within ``reach_m`` of the TCP; default: the
+        jaws' half stroke + 5 cm) is moved ``GRIP_MISS_MOVE_M`` towards the robot base."""
+        w = self.world
+        ids, data, g = w.ids, w.data, w.description.gripper
+        tcp = data.site_xpos[ids.tcp_site]
+        if reach_m is None:
+            assert g is not None  # grip_miss without a reach is a jaw gripper's
+            reach_m = g.stroke_m / 2 + 0.05
+        best, best_d = None, reach_m
+        for name, body in ids.part_bodies.items():
+            dist = float(np.linalg.norm(data.xpos[body] - tcp))
+            if dist < best_d:
+                best, best_d = name, dist
+        if best is None:
+            return
+        adr = ids.part_qpos[best]
+        base_xy = w.description.T_world_base[:2, 3]
+        direction = base_xy - data.qpos[adr : adr + 2]
+        norm = float(np.linalg.norm(direction))
+        direction = direction / norm if norm > 1e-6 else np.array([-1.0, 0.0])
+        data.qpos[adr : adr + 2] += GRIP_MISS_MOVE_M * direction
+        data.qvel[w.model.jnt_dofadr[w.model.joint(f"part:{best}").id] + np.arange(6)] = 0.0
+        w.mujoco.mj_forward(w.model, data)

@@ -1,0 +1,79 @@
+"""The two-finger jaws of the twin (:class:`~.description.GripperDescription`): force
+drives that close while the close output has its close value, and the proximity switches
+that report a closed grip and open jaws."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from cellrunner.sim.description import GripperDescription
+    from cellrunner.sim.world import SimWorld
+
+JAW_REST_SPEED_MPS = 0.005
+
+
+class Jaws:
+    """The jaws of one built :class:`SimWorld`, as the world's description has them now
+    (a tool change swaps in the mounted tool's). ``enabled``: mounted and in use (a tool
+    change turns them off); ``closing``: commanded closed at the last :meth:`drive`."""
+
+    def __init__(self, world: SimWorld) -> None:
+        ids = world.ids
+        self.world = world
+        self.enabled = True
+        self.closing = False
+        self.driven = False  # drive forces written to ctrl; False: write them again
+        self._adr = [int(a) for a in ids.jaw_qpos]
+        self._dof = [int(a) for a in ids.jaw_dof]
+        self._act = [int(a) for a in ids.jaw_act]
+
+    @property
+    def gripper(self) -> GripperDescription:
+        g = self.world.description.gripper
+        assert g is not None  # the world builds jaws only for a description with a gripper
+        return g
+
+    def channels(self) -> set[str]:
+        """The inputs the jaw switches drive."""
+        g = self.gripper
+        return {c for c in (g.closed_sensor_input, g.open_sensor_input) if c}
+
+    def drive(self) -> None:
+        """Follow the close output (before the physics step)."""
+        w, g = self.world, self.gripper
+        closing = self.enabled and w.outputs.get(g.close_output) == g.close_value
+        if closing == self.closing and self.driven:
+            return  # the drive forces already in ctrl stay
+        if closing and not self.closing:
+            w.grip_faults.jaws_closing()
+        self.closing = closing
+        self.driven = True
+        speed = g.grip_force_N if closing else -g.grip_force_N
+        ctrl = w.data.ctrl
+        for a in self._act:
+            ctrl[a] = speed  # a force (N): the drives are force actuators
+
+    def gap_m(self) -> float:
+        """Distance between the finger pads (m); stroke when open, 0 when fully closed."""
+        qpos = self.world.data.qpos
+        a, b = self._adr
+        return float(self.gripper.stroke_m - (qpos.item(a) + qpos.item(b)))
+
+    def update_inputs(self, inputs: dict[str, float | bool]) -> None:
+        """The switches' readings after the physics step."""
+        g, data = self.gripper, self.world.data
+        qpos, qvel = data.qpos.item, data.qvel.item  # Python floats, not numpy scalars
+        a, b = self._adr
+        gap = g.stroke_m - (qpos(a) + qpos(b))
+        va, vb = self._dof
+        resting = max(abs(qvel(va)), abs(qvel(vb))) < JAW_REST_SPEED_MPS
+        lo = g.sensor_min_gap_m
+        hi = g.stroke_m - lo
+        if g.closed_sensor_input:
+            # switches on once the jaws came to rest on something, then reads their
+            # position only: jaws that shake on a held part (a stop, a jerk) stay on
+            on = resting or inputs[g.closed_sensor_input]
+            inputs[g.closed_sensor_input] = bool(self.closing and on and lo <= gap <= hi)
+        if g.open_sensor_input:
+            inputs[g.open_sensor_input] = gap >= hi
