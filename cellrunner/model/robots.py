@@ -33,12 +33,8 @@ Sources, per figure:
   ``movej``/``servoj`` and ``movel`` commands through ur_rtde (40 rad/s^2, 3 m/s).
 - Controller rate: 125 Hz on CB3, 500 Hz on the e-Series controller, which also runs the
   UR15/UR18/UR20/UR30/UR8 Long (``generation`` is the controller's: "CB3" or "e-Series").
-- Lateral link offsets (``shoulder_offset``, ``elbow_offset``) for the collision
-  capsules: ur_description's ``physical_parameters.yaml`` (``elbow_offset`` here is the
-  shoulder offset minus ur_description's). NOT VERIFIED for UR15/UR18/UR8 Long, whose
-  published offsets are missing or inconsistent: estimated (upper arm 0.215 m off the
-  joint-2 plane, from its centre of mass at ~0.19 m; forearm 0.045 m, as the UR20's 0.043 m,
-  so that forearm and wrist capsules do not overlap at any pose).
+- Collision geometry: derived from Universal Robots' collision meshes, per arm
+  (:mod:`cellrunner.model.arm_geometry`), not from these figures.
 - ``robot.joint_range`` (SPEC section 11) narrows the ranges per cell:
   :meth:`RobotSpec.narrowed`.
 """
@@ -66,20 +62,6 @@ TCP_SPEED_MAX_MPS = 3.0
 
 
 @dataclass(frozen=True)
-class Capsule:
-    """A collision capsule fixed to body ``body`` (0 = base, i = moved by joint i).
-
-    ``p0_m`` and ``p1_m`` are the segment ends in the body frame: the base frame for
-    body 0, otherwise DH frame i-1 turned by joint i (before the DH offsets d_i, a_i).
-    """
-
-    body: int
-    p0_m: tuple[float, float, float]
-    p1_m: tuple[float, float, float]
-    radius_m: float
-
-
-@dataclass(frozen=True)
 class RobotSpec:
     """One arm model: kinematics, limits and controller facts (SI, degrees)."""
 
@@ -90,9 +72,6 @@ class RobotSpec:
     joint_speed_max_deg_s: tuple[float, ...]
     reach_m: float
     payload_max_kg: float
-    shoulder_offset_m: float
-    elbow_offset_m: float
-    link_radius_m: float  # upper arm radius; the others scale from it
     joint_min_deg: tuple[float, ...] = (-360.0,) * 6
     joint_max_deg: tuple[float, ...] = (360.0,) * 6
     joint_accel_max_deg_s2: float = JOINT_ACCEL_MAX_DEG_S2
@@ -139,28 +118,6 @@ class RobotSpec:
     def alpha_rad(self) -> tuple[float, ...]:
         return DH_ALPHA_RAD
 
-    def capsules(self) -> tuple[Capsule, ...]:
-        """Collision capsules of the arm from base to flange (see :class:`Capsule`)."""
-        d1, a2, a3, d4, d5, d6 = self.d_m[0], self.a_m[1], self.a_m[2], *self.d_m[3:]
-        r = self.link_radius_m
-        s = self.shoulder_offset_m  # upper-arm axis, lateral along the joint-2 axis
-        f = s - self.elbow_offset_m  # forearm axis
-        return (
-            Capsule(0, (0, 0, 0.0), (0, 0, d1 - 1.2 * r), 1.25 * r),
-            Capsule(1, (0, 0, d1), (0, -s, d1), 1.25 * r),
-            Capsule(2, (0, 0, s), (a2, 0, s), r),
-            Capsule(3, (0, 0, f), (0, 0, s), 0.95 * r),
-            Capsule(3, (0, 0, f), (a3, 0, f), 0.85 * r),
-            Capsule(4, (0, 0, f), (0, 0, d4), 0.75 * r),
-            Capsule(5, (0, 0, 0), (0, 0, d5), 0.75 * r),
-            Capsule(6, (0, 0, 0), (0, 0, d6 - 0.25 * r), 0.75 * r),
-        )
-
-    #: Body pairs that touch by construction and are never checked against each other.
-    ALLOWED_SELF_CONTACT = frozenset(
-        {(0, 1), (1, 2), (2, 3), (3, 4), (4, 5), (5, 6), (4, 6), (0, 2)}
-    )
-
 
 def _deg(*v: float) -> tuple[float, ...]:
     return tuple(float(x) for x in v)
@@ -177,9 +134,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(180, 180, 180, 360, 360, 360),
             reach_m=0.50,
             payload_max_kg=3.0,
-            shoulder_offset_m=0.1198,
-            elbow_offset_m=0.0925,
-            link_radius_m=0.045,
         ),
         RobotSpec(
             "ur5",
@@ -189,9 +143,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(180, 180, 180, 180, 180, 180),
             reach_m=0.85,
             payload_max_kg=5.0,
-            shoulder_offset_m=0.13585,
-            elbow_offset_m=0.1197,
-            link_radius_m=0.06,
         ),
         RobotSpec(
             "ur10",
@@ -201,9 +152,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(120, 120, 180, 180, 180, 180),
             reach_m=1.30,
             payload_max_kg=10.0,
-            shoulder_offset_m=0.220941,
-            elbow_offset_m=0.1719,
-            link_radius_m=0.075,
         ),
         RobotSpec(
             "ur3e",
@@ -213,9 +161,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(180, 180, 180, 360, 360, 360),
             reach_m=0.50,
             payload_max_kg=3.0,
-            shoulder_offset_m=0.120,
-            elbow_offset_m=0.093,
-            link_radius_m=0.045,
         ),
         RobotSpec(
             "ur5e",
@@ -225,9 +170,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(180, 180, 180, 180, 180, 180),
             reach_m=0.85,
             payload_max_kg=5.0,
-            shoulder_offset_m=0.138,
-            elbow_offset_m=0.131,
-            link_radius_m=0.06,
         ),
         RobotSpec(
             "ur7e",
@@ -237,9 +179,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(180, 180, 180, 180, 180, 180),
             reach_m=0.85,
             payload_max_kg=7.5,
-            shoulder_offset_m=0.138,
-            elbow_offset_m=0.131,
-            link_radius_m=0.06,
         ),
         RobotSpec(
             "ur10e",
@@ -249,9 +188,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(120, 120, 180, 180, 180, 180),
             reach_m=1.30,
             payload_max_kg=12.5,
-            shoulder_offset_m=0.176,
-            elbow_offset_m=0.137,
-            link_radius_m=0.075,
         ),
         RobotSpec(
             "ur16e",
@@ -261,9 +197,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(120, 120, 180, 180, 180, 180),
             reach_m=0.90,
             payload_max_kg=16.0,
-            shoulder_offset_m=0.176,
-            elbow_offset_m=0.137,
-            link_radius_m=0.075,
         ),
         RobotSpec(
             "ur12e",
@@ -273,9 +206,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(120, 120, 180, 180, 180, 180),
             reach_m=1.30,
             payload_max_kg=12.5,
-            shoulder_offset_m=0.176,
-            elbow_offset_m=0.137,
-            link_radius_m=0.075,
         ),
         RobotSpec(
             "ur15",
@@ -285,9 +215,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(120, 120, 150, 210, 210, 210),  # not verified
             reach_m=1.30,
             payload_max_kg=15.0,
-            shoulder_offset_m=0.215,  # estimated
-            elbow_offset_m=0.17,  # estimated
-            link_radius_m=0.08,
         ),
         RobotSpec(
             "ur18",
@@ -297,9 +224,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(180, 180, 240, 300, 300, 300),
             reach_m=0.95,
             payload_max_kg=18.0,
-            shoulder_offset_m=0.215,  # estimated
-            elbow_offset_m=0.17,  # estimated
-            link_radius_m=0.08,
         ),
         RobotSpec(
             "ur20",
@@ -309,9 +233,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(120, 120, 150, 210, 210, 210),
             reach_m=1.75,
             payload_max_kg=20.0,
-            shoulder_offset_m=0.260,
-            elbow_offset_m=0.217,
-            link_radius_m=0.095,
         ),
         RobotSpec(
             "ur30",
@@ -321,9 +242,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(120, 120, 150, 210, 210, 210),
             reach_m=1.30,
             payload_max_kg=30.0,
-            shoulder_offset_m=0.260,
-            elbow_offset_m=0.217,
-            link_radius_m=0.095,
         ),
         RobotSpec(
             "ur8long",
@@ -333,9 +251,6 @@ ROBOTS: dict[str, RobotSpec] = {
             joint_speed_max_deg_s=_deg(120, 120, 150, 210, 210, 210),  # not verified
             reach_m=1.75,
             payload_max_kg=8.0,
-            shoulder_offset_m=0.215,  # estimated
-            elbow_offset_m=0.17,  # estimated
-            link_radius_m=0.08,
         ),
     )
 }

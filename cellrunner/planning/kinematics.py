@@ -10,7 +10,7 @@ Frames (4x4 homogeneous matrices, ``T_parent_child``):
 Joint angles are in radians, ``q_rad`` of shape (6,), in the controller's convention (the
 DH angle of joint i is q_i; no offsets). The pinocchio model places joint i at the DH
 offsets of link i-1, so the frame of joint i is "DH frame i-1 turned by joint i", the frame
-in which :meth:`RobotSpec.capsules` are expressed.
+in which the arm's collision parts (:mod:`cellrunner.model.arm_geometry`) are expressed.
 
 Inverse kinematics is closed-form (ur-analytic-ik, up to 8 branches); the branch nearest a
 given configuration inside the joint limits is chosen and verified by forward kinematics.

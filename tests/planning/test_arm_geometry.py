@@ -213,7 +213,7 @@ def test_cb3_over_approximation_measured_against_the_real_mesh() -> None:
 
 
 def test_a_model_without_meshes_is_refused_by_name() -> None:
-    spec = next((s for s in ROBOTS.values() if s.name not in available_models()), None)
+    spec = next((s for s in ROBOTS.values() if s.arm not in available_models()), None)
     with pytest.raises(ArmGeometryMissing, match="no collision geometry for robot model 'ur99'"):
         arm_geometry("ur99")
     if spec is None:
