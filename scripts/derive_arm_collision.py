@@ -61,8 +61,9 @@ sys.path.insert(0, str(ROOT))
 
 from cellrunner.model.arm_geometry import LINK_NAMES  # noqa: E402
 from cellrunner.model.robots import ROBOTS, RobotSpec  # noqa: E402
-from cellrunner.planning.collision import _joint_reach, read_stl  # noqa: E402
 from cellrunner.planning.kinematics import ArmKinematics  # noqa: E402
+from cellrunner.planning.motion_bounds import joint_reach  # noqa: E402
+from cellrunner.planning.stl import read_stl  # noqa: E402
 
 ROS2_REPO = "UniversalRobots/Universal_Robots_ROS2_Description"
 CB3_FROM_EXAMPLE_ROBOT_DATA = ("ur3", "ur5", "ur10")
@@ -671,7 +672,7 @@ class PairProver:
 
     def reach(self, k: int) -> np.ndarray:
         body, v = self.parts[k]
-        return _joint_reach(self.model, body, v, 0.0)
+        return joint_reach(self.model, body, v, 0.0)
 
     def adjacent(self, i: int, k: int, samples: int) -> tuple[float, float, float, float]:
         """Parts of adjacent links over their joint's whole turn: (lower bound, smallest

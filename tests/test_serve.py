@@ -4,29 +4,29 @@ Modbus TCP by an independent client (pyModbusTCP) exactly as SPEC section 7 says
 from __future__ import annotations
 
 import json
-import os
 import signal
 import socket
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 from pyModbusTCP.client import ModbusClient
 
-from tests.conftest import ROOT
 from tests.execution.test_dryrun import CELL as DRYRUN_CELL
 from tests.execution.test_dryrun import TASK
+from tests.twin.cell_rig import (
+    add_opcua_user,
+    client_result,
+    free_port,
+    opcua_client,
+    opcua_job,
+    start_serve,
+    trusted_plc_certificate,
+)
 
 READY, JOB_ACK, BUSY, DONE, ERROR, REJECTED = 1, 2, 4, 8, 16, 512
 JOB_REQ = 1
-
-
-def free_port(host: str) -> int:
-    with socket.socket() as s:
-        s.bind((host, 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture
@@ -44,25 +44,8 @@ def project(tmp_path) -> tuple[Path, int]:
     return tmp_path / "cells" / "c.yaml", port
 
 
-def start(cell: Path) -> subprocess.Popen:
-    return subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "cellrunner.cli.main",
-            "--log-format",
-            "json",
-            "serve",
-            str(cell),
-            "--backend",
-            "sim",
-        ],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "MUJOCO_GL": "osmesa"},
-    )
+def start(cell: Path) -> subprocess.Popen[str]:
+    return start_serve(cell)
 
 
 def connect(port: int, timeout_s: float = 60.0) -> ModbusClient:
@@ -127,7 +110,7 @@ def test_serve_runs_plc_jobs_and_stops_on_sigterm(project):
         wait(client, READY, 10, beat)
     finally:
         proc.send_signal(signal.SIGTERM)
-        _out, err = proc.communicate(timeout=60)
+        _, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err[-2000:]
     assert '"event": "stopped"' in err
 
@@ -160,8 +143,6 @@ def test_restart_mid_job_reports_107(project):
 def test_serve_over_opcua_with_encryption_and_a_user(tmp_path):
     """OPC UA through serve: Basic256Sha256 SignAndEncrypt, a user from `users add`, a
     trusted client certificate; StartJob runs a real twin job and the event arrives."""
-    from tests.plc.test_opcua import write_client_cert
-
     port = free_port("127.0.0.6")
     url = f"opc.tcp://127.0.0.6:{port}/cellrunner"
     (tmp_path / "cells").mkdir()
@@ -172,70 +153,17 @@ def test_serve_over_opcua_with_encryption_and_a_user(tmp_path):
         f"    endpoint: {url}\n    users: secrets/users.yaml\n    pki: pki\n"
     )
     (tmp_path / "tasks" / "t.yaml").write_text(TASK)
-    r = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "cellrunner.cli.main",
-            "users",
-            "add",
-            str(tmp_path / "secrets" / "users.yaml"),
-            "line3",
-            "--password-stdin",
-        ],
-        input="s3cret pass\n",
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
-    assert r.returncode == 0, r.stderr
-    cert, key = write_client_cert(tmp_path, "plc")
-    (tmp_path / "pki" / "trusted").mkdir(parents=True)
-    (tmp_path / "pki" / "trusted" / "plc.der").write_bytes(cert.read_bytes())
+    add_opcua_user(tmp_path / "secrets" / "users.yaml")
+    cert, key = trusted_plc_certificate(tmp_path)
     proc = start(cell_path)
     try:
-        argv = [
-            sys.executable,
-            str(ROOT / "tests" / "plc" / "opcua_client.py"),
-            "--url",
-            url,
-            "--scenario",
-            "run",
-            "--cert",
-            str(cert),
-            "--key",
-            str(key),
-            "--user",
-            "line3",
-            "--password",
-            "s3cret pass",
-            "--task",
-            "move_can",
-            "--wait",
-            "90",
-        ]
-        deadline = time.monotonic() + 60
-        while True:  # until the server listens
-            out = subprocess.run(argv, capture_output=True, text=True, timeout=150)
-            lines = [line for line in out.stdout.splitlines() if line.startswith("{")]
-            result = json.loads(lines[-1]) if lines else {}
-            if result.get("connected") or time.monotonic() > deadline:
-                break
-            time.sleep(1)
-        assert result.get("connected"), out.stderr[-2000:]
+        result = opcua_job(url, cert, key, "move_can")
         assert result["return_code"] == 0 and result["job_id"]
         assert [e["ResultCode"] for e in result["events"]] == [0]
         assert result["events"][0]["JobId"] == result["job_id"]
         assert result["last_result"] == 0 and result["cycle_time"] > 3
-        wrong = subprocess.run(
-            [*argv[:-4], "--password", "wrong", "--scenario", "connect"],
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
-        lines = [line for line in wrong.stdout.splitlines() if line.startswith("{")]
-        assert not json.loads(lines[-1]).get("connected")
+        wrong = opcua_client(url, cert, key, "--scenario", "connect", "--password", "wrong")
+        assert client_result(wrong, 60).get("connected") is False
     finally:
         proc.send_signal(signal.SIGTERM)
         proc.communicate(timeout=60)

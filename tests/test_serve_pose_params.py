@@ -9,8 +9,6 @@ import re
 import shutil
 import signal
 import sqlite3
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -19,7 +17,8 @@ from pyModbusTCP.client import ModbusClient
 
 from cellrunner.plc.param_registers import decode_params, encode_pose, from_int16
 from tests.conftest import ROOT
-from tests.test_serve import DONE, ERROR, JOB_REQ, READY, REJECTED, free_port, start
+from tests.test_serve import DONE, ERROR, JOB_REQ, READY, REJECTED, start
+from tests.twin.cell_rig import add_opcua_user, free_port, opcua_job, trusted_plc_certificate
 
 HOST = "127.0.0.122"
 SEEN = {"xyz": [0.03, -0.02, 0.0], "rpy": [0.0, 0.0, 20.0]}  # where the twin's part lies
@@ -102,68 +101,19 @@ def test_vision_pick_with_the_pose_in_modbus_registers(tmp_path):
 
 
 def test_vision_pick_with_the_pose_as_opcua_json(tmp_path):
-    from tests.plc.test_opcua import write_client_cert
-
     port = free_port(HOST)
     url = f"opc.tcp://{HOST}:{port}/cellrunner"
     cell = _project(
         tmp_path,
         f"plc:\n  opcua:\n    endpoint: {url}\n    users: secrets/users.yaml\n    pki: pki\n",
     )
-    r = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "cellrunner.cli.main",
-            "users",
-            "add",
-            str(tmp_path / "secrets" / "users.yaml"),
-            "line3",
-            "--password-stdin",
-        ],
-        input="s3cret pass\n",
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
-    assert r.returncode == 0, r.stderr
-    cert, key = write_client_cert(tmp_path, "plc")
-    (tmp_path / "pki" / "trusted").mkdir(parents=True)
-    (tmp_path / "pki" / "trusted" / "plc.der").write_bytes(cert.read_bytes())
+    add_opcua_user(tmp_path / "secrets" / "users.yaml")
+    cert, key = trusted_plc_certificate(tmp_path)
     proc = start(cell)
     try:
-        argv = [
-            sys.executable,
-            str(ROOT / "tests" / "plc" / "opcua_client.py"),
-            "--url",
-            url,
-            "--scenario",
-            "run",
-            "--cert",
-            str(cert),
-            "--key",
-            str(key),
-            "--user",
-            "line3",
-            "--password",
-            "s3cret pass",
-            "--task",
-            "vision_pick",
-            "--params",
-            json.dumps({"part_pose": SEEN, "settle": "80 ms"}),
-            "--wait",
-            "90",
-        ]
-        deadline = time.monotonic() + 150  # serve warms up its planning before it listens
-        while True:  # until the server listens
-            out = subprocess.run(argv, capture_output=True, text=True, timeout=150)
-            lines = [line for line in out.stdout.splitlines() if line.startswith("{")]
-            result = json.loads(lines[-1]) if lines else {}
-            if result.get("connected") or time.monotonic() > deadline:
-                break
-            time.sleep(1)
-        assert result.get("connected"), out.stderr[-2000:]
+        params = json.dumps({"part_pose": SEEN, "settle": "80 ms"})
+        # serve warms up its planning before it listens
+        result = opcua_job(url, cert, key, "vision_pick", "--params", params, listen_timeout_s=150)
         assert result["return_code"] == 0 and result["job_id"]
         assert [e["ResultCode"] for e in result["events"]] == [0]
     finally:

@@ -11,6 +11,7 @@ ur_rtde's initPeriod/waitPeriod do). Nothing here blocks longer than one period 
 from __future__ import annotations
 
 import enum
+from collections.abc import Generator
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
@@ -90,6 +91,10 @@ class RobotBackend(Protocol):
 
     def recover_from_estop(self) -> None:
         """After a person released the e-stop: power on, release brakes, re-arm."""
+
+    def recover_from_estop_steps(self) -> Generator[None, None, None]:
+        """:meth:`recover_from_estop` as bounded steps, each ``next`` short (no wait), so
+        the control loop keeps ticking while the arm powers up; raises as it does."""
 
     def reconnect(self, timeout_s: float | None = None) -> None:
         """After ``read_state().safety`` is DISCONNECTED (or a call raised): reopen the

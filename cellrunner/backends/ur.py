@@ -39,7 +39,8 @@ from __future__ import annotations
 import contextlib
 import re
 import time
-from typing import TYPE_CHECKING, Any
+from collections.abc import Generator, Iterator
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -58,6 +59,22 @@ from cellrunner.errors import (  # re-exported
 from cellrunner.model.gripper import ROBOTIQ_CLOSE, ROBOTIQ_OBJECT
 from cellrunner.model.robots import RobotSpec
 from cellrunner.model.trajectory import ApprovedTrajectory
+
+_T = TypeVar("_T")
+#: a blocking call that runs bounded steps looks again this often (s)
+_POLL_S = 0.01
+
+
+def _drive(steps: Generator[None, None, _T]) -> _T:
+    """Run bounded steps to the end, :data:`_POLL_S` apart; their value."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as stop:
+            value: _T = stop.value
+            return value
+        time.sleep(_POLL_S)
+
 
 if TYPE_CHECKING:
     from cellrunner.backends.robotiq import RobotiqClient
@@ -256,13 +273,27 @@ class URBackend:
     def _call(self, name: str, *args: Any, timeout_s: float | None = None) -> Any:
         """One RTDEControlInterface call in the control process, translated: ur_rtde's
         texts through :meth:`_translate`, a lost process as :class:`ConnectionLost`."""
-        control = self._control
-        if control is None:
-            raise BackendError("the control script is not running; recover the arm first")
-        try:
+        control = self._running_control()
+        with self._control_errors():
             if timeout_s is None:
                 return control.call(name, *args)
             return control.call(name, *args, timeout_s=timeout_s)
+
+    def _call_steps(self, name: str, *args: Any) -> Generator[None, None, Any]:
+        """:meth:`_call` as bounded steps: the answer is looked for once per ``next``."""
+        control = self._running_control()
+        with self._control_errors():
+            return (yield from control.call_steps(name, *args))
+
+    def _running_control(self) -> ControlProcess:
+        if self._control is None:
+            raise BackendError("the control script is not running; recover the arm first")
+        return self._control
+
+    @contextlib.contextmanager
+    def _control_errors(self) -> Iterator[None]:
+        try:
+            yield
         except ControlLost as exc:
             self._drop_control()
             raise ConnectionLost(f"lost the control connection to {self.host}: {exc}") from exc
@@ -289,11 +320,15 @@ class URBackend:
     def _open_control(self) -> None:
         """RTDEControl (in its process) uploads ur_rtde's control script; then the tool
         is configured."""
+        _drive(self._open_control_steps())
+
+    def _open_control_steps(self) -> Generator[None, None, None]:
+        """:meth:`_open_control` as bounded steps (the child starts while we yield)."""
         control = ControlProcess(
             self.host, self.rate_hz, start_timeout_s=self.connect_timeout_s + 10.0
         )
         try:
-            control.start()
+            yield from control.start_steps()
         except ControlLost as exc:
             raise PeerUnreachable(
                 f"cannot reach the robot controller at {self.host}: {exc}"
@@ -580,45 +615,61 @@ class URBackend:
     def recover_from_estop(self) -> None:
         """After a person released the e-stop (or for an arm found powered off): power
         on, release the brakes, (re)start the control script."""
+        _drive(self.recover_from_estop_steps())
+
+    def recover_from_estop_steps(self) -> Generator[None, None, None]:
+        """:meth:`recover_from_estop` as bounded steps, for a control loop that keeps
+        ticking meanwhile: each ``next`` makes at most one dashboard or control call or
+        looks at the state once; the waits keep their bounds (power on 30 s, brakes 30 s,
+        the control script 5 s) and raise :class:`BackendError` as the blocking call does."""
         if self._dashboard is None or self._receive is None:
             raise BackendError("not connected; call connect() first")
         if _safety_of(self._receive.getSafetyStatusBits()) == Safety.EMERGENCY_STOP:
             raise BackendError(
                 "the emergency stop is still pressed; a person must release it first"
             )
+        dashboard, receive = self._dashboard, self._receive
         try:
-            self._dashboard.closeSafetyPopup()
-            self._dashboard.powerOn()
-            self._wait_for(
-                lambda: self._receive.getRobotMode() in (_ROBOT_MODE_IDLE, _ROBOT_MODE_RUNNING),
+            dashboard.closeSafetyPopup()
+            yield
+            dashboard.powerOn()
+            yield from self._until(
+                lambda: receive.getRobotMode() in (_ROBOT_MODE_IDLE, _ROBOT_MODE_RUNNING),
                 30.0,
                 "the arm did not power on",
             )
-            self._dashboard.brakeRelease()
-            self._wait_for(
-                lambda: self._receive.getRobotMode() == _ROBOT_MODE_RUNNING,
+            dashboard.brakeRelease()
+            yield from self._until(
+                lambda: receive.getRobotMode() == _ROBOT_MODE_RUNNING,
                 30.0,
                 "the brakes were not released",
             )
         except RuntimeError as exc:
             raise self._translate(exc) from exc
-        self._reupload()
+        yield from self._reupload_steps()
 
     def _reupload(self) -> None:
+        _drive(self._reupload_steps())
+
+    def _reupload_steps(self) -> Generator[None, None, None]:
         if self._control is None or not self._control.alive:
             self._drop_control()
-            self._open_control()
+            yield from self._open_control_steps()
             return
-        if not self._call("reuploadScript"):
+        if not (yield from self._call_steps("reuploadScript")):
             raise BackendError(f"could not re-upload the control script to {self.host}")
-        self._wait_for(
+        yield from self._until(
             lambda: bool(self._call("isProgramRunning")), 5.0, "the control script did not start"
         )
         self._configure_tool()
 
     def _wait_for(self, predicate: Any, timeout_s: float, what: str) -> None:
+        _drive(self._until(predicate, timeout_s, what))
+
+    def _until(self, predicate: Any, timeout_s: float, what: str) -> Generator[None, None, None]:
+        """Yield until ``predicate()``; BackendError naming ``what`` after ``timeout_s``."""
         deadline = time.monotonic() + timeout_s
         while not predicate():
             if time.monotonic() > deadline:
                 raise BackendError(f"{what} within {timeout_s:g} s (controller at {self.host})")
-            time.sleep(0.01)
+            yield

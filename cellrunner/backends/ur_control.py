@@ -25,6 +25,8 @@ import contextlib
 import multiprocessing
 import os
 import signal
+import time
+from collections.abc import Generator
 from typing import Any
 
 #: the RTDEControlInterface methods the parent may call (nothing else is forwarded)
@@ -44,6 +46,8 @@ METHODS = frozenset(
 )
 #: a call that takes longer than this means the child or the link is stuck (s)
 CALL_TIMEOUT_S = 5.0
+#: :meth:`ControlProcess.start` looks at the pipe this often (s)
+POLL_S = 0.01
 
 
 class ControlLost(Exception):
@@ -93,6 +97,11 @@ class ControlProcess:
         """Spawn the child and build the interface (it uploads ur_rtde's control script);
         raises :class:`RuntimeError` with ur_rtde's text, or :class:`ControlLost` when
         the child does not answer within ``start_timeout_s``."""
+        for _ in self.start_steps():
+            time.sleep(POLL_S)
+
+    def start_steps(self) -> Generator[None, None, None]:
+        """:meth:`start` as bounded steps: spawn, then one look at the pipe per ``next``."""
         ctx = multiprocessing.get_context("spawn")
         parent, child = ctx.Pipe()
         self._process = ctx.Process(
@@ -101,7 +110,7 @@ class ControlProcess:
         self._process.start()
         child.close()
         self._conn = parent
-        status, value = self._answer(self.start_timeout_s, "start")
+        status, value = yield from self._answer_steps(self.start_timeout_s, "start")
         if status == "error":
             self.close()
             raise RuntimeError(value)
@@ -113,6 +122,17 @@ class ControlProcess:
     def call(self, name: str, *args: Any, timeout_s: float = CALL_TIMEOUT_S) -> Any:
         """``RTDEControlInterface.<name>(*args)`` in the child; RuntimeError with the
         library's text, ControlLost when the child is gone or does not answer."""
+        self._send(name, args)
+        return self._value(self._answer(timeout_s, name))
+
+    def call_steps(
+        self, name: str, *args: Any, timeout_s: float = CALL_TIMEOUT_S
+    ) -> Generator[None, None, Any]:
+        """:meth:`call` as bounded steps: send, then one look at the pipe per ``next``."""
+        self._send(name, args)
+        return self._value((yield from self._answer_steps(timeout_s, name)))
+
+    def _send(self, name: str, args: tuple[Any, ...]) -> None:
         if name not in METHODS:
             raise ValueError(f"unknown control call {name!r}; known: {', '.join(sorted(METHODS))}")
         if self._conn is None:
@@ -122,16 +142,38 @@ class ControlProcess:
         except (OSError, ValueError) as exc:
             self.close()
             raise ControlLost(f"the control process is gone: {exc}") from exc
-        status, value = self._answer(timeout_s, name)
+
+    @staticmethod
+    def _value(answer: tuple[str, Any]) -> Any:
+        status, value = answer
         if status == "error":
             raise RuntimeError(value)
         return value
 
     def _answer(self, timeout_s: float, what: str) -> tuple[str, Any]:
-        conn = self._conn
         try:
-            if conn.poll(timeout_s):
-                status, value = conn.recv()
+            ready = self._conn.poll(timeout_s)
+        except (EOFError, OSError):
+            ready = True  # recv() reports it
+        return self._received(ready, timeout_s, what)
+
+    def _answer_steps(self, timeout_s: float, what: str) -> Generator[None, None, tuple[str, Any]]:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            try:
+                ready = self._conn.poll(0)
+            except (EOFError, OSError):
+                ready = True  # recv() reports it
+            if ready or time.monotonic() > deadline:
+                return self._received(ready, timeout_s, what)
+            yield
+
+    def _received(self, ready: bool, timeout_s: float, what: str) -> tuple[str, Any]:
+        """The answer waiting on the pipe; ControlLost (and the child ended) when there is
+        none (``ready`` False: it did not come within ``timeout_s``) or the pipe broke."""
+        try:
+            if ready:
+                status, value = self._conn.recv()
                 return status, value
         except (EOFError, OSError):
             pass

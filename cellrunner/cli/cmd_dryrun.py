@@ -27,6 +27,7 @@ from cellrunner.execution.journal import Journal
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode
+from cellrunner.model.step import StepKind
 from cellrunner.report.recorder import RunRecorder
 
 if TYPE_CHECKING:
@@ -167,9 +168,9 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.report.plots import plot_wrist_force
 
         limits = {
-            s.index: s.args.force if s.kind == "move_until_contact" else s.args.force.max
+            s.index: s.args.force if s.kind == StepKind.MOVE_UNTIL_CONTACT else s.args.force.max
             for s in steps
-            if s.kind in ("move_until_contact", "insert")
+            if s.kind in (StepKind.MOVE_UNTIL_CONTACT, StepKind.INSERT)
         }
         plot_wrist_force(
             Path(report) / "wrist_force.png",
@@ -250,7 +251,11 @@ class _Rehearsal:
                 if step
                 else "running"
             )
-            if recorder is not None and step is not None and step.kind in ("grip", "release"):
+            if (
+                recorder is not None
+                and step is not None
+                and step.kind in (StepKind.GRIP, StepKind.RELEASE)
+            ):
                 recorder.moment(f"step{view.step:02d}_{step.kind}", backend.world)
         if recorder is not None and recorder.due(now):
             recorder.sample(

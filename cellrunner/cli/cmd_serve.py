@@ -17,6 +17,7 @@ from cellrunner.execution.journal_open import cell_journal
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner, warm_up
 from cellrunner.model.load import LoadedCell, load_cell, load_task, serve_file_warnings
+from cellrunner.plc.service import raise_thread_priority
 
 if TYPE_CHECKING:
     from cellrunner.execution.context import EventLog
@@ -35,6 +36,11 @@ def run(args: argparse.Namespace) -> int:
     for w in cell.warnings + serve_file_warnings(cell):
         sys.stderr.write(f"{w}\n")
     log = configure(args.log_format, cell.cell.cell)
+    # Every thread of this process runs at the PLC threads' priority (those started from
+    # here inherit it): a PLC thread waits for the GIL, so a lower-priority holder (the
+    # control loop, the robot's state reader, planning) preempted by other processes would
+    # stall the heartbeat for as long as the OS keeps it off the CPU.
+    raise_thread_priority()
     kind = backend_kind(cell, args.backend)
     backend = make_backend(cell, kind, args.robot_host)
     from cellrunner.planning.world import CellWorld

@@ -19,7 +19,7 @@ import contextlib
 import sqlite3
 import threading
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Generator
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
@@ -169,6 +169,7 @@ class CellController:
         self._safety = Safety.NORMAL
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan")
         self._actions: list[Callable[[], None]] = []  # backend work asked for by other threads
+        self._recovery: Generator[None, None, None] | None = None  # Clearing's, one step a tick
         self._counters = (0, 0)
         self.last_runner: JobRunner | None = None  # of the last finished job (its step records)
         self._last_view: JobView | None = None
@@ -304,7 +305,9 @@ class CellController:
                 except JournalError as exc:
                     return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: {exc}")
                 if first is not None:
-                    return JobTicket(first.job_id, 0, "the same ClientJobId again: the first job")
+                    return JobTicket(
+                        first.job_id, ResultCode.OK, "the same ClientJobId again: the first job"
+                    )
             loaded = self._task(task)
             if loaded is None:
                 known = ", ".join(f"{n} ({t.name})" for n, t in self.tasks.items())
@@ -371,6 +374,12 @@ class CellController:
                 return False  # Clear first (it finds out whether the e-stop was released)
             if name == "reset" and self.sm.state is S.ABORTED:
                 return False
+            if name == "reset" and job is None and self._safety is Safety.PROTECTIVE_STOP:
+                # a stop latched with no job to hold (in Idle, or left by a job that ended
+                # with 100): Reset is the PLC's only way to clear it
+                self._actions.append(self._unlock_idle_stop)
+                if self.sm.state is S.IDLE:
+                    return True
             command = {
                 "reset": Command.RESET,
                 "clear": Command.CLEAR,
@@ -381,7 +390,7 @@ class CellController:
             }[name]
             self._enter_command(command)
             if command is Command.CLEAR:
-                self._actions.append(self._recover)  # on the control thread, in Clearing
+                self._actions.append(self._start_recovery)  # on the control thread
             return True
         except (TransitionRefused, CellrunnerError):
             return False
@@ -403,6 +412,8 @@ class CellController:
             job = self._job
         for action in actions:  # backend work other threads asked for: only this thread does it
             action()
+        if self._recovery is not None:
+            self._step_recovery()
         runner = job.runner if job is not None else None
         if runner is not None:
             runner.tick()
@@ -422,18 +433,34 @@ class CellController:
             self._idle_transitions()
             self._publish()
 
-    def _recover(self) -> None:
-        """Clearing (on the control thread): reconnect a lost link, unlock a protective stop
+    def _start_recovery(self) -> None:
+        if self._recovery is None:
+            self._recovery = self._recover()
+
+    def _step_recovery(self) -> None:
+        """One bounded step of Clearing's recovery per tick; the control loop never waits
+        for the arm to power up."""
+        assert self._recovery is not None
+        try:
+            next(self._recovery)
+        except StopIteration:
+            self._recovery = None
+
+    def _recover(self) -> Generator[None, None, None]:
+        """Clearing (polled by :meth:`tick`): reconnect a lost link, unlock a protective stop
         the job left behind (a job that ends in one, or is aborted while held), re-arm
-        after an e-stop (power, brakes); bounded by the backend. The controller refuses an
-        unlock within 5 s of the stop: Clear fails then, and the next Clear tries again."""
+        after an e-stop (power, brakes), each wait bounded by the backend. The controller
+        refuses an unlock within 5 s of the stop: Clear fails then, and the next Clear
+        tries again."""
         error = None
         try:
             if self._safety is Safety.DISCONNECTED:
                 self.backend.connect()
+                yield
             if self.backend.read_state().safety is Safety.PROTECTIVE_STOP:
                 self.backend.unlock_protective_stop()
-            self.backend.recover_from_estop()
+                yield
+            yield from self.backend.recover_from_estop_steps()
         except CellrunnerError as exc:  # e.g. the e-stop is still pressed
             error = exc
         safety = self.backend.read_state().safety
@@ -443,6 +470,18 @@ class CellController:
                 if self.sm.can(Event.CLEAR_FAILED):
                     self.sm.on(Event.CLEAR_FAILED)
                     self._mark_entered()
+            self._safety = safety
+
+    def _unlock_idle_stop(self) -> None:
+        """Reset with no job (on the control thread): unlock a latched protective stop. The
+        controller refuses within 5 s of the stop; the next Reset tries again."""
+        try:
+            self.backend.unlock_protective_stop()
+        except CellrunnerError as exc:
+            with self._lock:
+                self._log("unlock_failed", error=str(exc))
+        safety = self.backend.read_state().safety
+        with self._lock:
             self._safety = safety
 
     def _start_runner(self, job: _Job) -> JobRunner | None:
@@ -503,6 +542,8 @@ class CellController:
             self.sm.on(Event.ESTOP)
         elif safety is Safety.DISCONNECTED and self._job is None and self.sm.can(Event.LINK_LOST):
             self.sm.on(Event.LINK_LOST)
+        elif state is S.CLEARING and self._recovery is not None:
+            return  # the arm is still being re-armed
         elif state in _SELF_COMPLETING or state is S.UNHOLDING:
             self.sm.state_complete()
         elif state is S.COMPLETE and self._now_s - self._entered_s >= COMPLETE_DWELL_S:

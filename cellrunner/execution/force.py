@@ -39,6 +39,7 @@ from cellrunner.execution.steps import (
 )
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
+from cellrunner.model.step import StepKind
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 #: one sample of a force step's trace: (time s, step index, wrist force above baseline N)
@@ -61,7 +62,7 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
     """Stream ``step``'s approved line until its force limit; the step's Outcome."""
     baseline = yield from _baseline(ctx)
     args = step.args
-    limit_N = args.force if step.kind == "move_until_contact" else args.force.max
+    limit_N = args.force if step.kind == StepKind.MOVE_UNTIL_CONTACT else args.force.max
     q_now = ctx.last_state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
     if (
@@ -98,7 +99,7 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         ctx.backend.stop_motion()
         ctx.commanded_q = None  # pressing, not tracking
         yield from _until_still(ctx, trace, step, baseline)
-    if step.kind == "move_until_contact":
+    if step.kind == StepKind.MOVE_UNTIL_CONTACT:
         if contact_N is not None:  # back to where the contact began, as moveUntilContact does
             yield from _retract(ctx, approved, i, max((touch_i or i) - 1, 0), trace, step, baseline)
         if contact_N is None:

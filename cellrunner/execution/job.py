@@ -29,6 +29,7 @@ from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import ON_ERROR, Step
 from cellrunner.model.force_steps import FORCE_KINDS
+from cellrunner.model.step import StepKind
 from cellrunner.model.task import ProtectiveStopPolicy
 
 #: the controller refuses to unlock a protective stop sooner (UR e-Series and CB3)
@@ -47,8 +48,8 @@ _NORMAL = Safety.NORMAL  # looked up once: tick runs every period
 #: the behaviour of each step kind that is not a motion
 _BEHAVIOURS = {
     **behaviours.BEHAVIOURS,
-    "tool_lock": run_tool_lock,
-    "tool_unlock": run_tool_unlock,
+    StepKind.TOOL_LOCK: run_tool_lock,
+    StepKind.TOOL_UNLOCK: run_tool_unlock,
 }
 
 
@@ -415,14 +416,14 @@ class JobRunner:
     def _after_success(self, item: _Item) -> None:
         """A lift right after a grip with a force window: weigh the part next."""
         step = item.step
-        if step.kind == "lift" and item.behaviour == "step" and not item.between:
+        if step.kind == StepKind.LIFT and item.behaviour == "step" and not item.between:
             grip = self._step(step.index - 1)
             if grip is not None and grip.kind == "grip" and grip.args.force is not None:
                 self._agenda.insert(0, _Item(grip, item.attempt, behaviour="weigh"))
 
     def _grip_of(self, item: _Item) -> Step | None:
         """The grip step an item's NO_PART failure belongs to (the grip itself or its weighing)."""
-        return item.step if item.step.kind == "grip" and not item.between else None
+        return item.step if item.step.kind == StepKind.GRIP and not item.between else None
 
     def _retry(self, grip: Step, attempt: int, why: str) -> None:
         self.retries_used += 1

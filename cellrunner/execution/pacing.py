@@ -13,6 +13,7 @@ import numpy as np
 
 from cellrunner.execution.context import Motions
 from cellrunner.model.expand import Step
+from cellrunner.model.step import StepKind
 from cellrunner.model.trajectory import ApprovedTrajectory, time_scaled
 
 
@@ -101,6 +102,6 @@ def describe_step(step: Step) -> str:
     elif step.is_motion:
         distance = getattr(step.args, "distance", None)
         text += f": {distance:g} m straight" if distance is not None else ""
-    elif step.kind not in ("grip", "release"):
+    elif step.kind not in (StepKind.GRIP, StepKind.RELEASE):
         text += f": {step.args}"
     return text

@@ -18,6 +18,7 @@ from cellrunner.backends.base import RobotState
 from cellrunner.execution.context import Carry, JobContext
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
+from cellrunner.model.step import StepKind
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 StepGen = Generator[None, None, "Outcome"]
@@ -324,9 +325,9 @@ def _part_lost(ctx: JobContext) -> str | None:
 
 
 BEHAVIOURS = {
-    "grip": run_grip,
-    "release": run_release,
-    "set_output": run_set_output,
-    "wait_input": run_wait_input,
-    "wait": run_wait,
+    StepKind.GRIP: run_grip,
+    StepKind.RELEASE: run_release,
+    StepKind.SET_OUTPUT: run_set_output,
+    StepKind.WAIT_INPUT: run_wait_input,
+    StepKind.WAIT: run_wait,
 }

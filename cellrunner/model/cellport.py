@@ -39,9 +39,13 @@ __all__ = [
 ]
 
 #: Codes with which a job *completed* (OK or NOK, not a fault): the PLC sees DONE.
-COMPLETED_CODES = frozenset({0, 1, 2, 3})
+COMPLETED_CODES = frozenset(
+    {ResultCode.OK, ResultCode.NO_PART, ResultCode.PART_LOST, ResultCode.PLACE_FAILED}
+)
 #: Codes that reject a job before it starts (JobTicket.reject_code).
-REJECT_CODES = frozenset({10, 11, 12})
+REJECT_CODES = frozenset(
+    {ResultCode.REJECT_UNKNOWN_TASK, ResultCode.REJECT_BAD_PARAMS, ResultCode.REJECT_NOT_READY}
+)
 
 #: Commands accepted by :meth:`CellPort.command`.
 COMMANDS = ("reset", "clear", "hold", "unhold", "abort", "stop")
@@ -102,12 +106,12 @@ class JobTicket:
     """
 
     job_id: str
-    reject_code: int = 0
+    reject_code: int = ResultCode.OK
     message: str = ""
 
     @property
     def accepted(self) -> bool:
-        return self.reject_code == 0
+        return self.reject_code == ResultCode.OK
 
 
 ResultListener = Callable[[JobResult], object]  # what it returns is ignored

@@ -107,11 +107,11 @@ class _Builder:
 
     def add(self, spec: StepSpec) -> None:
         kind, args = spec.kind, spec.bind(self.specs, self.params)
-        if kind == "pick":
+        if kind == StepKind.PICK:
             self._pick(spec, args)
-        elif kind == "place":
+        elif kind == StepKind.PLACE:
             self._place(spec, args)
-        elif kind == "change_tool":
+        elif kind == StepKind.CHANGE_TOOL:
             self.tool = expand_change_tool(self, spec, self.tool)
         else:
             self.steps.append(self.primitive(kind, args, spec.path, self._next()))
@@ -126,32 +126,32 @@ class _Builder:
         retry: RetryPlan | None = None,
     ) -> Step:
         name, T, q = kind, None, None
-        if kind == "move":
+        if kind == StepKind.MOVE:
             if isinstance(args.to, list):
                 name, q = "joints", tuple(args.to)
             elif args.to == "home":
                 name, q = "home", tuple(self.cell.robot.home)
             else:
                 name, T = args.to, frame_pose(self.cell, args.to) @ _offset(args.offset)
-        elif kind == "approach":
+        elif kind == StepKind.APPROACH:
             name = args.to
             T = (
                 frame_pose(self.cell, args.to)
                 @ _offset(args.offset)
                 @ geometry.pose_matrix((0, 0, -args.distance))
             )
-        elif kind in ("descend", "linear"):
+        elif kind in (StepKind.DESCEND, StepKind.LINEAR):
             name, T = args.to, frame_pose(self.cell, args.to) @ _offset(args.offset)
-        elif kind == "insert":  # the line ends ``depth`` past the frame, along its Z
+        elif kind == StepKind.INSERT:  # the line ends ``depth`` past the frame, along its Z
             name, T = (
                 args.to,
                 frame_pose(self.cell, args.to) @ geometry.pose_matrix((0, 0, args.depth)),
             )
-        elif kind == "set_output":
+        elif kind == StepKind.SET_OUTPUT:
             name = ", ".join(f"{k}={v}" for k, v in args.values.items())
-        elif kind == "wait_input":
+        elif kind == StepKind.WAIT_INPUT:
             name = args.input
-        elif kind == "wait":
+        elif kind == StepKind.WAIT:
             name = f"{args.seconds:g} s"
         return Step(index, StepKind(kind), name, args, path, macro, T, q, retry)
 

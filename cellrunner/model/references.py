@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 from cellrunner.model.checks import check_io_name, check_radians
 from cellrunner.model.diagnose import unknown_name
+from cellrunner.model.step import StepKind
 
 if TYPE_CHECKING:
     from cellrunner.model.cell import Cell
@@ -143,7 +144,7 @@ def _check_tool_at_end(task: LoadedTask, cell: Cell, report: Report) -> None:
     """Every job starts with ``robot.tool`` mounted, so a task must end with it."""
     last = None
     for step in task.steps:
-        if step.kind == "change_tool" and step.args.tool in cell.tools:
+        if step.kind == StepKind.CHANGE_TOOL and step.args.tool in cell.tools:
             last = step
     if last is not None and last.args.tool != cell.robot.tool:
         report.error(

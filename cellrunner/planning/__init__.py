@@ -2,6 +2,8 @@
 
 - ``kinematics``: :class:`ArmKinematics` (FK, Jacobian, singularity distances, analytic IK)
 - ``collision``: :class:`CollisionModel` (coal; conservative motion checks)
+  with ``coal_shapes`` (shapes as coal geometry), ``motion_bounds`` (the bounds maths of
+  its motion checks) and ``stl`` (reading meshes)
 - ``joint_path``: :func:`plan_joint_path` (direct move or OMPL RRTConnect + shortcutting)
 - ``cartesian``: :func:`plan_linear` (straight TCP lines on one IK branch)
 - ``timing``: :class:`MotionLimits`, :func:`time_path` (TOPP-RA, controller-rate samples)

@@ -31,11 +31,11 @@ s in [0, 1], a point p of an object carried by joint k moves with speed
 
 where o_j and w_j are a point and the unit direction of joint j's axis and r_j(p) the
 distance of p from that axis. We bound r_j(p) for every configuration by ``R[obj, j]``
-(:func:`_joint_reach`): along the chain p - o_j = t_(j+1) + ... + t_k + (p - o_k), the
+(:func:`.motion_bounds.joint_reach`): along the chain p - o_j = t_(j+1) + ... + t_k + (p - o_k), the
 components across axis j of the fixed link offsets t_m (their x-y part while the axes of
 joints j..m-1 stay parallel to axis j, their whole length after that) plus the largest
 distance of the object from joint k's origin, or from its axis when that is parallel too,
-taken over the object's support points (:func:`_support_points`: a convex part's vertices,
+taken over the object's support points (:func:`.motion_bounds.support_points`: a convex part's vertices,
 capsule ends + radius, box corners, ...), whose hull (plus the pad) contains the object. Hence over any sub-segment [s, s + ds] no point of the object moves
 more than ``ds * sum_j R[obj, j] |q1_j - q0_j|``, and the distance of a pair shrinks by
 at most ``ds * c_pair``, with ``c_pair`` that bound for the moving object against a static
@@ -60,18 +60,25 @@ from __future__ import annotations
 import bisect
 import heapq
 import importlib
-import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.arm_geometry import ArmGeometry, ArmGeometryMissing, ConvexPart, arm_geometry
-from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
+from cellrunner.model.geometry import Placed, Shape
+from cellrunner.planning.coal_shapes import make_coal_shape, world_aabb
+from cellrunner.planning.motion_bounds import (
+    bisection_order,
+    cover_spheres,
+    joint_reach,
+    next_due,
+    polytope_cover_spheres,
+    support_points,
+)
 
 if TYPE_CHECKING:
     import coal
@@ -276,7 +283,7 @@ class CollisionModel:
         cached = self._geometry_cache.get(key)
         if cached is not None and (cached[0] is shape or cached[0] == shape):
             return cached[1], cached[2]
-        geometry, radius = _make_coal_shape(shape)
+        geometry, radius = make_coal_shape(shape)
         self._geometry_cache[key] = (shape, geometry, radius)
         return geometry, radius
 
@@ -443,10 +450,10 @@ class CollisionModel:
             support.append(
                 (obj.part.vertices_m, 0.0)
                 if obj.part is not None
-                else _support_points(obj.geometry, obj.placement)
+                else support_points(obj.geometry, obj.placement)
             )
             if self._is_mover[k]:
-                self._reach[k] = _joint_reach(model, obj.body, *support[k])
+                self._reach[k] = joint_reach(model, obj.body, *support[k])
         # support points of the moving objects, for per-segment radial extents
         movers = np.flatnonzero(self._is_mover)
         self._movers = movers
@@ -470,7 +477,7 @@ class CollisionModel:
                     if obj.group == "fixture"
                     else self.kinematics.T_world_base @ obj.placement
                 )
-                lo, hi = _world_aabb(obj.geometry, T)
+                lo, hi = world_aabb(obj.geometry, T)
                 self._aabb_lo[k], self._aabb_hi[k] = lo, hi
         a, b = self._pairs[:, 0], self._pairs[:, 1]
         a_moves = self._is_mover[a]
@@ -500,9 +507,9 @@ class CollisionModel:
         for row, k in enumerate(self._movers):
             obj = self._objects[k]
             c, r = (
-                _polytope_cover_spheres(obj.part.vertices_m, obj.part.faces)
+                polytope_cover_spheres(obj.part.vertices_m, obj.part.faces)
                 if obj.part is not None
-                else _cover_spheres(obj.geometry, obj.placement)
+                else cover_spheres(obj.geometry, obj.placement)
             )
             centers.append(c)
             radii.append(r)
@@ -784,7 +791,7 @@ class CollisionModel:
             return MotionCheck(True)
         largest = float(np.abs(dq).max())
         if probe:
-            for s in _bisection_order(math.ceil(largest / PROBE_STEP_RAD)):
+            for s in bisection_order(math.ceil(largest / PROBE_STEP_RAD)):
                 if not self.is_valid(q0 + s * dq):
                     return MotionCheck(False, s, self.clearance(q0 + s * dq) if explain else None)
         pieces = max(1, math.ceil(largest / KNOT_STEP_RAD))
@@ -815,7 +822,7 @@ class CollisionModel:
             queries += 1
             if m < STALL_M:
                 return self._blocked(0.0, k, m, queries)
-            horizon = _next_due(cum[k], pending[k], pieces, 0.0, m)
+            horizon = next_due(cum[k], pending[k], pieces, 0.0, m)
             if horizon < 1.0:
                 due.append((horizon, k))
         heapq.heapify(due)
@@ -829,7 +836,7 @@ class CollisionModel:
                 queries += 1
                 if m < STALL_M:
                     return self._blocked(s, k, m, queries)
-                horizon = _next_due(cum[k], pending[k], pieces, s, m)
+                horizon = next_due(cum[k], pending[k], pieces, s, m)
                 if horizon < 1.0:
                     push(due, (horizon, k))
         return MotionCheck(True, distance_queries=queries)
@@ -958,241 +965,3 @@ def _hashable(value: object) -> bool:
     except TypeError:
         return False
     return True
-
-
-def _support_points(
-    geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray
-) -> tuple[np.ndarray, float]:
-    """Points (n x 3, parent frame) and a pad (m) such that the shape lies within ``pad``
-    of their convex hull: capsule and cylinder axis ends + radius, sphere centre + radius,
-    box corners, else the corners of the local AABB. Any convex function of the point
-    (a distance from a point or an axis) is largest over the shape at one of these points,
-    plus the pad."""
-    if isinstance(geometry, (coal.Capsule, coal.Cylinder)):
-        h = float(geometry.halfLength)
-        local, pad = np.array([[0.0, 0.0, -h], [0.0, 0.0, h]]), float(geometry.radius)
-    elif isinstance(geometry, coal.Sphere):
-        local, pad = np.zeros((1, 3)), float(geometry.radius)
-    else:
-        lo, hi = _local_aabb(geometry)
-        local = np.array(
-            [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
-        )
-        pad = 0.0
-    T = np.asarray(T_parent_shape, float)
-    return local @ T[:3, :3].T + T[:3, 3], pad
-
-
-def _local_aabb(geometry: coal.CollisionGeometry) -> tuple[np.ndarray, np.ndarray]:
-    """Corners (lo, hi) of a geometry's box in its own frame."""
-    if isinstance(geometry, coal.Box):
-        hi = np.asarray(geometry.halfSide, float)
-        return -hi, hi
-    geometry.computeLocalAABB()
-    return np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
-
-
-def _cover_spheres(
-    geometry: coal.CollisionGeometry, T_parent_shape: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Spheres (centres n x 3 in the parent frame, radii n) whose union contains the shape:
-    a capsule or cylinder as balls along its axis (spacing at most its radius), anything
-    else as the ball around its local AABB."""
-    T = np.asarray(T_parent_shape, float)
-    if isinstance(geometry, (coal.Capsule, coal.Cylinder)):
-        # balls centred on the axis every `step` (at most the diameter), ends included:
-        # a point at most r from the axis and step / 2 along it from a centre is within
-        # hypot(r, step / 2); a capsule's end caps lie within r of the end centres
-        h, r = float(geometry.halfLength), float(geometry.radius)
-        n = max(1, math.ceil(h / max(r, 1e-3)))
-        step = 2 * h / n
-        z = -h + step * np.arange(n + 1)
-        local = np.column_stack([np.zeros(n + 1), np.zeros(n + 1), z])
-        radius = np.full(n + 1, math.hypot(r, step / 2))
-    elif isinstance(geometry, coal.Sphere):
-        local, radius = np.zeros((1, 3)), np.array([float(geometry.radius)])
-    else:
-        lo, hi = _local_aabb(geometry)
-        local, radius = ((lo + hi) / 2)[None, :], np.array([float(np.linalg.norm(hi - lo)) / 2])
-    return local @ T[:3, :3].T + T[:3, 3], radius
-
-
-def _polytope_cover_spheres(
-    vertices: np.ndarray, faces: np.ndarray, width_m: float = 0.06
-) -> tuple[np.ndarray, np.ndarray]:
-    """Spheres whose union contains the convex polytope (``vertices``, triangle ``faces``):
-    the polytope cut into slabs along its longest axis, each slab's ball around the corners
-    of the polytope's part in it (its vertices there and its edges' crossings of the slab's
-    planes; the part is the hull of those, and a ball is convex)."""
-    v = np.asarray(vertices, float)
-    axis = np.linalg.svd(v - v.mean(axis=0), full_matrices=False)[2][0]
-    s = v @ axis
-    n = max(1, math.ceil((s.max() - s.min()) / width_m))
-    cuts = np.linspace(s.min(), s.max(), n + 1)
-    f = np.asarray(faces, int)
-    edges = np.unique(
-        np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0
-    )
-    a, b = edges[:, 0], edges[:, 1]
-    centres, radii = [], []
-    for lo, hi in itertools.pairwise(cuts):
-        corners = [v[(s >= lo) & (s <= hi)]]
-        for plane in (lo, hi):
-            cross = (s[a] - plane) * (s[b] - plane) < 0
-            t = (plane - s[a][cross]) / (s[b][cross] - s[a][cross])
-            corners.append(v[a][cross] + t[:, None] * (v[b][cross] - v[a][cross]))
-        pts = np.concatenate(corners)
-        if not len(pts):
-            continue
-        centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-        centres.append(centre)
-        radii.append(float(np.linalg.norm(pts - centre, axis=1).max()) + 1e-9)
-    return np.array(centres), np.array(radii)
-
-
-def _joint_reach(model: pin.Model, body: int, points: np.ndarray, pad: float) -> np.ndarray:
-    """R[j] (j = 1..6, as index j - 1): a bound, valid in every configuration, on the
-    distance from joint j's axis of any point of an object carried by joint ``body``
-    (given by its support ``points`` in joint ``body``'s frame and ``pad``).
-
-    The point is o_j + t_(j+1) + ... + t_body + (p - o_body), each offset t_m fixed in
-    joint m-1's frame. Its distance from the axis is at most the sum of the offsets'
-    components across the axis. While the axes of joints j..m-1 are all parallel (as for
-    the UR shoulder, elbow and wrist 1), t_m's component across axis j is exactly its
-    x-y part in joint m-1's frame; past the first axis that is not parallel, the whole
-    length |t_m| counts. Zero for the joints after ``body``."""
-    reach = np.zeros(6)
-    across_pts = float(np.hypot(points[:, 0], points[:, 1]).max()) + pad
-    whole_pts = float(np.linalg.norm(points, axis=1).max()) + pad
-    for j in range(1, body + 1):
-        parallel, total = True, 0.0
-        for m in range(j + 1, body + 1):
-            t = model.jointPlacements[m].translation
-            total += math.hypot(t[0], t[1]) if parallel else float(np.linalg.norm(t))
-            parallel = parallel and abs(model.jointPlacements[m].rotation[2, 2]) > 1.0 - 1e-12
-        reach[j - 1] = total + (across_pts if parallel else whole_pts)
-    return reach
-
-
-def _advance(cum: list[float], pieces: int, s: float, margin: float) -> float:
-    """The fraction s' >= s up to which a pair with ``margin`` (m) at s is proven fine:
-    where the piecewise-linear bound ``cum`` (values at i / pieces) has grown by margin."""
-    x = s * pieces
-    i = min(int(x), pieces - 1)
-    target = cum[i] + (x - i) * (cum[i + 1] - cum[i]) + margin
-    if target >= cum[pieces]:
-        return 1.0
-    j = bisect.bisect_right(cum, target) - 1
-    return (j + (target - cum[j]) / (cum[j + 1] - cum[j])) / pieces
-
-
-def _next_due(
-    cum: list[float], open_parts: list[bool], pieces: int, s: float, margin: float
-) -> float:
-    """Where a pair measured at s with ``margin`` must be measured next: its horizon
-    (:func:`_advance`), or, when that falls in a part already proven by lower bounds, the
-    start of the next part that is not (1.0: none left)."""
-    horizon = _advance(cum, pieces, s, margin)
-    if horizon >= 1.0:
-        return 1.0
-    part = min(int(horizon * pieces), pieces - 1)
-    if open_parts[part]:
-        return horizon
-    for later in range(part + 1, pieces):
-        if open_parts[later]:
-            return later / pieces
-    return 1.0
-
-
-def _bisection_order(n: int) -> list[float]:
-    """Interior fractions k/n, k = 1..n-1, coarse to fine (midpoint first)."""
-    if n < 2:
-        return []
-    order, seen, step = [], set(), n
-    while step > 1:
-        step = max(1, step // 2)
-        for k in range(step, n, step):
-            if k not in seen:
-                seen.add(k)
-                order.append(k / n)
-    return order
-
-
-# -- shapes -------------------------------------------------------------------------------
-
-
-def _make_coal_shape(shape: Shape) -> tuple[coal.CollisionGeometry, float]:
-    """A coal geometry and its bounding-sphere radius about the shape origin (m)."""
-    if isinstance(shape, Box):
-        x, y, z = shape.size_m
-        return coal.Box(x, y, z), 0.5 * math.sqrt(x * x + y * y + z * z)
-    if isinstance(shape, Cylinder):
-        return coal.Cylinder(shape.radius_m, shape.length_m), math.hypot(
-            shape.radius_m, shape.length_m / 2
-        )
-    if isinstance(shape, Sphere):
-        return coal.Sphere(shape.radius_m), shape.radius_m
-    if isinstance(shape, Mesh):
-        vertices, triangles = read_stl(shape.path)
-        vertices = vertices * shape.scale
-        model = coal.BVHModelOBBRSS()
-        model.beginModel(len(triangles), len(vertices))
-        model.addVertices(np.ascontiguousarray(vertices, dtype=float))
-        model.addTriangles(np.ascontiguousarray(triangles, dtype=np.int64))
-        model.endModel()
-        return model, float(np.linalg.norm(vertices, axis=1).max()) if len(vertices) else 0.0
-    raise TypeError(f"unknown shape {shape!r}")
-
-
-def read_stl(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (V x 3, file units) and triangles (T x 3 indices) of a binary or ASCII STL."""
-    raw = Path(path).read_bytes()
-    if len(raw) >= 84:
-        count = int(np.frombuffer(raw, dtype="<u4", count=1, offset=80)[0])
-        if 84 + 50 * count == len(raw):
-            record = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-            corners = np.frombuffer(raw, dtype=record, count=count, offset=84)["v"].reshape(-1, 3)
-            return _dedupe(corners.astype(float))
-    text = raw.decode("ascii", errors="replace")
-    vertex_lines = [
-        [float(v) for v in line.split()[1:4]]
-        for line in text.splitlines()
-        if line.strip().startswith("vertex")
-    ]
-    if not vertex_lines or len(vertex_lines) % 3:
-        raise ValueError(f"{path}: not an STL file (no triangles found)")
-    return _dedupe(np.array(vertex_lines, dtype=float))
-
-
-def _dedupe(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    vertices, inverse = np.unique(corners, axis=0, return_inverse=True)
-    return vertices, inverse.reshape(-1, 3).astype(int)
-
-
-def _segment_frame(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
-    """A frame at the segment's midpoint with its z axis along p0 -> p1."""
-    T = np.eye(4)
-    T[:3, 3] = (p0 + p1) / 2
-    d = p1 - p0
-    n = np.linalg.norm(d)
-    if n > 1e-12:
-        z = d / n
-        helper = np.array([1.0, 0, 0]) if abs(z[0]) < 0.9 else np.array([0, 1.0, 0])
-        x = np.cross(helper, z)
-        x /= np.linalg.norm(x)
-        T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    return T
-
-
-def _world_aabb(
-    geometry: coal.CollisionGeometry, T_world_shape: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Axis-aligned box in the world around ``geometry`` placed at ``T_world_shape``."""
-    geometry.computeLocalAABB()
-    box = geometry.aabb_local
-    lo, hi = np.array(box.min_), np.array(box.max_)
-    corners = np.array(
-        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
-    )
-    world = corners @ T_world_shape[:3, :3].T + T_world_shape[:3, 3]
-    return world.min(axis=0), world.max(axis=0)

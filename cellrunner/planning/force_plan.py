@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cellrunner.model import geometry
+from cellrunner.model.step import StepKind
 from cellrunner.planning.collision import ContactAllowance
 
 if TYPE_CHECKING:
@@ -76,7 +77,7 @@ def describe(
     allowances: tuple[ContactAllowance, ...],
 ) -> str:
     """The row message of a force step: its stop force, the line checked, the contact allowed."""
-    limit = step.args.force if step.kind == "move_until_contact" else step.args.force.max
+    limit = step.args.force if step.kind == StepKind.MOVE_UNTIL_CONTACT else step.args.force.max
     length_mm = float(np.linalg.norm(line_m[1] - line_m[0])) * 1000 if line_m is not None else 0.0
     where = ", ".join(sorted({a.fixture for a in allowances if a.min_clearance_m < 0})) or "none"
     return f"guarded: stops above {limit:g} N; {length_mm:.0f} mm line checked; contact allowed with: {where}"

@@ -30,6 +30,7 @@ from cellrunner.model import geometry
 from cellrunner.model.expand import LINEAR_KINDS, Step
 from cellrunner.model.force_steps import FORCE_KINDS
 from cellrunner.model.geometry import Placed
+from cellrunner.model.step import StepKind
 from cellrunner.model.timing import close_time_s, release_time_s
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory
 from cellrunner.planning.world import CellWorld
@@ -213,7 +214,9 @@ def plan_task(
                 ):
                     flush()
                 group.append(planner.motion(row, then=then))
-                if step.kind in ("descend", "linear", *FORCE_KINDS) or _weighed(rows, i):
+                if step.kind in (StepKind.DESCEND, StepKind.LINEAR, *FORCE_KINDS) or _weighed(
+                    rows, i
+                ):
                     flush()  # ends at rest: something happens at its end (a grip, weighing the part, a contact)
             else:
                 flush()
@@ -252,7 +255,7 @@ class _StepPlanner:
     def limits_for(self, step: Step) -> MotionLimits:
         limits = self.world.limits
         speed = getattr(step.args, "speed", None)
-        if step.kind in ("move", "approach"):
+        if step.kind in (StepKind.MOVE, StepKind.APPROACH):
             return limits.scaled(speed_fraction=speed if speed is not None else 1.0)
         return limits.scaled(tcp_speed_mps=speed)
 
@@ -272,7 +275,7 @@ class _StepPlanner:
 
         step, kin = row.step, self.world.kinematics
         T_now = kin.T_world_tcp(self.q)
-        if step.kind in ("move", "approach"):
+        if step.kind in (StepKind.MOVE, StepKind.APPROACH):
             self.contact = ()  # a joint move leaves a force step's contact behind
             if goal_q is None and step.q_goal_deg is not None:
                 goal_q = np.radians(step.q_goal_deg)
@@ -310,22 +313,22 @@ class _StepPlanner:
     def act(self, row: StepPlan) -> None:
         step = row.step
         gripper = self.world.loaded.cell.tool.gripper
-        if step.kind == "grip":
+        if step.kind == StepKind.GRIP:
             T = self.world.kinematics.T_world_tcp(self.q)
             self.part = self.world.part_at(step.extra.get("part_at", ""), T)
             weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
             close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
             row.duration_s = WRIST_SETTLE_S + close_s + weigh
-        elif step.kind == "release":
+        elif step.kind == StepKind.RELEASE:
             row.duration_s = release_time_s(gripper)
             self.part = None
-        elif step.kind == "wait":
+        elif step.kind == StepKind.WAIT:
             row.duration_s = step.args.seconds
-        elif step.kind == "set_output":
+        elif step.kind == StepKind.SET_OUTPUT:
             row.duration_s = (step.args.pulse or 0.0) + 1.0 / self.world.spec.rate_hz
-        elif step.kind == "wait_input":
+        elif step.kind == StepKind.WAIT_INPUT:
             row.message = f"waits up to {step.args.timeout:g} s for {step.args.input}"
-        elif step.kind in ("tool_unlock", "tool_lock"):
+        elif step.kind in (StepKind.TOOL_UNLOCK, StepKind.TOOL_LOCK):
             self.world = self.world.with_tool(step.extra["tool"], tcp_of=step.extra["tcp_of"])
             row.world = self.world
             row.duration_s = WRIST_SETTLE_S
@@ -346,7 +349,7 @@ class _StepPlanner:
                 collision,
                 T_world_tcp,
                 self.q,
-                getattr(step.args, "distance", None) if step.kind == "approach" else None,
+                getattr(step.args, "distance", None) if step.kind == StepKind.APPROACH else None,
             )
         follow = (
             then.T_world_tcp if then is not None and then.kind in ("descend", "linear") else None
@@ -363,11 +366,11 @@ class _StepPlanner:
         return np.asarray(valid[0])  # the descend that follows will say what is wrong with it
 
     def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
-        if step.kind == "lift":
+        if step.kind == StepKind.LIFT:
             return np.asarray(geometry.pose_matrix((0, 0, step.args.distance)) @ T_now)
-        if step.kind == "retreat":
+        if step.kind == StepKind.RETREAT:
             return np.asarray(T_now @ geometry.pose_matrix((0, 0, -step.args.distance)))
-        if step.kind == "move_until_contact":
+        if step.kind == StepKind.MOVE_UNTIL_CONTACT:
             from cellrunner.planning.force_plan import contact_line_goal
 
             return contact_line_goal(step.args, T_now)
@@ -448,9 +451,9 @@ def _weighed(rows: list[StepPlan], i: int) -> bool:
     after it (execution.job), so the lift ends at rest."""
     step = rows[i].step
     return (
-        step.kind == "lift"
+        step.kind == StepKind.LIFT
         and i > 0
-        and rows[i - 1].step.kind == "grip"
+        and rows[i - 1].step.kind == StepKind.GRIP
         and getattr(rows[i - 1].step.args, "force", None) is not None
     )
 

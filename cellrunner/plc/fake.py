@@ -26,6 +26,7 @@ from cellrunner.plc.port import (
     JobResult,
     JobTicket,
     PackMLState,
+    ResultCode,
     ResultListener,
 )
 
@@ -179,13 +180,17 @@ class FakeCell:
         found = self._find_task(task)
         if found is None:
             known = ", ".join(f"{t.number} {t.name}" for t in self.tasks)
-            return JobTicket("", 10, f"unknown task {task!r}; known: {known}")
+            return JobTicket(
+                "", ResultCode.REJECT_UNKNOWN_TASK, f"unknown task {task!r}; known: {known}"
+            )
         error = _check_params(found, params)
         if error:
-            return JobTicket("", 11, error)
+            return JobTicket("", ResultCode.REJECT_BAD_PARAMS, error)
         with self._lock:
             if not self._is_ready():
-                return JobTicket("", 12, f"not ready: state {self._state.display_name}")
+                return JobTicket(
+                    "", ResultCode.REJECT_NOT_READY, f"not ready: state {self._state.display_name}"
+                )
             full = {p.name: params.get(p.name, p.default) for p in found.params}
             code = self._next_result(found.name, full)
             job = _Job(
@@ -237,7 +242,7 @@ class FakeCell:
     def inject_estop(self) -> None:
         with self._lock:
             self._injected.estop = True
-            self._abort(101)
+            self._abort(ResultCode.ESTOP)
 
     def release_estop(self) -> None:
         with self._lock:
@@ -277,11 +282,13 @@ class FakeCell:
         elif name == "unhold" and st == S.HELD and not self._injected.protective_stop:
             self._enter(S.UNHOLDING, S.EXECUTE)
         elif name == "abort" and st not in (S.ABORTING, S.ABORTED, S.CLEARING):
-            self._abort(106)
+            self._abort(ResultCode.ABORTED_BY_PLC)
         elif name == "clear" and st == S.ABORTED and not self._injected.estop:
             self._enter(S.CLEARING, S.STOPPED)
         elif name == "reset" and st in (S.STOPPED, S.COMPLETE):
             self._enter(S.RESETTING, S.IDLE)
+        elif name == "reset" and st == S.IDLE and self._injected.protective_stop:
+            self._injected.protective_stop = False  # the cell unlocks a stop latched in Idle
         elif name == "stop" and st not in (
             S.STOPPED,
             S.STOPPING,
@@ -309,15 +316,15 @@ class FakeCell:
         code = job.end_code if job.end_code is not None else job.result_code
         if code in COMPLETED_CODES:
             self._processed += 1
-            if code != 0:
+            if code != ResultCode.OK:
                 self._defective += 1
         result = JobResult(
             job_id=job.job_id,
             result_code=code,
-            result_text=_RESULT_TEXT.get(code, f"result {code}"),
+            result_text=_result_text(code),
             cycle_time_s=self.clock() - job.started_s,
             end_time=datetime.now(UTC),
-            retries=1 if code == 1 else 0,
+            retries=1 if code == ResultCode.NO_PART else 0,
             task=job.task.name,
             client_job_id=job.client_job_id,
             source=job.source,
@@ -375,20 +382,11 @@ class FakeCell:
                 listener(result)
 
 
-_RESULT_TEXT = {
-    0: "OK",
-    1: "no part (grip failed after retries)",
-    2: "part lost in transit",
-    3: "place failed",
-    100: "protective stop not recovered",
-    101: "e-stop",
-    102: "robot connection lost",
-    103: "planning failed",
-    104: "limit violation",
-    105: "step timeout",
-    106: "aborted by PLC",
-    107: "interrupted (cellrunner restarted mid-job)",
-}
+def _result_text(code: int) -> str:
+    try:
+        return ResultCode(code).text
+    except ValueError:  # a scripted code the SPEC does not name
+        return f"result {code}"
 
 
 def _check_params(task: FakeTask, params: dict[str, int | float]) -> str:

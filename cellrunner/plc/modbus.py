@@ -264,7 +264,8 @@ class ModbusLink:
         self._drive_reset(self.port.status().state)
 
     def _drive_reset(self, state: int) -> bool:
-        """One step of RESET: Aborted -> Clear, Stopped/Complete -> Reset.
+        """One step of RESET: Aborted -> Clear, Stopped/Complete -> Reset, Idle with a
+        protective stop latched -> Reset (the cell unlocks it).
 
         Waits through transient states (Aborting, Clearing, Stopping...), so a RESET
         pressed right after ABORT still ends in Idle. Returns True if it commanded.
@@ -279,6 +280,9 @@ class ModbusLink:
             return True
         if state in (PackMLState.STOPPED, PackMLState.COMPLETE):
             self._reset_until_s = None
+            return self.port.command("reset")
+        if state == PackMLState.IDLE and self.port.status().protective_stop:
+            self._reset_until_s = None  # a stop latched with no job: Reset unlocks it
             return self.port.command("reset")
         if state not in _TRANSIENT_STATES:
             self._reset_until_s = None

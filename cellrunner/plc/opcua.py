@@ -22,19 +22,29 @@ Bounds, so no client can exhaust the cell: at most :data:`MAX_CONNECTIONS` conne
 to :data:`LOGIN_BURST` at once refilled at :data:`LOGINS_PER_S` (a login beyond that is
 refused at once, without hashing), RegisterServer is refused (the cell is no discovery
 server), and StartJob's strings are bounded (:data:`MAX_TEXT`, reject code 11).
+
+Password checks never run on the event loop: asyncua checks a login synchronously inside
+ActivateSession, so the server first reads the request's user token itself and hashes the
+password on :data:`LOGIN_WORKERS` worker thread(s) (scrypt releases the GIL), with at most
+:data:`MAX_PENDING_LOGINS` checks waiting (more are refused at once); asyncua's check then
+takes that verdict. The variables keep refreshing and other clients keep being answered
+while a flood of logins is hashed.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import contextvars
 import json
 import logging
 import math
+import os
 import threading
 import time
 from collections import OrderedDict
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -141,6 +151,13 @@ MAX_CONNECTIONS = 32
 LOGIN_GRACE_S = 30.0
 #: password checks allowed back to back, and their refill rate (per s)
 LOGIN_BURST, LOGINS_PER_S = 10, 5.0
+#: threads that hash passwords (one core at most, whatever the flood)
+LOGIN_WORKERS = 1
+#: password checks running or waiting for a worker; a login beyond that is refused at once
+MAX_PENDING_LOGINS = 4
+#: nice value of the hashing thread: below the PLC threads and the control loop, so a
+#: flood's hashing only takes what the cores have left
+LOGIN_WORKER_NICE = 10
 #: the longest TaskName, ClientJobId and Parameters text StartJob accepts (characters)
 MAX_TEXT = {"TaskName": 64, "ClientJobId": 128, "Parameters": 1024}
 #: how deep a Parameters JSON value may nest (a flat object of numbers is 1)
@@ -263,6 +280,13 @@ class LoginBudget:
             return True
 
 
+#: the verdict of the password check made off the event loop for the ActivateSession being
+#: processed: (username, password, accepted)
+_VERDICT: contextvars.ContextVar[tuple[str, str, bool] | None] = contextvars.ContextVar(
+    "cellrunner_opcua_login_verdict", default=None
+)
+
+
 class HashedUserManager:
     """asyncua user manager: username/password against the users file, nothing else.
 
@@ -270,17 +294,30 @@ class HashedUserManager:
     (when the channel is secured) must be in the trust list; with no secured channel
     the login is refused unless ``allow_insecure`` (the cell file says ``none``).
     The users file is re-read when it changes, so ``users add`` works while serving.
+
+    In the server, :meth:`check_password` hashes on a worker before asyncua calls
+    :meth:`get_user`, which then only reads that verdict (see the module docstring);
+    called on its own, :meth:`get_user` hashes in place.
     """
 
     def __init__(
-        self, users_file: Path, pki: Any, allow_insecure: bool, budget: LoginBudget | None = None
+        self,
+        users_file: Path,
+        pki: Any,
+        allow_insecure: bool,
+        budget: LoginBudget | None = None,
+        *,
+        max_pending: int = MAX_PENDING_LOGINS,
     ) -> None:
         self.users_file = users_file
         self.pki = pki
         self.allow_insecure = allow_insecure
         self.budget = budget or LoginBudget()
+        self.max_pending = max_pending
         self._users: dict[str, str] = {}
         self._stamp: tuple[float, int] | None = None
+        self._workers: ThreadPoolExecutor | None = None
+        self._pending = 0  # touched on the event loop only
 
     def load(self) -> None:
         from cellrunner.plc.users import load_users
@@ -306,31 +343,78 @@ class HashedUserManager:
         certificate: Any = None,
     ) -> Any:
         from asyncua.crypto.permission_rules import User, UserRole
-        from cryptography import x509
-
-        from cellrunner.plc.users import verify_password
 
         if username is None or password is None:
             return None  # anonymous or certificate identity: refused
-        if not certificate:  # no secured channel (None policy): b"" or None
-            if not self.allow_insecure:
-                return None
-        else:
-            try:
-                cert = x509.load_der_x509_certificate(bytes(certificate))
-            except ValueError:
-                return None
-            if not self.pki.is_trusted(cert):
-                self.pki.reject(cert)
-                return None
-        if not self.budget.take():  # a login flood: refuse without spending a hash on it
-            _log.warning("OPC UA login refused for user %r: too many logins at once", username)
+        if not self._channel_trusted(certificate):
             return None
-        stored = self._current_users().get(username)
-        if not verify_password(stored, password):
-            _log.warning("OPC UA login refused for user %r", username)
-            return None
-        return User(role=UserRole.User, name=username)
+        verdict = _VERDICT.get()
+        if verdict is not None and verdict[:2] == (username, password):
+            accepted = verdict[2]
+        elif iserver is not None:  # in the server, unchecked: never hash on the event loop
+            accepted = False
+        else:  # called on its own: hash here
+            accepted = self._within_budget(username) and self._verify(username, password)
+        return User(role=UserRole.User, name=username) if accepted else None
+
+    async def check_password(self, username: str, password: str, certificate: Any) -> bool:
+        """On the event loop: the login's verdict, hashed on a worker thread. Refused at once
+        (no hash) for an untrusted channel, beyond the budget, or with
+        ``max_pending`` checks already running or waiting."""
+        if not self._channel_trusted(certificate):
+            return False
+        if self._pending >= self.max_pending:
+            _log.warning("OPC UA login refused for user %r: too many logins waiting", username)
+            return False
+        if not self._within_budget(username):
+            return False
+        if self._workers is None:
+            self._workers = ThreadPoolExecutor(
+                LOGIN_WORKERS, thread_name_prefix="opcua-login", initializer=_lower_priority
+            )
+        self._pending += 1
+        try:
+            work = self._workers.submit(self._verify, username, password)
+            return await asyncio.wrap_future(work)
+        finally:
+            self._pending -= 1
+
+    def close(self) -> None:
+        """Stop the worker (checks under way finish; none waits for them)."""
+        if self._workers is not None:
+            self._workers.shutdown(wait=False, cancel_futures=True)
+            self._workers = None
+
+    def _channel_trusted(self, certificate: Any) -> bool:
+        """A secured channel's client certificate is trusted; no secured channel (None
+        policy: b"" or None) only when the cell file allows it."""
+        from cryptography import x509
+
+        if not certificate:
+            return self.allow_insecure
+        try:
+            cert = x509.load_der_x509_certificate(bytes(certificate))
+        except ValueError:
+            return False
+        if not self.pki.is_trusted(cert):
+            self.pki.reject(cert)
+            return False
+        return True
+
+    def _within_budget(self, username: str) -> bool:
+        if self.budget.take():
+            return True
+        # a login flood: refused without spending a hash on it
+        _log.warning("OPC UA login refused for user %r: too many logins at once", username)
+        return False
+
+    def _verify(self, username: str, password: str) -> bool:
+        from cellrunner.plc.users import verify_password
+
+        if verify_password(self._current_users().get(username), password):
+            return True
+        _log.warning("OPC UA login refused for user %r", username)
+        return False
 
 
 class OpcUaServer:
@@ -426,6 +510,7 @@ class OpcUaServer:
             self._refresh_task = None
         if self._server is not None:
             await self._server.stop()
+            self._server.iserver.user_manager.close()
             self._server = None
 
     # -- address space ---------------------------------------------------------------------
@@ -536,10 +621,10 @@ class OpcUaServer:
         if not ticket.accepted:
             return "", ticket.reject_code or int(ResultCode.REJECT_NOT_READY)
         if client_job_id:
-            self._client_jobs[client_job_id] = (ticket.job_id, 0)
+            self._client_jobs[client_job_id] = (ticket.job_id, int(ResultCode.OK))
             while len(self._client_jobs) > MAX_REMEMBERED_CLIENT_JOBS:
                 self._client_jobs.popitem(last=False)
-        return ticket.job_id, 0
+        return ticket.job_id, int(ResultCode.OK)
 
     def _command_method(self, command: str) -> Callable[..., Any]:
         async def call(parent: Any, *args: Any) -> Any:
@@ -615,7 +700,7 @@ class OpcUaServer:
         gen.event.ResultCode = result.result_code
         gen.event.ResultText = result.result_text
         gen.event.ClientJobId = result.client_job_id
-        gen.event.Severity = 100 if result.result_code == 0 else 500
+        gen.event.Severity = 100 if result.result_code == ResultCode.OK else 500
         await gen.trigger(message=f"job {result.job_id} ended with {result.result_code}")
         # the same event (same EventId) for clients subscribed on the Server object
         cell_node = gen.event.emitting_node
@@ -641,6 +726,70 @@ def _bound(iserver: Any) -> None:
         raise ServiceError(ua.status_codes.StatusCodes.BadServiceUnsupported)
 
     iserver.register_server = refuse_registration
+    _check_logins_off_the_loop()
+
+
+def _lower_priority() -> None:
+    """Run the calling thread at :data:`LOGIN_WORKER_NICE` (it inherited the PLC thread's
+    raised priority); lowering a priority is always allowed."""
+    with contextlib.suppress(AttributeError, OSError):
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), LOGIN_WORKER_NICE)
+
+
+def _check_logins_off_the_loop() -> None:
+    """Make asyncua's ActivateSession await the password check of a
+    :class:`HashedUserManager` (hashed on its worker) before it runs, instead of hashing
+    inside its synchronous user check on the event loop. Installed once per process;
+    servers with another user manager are left as they are."""
+    from asyncua import ua
+    from asyncua.server.uaprocessor import UaProcessor
+
+    if getattr(UaProcessor, "_cellrunner_logins", False):
+        return
+    activate = _node_id(ua.object_ids.ObjectIds.ActivateSessionRequest_Encoding_DefaultBinary)
+    process: Any = UaProcessor._process_message
+
+    async def process_message(
+        self: Any, typeid: Any, requesthdr: Any, seqhdr: Any, body: Any
+    ) -> Any:
+        manager = self.iserver.user_manager
+        if typeid != activate or not isinstance(manager, HashedUserManager):
+            return await process(self, typeid, requesthdr, seqhdr, body)
+        verdict = await _login_verdict(self, manager, requesthdr, body.copy())
+        token = _VERDICT.set(verdict)
+        try:
+            return await process(self, typeid, requesthdr, seqhdr, body)
+        finally:
+            _VERDICT.reset(token)
+
+    setattr(UaProcessor, "_process_message", process_message)  # noqa: B010 - patched
+    setattr(UaProcessor, "_cellrunner_logins", True)  # noqa: B010 - installed once
+
+
+async def _login_verdict(
+    processor: Any, manager: HashedUserManager, requesthdr: Any, body: Any
+) -> tuple[str, str, bool] | None:
+    """(username, password, accepted) of an ActivateSession's user token, or None when it
+    carries none asyncua would pass to the user manager (asyncua then refuses it itself)."""
+    from asyncua import ua
+    from asyncua.ua.ua_binary import struct_from_binary
+
+    try:
+        params = struct_from_binary(ua.ActivateSessionParameters, body)
+        token = params.UserIdentityToken
+        # a session activated again on a new channel is found as asyncua finds it
+        session = processor.session or processor.iserver.lookup_external_session(
+            requesthdr.AuthenticationToken
+        )
+        if session is None or not isinstance(token, ua.UserNameIdentityToken):
+            return None
+        username, password = processor.iserver.decrypt_user_token(session, token)
+    except Exception:  # a malformed token: asyncua's own handling answers it
+        return None
+    if username is None or password is None:
+        return None
+    certificate = processor._connection.security_policy.peer_certificate
+    return username, password, await manager.check_password(username, password, certificate)
 
 
 def _last_job_values(result: JobResult) -> dict[str, Any]:

@@ -71,7 +71,7 @@ class _ServerThread:
     def stop(self, timeout_s: float = 10.0) -> None:
         loop, stopped = self._loop, self._stopped
         if loop is not None and stopped is not None and not loop.is_closed():
-            with contextlib.suppress(RuntimeError):
+            with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
                 loop.call_soon_threadsafe(stopped.set)
         self.join(timeout_s)
 
@@ -81,7 +81,7 @@ class _ServerThread:
             self._thread = None
 
     def _run(self, started: Future[None]) -> None:
-        _raise_thread_priority()
+        raise_thread_priority()
         try:
             asyncio.run(self._serve(started))
         except BaseException as exc:  # reported through the future
@@ -215,9 +215,10 @@ def _translate(exc: BaseException) -> BaseException:
 PLC_THREAD_NICE = -10
 
 
-def _raise_thread_priority() -> bool:
-    """Run the calling (PLC server) thread at :data:`PLC_THREAD_NICE`; False where the OS
-    does not allow it (no CAP_SYS_NICE, not Linux), which leaves the default priority."""
+def raise_thread_priority() -> bool:
+    """Run the calling thread at :data:`PLC_THREAD_NICE`; False where the OS does not allow
+    it (no CAP_SYS_NICE, not Linux), which leaves the default priority. Threads it starts
+    afterwards inherit the priority (Linux)."""
     try:
         os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), PLC_THREAD_NICE)
         return True

@@ -81,7 +81,7 @@ def shape_points_world(placed: Placed) -> np.ndarray:
             ]
         )
     else:
-        from cellrunner.planning.collision import read_stl
+        from cellrunner.planning.stl import read_stl
 
         vertices, _ = read_stl(shape.path)
         local = np.asarray(vertices, float).reshape(-1, 3) * getattr(shape, "scale", 1.0)

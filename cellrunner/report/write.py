@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cellrunner.model.step import StepKind
 from cellrunner.report import plots
 from cellrunner.report.recorder import RunRecorder
 from cellrunner.report.slots import SlotCycle, slot_cycles
@@ -127,7 +128,9 @@ def _step_points(a: dict[str, np.ndarray], marks: list[Mark]) -> list[tuple[str,
 
 def _force_window(task: LoadedTask) -> tuple[float | None, float | None] | None:
     for spec in task.steps:
-        grip = getattr(spec.args, "grip", None) or (spec.args if spec.kind == "grip" else None)
+        grip = getattr(spec.args, StepKind.GRIP, None) or (
+            spec.args if spec.kind == StepKind.GRIP else None
+        )
         force = getattr(grip, "force", None)
         if force is not None:
             return getattr(force, "min", None), getattr(force, "max", None)

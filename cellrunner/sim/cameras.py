@@ -107,7 +107,8 @@ def _png(grey: np.ndarray) -> bytes:
 def add_cameras(builder: Any, cameras: tuple[CameraDescription, ...]) -> None:
     """Add each camera, and each board as a textured slab, to the MJCF being built
     (world mounts in the worldbody, flange mounts in the ``tool`` body)."""
-    from cellrunner.sim.mjcf import _fmt, _pose_attrs
+    from cellrunner.sim.mjcf_attrs import fmt as _fmt
+    from cellrunner.sim.mjcf_attrs import pose_attrs as _pose_attrs
 
     root = builder.root
     world = root.find("worldbody")

@@ -10,6 +10,7 @@ from cellrunner.model.cell import Gripper
 from cellrunner.model.expand import frame_pose
 from cellrunner.model.gripper import gripper_channels, part_center_depth_m
 from cellrunner.model.load import LoadedCell, LoadedTask
+from cellrunner.model.step import StepKind
 
 if TYPE_CHECKING:
     from cellrunner.sim.description import TwinDescription
@@ -157,9 +158,9 @@ def _picking_grippers(loaded: LoadedCell, tasks: tuple[LoadedTask, ...]) -> Pick
             continue
         tool = c.robot.tool
         for step in steps:
-            if step.kind == "tool_lock":
+            if step.kind == StepKind.TOOL_LOCK:
                 tool = step.extra["tool"]
-            elif step.kind == "grip" and isinstance(step.extra.get("part_at"), str):
+            elif step.kind == StepKind.GRIP and isinstance(step.extra.get("part_at"), str):
                 picks.setdefault(step.extra["part_at"], c.tools[tool].gripper if tool else None)
     return picks
 

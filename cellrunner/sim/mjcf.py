@@ -34,7 +34,7 @@ import struct
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypedDict
+from typing import Any
 
 import numpy as np
 
@@ -42,7 +42,19 @@ from cellrunner.model.arm_geometry import arm_geometry
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.sim.description import TwinDescription
+from cellrunner.sim.mjcf_attrs import (
+    PADS,
+    PARTS,
+    ROBOT,
+    STATIC,
+    TOOL,
+    ShapeAttrs,
+    fmt,
+    pose_attrs,
+)
 from cellrunner.sim.mujoco_loader import load_mujoco
+from cellrunner.sim.tool_changer import add_tools
+from cellrunner.sim.vacuum import add_cups, add_welds
 
 # Arm masses (kg) and joint torque limits (N m, base..wrist 3), datasheets / UR manuals.
 ARM_MASS_KG = {
@@ -84,8 +96,6 @@ JOINT_TORQUE_MAX_NM = {
 }
 # Reflected rotor inertia of the harmonic drives (kg m^2), scaled by arm size.
 _ARMATURE_UR5 = (0.6, 0.6, 0.3, 0.06, 0.06, 0.06)
-
-STATIC, ROBOT, PADS, PARTS, TOOL = 1, 2, 4, 8, 16
 
 
 @dataclass(frozen=True)
@@ -154,27 +164,6 @@ def tune_servo_gains(model: Any, desc: TwinDescription, options: PhysicsOptions)
         model.actuator_biasprm[act, 2] = -kv
 
 
-def quat_of(R: np.ndarray) -> tuple[float, float, float, float]:
-    """Unit quaternion (w, x, y, z) of a rotation matrix."""
-    m = np.asarray(R, dtype=float)
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    if tr > 0:
-        s = 2.0 * math.sqrt(tr + 1.0)
-        q = (0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s)
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        q = ((m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s)
-    elif m[1, 1] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        q = ((m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s)
-    else:
-        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        q = ((m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s)
-    n = math.sqrt(sum(v * v for v in q))
-    a, b, c, d = (v / n for v in q)
-    return (a, b, c, d)
-
-
 def binary_stl(path: Path) -> bytes:
     """The bytes of STL file ``path`` in binary form (MuJoCo reads only binary STL).
 
@@ -223,29 +212,6 @@ def _flat_mesh_box(mesh: Mesh) -> tuple[np.ndarray, np.ndarray] | None:
     if size.min() >= FLAT_MESH_M:
         return None
     return (lo + hi) / 2, np.maximum(size, FLAT_MESH_M)
-
-
-def _fmt(values: Any) -> str:
-    return " ".join(f"{float(v):.9g}" for v in np.ravel(values))
-
-
-class PoseAttrs(TypedDict):
-    """An MJCF element's pose attributes."""
-
-    pos: str
-    quat: str
-
-
-class ShapeAttrs(TypedDict, total=False):
-    """An MJCF geom's shape attributes."""
-
-    type: str
-    size: str
-    mesh: str
-
-
-def _pose_attrs(T: np.ndarray) -> PoseAttrs:
-    return {"pos": _fmt(T[:3, 3]), "quat": _fmt(quat_of(T[:3, :3]))}
 
 
 class _Builder:
@@ -329,8 +295,6 @@ class _Builder:
         for part in d.parts:
             self._part(world, part)
         if d.vacuum is not None and d.parts:
-            from cellrunner.sim.vacuum import add_welds
-
             add_welds(self.root, d.parts)
         if d.cameras:
             from cellrunner.sim.cameras import add_cameras
@@ -380,18 +344,18 @@ class _Builder:
             assert self.assets is not None
             self.mesh_files[f"{name}.stl"] = binary_stl(mesh.path)
             ET.SubElement(
-                self.assets, "mesh", name=name, file=f"{name}.stl", scale=_fmt([mesh.scale] * 3)
+                self.assets, "mesh", name=name, file=f"{name}.stl", scale=fmt([mesh.scale] * 3)
             )
             self._meshes[key] = name
         return self._meshes[key]
 
     def _shape_attrs(self, shape: Shape) -> ShapeAttrs:
         if isinstance(shape, Box):
-            return {"type": "box", "size": _fmt(np.asarray(shape.size_m) / 2)}
+            return {"type": "box", "size": fmt(np.asarray(shape.size_m) / 2)}
         if isinstance(shape, Cylinder):
-            return {"type": "cylinder", "size": _fmt([shape.radius_m, shape.length_m / 2])}
+            return {"type": "cylinder", "size": fmt([shape.radius_m, shape.length_m / 2])}
         if isinstance(shape, Sphere):
-            return {"type": "sphere", "size": _fmt([shape.radius_m])}
+            return {"type": "sphere", "size": fmt([shape.radius_m])}
         if isinstance(shape, Mesh):
             return {"type": "mesh", "mesh": self._mesh_asset(shape)}
         raise TypeError(f"unsupported shape {type(shape).__name__}")
@@ -415,7 +379,7 @@ class _Builder:
             contype=str(STATIC),
             conaffinity=str(ROBOT | PADS | PARTS),
             **self._shape_attrs(shape),
-            **_pose_attrs(T),
+            **pose_attrs(T),
         )
 
     def _mesh_pieces(self, parent: ET.Element, placed: Placed) -> bool:
@@ -431,7 +395,7 @@ class _Builder:
         assert self.assets is not None
         for k, vertices in enumerate(mesh_pieces.prisms(triangles)):
             name = f"{placed.name}_piece{k}"
-            ET.SubElement(self.assets, "mesh", name=name, vertex=_fmt(vertices))
+            ET.SubElement(self.assets, "mesh", name=name, vertex=fmt(vertices))
             ET.SubElement(
                 parent,
                 "geom",
@@ -441,7 +405,7 @@ class _Builder:
                 mesh=name,
                 contype=str(STATIC),
                 conaffinity=str(ROBOT | PADS | PARTS),
-                **_pose_attrs(placed.T_parent_shape),
+                **pose_attrs(placed.T_parent_shape),
             )
         return True
 
@@ -453,7 +417,7 @@ class _Builder:
         density = ARM_MASS_KG.get(spec.name, 20.0) / volume
         scale = (spec.reach_m / 0.85) ** 2
         torque = JOINT_TORQUE_MAX_NM.get(spec.name, _TORQUE_MEDIUM)
-        body = ET.SubElement(world, "body", name="base", **_pose_attrs(d.T_world_base))
+        body = ET.SubElement(world, "body", name="base", **pose_attrs(d.T_world_base))
         parent = body
         for i in range(7):
             if i > 0:
@@ -462,9 +426,7 @@ class _Builder:
                     T[:3, 3] = (spec.a_m[i - 2], 0.0, spec.d_m[i - 2])
                     ca, sa = math.cos(spec.alpha_rad[i - 2]), math.sin(spec.alpha_rad[i - 2])
                     T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
-                body = ET.SubElement(
-                    parent, "body", name=f"link{i}", gravcomp="1", **_pose_attrs(T)
-                )
+                body = ET.SubElement(parent, "body", name=f"link{i}", gravcomp="1", **pose_attrs(T))
                 ET.SubElement(
                     body,
                     "joint",
@@ -473,14 +435,14 @@ class _Builder:
                     axis="0 0 1",
                     armature=f"{_ARMATURE_UR5[i - 1] * scale:.6g}",
                     damping="0.5",
-                    range=_fmt(np.radians([spec.joint_min_deg[i - 1], spec.joint_max_deg[i - 1]])),
-                    actuatorfrcrange=_fmt([-torque[i - 1], torque[i - 1]]),
+                    range=fmt(np.radians([spec.joint_min_deg[i - 1], spec.joint_max_deg[i - 1]])),
+                    actuatorfrcrange=fmt([-torque[i - 1], torque[i - 1]]),
                 )
             assert self.assets is not None
             for k, part in enumerate(x for x in parts if x.body == i):
                 bits = (0, 0) if i == 0 else (ROBOT, STATIC | PARTS)
                 name = f"arm{i}_{k}"
-                ET.SubElement(self.assets, "mesh", name=name, vertex=_fmt(part.vertices_m.ravel()))
+                ET.SubElement(self.assets, "mesh", name=name, vertex=fmt(part.vertices_m.ravel()))
                 ET.SubElement(
                     body,
                     "geom",
@@ -497,7 +459,7 @@ class _Builder:
         flange_T[:3, 3] = (spec.a_m[5], 0.0, spec.d_m[5])
         ca, sa = math.cos(spec.alpha_rad[5]), math.sin(spec.alpha_rad[5])
         flange_T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
-        flange = ET.SubElement(parent, "body", name="flange", gravcomp="1", **_pose_attrs(flange_T))
+        flange = ET.SubElement(parent, "body", name="flange", gravcomp="1", **pose_attrs(flange_T))
         ET.SubElement(flange, "inertial", pos="0 0 0", mass="1e-3", diaginertia="1e-7 1e-7 1e-7")
         self._tool(flange)
 
@@ -511,13 +473,13 @@ class _Builder:
         ET.SubElement(
             tool,
             "inertial",
-            pos=_fmt(d.payload_cog_m),
+            pos=fmt(d.payload_cog_m),
             mass=f"{tool_kg:.6g}",
-            diaginertia=_fmt([0.4 * tool_kg * r * r] * 3),
+            diaginertia=fmt([0.4 * tool_kg * r * r] * 3),
         )
         ET.SubElement(tool, "site", name="ft", pos="0 0 0", size="0.01", rgba="0 0 0 0")
         ET.SubElement(
-            tool, "site", name="tcp", size="0.006", rgba="1 0 0 0.6", **_pose_attrs(d.T_flange_tcp)
+            tool, "site", name="tcp", size="0.006", rgba="1 0 0 0.6", **pose_attrs(d.T_flange_tcp)
         )
         for k, placed in enumerate(d.tool_geometry):
             ET.SubElement(
@@ -529,18 +491,14 @@ class _Builder:
                 contype=str(TOOL),
                 conaffinity=str(STATIC),
                 **self._shape_attrs(placed.shape),
-                **_pose_attrs(placed.T_parent_shape),
+                **pose_attrs(placed.T_parent_shape),
             )
         if g is not None:
             self._gripper(tool, g)
         if d.vacuum is not None:
-            from cellrunner.sim.vacuum import add_cups
-
             T = d.vacuum.T_flange_tcp if d.vacuum.T_flange_tcp is not None else d.T_flange_tcp
             add_cups(self, tool, d.vacuum, T, PADS, STATIC | PARTS)
         if d.tool_changer is not None:
-            from cellrunner.sim.tool_changer import add_tools
-
             worldbody = self.root.find("worldbody")
             assert worldbody is not None  # built before the tool
             add_tools(self, tool, worldbody, d.tool_changer, TOOL, STATIC)
@@ -552,15 +510,15 @@ class _Builder:
         half_stroke = g.stroke_m / 2
         # Visual rail across the fingers' tops, fixed to the tool at the TCP frame.
         T_flange_jaws = g.T_flange_tcp if g.T_flange_tcp is not None else d.T_flange_tcp
-        rail = ET.SubElement(tool, "body", name="gripper", **_pose_attrs(T_flange_jaws))
+        rail = ET.SubElement(tool, "body", name="gripper", **pose_attrs(T_flange_jaws))
         ET.SubElement(
             rail,
             "geom",
             name="gripper:rail",
             type="box",
             material="tool",
-            pos=_fmt([0, 0, z0 - 0.02]),
-            size=_fmt([half_stroke + t + 0.01, w / 2 + 0.004, 0.008]),
+            pos=fmt([0, 0, z0 - 0.02]),
+            size=fmt([half_stroke + t + 0.01, w / 2 + 0.004, 0.008]),
             contype="0",
             conaffinity="0",
             density="0",
@@ -574,8 +532,8 @@ class _Builder:
                 "joint",
                 name=jaw,
                 type="slide",
-                axis=_fmt([-sign, 0, 0]),
-                range=_fmt([0.0, half_stroke]),
+                axis=fmt([-sign, 0, 0]),
+                range=fmt([0.0, half_stroke]),
                 armature="0.2",
                 solreflimit="0.004 1",
                 solimplimit="0.99 0.999 0.001",
@@ -588,8 +546,8 @@ class _Builder:
                 name=f"pad:{jaw}",
                 type="box",
                 material="pad",
-                pos=_fmt([x, 0, (z0 + z1) / 2]),
-                size=_fmt([t / 2, w / 2, (z1 - z0) / 2]),
+                pos=fmt([x, 0, (z0 + z1) / 2]),
+                size=fmt([t / 2, w / 2, (z1 - z0) / 2]),
                 friction=f"{g.friction:g} 0.01 0.0001",
                 condim="4",
                 solref=self.grasp_solref,
@@ -603,8 +561,8 @@ class _Builder:
                 name=f"stem:{jaw}",
                 type="box",
                 material="tool",
-                pos=_fmt([x, 0, z0 - 0.012]),
-                size=_fmt([t / 2, w / 2, 0.012]),
+                pos=fmt([x, 0, z0 - 0.012]),
+                size=fmt([t / 2, w / 2, 0.012]),
                 contype="0",
                 conaffinity="0",
                 density="0",
@@ -624,7 +582,7 @@ class _Builder:
 
     def _part(self, world: ET.Element, part: Any) -> None:
         body = ET.SubElement(
-            world, "body", name=f"part:{part.name}", **_pose_attrs(part.T_world_part)
+            world, "body", name=f"part:{part.name}", **pose_attrs(part.T_world_part)
         )
         ET.SubElement(body, "freejoint", name=f"part:{part.name}")
         ET.SubElement(
@@ -658,7 +616,7 @@ class _Builder:
                     name=f"drive:{jaw}",
                     joint=jaw,
                     gear="1",
-                    ctrlrange=_fmt([-g.grip_force_N, g.grip_force_N]),
+                    ctrlrange=fmt([-g.grip_force_N, g.grip_force_N]),
                 )
         sensors = ET.SubElement(self.root, "sensor")
         ET.SubElement(sensors, "force", name="ft_force", site="ft")

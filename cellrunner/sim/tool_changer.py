@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cellrunner.sim.mjcf_attrs import PADS, PARTS, STATIC, TOOL, pose_attrs, quat_of
 from cellrunner.sim.wrist import GRAVITY_MPS2
 
 if TYPE_CHECKING:
@@ -65,7 +66,6 @@ def add_tools(
 ) -> None:
     """Each tool's shapes on the tool body (only the mounted one collides and shows) and,
     drawn only, in its rack place (MJCF)."""
-    from cellrunner.sim.mjcf import _pose_attrs
 
     for tool in changer.tools:
         mounted = tool.name == changer.mounted
@@ -81,7 +81,7 @@ def add_tools(
                 conaffinity=str(static_kind if mounted else 0),
                 rgba="0.25 0.25 0.28 1" if mounted else "0.25 0.25 0.28 0",
                 **builder._shape_attrs(placed.shape),
-                **_pose_attrs(placed.T_parent_shape),
+                **pose_attrs(placed.T_parent_shape),
             )
             ET.SubElement(
                 world_body,
@@ -93,7 +93,7 @@ def add_tools(
                 group="1",
                 rgba="0.25 0.25 0.28 0" if mounted else "0.25 0.25 0.28 1",
                 **builder._shape_attrs(placed.shape),
-                **_pose_attrs(T_world_flange @ placed.T_parent_shape),
+                **pose_attrs(T_world_flange @ placed.T_parent_shape),
             )
 
 
@@ -112,7 +112,6 @@ class ToolChanger:
             t.name: [m.geom(f"rack@{t.name}:{k}").id for k in range(len(t.geometry))]
             for t in desc.tools
         }
-        from cellrunner.sim.mjcf import PADS, PARTS, STATIC, TOOL
 
         self.tool_kind = (TOOL, STATIC)
         self.pad_kind = (PADS, STATIC | PARTS)
@@ -155,8 +154,6 @@ class ToolChanger:
         """The twin's pair of jaws becomes this tool's: its IO, stroke and place at its TCP."""
         import dataclasses
 
-        from cellrunner.sim.mjcf import quat_of
-
         w = self.world
         m = w.model
         g = tool.jaws
@@ -183,7 +180,6 @@ class ToolChanger:
         self.mounted = None
 
     def _mount(self, name: str) -> None:
-        from cellrunner.sim.mjcf import quat_of
 
         tool = self.tools[name]
         w = self.world

@@ -32,6 +32,7 @@ import numpy as np
 from cellrunner.model.gripper import (
     CUP_LENGTH_M,
 )  # a cup's body above its face, as planning checks it
+from cellrunner.sim.mjcf_attrs import PADS, pose_attrs
 
 #: a cup seals on a face this close (m) ...
 SEAL_GAP_M = 0.002
@@ -74,7 +75,6 @@ def add_cups(
 ) -> None:
     """The cups as geoms of the tool body (MJCF)."""
     from cellrunner.model import geometry
-    from cellrunner.sim.mjcf import _pose_attrs
 
     for i, ((x, y, z), r) in enumerate(vac.cups):
         T = T_flange_tcp @ geometry.pose_matrix((x, y, z - CUP_LENGTH_M / 2))
@@ -91,7 +91,7 @@ def add_cups(
             solref=CUP_SOLREF,
             contype=str(pads_kind),
             conaffinity=str(hits),
-            **_pose_attrs(T),
+            **pose_attrs(T),
         )
 
 
@@ -190,7 +190,6 @@ class VacuumCups:
     # -- helpers ------------------------------------------------------------------------
     def _in_air(self, part: str) -> bool:
         """Held by the cups alone, clear of fixtures and the floor."""
-        from cellrunner.sim.mjcf import PADS
 
         w = self.world
         return all(
@@ -248,8 +247,32 @@ class VacuumCups:
         for name in list(self.held):
             self._drop(name)
 
+    def _cups_push(self, name: str) -> np.ndarray:
+        """World force (N) of the cups' contacts on part ``name``."""
+        w = self.world
+        m, d = w.model, w.data
+        geom = w.ids.part_geom[name]
+        total = np.zeros(3)
+        wrench = np.zeros(6)
+        for k in range(d.ncon):
+            c = d.contact[k]
+            g1, g2 = int(c.geom1), int(c.geom2)
+            if geom not in (g1, g2) or (g1 if g2 == geom else g2) not in self.cup_geoms:
+                continue
+            self._mj.mj_contactForce(m, d, k, wrench)
+            # the frame's first row is the normal, from geom1 to geom2: the force on geom2
+            f = np.asarray(c.frame).reshape(3, 3).T @ wrench[:3]
+            total += f if g2 == geom else -f
+        return total
+
     def _pull_N(self, name: str) -> float:
-        """The filtered pull on the part's seal: along the cup axis plus shear over friction."""
+        """The filtered pull on the part's seal: along the cup axis plus shear over friction.
+
+        The seal carries the net force of the tool on the part: the weld's plus the cups'
+        contacts. A jolt that presses the part into the cups' lips is resisted by the weld,
+        and that fight is internal (the lips squeezed, the seal not pulled): the weld's
+        force alone read it as a pull of up to ~190 N at a UR10e set-down and tore a
+        0.5 kg box off."""
         w = self.world
         d = w.data
         eq = self.weld[name]
@@ -259,7 +282,7 @@ class VacuumCups:
         )
         if len(rows) < 3:
             return self._pull_lp.get(name, 0.0)
-        f_on_part = -np.asarray(d.efc_force[rows[:3]])
+        f_on_part = -np.asarray(d.efc_force[rows[:3]]) + self._cups_push(name)
         axis = d.site_xmat[w.ids.tcp_site].reshape(3, 3)[:, 2]  # out of the cups, into the part
         pull = float(np.dot(f_on_part, -axis))  # towards the cups: what the seal must hold
         shear = float(np.linalg.norm(f_on_part + pull * axis))

@@ -6,90 +6,32 @@ channel."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 import time
-from contextlib import contextmanager
 
 from tests.cells.test_reference_cells import PALLETIZER, PEG
 from tests.conftest import ROOT
-
-ENV = {**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"}
-
-
-@contextmanager
-def twin(cell: str, host: str):
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "cellrunner.cli.main", "twin", cell, "--host", host],
-        cwd=ROOT,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=ENV,
-    )
-    try:
-        deadline = time.monotonic() + 60
-        line = ""
-        while time.monotonic() < deadline and "virtual" not in line:
-            line = proc.stderr.readline()
-            assert line or proc.poll() is None, "the twin exited"
-        assert "virtual" in line, line
-        yield proc
-    finally:
-        proc.terminate()
-        proc.communicate(timeout=30)
-
-
-def run(cell: str, task: str, host: str, *extra: str) -> dict:
-    r = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "cellrunner.cli.main",
-            "run",
-            cell,
-            task,
-            "--backend",
-            "ur",
-            "--robot-host",
-            host,
-            "--json",
-            *extra,
-        ],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=300,
-        env=ENV,
-    )
-    assert r.returncode in (0, 1), r.stderr[-3000:]
-    return json.loads(r.stdout)
+from tests.twin.cell_rig import fault, run_ur, twin
 
 
 def test_palletizer_through_ur_rtde():
-    from cellrunner.twin.server import FaultClient
-
     host = "127.0.0.110"
     with twin(PALLETIZER[0], host):
-        out = run(*PALLETIZER, host, "-p", "slot=2")
+        out = run_ur(*PALLETIZER, host, "-p", "slot=2")
         assert out["result_code"] == 0, (out["result_text"], out["steps"])
         assert [s["status"] for s in out["steps"]] == ["ok"] * 11
     host = "127.0.0.114"  # a fresh twin: the first carton is on the pallet
     with twin(PALLETIZER[0], host):
-        FaultClient(host).command("part_slip")  # fires once the carton hangs in the air
-        out = run(*PALLETIZER, host, "-p", "slot=1")
+        fault(host, "part_slip")  # fires once the carton hangs in the air
+        out = run_ur(*PALLETIZER, host, "-p", "slot=1")
         assert out["result_code"] == 2, out
         assert "the vacuum switch dropped" in out["result_text"]
 
 
 def test_palletizer_grip_miss_through_ur_rtde():
-    from cellrunner.twin.server import FaultClient
-
     host = "127.0.0.111"
     with twin(PALLETIZER[0], host):
-        FaultClient(host).command("grip_miss")  # the carton is moved away as suction comes on
-        out = run(*PALLETIZER, host)
+        fault(host, "grip_miss")  # the carton is moved away as suction comes on
+        out = run_ur(*PALLETIZER, host)
         assert out["result_code"] == 1, out
         assert "no vacuum" in out["result_text"]
 
@@ -97,7 +39,7 @@ def test_palletizer_grip_miss_through_ur_rtde():
 def test_peg_insert_through_ur_rtde(tmp_path):
     host = "127.0.0.112"
     with twin(PEG[0], host):
-        out = run(*PEG, host)
+        out = run_ur(*PEG, host)
         assert out["result_code"] == 0, (out["result_text"], out["steps"])
     (tmp_path / "cells").mkdir()
     (tmp_path / "tasks").mkdir()
@@ -112,7 +54,7 @@ def test_peg_insert_through_ur_rtde(tmp_path):
     )
     (tmp_path / "tasks" / "peg_insert.yaml").write_text((ROOT / PEG[1]).read_text())
     with twin(str(cell), "127.0.0.113"):
-        out = run(str(cell), str(tmp_path / "tasks" / "peg_insert.yaml"), "127.0.0.113")
+        out = run_ur(str(cell), str(tmp_path / "tasks" / "peg_insert.yaml"), "127.0.0.113")
         assert out["result_code"] == 3, out
         assert out["result_text"].startswith("inserted ")
 
@@ -132,9 +74,9 @@ steps:
     (tmp_path / "far.yaml").write_text(probe.replace("DIST", "0.02"))
     host = "127.0.0.116"
     with twin(PEG[0], host):
-        out = run(PEG[0], str(tmp_path / "near.yaml"), host)
+        out = run_ur(PEG[0], str(tmp_path / "near.yaml"), host)
         assert out["result_code"] == 0, (out["result_text"], out["steps"])
-        out = run(PEG[0], str(tmp_path / "far.yaml"), host)
+        out = run_ur(PEG[0], str(tmp_path / "far.yaml"), host)
         assert out["result_code"] == 1
         assert out["result_text"] == "no contact within 20.0 mm (force stayed under 8 N)"
 
@@ -143,7 +85,6 @@ def test_change_tool_through_ur_rtde(tmp_path):
     """The changer's lock goes out over RTDE, the twin swaps the tool, the controller gets
     the new TCP and payload (setTcp, setPayload), and the cup meets the table where its TCP
     says."""
-    from cellrunner.twin.server import FaultClient
     from tests.cells.two_tools import CELL, TOUCH
 
     (tmp_path / "c.yaml").write_text(
@@ -152,20 +93,18 @@ def test_change_tool_through_ur_rtde(tmp_path):
     (tmp_path / "touch.yaml").write_text(TOUCH)
     host = "127.0.0.115"
     with twin(str(tmp_path / "c.yaml"), host):
-        out = run(str(tmp_path / "c.yaml"), str(tmp_path / "touch.yaml"), host)
+        out = run_ur(str(tmp_path / "c.yaml"), str(tmp_path / "touch.yaml"), host)
         assert out["result_code"] == 0, (out["result_text"], out["steps"])
-        state = json.loads(FaultClient(host).command("state"))
+        state = json.loads(fault(host, "state"))
         assert state["payload_kg"] == 1.0  # the jaws again, as every job starts
 
 
 def fault_later(host: str, command: str, after_s: float) -> None:
     import threading
 
-    from cellrunner.twin.server import FaultClient
-
     def strike() -> None:
         time.sleep(after_s)
-        FaultClient(host).command(command)
+        fault(host, command)
 
     threading.Thread(target=strike, daemon=True).start()
 
@@ -176,10 +115,10 @@ def test_peg_protective_stop_and_estop_through_ur_rtde():
     host = "127.0.0.118"
     with twin(PEG[0], host):
         fault_later(host, "protective_stop", 7.0)  # planning ~1-2 s, then ~4 s to the insert
-        out = run(*PEG, host)
+        out = run_ur(*PEG, host)
         assert out["result_code"] == 0, (out["result_text"], out["steps"])
         assert out["cycle_time_s"] > 15.0  # 12 s job plus the unlock delay
     with twin(PEG[0], "127.0.0.119"):
         fault_later("127.0.0.119", "estop press", 5.0)
-        out = run(*PEG, "127.0.0.119")
+        out = run_ur(*PEG, "127.0.0.119")
         assert out["result_code"] == 101, (out["result_text"], out["steps"])

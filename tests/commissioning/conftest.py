@@ -3,15 +3,11 @@ a fixed loopback address (127.0.0.150-159), driven through the unmodified ur_rtd
 
 from __future__ import annotations
 
-import contextlib
-import os
-import subprocess
-import sys
-import time
-from collections.abc import Iterator
 from pathlib import Path
 
-from tests.conftest import ROOT
+from tests.twin.cell_rig import cli, fault, twin
+
+__all__ = ["CELL", "TASK", "cli", "fault", "twin", "write_project"]
 
 CELL = """\
 cell: commissioning-cell   # a UR10e on a bench
@@ -55,43 +51,3 @@ def write_project(root: Path, cell: str = CELL, task: str = TASK) -> tuple[Path,
     (root / "cells" / "c.yaml").write_text(cell)
     (root / "tasks" / "t.yaml").write_text(task)
     return root / "cells" / "c.yaml", root / "tasks" / "t.yaml"
-
-
-def cli(*args: str, timeout_s: float = 110, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "cellrunner.cli.main", *args],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=timeout_s,
-        **kw,
-    )
-
-
-@contextlib.contextmanager
-def twin(cell: Path, host: str) -> Iterator[subprocess.Popen]:
-    """`cellrunner twin CELL --host HOST` until the block ends."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", host],
-        cwd=ROOT,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "MUJOCO_GL": "osmesa"},
-    )
-    try:
-        deadline = time.monotonic() + 60
-        line = ""
-        while time.monotonic() < deadline and "virtual" not in line:
-            line = proc.stderr.readline()
-            assert line or proc.poll() is None, "the twin exited"
-        assert "virtual" in line, line
-        yield proc
-    finally:
-        proc.terminate()
-        proc.communicate(timeout=30)
-
-
-def fault(host: str, command: str) -> str:
-    from cellrunner.twin.server import FaultClient
-
-    return FaultClient(host, timeout_s=10.0).command(command)

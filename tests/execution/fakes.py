@@ -40,6 +40,7 @@ class ScriptedArm:
     unlock_refusals: int = 0
     estop_released: bool = False
     powered: bool = True
+    power_up_ticks: int = 1  # recover_from_estop_steps: steps until powered (a real arm: seconds)
     servo_count: int = 0
     _closing_ticks: int = 0
     _holding_part: bool = False
@@ -62,8 +63,14 @@ class ScriptedArm:
         pass
 
     def recover_from_estop(self):
+        for _ in self.recover_from_estop_steps():
+            pass
+
+    def recover_from_estop_steps(self):
         if self.safety is Safety.EMERGENCY_STOP:
             raise BackendError("emergency stop is still pressed; a person must release it first")
+        for _ in range(self.power_up_ticks):
+            yield
         self.powered = True
 
     def read_state(self) -> RobotState:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import pytest
 
 from cellrunner.execution.cell import CellController, JobPlan
@@ -113,12 +115,42 @@ def test_estop_aborts_and_needs_release_clear_reset(tmp_path):
     assert cell.status().state == S.IDLE and cell.status().ready
 
 
+def test_rearming_after_an_estop_is_polled_by_tick_and_never_blocks_it(tmp_path):
+    """A real arm takes seconds to power up and release its brakes: Clearing lasts that
+    long while every tick returns at once and the status keeps answering."""
+    arm = ScriptedArm(estop_at_s=0.2, power_up_ticks=300)
+    cell, _ = make_cell(tmp_path, arm)
+    cell.start_job(1, {}, "1", "modbus")
+    ControlLoop(cell).run_job(max_s=30)
+    arm.estop_released = True
+    tick(cell, 3)
+    arm.powered = False  # the e-stop cut the power
+    assert cell.command("clear")
+    longest_tick_s, clearing_ticks = 0.0, 0
+    for _ in range(400):
+        t0 = time.perf_counter()
+        tick(cell)
+        longest_tick_s = max(longest_tick_s, time.perf_counter() - t0)
+        if cell.status().state != S.CLEARING:
+            break
+        clearing_ticks += 1
+        assert not arm.powered
+    assert 290 <= clearing_ticks <= 305, clearing_ticks  # one recovery step per tick
+    assert arm.powered and cell.status().state == S.STOPPED
+    assert longest_tick_s < 0.05, longest_tick_s
+    assert cell.command("reset")
+    tick(cell, 3)
+    assert cell.status().state == S.IDLE and cell.status().ready
+
+
 def test_clear_unlocks_a_protective_stop_an_aborted_job_left(tmp_path):
     """A job aborted while held by a protective stop leaves the arm stopped: Clear unlocks
     it (once the controller allows, 5 s after the stop), so Reset reaches a ready Idle."""
     arm = ScriptedArm(protective_stop_at_s=0.1)
     cell, _ = make_cell(tmp_path, arm)
     ticket = cell.start_job(1, {}, "1", "modbus")
+    tick(cell)
+    assert cell.wait_for_plan(timeout_s=60)  # the arm's clock waits for the plan (no race)
     for _ in range(5000):
         tick(cell)
         if cell.status().state == S.HELD:
@@ -138,6 +170,25 @@ def test_clear_unlocks_a_protective_stop_an_aborted_job_left(tmp_path):
     assert cell.command("reset")
     tick(cell, 3)
     assert cell.status().state == S.IDLE and cell.status().ready
+
+
+def test_reset_unlocks_a_protective_stop_latched_in_idle(tmp_path):
+    """A protective stop with no job (the arm bumped while idle, or left by a job that
+    ended with 100) keeps the cell not READY; the PLC's Reset unlocks it once the
+    controller allows (5 s after the stop), and the cell is READY again."""
+    arm = ScriptedArm(protective_stop_at_s=0.1)
+    cell, _ = make_cell(tmp_path, arm)
+    tick(cell, 100)  # 0.2 s at 500 Hz
+    status = cell.status()
+    assert status.state == S.IDLE and status.protective_stop and not status.ready
+    assert cell.command("reset")  # within 5 s of the stop: the controller refuses
+    tick(cell, 3)
+    assert cell.status().protective_stop and arm.unlock_refusals == 1
+    tick(cell, 3000)  # 6 s
+    assert cell.command("reset")
+    tick(cell, 3)
+    status = cell.status()
+    assert status.state == S.IDLE and not status.protective_stop and status.ready
 
 
 def test_abort_by_plc_is_106(tmp_path):

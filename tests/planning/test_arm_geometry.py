@@ -82,7 +82,7 @@ def cb3_mesh_vertices(model: str, q: np.ndarray) -> dict[int, np.ndarray]:
     """World vertices of each body's mesh (body 0..6) at controller angles q."""
     import pinocchio as pin
 
-    from cellrunner.planning.collision import read_stl
+    from cellrunner.planning.stl import read_stl
 
     pmodel, geoms, _ = cb3_meshes(model)
     data = pmodel.createData()
@@ -169,7 +169,7 @@ def test_over_approximation_is_a_few_millimetres(model: str) -> None:
 def test_cb3_over_approximation_measured_against_the_real_mesh() -> None:
     """UR5: points on the parts' outer surface lie within the stated max of the mesh."""
     coal = pytest.importorskip("coal")
-    from cellrunner.planning.collision import read_stl
+    from cellrunner.planning.stl import read_stl
 
     pmodel, geoms, T_world_base = cb3_meshes("ur5")
     geometry = arm_geometry("ur5")
@@ -335,7 +335,7 @@ def test_ur5_cb3_judged_on_a_random_set() -> None:
 def _mesh_bvhs(model: str):
     import coal
 
-    from cellrunner.planning.collision import read_stl
+    from cellrunner.planning.stl import read_stl
 
     pmodel, geoms, _ = cb3_meshes(model)
     out = {}

@@ -8,8 +8,9 @@ from hypothesis import strategies as st
 from cellrunner.model.arm_geometry import available_models
 from cellrunner.model.geometry import Box, Cylinder, Placed, pose_matrix
 from cellrunner.model.robots import ROBOTS
-from cellrunner.planning.collision import CollisionModel, ContactAllowance, read_stl
+from cellrunner.planning.collision import CollisionModel, ContactAllowance
 from cellrunner.planning.kinematics import ArmKinematics
+from cellrunner.planning.stl import read_stl
 
 HOME = np.radians([0, -90, 90, -90, -90, 0])
 TOOL = (Placed("gripper", Cylinder(0.04, 0.15), pose_matrix((0, 0, 0.075))),)

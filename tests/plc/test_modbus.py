@@ -22,6 +22,7 @@ from cellrunner.plc.modbus import (
     ST_HELD,
     ST_JOB_ACK,
     ST_PLC_WATCHDOG,
+    ST_PROTECTIVE_STOP,
     ST_READY,
     ST_REJECTED,
 )
@@ -126,6 +127,19 @@ def test_rejects_unknown_task_bad_params_not_ready(plc: PlcProcess, cell: FakeCe
     assert plc.wait_bits(ST_READY | HANDSHAKE_BITS, ST_READY, timeout=2.0)["ok"]
     assert cell.commands[-3:] == ["abort", "clear", "reset"]
     assert not any(r.client_job_id in {"21", "22", "23", "24"} for r in cell.finished)
+
+
+def test_reset_clears_a_protective_stop_latched_in_idle(plc: PlcProcess, cell: FakeCell) -> None:
+    """A protective stop with no job (a job that ended with 100, or a bump while idle)
+    leaves the cell in Idle but not READY; the PLC's RESET edge is what unlocks it."""
+    assert plc.wait_bits(ST_READY, ST_READY, timeout=3.0)["ok"]
+    cell.inject_protective_stop()
+    assert plc.wait_bits(ST_READY | ST_PROTECTIVE_STOP, ST_PROTECTIVE_STOP, timeout=2.0)["ok"]
+    assert plc.read(102)[0] == 4  # still Idle
+    assert plc.write(1, [CMD_RESET])["ok"]
+    assert plc.wait_bits(ST_READY | ST_PROTECTIVE_STOP, ST_READY, timeout=2.0)["ok"]
+    assert cell.commands[-1:] == ["reset"]
+    plc.write(1, [0])
 
 
 def test_plc_watchdog_refuses_jobs_until_heartbeat_moves(plc: PlcProcess, cell: FakeCell) -> None:

@@ -1,19 +1,26 @@
-"""A production rig on loopback for reliability tests: ``cellrunner twin`` (the virtual UR
-controller), ``cellrunner serve --backend ur`` against it (Modbus TCP, optionally OPC UA),
-and an independent heartbeat probe, each in its own process.
+"""The one rig for tests that run cellrunner's processes on loopback.
 
-Fixed UR ports: the twin binds 127.0.0.130-139 (this suite's range); Modbus and OPC UA
-use free ports.
+Building blocks, each a process of its own: :func:`cli` (any ``cellrunner`` command),
+:func:`twin` (``cellrunner twin``, the virtual UR controller), :func:`run_ur`
+(``cellrunner run --backend ur`` against it), :func:`start_serve` (``cellrunner serve``),
+:func:`add_opcua_user` and :func:`opcua_job` (an OPC UA PLC that runs one job).
+
+:class:`Rig` puts them together for reliability tests: the twin, ``serve --backend ur``
+against it (Modbus TCP, optionally OPC UA) and an independent heartbeat probe.
+Fixed UR ports: each test names its twin's host (the reliability suite uses
+127.0.0.130-139); Modbus and OPC UA use free ports.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +28,11 @@ from pyModbusTCP.client import ModbusClient
 
 from tests.conftest import ROOT
 from tests.execution.test_dryrun import CELL
+
+#: the environment of every child: offscreen GL that needs no display, one BLAS thread
+ENV = {**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"}
+CLI = (sys.executable, "-m", "cellrunner.cli.main")
+OPCUA_USER, OPCUA_PASSWORD = "line3", "s3cret pass"
 
 READY, JOB_ACK, BUSY, DONE, ERROR, REJECTED = 1, 2, 4, 8, 16, 512
 PROTECTIVE_STOP, ESTOP = 64, 128
@@ -45,7 +57,152 @@ def free_port(host: str) -> int:
 
     with socket.socket() as s:
         s.bind((host, 0))
-        return s.getsockname()[1]
+        return int(s.getsockname()[1])
+
+
+def cli(*args: str, timeout_s: float = 110, **kw: Any) -> subprocess.CompletedProcess[str]:
+    """``cellrunner ARGS`` run to the end from the repository root."""
+    kw.setdefault("env", ENV)
+    return subprocess.run(
+        [*CLI, *args], capture_output=True, text=True, cwd=ROOT, timeout=timeout_s, **kw
+    )
+
+
+def start_twin(cell: Path | str, host: str) -> subprocess.Popen[str]:
+    """``cellrunner twin CELL --host HOST``, returned once it listens (within 60 s)."""
+    proc = subprocess.Popen(
+        [*CLI, "twin", str(ROOT / cell), "--host", host],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=ENV,
+    )
+    assert proc.stderr is not None
+    deadline = time.monotonic() + 60
+    line = ""
+    while time.monotonic() < deadline and "virtual" not in line:
+        line = proc.stderr.readline()
+        assert line or proc.poll() is None, "the twin exited"
+    assert "virtual" in line, line
+    return proc
+
+
+def stop(proc: subprocess.Popen[str], timeout_s: float = 30) -> None:
+    """SIGTERM, then SIGKILL after ``timeout_s``."""
+    proc.terminate()
+    try:
+        proc.communicate(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate(timeout=10)
+
+
+@contextlib.contextmanager
+def twin(cell: Path | str, host: str) -> Iterator[subprocess.Popen[str]]:
+    """``cellrunner twin CELL --host HOST`` until the block ends."""
+    proc = start_twin(cell, host)
+    try:
+        yield proc
+    finally:
+        stop(proc)
+
+
+def fault(host: str, command: str) -> str:
+    """A fault made to happen in the twin's physics, over its fault channel."""
+    from cellrunner.twin.server import FaultClient
+
+    return FaultClient(host, timeout_s=10.0).command(command)
+
+
+def run_ur(cell: Path | str, task: Path | str, host: str, *extra: str) -> dict[str, Any]:
+    """``cellrunner run CELL TASK --backend ur`` against the twin at ``host``: its JSON,
+    after checking the exit code agrees with the result (0 for OK, else 1)."""
+    r = cli(
+        "run",
+        str(ROOT / cell),
+        str(ROOT / task),
+        "--backend",
+        "ur",
+        "--robot-host",
+        host,
+        "--json",
+        *extra,
+        timeout_s=400,
+    )
+    assert r.stdout, r.stderr[-3000:]
+    out: dict[str, Any] = json.loads(r.stdout)
+    assert r.returncode == (0 if out["result_code"] == 0 else 1), r.stderr[-3000:]
+    return out
+
+
+def start_serve(cell: Path, *args: str) -> subprocess.Popen[str]:
+    """``cellrunner --log-format json serve CELL ARGS`` (default ``--backend sim``)."""
+    return subprocess.Popen(
+        [*CLI, "--log-format", "json", "serve", str(cell), *(args or ("--backend", "sim"))],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=ENV,
+    )
+
+
+def add_opcua_user(users_file: Path) -> None:
+    """``cellrunner users add`` of :data:`OPCUA_USER` with :data:`OPCUA_PASSWORD`."""
+    r = cli(
+        "users",
+        "add",
+        str(users_file),
+        OPCUA_USER,
+        "--password-stdin",
+        input=OPCUA_PASSWORD + "\n",
+        timeout_s=60,
+    )
+    assert r.returncode == 0, r.stderr
+
+
+def trusted_plc_certificate(root: Path) -> tuple[Path, Path]:
+    """A client certificate and key for an OPC UA PLC, put in ``root/pki/trusted``."""
+    from tests.plc.test_opcua import write_client_cert
+
+    cert, key = write_client_cert(root, "plc")
+    (root / "pki" / "trusted").mkdir(parents=True, exist_ok=True)
+    (root / "pki" / "trusted" / "plc.der").write_bytes(cert.read_bytes())
+    return cert, key
+
+
+def opcua_client(url: str, cert: Path, key: Path, *extra: str) -> list[str]:
+    """The command line of an OPC UA PLC in its own process (tests/plc/opcua_client.py),
+    SignAndEncrypt as :data:`OPCUA_USER`; ``extra`` picks the scenario and overrides."""
+    return [
+        sys.executable, str(ROOT / "tests" / "plc" / "opcua_client.py"), "--url", url,
+        "--cert", str(cert), "--key", str(key), "--user", OPCUA_USER,
+        "--password", OPCUA_PASSWORD, *extra,
+    ]  # fmt: skip
+
+
+def client_result(argv: list[str], timeout_s: float = 150) -> dict[str, Any]:
+    """Run a client process to the end: the last JSON object it printed ({} if none)."""
+    out = subprocess.run(argv, capture_output=True, text=True, timeout=timeout_s)
+    lines = [line for line in out.stdout.splitlines() if line.startswith("{")]
+    return json.loads(lines[-1]) if lines else {"stderr": out.stderr[-2000:]}
+
+
+def opcua_job(
+    url: str, cert: Path, key: Path, task: str, *extra: str, listen_timeout_s: float = 60
+) -> dict[str, Any]:
+    """One StartJob over OPC UA by :func:`opcua_client`, retried until the server listens;
+    the client's JSON (its job, the events, the last result)."""
+    argv = opcua_client(url, cert, key, "--scenario", "run", "--task", task, "--wait", "90")
+    deadline = time.monotonic() + listen_timeout_s
+    while True:
+        result = client_result([*argv, *extra])
+        if result.get("connected") or time.monotonic() > deadline:
+            break
+        time.sleep(1)
+    assert result.get("connected"), result
+    return result
 
 
 def write_project(root: Path, *, opcua: bool = False) -> tuple[Path, int, str]:
@@ -61,25 +218,7 @@ def write_project(root: Path, *, opcua: bool = False) -> tuple[Path, int, str]:
     if opcua:
         url = f"opc.tcp://{MODBUS_HOST}:{free_port(MODBUS_HOST)}/cellrunner"
         text += f"  opcua:\n    endpoint: {url}\n    security: [none]\n    users: secrets/users.yaml\n    pki: pki\n"
-        users = root / "secrets" / "users.yaml"
-        r = subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "cellrunner.cli.main",
-                "users",
-                "add",
-                str(users),
-                "line3",
-                "--password-stdin",
-            ],
-            input="s3cret pass\n",
-            capture_output=True,
-            text=True,
-            cwd=ROOT,
-            timeout=60,
-        )
-        assert r.returncode == 0, r.stderr
+        add_opcua_user(root / "secrets" / "users.yaml")
     (root / "cells" / "c.yaml").write_text(text)
     (root / "tasks" / "t.yaml").write_text(TOUR)
     return root / "cells" / "c.yaml", port, url
@@ -100,42 +239,15 @@ class Rig:
         self.beat = 0
 
     def __enter__(self) -> Rig:
-        env = {**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"}
-        self.twin = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "cellrunner.cli.main",
-                "twin",
-                str(self.cell),
-                "--host",
-                self.twin_host,
-            ],
-            cwd=ROOT,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=env,
-        )
-        assert "virtual" in self.twin.stderr.readline()
+        self.twin = start_twin(self.cell, self.twin_host)
         self._log = self.serve_log.open("w")
         self.serve = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "cellrunner.cli.main",
-                "--log-format",
-                "json",
-                "serve",
-                str(self.cell),
-                "--backend",
-                "ur",
-                "--robot-host",
-                self.twin_host,
-            ],
+            [*CLI, "--log-format", "json", "serve", str(self.cell)]
+            + ["--backend", "ur", "--robot-host", self.twin_host],
             cwd=ROOT,
             stdout=subprocess.DEVNULL,
             stderr=self._log,
-            env=env,
+            env=ENV,
         )
         self.client = ModbusClient(host=MODBUS_HOST, port=self.port, timeout=2.0, auto_open=True)
         deadline = time.monotonic() + 60
@@ -157,11 +269,7 @@ class Rig:
                 self.serve.kill()
         self._log.close()
         if self.twin is not None:
-            self.twin.terminate()
-            try:
-                self.twin.communicate(timeout=30)
-            except subprocess.TimeoutExpired:
-                self.twin.kill()
+            stop(self.twin)
 
     # ------------------------------------------------------------------ probe
     def start_probe(self) -> None:
@@ -189,9 +297,9 @@ class Rig:
                 "--url",
                 self.opcua_url,
                 "--user",
-                "line3",
+                OPCUA_USER,
                 "--password",
-                "s3cret pass",
+                OPCUA_PASSWORD,
             ],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,

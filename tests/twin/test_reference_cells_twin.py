@@ -4,87 +4,32 @@ process (its sim: rules play the machine and the camera's part) and `cellrunner 
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 import threading
 import time
 
 import pytest
 
-from tests.conftest import ROOT
+from tests.twin.cell_rig import fault, run_ur, twin
 
 CNC = ("cells/cnc_tending_ur5e.yaml", "tasks/cnc_tend.yaml")
 VISION = ("cells/vision_pick_ur10e.yaml", "tasks/vision_pick.yaml")
 SEEN = '{"xyz": [0.03, -0.02, 0], "rpy": [0, 0, 20]}'
 
 
-def start_twin(cell: str, host: str) -> subprocess.Popen:
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "cellrunner.cli.main", "twin", str(ROOT / cell), "--host", host],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "MUJOCO_GL": "osmesa"},
-    )
-    deadline = time.monotonic() + 60
-    line = ""
-    while time.monotonic() < deadline and "virtual" not in line:
-        line = proc.stderr.readline()
-        assert line or proc.poll() is None, "the twin exited"
-    assert "virtual" in line, line
-    return proc
-
-
-def stop_twin(proc: subprocess.Popen) -> None:
-    proc.terminate()
-    proc.communicate(timeout=30)
-
-
-def run_job(files: tuple[str, str], host: str, *extra: str) -> dict:
-    r = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "cellrunner.cli.main",
-            "run",
-            *(str(ROOT / f) for f in files),
-            "--backend",
-            "ur",
-            "--robot-host",
-            host,
-            "--json",
-            *extra,
-        ],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=400,
-    )
-    assert r.stdout, r.stderr[-3000:]
-    out = json.loads(r.stdout)
-    assert r.returncode == (0 if out["result_code"] == 0 else 1), r.stderr[-3000:]
-    return out
-
-
 @pytest.fixture
 def cnc_twin():
-    proc = start_twin(CNC[0], "127.0.0.120")
-    yield "127.0.0.120"
-    stop_twin(proc)
+    with twin(CNC[0], "127.0.0.120"):
+        yield "127.0.0.120"
 
 
 @pytest.fixture
 def vision_twin():
-    proc = start_twin(VISION[0], "127.0.0.121")
-    yield "127.0.0.121"
-    stop_twin(proc)
+    with twin(VISION[0], "127.0.0.121"):
+        yield "127.0.0.121"
 
 
 def test_cnc_tending_through_ur_rtde_on_the_twin(cnc_twin):
-    out = run_job(CNC, cnc_twin)
+    out = run_ur(*CNC, cnc_twin)
     assert (out["backend"], out["result_code"]) == ("ur", 0), out["result_text"]
     rows = {s["index"]: s for s in out["steps"]}
     assert all(s["status"] == "ok" for s in out["steps"]) and len(rows) == 45
@@ -99,7 +44,7 @@ def test_cnc_tending_through_ur_rtde_on_the_twin(cnc_twin):
 
 
 def test_cnc_door_timeout_on_the_twin_runs_on_error_through_ur_rtde(cnc_twin):
-    out = run_job(CNC, cnc_twin, "-p", "door_time=1 s")  # the door takes 1.5 s
+    out = run_ur(*CNC, cnc_twin, "-p", "door_time=1 s")  # the door takes 1.5 s
     assert (out["result_code"], out["result_text"]) == (
         105,
         "input door_open did not read True within 1 s; on_error done",
@@ -112,27 +57,25 @@ def test_cnc_door_timeout_on_the_twin_runs_on_error_through_ur_rtde(cnc_twin):
 
 
 def test_cnc_estop_on_the_twin_is_101_without_cleanup(cnc_twin):
-    from cellrunner.twin.server import FaultClient
-
     def press_later():
         time.sleep(12.0)  # the job (23 s) is under way: planned, started, not yet done
-        FaultClient(cnc_twin).command("estop press")
+        fault(cnc_twin, "estop press")
 
     threading.Thread(target=press_later, daemon=True).start()
-    out = run_job(CNC, cnc_twin)
+    out = run_ur(*CNC, cnc_twin)
     assert out["result_code"] == 101
     assert out["result_text"].startswith("e-stop during step ")
     assert all(s["index"] <= 45 for s in out["steps"])  # the arm cannot move: no on_error
 
 
 def test_vision_pick_through_ur_rtde_with_the_pose_param(vision_twin):
-    out = run_job(VISION, vision_twin, "-p", f"part_pose={SEEN}")
+    out = run_ur(*VISION, vision_twin, "-p", f"part_pose={SEEN}")
     assert (out["result_code"], out["result_text"]) == (0, "OK")
 
 
 def test_vision_pick_where_the_part_is_not_on_the_twin(vision_twin):
-    out = run_job(
-        VISION, vision_twin, "-p", 'part_pose={"xyz": [-0.04, 0.05, 0], "rpy": [0, 0, 0]}'
+    out = run_ur(
+        *VISION, vision_twin, "-p", 'part_pose={"xyz": [-0.04, 0.05, 0], "rpy": [0, 0, 0]}'
     )
     assert out["result_code"] == 1
     assert (

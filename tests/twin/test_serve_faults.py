@@ -17,6 +17,9 @@ MAX_GAP_S = 0.3
 
 
 def test_heartbeat_never_stalls_through_faults(tmp_path):
+    import faulthandler
+
+    faulthandler.dump_traceback_later(300, exit=True)  # five jobs: longer than the default guard
     with Rig(tmp_path, "127.0.0.131", opcua=True) as rig:
         rig.start_probe()
         rig.start_watch()

@@ -13,6 +13,8 @@ notice a missed or slipped part through the jaw sensor and the wrist load.
 
 from __future__ import annotations
 
+from collections.abc import Generator
+
 import numpy as np
 
 from cellrunner.backends.base import BackendError, RobotState, Safety
@@ -168,6 +170,11 @@ class SimBackend:
         self._fresh = None
         self._require_connection()
         self._world().recover_from_estop()
+
+    def recover_from_estop_steps(self) -> Generator[None, None, None]:
+        """The twin re-arms at once: one step."""
+        self.recover_from_estop()
+        yield
 
     # -- the simulated world around the robot ---------------------------------------------
     def inject_fault(self, fault: str | Fault) -> None:
