@@ -131,11 +131,11 @@ def test_spec_example_passes_check(tmp_path):
 def test_ur20_palletizer_through_ur_rtde():
     """`cellrunner run --backend ur` against `cellrunner twin` of the UR20 cell: the
     unmodified ur_rtde client streams the approved plan at 500 Hz to the virtual UR20."""
-    from tests.cells.test_reference_cells_ur import run, twin
+    from tests.twin.cell_rig import run_ur, twin
 
     cell, task, param, _, _ = CELLS["ur20"]
     host = "127.0.0.199"
     with twin(cell, host):
-        out = run(cell, task, host, "-p", f"{param}=5")
+        out = run_ur(cell, task, host, "-p", f"{param}=5")
     assert out["result_code"] == 0, (out["result_text"], out["steps"])
     assert all(s["status"] == "ok" for s in out["steps"])
