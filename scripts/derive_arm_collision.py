@@ -60,6 +60,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from cellrunner.model.arm_geometry import LINK_NAMES  # noqa: E402
+from cellrunner.model.geometry import pose_matrix  # noqa: E402
 from cellrunner.model.robots import ROBOTS, RobotSpec  # noqa: E402
 from cellrunner.planning.kinematics import ArmKinematics  # noqa: E402
 from cellrunner.planning.motion_bounds import joint_reach  # noqa: E402
@@ -93,24 +94,8 @@ class LinkMesh:
 
 
 def rpy_matrix(xyz: list[float], rpy: list[float]) -> np.ndarray:
-    """URDF origin: translation xyz, rotation Rz(yaw) Ry(pitch) Rx(roll)."""
-    r, p, y = rpy
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(r),
-        math.sin(r),
-        math.cos(p),
-        math.sin(p),
-        math.cos(y),
-        math.sin(y),
-    )
-    T = np.eye(4)
-    T[:3, :3] = [
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ]
-    T[:3, 3] = xyz
-    return T
+    """URDF origin: translation xyz, rotation Rz(yaw) Ry(pitch) Rx(roll) in radians."""
+    return pose_matrix(xyz, np.degrees(rpy))
 
 
 def rot_z(q: float) -> np.ndarray:

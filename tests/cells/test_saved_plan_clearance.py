@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import pytest
 from ruamel.yaml import YAML
+from scipy.spatial.transform import Rotation
 
 from tests.conftest import ROOT
 
@@ -36,22 +37,10 @@ URDF_JOINTS = ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "
 
 
 def rpy_deg_matrix(xyz: list[float], rpy_deg: list[float]) -> np.ndarray:
-    """SPEC pose: translation, rotation XYZ fixed-axis (Rz(yaw) Ry(pitch) Rx(roll)), deg."""
-    r, p, y = (math.radians(a) for a in rpy_deg)
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(r),
-        math.sin(r),
-        math.cos(p),
-        math.sin(p),
-        math.cos(y),
-        math.sin(y),
-    )
+    """SPEC pose: translation, rotation XYZ fixed-axis (Rz(yaw) Ry(pitch) Rx(roll)), deg;
+    built with scipy rather than cellrunner's own pose code, to stay independent."""
     T = np.eye(4)
-    T[:3, :3] = [
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ]
+    T[:3, :3] = Rotation.from_euler("xyz", rpy_deg, degrees=True).as_matrix()
     T[:3, 3] = xyz
     return T
 
