@@ -94,7 +94,11 @@ def test_a_login_flood_never_stalls_refresh_or_reads(server: tuple[TimedCell, st
         assert watch.stdout is not None
         assert json.loads(watch.stdout.readline()) == {"started": True}
         t0 = time.monotonic()
-        flooded = flood(url, logins=80, concurrency=20)
+        floods = []
+        for _ in range(6):  # a quiet machine refuses 80 logins in under 1 s: flood again
+            floods.append(flood(url, logins=80, concurrency=20))
+            if time.monotonic() - t0 > 1.5:
+                break
         t1 = time.monotonic()
         out, _ = watch.communicate("", timeout=30)
     finally:
@@ -102,9 +106,9 @@ def test_a_login_flood_never_stalls_refresh_or_reads(server: tuple[TimedCell, st
             watch.kill()
     watched = json.loads(out.strip().splitlines()[-1])
     refresh_gap = largest_gap(cell.refreshes, t0, t1)
-    print("flood:", flooded, "watch:", watched, f"refresh gap {refresh_gap:.3f} s")
-    assert flooded["accepted"] == 0 and flooded["refused"] == 80, flooded
-    assert t1 - t0 > 1.0  # the flood lasted long enough to measure through
+    print("floods:", floods, "watch:", watched, f"refresh gap {refresh_gap:.3f} s")
+    assert all(f["accepted"] == 0 and f["refused"] == 80 for f in floods), floods
+    assert t1 - t0 > 1.5  # the flood lasted long enough to measure through
     assert refresh_gap <= MAX_GAP_S, refresh_gap
     # a logged-in client kept being answered; its own gaps include its scheduling on a loaded
     # machine (it runs beside the flood), so the 300 ms bound is the server's refresh above
