@@ -8,7 +8,8 @@ codes and random e-stops; ``--cell pkg.mod:make`` calls ``make()`` for another o
 the engine driving the twin with injected faults) behind the real Modbus server. The PLC
 side is a separate process (pymodbus client) doing what a PLC program does: heartbeat
 every 100 ms, wait READY, write id/task/params, raise JOB_REQ, wait ACK, wait DONE/ERROR,
-read 104-113, drop JOB_REQ; RESET when the cell sits in Aborted/Stopped.
+read 104-113, drop JOB_REQ; RESET when the cell sits in Aborted/Stopped, or in Idle with a
+protective stop latched (pressed again every 0.5 s until READY).
 
 Prints jobs/hour, trigger->ACK latency p50/p99 (target p99 < 50 ms), the resident
 memory of this process (cell, engine, PLC server: what ``serve`` runs) after 50 jobs and
@@ -40,6 +41,19 @@ READY, ACK, BUSY, DONE, ERROR, REJECTED = 1, 2, 4, 8, 16, 512
 ESTOP, WATCHDOG = 128, 256
 JOB_REQ, RESET, UNHOLD = 1, 2, 16
 HELD_STATE = 11
+PROTECTIVE_STOP = 64
+STOPPED_STATE, IDLE_STATE, ABORTED_STATE = 2, 4, 9
+#: how often the PLC presses RESET again while the cell stays not READY (s)
+RESET_REPEAT_S = 0.5
+
+
+def needs_reset(status: list[int]) -> bool:
+    """Whether a PLC program presses RESET, from registers 100.. (101 status bits, 102
+    state): Aborted or Stopped, or Idle with a protective stop latched and no job."""
+    bits, state = status[1], status[2]
+    if state in (STOPPED_STATE, ABORTED_STATE):
+        return True
+    return state == IDLE_STATE and bool(bits & PROTECTIVE_STOP) and not bits & BUSY
 
 
 def plc_main(host: str, port: int, jobs: int, tasks: list[list[int]], job_timeout_s: float) -> None:
@@ -111,16 +125,21 @@ def plc_main(host: str, port: int, jobs: int, tasks: list[list[int]], job_timeou
         job_id = n % 65535 + 1
         task = tasks[n % len(tasks)]
         record: dict[str, Any] = {"plc_job_id": job_id, "task": task[0]}
-        # wait READY; a PLC presses RESET when the cell sits in Aborted (9) or Stopped (2)
+        # wait READY; a PLC presses RESET when the cell sits in Aborted (9) or Stopped (2),
+        # or in Idle (4) with a protective stop latched and no job (a job that ended with
+        # 100): the cell unlocks it, but the controller refuses within 5 s of the stop, so
+        # the PLC presses again every RESET_REPEAT_S until READY
         deadline = time.monotonic() + job_timeout_s
+        last_reset = -RESET_REPEAT_S
         while True:
             r = regs()
             if r[1] & READY:
                 break
-            if r[2] in (2, 9):
+            if needs_reset(r) and time.monotonic() - last_reset >= RESET_REPEAT_S:
                 write(1, [RESET])
                 time.sleep(0.05)
                 write(1, [0])
+                last_reset = time.monotonic()
             unhold_if_held(r)
             if time.monotonic() > deadline:
                 record.update(outcome="never_ready", state=r[2], status_bits=r[1])
@@ -224,9 +243,14 @@ def reconcile(observed: list[dict[str, Any]], cell_results: list[Any]) -> dict[s
 
 
 def run_bench(
-    port: Any, jobs: int, tasks: list[list[int]], job_timeout_s: float = 60.0
+    port: Any,
+    jobs: int,
+    tasks: list[list[int]],
+    job_timeout_s: float = 60.0,
+    bind: str = "127.0.0.1",
 ) -> dict[str, Any]:
-    """Soak ``port`` (a CellPort, already started) over Modbus; returns the report."""
+    """Soak ``port`` (a CellPort, already started) over Modbus on ``bind`` (a free port);
+    returns the report."""
     from cellrunner.plc.service import PlcService
 
     results: list[Any] = []
@@ -238,11 +262,9 @@ def run_bench(
                 results.append(result)
 
     remove = port.add_result_listener(on_result)
-    service = PlcService(
-        port, {"modbus": {"bind": "127.0.0.1", "port": 0, "heartbeat_timeout": 1.5}}
-    )
+    service = PlcService(port, {"modbus": {"bind": bind, "port": 0, "heartbeat_timeout": 1.5}})
     service.start()
-    host, mb_port = service.modbus_address or ("127.0.0.1", 0)
+    host, mb_port = service.modbus_address or (bind, 0)
     observed: list[dict[str, Any]] = []
     rss_mib: dict[int, float] = {}
     elapsed, unholds = float("nan"), 0
