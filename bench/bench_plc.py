@@ -248,9 +248,11 @@ def run_bench(
     tasks: list[list[int]],
     job_timeout_s: float = 60.0,
     bind: str = "127.0.0.1",
+    probe: Any = None,
 ) -> dict[str, Any]:
     """Soak ``port`` (a CellPort, already started) over Modbus on ``bind`` (a free port);
-    returns the report."""
+    returns the report. ``probe`` (a :class:`memory_growth.MemoryProbe`) is marked after
+    ``RSS_BASELINE_JOBS`` jobs and reports what grew since into ``"memory_growth"``."""
     from cellrunner.plc.service import PlcService
 
     results: list[Any] = []
@@ -291,6 +293,8 @@ def run_bench(
                 observed.append(record)
                 if len(observed) % RSS_BASELINE_JOBS == 0:
                     rss_mib[len(observed)] = rss_now_mib()
+                    if probe is not None and len(observed) == RSS_BASELINE_JOBS:
+                        probe.mark()
                     print(
                         f"  {len(observed)}/{jobs} jobs, resident {rss_mib[len(observed)]:.0f} MiB",
                         file=sys.stderr,
@@ -299,6 +303,7 @@ def run_bench(
         proc.wait(timeout=10)
         time.sleep(0.2)  # the last result listener call
         rss_mib[len(observed)] = rss_now_mib()
+        growth = probe.report() if probe is not None and len(observed) > RSS_BASELINE_JOBS else None
     finally:
         service.stop()
         remove()
@@ -324,6 +329,7 @@ def run_bench(
         "reconciliation": rec,
         "rss_mib": rss_mib,
         "unholds": unholds,
+        "memory_growth": growth,
         "never_ready_in": dict(
             Counter(
                 f"state {o['state']} status {o['status_bits']}"
@@ -370,8 +376,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cell", help="module:factory returning a CellPort (default FakeCell)")
     ap.add_argument("--job-timeout", type=float, default=60.0)
     ap.add_argument("--json", type=Path, help="also write the report here")
+    ap.add_argument(
+        "--trace-memory",
+        action="store_true",
+        help="trace allocations (tracemalloc: slower, more memory) and print what grew "
+        "between the 50th job and the end, by source line and object type",
+    )
     args = ap.parse_args(argv)
     stop = threading.Event()
+    probe = None
+    if args.trace_memory:  # before the cell is built, so that its allocations are traced
+        from bench.memory_growth import MemoryProbe
+
+        probe = MemoryProbe()
     if args.cell:
         module, _, factory = args.cell.partition(":")
         cell = getattr(importlib.import_module(module), factory)()
@@ -384,7 +401,7 @@ def main(argv: list[str] | None = None) -> int:
             target=estop_injector, args=(cell, args.estop_rate, args.seed, stop), daemon=True
         ).start()
     try:
-        report = run_bench(cell, args.jobs, json.loads(args.tasks), args.job_timeout)
+        report = run_bench(cell, args.jobs, json.loads(args.tasks), args.job_timeout, probe=probe)
     finally:
         stop.set()
         if hasattr(cell, "close"):
@@ -415,6 +432,10 @@ def main(argv: list[str] | None = None) -> int:
             f"after {end}: {growth * 100:+.1f} % (target within 10 % over 500 jobs: "
             f"{'met' if abs(growth) <= 0.10 and end >= 500 else 'met so far' if abs(growth) <= 0.10 else 'MISSED'})"
         )
+    if report["memory_growth"] is not None:
+        from bench.memory_growth import print_report
+
+        print_report(report["memory_growth"], sys.stdout)
     verdict = (
         "OK - no result lost or duplicated" if not rec["issues"] else f"{len(rec['issues'])} ISSUES"
     )
