@@ -32,8 +32,9 @@ from cellrunner.model.trajectory import ApprovedTrajectory
 #: a look-ahead shorter than this is not worth its fixed cost (periods)
 MIN_PERIODS = 8
 #: tracking errors from batched kinematics within this of the largest are recomputed
-#: exactly, so the maximum kept is the per-period one to the last bit (m)
-TRACK_TOLERANCE_M = 1e-7
+#: with the per-period kinematics, so the maximum kept is the per-period one to the last
+#: bit (m; the two differ by ~1e-16 m)
+TRACK_TOLERANCE_M = 1e-9
 
 
 class Preview(Protocol):
@@ -160,7 +161,8 @@ def _track(ctx: JobContext, clock: Clock, q_cmd: np.ndarray, q_meas: np.ndarray)
     motions = ctx.motions
     many = getattr(motions, "tcp_positions_m", None)
     if many is not None:
-        err = np.linalg.norm(many(q_cmd[rows]) - many(q_meas[rows]), axis=1)
+        p = many(np.concatenate([q_cmd[rows], q_meas[rows]]))
+        err = np.linalg.norm(p[: len(rows)] - p[len(rows) :], axis=1)
         top = float(err.max())
         if top + TRACK_TOLERANCE_M <= ctx.tracking_error_m:
             return
