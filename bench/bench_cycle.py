@@ -184,7 +184,8 @@ def run(cell_path: str, task_path: str, verbose: bool = True) -> dict:
     ours = plan.cycle_time_s
     if verbose:
         print(f"  {cell_path} {Path(task_path).name} {params}: PolyScope program")
-        for move, label, r, s in zip(moves, labels, [*radii, 0.0], [*saved, 0.0], strict=True):
+        ends = [0.0] if moves else []  # no blend after the last move
+        for move, label, r, s in zip(moves, labels, radii + ends, saved + ends, strict=True):
             print(
                 f"    {move.kind} {label[:40]:40s} {move.duration_s:6.2f} s   blend {r * 1000:5.0f} mm saves {s:5.2f} s"
             )
