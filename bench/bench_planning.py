@@ -34,18 +34,21 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from scenes import HOME_DEG, T_FLANGE_TCP, large_arm_scenes, scenes, tool
+from cellrunner.native_threads import one_thread_each
 
-from cellrunner.errors import InfeasibleError
-from cellrunner.model.robots import robot_spec
-from cellrunner.planning.collision import CollisionModel
-from cellrunner.planning.joint_path import plan_joint_path
-from cellrunner.planning.kinematics import ArmKinematics
+one_thread_each()  # as the command does: both planners measured with one BLAS thread
+
+import numpy as np  # noqa: E402
+from scenes import HOME_DEG, T_FLANGE_TCP, large_arm_scenes, scenes, tool  # noqa: E402
+
+from cellrunner.errors import InfeasibleError  # noqa: E402
+from cellrunner.model.robots import robot_spec  # noqa: E402
+from cellrunner.planning.collision import CollisionModel  # noqa: E402
+from cellrunner.planning.joint_path import plan_joint_path  # noqa: E402
+from cellrunner.planning.kinematics import ArmKinematics  # noqa: E402
 
 CLEARANCE_M = 0.002
 SEED = 1

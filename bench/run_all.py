@@ -35,6 +35,10 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
+from cellrunner.native_threads import one_thread_each  # noqa: E402
+
+one_thread_each()  # before numpy: the planning bench runs in this process
+
 import bench_check  # noqa: E402
 import bench_cycle  # noqa: E402
 import bench_planning  # noqa: E402

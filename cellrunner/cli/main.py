@@ -13,11 +13,9 @@ import sys
 from typing import NoReturn
 
 from cellrunner import __version__
+from cellrunner.native_threads import one_thread_each
 
-# Native thread pools (OpenMP, OpenBLAS) would spin a thread per core beside our own
-# single-threaded planning and control loops; one thread each unless the user says otherwise.
-for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_name, "1")
+one_thread_each()
 # pydantic would scan every installed distribution for plugins at the first model (~10 ms)
 os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "1")
 

@@ -454,19 +454,31 @@ class CollisionModel:
             )
             if self._is_mover[k]:
                 self._reach[k] = joint_reach(model, obj.body, *support[k])
-        # support points of the moving objects, for per-segment radial extents
+        # points of the moving objects, each with a pad, for per-segment radial extents:
+        # a mesh part's covering spheres (a few, where its hull has about a hundred
+        # vertices: the bound is looser by at most a sphere's overshoot and far cheaper),
+        # a primitive's support points
         movers = np.flatnonzero(self._is_mover)
         self._movers = movers
+        self._covers = {int(k): self._cover_spheres(self._objects[k]) for k in movers}
+        radial = [
+            self._covers[int(k)]
+            if self._objects[k].part is not None
+            else (support[k][0], np.full(len(support[k][0]), support[k][1]))
+            for k in movers
+        ]
         self._support_all = (
-            np.concatenate([support[k][0] for k in movers]) if len(movers) else np.zeros((0, 3))
+            np.concatenate([pts for pts, _ in radial]) if len(movers) else np.zeros((0, 3))
         )
-        counts = [len(support[k][0]) for k in movers]
+        self._support_pad = (
+            np.concatenate([pad for _, pad in radial]) + 1e-6 if len(movers) else np.zeros(0)
+        )
+        counts = [len(pts) for pts, _ in radial]
         self._support_start = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
         self._support_body = np.repeat(self._body[movers], counts)
         self._support_moved = (np.arange(1, 7)[None, :] <= self._support_body[:, None]).astype(
             float
         )
-        self._support_pad = np.array([support[k][1] for k in movers])
         # static objects: world AABBs (fixtures, base)
         self._aabb_lo = np.full((n, 3), np.nan)
         self._aabb_hi = np.full((n, 3), np.nan)
@@ -500,17 +512,19 @@ class CollisionModel:
         self._pair_high_row = np.searchsorted(movers, self._pair_high)
         self._prepare_lower_bounds()
 
+    @staticmethod
+    def _cover_spheres(obj: _Object) -> tuple[np.ndarray, np.ndarray]:
+        """Spheres (centres in the parent joint frame, radii) whose union holds ``obj``."""
+        if obj.part is not None:
+            return polytope_cover_spheres(obj.part.vertices_m, obj.part.faces)
+        return cover_spheres(obj.geometry, obj.placement)
+
     def _prepare_lower_bounds(self) -> None:
         """Covering spheres of the moving objects (grouped by object) and the static
         objects' world AABBs, for :meth:`_knot_lower_bounds`."""
         centers, radii, owner = [], [], []
         for row, k in enumerate(self._movers):
-            obj = self._objects[k]
-            c, r = (
-                polytope_cover_spheres(obj.part.vertices_m, obj.part.faces)
-                if obj.part is not None
-                else cover_spheres(obj.geometry, obj.placement)
-            )
+            c, r = self._covers[int(k)]
             centers.append(c)
             radii.append(r)
             owner += [row] * len(r)
@@ -712,12 +726,12 @@ class CollisionModel:
             + (origins * origins).sum(axis=2)[:, None, :]
             - along * along
         )
-        across = np.sqrt(np.maximum(square, 0.0)) * self._support_moved
-        # + 1 um for the rounding of the expanded squares (far below STALL_M)
-        rho = (
-            np.maximum.reduceat(across, self._support_start, axis=1)
-            + (self._support_pad + 1e-6)[:, None]
+        # + each point's pad and 1 um for the rounding of the expanded squares (far below
+        # STALL_M); joints that do not move a point get its pad alone (their reach is 0)
+        across = (np.sqrt(np.maximum(square, 0.0)) + self._support_pad[:, None]) * (
+            self._support_moved
         )
+        rho = np.maximum.reduceat(across, self._support_start, axis=1)
         reach = self._reach_movers  # (movers, 6)
         weighted = reach[None] * adq[:, None, :]  # (pieces, movers, 6)
         after = np.cumsum(weighted[:, :, ::-1], axis=2)[:, :, ::-1] - weighted  # A[:, :, j]
