@@ -8,7 +8,8 @@ codes and random e-stops; ``--cell pkg.mod:make`` calls ``make()`` for another o
 the engine driving the twin with injected faults) behind the real Modbus server. The PLC
 side is a separate process (pymodbus client) doing what a PLC program does: heartbeat
 every 100 ms, wait READY, write id/task/params, raise JOB_REQ, wait ACK, wait DONE/ERROR,
-read 104-113, drop JOB_REQ; RESET when the cell sits in Aborted/Stopped.
+read 104-113, drop JOB_REQ; RESET when the cell sits in Aborted/Stopped, or in Idle with a
+protective stop latched (pressed again every 0.5 s until READY).
 
 Prints jobs/hour, trigger->ACK latency p50/p99 (target p99 < 50 ms), the resident
 memory of this process (cell, engine, PLC server: what ``serve`` runs) after 50 jobs and
@@ -40,6 +41,19 @@ READY, ACK, BUSY, DONE, ERROR, REJECTED = 1, 2, 4, 8, 16, 512
 ESTOP, WATCHDOG = 128, 256
 JOB_REQ, RESET, UNHOLD = 1, 2, 16
 HELD_STATE = 11
+PROTECTIVE_STOP = 64
+STOPPED_STATE, IDLE_STATE, ABORTED_STATE = 2, 4, 9
+#: how often the PLC presses RESET again while the cell stays not READY (s)
+RESET_REPEAT_S = 0.5
+
+
+def needs_reset(status: list[int]) -> bool:
+    """Whether a PLC program presses RESET, from registers 100.. (101 status bits, 102
+    state): Aborted or Stopped, or Idle with a protective stop latched and no job."""
+    bits, state = status[1], status[2]
+    if state in (STOPPED_STATE, ABORTED_STATE):
+        return True
+    return state == IDLE_STATE and bool(bits & PROTECTIVE_STOP) and not bits & BUSY
 
 
 def plc_main(host: str, port: int, jobs: int, tasks: list[list[int]], job_timeout_s: float) -> None:
@@ -111,16 +125,21 @@ def plc_main(host: str, port: int, jobs: int, tasks: list[list[int]], job_timeou
         job_id = n % 65535 + 1
         task = tasks[n % len(tasks)]
         record: dict[str, Any] = {"plc_job_id": job_id, "task": task[0]}
-        # wait READY; a PLC presses RESET when the cell sits in Aborted (9) or Stopped (2)
+        # wait READY; a PLC presses RESET when the cell sits in Aborted (9) or Stopped (2),
+        # or in Idle (4) with a protective stop latched and no job (a job that ended with
+        # 100): the cell unlocks it, but the controller refuses within 5 s of the stop, so
+        # the PLC presses again every RESET_REPEAT_S until READY
         deadline = time.monotonic() + job_timeout_s
+        last_reset = -RESET_REPEAT_S
         while True:
             r = regs()
             if r[1] & READY:
                 break
-            if r[2] in (2, 9):
+            if needs_reset(r) and time.monotonic() - last_reset >= RESET_REPEAT_S:
                 write(1, [RESET])
                 time.sleep(0.05)
                 write(1, [0])
+                last_reset = time.monotonic()
             unhold_if_held(r)
             if time.monotonic() > deadline:
                 record.update(outcome="never_ready", state=r[2], status_bits=r[1])
@@ -224,9 +243,16 @@ def reconcile(observed: list[dict[str, Any]], cell_results: list[Any]) -> dict[s
 
 
 def run_bench(
-    port: Any, jobs: int, tasks: list[list[int]], job_timeout_s: float = 60.0
+    port: Any,
+    jobs: int,
+    tasks: list[list[int]],
+    job_timeout_s: float = 60.0,
+    bind: str = "127.0.0.1",
+    probe: Any = None,
 ) -> dict[str, Any]:
-    """Soak ``port`` (a CellPort, already started) over Modbus; returns the report."""
+    """Soak ``port`` (a CellPort, already started) over Modbus on ``bind`` (a free port);
+    returns the report. ``probe`` (a :class:`memory_growth.MemoryProbe`) is marked after
+    ``RSS_BASELINE_JOBS`` jobs and reports what grew since into ``"memory_growth"``."""
     from cellrunner.plc.service import PlcService
 
     results: list[Any] = []
@@ -238,11 +264,9 @@ def run_bench(
                 results.append(result)
 
     remove = port.add_result_listener(on_result)
-    service = PlcService(
-        port, {"modbus": {"bind": "127.0.0.1", "port": 0, "heartbeat_timeout": 1.5}}
-    )
+    service = PlcService(port, {"modbus": {"bind": bind, "port": 0, "heartbeat_timeout": 1.5}})
     service.start()
-    host, mb_port = service.modbus_address or ("127.0.0.1", 0)
+    host, mb_port = service.modbus_address or (bind, 0)
     observed: list[dict[str, Any]] = []
     rss_mib: dict[int, float] = {}
     elapsed, unholds = float("nan"), 0
@@ -269,6 +293,8 @@ def run_bench(
                 observed.append(record)
                 if len(observed) % RSS_BASELINE_JOBS == 0:
                     rss_mib[len(observed)] = rss_now_mib()
+                    if probe is not None and len(observed) == RSS_BASELINE_JOBS:
+                        probe.mark()
                     print(
                         f"  {len(observed)}/{jobs} jobs, resident {rss_mib[len(observed)]:.0f} MiB",
                         file=sys.stderr,
@@ -277,6 +303,7 @@ def run_bench(
         proc.wait(timeout=10)
         time.sleep(0.2)  # the last result listener call
         rss_mib[len(observed)] = rss_now_mib()
+        growth = probe.report() if probe is not None and len(observed) > RSS_BASELINE_JOBS else None
     finally:
         service.stop()
         remove()
@@ -302,6 +329,7 @@ def run_bench(
         "reconciliation": rec,
         "rss_mib": rss_mib,
         "unholds": unholds,
+        "memory_growth": growth,
         "never_ready_in": dict(
             Counter(
                 f"state {o['state']} status {o['status_bits']}"
@@ -348,8 +376,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cell", help="module:factory returning a CellPort (default FakeCell)")
     ap.add_argument("--job-timeout", type=float, default=60.0)
     ap.add_argument("--json", type=Path, help="also write the report here")
+    ap.add_argument(
+        "--trace-memory",
+        action="store_true",
+        help="trace allocations (tracemalloc: slower, more memory) and print what grew "
+        "between the 50th job and the end, by source line and object type",
+    )
     args = ap.parse_args(argv)
     stop = threading.Event()
+    probe = None
+    if args.trace_memory:  # before the cell is built, so that its allocations are traced
+        from bench.memory_growth import MemoryProbe
+
+        probe = MemoryProbe()
     if args.cell:
         module, _, factory = args.cell.partition(":")
         cell = getattr(importlib.import_module(module), factory)()
@@ -362,7 +401,7 @@ def main(argv: list[str] | None = None) -> int:
             target=estop_injector, args=(cell, args.estop_rate, args.seed, stop), daemon=True
         ).start()
     try:
-        report = run_bench(cell, args.jobs, json.loads(args.tasks), args.job_timeout)
+        report = run_bench(cell, args.jobs, json.loads(args.tasks), args.job_timeout, probe=probe)
     finally:
         stop.set()
         if hasattr(cell, "close"):
@@ -393,6 +432,10 @@ def main(argv: list[str] | None = None) -> int:
             f"after {end}: {growth * 100:+.1f} % (target within 10 % over 500 jobs: "
             f"{'met' if abs(growth) <= 0.10 and end >= 500 else 'met so far' if abs(growth) <= 0.10 else 'MISSED'})"
         )
+    if report["memory_growth"] is not None:
+        from bench.memory_growth import print_report
+
+        print_report(report["memory_growth"], sys.stdout)
     verdict = (
         "OK - no result lost or duplicated" if not rec["issues"] else f"{len(rec['issues'])} ISSUES"
     )
