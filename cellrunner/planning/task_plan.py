@@ -632,7 +632,9 @@ def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) ->
         trajectory = Trajectory(world.spec.rate_hz, np.arange(len(q)) / world.spec.rate_hz, q)
         inputs = VerifyInputs(
             previous_q_rad=previous,
-            previous_moving=i > 0,
+            # the arm runs into this piece from the one before only when that one moved:
+            # a zero-length first piece (a move to where the arm stands) leaves it at rest
+            previous_moving=i > 0 and start > 0,
             ends_at_rest=i == len(group) - 1,
             line_m=motion.line_m,
         )
