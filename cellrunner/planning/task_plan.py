@@ -169,6 +169,10 @@ class TaskPlan:
         world = self.world if step is None else self._world_of(step)
         return np.asarray(world.kinematics.p_world_tcp(q_rad))
 
+    def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
+        """World TCP positions (N x 3) at the rows of ``q_rad``, tool mounted at start."""
+        return self.world.kinematics.p_world_tcp_many(q_rad)
+
     def _carried_before(self, step: Step) -> Placed | None:
         rows = [r for r in self.rows if r.step.index <= step.index]
         return rows[-1].carrying if rows else None
