@@ -168,3 +168,32 @@ def test_look_ahead_gives_what_the_per_period_loop_gives(
     for field in dataclasses.fields(Outcome):
         if field.name != "ticks_ahead":
             assert getattr(ahead, field.name) == getattr(per_period, field.name), field.name
+
+
+@pytest.mark.parametrize(
+    "inject", ["protective_stop@approach#2", "estop@approach#2", "grip_miss@grip"]
+)
+def test_dry_run_injections_report_the_same_with_and_without_look_ahead(inject: str) -> None:
+    """The dry-run command itself (its observer applies the injection when its moment
+    comes): the JSON report is the same with look-ahead and with ``--per-period``."""
+    import json
+    import subprocess
+    import sys
+
+    def dry_run(*extra: str) -> dict[str, Any]:
+        r = subprocess.run(
+            [sys.executable, "-m", "cellrunner.cli.main", "dry-run", "cells/demo_ur5e.yaml"]
+            + ["tasks/pick_place.yaml", "--inject", inject, "--json", *extra],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            timeout=300,
+        )
+        assert r.returncode in (0, 1), r.stderr
+        report: dict[str, Any] = json.loads(r.stdout)
+        report.pop("real_time_factor")  # wall clock
+        return report
+
+    per_period, ahead = dry_run("--per-period"), dry_run()
+    assert per_period["result_code"] in (0, 1, 101)
+    assert ahead == per_period
