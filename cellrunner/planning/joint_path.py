@@ -38,8 +38,9 @@ RRT_RANGE_RAD = 1.5
 #: ms), with the same one certification fallback in 20 problems.
 LAZY_RESOLUTION_RAD = 0.1
 #: Corner rounding (:func:`round_corners`): fractions of the adjacent edges tried, largest
-#: first, and the number of points of each arc.
-CORNER_FRACTIONS = (0.35, 0.2, 0.1)
+#: first (half of each edge: neighbouring arcs meet, as PolyScope's largest blend radius at a
+#: via point), and the number of points of each arc.
+CORNER_FRACTIONS = (0.5, 0.35, 0.2, 0.1)
 CORNER_POINTS = 32
 #: states in collision a failed search keeps to say what blocked it
 MAX_REFUSED_KEPT = 2000

@@ -50,7 +50,7 @@ SET_DOWN_PRESS_M = 0.001
 #: UR integrator sets (bench/polyscope.py uses the same)
 LINEAR_BLEND_FRACTION = 0.4
 BLEND_RADIUS_MAX_M = 0.05
-#: between two joint moves: this share of each adjacent edge (as joint_path.round_corners)
+#: between two joint moves of different steps: this share of each adjacent edge
 CORNER_FRACTION = 0.35
 BLEND_POINTS = 24
 #: timed groups remembered per cell (:func:`_timed_pieces`)
