@@ -40,6 +40,7 @@ for _p in (REPO, REPO / "bench"):
     if str(_p) not in sys.path:
         sys.path.insert(0, str(_p))
 
+import cycle_breakdown  # noqa: E402
 import polyscope  # noqa: E402
 
 TARGET_BLENDED, TARGET_STOPPING, TARGET_BOUND = 0.95, 0.85, 1.02
@@ -172,9 +173,8 @@ def run(cell_path: str, task_path: str, verbose: bool = True) -> dict:
     plan_s = time.perf_counter() - t
     if not plan.ok:
         raise SystemExit(f"{cell_path} {task_path}: the task is infeasible: {plan.errors}")
-    moves, radii, fixed, labels = polyscope_program(
-        world, plan, taught_waypoints(world, steps, world.q_home_rad)
-    )
+    taught = taught_waypoints(world, steps, world.q_home_rad)
+    moves, radii, fixed, labels = polyscope_program(world, plan, taught)
     rate = world.spec.rate_hz
     blended, saved = polyscope.program_time_s(moves, radii, rate)
     stopping, _ = polyscope.program_time_s(moves, [0.0] * len(radii), rate)
@@ -184,7 +184,8 @@ def run(cell_path: str, task_path: str, verbose: bool = True) -> dict:
     ours = plan.cycle_time_s
     if verbose:
         print(f"  {cell_path} {Path(task_path).name} {params}: PolyScope program")
-        for move, label, r, s in zip(moves, labels, [*radii, 0.0], [*saved, 0.0], strict=True):
+        ends = [0.0] if moves else []  # no blend after the last move
+        for move, label, r, s in zip(moves, labels, radii + ends, saved + ends, strict=True):
             print(
                 f"    {move.kind} {label[:40]:40s} {move.duration_s:6.2f} s   blend {r * 1000:5.0f} mm saves {s:5.2f} s"
             )
@@ -204,6 +205,11 @@ def run(cell_path: str, task_path: str, verbose: bool = True) -> dict:
         "ratio_blended": ours / blended if moves else 1.0,
         "ratio_stopping": ours / stopping if moves else 1.0,
         "ratio_bound": ours / bound if bound > 0 else 1.0,
+        "breakdown": (
+            cycle_breakdown.breakdown(world, plan, taught, (moves, labels, saved, fixed))
+            if moves
+            else None
+        ),
     }
 
 
@@ -242,7 +248,23 @@ def summary_lines(results: list[dict]) -> list[str]:
             f"  {name:44s} {r['ours_s']:9.2f}s {r['blended_s']:8.2f}s {r['ratio_blended']:5.2f}x "
             f"{r['stopping_s']:7.2f}s {r['ratio_stopping']:5.2f}x {r['bound_s']:6.2f}s {r['ratio_bound']:5.3f}x"
         )
+    missed = [r for r in results if r["motion"] and _missed(r)]
+    if missed:
+        lines.append("why, where a target is missed:")
+    for r in missed:
+        lines.append(f"  {Path(r['cell']).stem} / {Path(r['task']).stem}")
+        lines += cycle_breakdown.why_lines(
+            r, r["breakdown"], {"blended": TARGET_BLENDED, "stopping": TARGET_STOPPING}
+        )
     return lines
+
+
+def _missed(r: dict) -> bool:
+    return (
+        r["ratio_blended"] > TARGET_BLENDED
+        or r["ratio_stopping"] > TARGET_STOPPING
+        or r["ratio_bound"] > TARGET_BOUND
+    )
 
 
 def targets(results: list[dict]) -> list[tuple[str, bool]]:

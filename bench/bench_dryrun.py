@@ -1,8 +1,10 @@
 """Dry-run speed and fidelity (issue 4, issue 11).
 
 For each case, the job runs through the real cell controller against the MuJoCo twin;
-we time only the control loop (model build and planning excluded) and compare with two
-peers on the same compiled model:
+we time only the control loop (model build and planning excluded), as ``dry-run`` runs
+it (with look-ahead: streamed motions advance many periods per call, their physics in
+``mujoco.rollout``) and one period at a time (``dry-run --per-period``, the loop before
+look-ahead), and compare with two peers on the same compiled model:
 
 - ``stream``: the same approved trajectories streamed straight into the twin with no
   engine (``servo`` + ``wait_period``);
@@ -15,7 +17,9 @@ Real-time factors are simulated time over CPU time of this process (``time.proce
 everything is single-threaded here, and on a shared machine wall time mostly measures the
 other processes); wall-clock factors are printed too. A breakdown of the engine's CPU time
 per control period (physics, the twin's own Python per period, state reads, the engine's
-tick) comes from one more run with timers around those calls. Medians over runs.
+tick) comes from one more run with timers around those calls; a second breakdown shows
+where the look-ahead run's time goes (rollouts, the periods still stepped one by one,
+replanning, tracking samples). Medians over runs.
 
     python bench/bench_dryrun.py [--runs 5]
 
@@ -52,7 +56,7 @@ CASES = [
 ]
 
 
-def _started(cell, task, params):
+def _started(cell, task, params, lookahead=True):
     """A controller with the job planned and about to move: (controller, loop, backend)."""
     world = CellWorld(cell)
     backend = SimBackend(description_of(cell))
@@ -60,7 +64,7 @@ def _started(cell, task, params):
         cell, {1: task}, backend, Journal(":memory:"), job_planner(world), wait_for_unhold=False
     )
     controller.setup()
-    loop = ControlLoop(controller)
+    loop = ControlLoop(controller, lookahead=lookahead)
     loop.step(3)
     controller.start_job(1, params, "bench", "cli")
     loop.step(1)  # planning starts on the control thread
@@ -68,10 +72,10 @@ def _started(cell, task, params):
     return controller, loop, backend
 
 
-def engine_run(cell, task, params) -> tuple[float, float, float, float, float]:
+def engine_run(cell, task, params, lookahead=True) -> tuple[float, float, float, float, float]:
     """(simulated s, CPU s of the loop, wall s of the loop, planned cycle s, simulated
     cycle s)."""
-    controller, loop, backend = _started(cell, task, params)
+    controller, loop, backend = _started(cell, task, params, lookahead)
     sim0, cpu0, wall0 = backend.read_state().time_s, time.process_time(), time.perf_counter()
     loop.run_job(max_s=3600.0)
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
@@ -114,7 +118,7 @@ def recorded_run(cell, task, params):
     actuator inputs before each mj_step, CPU s per control period by part, periods)."""
     import mujoco
 
-    controller, loop, backend = _started(cell, task, params)
+    controller, loop, backend = _started(cell, task, params, lookahead=False)
     world = backend.world
     state = np.empty(mujoco.mj_stateSize(world.model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
     mujoco.mj_getState(world.model, world.data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
@@ -158,6 +162,52 @@ def recorded_run(cell, task, params):
     periods = loop.ticks
     controller.close()
     return state, np.array(inputs), spent, periods
+
+
+def lookahead_breakdown(cell, task, params) -> tuple[Counter, Counter, int, int]:
+    """One look-ahead run with timers: (CPU s by part, calls by part, periods, periods
+    looked ahead). Parts: rollouts (the physics of the periods looked ahead, and of those
+    rolled out beyond a cut), the periods stepped one at a time, replanning (inside those
+    periods), tracking samples, and the rest of the look-ahead's Python."""
+    import cellrunner.execution.lookahead as engine_ahead
+    import cellrunner.sim.lookahead as twin_ahead
+
+    controller, loop, _ = _started(cell, task, params)
+    loop.step(1)  # the runner starts
+    runner = controller.last_runner or controller._job.runner
+    spent, counts = Counter(), Counter()
+    undo = []
+
+    def timed(owner, name, key):
+        f = getattr(owner, name)
+
+        def wrapper(*args, **kwargs):
+            t = time.process_time()
+            try:
+                return f(*args, **kwargs)
+            finally:
+                spent[key] += time.process_time() - t
+                counts[key] += 1
+
+        setattr(owner, name, wrapper)
+        undo.append((owner, name, f))
+
+    timed(twin_ahead.Lookahead, "preview", "rollouts (preview)")
+    timed(twin_ahead.Lookahead, "commit", "commits")
+    timed(engine_ahead, "_track", "tracking samples")
+    timed(controller, "fast_forward", "look-ahead calls (all)")
+    timed(loop, "step", "periods one at a time (all)")
+    timed(runner.ctx.motions, "replan", "replanning")
+    cpu0 = time.process_time()
+    try:
+        loop.run_job(max_s=3600.0)
+    finally:
+        for owner, name, f in undo:
+            setattr(owner, name, f)
+    spent["loop"] = time.process_time() - cpu0
+    periods, ahead = loop.ticks, loop.ticks_ahead
+    controller.close()
+    return spent, counts, periods, ahead
 
 
 def raw_mj_step(cell, state: np.ndarray, inputs: np.ndarray) -> tuple[float, float, float]:
@@ -206,22 +256,26 @@ def main() -> int:
     report = []
     print(
         f"{'case':30s} {'engine RTF':>10s} {'stream RTF':>10s} {'mj_step RTF':>11s} "
-        f"{'engine/mj_step':>14s} {'(wall)':>7s} {'planned s':>9s} {'simulated s':>11s} "
-        f"{'diff %':>6s}"
+        f"{'engine/mj_step':>14s} {'(wall)':>7s} {'per-period':>10s} {'planned s':>9s} "
+        f"{'simulated s':>11s} {'diff %':>6s}"
     )
-    worst_rtf, worst_diff, breakdowns = float("inf"), 0.0, []
+    worst_rtf, worst_diff, breakdowns, ahead_breakdowns = float("inf"), 0.0, [], []
     for name, cell_path, task_path, params in CASES:
         cell = load_cell(ROOT / cell_path)
         task = load_task(ROOT / task_path, cell)
         engine_run(cell, task, params)  # warm-up: first-use imports and caches
         state, inputs, spent, periods = recorded_run(cell, task, params)
         breakdowns.append((name, spent, periods))
+        ahead_breakdowns.append((name, *lookahead_breakdown(cell, task, params)))
         engine, engine_wall, raw, diffs, physics, physics_wall = [], [], [], [], [], []
+        per_period = []
         planned = simulated = 0.0
-        for _ in range(args.runs):  # interleaved: engine, stream, bare physics
+        for _ in range(args.runs):  # interleaved: engine, per-period, stream, bare physics
             sim, cpu, wall, planned, simulated = engine_run(cell, task, params)
             engine.append(sim / cpu)
             engine_wall.append(sim / wall)
+            sim_1, cpu_1, *_ = engine_run(cell, task, params, lookahead=False)
+            per_period.append(sim_1 / cpu_1)
             diffs.append(abs(simulated - planned) / planned * 100)
             sim_r, cpu_r = raw_stream(cell, task, params)
             raw.append(sim_r / cpu_r)
@@ -231,6 +285,7 @@ def main() -> int:
         e, r, d = statistics.median(engine), statistics.median(raw), statistics.median(diffs)
         p = statistics.median(physics)
         ew, pw = statistics.median(engine_wall), statistics.median(physics_wall)
+        e1 = statistics.median(per_period)
         worst_rtf, worst_diff = min(worst_rtf, e / p), max(worst_diff, d)
         report.append(
             {
@@ -240,20 +295,38 @@ def main() -> int:
                 "mj_step_rtf": p,
                 "ratio": e / p,
                 "ratio_wall": ew / pw,
+                "per_period_rtf": e1,
+                "per_period_ratio": e1 / p,
                 "cycle_diff_pct": d,
             }
         )
         print(
             f"{name:30s} {e:9.1f}x {r:9.1f}x {p:10.1f}x {e / p:13.2f}x {ew / pw:6.2f}x "
-            f"{planned:9.2f} {simulated:11.2f} {d:6.2f}"
+            f"{e1 / p:9.2f}x {planned:9.2f} {simulated:11.2f} {d:6.2f}"
         )
     print(
         f"\nmedians of {args.runs} runs, real-time factors in CPU time ((wall): the same ratio "
-        f"by the wall clock); targets: engine >= 0.8x raw mj_step (worst {worst_rtf:.2f}x: "
+        f"by the wall clock; per-period: the loop one period at a time, dry-run --per-period, "
+        f"against the same raw mj_step); targets: engine >= 0.8x raw mj_step (worst {worst_rtf:.2f}x: "
         f"{'met' if worst_rtf >= 0.8 else 'missed'}), cycle difference < 2 % (worst "
         f"{worst_diff:.2f} %: {'met' if worst_diff < 2 else 'missed'})"
     )
-    print("\nwhere a control period's CPU time goes (us per period, one timed run):")
+    print("\nwhere the look-ahead run's CPU time goes (ms per job, one timed run):")
+    for name, spent, counts, periods, ahead in ahead_breakdowns:
+        one_by_one = spent["periods one at a time (all)"]
+        replans = spent["replanning"]
+        rest = spent["loop"] - spent["look-ahead calls (all)"] - one_by_one
+        calls = spent["look-ahead calls (all)"] - spent["rollouts (preview)"]
+        print(
+            f"  {name}: {spent['loop'] * 1e3:.1f} in all, {periods} periods, {ahead} of them "
+            f"({ahead / periods:.0%}) in {counts['commits']} look-aheads = rollouts "
+            f"{spent['rollouts (preview)'] * 1e3:.1f} ({counts['rollouts (preview)']} calls) + "
+            f"look-ahead Python {calls * 1e3:.1f} (tracking samples "
+            f"{spent['tracking samples'] * 1e3:.1f}) + {periods - ahead} periods one at a time "
+            f"{one_by_one * 1e3:.1f} (of which replanning {replans * 1e3:.1f} in "
+            f"{counts['replanning']} replans) + loop {rest * 1e3:.1f}"
+        )
+    print("\nwhere a control period's CPU time goes, one period at a time (us per period):")
     for name, spent, periods in breakdowns:
         us = {k: v / periods * 1e6 for k, v in spent.items()}
         twin_python = us["twin step"] - us["mj_step"]

@@ -3,8 +3,9 @@
 Run: ``python bench/bench_planning.py [--reps 3]`` from the repository root (or all the
 planning benches: ``python bench/run_all.py``). Scenes: bench/scenes.py (UR5e, cluttered
 table, shelf, bins), 20 start/goal pairs: the headline figures and targets. ``--large``
-adds 15 problems for the large arms (a UR20 palletizing, a UR30 tending a machine through
-its door, a UR15 at a tall rack), reported per arm beside the headline.
+adds 5 problems each for the other arms (a UR20 palletizing, a UR30 tending a machine through
+its door, a UR15 at a tall rack, and the CB3 arms: a UR5 at the shelf, a UR10 at the rack),
+reported per arm beside the headline.
 
 Fairness: both planners solve each problem in the same process and run, on the identical
 pinocchio model and collision geometry (the same capsules, tool, fixtures and checked
@@ -267,7 +268,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reps", type=int, default=3, help="runs per problem and planner (median)")
     parser.add_argument(
-        "--large", action="store_true", help="add the UR15/UR20/UR30 problems (reported per arm)"
+        "--large",
+        action="store_true",
+        help="add the other arms' problems (UR20, UR30, UR15, UR5, UR10; reported per arm)",
     )
     args = parser.parse_args(argv)
     result = run(args.reps, large=args.large)

@@ -4,7 +4,8 @@ Run from the repository root::
 
     PYTHONPATH=. python bench/run_all.py [--quick] [--all]
 
-1. planning: 20 UR5e problems, cellrunner vs pyroboplan RRT-Connect (bench_planning.py);
+1. planning: 20 UR5e problems, cellrunner vs pyroboplan RRT-Connect, and 5 each on the
+   UR20, UR30, UR5 and UR10 reported beside them (bench_planning.py);
 2. cycle time of every reference cell's tasks vs the same job as a PolyScope program at
    the same limits, blended and stopping at every waypoint, and vs the time-optimal bound
    on cellrunner's own path (bench_cycle.py, model in bench/polyscope.py);
@@ -62,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     print("== (1) planning", flush=True)
-    planning = bench_planning.run(reps=1 if args.quick else 3)
+    planning = bench_planning.run(reps=1 if args.quick else 3, large=True)
     print("== (2) cycle time", flush=True)
     cycle = bench_cycle.run_all(verbose=False)
     print("== (3) check wall time", flush=True)

@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
     )
     out = console()
     controller.setup()
-    loop = ControlLoop(controller)
+    loop = ControlLoop(controller, lookahead=not getattr(args, "per_period", False))
     loop.step(3)
     t0 = time.perf_counter()
     with out.status("planning", spinner="dots") as status:
@@ -116,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
             world,
             {**cell.cell.io.outputs, **cell.cell.io.inputs},
         )
-        loop.add_observer(rehearsal.observe)
+        loop.add_observer(rehearsal)
         loop.step(1)  # the plan is picked up: the job runs (or ended with 103)
         view = controller.job_view(records=False) or controller.last_job
         planned_s = (view.planned_cycle_time_s or 0.0) if view is not None else 0.0
@@ -221,6 +221,19 @@ class _Rehearsal:
     io_names: dict[str, str]  # IO name -> channel, for the report's IO lanes
     plc_back_at: float | None = None
     last_step: int = -1
+
+    def quiet_until_s(self, cell: CellController) -> float:
+        """Until when (simulated s) :meth:`observe` has nothing to do while a motion
+        streams: the next injection, the PLC coming back, the next report sample."""
+        times = [at for _, at in self.pending]
+        if self.plc_back_at is not None:
+            times.append(self.plc_back_at)
+        if self.recorder is not None:
+            times.append(self.recorder.next_due_s)
+        return min(times, default=float("inf"))
+
+    def __call__(self, cell: CellController) -> None:
+        self.observe(cell)
 
     def observe(self, cell: CellController) -> None:
         backend, recorder = self.backend, self.recorder

@@ -120,6 +120,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--report", metavar="DIR", help="write JSON, pictures and plots here")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.add_argument(
+        "--per-period",
+        action="store_true",
+        help="step the twin one controller period at a time, without look-ahead "
+        "(slower; the same results)",
+    )
     p.set_defaults(module="dryrun")
 
     p = sub.add_parser("run", help="one job on the robot through ur_rtde (or on the twin)")

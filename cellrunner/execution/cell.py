@@ -433,6 +433,36 @@ class CellController:
             self._idle_transitions()
             self._publish()
 
+    def fast_forward(self, max_periods: int, until_s: float) -> int:
+        """Up to ``max_periods`` periods in one call while a job streams a motion and
+        nothing else happens (the backend looks ahead; see
+        :mod:`~cellrunner.execution.lookahead`), none at or after ``until_s`` (backend
+        time, s). Returns how many periods passed; 0: run the next one through
+        :meth:`tick` (after ``backend.wait_period()``)."""
+        with self._lock:
+            job = self._job
+            if (
+                self._actions
+                or self._recovery is not None
+                or job is None
+                or job.runner is None
+                or self.sm.state is not S.EXECUTE
+                or self._safety is not Safety.NORMAL
+            ):
+                return 0
+            runner = job.runner
+        n = runner.fast_forward(max_periods, until_s)
+        if n:
+            state = runner.ctx.last_state
+            with self._lock:
+                self._ticks += n
+                self._now_s, self._safety = state.time_s, state.safety
+                if job is self._job:
+                    self._follow(job, runner)
+                self._idle_transitions()
+                self._publish()
+        return n
+
     def _start_recovery(self) -> None:
         if self._recovery is None:
             self._recovery = self._recover()

@@ -24,6 +24,7 @@ from cellrunner.errors import BackendError, CellrunnerError, InfeasibleError, Pe
 from cellrunner.execution import steps as behaviours
 from cellrunner.execution.context import JobContext
 from cellrunner.execution.force import run_force
+from cellrunner.execution.lookahead import Clock, fast_forward
 from cellrunner.execution.steps import Outcome, StepGen, run_motion, run_weigh
 from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock
 from cellrunner.model.codes import ResultCode
@@ -189,6 +190,24 @@ class JobRunner:
         elif phase is JobPhase.HOLDING or phase is JobPhase.HELD:
             self._tick_held()
 
+    def fast_forward(self, max_periods: int, until_s: float) -> int:
+        """Up to ``max_periods`` periods of a streaming motion in one call, none at or
+        after ``until_s`` (s); returns how many passed, 0 when the next period must run
+        through :meth:`tick` (see :mod:`~cellrunner.execution.lookahead`)."""
+        if (
+            self.phase is not JobPhase.EXECUTE
+            or self._requests
+            or self._reconnect_why is not None
+            or self._gen is None
+            or self._current is None
+            or self.ctx.stream is None
+        ):
+            return 0
+        clock = Clock(self._ticks, TRACK_EVERY, self._item_started_s, self._item_timeout_s, until_s)
+        n = fast_forward(self.ctx, clock, max_periods)
+        self._ticks += n
+        return n
+
     def _handle_request(self, what: str) -> None:
         if what == "abort":
             self._finish(ResultCode.ABORTED_BY_PLC, f"aborted during {self._label()}")
@@ -202,6 +221,7 @@ class JobRunner:
         self._hold_reason = reason
         self._hold_since_s = self.ctx.now_s
         self._gen = None
+        self.ctx.stream = None
         self.ctx.commanded_q = None  # not streaming: no tracking error until the next set-point
         if reason != "protective stop":
             self.ctx.backend.stop_motion()
@@ -294,6 +314,7 @@ class JobRunner:
             self._reconnect_why, self._reconnect_until = why, now + timeout_s
             self._reconnect_next, self._reconnect_delay = now, RECONNECT_FIRST_DELAY_S
             self._gen = None
+            self.ctx.stream = None
             self.ctx.commanded_q = None
         if now < self._reconnect_next:
             return
@@ -328,6 +349,7 @@ class JobRunner:
 
     def _start_item(self, item: _Item) -> None:
         step = item.step
+        self.ctx.stream = None  # a motion's generator sets it once it streams
         if (
             self.gate is not None
             and not (item.gated or item.between or item.resume)
@@ -546,6 +568,7 @@ class JobRunner:
         self.ended_s = self.ctx.now_s
         self.phase = JobPhase.DONE
         self._gen = None
+        self.ctx.stream = None
         self._log("job_end", result_code=int(code), message=message)
 
     @property

@@ -19,6 +19,9 @@ from cellrunner.execution.cell import CellController
 
 Observer = Callable[[CellController], None]
 
+#: the most periods one look-ahead covers (the backend may cover fewer)
+LOOKAHEAD_PERIODS = 1024
+
 #: a real-time loop that fell this far behind the wall clock restarts its schedule (s)
 MAX_LAG_S = 0.5
 
@@ -27,13 +30,23 @@ class ControlLoop:
     """Ticks one :class:`CellController`; see the module docstring."""
 
     def __init__(
-        self, cell: CellController, *, realtime: bool = False, observers: tuple[Observer, ...] = ()
+        self,
+        cell: CellController,
+        *,
+        realtime: bool = False,
+        observers: tuple[Observer, ...] = (),
+        lookahead: bool = True,
     ) -> None:
         self.cell = cell
         self.realtime = realtime
+        #: run_job advances streamed motions many periods per call where the backend can
+        #: look ahead and every observer says when it next needs a period
+        #: (``quiet_until_s(cell)``); False: always one period at a time
+        self.lookahead = lookahead and not realtime
         self.period_s = 1.0 / cell.backend.rate_hz
         self.observers: list[Observer] = list(observers)
         self.ticks = 0
+        self.ticks_ahead = 0  # of which in look-aheads
         self._next_wall_s: float | None = None
 
     def add_observer(self, observer: Observer) -> None:
@@ -74,7 +87,23 @@ class ControlLoop:
                 cell.command("abort")
                 self.step()
                 return
+            if self.lookahead and self._fast_forward(t0 + max_s):
+                continue
             self.step()
+
+    def _fast_forward(self, limit_s: float) -> int:
+        """Periods advanced by the cell in one look-ahead (none past ``limit_s`` or the
+        moment an observer asks for), 0 when the next period runs as usual."""
+        until_s = limit_s
+        for observer in self.observers:
+            quiet_until = getattr(observer, "quiet_until_s", None)
+            if quiet_until is None:
+                return 0
+            until_s = min(until_s, quiet_until(self.cell))
+        n = self.cell.fast_forward(LOOKAHEAD_PERIODS, until_s)
+        self.ticks += n
+        self.ticks_ahead += n
+        return n
 
     def _pace(self) -> None:
         now = time.monotonic()

@@ -39,6 +39,9 @@ class PacedMotions:
     def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
         return self.motions.tcp_position_m(q_rad, step)
 
+    def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
+        return self.motions.tcp_positions_m(q_rad)
+
 
 class EnterGate:
     """``run --step``: each step waits for a line (Enter) on ``source``; before waiting it

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cellrunner.backends.base import RobotState
-from cellrunner.execution.context import Carry, JobContext
+from cellrunner.execution.context import Carry, JobContext, Stream
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.step import StepKind
@@ -33,6 +33,8 @@ AVERAGE_S = 0.05
 SETTLE_S = 0.1
 #: the jaw sensor must read false this long before the part counts as lost (debounce, s)
 SENSOR_DEBOUNCE_S = 0.05
+#: a carried load that falls (low-passed) under this fraction of the grip's minimum: lost
+LOAD_LOST_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -82,15 +84,22 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
         if ctx.commanded_q is not None and len(q) > 1 and np.array_equal(q[0], ctx.commanded_q)
         else 0
     )
-    for i in range(first, len(q)):
+    # the index lives in ctx.stream so that a look-ahead (execution.lookahead) can move
+    # the stream on by many periods at once
+    stream = ctx.stream = Stream(approved, first)
+    while stream.next_index < len(q):
+        i = stream.next_index
         ctx.backend.servo(approved, i)
         ctx.commanded_q = q[i]
+        stream.next_index = i + 1
         yield
         if ctx.carry is not None:
             lost = _part_lost(ctx)
             if lost:
+                ctx.stream = None
                 ctx.backend.stop_motion()
                 return Outcome.failed(ResultCode.PART_LOST, lost)
+    ctx.stream = None
     ctx.notes["end_rad_s"] = (
         float(np.abs(q[-1] - q[-2]).max()) * approved.trajectory.rate_hz if len(q) > 1 else 0.0
     )
@@ -313,15 +322,25 @@ def _part_lost(ctx: JobContext) -> str | None:
     sensor = sensor_dropped(ctx)
     if sensor is not None:
         return f"part lost in transit: the {sensor} dropped"
-    if carry.load_N is not None and carry.min_N > 0:
+    if watches_load(carry) and carry.load_N is not None:
         # plain floats: numpy's per-call cost dwarfs a 3-vector norm, and this runs every tick
         load = math.dist(
             np.asarray(ctx.last_state.wrench_N[:3]).tolist(), carry.baseline_N.tolist()
         )
-        load_lp = ctx.notes["load_lp"] = 0.9 * ctx.notes.get("load_lp", carry.load_N) + 0.1 * load
-        if load_lp < 0.5 * carry.min_N:
+        load_lp = ctx.notes["load_lp"] = next_load_lp(ctx.notes.get("load_lp", carry.load_N), load)
+        if load_lp < LOAD_LOST_FRACTION * carry.min_N:
             return f"part lost in transit: the wrist load fell to {load_lp:.1f} N"
     return None
+
+
+def watches_load(carry: Carry | None) -> bool:
+    """Whether the load of the carried part is watched each period (:func:`_part_lost`)."""
+    return carry is not None and carry.load_N is not None and carry.min_N > 0
+
+
+def next_load_lp(load_lp: float, load_N: float) -> float:
+    """One period of the low-pass on the carried load (N)."""
+    return 0.9 * load_lp + 0.1 * load_N
 
 
 BEHAVIOURS = {

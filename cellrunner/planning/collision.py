@@ -109,11 +109,13 @@ STALL_M = 1e-4
 #: Spacing (largest joint move, rad) of the cheap rejection probes in check_motion.
 PROBE_STEP_RAD = 0.15
 
-#: check_path proves pairs from the samples' lower bounds first on paths up to this long. Off:
-#: with capsule arm links the exact queries' jumps were cheaper on the verifier's dense samples
-#: and on the planner's 32-point corner arcs too (bench_planning: median 6.5 -> 5.0 ms CPU,
-#: measured); re-measure when exact queries get dearer (convex link parts)
-PATH_BOUNDS_MAX_SAMPLES = 0
+#: check_path bounds the polyline chunk by chunk, each chunk about ``KNOT_STEP_RAD`` of joint
+#: travel (as check_motion's parts): the chunk's radial bounds bound its segments, and the
+#: lower bounds at the chunk ends prove the pairs that stay clear of it, so only the others
+#: are measured.
+#: off: every pair bounded by its configuration-independent reach and measured (the test of
+#: the chunked bounds compares the two)
+PATH_CHUNK_BOUNDS = True
 
 #: Largest joint move (rad) of one part of a segment over which check_motion bounds each
 #: object's distance from the joint axes afresh (shorter parts: tighter bounds, more FK).
@@ -706,8 +708,17 @@ class CollisionModel:
         on the distance shrink along the segment (:meth:`segment_bounds`), and per knot
         and pair, a lower bound of the signed distance (:meth:`_knot_lower_bounds`)."""
         q = np.asarray(q_rad, float)
-        knots = len(q)
         adq = np.abs(np.diff(q, axis=0))  # (pieces, 6)
+        per_pair, lower = self._piece_bounds(q, adq)
+        return np.einsum("kpj,kj->kp", per_pair, adq), lower
+
+    def _piece_bounds(self, q: np.ndarray, travel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For the pieces between the knots ``q`` (knots x 6), on each of which joint j turns
+        by at most ``travel[:, j]`` in all (its |dq| on a straight piece, the sum of them on
+        a polyline): per piece, pair and joint, a bound on how fast (m per rad of joint j)
+        the pair's distance can shrink anywhere on the piece (pieces, pairs, 6); and per
+        knot and pair, a lower bound of the signed distance (knots, pairs)."""
+        knots = len(q)
         frames = self.joint_frames(q)  # (knots, 7, 4, 4)
         # every point in every joint frame by one product, then each in its own joint's
         every = (frames[:, :, :3, :].reshape(-1, 4) @ self._point_local.T).reshape(knots, 7, 3, -1)
@@ -733,12 +744,12 @@ class CollisionModel:
         )
         rho = np.maximum.reduceat(across, self._support_start, axis=1)
         reach = self._reach_movers  # (movers, 6)
-        weighted = reach[None] * adq[:, None, :]  # (pieces, movers, 6)
+        weighted = reach[None] * travel[:, None, :]  # (pieces, movers, 6)
         after = np.cumsum(weighted[:, :, ::-1], axis=2)[:, :, ::-1] - weighted  # A[:, :, j]
         lo, hi = rho[:-1], rho[1:]
         bound = np.minimum(reach, np.minimum(np.minimum(lo, hi) + after, 0.5 * (lo + hi + after)))
-        rates = np.einsum("kpj,kj->kp", bound[:, self._pair_high_row] * self._pair_joints, adq)
-        return rates, self._knot_lower_bounds(pts[:, n_support:])
+        per_pair = bound[:, self._pair_high_row] * self._pair_joints
+        return per_pair, self._knot_lower_bounds(pts[:, n_support:])
 
     def joint_frames(self, q_rad: np.ndarray) -> np.ndarray:
         """World frames of joints 0..6 (0: the universe) at configurations ``q_rad`` (n x 6):
@@ -886,22 +897,23 @@ class CollisionModel:
             ok = self.is_valid(q[0])
             return MotionCheck(ok, None if ok else 0.0, None if ok else self.clearance(q[0]))
         n = len(q)
-        # summed along the samples in (n, pairs) layout, then one transposing copy: a cumsum
-        # along the rows of (pairs, n) strides through memory (4x slower, measured)
-        seg_t = np.abs(np.diff(q, axis=0)) @ self._pair_reach.T  # (n-1, pairs)
-        cum_t = np.empty((n, len(self._pairs)))
-        cum_t[0] = 0.0
-        np.cumsum(seg_t, axis=0, out=cum_t[1:])
-        seg, cum = seg_t.T, np.ascontiguousarray(cum_t.T)  # (pairs, n-1), (pairs, n)
-        pairs = np.arange(len(self._pairs))
-        if n <= PATH_BOUNDS_MAX_SAMPLES:
-            # pairs whose lower bounds at the samples prove every segment (as in
-            # check_motion) need no exact distance at all
-            rates, lower = self._polyline_bounds(q)
-            open_parts = 0.5 * (lower[:-1] + lower[1:] - rates) - self._required < STALL_M
-            pairs = np.flatnonzero(open_parts.any(axis=0))
+        adq = np.abs(np.diff(q, axis=0))  # (n-1, 6)
+        if PATH_CHUNK_BOUNDS:
+            pairs, seg_t = self._chunk_bounds(q, adq)
             if not len(pairs):
                 return MotionCheck(True)
+        else:
+            pairs = np.arange(len(self._pairs))
+            seg_t = adq @ self._pair_reach.T  # (n-1, pairs)
+        # summed along the samples in (n, pairs) layout, then one transposing copy: a cumsum
+        # along the rows of (pairs, n) strides through memory (4x slower, measured)
+        cum_t = np.empty((n, len(pairs)))
+        cum_t[0] = 0.0
+        np.cumsum(seg_t, axis=0, out=cum_t[1:])
+        # rows of the pairs measured, by pair index
+        seg_rows, cum_rows = seg_t.T, np.ascontiguousarray(cum_t.T)  # (open, n-1), (open, n)
+        seg = dict(zip(pairs.tolist(), seg_rows, strict=True))
+        cum = dict(zip(pairs.tolist(), cum_rows, strict=True))
         # due[j]: the pairs to measure at sample j; ``samples``: the keys, sorted. A pair
         # proven up to sample ``last`` joins the latest sample already due in
         # (j + (last - j) / 2, last] if there is one (measuring it earlier is as sound and
@@ -927,7 +939,7 @@ class CollisionModel:
                 if last <= j:
                     # this pair alone, advanced along the segment by its own bound
                     s_blocked, m_blocked, used = self._advance_pair(
-                        k, qj, q[j + 1], float(seg[k, j]), m
+                        k, qj, q[j + 1], float(seg[k][j]), m
                     )
                     queries += used
                     if s_blocked is not None:
@@ -945,6 +957,25 @@ class CollisionModel:
                     due[last] = [k]
                     insort(samples, last)
         return MotionCheck(True, distance_queries=queries)
+
+    def _chunk_bounds(self, q: np.ndarray, adq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For the polyline ``q`` (n x 6, |dq| per segment ``adq``) cut into chunks
+        of about ``KNOT_STEP_RAD`` of joint travel: the pairs that some chunk's end lower bounds do not prove
+        clear (as in :meth:`check_motion`), and for those, per segment, a bound on the
+        distance shrink along it (n - 1, open pairs), from its chunk's bounds."""
+        n = len(q)
+        chunks = max(1, math.ceil(float(adq.sum(axis=0).max()) / KNOT_STEP_RAD))
+        size = math.ceil((n - 1) / chunks)
+        cuts = np.arange(0, n - 1, size)
+        travel = np.add.reduceat(adq, cuts, axis=0)  # (chunks, 6)
+        per_pair, lower = self._piece_bounds(q[np.append(cuts, n - 1)], travel)
+        rates = np.einsum("cpj,cj->cp", per_pair, travel)
+        open_chunks = 0.5 * (lower[:-1] + lower[1:] - rates) - self._required < STALL_M
+        pairs = np.flatnonzero(open_chunks.any(axis=0))
+        padded = np.zeros((len(cuts) * size, 6))
+        padded[: n - 1] = adq
+        steps = padded.reshape(len(cuts), size, 6) @ per_pair[:, pairs].transpose(0, 2, 1)
+        return pairs, np.maximum(steps.reshape(-1, len(pairs))[: n - 1], 1e-12)
 
     def _advance_pair(
         self, k: int, qa: np.ndarray, qb: np.ndarray, shrink_m: float, margin_m: float

@@ -7,7 +7,7 @@ joint by a full turn for nothing). Every edge the planner keeps is proven by
 by sampling alone, so the returned path is collision-free between its waypoints, not only at
 them. The path is then shortened by greedy shortcutting with the same check.
 
-For speed the search first runs with sampled edge checks (every 0.05 rad) and only the
+For speed the search first runs with sampled edge checks (every 0.1 rad) and only the
 edges of the shortened result are proven; when one fails the proof, the search is run
 again with the conservative check on every edge. Finally each corner of a searched path
 is rounded by a short arc where a proven arc fits (:func:`round_corners`), so the timed
@@ -33,10 +33,14 @@ from cellrunner.planning.collision import CollisionModel
 #: RRTConnect extension length: largest Euclidean joint-space step per tree extension.
 RRT_RANGE_RAD = 1.5
 #: Edge sampling step (joint-space distance, rad) of the fast search before certification.
-LAZY_RESOLUTION_RAD = 0.05
+#: Its edges are proven afterwards, so the sampling only steers the search: 0.1 rad halves
+#: the state checks of 0.05 and was ~10% faster over the planning bench (median 6.1 -> 5.4
+#: ms), with the same one certification fallback in 20 problems.
+LAZY_RESOLUTION_RAD = 0.1
 #: Corner rounding (:func:`round_corners`): fractions of the adjacent edges tried, largest
-#: first, and the number of points of each arc.
-CORNER_FRACTIONS = (0.35, 0.2, 0.1)
+#: first (half of each edge: neighbouring arcs meet, as PolyScope's largest blend radius at a
+#: via point), and the number of points of each arc.
+CORNER_FRACTIONS = (0.5, 0.35, 0.2, 0.1)
 CORNER_POINTS = 32
 #: states in collision a failed search keeps to say what blocked it
 MAX_REFUSED_KEPT = 2000

@@ -50,7 +50,7 @@ SET_DOWN_PRESS_M = 0.001
 #: UR integrator sets (bench/polyscope.py uses the same)
 LINEAR_BLEND_FRACTION = 0.4
 BLEND_RADIUS_MAX_M = 0.05
-#: between two joint moves: this share of each adjacent edge (as joint_path.round_corners)
+#: between two joint moves of different steps: this share of each adjacent edge
 CORNER_FRACTION = 0.35
 BLEND_POINTS = 24
 #: timed groups remembered per cell, least recently used out (:func:`_timed_pieces`). The
@@ -170,6 +170,10 @@ class TaskPlan:
         """World TCP position at ``q_rad``, with the tool mounted at ``step`` (default: at start)."""
         world = self.world if step is None else self._world_of(step)
         return np.asarray(world.kinematics.p_world_tcp(q_rad))
+
+    def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
+        """World TCP positions (N x 3) at the rows of ``q_rad``, tool mounted at start."""
+        return self.world.kinematics.p_world_tcp_many(q_rad)
 
     def _carried_before(self, step: Step) -> Placed | None:
         rows = [r for r in self.rows if r.step.index <= step.index]
@@ -633,7 +637,9 @@ def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) ->
         trajectory = Trajectory(world.spec.rate_hz, np.arange(len(q)) / world.spec.rate_hz, q)
         inputs = VerifyInputs(
             previous_q_rad=previous,
-            previous_moving=i > 0,
+            # the arm runs into this piece from the one before only when that one moved:
+            # a zero-length first piece (a move to where the arm stands) leaves it at rest
+            previous_moving=i > 0 and start > 0,
             ends_at_rest=i == len(group) - 1,
             line_m=motion.line_m,
         )

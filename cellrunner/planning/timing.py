@@ -1,9 +1,14 @@
 """Time parameterization (TOPP-RA) of joint paths and resampling at the controller rate.
 
-A path is a polyline of joint waypoints (rad). It is densified (no joint moves more than
-``DENSIFY_STEP_RAD`` between points), fitted with a cubic spline in the cumulative
-joint-space distance ``s`` and time-optimally parameterized by TOPP-RA, once, on a grid
-through every densified point, under
+A path is a polyline of joint waypoints (rad). Its long edges are densified (no joint
+moves more than ``DENSIFY_STEP_RAD`` between points), so that the spline keeps to them;
+edges up to ``DENSIFY_MIN_EDGE_RAD`` stay whole (the chords of a rounded corner: a knot
+inside each would make the spline straight between the arc's points and kinked at them,
+7% slower on a wide arc), fitted with a cubic spline in the cumulative
+joint-space distance ``s`` and time-optimally parameterized by TOPP-RA on a grid through
+every densified point, then again on that grid refined where the speed changes (intervals
+longer than ``REFINE_INTERVAL_S``: TOPP-RA's constant path acceleration per interval, held
+to the limits at both ends, stretched starts, stops and curves by 2-5%), under
 
 - joint speed limits x margin (rad/s),
 - joint acceleration limits x margin (rad/s^2),
@@ -44,6 +49,8 @@ from cellrunner.planning.kinematics import ArmKinematics
 SOfTime = Callable[[np.ndarray], np.ndarray]
 
 DENSIFY_STEP_RAD = 0.03
+#: edges up to this long (largest joint move, rad) are not densified
+DENSIFY_MIN_EDGE_RAD = 0.1
 #: Where resampling exceeds a limit, the speed there is lowered this much more (fraction).
 RESAMPLE_HEADROOM = 0.995
 #: Rounds of local slow-down before the uniform fallback.
@@ -53,6 +60,12 @@ MIN_GRID_POINTS = 40
 MAX_GRID_POINTS = 800
 #: TOPP-RA plans against limits this much lower (its solver meets them to ~1e-9 only).
 TOPPRA_TIGHTENING = 0.9995
+#: After a first solve, grid intervals where the speed changes are split to take at most
+#: this long (s), up to this many grid points in all (:meth:`_Problem.refine`) ...
+REFINE_INTERVAL_S = 0.0075
+MAX_REFINED_GRID_POINTS = 2000
+#: ... an interval within this fraction of its speed bound at both ends is cruising
+REFINE_CRUISE_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -163,9 +176,13 @@ def time_path(
     if len(wp) == 1:
         return TimedPath(rate_hz, np.zeros(1), wp.copy(), np.zeros(1), np.zeros(1))
     problem = _Problem(kin, wp, limits)
+    sd = problem.solve(problem.tcp_cap)
+    if problem.refine(sd):
+        sd = problem.solve(problem.tcp_cap)
     cap = problem.tcp_cap.copy()
-    for _ in range(LOCAL_ROUNDS + 1):
-        sd = problem.solve(cap)
+    for round_ in range(LOCAL_ROUNDS + 1):
+        if round_:
+            sd = problem.solve(cap)
         s_of_t, duration = _s_of_time(sd, problem.grid)
         t, s, q = _resample(problem, s_of_t, duration, 1.0, rate_hz)
         excess = _excess(kin, q, limits, rate_hz)
@@ -234,19 +251,58 @@ class _Problem:
             grid = np.union1d(s_dense, np.linspace(0.0, s_dense[-1], MIN_GRID_POINTS))
             if len(grid) > MAX_GRID_POINTS:
                 grid = grid[np.round(np.linspace(0, len(grid) - 1, MAX_GRID_POINTS)).astype(int)]
+        self.kin = kin
+        self._set_grid(grid)
+
+    def _set_grid(self, grid: np.ndarray) -> None:
+        """The grid, the path's slope on it and the TCP path-speed cap there."""
         self.grid = grid
         self.dq_ds = np.abs(self.path(grid, 1))
-        h = 1e-6
-        dp = kin.p_world_tcp_many(
-            self.path(np.minimum(grid + h, s_dense[-1]))
-        ) - kin.p_world_tcp_many(self.path(np.maximum(grid - h, 0.0)))
-        width = np.minimum(grid + h, s_dense[-1]) - np.maximum(grid - h, 0.0)
+        h, end = 1e-6, grid[-1]
+        dp = self.kin.p_world_tcp_many(
+            self.path(np.minimum(grid + h, end))
+        ) - self.kin.p_world_tcp_many(self.path(np.maximum(grid - h, 0.0)))
+        width = np.minimum(grid + h, end) - np.maximum(grid - h, 0.0)
         tcp_per_s = np.linalg.norm(dp, axis=1) / width
         self.tcp_cap = np.where(
             tcp_per_s < 1e-9,
             np.inf,
-            limits.tcp_speed_mps * tightening / np.maximum(tcp_per_s, 1e-12),
+            self.limits.tcp_speed_mps * self.tightening / np.maximum(tcp_per_s, 1e-12),
         )
+
+    def speed_bound(self, cap: np.ndarray) -> np.ndarray:
+        """The largest path speed (s_dot) each grid point allows: joint speeds and ``cap``."""
+        per_joint = (self.limits.joint_speed_rad_s * self.tightening)[None, :] / np.maximum(
+            self.dq_ds, 1e-12
+        )
+        return np.asarray(np.minimum(per_joint.min(axis=1), cap))
+
+    def refine(self, sd: np.ndarray) -> bool:
+        """Split the grid intervals where the solution ``sd`` changes speed (not cruising
+        at its speed bound) and that take longer than ``REFINE_INTERVAL_S``: TOPP-RA holds
+        the path acceleration constant over an interval and meets the limits at both its
+        ends, which costs time where the interval is long (starts, stops, curves). Whether
+        the grid changed."""
+        grid = self.grid
+        dt = 2 * np.diff(grid) / np.maximum(sd[:-1] + sd[1:], 1e-12)
+        bound = self.speed_bound(self.tcp_cap)
+        at_bound = sd >= (1 - REFINE_CRUISE_TOLERANCE) * bound
+        cruising = at_bound[:-1] & at_bound[1:]
+        pieces = np.where(cruising, 1, np.ceil(dt / REFINE_INTERVAL_S)).astype(int)
+        budget = MAX_REFINED_GRID_POINTS - len(grid)
+        extra = int((pieces - 1).sum())
+        if extra <= 0 or budget <= 0:
+            return False
+        if extra > budget:  # fewer splits everywhere rather than none somewhere
+            pieces = 1 + np.floor((pieces - 1) * budget / extra).astype(int)
+        fractions = [np.arange(1, k) / k for k in range(int(pieces.max()) + 1)]
+        inner = [
+            a + (b - a) * fractions[k]
+            for a, b, k in zip(grid[:-1], grid[1:], pieces, strict=True)
+            if k > 1
+        ]
+        self._set_grid(np.union1d(grid, np.concatenate(inner)))
+        return True
 
     def solve(self, cap: np.ndarray) -> np.ndarray:
         """TOPP-RA's path speeds (s_dot) on the grid under the joint limits and ``cap``."""
@@ -254,12 +310,9 @@ class _Problem:
         from toppra import algorithm as algo
         from toppra import constraint
 
-        f = self.tightening
-        alim = self.limits.joint_accel_rad_s2 * f
+        alim = self.limits.joint_accel_rad_s2 * self.tightening
         # joint speed limits and the path-speed cap as one bound on s_dot^2 per grid point
-        per_joint = (self.limits.joint_speed_rad_s * f)[None, :] / np.maximum(self.dq_ds, 1e-12)
-        sd_max = np.minimum(per_joint.min(axis=1), cap)
-        x_max = np.minimum(sd_max, 1e6) ** 2
+        x_max = np.minimum(self.speed_bound(cap), 1e6) ** 2
 
         class PathSpeedBound(constraint.LinearConstraint):  # type: ignore[misc]  # toppra is untyped
             """s_dot^2 <= x_max on each grid point (computed above for the whole grid)."""
@@ -409,12 +462,14 @@ def _dedupe(wp: np.ndarray) -> np.ndarray:
 
 
 def _densify(wp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Points every <= DENSIFY_STEP_RAD (largest joint move) along the polyline, their
-    cumulative joint-space distance, and that of the original waypoints."""
+    """Points every <= DENSIFY_STEP_RAD (largest joint move) along the polyline's edges
+    longer than DENSIFY_MIN_EDGE_RAD, their cumulative joint-space distance, and that of
+    the original waypoints."""
     points, s_points, s_wp = [wp[0]], [0.0], [0.0]
     s = 0.0
     for a, b in itertools.pairwise(wp):
-        n = max(1, math.ceil(np.abs(b - a).max() / DENSIFY_STEP_RAD))
+        span = np.abs(b - a).max()
+        n = 1 if span <= DENSIFY_MIN_EDGE_RAD else max(1, math.ceil(span / DENSIFY_STEP_RAD))
         length = float(np.linalg.norm(b - a))
         for k in range(1, n + 1):
             points.append(a + (b - a) * k / n)

@@ -47,6 +47,11 @@ class RunRecorder:
     def mark(self, time_s: float, step: Step) -> None:
         self.marks.append((time_s, step.index, step.kind, step.name))
 
+    @property
+    def next_due_s(self) -> float:
+        """The time (s) from which :meth:`due` is true."""
+        return self._next_s
+
     def due(self, time_s: float) -> bool:
         """Is a sample due at ``time_s`` (s)? (``SAMPLE_HZ`` samples per simulated second)"""
         return time_s >= self._next_s

@@ -49,6 +49,27 @@ class InputRules:
     ) -> dict[str, bool | float]:
         """The driven inputs at ``t_s`` (s) given the outputs now and the parts' world
         positions (an iterable of 3-sequences in m)."""
+        self._note_outputs(t_s, outputs)
+        return self._values(t_s, part_positions, prune=True)
+
+    def peek(
+        self,
+        t_s: float,
+        outputs: dict[str, bool | float],
+        part_positions: Iterable[Sequence[float]],
+    ) -> dict[str, bool | float] | None:
+        """What :meth:`evaluate` would return at ``t_s``, without changing any rule's
+        state (a look-ahead's question); None when an output changed since its last call
+        (then only :meth:`evaluate` can tell)."""
+        if any(
+            self._last.get(r.output) != outputs.get(r.output, False)
+            for r in self.rules
+            if r.output is not None
+        ):
+            return None
+        return self._values(t_s, part_positions, prune=False)
+
+    def _note_outputs(self, t_s: float, outputs: dict[str, bool | float]) -> None:
         for rule in self.rules:
             if rule.output is None:
                 continue
@@ -58,9 +79,14 @@ class InputRules:
                 if value and not self._last.get(rule.output):
                     self._rise_s[rule.output] = t_s
                 self._last[rule.output] = value
+
+    def _values(
+        self, t_s: float, part_positions: Iterable[Sequence[float]], *, prune: bool
+    ) -> dict[str, bool | float]:
         positions = None
         out: dict[str, bool | float] = {}
         for rule in self.rules:
+            value: bool | float
             if rule.kind == "part_at":
                 assert rule.point_world_m is not None  # a part_at rule has its point
                 if positions is None:
@@ -68,7 +94,7 @@ class InputRules:
                 value = any(math.dist(p, rule.point_world_m) <= rule.within_m for p in positions)
             elif rule.kind == "follows":
                 assert rule.output is not None  # follows and pulse_after name an output
-                value = self._value_at(rule.output, t_s - rule.delay_s)
+                value = self._value_at(rule.output, t_s - rule.delay_s, prune)
             else:
                 assert rule.output is not None
                 rose = self._rise_s.get(rule.output)
@@ -79,7 +105,7 @@ class InputRules:
             out[rule.channel] = (not value) if rule.invert and isinstance(value, bool) else value
         return out
 
-    def _value_at(self, output: str, t_s: float) -> bool | float:
+    def _value_at(self, output: str, t_s: float, prune: bool = True) -> bool | float:
         changes = self._changes.get(output)
         if not changes:
             return False
@@ -90,5 +116,7 @@ class InputRules:
             k = i
         if k < 0:
             return False
+        if not prune:
+            return changes[k][1]
         del changes[:k]  # older changes can no longer matter (time only moves on)
         return changes[0][1]

@@ -29,6 +29,18 @@ class Jaws:
         self._act = [int(a) for a in ids.jaw_act]
 
     @property
+    def qpos_adr(self) -> tuple[int, int]:
+        """Where the two slides sit in qpos."""
+        a, b = self._adr
+        return a, b
+
+    @property
+    def dof_adr(self) -> tuple[int, int]:
+        """Where the two slides sit in qvel."""
+        a, b = self._dof
+        return a, b
+
+    @property
     def gripper(self) -> GripperDescription:
         g = self.world.description.gripper
         assert g is not None  # the world builds jaws only for a description with a gripper

@@ -621,3 +621,41 @@ class _Builder:
         sensors = ET.SubElement(self.root, "sensor")
         ET.SubElement(sensors, "force", name="ft_force", site="ft")
         ET.SubElement(sensors, "torque", name="ft_torque", site="ft")
+        self._lookahead_sensors(sensors)
+
+    def _lookahead_sensors(self, sensors: ET.Element) -> None:
+        """What a look-ahead (:mod:`.lookahead`) needs recorded from every physics step,
+        as sensors (MuJoCo computes them in C and they do not change the dynamics):
+        contact counts (anything on the arm and tool, one part on each finger pad, one
+        part on anything; the part is chosen before each look-ahead), the frame of the
+        wrist sensor and the tool's centre of mass (the wrench reading), and each part's
+        position (presence sensors and ``part_at`` rules)."""
+        d = self.desc
+        ET.SubElement(sensors, "contact", name="ahead:arm", subtree1="base", data="found")
+        if d.parts:
+            first = f"part:{d.parts[0].name}"
+            if d.gripper is not None:
+                for jaw in ("jaw_a", "jaw_b"):
+                    ET.SubElement(
+                        sensors,
+                        "contact",
+                        name=f"ahead:pad_{jaw[-1]}",
+                        geom1=f"pad:{jaw}",
+                        geom2=first,
+                        data="found",
+                    )
+            ET.SubElement(sensors, "contact", name="ahead:part", geom1=first, data="found")
+        for axis in ("x", "y", "z"):
+            ET.SubElement(
+                sensors, f"frame{axis}axis", name=f"ahead:ft_{axis}", objtype="site", objname="ft"
+            )
+        ET.SubElement(sensors, "framepos", name="ahead:ft_pos", objtype="site", objname="ft")
+        ET.SubElement(sensors, "subtreecom", name="ahead:tool_com", body="tool")
+        for part in d.parts:
+            ET.SubElement(
+                sensors,
+                "framepos",
+                name=f"ahead:part:{part.name}",
+                objtype="body",
+                objname=f"part:{part.name}",
+            )

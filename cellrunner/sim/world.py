@@ -268,12 +268,7 @@ class SimWorld:
         # input is the set-point one step back along the commanded speed (plus the kv/kp
         # feed-forward term). With several steps per period (CB3) the set-point is
         # interpolated linearly across them.
-        if self.jaws is not None:
-            self.jaws.drive()
-        if self.changer is not None:
-            self.changer.drive()
-        if self.vacuum is not None:
-            self.vacuum.drive()
+        self.drive_outputs()
         k = self.substeps
         if k == 1:
             if self.qd_ref is _ZERO6:
@@ -301,6 +296,11 @@ class SimWorld:
         self._periods += 1
         if self._stop is None:
             self.qd_ref = _ZERO6  # feed-forward is valid for one period only
+        self._after_physics()
+
+    def _after_physics(self) -> None:
+        """What the controller and the line make of a period's physics: contacts (a
+        protective stop), the held parts, the cups, faults, the inputs."""
         contacts = self.contacts
         self._gripped = contacts.check()
         if self._gripped or contacts.held_at:
@@ -311,6 +311,57 @@ class SimWorld:
         if self.grip_faults.active:
             self.grip_faults.update(self._gripped)
         self._update_inputs()
+
+    # -- look-ahead (many periods of a planned motion in one call) -------------------------
+    def drive_outputs(self) -> None:
+        """Follow the outputs (jaws, tool changer, cups), as each period starts."""
+        if self.jaws is not None:
+            self.jaws.drive()
+        if self.changer is not None:
+            self.changer.drive()
+        if self.vacuum is not None:
+            self.vacuum.drive()
+
+    def servo_inputs(self, q_rad: np.ndarray, qd_rad_s: np.ndarray) -> np.ndarray:
+        """The arm servos' inputs for consecutive periods whose set-points are the rows of
+        ``q_rad``/``qd_rad_s`` (the first row being the set-point now commanded): one row
+        per physics step, computed exactly as :meth:`step_period` does."""
+        k = self.substeps
+        if k == 1:
+            return np.asarray(np.add(np.multiply(self._ff_lead, qd_rad_s), q_rad))
+        rows = np.empty((len(q_rad) * k, 6))
+        q_prev, qd_prev = self._q_prev_ref, self._qd_prev_ref
+        for i in range(len(q_rad)):
+            ends = np.stack([q_prev, qd_prev, q_rad[i], qd_rad_s[i]])
+            rows[i * k : (i + 1) * k] = self._hermite[0] @ ends + self._ff_lead * (
+                self._hermite[1] @ ends
+            )
+            q_prev, qd_prev = q_rad[i], qd_rad_s[i]
+        return rows
+
+    def advanced(self, periods: int, q_ref_rad: np.ndarray, qd_ref_rad_s: np.ndarray) -> None:
+        """The physics was advanced ``periods`` whole periods in one go (the data now holds
+        the last one's step), the last of them with set-point ``q_ref_rad``/``qd_ref_rad_s``:
+        bring the world's own state to where :meth:`step_period` would have left it."""
+        self.q_ref = self._q_prev_ref = q_ref_rad
+        self._qd_prev_ref = qd_ref_rad_s
+        self.qd_ref = _ZERO6
+        self._periods += periods
+        self._after_physics()
+
+    @property
+    def periods(self) -> int:
+        """Controller periods simulated since build."""
+        return self._periods
+
+    @property
+    def gripped(self) -> frozenset[str]:
+        """The parts the jaws (or cups) held at the last period."""
+        return self._gripped
+
+    @property
+    def input_rules(self) -> InputRules | None:
+        return self._rules
 
     # -- contacts -----------------------------------------------------------------------
     def contacts_changed(self) -> None:

@@ -4,6 +4,7 @@ minus the offset of the last zeroing."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -49,10 +50,32 @@ class WristSensor:
         (the configured payload, which UR's controller also compensates). Plain float
         arithmetic: numpy's per-call cost dwarfs 3x3 products, and this runs every period.
         """
-        fx, fy, fz, tx, ty, tz = self._ft_flat.tolist()
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = self._R_site_flat.tolist()
-        cx, cy, _cz = self._tool_com.tolist()
-        sx, sy, _sz = self._site_pos.tolist()
+        return self.external_wrench(
+            self._ft_flat.tolist(),
+            self._R_site_flat.tolist(),
+            self._tool_com.item(0),
+            self._tool_com.item(1),
+            self._site_pos.item(0),
+            self._site_pos.item(1),
+        )
+
+    def wrench_from(
+        self, ft: Sequence[Any], R_site: Sequence[Any], cx: Any, cy: Any, sx: Any, sy: Any
+    ) -> np.ndarray:
+        """:meth:`wrench` (rows: periods) from recorded readings, each an array over
+        periods: ``ft`` the sensed (fx, fy, fz, tx, ty, tz), ``R_site`` the ``ft`` site's
+        rotation row-major, ``cx, cy`` the tool's centre of mass and ``sx, sy`` the site
+        (world x, y). The same operations in the same order as :meth:`wrench`, element
+        by element, so each row equals what :meth:`wrench` read in that period."""
+        w = self.external_wrench(ft, R_site, cx, cy, sx, sy)
+        return np.stack([w[i] - self._offset[i] for i in range(6)], axis=1)
+
+    def external_wrench(
+        self, ft: Sequence[Any], R_site: Sequence[Any], cx: Any, cy: Any, sx: Any, sy: Any
+    ) -> list[Any]:
+        """The arithmetic of :meth:`raw_wrench_base`, on floats or on arrays alike."""
+        fx, fy, fz, tx, ty, tz = ft
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = R_site
         mg = self.tool_weight_N
         # world axes: minus the sensed wrench (site -> world), minus the tool's weight
         # (0, 0, -mg) and its moment about the flange, (c - s) x (0, 0, -mg)

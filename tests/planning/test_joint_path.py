@@ -71,14 +71,14 @@ def test_round_corners_never_lengthens_the_path():
 def test_check_path_lower_bound_pruning_changes_no_verdict(start, steps):
     world = _world()
     q = np.cumsum(np.vstack([start, steps]), axis=0)
-    saved = collision_module.PATH_BOUNDS_MAX_SAMPLES
+    saved = collision_module.PATH_CHUNK_BOUNDS
     verdicts = []
-    for limit in (0, 1000):  # pruning off, pruning on every path
-        collision_module.PATH_BOUNDS_MAX_SAMPLES = limit
+    for chunked in (False, True):  # every pair by its reach, then by the chunks' bounds
+        collision_module.PATH_CHUNK_BOUNDS = chunked
         try:
             verdicts.append(world.check_path(q).ok)
         finally:
-            collision_module.PATH_BOUNDS_MAX_SAMPLES = saved
+            collision_module.PATH_CHUNK_BOUNDS = saved
     assert verdicts[0] == verdicts[1]
 
 

@@ -14,6 +14,7 @@ notice a missed or slipped part through the jaw sensor and the wrist load.
 from __future__ import annotations
 
 from collections.abc import Generator
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,9 +26,17 @@ from cellrunner.sim.faults import Fault
 from cellrunner.sim.mjcf import PhysicsOptions
 from cellrunner.sim.world import SimWorld
 
+if TYPE_CHECKING:
+    from cellrunner.sim.lookahead import Lookahead, Preview
+
 # servoJ set-points further apart than the joint speed limit allows (with this margin)
 # are refused, as the controller would protective-stop on them.
 SET_POINT_JUMP_MARGIN = 1.5
+#: a look-ahead covers this many periods at first, doubling while they pass whole up
+#: to the most; one cut short (a contact, an input, a check ahead) starts again small,
+#: since its physics beyond the cut is computed in vain
+AHEAD_FIRST_PERIODS = 64
+AHEAD_MAX_PERIODS = 1024
 
 
 class SimBackend:
@@ -45,7 +54,11 @@ class SimBackend:
         self._fresh: RobotState | None = None  # this period's measurement, until anything changes
         # the trajectory servo last accepted, with its positions and speeds
         self._accepted: tuple[ApprovedTrajectory, np.ndarray, np.ndarray] | None = None
-        self._next_index, self._last_q = -1, None
+        self._next_index = -1
+        self._last_q: np.ndarray | None = None
+        self._ahead: Lookahead | None = None
+        self._ahead_cap = AHEAD_FIRST_PERIODS  # grows while look-aheads pass whole
+        self._ahead_not_before = 0  # no look-ahead before this period (a cut one's end)
         self._max_step_rad = (
             np.radians(description.spec.joint_speed_max_deg_s)
             / self.rate_hz
@@ -74,6 +87,7 @@ class SimBackend:
         self._connected = False
         self.world = None
         self._accepted = None
+        self._ahead = None
 
     @property
     def sim_time_s(self) -> float:
@@ -134,6 +148,56 @@ class SimBackend:
                 )
         world.command(q, qd_all[index])
         self._next_index, self._last_q = index + 1, q
+
+    # -- look-ahead: many periods of a streamed motion per call (sim.lookahead) --------------
+    def look_ahead(
+        self, trajectory: ApprovedTrajectory, next_index: int, periods: int
+    ) -> Preview | None:
+        """The coming periods' measurements if ``trajectory`` keeps streaming (set-point
+        ``next_index - 1``, the one commanded last, then one more each period), without
+        taking them yet; None when the twin cannot look ahead now. Covers at most
+        ``periods`` periods (fewer after a look-ahead that was cut short)."""
+        world = self.world
+        accepted = self._accepted
+        if (
+            world is None
+            or not self._connected
+            or accepted is None
+            or accepted[0] is not trajectory
+            or next_index != self._next_index
+            or world.q_ref is not self._last_q
+            or next_index < 1
+            or world.periods < self._ahead_not_before
+        ):
+            return None
+        if self._ahead is None:
+            from cellrunner.sim.lookahead import Lookahead
+
+            self._ahead = Lookahead(world)
+        n = min(periods, self._ahead_cap, len(accepted[1]) - next_index + 1)
+        j0 = next_index - 1
+        preview = self._ahead.preview(accepted[1][j0 : j0 + n], accepted[2][j0 : j0 + n])
+        if preview is not None and preview.quiet < n:
+            # the period after the quiet ones is no plain motion: none before it is stepped
+            self._ahead_cap = AHEAD_FIRST_PERIODS
+            self._ahead_not_before = world.periods + preview.quiet + 1
+        return preview
+
+    def commit_look_ahead(self, preview: Preview, periods: int) -> None:
+        """Take over the first ``periods`` periods of ``preview`` (at most its quiet
+        ones): the twin then stands where that many ``wait_period`` calls, with
+        ``servo`` sending the trajectory's set-points between them, would have left it."""
+        assert self._ahead is not None and self.world is not None  # a preview was made
+        self._fresh = None
+        self._ahead.commit(preview, periods)
+        self._last_q = self.world.q_ref
+        self._next_index += periods
+        if periods == preview.periods:
+            self._ahead_cap = min(2 * self._ahead_cap, AHEAD_MAX_PERIODS)
+
+    def discard_look_ahead(self, preview: Preview) -> None:
+        """A preview none of whose periods is taken (the next period runs as usual)."""
+        self._ahead_cap = AHEAD_FIRST_PERIODS
 
     def wait_period(self) -> None:
         self._fresh = None

@@ -1,0 +1,175 @@
+"""Many periods of a streamed motion in one call, where the backend can look ahead (the
+MuJoCo twin: :mod:`cellrunner.sim.lookahead`).
+
+While a motion streams its approved set-points and nothing else happens, every period
+does the same: the engine reads the state, samples the tracking error every
+``TRACK_EVERY`` ticks, checks the step's timeout and (carrying a part) the gripper's
+sensor and the carried load, and sends the next set-point. :func:`fast_forward` asks
+the backend for the coming periods' measurements first, runs those same checks over
+them, and lets the backend take over only the periods before the first one where any
+check (the engine's or the twin's own: contacts, inputs) would fire, or an observer
+wants to act. That first period then runs through the ordinary per-period path, so a
+fault is met at the same period, with the same state, as without look-ahead.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from cellrunner.backends.base import Safety
+from cellrunner.execution.context import JobContext
+from cellrunner.execution.steps import (
+    LOAD_LOST_FRACTION,
+    next_load_lp,
+    watches_load,
+)
+from cellrunner.model.trajectory import ApprovedTrajectory
+
+#: a look-ahead shorter than this is not worth its fixed cost (periods)
+MIN_PERIODS = 8
+#: tracking errors from batched kinematics within this of the largest are recomputed
+#: with the per-period kinematics, so the maximum kept is the per-period one to the last
+#: bit (m; the two differ by ~1e-16 m)
+TRACK_TOLERANCE_M = 1e-9
+
+
+class Preview(Protocol):
+    """The coming periods as a backend would measure them (rows: periods): the first
+    ``quiet`` need nothing of the backend itself."""
+
+    quiet: int
+    time_s: np.ndarray
+    q_rad: np.ndarray
+    wrench_N: np.ndarray
+
+
+@runtime_checkable
+class LooksAhead(Protocol):
+    """A backend that can preview a streamed motion's coming periods and take them over
+    (the sim backend; see :class:`~cellrunner.backends.sim.backend.SimBackend`)."""
+
+    def look_ahead(self, trajectory: ApprovedTrajectory, next_index: int, periods: int) -> Any: ...
+
+    def commit_look_ahead(self, preview: Any, periods: int) -> None: ...
+
+    def discard_look_ahead(self, preview: Any) -> None: ...
+
+    def servo(self, trajectory: ApprovedTrajectory, index: int) -> None: ...
+
+
+@dataclass(frozen=True)
+class Clock:
+    """What bounds a look-ahead in time: the runner's tick count (tracking samples every
+    ``track_every`` ticks), the step's start and timeout, and ``until_s``, the first
+    time (s) at which someone (an observer, the job's time limit) wants a period of its
+    own."""
+
+    ticks: int
+    track_every: int
+    step_started_s: float
+    step_timeout_s: float
+    until_s: float
+
+
+def fast_forward(ctx: JobContext, clock: Clock, max_periods: int) -> int:
+    """Advance a streaming motion by up to ``max_periods`` periods in one call; return
+    how many periods passed (0: none, step the next period as usual)."""
+    stream, state, backend = ctx.stream, ctx.state, ctx.backend
+    if (
+        stream is None
+        or state is None
+        or state.safety is not Safety.NORMAL
+        or not isinstance(backend, LooksAhead)
+    ):
+        return 0
+    carry = ctx.carry
+    if carry is not None and (
+        "sensor_false_since" in ctx.notes
+        or (carry.confirm is not None and not state.inputs.get(carry.confirm))
+    ):
+        return 0
+    q_plan = stream.approved.trajectory.q_rad
+    n = min(max_periods, len(q_plan) - stream.next_index)
+    if n < MIN_PERIODS:
+        return 0
+    preview: Preview | None = backend.look_ahead(stream.approved, stream.next_index, n)
+    if preview is None:
+        return 0
+    t = preview.time_s
+    m = min(
+        preview.quiet,
+        _first(t - clock.step_started_s > clock.step_timeout_s),
+        _first(t >= clock.until_s),
+    )
+    load_lp = None
+    if watches_load(carry) and m:
+        assert carry is not None and carry.load_N is not None  # watches_load says so
+        m, load_lp = _carried_load(preview.wrench_N, m, carry, ctx.notes.get("load_lp"))
+    if m < 1:
+        backend.discard_look_ahead(preview)
+        return 0
+    j0 = stream.next_index - 1  # the set-point commanded now: period 1 runs on it
+    _track(ctx, clock, q_plan[j0 : j0 + m], preview.q_rad[:m])
+    backend.commit_look_ahead(preview, m)
+    ctx.read()  # period m's tick reads the state ...
+    if carry is not None:
+        ctx.notes.pop("sensor_false_since", None)
+        if load_lp is not None:
+            ctx.notes["load_lp"] = load_lp
+    i = j0 + m  # ... and sends the next set-point
+    backend.servo(stream.approved, i)
+    ctx.commanded_q = q_plan[i]
+    stream.next_index = i + 1
+    return m
+
+
+def _first(fires: np.ndarray) -> int:
+    """Index of the first true element (the count of leading false ones)."""
+    hits = np.flatnonzero(fires)
+    return int(hits[0]) if len(hits) else len(fires)
+
+
+def _carried_load(
+    wrench_N: np.ndarray, m: int, carry: Any, load_lp: float | None
+) -> tuple[int, float | None]:
+    """Run the carried-load low-pass over periods ``0..m-1`` as the per-period check
+    does; return the periods before it would report the part lost, and its value after
+    them."""
+    lp = carry.load_N if load_lp is None else load_lp
+    base = carry.baseline_N.tolist()
+    floor = LOAD_LOST_FRACTION * carry.min_N
+    kept: float | None = None
+    for k, row in enumerate(wrench_N[:m, :3].tolist()):
+        lp = next_load_lp(lp, math.dist(row, base))
+        if lp < floor:
+            return k, kept
+        kept = lp
+    return m, kept
+
+
+def _track(ctx: JobContext, clock: Clock, q_cmd: np.ndarray, q_meas: np.ndarray) -> None:
+    """The tracking-error samples the per-period ticks would take in these periods; the
+    largest is recomputed with the per-period kinematics, so it is theirs exactly."""
+    k = np.arange(1, len(q_cmd) + 1)
+    rows = np.flatnonzero((clock.ticks + k) % clock.track_every == 0)
+    if not len(rows):
+        return
+    motions = ctx.motions
+    many = getattr(motions, "tcp_positions_m", None)
+    if many is not None:
+        p = many(np.concatenate([q_cmd[rows], q_meas[rows]]))
+        err = np.linalg.norm(p[: len(rows)] - p[len(rows) :], axis=1)
+        top = float(err.max())
+        if top + TRACK_TOLERANCE_M <= ctx.tracking_error_m:
+            return
+        rows = rows[err >= top - 2 * TRACK_TOLERANCE_M]
+    for r in rows:
+        p_cmd = motions.tcp_position_m(q_cmd[r])
+        p_meas = motions.tcp_position_m(q_meas[r])
+        error = math.dist(p_cmd.tolist(), p_meas.tolist())
+        if error > ctx.tracking_error_m:
+            ctx.tracking_error_m = error

@@ -1,0 +1,199 @@
+"""Look-ahead (a streamed motion advanced many periods per call, the physics in
+``mujoco.rollout``) against the per-period loop: the same job gives the same outcome and
+result code, the same fault at the same period, the same journal and step rows, the same
+tracking error, and the same physics to the last bit. On the demo UR5e (500 Hz, one
+physics step per period) and the CB3 UR5 shelf cell (125 Hz, four steps per period, a
+``part_at`` input rule): a normal run, a collision with an obstacle only the twin knows
+(a protective stop on contact), and a part dropped in transit (2)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from cellrunner.execution.cell import CellController
+from cellrunner.execution.journal import Journal
+from cellrunner.execution.loop import ControlLoop
+from cellrunner.execution.planner import job_planner
+from cellrunner.model.codes import ResultCode
+from cellrunner.model.geometry import Box, Placed
+from cellrunner.model.load import load_cell, load_task
+from cellrunner.planning.world import CellWorld
+
+mujoco = pytest.importorskip("mujoco")
+
+ROOT = Path(__file__).resolve().parents[2]
+CELLS = {
+    "demo_ur5e": ("cells/demo_ur5e.yaml", "tasks/pick_place.yaml", {"slot": 0}, "approach#2"),
+    "shelf_ur5_cb3": (
+        "cells/bin_to_shelf_ur5.yaml",
+        "tasks/bin_to_shelf_ur5.yaml",
+        {"slot": 0},
+        "move#2",
+    ),
+}
+
+
+@dataclass
+class Outcome:
+    code: int
+    message: str
+    cycle_time_s: float
+    records: tuple[Any, ...]
+    journal: list[tuple[Any, ...]]
+    tracking_error_m: float
+    ticks: int
+    ticks_ahead: int
+    physics: bytes
+    contact_s: float | None
+    protective_stops: int
+    parts: dict[str, list[float]]
+
+
+class _SlipOnLift:
+    """Arms ``part_slip`` as the first lift starts (the twin drops the part once it is
+    in the air), as ``dry-run --inject part_slip@lift`` does."""
+
+    def __init__(self) -> None:
+        self.done = False
+
+    def quiet_until_s(self, cell: CellController) -> float:
+        # acts only when the step under way changes, which never happens inside a
+        # look-ahead (a step ends in an ordinary tick)
+        return float("inf")
+
+    def __call__(self, cell: CellController) -> None:
+        view = cell.job_view()
+        if self.done or view is None or not view.step:
+            return
+        if next(r.kind for r in view.records if r.index == view.step) == "lift":
+            cell.backend.inject_fault("part_slip")
+            self.done = True
+
+
+def _obstacle(world: CellWorld, plan: Any, kind: str) -> Placed:
+    """A box halfway along the motion of kind ``KIND#N`` of the plan, where the TCP
+    passes: the twin has it, the planner does not."""
+    name, nth = kind.split("#")
+    step = [s for s in plan.steps if s.kind == name][int(nth) - 1]
+    q = plan.nominal(step).trajectory.q_rad
+    p = world.kinematics.p_world_tcp(q[len(q) // 2])
+    T = np.eye(4)
+    T[:3, 3] = p
+    return Placed("obstacle", Box((0.08, 0.08, 0.08)), T)
+
+
+def _run(name: str, lookahead: bool, fault: str | None = None) -> Outcome:
+    from cellrunner.backends.sim.backend import SimBackend
+    from cellrunner.sim.from_cell import description_of
+
+    cell_path, task_path, params, collide_at = CELLS[name]
+    cell = load_cell(ROOT / cell_path)
+    task = load_task(ROOT / task_path, cell)
+    world = CellWorld(cell)
+    planner = job_planner(world)
+    description = description_of(cell, (task,))
+    if fault == "collision":
+        from cellrunner.planning.cache import plan_cached
+
+        plan = plan_cached(world, task, params, world.q_home_rad)
+        description = dataclasses.replace(
+            description, fixtures=(*description.fixtures, _obstacle(world, plan, collide_at))
+        )
+    backend = SimBackend(description)
+    journal = Journal(":memory:")
+    controller = CellController(cell, {1: task}, backend, journal, planner, wait_for_unhold=False)
+    controller.setup()
+    loop = ControlLoop(controller, lookahead=lookahead)
+    loop.step(3)
+    ticket = controller.start_job(1, params, "look-ahead", "cli")
+    assert ticket.accepted, ticket.message
+    loop.step(1)
+    assert controller.wait_for_plan(timeout_s=600.0)
+    if fault == "slip":
+        loop.add_observer(_SlipOnLift())
+    loop.run_job(max_s=120.0)
+    result = controller.status().last_result
+    view = controller.last_job
+    assert result is not None and view is not None
+    w = backend.world
+    assert w is not None
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
+    physics = np.empty(mujoco.mj_stateSize(w.model, spec))
+    mujoco.mj_getState(w.model, w.data, physics, spec)
+    outcome = Outcome(
+        code=result.result_code,
+        message=result.result_text,
+        cycle_time_s=result.cycle_time_s,
+        records=view.records,
+        journal=[row[:5] + row[6:] for row in journal.steps_of(result.job_id)],  # no wall time
+        tracking_error_m=view.tracking_error_m,
+        ticks=loop.ticks,
+        ticks_ahead=loop.ticks_ahead,
+        physics=physics.tobytes(),
+        contact_s=None if w.last_contact is None else w.last_contact.time_s,
+        protective_stops=controller.last_runner.protective_stops if controller.last_runner else 0,
+        parts={p.name: w.part_pose_world(p.name)[:3, 3].tolist() for p in description.parts},
+    )
+    controller.close()
+    return outcome
+
+
+@pytest.mark.parametrize("name", list(CELLS))
+@pytest.mark.parametrize(
+    ("fault", "code"),
+    [
+        (None, ResultCode.OK),
+        ("collision", None),  # a stop on contact; resumed around it, or 100
+        ("slip", ResultCode.PART_LOST),
+    ],
+)
+def test_look_ahead_gives_what_the_per_period_loop_gives(
+    name: str, fault: str | None, code: ResultCode | None
+) -> None:
+    per_period = _run(name, lookahead=False, fault=fault)
+    ahead = _run(name, lookahead=True, fault=fault)
+    assert code is None or per_period.code == code, per_period.message
+    assert per_period.ticks_ahead == 0
+    # the look-ahead really ran: most of a normal run's periods, a good part of the others
+    assert ahead.ticks_ahead > (0.7 if fault is None else 0.2) * ahead.ticks
+    if fault == "collision":
+        assert per_period.contact_s is not None  # the twin stopped on the obstacle
+        assert per_period.protective_stops >= 1
+    for field in dataclasses.fields(Outcome):
+        if field.name != "ticks_ahead":
+            assert getattr(ahead, field.name) == getattr(per_period, field.name), field.name
+
+
+@pytest.mark.parametrize(
+    "inject", ["protective_stop@approach#2", "estop@approach#2", "grip_miss@grip"]
+)
+def test_dry_run_injections_report_the_same_with_and_without_look_ahead(inject: str) -> None:
+    """The dry-run command itself (its observer applies the injection when its moment
+    comes): the JSON report is the same with look-ahead and with ``--per-period``."""
+    import json
+    import subprocess
+    import sys
+
+    def dry_run(*extra: str) -> dict[str, Any]:
+        r = subprocess.run(
+            [sys.executable, "-m", "cellrunner.cli.main", "dry-run", "cells/demo_ur5e.yaml"]
+            + ["tasks/pick_place.yaml", "--inject", inject, "--json", *extra],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            timeout=300,
+        )
+        assert r.returncode in (0, 1), r.stderr
+        report: dict[str, Any] = json.loads(r.stdout)
+        report.pop("real_time_factor")  # wall clock
+        return report
+
+    per_period, ahead = dry_run("--per-period"), dry_run()
+    assert per_period["result_code"] in (0, 1, 101)
+    assert ahead == per_period
