@@ -183,15 +183,40 @@ class SimBackend:
             self._ahead_not_before = world.periods + preview.quiet + 1
         return preview
 
+    def look_ahead_hold(self, periods: int) -> Preview | None:
+        """The coming periods' measurements if the set-point stays where it is (a step
+        waiting with the arm still), without taking them yet; None when the twin cannot
+        look ahead now. Covers at most ``periods`` periods."""
+        world = self.world
+        if (
+            world is None
+            or not self._connected
+            or world.periods < self._ahead_not_before
+            or world.stopping
+        ):
+            return None
+        if self._ahead is None:
+            from cellrunner.sim.lookahead import Lookahead
+
+            self._ahead = Lookahead(world)
+        n = min(periods, self._ahead_cap)
+        preview = self._ahead.preview_hold(n)
+        if preview is not None and preview.quiet < n:
+            self._ahead_cap = AHEAD_FIRST_PERIODS
+            self._ahead_not_before = world.periods + preview.quiet + 1
+        return preview
+
     def commit_look_ahead(self, preview: Preview, periods: int) -> None:
         """Take over the first ``periods`` periods of ``preview`` (at most its quiet
         ones): the twin then stands where that many ``wait_period`` calls, with
-        ``servo`` sending the trajectory's set-points between them, would have left it."""
+        ``servo`` sending the trajectory's set-points between them (none for a hold),
+        would have left it."""
         assert self._ahead is not None and self.world is not None  # a preview was made
         self._fresh = None
         self._ahead.commit(preview, periods)
-        self._last_q = self.world.q_ref
-        self._next_index += periods
+        if not preview.holds:
+            self._last_q = self.world.q_ref
+            self._next_index += periods
         if periods == preview.periods:
             self._ahead_cap = min(2 * self._ahead_cap, AHEAD_MAX_PERIODS)
 
