@@ -69,6 +69,9 @@ class LooksAhead(Protocol):
 
     def look_ahead_hold(self, periods: int) -> Any: ...
 
+    @property
+    def rate_hz(self) -> float: ...
+
 
 @dataclass(frozen=True)
 class Clock:
@@ -135,20 +138,19 @@ def fast_forward(ctx: JobContext, clock: Clock, max_periods: int) -> int:
 
 def _hold(ctx: JobContext, hold: Hold, backend: LooksAhead, clock: Clock, max_periods: int) -> int:
     """Up to ``max_periods`` periods of a step waiting with the arm still (``hold``)."""
+    # its end in time is known: roll out only the periods before it (the physics past a
+    # cut would be computed in vain, and a cut preview is rolled out again to commit)
+    periods0 = round(ctx.now_s * backend.rate_hz)
+    max_periods = _hold_periods(
+        hold, clock, (periods0 + np.arange(1, max_periods + 1)) / backend.rate_hz
+    )
     if max_periods < MIN_PERIODS:
         return 0
     preview: Preview | None = backend.look_ahead_hold(max_periods)
     if preview is None:
         return 0
-    t = preview.time_s
-    waited = t - hold.t0_s  # as the step computes it, period by period
-    m = min(
-        preview.quiet,
-        _first(t - clock.step_started_s > clock.step_timeout_s),
-        _first(t >= clock.until_s),
-        _first(waited >= hold.timeout_s),
-        _first(~(waited < hold.until_s)),
-    )
+    waited = preview.time_s - hold.t0_s  # as the step computes it, period by period
+    m = min(preview.quiet, _hold_periods(hold, clock, preview.time_s))
     if m < 1:
         backend.discard_look_ahead(preview)
         return 0
@@ -160,6 +162,18 @@ def _hold(ctx: JobContext, hold: Hold, backend: LooksAhead, clock: Clock, max_pe
     backend.commit_look_ahead(preview, m)
     ctx.read()  # period m's tick reads the state; the step waits on
     return m
+
+
+def _hold_periods(hold: Hold, clock: Clock, t: np.ndarray) -> int:
+    """How many of the periods ending at times ``t`` (s) pass before the step, its
+    timeout or an observer acts, as far as time decides it."""
+    waited = t - hold.t0_s
+    return min(
+        _first(t - clock.step_started_s > clock.step_timeout_s),
+        _first(t >= clock.until_s),
+        _first(waited >= hold.timeout_s),
+        _first(~(waited < hold.until_s)),
+    )
 
 
 def _first(fires: np.ndarray) -> int:
