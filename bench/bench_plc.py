@@ -379,13 +379,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--trace-memory",
         action="store_true",
-        help="trace allocations (tracemalloc: slower, more memory) and print what grew "
-        "between the 50th job and the end, by source line and object type",
+        help="trace allocations from the 50th job on (tracemalloc: several times slower) and "
+        "print what grew by the end, by source line and object type",
     )
     args = ap.parse_args(argv)
     stop = threading.Event()
     probe = None
-    if args.trace_memory:  # before the cell is built, so that its allocations are traced
+    if args.trace_memory:
         from bench.memory_growth import MemoryProbe
 
         probe = MemoryProbe()

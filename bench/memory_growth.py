@@ -1,7 +1,7 @@
 """Where a long-running process's memory goes between two moments (the soak's ``--trace-memory``).
 
 :class:`MemoryProbe` takes a baseline (``mark()``) and later reports what grew since:
-Python allocations by source line (tracemalloc, started by the probe), live objects by
+Python allocations made since the mark and still alive, by source line (tracemalloc), live objects by
 type (gc), and the C heap as glibc's allocator sees it (``mallinfo2``: bytes in use vs
 free bytes kept in the heap), which tells growth of live data from fragmentation.
 """
@@ -58,49 +58,52 @@ def _type_counts() -> Counter[str]:
 
 
 class MemoryProbe:
-    """``mark()`` once (e.g. after 50 jobs), ``report()`` at the end."""
+    """``mark()`` once (e.g. after 50 jobs), ``report()`` at the end. Allocations are
+    traced from the mark on (tracing costs time on every allocation), so what the report
+    lists by source line is what was allocated after the mark and is still alive."""
 
-    def __init__(self, frames: int = 8) -> None:
-        tracemalloc.start(frames)
-        self._snapshot: tracemalloc.Snapshot | None = None
+    def __init__(self, frames: int = 6) -> None:
+        self._frames = frames
         self._types: Counter[str] = Counter()
         self._malloc: dict[str, float] = {}
 
     def mark(self) -> None:
         self._types = _type_counts()
-        self._snapshot = tracemalloc.take_snapshot()
         self._malloc = malloc_mib()
+        tracemalloc.start(self._frames)
 
     def report(self, top: int = 15) -> dict[str, Any]:
         """What grew since ``mark()``: lines (KiB, count), types (count), heap (MiB)."""
-        assert self._snapshot is not None, "mark() first"
+        assert tracemalloc.is_tracing(), "mark() first"
         types = _type_counts()
         snapshot = tracemalloc.take_snapshot()
-        ignore = [tracemalloc.Filter(False, tracemalloc.__file__)]
-        diff = snapshot.filter_traces(ignore).compare_to(
-            self._snapshot.filter_traces(ignore), "traceback"
-        )
+        tracemalloc.stop()
+        stats = snapshot.filter_traces(
+            [tracemalloc.Filter(False, tracemalloc.__file__)]
+        ).statistics("traceback")
         lines = [
             {
-                "kib": d.size_diff / 1024,
-                "count": d.count_diff,
-                "where": [f"{f.filename}:{f.lineno}" for f in d.traceback][-4:],
+                "kib": st.size / 1024,
+                "count": st.count,
+                "where": [f"{f.filename}:{f.lineno}" for f in st.traceback][-4:],
             }
-            for d in diff[:top]
+            for st in stats[:top]
         ]
         grown = Counter({k: types[k] - self._types.get(k, 0) for k in types})
-        now = malloc_mib()
         return {
-            "traced_mib": sum(s.size for s in snapshot.statistics("filename")) / 2**20,
+            "traced_mib": sum(st.size for st in stats) / 2**20,
             "lines": lines,
             "types": dict(grown.most_common(top)),
-            "malloc_mib": {"mark": self._malloc, "end": now},
+            "malloc_mib": {"mark": self._malloc, "end": malloc_mib()},
         }
 
 
 def print_report(report: dict[str, Any], out: Any) -> None:
-    print(f"traced Python memory at the end: {report['traced_mib']:.1f} MiB", file=out)
-    print("grown since the mark, by allocation site:", file=out)
+    print(
+        f"allocated since the mark and still alive: {report['traced_mib']:.1f} MiB, "
+        "by allocation site:",
+        file=out,
+    )
     for line in report["lines"]:
         print(f"  {line['kib']:+9.1f} KiB {line['count']:+7d}  {line['where'][-1]}", file=out)
         for frame in reversed(line["where"][:-1]):

@@ -208,8 +208,10 @@ def _load(
             blob = stored["blob"]
         meta = header["rows"]
         verified = header["on_error"]
+        # copies: a view would keep the whole blob alive beside the trajectories' own copies
+        # for as long as the plan is kept in memory
         data = {
-            name: blob[offset : offset + math.prod(shape)].reshape(shape)
+            name: blob[offset : offset + math.prod(shape)].reshape(shape).copy()
             for name, (offset, shape) in header["arrays"].items()
         }
     except (OSError, ValueError, KeyError, TypeError):

@@ -55,8 +55,11 @@ CORNER_FRACTION = 0.35
 BLEND_POINTS = 24
 #: m/s^2 (:meth:`TaskPlan.gravity_base_mps2`)
 GRAVITY_MPS2 = 9.81
-#: timed groups remembered per cell (:func:`_timed_pieces`)
-TIMING_MEMO_SIZE = 256
+#: timed groups remembered per cell, least recently used out (:func:`_timed_pieces`). The
+#: groups slots share (the pick, the retry path) are used by every slot and stay; in
+#: ``serve`` every job that starts where a fault left the arm adds groups used once, and
+#: with 256 kept (cleared when full) they grew its memory for hundreds of jobs (bench_plc)
+TIMING_MEMO_SIZE = 64
 
 
 class VerifyInputs(TypedDict):
@@ -69,8 +72,7 @@ class VerifyInputs(TypedDict):
 
 
 class _TimedPiece(TypedDict):
-    q: np.ndarray
-    trajectory: Trajectory
+    trajectory: Trajectory  # its q_rad is the piece's samples (one copy, kept by the memo)
     approved: ApprovedTrajectory
     inputs: VerifyInputs
 
@@ -459,7 +461,7 @@ def _time_group(
     for motion in group:
         piece = _timed_pieces(world, [motion], q)[0]
         _apply(world, [motion], [piece])
-        q = piece["q"][-1]
+        q = piece["trajectory"].q_rad[-1]
 
 
 def _joins(before: Step, after: Step) -> bool:
@@ -592,8 +594,9 @@ def _apply(world: CellWorld, group: list[_Motion], pieces: list[_TimedPiece]) ->
         )
         # every piece starts on the set-point before it (the start state, or the last
         # sample of the piece it continues), which the engine does not stream twice
-        row.duration_s = (len(piece["q"]) - 1) / world.spec.rate_hz
-        row.q_end_rad = piece["q"][-1]
+        q = piece["trajectory"].q_rad
+        row.duration_s = (len(q) - 1) / world.spec.rate_hz
+        row.q_end_rad = q[-1]
 
 
 def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[_TimedPiece]:
@@ -620,11 +623,13 @@ def _timed_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -
     memo = world.timing_memo
     hit = memo.get(key)
     if hit is not None and all(a is m.collision for a, m in zip(hit[0], group, strict=True)):
+        memo[key] = memo.pop(key)  # the most recently used goes last
         pieces: list[_TimedPiece] = hit[1]
         return pieces
     pieces = _time_pieces(world, group, q_start)
-    if len(memo) >= TIMING_MEMO_SIZE:
-        memo.clear()
+    memo.pop(key, None)
+    while len(memo) >= TIMING_MEMO_SIZE:
+        memo.pop(next(iter(memo)))  # the least recently used
     memo[key] = ([m.collision for m in group], pieces)
     return pieces
 
@@ -652,7 +657,9 @@ def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) ->
         trajectory = Trajectory(world.spec.rate_hz, np.arange(len(q)) / world.spec.rate_hz, q)
         inputs = VerifyInputs(
             previous_q_rad=previous,
-            previous_moving=i > 0,
+            # the arm runs into this piece from the one before only when that one moved:
+            # a zero-length first piece (a move to where the arm stands) leaves it at rest
+            previous_moving=i > 0 and start > 0,
             ends_at_rest=i == len(group) - 1,
             line_m=motion.line_m,
         )
@@ -665,8 +672,9 @@ def _time_pieces(world: CellWorld, group: list[_Motion], q_start: np.ndarray) ->
             collision=motion.collision,
             **inputs,
         )
-        pieces.append({"q": q, "trajectory": trajectory, "approved": approved, "inputs": inputs})
-        previous = q[-2:] if len(q) >= 2 else q
+        pieces.append({"trajectory": trajectory, "approved": approved, "inputs": inputs})
+        # of the trajectory's own copy: a view of ``timed`` would keep the whole group alive
+        previous = trajectory.q_rad[-2:]
         start = end  # the next piece shares this boundary sample
     return pieces
 

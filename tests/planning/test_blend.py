@@ -70,8 +70,8 @@ def test_blends_pay_off(demo):
     for row in joined:
         motion = planner.motion(task_plan.StepPlan(row.step), goal_q=None)
         piece = task_plan._timed_pieces(world, [motion], q)[0]
-        rest_to_rest += (len(piece["q"]) - 1) / world.spec.rate_hz
-        q = piece["q"][-1]
+        rest_to_rest += (len(piece["trajectory"].q_rad) - 1) / world.spec.rate_hz
+        q = piece["trajectory"].q_rad[-1]
     blended = sum(r.duration_s for r in joined)
     assert blended < rest_to_rest - 0.1
 

@@ -43,6 +43,19 @@ def test_every_motion_is_approved_sealed_and_starts_where_the_last_one_ended(pla
         np.testing.assert_array_equal(before.trajectory.q_rad[-1], after.trajectory.q_rad[0])
 
 
+def test_a_motion_continues_from_the_one_before_only_when_that_one_moved(plan) -> None:
+    """The task's first move goes home from home (no motion): the approach after it starts
+    at rest, so the executor streams it as planned instead of planning it again from rest;
+    the descend after the approach does run on from it."""
+    motions = [r for r in plan.rows if r.trajectory is not None]
+    assert len(motions[0].trajectory.q_rad) == 1  # home from home
+    assert not plan.continues(motions[1].step)
+    assert plan.continues(motions[2].step)  # descend, joined to the approach
+    for before, row in itertools.pairwise(motions):
+        if plan.continues(row.step):
+            assert len(before.trajectory.q_rad) > 1, row.step.label
+
+
 def test_the_part_is_carried_from_the_grip_to_the_release(plan) -> None:
     kinds = [r.step.kind for r in plan.rows]
     grip, release = kinds.index("grip"), kinds.index("release")
