@@ -315,8 +315,12 @@ def sensor_dropped(ctx: JobContext) -> str | None:
         return None
     since = ctx.notes.setdefault("sensor_false_since", ctx.now_s)
     if ctx.now_s - since >= SENSOR_DEBOUNCE_S:
-        return "vacuum switch" if ctx.gripper_kind == "vacuum" else "jaw sensor"
+        return _sensor_name(ctx)
     return None
+
+
+def _sensor_name(ctx: JobContext) -> str:
+    return "vacuum switch" if ctx.gripper_kind == "vacuum" else "jaw sensor"
 
 
 def _part_lost(ctx: JobContext) -> str | None:
@@ -338,6 +342,9 @@ def _part_lost(ctx: JobContext) -> str | None:
         )
         load_lp = ctx.notes["load_lp"] = next_load_lp(ctx.notes.get("load_lp", carry.load_N), load)
         if load_lp < LOAD_LOST_FRACTION * carry.min_N:
+            if carry.confirm is not None and not ctx.last_state.inputs.get(carry.confirm):
+                # both see it: the sensor (still within its debounce) is the plainer cause
+                return f"part lost in transit: the {_sensor_name(ctx)} dropped"
             return f"part lost in transit: the wrist load fell to {load_lp:.1f} N"
     return None
 
