@@ -168,7 +168,8 @@ def lookahead_breakdown(cell, task, params) -> tuple[Counter, Counter, int, int]
     """One look-ahead run with timers: (CPU s by part, calls by part, periods, periods
     looked ahead). Parts: rollouts (the physics of the periods looked ahead, and of those
     rolled out beyond a cut), the periods stepped one at a time, replanning (inside those
-    periods), tracking samples, and the rest of the look-ahead's Python."""
+    periods), tracking samples, holds (steps that wait with the arm still: grip, weigh,
+    release; their periods counted), and the rest of the look-ahead's Python."""
     import cellrunner.execution.lookahead as engine_ahead
     import cellrunner.sim.lookahead as twin_ahead
 
@@ -184,7 +185,10 @@ def lookahead_breakdown(cell, task, params) -> tuple[Counter, Counter, int, int]
         def wrapper(*args, **kwargs):
             t = time.process_time()
             try:
-                return f(*args, **kwargs)
+                result = f(*args, **kwargs)
+                if key == "holds":  # periods of steps holding the arm still, looked ahead
+                    counts["held periods"] += result
+                return result
             finally:
                 spent[key] += time.process_time() - t
                 counts[key] += 1
@@ -195,6 +199,7 @@ def lookahead_breakdown(cell, task, params) -> tuple[Counter, Counter, int, int]
     timed(twin_ahead.Lookahead, "preview", "rollouts (preview)")
     timed(twin_ahead.Lookahead, "commit", "commits")
     timed(engine_ahead, "_track", "tracking samples")
+    timed(engine_ahead, "_hold", "holds")
     timed(controller, "fast_forward", "look-ahead calls (all)")
     timed(loop, "step", "periods one at a time (all)")
     timed(runner.ctx.motions, "replan", "replanning")
@@ -319,7 +324,8 @@ def main() -> int:
         calls = spent["look-ahead calls (all)"] - spent["rollouts (preview)"]
         print(
             f"  {name}: {spent['loop'] * 1e3:.1f} in all, {periods} periods, {ahead} of them "
-            f"({ahead / periods:.0%}) in {counts['commits']} look-aheads = rollouts "
+            f"({ahead / periods:.0%}) in {counts['commits']} look-aheads ({counts['held periods']} "
+            f"periods holding the arm still) = rollouts "
             f"{spent['rollouts (preview)'] * 1e3:.1f} ({counts['rollouts (preview)']} calls) + "
             f"look-ahead Python {calls * 1e3:.1f} (tracking samples "
             f"{spent['tracking samples'] * 1e3:.1f}) + {periods - ahead} periods one at a time "

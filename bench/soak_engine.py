@@ -11,6 +11,8 @@ The twin's infeed puts a new part at the pick frame before every job.
 from __future__ import annotations
 
 import random
+import shutil
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -19,7 +21,7 @@ from cellrunner.backends.sim.backend import SimBackend
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
 from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner
+from cellrunner.execution.planner import job_planner, warm_up
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.planning.world import CellWorld
 from cellrunner.sim.from_cell import description_of
@@ -34,13 +36,17 @@ class SoakCell(CellController):
     def __init__(self, fault_rate: float = 0.25, seed: int = 7):
         cell = load_cell(ROOT / "cells" / "demo_ur5e.yaml")
         tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
+        world = CellWorld(cell)
+        warm_up(world)  # as serve does before READY
         self.sim = SimBackend(description_of(cell))
+        # a journal file, as serve's (an in-memory one would grow the process with every job)
+        self._journal_dir = Path(tempfile.mkdtemp(prefix="cellrunner-soak-"))
         super().__init__(
             cell,
             tasks,
             self.sim,
-            Journal(":memory:"),
-            job_planner(CellWorld(cell)),
+            Journal(self._journal_dir / "jobs.sqlite"),
+            job_planner(world),
             wait_for_unhold=False,
             on_step_start=self._maybe_inject,
             on_job_start=self.sim.feed_parts,
@@ -64,6 +70,7 @@ class SoakCell(CellController):
         if self._thread is not None:
             self._thread.join(timeout=10)
         super().close()
+        shutil.rmtree(self._journal_dir, ignore_errors=True)
 
     def start_job(self, task, params, client_job_id, source):
         ticket = super().start_job(task, params, client_job_id, source)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
@@ -75,6 +76,23 @@ class Stream:
 
 
 @dataclass
+class Hold:
+    """A step waiting with the arm's set-point unchanged (a grip, a weighing, a release,
+    a wait), set just before it yields. From the next period on, while every input reads
+    what it reads now, it yields again in each period at time ``t`` (s) unless
+    ``t - t0_s >= timeout_s`` or not ``t - t0_s < until_s``; each period it passes with
+    ``t - t0_s >= sample_from_s`` appends that period's wrench (first three, N) to
+    ``samples``. A look-ahead (:mod:`~cellrunner.execution.lookahead`) uses this to run
+    such periods in one call."""
+
+    t0_s: float
+    until_s: float = math.inf
+    timeout_s: float = math.inf
+    sample_from_s: float = math.inf
+    samples: list[np.ndarray] | None = None
+
+
+@dataclass
 class JobContext:
     backend: RobotBackend
     motions: Motions
@@ -97,6 +115,7 @@ class JobContext:
     tracking_error_m: float = 0.0
     commanded_q: np.ndarray | None = None
     stream: Stream | None = None  # the motion under way, while its set-points stream
+    hold: Hold | None = None  # what the step waits for, set by it in the current tick
     log: EventLog | None = None
     notes: dict[str, Any] = field(default_factory=dict)
 

@@ -200,7 +200,7 @@ class JobRunner:
             or self._reconnect_why is not None
             or self._gen is None
             or self._current is None
-            or self.ctx.stream is None
+            or (self.ctx.stream is None and self.ctx.hold is None)
         ):
             return 0
         clock = Clock(self._ticks, TRACK_EVERY, self._item_started_s, self._item_timeout_s, until_s)
@@ -221,7 +221,7 @@ class JobRunner:
         self._hold_reason = reason
         self._hold_since_s = self.ctx.now_s
         self._gen = None
-        self.ctx.stream = None
+        self.ctx.stream = self.ctx.hold = None
         self.ctx.commanded_q = None  # not streaming: no tracking error until the next set-point
         if reason != "protective stop":
             self.ctx.backend.stop_motion()
@@ -278,6 +278,7 @@ class JobRunner:
         if self._gen is None:  # a reconnect or hold dropped the step's generator
             self._current.resume = True
             return self._start_item(self._current)
+        self.ctx.hold = None  # valid only when set by the step in this tick
         try:
             next(self._gen)
         except StopIteration as stop:
@@ -314,7 +315,7 @@ class JobRunner:
             self._reconnect_why, self._reconnect_until = why, now + timeout_s
             self._reconnect_next, self._reconnect_delay = now, RECONNECT_FIRST_DELAY_S
             self._gen = None
-            self.ctx.stream = None
+            self.ctx.stream = self.ctx.hold = None
             self.ctx.commanded_q = None
         if now < self._reconnect_next:
             return
@@ -349,6 +350,7 @@ class JobRunner:
 
     def _start_item(self, item: _Item) -> None:
         step = item.step
+        self.ctx.hold = None
         self.ctx.stream = None  # a motion's generator sets it once it streams
         if (
             self.gate is not None
@@ -568,7 +570,7 @@ class JobRunner:
         self.ended_s = self.ctx.now_s
         self.phase = JobPhase.DONE
         self._gen = None
-        self.ctx.stream = None
+        self.ctx.stream = self.ctx.hold = None
         self._log("job_end", result_code=int(code), message=message)
 
     @property

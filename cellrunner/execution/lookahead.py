@@ -10,6 +10,13 @@ them, and lets the backend take over only the periods before the first one where
 check (the engine's or the twin's own: contacts, inputs) would fire, or an observer
 wants to act. That first period then runs through the ordinary per-period path, so a
 fault is met at the same period, with the same state, as without look-ahead.
+
+A step that holds the arm still while it waits (the jaws closing or opening, a weighing,
+a wait; see :class:`~cellrunner.execution.context.Hold`) is looked ahead the same way:
+its set-point stays, and the periods pass up to the first one where the step's own
+condition (its time, its timeout), the step's timeout, an observer or the twin (a
+contact, an input changing) would act; the wrench samples it takes on the way are taken
+from the recorded periods.
 """
 
 from __future__ import annotations
@@ -21,7 +28,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from cellrunner.backends.base import Safety
-from cellrunner.execution.context import JobContext
+from cellrunner.execution.context import Hold, JobContext
 from cellrunner.execution.steps import (
     LOAD_LOST_FRACTION,
     carried_load_N,
@@ -61,6 +68,11 @@ class LooksAhead(Protocol):
 
     def servo(self, trajectory: ApprovedTrajectory, index: int) -> None: ...
 
+    def look_ahead_hold(self, periods: int) -> Any: ...
+
+    @property
+    def rate_hz(self) -> float: ...
+
 
 @dataclass(frozen=True)
 class Clock:
@@ -80,13 +92,10 @@ def fast_forward(ctx: JobContext, clock: Clock, max_periods: int) -> int:
     """Advance a streaming motion by up to ``max_periods`` periods in one call; return
     how many periods passed (0: none, step the next period as usual)."""
     stream, state, backend = ctx.stream, ctx.state, ctx.backend
-    if (
-        stream is None
-        or state is None
-        or state.safety is not Safety.NORMAL
-        or not isinstance(backend, LooksAhead)
-    ):
+    if state is None or state.safety is not Safety.NORMAL or not isinstance(backend, LooksAhead):
         return 0
+    if stream is None:
+        return 0 if ctx.hold is None else _hold(ctx, ctx.hold, backend, clock, max_periods)
     carry = ctx.carry
     if carry is not None and (
         "sensor_false_since" in ctx.notes
@@ -130,6 +139,46 @@ def fast_forward(ctx: JobContext, clock: Clock, max_periods: int) -> int:
     ctx.commanded_q = q_plan[i]
     stream.next_index = i + 1
     return m
+
+
+def _hold(ctx: JobContext, hold: Hold, backend: LooksAhead, clock: Clock, max_periods: int) -> int:
+    """Up to ``max_periods`` periods of a step waiting with the arm still (``hold``)."""
+    # its end in time is known: roll out only the periods before it (the physics past a
+    # cut would be computed in vain, and a cut preview is rolled out again to commit)
+    periods0 = round(ctx.now_s * backend.rate_hz)
+    max_periods = _hold_periods(
+        hold, clock, (periods0 + np.arange(1, max_periods + 1)) / backend.rate_hz
+    )
+    if max_periods < MIN_PERIODS:
+        return 0
+    preview: Preview | None = backend.look_ahead_hold(max_periods)
+    if preview is None:
+        return 0
+    waited = preview.time_s - hold.t0_s  # as the step computes it, period by period
+    m = min(preview.quiet, _hold_periods(hold, clock, preview.time_s))
+    if m < 1:
+        backend.discard_look_ahead(preview)
+        return 0
+    if ctx.commanded_q is not None:
+        _track(ctx, clock, np.broadcast_to(ctx.commanded_q, (m, 6)), preview.q_rad[:m])
+    if hold.samples is not None:
+        for r in np.flatnonzero(waited[:m] >= hold.sample_from_s).tolist():
+            hold.samples.append(np.array(preview.wrench_N[r, :3]))
+    backend.commit_look_ahead(preview, m)
+    ctx.read()  # period m's tick reads the state; the step waits on
+    return m
+
+
+def _hold_periods(hold: Hold, clock: Clock, t: np.ndarray) -> int:
+    """How many of the periods ending at times ``t`` (s) pass before the step, its
+    timeout or an observer acts, as far as time decides it."""
+    waited = t - hold.t0_s
+    return min(
+        _first(t - clock.step_started_s > clock.step_timeout_s),
+        _first(t >= clock.until_s),
+        _first(waited >= hold.timeout_s),
+        _first(~(waited < hold.until_s)),
+    )
 
 
 def _first(fires: np.ndarray) -> int:

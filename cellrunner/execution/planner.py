@@ -79,5 +79,11 @@ def warm_up(world: CellWorld) -> None:
         "cache",
     ):
         importlib.import_module(f"cellrunner.planning.{module}")
+    # joint_path imports OMPL only when it searches (check and validate never load it), so
+    # without this the first job that needs a search loaded it (~7 MiB) in the middle of a
+    # serve: the soak's memory after 50 jobs depended on when a fault first left the arm
+    # away from a cached start
+    for module in ("ompl.base", "ompl.geometric", "ompl.util"):
+        importlib.import_module(module)
     world.kinematics.T_world_tcp(world.q_home_rad)
     _ = world.collision, world.limits

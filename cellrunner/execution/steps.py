@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cellrunner.backends.base import RobotState
-from cellrunner.execution.context import Carry, JobContext, Stream
+from cellrunner.execution.context import Carry, Hold, JobContext, Stream
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.step import StepKind
@@ -161,11 +161,12 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
     args = step.args
     if ctx.gripper_close is None:
         return Outcome.failed(ResultCode.NO_PART, "the cell has no gripper close output")
-    samples = []
+    samples: list[np.ndarray] = []
     t0 = ctx.now_s
     while ctx.now_s - t0 < SETTLE_S + AVERAGE_S:  # settle, then the baseline
         if ctx.now_s - t0 >= SETTLE_S:
             samples.append(np.array(ctx.last_state.wrench_N[:3], dtype=float))
+        ctx.hold = Hold(t0, until_s=SETTLE_S + AVERAGE_S, sample_from_s=SETTLE_S, samples=samples)
         yield
     baseline = (
         np.mean(samples, axis=0) if samples else np.array(ctx.last_state.wrench_N[:3], dtype=float)
@@ -176,6 +177,7 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
     t0 = ctx.now_s
     if confirm is None:  # no sensor: all we can do is let the jaws travel
         while ctx.now_s - t0 < min(args.timeout, 0.5):
+            ctx.hold = Hold(t0, until_s=min(args.timeout, 0.5))
             yield
     else:
         while not ctx.last_state.inputs.get(confirm):
@@ -185,6 +187,7 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
                     f"{args.confirm or 'closed sensor'} not true "
                     f"within {args.timeout:g} s ({_gripped_nothing(ctx)})",
                 )
+            ctx.hold = Hold(t0, timeout_s=args.timeout)
             yield
     force_min = args.force.min if args.force else 0.0
     ctx.notes.pop("sensor_false_since", None)
@@ -206,9 +209,10 @@ def _gripped_nothing(ctx: JobContext) -> str:
 def run_weigh(ctx: JobContext, step: Step) -> StepGen:
     """After the lift: the load the wrist carries must lie within the grip's force window."""
     window = step.args.force
-    samples = []
+    samples: list[np.ndarray] = []
     t0 = ctx.now_s
     while ctx.now_s - t0 < SETTLE_S + AVERAGE_S:
+        ctx.hold = Hold(t0, until_s=SETTLE_S + AVERAGE_S, sample_from_s=SETTLE_S, samples=samples)
         yield
         if ctx.now_s - t0 >= SETTLE_S:
             samples.append(np.array(ctx.last_state.wrench_N[:3]))
@@ -257,6 +261,10 @@ def run_release(ctx: JobContext, step: Step) -> StepGen:
             return Outcome.failed(
                 ResultCode.PLACE_FAILED, f"release not confirmed within {args.timeout:g} s"
             )
+        # the inputs read the same until the look-ahead stops: only the time can end it
+        pending = bool(watch and _release_pending(ctx, watch, confirm is not None))
+        until_s = math.inf if pending else ctx.gripper_open_s
+        ctx.hold = Hold(t0, until_s=until_s, timeout_s=args.timeout)
         yield
     return check_place(ctx, step)
 
@@ -295,6 +303,7 @@ def run_wait_input(ctx: JobContext, step: Step) -> StepGen:
                 ResultCode.STEP_TIMEOUT,
                 f"input {args.input} did not read {args.value} within {args.timeout:g} s",
             )
+        ctx.hold = Hold(t0, timeout_s=args.timeout)
         yield
     return OK
 
@@ -302,6 +311,7 @@ def run_wait_input(ctx: JobContext, step: Step) -> StepGen:
 def run_wait(ctx: JobContext, step: Step) -> StepGen:
     t0 = ctx.now_s
     while ctx.now_s - t0 < step.args.seconds:
+        ctx.hold = Hold(t0, until_s=step.args.seconds)
         yield
     return OK
 

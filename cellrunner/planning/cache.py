@@ -32,9 +32,13 @@ from cellrunner.planning.world import CellWorld
 
 #: plans kept in memory (serve), least recently used first. A job that starts where a fault
 #: left the arm has a plan of its own that is rarely used again; with a bound of 64 those
-#: (~0.5 MB each) grew serve's memory by 10 % over 250 soak jobs (bench_plc)
+#: (~0.5 MB each) grew serve's memory by 10 % over 250 soak jobs (bench_plc). So a plan is
+#: kept from its second use on (the first repeat reads it from disk): keys asked for once
+#: are remembered, oldest out, and one-off plans never take the place of the ones in use
 _MEMORY: dict[str, TaskPlan] = {}
 _MEMORY_MAX = 16
+_ASKED_ONCE: dict[str, None] = {}
+_ASKED_ONCE_MAX = 1024
 
 
 @functools.lru_cache(maxsize=1)
@@ -111,11 +115,22 @@ def plan_cached(
         )
         if plan.ok:
             _store(path, plan)
+    _keep(key, plan)
+    return plan
+
+
+def _keep(key: str, plan: TaskPlan) -> None:
+    """Keep ``plan`` in memory if ``key`` was asked for before (see ``_MEMORY``)."""
+    if key not in _ASKED_ONCE:
+        while len(_ASKED_ONCE) >= _ASKED_ONCE_MAX:
+            _ASKED_ONCE.pop(next(iter(_ASKED_ONCE)))
+        _ASKED_ONCE[key] = None
+        return
+    del _ASKED_ONCE[key]
     _MEMORY.pop(key, None)
     while len(_MEMORY) >= _MEMORY_MAX:
         _MEMORY.pop(next(iter(_MEMORY)))  # the least recently used
     _MEMORY[key] = plan
-    return plan
 
 
 def _on_error_steps(

@@ -56,6 +56,13 @@ class Preview:
     _control: np.ndarray
     _q_ref: np.ndarray
     _qd_ref: np.ndarray
+    #: a hold's set-point (the very arrays the twin holds), None for a motion
+    _ends: tuple[np.ndarray, np.ndarray] | None = None
+
+    @property
+    def holds(self) -> bool:
+        """Whether the set-point stays where it was (no motion streams)."""
+        return self._ends is not None
 
     @property
     def periods(self) -> int:
@@ -108,10 +115,28 @@ class Lookahead:
         )
 
     # -- preview --------------------------------------------------------------------------
-    def preview(self, q_rad: np.ndarray, qd_rad_s: np.ndarray) -> Preview | None:
+    def preview_hold(self, periods: int) -> Preview | None:
+        """:meth:`preview` of ``periods`` periods with the set-point held where it is
+        (the arm still, as when no set-point is sent: no speed feed-forward)."""
+        w = self.world
+        if not w.holding:
+            return None
+        q = np.broadcast_to(w.q_ref, (periods, 6))
+        ctrl = q if w.substeps == 1 else None  # what step_period feeds the servos then
+        return self.preview(q, np.zeros((periods, 6)), ends=(w.q_ref, w.qd_ref), ctrl=ctrl)
+
+    def preview(
+        self,
+        q_rad: np.ndarray,
+        qd_rad_s: np.ndarray,
+        ends: tuple[np.ndarray, np.ndarray] | None = None,
+        ctrl: np.ndarray | None = None,
+    ) -> Preview | None:
         """Roll the physics out over one period per row of ``q_rad``/``qd_rad_s`` (the
         set-points of the coming periods, the first being the one now commanded); None
-        when the twin is in no state to be looked ahead."""
+        when the twin is in no state to be looked ahead. ``ends``: the set-point the twin
+        keeps afterwards (a hold); ``ctrl``: the servos' inputs per physics step, where
+        they are not :meth:`SimWorld.servo_inputs`."""
         w = self.world
         mode = self._mode()
         if mode is None or not len(q_rad) or not self._calm(mode, w.data.sensordata[None])[0]:
@@ -127,7 +152,7 @@ class Lookahead:
         mj.mj_getState(m, d, user, self._user)
         control = np.empty((1, n * k, self._nuser))
         control[0] = user
-        control[0, :, 0:6] = w.servo_inputs(q_rad, qd_rad_s)
+        control[0, :, 0:6] = w.servo_inputs(q_rad, qd_rad_s) if ctrl is None else ctrl
         states = np.empty((1, n * k, self._nstate))
         sensordata = np.empty((1, n * k, m.nsensordata))
         scratch = self._scratch
@@ -162,6 +187,7 @@ class Lookahead:
             _control=control,
             _q_ref=q_rad,
             _qd_ref=qd_rad_s,
+            _ends=ends,
         )
 
     def _mode(self) -> str | None:
@@ -303,7 +329,10 @@ class Lookahead:
                 None,
             )
         last = periods - 1
-        w.advanced(periods, preview._q_ref[last], preview._qd_ref[last])
+        if preview._ends is not None:
+            w.advanced(periods, *preview._ends)
+        else:
+            w.advanced(periods, preview._q_ref[last], preview._qd_ref[last])
 
 
 def _rollout_module() -> Any:

@@ -152,6 +152,12 @@ class SimWorld:
         self._mj.mj_forward(self.model, self.data)
 
     @property
+    def holding(self) -> bool:
+        """Whether the next period holds the set-point where it is: none was sent since
+        the last period (no speed feed-forward) and no stop ramp moves it."""
+        return self.qd_ref is _ZERO6 and self._stop is None
+
+    @property
     def stopping(self) -> bool:
         """Whether a stop ramp (stopJ, a protective or emergency stop) is still running."""
         return self._stop is not None

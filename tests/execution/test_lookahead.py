@@ -4,11 +4,18 @@ result code, the same fault at the same period, the same journal and step rows, 
 tracking error, and the same physics to the last bit. On the demo UR5e (500 Hz, one
 physics step per period) and the CB3 UR5 shelf cell (125 Hz, four steps per period, a
 ``part_at`` input rule): a normal run, a collision with an obstacle only the twin knows
-(a protective stop on contact), and a part dropped in transit (2)."""
+(a protective stop on contact), a part dropped in transit (2), a grip on nothing (no
+part in the twin: the jaws close, the sensor never confirms, the grip times out and
+retries; the shelf cell's wait for the part's input times out first), a grip on a part
+too thin for the jaw sensor (the jaws hold it on the table while the grip times out:
+those periods run one at a time, the part touching the table) and a weighing out of range (the task's force window above the part's weight:
+the weigh after the lift fails and the pick retries). The holds (settle, jaws closing
+and opening, weighing) are looked ahead as well as the motions."""
 
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -88,16 +95,37 @@ def _obstacle(world: CellWorld, plan: Any, kind: str) -> Placed:
     return Placed("obstacle", Box((0.08, 0.08, 0.08)), T)
 
 
-def _run(name: str, lookahead: bool, fault: str | None = None) -> Outcome:
+def _heavier_window(task_path: Path, tmp: Path) -> Path:
+    """The task with its grip's force window well above any part's weight (N)."""
+    text = task_path.read_text()
+    heavier = re.sub(r"force: \{min: [0-9.]+, max: [0-9.]+\}", "force: {min: 300, max: 400}", text)
+    assert heavier != text
+    path = tmp / task_path.name
+    path.write_text(heavier)
+    return path
+
+
+def _run(name: str, lookahead: bool, fault: str | None = None, tmp: Path | None = None) -> Outcome:
     from cellrunner.backends.sim.backend import SimBackend
     from cellrunner.sim.from_cell import description_of
 
     cell_path, task_path, params, collide_at = CELLS[name]
     cell = load_cell(ROOT / cell_path)
-    task = load_task(ROOT / task_path, cell)
+    if fault == "heavy":
+        assert tmp is not None
+        task = load_task(_heavier_window(ROOT / task_path, tmp), cell)
+    else:
+        task = load_task(ROOT / task_path, cell)
     world = CellWorld(cell)
     planner = job_planner(world)
     description = description_of(cell, (task,))
+    if fault == "no_part":
+        description = dataclasses.replace(description, parts=())
+    if fault == "thin":  # the part is there but too thin: the jaws close on "nothing"
+        thin = tuple(
+            dataclasses.replace(p, shape=Box((0.001, 0.001, 0.05))) for p in description.parts
+        )
+        description = dataclasses.replace(description, parts=thin)
     if fault == "collision":
         from cellrunner.planning.cache import plan_cached
 
@@ -144,6 +172,10 @@ def _run(name: str, lookahead: bool, fault: str | None = None) -> Outcome:
     return outcome
 
 
+#: at most this fraction of a run's periods one at a time, the holds looked ahead
+HELD_AHEAD = {None: 0.05, "no_part": 0.05, "heavy": 0.12}
+
+
 @pytest.mark.parametrize("name", list(CELLS))
 @pytest.mark.parametrize(
     ("fault", "code"),
@@ -151,17 +183,36 @@ def _run(name: str, lookahead: bool, fault: str | None = None) -> Outcome:
         (None, ResultCode.OK),
         ("collision", None),  # a stop on contact; resumed around it, or 100
         ("slip", ResultCode.PART_LOST),
+        ("no_part", None),  # a grip on nothing (demo); the wait for a part times out (shelf)
+        ("thin", ResultCode.NO_PART),
+        ("heavy", ResultCode.NO_PART),
     ],
 )
 def test_look_ahead_gives_what_the_per_period_loop_gives(
-    name: str, fault: str | None, code: ResultCode | None
+    name: str, fault: str | None, code: ResultCode | None, tmp_path: Path
 ) -> None:
-    per_period = _run(name, lookahead=False, fault=fault)
-    ahead = _run(name, lookahead=True, fault=fault)
+    per_period = _run(name, lookahead=False, fault=fault, tmp=tmp_path)
+    ahead = _run(name, lookahead=True, fault=fault, tmp=tmp_path)
     assert code is None or per_period.code == code, per_period.message
     assert per_period.ticks_ahead == 0
     # the look-ahead really ran: most of a normal run's periods, a good part of the others
     assert ahead.ticks_ahead > (0.7 if fault is None else 0.2) * ahead.ticks
+    if fault == "no_part":
+        if name == "demo_ur5e":
+            assert per_period.code == ResultCode.NO_PART
+            assert "closed on nothing" in per_period.message
+        else:  # the shelf cell waits for its part_in_tote input first
+            assert per_period.code == ResultCode.STEP_TIMEOUT
+            assert "part_in_tote did not read True" in per_period.message
+    if fault == "thin":
+        assert "closed on nothing" in per_period.message
+    if fault == "heavy":
+        assert "after lift is outside [300, 400] N" in per_period.message
+    if fault in HELD_AHEAD:
+        # the holds were looked ahead too: few periods one at a time (with motions alone:
+        # 7.5-8.3% in a normal run, 22-24% with the weighing failing, 62-100% gripping on
+        # nothing or waiting for a part that is not there)
+        assert ahead.ticks - ahead.ticks_ahead < HELD_AHEAD[fault] * ahead.ticks
     if fault == "collision":
         assert per_period.contact_s is not None  # the twin stopped on the obstacle
         assert per_period.protective_stops >= 1

@@ -241,8 +241,9 @@ def test_cached_plan_is_verified_before_use(tmp_path):
 
 
 def test_memory_cache_keeps_the_most_recently_used_plans(monkeypatch):
-    """serve's in-memory plans are bounded, and a plan in use stays while one-off plans
-    (a job starting where a fault left the arm) come and go."""
+    """serve's in-memory plans are bounded; a plan is kept from its second use on, so
+    one-off plans (a job starting where a fault left the arm) never take the place of the
+    plans in use, and of those the least recently used goes first."""
     from cellrunner.model.load import load_cell, load_task
     from cellrunner.planning import cache
     from cellrunner.planning.world import CellWorld
@@ -252,11 +253,18 @@ def test_memory_cache_keeps_the_most_recently_used_plans(monkeypatch):
     world = CellWorld(loaded)
     monkeypatch.setattr(cache, "_MEMORY", {})
     monkeypatch.setattr(cache, "_MEMORY_MAX", 2)
+    monkeypatch.setattr(cache, "_ASKED_ONCE", {})
     home = world.q_home_rad
+    key = {s: cache.plan_key(world, task, {"slot": s}, home) for s in range(4)}
+    for s in (0, 1):
+        cache.plan_cached(world, task, {"slot": s}, home)
+    assert not cache._MEMORY  # asked for once: not kept
     plans = {s: cache.plan_cached(world, task, {"slot": s}, home) for s in (0, 1)}
-    assert cache.plan_cached(world, task, {"slot": 0}, home) is plans[0]  # used again
-    cache.plan_cached(world, task, {"slot": 2}, home)
-    kept = set(cache._MEMORY)
-    assert len(kept) == 2
-    assert cache.plan_key(world, task, {"slot": 0}, home) in kept
-    assert cache.plan_key(world, task, {"slot": 1}, home) not in kept
+    assert set(cache._MEMORY) == {key[0], key[1]}  # asked for again: kept
+    assert cache.plan_cached(world, task, {"slot": 0}, home) is plans[0]  # from memory
+    one_off = home + np.radians([0, 0, 0, 0, 0, 10])
+    assert cache.plan_cached(world, task, {"slot": 3}, one_off).ok
+    assert set(cache._MEMORY) == {key[0], key[1]}  # a one-off plan takes no place
+    for _ in range(2):
+        cache.plan_cached(world, task, {"slot": 2}, home)
+    assert set(cache._MEMORY) == {key[0], key[2]}  # slot 1 was the least recently used

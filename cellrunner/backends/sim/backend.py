@@ -37,6 +37,11 @@ SET_POINT_JUMP_MARGIN = 1.5
 #: since its physics beyond the cut is computed in vain
 AHEAD_FIRST_PERIODS = 64
 AHEAD_MAX_PERIODS = 1024
+#: a hold's look-ahead starts this small when an output changed since the last
+#: look-ahead (the jaws moving soon cut it: a contact, the sensor), else at most this
+#: big (a hold's end in time bounds it too)
+AHEAD_FIRST_HOLD_PERIODS = 16
+AHEAD_CALM_HOLD_PERIODS = 256
 
 
 class SimBackend:
@@ -59,6 +64,11 @@ class SimBackend:
         self._ahead: Lookahead | None = None
         self._ahead_cap = AHEAD_FIRST_PERIODS  # grows while look-aheads pass whole
         self._ahead_not_before = 0  # no look-ahead before this period (a cut one's end)
+        # a hold's cap, apart: it starts small again when an output changed (the jaws
+        # moving soon end a hold's quiet stretch, and the periods rolled out beyond such a
+        # cut are wasted)
+        self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
+        self._ahead_outputs: dict[str, bool | float] | None = None  # at the last look-ahead
         self._max_step_rad = (
             np.radians(description.spec.joint_speed_max_deg_s)
             / self.rate_hz
@@ -174,6 +184,9 @@ class SimBackend:
             from cellrunner.sim.lookahead import Lookahead
 
             self._ahead = Lookahead(world)
+        if world.outputs != self._ahead_outputs:
+            self._ahead_outputs = dict(world.outputs)
+        self._hold_cap = AHEAD_CALM_HOLD_PERIODS
         n = min(periods, self._ahead_cap, len(accepted[1]) - next_index + 1)
         j0 = next_index - 1
         preview = self._ahead.preview(accepted[1][j0 : j0 + n], accepted[2][j0 : j0 + n])
@@ -183,13 +196,44 @@ class SimBackend:
             self._ahead_not_before = world.periods + preview.quiet + 1
         return preview
 
+    def look_ahead_hold(self, periods: int) -> Preview | None:
+        """The coming periods' measurements if the set-point stays where it is (a step
+        waiting with the arm still), without taking them yet; None when the twin cannot
+        look ahead now. Covers at most ``periods`` periods."""
+        world = self.world
+        if (
+            world is None
+            or not self._connected
+            or world.periods < self._ahead_not_before
+            or world.stopping
+        ):
+            return None
+        if self._ahead is None:
+            from cellrunner.sim.lookahead import Lookahead
+
+            self._ahead = Lookahead(world)
+        if world.outputs != self._ahead_outputs:
+            self._ahead_outputs = dict(world.outputs)
+            self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
+        n = min(periods, self._hold_cap)
+        preview = self._ahead.preview_hold(n)
+        if preview is not None and preview.quiet < n:
+            self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
+            self._ahead_not_before = world.periods + preview.quiet + 1
+        return preview
+
     def commit_look_ahead(self, preview: Preview, periods: int) -> None:
         """Take over the first ``periods`` periods of ``preview`` (at most its quiet
         ones): the twin then stands where that many ``wait_period`` calls, with
-        ``servo`` sending the trajectory's set-points between them, would have left it."""
+        ``servo`` sending the trajectory's set-points between them (none for a hold),
+        would have left it."""
         assert self._ahead is not None and self.world is not None  # a preview was made
         self._fresh = None
         self._ahead.commit(preview, periods)
+        if preview.holds:
+            if periods == preview.periods:
+                self._hold_cap = min(2 * self._hold_cap, AHEAD_MAX_PERIODS)
+            return
         self._last_q = self.world.q_ref
         self._next_index += periods
         if periods == preview.periods:
@@ -197,7 +241,10 @@ class SimBackend:
 
     def discard_look_ahead(self, preview: Preview) -> None:
         """A preview none of whose periods is taken (the next period runs as usual)."""
-        self._ahead_cap = AHEAD_FIRST_PERIODS
+        if preview.holds:
+            self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
+        else:
+            self._ahead_cap = AHEAD_FIRST_PERIODS
 
     def wait_period(self) -> None:
         self._fresh = None
