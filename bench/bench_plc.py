@@ -420,8 +420,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"the cell never became READY in: {report['never_ready_in']}")
     if report["unholds"]:
         print(
-            f"the PLC pressed UNHOLD {report['unholds']} times (the cell holds a job when the "
-            "PLC heartbeat lapses for 1.5 s, as a starved PLC process does on a loaded machine)"
+            f"the PLC pressed UNHOLD {report['unholds']} times (whenever the cell sat in Held "
+            "with no e-stop and no watchdog: a protective stop, or a PLC heartbeat that lapsed "
+            "for 1.5 s, as a starved PLC process's does on a loaded machine)"
         )
     rss = report["rss_mib"]
     if RSS_BASELINE_JOBS in rss and len(rss) > 1:
