@@ -653,6 +653,7 @@ class CellController:
             on_step_start=self.on_step_start,
             log=None if self.log is None else self.log.bind(job_id=job_id),
             tools=dict(c.tools),
+            tool_mass_kg=c.tool.payload.mass,
         )
         use_gripper(ctx, g)
         return ctx

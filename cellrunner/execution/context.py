@@ -59,6 +59,7 @@ class Carry:
     load_N: float | None = None
     min_N: float = 0.0
     confirm: str | None = None  # input channel that must stay true
+    tool_mass_kg: float = 0.0  # the mounted tool's, whose inertia the wrist reads in motion
 
 
 @dataclass
@@ -68,6 +69,10 @@ class Stream:
 
     approved: ApprovedTrajectory
     next_index: int
+    #: the TCP's planned acceleration per set-point (N x 3, m/s^2, base axes), while a
+    #: part is carried: the load check takes the tool's inertia out of the wrist reading
+    tcp_accel_mps2: np.ndarray | None = None
+    gravity_mps2: np.ndarray | None = None  # in base axes, with tcp_accel_mps2
 
 
 @dataclass
@@ -102,6 +107,7 @@ class JobContext:
     tools: dict[str, Tool] = field(
         default_factory=dict
     )  # tool name -> its Gripper (change_tool switches)
+    tool_mass_kg: float = 0.0  # the mounted tool's payload (change_tool switches)
     step_timeout_s: float = 60.0
     on_step_start: Callable[[Step, int], None] | None = None
     state: RobotState | None = None

@@ -31,6 +31,7 @@ from cellrunner.backends.base import Safety
 from cellrunner.execution.context import Hold, JobContext
 from cellrunner.execution.steps import (
     LOAD_LOST_FRACTION,
+    carried_load_N,
     next_load_lp,
     watches_load,
 )
@@ -117,7 +118,11 @@ def fast_forward(ctx: JobContext, clock: Clock, max_periods: int) -> int:
     load_lp = None
     if watches_load(carry) and m:
         assert carry is not None and carry.load_N is not None  # watches_load says so
-        m, load_lp = _carried_load(preview.wrench_N, m, carry, ctx.notes.get("load_lp"))
+        accel = stream.tcp_accel_mps2
+        rows = None if accel is None else accel[stream.next_index - 1 :]
+        m, load_lp = _carried_load(
+            preview.wrench_N, m, carry, ctx.notes.get("load_lp"), rows, stream.gravity_mps2
+        )
     if m < 1:
         backend.discard_look_ahead(preview)
         return 0
@@ -183,17 +188,23 @@ def _first(fires: np.ndarray) -> int:
 
 
 def _carried_load(
-    wrench_N: np.ndarray, m: int, carry: Any, load_lp: float | None
+    wrench_N: np.ndarray,
+    m: int,
+    carry: Any,
+    load_lp: float | None,
+    accel_mps2: np.ndarray | None = None,
+    gravity_mps2: np.ndarray | None = None,
 ) -> tuple[int, float | None]:
     """Run the carried-load low-pass over periods ``0..m-1`` as the per-period check
-    does; return the periods before it would report the part lost, and its value after
+    does (``accel_mps2``: the planned TCP acceleration of the set-point each period runs
+    on); return the periods before it would report the part lost, and its value after
     them."""
     lp = carry.load_N if load_lp is None else load_lp
-    base = carry.baseline_N.tolist()
     floor = LOAD_LOST_FRACTION * carry.min_N
     kept: float | None = None
     for k, row in enumerate(wrench_N[:m, :3].tolist()):
-        lp = next_load_lp(lp, math.dist(row, base))
+        accel = None if accel_mps2 is None else accel_mps2[k]
+        lp = next_load_lp(lp, carried_load_N(row, carry, accel, gravity_mps2))
         if lp < floor:
             return k, kept
         kept = lp

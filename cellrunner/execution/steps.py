@@ -35,6 +35,9 @@ SETTLE_S = 0.1
 SENSOR_DEBOUNCE_S = 0.05
 #: a carried load that falls (low-passed) under this fraction of the grip's minimum: lost
 LOAD_LOST_FRACTION = 0.5
+#: the part's apparent weight is scaled by g / |g - a| (:func:`carried_load_N`), at most
+#: by 1 / this
+MIN_FELT_GRAVITY = 0.25
 
 
 @dataclass(frozen=True)
@@ -86,7 +89,7 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     )
     # the index lives in ctx.stream so that a look-ahead (execution.lookahead) can move
     # the stream on by many periods at once
-    stream = ctx.stream = Stream(approved, first)
+    stream = ctx.stream = Stream(approved, first, *_planned_accel(ctx, approved))
     while stream.next_index < len(q):
         i = stream.next_index
         ctx.backend.servo(approved, i)
@@ -189,7 +192,9 @@ def run_grip(ctx: JobContext, step: Step) -> StepGen:
     force_min = args.force.min if args.force else 0.0
     ctx.notes.pop("sensor_false_since", None)
     ctx.notes.pop("load_lp", None)
-    ctx.carry = Carry(baseline_N=baseline, min_N=force_min, confirm=confirm)
+    ctx.carry = Carry(
+        baseline_N=baseline, min_N=force_min, confirm=confirm, tool_mass_kg=ctx.tool_mass_kg
+    )
     return OK
 
 
@@ -320,8 +325,12 @@ def sensor_dropped(ctx: JobContext) -> str | None:
         return None
     since = ctx.notes.setdefault("sensor_false_since", ctx.now_s)
     if ctx.now_s - since >= SENSOR_DEBOUNCE_S:
-        return "vacuum switch" if ctx.gripper_kind == "vacuum" else "jaw sensor"
+        return _sensor_name(ctx)
     return None
+
+
+def _sensor_name(ctx: JobContext) -> str:
+    return "vacuum switch" if ctx.gripper_kind == "vacuum" else "jaw sensor"
 
 
 def _part_lost(ctx: JobContext) -> str | None:
@@ -333,14 +342,60 @@ def _part_lost(ctx: JobContext) -> str | None:
     if sensor is not None:
         return f"part lost in transit: the {sensor} dropped"
     if watches_load(carry) and carry.load_N is not None:
-        # plain floats: numpy's per-call cost dwarfs a 3-vector norm, and this runs every tick
-        load = math.dist(
-            np.asarray(ctx.last_state.wrench_N[:3]).tolist(), carry.baseline_N.tolist()
+        stream = ctx.stream
+        accel, gravity = None, None
+        if stream is not None and stream.tcp_accel_mps2 is not None:
+            accel = stream.tcp_accel_mps2[stream.next_index - 1]  # the set-point commanded now
+            gravity = stream.gravity_mps2
+        load = carried_load_N(
+            np.asarray(ctx.last_state.wrench_N[:3]).tolist(), carry, accel, gravity
         )
         load_lp = ctx.notes["load_lp"] = next_load_lp(ctx.notes.get("load_lp", carry.load_N), load)
         if load_lp < LOAD_LOST_FRACTION * carry.min_N:
+            if carry.confirm is not None and not ctx.last_state.inputs.get(carry.confirm):
+                # both see it: the sensor (still within its debounce) is the plainer cause
+                return f"part lost in transit: the {_sensor_name(ctx)} dropped"
             return f"part lost in transit: the wrist load fell to {load_lp:.1f} N"
     return None
+
+
+def carried_load_N(
+    wrench_N: list[float],
+    carry: Carry,
+    accel_mps2: np.ndarray | None = None,
+    gravity_mps2: np.ndarray | None = None,
+) -> float:
+    """The carried part's weight (N) as a wrist reading (force, base axes) shows it: the
+    change from the empty tool's reading at rest. In motion (``accel_mps2``, the TCP's
+    planned acceleration, and ``gravity_mps2``, both base axes) payload compensation
+    takes out only the tool's weight: the tool's inertia is taken out here, and what is
+    left, the part's m (g - a), is scaled back to m g. Accelerating at 5 m/s^2, a 2.5 kg
+    tool's and a 2 kg carton's inertia nearly cancelled the carton's 20 N, and a part held
+    fast read as lost; a lost part reads ~0 either way."""
+    # plain floats: numpy's per-call cost dwarfs a 3-vector norm, and this runs every tick
+    base = carry.baseline_N.tolist()
+    if accel_mps2 is None or gravity_mps2 is None:
+        return math.dist(wrench_N, base)
+    a, g = accel_mps2.tolist(), gravity_mps2.tolist()
+    m = carry.tool_mass_kg
+    part = math.dist([w + m * x for w, x in zip(wrench_N, a, strict=True)], base)
+    felt = math.dist(g, a)  # |g - a|
+    g_norm = math.hypot(*g)
+    return part * g_norm / max(felt, MIN_FELT_GRAVITY * g_norm)
+
+
+def _planned_accel(
+    ctx: JobContext, approved: ApprovedTrajectory
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The TCP's planned acceleration along ``approved`` and gravity, base axes
+    (:class:`Stream`), when the load of a carried part is watched and the motions can
+    tell them."""
+    accel = getattr(ctx.motions, "tcp_accel_base_mps2", None)
+    gravity = getattr(ctx.motions, "gravity_base_mps2", None)
+    if accel is None or gravity is None or not watches_load(ctx.carry):
+        return None, None
+    trajectory = approved.trajectory
+    return np.asarray(accel(trajectory.q_rad, trajectory.rate_hz)), np.asarray(gravity())
 
 
 def watches_load(carry: Carry | None) -> bool:

@@ -23,6 +23,7 @@ def run_tool_unlock(ctx: JobContext, step: Step) -> Generator[None, None, Outcom
     outcome = yield from _drive(ctx, step, lock=False)
     if outcome.ok:
         use_gripper(ctx, None)
+        ctx.tool_mass_kg = 0.0
         tcp_of = ctx.tools[step.extra["tcp_of"]]
         ctx.backend.set_tool(tcp_of.tcp.matrix(), 0.0, (0.0, 0.0, 0.0))  # the bare flange
     return outcome
@@ -33,6 +34,7 @@ def run_tool_lock(ctx: JobContext, step: Step) -> Generator[None, None, Outcome]
     if outcome.ok:
         tool = ctx.tools[step.extra["tool"]]
         use_gripper(ctx, tool.gripper)
+        ctx.tool_mass_kg = tool.payload.mass
         ctx.backend.set_tool(tool.tcp.matrix(), tool.payload.mass, tool.payload.cog_m)
     return outcome
 

@@ -53,6 +53,8 @@ BLEND_RADIUS_MAX_M = 0.05
 #: between two joint moves of different steps: this share of each adjacent edge
 CORNER_FRACTION = 0.35
 BLEND_POINTS = 24
+#: m/s^2 (:meth:`TaskPlan.gravity_base_mps2`)
+GRAVITY_MPS2 = 9.81
 #: timed groups remembered per cell, least recently used out (:func:`_timed_pieces`). The
 #: groups slots share (the pick, the retry path) are used by every slot and stay; in
 #: ``serve`` every job that starts where a fault left the arm adds groups used once, and
@@ -174,6 +176,24 @@ class TaskPlan:
     def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
         """World TCP positions (N x 3) at the rows of ``q_rad``, tool mounted at start."""
         return self.world.kinematics.p_world_tcp_many(q_rad)
+
+    def tcp_accel_base_mps2(self, q_rad: np.ndarray, rate_hz: float) -> np.ndarray:
+        """The TCP's acceleration (N x 3, m/s^2, the robot base's axes, as the wrist
+        wrench is read) along set-points ``q_rad`` streamed at ``rate_hz``: second
+        differences, each end taking its neighbour's (tool mounted at start)."""
+        q = np.asarray(q_rad, float)
+        if len(q) < 3:
+            return np.zeros((len(q), 3))
+        p = self.world.kinematics.p_world_tcp_many(q)
+        a = np.diff(p, 2, axis=0) * rate_hz * rate_hz
+        R_world_base = self.world.kinematics.T_world_base[:3, :3]
+        return np.asarray(np.vstack([a[:1], a, a[-1:]]) @ R_world_base)
+
+    def gravity_base_mps2(self) -> np.ndarray:
+        """Gravity (m/s^2) in the robot base's axes."""
+        return np.asarray(
+            np.array([0.0, 0.0, -GRAVITY_MPS2]) @ self.world.kinematics.T_world_base[:3, :3]
+        )
 
     def _carried_before(self, step: Step) -> Placed | None:
         rows = [r for r in self.rows if r.step.index <= step.index]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from cellrunner.execution.context import JobContext
@@ -197,3 +198,26 @@ def test_wait_input_timeout_is_105(tmp_path):
     run(runner, arm)
     assert runner.result is ResultCode.STEP_TIMEOUT
     assert runner.cycle_time_s == pytest.approx(0.5, abs=0.01)
+
+
+def test_carried_load_takes_the_tool_and_part_inertia_out_of_the_wrist_reading():
+    """A reading as the twin makes it (external force, base axes, tool weight compensated):
+    m_part (g - a) - m_tool a. Held, the part weighs m_part g whatever the acceleration;
+    lost, ~0; without the planned acceleration the old reading (which fell to 4.9 N for a
+    2 kg carton on a 2.5 kg tool at 5 m/s^2)."""
+    from cellrunner.execution.context import Carry
+    from cellrunner.execution.steps import carried_load_N
+
+    g = np.array([0.0, 0.0, -9.81])
+    carry = Carry(baseline_N=np.array([0.3, -0.2, 0.1]), tool_mass_kg=2.5)
+    rng = np.random.default_rng(3)
+    for a in [np.zeros(3), np.array([0.0, 0.0, -5.0]), *rng.uniform(-6, 6, (20, 3))]:
+        held = carry.baseline_N + 2.0 * (g - a) - 2.5 * a
+        lost = carry.baseline_N - 2.5 * a
+        assert carried_load_N(held.tolist(), carry, a, g) == pytest.approx(2.0 * 9.81)
+        assert carried_load_N(lost.tolist(), carry, a, g) == pytest.approx(0.0, abs=1e-9)
+    a = np.array([0.0, 0.0, 5.0])  # upward: the reading alone sees the weight grow
+    held = carry.baseline_N + 2.0 * (g - a) - 2.5 * a
+    assert carried_load_N(held.tolist(), carry) == pytest.approx(
+        float(np.linalg.norm(held - carry.baseline_N))
+    )
