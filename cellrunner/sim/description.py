@@ -87,6 +87,11 @@ class PresenceSensor:
     center_world_m: tuple[float, float, float]
     half_extents_m: tuple[float, float, float]
 
+    def sees(self, centre_m: np.ndarray) -> Any:
+        """Whether a part centre (3,) is inside the box; per row for (n, 3)."""
+        offset = np.abs(np.asarray(centre_m) - np.asarray(self.center_world_m))
+        return np.all(offset <= np.asarray(self.half_extents_m), axis=-1)
+
 
 @dataclass(frozen=True)
 class TwinDescription:

@@ -4,7 +4,7 @@ that report a closed grip and open jaws."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from cellrunner.sim.description import GripperDescription
@@ -80,12 +80,23 @@ class Jaws:
         gap = g.stroke_m - (qpos(a) + qpos(b))
         va, vb = self._dof
         resting = max(abs(qvel(va)), abs(qvel(vb))) < JAW_REST_SPEED_MPS
-        lo = g.sensor_min_gap_m
-        hi = g.stroke_m - lo
+        was = bool(inputs[g.closed_sensor_input]) if g.closed_sensor_input else False
+        closed, opened = switch_readings(g, gap, resting, self.closing, was)
         if g.closed_sensor_input:
-            # switches on once the jaws came to rest on something, then reads their
-            # position only: jaws that shake on a held part (a stop, a jerk) stay on
-            on = resting or inputs[g.closed_sensor_input]
-            inputs[g.closed_sensor_input] = bool(self.closing and on and lo <= gap <= hi)
+            inputs[g.closed_sensor_input] = bool(closed)
         if g.open_sensor_input:
-            inputs[g.open_sensor_input] = gap >= hi
+            inputs[g.open_sensor_input] = bool(opened)
+
+
+def switch_readings(
+    gripper: GripperDescription, gap_m: Any, resting: Any, closing: bool, was_closed: bool
+) -> tuple[Any, Any]:
+    """The (closed, open) switches' readings for a jaw gap (m) and whether the jaws are
+    at rest, on floats or on arrays of periods alike (the look-ahead reads many periods
+    with the very comparisons the twin makes each period). The closed switch comes on
+    once the jaws came to rest on something, then reads their position only: jaws that
+    shake on a held part (a stop, a jerk) keep it on."""
+    lo = gripper.sensor_min_gap_m
+    hi = gripper.stroke_m - lo
+    closed = closing & (resting | was_closed) & (lo <= gap_m) & (gap_m <= hi)
+    return closed, gap_m >= hi

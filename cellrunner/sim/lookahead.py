@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cellrunner.backends.base import Safety
-from cellrunner.sim.jaws import JAW_REST_SPEED_MPS
+from cellrunner.sim.jaws import JAW_REST_SPEED_MPS, switch_readings
 
 if TYPE_CHECKING:
     from cellrunner.sim.world import SimWorld
@@ -253,25 +253,21 @@ class Lookahead:
             resting = np.maximum(np.abs(st[:, v0 + va]), np.abs(st[:, v0 + vb])) < (
                 JAW_REST_SPEED_MPS
             )
-            lo = g.sensor_min_gap_m
-            hi = g.stroke_m - lo
+            was = bool(inputs[g.closed_sensor_input]) if g.closed_sensor_input else False
+            closed, opened = switch_readings(g, gap, resting, jaws.closing, was)
             if g.closed_sensor_input:
-                was = bool(inputs[g.closed_sensor_input])
-                closed = jaws.closing & (resting | was) & (lo <= gap) & (gap <= hi)
                 same &= closed == was
             if g.open_sensor_input:
-                same &= (gap >= hi) == bool(inputs[g.open_sensor_input])
+                same &= opened == bool(inputs[g.open_sensor_input])
         sensors = w.description.presence_sensors
         rules = w.input_rules
         if not sensors and rules is None:
             return same
         positions = {p: sd[:, adr : adr + 3] for p, adr in self._s_parts.items()}
         for sensor in sensors:
-            c = np.asarray(sensor.center_world_m)
-            h = np.asarray(sensor.half_extents_m)
             inside = np.zeros(n, dtype=bool)
             for xyz in positions.values():
-                inside |= np.all(np.abs(xyz - c) <= h, axis=1)
+                inside |= sensor.sees(xyz)
             same &= inside == bool(inputs[sensor.channel])
         if rules is not None:
             rate = w.description.rate_hz

@@ -415,11 +415,8 @@ class SimWorld:
         if self.changer is not None and self.changer.desc.locked_input:
             self.inputs[self.changer.desc.locked_input] = self.changer.locked
         for sensor in self.description.presence_sensors:
-            c = np.asarray(sensor.center_world_m)
-            h = np.asarray(sensor.half_extents_m)
             self.inputs[sensor.channel] = any(
-                bool(np.all(np.abs(self.data.xpos[b] - c) <= h))
-                for b in self.ids.part_bodies.values()
+                bool(sensor.sees(self.data.xpos[b])) for b in self.ids.part_bodies.values()
             )
         if self._rules is not None:
             xpos = self.data.xpos
