@@ -180,20 +180,13 @@ class SimBackend:
             or world.periods < self._ahead_not_before
         ):
             return None
-        if self._ahead is None:
-            from cellrunner.sim.lookahead import Lookahead
-
-            self._ahead = Lookahead(world)
-        if world.outputs != self._ahead_outputs:
-            self._ahead_outputs = dict(world.outputs)
+        self._outputs_changed(world)
         self._hold_cap = AHEAD_CALM_HOLD_PERIODS
         n = min(periods, self._ahead_cap, len(accepted[1]) - next_index + 1)
         j0 = next_index - 1
-        preview = self._ahead.preview(accepted[1][j0 : j0 + n], accepted[2][j0 : j0 + n])
-        if preview is not None and preview.quiet < n:
-            # the period after the quiet ones is no plain motion: none before it is stepped
+        preview = self._lookahead(world).preview(accepted[1][j0 : j0 + n], accepted[2][j0 : j0 + n])
+        if self._cut_short(world, preview, n):
             self._ahead_cap = AHEAD_FIRST_PERIODS
-            self._ahead_not_before = world.periods + preview.quiet + 1
         return preview
 
     def look_ahead_hold(self, periods: int) -> Preview | None:
@@ -208,19 +201,36 @@ class SimBackend:
             or world.stopping
         ):
             return None
+        if self._outputs_changed(world):
+            self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
+        n = min(periods, self._hold_cap)
+        preview = self._lookahead(world).preview_hold(n)
+        if self._cut_short(world, preview, n):
+            self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
+        return preview
+
+    def _lookahead(self, world: SimWorld) -> Lookahead:
+        """The world's look-ahead engine, made at the first look-ahead."""
         if self._ahead is None:
             from cellrunner.sim.lookahead import Lookahead
 
             self._ahead = Lookahead(world)
-        if world.outputs != self._ahead_outputs:
-            self._ahead_outputs = dict(world.outputs)
-            self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
-        n = min(periods, self._hold_cap)
-        preview = self._ahead.preview_hold(n)
-        if preview is not None and preview.quiet < n:
-            self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
-            self._ahead_not_before = world.periods + preview.quiet + 1
-        return preview
+        return self._ahead
+
+    def _outputs_changed(self, world: SimWorld) -> bool:
+        """Whether the outputs changed since the last look-ahead (remembered from now)."""
+        if world.outputs == self._ahead_outputs:
+            return False
+        self._ahead_outputs = dict(world.outputs)
+        return True
+
+    def _cut_short(self, world: SimWorld, preview: Preview | None, n: int) -> bool:
+        """Whether ``preview`` of ``n`` periods ends before them: the period after its
+        quiet ones is no plain motion or hold, so no look-ahead starts before it."""
+        if preview is None or preview.quiet >= n:
+            return False
+        self._ahead_not_before = world.periods + preview.quiet + 1
+        return True
 
     def commit_look_ahead(self, preview: Preview, periods: int) -> None:
         """Take over the first ``periods`` periods of ``preview`` (at most its quiet
