@@ -887,8 +887,9 @@ class CollisionModel:
         margin m is fine up to the last sample k whose accumulated motion bound
         ``sum_{i=j..k-1} c_pair(q_i -> q_i+1)`` stays below m - STALL_M; it is measured
         again there. Where no single measurement covers a segment, that pair alone is
-        advanced along it by its own bound. Pairs that the samples' lower bounds prove on
-        every segment (as in :meth:`check_motion`) are never measured. ``s_blocked`` is the
+        advanced along it by its own bound. The bounds come from chunks of the path
+        (:meth:`_chunk_bounds`); pairs that the lower bounds at the chunks' ends prove on
+        every chunk (as in :meth:`check_motion`) are never measured. ``s_blocked`` is the
         sample index (plus segment fraction)."""
         q = np.asarray(q_rad, float)
         if not len(self._pairs) or len(q) == 0:
@@ -972,6 +973,8 @@ class CollisionModel:
         rates = np.einsum("cpj,cj->cp", per_pair, travel)
         open_chunks = 0.5 * (lower[:-1] + lower[1:] - rates) - self._required < STALL_M
         pairs = np.flatnonzero(open_chunks.any(axis=0))
+        if not len(pairs):
+            return pairs, np.empty((n - 1, 0))
         padded = np.zeros((len(cuts) * size, 6))
         padded[: n - 1] = adq
         steps = padded.reshape(len(cuts), size, 6) @ per_pair[:, pairs].transpose(0, 2, 1)
