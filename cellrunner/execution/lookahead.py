@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, TypeGuard, runtime_checkable
 
 import numpy as np
 
@@ -31,7 +31,7 @@ from cellrunner.backends.base import Safety
 from cellrunner.execution.context import Hold, JobContext
 from cellrunner.execution.steps import (
     LOAD_LOST_FRACTION,
-    carried_load_N,
+    carried_loads_N,
     next_load_lp,
     watches_load,
 )
@@ -43,6 +43,9 @@ MIN_PERIODS = 8
 #: with the per-period kinematics, so the maximum kept is the per-period one to the last
 #: bit (m; the two differ by ~1e-16 m)
 TRACK_TOLERANCE_M = 1e-9
+#: this many tracking samples or fewer are computed one by one (a batched kinematics
+#: call costs about as much as ten samples taken one by one)
+TRACK_ONE_BY_ONE = 8
 
 
 class Preview(Protocol):
@@ -92,7 +95,7 @@ def fast_forward(ctx: JobContext, clock: Clock, max_periods: int) -> int:
     """Advance a streaming motion by up to ``max_periods`` periods in one call; return
     how many periods passed (0: none, step the next period as usual)."""
     stream, state, backend = ctx.stream, ctx.state, ctx.backend
-    if state is None or state.safety is not Safety.NORMAL or not isinstance(backend, LooksAhead):
+    if state is None or state.safety is not Safety.NORMAL or not _looks_ahead(backend):
         return 0
     if stream is None:
         return 0 if ctx.hold is None else _hold(ctx, ctx.hold, backend, clock, max_periods)
@@ -139,6 +142,19 @@ def fast_forward(ctx: JobContext, clock: Clock, max_periods: int) -> int:
     ctx.commanded_q = q_plan[i]
     stream.next_index = i + 1
     return m
+
+
+def _looks_ahead(backend: object) -> TypeGuard[LooksAhead]:
+    """Whether ``backend`` looks ahead, judged once per class (a protocol check costs
+    ~20 us, and this runs every period)."""
+    kind = type(backend)
+    known = _LOOKS_AHEAD.get(kind)
+    if known is None:
+        known = _LOOKS_AHEAD[kind] = isinstance(backend, LooksAhead)
+    return known
+
+
+_LOOKS_AHEAD: dict[type, bool] = {}
 
 
 def _hold(ctx: JobContext, hold: Hold, backend: LooksAhead, clock: Clock, max_periods: int) -> int:
@@ -202,9 +218,12 @@ def _carried_load(
     lp = carry.load_N if load_lp is None else load_lp
     floor = LOAD_LOST_FRACTION * carry.min_N
     kept: float | None = None
-    for k, row in enumerate(wrench_N[:m, :3].tolist()):
-        accel = None if accel_mps2 is None else accel_mps2[k]
-        lp = next_load_lp(lp, carried_load_N(row, carry, accel, gravity_mps2))
+    force = wrench_N[:m].T[:3]
+    accel = None if accel_mps2 is None else accel_mps2[:m].T
+    gravity = None if gravity_mps2 is None else gravity_mps2.tolist()
+    loads = carried_loads_N(force, carry, accel, gravity, np.sqrt, np.maximum).tolist()
+    for k, load in enumerate(loads):
+        lp = next_load_lp(lp, load)
         if lp < floor:
             return k, kept
         kept = lp
@@ -214,22 +233,26 @@ def _carried_load(
 def _track(ctx: JobContext, clock: Clock, q_cmd: np.ndarray, q_meas: np.ndarray) -> None:
     """The tracking-error samples the per-period ticks would take in these periods; the
     largest is recomputed with the per-period kinematics, so it is theirs exactly."""
-    k = np.arange(1, len(q_cmd) + 1)
-    rows = np.flatnonzero((clock.ticks + k) % clock.track_every == 0)
-    if not len(rows):
-        return
+    every = clock.track_every
+    first = -(clock.ticks + 1) % every  # row k samples when (ticks + k + 1) % every == 0
+    cmd, meas = q_cmd[first::every], q_meas[first::every]
     motions = ctx.motions
+    arms = getattr(motions, "tcp_lever_arms_m", None)
+    if arms is not None and len(cmd):  # drop the rows that cannot beat the largest so far
+        keep = np.abs(cmd - meas) @ arms() + TRACK_TOLERANCE_M > ctx.tracking_error_m
+        cmd, meas = cmd[keep], meas[keep]
     many = getattr(motions, "tcp_positions_m", None)
-    if many is not None:
-        p = many(np.concatenate([q_cmd[rows], q_meas[rows]]))
-        err = np.linalg.norm(p[: len(rows)] - p[len(rows) :], axis=1)
+    if many is not None and len(cmd) > TRACK_ONE_BY_ONE:
+        p = many(np.concatenate([cmd, meas]))
+        err = np.linalg.norm(p[: len(cmd)] - p[len(cmd) :], axis=1)
         top = float(err.max())
         if top + TRACK_TOLERANCE_M <= ctx.tracking_error_m:
             return
-        rows = rows[err >= top - 2 * TRACK_TOLERANCE_M]
-    for r in rows:
-        p_cmd = motions.tcp_position_m(q_cmd[r])
-        p_meas = motions.tcp_position_m(q_meas[r])
+        near = err >= top - 2 * TRACK_TOLERANCE_M
+        cmd, meas = cmd[near], meas[near]
+    for q_c, q_m in zip(cmd, meas, strict=True):
+        p_cmd = motions.tcp_position_m(q_c)
+        p_meas = motions.tcp_position_m(q_m)
         error = math.dist(p_cmd.tolist(), p_meas.tolist())
         if error > ctx.tracking_error_m:
             ctx.tracking_error_m = error

@@ -9,8 +9,9 @@ is noticed by the jaw sensor and the load falling away.
 from __future__ import annotations
 
 import math
-from collections.abc import Generator
+from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -373,15 +374,37 @@ def carried_load_N(
     tool's and a 2 kg carton's inertia nearly cancelled the carton's 20 N, and a part held
     fast read as lost; a lost part reads ~0 either way."""
     # plain floats: numpy's per-call cost dwarfs a 3-vector norm, and this runs every tick
-    base = carry.baseline_N.tolist()
     if accel_mps2 is None or gravity_mps2 is None:
-        return math.dist(wrench_N, base)
-    a, g = accel_mps2.tolist(), gravity_mps2.tolist()
+        return float(carried_loads_N(wrench_N[:3], carry))
+    return float(carried_loads_N(wrench_N[:3], carry, accel_mps2.tolist(), gravity_mps2.tolist()))
+
+
+def carried_loads_N(
+    force_N: Iterable[Any],
+    carry: Carry,
+    accel_mps2: Iterable[Any] | None = None,
+    gravity_mps2: list[float] | None = None,
+    sqrt: Callable[[Any], Any] = math.sqrt,
+    maximum: Callable[[Any, Any], Any] = max,
+) -> Any:
+    """:func:`carried_load_N` from the force's x, y, z (and the acceleration's): three
+    floats, or three arrays with one element per period and ``np.sqrt``/``np.maximum``
+    (the same operations in the same order, so both give the very same bits)."""
+    fx, fy, fz = force_N
+    bx, by, bz = carry.baseline_N.tolist()
+    if accel_mps2 is None or gravity_mps2 is None:
+        return _norm(fx - bx, fy - by, fz - bz, sqrt)
+    ax, ay, az = accel_mps2
+    gx, gy, gz = gravity_mps2
     m = carry.tool_mass_kg
-    part = math.dist([w + m * x for w, x in zip(wrench_N, a, strict=True)], base)
-    felt = math.dist(g, a)  # |g - a|
-    g_norm = math.hypot(*g)
-    return part * g_norm / max(felt, MIN_FELT_GRAVITY * g_norm)
+    part = _norm(fx + m * ax - bx, fy + m * ay - by, fz + m * az - bz, sqrt)
+    felt = _norm(gx - ax, gy - ay, gz - az, sqrt)  # |g - a|
+    g_norm = _norm(gx, gy, gz, math.sqrt)
+    return part * g_norm / maximum(felt, MIN_FELT_GRAVITY * g_norm)
+
+
+def _norm(x: Any, y: Any, z: Any, sqrt: Callable[[Any], Any]) -> Any:
+    return sqrt(x * x + y * y + z * z)
 
 
 def _planned_accel(

@@ -182,6 +182,15 @@ class ArmKinematics:
         ]
 
     @functools.cached_property
+    def tcp_lever_arms_m(self) -> np.ndarray:
+        """Per joint, a bound on the TCP's distance from that joint's axis (m): the
+        lengths of the links after it and of the TCP offset, added. Between two
+        configurations the TCP moves at most ``|q_a - q_b| @ tcp_lever_arms_m``."""
+        lengths = [float(np.linalg.norm(p)) for _, p in self._chain[1:]]
+        lengths.append(float(np.linalg.norm(self._p_joint6_tcp)))
+        return np.cumsum(lengths[::-1])[::-1]
+
+    @functools.cached_property
     def _p_joint6_tcp(self) -> np.ndarray:
         return np.asarray(self.model.frames[self.tcp_frame_id].placement.translation.copy())
 

@@ -177,6 +177,11 @@ class TaskPlan:
         """World TCP positions (N x 3) at the rows of ``q_rad``, tool mounted at start."""
         return self.world.kinematics.p_world_tcp_many(q_rad)
 
+    def tcp_lever_arms_m(self) -> np.ndarray:
+        """Per joint, a bound on the TCP's distance from its axis (m), tool mounted at
+        start (:attr:`ArmKinematics.tcp_lever_arms_m`)."""
+        return self.world.kinematics.tcp_lever_arms_m
+
     def tcp_accel_base_mps2(self, q_rad: np.ndarray, rate_hz: float) -> np.ndarray:
         """The TCP's acceleration (N x 3, m/s^2, the robot base's axes, as the wrist
         wrench is read) along set-points ``q_rad`` streamed at ``rate_hz``: second

@@ -21,7 +21,8 @@ caller steps period by period.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -46,9 +47,10 @@ class Preview:
     quiet: int
     time_s: np.ndarray
     q_rad: np.ndarray
-    wrench_N: np.ndarray
     inputs: dict[str, float | bool]
-    # the rollout's work, for commit
+    # the rollout's work, for commit (and the wrench, computed when first asked for)
+    _ahead: Lookahead
+    _sensordata: np.ndarray
     _world: SimWorld
     _scratch: Any
     _state0: np.ndarray
@@ -57,7 +59,13 @@ class Preview:
     _q_ref: np.ndarray
     _qd_ref: np.ndarray
     #: a hold's set-point (the very arrays the twin holds), None for a motion
-    _ends: tuple[np.ndarray, np.ndarray] | None = None
+    _ends: tuple[np.ndarray, np.ndarray] | None = field(default=None)
+
+    @cached_property
+    def wrench_N(self) -> np.ndarray:
+        """The wrist wrench each period (N, N m, base axes, less the zeroing offset);
+        most look-aheads never read it (it is computed on first use)."""
+        return self._ahead._wrench(self._sensordata)
 
     @property
     def holds(self) -> bool:
@@ -178,8 +186,9 @@ class Lookahead:
             quiet=quiet,
             time_s=periods / w.description.rate_hz,
             q_rad=st[:, self._qpos0 : self._qpos0 + 6],
-            wrench_N=self._wrench(sd),
             inputs=dict(w.inputs),
+            _ahead=self,
+            _sensordata=sd,
             _world=w,
             _scratch=scratch,
             _state0=state0,

@@ -87,6 +87,7 @@ class SimBackend:
             except ValueError as exc:
                 raise BackendError(str(exc)) from exc
             self.world = world
+            self._lookahead(world)  # its scratch data is built with the model
         self._connected = True
         self._link_lost = False
 
