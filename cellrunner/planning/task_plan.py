@@ -33,6 +33,7 @@ from cellrunner.model.geometry import Placed
 from cellrunner.model.step import StepKind
 from cellrunner.model.timing import close_time_s, release_time_s
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory
+from cellrunner.planning.egress import corridors, egress_pose
 from cellrunner.planning.world import CellWorld
 
 if TYPE_CHECKING:
@@ -218,6 +219,9 @@ def plan_task(
     timed from rest to rest, so that the job can pause between any two steps.
     ``on_step(step)`` is called as each step's planning starts (for a progress bar)."""
     planner = _StepPlanner(world, np.asarray(q_start_rad, float), None)
+    planner.egress = egress_pose(
+        corridors(steps, world.loaded.cell), world.kinematics.T_world_tcp(planner.q)
+    )
     rows = [StepPlan(s, status="not planned") for s in steps]
     plan = TaskPlan(world, steps, rows, np.asarray(q_start_rad, float))
     group: list[_Motion] = []
@@ -279,6 +283,9 @@ class _StepPlanner:
     def __init__(self, world: CellWorld, q: np.ndarray, part: Placed | None) -> None:
         self.world, self.q, self.part = world, q, part
         self.allowances: tuple[ContactAllowance, ...] = ()
+        #: where the first motion goes first, straight back, if it is a planned move
+        #: (:mod:`.egress`): the job starts with the gripper down at a pick or place
+        self.egress: tuple[np.ndarray, str] | None = None
         self.contact: tuple[
             ContactAllowance, ...
         ] = ()  # a force step's contacts, which the next straight move leaves
@@ -306,6 +313,7 @@ class _StepPlanner:
 
         step, kin = row.step, self.world.kinematics
         T_now = kin.T_world_tcp(self.q)
+        egress, self.egress = self.egress, None  # the first motion's alone
         if step.kind in (StepKind.MOVE, StepKind.APPROACH):
             self.contact = ()  # a joint move leaves a force step's contact behind
             if goal_q is None and step.q_goal_deg is not None:
@@ -314,7 +322,12 @@ class _StepPlanner:
                 assert step.T_world_tcp is not None  # a move has a joint or a frame target
                 goal_q = self._ik(step.T_world_tcp, step, then)
             collision = self.collision()
-            path = plan_joint_path(collision, self.q, goal_q).q_rad
+            if egress is None:
+                path = plan_joint_path(collision, self.q, goal_q).q_rad
+            else:
+                out = plan_linear(kin, collision, self.q, egress[0]).q_rad
+                path = np.vstack([out, plan_joint_path(collision, out[-1], goal_q).q_rad[1:]])
+                row.message = egress[1]
             line = None
         else:
             T_goal = self._linear_goal(step, T_now) if goal_q is None else kin.T_world_tcp(goal_q)
