@@ -39,8 +39,6 @@ CORRIDOR_TILT_DEG = 30.0
 CORRIDOR_BEYOND_M = 0.02
 #: a TCP within this of the approach pose is out already (m)
 CORRIDOR_MIN_DEPTH_M = 0.002
-
-
 #: the corridor's depth above a part's resting frame where no pick of the job says it (m)
 RESTING_DEPTH_M = 0.10
 

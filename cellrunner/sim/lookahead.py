@@ -21,7 +21,7 @@ caller steps period by period.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
@@ -42,24 +42,22 @@ class Preview:
     ``quiet``: how many leading periods the twin itself would pass through without
     reacting (no contact verdict, no input change); rows ``0..quiet-1`` of ``time_s``
     (s), ``q_rad``, ``wrench_N`` (base axes, as :meth:`WristSensor.wrench` reads it)
-    are those periods' measurements. ``inputs``: the inputs throughout them."""
+    are those periods' measurements."""
 
     quiet: int
     time_s: np.ndarray
     q_rad: np.ndarray
-    inputs: dict[str, float | bool]
-    # the rollout's work, for commit (and the wrench, computed when first asked for)
+    # the rollout's work, for commit (and the wrench, computed when first asked for); the
+    # rolled-out data itself stays in the look-ahead's scratch until the next preview
     _ahead: Lookahead
     _sensordata: np.ndarray
-    _world: SimWorld
-    _scratch: Any
     _state0: np.ndarray
     _warm0: np.ndarray
     _control: np.ndarray
     _q_ref: np.ndarray
     _qd_ref: np.ndarray
     #: a hold's set-point (the very arrays the twin holds), None for a motion
-    _ends: tuple[np.ndarray, np.ndarray] | None = field(default=None)
+    _ends: tuple[np.ndarray, np.ndarray] | None = None
 
     @cached_property
     def wrench_N(self) -> np.ndarray:
@@ -186,11 +184,8 @@ class Lookahead:
             quiet=quiet,
             time_s=periods / w.description.rate_hz,
             q_rad=st[:, self._qpos0 : self._qpos0 + 6],
-            inputs=dict(w.inputs),
             _ahead=self,
             _sensordata=sd,
-            _world=w,
-            _scratch=scratch,
             _state0=state0,
             _warm0=warm0,
             _control=control,
@@ -319,7 +314,7 @@ class Lookahead:
         w, mj = self.world, self._mj
         k = w.substeps
         if periods == preview.periods:
-            mj.mj_copyData(w.data, w.model, preview._scratch)
+            mj.mj_copyData(w.data, w.model, self._scratch)
         else:  # the same steps again, on the twin's own data, as far as asked
             self._rollout.rollout(
                 [w.model],
