@@ -75,7 +75,6 @@ from cellrunner.planning.motion_bounds import (
     bisection_order,
     cover_spheres,
     joint_reach,
-    next_due,
     polytope_cover_spheres,
     support_points,
 )
@@ -578,7 +577,7 @@ class CollisionModel:
         self._point_local = np.hstack([local, np.ones((len(local), 1))])
         self._point_body = np.concatenate([self._support_body, self._sphere_body]).astype(int)
         # index of (point p, its body) in an array of every point in every joint frame
-        self._point_pick = np.arange(len(local)) * 7 + self._point_body
+        self._point_pick = self._point_body * len(local) + np.arange(len(local))
         self._reach_movers = self._reach[self._movers]
         self._joint_placements = np.array(
             [self.kinematics.model.jointPlacements[j].homogeneous for j in range(1, 7)]
@@ -720,25 +719,26 @@ class CollisionModel:
         knot and pair, a lower bound of the signed distance (knots, pairs)."""
         knots = len(q)
         frames = self.joint_frames(q)  # (knots, 7, 4, 4)
-        # every point in every joint frame by one product, then each in its own joint's
-        every = (frames[:, :, :3, :].reshape(-1, 4) @ self._point_local.T).reshape(knots, 7, 3, -1)
-        pts = every.transpose(0, 3, 1, 2).reshape(knots, -1, 3)[
-            :, self._point_pick
-        ]  # (knots, points, 3)
-        n_support = len(self._support_all)
-        support = pts[:, :n_support]
-        # distances of the support points from the axes of the joints that move them:
-        # |p - o|^2 - ((p - o) . z)^2, with the dot products as batched matrix products
-        origins, axes = frames[:, 1:, :3, 3], frames[:, 1:, :3, 2]  # (knots, 6, 3)
-        along = support @ axes.transpose(0, 2, 1) - (origins * axes).sum(axis=2)[:, None, :]
-        square = (
-            (support * support).sum(axis=2)[:, :, None]
-            - 2 * (support @ origins.transpose(0, 2, 1))
-            + (origins * origins).sum(axis=2)[:, None, :]
-            - along * along
+        # every point in every joint frame by one product, then each in its own joint's,
+        # coordinate-major (3, knots, points): sums over x, y, z are three whole-array adds
+        every = frames[:, :, :3, :].reshape(-1, 4) @ self._point_local.T  # (knots * 7 * 3, P)
+        pts = (
+            every.reshape(knots, 7, 3, -1)
+            .transpose(2, 0, 1, 3)
+            .reshape(3, knots, -1)[:, :, self._point_pick]
         )
-        # + each point's pad and 1 um for the rounding of the expanded squares (far below
-        # STALL_M); joints that do not move a point get its pad alone (their reach is 0)
+        n_support = len(self._support_all)
+        # distances of the support points from the axes of the joints that move them:
+        # |p - o|^2 - ((p - o) . z)^2, per joint axis (origin o, direction z)
+        origins, axes = frames[:, None, 1:, :3, 3], frames[:, None, 1:, :3, 2]  # (knots, 1, 6, 3)
+        along = square = 0.0
+        for c in range(3):
+            rel = pts[c, :, :n_support, None] - origins[..., c]  # (knots, support, 6)
+            along = along + rel * axes[..., c]
+            square = square + rel * rel
+        square = square - along * along
+        # + each point's pad and 1 um for rounding (far below STALL_M); joints that do not
+        # move a point get its pad alone (their reach is 0)
         across = (np.sqrt(np.maximum(square, 0.0)) + self._support_pad[:, None]) * (
             self._support_moved
         )
@@ -749,7 +749,7 @@ class CollisionModel:
         lo, hi = rho[:-1], rho[1:]
         bound = np.minimum(reach, np.minimum(np.minimum(lo, hi) + after, 0.5 * (lo + hi + after)))
         per_pair = bound[:, self._pair_high_row] * self._pair_joints
-        return per_pair, self._knot_lower_bounds(pts[:, n_support:])
+        return per_pair, self._knot_lower_bounds(pts[:, :, n_support:])
 
     def joint_frames(self, q_rad: np.ndarray) -> np.ndarray:
         """World frames of joints 0..6 (0: the universe) at configurations ``q_rad`` (n x 6):
@@ -770,17 +770,17 @@ class CollisionModel:
             frames[:, j + 1] = frames[:, j] @ self._joint_placements[j] @ rz[:, j]
         return frames
 
-    def _knot_lower_bounds(self, centers: np.ndarray) -> np.ndarray:
+    def _knot_lower_bounds(self, xyz: np.ndarray) -> np.ndarray:
         """(knots, pairs) lower bounds of the signed distances from the covering spheres
-        (world centres (knots, spheres, 3)) of the moving objects: the closest of an
-        object's spheres to a static object's world AABB, or to another object's spheres
-        (less 1 um for rounding); -inf where the covers overlap."""
-        lb = np.empty((len(centers), len(self._pairs)))
+        (world centres ``xyz``, coordinate-major: (3, knots, spheres)) of the moving objects:
+        the closest of an object's spheres to a static object's world AABB, or to another
+        object's spheres (less 1 um for rounding); -inf where the covers overlap."""
+        lb = np.empty((xyz.shape[1], len(self._pairs)))
         r = self._sphere_r
         if len(self._lb_static_pair):
             square = 0.0
             for c in range(3):
-                gap = np.abs(centers[:, :, c, None] - self._static_mid[c]) - self._static_half[c]
+                gap = np.abs(xyz[c][:, :, None] - self._static_mid[c]) - self._static_half[c]
                 np.maximum(gap, 0.0, out=gap)
                 square = square + gap * gap
             dist = np.sqrt(square) - r[:, None]  # (knots, spheres, statics)
@@ -789,8 +789,9 @@ class CollisionModel:
             )  # (knots, movers, statics)
             lb[:, self._lb_static_pair] = per_object[:, self._lb_static_rows, self._lb_static_cols]
         if len(self._lb_moving_pair):
-            diff = centers[:, self._combo_a] - centers[:, self._combo_b]  # (knots, combos, 3)
-            dist = np.sqrt((diff * diff).sum(axis=2)) - self._combo_r
+            diff = xyz[:, :, self._combo_a] - xyz[:, :, self._combo_b]  # (3, knots, combos)
+            diff *= diff
+            dist = np.sqrt(diff[0] + diff[1] + diff[2]) - self._combo_r
             lb[:, self._lb_moving_pair] = np.minimum.reduceat(dist, self._combo_start, axis=1)
         # a bound at or below zero says the covers overlap, where the shapes may penetrate
         # deeper than any sphere radius: no bound at all there
@@ -823,47 +824,47 @@ class CollisionModel:
         rates, lower = self._knots(q0, q0 + dq, pieces)
         rates = np.maximum(rates, 1e-12)  # (pieces, pairs)
         # a part is proven for a pair by the lower bounds at its two ends alone when even
-        # the worst shrink between them leaves the clearance: d >= (lb_a + lb_b - rate) / 2
+        # the worst shrink between them leaves the clearance: d >= (lb_a + lb_b - rate) / 2;
+        # resume[k][p]: the first part >= p that pair k's lower bounds leave open (pieces:
+        # none), so a pair proven into a closed part is next measured where that part ends
         open_parts = 0.5 * (lower[:-1] + lower[1:] - rates) - self._required < STALL_M
-        pending = open_parts.T.tolist()  # per pair, per part: not proven by the lower bounds
-        first_open = np.where(open_parts.any(axis=0), open_parts.argmax(axis=0), pieces).tolist()
-        # cum[k][i]: bound on pair k's shrink over s in [0, i / pieces]
+        index = np.where(open_parts, np.arange(pieces)[:, None], pieces)
+        resume = np.minimum.accumulate(index[::-1], axis=0)[::-1].T.tolist()
+        # cum[k][i]: bound on pair k's shrink over s in [0, i / pieces] (strictly rising)
         cum = np.concatenate([np.zeros((1, rates.shape[1])), np.cumsum(rates, axis=0)]).T.tolist()
         required = self._required_list
         model, data, gm, gd = self.kinematics.model, self._data, self._geom_model, self._geom_data
         update, distance = pin.updateGeometryPlacements, pin.computeDistance
+        bisect_right, last_part = bisect.bisect_right, pieces - 1
         queries = 0
         due: list[tuple[float, int]] = []  # (s, pair): proven fine up to s, measure there next
-        first: list[int] = []
-        for k, part in enumerate(first_open):
-            if part == 0:
-                first.append(k)
-            elif part < pieces:
-                due.append((part / pieces, k))
-        if first:
-            update(model, data, gm, gd, q0)
-        for k in first:
+        for k, rows in enumerate(resume):
+            if rows[0] < pieces:
+                due.append((rows[0] / pieces, k))
+        heapq.heapify(due)
+        pop, push = heapq.heappop, heapq.heappush
+        s = -1.0
+        while due:
+            if due[0][0] > s:
+                s = due[0][0]
+                update(model, data, gm, gd, q0 + s * dq)
+            k = pop(due)[1]
             m = distance(gm, gd, k).min_distance - required[k]
             queries += 1
             if m < STALL_M:
-                return self._blocked(0.0, k, m, queries)
-            horizon = next_due(cum[k], pending[k], pieces, 0.0, m)
-            if horizon < 1.0:
-                due.append((horizon, k))
-        heapq.heapify(due)
-        pop, push = heapq.heappop, heapq.heappush
-        while due:
-            s = due[0][0]
-            update(model, data, gm, gd, q0 + s * dq)
-            while due and due[0][0] <= s:
-                k = pop(due)[1]
-                m = distance(gm, gd, k).min_distance - required[k]
-                queries += 1
-                if m < STALL_M:
-                    return self._blocked(s, k, m, queries)
-                horizon = next_due(cum[k], pending[k], pieces, s, m)
-                if horizon < 1.0:
-                    push(due, (horizon, k))
+                return self._blocked(s, k, m, queries)
+            # proven fine while the bound has grown by less than m (piecewise linear in s)
+            c, x = cum[k], s * pieces
+            i = min(int(x), last_part)
+            target = c[i] + (x - i) * (c[i + 1] - c[i]) + m
+            if target >= c[pieces]:
+                continue
+            j = bisect_right(c, target) - 1
+            resume_at = resume[k][j]
+            if resume_at == j:  # part j is open: measure where the proof ends
+                push(due, ((j + (target - c[j]) / (c[j + 1] - c[j])) / pieces, k))
+            elif resume_at < pieces:  # closed by the lower bounds up to that part
+                push(due, (resume_at / pieces, k))
         return MotionCheck(True, distance_queries=queries)
 
     def _blocked(self, s: float, k: int, margin: float, queries: int) -> MotionCheck:
