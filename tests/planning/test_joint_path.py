@@ -101,3 +101,37 @@ def test_check_path_on_dense_samples_agrees_with_every_segment_checked_alone(sta
     if not result.ok:  # the reported place is a sample or a point between two
         assert 0.0 <= result.s_blocked <= samples - 1
         assert not world.check_path(q[: int(result.s_blocked) + 2]).ok
+
+
+def test_a_plate_the_sampled_shortcut_steps_over_is_caught_by_the_proofs(monkeypatch):
+    """Shortening samples its edges; a shortcut across a 2 mm plate that the samples step
+    over is caught by the proofs after (of the arcs and the straight pieces between them):
+    the planner falls back to proving while shortening, and every piece of what it returns
+    is proven."""
+    import cellrunner.planning.joint_path as joint_path
+
+    kin = ArmKinematics(ROBOTS["ur5e"], np.eye(4), pose_matrix((0, 0, 0.15)))
+    p = kin.T_world_tcp(HOME)[:3, 3]
+    plate = Placed("plate", Box((0.4, 0.002, 0.05)), pose_matrix((p[0], 0.0, p[2])))
+    world = CollisionModel(kin, TOOL, [plate], clearance_m=0.0)
+    # a search result whose shortcut a -> m2 crosses the plate (the tool at y = 0 near
+    # joint 1 = -0.26 rad), its own edges going over it
+    a, m1, m2, b = (HOME + np.array([j1, 0, 0, 0, 0, 0]) for j1 in (-0.5, -0.5, 0.7, 0.7))
+    m1[1] -= 0.6  # raised over the plate
+    b[2] += 0.2
+    lazy = np.array([a, m1, m2, b])
+    assert not world.check_motion(a, m2).ok
+    monkeypatch.setattr(joint_path, "LAZY_RESOLUTION_RAD", 1.0)  # samples step over it
+    assert joint_path.sampled_free(world, a, m2)
+    assert joint_path._shorten_sampled_then_prove(world, lazy) is None
+
+    real_search = joint_path._rrt_connect
+    monkeypatch.setattr(
+        joint_path,
+        "_rrt_connect",
+        lambda *args, conservative: real_search(*args, conservative=True) if conservative else lazy,
+    )
+    path = plan_joint_path(world, a, b, seed=1)
+    assert len(path.q_rad) > 2
+    for q0, q1 in zip(path.q_rad[:-1], path.q_rad[1:], strict=True):
+        assert world.check_motion(q0, q1).ok
