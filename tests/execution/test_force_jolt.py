@@ -1,0 +1,87 @@
+"""A force step while this side runs late: the controller goes on without new set-points,
+the arm stops short and lurches on, and the tool's mass shakes the wrist sensor (here up
+to ~4 N at 10 mm/s, more on the twin). That shake is not a contact; a real contact is
+still found (cells/peg_ur3e.yaml, MuJoCo)."""
+
+from __future__ import annotations
+
+import pytest
+
+from cellrunner.backends.sim.backend import SimBackend
+from cellrunner.execution.cell import CellController
+from cellrunner.execution.journal import Journal
+from cellrunner.execution.loop import ControlLoop
+from cellrunner.execution.planner import job_planner
+from cellrunner.model.codes import ResultCode
+from cellrunner.model.load import load_cell, load_task
+from cellrunner.planning.world import CellWorld
+from cellrunner.sim.from_cell import description_of
+from tests.conftest import ROOT
+
+pytest.importorskip("mujoco")
+
+PROBE = """task: probe
+steps:
+  - move: home
+  - approach: {to: hole, distance: 0.03}
+  - move_until_contact: {direction: [0, 0, 1], speed: 0.01, force: 2.5, max_distance: DIST}
+  - retreat: 0.05
+  - move: home
+"""
+PROBE_STEP = 3
+
+
+class LateSide(SimBackend):
+    """While ``late`` is on, every ``EVERY`` periods this side misses ``MISSED`` periods:
+    the simulated controller runs on through them with no new set-point (as a real one
+    does when the servo stream stalls)."""
+
+    EVERY, MISSED = 12, 3
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.late, self.periods, self.stalls = False, 0, 0
+
+    def wait_period(self) -> None:
+        self.periods += 1
+        if self.late and self.periods % self.EVERY == 0:
+            self.stalls += 1
+            for _ in range(self.MISSED):
+                super().wait_period()
+        super().wait_period()
+
+
+def _probe(tmp_path, max_distance_m: float):
+    cell = load_cell(ROOT / "cells" / "peg_ur3e.yaml")
+    path = tmp_path / "probe.yaml"
+    path.write_text(PROBE.replace("DIST", str(max_distance_m)))
+    backend = LateSide(description_of(cell))
+    planner = job_planner(CellWorld(cell), use_cache=False)
+    controller = CellController(
+        cell, {1: load_task(path, cell)}, backend, Journal(":memory:"), planner
+    )
+    controller.setup()
+    loop = ControlLoop(controller)
+    loop.step(3)
+    assert controller.start_job(1, {}, "probe", "cli").accepted
+    for _ in range(60_000):
+        loop.step()
+        backend.late = controller.status().step_index == PROBE_STEP
+        if controller.status().last_result is not None:
+            break
+    result = controller.status().last_result
+    controller.close()
+    return result, backend.stalls
+
+
+def test_the_shake_of_a_late_stream_is_not_a_contact(tmp_path):
+    result, stalls = _probe(tmp_path, 0.02)  # ends 10 mm above the hole: nothing to touch
+    assert stalls >= 50  # the probe stalled all along its 2 s
+    assert result.result_code == ResultCode.NO_PART, result.result_text
+    assert result.result_text == "no contact within 20.0 mm (force stayed under 2.5 N)"
+
+
+def test_a_real_contact_is_found_while_the_stream_stalls(tmp_path):
+    result, stalls = _probe(tmp_path, 0.1)
+    assert stalls >= 10
+    assert result.result_code == ResultCode.OK, result.result_text
