@@ -171,7 +171,8 @@ def test_watchdog_holds_running_job_then_unhold_completes(plc: PlcProcess, cell:
     assert regs[1] & ST_BUSY
     plc.call("heartbeat", on=False)
     assert plc.wait_bits(ST_PLC_WATCHDOG | ST_HELD, ST_PLC_WATCHDOG | ST_HELD, timeout=2.0)["ok"]
-    assert plc.read(102)[0] in (10, 11)
+    # Unhold is a command of Held (11), not of Holding (10): a PLC waits for it
+    assert plc.wait_bits(0xFFFF, 11, addr=102, timeout=2.0)["ok"]
     plc.call("heartbeat", on=True)
     assert plc.wait_bits(ST_PLC_WATCHDOG, 0, timeout=1.0)["ok"]
     assert plc.read(101)[0] & ST_HELD  # no automatic unhold: the PLC decides
