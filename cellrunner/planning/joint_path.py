@@ -155,6 +155,8 @@ def _with_corner_arcs(collision: CollisionModel, q_rad: np.ndarray) -> tuple[np.
         arc = None
         for f in CORNER_FRACTIONS:
             p1, p2 = w + f * (a - w), w + f * (b - w)
+            if np.abs(p1 - out[-1]).max() < 1e-12:
+                p1 = out[-1]  # where the arc before ends (to the last bit): no piece between
             candidate = (1 - t) ** 2 * p1 + 2 * (1 - t) * t * w + t**2 * p2
             if collision.check_path(candidate).ok:
                 arc = candidate
