@@ -72,7 +72,7 @@ def taught_waypoints(world, steps, q_start):
     from cellrunner.planning import joint_path, task_plan
 
     taught: dict[int, tuple[np.ndarray, object]] = {}
-    original_motion, original_round = task_plan._StepPlanner.motion, joint_path.round_corners
+    original_motion, original_arcs = task_plan._StepPlanner.motion, joint_path._with_corner_arcs
 
     def recording(self, row, *args, **kwargs):
         motion = original_motion(self, row, *args, **kwargs)
@@ -80,11 +80,15 @@ def taught_waypoints(world, steps, q_start):
         return motion
 
     task_plan._StepPlanner.motion = recording
-    joint_path.round_corners = lambda collision, q: np.asarray(q, float)
+    # no arcs: every corner stays sharp and every edge is a straight piece (proven)
+    joint_path._with_corner_arcs = lambda collision, q: (
+        np.asarray(q, float),
+        list(range(len(q) - 1)),
+    )
     try:
         task_plan.plan_task(world, steps, q_start)
     finally:
-        task_plan._StepPlanner.motion, joint_path.round_corners = original_motion, original_round
+        task_plan._StepPlanner.motion, joint_path._with_corner_arcs = original_motion, original_arcs
     return taught
 
 
