@@ -16,6 +16,19 @@ PALLETIZER = ("cells/palletizer_ur10e.yaml", "tasks/palletize.yaml")
 PEG = ("cells/peg_ur3e.yaml", "tasks/peg_insert.yaml")
 
 
+def probe_task(max_distance_m: float, force_N: float = 8.0) -> str:
+    """The peg cell's probe: the empty gripper down from 30 mm above the hole until a force
+    over ``force_N`` or ``max_distance_m`` (the block is 30-40 mm down)."""
+    return f"""task: probe
+steps:
+  - move: home
+  - approach: {{to: hole, distance: 0.03}}
+  - move_until_contact: {{direction: [0, 0, 1], speed: 0.01, force: {force_N:g}, max_distance: {max_distance_m:g}}}
+  - retreat: 0.05
+  - move: home
+"""
+
+
 def dry_run(cell: str, task: str, *extra: str) -> dict:
     r = subprocess.run(
         [sys.executable, "-m", "cellrunner.cli.main", "dry-run", cell, task, "--json", *extra],
@@ -114,20 +127,10 @@ def shallow(tmp_path_factory):
     )
     (root / "cells" / "peg.yaml").write_text(cell)
     (root / "tasks" / "peg_insert.yaml").write_text((ROOT / PEG[1]).read_text())
-    probe = """task: probe
-steps:
-  - move: home
-  - approach: {to: hole, distance: 0.03}
-  - move_until_contact: {direction: [0, 0, 1], speed: 0.01, force: 8, max_distance: DIST}
-  - retreat: 0.05
-  - move: home
-"""
-    (root / "tasks" / "probe_far.yaml").write_text(probe.replace("DIST", "0.02"))
-    (root / "tasks" / "probe.yaml").write_text(probe.replace("DIST", "0.1"))
+    (root / "tasks" / "probe_far.yaml").write_text(probe_task(0.02))
+    (root / "tasks" / "probe.yaml").write_text(probe_task(0.1))
     (root / "tasks" / "probe_world.yaml").write_text(
-        probe.replace("DIST", "0.1").replace(
-            "direction: [0, 0, 1]", "direction: [0, 0, -1], frame: world"
-        )
+        probe_task(0.1).replace("direction: [0, 0, 1]", "direction: [0, 0, -1], frame: world")
     )
     return root
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 import time
 
-from tests.cells.test_reference_cells import PALLETIZER, PEG
+from tests.cells.test_reference_cells import PALLETIZER, PEG, probe_task
 from tests.conftest import ROOT
 from tests.twin.cell_rig import fault, run_ur, twin
 
@@ -62,16 +62,8 @@ def test_peg_insert_through_ur_rtde(tmp_path):
 def test_move_until_contact_through_ur_rtde(tmp_path):
     """The gripper, empty, probes down onto the block: contact within 100 mm is found; the
     same probe limited to 20 mm finds nothing and fails the step."""
-    probe = """task: probe
-steps:
-  - move: home
-  - approach: {to: hole, distance: 0.03}
-  - move_until_contact: {direction: [0, 0, 1], speed: 0.01, force: 8, max_distance: DIST}
-  - retreat: 0.05
-  - move: home
-"""
-    (tmp_path / "near.yaml").write_text(probe.replace("DIST", "0.1"))
-    (tmp_path / "far.yaml").write_text(probe.replace("DIST", "0.02"))
+    (tmp_path / "near.yaml").write_text(probe_task(0.1))
+    (tmp_path / "far.yaml").write_text(probe_task(0.02))
     host = "127.0.0.116"
     with twin(PEG[0], host):
         out = run_ur(PEG[0], str(tmp_path / "near.yaml"), host)

@@ -16,19 +16,12 @@ from cellrunner.model.codes import ResultCode
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.planning.world import CellWorld
 from cellrunner.sim.from_cell import description_of
+from tests.cells.test_reference_cells import probe_task
 from tests.conftest import ROOT
 
 pytest.importorskip("mujoco")
 
-PROBE = """task: probe
-steps:
-  - move: home
-  - approach: {to: hole, distance: 0.03}
-  - move_until_contact: {direction: [0, 0, 1], speed: 0.01, force: 2.5, max_distance: DIST}
-  - retreat: 0.05
-  - move: home
-"""
-PROBE_STEP = 3
+PROBE_STEP = 3  # move_until_contact (steps count from 1)
 
 
 class LateSide(SimBackend):
@@ -54,7 +47,7 @@ class LateSide(SimBackend):
 def _probe(tmp_path, max_distance_m: float):
     cell = load_cell(ROOT / "cells" / "peg_ur3e.yaml")
     path = tmp_path / "probe.yaml"
-    path.write_text(PROBE.replace("DIST", str(max_distance_m)))
+    path.write_text(probe_task(max_distance_m, force_N=2.5))
     backend = LateSide(description_of(cell))
     planner = job_planner(CellWorld(cell), use_cache=False)
     controller = CellController(
