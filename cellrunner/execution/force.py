@@ -80,7 +80,8 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
     trace = ctx.notes.setdefault("force_trace", [])
     q = approved.trajectory.q_rad
     late_s = LATE_PERIODS / approved.trajectory.rate_hz
-    contact_N, touch_i, t_last = None, None, None
+    # from the baseline's last measurement: a stall right at the start is a stall too
+    contact_N, touch_i, t_last = None, None, ctx.now_s
     recent: list[float] = []
     shaken = 0  # measurements still left in a jolt
     for i in range(len(q)):
@@ -89,7 +90,7 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         yield
         if ctx.now_s == t_last:
             continue  # no new measurement this period (a late controller package)
-        if t_last is not None and ctx.now_s - t_last > late_s:
+        if ctx.now_s - t_last > late_s:
             shaken, recent = JOLT_SAMPLES + 1, []
         t_last = ctx.now_s
         force_N = math.dist(np.asarray(ctx.last_state.wrench_N[:3]).tolist(), baseline)
