@@ -14,9 +14,11 @@ changing. The twin takes over only the periods before it, stepped exactly as
 and warm start carried over), so the per-period path then meets that first period with
 the very state it would have had.
 
-Only plain cells are looked ahead: no suction cups, no tool changer, no armed or
-running grip fault, no stop ramp, safety normal. Anything else returns None and the
-caller steps period by period.
+Only plain periods are looked ahead: suction cups idle (suction off, nothing held), a
+tool changer steady (its lock output agreeing with the mount, or off with the tool away
+from its rack place: the look-ahead ends where the TCP comes near it), no armed or
+running grip fault, no stop ramp, safety normal. Anything else returns None and the caller steps
+period by period.
 """
 
 from __future__ import annotations
@@ -113,11 +115,15 @@ class Lookahead:
         self._s_axes = sensor("ahead:ft_x")
         self._s_ft_pos = sensor("ahead:ft_pos")
         self._s_com = sensor("ahead:tool_com")
+        self._s_tcp = sensor("ahead:tcp")
         self._s_parts = {p: sensor(f"ahead:part:{p}") for p in ids.part_bodies}
         self._qpos0 = 1  # time, then qpos, in a FULLPHYSICS state
         self._qvel0 = 1 + m.nq
         self.usable = (
-            self._s_arm >= 0 and self._s_axes >= 0 and all(a >= 0 for a in self._s_parts.values())
+            self._s_arm >= 0
+            and self._s_axes >= 0
+            and all(a >= 0 for a in self._s_parts.values())
+            and (world.changer is None or self._s_tcp >= 0)
         )
 
     # -- preview --------------------------------------------------------------------------
@@ -203,8 +209,8 @@ class Lookahead:
             or w.safety is not Safety.NORMAL
             or w.stopping
             or not w.powered
-            or w.vacuum is not None
-            or w.changer is not None
+            or (w.vacuum is not None and not w.vacuum.idle)
+            or (w.changer is not None and not w.changer.steady)
             or w.grip_faults.active
             or w.grip_faults.grip_miss_armed
         ):
@@ -227,6 +233,9 @@ class Lookahead:
     def _quiet_periods(self, mode: str, sd: np.ndarray, st: np.ndarray, periods0: int) -> int:
         """How many leading periods pass with no contact verdict and no input change."""
         calm = self._calm(mode, sd) & self._inputs_unchanged(sd, st, periods0)
+        changer = self.world.changer
+        if changer is not None:
+            calm &= ~changer.parks_at(sd[:, self._s_tcp : self._s_tcp + 3])
         bad = np.flatnonzero(~calm)
         return int(bad[0]) if len(bad) else len(calm)
 

@@ -628,8 +628,9 @@ class _Builder:
         as sensors (MuJoCo computes them in C and they do not change the dynamics):
         contact counts (anything on the arm and tool, one part on each finger pad, one
         part on anything; the part is chosen before each look-ahead), the frame of the
-        wrist sensor and the tool's centre of mass (the wrench reading), and each part's
-        position (presence sensors and ``part_at`` rules)."""
+        wrist sensor and the tool's centre of mass (the wrench reading), the TCP with a
+        tool changer (parking at a rack place) and each part's position (presence sensors
+        and ``part_at`` rules)."""
         d = self.desc
         ET.SubElement(sensors, "contact", name="ahead:arm", subtree1="base", data="found")
         if d.parts:
@@ -651,6 +652,8 @@ class _Builder:
             )
         ET.SubElement(sensors, "framepos", name="ahead:ft_pos", objtype="site", objname="ft")
         ET.SubElement(sensors, "subtreecom", name="ahead:tool_com", body="tool")
+        if d.tool_changer is not None:  # where the mounted tool's TCP is (its rack place?)
+            ET.SubElement(sensors, "framepos", name="ahead:tcp", objtype="site", objname="tcp")
         for part in d.parts:
             ET.SubElement(
                 sensors,

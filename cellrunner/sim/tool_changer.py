@@ -122,6 +122,24 @@ class ToolChanger:
     def locked(self) -> bool:
         return self.mounted is not None
 
+    @property
+    def steady(self) -> bool:
+        """Whether the next period mounts or parks nothing: the lock output on with a tool
+        mounted, off with none, or off with the tool mounted away from its rack place
+        (then it parks only where :meth:`parks_at` says)."""
+        if self.locked == bool(self.world.outputs.get(self.desc.lock_output)):
+            return True
+        return self.mounted is not None and not self._at_rack(self.tools[self.mounted])
+
+    def parks_at(self, tcp_xyz: np.ndarray) -> np.ndarray:
+        """Per row of world TCP positions (the mounted tool's, n x 3): whether the period
+        after one ending there may park the tool (lock output off, within
+        ``RACK_TOLERANCE_M`` of its rack place, a micrometre to spare for rounding)."""
+        if self.mounted is None or self.world.outputs.get(self.desc.lock_output):
+            return np.zeros(len(tcp_xyz), dtype=bool)
+        rack = self.tools[self.mounted].T_world_rack_tcp[:3, 3]
+        return np.asarray(np.linalg.norm(tcp_xyz - rack, axis=1) < RACK_TOLERANCE_M + 1e-6)
+
     def drive(self) -> None:
         """Follow the lock output (before the physics step)."""
         lock_on = bool(self.world.outputs.get(self.desc.lock_output))

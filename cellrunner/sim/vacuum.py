@@ -149,10 +149,8 @@ class VacuumCups:
     # -- per period ---------------------------------------------------------------------
     def drive(self) -> None:
         """Follow the suction and blow-off outputs (before the physics step)."""
-        w, v = self.world, self.vac
-        on = self.enabled and w.outputs.get(v.suction_output) == v.suction_value
-        if v.blow_off_output is not None and w.outputs.get(v.blow_off_output):
-            on = False
+        w = self.world
+        on = self._suction_wanted()
         if on and not self.suction:
             self.leak = False
             self.torn.clear()
@@ -186,6 +184,20 @@ class VacuumCups:
     @property
     def vacuum_ok(self) -> bool:
         return self.suction and bool(self.held)
+
+    @property
+    def idle(self) -> bool:
+        """Whether the coming periods leave the cups as they are whatever the arm does:
+        suction off and staying off (its outputs as they are now), nothing held."""
+        return not self.suction and not self.held and not self._suction_wanted()
+
+    def _suction_wanted(self) -> bool:
+        """What the outputs ask for: suction on (blow-off pulses and a parked tool: off)."""
+        w, v = self.world, self.vac
+        on = self.enabled and w.outputs.get(v.suction_output) == v.suction_value
+        if v.blow_off_output is not None and w.outputs.get(v.blow_off_output):
+            on = False
+        return bool(on)
 
     # -- helpers ------------------------------------------------------------------------
     def _in_air(self, part: str) -> bool:

@@ -43,7 +43,19 @@ CELLS = {
         {"slot": 0},
         "move#2",
     ),
+    # a tool changer (two changes, its lock output off at the start with a tool mounted)
+    # and the machine's input rules
+    "cnc_changer_ur5e": ("cells/cnc_tending_ur5e.yaml", "tasks/cnc_tend.yaml", {}, "approach#2"),
+    # suction cups: looked ahead while idle (suction off, nothing held)
+    "palletizer_cups_ur10e": (
+        "cells/palletizer_ur10e.yaml",
+        "tasks/palletize.yaml",
+        {"slot": 0},
+        "approach#2",
+    ),
 }
+#: the cells of the full fault matrix below (jaws, weighing)
+JAW_CELLS = ("demo_ur5e", "shelf_ur5_cb3")
 
 
 @dataclass
@@ -176,7 +188,7 @@ def _run(name: str, lookahead: bool, fault: str | None = None, tmp: Path | None 
 HELD_AHEAD = {None: 0.05, "no_part": 0.05, "heavy": 0.12}
 
 
-@pytest.mark.parametrize("name", list(CELLS))
+@pytest.mark.parametrize("name", JAW_CELLS)
 @pytest.mark.parametrize(
     ("fault", "code"),
     [
@@ -216,6 +228,35 @@ def test_look_ahead_gives_what_the_per_period_loop_gives(
     if fault == "collision":
         assert per_period.contact_s is not None  # the twin stopped on the obstacle
         assert per_period.protective_stops >= 1
+    for field in dataclasses.fields(Outcome):
+        if field.name != "ticks_ahead":
+            assert getattr(ahead, field.name) == getattr(per_period, field.name), field.name
+
+
+@pytest.mark.parametrize(
+    ("name", "fault", "ahead_share"),
+    [
+        ("cnc_changer_ur5e", None, 0.95),
+        ("cnc_changer_ur5e", "collision", 0.2),
+        ("cnc_changer_ur5e", "slip", 0.5),
+        ("palletizer_cups_ur10e", None, 0.6),  # carrying on the cups: period by period
+        ("palletizer_cups_ur10e", "collision", 0.2),
+        ("palletizer_cups_ur10e", "slip", 0.3),
+    ],
+)
+def test_tool_changer_and_suction_cells_are_looked_ahead_to_the_last_bit(
+    name: str, fault: str | None, ahead_share: float, tmp_path: Path
+) -> None:
+    """A tool changer steady (lock on with a tool mounted, or off with it away from its
+    rack place) and idle suction cups are looked ahead, and give what the per-period loop
+    gives, to the last bit of the physics."""
+    per_period = _run(name, lookahead=False, fault=fault, tmp=tmp_path)
+    ahead = _run(name, lookahead=True, fault=fault, tmp=tmp_path)
+    if fault is None:
+        assert per_period.code == ResultCode.OK, per_period.message
+    if fault == "slip":
+        assert per_period.code == ResultCode.PART_LOST, per_period.message
+    assert ahead.ticks_ahead > ahead_share * ahead.ticks
     for field in dataclasses.fields(Outcome):
         if field.name != "ticks_ahead":
             assert getattr(ahead, field.name) == getattr(per_period, field.name), field.name
