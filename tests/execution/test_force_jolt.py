@@ -1,7 +1,8 @@
 """A force step while this side runs late: the controller goes on without new set-points,
 the arm stops short and lurches on, and the tool's mass shakes the wrist sensor (here up
 to ~4 N at 10 mm/s, more on the twin). That shake is not a contact; a real contact is
-still found (cells/peg_ur3e.yaml, MuJoCo)."""
+still found (cells/peg_ur3e.yaml on MuJoCo, and the same cell with a CB3 UR3 at 125 Hz,
+where the shake stays under the limit and the case shows the rule costs no contact)."""
 
 from __future__ import annotations
 
@@ -44,8 +45,11 @@ class LateSide(SimBackend):
         super().wait_period()
 
 
-def _probe(tmp_path, max_distance_m: float):
-    cell = load_cell(ROOT / "cells" / "peg_ur3e.yaml")
+def _probe(tmp_path, max_distance_m: float, model: str = "ur3e"):
+    """The probe on the peg cell with its arm ``model`` (a CB3 UR3 runs at 125 Hz)."""
+    text = (ROOT / "cells" / "peg_ur3e.yaml").read_text().replace("model: ur3e", f"model: {model}")
+    (tmp_path / "cell.yaml").write_text(text.replace("tasks: {1: tasks/peg_insert.yaml}", ""))
+    cell = load_cell(tmp_path / "cell.yaml")
     path = tmp_path / "probe.yaml"
     path.write_text(probe_task(max_distance_m, force_N=2.5))
     backend = LateSide(description_of(cell))
@@ -67,14 +71,16 @@ def _probe(tmp_path, max_distance_m: float):
     return result, backend.stalls
 
 
-def test_the_shake_of_a_late_stream_is_not_a_contact(tmp_path):
-    result, stalls = _probe(tmp_path, 0.02)  # ends 10 mm above the hole: nothing to touch
-    assert stalls >= 50  # the probe stalled all along its 2 s
+@pytest.mark.parametrize("model", ["ur3e", "ur3"])
+def test_the_shake_of_a_late_stream_is_not_a_contact(tmp_path, model):
+    result, stalls = _probe(tmp_path, 0.02, model)  # ends 10 mm above the hole: nothing to touch
+    assert stalls >= 15  # the probe stalled all along its 2 s (every 24 or 96 ms)
     assert result.result_code == ResultCode.NO_PART, result.result_text
     assert result.result_text == "no contact within 20.0 mm (force stayed under 2.5 N)"
 
 
-def test_a_real_contact_is_found_while_the_stream_stalls(tmp_path):
-    result, stalls = _probe(tmp_path, 0.1)
+@pytest.mark.parametrize("model", ["ur3e", "ur3"])
+def test_a_real_contact_is_found_while_the_stream_stalls(tmp_path, model):
+    result, stalls = _probe(tmp_path, 0.1, model)
     assert stalls >= 10
     assert result.result_code == ResultCode.OK, result.result_text
