@@ -15,9 +15,10 @@ edge checks, no goal bias, unlimited connection distance), its clearance as
 ``collision_distance_padding`` and seed 1; ours runs ``plan_joint_path`` with seed 1.
 pyroboplan's planning time excludes path shortening (``plan`` does not shorten); its
 ``shortcut_path`` (defaults: 100 random tries) is timed separately and shown as
-"+shortcut". Ours includes everything: the direct check, the search, shortcutting and the
-conservative certification of every returned edge (nothing slips between checks; see
-cellrunner/planning/collision.py), which pyroboplan's 0.05 rad sampling does not do.
+"+shortcut". Ours includes everything: the direct check, the search, shortcutting, the
+corner arcs and the conservative proof of every piece of the returned path (nothing slips
+between checks; see cellrunner/planning/collision.py), which pyroboplan's 0.05 rad sampling
+does not do.
 Each problem is run ``--reps`` times per planner, interleaved, after one warm-up each
 (imports); the per-problem time is the median of the repetitions.
 

@@ -36,10 +36,10 @@ from cellrunner.planning.motion_bounds import bisection_order
 
 #: RRTConnect extension length: largest Euclidean joint-space step per tree extension.
 RRT_RANGE_RAD = 1.5
-#: Edge sampling step (joint-space distance, rad) of the fast search before certification.
-#: Its edges are proven afterwards, so the sampling only steers the search: 0.1 rad halves
-#: the state checks of 0.05 and was ~10% faster over the planning bench (median 6.1 -> 5.4
-#: ms), with the same one certification fallback in 20 problems.
+#: Edge sampling step (joint-space distance, rad) of the search and of the shortcutting
+#: after it. What the path keeps is proven afterwards, so the sampling only steers: 0.1 rad
+#: halves the state checks of 0.05 and was ~10% faster over the planning bench (median 6.1
+#: -> 5.4 ms); 0.15-0.2 made the median smaller but the total larger (more fallbacks).
 LAZY_RESOLUTION_RAD = 0.1
 #: Corner rounding (:func:`round_corners`): fractions of the adjacent edges tried, largest
 #: first (half of each edge: neighbouring arcs meet, as PolyScope's largest blend radius at a
