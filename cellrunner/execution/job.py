@@ -127,6 +127,7 @@ class JobRunner:
         self._item_timeout_s = 0.0
         self._hold_since_s = 0.0
         self._hold_reason = ""
+        self._unhold_requested = False  # the PLC's Unhold during a protective stop's hold
         self._requests: list[str] = []
         self._pending_end: tuple[ResultCode, str] | None = None  # after cleanup steps
         self._ticks = 0
@@ -214,11 +215,17 @@ class JobRunner:
         elif what == "hold" and self.phase is JobPhase.EXECUTE:
             self._enter_hold("hold requested")
         elif what == "unhold" and self.phase is JobPhase.HELD:
-            self._resume()
+            if self._hold_reason == "protective stop":
+                # the controller is still stopped: unlock it (once its delay has passed),
+                # then resume; resuming now would only meet the stop again
+                self._unhold_requested = True
+            else:
+                self._resume()
 
     def _enter_hold(self, reason: str) -> None:
         self.phase = JobPhase.HOLDING
         self._hold_reason = reason
+        self._unhold_requested = False
         self._hold_since_s = self.ctx.now_s
         self._gen = None
         self.ctx.stream = self.ctx.hold = None
@@ -234,7 +241,10 @@ class JobRunner:
         if self._hold_reason != "protective stop":
             return  # a requested hold waits for unhold or abort
         held_for = self.ctx.now_s - self._hold_since_s
-        if not self.protective_stop.resume or self.protective_stops > self.protective_stop.max:
+        automatic = (
+            self.protective_stop.resume and self.protective_stops <= self.protective_stop.max
+        )
+        if not automatic and not self._unhold_requested:
             if not self.wait_for_unhold:
                 why = (
                     "the task does not resume after protective stops"
