@@ -41,6 +41,8 @@ TRACK_EVERY = 4
 RECOVERY_TIMEOUT_S = 30.0
 #: a refused unlock is tried again this often, not every period (s)
 UNLOCK_RETRY_S = 0.25
+#: protective stops of one step with the TCP this close (m) came at the same place
+SAME_PLACE_M = 0.02
 #: reconnect attempts back off from this delay, doubling to 2 s (s)
 RECONNECT_FIRST_DELAY_S = 0.2
 
@@ -128,6 +130,7 @@ class JobRunner:
         self._hold_since_s = 0.0
         self._hold_reason = ""
         self._unhold_requested = False  # the PLC's Unhold during a protective stop's hold
+        self._stops_at: list[tuple[int, np.ndarray]] = []  # (step index, q rad) per stop
         self._requests: list[str] = []
         self._pending_end: tuple[ResultCode, str] | None = None  # after cleanup steps
         self._ticks = 0
@@ -226,6 +229,8 @@ class JobRunner:
         self.phase = JobPhase.HOLDING
         self._hold_reason = reason
         self._unhold_requested = False
+        if reason == "protective stop" and self._current is not None:
+            self._stops_at.append((self._current.step.index, self.ctx.last_state.q_rad.copy()))
         self._hold_since_s = self.ctx.now_s
         self._gen = None
         self.ctx.stream = self.ctx.hold = None
@@ -250,6 +255,7 @@ class JobRunner:
                     "the task does not resume after protective stops"
                     if not self.protective_stop.resume
                     else f"more than {self.protective_stop.max} protective stops"
+                    + self._same_place()
                 )
                 return self._finish(
                     ResultCode.PROTECTIVE_STOP, f"protective stop during {self._label()}: {why}"
@@ -600,6 +606,23 @@ class JobRunner:
 
     def _label(self) -> str:
         return self._current.step.label if self._current else "the job"
+
+    def _same_place(self) -> str:
+        """What the protective stops of the step under way say when they all came at the
+        same place (the TCP within ``SAME_PLACE_M``), else nothing."""
+        index = self._current.step.index if self._current else None
+        here = [q for i, q in self._stops_at if i == index]
+        if len(here) < 2:
+            return ""
+        tcp = np.array([self.ctx.motions.tcp_position_m(q) for q in here])
+        spread_m = float(np.linalg.norm(tcp[:, None] - tcp[None], axis=2).max())
+        if spread_m > SAME_PLACE_M:
+            return ""
+        which = "both" if len(here) == 2 else f"all {len(here)}"
+        return (
+            f", {which} with the TCP within {spread_m * 1000:.0f} mm: something there stops "
+            "the arm each time"
+        )
 
     def _journal(self, record: StepRecord, attempt: int) -> None:
         if self.on_step is not None:
