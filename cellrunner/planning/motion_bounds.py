@@ -1,11 +1,11 @@
 """The maths behind conservative motion checking (see :mod:`.collision`'s docstring):
 points and spheres that bound an object, how far an object can be from a joint axis in any
-configuration, and how far along a segment a pair's margin proves it clear.
+configuration, and the order of the coarse probes along a segment. (How far along a segment
+a pair's margin proves it clear is computed inline in :meth:`.CollisionModel.check_motion`.)
 """
 
 from __future__ import annotations
 
-import bisect
 import itertools
 import math
 from typing import TYPE_CHECKING
@@ -126,36 +126,6 @@ def joint_reach(model: pin.Model, body: int, points: np.ndarray, pad: float) -> 
             parallel = parallel and abs(model.jointPlacements[m].rotation[2, 2]) > 1.0 - 1e-12
         reach[j - 1] = total + (across_pts if parallel else whole_pts)
     return reach
-
-
-def advance(cum: list[float], pieces: int, s: float, margin: float) -> float:
-    """The fraction s' >= s up to which a pair with ``margin`` (m) at s is proven fine:
-    where the piecewise-linear bound ``cum`` (values at i / pieces) has grown by margin."""
-    x = s * pieces
-    i = min(int(x), pieces - 1)
-    target = cum[i] + (x - i) * (cum[i + 1] - cum[i]) + margin
-    if target >= cum[pieces]:
-        return 1.0
-    j = bisect.bisect_right(cum, target) - 1
-    return (j + (target - cum[j]) / (cum[j + 1] - cum[j])) / pieces
-
-
-def next_due(
-    cum: list[float], open_parts: list[bool], pieces: int, s: float, margin: float
-) -> float:
-    """Where a pair measured at s with ``margin`` must be measured next: its horizon
-    (:func:`advance`), or, when that falls in a part already proven by lower bounds, the
-    start of the next part that is not (1.0: none left)."""
-    horizon = advance(cum, pieces, s, margin)
-    if horizon >= 1.0:
-        return 1.0
-    part = min(int(horizon * pieces), pieces - 1)
-    if open_parts[part]:
-        return horizon
-    for later in range(part + 1, pieces):
-        if open_parts[later]:
-            return later / pieces
-    return 1.0
 
 
 def bisection_order(n: int) -> list[float]:
