@@ -10,16 +10,12 @@ import numpy as np
 import pytest
 
 from cellrunner.backends.sim.backend import SimBackend
-from cellrunner.execution.cell import CellController
-from cellrunner.execution.journal import Journal
-from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.load import load_cell, load_task
-from cellrunner.planning.world import CellWorld
 from cellrunner.sim.from_cell import description_of
 from tests.conftest import ROOT
+from tests.execution.twin_cell import twin_cell
 
 
 def _after_estop_in_grip(cell_name: str, grip_step: int, task: int, params: dict):
@@ -29,11 +25,7 @@ def _after_estop_in_grip(cell_name: str, grip_step: int, task: int, params: dict
     cell = load_cell(ROOT / "cells" / f"{cell_name}.yaml")
     tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
     backend = SimBackend(description_of(cell))
-    planner = job_planner(CellWorld(cell), use_cache=False)
-    controller = CellController(cell, tasks, backend, Journal(":memory:"), planner)
-    controller.setup()
-    loop = ControlLoop(controller)
-    loop.step(3)
+    controller, loop = twin_cell(cell, tasks, backend)
     assert controller.start_job(1, {}, "first", "cli").accepted
     for _ in range(20_000):
         loop.step()

@@ -9,16 +9,12 @@ from __future__ import annotations
 import pytest
 
 from cellrunner.backends.sim.backend import SimBackend
-from cellrunner.execution.cell import CellController
-from cellrunner.execution.journal import Journal
-from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.load import load_cell, load_task
-from cellrunner.planning.world import CellWorld
 from cellrunner.sim.from_cell import description_of
 from tests.cells.test_reference_cells import probe_task
 from tests.conftest import ROOT
+from tests.execution.twin_cell import twin_cell
 
 pytest.importorskip("mujoco")
 
@@ -53,13 +49,7 @@ def _probe(tmp_path, max_distance_m: float, model: str = "ur3e"):
     path = tmp_path / "probe.yaml"
     path.write_text(probe_task(max_distance_m, force_N=2.5))
     backend = LateSide(description_of(cell))
-    planner = job_planner(CellWorld(cell), use_cache=False)
-    controller = CellController(
-        cell, {1: load_task(path, cell)}, backend, Journal(":memory:"), planner
-    )
-    controller.setup()
-    loop = ControlLoop(controller)
-    loop.step(3)
+    controller, loop = twin_cell(cell, {1: load_task(path, cell)}, backend)
     assert controller.start_job(1, {}, "probe", "cli").accepted
     for _ in range(60_000):
         loop.step()

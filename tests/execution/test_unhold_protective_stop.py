@@ -10,16 +10,12 @@ from __future__ import annotations
 import pytest
 
 from cellrunner.backends.sim.backend import SimBackend
-from cellrunner.execution.cell import CellController
-from cellrunner.execution.journal import Journal
-from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.load import load_cell, load_task
-from cellrunner.planning.world import CellWorld
 from cellrunner.sim.from_cell import description_of
 from tests.conftest import ROOT
+from tests.execution.twin_cell import twin_cell
 
 pytest.importorskip("mujoco")
 
@@ -40,18 +36,7 @@ def _held_job(tmp_path, resume: bool, press_every_s: float | None):
     path = tmp_path / "pick_place.yaml"
     path.write_text(text)
     backend = SimBackend(description_of(cell))
-    planner = job_planner(CellWorld(cell), use_cache=False)
-    controller = CellController(
-        cell,
-        {1: load_task(path, cell)},
-        backend,
-        Journal(":memory:"),
-        planner,
-        wait_for_unhold=True,
-    )
-    controller.setup()
-    loop = ControlLoop(controller)
-    loop.step(3)
+    controller, loop = twin_cell(cell, {1: load_task(path, cell)}, backend, wait_for_unhold=True)
     assert controller.start_job(1, {"slot": 0}, "held", "plc").accepted
     stopped_at = pressed_at = resumed_at = None
     for _ in range(100_000):
