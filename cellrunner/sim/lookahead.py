@@ -17,8 +17,8 @@ the very state it would have had.
 Only plain periods are looked ahead: suction cups idle (suction off, nothing held), a
 tool changer steady (its lock output agreeing with the mount, or off with the tool away
 from its rack place: the look-ahead ends where the TCP comes near it), no armed or
-running grip fault, no stop ramp, safety normal. Anything else returns None and the caller steps
-period by period.
+running grip fault, no stop ramp, safety normal. Anything else returns None and the
+caller steps period by period.
 """
 
 from __future__ import annotations

@@ -133,12 +133,11 @@ class ToolChanger:
 
     def parks_at(self, tcp_xyz: np.ndarray) -> np.ndarray:
         """Per row of world TCP positions (the mounted tool's, n x 3): whether the period
-        after one ending there may park the tool (lock output off, within
-        ``RACK_TOLERANCE_M`` of its rack place, a micrometre to spare for rounding)."""
+        after one ending there may park the tool (lock output off, at its rack place with
+        a micrometre to spare for rounding)."""
         if self.mounted is None or self.world.outputs.get(self.desc.lock_output):
             return np.zeros(len(tcp_xyz), dtype=bool)
-        rack = self.tools[self.mounted].T_world_rack_tcp[:3, 3]
-        return np.asarray(np.linalg.norm(tcp_xyz - rack, axis=1) < RACK_TOLERANCE_M + 1e-6)
+        return _near_rack(self.tools[self.mounted], tcp_xyz, RACK_TOLERANCE_M + 1e-6)
 
     def drive(self) -> None:
         """Follow the lock output (before the physics step)."""
@@ -162,11 +161,8 @@ class ToolChanger:
         return T
 
     def _at_rack(self, tool: ChangerTool) -> bool:
-        T_world_tcp = self._T_world_flange() @ tool.T_flange_tcp
-        return (
-            float(np.linalg.norm(T_world_tcp[:3, 3] - tool.T_world_rack_tcp[:3, 3]))
-            < RACK_TOLERANCE_M
-        )
+        tcp_xyz = (self._T_world_flange() @ tool.T_flange_tcp)[:3, 3]
+        return bool(_near_rack(tool, tcp_xyz[None], RACK_TOLERANCE_M)[0])
 
     def _fit_jaws(self, tool: ChangerTool) -> None:
         """The twin's pair of jaws becomes this tool's: its IO, stroke and place at its TCP."""
@@ -247,6 +243,12 @@ class ToolChanger:
         subtree = float(m.body_mass[body]) + fingers
         m.body_subtreemass[body] = subtree
         w.wrist.tool_weight_N = GRAVITY_MPS2 * subtree
+
+
+def _near_rack(tool: ChangerTool, tcp_xyz: np.ndarray, tolerance_m: float) -> np.ndarray:
+    """Per row of world positions of ``tool``'s TCP (n x 3): within ``tolerance_m`` of its
+    rack place."""
+    return np.asarray(np.linalg.norm(tcp_xyz - tool.T_world_rack_tcp[:3, 3], axis=1) < tolerance_m)
 
 
 def _descends(m: Any, body: int, ancestor: int) -> bool:
