@@ -40,12 +40,11 @@ JOB_REQ, RESET = 1, 2
 MODBUS_HOST = "127.0.0.130"
 
 #: moves only: the twin behind `cellrunner twin` has no infeed, so a second pick would
-#: find no part; a fault test wants every job to be able to end OK
+#: find no part; a fault test wants every job to be able to end OK. Two motions (1.2 s
+#: and 0.6 s): out and back to home, so every job starts where the last one ended
 TOUR = """
 task: tour
 steps:
-  - move: home
-  - move: {to: pick, offset: [0, 0, -0.15]}
   - move: {to: drop, offset: [0, 0, -0.15]}
   - move: home
 on_protective_stop: {resume: true, max: 3}
@@ -352,10 +351,26 @@ class Rig:
         self.client.write_single_register(1, 0)
         return regs
 
+    def moving(self, timeout_s: float = 30) -> bool:
+        """Wait until the twin receives set-points that move the arm from where its target
+        stood at the call (by more than 1 mrad): True; False if the job ended first."""
+        start = json.loads(self.fault("state"))["target_q_rad"]
+        deadline = time.monotonic() + timeout_s
+        while True:
+            target = json.loads(self.fault("state"))["target_q_rad"]
+            if max(abs(a - b) for a, b in zip(target, start, strict=True)) > 1e-3:
+                return True
+            if self.regs()[1] & (DONE | ERROR):
+                return False
+            assert time.monotonic() < deadline, f"no motion within {timeout_s} s\n{self.log_tail()}"
+            time.sleep(0.02)
+
     def reset(self) -> None:
-        """RESET edges (Clear, Reset) every 2 s until READY, as an operator presses it
-        again when the first press came before the controller saw the e-stop released."""
+        """RESET edges (Clear, Reset) every 2 s until READY, once the cell no longer shows
+        the e-stop; an operator presses again when the first press came before the
+        controller saw the e-stop released."""
         assert self.client is not None
+        self.wait(lambda r: not r[1] & ESTOP, 10, "e-stop released")
         for _ in range(15):
             self.client.write_single_register(1, 0)
             self.client.write_single_register(1, RESET)
