@@ -4,14 +4,17 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
-import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from pydantic_core import PydanticCustomError
 
-from cellrunner.model import geometry
 from cellrunner.model.units import Angle, Length, PositiveLength
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from cellrunner.model import geometry
 
 Vec3 = Annotated[list[Length], Field(min_length=3, max_length=3)]
 Rpy = Annotated[list[Angle], Field(min_length=3, max_length=3)]
@@ -36,7 +39,9 @@ class Pose(Strict):
     """Rotation as XYZ fixed-axis roll, pitch, yaw in degrees. Example: `[180, 0, 90]`"""
 
     def matrix(self) -> np.ndarray:
-        return geometry.pose_matrix(self.xyz, self.rpy)
+        from cellrunner.model.geometry import pose_matrix  # numpy: not for `validate`
+
+        return pose_matrix(self.xyz, self.rpy)
 
 
 class BoxShape(Strict):
@@ -94,6 +99,8 @@ class Shaped(Strict):
 
     def to_shape(self, resolve: Callable[[str], Path]) -> geometry.Shape:
         """The neutral geometry shape; ``resolve(str) -> Path`` locates mesh files."""
+        from cellrunner.model import geometry
+
         if self.box:
             x, y, z = self.box.size
             return geometry.Box((x, y, z))
@@ -126,7 +133,9 @@ class PlacedShape(Shaped):
     def matrix(self) -> np.ndarray:
         if self.pose is not None:
             return self.pose.matrix()
-        return geometry.pose_matrix(self.xyz or (0, 0, 0), self.rpy or (0, 0, 0))
+        from cellrunner.model.geometry import pose_matrix
+
+        return pose_matrix(self.xyz or (0, 0, 0), self.rpy or (0, 0, 0))
 
 
 def plain(value: Any) -> Any:

@@ -12,14 +12,16 @@ Frames (OpenCV's, as every vision library reports poses):
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
-import numpy as np
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Pose, Strict
 from cellrunner.model.units import PositiveLength
+
+if TYPE_CHECKING:
+    import numpy as np
 
 #: ArUco dictionaries a board may use (OpenCV's predefined ones)
 DICTIONARIES = tuple(
@@ -47,6 +49,8 @@ class Intrinsics(Strict):
 
     def matrix(self) -> np.ndarray:
         """The 3x3 camera matrix K."""
+        import numpy as np
+
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
 

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cellrunner.model.rotation import rpy_rows
+
 
 @dataclass(frozen=True)
 class Box:
@@ -52,22 +54,7 @@ class Placed:
 
 def rot_rpy_deg(rpy_deg: Sequence[float] | np.ndarray) -> np.ndarray:
     """Rotation matrix of XYZ fixed-axis roll, pitch, yaw in degrees: Rz @ Ry @ Rx."""
-    r, p, y = (math.radians(v) for v in rpy_deg)
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(r),
-        math.sin(r),
-        math.cos(p),
-        math.sin(p),
-        math.cos(y),
-        math.sin(y),
-    )
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
+    return np.array(rpy_rows(rpy_deg))
 
 
 def pose_matrix(

@@ -16,11 +16,11 @@ Only bare numbers are judged: a value written with a unit says what it means.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import math
+from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
-import numpy as np
-
+from cellrunner.model.rotation import rpy_rows
 from cellrunner.model.source import PathKey
 
 if TYPE_CHECKING:
@@ -92,14 +92,16 @@ def check_cell(loaded: LoadedCell, report: Warner) -> None:
         _shape(raw, base, CELL_EXTENT_M, report)
     for i, _ in enumerate(cell.parts):
         _shape(raw, ("parts", i), TOOL_EXTENT_M, report)
-    T_world_base = cell.robot.mount.matrix()
-    shoulder = T_world_base[:3, :3] @ np.array([0.0, 0.0, spec.d_m[0]]) + T_world_base[:3, 3]
+    mount = cell.robot.mount
+    shoulder = [  # the mount's z axis times the shoulder height, from the mount
+        t + row[2] * spec.d_m[0] for t, row in zip(mount.xyz, rpy_rows(mount.rpy), strict=True)
+    ]
     slips, far = {}, {}
     for name, frame in cell.frames.items():
         if frame.parent != "world":
             _vector(raw, ("frames", name, "xyz"), 3 * spec.reach_m, report, "a frame offset")
             continue
-        distance_m = float(np.linalg.norm(np.asarray(frame.xyz) - shoulder))
+        distance_m = math.dist(frame.xyz, shoulder)
         values = _get(raw, ("frames", name, "xyz"))
         bare = isinstance(values, list) and all(_number(v) is not None for v in values)
         if (
@@ -118,20 +120,22 @@ def check_cell(loaded: LoadedCell, report: Warner) -> None:
             f"{reach}; {_vector_mm([float(v) for v in cell.frames[name].xyz])}",
         )
     if far:
-        centre = np.mean([cell.frames[name].xyz for name in far], axis=0)
-        mount = cell.robot.mount.xyz
+        centre = [
+            sum(c) / len(far) for c in zip(*(cell.frames[name].xyz for name in far), strict=True)
+        ]
+        mount_xyz = mount.xyz
         for name, distance_m in far.items():
             report.warn(
                 ("frames", name, "xyz"),
                 f"frame {name!r} is {distance_m:.2f} m from the {model}'s "
                 f"shoulder {reach}: is the cell in the wrong place, or the robot? robot.mount is at "
-                f"{_fmt_xyz(mount)}; did you mean a mount near {_fmt_xyz([centre[0], centre[1], mount[2]])}, "
+                f"{_fmt_xyz(mount_xyz)}; did you mean a mount near {_fmt_xyz([centre[0], centre[1], mount_xyz[2]])}, "
                 "among the frames?",
             )
 
 
-def _mm_within(xyz: Iterable[float], shoulder: np.ndarray, limit_m: float) -> bool:
-    return float(np.linalg.norm(np.asarray(xyz, float) / 1000 - shoulder)) <= limit_m
+def _mm_within(xyz: Iterable[float], shoulder: Sequence[float], limit_m: float) -> bool:
+    return math.dist([float(v) / 1000 for v in xyz], shoulder) <= limit_m
 
 
 def _fmt_xyz(xyz: Iterable[float]) -> str:
