@@ -10,7 +10,7 @@ import time
 
 from tests.cells.test_reference_cells import PALLETIZER, PEG, probe_task
 from tests.conftest import ROOT
-from tests.twin.cell_rig import fault, run_ur, twin
+from tests.twin.cell_rig import fault, fault_once_moving, run_ur, twin
 
 
 def test_palletizer_through_ur_rtde():
@@ -111,6 +111,6 @@ def test_peg_protective_stop_and_estop_through_ur_rtde():
         assert out["result_code"] == 0, (out["result_text"], out["steps"])
         assert out["cycle_time_s"] > 15.0  # 12 s job plus the unlock delay
     with twin(PEG[0], "127.0.0.119"):
-        fault_later("127.0.0.119", "estop press", 5.0)
+        fault_once_moving("127.0.0.119", "estop press")
         out = run_ur(*PEG, "127.0.0.119")
         assert out["result_code"] == 101, (out["result_text"], out["steps"])

@@ -20,7 +20,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -112,6 +112,37 @@ def fault(host: str, command: str) -> str:
     from cellrunner.twin.server import FaultClient
 
     return FaultClient(host, timeout_s=10.0).command(command)
+
+
+def wait_moving(
+    host: str, timeout_s: float = 30, ended: Callable[[], bool] = lambda: False
+) -> bool:
+    """Wait until the twin at ``host`` receives set-points that move the arm from where its
+    target stood at the call (by more than 1 mrad): True; False once ``ended()`` is true
+    first (the job is over)."""
+    start = json.loads(fault(host, "state"))["target_q_rad"]
+    deadline = time.monotonic() + timeout_s
+    while True:
+        target = json.loads(fault(host, "state"))["target_q_rad"]
+        if max(abs(a - b) for a, b in zip(target, start, strict=True)) > 1e-3:
+            return True
+        if ended():
+            return False
+        assert time.monotonic() < deadline, f"the arm did not move within {timeout_s} s"
+        time.sleep(0.02)
+
+
+def fault_once_moving(host: str, command: str, after_s: float = 0.3) -> None:
+    """``command`` on the twin's fault channel, from a thread, ``after_s`` after the arm
+    starts moving (:func:`wait_moving`): a job that is planned, started and under way."""
+    import threading
+
+    def strike() -> None:
+        wait_moving(host, 120)
+        time.sleep(after_s)
+        fault(host, command)
+
+    threading.Thread(target=strike, daemon=True).start()
 
 
 def run_ur(cell: Path | str, task: Path | str, host: str, *extra: str) -> dict[str, Any]:
@@ -352,18 +383,8 @@ class Rig:
         return regs
 
     def moving(self, timeout_s: float = 30) -> bool:
-        """Wait until the twin receives set-points that move the arm from where its target
-        stood at the call (by more than 1 mrad): True; False if the job ended first."""
-        start = json.loads(self.fault("state"))["target_q_rad"]
-        deadline = time.monotonic() + timeout_s
-        while True:
-            target = json.loads(self.fault("state"))["target_q_rad"]
-            if max(abs(a - b) for a, b in zip(target, start, strict=True)) > 1e-3:
-                return True
-            if self.regs()[1] & (DONE | ERROR):
-                return False
-            assert time.monotonic() < deadline, f"no motion within {timeout_s} s\n{self.log_tail()}"
-            time.sleep(0.02)
+        """:func:`wait_moving` on this rig's twin; False if the job ended first."""
+        return wait_moving(self.twin_host, timeout_s, lambda: bool(self.regs()[1] & (DONE | ERROR)))
 
     def reset(self) -> None:
         """RESET edges (Clear, Reset) every 2 s until READY, once the cell no longer shows

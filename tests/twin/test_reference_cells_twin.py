@@ -4,12 +4,9 @@ process (its sim: rules play the machine and the camera's part) and `cellrunner 
 
 from __future__ import annotations
 
-import threading
-import time
-
 import pytest
 
-from tests.twin.cell_rig import fault, run_ur, twin
+from tests.twin.cell_rig import fault_once_moving, run_ur, twin
 
 CNC = ("cells/cnc_tending_ur5e.yaml", "tasks/cnc_tend.yaml")
 VISION = ("cells/vision_pick_ur10e.yaml", "tasks/vision_pick.yaml")
@@ -57,11 +54,7 @@ def test_cnc_door_timeout_on_the_twin_runs_on_error_through_ur_rtde(cnc_twin):
 
 
 def test_cnc_estop_on_the_twin_is_101_without_cleanup(cnc_twin):
-    def press_later():
-        time.sleep(12.0)  # the job (23 s) is under way: planned, started, not yet done
-        fault(cnc_twin, "estop press")
-
-    threading.Thread(target=press_later, daemon=True).start()
+    fault_once_moving(cnc_twin, "estop press")  # the job (23 s) is under way, not yet done
     out = run_ur(*CNC, cnc_twin)
     assert out["result_code"] == 101
     assert out["result_text"].startswith("e-stop during step ")
