@@ -38,7 +38,7 @@ class Hand:
 
     def tcp_to(self, T_world_tcp: np.ndarray) -> None:
         q = self.kinematics.ik_nearest(T_world_tcp, self.q)
-        assert self.control.moveJ(list(q), 1.0, 2.0)
+        assert self.control.moveJ(list(q), 2.0, 6.0)
         self.q = q
 
     def close(self) -> None:
