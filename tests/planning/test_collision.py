@@ -1,5 +1,7 @@
 """Collision model: thin and touching obstacles, allowances, conservative motion checks."""
 
+import functools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -162,6 +164,11 @@ def _cluttered_world(model: str = "ur5e"):
     return CollisionModel(kin(model), TOOL, fixtures).carrying(part)
 
 
+#: one world per arm model for the examples below: segment_bounds, motion_coefficients and
+#: the object tables they read depend on q alone, never on a world's last query
+_shared_world = functools.cache(_cluttered_world)
+
+
 @pytest.mark.parametrize("model", available_models())
 @settings(max_examples=25, deadline=None)
 @given(
@@ -173,7 +180,7 @@ def test_segment_bounds_bound_the_motion_of_every_point(model, q0, dq, pieces):
     """Along a segment, no point of any object moves (relative to what it is checked
     against) faster than its pair's bound for that part of the segment says; on every arm
     model with derived geometry (each has its own parts, so its own bounds)."""
-    world = _cluttered_world(model)
+    world = _shared_world(model)
     q0, q1 = np.array(q0), np.array(q0) + np.array(dq)
     rates = world.segment_bounds(q0, q1, pieces)  # (pieces, pairs), per unit part
     static = world.motion_coefficients(q1 - q0)
@@ -187,6 +194,7 @@ def test_segment_bounds_bound_the_motion_of_every_point(model, q0, dq, pieces):
     for si in s:
         pin_fk(model, data, q0 + si * (q1 - q0))
         frames.append([data.oMi[j].homogeneous.copy() for j in range(7)])
+    frames = np.array(frames)
     points = {k: _sample_points(o, rng) for k, o in enumerate(world._objects) if world._is_mover[k]}
     moved_by: dict[tuple[int, int], np.ndarray] = {}
     for p, (mover, high, joints) in enumerate(
@@ -208,15 +216,11 @@ def test_segment_bounds_bound_the_motion_of_every_point(model, q0, dq, pieces):
 
 
 def _largest_step(pts, frames, body, low):
-    """Per step between consecutive frames: how far (m) the farthest of ``pts`` (fixed to
-    ``body``) moves relative to body ``low``."""
-    out = np.empty(len(frames) - 1)
-    for a in range(len(frames) - 1):
-        A = np.linalg.inv(frames[a][low]) @ frames[a][body]
-        B = np.linalg.inv(frames[a + 1][low]) @ frames[a + 1][body]
-        d = (pts @ B[:3, :3].T + B[:3, 3]) - (pts @ A[:3, :3].T + A[:3, 3])
-        out[a] = float(np.linalg.norm(d, axis=1).max())
-    return out
+    """Per step between consecutive frames (steps x 7 joint frames x 4 x 4): how far (m)
+    the farthest of ``pts`` (fixed to ``body``) moves relative to body ``low``."""
+    rel = np.linalg.inv(frames[:, low]) @ frames[:, body]  # (steps + 1, 4, 4)
+    moved = pts @ rel[:, :3, :3].transpose(0, 2, 1) + rel[:, None, :3, 3]  # (steps + 1, P, 3)
+    return np.linalg.norm(np.diff(moved, axis=0), axis=2).max(axis=1)
 
 
 def pin_fk(model, data, q):
