@@ -123,7 +123,7 @@ def test_ur5_plan_clears_the_fixtures_on_the_real_cb3_meshes(tmp_path, slot):
     for k, g in meshes:
         g.geometry.computeLocalAABB()
         spheres[k] = (np.asarray(g.geometry.aabb_center), float(g.geometry.aabb_radius))
-    box_spheres = [(T[:3, 3], float(np.linalg.norm(h))) for _, T, h in fixture_boxes(cell)]
+    box_frames = [(T, h) for _, T, h in fixture_boxes(cell)]
     pairs = [(k, ("box", b)) for k, _ in meshes if link_of[k] for b in range(len(boxes))]
     pairs += [
         (k, ("link", k2))
@@ -142,14 +142,14 @@ def test_ur5_plan_clears_the_fixtures_on_the_real_cb3_meshes(tmp_path, slot):
             T = {k: T_world_urdf @ gdata.oMg[k].homogeneous for k, _ in meshes}
             centre = {k: T[k][:3, :3] @ spheres[k][0] + T[k][:3, 3] for k in T}
             for k, (kind, j) in pairs:
-                if kind == "box":
-                    c2, r2 = box_spheres[j]
+                if kind == "box":  # the mesh's bounding sphere clears the box: so does the mesh
+                    if box_signed_distance(centre[k][None], *box_frames[j])[0] > spheres[k][1]:
+                        continue
                     other, T_other, name = boxes[j][1], boxes[j][2], boxes[j][0]
                 else:
-                    c2, r2 = centre[j], spheres[j][1]
+                    if np.linalg.norm(centre[k] - centre[j]) > spheres[k][1] + spheres[j][1]:
+                        continue  # the bounding spheres are apart: positive clearance
                     other, T_other, name = geometry[j].geometry, _coal_tf(T[j]), geometry[j].name
-                if np.linalg.norm(centre[k] - c2) > spheres[k][1] + r2:
-                    continue  # the bounding spheres are apart: positive clearance
                 computed += 1
                 d = coal.distance(
                     geometry[k].geometry,
