@@ -54,7 +54,9 @@ STILL_RAD_S = 2e-3
 #: late set-point shakes the tool's mass) is not a contact, a hard hit is
 CONFIRM_SAMPLES = 3
 HARD_HIT_FACTOR = 3.0
-#: contact begins where the force first rises above this fraction of the step's limit
+#: contact begins where the force last rose above this fraction of the step's limit and
+#: stayed above it until the stop: the tool's mass shakes the wrist as the arm sets off
+#: (1.6-2.2 N with the peg tool at 10 mm/s on the twin), which is no contact
 TOUCH_FRACTION = 0.2
 #: a measurement more than LATE_PERIODS periods after the one before says the set-points
 #: stalled (this side was late): the arm stopped short and lurched on, and the tool's mass
@@ -107,7 +109,9 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
             break
         if ctx.now_s < shaken_until:
             continue
-        if touch_i is None and force_N > TOUCH_FRACTION * limit_N:
+        if force_N <= TOUCH_FRACTION * limit_N:
+            touch_i = None  # a rise that fell back (the tool's mass as the arm sets off)
+        elif touch_i is None:
             touch_i = i
         recent = (recent + [force_N])[-CONFIRM_SAMPLES:]
         if sum(recent) / CONFIRM_SAMPLES > limit_N:
@@ -119,7 +123,15 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         yield from _until_still(ctx, trace, step, baseline)
     if step.kind == StepKind.MOVE_UNTIL_CONTACT:
         if contact_N is not None:  # back to where the contact began, as moveUntilContact does
-            yield from _retract(ctx, approved, i, max((touch_i or i) - 1, 0), trace, step, baseline)
+            yield from _retract(
+                ctx,
+                approved,
+                i,
+                max((i if touch_i is None else touch_i) - 1, 0),
+                trace,
+                step,
+                baseline,
+            )
         if contact_N is None:
             code = ResultCode.PLACE_FAILED if ctx.carry is not None else ResultCode.NO_PART
             return Outcome.failed(

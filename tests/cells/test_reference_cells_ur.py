@@ -68,6 +68,11 @@ def test_move_until_contact_through_ur_rtde(tmp_path):
     with twin(PEG[0], host):
         out = run_ur(PEG[0], str(tmp_path / "near.yaml"), host)
         assert out["result_code"] == 0, (out["result_text"], out["steps"])
+        # down ~60 mm at 10 mm/s, then back to where the contact's rise began: 6.3 s, as in
+        # a dry-run (12.3 s when the wrist's shake as the arm set off, 2.2 N here, was taken
+        # for the contact's start and the arm went back up the whole line)
+        probe = out["steps"][2]
+        assert probe["kind"] == "move_until_contact" and probe["duration_s"] < 8.0, probe
         out = run_ur(PEG[0], str(tmp_path / "far.yaml"), host)
         assert out["result_code"] == 1
         assert out["result_text"] == "no contact within 20.0 mm (force stayed under 8 N)"
