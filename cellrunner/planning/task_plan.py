@@ -277,6 +277,14 @@ def plan_task(
     return plan
 
 
+#: a force step's line accelerates and stops at most this hard at the TCP (m/s^2): the
+#: tool's mass and the servo's response push on the wrist sensor by about 2 N per m/s^2
+#: (the peg tool on the twin: 1.1 N at ur_rtde moveUntilContact's default 0.5 m/s^2, and
+#: 2.2 N at the ~5 m/s^2 the joint limits allowed, which a 1.5 N probe took for a contact
+#: in the air). At 0.1 the push stays near 0.2 N; the ramps cost v / a (0.1 s at 10 mm/s)
+FORCE_TCP_ACCEL_MPS2 = 0.1
+
+
 class _StepPlanner:
     """Walks the steps, tracking the configuration and the carried part."""
 
@@ -290,12 +298,31 @@ class _StepPlanner:
             ContactAllowance, ...
         ] = ()  # a force step's contacts, which the next straight move leaves
 
-    def limits_for(self, step: Step) -> MotionLimits:
+    def limits_for(
+        self, step: Step, line_q: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> MotionLimits:
+        """The limits ``step`` is timed and verified with; a force step's also depend on
+        its line (``line_q``: the joint configurations at its ends)."""
         limits = self.world.limits
         speed = getattr(step.args, "speed", None)
         if step.kind in (StepKind.MOVE, StepKind.APPROACH):
             return limits.scaled(speed_fraction=speed if speed is not None else 1.0)
+        if step.kind in FORCE_KINDS:
+            assert line_q is not None  # a force step is timed along its planned line
+            return limits.scaled(tcp_speed_mps=speed, accel_fraction=self._gentle(limits, line_q))
         return limits.scaled(tcp_speed_mps=speed)
+
+    def _gentle(self, limits: MotionLimits, line_q: tuple[np.ndarray, np.ndarray]) -> float:
+        """The fraction of the joint accelerations at which a force step's line reaches
+        ``FORCE_TCP_ACCEL_MPS2`` at the TCP: along the line joint j turns by about dq_j per
+        metre of TCP travel (the chord's), so A m/s^2 there takes A |dq_j| rad/s^2 of it."""
+        q0, q1 = line_q
+        kin = self.world.kinematics
+        length_m = float(np.linalg.norm(kin.p_world_tcp(q1) - kin.p_world_tcp(q0)))
+        if length_m <= 0.0:
+            return 1.0
+        need = np.abs(q1 - q0) / length_m * FORCE_TCP_ACCEL_MPS2 / limits.joint_accel_rad_s2
+        return min(1.0, float(need.max()))
 
     def collision(self, allowances: tuple[ContactAllowance, ...] = ()) -> CollisionModel:
         model = self.world.collision.carrying(self.part)
@@ -348,7 +375,8 @@ class _StepPlanner:
             from cellrunner.planning.force_plan import describe
 
             row.message = describe(step, line, row.allowances)
-        motion = _Motion(row, path, self.limits_for(step), line, collision, self.world)
+        limits = self.limits_for(step, (path[0], path[-1]))
+        motion = _Motion(row, path, limits, line, collision, self.world)
         row.world = self.world
         self.q = path[-1]
         row.q_end_rad = path[-1]
@@ -709,7 +737,7 @@ def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
         step_index=row.step.index,
         step_name=row.step.name,
         kinematics=world.kinematics,
-        limits=planner.limits_for(row.step),
+        limits=planner.limits_for(row.step, (row.trajectory.q_rad[0], row.trajectory.q_rad[-1])),
         collision=planner.collision(row.allowances),
         **row.verify_inputs,
     )

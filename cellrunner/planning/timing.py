@@ -115,15 +115,20 @@ class MotionLimits:
         return cls(np.radians(speed) * margin, np.radians(accel) * margin, tcp * margin)
 
     def scaled(
-        self, speed_fraction: float = 1.0, tcp_speed_mps: float | None = None
+        self,
+        speed_fraction: float = 1.0,
+        tcp_speed_mps: float | None = None,
+        accel_fraction: float = 1.0,
     ) -> MotionLimits:
         """Slower limits for one move: joint speeds and accelerations x ``speed_fraction``,
-        TCP speed capped at ``tcp_speed_mps`` (never above this one)."""
+        accelerations x ``accel_fraction`` too, TCP speed capped at ``tcp_speed_mps``
+        (never above this one)."""
         f = float(min(max(speed_fraction, 1e-3), 1.0))
+        g = float(min(max(accel_fraction, 1e-4), 1.0))
         tcp = (
             self.tcp_speed_mps if tcp_speed_mps is None else min(tcp_speed_mps, self.tcp_speed_mps)
         )
-        return MotionLimits(self.joint_speed_rad_s * f, self.joint_accel_rad_s2 * f, tcp)
+        return MotionLimits(self.joint_speed_rad_s * f, self.joint_accel_rad_s2 * f * g, tcp)
 
 
 @dataclass(frozen=True)

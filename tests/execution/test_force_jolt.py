@@ -4,9 +4,11 @@ to ~4 N at 10 mm/s, more on the twin). That shake is not a contact; a real conta
 still found (cells/peg_ur3e.yaml on MuJoCo, and the same cell with a CB3 UR3 at 125 Hz,
 where the shake stays under the limit and the case shows the rule costs no contact).
 
-The same shake comes as the arm sets off down the line (~1.5 N on the twin, 2.2 N through
-ur_rtde): after the contact, the arm goes back only to where the contact's own rise began,
-not to the line's start."""
+The arm setting off down the line pushed on the sensor the same way (1.6 N on the twin,
+2.2 N through ur_rtde, when the line started as hard as the joint limits allowed): after
+the contact the arm must go back only to where the contact's own rise began, not to the
+line's start (the line now sets off at 0.1 m/s^2, and a rise that falls back is no start of
+a contact)."""
 
 from __future__ import annotations
 
@@ -91,9 +93,9 @@ def test_a_real_contact_is_found_while_the_stream_stalls(tmp_path, model):
 
 @pytest.mark.parametrize("model", ["ur3e", "ur3"])
 def test_after_a_contact_the_arm_goes_back_only_to_where_it_began(tmp_path, model):
-    """A 2.5 N probe: where the contact began is where the force rose past 0.5 N. The arm
-    setting off shakes the wrist past that already; counting it, the arm went back up the
-    whole line (as far as the approach point) instead of a few mm."""
+    """A 2.5 N probe: where the contact began is where the force rose past 0.5 N for good.
+    The arm setting off pushed past that already; counted, it sent the arm back up the
+    whole line (to the approach point) instead of a few mm."""
     result, _, z_after = _probe(tmp_path, 0.1, model, late=False)
     assert result.result_code == ResultCode.OK, result.result_text
     start_z, end_z = z_after[PROBE_STEP - 1], z_after[PROBE_STEP]

@@ -64,3 +64,34 @@ def test_the_part_is_carried_from_the_grip_to_the_release(plan) -> None:
             continue
         carried = grip < i < release
         assert (row.carrying is not None) == carried, (row.step.label, row.carrying)
+
+
+@pytest.mark.parametrize("model", ["ur3e", "ur3"])
+@pytest.mark.parametrize("task_text", ["peg_insert", "probe"])
+def test_force_lines_set_off_and_stop_gently(tmp_path, model, task_text) -> None:
+    """A force step's line accelerates at most ``FORCE_TCP_ACCEL_MPS2`` at the TCP, as
+    moveUntilContact does: the tool's mass pushes on the wrist sensor in proportion (the
+    peg line set off at ~5 m/s^2: 2.2 N through ur_rtde, a contact to a 1.5 N probe)."""
+    from tests.cells.test_reference_cells import probe_task
+
+    text = (ROOT / "cells/peg_ur3e.yaml").read_text().replace("model: ur3e", f"model: {model}")
+    (tmp_path / "cell.yaml").write_text(text)
+    (tmp_path / "probe.yaml").write_text(probe_task(0.1))
+    task_path = (
+        str(ROOT / "tasks/peg_insert.yaml")
+        if task_text == "peg_insert"
+        else tmp_path / "probe.yaml"
+    )
+    with contextlib.redirect_stderr(io.StringIO()):
+        cell, task = load(str(tmp_path / "cell.yaml"), str(task_path))
+    world = CellWorld(cell)
+    result = task_plan.plan_task(world, expand(task, cell.cell, {}), world.q_home_rad)
+    assert result.ok, result.errors
+    forces = [r for r in result.rows if r.step.kind in ("insert", "move_until_contact")]
+    assert forces
+    for row in forces:
+        p = world.kinematics.p_world_tcp_many(row.trajectory.q_rad)
+        p = np.vstack([p[:1], p, p[-1:]])  # from rest, to rest
+        accel = np.linalg.norm(np.diff(p, 2, axis=0), axis=1) * row.trajectory.rate_hz**2
+        assert accel.max() <= task_plan.FORCE_TCP_ACCEL_MPS2 * 1.05, (row.step.label, accel.max())
+        assert accel.max() > 0.2 * task_plan.FORCE_TCP_ACCEL_MPS2  # it does accelerate
