@@ -158,7 +158,8 @@ def optimal_bound_s(world, plan) -> float:
 def _limits_of(world, row):
     from cellrunner.planning.task_plan import _StepPlanner
 
-    return _StepPlanner(world, row.trajectory.q_rad[0], None).limits_for(row.step)
+    q = row.trajectory.q_rad
+    return _StepPlanner(world, q[0], None).limits_for(row.step, (q[0], q[-1]))
 
 
 def run(cell_path: str, task_path: str, verbose: bool = True) -> dict:
