@@ -504,7 +504,8 @@ class Controller:
         self.actual_tcp_pose = self.kinematics.tcp_pose(self.meas.q_rad)
         self.actual_tcp_speed = _pose_rate(previous_tcp, self.actual_tcp_pose, dt)
         if self.meas.contact and self.safety_mode == SafetyMode.NORMAL:
-            self.protective_stop("collision detected")
+            what = self.meas.contact_what
+            self.protective_stop(f"collision detected: {what}" if what else "collision detected")
 
     def _advance_motion(self, dt: float) -> None:
         previous_qd = self.target_qd

@@ -46,6 +46,7 @@ class MujocoPhysics:
         self.world = SimWorld(description)
         self._q_prev: np.ndarray | None = None
         self._contact = False
+        self._contact_what = ""
         self._lock = threading.Lock()  # qpos for the camera thread (twin.camera)
 
     def snapshot_qpos(self) -> np.ndarray:
@@ -95,6 +96,12 @@ class MujocoPhysics:
             world.command(q_cmd, qd)
         world.step_period()
         self._contact = world.safety is Safety.PROTECTIVE_STOP
+        hit = world.last_contact
+        self._contact_what = (
+            f"{hit.geoms[0]} against {hit.geoms[1]}, {hit.force_N:.0f} N at {hit.time_s:.3f} s"
+            if self._contact and hit is not None and hit.time_s == world.stop_time_s
+            else ""
+        )
 
     def measure(self) -> Measurement:
         from cellrunner.twin.physics import Measurement
@@ -111,4 +118,5 @@ class MujocoPhysics:
             wrench_flange=np.asarray(state.wrench_N),
             digital_inputs=bits,
             contact=self._contact,
+            contact_what=self._contact_what,
         )

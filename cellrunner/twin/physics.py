@@ -36,6 +36,8 @@ class Measurement:
     digital_inputs: int = 0
     contact: bool = False
     analog_inputs: tuple[float, float] = (0.0, 0.0)  # V
+    #: what the contact was, when the physics knows (geoms and force), for the log
+    contact_what: str = ""
 
 
 @runtime_checkable

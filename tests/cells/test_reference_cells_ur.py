@@ -67,7 +67,9 @@ def test_move_until_contact_through_ur_rtde(tmp_path):
     host = "127.0.0.116"
     with twin(PEG[0], host):
         out = run_ur(PEG[0], str(tmp_path / "near.yaml"), host)
-        assert out["result_code"] == 0, (out["result_text"], out["steps"])
+        # on failure the twin's log says what stopped the arm (a rare protective stop at
+        # the block, about 1 run in 10, whose cause is not known yet)
+        assert out["result_code"] == 0, (out["result_text"], out["steps"], fault(host, "log 8"))
         # down ~60 mm at 10 mm/s, then back to where the contact's rise began: 6.3 s, as in
         # a dry-run (12.3 s when the wrist's shake as the arm set off, 2.2 N here, was taken
         # for the contact's start and the arm went back up the whole line)
