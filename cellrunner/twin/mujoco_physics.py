@@ -95,13 +95,15 @@ class MujocoPhysics:
         if world.safety is Safety.NORMAL and not world.stopping:
             world.command(q_cmd, qd)
         world.step_period()
-        self._contact = world.safety is Safety.PROTECTIVE_STOP
-        hit = world.last_contact
-        self._contact_what = (
-            f"{hit.geoms[0]} against {hit.geoms[1]}, {hit.force_N:.0f} N at {hit.time_s:.3f} s"
-            if self._contact and hit is not None and hit.time_s == world.stop_time_s
-            else ""
-        )
+        stopped = world.safety is Safety.PROTECTIVE_STOP
+        if stopped != self._contact:  # a stop begins or ends: the contact it met, if any
+            hit = world.last_contact
+            self._contact_what = (
+                f"{hit.geoms[0]} against {hit.geoms[1]}, {hit.force_N:.0f} N at {hit.time_s:.3f} s"
+                if stopped and hit is not None and hit.time_s == world.stop_time_s
+                else ""
+            )
+        self._contact = stopped
 
     def measure(self) -> Measurement:
         from cellrunner.twin.physics import Measurement
