@@ -123,13 +123,12 @@ def check_cell(loaded: LoadedCell, report: Warner) -> None:
         centre = [
             sum(c) / len(far) for c in zip(*(cell.frames[name].xyz for name in far), strict=True)
         ]
-        mount_xyz = mount.xyz
         for name, distance_m in far.items():
             report.warn(
                 ("frames", name, "xyz"),
                 f"frame {name!r} is {distance_m:.2f} m from the {model}'s "
                 f"shoulder {reach}: is the cell in the wrong place, or the robot? robot.mount is at "
-                f"{_fmt_xyz(mount_xyz)}; did you mean a mount near {_fmt_xyz([centre[0], centre[1], mount_xyz[2]])}, "
+                f"{_fmt_xyz(mount.xyz)}; did you mean a mount near {_fmt_xyz([centre[0], centre[1], mount.xyz[2]])}, "
                 "among the frames?",
             )
 
