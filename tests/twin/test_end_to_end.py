@@ -8,14 +8,13 @@ import json
 import os
 import subprocess
 import sys
-import threading
 import time
 
 import pytest
 
 from tests.conftest import ROOT
 from tests.execution.test_dryrun import project  # noqa: F401 (fixture)
-from tests.twin.cell_rig import TOUR
+from tests.twin.cell_rig import TOUR, fault_once_moving
 
 HOST = "127.0.0.23"
 
@@ -76,27 +75,12 @@ def test_run_through_ur_rtde_on_the_twin(project, twin):  # noqa: F811
 
 
 def test_protective_stop_on_the_twin_is_recovered(project, twin, tmp_path):  # noqa: F811
-    from cellrunner.twin.server import FaultClient
-
-    def stop_later():
-        """Once the arm moves (the job is under way, however long start-up took)."""
-        client = FaultClient(HOST)
-        q0 = None
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            q = json.loads(client.command("state"))["q_rad"]
-            q0 = q0 or q
-            if max(abs(a - b) for a, b in zip(q, q0, strict=True)) > 0.02:
-                break
-            time.sleep(0.02)
-        client.command("protective_stop")
-
     # two moves (1.8 s): the stop comes in the first; the whole pick and place runs in
     # test_run_through_ur_rtde_on_the_twin
     cell, _ = project
     tour = tmp_path / "tour.yaml"
     tour.write_text(TOUR)
-    threading.Thread(target=stop_later, daemon=True).start()
+    fault_once_moving(HOST, "protective_stop")  # once the job is under way
     r = run_job((cell, tour))
     assert r.returncode == 0, r.stderr[-3000:]
     out = json.loads(r.stdout)
