@@ -81,7 +81,7 @@ def taught_waypoints(world, steps, q_start):
 
     task_plan._StepPlanner.motion = recording
     # no arcs: every corner stays sharp and every edge is a straight piece (proven)
-    joint_path._with_corner_arcs = lambda collision, q: (
+    joint_path._with_corner_arcs = lambda collision, q, *_, **__: (
         np.asarray(q, float),
         list(range(len(q) - 1)),
     )

@@ -2,18 +2,26 @@
 
 The search is OMPL's RRTConnect over the six joint angles (rad), within the joint limits
 narrowed to half a turn beyond the start and goal on each joint (so a plan never winds a
-joint by a full turn for nothing). Every piece of the returned path is proven by
-:meth:`CollisionModel.check_motion` or :meth:`CollisionModel.check_path` (conservative
-advancement, exact up to 0.1 mm), never by sampling alone, so the path is collision-free
-between its waypoints, not only at them.
+joint by a full turn for nothing).
 
 For speed the search samples its edges (every 0.1 rad), the path is shortened by greedy
-shortcutting with the same sampled check, each corner is rounded by a short arc where a
-proven arc fits (:func:`round_corners`, so the timed trajectory need not crawl through
-it), and then the straight pieces left between the arcs are proven. When one fails (an
-obstacle slipped between samples), the searched path is shortened again proving every
-edge it keeps; when the searched path itself fails, the search runs again with the
-conservative check on every edge.
+shortcutting with the same sampled check, and each corner is rounded by a short arc where
+one fits (:func:`round_corners`, so the timed trajectory need not crawl through it).
+
+Two kinds of path:
+
+- ``proven=True`` (the default): every piece is proven here by
+  :meth:`CollisionModel.check_motion` or :meth:`CollisionModel.check_path` (conservative
+  advancement, exact up to 0.1 mm), never by sampling alone: the arcs are chosen by proof,
+  then the straight pieces left between them are proven. When one fails (an obstacle
+  slipped between samples), the searched path is shortened again proving every edge it
+  keeps; when the searched path itself fails, the search runs again with the conservative
+  check on every edge.
+- ``proven=False``: the path is only sampled (the straight move, the arcs and their chords
+  every 0.1 rad, like the search), for a caller that proves it anyway. Task planning does:
+  the verifier (:mod:`.verify`) proves every timed trajectory before it is approved, and
+  proving the same path here first did that work twice. When the proof fails, task
+  planning plans the move again with ``proven=True``.
 
 OMPL draws its random numbers from a process-wide generator; each call reseeds it with
 ``seed`` so that a call's result depends only on its arguments when it is the first OMPL
@@ -52,12 +60,14 @@ MAX_REFUSED_KEPT = 2000
 
 @dataclass(frozen=True)
 class JointPath:
-    """Waypoints ``q_rad`` (N x 6, N >= 2) joined by straight joint-space segments, every
-    one of them checked; ``planner`` is "direct" or "rrtconnect"."""
+    """Waypoints ``q_rad`` (N x 6, N >= 2) joined by straight joint-space segments;
+    ``planner`` is "direct" or "rrtconnect"; ``proven``: every segment proven collision-free
+    (else sampled only, module docstring)."""
 
     q_rad: np.ndarray
     planner: str
     planning_time_s: float
+    proven: bool = True
 
 
 def plan_joint_path(
@@ -67,8 +77,10 @@ def plan_joint_path(
     *,
     time_budget_s: float = 2.0,
     seed: int = 1,
+    proven: bool = True,
 ) -> JointPath:
-    """A collision-free path from ``q_start_rad`` to ``q_goal_rad`` (both (6,), rad).
+    """A collision-free path from ``q_start_rad`` to ``q_goal_rad`` (both (6,), rad);
+    with ``proven=False`` only sampled, for a caller that proves it (module docstring).
 
     Raises :class:`InfeasibleError` when the start or goal is in collision or outside the
     joint limits, or when no path is found within ``time_budget_s``.
@@ -84,14 +96,21 @@ def plan_joint_path(
             raise InfeasibleError(
                 f"{label} configuration in collision: {collision.clearance(q).describe()}"
             )
-    if collision.check_motion(q0, q1, explain=False).ok:
-        return JointPath(np.array([q0, q1]), "direct", time.perf_counter() - t0)
+    if (
+        collision.check_motion(q0, q1, explain=False).ok
+        if proven
+        else sampled_free(collision, q0, q1)
+    ):
+        return JointPath(np.array([q0, q1]), "direct", time.perf_counter() - t0, proven)
+    deadline = t0 + time_budget_s
+    lazy = _rrt_connect(collision, q0, q1, time_budget_s, seed, conservative=False)
+    if not proven:
+        sampled = _shorten_and_round(collision, lazy, _sampled_polyline_free)[0]
+        return JointPath(sampled, "rrtconnect", time.perf_counter() - t0, False)
     # Fast pass: search and shorten with sampled edge checks, round the corners with proven
     # arcs, then prove the straight pieces left between the arcs. When one fails its proof
     # (an obstacle slipped between samples), shorten again proving every edge; when the
     # searched path itself fails, search again with the conservative check on every edge.
-    deadline = t0 + time_budget_s
-    lazy = _rrt_connect(collision, q0, q1, time_budget_s, seed, conservative=False)
     path = _shorten_sampled_then_prove(collision, lazy)
     if path is None:
         certified = shortcut(collision, lazy, edges_checked=False, direct_blocked=True)
@@ -111,9 +130,7 @@ def _shorten_sampled_then_prove(collision: CollisionModel, lazy: np.ndarray) -> 
     each edge at the largest fraction), so this proves about half the straight length that
     proving every shortened edge would, and the sampled shortcut tries cost a fraction of
     proofs."""
-    short = shortcut(collision, lazy, direct_blocked=True, free=sampled_free)
-    assert short is not None  # the searched edges are taken as sampled: nothing refused
-    path, straight = _with_corner_arcs(collision, short)
+    path, straight = _shorten_and_round(collision, lazy, _proven_polyline_free)
     for i in straight:
         a, b = path[i], path[i + 1]
         if (
@@ -124,11 +141,36 @@ def _shorten_sampled_then_prove(collision: CollisionModel, lazy: np.ndarray) -> 
     return path
 
 
+def _shorten_and_round(
+    collision: CollisionModel,
+    lazy: np.ndarray,
+    arc_free: Callable[[CollisionModel, np.ndarray], bool],
+) -> tuple[np.ndarray, list[int]]:
+    """The searched path shortened with sampled checks, then :func:`_with_corner_arcs`
+    with arcs that ``arc_free`` accepts."""
+    short = shortcut(collision, lazy, direct_blocked=True, free=sampled_free)
+    assert short is not None  # the searched edges are taken as sampled: nothing refused
+    return _with_corner_arcs(collision, short, arc_free)
+
+
 def sampled_free(collision: CollisionModel, qa: np.ndarray, qb: np.ndarray) -> bool:
     """Whether the states every ``LAZY_RESOLUTION_RAD`` (joint-space distance) along qa -> qb
     are free, checked coarse to fine (the search's own edge check; it proves nothing)."""
     n = max(1, math.ceil(float(np.linalg.norm(qb - qa)) / LAZY_RESOLUTION_RAD))
     return all(collision.is_valid(qa + s * (qb - qa)) for s in bisection_order(n))
+
+
+def _sampled_polyline_free(collision: CollisionModel, q: np.ndarray) -> bool:
+    """Whether every point of the polyline ``q`` and the states every
+    ``LAZY_RESOLUTION_RAD`` along its longer chords are free (sampled; it proves nothing)."""
+    long = np.nonzero(np.linalg.norm(np.diff(q, axis=0), axis=1) > LAZY_RESOLUTION_RAD)[0]
+    return all(collision.is_valid(p) for p in q) and all(
+        sampled_free(collision, q[i], q[i + 1]) for i in long
+    )
+
+
+def _proven_polyline_free(collision: CollisionModel, q: np.ndarray) -> bool:
+    return collision.check_path(q).ok
 
 
 def round_corners(collision: CollisionModel, q_rad: np.ndarray) -> np.ndarray:
@@ -142,9 +184,13 @@ def round_corners(collision: CollisionModel, q_rad: np.ndarray) -> np.ndarray:
     return _with_corner_arcs(collision, q_rad)[0]
 
 
-def _with_corner_arcs(collision: CollisionModel, q_rad: np.ndarray) -> tuple[np.ndarray, list[int]]:
+def _with_corner_arcs(
+    collision: CollisionModel,
+    q_rad: np.ndarray,
+    arc_free: Callable[[CollisionModel, np.ndarray], bool] = _proven_polyline_free,
+) -> tuple[np.ndarray, list[int]]:
     """:func:`round_corners` and the indices i whose piece i -> i + 1 is straight (not
-    inside a proven arc)."""
+    inside an arc); ``arc_free`` accepts an arc (default: proven)."""
     q = np.asarray(q_rad, float)
     if len(q) < 3:
         return q, list(range(len(q) - 1))
@@ -158,7 +204,7 @@ def _with_corner_arcs(collision: CollisionModel, q_rad: np.ndarray) -> tuple[np.
             if np.abs(p1 - out[-1]).max() < 1e-12:
                 p1 = out[-1]  # where the arc before ends (to the last bit): no piece between
             candidate = (1 - t) ** 2 * p1 + 2 * (1 - t) * t * w + t**2 * p2
-            if collision.check_path(candidate).ok:
+            if arc_free(collision, candidate):
                 arc = candidate
                 break
         straight.append(len(out) - 1)

@@ -56,7 +56,7 @@ def verify_on_error(plan: TaskPlan, cleanup: list[Step]) -> list[StepPlan]:
             try:
                 if step.is_motion:
                     motion = planner.motion(StepPlan(step))
-                    _time_and_verify(planner.world, [motion], q_from)
+                    _time_and_verify(planner.world, motion, q_from)
                 else:
                     planner.act(StepPlan(step))
             except InfeasibleError as exc:

@@ -18,6 +18,7 @@ Rules (SPEC section 10):
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -109,6 +110,9 @@ class _Motion:
     line_m: tuple[np.ndarray, np.ndarray] | None
     collision: CollisionModel
     world: CellWorld
+    #: for a joint move the planner only sampled: the same move planned with every piece
+    #: proven (:func:`_prove_sampled`), for when its timed trajectory fails verification
+    proven: Callable[[], np.ndarray] | None = None
 
 
 @dataclass
@@ -161,7 +165,7 @@ class TaskPlan:
         planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
         goal_q = row.q_end_rad if row is not None and row.status == "ok" else None
         motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
-        approved = _time_and_verify(world, [motion], np.asarray(q_now_rad, float))[0].approved
+        approved = _time_and_verify(world, motion, np.asarray(q_now_rad, float)).approved
         assert approved is not None  # _time_and_verify approves every row or raises
         return approved
 
@@ -336,10 +340,10 @@ class _StepPlanner:
         then: Step | None = None,
     ) -> _Motion:
         from cellrunner.planning.cartesian import plan_linear
-        from cellrunner.planning.joint_path import plan_joint_path
 
         step, kin = row.step, self.world.kinematics
         T_now = kin.T_world_tcp(self.q)
+        proven: Callable[[], np.ndarray] | None = None  # a joint move's, planned proven
         egress, self.egress = self.egress, None  # the first motion's alone
         if step.kind in (StepKind.MOVE, StepKind.APPROACH):
             self.contact = ()  # a joint move leaves a force step's contact behind
@@ -349,12 +353,14 @@ class _StepPlanner:
                 assert step.T_world_tcp is not None  # a move has a joint or a frame target
                 goal_q = self._ik(step.T_world_tcp, step, then)
             collision = self.collision()
-            if egress is None:
-                path = plan_joint_path(collision, self.q, goal_q).q_rad
-            else:
-                out = plan_linear(kin, collision, self.q, egress[0]).q_rad
-                path = np.vstack([out, plan_joint_path(collision, out[-1], goal_q).q_rad[1:]])
+            # sampled only: verification proves the timed trajectory, and a move that fails
+            # it is planned again proven (_prove_sampled)
+            head = self.q[None, :]
+            if egress is not None:
+                head = plan_linear(kin, collision, self.q, egress[0]).q_rad
                 row.message = egress[1]
+            path = _joint_path(collision, head, goal_q, proven=False)
+            proven = functools.partial(_joint_path, collision, head, goal_q, proven=True)
             line = None
         else:
             T_goal = self._linear_goal(step, T_now) if goal_q is None else kin.T_world_tcp(goal_q)
@@ -376,7 +382,7 @@ class _StepPlanner:
 
             row.message = describe(step, line, row.allowances)
         limits = self.limits_for(step, (path[0], path[-1]))
-        motion = _Motion(row, path, limits, line, collision, self.world)
+        motion = _Motion(row, path, limits, line, collision, self.world, proven)
         row.world = self.world
         self.q = path[-1]
         row.q_end_rad = path[-1]
@@ -492,22 +498,67 @@ class _StepPlanner:
             return None
 
 
+def _joint_path(
+    collision: CollisionModel, head: np.ndarray, goal_q: np.ndarray, *, proven: bool
+) -> np.ndarray:
+    """``head`` (the start, or the egress line that leaves it), then a joint path from its
+    end to ``goal_q``."""
+    from cellrunner.planning.joint_path import plan_joint_path
+
+    return np.vstack([head, plan_joint_path(collision, head[-1], goal_q, proven=proven).q_rad[1:]])
+
+
 def _time_group(
     world: CellWorld, group: list[_Motion], q_start: np.ndarray, joined: bool = True
 ) -> None:
     """Time a group of motions as one non-stop trajectory with its corners blended
-    (:func:`_blend`); if that fails verification, or not ``joined``, one by one from rest."""
+    (:func:`_blend`); if that fails verification, or not ``joined``, one by one from rest.
+    Each time verification fails on a joint move the planner only sampled, that move is
+    planned again proven (:func:`_prove_sampled`) and the group timed again."""
     if len(group) > 1 and joined:
-        try:
-            _apply(world, group, _timed_pieces(world, _blend(world, group), q_start))
-            return
-        except InfeasibleError:
-            pass
+        while True:
+            try:
+                _apply(world, group, _timed_pieces(world, _blend(world, group), q_start))
+                return
+            except InfeasibleError as exc:
+                failed = next((m for m in group if _names(str(exc), m.row.step)), None)
+                if failed is None or not _prove_sampled(failed):
+                    break
     q = q_start
     for motion in group:
-        piece = _timed_pieces(world, [motion], q)[0]
+        piece = _verified_alone(world, motion, q)
         _apply(world, [motion], [piece])
         q = piece["trajectory"].q_rad[-1]
+
+
+def _verified_alone(world: CellWorld, motion: _Motion, q_start: np.ndarray) -> _TimedPiece:
+    """``motion`` timed from rest to rest and verified; planned again proven and timed
+    again when its sampled path fails verification."""
+    try:
+        return _timed_pieces(world, [motion], q_start)[0]
+    except InfeasibleError:
+        if not _prove_sampled(motion):
+            raise
+        return _timed_pieces(world, [motion], q_start)[0]
+
+
+def _prove_sampled(motion: _Motion) -> bool:
+    """Replace ``motion``'s path, when the planner only sampled it, by the same move
+    planned with every piece proven; whether it was sampled. Sampling misses an obstacle
+    that slips between its samples (3 of the 20 planning-bench problems); the verifier's
+    proof of the timed trajectory finds it, and this plans that move the slower way."""
+    if motion.proven is None:
+        return False
+    try:
+        motion.waypoints, motion.proven = motion.proven(), None
+    except InfeasibleError as exc:
+        raise InfeasibleError(f"{motion.row.step.label}: {exc}") from None
+    return True
+
+
+def _names(message: str, step: Step) -> bool:
+    """Whether a verification failure ``message`` is about ``step``."""
+    return message.startswith(f"step {step.index} ")
 
 
 def _joins(before: Step, after: Step) -> bool:
@@ -624,10 +675,10 @@ def _corner_arc(
     return np.vstack([a.waypoints[:-1], arc]), np.vstack([arc[-1:], b.waypoints[1:]]), arc
 
 
-def _time_and_verify(world: CellWorld, group: list[_Motion], q_start: np.ndarray) -> list[StepPlan]:
-    """Time ``group`` as one motion and apply the verified pieces to its rows."""
-    _apply(world, group, _timed_pieces(world, group, q_start))
-    return [m.row for m in group]
+def _time_and_verify(world: CellWorld, motion: _Motion, q_start: np.ndarray) -> StepPlan:
+    """Time ``motion`` from rest to rest and apply the verified piece to its row."""
+    _apply(world, [motion], [_verified_alone(world, motion, q_start)])
+    return motion.row
 
 
 def _apply(world: CellWorld, group: list[_Motion], pieces: list[_TimedPiece]) -> None:
@@ -787,7 +838,7 @@ def _check_retry_path(world: CellWorld, row: StepPlan, rows: list[StepPlan]) -> 
             if between.is_motion:
                 q_from = planner.q
                 goal = q_grip if between is descend.step else None
-                _time_and_verify(world, [planner.motion(StepPlan(between), goal_q=goal)], q_from)
+                _time_and_verify(world, planner.motion(StepPlan(between), goal_q=goal), q_from)
     except InfeasibleError as exc:
         raise InfeasibleError(f"{row.step.label}: retry path: {_strip_label(str(exc))}") from None
 

@@ -135,3 +135,27 @@ def test_a_plate_the_sampled_shortcut_steps_over_is_caught_by_the_proofs(monkeyp
     assert len(path.q_rad) > 2
     for q0, q1 in zip(path.q_rad[:-1], path.q_rad[1:], strict=True):
         assert world.check_motion(q0, q1).ok
+
+
+def test_a_sampled_path_is_marked_so_and_a_proven_one_clears_what_sampling_missed():
+    """A 2 mm pin 3 mm inside the tool's rim halfway between two samples of a turn of the
+    base: ``proven=False`` samples the straight move as free (and says it is not proven);
+    the default proves every piece and goes round."""
+    import math
+
+    from cellrunner.planning.joint_path import LAZY_RESOLUTION_RAD
+
+    kin = ArmKinematics(ROBOTS["ur5e"], np.eye(4), pose_matrix((0, 0, 0.15)))
+    a, b = HOME, HOME + np.radians([90, 0, 0, 0, 0, 0])
+    n = math.ceil(float(np.linalg.norm(b - a)) / LAZY_RESOLUTION_RAD)
+    T = kin.T_world_flange(a + (n // 2 + 0.5) / n * (b - a))
+    centre = T[:3, :3] @ np.array([0, 0, 0.075]) + T[:3, 3]  # TOOL's cylinder, r 0.04
+    radial = np.array([centre[0], centre[1], 0.0]) / np.hypot(centre[0], centre[1])
+    pin = Placed("pin", Box((0.002, 0.002, 0.002)), pose_matrix(tuple(centre + 0.037 * radial)))
+    world = CollisionModel(kin, TOOL, [pin])
+    sampled = plan_joint_path(world, a, b, proven=False)
+    assert (sampled.planner, sampled.proven) == ("direct", False)
+    assert not world.check_path(sampled.q_rad).ok
+    proven = plan_joint_path(world, a, b)
+    assert proven.proven and proven.planner == "rrtconnect"
+    assert world.check_path(proven.q_rad).ok

@@ -97,6 +97,72 @@ def test_force_lines_set_off_and_stop_gently(tmp_path, model, task_text) -> None
         assert accel.max() > 0.2 * task_plan.FORCE_TCP_ACCEL_MPS2  # it does accelerate
 
 
+SWING = "task: swing\nsteps:\n  - move: home\n  - move: [90, -90, 90, -90, -90, 0]\n"
+
+
+def _pin_between_samples(tmp_path):
+    """The demo cell with a 2 mm pin where the tool's rim passes 3 mm deep halfway between
+    two of the planner's samples of the joint move of ``SWING`` (the base turning 90 deg),
+    and that task: sampling the move every 0.1 rad sees nothing, a proof of it hits the pin."""
+    import math
+
+    from cellrunner.planning.joint_path import LAZY_RESOLUTION_RAD
+
+    with contextlib.redirect_stderr(io.StringIO()):
+        cell, _ = load(str(ROOT / "cells/demo_ur5e.yaml"), str(ROOT / "tasks/home.yaml"))
+    kin = CellWorld(cell).kinematics
+    a, b = np.radians([0, -90, 90, -90, -90, 0]), np.radians([90, -90, 90, -90, -90, 0])
+    n = math.ceil(float(np.linalg.norm(b - a)) / LAZY_RESOLUTION_RAD)
+    T = kin.T_world_flange(a + (n // 2 + 0.5) / n * (b - a))
+    centre = T[:3, :3] @ np.array([0, 0, 0.045]) + T[:3, 3]  # the demo tool's cylinder, r 0.04
+    radial = np.array([centre[0], centre[1], 0.0]) / np.hypot(centre[0], centre[1])
+    x, y, z = centre + (0.04 - 0.003) * radial
+    text = (ROOT / "cells/demo_ur5e.yaml").read_text()
+    text = text.replace(
+        "fixtures:\n",
+        f"fixtures:\n  - {{name: pin, box: {{size: [0.002, 0.002, 0.002]}}, pose: {{xyz: [{x:.6f}, {y:.6f}, {z:.6f}]}}}}\n",
+    )
+    (tmp_path / "cell.yaml").write_text(text)
+    (tmp_path / "swing.yaml").write_text(SWING)
+    with contextlib.redirect_stderr(io.StringIO()):
+        cell, task = load(str(tmp_path / "cell.yaml"), str(tmp_path / "swing.yaml"))
+    world = CellWorld(cell)
+    return world, expand(task, cell.cell, {}), a, b
+
+
+def test_a_joint_move_sampling_missed_is_planned_again_proven(tmp_path, monkeypatch) -> None:
+    """The planner only samples a task's joint moves; the verifier proves the timed
+    trajectory, and a move whose proof fails is planned again with every piece proven."""
+    from cellrunner.planning import joint_path
+
+    world, steps, a, b = _pin_between_samples(tmp_path)
+    assert joint_path.sampled_free(world.collision, a, b)
+    assert not world.collision.check_motion(a, b).ok
+
+    proven_calls = []
+    original = joint_path.plan_joint_path
+
+    def spy(*args, **kwargs):
+        proven_calls.append(kwargs.get("proven", True))
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(joint_path, "plan_joint_path", spy)
+    result = task_plan.plan_task(world, steps, world.q_home_rad)
+    assert result.ok, result.errors
+    assert proven_calls == [False, False, True]  # home (no move), the swing, the swing again
+    q = result.rows[1].trajectory.q_rad
+    assert world.collision.check_path(q).ok
+    u = (b - a) / np.linalg.norm(b - a)
+    off_line = (q - a) - np.outer((q - a) @ u, u)
+    assert np.linalg.norm(off_line, axis=1).max() > 0.01  # round the pin, not straight
+
+    # without the proven plan, the verifier refuses the sampled move by the pin's name
+    monkeypatch.setattr(task_plan, "_prove_sampled", lambda motion: False)
+    refused = task_plan.plan_task(world, steps, world.q_home_rad)
+    assert not refused.ok
+    assert refused.errors[0].startswith("step 2 move") and "'pin'" in refused.errors[0]
+
+
 @pytest.mark.parametrize("cell", ["bin_to_shelf_ur5", "bin_to_shelf_ur10e"])
 def test_a_wrist_at_the_edge_of_its_range_still_blends(cell) -> None:
     """At shelf slot 3 the wrist stands at -180 deg, the edge of the cell's narrowed range,
