@@ -3,6 +3,7 @@
 import itertools
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -137,7 +138,8 @@ def test_a_plate_the_sampled_shortcut_steps_over_is_caught_by_the_proofs(monkeyp
         assert world.check_motion(q0, q1).ok
 
 
-def test_a_sampled_path_is_marked_so_and_a_proven_one_clears_what_sampling_missed():
+@pytest.mark.parametrize("model", ["ur5e", "ur5", "ur10e", "ur20"])
+def test_a_sampled_path_is_marked_so_and_a_proven_one_clears_what_sampling_missed(model):
     """A 2 mm pin 3 mm inside the tool's rim halfway between two samples of a turn of the
     base: ``proven=False`` samples the straight move as free (and says it is not proven);
     the default proves every piece and goes round."""
@@ -145,7 +147,7 @@ def test_a_sampled_path_is_marked_so_and_a_proven_one_clears_what_sampling_misse
 
     from cellrunner.planning.joint_path import LAZY_RESOLUTION_RAD
 
-    kin = ArmKinematics(ROBOTS["ur5e"], np.eye(4), pose_matrix((0, 0, 0.15)))
+    kin = ArmKinematics(ROBOTS[model], np.eye(4), pose_matrix((0, 0, 0.15)))
     a, b = HOME, HOME + np.radians([90, 0, 0, 0, 0, 0])
     n = math.ceil(float(np.linalg.norm(b - a)) / LAZY_RESOLUTION_RAD)
     T = kin.T_world_flange(a + (n // 2 + 0.5) / n * (b - a))
