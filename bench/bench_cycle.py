@@ -21,6 +21,11 @@ acceleration and TCP cap, x margin, as cellrunner plans with them):
 
 Grip, release, IO and waits take the same time in all four (cellrunner's figures).
 Targets: cellrunner <= 0.95x blended, <= 0.85x stopping, <= 1.02x the bound.
+
+The table and the targets are each task at its default parameters. ``--all-slots`` adds,
+per task with an integer parameter (a pattern's slot, a kit's pocket), the range of each
+ratio over every value of it: a slot whose path differs (another corner to round, a
+wrist at the edge of its range) shows there and nowhere else.
 """
 
 from __future__ import annotations
@@ -162,7 +167,9 @@ def _limits_of(world, row):
     return _StepPlanner(world, q[0], None).limits_for(row.step, (q[0], q[-1]))
 
 
-def run(cell_path: str, task_path: str, verbose: bool = True) -> dict:
+def run(
+    cell_path: str, task_path: str, verbose: bool = True, param_args: tuple[str, ...] = ()
+) -> dict:
     from cellrunner.cli.common import load, parse_params
     from cellrunner.model.expand import expand
     from cellrunner.planning.task_plan import plan_task
@@ -170,7 +177,7 @@ def run(cell_path: str, task_path: str, verbose: bool = True) -> dict:
 
     with contextlib.redirect_stderr(io.StringIO()):  # load warnings (e.g. users file)
         cell, task = load(str(REPO / cell_path), str(REPO / task_path))
-    params = parse_params([], task)
+    params = parse_params(list(param_args), task)
     world = CellWorld(cell)
     steps = expand(task, cell.cell, params)
     t = time.perf_counter()
@@ -291,14 +298,65 @@ def targets(results: list[dict]) -> list[tuple[str, bool]]:
     ]
 
 
+def slot_ranges(cell: str | None = None, task: str | None = None) -> list[dict]:
+    """Per job with an integer parameter: every value of its first one timed, and the range
+    of each ratio over them."""
+    from cellrunner.cli.common import load
+
+    out = []
+    for c, t in jobs(cell, task):
+        with contextlib.redirect_stderr(io.StringIO()):
+            _, loaded = load(str(REPO / c), str(REPO / t))
+        ints = [(k, p) for k, p in (loaded.task.params or {}).items() if p.type == "int"]
+        if not ints or ints[0][1].min is None or ints[0][1].max is None:
+            continue
+        name, p = ints[0]
+        runs = [
+            run(c, t, verbose=False, param_args=(f"{name}={v}",))
+            for v in range(int(p.min), int(p.max) + 1)
+        ]
+        out.append({"cell": c, "task": t, "param": name, "runs": [r for r in runs if r["motion"]]})
+    return out
+
+
+def slot_lines(ranges: list[dict]) -> list[str]:
+    lines = [
+        "cycle time over every value of each task's integer parameter (ranges of the ratios):",
+        f"  {'cell / task':44s} {'param':>7s} {'n':>3s} {'cellrunner s':>13s} {'vs PS blend':>12s} "
+        f"{'vs PS stop':>12s} {'vs bound':>13s}",
+    ]
+    for r in ranges:
+        runs = r["runs"]
+        if not runs:
+            continue
+
+        def span(key: str, fmt: str, runs: list[dict] = runs) -> str:
+            values = [x[key] for x in runs]
+            return f"{min(values):{fmt}}-{max(values):{fmt}}"
+
+        name = f"{Path(r['cell']).stem} / {Path(r['task']).stem}"
+        lines.append(
+            f"  {name:44s} {r['param']:>7s} {len(runs):3d} {span('ours_s', '.2f'):>13s} "
+            f"{span('ratio_blended', '.3f'):>12s} {span('ratio_stopping', '.3f'):>12s} "
+            f"{span('ratio_bound', '.3f'):>13s}"
+        )
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("cell", nargs="?")
     parser.add_argument("task", nargs="?")
+    parser.add_argument(
+        "--all-slots", action="store_true", help="also every value of each task's integer param"
+    )
     args = parser.parse_args(argv)
     results = run_all(args.cell, args.task)
     print()
     print("\n".join(summary_lines(results)))
+    if args.all_slots:
+        print()
+        print("\n".join(slot_lines(slot_ranges(args.cell, args.task))))
     return 0
 
 
