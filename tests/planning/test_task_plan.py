@@ -184,3 +184,30 @@ def test_a_wrist_at_the_edge_of_its_range_still_blends(cell) -> None:
         if row.trajectory is not None:
             assert (row.trajectory.q_rad >= kin.q_min_rad).all(), row.step.label
             assert (row.trajectory.q_rad <= kin.q_max_rad).all(), row.step.label
+
+
+def test_a_move_planned_again_that_finds_no_path_is_named_itself(tmp_path, monkeypatch) -> None:
+    """The proven plan of a sampled move comes when its group is timed, after later steps
+    were planned; when it fails, the row and the error are that move's, not the last
+    step's."""
+    from cellrunner.errors import InfeasibleError
+    from cellrunner.planning import joint_path
+
+    world, _, _, _ = _pin_between_samples(tmp_path)
+    (tmp_path / "swing_back.yaml").write_text(SWING + "  - move: home\n")
+    with contextlib.redirect_stderr(io.StringIO()):
+        cell, task = load(str(tmp_path / "cell.yaml"), str(tmp_path / "swing_back.yaml"))
+    original = joint_path.plan_joint_path
+
+    def no_proven_path(*args, **kwargs):
+        if kwargs.get("proven", True):
+            raise InfeasibleError("no collision-free joint path found within 2.0 s")
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(joint_path, "plan_joint_path", no_proven_path)
+    result = task_plan.plan_task(world, expand(task, cell.cell, {}), world.q_home_rad)
+    assert not result.ok
+    assert len(result.errors) == 1 and result.errors[0].startswith("step 2 "), result.errors
+    assert result.errors[0].endswith(": no collision-free joint path found within 2.0 s")
+    # the group was not timed: its first move is unplanned too
+    assert [r.status for r in result.rows] == ["not planned", "failed", "not planned"]
