@@ -557,8 +557,9 @@ def _prove_sampled(motion: _Motion) -> bool:
 
 
 def _names(message: str, step: Step) -> bool:
-    """Whether a verification failure ``message`` is about ``step``."""
-    return message.startswith(f"step {step.index} ")
+    """Whether an error ``message`` is about ``step``: it starts with the step's label, or
+    with the verifier's "step N NAME"."""
+    return message.startswith(step.label + ":") or message.startswith(f"step {step.index} ")
 
 
 def _joins(before: Step, after: Step) -> bool:
@@ -844,10 +845,7 @@ def _check_retry_path(world: CellWorld, row: StepPlan, rows: list[StepPlan]) -> 
 
 
 def _row_named(rows: list[StepPlan], message: str) -> StepPlan | None:
-    for r in rows:
-        if message.startswith(r.step.label + ":") or message.startswith(f"step {r.step.index} "):
-            return r
-    return None
+    return next((r for r in rows if _names(message, r.step)), None)
 
 
 def _strip_label(message: str) -> str:
