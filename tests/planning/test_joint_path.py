@@ -138,22 +138,31 @@ def test_a_plate_the_sampled_shortcut_steps_over_is_caught_by_the_proofs(monkeyp
         assert world.check_motion(q0, q1).ok
 
 
+def pin_between_samples(kin, a, b, tool_centre_z_m: float, tool_radius_m: float) -> np.ndarray:
+    """Where a 2 mm pin sits 3 mm inside a flange-mounted tool cylinder's rim (centre
+    ``tool_centre_z_m`` along the flange's z) halfway between two of the planner's samples
+    of the joint move a -> b, a turn of the base: on the side away from the base axis,
+    where each sample's cylinder passes clear of it and the swept one does not."""
+    import math
+
+    from cellrunner.planning.joint_path import LAZY_RESOLUTION_RAD
+
+    n = math.ceil(float(np.linalg.norm(b - a)) / LAZY_RESOLUTION_RAD)
+    T = kin.T_world_flange(a + (n // 2 + 0.5) / n * (b - a))
+    centre = T[:3, :3] @ np.array([0, 0, tool_centre_z_m]) + T[:3, 3]
+    radial = np.array([centre[0], centre[1], 0.0]) / np.hypot(centre[0], centre[1])
+    return centre + (tool_radius_m - 0.003) * radial
+
+
 @pytest.mark.parametrize("model", ["ur5e", "ur5", "ur10e", "ur20"])
 def test_a_sampled_path_is_marked_so_and_a_proven_one_clears_what_sampling_missed(model):
     """A 2 mm pin 3 mm inside the tool's rim halfway between two samples of a turn of the
     base: ``proven=False`` samples the straight move as free (and says it is not proven);
     the default proves every piece and goes round."""
-    import math
-
-    from cellrunner.planning.joint_path import LAZY_RESOLUTION_RAD
-
     kin = ArmKinematics(ROBOTS[model], np.eye(4), pose_matrix((0, 0, 0.15)))
     a, b = HOME, HOME + np.radians([90, 0, 0, 0, 0, 0])
-    n = math.ceil(float(np.linalg.norm(b - a)) / LAZY_RESOLUTION_RAD)
-    T = kin.T_world_flange(a + (n // 2 + 0.5) / n * (b - a))
-    centre = T[:3, :3] @ np.array([0, 0, 0.075]) + T[:3, 3]  # TOOL's cylinder, r 0.04
-    radial = np.array([centre[0], centre[1], 0.0]) / np.hypot(centre[0], centre[1])
-    pin = Placed("pin", Box((0.002, 0.002, 0.002)), pose_matrix(tuple(centre + 0.037 * radial)))
+    xyz = pin_between_samples(kin, a, b, 0.075, 0.04)  # TOOL's cylinder
+    pin = Placed("pin", Box((0.002, 0.002, 0.002)), pose_matrix(tuple(xyz)))
     world = CollisionModel(kin, TOOL, [pin])
     sampled = plan_joint_path(world, a, b, proven=False)
     assert (sampled.planner, sampled.proven) == ("direct", False)

@@ -104,19 +104,13 @@ def _pin_between_samples(tmp_path):
     """The demo cell with a 2 mm pin where the tool's rim passes 3 mm deep halfway between
     two of the planner's samples of the joint move of ``SWING`` (the base turning 90 deg),
     and that task: sampling the move every 0.1 rad sees nothing, a proof of it hits the pin."""
-    import math
-
-    from cellrunner.planning.joint_path import LAZY_RESOLUTION_RAD
+    from tests.planning.test_joint_path import pin_between_samples
 
     with contextlib.redirect_stderr(io.StringIO()):
         cell, _ = load(str(ROOT / "cells/demo_ur5e.yaml"), str(ROOT / "tasks/home.yaml"))
     kin = CellWorld(cell).kinematics
     a, b = np.radians([0, -90, 90, -90, -90, 0]), np.radians([90, -90, 90, -90, -90, 0])
-    n = math.ceil(float(np.linalg.norm(b - a)) / LAZY_RESOLUTION_RAD)
-    T = kin.T_world_flange(a + (n // 2 + 0.5) / n * (b - a))
-    centre = T[:3, :3] @ np.array([0, 0, 0.045]) + T[:3, 3]  # the demo tool's cylinder, r 0.04
-    radial = np.array([centre[0], centre[1], 0.0]) / np.hypot(centre[0], centre[1])
-    x, y, z = centre + (0.04 - 0.003) * radial
+    x, y, z = pin_between_samples(kin, a, b, 0.045, 0.04)  # the demo tool's cylinder
     text = (ROOT / "cells/demo_ur5e.yaml").read_text()
     text = text.replace(
         "fixtures:\n",
