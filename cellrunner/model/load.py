@@ -208,6 +208,9 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     from cellrunner.model.sim_inputs import check_sim_block
 
     check_sim_block(cell, report)
+    from cellrunner.model.watch import check_watch
+
+    check_watch(cell, report)
     for i, part in enumerate(cell.parts):
         if part.at not in cell.frames:
             report.error(("parts", i, "at"), unknown_name("frame", part.at, cell.frames))
