@@ -300,7 +300,7 @@ class _StepPlanner:
         self.egress: tuple[np.ndarray, str] | None = None
         self.contact: tuple[
             ContactAllowance, ...
-        ] = ()  # a force step's contacts, which the next straight move leaves
+        ] = ()  # a force step's or tight fit's contacts, which the next straight move leaves
 
     def limits_for(
         self, step: Step, line_q: tuple[np.ndarray, np.ndarray] | None = None
@@ -328,9 +328,17 @@ class _StepPlanner:
         need = np.abs(q1 - q0) / length_m * FORCE_TCP_ACCEL_MPS2 / limits.joint_accel_rad_s2
         return min(1.0, float(need.max()))
 
-    def collision(self, allowances: tuple[ContactAllowance, ...] = ()) -> CollisionModel:
+    def collision(
+        self, allowances: tuple[ContactAllowance, ...] = (), step: Step | None = None
+    ) -> CollisionModel:
+        """The cell's model with the carried part, ``allowances``, and the clearance
+        ``step`` keeps (its own ``clearance:``, SPEC section 12)."""
+        from cellrunner.planning.tight_fit import step_clearance_m
+
         model = self.world.collision.carrying(self.part)
-        return model.allowing(*allowances) if allowances else model
+        model = model.allowing(*allowances) if allowances else model
+        clearance = step_clearance_m(step)
+        return model.keeping(clearance) if clearance is not None else model
 
     def motion(
         self,
@@ -346,7 +354,7 @@ class _StepPlanner:
         proven: Callable[[], np.ndarray] | None = None  # a joint move's, planned proven
         egress, self.egress = self.egress, None  # the first motion's alone
         if step.kind in (StepKind.MOVE, StepKind.APPROACH):
-            self.contact = ()  # a joint move leaves a force step's contact behind
+            self.contact = ()  # a joint move leaves a force step's or tight fit's contacts behind
             if goal_q is None and step.q_goal_deg is not None:
                 goal_q = np.radians(step.q_goal_deg)
             elif goal_q is None:
@@ -363,16 +371,20 @@ class _StepPlanner:
             proven = functools.partial(_joint_path, collision, head, goal_q, proven=True)
             line = None
         else:
+            from cellrunner.planning.tight_fit import named_contacts
+
             T_goal = self._linear_goal(step, T_now) if goal_q is None else kin.T_world_tcp(goal_q)
+            named = named_contacts(step)
             if allowances is None:
                 if step.kind in FORCE_KINDS:  # contact is what the step is for, where its line ends
                     from cellrunner.planning.force_plan import contact_allowances
 
-                    allowances = self.contact + contact_allowances(self, step, T_goal)
+                    allowances = self.contact + contact_allowances(self, step, T_goal) + named
                 else:
-                    allowances = self._place_allowances(step, T_goal)  # with self.contact
-                self.contact = allowances if step.kind in FORCE_KINDS else ()
-            collision = self.collision(allowances)
+                    allowances = self._place_allowances(step, T_goal, named)  # with self.contact
+            collision = self.collision(allowances, step)
+            # the next straight move leaves a force step's or tight fit's contacts
+            self.contact = allowances if step.kind in FORCE_KINDS or named else ()
             path = plan_linear(kin, collision, self.q, T_goal).q_rad
             line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
         row.allowances = tuple(allowances or ())
@@ -436,7 +448,9 @@ class _StepPlanner:
         if not valid:
             raise every_branch_collides(step.label, kin, collision, T_world_tcp, self.q)
         if follow is not None and then is not None:
-            after = self.collision(self._place_allowances(then, follow))
+            from cellrunner.planning.tight_fit import named_contacts
+
+            after = self.collision(self._place_allowances(then, follow, named_contacts(then)), then)
             for q in valid:
                 q_next = kin.ik_track(follow, q)
                 if q_next is not None and after.is_valid(q_next):
@@ -455,21 +469,24 @@ class _StepPlanner:
         assert step.T_world_tcp is not None  # descend and linear have a frame target
         return step.T_world_tcp
 
-    def _place_allowances(self, step: Step, T_goal: np.ndarray) -> tuple[ContactAllowance, ...]:
+    def _place_allowances(
+        self, step: Step, T_goal: np.ndarray, named: tuple[ContactAllowance, ...] = ()
+    ) -> tuple[ContactAllowance, ...]:
         """The carried part may touch the fixture it rests on where a straight move starts
-        (lifting it off) or ends (setting it down), and only that fixture."""
+        (lifting it off) or ends (setting it down), and only that fixture; and the fixtures
+        the step names in ``contact:`` (``named``) anywhere along it."""
         from cellrunner.planning.collision import ContactAllowance
 
         if self.part is None or step.kind not in LINEAR_KINDS:
-            return self.contact
+            return self.contact + named
         q_goal = self._try_ik(T_goal)
         # a force step's contact comes first: the part leaves it as deep as the step let it
         # go (the set-down rule below is for the surfaces it is lifted off or set down on)
-        allowances: list[ContactAllowance] = list(self.contact)
+        allowances: list[ContactAllowance] = [*self.contact, *named]
         for end, q in (("start", self.q), ("end", q_goal)):
             if q is None:
                 continue
-            model = self.collision(tuple(allowances))
+            model = self.collision(tuple(allowances), step)
             for _ in range(3):
                 clearance = model.clearance(q)
                 if (
@@ -488,7 +505,7 @@ class _StepPlanner:
                 allowances.append(
                     ContactAllowance(clearance.b[len("fixture '") : -1], "part", -SET_DOWN_PRESS_M)
                 )
-                model = self.collision(tuple(allowances))
+                model = self.collision(tuple(allowances), step)
         return tuple(allowances)
 
     def _try_ik(self, T: np.ndarray) -> np.ndarray | None:
@@ -790,7 +807,7 @@ def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
         step_name=row.step.name,
         kinematics=world.kinematics,
         limits=planner.limits_for(row.step, (row.trajectory.q_rad[0], row.trajectory.q_rad[-1])),
-        collision=planner.collision(row.allowances),
+        collision=planner.collision(row.allowances, row.step),
         **row.verify_inputs,
     )
 
