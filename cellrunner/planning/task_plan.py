@@ -38,6 +38,7 @@ from cellrunner.planning.egress import corridors, egress_pose
 from cellrunner.planning.world import CellWorld
 
 if TYPE_CHECKING:
+    from cellrunner.model.cell import Gripper
     from cellrunner.planning.collision import CollisionModel, ContactAllowance
     from cellrunner.planning.kinematics import ArmKinematics
     from cellrunner.planning.timing import MotionLimits
@@ -47,6 +48,8 @@ if TYPE_CHECKING:
 WRIST_SETTLE_S = 0.15
 #: how far a carried part may press into the surface it is set down on or lifted off (m)
 SET_DOWN_PRESS_M = 0.001
+#: how far the tool may press into a waiting part it reaches around to grip (m)
+GRIP_PRESS_M = 0.001
 #: blends where a joint move meets a straight step (:func:`_blend`): at most this share
 #: of the straight step's line and this distance (m) from the corner, like the radii a
 #: UR integrator sets (bench/polyscope.py uses the same)
@@ -374,6 +377,9 @@ class _StepPlanner:
             from cellrunner.planning.tight_fit import named_contacts
 
             T_goal = self._linear_goal(step, T_now) if goal_q is None else kin.T_world_tcp(goal_q)
+            if then is not None and then.kind == StepKind.GRIP:  # the jaws must fit the part first
+                part = self.world.part_at(then.extra.get("part_at", ""), T_goal)
+                _check_jaws_fit(then, self.world.loaded.cell.tool.gripper, part)
             named = named_contacts(step)
             if allowances is None:
                 if step.kind in FORCE_KINDS:  # contact is what the step is for, where its line ends
@@ -382,6 +388,7 @@ class _StepPlanner:
                     allowances = self.contact + contact_allowances(self, step, T_goal) + named
                 else:
                     allowances = self._place_allowances(step, T_goal, named)  # with self.contact
+                allowances += self._waiting_touches(T_goal)
             collision = self.collision(allowances, step)
             # the next straight move leaves a force step's or tight fit's contacts
             self.contact = allowances if step.kind in FORCE_KINDS or named else ()
@@ -406,6 +413,7 @@ class _StepPlanner:
         if step.kind == StepKind.GRIP:
             T = self.world.kinematics.T_world_tcp(self.q)
             self.part = self.world.part_at(step.extra.get("part_at", ""), T)
+            _check_jaws_fit(step, gripper, self.part)
             weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
             close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
             row.duration_s = WRIST_SETTLE_S + close_s + weigh
@@ -450,7 +458,8 @@ class _StepPlanner:
         if follow is not None and then is not None:
             from cellrunner.planning.tight_fit import named_contacts
 
-            after = self.collision(self._place_allowances(then, follow, named_contacts(then)), then)
+            allowances = self._place_allowances(then, follow, named_contacts(then))
+            after = self.collision(allowances + self._waiting_touches(follow), then)
             for q in valid:
                 q_next = kin.ik_track(follow, q)
                 if q_next is not None and after.is_valid(q_next):
@@ -508,11 +517,49 @@ class _StepPlanner:
                 model = self.collision(tuple(allowances), step)
         return tuple(allowances)
 
+    def _waiting_touches(self, T_goal: np.ndarray) -> tuple[ContactAllowance, ...]:
+        """A straight move's tool may touch the parts waiting at their frames that it is
+        within clearance of where the line starts or ends: the jaws or cups reaching to a
+        part to grip it, or leaving it (a retry's retreat); never the joint moves, whose
+        sweep must keep clear of every waiting part (SPEC section 12)."""
+        from cellrunner.planning.collision import ContactAllowance
+        from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+        if not self.world.waiting_parts:
+            return ()
+        model = self.collision()
+        names: set[str] = set()
+        for q in (self.q, self._try_ik(T_goal)):
+            for v in model.violations(q) if q is not None else ():
+                if v.a.startswith("tool ") and v.b.startswith("waiting part '"):
+                    names.add(v.b[len("waiting part '") : -1])
+        return tuple(
+            ContactAllowance(WAITING_PREFIX + name, "tool", -GRIP_PRESS_M) for name in sorted(names)
+        )
+
     def _try_ik(self, T: np.ndarray) -> np.ndarray | None:
         try:
             return np.asarray(self.world.kinematics.ik_nearest(T, self.q))
         except InfeasibleError:
             return None
+
+
+def _check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) -> None:
+    """A parallel gripper's open jaws must be wider than the part across them (the TCP's
+    X axis), or the grip cannot close around it: the twin's jaws land on it."""
+    from cellrunner.model.gripper import width_across_jaws_m
+
+    if part is None or gripper is None or gripper.kind == "vacuum":
+        return
+    width = width_across_jaws_m(part.shape, part.T_parent_shape)
+    if width is None or width < gripper.stroke:
+        return
+    raise InfeasibleError(
+        f"{step.label}: part '{part.name}' is {width * 1000:.1f} mm across the jaws (along the "
+        f"TCP's X) but they open {gripper.stroke * 1000:.1f} mm (tool.gripper.stroke); fix: a "
+        "gripper with a longer stroke, or grip the part across a narrower side (turn the "
+        "frame's rpy about its Z)"
+    )
 
 
 def _joint_path(
