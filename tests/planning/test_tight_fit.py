@@ -10,8 +10,7 @@ import io
 import pytest
 
 from cellrunner.cli.main import main
-
-from tests.planning.test_set_down import cli
+from tests.planning.cli_json import cli
 from tests.planning.tight_peg import WALLS, write
 
 CONTACT = f", contact: [{', '.join(WALLS)}]"

@@ -9,7 +9,7 @@ import numpy as np
 from cellrunner.model.load import load_cell
 from cellrunner.planning.world import CellWorld
 from tests.conftest import DEMO_CELL
-from tests.planning.test_set_down import cli
+from tests.planning.cli_json import cli
 
 #: two poses 12 cm either side of the block waiting at the infeed, at its height
 SWEEP = """task: t
