@@ -84,6 +84,8 @@ def run(args: argparse.Namespace) -> int:
         raise
     finally:
         controller.shutdown(reason)
+        for what in controller.held_results():  # the journal tries once more as it closes
+            log.warning("result_held_at_stop", held=what)
         if status_page is not None:
             status_page.stop()
             status_page.board.close()
