@@ -87,6 +87,7 @@ CORRECT = {
     ),
     "ur3e_bracket_to_nest": ("screwing_ur3e", "bracket", (), {"bracket": (0.12, 0.25, 0.805)}),
     "ur3_tight_peg_24mm_hole": ("peg_ur3", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
+    "ur3_tighter_peg_21mm_hole": ("peg_ur3_21mm", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
     "ur10_cnc_two_tools_vise_insert": ("cnc_ur10", "cnc", (), {"blank": (0.40, -0.35, 0.93)}),
 }
 
