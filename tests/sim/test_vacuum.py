@@ -162,9 +162,10 @@ def test_a_carton_set_down_by_suction_and_released_is_measured_against_its_targe
     move_tcp(world, kin, T_high, 1.0)  # 40 mm above where it was picked
     world.set_output(VACUUM_ON, False)
     settle(world, 0.5)
-    name, offset_m, angle_deg = world.placed_offset(T_high)
-    assert name == "carton"
-    assert offset_m == pytest.approx(0.041 - 0.01, abs=0.003)  # fell 41 mm, 10 mm are free
-    assert angle_deg < 1.0
-    name, offset_m, _ = world.placed_offset(frame_pose(loaded.cell, "infeed"))
-    assert offset_m < 0.002  # back where the TCP picked it
+    found = world.inspect_place(T_high)
+    assert found.part == "carton"
+    assert found.offset_m == pytest.approx(0.041, abs=0.003)  # fell 41 mm, measured at rest
+    assert found.judged_m == pytest.approx(0.041 - 0.01, abs=0.003)  # 10 mm are free
+    assert found.angle_deg < 1.0 and found.resting_on == "fixture"
+    found = world.inspect_place(frame_pose(loaded.cell, "infeed"))
+    assert found.offset_m < 0.002  # back where the TCP picked it
