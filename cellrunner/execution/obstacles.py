@@ -3,7 +3,7 @@
 The rest of the motion is checked against the map before it starts and after every map
 update while it runs (:class:`~cellrunner.execution.watch.ZoneWatch`). When an occupied
 voxel is in the way the arm stops on its approved path: the same path, slowed to rest at
-half the joints' acceleration limits (:func:`~cellrunner.model.trajectory.along_path`),
+0.8 of the joints' acceleration limits (:func:`~cellrunner.model.trajectory.along_path`),
 never a protective stop. It then waits, obstructed, for an image that shows the rest of
 the path clear and goes on along it from where it stands (the same approved path, checked
 again); with ``replan: true`` it plans from where it stands around the map (at most once a
@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from cellrunner.perception.path_check import Blocked
 
 #: a stop or a restart on the path uses this fraction of each joint's acceleration limit
-RAMP_ACCEL_FRACTION = 0.5
+RAMP_ACCEL_FRACTION = 0.8
 #: replans come at most this often (s), and not before the arm has waited this long
 REPLAN_EVERY_S = 1.0
 
