@@ -223,7 +223,9 @@ class ModbusLink:
         self._replay = result  # the same id asked again gets this result, never a second run
         status = self.port.status()
         self._write_result(result, status, plc_job_id=self._active_plc_id)
-        st = self.regs[HR_STATUS] & ~ST_BUSY
+        # a request refused while the job ran (REJECTED, its id in 104) ends here: the
+        # job's end shows only the job's own DONE or ERROR
+        st = self.regs[HR_STATUS] & ~(ST_BUSY | ST_REJECTED)
         if self.regs[HR_COMMAND] & CMD_JOB_REQ:
             st |= ST_DONE if result.result_code in COMPLETED_CODES else ST_ERROR
         else:  # the PLC dropped JOB_REQ early: results are readable, handshake over
@@ -302,12 +304,11 @@ class ModbusLink:
                 plc_id == self._active_plc_id
             ):  # JOB_REQ toggled for the job that runs: still ACK+BUSY
                 self._set_handshake(ST_JOB_ACK | ST_BUSY)
-            else:  # another request while busy: refused without touching the running job's bits
-                self.regs[HR_RESULT_JOB_ID], self.regs[HR_RESULT_CODE] = (
-                    plc_id,
-                    int(ResultCode.REJECT_NOT_READY),
-                )
-                self.regs[HR_STATUS] |= ST_ERROR | ST_REJECTED
+            else:  # another id while busy: REJECTED (no ERROR: that would read as the
+                # running job's end) beside its ACK+BUSY, the refused id and 12 in 104/105
+                self.regs[HR_RESULT_JOB_ID] = plc_id
+                self.regs[HR_RESULT_CODE] = int(ResultCode.REJECT_NOT_READY)
+                self.regs[HR_STATUS] |= ST_REJECTED
             return
         self.regs[HR_JOB_ID_ECHO] = plc_id
         if self._replay is not None and self._replay.client_job_id == str(plc_id):

@@ -9,12 +9,15 @@ import struct
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 
 import pytest
 
 from cellrunner.plc.fake import FakeCell
 from cellrunner.plc.modbus import (
+    CMD_ABORT,
     CMD_JOB_REQ,
+    HANDSHAKE_BITS,
     ST_BUSY,
     ST_DONE,
     ST_ERROR,
@@ -178,3 +181,67 @@ def test_a_header_no_frame_can_have_closes_the_connection(modbus_service: PlcSer
     bad = struct.pack(">HHHBBHH", 1, 7, 6, 1, 3, 100, 1)  # protocol id 7
     got = _raw_exchange(modbus_service, [_read_frame(1, 100, 1) + bad], expect=2)
     assert [f["tid"] for f in got["frames"]] == [1] and got["closed"]
+
+
+@pytest.fixture
+def second_plc(modbus_service: PlcService) -> Iterator[PlcProcess]:
+    """Another client (pyModbusTCP, its own process) on the same cell."""
+    client = PlcProcess("pyModbusTCP", *modbus_service.modbus_address)
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+def _request_while_busy(other: PlcProcess, job_id: int) -> list[int]:
+    """The other client's request for a new id: its own rising JOB_REQ edge."""
+    assert other.write(2, [job_id, 2])["ok"]
+    assert other.write(1, [0])["ok"] and other.write(1, [CMD_JOB_REQ])["ok"]
+    return other.read(100, 14)
+
+
+def test_a_reject_mid_job_never_shows_on_the_running_jobs_end(
+    plc: PlcProcess, second_plc: PlcProcess, cell: FakeCell
+) -> None:
+    """Order 1: the second request is still held when the running job ends."""
+    raise_job_req(plc, 81, 3)  # ~1.2 s
+    regs = _request_while_busy(second_plc, 82)
+    # REJECTED beside the job's ACK+BUSY, never ERROR (a PLC waiting for the job's DONE or
+    # ERROR would take it for the end); echo 103: the job; 104/105: the refused id, 12
+    assert regs[1] & HANDSHAKE_BITS == ST_JOB_ACK | ST_BUSY | ST_REJECTED, regs
+    assert (regs[3], regs[4], regs[5]) == (81, 82, 12), regs
+    regs = wait_end(plc)
+    assert regs[1] & HANDSHAKE_BITS == ST_JOB_ACK | ST_DONE, regs  # the job's own end only
+    assert (regs[3], regs[4], regs[5]) == (81, 81, 0), regs
+    drop_job_req(plc)
+    assert [j.client_job_id for j in cell.finished] == ["81"]
+
+
+def test_a_reject_released_mid_job_leaves_the_job_its_end(
+    plc: PlcProcess, second_plc: PlcProcess, cell: FakeCell
+) -> None:
+    """Order 2: the second request is dropped before the running job ends. JOB_REQ is one
+    bit for both clients, so the drop also ends the handshake early: at the end the
+    job's result is in 104-113, no DONE, no ERROR, and READY returns."""
+    raise_job_req(plc, 83, 3)
+    assert _request_while_busy(second_plc, 84)[1] & ST_REJECTED
+    assert second_plc.write(1, [0])["ok"]
+    regs = second_plc.read(100, 14)
+    assert regs[1] & HANDSHAKE_BITS == ST_JOB_ACK | ST_BUSY, regs
+    assert plc.wait_bits(ST_READY, ST_READY, timeout=5.0)["ok"]
+    regs = plc.read(100, 14)
+    assert not regs[1] & HANDSHAKE_BITS and (regs[4], regs[5]) == (83, 0), regs
+    assert [j.client_job_id for j in cell.finished] == ["83"]
+
+
+def test_a_running_job_that_fails_after_a_reject_shows_error_without_rejected(
+    plc: PlcProcess, second_plc: PlcProcess, cell: FakeCell
+) -> None:
+    """A running job that ends ERROR after a reject: ERROR, never REJECTED, 105 its code."""
+    raise_job_req(plc, 85, 3)
+    regs = _request_while_busy(second_plc, 86)
+    assert regs[1] & HANDSHAKE_BITS == ST_JOB_ACK | ST_BUSY | ST_REJECTED, regs
+    assert plc.write(1, [CMD_JOB_REQ | CMD_ABORT])["ok"]
+    regs = wait_end(plc)
+    assert regs[1] & HANDSHAKE_BITS == ST_JOB_ACK | ST_ERROR, regs
+    assert (regs[4], regs[5]) == (85, 106), regs
