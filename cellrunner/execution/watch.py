@@ -63,10 +63,11 @@ class ZoneWatch:
         self.known = KnownScene(world)
         #: a voxel centre this close to the robot's solids: the voxel is within the padding
         self.pad_m = watch.padding + self.map.half_diagonal_m
-        self.map._pad_for_known = self.pad_m
         static = self.known.static_solids()
         self.map.mark_known(
-            lambda c: near_any(static, c, self.pad_m), self.known.static_surfaces(watch.voxel / 2)
+            lambda c: near_any(static, c, self.pad_m),
+            self.known.static_surfaces(watch.voxel / 2),
+            self.pad_m,
         )
         self.ranges: dict[str, tuple[float, float]] = {}
         for name in watch.cameras:
