@@ -40,6 +40,9 @@ class Motions(Protocol):
         """:meth:`tcp_position_m` (default tool) of each row of ``q_rad`` (N x 6) at once,
         N x 3; equal to it within 1e-9 m (not bit for bit)."""
 
+    def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
+        """T_world_tcp (4x4) at ``q_rad``, with the tool mounted at the start."""
+
 
 class EventLog(Protocol):
     """Where a job's events go (a structlog logger bound to the cell and job)."""

@@ -23,7 +23,7 @@ from cellrunner.model.gripper import FINGER_SIZE_M, PAD_Z_M
 from cellrunner.model.robots import RobotSpec
 
 if TYPE_CHECKING:
-    from cellrunner.sim.cameras import CameraDescription
+    from cellrunner.sim.cameras import CameraDescription, MarkerDescription
     from cellrunner.sim.input_rules import InputRuleDescription
 
 
@@ -122,6 +122,7 @@ class TwinDescription:
     tool_changer: Any = None  # a ToolChangerDescription (sim.tool_changer) for several tools
     input_rules: tuple[InputRuleDescription, ...] = ()  # inputs the cell's sim: block drives
     cameras: tuple[CameraDescription, ...] = ()  # (sim.cameras): cameras and their boards
+    markers: tuple[MarkerDescription, ...] = ()  # (sim.cameras): align markers on parts
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"
@@ -136,6 +137,7 @@ class TwinDescription:
             "presence_sensors",
             "input_rules",
             "cameras",
+            "markers",
         ):
             object.__setattr__(self, attr, tuple(getattr(self, attr)))
         if len(self.q_home_rad) != 6:
