@@ -29,7 +29,7 @@ import numpy as np
 
 from cellrunner.backends.base import RobotBackend, Safety
 from cellrunner.errors import CellrunnerError, InputError
-from cellrunner.execution.context import EventLog, JobContext, Motions, use_gripper
+from cellrunner.execution.context import EventLog, Eye, JobContext, Motions, use_gripper
 from cellrunner.execution.job import JobPhase, JobRunner, StepRecord
 from cellrunner.execution.journal import JobRecord, JournalBackend, JournalError
 from cellrunner.execution.packml import Command, Event, StateMachine, TransitionRefused
@@ -150,8 +150,10 @@ class CellController:
         on_step_start: Callable[[Step, int], None] | None = None,
         on_job_start: Callable[[], None] | None = None,
         gate: Callable[[Step], bool] | None = None,
+        eye: Eye | None = None,
     ) -> None:
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
+        self.eye = eye  # the cameras, for align steps
         self.planner, self.log = planner, log
         self.wait_for_unhold = wait_for_unhold
         self.on_step_start = on_step_start
@@ -654,6 +656,7 @@ class CellController:
             log=None if self.log is None else self.log.bind(job_id=job_id),
             tools=dict(c.tools),
             tool_mass_kg=c.tool.payload.mass,
+            eye=self.eye,
         )
         use_gripper(ctx, g)
         return ctx

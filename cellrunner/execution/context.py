@@ -14,6 +14,7 @@ from cellrunner.model.expand import Step
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 if TYPE_CHECKING:
+    from cellrunner.model.align import Marker, Sighting
     from cellrunner.model.cell import Gripper, Tool
 
 
@@ -42,6 +43,15 @@ class Motions(Protocol):
 
     def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
         """T_world_tcp (4x4) at ``q_rad``, with the tool mounted at the start."""
+
+
+class Eye(Protocol):
+    """What an ``align`` step sees through the cell's cameras (the vision package gives
+    one: :class:`cellrunner.vision.eye.MarkerEye`)."""
+
+    def sight(self, camera: str, marker: Marker) -> Sighting | None:
+        """Look through ``camera`` now: the marker, or None when it is not in the picture."""
+        ...
 
 
 class EventLog(Protocol):
@@ -121,6 +131,7 @@ class JobContext:
     hold: Hold | None = None  # what the step waits for, set by it in the current tick
     log: EventLog | None = None
     notes: dict[str, Any] = field(default_factory=dict)
+    eye: Eye | None = None  # the cameras, for align steps
 
     @property
     def now_s(self) -> float:

@@ -11,13 +11,19 @@ step (result 3).
 
 from __future__ import annotations
 
-from typing import Annotated
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Annotated, Any
 
 from pydantic import Field
 
 from cellrunner.model.base import Name, Pose, Strict
 from cellrunner.model.camera import Dictionary
+from cellrunner.model.step import StepKind
 from cellrunner.model.units import Angle, NonNegativeLength, PositiveLength
+
+if TYPE_CHECKING:
+    import numpy as np
 
 Vec3NonNeg = Annotated[list[NonNegativeLength], Field(min_length=3, max_length=3)]
 Rpy3 = Annotated[list[Annotated[Angle, Field(ge=0, le=45)]], Field(min_length=3, max_length=3)]
@@ -68,3 +74,34 @@ class AlignArgs(Strict):
         """The correction box as (min, max), six values each: m then deg."""
         high = [*self.max_correction.xyz, *self.max_correction.rpy]
         return [-v for v in high], high
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """A marker seen by a camera: the rays through its four corners (camera frame, 4 x 3,
+    z = 1; in the order of :func:`cellrunner.vision.marker.corner_points`) and its pose
+    from them (T_camera_marker, m; None when it could not be solved)."""
+
+    rays: np.ndarray
+    T_camera_marker: np.ndarray | None
+
+
+def target_frame(spec: Any) -> str | None:
+    """The frame a step aims at (None: a joint target, home, a relative move, no motion)."""
+    args = spec.args
+    if spec.kind in (StepKind.PICK, StepKind.PLACE):
+        return str(args.at)
+    if spec.kind in (StepKind.APPROACH, StepKind.DESCEND, StepKind.LINEAR, StepKind.INSERT):
+        return str(args.to)
+    if spec.kind == StepKind.MOVE and isinstance(args.to, str) and args.to != "home":
+        return args.to
+    return None
+
+
+def aligned_frame(specs: Sequence[Any], index: int) -> str | None:
+    """The frame the align at ``specs[index]`` corrects: the first later step's target."""
+    for spec in specs[index + 1 :]:
+        frame = target_frame(spec)
+        if frame is not None:
+            return frame
+    return None

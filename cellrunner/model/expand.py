@@ -14,6 +14,7 @@ import numpy as np
 
 from cellrunner.errors import InputError
 from cellrunner.model import geometry
+from cellrunner.model.align import aligned_frame, target_frame
 from cellrunner.model.cell import Cell
 from cellrunner.model.frames import frame_pose
 from cellrunner.model.load import LoadedTask, StepSpec
@@ -84,27 +85,6 @@ def expand(loaded: LoadedTask, cell: Cell, params: dict[str, Any]) -> list[Step]
 #: ``{xyz, rpy}`` in the frame's axes; ``check`` plans the corners of its box, a job
 #: the correction the align step measured
 ALIGN_KEY = "align:"
-
-
-def target_frame(spec: StepSpec) -> str | None:
-    """The frame a step aims at (None: a joint target, home, a relative move, no motion)."""
-    args = spec.args
-    if spec.kind in (StepKind.PICK, StepKind.PLACE):
-        return str(args.at)
-    if spec.kind in (StepKind.APPROACH, StepKind.DESCEND, StepKind.LINEAR, StepKind.INSERT):
-        return str(args.to)
-    if spec.kind == StepKind.MOVE and isinstance(args.to, str) and args.to != "home":
-        return args.to
-    return None
-
-
-def aligned_frame(specs: list[StepSpec], index: int) -> str | None:
-    """The frame the align at ``specs[index]`` corrects: the first later step's target."""
-    for spec in specs[index + 1 :]:
-        frame = target_frame(spec)
-        if frame is not None:
-            return frame
-    return None
 
 
 def expand_on_error(

@@ -187,7 +187,7 @@ def _check_pose_param(
 
 def _check_align(task: LoadedTask, cell: Cell, step: StepSpec, report: Report) -> None:
     """An align names a camera of the cell and is followed by a step aimed at a frame."""
-    from cellrunner.model.expand import aligned_frame
+    from cellrunner.model.align import aligned_frame
 
     if step.args.camera not in cell.cameras:
         report.error(

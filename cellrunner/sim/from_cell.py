@@ -93,7 +93,7 @@ def _markers(
     """The marker of every align step (in ``tasks`` and the cell's own ``tasks:``),
     printed on each part that lies at the frame it aligns: where the marker's ``pose``
     puts it in that frame, moved with the part's ``offset``."""
-    from cellrunner.model.expand import aligned_frame
+    from cellrunner.model.align import aligned_frame
     from cellrunner.sim.cameras import MarkerDescription
 
     c = loaded.cell
