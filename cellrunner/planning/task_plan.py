@@ -398,11 +398,15 @@ class _StepPlanner:
                     allowances = self.contact + contact_allowances(self, step, T_goal) + named
                 else:
                     allowances = self._place_allowances(step, T_goal, named)  # with self.contact
-                allowances += self._waiting_touches(T_goal)
+            # also when replanned at run time from where the arm stands (a retry's retreat)
+            touches = self._waiting_touches(T_goal)
+            allowances = (*allowances, *(a for a in touches if a not in allowances))
             collision = self.collision(allowances, step)
+            path = plan_linear(kin, collision, self.q, T_goal).q_rad
+            if step.kind == StepKind.MOVE_UNTIL_CONTACT:
+                _check_meets_something(self, step, path)
             # the next straight move leaves a force step's or tight fit's contacts
             self.contact = allowances if step.kind in FORCE_KINDS or named else ()
-            path = plan_linear(kin, collision, self.q, T_goal).q_rad
             line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
         row.allowances = tuple(allowances or ())
         row.carrying = self.part
@@ -517,7 +521,7 @@ class _StepPlanner:
                 if (
                     clearance.distance_m >= clearance.required_m
                     or clearance.a != f"part '{self.part.name}'"
-                    or not clearance.b.startswith("fixture '")
+                    or not clearance.b.startswith(("fixture '", "waiting part '"))
                 ):
                     break
                 if clearance.distance_m < -SET_DOWN_PRESS_M:
@@ -528,7 +532,7 @@ class _StepPlanner:
                         f"move the target up by {depth_mm - SET_DOWN_PRESS_M * 1000:.1f} mm or more"
                     )
                 allowances.append(
-                    ContactAllowance(clearance.b[len("fixture '") : -1], "part", -SET_DOWN_PRESS_M)
+                    ContactAllowance(_fixture_name(clearance.b), "part", -SET_DOWN_PRESS_M)
                 )
                 model = self.collision(tuple(allowances), step)
         return tuple(allowances)
@@ -558,6 +562,25 @@ class _StepPlanner:
             return np.asarray(self.world.kinematics.ik_nearest(T, self.q))
         except InfeasibleError:
             return None
+
+
+def _fixture_name(label: str) -> str:
+    """The fixture name of a "fixture 'x'" or "waiting part 'x'" label (``part:x``)."""
+    from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+    if label.startswith("waiting part '"):
+        return WAITING_PREFIX + label[len("waiting part '") : -1]
+    return label[len("fixture '") : -1]
+
+
+def _check_meets_something(planner: _StepPlanner, step: Step, path: np.ndarray) -> None:
+    """A move_until_contact must touch something the cell file has (a fixture, a waiting
+    part) within its max_distance, or the step fails on every backend (no contact)."""
+    from cellrunner.planning.force_plan import first_touch, meets_nothing
+
+    bare = planner.world.collision.carrying(planner.part)
+    if first_touch(bare, path, planner.part is not None) is None:
+        raise InfeasibleError(meets_nothing(step, bare, path[-1], planner.part is not None))
 
 
 def _check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) -> None:

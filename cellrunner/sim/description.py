@@ -63,13 +63,17 @@ class GripperDescription:
 
 @dataclass(frozen=True)
 class PartDescription:
-    """A free body spawned at ``T_world_part`` (its shape centred on that frame)."""
+    """A free body spawned at ``T_world_part`` (its shape centred on that frame).
+    ``T_grip_part``: the part in the TCP of the grip a task means (a TCP at its frame:
+    centred between the jaws, or its top face under the cups); a place is judged by it.
+    Default: centred on the TCP, upright under a TCP pointing down."""
 
     name: str
     shape: Shape
     mass_kg: float
     T_world_part: np.ndarray
     friction: float = 0.8
+    T_grip_part: np.ndarray = field(default_factory=lambda: np.diag([1.0, -1.0, -1.0, 1.0]))
 
     def __post_init__(self) -> None:
         if isinstance(self.shape, Mesh):

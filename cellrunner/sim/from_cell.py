@@ -177,12 +177,18 @@ def _part(loaded: LoadedCell, part: Part, gripper: Gripper | None) -> PartDescri
     """A part where a TCP at its frame grips it, moved by its twin-only ``offset``."""
     from cellrunner.sim.description import PartDescription
 
-    T_world_grip = frame_pose(loaded.cell, part.at)
+    T_world_frame = frame_pose(loaded.cell, part.at)
+    T_world_grip = T_world_frame
     if part.offset is not None:
         T_world_grip = T_world_grip @ part.offset.matrix()
     shape = part.to_shape(loaded.resolve)
     return PartDescription(
-        part.name, shape, part.mass, _part_pose(T_world_grip, gripper, shape), part.friction
+        part.name,
+        shape,
+        part.mass,
+        _part_pose(T_world_grip, gripper, shape),
+        part.friction,
+        np.linalg.solve(T_world_frame, _part_pose(T_world_frame, gripper, shape)),
     )
 
 

@@ -227,8 +227,13 @@ def test_float_params_take_plain_si_numbers_on_the_command_line(press):
     code, out = run_json("dry-run", *press, "-p", "push=25", "-p", "dwell=0", "-p", "reach=0.02")
     assert code == 1
     assert out["params"] == {"push": 25.0, "dwell": 0.0, "reach": 0.02}
-    # 20 mm falls 30 mm short of the block: the carried pin touches nothing
-    assert out["result_text"] == "no contact within 20.0 mm (force stayed under 25 N)"
+    # 20 mm falls 30 mm short of the block: the carried pin touches nothing, which check
+    # refuses before the job starts (the twin ran it to "no contact" before issue 24)
+    assert out["result_code"] == 103
+    assert out["result_text"].startswith(
+        "step 7 move_until_contact: the guarded line meets nothing within its max_distance "
+        "20 mm: at its end the held part is still 30.0 mm from fixture 'block'"
+    )
 
 
 def test_second_tool_picks_the_part_laid_for_its_cups_and_confirms_the_place(tools):
@@ -244,7 +249,7 @@ def test_camera_pose_insert_and_confirmed_release(cam):
     assert code == 0, out["errors"]
     assert len(out["slots_checked"]["seen"]) == 9  # the pose box's centre and corners
     assert [s["message"] for s in out["steps"][-3:]] == [
-        "on_error: verified from 9 states the job can fail in"
+        "on_error: verified from 15 states the job can fail in"  # mid-move states too
     ] * 3
     code, out = run_json("dry-run", *cam)
     assert (code, out["result_code"]) == (0, 0), (out["result_text"], out["steps"])

@@ -86,6 +86,8 @@ CORRECT = {
         {"carton": (0.205, -1.155, 0.244)},
     ),
     "ur3e_bracket_to_nest": ("screwing_ur3e", "bracket", (), {"bracket": (0.12, 0.25, 0.805)}),
+    "ur3_tight_peg_24mm_hole": ("peg_ur3", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
+    "ur3_tighter_peg_21mm_hole": ("peg_ur3_21mm", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
     "ur10_cnc_two_tools_vise_insert": ("cnc_ur10", "cnc", (), {"blank": (0.40, -0.35, 0.93)}),
 }
 
@@ -105,6 +107,7 @@ def test_a_correct_job_checks_and_rehearses_to_0_with_its_part_where_the_task_pu
 # None where the result is a failed insert, which reports its depth).
 OFF_FRAME = {
     "ur10_blank_12mm_into_vise": ("cnc_ur10_off_frame", "cnc", (), None),
+    "ur3_peg_8mm_off_hole": ("peg_ur3_off_frame", "peg", (), None),
 }
 
 
@@ -128,6 +131,7 @@ WRONG_PLACE = {
     "ur20_carton_mostly_off_the_pallet": ("two_pallet_ur20", "pallet_left_overhang", ("slot=2",)),
     "ur3e_bracket_beside_the_bench": ("screwing_ur3e", "bracket_beside_bench", ()),
     "ur10_part_past_the_table_edge": ("cnc_ur10", "cnc_past_edge", ()),
+    "ur3_peg_into_a_stale_hole_frame": ("peg_ur3", "peg_as_taught", ()),
 }
 
 
@@ -141,6 +145,14 @@ def test_a_wrong_place_is_never_0(case):
     assert isinstance(out["result_code"], int) and out["result_code"] != 0, out["result_text"]
 
 
+def test_check_refuses_jaws_that_open_narrower_than_the_part():
+    """Jaws with a 40 mm stroke cannot straddle a 50 mm box; the same cell with 85 mm
+    passes (test above)."""
+    code, out = cli("check", cell("ceiling_conveyor_ur5e_narrow_jaws"), task("conveyor_pick"))
+    assert (code, out["ok"]) == (1, False), out["errors"]
+    assert any("box" in error for error in out["errors"]), out["errors"]
+
+
 CELL_OF = {"pallet": "two_pallet_ur20", "conveyor": "ceiling_conveyor_ur5e", "peg": "peg_ur3"}
 
 # Bad input: (file to spoil, text replaced, replacement, what the message must name).
@@ -150,6 +162,12 @@ BAD = {
         "  - place: {at: outfeed,",
         "  - place: {at: outfed,",
         "outfed",
+    ),
+    "unknown_contact_fixture": (
+        "tasks/peg.yaml",
+        "contact: [wall_xm, wall_xp,",
+        "contact: [wall_xm, wal_xp,",
+        "wal_xp",
     ),
     "angle_over_360": (
         "cells/peg_ur3.yaml",

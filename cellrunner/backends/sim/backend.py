@@ -28,6 +28,7 @@ from cellrunner.sim.world import SimWorld
 
 if TYPE_CHECKING:
     from cellrunner.sim.lookahead import Lookahead, Preview
+    from cellrunner.sim.places import PlaceInspection
 
 # servoJ set-points further apart than the joint speed limit allows (with this margin)
 # are refused, as the controller would protective-stop on them.
@@ -358,10 +359,10 @@ class SimBackend:
         self._fresh = None
         self._world().set_input(channel, value)
 
-    def placed_offset(self, T_world_tcp: np.ndarray) -> tuple[str, float, float] | None:
-        """The twin's place inspection: how far the part just set down lies from where
-        a gripper at ``T_world_tcp`` puts it, as (part, m, deg); see SimWorld."""
-        return self._world().placed_offset(T_world_tcp)
+    def inspect_place(self, T_world_tcp: np.ndarray) -> PlaceInspection | None:
+        """The twin's place inspection: where the part just set down rests against where
+        a TCP at ``T_world_tcp`` puts it (:meth:`.places.Places.inspect`)."""
+        return self._world().inspect_place(T_world_tcp)
 
     def camera_image(self, name: str) -> np.ndarray:
         """What cell camera ``name`` sees now (RGB, height x width x 3, uint8), rendered
