@@ -50,8 +50,8 @@ def align_row(out: dict) -> dict:
     return next(s for s in out["steps"] if s["kind"] == "align")
 
 
-def test_aligned_the_block_off_its_frame_is_placed(tmp_path):
-    cell, task, _ = project(tmp_path)
+def test_aligned_the_block_off_its_frame_is_placed_blind_it_is_refused(tmp_path):
+    cell, task, blind = project(tmp_path)
     code, out, err = cellrunner("dry-run", str(cell), str(task), "--json")
     assert code == 0 and out["result_code"] == 0, (out.get("errors"), err[-2000:])
     message = align_row(out)["message"]
@@ -59,6 +59,9 @@ def test_aligned_the_block_off_its_frame_is_placed(tmp_path):
     xyz = [float(v) for v in message.split("xyz [")[1].split("]")[0].split(",")]
     yaw = float(message.split("rpy [")[1].split("]")[0].split(",")[2])
     assert abs(xyz[0] - 8.0) < 0.5 and abs(xyz[1] - 6.0) < 0.5 and abs(yaw - 4.0) < 0.3, message
+    code, out, _ = cellrunner("dry-run", str(cell), str(blind), "--json")
+    assert code == 1 and out["result_code"] == 3, out.get("errors")
+    assert "place failed: part 'block'" in " ".join(out["errors"])
 
 
 def test_a_part_beyond_max_correction_fails_the_align_with_3(tmp_path):
