@@ -157,10 +157,17 @@ class TaskPlan:
         row = self.row(step)
         return bool(row is not None and row.verify_inputs and row.verify_inputs["previous_moving"])
 
-    def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
+    def replan(
+        self,
+        step: Step,
+        q_now_rad: np.ndarray,
+        carrying: bool,
+        obstacles: Placed | None = None,
+    ) -> ApprovedTrajectory:
         """A verified rest-to-rest trajectory from ``q_now_rad`` to the step's goal: the
         same goal as planned (after a stop), or, for a relative move planned nowhere (a
-        retry's retreat), its distance from where the arm stands."""
+        retry's retreat), its distance from where the arm stands. ``obstacles`` (the
+        watched zone's map) are planned around and verified against like fixtures."""
         row = self.row(step)
         if row is None and "corrects" in step.extra:  # a step an align moved: as planned, elsewhere
             row = self.row(step.extra["corrects"])
@@ -169,6 +176,8 @@ class TaskPlan:
         )
         allowances = row.allowances if row is not None else ()
         world = self._world_of(step)
+        if obstacles is not None:
+            world = world.with_obstacles(obstacles)
         planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
         goal_q = (
             row.q_end_rad if row is not None and row.status == "ok" and row.step is step else None
@@ -217,6 +226,10 @@ class TaskPlan:
         return np.asarray(
             np.array([0.0, 0.0, -GRAVITY_MPS2]) @ self.world.kinematics.T_world_base[:3, :3]
         )
+
+    def carried_during(self, step: Step) -> Placed | None:
+        """The part held while ``step`` runs (placed in the TCP frame), None when none."""
+        return self._carried_before(step)
 
     def _carried_before(self, step: Step) -> Placed | None:
         rows = [r for r in self.rows if r.step.index <= step.index]
