@@ -29,7 +29,7 @@ import numpy as np
 
 from cellrunner.backends.base import RobotBackend, Safety
 from cellrunner.errors import CellrunnerError, InputError
-from cellrunner.execution.context import EventLog, JobContext, Motions, use_gripper
+from cellrunner.execution.context import EventLog, Eye, JobContext, Motions, use_gripper
 from cellrunner.execution.job import JobPhase, JobRunner, StepRecord
 from cellrunner.execution.journal import JobRecord, JournalBackend, JournalError
 from cellrunner.execution.packml import Command, Event, StateMachine, TransitionRefused
@@ -150,9 +150,11 @@ class CellController:
         on_step_start: Callable[[Step, int], None] | None = None,
         on_job_start: Callable[[], None] | None = None,
         gate: Callable[[Step], bool] | None = None,
+        eye: Eye | None = None,
         watch: Any = None,
     ) -> None:
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
+        self.eye = eye  # the cameras, for align steps
         #: the watched zone (execution.watch.ZoneWatch) whose map every motion is checked
         #: against (SPEC 12); None: the cell is not watched
         self.watch = watch
@@ -687,6 +689,7 @@ class CellController:
             log=None if self.log is None else self.log.bind(job_id=job_id),
             tools=dict(c.tools),
             tool_mass_kg=c.tool.payload.mass,
+            eye=self.eye,
         )
         use_gripper(ctx, g)
         return ctx
