@@ -87,7 +87,14 @@ CORRECT = {
     ),
     "ur3e_bracket_to_nest": ("screwing_ur3e", "bracket", (), {"bracket": (0.12, 0.25, 0.805)}),
     "ur3_tight_peg_24mm_hole": ("peg_ur3", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
+    "ur3_tighter_peg_21mm_hole": ("peg_ur3_21mm", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
     "ur10_cnc_two_tools_vise_insert": ("cnc_ur10", "cnc", (), {"blank": (0.40, -0.35, 0.93)}),
+    "ur10e_through_a_guard_window": (
+        "guard_window_ur10e",
+        "unload_press",
+        (),
+        {"block": (0.35, -0.35, 0.925)},
+    ),
 }
 
 
@@ -105,7 +112,26 @@ def test_a_correct_job_checks_and_rehearses_to_0_with_its_part_where_the_task_pu
 # A part off its frame: (cell, task, params, the least offset the result must report, mm;
 # None where the result is a failed insert, which reports its depth).
 OFF_FRAME = {
+    "ceiling_ur5e_box_12mm_12mm_3deg": (
+        "ceiling_conveyor_ur5e_off_frame",
+        "conveyor_pick",
+        (),
+        8.0,
+    ),
+    "ur20_carton_150mm_along_belt": (
+        "two_pallet_ur20_off_frame",
+        "pallet_left",
+        ("slot=0",),
+        100.0,
+    ),
+    "ur3e_bracket_10mm_4deg": ("screwing_ur3e_off_frame", "bracket", (), 7.0),
     "ur10_blank_12mm_into_vise": ("cnc_ur10_off_frame", "cnc", (), None),
+    "ur10e_block_15mm_6deg_behind_the_wall": (
+        "guard_window_ur10e_off_frame",
+        "unload_press",
+        (),
+        10.0,
+    ),
     "ur3_peg_8mm_off_hole": ("peg_ur3_off_frame", "peg", (), None),
 }
 
@@ -130,6 +156,7 @@ WRONG_PLACE = {
     "ur20_carton_mostly_off_the_pallet": ("two_pallet_ur20", "pallet_left_overhang", ("slot=2",)),
     "ur3e_bracket_beside_the_bench": ("screwing_ur3e", "bracket_beside_bench", ()),
     "ur10_part_past_the_table_edge": ("cnc_ur10", "cnc_past_edge", ()),
+    "ur10e_block_past_the_table_edge": ("guard_window_ur10e", "unload_press_past_table", ()),
     "ur3_peg_into_a_stale_hole_frame": ("peg_ur3", "peg_as_taught", ()),
 }
 
@@ -142,6 +169,43 @@ def test_a_wrong_place_is_never_0(case):
     code, out = cli("dry-run", cell(cell_name), task(task_name), *params(*pairs))
     assert code == 1, (code, out["errors"])
     assert isinstance(out["result_code"], int) and out["result_code"] != 0, out["result_text"]
+
+
+# Parts let go over nothing: (cell, task, the part, its middle at the target, world m).
+FALLEN = {
+    "ceiling_ur5e_box": (
+        "ceiling_conveyor_ur5e",
+        "conveyor_pick_past_table",
+        "box",
+        (0.0, 0.66, 0.925),
+    ),
+    "ur3e_bracket": ("screwing_ur3e", "bracket_beside_bench", "bracket", (0.12, 0.43, 0.808)),
+    "ur10_blank": ("cnc_ur10", "cnc_past_edge", "blank", (0.40, -0.63, 0.93)),
+    "ur10e_block": ("guard_window_ur10e", "unload_press_past_table", "block", (0.35, -0.63, 0.925)),
+}
+
+
+@pytest.mark.parametrize("case", FALLEN.values(), ids=FALLEN.keys())
+def test_a_failed_place_reports_the_offset_where_the_part_comes_to_rest(case):
+    """Each falls 0.8-0.9 m to the floor: the offset in the result is the one at rest."""
+    cell_name, task_name, part, target = case
+    code, out = cli("dry-run", cell(cell_name), task(task_name))
+    assert (code, out["result_code"]) == (1, 3), out["result_text"]
+    at_rest_mm = 1000 * math.dist(out["parts_end_m"][part], target)
+    assert at_rest_mm > 750
+    assert place_failed_mm(out) == pytest.approx(at_rest_mm, abs=10), (
+        out["result_text"],
+        out["parts_end_m"],
+    )
+
+
+def test_grip_miss_on_a_tall_suction_carton_is_no_part():
+    """The carton is 200 mm tall: the fault must act on the carton the cups would seal on,
+    wherever its middle is; retries find nothing, the job ends with 1."""
+    code, out = cli(
+        "dry-run", cell("two_pallet_ur20"), task("pallet_left"), "--inject", "grip_miss@grip"
+    )
+    assert (code, out["result_code"]) == (1, 1), out["result_text"]
 
 
 def test_check_refuses_jaws_that_open_narrower_than_the_part():
