@@ -10,6 +10,7 @@ import threading
 from typing import TYPE_CHECKING
 
 from cellrunner.backends.factory import backend_kind, make_backend
+from cellrunner.cli.common import job_eye
 from cellrunner.cli.logs import configure
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import is_database_url
@@ -60,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         wait_for_unhold=True,
         on_job_start=getattr(backend, "feed_parts", None),
+        eye=job_eye(cell, backend, getattr(args, "image_source", None), args.robot_host),
     )
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
