@@ -20,6 +20,7 @@ from cellrunner.cli.common import (
     parse_params,
     record_rows,
     step_table,
+    twin_eye,
 )
 from cellrunner.cli.faults import Injection, parse_injections
 from cellrunner.errors import CellrunnerError
@@ -99,6 +100,7 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         wait_for_unhold=False,
         on_step_start=on_step_start,
+        eye=twin_eye(cell, backend),
         watch=zone,
     )
     out = console()

@@ -45,6 +45,9 @@ class PacedMotions:
     def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
         return self.motions.tcp_positions_m(q_rad)
 
+    def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
+        return self.motions.tcp_pose(q_rad)
+
 
 class EnterGate:
     """``run --step``: each step waits for a line (Enter) on ``source``; before waiting it
