@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, step_table
-from cellrunner.model.expand import box_params, float_params, pattern_params
+from cellrunner.model.expand import ALIGN_KEY, box_params, float_params, pattern_params
 from cellrunner.model.robots import JOINT_NAMES
 
 if TYPE_CHECKING:
@@ -113,7 +113,13 @@ def run(args: argparse.Namespace) -> int:
         )
         out.print(step_table(title, [{**r, "message": _headline(r["message"])} for r in rows]))
         for name, values in slots_checked.items():
-            if isinstance(values[0], dict):
+            if name.startswith(ALIGN_KEY):
+                out.print(
+                    f"align {name.removeprefix(ALIGN_KEY)}: {len(values)} corrections checked "
+                    "(its max_correction box's centre and corners)",
+                    markup=False,
+                )
+            elif isinstance(values[0], dict):
                 out.print(
                     f"pose param {name}: {len(values)} poses checked (its box's centre and corners)",
                     markup=False,

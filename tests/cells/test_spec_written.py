@@ -112,7 +112,26 @@ def test_a_correct_job_checks_and_rehearses_to_0_with_its_part_where_the_task_pu
 # A part off its frame: (cell, task, params, the least offset the result must report, mm;
 # None where the result is a failed insert, which reports its depth).
 OFF_FRAME = {
+    "ceiling_ur5e_box_12mm_12mm_3deg": (
+        "ceiling_conveyor_ur5e_off_frame",
+        "conveyor_pick",
+        (),
+        8.0,
+    ),
+    "ur20_carton_150mm_along_belt": (
+        "two_pallet_ur20_off_frame",
+        "pallet_left",
+        ("slot=0",),
+        100.0,
+    ),
+    "ur3e_bracket_10mm_4deg": ("screwing_ur3e_off_frame", "bracket", (), 7.0),
     "ur10_blank_12mm_into_vise": ("cnc_ur10_off_frame", "cnc", (), None),
+    "ur10e_block_15mm_6deg_behind_the_wall": (
+        "guard_window_ur10e_off_frame",
+        "unload_press",
+        (),
+        10.0,
+    ),
     "ur3_peg_8mm_off_hole": ("peg_ur3_off_frame", "peg", (), None),
 }
 
@@ -170,6 +189,11 @@ LET_GO_OVER_NOTHING = {
         "bracket_beside_bench",
         "step 8 release 'beside_bench': the part 'bracket' would be let go with nothing under it",
     ),
+    "ur10e_block": (
+        "guard_window_ur10e",
+        "unload_press_past_table",
+        "step 8 release 'past_table': the part 'block' would be let go with nothing under it",
+    ),
 }
 
 
@@ -193,6 +217,15 @@ def test_a_failed_place_reports_the_offset_where_the_part_comes_to_rest(case):
         out["result_text"],
         out["parts_end_m"],
     )
+
+
+def test_grip_miss_on_a_tall_suction_carton_is_no_part():
+    """The carton is 200 mm tall: the fault must act on the carton the cups would seal on,
+    wherever its middle is; retries find nothing, the job ends with 1."""
+    code, out = cli(
+        "dry-run", cell("two_pallet_ur20"), task("pallet_left"), "--inject", "grip_miss@grip"
+    )
+    assert (code, out["result_code"]) == (1, 1), out["result_text"]
 
 
 def test_check_refuses_jaws_that_open_narrower_than_the_part():
