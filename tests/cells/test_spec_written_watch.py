@@ -73,11 +73,3 @@ def test_a_tote_that_stays_ends_the_job_with_108_without_touching_it(tmp_path):
     code, out = cli("dry-run", watched(tmp_path, ON_THE_PATH + ", appear: 2.3}"), transfer())
     assert (code, out["result_code"]) == (1, 108), out["result_text"]
     assert "tote" not in out["result_text"]  # found by the camera, not read from the file
-
-
-def test_a_tote_that_stays_is_gone_round_with_replanning(tmp_path):
-    code, out = cli(
-        "dry-run", watched(tmp_path, ON_THE_PATH + ", appear: 2.3}"), transfer(replan=True)
-    )
-    assert (code, out["result_code"]) == (0, 0), (out["result_text"], out.get("obstacles"))
-    assert math.dist(out["parts_end_m"]["housing"], TRAY) < 0.005
