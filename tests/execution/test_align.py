@@ -121,9 +121,9 @@ def test_on_the_arm_align_sees_through_the_image_source(tmp_path):
     from tests.twin.cell_rig import twin
 
     cell, task, _ = project(tmp_path)
-    with twin(cell, "127.0.0.162"):
+    with twin(cell, "127.0.26.2"):
         code, out, err = cellrunner(
-            "run", str(cell), str(task), "--backend", "ur", "--robot-host", "127.0.0.162",
+            "run", str(cell), str(task), "--backend", "ur", "--robot-host", "127.0.26.2",
             "--image-source", "twin", "--json",
         )  # fmt: skip
     assert code == 0 and out["result_code"] == 0, (out.get("errors"), err[-2000:])
