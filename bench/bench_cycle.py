@@ -171,18 +171,17 @@ def run(
     cell_path: str, task_path: str, verbose: bool = True, param_args: tuple[str, ...] = ()
 ) -> dict:
     from cellrunner.cli.common import load, parse_params
-    from cellrunner.model.expand import expand
-    from cellrunner.planning.task_plan import plan_task
+    from cellrunner.planning.job_plan import plan_job
     from cellrunner.planning.world import CellWorld
 
     with contextlib.redirect_stderr(io.StringIO()):  # load warnings (e.g. users file)
         cell, task = load(str(REPO / cell_path), str(REPO / task_path))
     params = parse_params(list(param_args), task)
     world = CellWorld(cell)
-    steps = expand(task, cell.cell, params)
     t = time.perf_counter()
-    plan = plan_task(world, steps, world.q_home_rad)
+    job = plan_job(world, task, params, world.q_home_rad, use_cache=False)
     plan_s = time.perf_counter() - t
+    plan, steps = job.task_plan, list(job.steps)
     if not plan.ok:
         raise SystemExit(f"{cell_path} {task_path}: the task is infeasible: {plan.errors}")
     taught = taught_waypoints(world, steps, world.q_home_rad)
