@@ -16,13 +16,14 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Strict
-from cellrunner.model.units import UNITS, parse_quantity
+from cellrunner.model.units import UNITS, digits, parse_quantity
 
 #: unit spelling -> quantity kind, for float params
 UNIT_KINDS: dict[str, str] = {
@@ -159,6 +160,12 @@ class Param(Strict):
                 x = float(value)
             except (TypeError, ValueError):
                 x = None
+            except OverflowError:  # 10**400
+                raise ValueError(
+                    f"param {name!r} must be a finite number, got one of {digits(value)} digits"
+                ) from None
+        if x is not None and not math.isfinite(x):
+            raise ValueError(f"param {name!r} must be a finite number, got {value!r}")
         if x is None or (self.type == "int" and x != int(x)):
             raise ValueError(
                 f"param {name!r} must be {'an int' if self.type == 'int' else 'a number'}, got {value!r}"

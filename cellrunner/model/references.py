@@ -33,6 +33,10 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
         elif kind in ("approach", "insert", *_LINEAR_KINDS):
             if args.to not in cell.frames:
                 report.error(path + ("to",), unknown_name("frame", args.to, frames))
+            fixtures = [f.name for f in cell.fixtures]
+            for i, name in enumerate(getattr(args, "contact", None) or ()):
+                if name not in fixtures:
+                    report.error(path + ("contact", i), unknown_name("fixture", name, fixtures))
         elif kind in ("pick", "place"):
             if args.at not in cell.frames:
                 report.error(path + ("at",), unknown_name("frame", args.at, frames))

@@ -112,6 +112,10 @@ class LinearArgs(Strict):
     """Offset in the frame's axes (m, deg), or [dx, dy, dz]. Example: `[0, 0, 0.01]`"""
     speed: Speed | None = None  # m/s; default: the cell's tcp speed limit
     """TCP speed in m/s (default: the cell's TCP speed limit). Example: `0.1`"""
+    contact: list[Name] | None = None
+    """Fixtures the tool or held part may touch along this line (the walls of a hole). Example: `[hole_wall_x, hole_wall_y]`"""
+    clearance: NonNegativeLength | None = None
+    """Distance this line keeps from everything else, m (default: the cell's). Example: `0.001`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
 
@@ -378,6 +382,17 @@ class ProtectiveStopPolicy(Strict):
     """Protective stops a job may resume from. Example: `2`"""
 
 
+class ObstaclePolicy(Strict):
+    """What a job does when the watched zone's map blocks its path (SPEC section 12)."""
+
+    wait: PositiveDuration = 10.0
+    """How long the arm waits, stopped on its path, for the way to clear before the job ends with 108, s. Example: `10`"""
+    replan: bool = False
+    """While waiting, plan around the map from where the arm stands (at most once a second). Example: `true`"""
+    max_replans: Annotated[int, Field(ge=0, le=100)] = 3
+    """Replans a job may make around obstacles before it ends with 108. Example: `3`"""
+
+
 class TaskFile(Strict):
     """The top level of a task file; ``steps`` are validated one by one by the loader."""
 
@@ -391,5 +406,7 @@ class TaskFile(Strict):
     """The steps, in order: {KIND: ARGS} or a bare grip/release. Example: `[{move: home}, {pick: {at: infeed}}, {place: {at: pallet}}]`"""
     on_protective_stop: ProtectiveStopPolicy = Field(default_factory=ProtectiveStopPolicy)
     """What a protective stop does to the job (an e-stop always aborts). Example: `{resume: true, max: 2}`"""
+    on_obstacle: ObstaclePolicy = Field(default_factory=ObstaclePolicy)
+    """What a job does when an obstacle of the watched zone blocks its path: wait, replan. Example: `{wait: 10, replan: true, max_replans: 3}`"""
     on_error: list[Any] = Field(default_factory=list)
     """Steps run after a failed or aborted job that left the arm able to move. Example: `[{set_output: {door_cmd: false}}, {retreat: 0.05}]`"""

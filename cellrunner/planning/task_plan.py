@@ -40,6 +40,7 @@ from cellrunner.planning.world import CellWorld
 _R = TypeVar("_R")
 
 if TYPE_CHECKING:
+    from cellrunner.model.cell import Gripper
     from cellrunner.planning.collision import CollisionModel, ContactAllowance
     from cellrunner.planning.kinematics import ArmKinematics
     from cellrunner.planning.timing import MotionLimits
@@ -49,6 +50,8 @@ if TYPE_CHECKING:
 WRIST_SETTLE_S = 0.15
 #: how far a carried part may press into the surface it is set down on or lifted off (m)
 SET_DOWN_PRESS_M = 0.001
+#: how far the tool may press into a waiting part it reaches around to grip (m)
+GRIP_PRESS_M = 0.001
 #: blends where a joint move meets a straight step (:func:`_blend`): at most this share
 #: of the straight step's line and this distance (m) from the corner, like the radii a
 #: UR integrator sets (bench/polyscope.py uses the same)
@@ -336,7 +339,7 @@ class _StepPlanner:
         self.egress: tuple[np.ndarray, str] | None = None
         self.contact: tuple[
             ContactAllowance, ...
-        ] = ()  # a force step's contacts, which the next straight move leaves
+        ] = ()  # a force step's or tight fit's contacts, which the next straight move leaves
 
     def limits_for(
         self, step: Step, line_q: tuple[np.ndarray, np.ndarray] | None = None
@@ -364,9 +367,17 @@ class _StepPlanner:
         need = np.abs(q1 - q0) / length_m * FORCE_TCP_ACCEL_MPS2 / limits.joint_accel_rad_s2
         return min(1.0, float(need.max()))
 
-    def collision(self, allowances: tuple[ContactAllowance, ...] = ()) -> CollisionModel:
+    def collision(
+        self, allowances: tuple[ContactAllowance, ...] = (), step: Step | None = None
+    ) -> CollisionModel:
+        """The cell's model with the carried part, ``allowances``, and the clearance
+        ``step`` keeps (its own ``clearance:``, SPEC section 12)."""
+        from cellrunner.planning.tight_fit import step_clearance_m
+
         model = self.world.collision.carrying(self.part)
-        return model.allowing(*allowances) if allowances else model
+        model = model.allowing(*allowances) if allowances else model
+        clearance = step_clearance_m(step)
+        return model.keeping(clearance) if clearance is not None else model
 
     def motion(
         self,
@@ -439,7 +450,7 @@ class _StepPlanner:
         proven: Callable[[], np.ndarray] | None = None  # a joint move's, planned proven
         egress, self.egress = self.egress, None  # the first motion's alone
         if step.kind in (StepKind.MOVE, StepKind.APPROACH):
-            self.contact = ()  # a joint move leaves a force step's contact behind
+            self.contact = ()  # a joint move leaves a force step's or tight fit's contacts behind
             if goal_q is None and step.q_goal_deg is not None:
                 goal_q = np.radians(step.q_goal_deg)
             elif goal_q is None:
@@ -456,16 +467,26 @@ class _StepPlanner:
             proven = functools.partial(_joint_path, collision, head, goal_q, proven=True)
             line = None
         else:
+            from cellrunner.planning.tight_fit import named_contacts
+
             T_goal = self._linear_goal(step, T_now) if goal_q is None else kin.T_world_tcp(goal_q)
+            if then is not None and then.kind == StepKind.GRIP:  # the jaws must fit the part first
+                part = self.world.part_at(
+                    then.extra.get("part_at", ""), T_goal, then.extra.get("part_pose")
+                )
+                _check_jaws_fit(then, self.world.loaded.cell.tool.gripper, part)
+            named = named_contacts(step)
             if allowances is None:
                 if step.kind in FORCE_KINDS:  # contact is what the step is for, where its line ends
                     from cellrunner.planning.force_plan import contact_allowances
 
-                    allowances = self.contact + contact_allowances(self, step, T_goal)
+                    allowances = self.contact + contact_allowances(self, step, T_goal) + named
                 else:
-                    allowances = self._place_allowances(step, T_goal)  # with self.contact
-                self.contact = allowances if step.kind in FORCE_KINDS else ()
-            collision = self.collision(allowances)
+                    allowances = self._place_allowances(step, T_goal, named)  # with self.contact
+                allowances += self._waiting_touches(T_goal)
+            collision = self.collision(allowances, step)
+            # the next straight move leaves a force step's or tight fit's contacts
+            self.contact = allowances if step.kind in FORCE_KINDS or named else ()
             path = plan_linear(kin, collision, self.q, T_goal).q_rad
             line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
         row.allowances = tuple(allowances or ())
@@ -489,6 +510,7 @@ class _StepPlanner:
             self.part = self.world.part_at(
                 step.extra.get("part_at", ""), T, step.extra.get("part_pose")
             )
+            _check_jaws_fit(step, gripper, self.part)
             weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
             close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
             row.duration_s = WRIST_SETTLE_S + close_s + weigh
@@ -531,7 +553,10 @@ class _StepPlanner:
         if not valid:
             raise every_branch_collides(step.label, kin, collision, T_world_tcp, self.q)
         if follow is not None and then is not None:
-            after = self.collision(self._place_allowances(then, follow))
+            from cellrunner.planning.tight_fit import named_contacts
+
+            allowances = self._place_allowances(then, follow, named_contacts(then))
+            after = self.collision(allowances + self._waiting_touches(follow), then)
             for q in valid:
                 q_next = kin.ik_track(follow, q)
                 if q_next is not None and after.is_valid(q_next):
@@ -550,21 +575,24 @@ class _StepPlanner:
         assert step.T_world_tcp is not None  # descend and linear have a frame target
         return step.T_world_tcp
 
-    def _place_allowances(self, step: Step, T_goal: np.ndarray) -> tuple[ContactAllowance, ...]:
+    def _place_allowances(
+        self, step: Step, T_goal: np.ndarray, named: tuple[ContactAllowance, ...] = ()
+    ) -> tuple[ContactAllowance, ...]:
         """The carried part may touch the fixture it rests on where a straight move starts
-        (lifting it off) or ends (setting it down), and only that fixture."""
+        (lifting it off) or ends (setting it down), and only that fixture; and the fixtures
+        the step names in ``contact:`` (``named``) anywhere along it."""
         from cellrunner.planning.collision import ContactAllowance
 
         if self.part is None or step.kind not in LINEAR_KINDS:
-            return self.contact
+            return self.contact + named
         q_goal = self._try_ik(T_goal)
         # a force step's contact comes first: the part leaves it as deep as the step let it
         # go (the set-down rule below is for the surfaces it is lifted off or set down on)
-        allowances: list[ContactAllowance] = list(self.contact)
+        allowances: list[ContactAllowance] = [*self.contact, *named]
         for end, q in (("start", self.q), ("end", q_goal)):
             if q is None:
                 continue
-            model = self.collision(tuple(allowances))
+            model = self.collision(tuple(allowances), step)
             for _ in range(3):
                 clearance = model.clearance(q)
                 if (
@@ -587,8 +615,28 @@ class _StepPlanner:
                 allowances.append(
                     ContactAllowance(clearance.b[len("fixture '") : -1], "part", -SET_DOWN_PRESS_M)
                 )
-                model = self.collision(tuple(allowances))
+                model = self.collision(tuple(allowances), step)
         return tuple(allowances)
+
+    def _waiting_touches(self, T_goal: np.ndarray) -> tuple[ContactAllowance, ...]:
+        """A straight move's tool may touch the parts waiting at their frames that it is
+        within clearance of where the line starts or ends: the jaws or cups reaching to a
+        part to grip it, or leaving it (a retry's retreat); never the joint moves, whose
+        sweep must keep clear of every waiting part (SPEC section 12)."""
+        from cellrunner.planning.collision import ContactAllowance
+        from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+        if not self.world.waiting_parts:
+            return ()
+        model = self.collision()
+        names: set[str] = set()
+        for q in (self.q, self._try_ik(T_goal)):
+            for v in model.violations(q) if q is not None else ():
+                if v.a.startswith("tool ") and v.b.startswith("waiting part '"):
+                    names.add(v.b[len("waiting part '") : -1])
+        return tuple(
+            ContactAllowance(WAITING_PREFIX + name, "tool", -GRIP_PRESS_M) for name in sorted(names)
+        )
 
     def _try_ik(self, T: np.ndarray) -> np.ndarray | None:
         try:
@@ -609,6 +657,24 @@ class _Planned:
 
 def _bytes(a: np.ndarray | None) -> bytes | None:
     return None if a is None else np.asarray(a, float).tobytes()
+
+
+def _check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) -> None:
+    """A parallel gripper's open jaws must be wider than the part across them (the TCP's
+    X axis), or the grip cannot close around it: the twin's jaws land on it."""
+    from cellrunner.model.gripper import width_across_jaws_m
+
+    if part is None or gripper is None or gripper.kind == "vacuum":
+        return
+    width = width_across_jaws_m(part.shape, part.T_parent_shape)
+    if width is None or width < gripper.stroke:
+        return
+    raise InfeasibleError(
+        f"{step.label}: part '{part.name}' is {width * 1000:.1f} mm across the jaws (along the "
+        f"TCP's X) but they open {gripper.stroke * 1000:.1f} mm (tool.gripper.stroke); fix: a "
+        "gripper with a longer stroke, or grip the part across a narrower side (turn the "
+        "frame's rpy about its Z)"
+    )
 
 
 def _joint_path(
@@ -902,7 +968,7 @@ def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
         step_name=row.step.name,
         kinematics=world.kinematics,
         limits=planner.limits_for(row.step, (row.trajectory.q_rad[0], row.trajectory.q_rad[-1])),
-        collision=planner.collision(row.allowances),
+        collision=planner.collision(row.allowances, row.step),
         **row.verify_inputs,
     )
 

@@ -81,10 +81,29 @@ class CellWorld:
         return self.loaded.fixture_shapes()
 
     @cached_property
+    def waiting_parts(self) -> list[Placed]:
+        """The cell's parts where they wait to be picked, at their frames (as a grip at
+        the frame holds them), named ``part:NAME``: obstacles until carried. A part with
+        an ``offset`` lies where a camera finds it, which check does not know (it proves
+        the pick's pose box instead): it is no obstacle."""
+        from cellrunner.model.expand import frame_pose
+        from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+        out = []
+        for part in self.loaded.cell.parts:
+            if part.at not in self.loaded.cell.frames or part.offset is not None:
+                continue
+            shape = part.to_shape(self.loaded.resolve)
+            depth = part_center_depth_m(self.loaded.cell.tool.gripper, shape)
+            T = frame_pose(self.loaded.cell, part.at) @ geometry.pose_matrix((0, 0, depth))
+            out.append(Placed(WAITING_PREFIX + part.name, shape, T))
+        return out
+
+    @cached_property
     def collision(self) -> CollisionModel:
         from cellrunner.planning.collision import CollisionModel
 
-        return CollisionModel(self.kinematics, self.tool, self.fixtures)
+        return CollisionModel(self.kinematics, self.tool, [*self.fixtures, *self.waiting_parts])
 
     @cached_property
     def limits(self) -> MotionLimits:
