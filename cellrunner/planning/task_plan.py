@@ -669,12 +669,14 @@ def _check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) ->
     width = width_across_jaws_m(part.shape, part.T_parent_shape)
     if width is None or width < gripper.stroke:
         return
-    raise InfeasibleError(
-        f"{step.label}: part '{part.name}' is {width * 1000:.1f} mm across the jaws (along the "
+    reason = (
+        f"part '{part.name}' is {width * 1000:.1f} mm across the jaws (along the "
         f"TCP's X) but they open {gripper.stroke * 1000:.1f} mm (tool.gripper.stroke); fix: a "
         "gripper with a longer stroke, or grip the part across a narrower side (turn the "
         "frame's rpy about its Z)"
     )
+    # about the grip, also when the descend before it looks ahead to it
+    raise InfeasibleError(f"{step.label}: {reason}", step_index=step.index, reason=reason)
 
 
 def _joint_path(
