@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cellrunner.cli.common import console, emit_json, load, parse_params, step_table
-from cellrunner.model.expand import pattern_params
+from cellrunner.model.expand import ALIGN_KEY, pattern_params
 from cellrunner.model.robots import JOINT_NAMES
 
 if TYPE_CHECKING:
@@ -50,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
             if not isinstance(s, dict) and isinstance(s, int)
         ]
     )
-    poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, dict)]
+    # pose and float params: each failing value on its own
+    poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, (dict, float))]
     rows: list[dict[str, Any]] = [
         {
             "index": r.step.index,
@@ -93,9 +94,21 @@ def run(args: argparse.Namespace) -> int:
         )
         out.print(step_table(title, [{**r, "message": _headline(r["message"])} for r in rows]))
         for name, values in slots_checked.items():
-            if isinstance(values[0], dict):
+            if name.startswith(ALIGN_KEY):
+                out.print(
+                    f"align {name.removeprefix(ALIGN_KEY)}: {len(values)} corrections checked "
+                    "(its max_correction box's centre and corners)",
+                    markup=False,
+                )
+            elif isinstance(values[0], dict):
                 out.print(
                     f"pose param {name}: {len(values)} poses checked (its box's centre and corners)",
+                    markup=False,
+                )
+            elif isinstance(values[0], float):
+                out.print(
+                    f"float param {name}: {', '.join(f'{v:g}' for v in values)} checked "
+                    "(its range's ends and centre)",
                     markup=False,
                 )
             else:

@@ -25,6 +25,7 @@ import numpy as np
 
 from cellrunner import __version__
 from cellrunner.model.expand import expand, expand_on_error
+from cellrunner.model.geometry import Placed
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
 from cellrunner.model.step import Step
@@ -118,14 +119,22 @@ class PacedMotions:
     def continues(self, step: Step) -> bool:
         return self.motions.continues(step)
 
-    def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
-        return time_scaled(self.motions.replan(step, q_now_rad, carrying), self.speed)
+    def replan(
+        self, step: Step, q_now_rad: np.ndarray, carrying: bool, obstacles: Placed | None = None
+    ) -> ApprovedTrajectory:
+        return time_scaled(self.motions.replan(step, q_now_rad, carrying, obstacles), self.speed)
 
     def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
         return self.motions.tcp_position_m(q_rad, step)
 
     def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
         return self.motions.tcp_positions_m(q_rad)
+
+    def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
+        return self.motions.tcp_pose(q_rad)
+
+    def carried_during(self, step: Step) -> Placed | None:
+        return self.motions.carried_during(step)
 
 
 def plan_job(

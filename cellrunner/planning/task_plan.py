@@ -45,6 +45,8 @@ if TYPE_CHECKING:
     from cellrunner.planning.kinematics import ArmKinematics
     from cellrunner.planning.timing import MotionLimits
 
+#: the planned time of an align step: one look, its detection, no move (s)
+ALIGN_LOOK_S = 0.5
 #: standing still before a grip's wrist baseline, and before weighing after a lift (s);
 #: the execution engine uses the same figures (execution.steps SETTLE_S + AVERAGE_S)
 WRIST_SETTLE_S = 0.15
@@ -183,18 +185,31 @@ class TaskPlan:
         row = self.row(step)
         return bool(row is not None and row.verify_inputs and row.verify_inputs["previous_moving"])
 
-    def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
+    def replan(
+        self,
+        step: Step,
+        q_now_rad: np.ndarray,
+        carrying: bool,
+        obstacles: Placed | None = None,
+    ) -> ApprovedTrajectory:
         """A verified rest-to-rest trajectory from ``q_now_rad`` to the step's goal: the
         same goal as planned (after a stop), or, for a relative move planned nowhere (a
-        retry's retreat), its distance from where the arm stands."""
+        retry's retreat), its distance from where the arm stands. ``obstacles`` (the
+        watched zone's map) are planned around and verified against like fixtures."""
         row = self.row(step)
+        if row is None and "corrects" in step.extra:  # a step an align moved: as planned, elsewhere
+            row = self.row(step.extra["corrects"])
         part = (
             row.carrying if row is not None else (self._carried_before(step) if carrying else None)
         )
         allowances = row.allowances if row is not None else ()
         world = self._world_of(step)
+        if obstacles is not None:
+            world = world.with_obstacles(obstacles)
         planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
-        goal_q = row.q_end_rad if row is not None and row.status == "ok" else None
+        goal_q = (
+            row.q_end_rad if row is not None and row.status == "ok" and row.step is step else None
+        )
         motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
         approved = _time_and_verify(world, motion, np.asarray(q_now_rad, float)).approved
         assert approved is not None  # _time_and_verify approves every row or raises
@@ -212,6 +227,10 @@ class TaskPlan:
     def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
         """World TCP positions (N x 3) at the rows of ``q_rad``, tool mounted at start."""
         return self.world.kinematics.p_world_tcp_many(q_rad)
+
+    def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
+        """T_world_tcp (4x4) at ``q_rad``, tool mounted at start."""
+        return np.asarray(self.world.kinematics.T_world_tcp(q_rad))
 
     def tcp_lever_arms_m(self) -> np.ndarray:
         """Per joint, a bound on the TCP's distance from its axis (m), tool mounted at
@@ -235,6 +254,10 @@ class TaskPlan:
         return np.asarray(
             np.array([0.0, 0.0, -GRAVITY_MPS2]) @ self.world.kinematics.T_world_base[:3, :3]
         )
+
+    def carried_during(self, step: Step) -> Placed | None:
+        """The part held while ``step`` runs (placed in the TCP frame), None when none."""
+        return self._carried_before(step)
 
     def _carried_before(self, step: Step) -> Placed | None:
         rows = [r for r in self.rows if r.step.index <= step.index]
@@ -483,11 +506,15 @@ class _StepPlanner:
                     allowances = self.contact + contact_allowances(self, step, T_goal) + named
                 else:
                     allowances = self._place_allowances(step, T_goal, named)  # with self.contact
-                allowances += self._waiting_touches(T_goal)
+            # also when replanned at run time from where the arm stands (a retry's retreat)
+            touches = self._waiting_touches(T_goal)
+            allowances = (*allowances, *(a for a in touches if a not in allowances))
             collision = self.collision(allowances, step)
+            path = plan_linear(kin, collision, self.q, T_goal).q_rad
+            if step.kind == StepKind.MOVE_UNTIL_CONTACT:
+                _check_meets_something(self, step, path)
             # the next straight move leaves a force step's or tight fit's contacts
             self.contact = allowances if step.kind in FORCE_KINDS or named else ()
-            path = plan_linear(kin, collision, self.q, T_goal).q_rad
             line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
         row.allowances = tuple(allowances or ())
         row.carrying = self.part
@@ -523,6 +550,12 @@ class _StepPlanner:
             row.duration_s = (step.args.pulse or 0.0) + 1.0 / self.world.spec.rate_hz
         elif step.kind == StepKind.WAIT_INPUT:
             row.message = f"waits up to {step.args.timeout:g} s for {step.args.input}"
+        elif step.kind == StepKind.ALIGN:
+            row.duration_s = ALIGN_LOOK_S
+            row.message = (
+                f"looks at marker {step.args.marker.id} up to {step.args.attempts} times; "
+                f"corrections within the max_correction box are checked as align:{step.name}"
+            )
         elif step.kind in (StepKind.TOOL_UNLOCK, StepKind.TOOL_LOCK):
             self.world = self.world.with_tool(step.extra["tool"], tcp_of=step.extra["tcp_of"])
             row.world = self.world
@@ -598,7 +631,7 @@ class _StepPlanner:
                 if (
                     clearance.distance_m >= clearance.required_m
                     or clearance.a != f"part '{self.part.name}'"
-                    or not clearance.b.startswith("fixture '")
+                    or not clearance.b.startswith(("fixture '", "waiting part '"))
                 ):
                     break
                 if clearance.distance_m < -SET_DOWN_PRESS_M:
@@ -613,7 +646,7 @@ class _StepPlanner:
                         f"{step.label}: {reason}", step_index=step.index, reason=reason
                     )
                 allowances.append(
-                    ContactAllowance(clearance.b[len("fixture '") : -1], "part", -SET_DOWN_PRESS_M)
+                    ContactAllowance(_fixture_name(clearance.b), "part", -SET_DOWN_PRESS_M)
                 )
                 model = self.collision(tuple(allowances), step)
         return tuple(allowances)
@@ -657,6 +690,25 @@ class _Planned:
 
 def _bytes(a: np.ndarray | None) -> bytes | None:
     return None if a is None else np.asarray(a, float).tobytes()
+
+
+def _fixture_name(label: str) -> str:
+    """The fixture name of a "fixture 'x'" or "waiting part 'x'" label (``part:x``)."""
+    from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+    if label.startswith("waiting part '"):
+        return WAITING_PREFIX + label[len("waiting part '") : -1]
+    return label[len("fixture '") : -1]
+
+
+def _check_meets_something(planner: _StepPlanner, step: Step, path: np.ndarray) -> None:
+    """A move_until_contact must touch something the cell file has (a fixture, a waiting
+    part) within its max_distance, or the step fails on every backend (no contact)."""
+    from cellrunner.planning.force_plan import first_touch, meets_nothing
+
+    bare = planner.world.collision.carrying(planner.part)
+    if first_touch(bare, path, planner.part is not None) is None:
+        raise InfeasibleError(meets_nothing(step, bare, path[-1], planner.part is not None))
 
 
 def _check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) -> None:
