@@ -534,9 +534,8 @@ class _StepPlanner:
         gripper = self.world.loaded.cell.tool.gripper
         if step.kind == StepKind.GRIP:
             T = self.world.kinematics.T_world_tcp(self.q)
-            self.part = self.world.part_at(
-                step.extra.get("part_at", ""), T, step.extra.get("part_pose")
-            )
+            part = self.world.part_at(step.extra.get("part_at", ""), T, step.extra.get("part_pose"))
+            self.part = self.world.same_grip(part) if part is not None else None
             _check_jaws_fit(step, gripper, self.part)
             weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
             close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)

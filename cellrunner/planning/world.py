@@ -172,8 +172,22 @@ class CellWorld:
                     frame_pose(self.loaded.cell, frame) if T_world_slot is None else T_world_slot
                 )
                 T_world_part = T_world_frame @ geometry.pose_matrix((0, 0, depth))
-                # to the nanometre (and no -0.0): the grips of a pattern's slots, each reached by its own
-                # IK solution, hold the part in one pose, and share one collision model
-                T_tcp_part = np.round(geometry.invert(T_world_tcp) @ T_world_part, 9) + 0.0
+                T_tcp_part = geometry.invert(T_world_tcp) @ T_world_part
                 return Placed(part.name, shape, T_tcp_part)
         return None
+
+    def same_grip(self, part: Placed) -> Placed:
+        """``part`` as gripped, or the part of an earlier grip of this world held within a
+        nanometre of its pose: the grips of a pattern's slots, each reached by its own IK
+        solution, then hold the part in one pose and share one collision model."""
+        seen = self._grips.setdefault(part.name, [])
+        for earlier in seen:
+            if float(np.abs(earlier.T_parent_shape - part.T_parent_shape).max()) < 1e-9:
+                return earlier
+        if len(seen) < 64:
+            seen.append(part)
+        return part
+
+    @cached_property
+    def _grips(self) -> dict[str, list[Placed]]:
+        return {}
