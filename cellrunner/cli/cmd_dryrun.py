@@ -87,11 +87,10 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.cli.logs import configure
 
         log = configure("json", cell.cell.cell)
-    zone = None
-    if cell.cell.watch is not None:
-        from cellrunner.execution.watch import ZoneWatch
+    from cellrunner.execution.watch import watch_on_twin
 
-        zone = ZoneWatch(world, cell.cell.watch)
+    watched = watch_on_twin(world, backend, realtime=False)
+    zone, feed = watched if watched is not None else (None, None)
     controller = CellController(
         cell,
         {1: task},
@@ -107,11 +106,7 @@ def run(args: argparse.Namespace) -> int:
     out = console()
     controller.setup()
     loop = ControlLoop(controller, lookahead=not getattr(args, "per_period", False))
-    feed = None
-    if zone is not None:
-        from cellrunner.execution.watch import TwinDepthFeed
-
-        feed = TwinDepthFeed(zone, backend)
+    if feed is not None:
         loop.add_observer(feed)
     loop.step(3)
     t0 = time.perf_counter()
