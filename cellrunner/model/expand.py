@@ -289,6 +289,9 @@ class _Builder:
                 )
             )
 
+    def _earlier_slots(self, a: PlaceArgs) -> list[np.ndarray]:
+        return _earlier_slots_of(self, a)
+
     def _place(self, spec: StepSpec, a: PlaceArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"place {name}"
@@ -323,6 +326,8 @@ class _Builder:
         check = {
             "place_check": {"T_world_tcp": T, "tolerance": (tolerance.distance, tolerance.angle)}
         }
+        # where the earlier slots of its pattern put their parts (what this one may rest on)
+        earlier = self._earlier_slots(a)
         back = a.retreat if a.retreat is not None else a.approach
         self.steps.append(
             Step(
@@ -332,7 +337,7 @@ class _Builder:
                 release,
                 path,
                 macro,
-                extra={} if back > 0 else check,
+                extra={"earlier_slots": earlier, **({} if back > 0 else check)},
             )
         )
         if back > 0:
@@ -347,6 +352,19 @@ class _Builder:
                     extra=check,
                 )
             )
+
+
+def _earlier_slots_of(builder: _Builder, a: PlaceArgs) -> list[np.ndarray]:
+    """The TCP targets of the slots before this one in the place's pattern (none without
+    a pattern): the parts earlier jobs put there."""
+    if a.pattern is None:
+        return []
+    slot = int(builder.params[a.pattern.index])
+    out = []
+    for earlier in range(slot):
+        was = _Builder(builder.cell, {**builder.params, a.pattern.index: earlier}, builder.specs)
+        out.append(was._target(a.at, a.offset, a.pattern, a.at_offset)[0])
+    return out
 
 
 def _offset(offset: Offset | None) -> np.ndarray:

@@ -445,6 +445,12 @@ class _StepPlanner:
             close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
             row.duration_s = WRIST_SETTLE_S + close_s + weigh
         elif step.kind == StepKind.RELEASE:
+            if self.part is not None and step.macro != "on_error":  # on_error may drop it
+                from cellrunner.planning.support import check_support
+
+                check_support(
+                    self.world, step, self.q, self.part, step.extra.get("earlier_slots", [])
+                )
             row.duration_s = release_time_s(gripper)
             self.part = None
         elif step.kind == StepKind.WAIT:
