@@ -1,10 +1,12 @@
 """Cells written from SPEC.md alone by someone who did not write the engine (issue 24, item
-7), in tests/cells/spec_written/: a CB3 UR10 tending a CNC with two tools and a vise
-insert, a ceiling-mounted UR5e picking from a conveyor, a UR20 palletizing tall cartons
-onto two pallets in two layers, a UR3e driving a 4-hole screw pattern, and a CB3 UR3
-inserting a 20 mm peg into a 24 mm hole. Each has a part deliberately off its frame
-(``*_off_frame.yaml``) and a deliberately wrong place (a task that lets go over nothing,
-past an edge, or into a stale frame).
+7), in tests/cells/spec_written/, one arm each: a CB3 UR10 tending a CNC with two tools and
+a vise insert, a ceiling-mounted UR5e picking from a conveyor past a waiting box, a UR20
+palletizing tall cartons onto two pallets in two layers, a UR3e driving a 4-hole screw
+pattern, a CB3 UR3 inserting a 20 mm peg into a 24 mm (and 21 mm) hole, a UR10e reaching
+through a guard wall's window, a CB3 UR5 aligning on a marker before its pick (the UR16e
+watched cell is in test_spec_written_watch.py). Each has a part deliberately off its frame
+(``*_off_frame.yaml``, or the align cell's rehearsal offset) and a deliberately wrong place
+(a task that lets go over nothing, past an edge, or into a stale frame).
 
 What is asserted is what a line engineer reads in the SPEC: a correct job checks and
 rehearses to 0 with its part where the task put it; the twin never says 0 for a part
@@ -287,3 +289,18 @@ def test_bad_input_is_one_located_line_and_exit_2(tmp_path, case):
     assert len(lines) == 1, done.stderr
     assert re.match(rf"^{re.escape(spoiled)}:\d+:\d+: error: ", lines[0]), lines[0]
     assert named in lines[0], lines[0]
+
+
+def test_a_block_off_its_frame_placed_blind_is_refused():
+    """SPEC 12, visual alignment: the block lies 8 mm / 6 mm / 4 deg off its frame."""
+    code, out = cli("dry-run", cell("align_ur5"), task("blind_pick_ur5"))
+    assert (code, out["result_code"]) == (1, 3), out["result_text"]
+    assert place_failed_mm(out) >= 5.0, out["result_text"]
+
+
+def test_a_block_off_its_frame_aligned_before_the_pick_is_placed():
+    code, out = cli("check", cell("align_ur5"), task("align_pick_ur5"))
+    assert (code, out["ok"]) == (0, True), out["errors"]
+    code, out = cli("dry-run", cell("align_ur5"), task("align_pick_ur5"))
+    assert (code, out["result_code"]) == (0, 0), (out["result_text"], out["errors"])
+    assert math.dist(out["parts_end_m"]["block"], (0.40, 0.30, 0.825)) < 0.005
