@@ -227,6 +227,13 @@ class _Builder:
             name = f"{at}+{at_offset}"
         return T @ _offset(offset), name
 
+    def _part_pose(self, at: str, pattern: Pattern | None) -> dict[str, np.ndarray]:
+        """Where the part a pick from a pattern grips lies: its slot of the frame
+        (``part_pose``, world); nothing for a pick from the frame itself."""
+        if pattern is None:
+            return {}
+        return {"part_pose": self._target(at, None, pattern)[0]}
+
     def _pick(self, spec: StepSpec, a: PickArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"pick {name}"
@@ -273,7 +280,7 @@ class _Builder:
                 path,
                 macro,
                 retry=retry,
-                extra={"part_at": a.at},
+                extra={"part_at": a.at, **self._part_pose(a.at, a.pattern)},
             )
         )
         lift = a.lift if a.lift is not None else a.approach
