@@ -97,6 +97,8 @@ def run(args: argparse.Namespace) -> int:
         controller.shutdown(reason)
         if watched is not None:
             watched[1].close()
+            if getattr(args, "save_map", None):
+                watched[0].map.save(args.save_map)
         for what in controller.held_results():  # the journal tries once more as it closes
             log.warning("result_held_at_stop", held=what)
         if status_page is not None:

@@ -285,8 +285,12 @@ class OccupancyMap:
                     miss,
                 )
                 log_odds = np.asarray(data["log_odds"], np.float32)
-        except (OSError, KeyError, ValueError) as exc:
-            raise ValueError(f"{path}: not a map snapshot ({exc})") from None
+        except FileNotFoundError:
+            raise ValueError(f"{path}: no such file") from None
+        except (OSError, KeyError, ValueError, EOFError):
+            raise ValueError(
+                f"{path}: not a map snapshot (dry-run or serve --save-map writes one)"
+            ) from None
         if log_odds.shape != (m.n,):
             raise ValueError(f"{path}: {log_odds.shape[0]} voxels, its zone has {m.n}")
         m.log_odds = log_odds
