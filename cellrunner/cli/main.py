@@ -153,6 +153,11 @@ def build_parser() -> argparse.ArgumentParser:
     _params(p)
     p.add_argument("--backend", choices=("ur", "sim"))
     p.add_argument("--robot-host", metavar="H")
+    p.add_argument(
+        "--image-source",
+        metavar="twin|MODULE:FACTORY",
+        help="where align steps get pictures on the arm (default: the twin's cameras at the robot host)",
+    )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument(
         "--speed",
@@ -173,6 +178,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("cell")
     p.add_argument("--backend", choices=("ur", "sim"))
     p.add_argument("--robot-host", metavar="H")
+    p.add_argument(
+        "--image-source",
+        metavar="twin|MODULE:FACTORY",
+        help="where align steps get pictures on the arm (default: the twin's cameras at the robot host)",
+    )
     p.add_argument(
         "--http",
         metavar="[HOST:]PORT",
