@@ -136,6 +136,8 @@ def run(args: argparse.Namespace) -> int:
         wall_run_s = time.perf_counter() - t_run
     if feed is not None:
         feed.close()
+    if zone is not None and getattr(args, "save_map", None):
+        zone.map.save(args.save_map)
     job = controller.last_job
     result = controller.status().last_result
     assert result is not None  # run_job returns once the job has ended

@@ -7,7 +7,15 @@ import argparse
 import sys
 
 from cellrunner.backends.factory import backend_kind, make_backend
-from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
+from cellrunner.cli.common import (
+    console,
+    emit_json,
+    job_eye,
+    load,
+    parse_params,
+    record_rows,
+    step_table,
+)
 from cellrunner.errors import UsageError
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal_open import cell_journal
@@ -49,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         wait_for_unhold=False,
         gate=gate,
+        eye=job_eye(cell, backend, getattr(args, "image_source", None), args.robot_host),
     )
     out = console()
     controller.setup()

@@ -10,6 +10,7 @@ import threading
 from typing import TYPE_CHECKING
 
 from cellrunner.backends.factory import backend_kind, make_backend
+from cellrunner.cli.common import job_eye
 from cellrunner.cli.logs import configure
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import is_database_url
@@ -67,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         wait_for_unhold=True,
         on_job_start=getattr(backend, "feed_parts", None),
+        eye=job_eye(cell, backend, getattr(args, "image_source", None), args.robot_host),
         watch=watched[0] if watched is not None else None,
     )
     stop = threading.Event()
@@ -97,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
         controller.shutdown(reason)
         if watched is not None:
             watched[1].close()
+            if getattr(args, "save_map", None):
+                watched[0].map.save(args.save_map)
         for what in controller.held_results():  # the journal tries once more as it closes
             log.warning("result_held_at_stop", held=what)
         if status_page is not None:
