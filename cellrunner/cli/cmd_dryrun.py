@@ -87,11 +87,10 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.cli.logs import configure
 
         log = configure("json", cell.cell.cell)
-    zone = None
-    if cell.cell.watch is not None:
-        from cellrunner.execution.watch import ZoneWatch
+    from cellrunner.execution.watch import watch_cell
 
-        zone = ZoneWatch(world, cell.cell.watch)
+    watched = watch_cell(world, "sim", backend, realtime=False)
+    zone, feed = watched if watched is not None else (None, None)
     controller = CellController(
         cell,
         {1: task},
@@ -107,11 +106,7 @@ def run(args: argparse.Namespace) -> int:
     out = console()
     controller.setup()
     loop = ControlLoop(controller, lookahead=not getattr(args, "per_period", False))
-    feed = None
-    if zone is not None:
-        from cellrunner.execution.watch import TwinDepthFeed
-
-        feed = TwinDepthFeed(zone, backend)
+    if feed is not None:
         loop.add_observer(feed)
     loop.step(3)
     t0 = time.perf_counter()
@@ -141,6 +136,8 @@ def run(args: argparse.Namespace) -> int:
         wall_run_s = time.perf_counter() - t_run
     if feed is not None:
         feed.close()
+    if zone is not None and getattr(args, "save_map", None):
+        zone.map.save(args.save_map)
     job = controller.last_job
     result = controller.status().last_result
     assert result is not None  # run_job returns once the job has ended
@@ -170,6 +167,8 @@ def run(args: argparse.Namespace) -> int:
     guard = runner_done.ctx.obstacles if runner_done is not None else None
     if guard is not None:
         payload["obstacles"] = guard.events
+    if zone is not None:
+        payload["depth_images"] = zone.images
     has_pictures = True
     if report is not None:
         from cellrunner.report import write_report

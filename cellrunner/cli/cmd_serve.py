@@ -11,6 +11,7 @@ import threading
 from typing import TYPE_CHECKING
 
 from cellrunner.backends.factory import backend_kind, make_backend
+from cellrunner.cli.common import job_eye
 from cellrunner.cli.logs import configure
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import is_database_url
@@ -52,6 +53,13 @@ def run(args: argparse.Namespace) -> int:
     # the planning thread is CPU-bound; hand the GIL over every 1 ms (Python's default is
     # 5 ms) so the PLC threads answer promptly while a job plans
     sys.setswitchinterval(0.001)
+    from cellrunner.execution.watch import watch_on_twin
+
+    watched = watch_on_twin(world, backend, realtime=True) if kind == "sim" else None
+    if cell.cell.watch is not None and watched is None:
+        log.warning(
+            "not_watched", why="depth images of the arm's cell come with the twin backend only"
+        )
     controller = CellController(
         cell,
         tasks,
@@ -61,6 +69,8 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         wait_for_unhold=True,
         on_job_start=getattr(backend, "feed_parts", None),
+        eye=job_eye(cell, backend, getattr(args, "image_source", None), args.robot_host),
+        watch=watched[0] if watched is not None else None,
     )
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
@@ -83,7 +93,11 @@ def run(args: argparse.Namespace) -> int:
             modbus=getattr(service, "modbus_address", None) if service else None,
             http=status_page.url if status_page else None,
         )
-        ControlLoop(controller, realtime=kind == "sim").run(stop)
+        loop = ControlLoop(controller, realtime=kind == "sim")
+        if watched is not None:
+            loop.add_observer(watched[1])
+            watched[1].start()
+        loop.run(stop)
     except Exception as exc:  # a bug in the control loop: close the job saying so, then exit 1
         reason = f"cellrunner failed: {type(exc).__name__}: {exc}"
         log.exception("control_loop_failed", error=str(exc))
@@ -91,6 +105,10 @@ def run(args: argparse.Namespace) -> int:
     finally:
         gc.unfreeze()  # collected as usual on the way out (native bindings check for leaks)
         controller.shutdown(reason)
+        if watched is not None:
+            watched[1].close()
+            if getattr(args, "save_map", None):
+                watched[0].map.save(args.save_map)
         for what in controller.held_results():  # the journal tries once more as it closes
             log.warning("result_held_at_stop", held=what)
         if status_page is not None:
