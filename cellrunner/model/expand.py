@@ -19,6 +19,7 @@ from cellrunner.model.cell import Cell
 from cellrunner.model.frames import frame_pose
 from cellrunner.model.load import LoadedTask, StepSpec
 from cellrunner.model.params import Param, ParamValue, PoseValue
+from cellrunner.model.pattern import Pattern
 from cellrunner.model.source import PathKey
 from cellrunner.model.step import (
     LINEAR_KINDS,
@@ -34,7 +35,6 @@ from cellrunner.model.task import (
     GripArgs,
     LinearArgs,
     Offset,
-    Pattern,
     PickArgs,
     PlaceArgs,
     TaskFile,
@@ -183,21 +183,15 @@ class _Builder:
             elif args.to == "home":
                 name, q = "home", tuple(self.cell.robot.home)
             else:
-                name, T = args.to, self._frame(args.to) @ _offset(args.offset)
+                T, name = self._target(args.to, args.offset, args.pattern)
         elif kind == StepKind.APPROACH:
-            name = args.to
-            T = (
-                self._frame(args.to)
-                @ _offset(args.offset)
-                @ geometry.pose_matrix((0, 0, -args.distance))
-            )
+            T, name = self._target(args.to, args.offset, args.pattern)
+            T = T @ geometry.pose_matrix((0, 0, -args.distance))
         elif kind in (StepKind.DESCEND, StepKind.LINEAR):
-            name, T = args.to, self._frame(args.to) @ _offset(args.offset)
+            T, name = self._target(args.to, args.offset, args.pattern)
         elif kind == StepKind.INSERT:  # the line ends ``depth`` past the frame, along its Z
-            name, T = (
-                args.to,
-                self._frame(args.to) @ geometry.pose_matrix((0, 0, args.depth)),
-            )
+            T, name = self._target(args.to, None, args.pattern)
+            T = T @ geometry.pose_matrix((0, 0, args.depth))
         elif kind == StepKind.SET_OUTPUT:
             name = ", ".join(f"{k}={v}" for k, v in args.values.items())
         elif kind == StepKind.WAIT_INPUT:
