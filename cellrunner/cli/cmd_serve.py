@@ -90,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
         loop = ControlLoop(controller, realtime=kind == "sim")
         if watched is not None:
             loop.add_observer(watched[1])
+            watched[1].start()
         loop.run(stop)
     except Exception as exc:  # a bug in the control loop: close the job saying so, then exit 1
         reason = f"cellrunner failed: {type(exc).__name__}: {exc}"
