@@ -450,6 +450,13 @@ def float_params(loaded: LoadedTask) -> dict[str, list[float]]:
     return out
 
 
+def frame_params(loaded: LoadedTask) -> dict[str, list[str]]:
+    """Every frame param, with the choices ``check`` must cover (every one)."""
+    return {
+        name: list(p.choices or []) for name, p in loaded.task.params.items() if p.type == "frame"
+    }
+
+
 __all__ = [
     "ALIGN_KEY",
     "LINEAR_KINDS",
@@ -466,6 +473,7 @@ __all__ = [
     "expand",
     "expand_on_error",
     "float_params",
+    "frame_params",
     "frame_pose",
     "pattern_params",
     "resolve_params",
