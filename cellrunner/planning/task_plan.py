@@ -534,7 +534,9 @@ class _StepPlanner:
         gripper = self.world.loaded.cell.tool.gripper
         if step.kind == StepKind.GRIP:
             T = self.world.kinematics.T_world_tcp(self.q)
-            part = self.world.part_at(step.extra.get("part_at", ""), T, step.extra.get("part_pose"))
+            # a pick's grip names its frame; a bare grip takes the part waiting at the TCP
+            frame = step.extra.get("part_at") or self._frame_at_tcp()
+            part = self.world.part_at(frame, T, step.extra.get("part_pose"))
             self.part = self.world.same_grip(part) if part is not None else None
             _check_jaws_fit(step, gripper, self.part)
             weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
@@ -702,6 +704,13 @@ class _StepPlanner:
             if np.linalg.norm(np.asarray(part.T_parent_shape)[:3, 3] - p)
             <= make_coal_shape(part.shape)[1]
         }
+
+    def _frame_at_tcp(self) -> str:
+        """The frame of the part a grip here takes (:meth:`_waiting_at_tcp`), or ''."""
+        from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+        names = {name[len(WAITING_PREFIX) :] for name in self._waiting_at_tcp(self.q)}
+        return next((p.at for p in self.world.loaded.cell.parts if p.name in names), "")
 
     def _try_ik(self, T: np.ndarray) -> np.ndarray | None:
         try:
