@@ -62,6 +62,11 @@ MAX_REFUSED_KEPT = 2000
 #: the chord of its neighbours, largest first, and the passes over the path.
 TIGHTEN_FRACTIONS = (1.0, 0.5, 0.25)
 TIGHTEN_PASSES = 3
+#: a pulled via point keeps this much more than the required clearance (m): pulled up to
+#: an obstacle, its sampled edges and corner arc slip past it, the verifier refuses the
+#: move and it is planned again proven (with no margin: 9 of the planning bench's 20
+#: problems instead of 3, and its median planning time from 2.2 to 5.6 ms)
+TIGHTEN_MARGIN_M = 0.02
 
 
 @dataclass(frozen=True)
@@ -171,7 +176,7 @@ def tighten(
 ) -> np.ndarray:
     """The path with each interior waypoint w (between a and b) pulled toward the point
     of the chord a -> b nearest to it, by the largest of ``TIGHTEN_FRACTIONS`` for which
-    ``free`` accepts both new edges; a few passes, since each pull opens room for its
+    the pulled point keeps ``TIGHTEN_MARGIN_M`` and ``free`` accepts both new edges; a few passes, since each pull opens room for its
     neighbours'. Shortcutting keeps only waypoints of the searched path, whose corners
     sit where the search happened to sample; pulling them in shortens the path (the
     demo's cycle by 6 %) and never lengthens it (triangle inequality)."""
@@ -187,13 +192,19 @@ def tighten(
                 continue
             for f in TIGHTEN_FRACTIONS:
                 p = w + f * (c - w)
-                if free(collision, a, p) and free(collision, p, b):
+                if _roomy(collision, p) and free(collision, a, p) and free(collision, p, b):
                     q[i] = p
                     moved = True
                     break
         if not moved:
             break
     return q
+
+
+def _roomy(collision: CollisionModel, q: np.ndarray) -> bool:
+    """Whether every pair keeps ``TIGHTEN_MARGIN_M`` more than its clearance at ``q``."""
+    c = collision.clearance(q)
+    return c.distance_m - c.required_m >= TIGHTEN_MARGIN_M
 
 
 def sampled_free(collision: CollisionModel, qa: np.ndarray, qb: np.ndarray) -> bool:
