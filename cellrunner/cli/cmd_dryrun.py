@@ -87,9 +87,9 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.cli.logs import configure
 
         log = configure("json", cell.cell.cell)
-    from cellrunner.execution.watch import watch_on_twin
+    from cellrunner.execution.watch import watch_cell
 
-    watched = watch_on_twin(world, backend, realtime=False)
+    watched = watch_cell(world, "sim", backend, realtime=False)
     zone, feed = watched if watched is not None else (None, None)
     controller = CellController(
         cell,
@@ -167,6 +167,8 @@ def run(args: argparse.Namespace) -> int:
     guard = runner_done.ctx.obstacles if runner_done is not None else None
     if guard is not None:
         payload["obstacles"] = guard.events
+    if zone is not None:
+        payload["depth_images"] = zone.images
     has_pictures = True
     if report is not None:
         from cellrunner.report import write_report

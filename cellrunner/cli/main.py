@@ -57,6 +57,15 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageExit(f"{self.prog}: error: {message}")
 
 
+def _depth_source(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--depth-source",
+        metavar="SPEC",
+        help="a watched cell on the arm: where depth images come from: twin (the virtual "
+        "controller's, the default), replay:DIR, or MODULE:FACTORY (docs/perception.md)",
+    )
+
+
 def _params(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "-p",
@@ -162,6 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="commissioning: show each step and wait for Enter before running it",
     )
+    _depth_source(p)
     p.set_defaults(module="run")
 
     p = sub.add_parser("serve", help="production: PLC interface up, jobs on trigger")
@@ -184,6 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="a watched cell: write the obstacle map when serving stops (.npz, for check --watch)",
     )
+    _depth_source(p)
     p.set_defaults(module="serve")
 
     p = sub.add_parser("twin", help="a virtual UR controller backed by the MuJoCo twin")

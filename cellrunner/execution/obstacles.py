@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -30,7 +30,6 @@ from cellrunner.model.trajectory import ApprovedTrajectory, along_path
 
 if TYPE_CHECKING:
     from cellrunner.execution.context import JobContext
-    from cellrunner.execution.steps import Outcome
     from cellrunner.execution.watch import ZoneWatch
     from cellrunner.model.expand import Step
     from cellrunner.model.geometry import Placed
@@ -73,13 +72,29 @@ def where(blocked: Blocked) -> str:
     return f"occupied voxel at ({x:.3f}, {y:.3f}, {z:.3f}) m"
 
 
+#: how a watched motion failed: (result code, message)
+Failure = tuple[ResultCode, str]
+
+
+@dataclass(frozen=True)
+class _Go:
+    """The way is clear: stream ``path`` from set-point ``pos``."""
+
+    path: ApprovedTrajectory
+    pos: int
+
+
 def stream_watched(
-    ctx: JobContext, step: Step, approved: ApprovedTrajectory, first: int
-) -> Generator[None, None, Outcome | None]:
+    ctx: JobContext,
+    step: Step,
+    approved: ApprovedTrajectory,
+    first: int,
+    part_lost: Callable[[JobContext], Any],
+) -> Generator[None, None, Any]:
     """Stream ``approved`` from set-point ``first`` under the watch (module docstring);
-    returns None at its end, or the failed outcome (108, a part lost)."""
+    returns None at its end, what ``part_lost(ctx)`` returned once it is not None (the
+    caller's failed outcome), or a :data:`Failure` (108)."""
     from cellrunner.execution.context import Stream
-    from cellrunner.execution.steps import part_lost_outcome
 
     guard = ctx.obstacles
     assert guard is not None  # called only for a watched cell
@@ -91,9 +106,9 @@ def stream_watched(
     if blocked is not None:
         guard.note(ctx, "blocked before start", blocked, step=step.index)
         result = yield from _wait(ctx, step, path, float(pos), blocked, held)
-        if not isinstance(result, tuple):
+        if not isinstance(result, _Go):
             return result
-        path, pos = result
+        path, pos = result.path, result.pos
     while True:
         q = path.trajectory.q_rad
         follow_id = zone.follow(q, pos, held)
@@ -105,7 +120,7 @@ def stream_watched(
             ctx.commanded_q = q[i]
             stream.next_index = i + 1
             yield
-            lost = part_lost_outcome(ctx)
+            lost = part_lost(ctx)
             if lost is not None:
                 return lost
             verdict = zone.verdict()
@@ -127,9 +142,9 @@ def stream_watched(
         guard.note(ctx, "stop", blocked, step=step.index)
         u_rest = yield from _stop_on_path(ctx, path, index)
         result = yield from _wait(ctx, step, path, u_rest, blocked, held)
-        if not isinstance(result, tuple):
+        if not isinstance(result, _Go):
             return result
-        path, pos = result
+        path, pos = result.path, result.pos
 
 
 def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop: bool) -> int:
@@ -183,10 +198,9 @@ def _wait(
     u_rest: float,
     blocked: Blocked,
     held: Placed | None,
-) -> Generator[None, None, tuple[ApprovedTrajectory, int] | Outcome]:
+) -> Generator[None, None, _Go | Failure]:
     """The arm stands at ``u_rest`` on ``path``: wait for the way to clear (then the same
     path on from there), replan around the map when the task allows, or fail with 108."""
-    from cellrunner.execution.steps import Outcome
 
     guard = ctx.obstacles
     assert guard is not None
@@ -204,7 +218,7 @@ def _wait(
             if verdict is not None and verdict.follow_id == follow_id and verdict.time_s > since:
                 if verdict.blocked is None:
                     guard.note(ctx, "clear", None, step=step.index, waited_s=round(now - since, 3))
-                    return _resumed(ctx, path, u_rest), 1
+                    return _Go(_resumed(ctx, path, u_rest), 1)
                 blocked = verdict.blocked
                 guard.obstructed = f"step {step.index} ({step.name}): {where(blocked)}"
             if (
@@ -227,7 +241,7 @@ def _wait(
                         replans=guard.replans,
                         plan_s=plan_s,
                     )
-                    return replanned, 0
+                    return _Go(replanned, 0)
                 guard.note(
                     ctx,
                     "replan failed",
@@ -243,7 +257,7 @@ def _wait(
                     + (f" after {guard.replans} replan(s)" if policy.replan else "")
                 )
                 guard.note(ctx, "blocked", blocked, step=step.index)
-                return Outcome.failed(ResultCode.PATH_BLOCKED, message)
+                return ResultCode.PATH_BLOCKED, message
     finally:
         guard.obstructed = ""
         zone.follow(None)

@@ -82,6 +82,9 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             ("steps",), f"the task grips and releases but cell {cell.cell!r} has no tool.gripper"
         )
     for name, param in task.task.params.items():
+        for i, choice in enumerate(param.choices or ()):
+            if choice not in cell.frames:
+                report.error(("params", name, "choices", i), unknown_name("frame", choice, frames))
         if param.default is None:
             report.error(
                 ("params", name),
