@@ -169,6 +169,8 @@ def run(args: argparse.Namespace) -> int:
         payload["obstacles"] = guard.events
     if zone is not None:
         payload["depth_images"] = zone.images
+        intruders = backend.world.intruders if backend.world is not None else None
+        payload["intruders_touched"] = sorted(intruders.touched) if intruders else []
     has_pictures = True
     if report is not None:
         from cellrunner.report import write_report
