@@ -55,11 +55,11 @@ def run(args: argparse.Namespace) -> int:
     params = parse_params(args.param, task)
     steps = expanded(cell, task, params)
     injections = parse_injections(args.inject, steps)
-    if args.report or cell.cell.watch is not None:
+    if args.report or cell.cell.watch is not None or cell.cell.cameras:
         from cellrunner.sim.mujoco_loader import enable_pictures
 
         # before MuJoCo is imported: it reads its GL backend once (a watched cell's depth
-        # cameras cast rays instead where there is none)
+        # cameras cast rays instead where there is none; an align step's camera renders)
         enable_pictures()
     from cellrunner.backends.sim.backend import SimBackend
     from cellrunner.planning.world import CellWorld
