@@ -150,8 +150,12 @@ class CellController:
         on_step_start: Callable[[Step, int], None] | None = None,
         on_job_start: Callable[[], None] | None = None,
         gate: Callable[[Step], bool] | None = None,
+        watch: Any = None,
     ) -> None:
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
+        #: the watched zone (execution.watch.ZoneWatch) whose map every motion is checked
+        #: against (SPEC 12); None: the cell is not watched
+        self.watch = watch
         self.planner, self.log = planner, log
         self.wait_for_unhold = wait_for_unhold
         self.on_step_start = on_step_start
@@ -235,7 +239,16 @@ class CellController:
             last_result=self._last,
             parts_processed=self._counters[0],
             parts_defective=self._counters[1],
+            obstructed=bool(self._obstruction()),
+            obstruction=self._obstruction(),
         )
+
+    def _obstruction(self) -> str:
+        """Where the running job's arm waits for an obstacle ("" when it does not)."""
+        job = self._job
+        runner = job.runner if job is not None else None
+        guard = runner.ctx.obstacles if runner is not None else None
+        return guard.obstructed if guard is not None else ""
 
     def _publish(self) -> None:
         """Publish a new status snapshot (under the lock) when anything in it changed."""
@@ -247,6 +260,7 @@ class CellController:
             job.runner.current_step if job and job.runner else 0,
             self._last,
             self._counters,
+            self._obstruction(),
         )
         if key != self._status_key:
             self._status_key = key
@@ -271,6 +285,14 @@ class CellController:
         the control thread."""
         job = self._job
         return None if job is None else _view_of(job, job.runner, records=records)
+
+    def streaming(self) -> Any:
+        """The approved trajectory the running job streams now and the index of its next
+        set-point, or None (call on the control thread)."""
+        job = self._job
+        runner = job.runner if job is not None else None
+        stream = runner.ctx.stream if runner is not None else None
+        return None if stream is None else (stream.approved, stream.next_index)
 
     @property
     def last_job(self) -> JobView | None:
@@ -530,6 +552,17 @@ class CellController:
             return None
         job.planned = plan
         ctx = self._context(plan.motions, job.job_id)
+        if self.watch is not None:
+            from cellrunner.execution.obstacles import ObstacleGuard
+
+            ctx.obstacles = ObstacleGuard(
+                self.watch,
+                job.task.task.on_obstacle,
+                self.watch.world.limits.joint_accel_rad_s2,
+            )
+            job_started = getattr(self.backend, "job_started", None)
+            if job_started is not None:  # the twin's intruders count from the job's start
+                job_started()
         runner = JobRunner(
             ctx,
             plan.steps,

@@ -14,7 +14,9 @@ from cellrunner.model.expand import Step
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 if TYPE_CHECKING:
+    from cellrunner.execution.obstacles import ObstacleGuard
     from cellrunner.model.cell import Gripper, Tool
+    from cellrunner.model.geometry import Placed
 
 
 class Motions(Protocol):
@@ -28,9 +30,16 @@ class Motions(Protocol):
         """Whether ``step``'s nominal trajectory continues the motion before it without
         stopping (it was verified starting at that motion's speed, not from rest)."""
 
-    def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
+    def replan(
+        self,
+        step: Step,
+        q_now_rad: np.ndarray,
+        carrying: bool,
+        obstacles: Placed | None = None,
+    ) -> ApprovedTrajectory:
         """A verified trajectory from ``q_now_rad`` to ``step``'s goal (after a stop, a
-        retry); raises InfeasibleError when none passes the checks."""
+        retry), around ``obstacles`` too (the watched zone's map) when given; raises
+        InfeasibleError when none passes the checks."""
 
     def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
         """World position of the TCP at ``q_rad`` (for tracking error), with the tool
@@ -118,6 +127,7 @@ class JobContext:
     hold: Hold | None = None  # what the step waits for, set by it in the current tick
     log: EventLog | None = None
     notes: dict[str, Any] = field(default_factory=dict)
+    obstacles: ObstacleGuard | None = None  # a watched cell's map on the job's path (SPEC 12)
 
     @property
     def now_s(self) -> float:

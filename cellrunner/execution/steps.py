@@ -92,6 +92,14 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
         if ctx.commanded_q is not None and len(q) > 1 and np.array_equal(q[0], ctx.commanded_q)
         else 0
     )
+    if ctx.obstacles is not None:  # a watched cell: stop, wait, replan around the map
+        from cellrunner.execution.obstacles import stream_watched
+
+        failed = yield from stream_watched(ctx, step, approved, first)
+        if failed is not None:
+            return failed
+        end_q = ctx.notes.pop("watched_q", q)
+        return (yield from _ended(ctx, step, end_q, approved.trajectory.rate_hz))
     # the index lives in ctx.stream so that a look-ahead (execution.lookahead) can move
     # the stream on by many periods at once
     stream = ctx.stream = Stream(approved, first, *_planned_accel(ctx, approved))
@@ -101,16 +109,30 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
         ctx.commanded_q = q[i]
         stream.next_index = i + 1
         yield
-        if ctx.carry is not None:
-            lost = _part_lost(ctx)
-            if lost:
-                ctx.stream = None
-                ctx.backend.stop_motion()
-                return Outcome.failed(ResultCode.PART_LOST, lost)
+        lost = part_lost_outcome(ctx)
+        if lost is not None:
+            return lost
     ctx.stream = None
-    ctx.notes["end_rad_s"] = (
-        float(np.abs(q[-1] - q[-2]).max()) * approved.trajectory.rate_hz if len(q) > 1 else 0.0
-    )
+    return (yield from _ended(ctx, step, q, approved.trajectory.rate_hz))
+
+
+def part_lost_outcome(ctx: JobContext) -> Outcome | None:
+    """While a part is carried: the failed outcome (2) once it is lost (the motion is
+    stopped), else None."""
+    if ctx.carry is None:
+        return None
+    lost = _part_lost(ctx)
+    if not lost:
+        return None
+    ctx.stream = None
+    ctx.backend.stop_motion()
+    return Outcome.failed(ResultCode.PART_LOST, lost)
+
+
+def _ended(ctx: JobContext, step: Step, q: np.ndarray, rate_hz: float) -> StepGen:
+    """A motion streamed to its end (set-points ``q``): how fast it ended (a continuation
+    may run on from it), and the place check."""
+    ctx.notes["end_rad_s"] = float(np.abs(q[-1] - q[-2]).max()) * rate_hz if len(q) > 1 else 0.0
     return (yield from check_place(ctx, step))
 
 

@@ -324,6 +324,24 @@ def box_params(loaded: LoadedTask) -> dict[str, list[PoseValue]]:
     return out
 
 
+#: float param kinds that change what the arm does in space (a wait's time or a force limit
+#: does not change a plan; a param with no unit might)
+MOTION_FLOAT_KINDS = (None, "length", "angle", "speed")
+
+
+def float_params(loaded: LoadedTask) -> dict[str, list[float]]:
+    """Every bounded float param that may change a motion (a length, an angle, a speed, or
+    no unit), with the values ``check`` must cover: its range's ends and centre, as a pose
+    param's box (a float param without both bounds has no range to prove)."""
+    out: dict[str, list[float]] = {}
+    for name, p in loaded.task.params.items():
+        bounded = p.min is not None and p.max is not None
+        if p.type == "float" and p.kind in MOTION_FLOAT_KINDS and bounded:
+            lo, hi = float(p.min), float(p.max)
+            out[name] = sorted({lo, (lo + hi) / 2, hi})
+    return out
+
+
 __all__ = [
     "LINEAR_KINDS",
     "MOTION_KINDS",
@@ -337,6 +355,7 @@ __all__ = [
     "camera_pose",
     "expand",
     "expand_on_error",
+    "float_params",
     "frame_pose",
     "pattern_params",
     "resolve_params",

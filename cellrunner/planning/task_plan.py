@@ -155,16 +155,25 @@ class TaskPlan:
         row = self.row(step)
         return bool(row is not None and row.verify_inputs and row.verify_inputs["previous_moving"])
 
-    def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
+    def replan(
+        self,
+        step: Step,
+        q_now_rad: np.ndarray,
+        carrying: bool,
+        obstacles: Placed | None = None,
+    ) -> ApprovedTrajectory:
         """A verified rest-to-rest trajectory from ``q_now_rad`` to the step's goal: the
         same goal as planned (after a stop), or, for a relative move planned nowhere (a
-        retry's retreat), its distance from where the arm stands."""
+        retry's retreat), its distance from where the arm stands. ``obstacles`` (the
+        watched zone's map) are planned around and verified against like fixtures."""
         row = self.row(step)
         part = (
             row.carrying if row is not None else (self._carried_before(step) if carrying else None)
         )
         allowances = row.allowances if row is not None else ()
         world = self._world_of(step)
+        if obstacles is not None:
+            world = world.with_obstacles(obstacles)
         planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
         goal_q = row.q_end_rad if row is not None and row.status == "ok" else None
         motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
@@ -207,6 +216,10 @@ class TaskPlan:
         return np.asarray(
             np.array([0.0, 0.0, -GRAVITY_MPS2]) @ self.world.kinematics.T_world_base[:3, :3]
         )
+
+    def carried_during(self, step: Step) -> Placed | None:
+        """The part held while ``step`` runs (placed in the TCP frame), None when none."""
+        return self._carried_before(step)
 
     def _carried_before(self, step: Step) -> Placed | None:
         rows = [r for r in self.rows if r.step.index <= step.index]
@@ -388,11 +401,15 @@ class _StepPlanner:
                     allowances = self.contact + contact_allowances(self, step, T_goal) + named
                 else:
                     allowances = self._place_allowances(step, T_goal, named)  # with self.contact
-                allowances += self._waiting_touches(T_goal)
+            # also when replanned at run time from where the arm stands (a retry's retreat)
+            touches = self._waiting_touches(T_goal)
+            allowances = (*allowances, *(a for a in touches if a not in allowances))
             collision = self.collision(allowances, step)
+            path = plan_linear(kin, collision, self.q, T_goal).q_rad
+            if step.kind == StepKind.MOVE_UNTIL_CONTACT:
+                _check_meets_something(self, step, path)
             # the next straight move leaves a force step's or tight fit's contacts
             self.contact = allowances if step.kind in FORCE_KINDS or named else ()
-            path = plan_linear(kin, collision, self.q, T_goal).q_rad
             line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
         row.allowances = tuple(allowances or ())
         row.carrying = self.part
@@ -501,7 +518,7 @@ class _StepPlanner:
                 if (
                     clearance.distance_m >= clearance.required_m
                     or clearance.a != f"part '{self.part.name}'"
-                    or not clearance.b.startswith("fixture '")
+                    or not clearance.b.startswith(("fixture '", "waiting part '"))
                 ):
                     break
                 if clearance.distance_m < -SET_DOWN_PRESS_M:
@@ -512,7 +529,7 @@ class _StepPlanner:
                         f"move the target up by {depth_mm - SET_DOWN_PRESS_M * 1000:.1f} mm or more"
                     )
                 allowances.append(
-                    ContactAllowance(clearance.b[len("fixture '") : -1], "part", -SET_DOWN_PRESS_M)
+                    ContactAllowance(_fixture_name(clearance.b), "part", -SET_DOWN_PRESS_M)
                 )
                 model = self.collision(tuple(allowances), step)
         return tuple(allowances)
@@ -542,6 +559,25 @@ class _StepPlanner:
             return np.asarray(self.world.kinematics.ik_nearest(T, self.q))
         except InfeasibleError:
             return None
+
+
+def _fixture_name(label: str) -> str:
+    """The fixture name of a "fixture 'x'" or "waiting part 'x'" label (``part:x``)."""
+    from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+    if label.startswith("waiting part '"):
+        return WAITING_PREFIX + label[len("waiting part '") : -1]
+    return label[len("fixture '") : -1]
+
+
+def _check_meets_something(planner: _StepPlanner, step: Step, path: np.ndarray) -> None:
+    """A move_until_contact must touch something the cell file has (a fixture, a waiting
+    part) within its max_distance, or the step fails on every backend (no contact)."""
+    from cellrunner.planning.force_plan import first_touch, meets_nothing
+
+    bare = planner.world.collision.carrying(planner.part)
+    if first_touch(bare, path, planner.part is not None) is None:
+        raise InfeasibleError(meets_nothing(step, bare, path[-1], planner.part is not None))
 
 
 def _check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) -> None:

@@ -30,6 +30,9 @@ class CellWorld:
         None  # (tool, tcp_of) of a world made by with_tool; None: as the cell file mounts it
     )
     base: CellWorld | None = None  # the world with_tool made this one from
+    #: obstacles beyond the cell file's fixtures (the watched zone's map, when a job
+    #: replans around it; SPEC section 12)
+    extra: tuple[Placed, ...] = ()
 
     @property
     def spec(self) -> RobotSpec:
@@ -77,7 +80,11 @@ class CellWorld:
 
     @cached_property
     def fixtures(self) -> list[Placed]:
-        return self.loaded.fixture_shapes()
+        return self.loaded.fixture_shapes() + list(self.extra)
+
+    def with_obstacles(self, *obstacles: Placed) -> CellWorld:
+        """The same cell with ``obstacles`` beside its fixtures (a fresh collision model)."""
+        return dataclasses.replace(self, extra=tuple(obstacles))
 
     @cached_property
     def waiting_parts(self) -> list[Placed]:

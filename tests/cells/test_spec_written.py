@@ -89,6 +89,12 @@ CORRECT = {
     "ur3_tight_peg_24mm_hole": ("peg_ur3", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
     "ur3_tighter_peg_21mm_hole": ("peg_ur3_21mm", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
     "ur10_cnc_two_tools_vise_insert": ("cnc_ur10", "cnc", (), {"blank": (0.40, -0.35, 0.93)}),
+    "ur10e_through_a_guard_window": (
+        "guard_window_ur10e",
+        "unload_press",
+        (),
+        {"block": (0.35, -0.35, 0.925)},
+    ),
 }
 
 
@@ -131,6 +137,7 @@ WRONG_PLACE = {
     "ur20_carton_mostly_off_the_pallet": ("two_pallet_ur20", "pallet_left_overhang", ("slot=2",)),
     "ur3e_bracket_beside_the_bench": ("screwing_ur3e", "bracket_beside_bench", ()),
     "ur10_part_past_the_table_edge": ("cnc_ur10", "cnc_past_edge", ()),
+    "ur10e_block_past_the_table_edge": ("guard_window_ur10e", "unload_press_past_table", ()),
     "ur3_peg_into_a_stale_hole_frame": ("peg_ur3", "peg_as_taught", ()),
 }
 
@@ -143,6 +150,33 @@ def test_a_wrong_place_is_never_0(case):
     code, out = cli("dry-run", cell(cell_name), task(task_name), *params(*pairs))
     assert code == 1, (code, out["errors"])
     assert isinstance(out["result_code"], int) and out["result_code"] != 0, out["result_text"]
+
+
+# Parts let go over nothing: (cell, task, the part, its middle at the target, world m).
+FALLEN = {
+    "ceiling_ur5e_box": (
+        "ceiling_conveyor_ur5e",
+        "conveyor_pick_past_table",
+        "box",
+        (0.0, 0.66, 0.925),
+    ),
+    "ur3e_bracket": ("screwing_ur3e", "bracket_beside_bench", "bracket", (0.12, 0.43, 0.808)),
+    "ur10_blank": ("cnc_ur10", "cnc_past_edge", "blank", (0.40, -0.63, 0.93)),
+}
+
+
+@pytest.mark.parametrize("case", FALLEN.values(), ids=FALLEN.keys())
+def test_a_failed_place_reports_the_offset_where_the_part_comes_to_rest(case):
+    """Each falls 0.8-0.9 m to the floor: the offset in the result is the one at rest."""
+    cell_name, task_name, part, target = case
+    code, out = cli("dry-run", cell(cell_name), task(task_name))
+    assert (code, out["result_code"]) == (1, 3), out["result_text"]
+    at_rest_mm = 1000 * math.dist(out["parts_end_m"][part], target)
+    assert at_rest_mm > 750
+    assert place_failed_mm(out) == pytest.approx(at_rest_mm, abs=10), (
+        out["result_text"],
+        out["parts_end_m"],
+    )
 
 
 def test_check_refuses_jaws_that_open_narrower_than_the_part():

@@ -78,10 +78,16 @@ def test_a_carton_released_onto_another_a_layer_low_is_place_failed(stacked):
     assert out["parts_end_m"]["carton"][2] == pytest.approx(0.29, abs=0.003)
 
 
-def test_a_carton_pressed_onto_another_stops_the_arm(stacked):
-    out = dry_run(*stacked, "-p", "slot=0")  # slot 0 is taken: pushed into the stock carton
-    assert out["result_code"] == 100, (out["result_text"], out["steps"])
-    assert out["result_text"].startswith("protective stop during step 8 descend")
+def test_a_carton_pressed_onto_another_is_refused_before_it_moves(stacked):
+    """Slot 0 is taken by the stock carton: the descend would push the carton 100 mm into
+    it. The stock carton waits at its frame, an obstacle check knows of, so the job is
+    refused before it starts (the twin's protective stop, 100, before issue 24)."""
+    out = dry_run(*stacked, "-p", "slot=0")
+    assert out["result_code"] == 103, (out["result_text"], out["steps"])
+    assert out["result_text"].startswith(
+        "step 8 descend 'pallet_slot0[slot=0]': at its end the part 'carton' would be "
+        "100.0 mm inside waiting part 'stock'"
+    )
 
 
 def test_an_empty_conveyor_times_out_at_the_part_present_wait(tmp_path):
