@@ -40,12 +40,15 @@ PLC_OUTAGE_S = 2.0
 
 
 def _parts_end(backend: SimBackend) -> dict[str, list[float]]:
-    """Where each part of the twin ended (world position, m)."""
+    """Where each part of the twin ended (world position, m); copies still waiting to be
+    fed are not in the cell."""
     world = backend.world
     assert world is not None  # the run connected the backend
+    parked = set(world.feeder.parked) if world.feeder is not None else set()
     return {
         p.name: [round(float(v), 5) for v in world.part_pose_world(p.name)[:3, 3]]
         for p in backend.description.parts
+        if p.name not in parked
     }
 
 
@@ -62,10 +65,11 @@ def run(args: argparse.Namespace) -> int:
         enable_pictures()
     from cellrunner.backends.sim.backend import SimBackend
     from cellrunner.planning.world import CellWorld
-    from cellrunner.sim.from_cell import description_of
+    from cellrunner.sim.from_cell import rehearsal_description
 
     world = CellWorld(cell)
-    backend = SimBackend(description_of(cell, (task,)))
+    # the earlier slots of a place pattern already filled (SPEC section 12)
+    backend = SimBackend(rehearsal_description(cell, task, params))
     pending: list[tuple[Injection, float]] = []
     report = Path(args.report) if args.report else None
     recorder = RunRecorder()

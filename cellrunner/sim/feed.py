@@ -70,7 +70,7 @@ def with_rehearsal_parts(
         dataclasses.replace(parts[of], name=name, T_world_part=np.array(T))
         for name, of, T in placed
     ]
-    feed_desc = None
+    feed_desc = desc.feed
     if feed is not None and copies > 0:
         part, T_fed = feed
         names = tuple(copy_name(part, k + 1) for k in range(copies))

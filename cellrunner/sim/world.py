@@ -474,8 +474,8 @@ class SimWorld:
         from scipy.spatial.transform import Rotation
 
         if self.feeder is not None:
-            fed = self.feeder.feed()
-            return [fed] if fed is not None else []
+            new = self.feeder.feed()
+            return [new] if new is not None else []
         mujoco = load_mujoco()
         fed = []
         for part in self.description.parts:

@@ -29,7 +29,7 @@ def test_backwards_is_the_approved_set_points_in_reverse_and_stays_approved():
     assert back.is_sealed and (back.step_index, back.step_name) == (3, "line")
     np.testing.assert_array_equal(back.trajectory.q_rad, q[2:9][::-1])
     assert (back.trajectory.qd_rad_s < 0).all()  # its speeds point back along the line
-    with pytest.raises(ValueError, match="outside 0..10"):
+    with pytest.raises(ValueError, match=r"outside 0\.\.10"):
         backwards(approved, 11, 2)
 
 
