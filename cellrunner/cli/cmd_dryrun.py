@@ -20,6 +20,7 @@ from cellrunner.cli.common import (
     parse_params,
     record_rows,
     step_table,
+    twin_eye,
 )
 from cellrunner.cli.faults import Injection, parse_injections
 from cellrunner.errors import CellrunnerError
@@ -90,11 +91,10 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.cli.logs import configure
 
         log = configure("json", cell.cell.cell)
-    zone = None
-    if cell.cell.watch is not None:
-        from cellrunner.execution.watch import ZoneWatch
+    from cellrunner.execution.watch import watch_on_twin
 
-        zone = ZoneWatch(world, cell.cell.watch)
+    watched = watch_on_twin(world, backend, realtime=False)
+    zone, feed = watched if watched is not None else (None, None)
     controller = CellController(
         cell,
         {1: task},
@@ -104,16 +104,13 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         wait_for_unhold=False,
         on_step_start=on_step_start,
+        eye=twin_eye(cell, backend),
         watch=zone,
     )
     out = console()
     controller.setup()
     loop = ControlLoop(controller, lookahead=not getattr(args, "per_period", False))
-    feed = None
-    if zone is not None:
-        from cellrunner.execution.watch import TwinDepthFeed
-
-        feed = TwinDepthFeed(zone, backend)
+    if feed is not None:
         loop.add_observer(feed)
     loop.step(3)
     t0 = time.perf_counter()

@@ -51,6 +51,13 @@ def run(args: argparse.Namespace) -> int:
     # the planning thread is CPU-bound; hand the GIL over every 1 ms (Python's default is
     # 5 ms) so the PLC threads answer promptly while a job plans
     sys.setswitchinterval(0.001)
+    from cellrunner.execution.watch import watch_on_twin
+
+    watched = watch_on_twin(world, backend, realtime=True) if kind == "sim" else None
+    if cell.cell.watch is not None and watched is None:
+        log.warning(
+            "not_watched", why="depth images of the arm's cell come with the twin backend only"
+        )
     controller = CellController(
         cell,
         tasks,
@@ -60,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         wait_for_unhold=True,
         on_job_start=getattr(backend, "feed_parts", None),
+        watch=watched[0] if watched is not None else None,
     )
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
@@ -77,13 +85,20 @@ def run(args: argparse.Namespace) -> int:
             modbus=getattr(service, "modbus_address", None) if service else None,
             http=status_page.url if status_page else None,
         )
-        ControlLoop(controller, realtime=kind == "sim").run(stop)
+        loop = ControlLoop(controller, realtime=kind == "sim")
+        if watched is not None:
+            loop.add_observer(watched[1])
+        loop.run(stop)
     except Exception as exc:  # a bug in the control loop: close the job saying so, then exit 1
         reason = f"cellrunner failed: {type(exc).__name__}: {exc}"
         log.exception("control_loop_failed", error=str(exc))
         raise
     finally:
         controller.shutdown(reason)
+        if watched is not None:
+            watched[1].close()
+        for what in controller.held_results():  # the journal tries once more as it closes
+            log.warning("result_held_at_stop", held=what)
         if status_page is not None:
             status_page.stop()
             status_page.board.close()

@@ -140,3 +140,14 @@ def record_rows(job: JobView | None, steps: list[Step] | None = None) -> list[di
         }
         for r in records
     ]
+
+
+def twin_eye(cell: LoadedCell, backend: Any) -> Any:
+    """The cameras an align step sees through: rendered by the in-process twin (``sim``
+    backend), None for a cell without cameras or a backend that renders none."""
+    grab = getattr(backend, "camera_image", None)
+    if not cell.cell.cameras or grab is None:
+        return None
+    from cellrunner.vision.eye import MarkerEye
+
+    return MarkerEye(grab, dict(cell.cell.cameras))

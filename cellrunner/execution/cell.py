@@ -29,7 +29,7 @@ import numpy as np
 
 from cellrunner.backends.base import RobotBackend, Safety
 from cellrunner.errors import CellrunnerError, InputError
-from cellrunner.execution.context import EventLog, JobContext, Motions, use_gripper
+from cellrunner.execution.context import EventLog, Eye, JobContext, Motions, use_gripper
 from cellrunner.execution.job import JobPhase, JobRunner, StepRecord
 from cellrunner.execution.journal import JobRecord, JournalBackend, JournalError
 from cellrunner.execution.packml import Command, Event, StateMachine, TransitionRefused
@@ -150,9 +150,11 @@ class CellController:
         on_step_start: Callable[[Step, int], None] | None = None,
         on_job_start: Callable[[], None] | None = None,
         gate: Callable[[Step], bool] | None = None,
+        eye: Eye | None = None,
         watch: Any = None,
     ) -> None:
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
+        self.eye = eye  # the cameras, for align steps
         #: the watched zone (execution.watch.ZoneWatch) whose map every motion is checked
         #: against (SPEC 12); None: the cell is not watched
         self.watch = watch
@@ -175,6 +177,8 @@ class CellController:
         self._actions: list[Callable[[], None]] = []  # backend work asked for by other threads
         self._recovery: Generator[None, None, None] | None = None  # Clearing's, one step a tick
         self._counters = (0, 0)
+        # a result the journal has not written yet (a full disk), and its "written" event
+        self._held: tuple[JobResult, threading.Event] | None = None
         self.last_runner: JobRunner | None = None  # of the last finished job (its step records)
         self._last_view: JobView | None = None
         self._status_key: tuple[object, ...] = ()
@@ -213,6 +217,10 @@ class CellController:
             self._end_job(ResultCode.INTERRUPTED, f"interrupted: {reason}", job.runner)
             self._publish()
 
+    def held_results(self) -> list[str]:
+        """The results the journal has not written yet (a full disk), for SIGTERM's report."""
+        return self.journal.held()
+
     def close(self) -> None:
         self._pool.shutdown(wait=False, cancel_futures=True)
         self.backend.close()
@@ -229,8 +237,11 @@ class CellController:
         return CellStatus(
             state=int(state),
             state_name=state.display_name,
-            ready=state is S.IDLE and job is None and self._safety is Safety.NORMAL,
-            busy=job is not None,
+            ready=state is S.IDLE
+            and job is None
+            and self._held is None
+            and self._safety is Safety.NORMAL,
+            busy=job is not None or self._held is not None,  # a result not yet journaled
             held=state in (S.HOLDING, S.HELD),
             protective_stop=self._safety is Safety.PROTECTIVE_STOP,
             estop=self._safety is Safety.EMERGENCY_STOP,
@@ -256,6 +267,7 @@ class CellController:
         key = (
             self.sm.state,
             job,
+            self._held,
             self._safety,
             job.runner.current_step if job and job.runner else 0,
             self._last,
@@ -343,6 +355,7 @@ class CellController:
             if (
                 self.sm.state is not S.IDLE
                 or self._job is not None
+                or self._held is not None
                 or self._safety is not Safety.NORMAL
             ):
                 return JobTicket(
@@ -452,6 +465,7 @@ class CellController:
             self._now_s, self._safety = state.time_s, state.safety
             if job is not None and job is self._job and runner is not None:
                 self._follow(job, runner)
+            self._deliver_held()
             self._idle_transitions()
             self._publish()
 
@@ -622,13 +636,12 @@ class CellController:
         retries = runner.retries_used if runner else 0
         cycle = runner.cycle_time_s if runner else 0.0
         try:
-            self.journal.end_job(job.job_id, code, cycle, retries, message or code.text)
-            self._counters = self.journal.counters()
-        except sqlite3.Error as exc:  # disk full: the PLC still gets the result; the journal
-            self._log(
-                "journal_failed", job_id=job.job_id, error=str(exc)
-            )  # closes it with 107 later
-        self._last = JobResult(
+            durable = self.journal.end_job(job.job_id, code, cycle, retries, message or code.text)
+        except (JournalError, sqlite3.Error) as exc:  # refused for good: the PLC still hears
+            self._warn("journal_failed", job_id=job.job_id, error=str(exc))
+            durable = threading.Event()
+            durable.set()
+        result = JobResult(
             job.job_id,
             int(code),
             message or code.text,
@@ -651,9 +664,30 @@ class CellController:
             self.sm.on(Event.JOB_ABORTED)
         self._mark_entered()
         self._log("job_end", job_id=job.job_id, result_code=int(code), message=message)
+        self._held = (result, durable)
+        if not self._deliver_held():  # a full disk: the PLC is told once it is written
+            self._warn(
+                "result_held",
+                job_id=job.job_id,
+                result_code=int(code),
+                error=getattr(self.journal, "last_error", ""),
+            )
+
+    def _deliver_held(self) -> bool:
+        """Tell the PLC (the result listeners, the last result) the result held until the
+        journal has it; False while it is not written yet."""
+        if self._held is None:
+            return True
+        result, durable = self._held
+        if not durable.is_set():
+            return False
+        self._held = None
+        self._last = result
+        self._counters = self.journal.counters()
         for listener in list(self._listeners):
             with contextlib.suppress(Exception):  # a listener must never take the cell down
-                listener(self._last)
+                listener(result)
+        return True
 
     # ------------------------------------------------------------------ helpers
     def _enter_command(self, command: Command) -> None:
@@ -687,6 +721,7 @@ class CellController:
             log=None if self.log is None else self.log.bind(job_id=job_id),
             tools=dict(c.tools),
             tool_mass_kg=c.tool.payload.mass,
+            eye=self.eye,
         )
         use_gripper(ctx, g)
         return ctx
@@ -708,6 +743,10 @@ class CellController:
     def _log(self, event: str, **kw: Any) -> None:
         if self.log is not None:
             self.log.info(event, **kw)
+
+    def _warn(self, event: str, **kw: Any) -> None:
+        if self.log is not None:
+            self.log.warning(event, **kw)
 
 
 def _result_of(record: JobRecord) -> JobResult:

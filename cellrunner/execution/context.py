@@ -15,6 +15,7 @@ from cellrunner.model.trajectory import ApprovedTrajectory
 
 if TYPE_CHECKING:
     from cellrunner.execution.obstacles import ObstacleGuard
+    from cellrunner.model.align import Marker, Sighting
     from cellrunner.model.cell import Gripper, Tool
     from cellrunner.model.geometry import Placed
 
@@ -48,6 +49,18 @@ class Motions(Protocol):
     def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
         """:meth:`tcp_position_m` (default tool) of each row of ``q_rad`` (N x 6) at once,
         N x 3; equal to it within 1e-9 m (not bit for bit)."""
+
+    def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
+        """T_world_tcp (4x4) at ``q_rad``, with the tool mounted at the start."""
+
+
+class Eye(Protocol):
+    """What an ``align`` step sees through the cell's cameras (the vision package gives
+    one: :class:`cellrunner.vision.eye.MarkerEye`)."""
+
+    def sight(self, camera: str, marker: Marker) -> Sighting | None:
+        """Look through ``camera`` now: the marker, or None when it is not in the picture."""
+        ...
 
 
 class EventLog(Protocol):
@@ -127,6 +140,7 @@ class JobContext:
     hold: Hold | None = None  # what the step waits for, set by it in the current tick
     log: EventLog | None = None
     notes: dict[str, Any] = field(default_factory=dict)
+    eye: Eye | None = None  # the cameras, for align steps
     obstacles: ObstacleGuard | None = None  # a watched cell's map on the job's path (SPEC 12)
 
     @property

@@ -22,6 +22,7 @@ import numpy as np
 from cellrunner.backends.base import Safety
 from cellrunner.errors import BackendError, CellrunnerError, InfeasibleError, PeerUnreachable
 from cellrunner.execution import steps as behaviours
+from cellrunner.execution.align import run_align
 from cellrunner.execution.context import JobContext
 from cellrunner.execution.force import run_force
 from cellrunner.execution.lookahead import Clock, fast_forward
@@ -52,6 +53,7 @@ _NORMAL = Safety.NORMAL  # looked up once: tick runs every period
 _BEHAVIOURS = {
     **behaviours.BEHAVIOURS,
     StepKind.TOOL_LOCK: run_tool_lock,
+    StepKind.ALIGN: run_align,
     StepKind.TOOL_UNLOCK: run_tool_unlock,
 }
 
@@ -425,6 +427,7 @@ class JobRunner:
         if outcome.ok:
             if not item.between and item.behaviour == "step":
                 record.status = StepStatus.OK
+                record.message = outcome.message or record.message  # what an align measured
                 assert record.started_s is not None  # set when the step started
                 record.duration_s = self.ctx.now_s - record.started_s
                 self._journal(record, item.attempt)

@@ -17,6 +17,7 @@ import numpy as np
 
 from cellrunner.backends.base import RobotState
 from cellrunner.execution.context import Carry, Hold, JobContext, Stream
+from cellrunner.execution.correction import corrected
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.step import StepKind
@@ -72,6 +73,10 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     does not stand at the trajectory's start (after a stop or a retry). Force steps run
     through :func:`~cellrunner.execution.force.run_force` instead."""
     q_now = ctx.last_state.q_rad
+    if "aligned_frame" in step.extra:  # an align before measured where this frame really is
+        moved = corrected(ctx, step)
+        if moved is not None:
+            step, resume = moved, True
     approved = None if resume else ctx.motions.nominal(step)
     # the last set-point streamed is this trajectory's start: the arm is on its way there
     # (servo lag, more under load), so the approved trajectory continues; else it must stand there

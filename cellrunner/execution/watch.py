@@ -250,3 +250,15 @@ class TwinDepthFeed:
         for imager in self._imagers.values():
             imager.close()
         self._imagers.clear()
+
+
+def watch_on_twin(
+    world: CellWorld, backend: Any, *, realtime: bool
+) -> tuple[ZoneWatch, TwinDepthFeed] | None:
+    """The watched zone of a cell run on the in-process twin, and its depth feed (add it
+    to the control loop's observers); None when the cell is not watched."""
+    watch = world.loaded.cell.watch
+    if watch is None:
+        return None
+    zone = ZoneWatch(world, watch)
+    return zone, TwinDepthFeed(zone, backend, realtime=realtime)

@@ -14,6 +14,7 @@ import numpy as np
 
 from cellrunner.errors import InputError
 from cellrunner.model import geometry
+from cellrunner.model.align import aligned_frame, target_frame
 from cellrunner.model.cell import Cell
 from cellrunner.model.frames import frame_pose
 from cellrunner.model.load import LoadedTask, StepSpec
@@ -72,9 +73,18 @@ def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, ParamValu
 def expand(loaded: LoadedTask, cell: Cell, params: dict[str, Any]) -> list[Step]:
     """The primitive steps of ``loaded`` for ``params`` (already resolved)."""
     builder = _Builder(cell, params, loaded.task.params)
-    for spec in loaded.steps:
-        builder.add(spec)
+    for i, spec in enumerate(loaded.steps):
+        if spec.kind == StepKind.ALIGN:
+            builder.align(spec, aligned_frame(loaded.steps, i))
+        else:
+            builder.add(spec)
     return builder.steps
+
+
+#: the key of an align's correction among the params (``align:FRAME``): a pose
+#: ``{xyz, rpy}`` in the frame's axes; ``check`` plans the corners of its box, a job
+#: the correction the align step measured
+ALIGN_KEY = "align:"
 
 
 def expand_on_error(
@@ -101,11 +111,52 @@ class _Builder:
         self.cell, self.params, self.specs = cell, params, specs or {}
         self.steps: list[Step] = []
         self.tool = cell.robot.tool  # the mounted tool's name (with ``tools:``)
+        self.aligned: set[str] = set()  # frames an align step before corrects
+
+    def align(self, spec: StepSpec, frame: str | None) -> None:
+        """An align step: it corrects ``frame`` for the steps after it."""
+        assert frame is not None  # references checked it
+        args = spec.args
+        camera = self.cell.cameras[args.camera]
+        tcp = self.cell.tool.tcp.matrix() if self.cell.tool is not None else np.eye(4)
+        extra = {
+            "T_world_frame": frame_pose(self.cell, frame),
+            "T_marker": args.marker.pose.matrix(),
+            "K": camera.intrinsics.matrix(),
+            "distortion": np.asarray(camera.intrinsics.distortion, float),
+            # the camera on the flange: seen from the TCP; else fixed in the world
+            "T_tcp_camera": np.linalg.inv(tcp) @ camera.pose.matrix()
+            if camera.eye_in_hand
+            else None,
+            "T_world_camera": None if camera.eye_in_hand else camera_pose(self.cell, args.camera),
+        }
+        self.steps.append(
+            Step(self._next(), StepKind.ALIGN, frame, args, spec.path, None, extra=extra)
+        )
+        self.aligned.add(frame)
+
+    def _frame(self, name: str) -> np.ndarray:
+        """The frame's pose, with the correction of an align before (``align:FRAME``)."""
+        T = frame_pose(self.cell, name)
+        correction = self.params.get(ALIGN_KEY + name) if name in self.aligned else None
+        if correction is not None:
+            T = T @ geometry.pose_matrix(correction["xyz"], correction["rpy"])
+        return T
 
     def _next(self) -> int:
         return len(self.steps) + 1
 
     def add(self, spec: StepSpec) -> None:
+        first = len(self.steps)
+        self._add(spec)
+        frame = target_frame(spec)
+        if frame in self.aligned:  # the job corrects these targets by what the align measured
+            for step in self.steps[first:]:
+                if step.T_world_tcp is not None:
+                    step.extra["aligned_frame"] = frame
+                    step.extra["T_world_frame"] = frame_pose(self.cell, frame)
+
+    def _add(self, spec: StepSpec) -> None:
         kind, args = spec.kind, spec.bind(self.specs, self.params)
         if kind == StepKind.PICK:
             self._pick(spec, args)
@@ -132,20 +183,20 @@ class _Builder:
             elif args.to == "home":
                 name, q = "home", tuple(self.cell.robot.home)
             else:
-                name, T = args.to, frame_pose(self.cell, args.to) @ _offset(args.offset)
+                name, T = args.to, self._frame(args.to) @ _offset(args.offset)
         elif kind == StepKind.APPROACH:
             name = args.to
             T = (
-                frame_pose(self.cell, args.to)
+                self._frame(args.to)
                 @ _offset(args.offset)
                 @ geometry.pose_matrix((0, 0, -args.distance))
             )
         elif kind in (StepKind.DESCEND, StepKind.LINEAR):
-            name, T = args.to, frame_pose(self.cell, args.to) @ _offset(args.offset)
+            name, T = args.to, self._frame(args.to) @ _offset(args.offset)
         elif kind == StepKind.INSERT:  # the line ends ``depth`` past the frame, along its Z
             name, T = (
                 args.to,
-                frame_pose(self.cell, args.to) @ geometry.pose_matrix((0, 0, args.depth)),
+                self._frame(args.to) @ geometry.pose_matrix((0, 0, args.depth)),
             )
         elif kind == StepKind.SET_OUTPUT:
             name = ", ".join(f"{k}={v}" for k, v in args.values.items())
@@ -158,7 +209,7 @@ class _Builder:
     def _target(
         self, at: str, offset: Offset | None, pattern: Pattern | None, at_offset: str | None = None
     ) -> tuple[np.ndarray, str]:
-        T = frame_pose(self.cell, at)
+        T = self._frame(at)
         name = at
         if pattern is not None:
             slot = int(self.params[pattern.index])
@@ -175,6 +226,13 @@ class _Builder:
             T = camera_pose(self.cell, camera) @ T_pose if camera is not None else T @ T_pose
             name = f"{at}+{at_offset}"
         return T @ _offset(offset), name
+
+    def _part_pose(self, at: str, pattern: Pattern | None) -> dict[str, np.ndarray]:
+        """Where the part a pick from a pattern grips lies: its slot of the frame
+        (``part_pose``, world); nothing for a pick from the frame itself."""
+        if pattern is None:
+            return {}
+        return {"part_pose": self._target(at, None, pattern)[0]}
 
     def _pick(self, spec: StepSpec, a: PickArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
@@ -222,7 +280,7 @@ class _Builder:
                 path,
                 macro,
                 retry=retry,
-                extra={"part_at": a.at},
+                extra={"part_at": a.at, **self._part_pose(a.at, a.pattern)},
             )
         )
         lift = a.lift if a.lift is not None else a.approach
@@ -237,6 +295,9 @@ class _Builder:
                     macro,
                 )
             )
+
+    def _earlier_slots(self, a: PlaceArgs) -> list[np.ndarray]:
+        return _earlier_slots_of(self, a)
 
     def _place(self, spec: StepSpec, a: PlaceArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
@@ -272,6 +333,8 @@ class _Builder:
         check = {
             "place_check": {"T_world_tcp": T, "tolerance": (tolerance.distance, tolerance.angle)}
         }
+        # where the earlier slots of its pattern put their parts (what this one may rest on)
+        earlier = self._earlier_slots(a)
         back = a.retreat if a.retreat is not None else a.approach
         self.steps.append(
             Step(
@@ -281,7 +344,7 @@ class _Builder:
                 release,
                 path,
                 macro,
-                extra={} if back > 0 else check,
+                extra={"earlier_slots": earlier, **({} if back > 0 else check)},
             )
         )
         if back > 0:
@@ -296,6 +359,19 @@ class _Builder:
                     extra=check,
                 )
             )
+
+
+def _earlier_slots_of(builder: _Builder, a: PlaceArgs) -> list[np.ndarray]:
+    """The TCP targets of the slots before this one in the place's pattern (none without
+    a pattern): the parts earlier jobs put there."""
+    if a.pattern is None:
+        return []
+    slot = int(builder.params[a.pattern.index])
+    out = []
+    for earlier in range(slot):
+        was = _Builder(builder.cell, {**builder.params, a.pattern.index: earlier}, builder.specs)
+        out.append(was._target(a.at, a.offset, a.pattern, a.at_offset)[0])
+    return out
 
 
 def _offset(offset: Offset | None) -> np.ndarray:
@@ -315,12 +391,19 @@ def pattern_params(loaded: LoadedTask) -> dict[str, range]:
 
 def box_params(loaded: LoadedTask) -> dict[str, list[PoseValue]]:
     """Every pose param a pick or place is offset by, with the poses ``check`` must cover:
-    the centre and the corners of its box."""
+    the centre and the corners of its box; and every align's correction
+    (``align:FRAME``), the centre and the corners of its ``max_correction`` box."""
+    from cellrunner.model.params import box_values
+
     out: dict[str, list[PoseValue]] = {}
-    for spec in loaded.steps:
+    for i, spec in enumerate(loaded.steps):
         name = getattr(spec.args, "at_offset", None)
         if name is not None:
             out[name] = loaded.task.params[name].box_values()
+        if spec.kind == StepKind.ALIGN:
+            frame = aligned_frame(loaded.steps, i)
+            if frame is not None:
+                out[ALIGN_KEY + frame] = box_values(*spec.args.box())
     return out
 
 
@@ -343,6 +426,7 @@ def float_params(loaded: LoadedTask) -> dict[str, list[float]]:
 
 
 __all__ = [
+    "ALIGN_KEY",
     "LINEAR_KINDS",
     "MOTION_KINDS",
     "ON_ERROR",
@@ -351,6 +435,7 @@ __all__ = [
     "RetryPlan",
     "Step",
     "StepKind",
+    "aligned_frame",
     "box_params",
     "camera_pose",
     "expand",

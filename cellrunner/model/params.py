@@ -212,9 +212,15 @@ class Param(Strict):
     def box_values(self) -> list[PoseValue]:
         """The centre and every corner of a pose param's box (axes that do not vary are
         not multiplied out): what ``check`` verifies."""
-        axes = [(a, b) if b > a else (a,) for a, b in zip(self.min, self.max, strict=True)]
-        centre = pose_value([(a + b) / 2 for a, b in zip(self.min, self.max, strict=True)])
-        return [centre, *(pose_value(list(c)) for c in itertools.product(*axes))]
+        return box_values(self.min, self.max)
+
+
+def box_values(low: list[float], high: list[float]) -> list[PoseValue]:
+    """The centre and every corner of the pose box ``low``..``high`` (six values each, m
+    and deg; axes that do not vary are not multiplied out)."""
+    axes = [(a, b) if b > a else (a,) for a, b in zip(low, high, strict=True)]
+    centre = pose_value([(a + b) / 2 for a, b in zip(low, high, strict=True)])
+    return [centre, *(pose_value(list(c)) for c in itertools.product(*axes))]
 
 
 def _six(value: Any, what: str) -> list[float]:

@@ -13,6 +13,7 @@ from typing import Annotated, Any
 from pydantic import BeforeValidator, Field, WithJsonSchema, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
+from cellrunner.model.align import AlignArgs
 from cellrunner.model.base import Name, Pose, Strict
 from cellrunner.model.force_steps import InsertArgs, MoveUntilContactArgs
 from cellrunner.model.params import Param
@@ -354,6 +355,7 @@ STEP_MODELS: dict[str, type[Strict]] = {
     "move_until_contact": MoveUntilContactArgs,
     "insert": InsertArgs,
     "change_tool": ChangeToolArgs,
+    "align": AlignArgs,
 }
 MACROS = ("pick", "place", "change_tool")
 

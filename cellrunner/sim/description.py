@@ -23,7 +23,7 @@ from cellrunner.model.gripper import FINGER_SIZE_M, PAD_Z_M
 from cellrunner.model.robots import RobotSpec
 
 if TYPE_CHECKING:
-    from cellrunner.sim.cameras import CameraDescription
+    from cellrunner.sim.cameras import CameraDescription, MarkerDescription
     from cellrunner.sim.input_rules import InputRuleDescription
 
 
@@ -126,6 +126,7 @@ class TwinDescription:
     tool_changer: Any = None  # a ToolChangerDescription (sim.tool_changer) for several tools
     input_rules: tuple[InputRuleDescription, ...] = ()  # inputs the cell's sim: block drives
     cameras: tuple[CameraDescription, ...] = ()  # (sim.cameras): cameras and their boards
+    markers: tuple[MarkerDescription, ...] = ()  # (sim.cameras): align markers on parts
     intruders: tuple[Any, ...] = ()  # IntruderDescription (sim.depth): only depth cameras see them
     depth: tuple[tuple[str, float, float, float], ...] = ()  # (camera, near m, far m, rate Hz)
     depth_noise_m: float = 0.0  # sim.depth_noise
@@ -144,6 +145,7 @@ class TwinDescription:
             "presence_sensors",
             "input_rules",
             "cameras",
+            "markers",
             "intruders",
             "depth",
         ):

@@ -66,7 +66,7 @@ def test_a_job_ends_with_the_arm_at_home_not_short_of_it(tmp_path):
 
 
 def test_an_arm_that_never_arrives_fails_the_step(tmp_path):
-    result, q, home = _run(tmp_path, stuck=True)
+    result, _, _ = _run(tmp_path, stuck=True)
     assert result.result_code == ResultCode.STEP_TIMEOUT, result.result_text
     assert result.result_text.startswith("the arm stopped ")
     assert "deg short of the end of step 2 move on joint 1" in result.result_text

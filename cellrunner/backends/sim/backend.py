@@ -14,7 +14,7 @@ notice a missed or slipped part through the jaw sensor and the wrist load.
 from __future__ import annotations
 
 from collections.abc import Generator
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -51,6 +51,7 @@ class SimBackend:
 
     def __init__(self, description: TwinDescription, options: PhysicsOptions | None = None) -> None:
         self.description = description
+        self._imagers: dict[str, Any] = {}  # camera name -> CameraImager, made on first use
         self.options = options if options is not None else PhysicsOptions()
         self.rate_hz = description.rate_hz
         self.world: SimWorld | None = None
@@ -93,6 +94,9 @@ class SimBackend:
         self._link_lost = False
 
     def close(self) -> None:
+        for imager in self._imagers.values():
+            imager.close()
+        self._imagers.clear()
         self._fresh = None
         if self.world is not None and self._connected:
             self.world.stop_motion()
@@ -359,6 +363,20 @@ class SimBackend:
         """The twin's place inspection: where the part just set down rests against where
         a TCP at ``T_world_tcp`` puts it (:meth:`.places.Places.inspect`)."""
         return self._world().inspect_place(T_world_tcp)
+
+    def camera_image(self, name: str) -> np.ndarray:
+        """What cell camera ``name`` sees now (RGB, height x width x 3, uint8), rendered
+        from the twin through the camera's intrinsics (:class:`CameraImager`)."""
+        from cellrunner.sim.cameras import CameraImager
+
+        world = self._world()
+        imagers = self._imagers
+        if name not in imagers:
+            camera = next((c for c in self.description.cameras if c.name == name), None)
+            if camera is None:
+                raise BackendError(f"the twin has no camera {name!r}")
+            imagers[name] = CameraImager(world.model, camera)
+        return np.asarray(imagers[name].image(np.array(world.data.qpos)))
 
     def tcp_tracking_error_m(self) -> float:
         """Distance (m) between the TCP at the last set-point and the measured TCP."""
