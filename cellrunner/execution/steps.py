@@ -150,7 +150,7 @@ def _ended(ctx: JobContext, step: Step, q: np.ndarray, approved: ApprovedTraject
     ctx.notes["end_rad_s"] = end_rad_s
     if end_rad_s < AT_REST_RAD_S:
         short = yield from _arrive(ctx, step, approved, len(q) - 1)
-        if short is not None:
+        if not short.ok:
             return short
     return (yield from check_place(ctx, step))
 
