@@ -34,9 +34,14 @@ def run(args: argparse.Namespace) -> int:
     from cellrunner.planning.world import CellWorld
 
     world = CellWorld(cell)
+    watched = getattr(args, "watch", None)
+    if watched:
+        world = world.with_obstacles(*_snapshot_obstacles(watched, cell))
     out = None if args.json else console()  # --json is for programs: no progress bar, no rich
     with _progress(out, 1 + len(other_values(task, params))) as progress:
-        swept = sweep(world, task, params, use_cache=not args.no_cache, progress=progress)
+        swept = sweep(
+            world, task, params, use_cache=not (args.no_cache or watched), progress=progress
+        )
     plan = swept.plan
     failures = [(f.param, f.value, f.error) for f in swept.failures]
     errors = list(plan.errors) + [f"{name}={_shown(slot)}: {e}" for name, slot, e in failures]
@@ -51,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         ]
     )
     # pose and float params: each failing value on its own
-    poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, (dict, float))]
+    poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, (dict, float, str))]
     rows: list[dict[str, Any]] = [
         {
             "index": r.step.index,
@@ -103,6 +108,11 @@ def run(args: argparse.Namespace) -> int:
             elif isinstance(values[0], dict):
                 out.print(
                     f"pose param {name}: {len(values)} poses checked (its box's centre and corners)",
+                    markup=False,
+                )
+            elif isinstance(values[0], str):
+                out.print(
+                    f"frame param {name}: {', '.join(str(v) for v in values)} checked (every choice)",
                     markup=False,
                 )
             elif isinstance(values[0], float):
@@ -298,3 +308,23 @@ def _save_plan(path: Path, world: CellWorld, plan: JobPlan) -> None:
     }
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(payload))
+
+
+def _snapshot_obstacles(path: str, cell: Any) -> list[Any]:
+    """The occupied voxels of a saved map, grown by the cell's padding, as one obstacle
+    (none when the map is empty); a file that is no map is a usage error (exit 2)."""
+    import numpy as np
+
+    from cellrunner.errors import UsageError
+    from cellrunner.model.geometry import Placed, Voxels
+    from cellrunner.perception.occupancy import OccupancyMap
+
+    try:
+        snapshot = OccupancyMap.load(path)
+    except ValueError as exc:
+        raise UsageError(f"--watch {exc}") from None
+    centres = snapshot.occupied_centres()
+    if not len(centres):
+        return []
+    padding = cell.cell.watch.padding if cell.cell.watch is not None else 0.03
+    return [Placed("watched zone", Voxels(centres, snapshot.voxel_m, padding), np.eye(4))]

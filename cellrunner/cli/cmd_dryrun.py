@@ -98,9 +98,9 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.cli.logs import configure
 
         log = configure("json", cell.cell.cell)
-    from cellrunner.execution.watch import watch_on_twin
+    from cellrunner.execution.watch import watch_cell
 
-    watched = watch_on_twin(world, backend, realtime=False)
+    watched = watch_cell(world, "sim", backend, realtime=False)
     zone, feed = watched if watched is not None else (None, None)
     controller = CellController(
         cell,
@@ -131,11 +131,15 @@ def run(args: argparse.Namespace) -> int:
         payloads.append(payload)
     if feed is not None:
         feed.close()
+    if zone is not None and getattr(args, "save_map", None):
+        zone.map.save(args.save_map)
     if whole is not None:
         controller.close()
         return _whole_run_output(args, cell.cell.cell, task.name, whole[0], payloads, out)
     payload, rows = payloads[0], payloads[0]["steps"]
     code = ResultCode(payload["result_code"])
+    if zone is not None:
+        payload["depth_images"] = zone.images
     has_pictures = True
     if report is not None:
         from cellrunner.report import write_report

@@ -7,7 +7,15 @@ import argparse
 import sys
 
 from cellrunner.backends.factory import backend_kind, make_backend
-from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
+from cellrunner.cli.common import (
+    console,
+    emit_json,
+    job_eye,
+    load,
+    parse_params,
+    record_rows,
+    step_table,
+)
 from cellrunner.errors import UsageError
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal_open import cell_journal
@@ -39,7 +47,19 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.execution.pacing import EnterGate, describe_step
 
         gate = EnterGate(describe_step, on_end=lambda: controller.command("abort"))
-    planner = job_planner(CellWorld(cell), speed=speed, joined=not stepping)
+    world = CellWorld(cell)
+    planner = job_planner(world, speed=speed, joined=not stepping)
+    from cellrunner.execution.watch import watch_cell
+
+    watched = watch_cell(
+        world,
+        kind,
+        backend,
+        realtime=False,
+        depth_source=getattr(args, "depth_source", None),
+        host=args.robot_host or cell.cell.robot.host,
+        log=log,
+    )
     controller = CellController(
         cell,
         {1: task},
@@ -49,11 +69,17 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         wait_for_unhold=False,
         gate=gate,
+        watch=watched[0] if watched is not None else None,
+        eye=job_eye(cell, backend, getattr(args, "image_source", None), args.robot_host),
     )
     out = console()
     controller.setup()
     loop = ControlLoop(controller)
+    if watched is not None:
+        loop.add_observer(watched[1])
     try:
+        if watched is not None:
+            watched[1].start()
         loop.step(5)
         ticket = controller.start_job(1, params, "", "cli")
         if not ticket.accepted:
@@ -70,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
         job = controller.last_job
         result = controller.status().last_result
     finally:
+        if watched is not None:
+            watched[1].close()
         controller.close()
     assert result is not None  # run_job returns once the job has ended
     code = ResultCode(result.result_code)
@@ -87,6 +115,11 @@ def run(args: argparse.Namespace) -> int:
         "steps": rows,
         "errors": [] if code is ResultCode.OK else [result.result_text],
     }
+    if watched is not None:
+        runner = controller.last_runner
+        guard = runner.ctx.obstacles if runner is not None else None
+        payload["obstacles"] = list(guard.events) if guard is not None else []
+        payload["depth_images"] = watched[0].images
     if args.json:
         emit_json(payload)
     else:

@@ -142,6 +142,21 @@ def record_rows(job: JobView | None, steps: list[Step] | None = None) -> list[di
     ]
 
 
+def job_eye(cell: LoadedCell, backend: Any, image_source: str | None, host: str | None) -> Any:
+    """The cameras an align step sees through: the in-process twin renders them (``sim``);
+    on the arm (``ur``) pictures come from ``--image-source`` (default: the cameras of a
+    ``cellrunner twin`` at ``host``). None for a cell without cameras."""
+    if not cell.cell.cameras:
+        return None
+    if getattr(backend, "camera_image", None) is not None:
+        return twin_eye(cell, backend)
+    from cellrunner.vision.eye import MarkerEye
+    from cellrunner.vision.images import CameraFeeds
+
+    feeds = CameraFeeds(image_source, dict(cell.cell.cameras), host or cell.cell.robot.host)
+    return MarkerEye(feeds.grab, dict(cell.cell.cameras))
+
+
 def twin_eye(cell: LoadedCell, backend: Any) -> Any:
     """The cameras an align step sees through: rendered by the in-process twin (``sim``
     backend), None for a cell without cameras or a backend that renders none."""

@@ -57,6 +57,15 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageExit(f"{self.prog}: error: {message}")
 
 
+def _depth_source(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--depth-source",
+        metavar="SPEC",
+        help="a watched cell on the arm: where depth images come from: twin (the virtual "
+        "controller's, the default), replay:DIR, or MODULE:FACTORY (docs/perception.md)",
+    )
+
+
 def _params(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "-p",
@@ -105,6 +114,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--save-plan", metavar="FILE", help="write the approved motion as JSON")
     p.add_argument("--no-cache", action="store_true", help="plan afresh, ignore the plan cache")
+    p.add_argument(
+        "--watch",
+        metavar="SNAPSHOT",
+        help="plan against a saved obstacle map too (dry-run/serve --save-map wrote it)",
+    )
     p.set_defaults(module="check")
 
     p = sub.add_parser("dry-run", help="run the real state machine against the MuJoCo twin")
@@ -116,7 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         metavar="FAULT@STEP",
         help="grip_miss, part_slip, protective_stop, estop, robot_disconnect, "
-        "plc_disconnect at a step (index, kind, or KIND#N)",
+        "plc_disconnect, intrusion (a watched cell) at a step (index, kind, or KIND#N)",
     )
     p.add_argument("--report", metavar="DIR", help="write JSON, pictures and plots here")
     p.add_argument(
@@ -126,6 +140,11 @@ def build_parser() -> argparse.ArgumentParser:
         "twin (parts stay where they were put); -p NAME=A..B does the same for any int param",
     )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.add_argument(
+        "--save-map",
+        metavar="FILE",
+        help="a watched cell: write the obstacle map as it ended (.npz, for check --watch)",
+    )
     p.add_argument(
         "--per-period",
         action="store_true",
@@ -140,6 +159,11 @@ def build_parser() -> argparse.ArgumentParser:
     _params(p)
     p.add_argument("--backend", choices=("ur", "sim"))
     p.add_argument("--robot-host", metavar="H")
+    p.add_argument(
+        "--image-source",
+        metavar="twin|MODULE:FACTORY",
+        help="where align steps get pictures on the arm (default: the twin's cameras at the robot host)",
+    )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument(
         "--speed",
@@ -153,6 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="commissioning: show each step and wait for Enter before running it",
     )
+    _depth_source(p)
     p.set_defaults(module="run")
 
     p = sub.add_parser("serve", help="production: PLC interface up, jobs on trigger")
@@ -160,11 +185,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", choices=("ur", "sim"))
     p.add_argument("--robot-host", metavar="H")
     p.add_argument(
+        "--image-source",
+        metavar="twin|MODULE:FACTORY",
+        help="where align steps get pictures on the arm (default: the twin's cameras at the robot host)",
+    )
+    p.add_argument(
         "--http",
         metavar="[HOST:]PORT",
         help="serve a read-only status page and Prometheus /metrics here "
         "(host defaults to 127.0.0.1, e.g. --http 127.0.0.1:8080)",
     )
+    p.add_argument(
+        "--save-map",
+        metavar="FILE",
+        help="a watched cell: write the obstacle map when serving stops (.npz, for check --watch)",
+    )
+    _depth_source(p)
     p.set_defaults(module="serve")
 
     p = sub.add_parser("twin", help="a virtual UR controller backed by the MuJoCo twin")

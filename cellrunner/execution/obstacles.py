@@ -17,7 +17,8 @@ blocking voxel's position, and kept on the job's notes for the journal and the r
 from __future__ import annotations
 
 import math
-from collections.abc import Generator
+import time
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -29,7 +30,6 @@ from cellrunner.model.trajectory import ApprovedTrajectory, along_path
 
 if TYPE_CHECKING:
     from cellrunner.execution.context import JobContext
-    from cellrunner.execution.steps import Outcome
     from cellrunner.execution.watch import ZoneWatch
     from cellrunner.model.expand import Step
     from cellrunner.model.geometry import Placed
@@ -57,6 +57,8 @@ class ObstacleGuard:
 
     def note(self, ctx: JobContext, what: str, blocked: Blocked | None, **extra: Any) -> None:
         event: dict[str, Any] = {"what": what, "time_s": round(ctx.now_s, 4)}
+        q = ctx.commanded_q if ctx.commanded_q is not None else ctx.last_state.q_rad
+        event["tcp_m"] = [round(float(v), 4) for v in ctx.motions.tcp_position_m(q)]
         if blocked is not None:
             event["voxel_m"] = [round(v, 3) for v in blocked.voxel_m]
         event.update(extra)
@@ -70,13 +72,29 @@ def where(blocked: Blocked) -> str:
     return f"occupied voxel at ({x:.3f}, {y:.3f}, {z:.3f}) m"
 
 
+#: how a watched motion failed: (result code, message)
+Failure = tuple[ResultCode, str]
+
+
+@dataclass(frozen=True)
+class _Go:
+    """The way is clear: stream ``path`` from set-point ``pos``."""
+
+    path: ApprovedTrajectory
+    pos: int
+
+
 def stream_watched(
-    ctx: JobContext, step: Step, approved: ApprovedTrajectory, first: int
-) -> Generator[None, None, Outcome | None]:
+    ctx: JobContext,
+    step: Step,
+    approved: ApprovedTrajectory,
+    first: int,
+    part_lost: Callable[[JobContext], Any],
+) -> Generator[None, None, Any]:
     """Stream ``approved`` from set-point ``first`` under the watch (module docstring);
-    returns None at its end, or the failed outcome (108, a part lost)."""
+    returns None at its end, what ``part_lost(ctx)`` returned once it is not None (the
+    caller's failed outcome), or a :data:`Failure` (108)."""
     from cellrunner.execution.context import Stream
-    from cellrunner.execution.steps import part_lost_outcome
 
     guard = ctx.obstacles
     assert guard is not None  # called only for a watched cell
@@ -88,9 +106,9 @@ def stream_watched(
     if blocked is not None:
         guard.note(ctx, "blocked before start", blocked, step=step.index)
         result = yield from _wait(ctx, step, path, float(pos), blocked, held)
-        if not isinstance(result, tuple):
+        if not isinstance(result, _Go):
             return result
-        path, pos = result
+        path, pos = result.path, result.pos
     while True:
         q = path.trajectory.q_rad
         follow_id = zone.follow(q, pos, held)
@@ -102,7 +120,7 @@ def stream_watched(
             ctx.commanded_q = q[i]
             stream.next_index = i + 1
             yield
-            lost = part_lost_outcome(ctx)
+            lost = part_lost(ctx)
             if lost is not None:
                 return lost
             verdict = zone.verdict()
@@ -124,20 +142,22 @@ def stream_watched(
         guard.note(ctx, "stop", blocked, step=step.index)
         u_rest = yield from _stop_on_path(ctx, path, index)
         result = yield from _wait(ctx, step, path, u_rest, blocked, held)
-        if not isinstance(result, tuple):
+        if not isinstance(result, _Go):
             return result
-        path, pos = result
+        path, pos = result.path, result.pos
 
 
-def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float) -> int:
-    """Set-points a stop or a restart at ``u0`` takes at the ramp's acceleration."""
+def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop: bool) -> int:
+    """Set-points a stop (from the speed at ``u0``) or a restart at ``u0`` (up to the top
+    speed of the rest of the path) takes at the ramp's acceleration."""
     assert ctx.obstacles is not None
     traj = path.trajectory
     q = traj.q_rad
     i = min(int(u0), len(q) - 2)
     if i < 0:
         return 1
-    speed = np.abs(np.diff(q[i:], axis=0)).max(axis=0) * traj.rate_hz  # rad/s, the rest's top
+    rest = q[i : i + 2] if stop else q[i:]
+    speed = np.abs(np.diff(rest, axis=0)).max(axis=0) * traj.rate_hz  # rad/s
     seconds = float(np.max(speed / (RAMP_ACCEL_FRACTION * ctx.obstacles.accel_rad_s2)))
     return max(1, math.ceil(seconds * traj.rate_hz))
 
@@ -148,7 +168,7 @@ def _stop_on_path(
     """Slow to rest along ``path`` from set-point ``index`` (commanded now); returns the
     path position (fractional sample) where the arm stands."""
     last = len(path.trajectory.q_rad) - 1
-    n = _ramp_samples(ctx, path, index)
+    n = _ramp_samples(ctx, path, index, stop=True)
     k = np.arange(n + 1, dtype=float)
     u = np.minimum(index + k - k * k / (2 * n), last)
     stop = along_path(path, u)
@@ -163,7 +183,7 @@ def _stop_on_path(
 def _resumed(ctx: JobContext, path: ApprovedTrajectory, u0: float) -> ApprovedTrajectory:
     """``path`` from rest at position ``u0``: speeding up along it, then at its pace."""
     last = len(path.trajectory.q_rad) - 1
-    n = _ramp_samples(ctx, path, u0)
+    n = _ramp_samples(ctx, path, u0, stop=False)
     k = np.arange(n + 1, dtype=float)
     ramp = u0 + k * k / (2 * n)
     tail = np.arange(ramp[-1] + 1.0, last, 1.0)
@@ -178,10 +198,9 @@ def _wait(
     u_rest: float,
     blocked: Blocked,
     held: Placed | None,
-) -> Generator[None, None, tuple[ApprovedTrajectory, int] | Outcome]:
+) -> Generator[None, None, _Go | Failure]:
     """The arm stands at ``u_rest`` on ``path``: wait for the way to clear (then the same
     path on from there), replan around the map when the task allows, or fail with 108."""
-    from cellrunner.execution.steps import Outcome
 
     guard = ctx.obstacles
     assert guard is not None
@@ -199,7 +218,7 @@ def _wait(
             if verdict is not None and verdict.follow_id == follow_id and verdict.time_s > since:
                 if verdict.blocked is None:
                     guard.note(ctx, "clear", None, step=step.index, waited_s=round(now - since, 3))
-                    return _resumed(ctx, path, u_rest), 1
+                    return _Go(_resumed(ctx, path, u_rest), 1)
                 blocked = verdict.blocked
                 guard.obstructed = f"step {step.index} ({step.name}): {where(blocked)}"
             if (
@@ -210,11 +229,27 @@ def _wait(
             ):
                 guard.replans += 1
                 guard.last_replan_s = now
+                t0 = time.perf_counter()
                 replanned = _replan(ctx, step, held)
+                plan_s = round(time.perf_counter() - t0, 4)
                 if replanned is not None:
-                    guard.note(ctx, "replan", blocked, step=step.index, replans=guard.replans)
-                    return replanned, 0
-                guard.note(ctx, "replan failed", blocked, step=step.index, replans=guard.replans)
+                    guard.note(
+                        ctx,
+                        "replan",
+                        blocked,
+                        step=step.index,
+                        replans=guard.replans,
+                        plan_s=plan_s,
+                    )
+                    return _Go(replanned, 0)
+                guard.note(
+                    ctx,
+                    "replan failed",
+                    blocked,
+                    step=step.index,
+                    replans=guard.replans,
+                    plan_s=plan_s,
+                )
             if now - since >= policy.wait:
                 message = (
                     f"{step.label}: path blocked by an obstacle not in the cell file "
@@ -222,7 +257,7 @@ def _wait(
                     + (f" after {guard.replans} replan(s)" if policy.replan else "")
                 )
                 guard.note(ctx, "blocked", blocked, step=step.index)
-                return Outcome.failed(ResultCode.PATH_BLOCKED, message)
+                return ResultCode.PATH_BLOCKED, message
     finally:
         guard.obstructed = ""
         zone.follow(None)

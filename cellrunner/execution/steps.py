@@ -108,9 +108,11 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     if ctx.obstacles is not None:  # a watched cell: stop, wait, replan around the map
         from cellrunner.execution.obstacles import stream_watched
 
-        failed = yield from stream_watched(ctx, step, approved, first)
-        if failed is not None:
+        failed = yield from stream_watched(ctx, step, approved, first, part_lost_outcome)
+        if isinstance(failed, Outcome):
             return failed
+        if failed is not None:  # the way stayed blocked: (108, why)
+            return Outcome.failed(*failed)
         end_q = ctx.notes.pop("watched_q", q)
         return (yield from _ended(ctx, step, end_q, approved))
     # the index lives in ctx.stream so that a look-ahead (execution.lookahead) can move

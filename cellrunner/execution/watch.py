@@ -10,8 +10,10 @@ map and the verdict; the control thread holds it only to copy a few references.
 :class:`TwinDepthFeed` is the feed of a rehearsal on the in-process twin: a control-loop
 observer that, at each depth camera's rate in simulated time, copies the twin's joints and
 mocap bodies and has the image rendered and integrated on a worker thread. Off real time
-(dry-run) the loop waits for that worker, and the verdict becomes visible the wall time
-the work took after the image was taken (simulated), as it would on a real cell.
+(dry-run) the loop waits for that worker, and the verdict becomes visible as long after
+the image was taken (simulated) as the work took the worker's thread in CPU time (wall
+time on a machine shared with other processes would charge their time); in real time
+verdicts are published as they come.
 """
 
 from __future__ import annotations
@@ -78,7 +80,8 @@ class ZoneWatch:
         self._follow: tuple[int, np.ndarray, int, Placed | None] | None = None  # id, q, from, held
         self._follow_id = 0
         self._verdict: Verdict | None = None
-        self.updates: list[MapUpdate] = []
+        self.updates: list[MapUpdate] = []  # the last ones (at most 1000)
+        self.images = 0  # integrated so far
         #: the part the arm carries (TCP frame), as the last motion followed said
         self.held: Placed | None = None
 
@@ -137,6 +140,7 @@ class ZoneWatch:
             centres = self.map.occupied_centres()
             follow = self._follow
         self.updates.append(update)
+        self.images += 1
         if len(self.updates) > 1000:
             del self.updates[:500]
         blocked = None
@@ -189,7 +193,15 @@ class TwinDepthFeed:
         self._running_at = 0.0
         self.render_s: list[float] = []
 
+    def start(self) -> None:
+        """Nothing to connect: the twin is in this process."""
+
     def quiet_until_s(self, cell: Any) -> float:
+        """The next image, or a verdict's publication; none while the last verdict
+        blocks the path (the job reacts to it in the coming periods, one at a time)."""
+        verdict = self.zone.verdict()
+        if verdict is not None and verdict.blocked is not None:
+            return 0.0
         times = [*self.next_s.values(), *(t for t, _ in self._pending)]
         return min(times, default=float("inf"))
 
@@ -219,14 +231,22 @@ class TwinDepthFeed:
                 )
                 self._running_at = now
                 self._running = self._pool.submit(self._work, name, snapshot, now, None)
-                if not self.realtime:
-                    self._running.result()  # off real time: simulated time waits for the image
+                if not self.realtime:  # off real time: simulated time waits for the image
+                    verdict, took_s = self._running.result()
+                    self._pending.append((now + took_s, verdict))
+                    self._running = None
                 return
 
     def _work(
         self, name: str, snapshot: tuple[np.ndarray, ...], time_s: float, held: Placed | None
     ) -> tuple[Verdict, float]:
-        t0 = time.perf_counter()
+        """Render, integrate and check one image; returns the verdict and how long the
+        cell's part took: off real time this thread's CPU time for integrating and checking
+        (the render stands in for the camera's exposure, and wall time on a shared machine
+        would charge other processes' time); in real time the wall time of it all."""
+        clock = time.perf_counter if self.realtime else time.thread_time
+        w0 = time.perf_counter()
+        t0 = clock()
         imager = self._imagers.get(name)
         if imager is None:
             from cellrunner.sim.depth import DepthImager
@@ -237,10 +257,11 @@ class TwinDepthFeed:
                 world.model, self.cameras[name], (near, far), self.noise_m, seed=self.seed
             )
         frame = imager.frame(snapshot[0], snapshot[1], snapshot[2], time_s)
-        t1 = time.perf_counter()
+        self.render_s.append(time.perf_counter() - w0)
+        if not self.realtime:
+            t0 = clock()
         verdict = self.zone.integrate(frame, held)
-        self.render_s.append(t1 - t0)
-        return verdict, time.perf_counter() - t0
+        return verdict, clock() - t0
 
     def close(self) -> None:
         self._pool.submit(self._close_imagers).result(timeout=10)
@@ -262,3 +283,113 @@ def watch_on_twin(
         return None
     zone = ZoneWatch(world, watch)
     return zone, TwinDepthFeed(zone, backend, realtime=realtime)
+
+
+class SourceDepthFeed:
+    """Depth cameras on the arm (:mod:`cellrunner.perception.sources`) feeding the zone:
+    one thread per camera grabs, integrates and checks, and publishes each verdict as it
+    comes. As a control-loop observer it keeps the arm's latest measured state, whose
+    clock and joints stamp each image (a camera's own latency is not modelled). ``start``
+    connects the cameras; ``close`` stops the threads and closes them."""
+
+    #: a camera that failed is tried again after this long (s)
+    RETRY_S = 1.0
+
+    def __init__(self, zone: ZoneWatch, sources: dict[str, Any], log: Any = None) -> None:
+        self.zone, self.sources, self.log = zone, sources, log
+        self._state: Any = None
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        cell = zone.world.loaded.cell
+        from cellrunner.model.camera import FLANGE
+        from cellrunner.model.expand import frame_pose
+
+        self._mounts: dict[str, tuple[bool, np.ndarray]] = {}
+        for name in sources:
+            camera = cell.cameras[name]
+            if camera.mount == FLANGE:
+                self._mounts[name] = (True, camera.pose.matrix())
+            else:
+                self._mounts[name] = (False, frame_pose(cell, camera.mount) @ camera.pose.matrix())
+        self.errors: list[str] = []
+
+    def start(self) -> None:
+        for source in self.sources.values():
+            source.connect()
+        for name, source in self.sources.items():
+            thread = threading.Thread(
+                target=self._run, args=(name, source), name=f"depth-{name}", daemon=True
+            )
+            thread.start()
+            self._threads.append(thread)
+
+    def __call__(self, cell: Any) -> None:
+        self._state = cell.backend.read_state()
+
+    def quiet_until_s(self, cell: Any) -> float:
+        return 0.0  # verdicts come on their own clock: no look-ahead
+
+    def _run(self, name: str, source: Any) -> None:
+        on_flange, T_mount_camera = self._mounts[name]
+        while not self._stop.is_set():
+            try:
+                image = source.grab()
+                state = self._state
+                if state is None:
+                    continue
+                T = (
+                    self.zone.world.kinematics.T_world_flange(state.q_rad) @ T_mount_camera
+                    if on_flange
+                    else T_mount_camera
+                )
+                frame = DepthFrame(name, state.time_s, image.depth_m, T, image.K, q_rad=state.q_rad)
+                self.zone.publish(self.zone.integrate(frame))
+            except Exception as exc:  # a camera that fails is reported and tried again
+                self.errors.append(f"{name}: {exc}")
+                if self.log is not None:
+                    self.log.warning("depth_camera_failed", camera=name, error=str(exc))
+                self._stop.wait(self.RETRY_S)
+
+    def close(self) -> None:
+        self._stop.set()
+        for thread in self._threads:
+            thread.join(timeout=5.0)
+        for source in self.sources.values():
+            source.close()
+
+
+def watch_on_sources(
+    world: CellWorld, spec: str | None, host: str | None, log: Any = None
+) -> tuple[ZoneWatch, SourceDepthFeed] | None:
+    """The watched zone of a cell run on the arm (or the twin's virtual controller), fed
+    by the depth source ``spec`` names (:func:`~cellrunner.perception.sources.depth_source`);
+    None when the cell is not watched. ``start()`` the feed after the robot is connected."""
+    from cellrunner.perception.sources import depth_source
+
+    watch = world.loaded.cell.watch
+    if watch is None:
+        return None
+    cameras = world.loaded.cell.cameras
+    sources = {name: depth_source(spec, name, cameras[name], host) for name in watch.cameras}
+    zone = ZoneWatch(world, watch)
+    return zone, SourceDepthFeed(zone, sources, log)
+
+
+def watch_cell(
+    world: CellWorld,
+    kind: str,
+    backend: Any,
+    *,
+    realtime: bool,
+    depth_source: str | None = None,
+    host: str | None = None,
+    log: Any = None,
+) -> tuple[ZoneWatch, TwinDepthFeed | SourceDepthFeed] | None:
+    """The watched zone of a cell and its depth feed, for the backend ``kind``: the
+    in-process twin renders its own (``sim``); the arm, or the twin's virtual controller,
+    takes images from ``depth_source`` (default: the twin's on ``host``). None when the
+    cell is not watched. Add the feed to the control loop's observers and ``start()`` it
+    once the robot is connected; ``close()`` it at the end."""
+    if kind == "sim":
+        return watch_on_twin(world, backend, realtime=realtime)
+    return watch_on_sources(world, depth_source, host, log)

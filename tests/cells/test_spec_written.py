@@ -304,3 +304,15 @@ def test_a_block_off_its_frame_aligned_before_the_pick_is_placed():
     code, out = cli("dry-run", cell("align_ur5"), task("align_pick_ur5"))
     assert (code, out["result_code"]) == (0, 0), (out["result_text"], out["errors"])
     assert math.dist(out["parts_end_m"]["block"], (0.40, 0.30, 0.825)) < 0.005
+
+
+def test_a_float_param_is_proved_over_its_whole_range_or_refused():
+    """A PLC may send any value in [min, max]: `clear` is 0.05-0.40 m and the UR3e cannot
+    reach 0.40 m above the tray. check (default value) proves the range or refuses it."""
+    code, out = cli("check", cell("screwing_ur3e"), task("bracket_clear"))
+    if code == 0:
+        for value in ("clear=0.05", "clear=0.40"):
+            code, out = cli("check", cell("screwing_ur3e"), task("bracket_clear"), "-p", value)
+            assert (code, out["ok"]) == (0, True), (value, out["errors"])
+    else:
+        assert code == 1 and any("clear" in error for error in out["errors"]), out["errors"]

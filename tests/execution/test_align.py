@@ -5,6 +5,7 @@ proves the max_correction box; bad align steps are located input errors."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -17,6 +18,8 @@ from tests.twin.cell_rig import ENV
 CELL = ROOT / "cells" / "align_pick_ur10e.yaml"
 TASK = ROOT / "tasks" / "align_pick.yaml"
 BLIND = ROOT / "tasks" / "align_pick_blind.yaml"
+#: a loopback address of this process's own: several checkouts run these tests at once
+HOST = f"127.26.{os.getpid() % 250 + 1}.2"
 
 
 def cellrunner(*args: str) -> tuple[int, dict, str]:
@@ -113,3 +116,18 @@ def test_bad_align_steps_are_located_input_errors(tmp_path, edit, message):
     assert r.returncode == 2
     line = next(x for x in r.stderr.splitlines() if message in x)
     assert line.startswith(f"{task}:") and ": error: " in line, line
+
+
+def test_on_the_arm_align_sees_through_the_image_source(tmp_path):
+    """`run --backend ur` against `cellrunner twin`: the unmodified ur_rtde client moves
+    the arm, the pictures come from the twin's camera server (the default image source)."""
+    from tests.twin.cell_rig import twin
+
+    cell, task, _ = project(tmp_path)
+    with twin(cell, HOST):
+        code, out, err = cellrunner(
+            "run", str(cell), str(task), "--backend", "ur", "--robot-host", HOST,
+            "--image-source", "twin", "--json",
+        )  # fmt: skip
+    assert code == 0 and out["result_code"] == 0, (out.get("errors"), err[-2000:])
+    assert "in 2 looks" in align_row(out)["message"]
