@@ -63,11 +63,11 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--report rehearses one job; drop --slots (or the -p range) for it")
     steps = expanded(cell, task, jobs[0])
     injections = parse_injections(args.inject, steps)
-    if args.report or cell.cell.watch is not None:
+    if args.report or cell.cell.watch is not None or cell.cell.cameras:
         from cellrunner.sim.mujoco_loader import enable_pictures
 
         # before MuJoCo is imported: it reads its GL backend once (a watched cell's depth
-        # cameras cast rays instead where there is none)
+        # cameras cast rays instead where there is none; an align step's camera renders)
         enable_pictures()
     from cellrunner.backends.sim.backend import SimBackend
     from cellrunner.planning.world import CellWorld
@@ -140,6 +140,8 @@ def run(args: argparse.Namespace) -> int:
     code = ResultCode(payload["result_code"])
     if zone is not None:
         payload["depth_images"] = zone.images
+        intruders = backend.world.intruders if backend.world is not None else None
+        payload["intruders_touched"] = sorted(intruders.touched) if intruders else []
     has_pictures = True
     if report is not None:
         from cellrunner.report import write_report
@@ -154,6 +156,9 @@ def run(args: argparse.Namespace) -> int:
             task=task,
             params=params,
             step_rows=rows,
+            obstacles_m=(
+                zone.map.centres(np.flatnonzero(zone.ever_occupied)) if zone is not None else None
+            ),
         )
     runner = controller.last_runner  # finished: the control loop no longer touches it
     trace = list(runner.ctx.notes.get("force_trace", [])) if runner else []

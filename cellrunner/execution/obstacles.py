@@ -51,6 +51,8 @@ class ObstacleGuard:
     policy: ObstaclePolicy
     accel_rad_s2: np.ndarray
     obstructed: str = ""
+    held: Placed | None = None  # the part carried in the last watched motion
+    why_not: str = ""  # why the last replan found no way
     replans: int = 0
     last_replan_s: float = -math.inf
     events: list[dict[str, Any]] = field(default_factory=list)
@@ -65,6 +67,21 @@ class ObstacleGuard:
         self.events.append(event)
         if ctx.log is not None:
             ctx.log.info("obstacle", **event)
+
+
+def summary(events: list[dict[str, Any]], step_index: int) -> str:
+    """One line of what obstacles did to a step, for its journal row: each stop, wait,
+    replan and clear with its time (s) and the voxel's position (m); "" when none."""
+    parts = []
+    for e in events:
+        if e.get("step") != step_index:
+            continue
+        text = f"{e['what']} {e['time_s']:.2f} s"
+        if "voxel_m" in e:
+            x, y, z = e["voxel_m"]
+            text += f" at ({x:.2f}, {y:.2f}, {z:.2f}) m"
+        parts.append(text)
+    return "obstacle: " + "; ".join(parts) if parts else ""
 
 
 def where(blocked: Blocked) -> str:
@@ -101,6 +118,9 @@ def stream_watched(
     zone = guard.zone
     carried = getattr(ctx.motions, "carried_during", None)
     held: Placed | None = carried(step) if carried is not None else None
+    if guard.held is not None and held is None:  # released since: it stands where the TCP is
+        zone.set_down(guard.held, ctx.last_state.q_rad)
+    guard.held = held
     path, pos = approved, first
     blocked = zone.check(path.trajectory.q_rad[pos:], held)
     if blocked is not None:
@@ -140,14 +160,16 @@ def stream_watched(
             return None
         index, blocked = stopped_at
         guard.note(ctx, "stop", blocked, step=step.index)
-        u_rest = yield from _stop_on_path(ctx, path, index)
+        u_rest = yield from _stop_on_path(ctx, path, index, blocked.index)
         result = yield from _wait(ctx, step, path, u_rest, blocked, held)
         if not isinstance(result, _Go):
             return result
         path, pos = result.path, result.pos
 
 
-def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop: bool) -> int:
+def _ramp_samples(
+    ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop: bool, fraction: float = 0.0
+) -> int:
     """Set-points a stop (from the speed at ``u0``) or a restart at ``u0`` (up to the top
     speed of the rest of the path) takes at the ramp's acceleration."""
     assert ctx.obstacles is not None
@@ -158,17 +180,23 @@ def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop:
         return 1
     rest = q[i : i + 2] if stop else q[i:]
     speed = np.abs(np.diff(rest, axis=0)).max(axis=0) * traj.rate_hz  # rad/s
-    seconds = float(np.max(speed / (RAMP_ACCEL_FRACTION * ctx.obstacles.accel_rad_s2)))
+    accel = (fraction or RAMP_ACCEL_FRACTION) * ctx.obstacles.accel_rad_s2
+    seconds = float(np.max(speed / accel))
     return max(1, math.ceil(seconds * traj.rate_hz))
 
 
 def _stop_on_path(
-    ctx: JobContext, path: ApprovedTrajectory, index: int
+    ctx: JobContext, path: ApprovedTrajectory, index: int, blocked: int
 ) -> Generator[None, None, float]:
-    """Slow to rest along ``path`` from set-point ``index`` (commanded now); returns the
-    path position (fractional sample) where the arm stands."""
+    """Slow to rest along ``path`` from set-point ``index`` (commanded now), before
+    set-point ``blocked`` (the first that comes too near the map) where the joints'
+    full acceleration allows; returns the path position (fractional sample) where the
+    arm stands."""
     last = len(path.trajectory.q_rad) - 1
     n = _ramp_samples(ctx, path, index, stop=True)
+    if index + n / 2 >= blocked - 1:  # too long: as hard as the limits allow, to stop short
+        hardest = _ramp_samples(ctx, path, index, stop=True, fraction=1.0)
+        n = max(hardest, 2 * (blocked - 1 - index), 1)
     k = np.arange(n + 1, dtype=float)
     u = np.minimum(index + k - k * k / (2 * n), last)
     stop = along_path(path, u)
@@ -230,7 +258,19 @@ def _wait(
                 guard.replans += 1
                 guard.last_replan_s = now
                 t0 = time.perf_counter()
-                replanned = _replan(ctx, step, held)
+                if zone.replan_in_background:  # the control loop ticks on meanwhile
+                    from concurrent.futures import ThreadPoolExecutor
+
+                    pool = ThreadPoolExecutor(1, thread_name_prefix="replan")
+                    try:
+                        future = pool.submit(_replan, ctx, step, held, ctx.last_state.q_rad)
+                        while not future.done():
+                            yield
+                        replanned = future.result()
+                    finally:  # an abort while planning leaves the plan to finish unread
+                        pool.shutdown(wait=False)
+                else:
+                    replanned = _replan(ctx, step, held, ctx.last_state.q_rad)
                 plan_s = round(time.perf_counter() - t0, 4)
                 if replanned is not None:
                     guard.note(
@@ -249,6 +289,7 @@ def _wait(
                     step=step.index,
                     replans=guard.replans,
                     plan_s=plan_s,
+                    why=guard.why_not,
                 )
             if now - since >= policy.wait:
                 message = (
@@ -263,18 +304,21 @@ def _wait(
         zone.follow(None)
 
 
-def _replan(ctx: JobContext, step: Step, held: Placed | None) -> ApprovedTrajectory | None:
-    """A verified plan from where the arm stands around the map, clear of it now; None
-    when there is none."""
+def _replan(
+    ctx: JobContext, step: Step, held: Placed | None, q_rad: np.ndarray
+) -> ApprovedTrajectory | None:
+    """A verified plan from ``q_rad`` (where the arm stands) around the map, clear of it
+    now; None when there is none."""
     assert ctx.obstacles is not None
     zone = ctx.obstacles.zone
     obstacles = zone.obstacles()
     try:
-        new = ctx.motions.replan(
-            step, ctx.last_state.q_rad, carrying=ctx.carry is not None, obstacles=obstacles
-        )
-    except InfeasibleError:
+        new = ctx.motions.replan(step, q_rad, carrying=ctx.carry is not None, obstacles=obstacles)
+    except InfeasibleError as exc:
+        ctx.obstacles.why_not = str(exc)
         return None
-    if zone.check(new.trajectory.q_rad, held) is not None:
+    blocked = zone.check(new.trajectory.q_rad, held)
+    if blocked is not None:
+        ctx.obstacles.why_not = f"the new plan meets the map: {where(blocked)}"
         return None
     return new

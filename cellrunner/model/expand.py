@@ -85,7 +85,7 @@ def expand(loaded: LoadedTask, cell: Cell, params: dict[str, Any]) -> list[Step]
 
 #: an align's look: the marker spans this share of the picture's height, from at least
 #: this far (m)
-LOOK_SPAN, LOOK_MIN_M = 0.15, 0.1
+LOOK_SPAN, LOOK_MIN_M = 0.10, 0.1
 
 #: the key of an align's correction among the params (``align:FRAME``): a pose
 #: ``{xyz, rpy}`` in the frame's axes; ``check`` plans the corners of its box, a job

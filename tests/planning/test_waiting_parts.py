@@ -90,3 +90,20 @@ def test_jaws_around_a_short_block_may_come_down_to_its_table(tmp_path):
     )
     out = cli("check", str(cell), str(task), "--no-cache")
     assert out["ok"], out["errors"]
+
+
+def test_a_bare_grip_carries_the_part_waiting_at_the_tcp_through_check():
+    """A bare ``grip`` (no pick macro) takes the part waiting where the TCP stands; carried
+    20 mm up and along the belt, it runs into the next box waiting there (the spec-written
+    ceiling conveyor cell; before, check carried nothing and approved the sweep)."""
+    root = DEMO_CELL.parent.parent / "tests" / "cells" / "spec_written"
+    out = cli(
+        "check",
+        str(root / "cells" / "ceiling_conveyor_ur5e.yaml"),
+        str(root / "tasks" / "conveyor_sweep.yaml"),
+        "--no-cache",
+    )
+    assert not out["ok"]
+    assert out["errors"][0].startswith(
+        "step 6 linear 'upstream': part 'box' is too close to waiting part 'next_box'"
+    )
