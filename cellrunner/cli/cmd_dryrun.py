@@ -185,6 +185,9 @@ def run(args: argparse.Namespace) -> int:
             task=task,
             params=params,
             step_rows=rows,
+            obstacles_m=(
+                zone.map.centres(np.flatnonzero(zone.ever_occupied)) if zone is not None else None
+            ),
         )
     runner = controller.last_runner  # finished: the control loop no longer touches it
     trace = list(runner.ctx.notes.get("force_trace", [])) if runner else []
