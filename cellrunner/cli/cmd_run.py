@@ -35,6 +35,10 @@ def run(args: argparse.Namespace) -> int:
     from cellrunner.planning.world import CellWorld
 
     kind = backend_kind(cell, args.backend)
+    if kind == "sim" and cell.cell.cameras:
+        from cellrunner.sim.mujoco_loader import enable_pictures
+
+        enable_pictures()  # before MuJoCo is imported: an align step's camera renders
     backend = make_backend(cell, kind, args.robot_host)
     log = None
     if args.log_format == "json":

@@ -44,6 +44,10 @@ def run(args: argparse.Namespace) -> int:
     # stall the heartbeat for as long as the OS keeps it off the CPU.
     raise_thread_priority()
     kind = backend_kind(cell, args.backend)
+    if kind == "sim" and cell.cell.cameras:
+        from cellrunner.sim.mujoco_loader import enable_pictures
+
+        enable_pictures()  # before MuJoCo is imported: an align step's camera renders
     backend = make_backend(cell, kind, args.robot_host)
     from cellrunner.planning.world import CellWorld
 
