@@ -133,6 +133,12 @@ def build_parser() -> argparse.ArgumentParser:
         "plc_disconnect, intrusion (a watched cell) at a step (index, kind, or KIND#N)",
     )
     p.add_argument("--report", metavar="DIR", help="write JSON, pictures and plots here")
+    p.add_argument(
+        "--slots",
+        metavar="all|A..B",
+        help="a whole run: the task once per value of its pattern param, in order, in one "
+        "twin (parts stay where they were put); -p NAME=A..B does the same for any int param",
+    )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument(
         "--save-map",

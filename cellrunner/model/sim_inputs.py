@@ -100,7 +100,19 @@ class Intruder(Strict):
         return self
 
 
+class Feed(Strict):
+    """A new part at its frame before each job, in rehearsal (``dry-run``, ``twin``,
+    ``serve --backend sim``): a conveyor bringing the next one (SPEC section 12)."""
+
+    part: Name
+    """The cell's part a fed one is a copy of. Example: `carton`"""
+    at: Name
+    """The frame it is put at (as a part `at:` that frame lies). Example: `infeed`"""
+
+
 class SimBlock(Strict):
+    feed: Feed | None = None
+    """A new part at its frame before each job. Example: `{part: carton, at: infeed}`"""
     inputs: dict[Name, InputRule] = Field(default_factory=dict)
     """Input names to the rule that drives them in rehearsal. Example: `{part_present: {part_at: infeed}}`"""
     depth_noise: NonNegativeLength = 0.0
@@ -113,6 +125,13 @@ def check_sim_block(cell: Cell, report: Report) -> None:
     """Report rule inputs, outputs and frames the cell does not know."""
     if cell.sim is None:
         return
+    feed = cell.sim.feed
+    if feed is not None:
+        parts = [p.name for p in cell.parts]
+        if feed.part not in parts:
+            report.error(("sim", "feed", "part"), unknown_name("part", feed.part, parts))
+        if feed.at not in cell.frames:
+            report.error(("sim", "feed", "at"), unknown_name("frame", feed.at, cell.frames))
     names = [i.name for i in cell.sim.intruders]
     for i, intruder in enumerate(cell.sim.intruders):
         if names.index(intruder.name) != i:
