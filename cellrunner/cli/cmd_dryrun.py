@@ -7,7 +7,7 @@ import argparse
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from rich.markup import escape
 
@@ -22,16 +22,15 @@ from cellrunner.cli.common import (
 )
 from cellrunner.cli.faults import Injection, parse_injections
 from cellrunner.errors import CellrunnerError
-from cellrunner.execution.cell import CellController
+from cellrunner.execution.assembly import assemble_cell
 from cellrunner.execution.journal import Journal
-from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.step import StepKind
 from cellrunner.report.recorder import RunRecorder
 
 if TYPE_CHECKING:
     from cellrunner.backends.sim.backend import SimBackend
+    from cellrunner.execution.cell import CellController
     from cellrunner.model.step import Step
 
 #: e-stop faults are released by the "operator" this long after they struck (sim s)
@@ -57,12 +56,7 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.sim.mujoco_loader import enable_pictures
 
         enable_pictures()  # before MuJoCo is imported: it reads its GL backend once
-    from cellrunner.backends.sim.backend import SimBackend
-    from cellrunner.planning.world import CellWorld
-    from cellrunner.sim.from_cell import description_of
-
-    world = CellWorld(cell)
-    backend = SimBackend(description_of(cell, (task,)))
+    backend: SimBackend
     pending: list[tuple[Injection, float]] = []
     report = Path(args.report) if args.report else None
     recorder = RunRecorder()
@@ -83,19 +77,19 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.cli.logs import configure
 
         log = configure("json", cell.cell.cell)
-    controller = CellController(
+    assembled = assemble_cell(
         cell,
         {1: task},
-        backend,
-        Journal(":memory:"),
-        job_planner(world),
+        "sim",
+        journal=Journal(":memory:"),
         log=log,
-        wait_for_unhold=False,
         on_step_start=on_step_start,
+        lookahead=not getattr(args, "per_period", False),
     )
+    backend = cast("SimBackend", assembled.backend)  # "sim": the twin in this process
+    controller, loop, world = assembled.controller, assembled.loop, assembled.world
     out = console()
     controller.setup()
-    loop = ControlLoop(controller, lookahead=not getattr(args, "per_period", False))
     loop.step(3)
     t0 = time.perf_counter()
     with out.status("planning", spinner="dots") as status:

@@ -6,13 +6,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from cellrunner.backends.factory import backend_kind, make_backend
+from cellrunner.backends.factory import backend_kind
 from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
 from cellrunner.errors import UsageError
-from cellrunner.execution.cell import CellController
-from cellrunner.execution.journal_open import cell_journal
-from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner
+from cellrunner.execution.assembly import assemble_cell
 from cellrunner.model.codes import ResultCode
 
 
@@ -24,10 +21,7 @@ def run(args: argparse.Namespace) -> int:
         )
     cell, task = load(args.cell, args.task)
     params = parse_params(args.param, task)
-    from cellrunner.planning.world import CellWorld
-
     kind = backend_kind(cell, args.backend)
-    backend = make_backend(cell, kind, args.robot_host)
     log = None
     if args.log_format == "json":
         from cellrunner.cli.logs import configure
@@ -39,20 +33,19 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.execution.pacing import EnterGate, describe_step
 
         gate = EnterGate(describe_step, on_end=lambda: controller.command("abort"))
-    planner = job_planner(CellWorld(cell), speed=speed, joined=not stepping)
-    controller = CellController(
+    assembled = assemble_cell(
         cell,
         {1: task},
-        backend,
-        cell_journal(cell),
-        planner,
+        kind,
+        robot_host=args.robot_host,
+        speed=speed,
+        joined=not stepping,
         log=log,
-        wait_for_unhold=False,
         gate=gate,
     )
+    controller, loop = assembled.controller, assembled.loop
     out = console()
     controller.setup()
-    loop = ControlLoop(controller)
     try:
         loop.step(5)
         ticket = controller.start_job(1, params, "", "cli")

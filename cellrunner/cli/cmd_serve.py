@@ -9,17 +9,16 @@ import sys
 import threading
 from typing import TYPE_CHECKING
 
-from cellrunner.backends.factory import backend_kind, make_backend
+from cellrunner.backends.factory import backend_kind
 from cellrunner.cli.logs import configure
-from cellrunner.execution.cell import CellController
+from cellrunner.execution.assembly import assemble_cell
 from cellrunner.execution.journal import is_database_url
 from cellrunner.execution.journal_open import cell_journal
-from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner, warm_up
 from cellrunner.model.load import LoadedCell, load_cell, load_task, serve_file_warnings
 from cellrunner.plc.service import raise_thread_priority
 
 if TYPE_CHECKING:
+    from cellrunner.execution.cell import CellController
     from cellrunner.execution.context import EventLog
     from cellrunner.plc.service import PlcService
     from cellrunner.web.server import StatusServer
@@ -42,25 +41,22 @@ def run(args: argparse.Namespace) -> int:
     # stall the heartbeat for as long as the OS keeps it off the CPU.
     raise_thread_priority()
     kind = backend_kind(cell, args.backend)
-    backend = make_backend(cell, kind, args.robot_host)
-    from cellrunner.planning.world import CellWorld
-
-    world = CellWorld(cell)
-    warm_up(world)  # before READY: the first job is acknowledged as fast as any other
+    assembled = assemble_cell(
+        cell,
+        tasks,
+        kind,
+        robot_host=args.robot_host,
+        warm=True,  # before READY: the first job is acknowledged as fast as any other
+        log=log,
+        wait_for_unhold=True,
+        feed_parts=True,
+        realtime=kind == "sim",
+    )
+    controller = assembled.controller
     _load_planning_libraries()
     # the planning thread is CPU-bound; hand the GIL over every 1 ms (Python's default is
     # 5 ms) so the PLC threads answer promptly while a job plans
     sys.setswitchinterval(0.001)
-    controller = CellController(
-        cell,
-        tasks,
-        backend,
-        cell_journal(cell),
-        job_planner(world),
-        log=log,
-        wait_for_unhold=True,
-        on_job_start=getattr(backend, "feed_parts", None),
-    )
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
@@ -77,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
             modbus=getattr(service, "modbus_address", None) if service else None,
             http=status_page.url if status_page else None,
         )
-        ControlLoop(controller, realtime=kind == "sim").run(stop)
+        assembled.loop.run(stop)
     except Exception as exc:  # a bug in the control loop: close the job saying so, then exit 1
         reason = f"cellrunner failed: {type(exc).__name__}: {exc}"
         log.exception("control_loop_failed", error=str(exc))
