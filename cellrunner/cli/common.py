@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from rich.console import Console, JustifyMethod
     from rich.table import Table
 
-    from cellrunner.execution.cell import JobView
+    from cellrunner.execution.job_view import JobView
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -110,7 +110,7 @@ def step_table(
 
 def record_rows(job: JobView | None, steps: list[Step] | None = None) -> list[dict[str, Any]]:
     """The ``steps`` of a ``--json`` report from a job's step records (a
-    :class:`~cellrunner.execution.cell.JobView`; rows with status "not run" for ``steps``
+    :class:`~cellrunner.execution.job_view.JobView`; rows with status "not run" for ``steps``
     when the job has none, e.g. planning failed)."""
     records = () if job is None else job.records
     if isinstance(records, dict):  # a JobRunner's own records

@@ -4,18 +4,34 @@ as a whole when any step is infeasible."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
-from cellrunner.execution.cell import JobPlan, Planner
+from cellrunner.execution.context import Motions
+from cellrunner.model.expand import Step
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
 
 if TYPE_CHECKING:
     from cellrunner.planning.task_plan import TaskPlan
     from cellrunner.planning.world import CellWorld
+
+
+@dataclass(frozen=True)
+class JobPlan:
+    """What the planner hands the cell for one job."""
+
+    steps: list[Step]
+    motions: Motions
+    planned_cycle_time_s: float
+
+
+#: plans a job: (task, params, where the arm stands, rad) -> its plan, or raises
+Planner = Callable[[LoadedTask, dict[str, ParamValue], np.ndarray], JobPlan]
 
 #: a start this close to home (max over joints, rad) is planned from home, so that jobs
 #: that begin at home reuse the cached plan

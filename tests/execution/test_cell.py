@@ -6,9 +6,10 @@ import time
 
 import pytest
 
-from cellrunner.execution.cell import CellController, JobPlan
+from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
 from cellrunner.execution.loop import ControlLoop
+from cellrunner.execution.planner import JobPlan
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import expand
