@@ -22,13 +22,14 @@ from collections.abc import Callable, Generator
 from concurrent.futures import wait
 from typing import Any
 
-from cellrunner.backends.base import RobotBackend, Safety
+from cellrunner.backends.base import RobotBackend
 from cellrunner.errors import CellrunnerError, InputError
 from cellrunner.execution.cell_states import CellStates
 from cellrunner.execution.context import EventLog
-from cellrunner.execution.job import JobPhase, JobRunner
+from cellrunner.execution.job import JobRunner
 from cellrunner.execution.job_book import JobBook
 from cellrunner.execution.job_launch import JobLauncher
+from cellrunner.execution.job_records import JobPhase
 from cellrunner.execution.job_view import (
     Job,
     JobView,
@@ -50,6 +51,7 @@ from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step, resolve_params
 from cellrunner.model.load import LoadedCell, LoadedTask
+from cellrunner.model.robot_state import Safety
 
 #: the PLC's commands that go to the state machine as they are
 _COMMAND_OF = {

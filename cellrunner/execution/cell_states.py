@@ -4,10 +4,10 @@ control thread's clock: every state is shown for at least one period, Complete f
 
 from __future__ import annotations
 
-from cellrunner.backends.base import Safety
-from cellrunner.execution.job import JobPhase
+from cellrunner.execution.job_records import JobPhase
 from cellrunner.execution.packml import Command, Event, StateMachine
 from cellrunner.model.codes import PackMLState as S
+from cellrunner.model.robot_state import Safety
 
 #: Complete is shown this long before the cell resets itself to Idle
 COMPLETE_DWELL_S = 0.1

@@ -15,7 +15,7 @@ from cellrunner.model.codes import ResultCode
 
 if TYPE_CHECKING:
     from cellrunner.execution.context import EventLog
-    from cellrunner.execution.job import StepRecord
+    from cellrunner.execution.job_records import StepRecord
 
 
 class JobBook:

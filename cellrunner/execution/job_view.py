@@ -10,8 +10,8 @@ from datetime import UTC, datetime
 
 import numpy as np
 
-from cellrunner.backends.base import Safety
-from cellrunner.execution.job import JobPhase, JobRunner, StepRecord
+from cellrunner.execution.job import JobRunner
+from cellrunner.execution.job_records import JobPhase, StepRecord
 from cellrunner.execution.journal import JobRecord
 from cellrunner.execution.planner import JobPlan
 from cellrunner.model.cellport import CellStatus, JobResult
@@ -19,6 +19,7 @@ from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
+from cellrunner.model.robot_state import Safety
 
 
 @dataclass

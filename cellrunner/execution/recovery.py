@@ -9,8 +9,9 @@ from collections.abc import Generator
 
 import numpy as np
 
-from cellrunner.backends.base import RobotBackend, Safety
+from cellrunner.backends.base import RobotBackend
 from cellrunner.errors import CellrunnerError
+from cellrunner.model.robot_state import Safety
 
 #: what a recovery ends with: the error that stopped it (None: it went through) and the
 #: robot's safety state after it

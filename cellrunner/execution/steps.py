@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from cellrunner.backends.base import RobotState
 from cellrunner.execution.context import Carry, Hold, JobContext, Stream
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
+from cellrunner.model.robot_state import RobotState
 from cellrunner.model.step import StepKind
 from cellrunner.model.trajectory import ApprovedTrajectory
 

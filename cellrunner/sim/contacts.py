@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cellrunner.backends.base import Safety
+from cellrunner.model.robot_state import Safety
 from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC, TOOL
 from cellrunner.sim.wrist import GRAVITY_MPS2
 

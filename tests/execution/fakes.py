@@ -10,8 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cellrunner.backends.base import BackendError, RobotState, Safety
+from cellrunner.errors import BackendError
 from cellrunner.model.expand import Step
+from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.model.trajectory import Trajectory, approve
 
 RATE = 500.0

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cellrunner.backends.base import BackendError, Safety
+from cellrunner.errors import BackendError
+from cellrunner.model.robot_state import Safety
 from cellrunner.sim import demo
 from cellrunner.sim.contacts import PLACE_DROP_M
 

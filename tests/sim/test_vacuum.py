@@ -142,7 +142,8 @@ def test_grip_miss_leaves_the_cups_on_nothing():
 
 def test_a_carton_held_by_suction_pushed_into_the_conveyor_is_a_protective_stop():
     """Set back down on the conveyor and driven 30 mm on: a contact, as for jaws."""
-    from cellrunner.backends.base import BackendError, Safety
+    from cellrunner.errors import BackendError
+    from cellrunner.model.robot_state import Safety
 
     world, kin, loaded = build()
     grip_and_lift(world, kin, loaded, lift_m=0.05)
