@@ -11,7 +11,7 @@ from cellrunner.model.units import looks_like_radians
 
 if TYPE_CHECKING:
     from cellrunner.model.cell import Cell
-    from cellrunner.model.load import Report
+    from cellrunner.model.report import Report
 
 
 def check_io_name(
@@ -52,3 +52,18 @@ def check_radians(raw: Any, path: PathKey, report: Report) -> None:
             f"{value} looks like radians; angles are in degrees "
             "(write e.g. '1.57 rad' if you mean radians)",
         )
+
+
+def check_sim_block(cell: Cell, report: Report) -> None:
+    """Report rule inputs, outputs and frames the cell does not know."""
+    if cell.sim is None:
+        return
+    for name, rule in cell.sim.inputs.items():
+        base = ("sim", "inputs", name)
+        check_io_name(cell, name, "inputs", base, report, at_key=True)
+        if rule.part_at is not None and rule.part_at not in cell.frames:
+            report.error(base + ("part_at",), unknown_name("frame", rule.part_at, cell.frames))
+        for key in ("follows", "pulse_after"):
+            output = getattr(rule, key)
+            if output is not None:
+                check_io_name(cell, output, "outputs", base + (key,), report)

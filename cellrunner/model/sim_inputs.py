@@ -9,25 +9,17 @@ sim:
     cycle_done: {pulse_after: cnc_start, delay: 20, width: 0.5}  # a pulse after the output rose
 ```
 
-Names are the cell's IO names; :mod:`cellrunner.model.references`-style checks are in
-:func:`check_sim_block`.
+Names are the cell's IO names, checked against the cell by
+:func:`cellrunner.model.checks.check_sim_block`.
 """
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Strict
-from cellrunner.model.checks import check_io_name
-from cellrunner.model.diagnose import unknown_name
 from cellrunner.model.units import Duration, PositiveDuration, PositiveLength
-
-if TYPE_CHECKING:
-    from cellrunner.model.cell import Cell
-    from cellrunner.model.load import Report
 
 
 class InputRule(Strict):
@@ -65,18 +57,3 @@ class InputRule(Strict):
 class SimBlock(Strict):
     inputs: dict[Name, InputRule] = Field(default_factory=dict)
     """Input names to the rule that drives them in rehearsal. Example: `{part_present: {part_at: infeed}}`"""
-
-
-def check_sim_block(cell: Cell, report: Report) -> None:
-    """Report rule inputs, outputs and frames the cell does not know."""
-    if cell.sim is None:
-        return
-    for name, rule in cell.sim.inputs.items():
-        base = ("sim", "inputs", name)
-        check_io_name(cell, name, "inputs", base, report, at_key=True)
-        if rule.part_at is not None and rule.part_at not in cell.frames:
-            report.error(base + ("part_at",), unknown_name("frame", rule.part_at, cell.frames))
-        for key in ("follows", "pulse_after"):
-            output = getattr(rule, key)
-            if output is not None:
-                check_io_name(cell, output, "outputs", base + (key,), report)
