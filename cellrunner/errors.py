@@ -22,8 +22,30 @@ where they enter the program (``raise PeerUnreachable(...) from exc``); ur_rtde'
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
+
+MAX_QUOTED_CHARS = 60  # an echoed value longer than this is shown by its start and length
+MAX_MESSAGE_CHARS = 1000
+# a quoted word without spaces; values with spaces are bounded by MAX_MESSAGE_CHARS
+_QUOTED = re.compile(
+    f"'[^'\\s]{{{MAX_QUOTED_CHARS + 1},}}'|\"[^\"\\s]{{{MAX_QUOTED_CHARS + 1},}}\""
+)
+
+
+def shorten(message: str) -> str:
+    """``message`` with every quoted value over MAX_QUOTED_CHARS cut to its start and
+    length, and the whole kept under MAX_MESSAGE_CHARS, so a huge bad value in a file
+    never comes back whole on the terminal."""
+    message = _QUOTED.sub(
+        lambda m: f"{m[0][: MAX_QUOTED_CHARS - 20]}...{m[0][0]} ({len(m[0]) - 2} characters)",
+        message,
+    )
+    if len(message) > MAX_MESSAGE_CHARS:
+        half = MAX_MESSAGE_CHARS // 2
+        message = f"{message[:half]} ... {message[-half:]}"
+    return " ".join(message.splitlines())
 
 
 @dataclass(frozen=True)
@@ -35,6 +57,9 @@ class Diagnostic:
     col: int
     message: str
     severity: str = "error"  # "error" | "warning"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "message", shorten(self.message))
 
     def __str__(self) -> str:
         return f"{self.file}:{self.line}:{self.col}: {self.severity}: {self.message}"

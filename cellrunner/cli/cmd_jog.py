@@ -1,10 +1,14 @@
-"""``cellrunner jog CELL --robot-host H [--mode joint|base|tool]``: jog the arm from a
-terminal (see :mod:`cellrunner.commissioning.jog` for keys, dead-man and thresholds)."""
+"""``cellrunner jog CELL --robot-host H [--input keyboard|gamepad|spacemouse|udp:PORT]
+[--mode joint|base|tool]``: the arm follows keys, a device or a program at the controller
+rate (see :mod:`cellrunner.commissioning.servo` for the governor, dead band, smoothing and
+timeout; :mod:`cellrunner.commissioning.inputs` for each input)."""
 
 from __future__ import annotations
 
 import argparse
-import sys
+import signal
+import threading
+from types import FrameType
 
 from cellrunner.errors import UsageError
 from cellrunner.model.load import load_cell
@@ -15,15 +19,23 @@ def run(args: argparse.Namespace) -> int:
     host = args.robot_host or cell.cell.robot.host
     if not host:
         raise UsageError("give --robot-host H (the cell file has no robot.host)")
-    if not sys.stdin.isatty():
-        raise UsageError("jog needs a terminal: keys are read as they are held")
-    from cellrunner.commissioning.jog_terminal import JogSession
+    from cellrunner.commissioning.inputs import open_input
+
+    source = open_input(args.input, args.mode)
+    from cellrunner.commissioning.jog_session import JogSession
     from cellrunner.planning.world import CellWorld
 
-    session = JogSession(CellWorld(cell), host, args.mode)
-    session.connect()
+    stop = threading.Event()
+
+    def on_term(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    previous = signal.signal(signal.SIGTERM, on_term)
+    session = JogSession(CellWorld(cell), host, source)
     try:
-        session.run()
+        session.connect()
+        session.run(stop)
     finally:
         session.close()
+        signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
     return 0

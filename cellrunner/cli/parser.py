@@ -174,10 +174,23 @@ def _commissioning_commands(sub: Commands) -> None:
     p.add_argument("--yes", action="store_true", help="write the change without asking")
     p.set_defaults(module="teach")
 
-    p = sub.add_parser("jog", help="commissioning: jog the arm from a terminal (dead-man keys)")
+    p = sub.add_parser(
+        "jog", help="commissioning: the arm follows keys, a gamepad, a SpaceMouse or a program"
+    )
     p.add_argument("cell")
     p.add_argument("--robot-host", metavar="H")
-    p.add_argument("--mode", choices=("joint", "base", "tool"), default="joint")
+    p.add_argument(
+        "--input",
+        default="keyboard",
+        metavar="keyboard|gamepad|spacemouse|udp:[ADDR:]PORT",
+        help="where commands come from (default keyboard, which needs a terminal)",
+    )
+    p.add_argument(
+        "--mode",
+        choices=("joint", "base", "tool"),
+        default=None,
+        help="where a person's input starts (default: joint for keys, base for devices)",
+    )
     p.set_defaults(module="jog")
 
     p = sub.add_parser(

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -43,6 +43,8 @@ ELBOW_SLOW_DEG, ELBOW_STOP_DEG = 15.0, 5.0
 SHOULDER_SLOW_M, SHOULDER_STOP_M = 0.10, 0.04
 #: clearance to fixtures and the arm itself beyond what the cell requires (m)
 CLEARANCE_SLOW_M, CLEARANCE_STOP_M = 0.10, 0.02
+#: joint limits: distance to the nearer end of a joint's range (deg)
+JOINT_LIMIT_SLOW_DEG, JOINT_LIMIT_STOP_DEG = 10.0, 2.0
 #: the governor judges the configuration this far ahead of the requested motion (s)
 LOOKAHEAD_S = 0.15
 #: below this fraction of the requested speed the jog stops
@@ -55,6 +57,15 @@ DAMPING = 0.02
 MODES = ("joint", "base", "tool")
 #: key -> (axis 0-5, sign): q w e r t y forward, a s d f g h back (joint 1-6, or X Y Z RX RY RZ)
 KEYS = {k: (i, +1) for i, k in enumerate("qwerty")} | {k: (i, -1) for i, k in enumerate("asdfgh")}
+
+
+class ObstacleMap(Protocol):
+    """The watched zone's live obstacle map, as the governor reads it."""
+
+    def clearance_m(self, q_rad: np.ndarray) -> tuple[float, str]:
+        """Distance (m) from the arm, tool and held part at ``q_rad`` to the nearest
+        occupied voxel, beyond the zone's padding, and a name for where it is."""
+        ...
 
 
 @dataclass
@@ -74,15 +85,34 @@ def requested_qd(
     """Joint speeds (rad/s) for jogging ``axis`` by ``sign`` at ``speed`` (fraction) in
     ``mode``: joints directly; base and tool as a TCP twist through a damped inverse of
     the TCP Jacobian (the base frame is the controller's: the cell's mount turns it)."""
+    v = axis_velocity(mode, axis, sign, speed)
+    return v if mode == "joint" else twist_qd(kinematics, q_rad, mode, v)
+
+
+def axis_velocity(mode: str, axis: int, sign: int, speed: float) -> np.ndarray:
+    """The velocity of jogging ``axis`` by ``sign`` at ``speed`` (fraction of full jog
+    speed): six joint speeds (rad/s) in ``joint`` mode, else a twist (m/s, rad/s)."""
+    v = np.zeros(6)
     if mode == "joint":
-        qd = np.zeros(6)
-        qd[axis] = sign * math.radians(JOINT_SPEED_DEG_S) * speed
-        return qd
-    twist = np.zeros(6)
-    twist[axis] = (
-        sign * speed * (LINEAR_SPEED_MPS if axis < 3 else math.radians(ANGULAR_SPEED_DEG_S))
+        v[axis] = sign * math.radians(JOINT_SPEED_DEG_S) * speed
+    else:
+        full = LINEAR_SPEED_MPS if axis < 3 else math.radians(ANGULAR_SPEED_DEG_S)
+        v[axis] = sign * speed * full
+    return v
+
+
+def twist_qd(
+    kinematics: ArmKinematics, q_rad: np.ndarray, frame: str, twist: np.ndarray
+) -> np.ndarray:
+    """Joint speeds (rad/s) giving the TCP ``twist`` (m/s, rad/s) expressed in ``frame``
+    (``base``: the controller's base frame, which the cell's mount turns; ``tool``: the
+    TCP frame), through a damped inverse of the TCP Jacobian."""
+    twist = np.asarray(twist, float)
+    R = (
+        kinematics.T_world_base[:3, :3]
+        if frame == "base"
+        else kinematics.T_world_tcp(q_rad)[:3, :3]
     )
-    R = kinematics.T_world_base[:3, :3] if mode == "base" else kinematics.T_world_tcp(q_rad)[:3, :3]
     twist_world = np.concatenate([R @ twist[:3], R @ twist[3:]])
     J = kinematics.jacobian_tcp(q_rad)
     return np.asarray(J.T @ np.linalg.solve(J @ J.T + DAMPING**2 * np.eye(6), twist_world))
@@ -95,8 +125,13 @@ def _ramp(value: float, slow: float, stop: float) -> float:
 class Governor:
     """Scales a requested joint velocity near singularities and obstacles."""
 
-    def __init__(self, kinematics: ArmKinematics, collision: CollisionModel) -> None:
-        self.kinematics, self.collision = kinematics, collision
+    def __init__(
+        self,
+        kinematics: ArmKinematics,
+        collision: CollisionModel,
+        obstacles: ObstacleMap | None = None,
+    ) -> None:
+        self.kinematics, self.collision, self.obstacles = kinematics, collision, obstacles
         self._fixture_pairs: list[int] | None = None
 
     def judge(self, q_rad: np.ndarray, qd_rad_s: np.ndarray) -> Verdict:
@@ -151,6 +186,20 @@ class Governor:
             s = _ramp(m_then[k], CLEARANCE_SLOW_M, CLEARANCE_STOP_M)
             if s < scale:
                 scale, reason = s, f"{self._pair_name(int(k))} {m_then[k] * 1000:.0f} mm"
+        for name, d_now, d_then, slow, stop in self._limit_checks(q, ahead):
+            if d_then < d_now - APPROACH_EPS_DEG:
+                s = _ramp(d_then, slow, stop)
+                if s < scale:
+                    scale, reason = s, f"{name} {d_then:.1f} deg"
+        if self.obstacles is not None:
+            (o_now, _), (o_then, where) = (
+                self.obstacles.clearance_m(q),
+                self.obstacles.clearance_m(ahead),
+            )
+            if o_then < o_now - APPROACH_EPS_M:
+                s = _ramp(o_then, CLEARANCE_SLOW_M, CLEARANCE_STOP_M)
+                if s < scale:
+                    scale, reason = s, f"watched zone: {where} {o_then * 1000:.0f} mm"
         nearest = int(np.argmin(m_now)) if len(m_now) else None
         singularity = f"wrist {now.wrist_deg:.1f} deg, elbow {now.elbow_deg:.1f} deg, shoulder {now.shoulder_m * 1000:.0f} mm"
         if scale < MIN_SCALE:
@@ -158,6 +207,25 @@ class Governor:
         if nearest is None:
             return Verdict(scale, reason, math.inf, "no fixture", singularity)
         return Verdict(scale, reason, float(m_now[nearest]), self._pair_name(nearest), singularity)
+
+    def _limit_checks(
+        self, q: np.ndarray, ahead: np.ndarray
+    ) -> list[tuple[str, float, float, float, float]]:
+        """Per joint: (name, deg to its nearer range end now, and at the look-ahead, slow,
+        stop)."""
+        k = self.kinematics
+        now = np.degrees(np.minimum(q - k.q_min_rad, k.q_max_rad - q))
+        then = np.degrees(np.minimum(ahead - k.q_min_rad, k.q_max_rad - ahead))
+        return [
+            (
+                f"joint {i + 1} limit",
+                float(now[i]),
+                float(then[i]),
+                JOINT_LIMIT_SLOW_DEG,
+                JOINT_LIMIT_STOP_DEG,
+            )
+            for i in range(6)
+        ]
 
     def _fixture_margins(self, q_rad: np.ndarray) -> np.ndarray:
         """Per pair of the arm or tool with a fixture: distance beyond its required

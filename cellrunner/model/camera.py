@@ -93,8 +93,35 @@ class Board(Strict):
         return self.squares[0] * self.square, self.squares[1] * self.square
 
 
+class Depth(Strict):
+    """A depth camera's range and rate (SPEC section 12): depth images in metres along the
+    camera frame's Z; pixels nearer than ``range[0]`` or farther than ``range[1]`` carry no
+    depth."""
+
+    range: Annotated[list[PositiveLength], Field(min_length=2, max_length=2)] = Field(
+        default_factory=lambda: [0.3, 2.5]
+    )
+    """Nearest and farthest depth the camera measures, m. Example: `[0.3, 2.5]`"""
+    rate: float = Field(default=15.0, gt=0, le=120)
+    """Depth images per second, Hz. Example: `15`"""
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Depth:
+        near, far = self.range
+        if not near < far:
+            raise PydanticCustomError(
+                "depth", f"range [{near:g}, {far:g}] m must have its near end below its far end"
+            )
+        return self
+
+    @property
+    def range_m(self) -> tuple[float, float]:
+        return self.range[0], self.range[1]
+
+
 class Camera(Strict):
-    """A camera: intrinsics, image size, mount and pose; optionally its calibration board."""
+    """A camera: intrinsics, image size, mount and pose; optionally its calibration board
+    and depth."""
 
     intrinsics: Intrinsics
     """Pinhole intrinsics (px) and distortion. Example: `{fx: 600, fy: 600, cx: 320, cy: 240}`"""
@@ -108,6 +135,8 @@ class Camera(Strict):
     """The camera frame (OpenCV: Z out of the lens, X right, Y down) in its mount, m and deg; `calibrate-camera` writes it. Example: `{xyz: [0.06, 0, 0.04], rpy: [0, 0, 90]}`"""
     board: Board | None = None
     """The calibration board `calibrate-camera` uses. Example: `{squares: [7, 5], square: 0.03, marker: 0.022, pose: {xyz: [0.6, 0, 0.85]}}`"""
+    depth: Depth | None = None
+    """A depth camera: the range it measures (m) and its rate (Hz); it then gives depth images in metres. Example: `{range: [0.3, 2.5], rate: 15}`"""
 
     @model_validator(mode="after")
     def _board_opposite(self) -> Camera:

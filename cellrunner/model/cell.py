@@ -22,6 +22,7 @@ from cellrunner.model.units import (
     PositiveLength,
     Speed,
 )
+from cellrunner.model.watch import Watch
 
 RobotModel = Literal[
     "ur3",
@@ -303,6 +304,9 @@ class Cell(Strict):
     """Inputs the twin drives in rehearsal (dry-run and twin). Example: `{inputs: {part_present: {part_at: infeed}}}`"""
     cameras: dict[Name, Camera] = Field(default_factory=dict)
     """Cameras by name: intrinsics, image size, mount (world, a frame, flange) and pose, calibration board. Example: `{top: {intrinsics: {fx: 600, fy: 600, cx: 320, cy: 240}, image_size: [640, 480], pose: {xyz: [0.6, 0, 1.6], rpy: [180, 0, 90]}}}`"""
+
+    watch: Watch | None = None
+    """A live obstacle map from depth cameras: jobs stop, wait or replan around what the cell file does not say. Example: `{cameras: [overhead], zone: {box: {size: [1.6, 1.2, 1.0]}, pose: {xyz: [0.4, 0, 1.4]}}, voxel: 0.02}`"""
 
     @model_validator(mode="before")
     @classmethod

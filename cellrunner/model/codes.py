@@ -51,6 +51,7 @@ class ResultCode(enum.IntEnum):
     STEP_TIMEOUT = 105
     ABORTED_BY_PLC = 106
     INTERRUPTED = 107
+    PATH_BLOCKED = 108
 
     @property
     def text(self) -> str:
@@ -78,4 +79,5 @@ _TEXT = {
     ResultCode.STEP_TIMEOUT: "step timeout",
     ResultCode.ABORTED_BY_PLC: "aborted by PLC",
     ResultCode.INTERRUPTED: "interrupted (cellrunner restarted mid-job)",
+    ResultCode.PATH_BLOCKED: "path blocked by an obstacle not in the cell file",
 }

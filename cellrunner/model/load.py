@@ -24,7 +24,7 @@ from cellrunner.model.loaded import StepSpec as StepSpec  # re-exported
 from cellrunner.model.references import check_task_references
 from cellrunner.model.report import Report as Report  # re-exported
 from cellrunner.model.robots import RobotSpec, robot_spec
-from cellrunner.model.source import PathKey, load_yaml
+from cellrunner.model.source import PathKey, file_problem, load_yaml
 from cellrunner.model.task import MACROS, STEP_MODELS, PickArgs, TaskFile, widen_step_args
 
 if TYPE_CHECKING:
@@ -89,15 +89,18 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     _check_cameras(cell, report)
     for i, fixture in enumerate(cell.fixtures):
         if fixture.mesh is not None:
-            f = loaded.resolve(fixture.mesh.file)
-            if not f.is_file():
+            problem = file_problem(loaded.resolve(fixture.mesh.file))
+            if problem is not None:
                 report.error(
                     ("fixtures", i, "mesh", "file"),
-                    f"mesh file {fixture.mesh.file!r} not found (looked under {loaded.root})",
+                    f"mesh file {fixture.mesh.file!r} {problem} (looked under {loaded.root})",
                 )
     from cellrunner.model.checks import check_sim_block
 
     check_sim_block(cell, report)
+    from cellrunner.model.checks import check_watch
+
+    check_watch(cell, report)
     for i, part in enumerate(cell.parts):
         if part.at not in cell.frames:
             report.error(("parts", i, "at"), unknown_name("frame", part.at, cell.frames))
@@ -105,9 +108,10 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
 
     sanity.check_cell(loaded, report)
     for number, task_path in cell.tasks.items():
-        if not loaded.resolve(task_path).is_file():
+        problem = file_problem(loaded.resolve(task_path))
+        if problem is not None:
             report.error(
-                ("tasks", number), f"task file {task_path!r} not found (looked under {loaded.root})"
+                ("tasks", number), f"task file {task_path!r} {problem} (looked under {loaded.root})"
             )
 
 

@@ -18,8 +18,8 @@ from __future__ import annotations
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
-from cellrunner.model.base import Name, Strict
-from cellrunner.model.units import Duration, PositiveDuration, PositiveLength
+from cellrunner.model.base import BoxShape, CylinderShape, Name, Pose, Strict
+from cellrunner.model.units import Duration, NonNegativeLength, PositiveDuration, PositiveLength
 
 
 class InputRule(Strict):
@@ -54,6 +54,48 @@ class InputRule(Strict):
         return self
 
 
+class Intruder(Strict):
+    """An object the cell file does not know, put into the twin ``appear`` s after each job
+    starts and taken away ``leave`` s after it (never, without ``leave``); only the twin's
+    depth cameras reveal it (SPEC section 12)."""
+
+    name: Name
+    """Intruder name, for reports. Example: `tote`"""
+    box: BoxShape | None = None
+    """A box centred on the pose. Example: `{size: [0.4, 0.3, 0.2]}`"""
+    cylinder: CylinderShape | None = None
+    """A cylinder along the pose's Z axis, centred on it. Example: `{radius: 0.05, length: 0.6}`"""
+    pose: Pose | None = None
+    """Where it stands in the world, m and deg. Example: `{xyz: [0.5, 0.1, 1.0]}`"""
+    at: Name | None = None
+    """A frame it stands at instead (its centre at the frame). Example: `infeed`"""
+    appear: Duration = 0.0
+    """When it appears, s after the job starts. Example: `1.5`"""
+    leave: PositiveDuration | None = None
+    """When it is taken away, s after the job starts (never when absent). Example: `5.5`"""
+
+    @model_validator(mode="after")
+    def _one_of_each(self) -> Intruder:
+        shapes = [k for k in ("box", "cylinder") if getattr(self, k) is not None]
+        if len(shapes) != 1:
+            raise PydanticCustomError(
+                "sim",
+                f"an intruder needs exactly one of box, cylinder; got {', '.join(shapes) or 'none'}",
+            )
+        if (self.pose is None) == (self.at is None):
+            raise PydanticCustomError("sim", "an intruder needs exactly one of pose, at (a frame)")
+        if self.leave is not None and self.leave <= self.appear:
+            raise PydanticCustomError(
+                "sim",
+                f"leave {self.leave:g} s must come after appear {self.appear:g} s",
+            )
+        return self
+
+
 class SimBlock(Strict):
     inputs: dict[Name, InputRule] = Field(default_factory=dict)
     """Input names to the rule that drives them in rehearsal. Example: `{part_present: {part_at: infeed}}`"""
+    depth_noise: NonNegativeLength = 0.0
+    """Standard deviation of the noise on the twin's depth images, m. Example: `0.002`"""
+    intruders: list[Intruder] = Field(default_factory=list)
+    """Objects the cell file does not know, put into the twin while a job runs; only depth cameras see them. Example: `[{name: tote, box: {size: [0.4, 0.3, 0.2]}, pose: {xyz: [0.5, 0.1, 1.0]}, appear: 1.0, leave: 5.0}]`"""

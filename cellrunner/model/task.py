@@ -378,6 +378,17 @@ class ProtectiveStopPolicy(Strict):
     """Protective stops a job may resume from. Example: `2`"""
 
 
+class ObstaclePolicy(Strict):
+    """What a job does when the watched zone's map blocks its path (SPEC section 12)."""
+
+    wait: PositiveDuration = 10.0
+    """How long the arm waits, stopped on its path, for the way to clear before the job ends with 108, s. Example: `10`"""
+    replan: bool = False
+    """While waiting, plan around the map from where the arm stands (at most once a second). Example: `true`"""
+    max_replans: Annotated[int, Field(ge=0, le=100)] = 3
+    """Replans a job may make around obstacles before it ends with 108. Example: `3`"""
+
+
 class TaskFile(Strict):
     """The top level of a task file; ``steps`` are validated one by one by the loader."""
 
@@ -391,5 +402,7 @@ class TaskFile(Strict):
     """The steps, in order: {KIND: ARGS} or a bare grip/release. Example: `[{move: home}, {pick: {at: infeed}}, {place: {at: pallet}}]`"""
     on_protective_stop: ProtectiveStopPolicy = Field(default_factory=ProtectiveStopPolicy)
     """What a protective stop does to the job (an e-stop always aborts). Example: `{resume: true, max: 2}`"""
+    on_obstacle: ObstaclePolicy = Field(default_factory=ObstaclePolicy)
+    """What a job does when an obstacle of the watched zone blocks its path: wait, replan. Example: `{wait: 10, replan: true, max_replans: 3}`"""
     on_error: list[Any] = Field(default_factory=list)
     """Steps run after a failed or aborted job that left the arm able to move. Example: `[{set_output: {door_cmd: false}}, {retreat: 0.05}]`"""

@@ -5,9 +5,10 @@ Two layers, so the handshake can be tested tick by tick without sockets:
 * :class:`ModbusLink` - the register image and the handshake logic (no I/O). It is
   driven by ``read``/``write`` (what the PLC asks), ``tick(now_s)`` (every 20 ms) and
   ``on_result`` (a job finished), all on one thread.
-* :class:`ModbusServer` - pymodbus 3.16's asyncio TCP server around a link, with a
-  datastore that routes every request to it (writes outside 0-19 are answered with
-  exception 02 ILLEGAL DATA ADDRESS, all or nothing).
+* :class:`ModbusServer` - pymodbus's asyncio TCP server around a link (see
+  :mod:`cellrunner.plc.modbus_tcp`: every request of a segment answered, in order;
+  writes outside 0-19 are answered with exception 02 ILLEGAL DATA ADDRESS, all or
+  nothing).
 
 Holding registers (0-based): the PLC writes 0-19, the cell writes 100-119; reads are
 allowed anywhere in 0-119. uint32 values are two registers, high word first.
@@ -24,6 +25,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from cellrunner.errors import CellrunnerError, InputError
+from cellrunner.plc.modbus_tcp import tcp_server
 from cellrunner.plc.param_registers import N_PARAM_REGS, PARAM_FIRST, decode_params
 from cellrunner.plc.param_registers import to_int16 as to_int16  # re-exported: the register codec
 from cellrunner.plc.port import (
@@ -86,11 +88,6 @@ RESET_TIMEOUT_S = 10.0
 # Modbus exception codes
 EXC_ILLEGAL_FUNCTION = 0x01
 EXC_ILLEGAL_ADDRESS = 0x02
-
-# Register function codes; writes read back with their own code. Coils and discrete
-# inputs (1, 2, 5, 15) do not exist here: ILLEGAL FUNCTION.
-REGISTER_FCS = frozenset({3, 4, 6, 16, 22, 23})
-WRITE_FCS = frozenset({6, 16, 22, 23})
 
 
 def split_uint32(value: int) -> tuple[int, int]:
@@ -225,7 +222,9 @@ class ModbusLink:
         self._replay = result  # the same id asked again gets this result, never a second run
         status = self.port.status()
         self._write_result(result, status, plc_job_id=self._active_plc_id)
-        st = self.regs[HR_STATUS] & ~ST_BUSY
+        # a request refused while the job ran (REJECTED, its id in 104) ends here: the
+        # job's end shows only the job's own DONE or ERROR
+        st = self.regs[HR_STATUS] & ~(ST_BUSY | ST_REJECTED)
         if self.regs[HR_COMMAND] & CMD_JOB_REQ:
             st |= ST_DONE if result.result_code in COMPLETED_CODES else ST_ERROR
         else:  # the PLC dropped JOB_REQ early: results are readable, handshake over
@@ -304,12 +303,11 @@ class ModbusLink:
                 plc_id == self._active_plc_id
             ):  # JOB_REQ toggled for the job that runs: still ACK+BUSY
                 self._set_handshake(ST_JOB_ACK | ST_BUSY)
-            else:  # another request while busy: refused without touching the running job's bits
-                self.regs[HR_RESULT_JOB_ID], self.regs[HR_RESULT_CODE] = (
-                    plc_id,
-                    int(ResultCode.REJECT_NOT_READY),
-                )
-                self.regs[HR_STATUS] |= ST_ERROR | ST_REJECTED
+            else:  # another id while busy: REJECTED (no ERROR: that would read as the
+                # running job's end) beside its ACK+BUSY, the refused id and 12 in 104/105
+                self.regs[HR_RESULT_JOB_ID] = plc_id
+                self.regs[HR_RESULT_CODE] = int(ResultCode.REJECT_NOT_READY)
+                self.regs[HR_STATUS] |= ST_REJECTED
             return
         self.regs[HR_JOB_ID_ECHO] = plc_id
         if self._replay is not None and self._replay.client_job_id == str(plc_id):
@@ -402,97 +400,6 @@ def _plc_job_id(result: JobResult) -> int:
     return 0
 
 
-def _make_context(link: ModbusLink) -> Any:
-    """A pymodbus server context that routes every request to ``link``."""
-    from pymodbus.constants import ExcCodes
-    from pymodbus.datastore import ModbusServerContext
-
-    class LinkContext(ModbusServerContext):
-        # Deliberately skips ModbusServerContext.__init__ (it wants SimDevices); the
-        # server uses an "old simulator" context as is: async get/set per request.
-        def __init__(self) -> None:
-            self.old_simulator = True
-            self.simdevices = []
-            self._devices = {}
-
-        def device_ids(self) -> list[int]:
-            return [0]
-
-        async def async_getValues(  # pymodbus's name
-            self, device_id: int, func_code: int, address: int, count: int = 1
-        ) -> list[int] | ExcCodes:
-            if func_code not in REGISTER_FCS:
-                return ExcCodes.ILLEGAL_FUNCTION
-            values = link.read(address, count)
-            return ExcCodes(values) if isinstance(values, int) else values
-
-        async def async_setValues(
-            self,
-            device_id: int,
-            func_code: int,
-            address: int,
-            values: Sequence[int] | Sequence[bool],
-        ) -> ExcCodes | None:
-            if func_code not in WRITE_FCS:
-                return ExcCodes.ILLEGAL_FUNCTION
-            code = link.write(address, [int(v) for v in values])
-            return None if code is None else ExcCodes(code)
-
-    return LinkContext()
-
-
-def _server_class() -> Any:
-    """pymodbus's TCP server whose connections answer every request of a TCP segment.
-
-    pymodbus 3.16 takes one frame per ``data_received`` and leaves the rest in its buffer
-    until more bytes arrive, so a PLC that pipelines requests (several in one segment)
-    waits for answers that never come. Here each received chunk is cut into all its
-    complete frames and each is answered, in order."""
-    from pymodbus.server import ModbusTcpServer
-    from pymodbus.server.requesthandler import ServerRequestHandler
-
-    class PipelinedHandler(ServerRequestHandler):
-        def callback_data(self, data: bytes, addr: tuple[str, int] | None = None) -> int:
-            used = 0
-            while used < len(data):
-                step = super().callback_data(data[used:], addr)
-                if step <= 0:
-                    break
-                used += step
-                if self.last_pdu is not None:
-                    pdu, self.last_pdu = self.last_pdu, None
-                    self._pending.append((pdu, addr))
-            return used
-
-        def handle_later(self) -> None:  # called once per frame by the base class
-            if not getattr(self, "_draining", False):
-                self._draining = True
-                self._drain_task = asyncio.ensure_future(self._drain())
-
-        async def _drain(self) -> None:
-            try:
-                while self._pending:
-                    self.last_pdu, self.last_addr = self._pending.pop(0)
-                    await self.handle_request()  # type: ignore[no-untyped-call]  # pymodbus: unannotated
-            finally:
-                self.last_pdu, self._draining = None, False
-
-        @property
-        def _pending(self) -> list[tuple[Any, Any]]:
-            if "_queue" not in self.__dict__:
-                self.__dict__["_queue"] = []
-            queue: list[tuple[Any, Any]] = self.__dict__["_queue"]
-            return queue
-
-    class PipelinedTcpServer(ModbusTcpServer):
-        def callback_new_connection(self) -> Any:
-            return PipelinedHandler(  # type: ignore[no-untyped-call]  # pymodbus: unannotated
-                self, self.trace_packet, self.trace_pdu, self.trace_connect
-            )
-
-    return PipelinedTcpServer
-
-
 class ModbusServer:
     """The Modbus TCP server of one cell. Construct (no I/O), ``await start()``,
     ``await stop()``; both run on the caller's asyncio loop."""
@@ -516,9 +423,7 @@ class ModbusServer:
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
         self.link.restore()
-        self._server = _server_class()(
-            _make_context(self.link), address=(self.config.bind, self.config.port)
-        )
+        self._server = tcp_server(self.link, (self.config.bind, self.config.port))
         try:
             await self._server.serve_forever(background=True)
         except (RuntimeError, OSError) as exc:

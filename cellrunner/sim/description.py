@@ -122,6 +122,9 @@ class TwinDescription:
     tool_changer: Any = None  # a ToolChangerDescription (sim.tool_changer) for several tools
     input_rules: tuple[InputRuleDescription, ...] = ()  # inputs the cell's sim: block drives
     cameras: tuple[CameraDescription, ...] = ()  # (sim.cameras): cameras and their boards
+    intruders: tuple[Any, ...] = ()  # IntruderDescription (sim.depth): only depth cameras see them
+    depth: tuple[tuple[str, float, float, float], ...] = ()  # (camera, near m, far m, rate Hz)
+    depth_noise_m: float = 0.0  # sim.depth_noise
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"
@@ -136,6 +139,8 @@ class TwinDescription:
             "presence_sensors",
             "input_rules",
             "cameras",
+            "intruders",
+            "depth",
         ):
             object.__setattr__(self, attr, tuple(getattr(self, attr)))
         if len(self.q_home_rad) != 6:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -72,8 +72,39 @@ def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> Tw
         io_inputs=tuple(io_inputs),
         input_rules=_input_rules(loaded, picks),
         cameras=_cameras(loaded),
+        intruders=_intruders(loaded),
+        depth=tuple(
+            (name, cam.depth.range[0], cam.depth.range[1], cam.depth.rate)
+            for name, cam in c.cameras.items()
+            if cam.depth is not None
+        ),
+        depth_noise_m=c.sim.depth_noise if c.sim is not None else 0.0,
         name=c.cell,
     )
+
+
+#: the box ``--inject intrusion@STEP`` drops onto a step's path (m)
+INJECTED_BOX_M = (0.12, 0.12, 0.12)
+
+
+def _intruders(loaded: LoadedCell) -> tuple[Any, ...]:
+    """The cell's ``sim: intruders``, and in a watched cell the box an injection drops."""
+    from cellrunner.model.geometry import Box, Cylinder
+    from cellrunner.sim.depth import IntruderDescription
+
+    c = loaded.cell
+    out = []
+    for i in c.sim.intruders if c.sim is not None else ():
+        T = frame_pose(c, i.at) if i.at is not None else i.pose.matrix()  # type: ignore[union-attr]
+        shape = (
+            Box((i.box.size[0], i.box.size[1], i.box.size[2]))
+            if i.box is not None
+            else Cylinder(i.cylinder.radius, i.cylinder.length)  # type: ignore[union-attr]
+        )
+        out.append(IntruderDescription(i.name, shape, T, i.appear, i.leave))
+    if c.watch is not None:
+        out.append(IntruderDescription("intrusion", Box(INJECTED_BOX_M), np.eye(4), on_inject=True))
+    return tuple(out)
 
 
 def _cameras(loaded: LoadedCell) -> tuple[CameraDescription, ...]:

@@ -300,6 +300,10 @@ class _Builder:
             from cellrunner.sim.cameras import add_cameras
 
             add_cameras(self, d.cameras)
+        if d.intruders:
+            from cellrunner.sim.depth import add_intruders
+
+            add_intruders(self, d.intruders)
         self._actuators_and_sensors()
         ET.indent(self.root)
         return ET.tostring(self.root, encoding="unicode")

@@ -106,6 +106,11 @@ class SimWorld:
             from cellrunner.sim.vacuum import VacuumCups
 
             self.vacuum = VacuumCups(self, d.vacuum)
+        self.intruders = None
+        if d.intruders:
+            from cellrunner.sim.depth import Intruders
+
+            self.intruders = Intruders(self.model, self.data, d.intruders)
         self.changer = None
         if d.tool_changer is not None:
             from cellrunner.sim.tool_changer import ToolChanger
@@ -262,6 +267,8 @@ class SimWorld:
         """Advance the physics by one controller period."""
         data = self.data
         assert self._ids is not None, "build() first"
+        if self.intruders is not None and self.intruders.update(self.time_s):
+            self._mj.mj_kinematics(self.model, data)
         if self._stop is not None:
             qd = self._stop.speed(self.time_s)
             self.q_ref = self.q_ref + qd * self.period_s

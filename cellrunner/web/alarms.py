@@ -38,6 +38,8 @@ FIX: dict[ResultCode, str] = {
     ResultCode.ABORTED_BY_PLC: "The PLC aborted the job: find out why on the HMI, then Clear and Reset.",
     ResultCode.INTERRUPTED: "cellrunner restarted during this job: check where the part is and "
     "remove it if needed before the next job.",
+    ResultCode.PATH_BLOCKED: "Something the cell file does not list stood in the arm's path (the "
+    "journal gives where): take it out of the watched zone, then Clear and Reset.",
 }
 
 _STATE_FIX = {

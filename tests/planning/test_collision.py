@@ -106,7 +106,7 @@ def test_free_motion_is_accepted_and_bound_is_sound():
     assert world.check_motion(q0, q1).ok
     # the motion bound really bounds every point: the TCP moves less than the bound says
     dq = q1 - q0
-    bound = world._reach[:, :] @ np.abs(dq)
+    bound = world.bounds._reach[:, :] @ np.abs(dq)
     moved = np.linalg.norm(k.T_world_tcp(q1)[:3, 3] - k.T_world_tcp(q0)[:3, 3])
     assert moved <= bound.max() + 1e-12
 
@@ -195,16 +195,25 @@ def test_segment_bounds_bound_the_motion_of_every_point(model, q0, dq, pieces):
         pin_fk(model, data, q0 + si * (q1 - q0))
         frames.append([data.oMi[j].homogeneous.copy() for j in range(7)])
     frames = np.array(frames)
-    points = {k: _sample_points(o, rng) for k, o in enumerate(world._objects) if world._is_mover[k]}
+    points = {
+        k: _sample_points(o, rng) for k, o in enumerate(world._objects) if world.bounds._is_mover[k]
+    }
     moved_by: dict[tuple[int, int], np.ndarray] = {}
     for p, (mover, high, joints) in enumerate(
-        zip(world._pair_mover, world._pair_high, world._pair_joints, strict=True)
+        zip(
+            world.bounds._pair_mover,
+            world.bounds._pair_high,
+            world.bounds._pair_joints,
+            strict=True,
+        )
     ):
-        body = world._body[high]
+        body = world.bounds._body[high]
         low = (
             0
-            if world._pair_other_static[p]
-            else int(min(world._body[mover], world._body[world._pair_other[p]]))
+            if world.bounds._pair_other_static[p]
+            else int(
+                min(world.bounds._body[mover], world.bounds._body[world.bounds._pair_other[p]])
+            )
         )
         if (high, low) not in moved_by:  # pairs sharing the moving object and frame agree
             moved_by[high, low] = _largest_step(points[high], frames, body, low)
@@ -276,7 +285,7 @@ def test_state_check_agrees_with_the_exact_distances(q):
 def test_knot_lower_bounds_never_exceed_the_exact_distances(q):
     world = _cluttered_world()
     q = np.array(q)
-    _, lower = world._knots(q, q, 1)  # both knots at q
+    _, lower = world.bounds.knots(q, q, 1)  # both knots at q
     world._update(q)
     exact = world._exact(np.arange(len(world._pairs)))
     assert np.all(lower <= exact[None, :] + 1e-12), world.pair_labels[

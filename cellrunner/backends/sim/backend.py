@@ -328,6 +328,22 @@ class SimBackend:
         self._fresh = None
         return self._world().feed_parts()
 
+    def job_started(self) -> None:
+        """A job starts now: the twin's scheduled intruders (``sim: intruders``) count from
+        here."""
+        world = self._world()
+        if world.intruders is not None:
+            world.intruders.start(world.time_s)
+
+    def inject_intrusion(self, T_world_box: np.ndarray) -> str | None:
+        """``--inject intrusion@STEP``: drop the twin's box at ``T_world_box`` now (it
+        stays); its name, or None when the cell has none (not watched)."""
+        self._fresh = None
+        world = self._world()
+        if world.intruders is None:
+            return None
+        return world.intruders.inject(T_world_box, world.time_s)
+
     def release_estop(self) -> None:
         """A person releases the e-stop button (the robot stays off until recovered)."""
         self._fresh = None
