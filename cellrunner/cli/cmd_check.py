@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, step_table
-from cellrunner.model.expand import box_params, pattern_params
+from cellrunner.model.expand import ALIGN_KEY, box_params, float_params, pattern_params
 from cellrunner.model.robots import JOINT_NAMES
 
 if TYPE_CHECKING:
@@ -38,8 +38,9 @@ def run(args: argparse.Namespace) -> int:
     world = CellWorld(cell)
     out = None if args.json else console()  # --json is for programs: no progress bar, no rich
     use_cache = not args.no_cache
-    # every slot of every pattern and every corner (and the centre) of every pose param's box
-    checked_params = {**pattern_params(task), **box_params(task)}
+    # every slot of every pattern, every corner (and the centre) of every pose param's box,
+    # the ends (and the centre) of every float param's range
+    checked_params = {**pattern_params(task), **box_params(task), **float_params(task)}
     others = [
         {**params, name: slot}
         for name, slots in checked_params.items()
@@ -68,7 +69,8 @@ def run(args: argparse.Namespace) -> int:
             if not isinstance(s, dict) and isinstance(s, int)
         ]
     )
-    poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, dict)]
+    # pose and float params: each failing value on its own
+    poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, (dict, float))]
     rows: list[dict[str, Any]] = [
         {
             "index": r.step.index,
@@ -111,9 +113,21 @@ def run(args: argparse.Namespace) -> int:
         )
         out.print(step_table(title, [{**r, "message": _headline(r["message"])} for r in rows]))
         for name, values in slots_checked.items():
-            if isinstance(values[0], dict):
+            if name.startswith(ALIGN_KEY):
+                out.print(
+                    f"align {name.removeprefix(ALIGN_KEY)}: {len(values)} corrections checked "
+                    "(its max_correction box's centre and corners)",
+                    markup=False,
+                )
+            elif isinstance(values[0], dict):
                 out.print(
                     f"pose param {name}: {len(values)} poses checked (its box's centre and corners)",
+                    markup=False,
+                )
+            elif isinstance(values[0], float):
+                out.print(
+                    f"float param {name}: {', '.join(f'{v:g}' for v in values)} checked "
+                    "(its range's ends and centre)",
                     markup=False,
                 )
             else:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
+import numpy as np
 from rich.markup import escape
 
 from cellrunner.cli.common import (
@@ -52,10 +53,12 @@ def run(args: argparse.Namespace) -> int:
     params = parse_params(args.param, task)
     steps = expanded(cell, task, params)
     injections = parse_injections(args.inject, steps)
-    if args.report:
+    if args.report or cell.cell.watch is not None:
         from cellrunner.sim.mujoco_loader import enable_pictures
 
-        enable_pictures()  # before MuJoCo is imported: it reads its GL backend once
+        # before MuJoCo is imported: it reads its GL backend once (a watched cell's depth
+        # cameras cast rays instead where there is none)
+        enable_pictures()
     backend: SimBackend
     pending: list[tuple[Injection, float]] = []
     report = Path(args.report) if args.report else None
@@ -85,11 +88,19 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         on_step_start=on_step_start,
         lookahead=not getattr(args, "per_period", False),
+        eye=True,
+        watched=True,
     )
     backend = cast("SimBackend", assembled.backend)  # "sim": the twin in this process
     controller, loop, world = assembled.controller, assembled.loop, assembled.world
     out = console()
     controller.setup()
+    feed = None
+    if assembled.watch is not None:
+        from cellrunner.execution.watch import TwinDepthFeed
+
+        feed = TwinDepthFeed(assembled.watch, backend)
+        loop.add_observer(feed)
     loop.step(3)
     t0 = time.perf_counter()
     with out.status("planning", spinner="dots") as status:
@@ -116,6 +127,8 @@ def run(args: argparse.Namespace) -> int:
         planned_s = (view.planned_cycle_time_s or 0.0) if view is not None else 0.0
         loop.run_job(max_s=planned_s * 4 + 60)
         wall_run_s = time.perf_counter() - t_run
+    if feed is not None:
+        feed.close()
     job = controller.last_job
     result = controller.status().last_result
     assert result is not None  # run_job returns once the job has ended
@@ -141,6 +154,10 @@ def run(args: argparse.Namespace) -> int:
         "real_time_factor": round(sim_s / wall_run_s, 1) if wall_run_s > 0 else None,
         "parts_end_m": _parts_end(backend),
     }
+    runner_done = controller.last_runner
+    guard = runner_done.ctx.obstacles if runner_done is not None else None
+    if guard is not None:
+        payload["obstacles"] = guard.events
     has_pictures = True
     if report is not None:
         from cellrunner.report import write_report
@@ -230,6 +247,19 @@ class _Rehearsal:
     def __call__(self, cell: CellController) -> None:
         self.observe(cell)
 
+    def _drop_box(self, cell: CellController) -> None:
+        """``intrusion``: the twin's box appears on the path of the motion under way, where
+        its TCP will be two thirds of the way along the rest of it."""
+        streaming = cell.streaming()
+        if streaming is None:
+            return
+        approved, index = streaming
+        q = approved.trajectory.q_rad
+        k = min(len(q) - 1, index + (len(q) - index) * 2 // 3)
+        T = np.eye(4)
+        T[:3, 3] = self.world.kinematics.p_world_tcp(q[k])
+        self.backend.inject_intrusion(T)
+
     def observe(self, cell: CellController) -> None:
         backend, recorder = self.backend, self.recorder
         state = backend.read_state()
@@ -243,6 +273,8 @@ class _Rehearsal:
                 ):  # the PLC watchdog holds the cell; the PLC comes back
                     cell.command("hold")
                     self.plc_back_at = now + PLC_OUTAGE_S
+                elif inj.fault == "intrusion":
+                    self._drop_box(cell)
                 else:
                     backend.inject_fault(inj.fault)
         if self.plc_back_at is not None and now >= self.plc_back_at and cell.command("unhold"):

@@ -15,9 +15,16 @@ FAULTS = (
     "estop",
     "robot_disconnect",
     "plc_disconnect",
+    "intrusion",  # a watched cell: a box dropped onto the step's path (SPEC 12)
 )
 #: faults that strike a while into their step (a stop in the middle of a move), not at its start
-DELAYED_S = {"protective_stop": 0.3, "estop": 0.3, "robot_disconnect": 0.3, "plc_disconnect": 0.3}
+DELAYED_S = {
+    "protective_stop": 0.3,
+    "estop": 0.3,
+    "robot_disconnect": 0.3,
+    "plc_disconnect": 0.3,
+    "intrusion": 0.1,
+}
 
 
 @dataclass(frozen=True)

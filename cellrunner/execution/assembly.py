@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 from cellrunner.backends.base import RobotBackend
 from cellrunner.execution.cell import CellController
-from cellrunner.execution.context import EventLog
+from cellrunner.execution.context import EventLog, Eye
 from cellrunner.execution.journal import JournalBackend
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.execution.planner import job_planner, warm_up
@@ -23,6 +23,7 @@ from cellrunner.model.expand import Step
 from cellrunner.model.load import LoadedCell, LoadedTask
 
 if TYPE_CHECKING:
+    from cellrunner.execution.watch import ZoneWatch
     from cellrunner.planning.world import CellWorld
 
 
@@ -37,6 +38,7 @@ class AssembledCell:
     journal: JournalBackend
     controller: CellController
     loop: ControlLoop
+    watch: ZoneWatch | None = None  # the watched zone's map (a cell with watch:)
 
     def setup(self) -> AssembledCell:
         """Open the journal, connect the robot, reset to Idle."""
@@ -65,6 +67,8 @@ def assemble_cell(
     gate: Callable[[Step], bool] | None = None,
     realtime: bool = False,
     lookahead: bool = True,
+    eye: bool = False,
+    watched: bool = False,
 ) -> AssembledCell:
     """The cell ``loaded`` running ``tasks`` (PLC task number -> task).
 
@@ -75,7 +79,10 @@ def assemble_cell(
     ``use_cache``, ``speed`` and ``joined`` go to the job planner
     (:func:`~cellrunner.execution.planner.job_planner`); ``log``, ``wait_for_unhold``,
     ``on_step_start`` and ``gate`` to the controller; ``feed_parts`` lets the twin's
-    infeed bring a part at each job's start; ``realtime`` and ``lookahead`` to the loop."""
+    infeed bring a part at each job's start; ``realtime`` and ``lookahead`` to the loop.
+    ``eye``: align steps see through the cameras the backend renders (the in-process
+    twin's); ``watched``: a cell with ``watch:`` checks every motion against its zone's
+    map (:class:`~cellrunner.execution.watch.ZoneWatch`, fed by the caller)."""
     from cellrunner.planning.world import CellWorld
 
     kind = ""
@@ -90,6 +97,11 @@ def assemble_cell(
     world = CellWorld(loaded)
     if warm:
         warm_up(world)
+    zone = None
+    if watched and loaded.cell.watch is not None:
+        from cellrunner.execution.watch import ZoneWatch
+
+        zone = ZoneWatch(world, loaded.cell.watch)
     controller = CellController(
         loaded,
         tasks,
@@ -101,6 +113,19 @@ def assemble_cell(
         on_step_start=on_step_start,
         on_job_start=getattr(backend, "feed_parts", None) if feed_parts else None,
         gate=gate,
+        eye=_twin_eye(loaded, backend) if eye else None,
+        watch=zone,
     )
     loop = ControlLoop(controller, realtime=realtime, lookahead=lookahead)
-    return AssembledCell(loaded, world, backend, kind, journal, controller, loop)
+    return AssembledCell(loaded, world, backend, kind, journal, controller, loop, zone)
+
+
+def _twin_eye(loaded: LoadedCell, backend: RobotBackend) -> Eye | None:
+    """The cameras an align step sees through: rendered by the in-process twin (``sim``
+    backend), None for a cell without cameras or a backend that renders none."""
+    grab = getattr(backend, "camera_image", None)
+    if not loaded.cell.cameras or grab is None:
+        return None
+    from cellrunner.vision.eye import MarkerEye
+
+    return MarkerEye(grab, dict(loaded.cell.cameras))

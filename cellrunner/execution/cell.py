@@ -25,7 +25,7 @@ from typing import Any
 from cellrunner.backends.base import RobotBackend
 from cellrunner.errors import CellrunnerError, InputError
 from cellrunner.execution.cell_states import CellStates
-from cellrunner.execution.context import EventLog
+from cellrunner.execution.context import EventLog, Eye
 from cellrunner.execution.job import JobRunner
 from cellrunner.execution.job_book import JobBook
 from cellrunner.execution.job_launch import JobLauncher
@@ -33,8 +33,10 @@ from cellrunner.execution.job_records import JobPhase
 from cellrunner.execution.job_view import (
     Job,
     JobView,
+    obstruction_of,
     result_of_job,
     status_of,
+    streaming_of,
     view_of,
 )
 from cellrunner.execution.journal import JournalBackend
@@ -52,6 +54,7 @@ from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step, resolve_params
 from cellrunner.model.load import LoadedCell, LoadedTask
 from cellrunner.model.robot_state import Safety
+from cellrunner.model.trajectory import ApprovedTrajectory
 
 #: the PLC's commands that go to the state machine as they are
 _COMMAND_OF = {
@@ -81,6 +84,8 @@ class CellController:
         on_step_start: Callable[[Step, int], None] | None = None,
         on_job_start: Callable[[], None] | None = None,
         gate: Callable[[Step], bool] | None = None,
+        eye: Eye | None = None,
+        watch: Any = None,
     ) -> None:
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
         self.log = log
@@ -95,6 +100,8 @@ class CellController:
             wait_for_unhold=wait_for_unhold,
             on_step_start=on_step_start,
             gate=gate,
+            eye=eye,
+            watch=watch,
         )
         self.states = CellStates()
         self._lock = threading.RLock()
@@ -156,6 +163,7 @@ class CellController:
             job.runner.current_step if job and job.runner else 0,
             self._last,
             self._book.counters,
+            obstruction_of(job),
         )
         if key != self._status_key:
             self._status_key = key
@@ -180,6 +188,11 @@ class CellController:
         the control thread."""
         job = self._job
         return None if job is None else view_of(job, job.runner, records=records)
+
+    def streaming(self) -> tuple[ApprovedTrajectory, int] | None:
+        """The approved trajectory the running job streams now and the index of its next
+        set-point, or None (call on the control thread)."""
+        return streaming_of(self._job)
 
     @property
     def last_job(self) -> JobView | None:

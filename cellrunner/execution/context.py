@@ -15,7 +15,10 @@ from cellrunner.model.robot_state import RobotState
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 if TYPE_CHECKING:
+    from cellrunner.execution.obstacle_guard import ObstacleGuard
+    from cellrunner.model.align import Marker, Sighting
     from cellrunner.model.cell import Gripper, Tool
+    from cellrunner.model.geometry import Placed
 
 
 class Motions(Protocol):
@@ -29,9 +32,16 @@ class Motions(Protocol):
         """Whether ``step``'s nominal trajectory continues the motion before it without
         stopping (it was verified starting at that motion's speed, not from rest)."""
 
-    def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
+    def replan(
+        self,
+        step: Step,
+        q_now_rad: np.ndarray,
+        carrying: bool,
+        obstacles: Placed | None = None,
+    ) -> ApprovedTrajectory:
         """A verified trajectory from ``q_now_rad`` to ``step``'s goal (after a stop, a
-        retry); raises InfeasibleError when none passes the checks."""
+        retry), around ``obstacles`` too (the watched zone's map) when given; raises
+        InfeasibleError when none passes the checks."""
 
     def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
         """World position of the TCP at ``q_rad`` (for tracking error), with the tool
@@ -40,6 +50,18 @@ class Motions(Protocol):
     def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
         """:meth:`tcp_position_m` (default tool) of each row of ``q_rad`` (N x 6) at once,
         N x 3; equal to it within 1e-9 m (not bit for bit)."""
+
+    def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
+        """T_world_tcp (4x4) at ``q_rad``, with the tool mounted at the start."""
+
+
+class Eye(Protocol):
+    """What an ``align`` step sees through the cell's cameras (the vision package gives
+    one: :class:`cellrunner.vision.eye.MarkerEye`)."""
+
+    def sight(self, camera: str, marker: Marker) -> Sighting | None:
+        """Look through ``camera`` now: the marker, or None when it is not in the picture."""
+        ...
 
 
 class EventLog(Protocol):
@@ -119,6 +141,8 @@ class JobContext:
     hold: Hold | None = None  # what the step waits for, set by it in the current tick
     log: EventLog | None = None
     notes: dict[str, Any] = field(default_factory=dict)
+    eye: Eye | None = None  # the cameras, for align steps
+    obstacles: ObstacleGuard | None = None  # a watched cell's map on the job's path (SPEC 12)
 
     @property
     def now_s(self) -> float:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from cellrunner.execution import steps as behaviours
+from cellrunner.execution.align import run_align
 from cellrunner.execution.context import JobContext
 from cellrunner.execution.force import run_force
 from cellrunner.execution.job_records import AgendaItem
@@ -18,6 +19,7 @@ from cellrunner.model.step import StepKind
 _BEHAVIOURS = {
     **behaviours.BEHAVIOURS,
     StepKind.TOOL_LOCK: run_tool_lock,
+    StepKind.ALIGN: run_align,
     StepKind.TOOL_UNLOCK: run_tool_unlock,
 }
 

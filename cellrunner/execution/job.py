@@ -305,6 +305,7 @@ class JobRunner:
         if outcome.ok:
             if not item.between and item.behaviour == "step":
                 record.status = StepStatus.OK
+                record.message = outcome.message or record.message  # what an align measured
                 assert record.started_s is not None  # set when the step started
                 record.duration_s = self.ctx.now_s - record.started_s
                 self._journal(record, item.attempt)

@@ -6,11 +6,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import numpy as np
 
 from cellrunner.backends.base import RobotBackend
-from cellrunner.execution.context import EventLog, JobContext, Motions, use_gripper
+from cellrunner.execution.context import EventLog, Eye, JobContext, Motions, use_gripper
 from cellrunner.execution.job import JobRunner
 from cellrunner.execution.job_book import JobBook
 from cellrunner.execution.job_view import Job
@@ -35,11 +36,17 @@ class JobLauncher:
         wait_for_unhold: bool = True,
         on_step_start: Callable[[Step, int], None] | None = None,
         gate: Callable[[Step], bool] | None = None,
+        eye: Eye | None = None,
+        watch: Any = None,
     ) -> None:
         self.cell, self.backend, self.book, self.planner = cell, backend, book, planner
         self.log, self.wait_for_unhold = log, wait_for_unhold
         self.on_step_start = on_step_start
         self.gate = gate  # run --step: each step starts once gate(step) is true
+        self.eye = eye  # the cameras, for align steps
+        #: the watched zone (execution.watch.ZoneWatch) whose map every motion is checked
+        #: against (SPEC 12); None: the cell is not watched
+        self.watch = watch
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan")
 
     def plan(self, job: Job, q_now_rad: np.ndarray) -> None:
@@ -49,8 +56,20 @@ class JobLauncher:
     def start(self, job: Job, plan: JobPlan) -> JobRunner:
         """The runner of ``job`` following ``plan``, started (it reads the robot)."""
         job.planned = plan
+        ctx = self._context(plan.motions, job.job_id)
+        if self.watch is not None:
+            from cellrunner.execution.obstacles import ObstacleGuard
+
+            ctx.obstacles = ObstacleGuard(
+                self.watch,
+                job.task.task.on_obstacle,
+                self.watch.world.limits.joint_accel_rad_s2,
+            )
+            job_started = getattr(self.backend, "job_started", None)
+            if job_started is not None:  # the twin's intruders count from the job's start
+                job_started()
         runner = JobRunner(
-            self._context(plan.motions, job.job_id),
+            ctx,
             plan.steps,
             job.task.task.on_protective_stop,
             wait_for_unhold=self.wait_for_unhold,
@@ -82,6 +101,7 @@ class JobLauncher:
             log=None if self.log is None else self.log.bind(job_id=job_id),
             tools=dict(c.tools),
             tool_mass_kg=c.tool.payload.mass,
+            eye=self.eye,
         )
         use_gripper(ctx, g)
         return ctx

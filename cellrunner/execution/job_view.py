@@ -20,6 +20,7 @@ from cellrunner.model.codes import ResultCode
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
 from cellrunner.model.robot_state import Safety
+from cellrunner.model.trajectory import ApprovedTrajectory
 
 
 @dataclass
@@ -92,6 +93,21 @@ def view_of(
     )
 
 
+def obstruction_of(job: Job | None) -> str:
+    """Where the running job's arm waits for an obstacle of the watched zone ("" when it
+    does not)."""
+    runner = job.runner if job is not None else None
+    guard = runner.ctx.obstacles if runner is not None else None
+    return guard.obstructed if guard is not None else ""
+
+
+def streaming_of(job: Job | None) -> tuple[ApprovedTrajectory, int] | None:
+    """The approved trajectory ``job`` streams now and the index of its next set-point."""
+    runner = job.runner if job is not None else None
+    stream = runner.ctx.stream if runner is not None else None
+    return None if stream is None else (stream.approved, stream.next_index)
+
+
 def status_of(
     state: S,
     job: Job | None,
@@ -101,6 +117,7 @@ def status_of(
 ) -> CellStatus:
     """The PLC's snapshot of the cell: PackML ``state``, the ``job`` under way, the
     robot's ``safety``, the ``last`` result and the (processed, defective) ``counters``."""
+    obstruction = obstruction_of(job)
     return CellStatus(
         state=int(state),
         state_name=state.display_name,
@@ -114,6 +131,8 @@ def status_of(
         last_result=last,
         parts_processed=counters[0],
         parts_defective=counters[1],
+        obstructed=bool(obstruction),
+        obstruction=obstruction,
     )
 
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from cellrunner.execution.context import Motions
 from cellrunner.model.expand import Step
+from cellrunner.model.geometry import Placed
 from cellrunner.model.step import StepKind
 from cellrunner.model.trajectory import ApprovedTrajectory, time_scaled
 
@@ -33,14 +34,19 @@ class PacedMotions:
     def continues(self, step: Step) -> bool:
         return self.motions.continues(step)
 
-    def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
-        return time_scaled(self.motions.replan(step, q_now_rad, carrying), self.speed)
+    def replan(
+        self, step: Step, q_now_rad: np.ndarray, carrying: bool, obstacles: Placed | None = None
+    ) -> ApprovedTrajectory:
+        return time_scaled(self.motions.replan(step, q_now_rad, carrying, obstacles), self.speed)
 
     def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
         return self.motions.tcp_position_m(q_rad, step)
 
     def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
         return self.motions.tcp_positions_m(q_rad)
+
+    def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
+        return self.motions.tcp_pose(q_rad)
 
 
 class EnterGate:

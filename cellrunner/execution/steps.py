@@ -9,20 +9,21 @@ is noticed by the jaw sensor and the load falling away.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Generator, Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
 
 from cellrunner.execution.context import Carry, Hold, JobContext, Stream
+from cellrunner.execution.correction import corrected
+from cellrunner.execution.outcome import OK as OK  # re-exported: the behaviours' verdicts
+from cellrunner.execution.outcome import Outcome as Outcome
+from cellrunner.execution.outcome import StepGen as StepGen
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.robot_state import RobotState
 from cellrunner.model.step import StepKind
 from cellrunner.model.trajectory import ApprovedTrajectory
-
-StepGen = Generator[None, None, "Outcome"]
 
 #: joint distance (rad, max over joints) under which the arm is "at" a trajectory's start
 START_TOLERANCE_RAD = 2e-3
@@ -34,6 +35,10 @@ AVERAGE_S = 0.05
 SETTLE_S = 0.1
 #: the jaw sensor must read false this long before the part counts as lost (debounce, s)
 SENSOR_DEBOUNCE_S = 0.05
+#: a part set down is measured once it moves slower than this (m/s) ...
+PLACE_REST_MPS = 0.01
+#: ... or this long (s) after the step that let it go ended
+PLACE_SETTLE_S = 1.0
 #: a carried load that falls (low-passed) under this fraction of the grip's minimum: lost
 LOAD_LOST_FRACTION = 0.5
 #: the part's apparent weight is scaled by g / |g - a| (:func:`carried_load_N`), at most
@@ -41,25 +46,15 @@ LOAD_LOST_FRACTION = 0.5
 MIN_FELT_GRAVITY = 0.25
 
 
-@dataclass(frozen=True)
-class Outcome:
-    ok: bool
-    code: ResultCode = ResultCode.OK
-    message: str = ""
-
-    @staticmethod
-    def failed(code: ResultCode, message: str) -> Outcome:
-        return Outcome(False, code, message)
-
-
-OK = Outcome(True)
-
-
 def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
     """Stream the approved trajectory of ``step``; replan from where the arm is when it
     does not stand at the trajectory's start (after a stop or a retry). Force steps run
     through :func:`~cellrunner.execution.force.run_force` instead."""
     q_now = ctx.last_state.q_rad
+    if "aligned_frame" in step.extra:  # an align before measured where this frame really is
+        moved = corrected(ctx, step)
+        if moved is not None:
+            step, resume = moved, True
     approved = None if resume else ctx.motions.nominal(step)
     # the last set-point streamed is this trajectory's start: the arm is on its way there
     # (servo lag, more under load), so the approved trajectory continues; else it must stand there
@@ -88,6 +83,14 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
         if ctx.commanded_q is not None and len(q) > 1 and np.array_equal(q[0], ctx.commanded_q)
         else 0
     )
+    if ctx.obstacles is not None:  # a watched cell: stop, wait, replan around the map
+        from cellrunner.execution.obstacles import stream_watched
+
+        failed = yield from stream_watched(ctx, step, approved, first, part_lost_outcome)
+        if failed is not None:
+            return failed
+        end_q = ctx.notes.pop("watched_q", q)
+        return (yield from _ended(ctx, step, end_q, approved.trajectory.rate_hz))
     # the index lives in ctx.stream so that a look-ahead (execution.lookahead) can move
     # the stream on by many periods at once
     stream = ctx.stream = Stream(approved, first, *_planned_accel(ctx, approved))
@@ -97,37 +100,61 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
         ctx.commanded_q = q[i]
         stream.next_index = i + 1
         yield
-        if ctx.carry is not None:
-            lost = _part_lost(ctx)
-            if lost:
-                ctx.stream = None
-                ctx.backend.stop_motion()
-                return Outcome.failed(ResultCode.PART_LOST, lost)
+        lost = part_lost_outcome(ctx)
+        if lost is not None:
+            return lost
     ctx.stream = None
-    ctx.notes["end_rad_s"] = (
-        float(np.abs(q[-1] - q[-2]).max()) * approved.trajectory.rate_hz if len(q) > 1 else 0.0
-    )
-    return check_place(ctx, step)
+    return (yield from _ended(ctx, step, q, approved.trajectory.rate_hz))
 
 
-def check_place(ctx: JobContext, step: Step) -> Outcome:
-    """Where the backend can see the parts (the twin), the part just set down must lie
-    within the cell's place tolerance of where the task put it (SPEC section 11)."""
+def part_lost_outcome(ctx: JobContext) -> Outcome | None:
+    """While a part is carried: the failed outcome (2) once it is lost (the motion is
+    stopped), else None."""
+    if ctx.carry is None:
+        return None
+    lost = _part_lost(ctx)
+    if not lost:
+        return None
+    ctx.stream = None
+    ctx.backend.stop_motion()
+    return Outcome.failed(ResultCode.PART_LOST, lost)
+
+
+def _ended(ctx: JobContext, step: Step, q: np.ndarray, rate_hz: float) -> StepGen:
+    """A motion streamed to its end (set-points ``q``): how fast it ended (a continuation
+    may run on from it), and the place check."""
+    ctx.notes["end_rad_s"] = float(np.abs(q[-1] - q[-2]).max()) * rate_hz if len(q) > 1 else 0.0
+    return (yield from check_place(ctx, step))
+
+
+def check_place(ctx: JobContext, step: Step) -> StepGen:
+    """Where the backend can see the parts (the twin), the part just set down must rest
+    within the cell's place tolerance of where the task put it, carried by a fixture or
+    another part (SPEC section 11). It is measured once it came to rest (waiting up to
+    ``PLACE_SETTLE_S``): a part still falling is judged where it landed."""
     target = step.extra.get("place_check")
-    inspect = getattr(ctx.backend, "placed_offset", None)
+    inspect = getattr(ctx.backend, "inspect_place", None)
     if target is None or inspect is None:
         return OK
+    t0 = ctx.now_s
     found = inspect(target["T_world_tcp"])
+    while (
+        found is not None
+        and (found.speed_mps > PLACE_REST_MPS or found.resting_on is None)
+        and ctx.now_s - t0 < PLACE_SETTLE_S
+    ):
+        yield
+        found = inspect(target["T_world_tcp"])
     if found is None:
         return OK
-    name, offset_m, angle_deg = found
     tol_m, tol_deg = target["tolerance"]
-    if offset_m > tol_m or angle_deg > tol_deg:
+    if found.judged_m > tol_m or found.angle_deg > tol_deg or found.resting_on is None:
+        where = "" if found.resting_on is not None else "; nothing carries it"
         return Outcome.failed(
             ResultCode.PLACE_FAILED,
-            f"place failed: part {name!r} is {offset_m * 1000:.1f} mm "
-            f"and {angle_deg:.1f} deg from its target (tolerance {tol_m * 1000:g} mm, "
-            f"{tol_deg:g} deg)",
+            f"place failed: part {found.part!r} is {found.offset_m * 1000:.1f} mm "
+            f"and {found.angle_deg:.1f} deg from its target (tolerance {tol_m * 1000:g} mm, "
+            f"{tol_deg:g} deg){where}",
         )
     return OK
 
@@ -267,7 +294,7 @@ def run_release(ctx: JobContext, step: Step) -> StepGen:
         until_s = math.inf if pending else ctx.gripper_open_s
         ctx.hold = Hold(t0, until_s=until_s, timeout_s=args.timeout)
         yield
-    return check_place(ctx, step)
+    return (yield from check_place(ctx, step))
 
 
 def _release_pending(ctx: JobContext, channel: str, is_open_confirm: bool) -> bool:

@@ -95,6 +95,10 @@ class CellStatus:
     last_result: JobResult | None = None
     parts_processed: int = 0
     parts_defective: int = 0
+    #: the arm waits, stopped on its path, for an obstacle of the watched zone (SPEC 12);
+    #: ``obstruction`` says where ("" when not obstructed)
+    obstructed: bool = False
+    obstruction: str = ""
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ import numpy as np
 
 from cellrunner.errors import InputError
 from cellrunner.model import geometry
+from cellrunner.model.align import aligned_frame, target_frame
 from cellrunner.model.cell import Cell
 from cellrunner.model.frames import frame_pose
 from cellrunner.model.loaded import LoadedTask, StepSpec
@@ -72,9 +73,18 @@ def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, ParamValu
 def expand(loaded: LoadedTask, cell: Cell, params: dict[str, Any]) -> list[Step]:
     """The primitive steps of ``loaded`` for ``params`` (already resolved)."""
     builder = _Builder(cell, params, loaded.task.params)
-    for spec in loaded.steps:
-        builder.add(spec)
+    for i, spec in enumerate(loaded.steps):
+        if spec.kind == StepKind.ALIGN:
+            builder.align(spec, aligned_frame(loaded.steps, i))
+        else:
+            builder.add(spec)
     return builder.steps
+
+
+#: the key of an align's correction among the params (``align:FRAME``): a pose
+#: ``{xyz, rpy}`` in the frame's axes; ``check`` plans the corners of its box, a job
+#: the correction the align step measured
+ALIGN_KEY = "align:"
 
 
 def expand_on_error(
@@ -101,11 +111,52 @@ class _Builder:
         self.cell, self.params, self.specs = cell, params, specs or {}
         self.steps: list[Step] = []
         self.tool = cell.robot.tool  # the mounted tool's name (with ``tools:``)
+        self.aligned: set[str] = set()  # frames an align step before corrects
+
+    def align(self, spec: StepSpec, frame: str | None) -> None:
+        """An align step: it corrects ``frame`` for the steps after it."""
+        assert frame is not None  # references checked it
+        args = spec.args
+        camera = self.cell.cameras[args.camera]
+        tcp = self.cell.tool.tcp.matrix() if self.cell.tool is not None else np.eye(4)
+        extra = {
+            "T_world_frame": frame_pose(self.cell, frame),
+            "T_marker": args.marker.pose.matrix(),
+            "K": camera.intrinsics.matrix(),
+            "distortion": np.asarray(camera.intrinsics.distortion, float),
+            # the camera on the flange: seen from the TCP; else fixed in the world
+            "T_tcp_camera": np.linalg.inv(tcp) @ camera.pose.matrix()
+            if camera.eye_in_hand
+            else None,
+            "T_world_camera": None if camera.eye_in_hand else camera_pose(self.cell, args.camera),
+        }
+        self.steps.append(
+            Step(self._next(), StepKind.ALIGN, frame, args, spec.path, None, extra=extra)
+        )
+        self.aligned.add(frame)
+
+    def _frame(self, name: str) -> np.ndarray:
+        """The frame's pose, with the correction of an align before (``align:FRAME``)."""
+        T = frame_pose(self.cell, name)
+        correction = self.params.get(ALIGN_KEY + name) if name in self.aligned else None
+        if correction is not None:
+            T = T @ geometry.pose_matrix(correction["xyz"], correction["rpy"])
+        return T
 
     def _next(self) -> int:
         return len(self.steps) + 1
 
     def add(self, spec: StepSpec) -> None:
+        first = len(self.steps)
+        self._add(spec)
+        frame = target_frame(spec)
+        if frame in self.aligned:  # the job corrects these targets by what the align measured
+            for step in self.steps[first:]:
+                if step.T_world_tcp is not None:
+                    step.extra["aligned_frame"] = frame
+                    step.extra["T_world_frame"] = frame_pose(self.cell, frame)
+
+    def _add(self, spec: StepSpec) -> None:
         kind, args = spec.kind, spec.bind(self.specs, self.params)
         if kind == StepKind.PICK:
             self._pick(spec, args)
@@ -133,20 +184,20 @@ class _Builder:
             elif args.to == "home":
                 name, q = "home", tuple(self.cell.robot.home)
             else:
-                name, T = args.to, frame_pose(self.cell, args.to) @ _offset(args.offset)
+                name, T = args.to, self._frame(args.to) @ _offset(args.offset)
         elif kind == StepKind.APPROACH:
             name = args.to
             T = (
-                frame_pose(self.cell, args.to)
+                self._frame(args.to)
                 @ _offset(args.offset)
                 @ geometry.pose_matrix((0, 0, -args.distance))
             )
         elif kind in (StepKind.DESCEND, StepKind.LINEAR):
-            name, T = args.to, frame_pose(self.cell, args.to) @ _offset(args.offset)
+            name, T = args.to, self._frame(args.to) @ _offset(args.offset)
         elif kind == StepKind.INSERT:  # the line ends ``depth`` past the frame, along its Z
             name, T = (
                 args.to,
-                frame_pose(self.cell, args.to) @ geometry.pose_matrix((0, 0, args.depth)),
+                self._frame(args.to) @ geometry.pose_matrix((0, 0, args.depth)),
             )
         elif kind == StepKind.SET_OUTPUT:
             name = ", ".join(f"{k}={v}" for k, v in args.values.items())
@@ -159,7 +210,7 @@ class _Builder:
     def _target(
         self, at: str, offset: Offset | None, pattern: Pattern | None, at_offset: str | None = None
     ) -> tuple[np.ndarray, str]:
-        T = frame_pose(self.cell, at)
+        T = self._frame(at)
         name = at
         if pattern is not None:
             slot = int(self.params[pattern.index])
@@ -316,16 +367,42 @@ def pattern_params(loaded: LoadedTask) -> dict[str, range]:
 
 def box_params(loaded: LoadedTask) -> dict[str, list[PoseValue]]:
     """Every pose param a pick or place is offset by, with the poses ``check`` must cover:
-    the centre and the corners of its box."""
+    the centre and the corners of its box; and every align's correction
+    (``align:FRAME``), the centre and the corners of its ``max_correction`` box."""
+    from cellrunner.model.params import box_values
+
     out: dict[str, list[PoseValue]] = {}
-    for spec in loaded.steps:
+    for i, spec in enumerate(loaded.steps):
         name = getattr(spec.args, "at_offset", None)
         if name is not None:
             out[name] = loaded.task.params[name].box_values()
+        if spec.kind == StepKind.ALIGN:
+            frame = aligned_frame(loaded.steps, i)
+            if frame is not None:
+                out[ALIGN_KEY + frame] = box_values(*spec.args.box())
+    return out
+
+
+#: float param kinds that change what the arm does in space (a wait's time or a force limit
+#: does not change a plan; a param with no unit might)
+MOTION_FLOAT_KINDS = (None, "length", "angle", "speed")
+
+
+def float_params(loaded: LoadedTask) -> dict[str, list[float]]:
+    """Every bounded float param that may change a motion (a length, an angle, a speed, or
+    no unit), with the values ``check`` must cover: its range's ends and centre, as a pose
+    param's box (a float param without both bounds has no range to prove)."""
+    out: dict[str, list[float]] = {}
+    for name, p in loaded.task.params.items():
+        bounded = p.min is not None and p.max is not None
+        if p.type == "float" and p.kind in MOTION_FLOAT_KINDS and bounded:
+            lo, hi = float(p.min), float(p.max)
+            out[name] = sorted({lo, (lo + hi) / 2, hi})
     return out
 
 
 __all__ = [
+    "ALIGN_KEY",
     "LINEAR_KINDS",
     "MOTION_KINDS",
     "ON_ERROR",
@@ -334,10 +411,12 @@ __all__ = [
     "RetryPlan",
     "Step",
     "StepKind",
+    "aligned_frame",
     "box_params",
     "camera_pose",
     "expand",
     "expand_on_error",
+    "float_params",
     "frame_pose",
     "pattern_params",
     "resolve_params",

@@ -14,7 +14,7 @@ from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Strict
 from cellrunner.model.step import FORCE_KINDS as FORCE_KINDS
-from cellrunner.model.units import Force, Length, PositiveLength, Speed
+from cellrunner.model.units import Force, Length, NonNegativeLength, PositiveLength, Speed
 
 
 class MoveUntilContactArgs(Strict):
@@ -67,6 +67,10 @@ class InsertArgs(Strict):
     """Force limit of the insertion. Example: `{max: 20}`"""
     expect_depth: Annotated[list[Length], Field(min_length=2, max_length=2)] | None = None
     """Depth window [min, max] in m the insert must end in, else the place failed (3). Example: `[0.018, 0.021]`"""
+    contact: list[Name] | None = None
+    """Fixtures the tool or held part may touch along this line (the walls of a hole). Example: `[hole_wall_x, hole_wall_y]`"""
+    clearance: NonNegativeLength | None = None
+    """Distance this line keeps from everything else, m (default: the cell's). Example: `0.001`"""
 
     @model_validator(mode="after")
     def _window(self) -> InsertArgs:

@@ -40,7 +40,30 @@ class Mesh:
     scale: float = 1.0  # file units -> m
 
 
-Shape = Box | Cylinder | Sphere | Mesh
+@dataclass(frozen=True, eq=False)
+class Voxels:
+    """Occupied voxels of the watched zone's map (SPEC section 12): cubes of edge
+    ``voxel_m`` centred on ``centres_m`` (N x 3, world), to be kept ``padding_m`` from."""
+
+    centres_m: np.ndarray
+    voxel_m: float
+    padding_m: float = 0.0
+
+    def grown(self) -> np.ndarray:
+        """The centres with every voxel within the padding of one added (N' x 3)."""
+        reach = math.ceil(self.padding_m / self.voxel_m - 1e-9)
+        if reach <= 0:
+            return np.asarray(self.centres_m, float)
+        r = np.arange(-reach, reach + 1)
+        offsets = np.stack(np.meshgrid(r, r, r, indexing="ij"), axis=-1).reshape(-1, 3)
+        offsets = offsets[np.einsum("ij,ij->i", offsets, offsets) <= reach * reach] * self.voxel_m
+        points = (np.asarray(self.centres_m, float)[:, None, :] + offsets[None]).reshape(-1, 3)
+        keys = np.round(points / (self.voxel_m / 2)).astype(np.int64)
+        _, first = np.unique(keys, axis=0, return_index=True)
+        return np.asarray(points[np.sort(first)])
+
+
+Shape = Box | Cylinder | Sphere | Mesh | Voxels
 
 
 @dataclass(frozen=True, eq=False)

@@ -95,6 +95,24 @@ def part_center_depth_m(gripper: Gripper | None, shape: geometry.Shape | None) -
     return cups_z
 
 
+def width_across_jaws_m(shape: geometry.Shape, T_tcp_shape: np.ndarray) -> float | None:
+    """The part's extent along the TCP's X axis, the axis the jaws close along (m), for a
+    part placed at ``T_tcp_shape`` in the TCP frame; None for a mesh (not measured)."""
+    from cellrunner.model.geometry import Cylinder, Sphere
+
+    axes = np.asarray(T_tcp_shape, float)[:3, :3]  # the shape's axes in the TCP frame
+    x_in_shape = axes[0]  # the TCP's X in the shape's axes
+    if isinstance(shape, Box):
+        return float(np.abs(x_in_shape) @ np.asarray(shape.size_m, float))
+    if isinstance(shape, Cylinder):
+        along = abs(float(x_in_shape[2]))
+        across = float(np.sqrt(max(0.0, 1.0 - along * along)))
+        return float(along * shape.length_m + across * 2.0 * shape.radius_m)
+    if isinstance(shape, Sphere):
+        return 2.0 * float(shape.radius_m)
+    return None
+
+
 def gripper_channels(
     gripper: Gripper | None, outputs: dict[str, str], inputs: dict[str, str]
 ) -> tuple[Channel | None, Channel | None, str | None]:

@@ -16,13 +16,14 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Strict
-from cellrunner.model.units import UNITS, parse_quantity
+from cellrunner.model.units import UNITS, digits, parse_quantity
 
 #: unit spelling -> quantity kind, for float params
 UNIT_KINDS: dict[str, str] = {
@@ -159,6 +160,12 @@ class Param(Strict):
                 x = float(value)
             except (TypeError, ValueError):
                 x = None
+            except OverflowError:  # 10**400
+                raise ValueError(
+                    f"param {name!r} must be a finite number, got one of {digits(value)} digits"
+                ) from None
+        if x is not None and not math.isfinite(x):
+            raise ValueError(f"param {name!r} must be a finite number, got {value!r}")
         if x is None or (self.type == "int" and x != int(x)):
             raise ValueError(
                 f"param {name!r} must be {'an int' if self.type == 'int' else 'a number'}, got {value!r}"
@@ -205,9 +212,15 @@ class Param(Strict):
     def box_values(self) -> list[PoseValue]:
         """The centre and every corner of a pose param's box (axes that do not vary are
         not multiplied out): what ``check`` verifies."""
-        axes = [(a, b) if b > a else (a,) for a, b in zip(self.min, self.max, strict=True)]
-        centre = pose_value([(a + b) / 2 for a, b in zip(self.min, self.max, strict=True)])
-        return [centre, *(pose_value(list(c)) for c in itertools.product(*axes))]
+        return box_values(self.min, self.max)
+
+
+def box_values(low: list[float], high: list[float]) -> list[PoseValue]:
+    """The centre and every corner of the pose box ``low``..``high`` (six values each, m
+    and deg; axes that do not vary are not multiplied out)."""
+    axes = [(a, b) if b > a else (a,) for a, b in zip(low, high, strict=True)]
+    centre = pose_value([(a + b) / 2 for a, b in zip(low, high, strict=True)])
+    return [centre, *(pose_value(list(c)) for c in itertools.product(*axes))]
 
 
 def _six(value: Any, what: str) -> list[float]:

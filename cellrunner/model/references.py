@@ -25,7 +25,9 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
     needs_gripper = False
     for step in _all_steps([*task.steps, *task.on_error]):
         kind, args, path = step.kind, step.args, step.path
-        if kind == "move":
+        if kind == "align":
+            _check_align(task, cell, step, report)
+        elif kind == "move":
             if isinstance(args.to, str) and args.to != "home" and args.to not in cell.frames:
                 report.error(path + ("to",), unknown_name("target", args.to, ["home", *frames]))
             if isinstance(args.to, list):
@@ -34,6 +36,10 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
         elif kind in ("approach", "insert", *_LINEAR_KINDS):
             if args.to not in cell.frames:
                 report.error(path + ("to",), unknown_name("frame", args.to, frames))
+            fixtures = [f.name for f in cell.fixtures]
+            for i, name in enumerate(getattr(args, "contact", None) or ()):
+                if name not in fixtures:
+                    report.error(path + ("contact", i), unknown_name("fixture", name, fixtures))
         elif kind in ("pick", "place"):
             if args.at not in cell.frames:
                 report.error(path + ("at",), unknown_name("frame", args.at, frames))
@@ -178,3 +184,22 @@ def _check_pose_param(
         report.error(path, f"offset param {name!r} must be of type pose, not {params[name].type}")
     elif (camera := params[name].camera) is not None:
         _check_param_camera(cell, name, camera, report)
+
+
+def _check_align(task: LoadedTask, cell: Cell, step: StepSpec, report: Report) -> None:
+    """An align names a camera of the cell and is followed by a step aimed at a frame."""
+    from cellrunner.model.align import aligned_frame
+
+    if step.args.camera not in cell.cameras:
+        report.error(
+            step.path + ("camera",), unknown_name("camera", step.args.camera, list(cell.cameras))
+        )
+    at = next((i for i, s in enumerate(task.steps) if s is step), None)
+    if at is None:
+        report.error(step.path, "align belongs in the task's steps (not on_error, not a retry)")
+    elif aligned_frame(task.steps, at) is None:
+        report.error(
+            step.path,
+            "align must come before a step aimed at a frame (pick, place, approach, descend, "
+            "linear, insert or move to a frame): the marker's pose is given in that frame",
+        )

@@ -31,6 +31,7 @@ class StepKind(enum.StrEnum):
     CHANGE_TOOL = "change_tool"
     TOOL_LOCK = "tool_lock"
     TOOL_UNLOCK = "tool_unlock"
+    ALIGN = "align"
 
 
 K = StepKind

@@ -13,6 +13,7 @@ from typing import Annotated, Any
 from pydantic import BeforeValidator, Field, WithJsonSchema, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
+from cellrunner.model.align import AlignArgs
 from cellrunner.model.base import Name, Pose, Strict
 from cellrunner.model.force_steps import InsertArgs, MoveUntilContactArgs
 from cellrunner.model.params import Param
@@ -112,6 +113,10 @@ class LinearArgs(Strict):
     """Offset in the frame's axes (m, deg), or [dx, dy, dz]. Example: `[0, 0, 0.01]`"""
     speed: Speed | None = None  # m/s; default: the cell's tcp speed limit
     """TCP speed in m/s (default: the cell's TCP speed limit). Example: `0.1`"""
+    contact: list[Name] | None = None
+    """Fixtures the tool or held part may touch along this line (the walls of a hole). Example: `[hole_wall_x, hole_wall_y]`"""
+    clearance: NonNegativeLength | None = None
+    """Distance this line keeps from everything else, m (default: the cell's). Example: `0.001`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
 
@@ -350,6 +355,7 @@ STEP_MODELS: dict[str, type[Strict]] = {
     "move_until_contact": MoveUntilContactArgs,
     "insert": InsertArgs,
     "change_tool": ChangeToolArgs,
+    "align": AlignArgs,
 }
 MACROS = ("pick", "place", "change_tool")
 

@@ -105,3 +105,28 @@ def time_scaled(approved: ApprovedTrajectory, speed: float) -> ApprovedTrajector
     q[exact] = source.q_rad[i[exact]]  # approved samples pass through bit for bit
     scaled = Trajectory(source.rate_hz, source.t_s[0] + np.arange(n) / source.rate_hz, q)
     return approve(scaled, approved.step_index, approved.step_name)
+
+
+def along_path(approved: ApprovedTrajectory, u: np.ndarray) -> ApprovedTrajectory:
+    """The approved path followed at other speeds: set-point ``k`` is the approved path at
+    sample position ``u[k]`` (fractional, non-decreasing, within the trajectory), linear
+    between two approved samples as :func:`time_scaled` does. A stop on the path (``u``
+    slowing to a standstill) and a restart from it are built this way; nothing leaves the
+    approved path, so the result keeps the approval (sealed here, from a sealed input only).
+    The caller keeps the speeds and accelerations that ``u`` implies within the limits."""
+    if not approved.is_sealed:
+        raise ValueError("only an approved (sealed) trajectory can be followed along its path")
+    source = approved.trajectory
+    last = len(source.q_rad) - 1
+    u = np.asarray(u, float)
+    if not len(u) or np.any(np.diff(u) < -1e-12) or u[0] < -1e-9 or u[-1] > last + 1e-9:
+        raise ValueError(f"path positions must rise within [0, {last}]")
+    u = np.clip(u, 0.0, last)
+    i = np.minimum(np.floor(u + 1e-9).astype(int), last)
+    frac = np.clip(u - i, 0.0, 1.0)[:, None]
+    j = np.minimum(i + 1, last)
+    q = source.q_rad[i] + frac * (source.q_rad[j] - source.q_rad[i])
+    exact = frac[:, 0] < 1e-9
+    q[exact] = source.q_rad[i[exact]]
+    followed = Trajectory(source.rate_hz, source.t_s[0] + np.arange(len(u)) / source.rate_hz, q)
+    return approve(followed, approved.step_index, approved.step_name)

@@ -46,6 +46,15 @@ def _fail(message: str) -> PydanticCustomError:
     return PydanticCustomError("quantity", message)
 
 
+_LARGEST_INT = 2**1023  # the largest int a float holds, roughly (float() overflows beyond)
+
+
+def digits(value: int) -> int:
+    """The decimal digits of ``value``, without printing it (Python refuses to print
+    ints of more than 4300 digits)."""
+    return int(abs(value).bit_length() * math.log10(2)) + 1
+
+
 def parse_quantity(value: Any, kind: str) -> float:
     """``value`` (a number, or a string with a unit) in the canonical unit of ``kind``.
 
@@ -68,6 +77,8 @@ def parse_quantity(value: Any, kind: str) -> float:
                 f"units {units}, e.g. '{_example(kind)}'"
             )
         number = float(match.group(1)) * table[unit]
+    elif isinstance(value, int) and abs(value) > _LARGEST_INT:
+        raise _fail(f"a number of {digits(value)} digits is not a {noun}")
     else:
         number = float(value)
     if not math.isfinite(number):

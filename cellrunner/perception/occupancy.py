@@ -125,10 +125,13 @@ class OccupancyMap:
         flat = (g[:, 0] * dims[1] + g[:, 1]) * dims[2] + g[:, 2]
         return np.where(inside, flat, -1)
 
-    def mark_known(self, near: Callable[[np.ndarray], np.ndarray], surfaces: np.ndarray) -> None:
+    def mark_known(
+        self, near: Callable[[np.ndarray], np.ndarray], surfaces: np.ndarray, pad_m: float
+    ) -> None:
         """Mark the voxels the cell file explains: those whose centres ``near`` says are
         within the padding (plus the half diagonal) of a fixture or part, and those a
-        sampled mesh surface point (N x 3, world) lies in, grown by the same distance."""
+        sampled mesh surface point (N x 3, world) lies in, grown by ``pad_m`` (the padding
+        plus the half diagonal, m)."""
         self.known |= near(self.centres())
         if len(surfaces):
             from scipy.ndimage import binary_dilation
@@ -136,15 +139,13 @@ class OccupancyMap:
             index = self.index_of(surfaces)
             mask = np.zeros(self.n, bool)
             mask[index[index >= 0]] = True
-            reach = max(1, math.ceil(self._pad_for_known / self.voxel_m))
+            reach = max(1, math.ceil(pad_m / self.voxel_m))
             r = np.arange(-reach, reach + 1)
             ball = (r[:, None, None] ** 2 + r[None, :, None] ** 2 + r[None, None, :] ** 2) <= (
                 reach * reach
             )
             grown = binary_dilation(mask.reshape(self.dims), structure=ball)
             self.known |= grown.ravel()
-
-    _pad_for_known = 0.0  # set by the watcher: padding + half diagonal (m)
 
     # -- update -------------------------------------------------------------------------
     def integrate(

@@ -93,7 +93,7 @@ def blocking_summary(
 
 def _ordered(a: str, b: str) -> tuple[str, str]:
     """(robot part, obstacle): a fixture is always the obstacle."""
-    if a.startswith("fixture "):
+    if a.startswith(("fixture ", "waiting part ")):
         return b, a
     return a, b
 
@@ -173,8 +173,10 @@ def fix_hint(kind: str, obstacles: Sequence[str] = ()) -> str:
     """A suggestion for a failure ``kind``: "path" (a joint move finds no way), "goal"
     (every branch at the target collides), "line" (a straight move hits something),
     "reach" (out of reach or outside the joint range)."""
-    fixtures = [o for o in obstacles if o.startswith("fixture ")]
-    links = [o for o in obstacles if not o.startswith(("fixture ", "tool ", "part "))]
+    fixtures = [o for o in obstacles if o.startswith(("fixture ", "waiting part "))]
+    links = [
+        o for o in obstacles if not o.startswith(("fixture ", "tool ", "part ", "waiting part "))
+    ]
     first = fixtures[0] if fixtures else None
     if kind == "reach":
         return "fix: move the frame toward the robot, or widen robot.joint_range if a joint limit refuses it"

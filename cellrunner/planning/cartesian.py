@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
-from cellrunner.planning.collision import CollisionModel
+from cellrunner.planning.collision import Clearance, CollisionModel
 from cellrunner.planning.kinematics import ArmKinematics, rotation_angle_rad
 
 STEP_M = 0.005
@@ -159,17 +159,28 @@ def plan_linear(
         result = collision.check_path(q_path)
         if not result.ok:
             u_hit = us[int(result.s_blocked or 0)]
-            from cellrunner.planning.blockers import fix_hint
-
             c = result.clearance
             names = (c.b, c.a) if c is not None else ()
             detail = c.describe() if c is not None else "collision"
             raise InfeasibleError(
                 f"{detail} {u_hit * length_m * 1000:.0f} mm along the line; "
-                f"{fix_hint('line', names)}",
+                f"{_line_fix(collision, q_path[-1], c)}",
                 names,
             )
     return LinearPath(q_path, np.array(us), p0.copy(), p1.copy())
+
+
+def _line_fix(collision: CollisionModel, q_end: np.ndarray, c: Clearance | None) -> str:
+    """The fix for a blocked line: when the blocking fixture is still within its clearance
+    where the line ends, the line is likely meant to end there (a tight fit)."""
+    from cellrunner.planning.blockers import fix_hint
+    from cellrunner.planning.tight_fit import line_end_hint
+
+    if c is not None and c.b.startswith("fixture ") and c.distance_m > -0.001:
+        at_end = [v for v in collision.violations(q_end) if v.b.startswith("fixture ")]
+        if any(v.b == c.b for v in at_end) and min(v.distance_m for v in at_end) > -0.001:
+            return line_end_hint(sorted({v.b for v in at_end}), min(v.distance_m for v in at_end))
+    return fix_hint("line", (c.b, c.a) if c is not None else ())
 
 
 def _refine(

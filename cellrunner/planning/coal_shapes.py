@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cellrunner.model.geometry import Box, Cylinder, Mesh, Shape, Sphere
+from cellrunner.model.geometry import Box, Cylinder, Mesh, Shape, Sphere, Voxels
 from cellrunner.planning.stl import read_stl
 
 if TYPE_CHECKING:
@@ -27,6 +27,10 @@ def make_coal_shape(shape: Shape) -> tuple[coal.CollisionGeometry, float]:
         )
     if isinstance(shape, Sphere):
         return coal.Sphere(shape.radius_m), shape.radius_m
+    if isinstance(shape, Voxels):  # the watched zone's map: an octree of the grown voxels
+        points = shape.grown()
+        tree = coal.makeOctree(np.ascontiguousarray(points, dtype=float), shape.voxel_m)
+        return tree, float(np.linalg.norm(points, axis=1).max()) + shape.voxel_m
     if isinstance(shape, Mesh):
         vertices, triangles = read_stl(shape.path)
         vertices = vertices * shape.scale

@@ -153,27 +153,38 @@ class CollisionModel(CollisionScene):
             allowances=allowances,
             _geometry_cache=_geometry_cache,
         )
-        key = (_placed_key(part), self.allowances)
+        key = self._key(part, self.allowances, self.clearance_m)
         self._variants: dict[Any, CollisionModel] = {key: self} if _hashable(key) else {}
 
     # -- derived models -------------------------------------------------------------------
 
     def carrying(self, part: Placed | None) -> CollisionModel:
         """The same cell with ``part`` (placed in the TCP frame) held, or none."""
-        return self._variant(part, self.allowances)
+        return self._variant(part, self.allowances, self.clearance_m)
 
     def allowing(self, *allowances: ContactAllowance) -> CollisionModel:
         """The same cell and part with these contact allowances (replacing earlier ones)."""
-        return self._variant(self.part, tuple(allowances))
+        return self._variant(self.part, tuple(allowances), self.clearance_m)
+
+    def keeping(self, clearance_m: float) -> CollisionModel:
+        """The same cell, part and allowances, every other pair keeping ``clearance_m``
+        (a step's own ``clearance:``, SPEC section 12 tight fits)."""
+        return self._variant(self.part, self.allowances, float(clearance_m))
+
+    @staticmethod
+    def _key(
+        part: Placed | None, allowances: tuple[ContactAllowance, ...], clearance_m: float
+    ) -> tuple[Any, ...]:
+        return (_placed_key(part), allowances, clearance_m)
 
     def _variant(
-        self, part: Placed | None, allowances: tuple[ContactAllowance, ...]
+        self, part: Placed | None, allowances: tuple[ContactAllowance, ...], clearance_m: float
     ) -> CollisionModel:
-        """The model of this cell with ``part`` and ``allowances``, built once per cell and
-        such state and shared by every model derived from the same one (models keep no
-        state between queries)."""
-        key = (_placed_key(part), allowances)
-        if key == (_placed_key(self.part), self.allowances):
+        """The model of this cell with ``part``, ``allowances`` and ``clearance_m``, built
+        once per cell and such state and shared by every model derived from the same one
+        (models keep no state between queries)."""
+        key = self._key(part, allowances, clearance_m)
+        if key == self._key(self.part, self.allowances, self.clearance_m):
             return self
         model = (
             self._variants.get(key) if _hashable(key) else None
@@ -183,7 +194,7 @@ class CollisionModel(CollisionScene):
                 self.kinematics,
                 self.tool,
                 self.fixtures,
-                self.clearance_m,
+                clearance_m,
                 part=part,
                 allowances=allowances,
                 _geometry_cache=self._geometry_cache,

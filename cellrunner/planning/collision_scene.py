@@ -12,6 +12,9 @@ Objects and frames:
 - tool: shapes placed in the flange frame (``Placed.T_parent_shape`` = ``T_flange_shape``).
 - part: the carried part, placed in the TCP frame (``T_tcp_shape``).
 - fixtures: shapes placed in the world (``T_world_shape``): box, cylinder, sphere, STL mesh.
+  A fixture named ``part:NAME`` is part NAME waiting at its frame (label ``waiting part
+  'NAME'``): an obstacle like any fixture, except while that part is the one carried
+  (it has left its frame: the carried part takes its place).
 
 Pairs never checked (they touch by construction or are rigidly joined): arm parts that the
 derivation proved apart by more than the clearance over the joints' ranges, or that are the
@@ -62,6 +65,18 @@ else:
 
     coal = _LazyModule("coal", "coal")
     pin = _LazyModule("pinocchio", "pin")
+
+
+#: prefix of the fixture name of a part waiting at its frame (``part:NAME``)
+WAITING_PREFIX = "part:"
+
+
+def fixture_label(name: str) -> str:
+    """How messages name fixture ``name``: "fixture 'table'", or "waiting part 'block'"
+    for a part waiting at its frame."""
+    if name.startswith(WAITING_PREFIX):
+        return f"waiting part {name[len(WAITING_PREFIX) :]!r}"
+    return f"fixture {name!r}"
 
 
 #: Margin below which a pair counts as colliding in addition to its required clearance;
@@ -249,7 +264,7 @@ class CollisionScene:
             geometry, radius = self._coal_shape(placed.shape)
             objects.append(
                 SceneObject(
-                    f"fixture {placed.name!r}",
+                    fixture_label(placed.name),
                     "fixture",
                     -1,
                     geometry,
@@ -304,7 +319,9 @@ class CollisionScene:
         if groups == {"fixture"}:
             return False
         if "fixture" in groups:
-            robot = a if b.group == "fixture" else b
+            robot, fixture = (a, b) if b.group == "fixture" else (b, a)
+            if self.part is not None and fixture.fixture == WAITING_PREFIX + self.part.name:
+                return False  # the part carried is no longer waiting at its frame
             return robot.body != 0
         if a.group == b.group == "arm":
             assert a.part is not None and b.part is not None

@@ -10,6 +10,7 @@ full clearance.
 
 from __future__ import annotations
 
+import itertools
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -38,6 +39,9 @@ class LineStart(Protocol):
 
 #: contact allowed beyond the depth measured at the line's end (m)
 CONTACT_SLACK_M = 0.001
+#: a guarded line touches where its mover comes this close to an obstacle (m): the twin's
+#: contact, and the controller's, needs the surfaces to meet
+TOUCH_M = 1e-4
 
 
 def contact_line_goal(args: MoveUntilContactArgs, T_world_tcp: np.ndarray) -> np.ndarray:
@@ -94,3 +98,70 @@ def describe(
     length_mm = float(np.linalg.norm(line_m[1] - line_m[0])) * 1000 if line_m is not None else 0.0
     where = ", ".join(sorted({a.fixture for a in allowances if a.min_clearance_m < 0})) or "none"
     return f"guarded: stops above {limit:g} N; {length_mm:.0f} mm line checked; contact allowed with: {where}"
+
+
+def _touch_pairs(collision: CollisionModel, carrying: bool) -> np.ndarray:
+    """The pairs whose touch stops a guarded line: the carried part (or, carrying nothing,
+    the tool) against a fixture or a waiting part."""
+    mover = "part '" if carrying else "tool "
+    return np.array(
+        [
+            k
+            for k, (a, b) in enumerate(collision.pair_labels)
+            if a.startswith(mover) and b.startswith(("fixture ", "waiting part "))
+        ],
+        dtype=int,
+    )
+
+
+def _gap_m(collision: CollisionModel, pairs: np.ndarray, q_rad: np.ndarray) -> tuple[float, str]:
+    """The smallest distance (m) over ``pairs`` at ``q_rad`` and what it is to."""
+    distances, _ = collision.pair_distances(q_rad)
+    if not len(pairs):
+        return float("inf"), "nothing"
+    k = int(pairs[int(np.argmin(distances[pairs]))])
+    return float(distances[k]), collision.pair_labels[k][1]
+
+
+def first_touch(collision: CollisionModel, q_rad: np.ndarray, carrying: bool) -> np.ndarray | None:
+    """Where a guarded line along the joint samples ``q_rad`` (N x 6) first touches (its
+    mover within ``TOUCH_M`` of a fixture or waiting part), located between samples by
+    bisection to 1/1024 of their step; None when it touches nothing. ``collision``: the
+    cell's model with the carried part and no allowances."""
+    pairs = _touch_pairs(collision, carrying)
+    if not len(pairs):
+        return None
+    q = np.asarray(q_rad, float)
+    if _gap_m(collision, pairs, q[0])[0] <= TOUCH_M:
+        return np.array(q[0])
+    for a, b in itertools.pairwise(q):
+        if _gap_m(collision, pairs, b)[0] > TOUCH_M:
+            continue
+        lo, hi = 0.0, 1.0
+        for _ in range(10):
+            mid = 0.5 * (lo + hi)
+            if _gap_m(collision, pairs, a + mid * (b - a))[0] > TOUCH_M:
+                lo = mid
+            else:
+                hi = mid
+        return np.asarray(a + hi * (b - a))
+    return None
+
+
+def meets_nothing(step: Step, collision: CollisionModel, q_end: np.ndarray, carrying: bool) -> str:
+    """The error of a move_until_contact whose line touches nothing the cell file has."""
+    gap, nearest = _gap_m(collision, _touch_pairs(collision, carrying), q_end)
+    mover = "held part" if carrying else "tool"
+    where = (
+        f"at its end the {mover} is still {gap * 1000:.1f} mm from {nearest}"
+        if np.isfinite(gap)
+        else f"the {mover} has nothing to touch"
+    )
+    longer = (
+        f" (at least {(step.args.max_distance + gap) * 1000:.0f} mm)" if np.isfinite(gap) else ""
+    )
+    return (
+        f"{step.label}: the guarded line meets nothing within its max_distance "
+        f"{step.args.max_distance * 1000:.0f} mm: {where}, so the step would fail with no contact; "
+        f"fix: a longer max_distance{longer}, or move the frame it starts from"
+    )

@@ -1,12 +1,15 @@
 """``check`` verifies a task's ``on_error`` steps before any job runs (SPEC section 11).
 
 on_error runs after a failure, from wherever the arm stood when the job failed. The plan
-knows the states a failure can leave the arm in at least at the end of every step it
-planned (the configuration, the tool mounted, the part carried) and at the start; from
-each distinct one the on_error steps are planned and verified in order, as the runner
-runs them: every motion under the limits x margin, the TCP cap and collisions (with the
-part still in the gripper where the job held one), and a step that fails there leaves
-the arm where it stood for the next one, as at run time.
+knows the states a failure can leave the arm in (the configuration, the tool mounted, the
+part carried): the start, the end of every step it planned, and states in the middle of
+every joint move (a protective stop, a part lost in a move: there with the part and
+without it; a straight move's states are near its ends). A guarded line (``move_until_contact``) ends where it touches, not at its full
+travel, and the straight move that follows may leave that contact. From each distinct
+state the on_error steps are planned and verified in order, as the runner runs them:
+every motion under the limits x margin, the TCP cap and collisions (with the part still
+in the gripper where the job held one), and a step that fails there leaves the arm where
+it stood for the next one, as at run time.
 """
 
 from __future__ import annotations
@@ -17,7 +20,8 @@ import numpy as np
 
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.geometry import Placed
-from cellrunner.model.step import Step
+from cellrunner.model.step import PLANNED_KINDS, Step, StepKind
+from cellrunner.planning.collision import ContactAllowance
 from cellrunner.planning.task_plan import (
     StepPlan,
     TaskPlan,
@@ -36,6 +40,7 @@ class _Start:
     q_rad: np.ndarray
     world: CellWorld
     part: Placed | None
+    contact: tuple[ContactAllowance, ...] = ()  # a guarded line's, which a retreat leaves
 
 
 def verify_on_error(plan: TaskPlan, cleanup: list[Step]) -> list[StepPlan]:
@@ -51,6 +56,7 @@ def verify_on_error(plan: TaskPlan, cleanup: list[Step]) -> list[StepPlan]:
     failures: dict[int, list[str]] = {s.index: [] for s in cleanup}
     for start in starts:
         planner = _StepPlanner(start.world, np.asarray(start.q_rad, float), start.part)
+        planner.contact = start.contact
         for step in cleanup:
             q_from, part = planner.q, planner.part
             try:
@@ -79,20 +85,60 @@ def on_error_errors(rows: list[StepPlan]) -> list[str]:
     return [f"on_error {r.step.label}: {r.message}" for r in rows if r.status == "failed"]
 
 
+#: joint travel (rad, the largest joint's) between the mid-motion states taken of a motion
+MID_STATE_STEP_RAD = 1.0
+#: mid-motion states taken of one motion at most
+MID_STATES_MAX = 3
+
+
 def _starts(plan: TaskPlan) -> list[_Start]:
-    """The distinct states at the start and at the end of every planned step."""
+    """The distinct states at the start, at the end of every planned step (a guarded
+    line's where it touches), and in the middle of every joint move (with the part it
+    carries and, where it carries one, without it)."""
     q, world, part = np.asarray(plan.q_start_rad, float), plan.world, None
     states = [_Start("from the start", q, world, part)]
     seen = {_key(q, world, part)}
-    for row in plan.rows:
-        if row.q_end_rad is not None:
-            q = np.asarray(row.q_end_rad, float)
-        world, part = row.world or world, row.carrying
-        key = _key(q, world, part)
+
+    def add(start: _Start) -> None:
+        key = _key(start.q_rad, start.world, start.part)
         if key not in seen:
             seen.add(key)
-            states.append(_Start(f"from the end of {row.step.label}", q, world, part))
+            states.append(start)
+
+    for row in plan.rows:
+        world = row.world or world
+        samples = row.trajectory.q_rad if row.trajectory is not None else None
+        if samples is not None and len(samples) > 2 and row.step.kind in PLANNED_KINDS:
+            for k in _middle(samples):
+                where = f"from the middle of {row.step.label}"
+                add(_Start(where, samples[k], world, row.carrying))
+                if row.carrying is not None:
+                    add(_Start(f"{where}, the part lost", samples[k], world, None))
+        if row.q_end_rad is not None:
+            q = np.asarray(row.q_end_rad, float)
+        part = row.carrying
+        if row.step.kind == StepKind.MOVE_UNTIL_CONTACT and samples is not None:
+            touch = _touch(world, samples, part)
+            if touch is not None:
+                label = f"from the contact of {row.step.label}"
+                add(_Start(label, touch, world, part, tuple(row.allowances)))
+                continue
+        add(_Start(f"from the end of {row.step.label}", q, world, part))
     return states
+
+
+def _middle(q_rad: np.ndarray) -> list[int]:
+    """Sample indices inside a motion: one per ``MID_STATE_STEP_RAD`` of its joint travel
+    (at least one, at most ``MID_STATES_MAX``), evenly spaced."""
+    travel = float(np.abs(np.diff(q_rad, axis=0)).sum(axis=0).max())
+    n = min(MID_STATES_MAX, max(1, int(travel / MID_STATE_STEP_RAD)))
+    return sorted({round(len(q_rad) * (i + 1) / (n + 1)) for i in range(n)} - {0, len(q_rad) - 1})
+
+
+def _touch(world: CellWorld, q_rad: np.ndarray, part: Placed | None) -> np.ndarray | None:
+    from cellrunner.planning.force_plan import first_touch
+
+    return first_touch(world.collision.carrying(part), q_rad, part is not None)
 
 
 def _key(q: np.ndarray, world: CellWorld, part: Placed | None) -> tuple[object, ...]:

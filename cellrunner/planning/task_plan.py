@@ -38,15 +38,20 @@ from cellrunner.planning.egress import corridors, egress_pose
 from cellrunner.planning.world import CellWorld
 
 if TYPE_CHECKING:
+    from cellrunner.model.cell import Gripper
     from cellrunner.planning.collision import CollisionModel, ContactAllowance
     from cellrunner.planning.kinematics import ArmKinematics
     from cellrunner.planning.timing import MotionLimits
 
+#: the planned time of an align step: one look, its detection, no move (s)
+ALIGN_LOOK_S = 0.5
 #: standing still before a grip's wrist baseline, and before weighing after a lift (s);
 #: the execution engine uses the same figures (execution.steps SETTLE_S + AVERAGE_S)
 WRIST_SETTLE_S = 0.15
 #: how far a carried part may press into the surface it is set down on or lifted off (m)
 SET_DOWN_PRESS_M = 0.001
+#: how far the tool may press into a waiting part it reaches around to grip (m)
+GRIP_PRESS_M = 0.001
 #: blends where a joint move meets a straight step (:func:`_blend`): at most this share
 #: of the straight step's line and this distance (m) from the corner, like the radii a
 #: UR integrator sets (bench/polyscope.py uses the same)
@@ -152,18 +157,31 @@ class TaskPlan:
         row = self.row(step)
         return bool(row is not None and row.verify_inputs and row.verify_inputs["previous_moving"])
 
-    def replan(self, step: Step, q_now_rad: np.ndarray, carrying: bool) -> ApprovedTrajectory:
+    def replan(
+        self,
+        step: Step,
+        q_now_rad: np.ndarray,
+        carrying: bool,
+        obstacles: Placed | None = None,
+    ) -> ApprovedTrajectory:
         """A verified rest-to-rest trajectory from ``q_now_rad`` to the step's goal: the
         same goal as planned (after a stop), or, for a relative move planned nowhere (a
-        retry's retreat), its distance from where the arm stands."""
+        retry's retreat), its distance from where the arm stands. ``obstacles`` (the
+        watched zone's map) are planned around and verified against like fixtures."""
         row = self.row(step)
+        if row is None and "corrects" in step.extra:  # a step an align moved: as planned, elsewhere
+            row = self.row(step.extra["corrects"])
         part = (
             row.carrying if row is not None else (self._carried_before(step) if carrying else None)
         )
         allowances = row.allowances if row is not None else ()
         world = self._world_of(step)
+        if obstacles is not None:
+            world = world.with_obstacles(obstacles)
         planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
-        goal_q = row.q_end_rad if row is not None and row.status == "ok" else None
+        goal_q = (
+            row.q_end_rad if row is not None and row.status == "ok" and row.step is step else None
+        )
         motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
         approved = _time_and_verify(world, motion, np.asarray(q_now_rad, float)).approved
         assert approved is not None  # _time_and_verify approves every row or raises
@@ -181,6 +199,10 @@ class TaskPlan:
     def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
         """World TCP positions (N x 3) at the rows of ``q_rad``, tool mounted at start."""
         return self.world.kinematics.p_world_tcp_many(q_rad)
+
+    def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
+        """T_world_tcp (4x4) at ``q_rad``, tool mounted at start."""
+        return np.asarray(self.world.kinematics.T_world_tcp(q_rad))
 
     def tcp_lever_arms_m(self) -> np.ndarray:
         """Per joint, a bound on the TCP's distance from its axis (m), tool mounted at
@@ -204,6 +226,10 @@ class TaskPlan:
         return np.asarray(
             np.array([0.0, 0.0, -GRAVITY_MPS2]) @ self.world.kinematics.T_world_base[:3, :3]
         )
+
+    def carried_during(self, step: Step) -> Placed | None:
+        """The part held while ``step`` runs (placed in the TCP frame), None when none."""
+        return self._carried_before(step)
 
     def _carried_before(self, step: Step) -> Placed | None:
         rows = [r for r in self.rows if r.step.index <= step.index]
@@ -300,7 +326,7 @@ class _StepPlanner:
         self.egress: tuple[np.ndarray, str] | None = None
         self.contact: tuple[
             ContactAllowance, ...
-        ] = ()  # a force step's contacts, which the next straight move leaves
+        ] = ()  # a force step's or tight fit's contacts, which the next straight move leaves
 
     def limits_for(
         self, step: Step, line_q: tuple[np.ndarray, np.ndarray] | None = None
@@ -328,9 +354,17 @@ class _StepPlanner:
         need = np.abs(q1 - q0) / length_m * FORCE_TCP_ACCEL_MPS2 / limits.joint_accel_rad_s2
         return min(1.0, float(need.max()))
 
-    def collision(self, allowances: tuple[ContactAllowance, ...] = ()) -> CollisionModel:
+    def collision(
+        self, allowances: tuple[ContactAllowance, ...] = (), step: Step | None = None
+    ) -> CollisionModel:
+        """The cell's model with the carried part, ``allowances``, and the clearance
+        ``step`` keeps (its own ``clearance:``, SPEC section 12)."""
+        from cellrunner.planning.tight_fit import step_clearance_m
+
         model = self.world.collision.carrying(self.part)
-        return model.allowing(*allowances) if allowances else model
+        model = model.allowing(*allowances) if allowances else model
+        clearance = step_clearance_m(step)
+        return model.keeping(clearance) if clearance is not None else model
 
     def motion(
         self,
@@ -346,7 +380,7 @@ class _StepPlanner:
         proven: Callable[[], np.ndarray] | None = None  # a joint move's, planned proven
         egress, self.egress = self.egress, None  # the first motion's alone
         if step.kind in (StepKind.MOVE, StepKind.APPROACH):
-            self.contact = ()  # a joint move leaves a force step's contact behind
+            self.contact = ()  # a joint move leaves a force step's or tight fit's contacts behind
             if goal_q is None and step.q_goal_deg is not None:
                 goal_q = np.radians(step.q_goal_deg)
             elif goal_q is None:
@@ -363,17 +397,29 @@ class _StepPlanner:
             proven = functools.partial(_joint_path, collision, head, goal_q, proven=True)
             line = None
         else:
+            from cellrunner.planning.tight_fit import named_contacts
+
             T_goal = self._linear_goal(step, T_now) if goal_q is None else kin.T_world_tcp(goal_q)
+            if then is not None and then.kind == StepKind.GRIP:  # the jaws must fit the part first
+                part = self.world.part_at(then.extra.get("part_at", ""), T_goal)
+                _check_jaws_fit(then, self.world.loaded.cell.tool.gripper, part)
+            named = named_contacts(step)
             if allowances is None:
                 if step.kind in FORCE_KINDS:  # contact is what the step is for, where its line ends
                     from cellrunner.planning.force_plan import contact_allowances
 
-                    allowances = self.contact + contact_allowances(self, step, T_goal)
+                    allowances = self.contact + contact_allowances(self, step, T_goal) + named
                 else:
-                    allowances = self._place_allowances(step, T_goal)  # with self.contact
-                self.contact = allowances if step.kind in FORCE_KINDS else ()
-            collision = self.collision(allowances)
+                    allowances = self._place_allowances(step, T_goal, named)  # with self.contact
+            # also when replanned at run time from where the arm stands (a retry's retreat)
+            touches = self._waiting_touches(T_goal)
+            allowances = (*allowances, *(a for a in touches if a not in allowances))
+            collision = self.collision(allowances, step)
             path = plan_linear(kin, collision, self.q, T_goal).q_rad
+            if step.kind == StepKind.MOVE_UNTIL_CONTACT:
+                _check_meets_something(self, step, path)
+            # the next straight move leaves a force step's or tight fit's contacts
+            self.contact = allowances if step.kind in FORCE_KINDS or named else ()
             line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
         row.allowances = tuple(allowances or ())
         row.carrying = self.part
@@ -394,6 +440,7 @@ class _StepPlanner:
         if step.kind == StepKind.GRIP:
             T = self.world.kinematics.T_world_tcp(self.q)
             self.part = self.world.part_at(step.extra.get("part_at", ""), T)
+            _check_jaws_fit(step, gripper, self.part)
             weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
             close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
             row.duration_s = WRIST_SETTLE_S + close_s + weigh
@@ -406,6 +453,12 @@ class _StepPlanner:
             row.duration_s = (step.args.pulse or 0.0) + 1.0 / self.world.spec.rate_hz
         elif step.kind == StepKind.WAIT_INPUT:
             row.message = f"waits up to {step.args.timeout:g} s for {step.args.input}"
+        elif step.kind == StepKind.ALIGN:
+            row.duration_s = ALIGN_LOOK_S
+            row.message = (
+                f"looks at marker {step.args.marker.id} up to {step.args.attempts} times; "
+                f"corrections within the max_correction box are checked as align:{step.name}"
+            )
         elif step.kind in (StepKind.TOOL_UNLOCK, StepKind.TOOL_LOCK):
             self.world = self.world.with_tool(step.extra["tool"], tcp_of=step.extra["tcp_of"])
             row.world = self.world
@@ -436,7 +489,10 @@ class _StepPlanner:
         if not valid:
             raise every_branch_collides(step.label, kin, collision, T_world_tcp, self.q)
         if follow is not None and then is not None:
-            after = self.collision(self._place_allowances(then, follow))
+            from cellrunner.planning.tight_fit import named_contacts
+
+            allowances = self._place_allowances(then, follow, named_contacts(then))
+            after = self.collision(allowances + self._waiting_touches(follow), then)
             for q in valid:
                 q_next = kin.ik_track(follow, q)
                 if q_next is not None and after.is_valid(q_next):
@@ -455,27 +511,30 @@ class _StepPlanner:
         assert step.T_world_tcp is not None  # descend and linear have a frame target
         return step.T_world_tcp
 
-    def _place_allowances(self, step: Step, T_goal: np.ndarray) -> tuple[ContactAllowance, ...]:
+    def _place_allowances(
+        self, step: Step, T_goal: np.ndarray, named: tuple[ContactAllowance, ...] = ()
+    ) -> tuple[ContactAllowance, ...]:
         """The carried part may touch the fixture it rests on where a straight move starts
-        (lifting it off) or ends (setting it down), and only that fixture."""
+        (lifting it off) or ends (setting it down), and only that fixture; and the fixtures
+        the step names in ``contact:`` (``named``) anywhere along it."""
         from cellrunner.planning.collision import ContactAllowance
 
         if self.part is None or step.kind not in LINEAR_KINDS:
-            return self.contact
+            return self.contact + named
         q_goal = self._try_ik(T_goal)
         # a force step's contact comes first: the part leaves it as deep as the step let it
         # go (the set-down rule below is for the surfaces it is lifted off or set down on)
-        allowances: list[ContactAllowance] = list(self.contact)
+        allowances: list[ContactAllowance] = [*self.contact, *named]
         for end, q in (("start", self.q), ("end", q_goal)):
             if q is None:
                 continue
-            model = self.collision(tuple(allowances))
+            model = self.collision(tuple(allowances), step)
             for _ in range(3):
                 clearance = model.clearance(q)
                 if (
                     clearance.distance_m >= clearance.required_m
                     or clearance.a != f"part '{self.part.name}'"
-                    or not clearance.b.startswith("fixture '")
+                    or not clearance.b.startswith(("fixture '", "waiting part '"))
                 ):
                     break
                 if clearance.distance_m < -SET_DOWN_PRESS_M:
@@ -486,16 +545,73 @@ class _StepPlanner:
                         f"move the target up by {depth_mm - SET_DOWN_PRESS_M * 1000:.1f} mm or more"
                     )
                 allowances.append(
-                    ContactAllowance(clearance.b[len("fixture '") : -1], "part", -SET_DOWN_PRESS_M)
+                    ContactAllowance(_fixture_name(clearance.b), "part", -SET_DOWN_PRESS_M)
                 )
-                model = self.collision(tuple(allowances))
+                model = self.collision(tuple(allowances), step)
         return tuple(allowances)
+
+    def _waiting_touches(self, T_goal: np.ndarray) -> tuple[ContactAllowance, ...]:
+        """A straight move's tool may touch the parts waiting at their frames that it is
+        within clearance of where the line starts or ends: the jaws or cups reaching to a
+        part to grip it, or leaving it (a retry's retreat); never the joint moves, whose
+        sweep must keep clear of every waiting part (SPEC section 12)."""
+        from cellrunner.planning.collision import ContactAllowance
+        from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+        if not self.world.waiting_parts:
+            return ()
+        model = self.collision()
+        names: set[str] = set()
+        for q in (self.q, self._try_ik(T_goal)):
+            for v in model.violations(q) if q is not None else ():
+                if v.a.startswith("tool ") and v.b.startswith("waiting part '"):
+                    names.add(v.b[len("waiting part '") : -1])
+        return tuple(
+            ContactAllowance(WAITING_PREFIX + name, "tool", -GRIP_PRESS_M) for name in sorted(names)
+        )
 
     def _try_ik(self, T: np.ndarray) -> np.ndarray | None:
         try:
             return np.asarray(self.world.kinematics.ik_nearest(T, self.q))
         except InfeasibleError:
             return None
+
+
+def _fixture_name(label: str) -> str:
+    """The fixture name of a "fixture 'x'" or "waiting part 'x'" label (``part:x``)."""
+    from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+    if label.startswith("waiting part '"):
+        return WAITING_PREFIX + label[len("waiting part '") : -1]
+    return label[len("fixture '") : -1]
+
+
+def _check_meets_something(planner: _StepPlanner, step: Step, path: np.ndarray) -> None:
+    """A move_until_contact must touch something the cell file has (a fixture, a waiting
+    part) within its max_distance, or the step fails on every backend (no contact)."""
+    from cellrunner.planning.force_plan import first_touch, meets_nothing
+
+    bare = planner.world.collision.carrying(planner.part)
+    if first_touch(bare, path, planner.part is not None) is None:
+        raise InfeasibleError(meets_nothing(step, bare, path[-1], planner.part is not None))
+
+
+def _check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) -> None:
+    """A parallel gripper's open jaws must be wider than the part across them (the TCP's
+    X axis), or the grip cannot close around it: the twin's jaws land on it."""
+    from cellrunner.model.gripper import width_across_jaws_m
+
+    if part is None or gripper is None or gripper.kind == "vacuum":
+        return
+    width = width_across_jaws_m(part.shape, part.T_parent_shape)
+    if width is None or width < gripper.stroke:
+        return
+    raise InfeasibleError(
+        f"{step.label}: part '{part.name}' is {width * 1000:.1f} mm across the jaws (along the "
+        f"TCP's X) but they open {gripper.stroke * 1000:.1f} mm (tool.gripper.stroke); fix: a "
+        "gripper with a longer stroke, or grip the part across a narrower side (turn the "
+        "frame's rpy about its Z)"
+    )
 
 
 def _joint_path(
@@ -790,7 +906,7 @@ def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
         step_name=row.step.name,
         kinematics=world.kinematics,
         limits=planner.limits_for(row.step, (row.trajectory.q_rad[0], row.trajectory.q_rad[-1])),
-        collision=planner.collision(row.allowances),
+        collision=planner.collision(row.allowances, row.step),
         **row.verify_inputs,
     )
 

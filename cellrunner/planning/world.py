@@ -30,6 +30,9 @@ class CellWorld:
         None  # (tool, tcp_of) of a world made by with_tool; None: as the cell file mounts it
     )
     base: CellWorld | None = None  # the world with_tool made this one from
+    #: obstacles beyond the cell file's fixtures (the watched zone's map, when a job
+    #: replans around it; SPEC section 12)
+    extra: tuple[Placed, ...] = ()
 
     @property
     def spec(self) -> RobotSpec:
@@ -77,13 +80,36 @@ class CellWorld:
 
     @cached_property
     def fixtures(self) -> list[Placed]:
-        return self.loaded.fixture_shapes()
+        return self.loaded.fixture_shapes() + list(self.extra)
+
+    def with_obstacles(self, *obstacles: Placed) -> CellWorld:
+        """The same cell with ``obstacles`` beside its fixtures (a fresh collision model)."""
+        return dataclasses.replace(self, extra=tuple(obstacles))
+
+    @cached_property
+    def waiting_parts(self) -> list[Placed]:
+        """The cell's parts where they wait to be picked, at their frames (as a grip at
+        the frame holds them), named ``part:NAME``: obstacles until carried. A part with
+        an ``offset`` lies where a camera finds it, which check does not know (it proves
+        the pick's pose box instead): it is no obstacle."""
+        from cellrunner.model.expand import frame_pose
+        from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+        out = []
+        for part in self.loaded.cell.parts:
+            if part.at not in self.loaded.cell.frames or part.offset is not None:
+                continue
+            shape = part.to_shape(self.loaded.resolve)
+            depth = part_center_depth_m(self.loaded.cell.tool.gripper, shape)
+            T = frame_pose(self.loaded.cell, part.at) @ geometry.pose_matrix((0, 0, depth))
+            out.append(Placed(WAITING_PREFIX + part.name, shape, T))
+        return out
 
     @cached_property
     def collision(self) -> CollisionModel:
         from cellrunner.planning.collision import CollisionModel
 
-        return CollisionModel(self.kinematics, self.tool, self.fixtures)
+        return CollisionModel(self.kinematics, self.tool, [*self.fixtures, *self.waiting_parts])
 
     @cached_property
     def limits(self) -> MotionLimits:

@@ -79,6 +79,7 @@ ST_PROTECTIVE_STOP = 1 << 6
 ST_ESTOP = 1 << 7
 ST_PLC_WATCHDOG = 1 << 8
 ST_REJECTED = 1 << 9
+ST_OBSTRUCTED = 1 << 10  # SPEC 12: the arm waits for an obstacle of the watched zone
 HANDSHAKE_BITS = ST_JOB_ACK | ST_BUSY | ST_DONE | ST_ERROR | ST_REJECTED
 
 CELL_HEARTBEAT_PERIOD_S = 0.05  # SPEC: increments every <= 200 ms; 50 ms leaves room for jitter
@@ -377,6 +378,8 @@ class ModbusLink:
             st |= ST_ESTOP
         if self._watchdog:
             st |= ST_PLC_WATCHDOG
+        if status.obstructed:
+            st |= ST_OBSTRUCTED
         self.regs[HR_STATUS] = st
         self.regs[HR_STATE] = status.state & 0xFFFF
         self.regs[HR_STEP] = status.step_index & 0xFFFF

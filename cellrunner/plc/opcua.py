@@ -160,6 +160,8 @@ MAX_PENDING_LOGINS = 4
 LOGIN_WORKER_NICE = 10
 #: the longest TaskName, ClientJobId and Parameters text StartJob accepts (characters)
 MAX_TEXT = {"TaskName": 64, "ClientJobId": 128, "Parameters": 1024}
+#: the most digits of an integer in Parameters (an int64 has 19)
+MAX_INT_DIGITS = 19
 #: how deep a Parameters JSON value may nest (a flat object of numbers is 1)
 MAX_JSON_DEPTH = 3  # {name: {xyz: [...]}}: an object of pose params
 NULL_DATETIME = datetime(1601, 1, 1, tzinfo=UTC)  # OPC UA's "no time"
@@ -172,6 +174,7 @@ _CELL_VARIABLES = (
     ("Busy", "Boolean", False),
     ("ProtectiveStop", "Boolean", False),
     ("EmergencyStop", "Boolean", False),
+    ("Obstructed", "Boolean", False),
     ("CurrentJobId", "String", ""),
     ("CurrentStep", "Int32", 0),
     ("ProdProcessed", "UInt32", 0),
@@ -216,14 +219,14 @@ def _refuse_constant(name: str) -> float:
 def parse_job_parameters(text: str) -> dict[str, ParamValue | str] | None:
     """StartJob's Parameters: a JSON object of finite numbers, quantities with a unit
     ("250 ms") and poses ({"xyz": [m], "rpy": [deg]}) (empty text = {}); None if not
-    (also for NaN/Infinity, over-long text, or nesting deeper than an object of poses,
-    which is refused before it is parsed)."""
+    (also for NaN/Infinity, integers of more than MAX_INT_DIGITS digits, over-long text, or
+    nesting deeper than an object of poses, which is refused before it is parsed)."""
     if not text or not text.strip():
         return {}
     if len(text) > MAX_TEXT["Parameters"] or _nesting(text) > MAX_JSON_DEPTH:
         return None
     try:
-        data = json.loads(text, parse_constant=_refuse_constant)
+        data = json.loads(text, parse_constant=_refuse_constant, parse_int=_bounded_int)
     except (ValueError, RecursionError):
         return None
     if not isinstance(data, dict):
@@ -243,6 +246,13 @@ def parse_job_parameters(text: str) -> dict[str, ParamValue | str] | None:
             return None
         params[str(name)] = value
     return params
+
+
+def _bounded_int(text: str) -> int:
+    """A JSON integer that a param can hold (int64 at most; a 1000-digit one is refused)."""
+    if len(text.lstrip("-")) > MAX_INT_DIGITS:
+        raise ValueError(f"an integer of {len(text)} digits")
+    return int(text)
 
 
 def _nesting(text: str) -> int:
@@ -587,12 +597,12 @@ class OpcUaServer:
                 if len(args) < 3
                 else ua.status_codes.StatusCodes.BadTooManyArguments
             )
-        if not all(isinstance(getattr(a, "Value", a), str | None) for a in args):
-            return _status(
-                ua.status_codes.StatusCodes.BadTypeMismatch
-            )  # every argument is a String
-        task_name, params_text, client_job_id = (_text(a) for a in args)
-        job_id, code = self.start_job(task_name, params_text, client_job_id)
+        if all(_is_string(a) for a in args):
+            task_name, params_text, client_job_id = (_text(a) for a in args)
+            job_id, code = self.start_job(task_name, params_text, client_job_id)
+        else:  # a Null variant or another type: bad params, as a PLC reads a ReturnCode
+            _log.warning("StartJob refused: arguments %s, not 3 Strings", _type_names(args))
+            job_id, code = "", int(ResultCode.REJECT_BAD_PARAMS)
         return [ua.Variant(job_id, ua.VariantType.String), ua.Variant(code, ua.VariantType.Int32)]
 
     def start_job(self, task_name: str, params_text: str, client_job_id: str) -> tuple[str, int]:
@@ -665,6 +675,7 @@ class OpcUaServer:
             "Busy": status.busy,
             "ProtectiveStop": status.protective_stop,
             "EmergencyStop": status.estop,
+            "Obstructed": status.obstructed,
             "CurrentJobId": status.job_id,
             "CurrentStep": status.step_index,
             "ProdProcessed": min(max(status.parts_processed, 0), 0xFFFFFFFF),
@@ -811,6 +822,23 @@ def _argument(name: str, vtype: Any, description: str) -> Any:
     arg.ValueRank = -1
     arg.Description = ua.LocalizedText(description)
     return arg
+
+
+def _is_string(argument: Any) -> bool:
+    """A String variant (asyncua passes Variants; a plain str from in-process calls)."""
+    from asyncua import ua
+
+    if isinstance(argument, ua.Variant):
+        return argument.VariantType == ua.VariantType.String and (
+            argument.Value is None or isinstance(argument.Value, str)
+        )
+    return isinstance(argument, str)
+
+
+def _type_names(args: tuple[Any, ...]) -> str:
+    return ", ".join(
+        a.VariantType.name if hasattr(a, "VariantType") else type(a).__name__ for a in args
+    )
 
 
 def _text(variant: Any) -> str:

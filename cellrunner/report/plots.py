@@ -55,7 +55,7 @@ def save(fig: Any, path: Path) -> Path:
 def shape_points_world(placed: Placed) -> np.ndarray:
     """Points on a placed shape's surface in the world (m): box corners, rings of a
     cylinder's ends, a sphere's bounding box, a mesh's vertices."""
-    from cellrunner.model.geometry import Box, Cylinder, Sphere
+    from cellrunner.model.geometry import Box, Cylinder, Sphere, Voxels
 
     shape = placed.shape
     if isinstance(shape, Box):
@@ -80,6 +80,8 @@ def shape_points_world(placed: Placed) -> np.ndarray:
                 np.column_stack([np.zeros(32), r * np.cos(a), r * np.sin(a)]),
             ]
         )
+    elif isinstance(shape, Voxels):
+        local = np.asarray(shape.centres_m, float)
     else:
         from cellrunner.planning.stl import read_stl
 

@@ -39,6 +39,19 @@ class BoardDescription:
 
 
 @dataclass(frozen=True, eq=False)
+class MarkerDescription:
+    """An ArUco marker printed on part ``part`` (an align step's; see
+    :mod:`cellrunner.vision.marker`): its sheet (grey, marker +Y edge in row 0) of
+    ``size_m`` square, centred on the marker frame at ``T_part_marker``."""
+
+    part: str
+    key: str
+    T_part_marker: np.ndarray
+    size_m: float
+    picture: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
 class CameraDescription:
     """A camera at ``T_parent_camera`` (camera frame as OpenCV's; parent: the world, or the
     flange when ``on_flange``), with its image size and intrinsics."""
@@ -104,10 +117,14 @@ def _png(grey: np.ndarray) -> bytes:
     return buffer.getvalue()
 
 
-def add_cameras(builder: Any, cameras: tuple[CameraDescription, ...]) -> None:
-    """Add each camera, and each board as a textured slab, to the MJCF being built
-    (world mounts in the worldbody, flange mounts in the ``tool`` body)."""
-    from cellrunner.sim.mjcf_attrs import fmt as _fmt
+def add_cameras(
+    builder: Any,
+    cameras: tuple[CameraDescription, ...],
+    markers: tuple[MarkerDescription, ...] = (),
+) -> None:
+    """Add each camera, each board and each part's marker as a textured slab, to the MJCF
+    being built (world mounts in the worldbody, flange mounts in the ``tool`` body, markers
+    in their part's body)."""
     from cellrunner.sim.mjcf_attrs import pose_attrs as _pose_attrs
 
     root = builder.root
@@ -128,51 +145,86 @@ def add_cameras(builder: Any, cameras: tuple[CameraDescription, ...]) -> None:
             **_pose_attrs(cam.T_parent_camera @ T_CV_MJ),
         )
         b = cam.board
-        if b is None:
-            continue
-        key = f"board-{cam.name}"
-        builder.mesh_files[f"{key}.png"] = _png(b.picture)
-        ET.SubElement(builder.assets, "texture", name=key, type="2d", file=f"{key}.png")
-        ET.SubElement(
-            builder.assets,
-            "material",
-            name=key,
-            texture=key,
-            specular="0",
-            shininess="0",
-            reflectance="0",
-            emission="0.4",
+        if b is not None:
+            _add_sheet(
+                builder,
+                tool if b.on_flange else world,
+                f"board-{cam.name}",
+                f"board:{cam.name}",
+                b.picture,
+                b.size_m,
+                b.T_parent_board,
+            )
+    bodies = {b.get("name"): b for b in root.iter("body")}
+    for m in markers:
+        _add_sheet(
+            builder,
+            bodies[f"part:{m.part}"],
+            f"marker-{m.key}",
+            f"marker:{m.key}",
+            m.picture,
+            (m.size_m, m.size_m),
+            m.T_part_marker,
         )
-        w, h, t = b.size_m[0] / 2, b.size_m[1] / 2, BOARD_THICKNESS_M
-        corners = [(-w, h), (w, h), (w, -h), (-w, -h)]  # picture: top left, clockwise
-        vertices = [(x, y, 0.0) for x, y in corners] + [(x, y, -t) for x, y in corners]
-        uv = [(0, 0), (1, 0), (1, 1), (0, 1)] * 2
-        faces = [
-            (0, 3, 2), (0, 2, 1),  # printed face, counter-clockwise seen from +Z
-            (4, 5, 6), (4, 6, 7),
-            (0, 1, 5), (0, 5, 4), (1, 2, 6), (1, 6, 5),
-            (2, 3, 7), (2, 7, 6), (3, 0, 4), (3, 4, 7),
-        ]  # fmt: skip
-        ET.SubElement(
-            builder.assets,
-            "mesh",
-            name=key,
-            vertex=_fmt(vertices),
-            texcoord=_fmt(uv),
-            face=" ".join(str(i) for f in faces for i in f),
-        )
-        ET.SubElement(
-            tool if b.on_flange else world,
-            "geom",
-            name=f"board:{cam.name}",
-            type="mesh",
-            mesh=key,
-            material=key,
-            contype="0",
-            conaffinity="0",
-            density="0",
-            **_pose_attrs(b.T_parent_board),
-        )
+
+
+def _add_sheet(
+    builder: Any,
+    parent: Any,
+    key: str,
+    name: str,
+    picture: np.ndarray,
+    size_m: tuple[float, float],
+    T_parent_sheet: np.ndarray,
+) -> None:
+    """A printed sheet (a textured slab, its printed face at z = 0 facing +Z, picture row
+    0 at its +Y edge) of ``size_m`` (width, height) centred at ``T_parent_sheet``; it
+    neither collides nor weighs."""
+    from cellrunner.sim.mjcf_attrs import fmt as _fmt
+    from cellrunner.sim.mjcf_attrs import pose_attrs as _pose_attrs
+
+    builder.mesh_files[f"{key}.png"] = _png(picture)
+    ET.SubElement(builder.assets, "texture", name=key, type="2d", file=f"{key}.png")
+    ET.SubElement(
+        builder.assets,
+        "material",
+        name=key,
+        texture=key,
+        specular="0",
+        shininess="0",
+        reflectance="0",
+        emission="0.4",
+    )
+    w, h, t = size_m[0] / 2, size_m[1] / 2, BOARD_THICKNESS_M
+    corners = [(-w, h), (w, h), (w, -h), (-w, -h)]  # picture: top left, clockwise
+    vertices = [(x, y, 0.0) for x, y in corners] + [(x, y, -t) for x, y in corners]
+    uv = [(0, 0), (1, 0), (1, 1), (0, 1)] * 2
+    faces = [
+        (0, 3, 2), (0, 2, 1),  # printed face, counter-clockwise seen from +Z
+        (4, 5, 6), (4, 6, 7),
+        (0, 1, 5), (0, 5, 4), (1, 2, 6), (1, 6, 5),
+        (2, 3, 7), (2, 7, 6), (3, 0, 4), (3, 4, 7),
+    ]  # fmt: skip
+    ET.SubElement(
+        builder.assets,
+        "mesh",
+        name=key,
+        vertex=_fmt(vertices),
+        texcoord=_fmt(uv),
+        face=" ".join(str(i) for f in faces for i in f),
+    )
+    ET.SubElement(
+        parent,
+        "geom",
+        name=name,
+        type="mesh",
+        mesh=key,
+        material=key,
+        contype="0",
+        conaffinity="0",
+        density="0",
+        **_pose_attrs(T_parent_sheet),
+    )
 
 
 class CameraImager:

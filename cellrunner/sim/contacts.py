@@ -4,8 +4,8 @@
   it does not hold, harder than the cell's contact force limit: a protective stop;
 - a carried part pushed into a fixture (forced back in the jaws, or pressed too hard): a
   protective stop; setting it down lightly is not;
-- where each gripped part sits in the jaws while nothing presses it, so that a place can
-  be checked against its target once the part is released (:meth:`placed_offset`).
+- where each gripped part sits in the jaws while nothing presses it (a part forced back
+  in them is jammed); taking hold and letting go are told to :mod:`.places`.
 """
 
 from __future__ import annotations
@@ -23,10 +23,10 @@ from cellrunner.sim.wrist import GRAVITY_MPS2
 if TYPE_CHECKING:
     from cellrunner.sim.description import TwinDescription
     from cellrunner.sim.model_ids import ModelIds
+    from cellrunner.sim.places import Places
     from cellrunner.sim.safety import StopReason
 
 AIR_CLEARANCE_M = 0.01  # "in the air": this far from every fixture and the floor
-PLACE_DROP_M = 0.01  # a part released this far above its support lands where it was put
 JAM_SLIDE_M = 0.005  # a gripped part forced back this far in the jaws by a fixture: a collision
 JAM_FORCE_N = 150.0  # or pressed onto a fixture this hard (UR's default force limit)
 
@@ -50,6 +50,7 @@ class ContactWorld(Protocol):
     data: Any
     safety: Safety
     last_contact: ContactEvent | None
+    places: Places
 
     @property
     def mujoco(self) -> Any: ...
@@ -75,8 +76,6 @@ class ContactMonitor:
         ids = world.ids
         #: gripped part -> T_tcp_part while no fixture presses it
         self.held_at: dict[str, np.ndarray] = {}
-        #: the same, of the parts released last (what :meth:`placed_offset` judges)
-        self.held_last: dict[str, np.ndarray] = {}
         #: whether a carried part touched a fixture in the last check
         self.pressed = False
         self._pad_a = ids.pad_geoms[0]
@@ -248,33 +247,16 @@ class ContactMonitor:
 
     def note_held(self, gripped: frozenset[str], closing: bool) -> None:
         """Where each gripped part sits in the jaws while no fixture touches it; kept
-        through a period of lost pad contact, handed to the place check once the jaws
-        are commanded open (``closing`` false)."""
+        through a period of lost pad contact; the parts let go once the jaws are commanded
+        open (``closing`` false) are told to the place check."""
         if not closing:
             if self.held_at:
-                self.held_last, self.held_at = self.held_at, {}
+                self.world.places.let_go(set(self.held_at))
+                self.held_at = {}
             return
         if gripped and not self.pressed:
             for name in gripped:
                 self.held_at[name] = self.part_in_tcp(name)
-
-    def placed_offset(self, T_world_tcp: np.ndarray) -> tuple[str, float, float] | None:
-        """How far the part released last lies from where a gripper at ``T_world_tcp``
-        holding it as it did (before anything pressed it) puts it: (name, distance m,
-        angle deg); None when no part was released. Released a little above its support,
-        a part falls onto it: up to ``PLACE_DROP_M`` straight down does not count."""
-        found = None
-        for name, T_tcp_part in self.held_last.items():
-            target = T_world_tcp @ T_tcp_part
-            actual = self.world.part_pose_world(name)
-            d = actual[:3, 3] - target[:3, 3]
-            fall = max(0.0, -float(d[2]) - PLACE_DROP_M) if d[2] < 0 else float(d[2])
-            offset_m = math.hypot(float(d[0]), float(d[1]), fall)
-            cos = (float(np.trace(target[:3, :3].T @ actual[:3, :3])) - 1.0) / 2.0
-            angle_deg = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
-            if found is None or offset_m > found[1]:
-                found = (name, offset_m, angle_deg)
-        return found
 
     # -- what a part touches --------------------------------------------------------------
     def kinds_touching(self, part: str) -> list[int]:

@@ -23,7 +23,9 @@ from cellrunner.sim.description import (
 TABLE_TOP_Z_M = 0.90
 CUBE_XYZ_M = (0.45, -0.35, 0.925)
 CUBE_MASS_KG = 0.3
-# Tool down (rpy 180, 0, 0) above the cube; the TCP is the grasp centre.
+# Tool down (rpy 180, 0, 0) above the cube; the TCP is the grasp centre, gripped 5 mm
+# above the cube's centre (the cube 5 mm along the TCP's Z, which points down)
+CUBE_GRIP = pose_matrix((0.0, 0.0, 0.005), (180.0, 0.0, 0.0))
 HOME_DEG = (0.0, -90.0, 90.0, -90.0, -90.0, 0.0)
 
 
@@ -43,7 +45,13 @@ def demo_description(**overrides: object) -> TwinDescription:
         ),
         fixtures=(Placed("table", Box((1.2, 0.8, 0.04)), pose_matrix((0.4, 0.0, 0.88))),),
         parts=(
-            PartDescription("cube", Box((0.05, 0.05, 0.05)), CUBE_MASS_KG, pose_matrix(CUBE_XYZ_M)),
+            PartDescription(
+                "cube",
+                Box((0.05, 0.05, 0.05)),
+                CUBE_MASS_KG,
+                pose_matrix(CUBE_XYZ_M),
+                T_grip_part=CUBE_GRIP,
+            ),
         ),
         io_outputs=("DO0", "DO1", "DO2", "DO3"),
         io_inputs=("DI0", "DI1", "DI2"),

@@ -23,7 +23,7 @@ from cellrunner.model.gripper import FINGER_SIZE_M, PAD_Z_M
 from cellrunner.model.robots import RobotSpec
 
 if TYPE_CHECKING:
-    from cellrunner.sim.cameras import CameraDescription
+    from cellrunner.sim.cameras import CameraDescription, MarkerDescription
     from cellrunner.sim.input_rules import InputRuleDescription
 
 
@@ -63,13 +63,17 @@ class GripperDescription:
 
 @dataclass(frozen=True)
 class PartDescription:
-    """A free body spawned at ``T_world_part`` (its shape centred on that frame)."""
+    """A free body spawned at ``T_world_part`` (its shape centred on that frame).
+    ``T_grip_part``: the part in the TCP of the grip a task means (a TCP at its frame:
+    centred between the jaws, or its top face under the cups); a place is judged by it.
+    Default: centred on the TCP, upright under a TCP pointing down."""
 
     name: str
     shape: Shape
     mass_kg: float
     T_world_part: np.ndarray
     friction: float = 0.8
+    T_grip_part: np.ndarray = field(default_factory=lambda: np.diag([1.0, -1.0, -1.0, 1.0]))
 
     def __post_init__(self) -> None:
         if isinstance(self.shape, Mesh):
@@ -122,6 +126,7 @@ class TwinDescription:
     tool_changer: Any = None  # a ToolChangerDescription (sim.tool_changer) for several tools
     input_rules: tuple[InputRuleDescription, ...] = ()  # inputs the cell's sim: block drives
     cameras: tuple[CameraDescription, ...] = ()  # (sim.cameras): cameras and their boards
+    markers: tuple[MarkerDescription, ...] = ()  # (sim.cameras): align markers on parts
     intruders: tuple[Any, ...] = ()  # IntruderDescription (sim.depth): only depth cameras see them
     depth: tuple[tuple[str, float, float, float], ...] = ()  # (camera, near m, far m, rate Hz)
     depth_noise_m: float = 0.0  # sim.depth_noise
@@ -139,6 +144,7 @@ class TwinDescription:
             "presence_sensors",
             "input_rules",
             "cameras",
+            "markers",
             "intruders",
             "depth",
         ):

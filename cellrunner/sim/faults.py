@@ -1,7 +1,9 @@
 """Faults the twin makes physically happen (SPEC section 5, robot side): what the engine
 must notice through the jaw sensor and the wrist, never through a flag.
 
-- ``grip_miss``: the part at the gripper is moved away as the jaws start to close;
+- ``grip_miss``: the part at the gripper (the one nearest its pads or cups, whatever its
+  size) is moved away as the jaws start to close, or suction comes on, far enough that
+  the gripper closes on nothing;
 - ``part_slip``: once a gripped part is in the air, the pads lose their grip on it (their
   friction drops until they hold a fraction of its weight) and it falls; the friction
   comes back once it left the fingers.
@@ -22,7 +24,8 @@ if TYPE_CHECKING:
     from cellrunner.sim.model_ids import ModelIds
 
 SLIP_HOLD_FRACTION = 0.25  # a slipping grip holds only this fraction of the part's weight
-GRIP_MISS_MOVE_M = 0.15  # how far grip_miss moves the part, towards the robot base
+GRIP_MISS_MOVE_M = 0.15  # how far grip_miss moves the part at least, towards the robot base
+GRIP_MISS_CLEAR_M = 0.02  # and the gap it leaves between the part and the gripper
 
 
 class Fault(enum.StrEnum):
@@ -82,7 +85,9 @@ class GripFaults:
         """The jaws start to close: an armed grip_miss moves the part away now."""
         if self.grip_miss_armed:
             self.grip_miss_armed = False
-            self.move_part_away()
+            g = self.world.description.gripper
+            assert g is not None  # jaws close only where there is a jaw gripper
+            self.move_part_away(list(self.world.ids.pad_geoms), g.stroke_m / 2 + 0.02)
 
     def update(self, gripped: frozenset[str]) -> None:
         """After the physics step: slip an armed part in the air, restore the friction of
@@ -112,27 +117,40 @@ class GripFaults:
             w.model.geom_friction[ids.part_geom[name], 0] = mu
             w.model.geom_friction[list(ids.pad_geoms), 0] = mu
 
-    def move_part_away(self, reach_m: float | None = None) -> None:
-        """grip_miss: the part at the gripper (within ``reach_m`` of the TCP; default: the
-        jaws' half stroke + 5 cm) is moved ``GRIP_MISS_MOVE_M`` towards the robot base."""
+    def move_part_away(self, grip_geoms: list[int], reach_m: float) -> None:
+        """grip_miss: the part nearest ``grip_geoms`` (the pads or the cups), within
+        ``reach_m`` of one, is moved towards the robot base until it is clear of the
+        gripper: ``GRIP_MISS_MOVE_M``, or its own reach plus the gripper's (a 200 mm
+        carton under four cups moves farther than a 50 mm cube between the jaws)."""
         w = self.world
-        ids, data, g = w.ids, w.data, w.description.gripper
-        tcp = data.site_xpos[ids.tcp_site]
-        if reach_m is None:
-            assert g is not None  # grip_miss without a reach is a jaw gripper's
-            reach_m = g.stroke_m / 2 + 0.05
-        best, best_d = None, reach_m
-        for name, body in ids.part_bodies.items():
-            dist = float(np.linalg.norm(data.xpos[body] - tcp))
-            if dist < best_d:
-                best, best_d = name, dist
+        ids, data, m = w.ids, w.data, w.model
+        best = self._part_at(grip_geoms, reach_m)
         if best is None:
             return
+        tcp = data.site_xpos[ids.tcp_site]
+        grip_reach = max(
+            float(np.linalg.norm(data.geom_xpos[g][:2] - tcp[:2])) + float(m.geom_rbound[g])
+            for g in grip_geoms
+        )
+        part_reach = float(m.geom_rbound[ids.part_geom[best]])
+        move_m = max(GRIP_MISS_MOVE_M, grip_reach + part_reach + GRIP_MISS_CLEAR_M)
         adr = ids.part_qpos[best]
         base_xy = w.description.T_world_base[:2, 3]
         direction = base_xy - data.qpos[adr : adr + 2]
         norm = float(np.linalg.norm(direction))
         direction = direction / norm if norm > 1e-6 else np.array([-1.0, 0.0])
-        data.qpos[adr : adr + 2] += GRIP_MISS_MOVE_M * direction
-        data.qvel[w.model.jnt_dofadr[w.model.joint(f"part:{best}").id] + np.arange(6)] = 0.0
-        w.mujoco.mj_forward(w.model, data)
+        data.qpos[adr : adr + 2] += move_m * direction
+        data.qvel[m.jnt_dofadr[m.joint(f"part:{best}").id] + np.arange(6)] = 0.0
+        w.mujoco.mj_forward(m, data)
+
+    def _part_at(self, grip_geoms: list[int], reach_m: float) -> str | None:
+        """The part whose surface is nearest one of ``grip_geoms``, within ``reach_m``."""
+        w = self.world
+        fromto = np.zeros(6)
+        best, best_d = None, reach_m
+        for name, geom in w.ids.part_geom.items():
+            for g in grip_geoms:
+                d = w.mujoco.mj_geomDistance(w.model, w.data, g, geom, best_d, fromto)
+                if d < best_d:
+                    best, best_d = name, d
+        return best

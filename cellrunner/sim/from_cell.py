@@ -16,13 +16,16 @@ if TYPE_CHECKING:
     from cellrunner.sim.description import TwinDescription
     from cellrunner.sim.input_rules import InputRuleDescription
 
+#: a marker's sheet stands this far out of the face it is printed on (m): coplanar faces
+#: would flicker into each other in the picture
+PRINT_LIFT_M = 0.0003
 #: frame -> the gripper of the tool that picks parts there
 Picks = dict[str, Gripper | None]
 
 if TYPE_CHECKING:
     from cellrunner.model.cell import Cell, Gripper, Part, Tool
     from cellrunner.model.geometry import Shape
-    from cellrunner.sim.cameras import CameraDescription
+    from cellrunner.sim.cameras import CameraDescription, MarkerDescription
     from cellrunner.sim.description import GripperDescription, PartDescription, TwinDescription
     from cellrunner.sim.input_rules import InputRuleDescription
     from cellrunner.sim.tool_changer import ToolChangerDescription
@@ -72,6 +75,7 @@ def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> Tw
         io_inputs=tuple(io_inputs),
         input_rules=_input_rules(loaded, picks),
         cameras=_cameras(loaded),
+        markers=_markers(loaded, tasks, parts),
         intruders=_intruders(loaded),
         depth=tuple(
             (name, cam.depth.range[0], cam.depth.range[1], cam.depth.rate)
@@ -81,6 +85,60 @@ def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> Tw
         depth_noise_m=c.sim.depth_noise if c.sim is not None else 0.0,
         name=c.cell,
     )
+
+
+def _markers(
+    loaded: LoadedCell, tasks: tuple[LoadedTask, ...], parts: list[PartDescription]
+) -> tuple[MarkerDescription, ...]:
+    """The marker of every align step (in ``tasks`` and the cell's own ``tasks:``),
+    printed on each part that lies at the frame it aligns: where the marker's ``pose``
+    puts it in that frame, moved with the part's ``offset``."""
+    from cellrunner.model.align import aligned_frame
+    from cellrunner.sim.cameras import MarkerDescription
+
+    c = loaded.cell
+    out: dict[tuple[str, str, int], MarkerDescription] = {}
+    for task in _cell_tasks(loaded, tasks):
+        for i, spec in enumerate(task.steps):
+            frame = aligned_frame(task.steps, i) if spec.kind == StepKind.ALIGN else None
+            if frame is None:
+                continue
+            marker = spec.args.marker
+            for part, described in zip(c.parts, parts, strict=True):
+                key = (part.name, marker.dictionary, marker.id)
+                if part.at != frame or key in out:
+                    continue
+                from cellrunner.vision.marker import picture, printed_size_m
+
+                T_world_grip = frame_pose(c, frame)
+                if part.offset is not None:
+                    T_world_grip = T_world_grip @ part.offset.matrix()
+                T_part_marker = (
+                    np.linalg.inv(described.T_world_part) @ T_world_grip @ marker.pose.matrix()
+                )
+                T_part_marker[:3, 3] += T_part_marker[:3, 2] * PRINT_LIFT_M
+                out[key] = MarkerDescription(
+                    part.name,
+                    f"{part.name}-{marker.id}",
+                    T_part_marker,
+                    printed_size_m(marker),
+                    picture(marker),
+                )
+    return tuple(out.values())
+
+
+def _cell_tasks(loaded: LoadedCell, tasks: tuple[LoadedTask, ...]) -> list[LoadedTask]:
+    """``tasks`` and the cell's own ``tasks:`` (a task file that does not load is skipped)."""
+    from cellrunner.errors import CellrunnerError
+    from cellrunner.model.load import load_task
+
+    found = list(tasks)
+    for path in loaded.cell.tasks.values():
+        try:
+            found.append(load_task(loaded.resolve(path), loaded))
+        except (CellrunnerError, OSError):
+            continue
+    return found
 
 
 #: the box ``--inject intrusion@STEP`` drops onto a step's path (m)
@@ -119,12 +177,18 @@ def _part(loaded: LoadedCell, part: Part, gripper: Gripper | None) -> PartDescri
     """A part where a TCP at its frame grips it, moved by its twin-only ``offset``."""
     from cellrunner.sim.description import PartDescription
 
-    T_world_grip = frame_pose(loaded.cell, part.at)
+    T_world_frame = frame_pose(loaded.cell, part.at)
+    T_world_grip = T_world_frame
     if part.offset is not None:
         T_world_grip = T_world_grip @ part.offset.matrix()
     shape = part.to_shape(loaded.resolve)
     return PartDescription(
-        part.name, shape, part.mass, _part_pose(T_world_grip, gripper, shape), part.friction
+        part.name,
+        shape,
+        part.mass,
+        _part_pose(T_world_grip, gripper, shape),
+        part.friction,
+        np.linalg.solve(T_world_frame, _part_pose(T_world_frame, gripper, shape)),
     )
 
 

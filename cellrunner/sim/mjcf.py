@@ -296,10 +296,10 @@ class _Builder:
             self._part(world, part)
         if d.vacuum is not None and d.parts:
             add_welds(self.root, d.parts)
-        if d.cameras:
+        if d.cameras or d.markers:
             from cellrunner.sim.cameras import add_cameras
 
-            add_cameras(self, d.cameras)
+            add_cameras(self, d.cameras, d.markers)
         if d.intruders:
             from cellrunner.sim.depth import add_intruders
 

@@ -49,6 +49,8 @@ CUP_SOLREF = "0.02 1"
 #: time constant (s) of the low-pass on the pull: a seal leaks for a while before it lets
 #: go, so a jolt of a few milliseconds does not tear a part off, a sustained pull does
 PULL_TAU_S = 0.05
+#: grip_miss takes away the part whose face is this close (m) to a cup as suction comes on
+GRIP_MISS_REACH_M = 0.05
 
 
 @dataclass(frozen=True)
@@ -128,7 +130,6 @@ class VacuumCups:
         self.grip_miss_armed = False
         self.slip_armed = False
         self._pull_lp: dict[str, float] = {}
-        self.held_at: dict[str, np.ndarray] = {}  # held part -> T_tcp_part as the cups sealed
         self.last_pull_N = 0.0
         self.enabled = True
         self._cup_bits = [
@@ -156,7 +157,7 @@ class VacuumCups:
             self.torn.clear()
             if self.grip_miss_armed:
                 self.grip_miss_armed = False
-                w.grip_faults.move_part_away(reach_m=0.1)
+                w.grip_faults.move_part_away(self.cup_geoms, GRIP_MISS_REACH_M)
         self.suction = on
         if not on and self.held:
             self._drop_all()
@@ -242,8 +243,6 @@ class VacuumCups:
         d.eq_active[eq] = 1
         self.held = self.held | {name}
         self._pull_lp[name] = 0.0
-        # where the part sits under the cups: a place puts it at its target through this
-        self.held_at[name] = w.contacts.part_in_tcp(name)
         w.contacts_changed_held()
 
     def _drop(self, name: str) -> None:
@@ -251,8 +250,7 @@ class VacuumCups:
         w.data.eq_active[self.weld[name]] = 0
         self.held = self.held - {name}
         self._pull_lp.pop(name, None)
-        # handed to the place check: the part released last, as it was held
-        w.contacts.held_last = {name: self.held_at.pop(name)}
+        w.places.let_go({name})
         w.contacts_changed_held()
 
     def _drop_all(self) -> None:

@@ -4,10 +4,10 @@ ramps), the IO image and physical fault injection.
 
 The world owns the model, the set-point, the safety state and the IO image, and steps;
 its parts each live in their own module and are reached as attributes: ``wrist``
-(:mod:`.wrist`), ``contacts`` (:mod:`.contacts`, the contact rules and the place check),
-``jaws`` (:mod:`.jaws`), ``grip_faults`` (:mod:`.faults`), ``vacuum`` (:mod:`.vacuum`),
-``changer`` (:mod:`.tool_changer`); stop ramps are :mod:`.safety`'s, indices
-:mod:`.model_ids`'.
+(:mod:`.wrist`), ``contacts`` (:mod:`.contacts`, the contact rules), ``places``
+(:mod:`.places`, the place check), ``jaws`` (:mod:`.jaws`), ``grip_faults``
+(:mod:`.faults`), ``vacuum`` (:mod:`.vacuum`), ``changer`` (:mod:`.tool_changer`);
+stop ramps are :mod:`.safety`'s, indices :mod:`.model_ids`'.
 
 ``SimWorld`` knows nothing about trajectories or the engine;
 :mod:`cellrunner.backends.sim.backend` wraps it in the
@@ -33,6 +33,7 @@ from cellrunner.sim.jaws import Jaws
 from cellrunner.sim.mjcf import PhysicsOptions, compile_model
 from cellrunner.sim.model_ids import ModelIds, lookup_ids
 from cellrunner.sim.mujoco_loader import load_mujoco
+from cellrunner.sim.places import PlaceInspection, Places
 from cellrunner.sim.safety import (
     COLLISION_BACKOFF_S,
     STOP_DECEL_RAD_S2,
@@ -96,6 +97,7 @@ class SimWorld:
         self._hermite = hermite_table(self.substeps, self.period_s)
         self._gripped: frozenset[str] = NONE
         self.wrist = WristSensor(self.data, ids, d.T_world_base)
+        self.places = Places(self)
         self.contacts = ContactMonitor(self)
         self.grip_faults = GripFaults(self)
         self.jaws = Jaws(self) if d.gripper is not None else None
@@ -484,9 +486,14 @@ class SimWorld:
             mujoco.mj_forward(self.model, self.data)
         return fed
 
-    def placed_offset(self, T_world_tcp: np.ndarray) -> tuple[str, float, float] | None:
-        """See :meth:`.contacts.ContactMonitor.placed_offset`."""
-        return self.contacts.placed_offset(T_world_tcp)
+    def inspect_place(self, T_world_tcp: np.ndarray) -> PlaceInspection | None:
+        """See :meth:`.places.Places.inspect`."""
+        return self.places.inspect(T_world_tcp)
+
+    def part_velocity_world(self, name: str) -> np.ndarray:
+        """The part's linear velocity (m/s, world)."""
+        dof = self.model.jnt_dofadr[self.model.joint(f"part:{name}").id]
+        return np.array(self.data.qvel[dof : dof + 3])
 
     def part_pose_world(self, name: str) -> np.ndarray:
         body = self.ids.part_bodies[name]

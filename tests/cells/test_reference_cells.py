@@ -167,10 +167,15 @@ def test_report_plots_the_wrist_force(shallow, tmp_path):
     assert plot.is_file() and plot.stat().st_size > 10_000
 
 
-def test_move_until_contact_without_contact_fails(shallow):
+def test_move_until_contact_without_contact_is_refused_before_it_moves(shallow):
+    """A guarded line that meets nothing the cell file has within max_distance fails on
+    every backend (no contact within 20 mm): check refuses it, so the job never starts
+    (it ran, and the twin gave 1, before issue 24)."""
     out = dry_run(str(shallow / "cells" / "peg.yaml"), str(shallow / "tasks" / "probe_far.yaml"))
-    assert out["result_code"] == 1
-    assert failed(out) == [(3, "no contact within 20.0 mm (force stayed under 8 N)")]
+    assert out["result_code"] == 103
+    assert out["result_text"].startswith(
+        "step 3 move_until_contact: the guarded line meets nothing within its max_distance 20 mm"
+    )
 
 
 def check_json(cell: str, task: str) -> tuple[int, dict]:

@@ -13,6 +13,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from cellrunner.cli.main import main
@@ -56,7 +58,7 @@ PRESS_TASK = """task: touch
 params:
   push: {type: float, unit: N, min: 2, max: 30, default: 10}
   dwell: {type: float, unit: s, min: 0, max: 2, default: "300 ms"}
-  reach: {type: float, unit: m, min: 0.01, max: 0.1, default: "51 mm"}
+  reach: {type: float, unit: m, min: 0.05, max: 0.055, default: "51 mm"}  # touches at 50 mm
 steps:
   - move: home
   - pick: {at: pin_nest, approach: 0.05, grip: {confirm: closed, force: {min: 0.05, max: 5}, timeout: 1}}
@@ -224,11 +226,25 @@ def test_press_runs_in_the_twin(press):
 
 
 def test_float_params_take_plain_si_numbers_on_the_command_line(press):
-    code, out = run_json("dry-run", *press, "-p", "push=25", "-p", "dwell=0", "-p", "reach=0.02")
+    code, out = run_json("dry-run", *press, "-p", "push=25", "-p", "dwell=0", "-p", "reach=0.054")
+    assert (code, out["result_code"]) == (0, 0), out["result_text"]
+    assert out["params"] == {"push": 25.0, "dwell": 0.0, "reach": 0.054}
+
+
+def test_a_reach_range_that_falls_short_is_refused_with_the_value(press, tmp_path):
+    """check proves a float param's whole range (issue 24): a reach of 10 mm falls 40 mm
+    short of the block, and 100 mm runs the jaws into it."""
+    cell, task = press
+    short = tmp_path / "t.yaml"
+    short.write_text(
+        Path(task).read_text().replace("min: 0.05, max: 0.055", "min: 0.01, max: 0.055")
+    )
+    code, out = run_json("check", cell, str(short))
     assert code == 1
-    assert out["params"] == {"push": 25.0, "dwell": 0.0, "reach": 0.02}
-    # 20 mm falls 30 mm short of the block: the carried pin touches nothing
-    assert out["result_text"] == "no contact within 20.0 mm (force stayed under 25 N)"
+    assert out["errors"][0].startswith(
+        "reach=0.01: step 7 move_until_contact: the guarded line meets nothing within its "
+        "max_distance 10 mm: at its end the held part is still 40.0 mm from fixture 'block'"
+    )
 
 
 def test_second_tool_picks_the_part_laid_for_its_cups_and_confirms_the_place(tools):
@@ -244,7 +260,7 @@ def test_camera_pose_insert_and_confirmed_release(cam):
     assert code == 0, out["errors"]
     assert len(out["slots_checked"]["seen"]) == 9  # the pose box's centre and corners
     assert [s["message"] for s in out["steps"][-3:]] == [
-        "on_error: verified from 9 states the job can fail in"
+        "on_error: verified from 15 states the job can fail in"  # mid-move states too
     ] * 3
     code, out = run_json("dry-run", *cam)
     assert (code, out["result_code"]) == (0, 0), (out["result_text"], out["steps"])

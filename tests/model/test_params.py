@@ -265,3 +265,22 @@ def test_wait_accepts_units_and_refuses_other_quantities(tmp_path):
         "e.g. '1.5 s'"
     ]
     assert math.isclose(task(tmp_path, "task: t\nsteps:\n  - wait: 0\n").steps[0].args.seconds, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("kind", "value", "message"),
+    [
+        ("int", 10**1000, "param 'p' must be a finite number, got one of 1001 digits"),
+        ("int", 10**5000, "param 'p' must be a finite number, got one of 5001 digits"),
+        ("int", "1" + "0" * 1000, "param 'p' must be a finite number, got inf"),
+        ("float", "1e999", "param 'p' must be a finite number, got inf"),
+        ("float", float("nan"), "param 'p' must be a finite number, got nan"),
+    ],
+    ids=["1001_digits", "5001_digits", "1001_digit_text", "1e999", "nan"],
+)
+def test_a_number_no_param_can_hold_is_refused_not_overflowed(kind, value, message):
+    """A PLC's or a command line's 1000-digit number is bad params (11 / exit 2), never an
+    OverflowError."""
+    with pytest.raises(ValueError) as err:
+        Param(type=kind, min=0, max=11, default=0).coerce("p", value)
+    assert str(err.value) == message

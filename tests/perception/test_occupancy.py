@@ -84,9 +84,8 @@ def twin_map(loaded, known):
     watch = loaded.cell.watch
     m = OccupancyMap(watch.zone.pose.matrix(), tuple(watch.zone.box.size), watch.voxel)
     pad = watch.padding + m.half_diagonal_m
-    m._pad_for_known = pad
     static = known.static_solids()
-    m.mark_known(lambda c: near_any(static, c, pad), known.static_surfaces(watch.voxel / 2))
+    m.mark_known(lambda c: near_any(static, c, pad), known.static_surfaces(watch.voxel / 2), pad)
     return m, pad
 
 

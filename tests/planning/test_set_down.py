@@ -3,23 +3,12 @@ set-down touch, and the twin never reports OK for it (SPEC section 11)."""
 
 from __future__ import annotations
 
-import contextlib
-import io
-import json
-
 import pytest
 
-from cellrunner.cli.main import main
 from tests.conftest import DEMO_CELL
+from tests.planning.cli_json import cli
 
 PLACE = "task: t\nsteps:\n  - move: home\n  - pick: {{at: infeed}}\n  - place: {{at: pallet, offset: [0, 0, {dz}]}}\n"
-
-
-def cli(*argv: str) -> dict:
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()):
-        main([*argv, "--json"])
-    return json.loads(out.getvalue())
 
 
 @pytest.mark.parametrize("dz", ["0.0035", "0"])  # pressed 0.5 mm onto the table, set 3 mm above it

@@ -194,8 +194,14 @@ async def scenario_hostile(client: Any) -> dict[str, Any]:
         except ua.UaStatusCodeError as exc:
             out[name] = type(exc).__name__
 
-    int32 = ua.VariantType.Int32
+    int32, null = ua.VariantType.Int32, ua.Variant(None, ua.VariantType.Null)
     await call("wrong_types", ua.Variant(1, int32), ua.Variant(2, int32), ua.Variant(3, int32))
+    await call("null_parameters", "home", null, "x-null-1")
+    await call("null_task", null, "{}", "x-null-2")
+    await call("null_client_job_id", "home", "{}", null)
+    await call("boolean_parameters", "home", ua.Variant(True, ua.VariantType.Boolean), "x-b")
+    await call("thousand_digits", "pick_place", '{"slot": 1' + "0" * 1000 + "}", "x-digits")
+    await call("thousand_digits_text", "pick_place", '{"slot": "1' + "0" * 1000 + '"}', "x-dt")
     await call("infinity", "pick_place", '{"slot": Infinity}', "h-1")
     await call("nan", "pick_place", '{"slot": NaN}', "h-2")
     await call("huge_number", "pick_place", '{"slot": 1e999}', "h-3")

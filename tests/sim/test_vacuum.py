@@ -20,12 +20,12 @@ CELL = ROOT / "cells" / "palletizer_ur10e.yaml"
 VACUUM_ON, BLOW_OFF, VACUUM_OK = "DO0", "DO1", "DI0"
 
 
-def build(holding_force_N: float | None = None):
+def build(holding_force_N: float | None = None, cell=CELL):
     from cellrunner.planning.world import CellWorld
     from cellrunner.sim.from_cell import description_of
     from cellrunner.sim.world import SimWorld
 
-    loaded = load_cell(CELL)
+    loaded = load_cell(cell)
     desc = description_of(loaded)
     if holding_force_N is not None:
         desc = dataclasses.replace(
@@ -37,11 +37,15 @@ def build(holding_force_N: float | None = None):
 
 
 def put_tcp(world, cell_world, T_world_tcp) -> np.ndarray:
-    """Stand the arm (at rest) with its TCP at ``T_world_tcp``, on a collision-free branch."""
+    """Stand the arm (at rest) with its TCP at ``T_world_tcp``, on a branch clear of the
+    fixtures (the carton waiting under the cups is what they are put on)."""
+    from cellrunner.planning.collision import CollisionModel
+
+    fixtures_only = CollisionModel(cell_world.kinematics, cell_world.tool, cell_world.fixtures)
     q = next(
         q
         for q in cell_world.kinematics.ik_all(T_world_tcp, world.q_measured())
-        if cell_world.collision.is_valid(q)
+        if fixtures_only.is_valid(q)
     )
     world.place_arm(q)
     return q
@@ -140,6 +144,25 @@ def test_grip_miss_leaves_the_cups_on_nothing():
     assert world.measure().inputs[VACUUM_OK] is False
 
 
+def test_grip_miss_takes_a_tall_carton_away_from_the_cups(tmp_path):
+    """A 200 mm carton: its centre 100 mm under the cups (the fault once looked for a
+    centre nearer than that and left it sealed). Moved clear of all four cups."""
+    tall = tmp_path / "tall.yaml"
+    tall.write_text(
+        CELL.read_text()
+        .replace("size: [0.20, 0.15, 0.10]}, mass: 2.0", "size: [0.20, 0.15, 0.20]}, mass: 3.0")
+        .replace("xyz: [0.15, -0.70, 0.70]", "xyz: [0.15, -0.70, 0.80]")
+    )
+    world, kin, loaded = build(cell=tall)
+    x0, y0 = world.part_pose_world("carton")[:2, 3]
+    world.inject_fault("grip_miss")
+    rise, load = grip_and_lift(world, kin, loaded)
+    assert rise < 0.01 and load < 1.0
+    assert world.measure().inputs[VACUUM_OK] is False
+    x, y = world.part_pose_world("carton")[:2, 3]
+    assert np.hypot(x - x0, y - y0) > 0.2  # its 125 mm half-diagonal plus the cups' 95 mm
+
+
 def test_a_carton_held_by_suction_pushed_into_the_conveyor_is_a_protective_stop():
     """Set back down on the conveyor and driven 30 mm on: a contact, as for jaws."""
     from cellrunner.errors import BackendError
@@ -163,9 +186,10 @@ def test_a_carton_set_down_by_suction_and_released_is_measured_against_its_targe
     move_tcp(world, kin, T_high, 1.0)  # 40 mm above where it was picked
     world.set_output(VACUUM_ON, False)
     settle(world, 0.5)
-    name, offset_m, angle_deg = world.placed_offset(T_high)
-    assert name == "carton"
-    assert offset_m == pytest.approx(0.041 - 0.01, abs=0.003)  # fell 41 mm, 10 mm are free
-    assert angle_deg < 1.0
-    name, offset_m, _ = world.placed_offset(frame_pose(loaded.cell, "infeed"))
-    assert offset_m < 0.002  # back where the TCP picked it
+    found = world.inspect_place(T_high)
+    assert found.part == "carton"
+    assert found.offset_m == pytest.approx(0.041, abs=0.003)  # fell 41 mm, measured at rest
+    assert found.judged_m == pytest.approx(0.041 - 0.01, abs=0.003)  # 10 mm are free
+    assert found.angle_deg < 1.0 and found.resting_on == "fixture"
+    found = world.inspect_place(frame_pose(loaded.cell, "infeed"))
+    assert found.offset_m < 0.002  # back where the TCP picked it

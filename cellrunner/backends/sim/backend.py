@@ -14,7 +14,7 @@ notice a missed or slipped part through the jaw sensor and the wrist load.
 from __future__ import annotations
 
 from collections.abc import Generator
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,6 +28,7 @@ from cellrunner.sim.world import SimWorld
 
 if TYPE_CHECKING:
     from cellrunner.sim.lookahead import Lookahead, Preview
+    from cellrunner.sim.places import PlaceInspection
 
 # servoJ set-points further apart than the joint speed limit allows (with this margin)
 # are refused, as the controller would protective-stop on them.
@@ -50,6 +51,7 @@ class SimBackend:
 
     def __init__(self, description: TwinDescription, options: PhysicsOptions | None = None) -> None:
         self.description = description
+        self._imagers: dict[str, Any] = {}  # camera name -> CameraImager, made on first use
         self.options = options if options is not None else PhysicsOptions()
         self.rate_hz = description.rate_hz
         self.world: SimWorld | None = None
@@ -92,6 +94,9 @@ class SimBackend:
         self._link_lost = False
 
     def close(self) -> None:
+        for imager in self._imagers.values():
+            imager.close()
+        self._imagers.clear()
         self._fresh = None
         if self.world is not None and self._connected:
             self.world.stop_motion()
@@ -354,10 +359,24 @@ class SimBackend:
         self._fresh = None
         self._world().set_input(channel, value)
 
-    def placed_offset(self, T_world_tcp: np.ndarray) -> tuple[str, float, float] | None:
-        """The twin's place inspection: how far the part just set down lies from where
-        a gripper at ``T_world_tcp`` puts it, as (part, m, deg); see SimWorld."""
-        return self._world().placed_offset(T_world_tcp)
+    def inspect_place(self, T_world_tcp: np.ndarray) -> PlaceInspection | None:
+        """The twin's place inspection: where the part just set down rests against where
+        a TCP at ``T_world_tcp`` puts it (:meth:`.places.Places.inspect`)."""
+        return self._world().inspect_place(T_world_tcp)
+
+    def camera_image(self, name: str) -> np.ndarray:
+        """What cell camera ``name`` sees now (RGB, height x width x 3, uint8), rendered
+        from the twin through the camera's intrinsics (:class:`CameraImager`)."""
+        from cellrunner.sim.cameras import CameraImager
+
+        world = self._world()
+        imagers = self._imagers
+        if name not in imagers:
+            camera = next((c for c in self.description.cameras if c.name == name), None)
+            if camera is None:
+                raise BackendError(f"the twin has no camera {name!r}")
+            imagers[name] = CameraImager(world.model, camera)
+        return np.asarray(imagers[name].image(np.array(world.data.qpos)))
 
     def tcp_tracking_error_m(self) -> float:
         """Distance (m) between the TCP at the last set-point and the measured TCP."""

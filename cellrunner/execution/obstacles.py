@@ -1,0 +1,222 @@
+"""A motion that meets an obstacle of the watched zone (SPEC section 12).
+
+The rest of the motion is checked against the map before it starts and after every map
+update while it runs (:class:`~cellrunner.execution.watch.ZoneWatch`). When an occupied
+voxel is in the way the arm stops on its approved path: the same path, slowed to rest at
+0.8 of the joints' acceleration limits (:func:`~cellrunner.model.trajectory.along_path`),
+never a protective stop. It then waits, obstructed, for an image that shows the rest of
+the path clear and goes on along it from where it stands (the same approved path, checked
+again); with ``replan: true`` it plans from where it stands around the map (at most once a
+second, ``max_replans`` times; the new plan is verified like any other, against the map
+too). When the way stays blocked for ``wait`` s the step fails with 108.
+
+Every stop, wait, replan and clear is logged (event ``obstacle``) with its time and the
+blocking voxel's position, and kept on the job's notes for the journal and the report.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Generator
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from cellrunner.errors import InfeasibleError
+from cellrunner.execution.obstacle_guard import ObstacleGuard as ObstacleGuard  # re-exported
+from cellrunner.execution.outcome import Outcome
+from cellrunner.model.codes import ResultCode
+from cellrunner.model.trajectory import ApprovedTrajectory, along_path
+
+if TYPE_CHECKING:
+    from cellrunner.execution.context import JobContext
+    from cellrunner.model.expand import Step
+    from cellrunner.model.geometry import Placed
+    from cellrunner.perception.path_check import Blocked
+
+#: a stop or a restart on the path uses this fraction of each joint's acceleration limit
+RAMP_ACCEL_FRACTION = 0.8
+#: replans come at most this often (s), and not before the arm has waited this long
+REPLAN_EVERY_S = 1.0
+
+
+def where(blocked: Blocked) -> str:
+    x, y, z = blocked.voxel_m
+    return f"occupied voxel at ({x:.3f}, {y:.3f}, {z:.3f}) m"
+
+
+def stream_watched(
+    ctx: JobContext,
+    step: Step,
+    approved: ApprovedTrajectory,
+    first: int,
+    part_lost_outcome: Callable[[JobContext], Outcome | None],
+) -> Generator[None, None, Outcome | None]:
+    """Stream ``approved`` from set-point ``first`` under the watch (module docstring);
+    returns None at its end, or the failed outcome (108, a part lost: what
+    ``part_lost_outcome`` says of the carried part each period)."""
+    from cellrunner.execution.context import Stream
+
+    guard = ctx.obstacles
+    assert guard is not None  # called only for a watched cell
+    zone = guard.zone
+    carried = getattr(ctx.motions, "carried_during", None)
+    held: Placed | None = carried(step) if carried is not None else None
+    path, pos = approved, first
+    blocked = zone.check(path.trajectory.q_rad[pos:], held)
+    if blocked is not None:
+        guard.note(ctx, "blocked before start", blocked, step=step.index)
+        result = yield from _wait(ctx, step, path, float(pos), blocked, held)
+        if not isinstance(result, tuple):
+            return result
+        path, pos = result
+    while True:
+        q = path.trajectory.q_rad
+        follow_id = zone.follow(q, pos, held)
+        stream = ctx.stream = Stream(path, pos)
+        stopped_at: tuple[int, Blocked] | None = None
+        while stream.next_index < len(q):
+            i = stream.next_index
+            ctx.backend.servo(path, i)
+            ctx.commanded_q = q[i]
+            stream.next_index = i + 1
+            yield
+            lost = part_lost_outcome(ctx)
+            if lost is not None:
+                return lost
+            verdict = zone.verdict()
+            if (
+                verdict is not None
+                and verdict.follow_id == follow_id
+                and verdict.blocked is not None
+                and verdict.blocked.index >= stream.next_index - 1
+            ):
+                stopped_at = (stream.next_index - 1, verdict.blocked)
+                break
+            zone.advance(stream.next_index)
+        ctx.stream = None
+        if stopped_at is None:
+            zone.follow(None)
+            ctx.notes["watched_q"] = q
+            return None
+        index, blocked = stopped_at
+        guard.note(ctx, "stop", blocked, step=step.index)
+        u_rest = yield from _stop_on_path(ctx, path, index)
+        result = yield from _wait(ctx, step, path, u_rest, blocked, held)
+        if not isinstance(result, tuple):
+            return result
+        path, pos = result
+
+
+def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float) -> int:
+    """Set-points a stop or a restart at ``u0`` takes at the ramp's acceleration."""
+    assert ctx.obstacles is not None
+    traj = path.trajectory
+    q = traj.q_rad
+    i = min(int(u0), len(q) - 2)
+    if i < 0:
+        return 1
+    speed = np.abs(np.diff(q[i:], axis=0)).max(axis=0) * traj.rate_hz  # rad/s, the rest's top
+    seconds = float(np.max(speed / (RAMP_ACCEL_FRACTION * ctx.obstacles.accel_rad_s2)))
+    return max(1, math.ceil(seconds * traj.rate_hz))
+
+
+def _stop_on_path(
+    ctx: JobContext, path: ApprovedTrajectory, index: int
+) -> Generator[None, None, float]:
+    """Slow to rest along ``path`` from set-point ``index`` (commanded now); returns the
+    path position (fractional sample) where the arm stands."""
+    last = len(path.trajectory.q_rad) - 1
+    n = _ramp_samples(ctx, path, index)
+    k = np.arange(n + 1, dtype=float)
+    u = np.minimum(index + k - k * k / (2 * n), last)
+    stop = along_path(path, u)
+    q = stop.trajectory.q_rad
+    for j in range(1, len(q)):
+        ctx.backend.servo(stop, j)
+        ctx.commanded_q = q[j]
+        yield
+    return float(u[-1])
+
+
+def _resumed(ctx: JobContext, path: ApprovedTrajectory, u0: float) -> ApprovedTrajectory:
+    """``path`` from rest at position ``u0``: speeding up along it, then at its pace."""
+    last = len(path.trajectory.q_rad) - 1
+    n = _ramp_samples(ctx, path, u0)
+    k = np.arange(n + 1, dtype=float)
+    ramp = u0 + k * k / (2 * n)
+    tail = np.arange(ramp[-1] + 1.0, last, 1.0)
+    u = np.minimum(np.concatenate([ramp, tail, [last]]), last)
+    return along_path(path, np.maximum.accumulate(u))
+
+
+def _wait(
+    ctx: JobContext,
+    step: Step,
+    path: ApprovedTrajectory,
+    u_rest: float,
+    blocked: Blocked,
+    held: Placed | None,
+) -> Generator[None, None, tuple[ApprovedTrajectory, int] | Outcome]:
+    """The arm stands at ``u_rest`` on ``path``: wait for the way to clear (then the same
+    path on from there), replan around the map when the task allows, or fail with 108."""
+    guard = ctx.obstacles
+    assert guard is not None
+    zone, policy = guard.zone, guard.policy
+    since = ctx.now_s
+    rest_from = min(math.ceil(u_rest - 1e-9), len(path.trajectory.q_rad) - 1)
+    follow_id = zone.follow(path.trajectory.q_rad, rest_from, held)
+    guard.obstructed = f"step {step.index} ({step.name}): {where(blocked)}"
+    guard.note(ctx, "wait", blocked, step=step.index)
+    try:
+        while True:
+            yield
+            now = ctx.now_s
+            verdict = zone.verdict()
+            if verdict is not None and verdict.follow_id == follow_id and verdict.time_s > since:
+                if verdict.blocked is None:
+                    guard.note(ctx, "clear", None, step=step.index, waited_s=round(now - since, 3))
+                    return _resumed(ctx, path, u_rest), 1
+                blocked = verdict.blocked
+                guard.obstructed = f"step {step.index} ({step.name}): {where(blocked)}"
+            if (
+                policy.replan
+                and guard.replans < policy.max_replans
+                and now - since >= REPLAN_EVERY_S
+                and now - guard.last_replan_s >= REPLAN_EVERY_S
+            ):
+                guard.replans += 1
+                guard.last_replan_s = now
+                replanned = _replan(ctx, step, held)
+                if replanned is not None:
+                    guard.note(ctx, "replan", blocked, step=step.index, replans=guard.replans)
+                    return replanned, 0
+                guard.note(ctx, "replan failed", blocked, step=step.index, replans=guard.replans)
+            if now - since >= policy.wait:
+                message = (
+                    f"{step.label}: path blocked by an obstacle not in the cell file "
+                    f"({where(blocked)}) for {policy.wait:g} s"
+                    + (f" after {guard.replans} replan(s)" if policy.replan else "")
+                )
+                guard.note(ctx, "blocked", blocked, step=step.index)
+                return Outcome.failed(ResultCode.PATH_BLOCKED, message)
+    finally:
+        guard.obstructed = ""
+        zone.follow(None)
+
+
+def _replan(ctx: JobContext, step: Step, held: Placed | None) -> ApprovedTrajectory | None:
+    """A verified plan from where the arm stands around the map, clear of it now; None
+    when there is none."""
+    assert ctx.obstacles is not None
+    zone = ctx.obstacles.zone
+    obstacles = zone.obstacles()
+    try:
+        new = ctx.motions.replan(
+            step, ctx.last_state.q_rad, carrying=ctx.carry is not None, obstacles=obstacles
+        )
+    except InfeasibleError:
+        return None
+    if zone.check(new.trajectory.q_rad, held) is not None:
+        return None
+    return new

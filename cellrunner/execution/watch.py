@@ -1,0 +1,252 @@
+"""The watched zone while jobs run (SPEC section 12): the live map, what it says about the
+motion under way, and the feed that brings it depth images.
+
+Threads. :class:`ZoneWatch` is shared: a depth feed integrates images into its map on its
+own thread (never the control thread) and, after each, checks the rest of the motion under
+way against the map; the control thread reads the latest verdict (:meth:`ZoneWatch.verdict`,
+no waiting) and tells it what it streams (:meth:`ZoneWatch.follow`). One lock guards the
+map and the verdict; the control thread holds it only to copy a few references.
+
+:class:`TwinDepthFeed` is the feed of a rehearsal on the in-process twin: a control-loop
+observer that, at each depth camera's rate in simulated time, copies the twin's joints and
+mocap bodies and has the image rendered and integrated on a worker thread. Off real time
+(dry-run) the loop waits for that worker, and the verdict becomes visible the wall time
+the work took after the image was taken (simulated), as it would on a real cell.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cellrunner.model.geometry import Placed
+from cellrunner.perception.frames import DepthFrame
+from cellrunner.perception.known import KnownScene
+from cellrunner.perception.occupancy import MapUpdate, OccupancyMap
+from cellrunner.perception.path_check import Blocked, first_blocked
+from cellrunner.perception.solids import near_any
+
+if TYPE_CHECKING:
+    from cellrunner.model.watch import Watch
+    from cellrunner.planning.world import CellWorld
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What the map said, after the image taken at ``time_s``, of the motion followed
+    then: ``blocked`` (None: clear) with the set-point index in ``follow_id``'s
+    trajectory; ``occupied`` voxels in the map."""
+
+    time_s: float
+    follow_id: int
+    blocked: Blocked | None
+    occupied: int
+
+
+class ZoneWatch:
+    """The map of one watched cell and the verdicts on the motion under way."""
+
+    def __init__(self, world: CellWorld, watch: Watch) -> None:
+        self.world, self.watch = world, watch
+        self.map = OccupancyMap(
+            watch.zone.pose.matrix(),
+            (watch.zone.box.size[0], watch.zone.box.size[1], watch.zone.box.size[2]),
+            watch.voxel,
+            watch.occupancy.hit,
+            watch.occupancy.miss,
+        )
+        self.known = KnownScene(world)
+        #: a voxel centre this close to the robot's solids: the voxel is within the padding
+        self.pad_m = watch.padding + self.map.half_diagonal_m
+        static = self.known.static_solids()
+        self.map.mark_known(
+            lambda c: near_any(static, c, self.pad_m),
+            self.known.static_surfaces(watch.voxel / 2),
+            self.pad_m,
+        )
+        self.ranges: dict[str, tuple[float, float]] = {}
+        for name in watch.cameras:
+            depth = world.loaded.cell.cameras[name].depth
+            assert depth is not None  # the loader checked every watched camera has depth
+            self.ranges[name] = depth.range_m
+        self._lock = threading.Lock()
+        self._follow: tuple[int, np.ndarray, int, Placed | None] | None = None  # id, q, from, held
+        self._follow_id = 0
+        self._verdict: Verdict | None = None
+        self.updates: list[MapUpdate] = []
+        #: the part the arm carries (TCP frame), as the last motion followed said
+        self.held: Placed | None = None
+
+    # -- control thread ---------------------------------------------------------------
+    def follow(
+        self, q_rad: np.ndarray | None, from_index: int = 0, held: Placed | None = None
+    ) -> int:
+        """The motion under way from now (set-points ``q_rad``, the next one ``from_index``),
+        checked after every image; None: the arm stands. Returns its id for :meth:`verdict`."""
+        with self._lock:
+            self._follow_id += 1
+            self._follow = None if q_rad is None else (self._follow_id, q_rad, from_index, held)
+            if q_rad is not None:
+                self.held = held
+            return self._follow_id
+
+    def advance(self, from_index: int) -> None:
+        """The motion followed has reached set-point ``from_index``."""
+        with self._lock:
+            f = self._follow
+            if f is not None:
+                self._follow = (f[0], f[1], from_index, f[3])
+
+    def verdict(self) -> Verdict | None:
+        return self._verdict
+
+    def check(self, q_rad: np.ndarray, held: Placed | None = None) -> Blocked | None:
+        """Now, on the calling thread: where ``q_rad`` (N x 6) meets the map (None: clear)."""
+        with self._lock:
+            centres = self.map.occupied_centres()
+        return first_blocked(self.known, q_rad, centres, self.pad_m, held=held)
+
+    def obstacles(self) -> Placed | None:
+        """The occupied voxels grown by the padding, as one obstacle to plan around (a coal
+        octree); None when the map is empty."""
+        from cellrunner.model.geometry import Voxels
+
+        with self._lock:
+            centres = self.map.occupied_centres()
+        if not len(centres):
+            return None
+        return Placed(
+            "watched zone", Voxels(centres, self.map.voxel_m, self.watch.padding), np.eye(4)
+        )
+
+    # -- feed thread --------------------------------------------------------------------
+    def integrate(self, frame: DepthFrame, held: Placed | None = None) -> Verdict:
+        """Fold one image in (the robot's solids at the frame's joints explain theirs) and
+        check the motion followed against the map."""
+        q = frame.q_rad
+        held = held if held is not None else self.held
+        robot = self.known.robot_at(q, held) if q is not None else []
+        explain = (lambda c: near_any(robot, c, self.pad_m)) if robot else None
+        with self._lock:
+            update = self.map.integrate(frame, self.ranges[frame.camera], explain)
+            centres = self.map.occupied_centres()
+            follow = self._follow
+        self.updates.append(update)
+        if len(self.updates) > 1000:
+            del self.updates[:500]
+        blocked = None
+        follow_id = 0
+        if follow is not None:
+            follow_id, q_all, start, carried = follow
+            rest = first_blocked(self.known, q_all[start:], centres, self.pad_m, held=carried)
+            if rest is not None:
+                blocked = Blocked(rest.index + start, rest.voxel_m, rest.voxels)
+        verdict = Verdict(frame.time_s, follow_id, blocked, update.occupied)
+        return verdict
+
+    def publish(self, verdict: Verdict) -> None:
+        self._verdict = verdict
+
+    def clearance_m(self, q_rad: np.ndarray) -> tuple[float, str]:
+        """For the jog governor: how far (m, 0 when within the padding) the robot at
+        ``q_rad`` stays from the nearest occupied voxel beyond the padding, and where."""
+        with self._lock:
+            centres = self.map.occupied_centres()
+        if not len(centres):
+            return float("inf"), ""
+        blocked = first_blocked(self.known, np.asarray(q_rad, float)[None], centres, self.pad_m)
+        if blocked is not None:
+            x, y, z = blocked.voxel_m
+            return 0.0, f"occupied voxel at ({x:.2f}, {y:.2f}, {z:.2f}) m"
+        tcp = self.world.kinematics.p_world_tcp(np.asarray(q_rad, float))
+        d = np.linalg.norm(centres - tcp, axis=1)
+        k = int(np.argmin(d))
+        x, y, z = centres[k]
+        return float(d[k]) - self.pad_m, f"occupied voxel at ({x:.2f}, {y:.2f}, {z:.2f}) m"
+
+
+class TwinDepthFeed:
+    """Control-loop observer: the twin's depth cameras at their rates (module docstring)."""
+
+    def __init__(
+        self, zone: ZoneWatch, backend: Any, *, realtime: bool = False, seed: int = 0
+    ) -> None:
+        self.zone, self.backend, self.realtime, self.seed = zone, backend, realtime, seed
+        d = backend.description
+        self.cameras = {c.name: c for c in d.cameras}
+        self.rates = {name: rate for name, _, _, rate in d.depth if name in zone.ranges}
+        self.next_s = dict.fromkeys(self.rates, 0.0)
+        self.noise_m = d.depth_noise_m
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="depth")
+        self._imagers: dict[str, Any] = {}
+        self._pending: list[tuple[float, Verdict]] = []  # (visible from s, verdict)
+        self._running: Future[tuple[Verdict, float]] | None = None
+        self._running_at = 0.0
+        self.render_s: list[float] = []
+
+    def quiet_until_s(self, cell: Any) -> float:
+        times = [*self.next_s.values(), *(t for t, _ in self._pending)]
+        return min(times, default=float("inf"))
+
+    def __call__(self, cell: Any) -> None:
+        world = self.backend.world
+        if world is None:
+            return
+        now = world.time_s
+        if self._running is not None and (not self.realtime or self._running.done()):
+            verdict, wall_s = self._running.result()
+            self._pending.append((self._running_at + wall_s, verdict))
+            self._running = None
+        for item in list(self._pending):
+            if now >= item[0] - 1e-9:
+                self._pending.remove(item)
+                self.zone.publish(item[1])
+        if self._running is not None:
+            return
+        for name, due in self.next_s.items():
+            if now >= due - 1e-9:
+                self.next_s[name] = max(due + 1.0 / self.rates[name], now)
+                d = world.data
+                snapshot = (
+                    np.array(d.qpos),
+                    np.array(d.mocap_pos),
+                    np.array(d.mocap_quat),
+                )
+                self._running_at = now
+                self._running = self._pool.submit(self._work, name, snapshot, now, None)
+                if not self.realtime:
+                    self._running.result()  # off real time: simulated time waits for the image
+                return
+
+    def _work(
+        self, name: str, snapshot: tuple[np.ndarray, ...], time_s: float, held: Placed | None
+    ) -> tuple[Verdict, float]:
+        t0 = time.perf_counter()
+        imager = self._imagers.get(name)
+        if imager is None:
+            from cellrunner.sim.depth import DepthImager
+
+            world = self.backend.world
+            near, far = self.zone.ranges[name]
+            imager = self._imagers[name] = DepthImager(
+                world.model, self.cameras[name], (near, far), self.noise_m, seed=self.seed
+            )
+        frame = imager.frame(snapshot[0], snapshot[1], snapshot[2], time_s)
+        t1 = time.perf_counter()
+        verdict = self.zone.integrate(frame, held)
+        self.render_s.append(t1 - t0)
+        return verdict, time.perf_counter() - t0
+
+    def close(self) -> None:
+        self._pool.submit(self._close_imagers).result(timeout=10)
+        self._pool.shutdown(wait=True)
+
+    def _close_imagers(self) -> None:
+        for imager in self._imagers.values():
+            imager.close()
+        self._imagers.clear()

@@ -1,0 +1,107 @@
+"""Arguments of ``align`` (SPEC section 12, visual alignment): a camera looks at an ArUco
+marker on the part (or fixture) at the next step's target frame, and the arm corrects the
+TCP until the marker is where that frame says, within ``tolerance``.
+
+The correction is a pose in the target frame's axes (m, deg, XYZ fixed-axis), applied to
+the frame for the steps after the align that aim at it. ``max_correction`` bounds it on
+each axis (``[x, y, z]`` m, ``[r, p, y]`` deg, symmetric): ``check`` proves the task for
+the centre and every corner of that box, and a measured correction outside it fails the
+step (result 3).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Annotated, Any
+
+from pydantic import Field
+
+from cellrunner.model.base import Name, Pose, Strict
+from cellrunner.model.camera import Dictionary
+from cellrunner.model.step import StepKind
+from cellrunner.model.units import Angle, NonNegativeLength, PositiveLength
+
+if TYPE_CHECKING:
+    import numpy as np
+
+Vec3NonNeg = Annotated[list[NonNegativeLength], Field(min_length=3, max_length=3)]
+Rpy3 = Annotated[list[Annotated[Angle, Field(ge=0, le=45)]], Field(min_length=3, max_length=3)]
+
+
+class Marker(Strict):
+    """An ArUco marker (OpenCV's predefined dictionaries)."""
+
+    dictionary: Dictionary = "DICT_4X4_50"
+    """ArUco dictionary. Example: `DICT_4X4_50`"""
+    id: Annotated[int, Field(ge=0, le=999)]
+    """Marker id in its dictionary. Example: `7`"""
+    size: PositiveLength
+    """Edge of the black square, m. Example: `0.03`"""
+    pose: Pose = Field(default_factory=Pose)
+    """Where the marker sits in the target frame of the next step (its centre, Z out of the printed face), m and deg. Example: `{xyz: [0, 0, -0.02], rpy: [180, 0, 0]}`"""
+
+
+class Tolerance(Strict):
+    xyz: PositiveLength = 0.001
+    """Largest remaining position error, m. Example: `0.001`"""
+    rpy: Annotated[Angle, Field(gt=0)] = 0.5
+    """Largest remaining rotation error, deg. Example: `0.5`"""
+
+
+class MaxCorrection(Strict):
+    xyz: Vec3NonNeg = Field(default_factory=lambda: [0.01, 0.01, 0.0])
+    """Largest correction along the frame's x, y, z, m (either way). Example: `[0.015, 0.015, 0]`"""
+    rpy: Rpy3 = Field(default_factory=lambda: [0.0, 0.0, 5.0])
+    """Largest correction about the frame's x, y, z, deg (either way). Example: `[0, 0, 8]`"""
+
+
+class AlignArgs(Strict):
+    """``align: {camera, marker, tolerance, max_correction, attempts}``."""
+
+    camera: Name
+    """The camera that sees the marker (a `cameras:` entry; on the flange, or fixed). Example: `wrist`"""
+    marker: Marker
+    """The marker and where it sits in the target frame. Example: `{dictionary: DICT_4X4_50, id: 7, size: 0.03}`"""
+    tolerance: Tolerance = Field(default_factory=Tolerance)
+    """When the marker is where the step expects it. Example: `{xyz: 0.001, rpy: 0.5}`"""
+    max_correction: MaxCorrection = Field(default_factory=MaxCorrection)
+    """The box of corrections `check` proves; beyond it the step fails (3). Example: `{xyz: [0.015, 0.015, 0], rpy: [0, 0, 8]}`"""
+    attempts: Annotated[int, Field(ge=1, le=10)] = 3
+    """Looks at most (each look after the first follows a short verified move). Example: `3`"""
+
+    def box(self) -> tuple[list[float], list[float]]:
+        """The correction box as (min, max), six values each: m then deg."""
+        high = [*self.max_correction.xyz, *self.max_correction.rpy]
+        return [-v for v in high], high
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """A marker seen by a camera: the rays through its four corners (camera frame, 4 x 3,
+    z = 1; in the order of :func:`cellrunner.vision.marker.corner_points`) and its pose
+    from them (T_camera_marker, m; None when it could not be solved)."""
+
+    rays: np.ndarray
+    T_camera_marker: np.ndarray | None
+
+
+def target_frame(spec: Any) -> str | None:
+    """The frame a step aims at (None: a joint target, home, a relative move, no motion)."""
+    args = spec.args
+    if spec.kind in (StepKind.PICK, StepKind.PLACE):
+        return str(args.at)
+    if spec.kind in (StepKind.APPROACH, StepKind.DESCEND, StepKind.LINEAR, StepKind.INSERT):
+        return str(args.to)
+    if spec.kind == StepKind.MOVE and isinstance(args.to, str) and args.to != "home":
+        return args.to
+    return None
+
+
+def aligned_frame(specs: Sequence[Any], index: int) -> str | None:
+    """The frame the align at ``specs[index]`` corrects: the first later step's target."""
+    for spec in specs[index + 1 :]:
+        frame = target_frame(spec)
+        if frame is not None:
+            return frame
+    return None

@@ -1,0 +1,240 @@
+"""Cells written from SPEC.md alone by someone who did not write the engine (issue 24, item
+7), in tests/cells/spec_written/: a CB3 UR10 tending a CNC with two tools and a vise
+insert, a ceiling-mounted UR5e picking from a conveyor, a UR20 palletizing tall cartons
+onto two pallets in two layers, a UR3e driving a 4-hole screw pattern, and a CB3 UR3
+inserting a 20 mm peg into a 24 mm hole. Each has a part deliberately off its frame
+(``*_off_frame.yaml``) and a deliberately wrong place (a task that lets go over nothing,
+past an edge, or into a stale frame).
+
+What is asserted is what a line engineer reads in the SPEC: a correct job checks and
+rehearses to 0 with its part where the task put it; the twin never says 0 for a part
+that is not where the task put it (section 11, "Places that fail"); faults happen to the
+part really held; check refuses what the twin would stop; bad input is one located line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from cellrunner.cli.main import main
+
+pytest.importorskip("mujoco")
+
+HERE = Path(__file__).parent / "spec_written"
+
+
+def cell(name: str) -> str:
+    return str(HERE / "cells" / f"{name}.yaml")
+
+
+def task(name: str) -> str:
+    return str(HERE / "tasks" / f"{name}.yaml")
+
+
+def cli(*argv: str) -> tuple[int, dict]:
+    """One cellrunner command with --json, as a user runs it: its exit code and object
+    (a command refused before it printed one: its error lines as the object's errors)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main([*argv, "--json"])
+        except SystemExit as leave:
+            code = leave.code if isinstance(leave.code, int) else 2
+    if not out.getvalue().strip():
+        return code, {"ok": False, "errors": err.getvalue().splitlines()}
+    return code, json.loads(out.getvalue())
+
+
+def params(*pairs: str) -> list[str]:
+    return [arg for pair in pairs for arg in ("-p", pair)]
+
+
+def place_failed_mm(out: dict) -> float:
+    """The distance (mm) a 'place failed' result measured."""
+    found = re.search(r"is ([0-9.]+) mm", out["result_text"])
+    assert found, out["result_text"]
+    return float(found.group(1))
+
+
+# Correct jobs: (cell, task, params, where each moved part's middle must end, world m).
+CORRECT = {
+    "ceiling_ur5e_conveyor": (
+        "ceiling_conveyor_ur5e",
+        "conveyor_pick",
+        (),
+        {"box": (0.0, 0.45, 0.925)},
+    ),
+    "ur20_left_pallet_slot0": (
+        "two_pallet_ur20",
+        "pallet_left",
+        ("slot=0",),
+        {"carton": (-0.205, 1.155, 0.244)},
+    ),
+    "ur20_right_pallet_slot3": (
+        "two_pallet_ur20",
+        "pallet_right",
+        ("slot=3",),
+        {"carton": (0.205, -1.155, 0.244)},
+    ),
+    "ur3e_bracket_to_nest": ("screwing_ur3e", "bracket", (), {"bracket": (0.12, 0.25, 0.805)}),
+    "ur3_tight_peg_24mm_hole": ("peg_ur3", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
+    "ur3_tighter_peg_21mm_hole": ("peg_ur3_21mm", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
+    "ur10_cnc_two_tools_vise_insert": ("cnc_ur10", "cnc", (), {"blank": (0.40, -0.35, 0.93)}),
+    "ur10e_through_a_guard_window": (
+        "guard_window_ur10e",
+        "unload_press",
+        (),
+        {"block": (0.35, -0.35, 0.925)},
+    ),
+}
+
+
+@pytest.mark.parametrize("case", CORRECT.values(), ids=CORRECT.keys())
+def test_a_correct_job_checks_and_rehearses_to_0_with_its_part_where_the_task_put_it(case):
+    cell_name, task_name, pairs, ends = case
+    code, out = cli("check", cell(cell_name), task(task_name), *params(*pairs))
+    assert (code, out["ok"]) == (0, True), out["errors"]
+    code, out = cli("dry-run", cell(cell_name), task(task_name), *params(*pairs))
+    assert (code, out["result_code"]) == (0, 0), out["result_text"]
+    for part, xyz in ends.items():
+        assert math.dist(out["parts_end_m"][part], xyz) < 0.005, (part, out["parts_end_m"][part])
+
+
+# A part off its frame: (cell, task, params, the least offset the result must report, mm;
+# None where the result is a failed insert, which reports its depth).
+OFF_FRAME = {
+    "ur10_blank_12mm_into_vise": ("cnc_ur10_off_frame", "cnc", (), None),
+    "ur3_peg_8mm_off_hole": ("peg_ur3_off_frame", "peg", (), None),
+}
+
+
+@pytest.mark.parametrize("case", OFF_FRAME.values(), ids=OFF_FRAME.keys())
+def test_a_part_off_its_frame_is_never_0_but_a_failed_place_with_its_offset(case):
+    cell_name, task_name, pairs, least_mm = case
+    code, out = cli("dry-run", cell(cell_name), task(task_name), *params(*pairs))
+    assert (code, out.get("result_code")) == (1, 3), (out.get("result_text"), out["errors"])
+    if least_mm is not None:
+        assert out["result_text"].startswith("place failed"), out["result_text"]
+        assert place_failed_mm(out) >= least_mm, out["result_text"]
+
+
+# A wrong place on a correct cell: (cell, task, params).
+WRONG_PLACE = {
+    "ceiling_ur5e_past_the_outfeed_table": (
+        "ceiling_conveyor_ur5e",
+        "conveyor_pick_past_table",
+        (),
+    ),
+    "ur20_carton_mostly_off_the_pallet": ("two_pallet_ur20", "pallet_left_overhang", ("slot=2",)),
+    "ur3e_bracket_beside_the_bench": ("screwing_ur3e", "bracket_beside_bench", ()),
+    "ur10_part_past_the_table_edge": ("cnc_ur10", "cnc_past_edge", ()),
+    "ur10e_block_past_the_table_edge": ("guard_window_ur10e", "unload_press_past_table", ()),
+    "ur3_peg_into_a_stale_hole_frame": ("peg_ur3", "peg_as_taught", ()),
+}
+
+
+@pytest.mark.parametrize("case", WRONG_PLACE.values(), ids=WRONG_PLACE.keys())
+def test_a_wrong_place_is_never_0(case):
+    """Refused by check (dry-run checks first) or failed in the twin; never OK, and never
+    refused as bad input (the files are valid)."""
+    cell_name, task_name, pairs = case
+    code, out = cli("dry-run", cell(cell_name), task(task_name), *params(*pairs))
+    assert code == 1, (code, out["errors"])
+    assert isinstance(out["result_code"], int) and out["result_code"] != 0, out["result_text"]
+
+
+# Parts let go over nothing: (cell, task, the part, its middle at the target, world m).
+FALLEN = {
+    "ceiling_ur5e_box": (
+        "ceiling_conveyor_ur5e",
+        "conveyor_pick_past_table",
+        "box",
+        (0.0, 0.66, 0.925),
+    ),
+    "ur3e_bracket": ("screwing_ur3e", "bracket_beside_bench", "bracket", (0.12, 0.43, 0.808)),
+    "ur10_blank": ("cnc_ur10", "cnc_past_edge", "blank", (0.40, -0.63, 0.93)),
+}
+
+
+@pytest.mark.parametrize("case", FALLEN.values(), ids=FALLEN.keys())
+def test_a_failed_place_reports_the_offset_where_the_part_comes_to_rest(case):
+    """Each falls 0.8-0.9 m to the floor: the offset in the result is the one at rest."""
+    cell_name, task_name, part, target = case
+    code, out = cli("dry-run", cell(cell_name), task(task_name))
+    assert (code, out["result_code"]) == (1, 3), out["result_text"]
+    at_rest_mm = 1000 * math.dist(out["parts_end_m"][part], target)
+    assert at_rest_mm > 750
+    assert place_failed_mm(out) == pytest.approx(at_rest_mm, abs=10), (
+        out["result_text"],
+        out["parts_end_m"],
+    )
+
+
+def test_check_refuses_jaws_that_open_narrower_than_the_part():
+    """Jaws with a 40 mm stroke cannot straddle a 50 mm box; the same cell with 85 mm
+    passes (test above)."""
+    code, out = cli("check", cell("ceiling_conveyor_ur5e_narrow_jaws"), task("conveyor_pick"))
+    assert (code, out["ok"]) == (1, False), out["errors"]
+    assert any("box" in error for error in out["errors"]), out["errors"]
+
+
+CELL_OF = {"pallet": "two_pallet_ur20", "conveyor": "ceiling_conveyor_ur5e", "peg": "peg_ur3"}
+
+# Bad input: (file to spoil, text replaced, replacement, what the message must name).
+BAD = {
+    "unknown_frame": (
+        "tasks/conveyor_pick.yaml",
+        "  - place: {at: outfeed,",
+        "  - place: {at: outfed,",
+        "outfed",
+    ),
+    "unknown_contact_fixture": (
+        "tasks/peg.yaml",
+        "contact: [wall_xm, wall_xp,",
+        "contact: [wall_xm, wal_xp,",
+        "wal_xp",
+    ),
+    "angle_over_360": (
+        "cells/peg_ur3.yaml",
+        "hole: {xyz: [0.30, 0.15, 0.89], rpy: [180, 0, 0]}",
+        "hole: {xyz: [0.30, 0.15, 0.89], rpy: [180, 0, 400]}",
+        "400",
+    ),
+    "pattern_index_unknown": ("tasks/pallet_left.yaml", "index: slot}", "index: slto}", "slto"),
+}
+
+
+@pytest.mark.parametrize("case", BAD.values(), ids=BAD.keys())
+def test_bad_input_is_one_located_line_and_exit_2(tmp_path, case):
+    spoiled, old, new, named = case
+    for sub in ("cells", "tasks"):
+        (tmp_path / sub).mkdir()
+        for path in (HERE / sub).glob("*.yaml"):
+            (tmp_path / sub / path.name).write_text(path.read_text())
+    text = (tmp_path / spoiled).read_text()
+    assert old in text
+    (tmp_path / spoiled).write_text(text.replace(old, new, 1))
+    cell_file = next(f"cells/{name}.yaml" for key, name in CELL_OF.items() if key in spoiled)
+    task_file = spoiled if spoiled.startswith("tasks/") else "tasks/peg.yaml"
+    done = subprocess.run(
+        [str(Path(sys.executable).with_name("cellrunner")), "check", cell_file, task_file],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2, (done.returncode, done.stderr)
+    assert "Traceback" not in done.stderr
+    lines = [line for line in done.stderr.splitlines() if ": error: " in line]
+    assert len(lines) == 1, done.stderr
+    assert re.match(rf"^{re.escape(spoiled)}:\d+:\d+: error: ", lines[0]), lines[0]
+    assert named in lines[0], lines[0]
