@@ -15,7 +15,7 @@ from pyModbusTCP.client import ModbusClient
 
 from tests.execution.test_dryrun import CELL as DRYRUN_CELL
 from tests.execution.test_dryrun import TASK
-from tests.twin.cell_rig import (
+from tests.rig import (
     add_opcua_user,
     client_result,
     free_port,

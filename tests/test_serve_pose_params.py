@@ -17,8 +17,8 @@ from pyModbusTCP.client import ModbusClient
 
 from cellrunner.plc.param_registers import decode_params, encode_pose, from_int16
 from tests.conftest import ROOT
+from tests.rig import add_opcua_user, free_port, opcua_job, trusted_plc_certificate
 from tests.test_serve import DONE, ERROR, JOB_REQ, READY, REJECTED, start
-from tests.twin.cell_rig import add_opcua_user, free_port, opcua_job, trusted_plc_certificate
 
 HOST = "127.0.0.122"
 SEEN = {"xyz": [0.03, -0.02, 0.0], "rpy": [0.0, 0.0, 20.0]}  # where the twin's part lies

@@ -53,11 +53,12 @@ def run(args: argparse.Namespace) -> int:
     params = parse_params(args.param, task)
     steps = expanded(cell, task, params)
     injections = parse_injections(args.inject, steps)
-    if args.report or cell.cell.watch is not None:
+    if args.report or cell.cell.watch is not None or any(s.kind == StepKind.ALIGN for s in steps):
         from cellrunner.sim.mujoco_loader import enable_pictures
 
-        # before MuJoCo is imported: it reads its GL backend once (a watched cell's depth
-        # cameras cast rays instead where there is none)
+        # pictures (the report, an align step's camera) or depth (a watched cell, which
+        # casts rays instead where there is no GL): choose the GL backend before MuJoCo
+        # is imported, it reads it once
         enable_pictures()
     backend: SimBackend
     pending: list[tuple[Injection, float]] = []

@@ -131,7 +131,7 @@ def test_spec_example_passes_check(tmp_path):
 def test_ur20_palletizer_through_ur_rtde():
     """`cellrunner run --backend ur` against `cellrunner twin` of the UR20 cell: the
     unmodified ur_rtde client streams the approved plan at 500 Hz to the virtual UR20."""
-    from tests.twin.cell_rig import run_ur, twin
+    from tests.rig import run_ur, twin
 
     cell, task, param, _, _ = CELLS["ur20"]
     host = "127.0.0.199"

@@ -18,7 +18,7 @@ import numpy as np
 
 from tests.commissioning.conftest import CELL, fault, twin, write_project
 from tests.conftest import ROOT
-from tests.twin.cell_rig import CLI, ENV, free_port
+from tests.rig import CLI, ENV, free_port
 
 HOST = "127.0.0.157"
 #: a table 0.18 m under the TCP at home (the mount turns the base: base -X, -Y is world +X, +Y)

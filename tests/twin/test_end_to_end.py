@@ -14,7 +14,7 @@ import pytest
 
 from tests.conftest import ROOT
 from tests.execution.test_dryrun import project  # noqa: F401 (fixture)
-from tests.twin.cell_rig import TOUR, fault_once_moving
+from tests.rig import TOUR, fault_once_moving
 
 HOST = "127.0.0.23"
 
