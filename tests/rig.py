@@ -115,7 +115,7 @@ def free_port(host: str = "127.0.0.1") -> int:
         return int(s.getsockname()[1])
 
 
-def cli(*args: str, timeout_s: float = 300, **kw: Any) -> subprocess.CompletedProcess[str]:
+def cli(*args: str, timeout_s: float = 600, **kw: Any) -> subprocess.CompletedProcess[str]:
     """``cellrunner ARGS`` run to the end in a child process (from the repository root
     unless ``cwd=`` says otherwise; ``kw`` to :func:`subprocess.run`)."""
     kw.setdefault("env", ENV)
@@ -153,6 +153,11 @@ def main_json(*args: str) -> tuple[int, dict[str, Any]]:
         code = main([*args, "--json"])
     assert "Traceback" not in err.getvalue(), err.getvalue()[-3000:]
     return code, json.loads(out.getvalue())
+
+
+def json_of(*args: str) -> dict[str, Any]:
+    """The JSON object of ``cellrunner ARGS --json`` run in this process (:func:`main_json`)."""
+    return main_json(*args)[1]
 
 
 def write_cell(

@@ -15,8 +15,6 @@ from cellrunner.model.robots import robot_spec
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory, approve
 from tests.twin.twin_process import TwinProcess, fresh_host, wait_until
 
-pytest.importorskip("rtde_control")
-
 UR5E = robot_spec("ur5e")
 Q_START = np.array([0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0])
 

@@ -12,8 +12,6 @@ from cellrunner.model.robot_state import Safety
 from cellrunner.model.trajectory import ApprovedTrajectory, approve
 from cellrunner.sim import demo
 
-pytest.importorskip("mujoco")
-
 GRAVITY = 9.81
 
 

@@ -12,8 +12,6 @@ from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.sim import demo
 from cellrunner.sim.safety import UNLOCK_DELAY_S
 
-pytest.importorskip("mujoco")
-
 
 def _no_fault_fields(state: RobotState) -> None:
     names = {f.name for f in dataclasses.fields(state)}

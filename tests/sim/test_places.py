@@ -11,8 +11,6 @@ from cellrunner.model.robot_state import Safety
 from cellrunner.sim import demo
 from cellrunner.sim.places import PLACE_DROP_M
 
-pytest.importorskip("mujoco")
-
 TABLE_SPOT = np.array((0.30, 0.15, demo.CUBE_XYZ_M[2]))  # free table, where the cube may go
 
 

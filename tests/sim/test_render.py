@@ -16,7 +16,6 @@ from cellrunner.sim.render import (
     default_view,
 )
 
-pytest.importorskip("mujoco")
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 

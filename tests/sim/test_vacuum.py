@@ -14,8 +14,6 @@ from cellrunner.model.expand import frame_pose
 from cellrunner.model.load import load_cell
 from tests.conftest import ROOT
 
-pytest.importorskip("mujoco")
-
 CELL = ROOT / "cells" / "palletizer_ur10e.yaml"
 VACUUM_ON, BLOW_OFF, VACUUM_OK = "DO0", "DO1", "DI0"
 
