@@ -66,6 +66,7 @@ def test_the_full_pose_path_uses_the_solved_pose():
 
 def test_the_printed_marker_is_found_where_it_was_drawn():
     import cv2
+
     from cellrunner.vision.marker import find_corners, picture
 
     sheet = picture(MARKER)
