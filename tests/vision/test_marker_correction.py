@@ -5,7 +5,6 @@ in the plane (x, y, yaw) and in full (IPPE); and the printed marker is found in 
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
