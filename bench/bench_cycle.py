@@ -20,7 +20,16 @@ acceleration and TCP cap, x margin, as cellrunner plans with them):
   cellrunner stops; what no sampling or safety headroom can beat on that path.
 
 Grip, release, IO and waits take the same time in all four (cellrunner's figures).
-Targets: cellrunner <= 0.95x blended, <= 0.85x stopping, <= 1.02x the bound.
+
+With ``--optimal [--budget S]`` a fifth: the **optimal reference**
+(``bench/optimal_reference.py``): every joint move's path replaced by the shortest one
+OMPL's BIT* (path-length objective, same collision model and clearance, every edge
+proven) finds in S seconds (default 10), corners rounded alike, both timed by the same
+TOPP-RA. Its results are cached in ``var/bench-optimal.json`` (a run can be stopped and
+resumed); on a loaded machine run it in the background, under ``nice``.
+
+Targets (issue 27): cellrunner <= 0.92x blended, <= 0.85x stopping, <= 1.02x the bound,
+<= 1.03x the optimal reference, on every cell.
 
 The table and the targets are each task at its default parameters. ``--all-slots`` adds,
 per task with an integer parameter (a pattern's slot, a kit's pocket), the range of each
@@ -48,7 +57,7 @@ for _p in (REPO, REPO / "bench"):
 import cycle_breakdown  # noqa: E402
 import polyscope  # noqa: E402
 
-TARGET_BLENDED, TARGET_STOPPING, TARGET_BOUND = 0.95, 0.85, 1.02
+TARGET_BLENDED, TARGET_STOPPING, TARGET_BOUND, TARGET_OPTIMAL = 0.92, 0.85, 1.02, 1.03
 
 
 def jobs(cell_arg: str | None = None, task_arg: str | None = None) -> list[tuple[str, str]]:
@@ -168,21 +177,24 @@ def _limits_of(world, row):
 
 
 def run(
-    cell_path: str, task_path: str, verbose: bool = True, param_args: tuple[str, ...] = ()
+    cell_path: str,
+    task_path: str,
+    verbose: bool = True,
+    param_args: tuple[str, ...] = (),
+    optimal_budget_s: float | None = None,
 ) -> dict:
     from cellrunner.cli.common import load, parse_params
-    from cellrunner.model.expand import expand
-    from cellrunner.planning.task_plan import plan_task
+    from cellrunner.planning.job_plan import plan_job
     from cellrunner.planning.world import CellWorld
 
     with contextlib.redirect_stderr(io.StringIO()):  # load warnings (e.g. users file)
         cell, task = load(str(REPO / cell_path), str(REPO / task_path))
     params = parse_params(list(param_args), task)
     world = CellWorld(cell)
-    steps = expand(task, cell.cell, params)
     t = time.perf_counter()
-    plan = plan_task(world, steps, world.q_home_rad)
+    job = plan_job(world, task, params, world.q_home_rad, use_cache=False)
     plan_s = time.perf_counter() - t
+    plan, steps = job.task_plan, list(job.steps)
     if not plan.ok:
         raise SystemExit(f"{cell_path} {task_path}: the task is infeasible: {plan.errors}")
     taught = taught_waypoints(world, steps, world.q_home_rad)
@@ -194,6 +206,17 @@ def run(
     stopping += sum(fixed)
     bound = optimal_bound_s(world, plan)
     ours = plan.cycle_time_s
+    optimal = None
+    if optimal_budget_s is not None:
+        import optimal_reference
+
+        if verbose:
+            print(
+                f"  {cell_path} {Path(task_path).name}: optimal reference (BIT*, {optimal_budget_s:g} s a move)"
+            )
+        optimal = optimal_reference.reference(
+            world, plan, f"{cell.digest}|{task.source.digest}|{params}", optimal_budget_s, verbose
+        )
     if verbose:
         print(f"  {cell_path} {Path(task_path).name} {params}: PolyScope program")
         ends = [0.0] if moves else []  # no blend after the last move
@@ -217,6 +240,7 @@ def run(
         "ratio_blended": ours / blended if moves else 1.0,
         "ratio_stopping": ours / stopping if moves else 1.0,
         "ratio_bound": ours / bound if bound > 0 else 1.0,
+        "optimal": optimal,
         "breakdown": (
             cycle_breakdown.breakdown(world, plan, taught, (moves, labels, saved, fixed))
             if moves
@@ -225,7 +249,12 @@ def run(
     }
 
 
-def run_all(cell: str | None = None, task: str | None = None, verbose: bool = True) -> list[dict]:
+def run_all(
+    cell: str | None = None,
+    task: str | None = None,
+    verbose: bool = True,
+    optimal_budget_s: float | None = None,
+) -> list[dict]:
     """Every job; one that cannot be timed (a param without default, infeasible) is
     listed with the reason instead of stopping the others."""
     from cellrunner.errors import CellrunnerError
@@ -233,7 +262,7 @@ def run_all(cell: str | None = None, task: str | None = None, verbose: bool = Tr
     results = []
     for c, t in jobs(cell, task):
         try:
-            results.append(run(c, t, verbose))
+            results.append(run(c, t, verbose, optimal_budget_s=optimal_budget_s))
         except (CellrunnerError, SystemExit) as exc:
             results.append(
                 {"cell": c, "task": t, "skipped": str(exc) or type(exc).__name__, "motion": False}
@@ -246,7 +275,8 @@ def summary_lines(results: list[dict]) -> list[str]:
         f"cycle time, same limits (targets: <= {TARGET_BLENDED}x blended, <= {TARGET_STOPPING}x stopping, "
         f"<= {TARGET_BOUND}x bound)",
         f"  {'cell / task':44s} {'cellrunner':>10s} {'PS blend':>9s} {'ratio':>6s} {'PS stop':>8s} {'ratio':>6s} "
-        f"{'bound':>7s} {'ratio':>6s}",
+        f"{'bound':>7s} {'ratio':>6s}"
+        + (f" {'opt ref':>8s} {'ratio':>6s}" if any(r.get("optimal") for r in results) else ""),
     ]
     for r in results:
         name = f"{Path(r['cell']).stem} / {Path(r['task']).stem}"
@@ -256,10 +286,31 @@ def summary_lines(results: list[dict]) -> list[str]:
         if not r["motion"]:
             lines.append(f"  {name:44s} {r['ours_s']:9.2f}s   (no motion)")
             continue
+        opt = r.get("optimal")
         lines.append(
             f"  {name:44s} {r['ours_s']:9.2f}s {r['blended_s']:8.2f}s {r['ratio_blended']:5.2f}x "
             f"{r['stopping_s']:7.2f}s {r['ratio_stopping']:5.2f}x {r['bound_s']:6.2f}s {r['ratio_bound']:5.3f}x"
+            + (f" {opt['reference_s']:7.2f}s {opt['ratio']:5.3f}x" if opt else "")
         )
+    optimal = [r for r in results if r.get("optimal")]
+    if optimal:
+        worst = max(optimal, key=lambda r: r["optimal"]["ratio"])
+        lines.append(
+            f"  worst vs the optimal reference: {Path(worst['cell']).stem} "
+            f"{worst['optimal']['ratio']:.3f}x (target <= {TARGET_OPTIMAL}x)"
+        )
+        for r in optimal:
+            if r["optimal"]["ratio"] > TARGET_OPTIMAL:
+                lines.append(
+                    f"  why {Path(r['cell']).stem} is {r['optimal']['ratio']:.3f}x the optimal reference:"
+                )
+                for m in r["optimal"]["moves"]:
+                    if m["opt_s"] is not None and m["opt_s"] < m["ours_s"] - 1e-3:
+                        lines.append(
+                            f"    {m['step'][:44]:44s} ours {m['ours_length']:.3f} rad {m['ours_s']:.3f} s, "
+                            f"BIT* {m['opt_length']:.3f} rad {m['opt_s']:.3f} s "
+                            f"(+{m['ours_s'] - m['opt_s']:.3f} s)"
+                        )
     missed = [r for r in results if r["motion"] and _missed(r)]
     if missed:
         lines.append("why, where a target is missed:")
@@ -294,6 +345,16 @@ def targets(results: list[dict]) -> list[tuple[str, bool]]:
         (
             f"cycle <= {TARGET_BOUND}x time-optimal bound",
             all(r["ratio_bound"] <= TARGET_BOUND for r in moving),
+        ),
+        *(
+            [
+                (
+                    f"cycle <= {TARGET_OPTIMAL}x the optimal reference",
+                    all(r["optimal"]["ratio"] <= TARGET_OPTIMAL for r in moving),
+                )
+            ]
+            if any(r.get("optimal") for r in moving)
+            else []
         ),
     ]
 
@@ -350,8 +411,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--all-slots", action="store_true", help="also every value of each task's integer param"
     )
+    parser.add_argument(
+        "--optimal", action="store_true", help="also the optimal reference (BIT*, cached)"
+    )
+    parser.add_argument("--budget", type=float, default=10.0, help="BIT* seconds per move")
     args = parser.parse_args(argv)
-    results = run_all(args.cell, args.task)
+    results = run_all(args.cell, args.task, optimal_budget_s=args.budget if args.optimal else None)
     print()
     print("\n".join(summary_lines(results)))
     if args.all_slots:

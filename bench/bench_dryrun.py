@@ -232,10 +232,10 @@ def raw_mj_step(cell, state: np.ndarray, inputs: np.ndarray) -> tuple[float, flo
 
 def raw_stream(cell, task, params) -> tuple[float, float]:
     """The peer: the same trajectories streamed with no engine at all: (simulated s, CPU s)."""
-    from cellrunner.planning.cache import plan_cached
+    from cellrunner.planning.job_plan import plan_job
 
     world = CellWorld(cell)
-    plan = plan_cached(world, task, params, world.q_home_rad)
+    plan = plan_job(world, task, params, world.q_home_rad).task_plan
     backend = SimBackend(description_of(cell))
     backend.connect()
     trajectories = [plan.nominal(s) for s in plan.steps if s.is_motion]

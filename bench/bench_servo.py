@@ -11,7 +11,16 @@ unmodified ur_rtde RTDEControl/RTDEReceive clients and measures:
 - command-to-motion latency: from sending a servoJ step to the receive side seeing the
   arm move (> 1e-5 rad), repeated from standstill.
 
-Usage: ``PYTHONPATH=. python bench/bench_servo.py [--model ur5e] [--seconds 5]``.
+Then the jog's servo chain (``bench/servo_udp.py``) in the same run: ``cellrunner twin`` of
+cells/align_pick_ur10e.yaml with ``cellrunner jog --input udp:PORT`` streaming from a raw
+socket: UDP datagram to the first changed set-point and to measured motion (p50/p99,
+target <= 10 ms at 500 Hz; the peer is the servoJ command-to-motion latency above),
+deviation from a commanded straight line at 0.1 m/s (target <= 0.5 mm), the stop after the
+last datagram; and ``align`` over random part offsets within its max_correction box
+(correction error, looks, success: target >= 98 % placed within tolerance).
+
+Usage: ``PYTHONPATH=. python bench/bench_servo.py [--model ur5e] [--seconds 5]
+[--udp-probes 30] [--align-runs 50]``.
 """
 
 from __future__ import annotations
@@ -120,13 +129,16 @@ def bench(host: str, seconds: float, rate_hz: float) -> dict[str, list[float] | 
         receive.disconnect()
 
 
-def main() -> int:
+def main() -> bool:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--model", default="ur5e")
     parser.add_argument("--host", default="127.0.9.2")
     parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--udp-probes", type=int, default=30)
+    parser.add_argument("--align-runs", type=int, default=50)
+    parser.add_argument("--udp-host", default="127.0.9.3")
     args = parser.parse_args()
     twin = start_twin(args.model, args.host)
     try:
@@ -181,8 +193,61 @@ def main() -> int:
         print(f"{name:<28}{p50:>10.3f}{p99:>10.3f}{mx:>10.3f}")
     target_ok = pct(r["client_jitter"], 99) < 1e-3
     print(f"\nclient p99 jitter < 1 ms: {'yes' if target_ok else 'NO'}")
-    return 0
+    return servo_and_align(args, r["latencies"]) and target_ok
+
+
+def servo_and_align(args: argparse.Namespace, servoj_latencies: list[float]) -> bool:
+    """The jog's UDP servo and the align step; True when every target is met."""
+    from bench.servo_udp import align_figures, servo_figures
+
+    u = servo_figures(args.udp_host, args.udp_probes)
+    ms = 1e3
+    peer = pct(servoj_latencies, 50)
+    print(
+        f"\njog --input udp against cellrunner twin (UR10e, 500 Hz), {len(u['to_setpoint'])} "
+        f"probes, load average {os.getloadavg()[0]:.2f}"
+    )
+    print(f"{'metric':<40}{'p50':>10}{'p99':>10}{'max':>10}")
+    for name, values in (
+        ("datagram -> first set-point (ms)", u["to_setpoint"]),
+        ("datagram -> measured motion (ms)", u["to_motion"]),
+    ):
+        print(
+            f"{name:<40}{pct(values, 50) * ms:>10.2f}{pct(values, 99) * ms:>10.2f}{max(values) * ms:>10.2f}"
+        )
+    print(
+        f"ratio datagram->motion p50 / servoJ->motion p50 (the peer, above): "
+        f"{pct(u['to_motion'], 50) / peer:.2f}x"
+    )
+    print(
+        f"straight line at 0.1 m/s: largest distance {u['line_max_mm']:.3f} mm, "
+        f"p99 {u['line_p99_mm']:.3f} mm (travel {u['travel_mm']:.1f} mm)"
+    )
+    print(f"stop after the last datagram: {u['stop_mm']:.1f} mm in {u['stop_s']:.3f} s")
+    a = align_figures(args.align_runs)
+    placed = sum(1 for c in a["codes"] if c == 0)
+    print(
+        f"\nalign over {len(a['codes'])} random offsets (x, y within 15 mm, yaw within 8 deg), "
+        f"dry-run of tasks/align_pick.yaml"
+    )
+    print(
+        f"correction error: median {np.median(a['errors_mm']):.2f} mm, max "
+        f"{max(a['errors_mm']):.2f} mm; yaw median {np.median(a['errors_deg']):.2f} deg, max "
+        f"{max(a['errors_deg']):.2f} deg; looks median {np.median(a['looks']):.0f}, max "
+        f"{max(a['looks'])}; placed within tolerance {placed}/{len(a['codes'])} "
+        f"({placed / len(a['codes']) * 100:.0f} %); results {sorted(set(a['codes']))}"
+    )
+    for failure in a["failures"]:
+        print(f"  not placed: {failure}")
+    ok = (
+        pct(u["to_setpoint"], 99) <= 0.010
+        and pct(u["to_motion"], 99) <= 0.010
+        and u["line_max_mm"] <= 0.5
+        and placed / len(a["codes"]) >= 0.98
+    )
+    print(f"\nservo and align targets met: {'yes' if ok else 'NO'}")
+    return ok
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(0 if main() else 1)

@@ -97,9 +97,27 @@ class InfeasibleError(CellrunnerError):
 
     exit_code = 1
 
-    def __init__(self, message: str, blockers: tuple[str, ...] = ()) -> None:
+    def __init__(
+        self,
+        message: str,
+        blockers: tuple[str, ...] = (),
+        *,
+        step_index: int | None = None,
+        reason: str | None = None,
+    ) -> None:
         super().__init__(message)
         self.blockers = tuple(blockers)
+        #: the step it is about (1-based), when the raiser knows it; ``reason``: the
+        #: message without the step's name in front
+        self.step_index = step_index
+        self.reason = message if reason is None else reason
+
+    def at_step(self, index: int, label: str) -> InfeasibleError:
+        """This error about step ``index`` (``label``), if it names no step yet."""
+        if self.step_index is not None:
+            return self
+        reason = self.reason.removeprefix(f"{label}: ")
+        return InfeasibleError(str(self), self.blockers, step_index=index, reason=reason)
 
 
 class JobFailed(CellrunnerError):

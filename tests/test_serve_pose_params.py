@@ -41,7 +41,7 @@ def test_pose_registers_round_trip_and_the_window_layout():
     got = decode_params(layout, [*words, 150, from_int16(-3), *[0] * 8])
     assert got == {
         "part_pose": {"xyz": [0.03, -0.02, 0.0], "rpy": [0.0, 0.0, 20.0]},
-        "settle": "150 ms",
+        "settle": 0.15,  # an SI number (s), from register to step
         "n": -3,
     }
     with pytest.raises(ValueError, match="pose value 40000 counts does not fit an int16 register"):

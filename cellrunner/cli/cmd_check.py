@@ -13,18 +13,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cellrunner.cli.common import console, emit_json, expanded, load, parse_params, step_table
-from cellrunner.model.expand import ALIGN_KEY, box_params, float_params, pattern_params
+from cellrunner.cli.common import console, emit_json, load, parse_params, step_table
+from cellrunner.model.expand import ALIGN_KEY, pattern_params
 from cellrunner.model.robots import JOINT_NAMES
 
 if TYPE_CHECKING:
     from rich.console import Console
     from rich.progress import Progress, TaskID
 
-    from cellrunner.model.load import LoadedTask
-    from cellrunner.model.params import ParamValue
     from cellrunner.model.step import Step
-    from cellrunner.planning.task_plan import TaskPlan
+    from cellrunner.planning.job_plan import JobPlan
     from cellrunner.planning.world import CellWorld
 
 
@@ -32,34 +30,22 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     cell, task = load(args.cell, args.task)
     params = parse_params(args.param, task)
-    from cellrunner.planning.cache import plan_cached
+    from cellrunner.execution.slot_sweep import other_values, sweep
     from cellrunner.planning.world import CellWorld
 
     world = CellWorld(cell)
+    watched = getattr(args, "watch", None)
+    if watched:
+        world = world.with_obstacles(*_snapshot_obstacles(watched, cell))
     out = None if args.json else console()  # --json is for programs: no progress bar, no rich
-    use_cache = not args.no_cache
-    # every slot of every pattern, every corner (and the centre) of every pose param's box,
-    # the ends (and the centre) of every float param's range
-    checked_params = {**pattern_params(task), **box_params(task), **float_params(task)}
-    others = [
-        {**params, name: slot}
-        for name, slots in checked_params.items()
-        for slot in slots
-        if slot != params.get(name)
-    ]
-    n_steps = len(expanded(cell, task, params))
-    with _progress(out, 1 + len(others), n_steps) as progress:
-        plan = plan_cached(
-            world,
-            task,
-            params,
-            world.q_home_rad,
-            use_cache=use_cache,
-            on_step=progress.plan(f"{task.name} {_params_text(params)}"),
+    with _progress(out, 1 + len(other_values(task, params))) as progress:
+        swept = sweep(
+            world, task, params, use_cache=not (args.no_cache or watched), progress=progress
         )
-        failures = _check_other_slots(world, task, params, others, use_cache, progress)
+    plan = swept.plan
+    failures = [(f.param, f.value, f.error) for f in swept.failures]
     errors = list(plan.errors) + [f"{name}={_shown(slot)}: {e}" for name, slot, e in failures]
-    slots_checked = {name: list(slots) for name, slots in checked_params.items()}
+    slots_checked = swept.checked
     pattern = next(iter(pattern_params(task)), None)
     requested = [(pattern, params[pattern], e) for e in plan.errors] if pattern is not None else []
     grouped = group_slot_failures(
@@ -81,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
             "message": r.message,
             "attempts": 0,
         }
-        for r in [*plan.rows, *plan.on_error]  # on_error's rows: verified from every state
+        for r in plan.rows  # on_error's rows last: verified from every state
     ]
     if args.save_plan and not errors:
         _save_plan(Path(args.save_plan), world, plan)
@@ -181,12 +167,18 @@ class _Counter:
     or plans finished elsewhere (``skip(n)``, e.g. in a forked child)."""
 
     def __init__(
-        self,
-        progress: tuple[Progress, tuple[TaskID, TaskID]] | None = None,
-        steps_per_plan: int = 0,
+        self, progress: tuple[Progress, tuple[TaskID, TaskID]] | None = None, n_plans: int = 0
     ) -> None:
-        self._progress, self._steps_per_plan = progress, steps_per_plan
+        self._progress, self._n_plans = progress, n_plans
+        self._steps_per_plan = 0  # known once the first plan has expanded its steps
         self._started = 0
+
+    def sized(self, steps_per_plan: int) -> None:
+        """Each plan has ``steps_per_plan`` steps (told after the first is planned)."""
+        self._steps_per_plan = steps_per_plan
+        if self._progress is not None:
+            progress, (_, steps) = self._progress
+            progress.update(steps, total=self._n_plans * steps_per_plan)
 
     def plan(self, label: str) -> Callable[[Step], None] | None:
         if self._progress is None:
@@ -217,7 +209,7 @@ class _Counter:
 
 
 @contextmanager
-def _progress(out: Console | None, n_plans: int, steps_per_plan: int) -> Iterator[_Counter]:
+def _progress(out: Console | None, n_plans: int) -> Iterator[_Counter]:
     """A progress bar over the plans (slots) and their steps on ``out`` (none when None);
     yields a :class:`_Counter`."""
     if out is None:
@@ -236,11 +228,12 @@ def _progress(out: Console | None, n_plans: int, steps_per_plan: int) -> Iterato
     ) as progress:
         tasks = (
             progress.add_task("slots", total=n_plans, detail=""),
-            progress.add_task("steps", total=n_plans * steps_per_plan, detail=""),
+            progress.add_task("steps", total=None, detail=""),
         )
-        yield _Counter((progress, tasks), steps_per_plan)
+        counter = _Counter((progress, tasks), n_plans)
+        yield counter
         progress.update(tasks[0], completed=n_plans)
-        progress.update(tasks[1], completed=n_plans * steps_per_plan)
+        progress.update(tasks[1], completed=n_plans * counter._steps_per_plan)
 
 
 def group_slot_failures(failures: list[tuple[str, int, str]]) -> list[tuple[str, list[int], str]]:
@@ -274,127 +267,17 @@ def slot_range_text(name: str, slots: list[int]) -> str:
     return f"{'slots' if name == 'slot' else name} {text}"
 
 
-def _check_other_slots(
-    world: CellWorld,
-    task: LoadedTask,
-    params: dict[str, ParamValue],
-    others: list[dict[str, ParamValue]],
-    use_cache: bool,
-    progress: _Counter,
-) -> list[tuple[str, ParamValue, str]]:
-    """Every other slot of every pattern (``others``: their params); the slots to plan
-    afresh are shared with a forked child when a second core is free (:func:`_plan_split`).
-    Returns (param, slot, error) for each error found."""
-    from cellrunner.planning.cache import cache_dir, plan_key
-
-    cached = [
-        p
-        for p in others
-        if use_cache
-        and (cache_dir(world) / f"{plan_key(world, task, p, world.q_home_rad)}.npz").is_file()
-    ]
-    fresh = [p for p in others if p not in cached]
-    found_all = [
-        *_plan_split(world, task, fresh, use_cache, progress),
-        *_slot_errors(world, task, cached, use_cache, progress),
-    ]
-    return [
-        (k, given[k], e)
-        for given, found in found_all
-        for k in given
-        if given[k] != params.get(k)
-        for e in found
-    ]
-
-
-def _slot_errors(
-    world: CellWorld,
-    task: LoadedTask,
-    slots: list[dict[str, ParamValue]],
-    use_cache: bool,
-    progress: _Counter | None = None,
-) -> list[tuple[dict[str, ParamValue], list[str]]]:
-    from cellrunner.planning.cache import plan_cached
-
-    progress = progress or _Counter()
-    return [
-        (
-            p,
-            plan_cached(
-                world,
-                task,
-                p,
-                world.q_home_rad,
-                use_cache=use_cache,
-                on_step=progress.plan(_params_text(p)),
-            ).errors,
-        )
-        for p in slots
-    ]
-
-
-def _plan_split(
-    world: CellWorld,
-    task: LoadedTask,
-    slots: list[dict[str, ParamValue]],
-    use_cache: bool,
-    progress: _Counter,
-) -> list[tuple[dict[str, ParamValue], list[str]]]:
-    """``_slot_errors`` of every slot, half of them in a forked child process when this
-    process may run on more than one core (planning is single-threaded Python). The
-    child inherits the loaded cell; it sends back only the errors. If it fails, the
-    parent plans its half too."""
-    if len(slots) < 2:
-        return _slot_errors(world, task, slots, use_cache, progress)
-    import multiprocessing
-    import os
-
-    cores = (
-        len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    )
-    if cores < 2 or len(slots) < 2 or "fork" not in multiprocessing.get_all_start_methods():
-        return _slot_errors(world, task, slots, use_cache, progress)
-    theirs, mine = slots[: len(slots) // 2], slots[len(slots) // 2 :]
-    context = multiprocessing.get_context("fork")
-    reader, writer = context.Pipe(duplex=False)
-
-    def child() -> None:
-        writer.send([found for _, found in _slot_errors(world, task, theirs, use_cache)])
-
-    process = context.Process(target=child, daemon=True)
-    process.start()
-    writer.close()
-    results = _slot_errors(world, task, mine, use_cache, progress)
-    try:
-        found = reader.recv() if reader.poll(CHILD_TIMEOUT_S) else None
-    except (EOFError, OSError):
-        found = None
-    process.join(timeout=1.0)
-    if process.is_alive():
-        process.kill()
-        process.join()
-    reader.close()
-    if found is None or len(found) != len(theirs):
-        return [*_slot_errors(world, task, theirs, use_cache, progress), *results]
-    progress.skip(len(theirs))
-    return [*zip(theirs, found, strict=True), *results]
-
-
-#: how long the parent waits for the child's slots before planning them itself (s)
-CHILD_TIMEOUT_S = 120.0
-
-
 def _shown(value: object) -> str:
     if isinstance(value, dict):
         return json.dumps(value, separators=(",", ":"))
     return str(value)
 
 
-def _save_plan(path: Path, world: CellWorld, plan: TaskPlan) -> None:
+def _save_plan(path: Path, world: CellWorld, plan: JobPlan) -> None:
     """The approved motion as streamed: one sample per controller period, degrees."""
     c = world.loaded.cell
     steps = []
-    for row in plan.rows:
+    for row in plan.task_plan.rows:
         if row.trajectory is None:
             continue
         traj = row.trajectory
@@ -420,3 +303,23 @@ def _save_plan(path: Path, world: CellWorld, plan: TaskPlan) -> None:
     }
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(payload))
+
+
+def _snapshot_obstacles(path: str, cell: Any) -> list[Any]:
+    """The occupied voxels of a saved map, grown by the cell's padding, as one obstacle
+    (none when the map is empty); a file that is no map is a usage error (exit 2)."""
+    import numpy as np
+
+    from cellrunner.errors import UsageError
+    from cellrunner.model.geometry import Placed, Voxels
+    from cellrunner.perception.occupancy import OccupancyMap
+
+    try:
+        snapshot = OccupancyMap.load(path)
+    except ValueError as exc:
+        raise UsageError(f"--watch {exc}") from None
+    centres = snapshot.occupied_centres()
+    if not len(centres):
+        return []
+    padding = cell.cell.watch.padding if cell.cell.watch is not None else 0.03
+    return [Placed("watched zone", Voxels(centres, snapshot.voxel_m, padding), np.eye(4))]

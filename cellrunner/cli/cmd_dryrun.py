@@ -96,12 +96,7 @@ def run(args: argparse.Namespace) -> int:
     controller, loop, world = assembled.controller, assembled.loop, assembled.world
     out = console()
     controller.setup()
-    feed = None
-    if assembled.watch is not None:
-        from cellrunner.execution.watch import TwinDepthFeed
-
-        feed = TwinDepthFeed(assembled.watch, backend)
-        loop.add_observer(feed)
+    feed = assembled.feed
     loop.step(3)
     t0 = time.perf_counter()
     with out.status("planning", spinner="dots") as status:
@@ -130,6 +125,8 @@ def run(args: argparse.Namespace) -> int:
         wall_run_s = time.perf_counter() - t_run
     if feed is not None:
         feed.close()
+    if assembled.watch is not None and getattr(args, "save_map", None):
+        assembled.watch.map.save(args.save_map)
     job = controller.last_job
     result = controller.status().last_result
     assert result is not None  # run_job returns once the job has ended

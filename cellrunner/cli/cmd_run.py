@@ -42,6 +42,8 @@ def run(args: argparse.Namespace) -> int:
         joined=not stepping,
         log=log,
         gate=gate,
+        eye=True,
+        image_source=getattr(args, "image_source", None),
     )
     controller, loop = assembled.controller, assembled.loop
     out = console()

@@ -51,8 +51,15 @@ def run(args: argparse.Namespace) -> int:
         wait_for_unhold=True,
         feed_parts=True,
         realtime=kind == "sim",
+        eye=True,
+        image_source=getattr(args, "image_source", None),
+        watched=True,
     )
     controller = assembled.controller
+    if cell.cell.watch is not None and assembled.watch is None:
+        log.warning(
+            "not_watched", why="depth images of the arm's cell come with the twin backend only"
+        )
     _load_planning_libraries()
     # the planning thread is CPU-bound; hand the GIL over every 1 ms (Python's default is
     # 5 ms) so the PLC threads answer promptly while a job plans
@@ -80,6 +87,12 @@ def run(args: argparse.Namespace) -> int:
         raise
     finally:
         controller.shutdown(reason)
+        if assembled.feed is not None:
+            assembled.feed.close()
+        if assembled.watch is not None and getattr(args, "save_map", None):
+            assembled.watch.map.save(args.save_map)
+        for what in controller.held_results():  # the journal tries once more as it closes
+            log.warning("result_held_at_stop", held=what)
         if status_page is not None:
             status_page.stop()
             status_page.board.close()

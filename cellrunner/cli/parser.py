@@ -91,6 +91,11 @@ def _job_commands(sub: Commands) -> None:
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--save-plan", metavar="FILE", help="write the approved motion as JSON")
     p.add_argument("--no-cache", action="store_true", help="plan afresh, ignore the plan cache")
+    p.add_argument(
+        "--watch",
+        metavar="SNAPSHOT",
+        help="plan against a saved obstacle map too (dry-run/serve --save-map wrote it)",
+    )
     p.set_defaults(module="check")
 
     p = sub.add_parser("dry-run", help="run the real state machine against the MuJoCo twin")
@@ -102,10 +107,15 @@ def _job_commands(sub: Commands) -> None:
         default=[],
         metavar="FAULT@STEP",
         help="grip_miss, part_slip, protective_stop, estop, robot_disconnect, "
-        "plc_disconnect at a step (index, kind, or KIND#N)",
+        "plc_disconnect, intrusion (a watched cell) at a step (index, kind, or KIND#N)",
     )
     p.add_argument("--report", metavar="DIR", help="write JSON, pictures and plots here")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.add_argument(
+        "--save-map",
+        metavar="FILE",
+        help="a watched cell: write the obstacle map as it ended (.npz, for check --watch)",
+    )
     p.add_argument(
         "--per-period",
         action="store_true",
@@ -120,6 +130,11 @@ def _job_commands(sub: Commands) -> None:
     _params(p)
     p.add_argument("--backend", choices=("ur", "sim"))
     p.add_argument("--robot-host", metavar="H")
+    p.add_argument(
+        "--image-source",
+        metavar="twin|MODULE:FACTORY",
+        help="where align steps get pictures on the arm (default: the twin's cameras at the robot host)",
+    )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument(
         "--speed",
@@ -143,10 +158,20 @@ def _cell_commands(sub: Commands) -> None:
     p.add_argument("--backend", choices=("ur", "sim"))
     p.add_argument("--robot-host", metavar="H")
     p.add_argument(
+        "--image-source",
+        metavar="twin|MODULE:FACTORY",
+        help="where align steps get pictures on the arm (default: the twin's cameras at the robot host)",
+    )
+    p.add_argument(
         "--http",
         metavar="[HOST:]PORT",
         help="serve a read-only status page and Prometheus /metrics here "
         "(host defaults to 127.0.0.1, e.g. --http 127.0.0.1:8080)",
+    )
+    p.add_argument(
+        "--save-map",
+        metavar="FILE",
+        help="a watched cell: write the obstacle map when serving stops (.npz, for check --watch)",
     )
     p.set_defaults(module="serve")
 

@@ -22,7 +22,7 @@ from cellrunner.execution.context import Hold, JobContext
 from cellrunner.execution.steps import Outcome, StepGen, run_motion
 from cellrunner.model.align import Marker, Sighting
 from cellrunner.model.codes import ResultCode
-from cellrunner.model.geometry import rpy_deg_of
+from cellrunner.model.geometry import pose_matrix, rpy_deg_of
 from cellrunner.model.step import Step, StepKind
 from cellrunner.model.task import LinearArgs
 
@@ -70,11 +70,25 @@ def run_align(ctx: JobContext, step: Step) -> StepGen:
             if not a - 1e-9 <= v <= b + 1e-9
         ]
         if outside:
-            return Outcome.failed(
-                ResultCode.PLACE_FAILED,
-                f"align: the part at {step.name!r} lies beyond max_correction "
-                f"({', '.join(outside)})",
+            # a look from off-centre may read a part at the box's edge just beyond it:
+            # within the tolerance of the edge it is at the edge; farther, the arm moves to
+            # the nearest correction inside and looks again; beyond it from there, it is
+            inside = pose_matrix(
+                np.clip(six[:3], low[:3], high[:3]), np.clip(six[3:], low[3:], high[3:])
             )
+            excess_m, excess_deg = _distance(np.linalg.inv(inside) @ C)
+            at_edge = excess_m <= args.tolerance.xyz and excess_deg <= args.tolerance.rpy
+            gap_m, gap_deg = _distance(np.linalg.inv(applied) @ inside)
+            # already there (within tolerance): the edge is as far as a correction goes
+            stuck = gap_m <= args.tolerance.xyz and gap_deg <= args.tolerance.rpy
+            if not at_edge and (look == args.attempts or stuck):
+                return Outcome.failed(
+                    ResultCode.PLACE_FAILED,
+                    f"align: the part at {step.name!r} lies beyond max_correction "
+                    f"({', '.join(outside)})",
+                )
+            C = inside
+            six = [*C[:3, 3], *rpy_deg_of(C[:3, :3])]
         ctx.notes.setdefault("align", {})[step.name] = C
         moved_m, turned_deg = _distance(np.linalg.inv(applied) @ C)
         if moved_m <= args.tolerance.xyz and turned_deg <= args.tolerance.rpy:

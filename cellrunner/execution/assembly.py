@@ -23,7 +23,7 @@ from cellrunner.model.expand import Step
 from cellrunner.model.load import LoadedCell, LoadedTask
 
 if TYPE_CHECKING:
-    from cellrunner.execution.watch import ZoneWatch
+    from cellrunner.execution.watch import TwinDepthFeed, ZoneWatch
     from cellrunner.planning.world import CellWorld
 
 
@@ -39,6 +39,7 @@ class AssembledCell:
     controller: CellController
     loop: ControlLoop
     watch: ZoneWatch | None = None  # the watched zone's map (a cell with watch:)
+    feed: TwinDepthFeed | None = None  # the twin's depth images into it (a loop observer)
 
     def setup(self) -> AssembledCell:
         """Open the journal, connect the robot, reset to Idle."""
@@ -68,6 +69,7 @@ def assemble_cell(
     realtime: bool = False,
     lookahead: bool = True,
     eye: bool = False,
+    image_source: str | None = None,
     watched: bool = False,
 ) -> AssembledCell:
     """The cell ``loaded`` running ``tasks`` (PLC task number -> task).
@@ -80,9 +82,11 @@ def assemble_cell(
     (:func:`~cellrunner.execution.planner.job_planner`); ``log``, ``wait_for_unhold``,
     ``on_step_start`` and ``gate`` to the controller; ``feed_parts`` lets the twin's
     infeed bring a part at each job's start; ``realtime`` and ``lookahead`` to the loop.
-    ``eye``: align steps see through the cameras the backend renders (the in-process
-    twin's); ``watched``: a cell with ``watch:`` checks every motion against its zone's
-    map (:class:`~cellrunner.execution.watch.ZoneWatch`, fed by the caller)."""
+    ``eye``: align steps see through the cell's cameras (rendered by the in-process
+    twin; on the arm from ``image_source``, default the cameras of a ``cellrunner twin``
+    at the robot's host); ``watched``: a cell with ``watch:`` on the in-process twin
+    checks every motion against its zone's map, fed by the twin's depth cameras (the
+    feed is one of the loop's observers)."""
     from cellrunner.planning.world import CellWorld
 
     kind = ""
@@ -97,11 +101,13 @@ def assemble_cell(
     world = CellWorld(loaded)
     if warm:
         warm_up(world)
-    zone = None
-    if watched and loaded.cell.watch is not None:
-        from cellrunner.execution.watch import ZoneWatch
+    zone = feed = None
+    if watched and kind == "sim":
+        from cellrunner.execution.watch import watch_on_twin
 
-        zone = ZoneWatch(world, loaded.cell.watch)
+        on_twin = watch_on_twin(world, backend, realtime=realtime)
+        if on_twin is not None:
+            zone, feed = on_twin
     controller = CellController(
         loaded,
         tasks,
@@ -113,19 +119,29 @@ def assemble_cell(
         on_step_start=on_step_start,
         on_job_start=getattr(backend, "feed_parts", None) if feed_parts else None,
         gate=gate,
-        eye=_twin_eye(loaded, backend) if eye else None,
+        eye=_eye(loaded, backend, image_source, robot_host) if eye else None,
         watch=zone,
     )
     loop = ControlLoop(controller, realtime=realtime, lookahead=lookahead)
-    return AssembledCell(loaded, world, backend, kind, journal, controller, loop, zone)
+    if feed is not None:
+        loop.add_observer(feed)
+    return AssembledCell(loaded, world, backend, kind, journal, controller, loop, zone, feed)
 
 
-def _twin_eye(loaded: LoadedCell, backend: RobotBackend) -> Eye | None:
-    """The cameras an align step sees through: rendered by the in-process twin (``sim``
-    backend), None for a cell without cameras or a backend that renders none."""
-    grab = getattr(backend, "camera_image", None)
-    if not loaded.cell.cameras or grab is None:
+def _eye(
+    loaded: LoadedCell, backend: RobotBackend, image_source: str | None, host: str | None
+) -> Eye | None:
+    """The cameras an align step sees through: the in-process twin renders them (``sim``);
+    on the arm (``ur``) pictures come from ``image_source`` (default: the cameras of a
+    ``cellrunner twin`` at ``host``). None for a cell without cameras."""
+    if not loaded.cell.cameras:
         return None
     from cellrunner.vision.eye import MarkerEye
 
+    grab = getattr(backend, "camera_image", None)
+    if grab is None:
+        from cellrunner.vision.images import CameraFeeds
+
+        feeds = CameraFeeds(image_source, dict(loaded.cell.cameras), host or loaded.cell.robot.host)
+        grab = feeds.grab
     return MarkerEye(grab, dict(loaded.cell.cameras))

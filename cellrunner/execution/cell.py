@@ -111,6 +111,8 @@ class CellController:
         self._safety = Safety.NORMAL
         self._actions: list[Callable[[], None]] = []  # backend work asked for by other threads
         self._recovery: Generator[None, None, Recovered] | None = None  # Clear's, one a tick
+        # a result the journal has not written yet (a full disk), and its "written" event
+        self._held: tuple[JobResult, threading.Event] | None = None
         self.last_runner: JobRunner | None = None  # of the last finished job (its step records)
         self._last_view: JobView | None = None
         self._status_key: tuple[object, ...] = ()
@@ -138,6 +140,10 @@ class CellController:
             self._end_job(ResultCode.INTERRUPTED, f"interrupted: {reason}", job.runner)
             self._publish()
 
+    def held_results(self) -> list[str]:
+        """The results the journal has not written yet (a full disk), for SIGTERM's report."""
+        return self._book.held()
+
     def close(self) -> None:
         self._launcher.close()
         self.backend.close()
@@ -150,7 +156,12 @@ class CellController:
 
     def _snapshot(self) -> CellStatus:
         return status_of(
-            self.states.state, self._job, self._safety, self._last, self._book.counters
+            self.states.state,
+            self._job,
+            self._safety,
+            self._last,
+            self._book.counters,
+            held=self._held is not None,
         )
 
     def _publish(self) -> None:
@@ -159,6 +170,7 @@ class CellController:
         key = (
             self.states.state,
             job,
+            self._held,
             self._safety,
             job.runner.current_step if job and job.runner else 0,
             self._last,
@@ -237,6 +249,7 @@ class CellController:
             if (
                 self.states.state is not S.IDLE
                 or self._job is not None
+                or self._held is not None
                 or self._safety is not Safety.NORMAL
             ):
                 return JobTicket(
@@ -331,6 +344,7 @@ class CellController:
             self.states.now_s, self._safety = state.time_s, state.safety
             if job is not None and job is self._job and runner is not None:
                 self._follow(job, runner)
+            self._deliver_held()
             self._idle_transitions()
             self._publish()
 
@@ -425,16 +439,37 @@ class CellController:
             return
         retries = runner.retries_used if runner else 0
         cycle = runner.cycle_time_s if runner else 0.0
-        self._book.end(job, code, cycle, retries, message or code.text)
-        self._last = result_of_job(job, code, message or code.text, cycle, retries)
+        durable = self._book.end(job, code, cycle, retries, message or code.text)
+        result = result_of_job(job, code, message or code.text, cycle, retries)
         self.last_runner = runner
         self._last_view = view_of(job, runner, code, message or code.text)
         self._job = None
         self.states.job_ended(code.is_fault)
         self._log("job_end", job_id=job.job_id, result_code=int(code), message=message)
+        self._held = (result, durable)
+        if not self._deliver_held():  # a full disk: the PLC is told once it is written
+            self._warn(
+                "result_held",
+                job_id=job.job_id,
+                result_code=int(code),
+                error=self._book.last_error,
+            )
+
+    def _deliver_held(self) -> bool:
+        """Tell the PLC (the result listeners, the last result) the result held until the
+        journal has it; False while it is not written yet."""
+        if self._held is None:
+            return True
+        result, durable = self._held
+        if not durable.is_set():
+            return False
+        self._held = None
+        self._last = result
+        self._book.refresh_counters()
         for listener in list(self._listeners):
             with contextlib.suppress(Exception):  # a listener must never take the cell down
-                listener(self._last)
+                listener(result)
+        return True
 
     # ------------------------------------------------------------------ helpers
     def _task(self, task: str | int) -> LoadedTask | None:
@@ -445,3 +480,7 @@ class CellController:
     def _log(self, event: str, **kw: Any) -> None:
         if self.log is not None:
             self.log.info(event, **kw)
+
+    def _warn(self, event: str, **kw: Any) -> None:
+        if self.log is not None:
+            self.log.warning(event, **kw)

@@ -1,11 +1,13 @@
 """The cell's jobs in its journal (SPEC section 9): a job is journaled before it is
 acknowledged, each step row as it changes, its end with its result code; a job a
 restart interrupted is closed with 107. A journal that cannot be written refuses new
-jobs but never stops one under way (its rows are then missing, and a restart closes it)."""
+jobs but never stops one under way; a job's result is told to the PLC once it is written
+(a full disk holds it), or at once when the journal refused it for good."""
 
 from __future__ import annotations
 
 import sqlite3
+import threading
 from typing import TYPE_CHECKING, Any
 
 from cellrunner.execution.job_view import Job, result_of_record
@@ -73,12 +75,29 @@ class JobBook:
         except sqlite3.Error as exc:  # disk full: the job goes on; its row is missing a step
             self._log("journal_failed", job_id=job.job_id, error=str(exc))
 
-    def end(self, job: Job, code: ResultCode, cycle_s: float, retries: int, message: str) -> None:
+    def end(
+        self, job: Job, code: ResultCode, cycle_s: float, retries: int, message: str
+    ) -> threading.Event:
+        """Journal ``job``'s end; the event is set once the result is written (a full disk
+        holds it until there is room), or at once when the journal refused it for good."""
         try:
-            self.journal.end_job(job.job_id, code, cycle_s, retries, message)
-            self.counters = self.journal.counters()
-        except sqlite3.Error as exc:  # disk full: the PLC still gets the result; the journal
-            self._log("journal_failed", job_id=job.job_id, error=str(exc))  # closes it later
+            return self.journal.end_job(job.job_id, code, cycle_s, retries, message)
+        except (JournalError, sqlite3.Error) as exc:  # refused for good: the PLC still hears
+            self._warn("journal_failed", job_id=job.job_id, error=str(exc))
+            durable = threading.Event()
+            durable.set()
+            return durable
+
+    def refresh_counters(self) -> None:
+        self.counters = self.journal.counters()
+
+    def held(self) -> list[str]:
+        """The results the journal has not written yet (a full disk)."""
+        return self.journal.held()
+
+    @property
+    def last_error(self) -> str:
+        return str(getattr(self.journal, "last_error", ""))
 
     def close(self) -> None:
         self.journal.close()
@@ -86,3 +105,7 @@ class JobBook:
     def _log(self, event: str, **kw: Any) -> None:
         if self.log is not None:
             self.log.info(event, **kw)
+
+    def _warn(self, event: str, **kw: Any) -> None:
+        if self.log is not None:
+            self.log.warning(event, **kw)

@@ -114,15 +114,18 @@ def status_of(
     safety: Safety,
     last: JobResult | None,
     counters: tuple[int, int],
+    *,
+    held: bool = False,
 ) -> CellStatus:
     """The PLC's snapshot of the cell: PackML ``state``, the ``job`` under way, the
-    robot's ``safety``, the ``last`` result and the (processed, defective) ``counters``."""
+    robot's ``safety``, the ``last`` result and the (processed, defective) ``counters``;
+    ``held``: a job's result waits for the journal (a full disk), so the cell is busy."""
     obstruction = obstruction_of(job)
     return CellStatus(
         state=int(state),
         state_name=state.display_name,
-        ready=state is S.IDLE and job is None and safety is Safety.NORMAL,
-        busy=job is not None,
+        ready=state is S.IDLE and job is None and not held and safety is Safety.NORMAL,
+        busy=job is not None or held,  # a result not yet journaled
         held=state in (S.HOLDING, S.HELD),
         protective_stop=safety is Safety.PROTECTIVE_STOP,
         estop=safety is Safety.EMERGENCY_STOP,

@@ -83,6 +83,7 @@ class _Write:
 
     sql: str | None
     args: tuple[Any, ...] = ()
+    what: str = ""  # for held(): "the result of job J (0 OK)"
     done: threading.Event = field(default_factory=threading.Event)
     cancelled: bool = False
     error: str = ""
@@ -213,11 +214,12 @@ class PostgresJournal:
         cycle_time_s: float | None,
         retries: int,
         text: str | None = None,
-    ) -> None:
-        self._enqueue(
+    ) -> threading.Event:
+        item = self._enqueue(
             "UPDATE cellrunner_jobs SET ended_at = %s, result_code = %s, result_text = %s, cycle_time_s = %s, "
             "retries = %s WHERE job_id = %s AND ended_at IS NULL",
             (time.time(), int(code), text or code.text, cycle_time_s, retries, job_id),
+            f"the result of job {job_id} ({int(code)} {code.text})",
         )
         self._step_seq.pop(job_id, None)
         if job_id not in self._ended:
@@ -226,6 +228,11 @@ class PostgresJournal:
                 self._counters[0] += 1
             elif ResultCode.NO_PART <= code <= ResultCode.PLACE_FAILED:
                 self._counters[1] += 1
+        return item.done
+
+    def held(self) -> list[str]:
+        """The results queued and not yet committed, oldest first."""
+        return [item.what for item in list(self._queue.queue) if item is not None and item.what]
 
     def close_interrupted(self) -> list[JobRecord]:
         """Close this cell's jobs left unfinished (a restart mid-job) with code 107."""
@@ -312,10 +319,10 @@ class PostgresJournal:
                 self._read_conn.close()
         self._read_conn = None
 
-    def _enqueue(self, sql: str | None, args: tuple[Any, ...] = ()) -> _Write:
+    def _enqueue(self, sql: str | None, args: tuple[Any, ...] = (), what: str = "") -> _Write:
         if self._writer is None:
             raise JournalError("journal is not open")
-        item = _Write(sql, args)
+        item = _Write(sql, args, what)
         self._queue.put(item)
         return item
 

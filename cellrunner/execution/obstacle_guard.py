@@ -17,10 +17,21 @@ if TYPE_CHECKING:
 
 
 class _Clock(Protocol):
-    """What a note reads of the job (its :class:`~cellrunner.execution.context.JobContext`)."""
+    """What a note reads of the job (its :class:`~cellrunner.execution.context.JobContext`):
+    the time (s), the set-point streamed last, the state read last, the motions (for the
+    TCP), the log."""
 
     @property
     def now_s(self) -> float: ...
+
+    @property
+    def commanded_q(self) -> np.ndarray | None: ...
+
+    @property
+    def last_state(self) -> Any: ...
+
+    @property
+    def motions(self) -> Any: ...
 
     @property
     def log(self) -> Any: ...
@@ -41,6 +52,8 @@ class ObstacleGuard:
 
     def note(self, ctx: _Clock, what: str, blocked: Blocked | None, **extra: Any) -> None:
         event: dict[str, Any] = {"what": what, "time_s": round(ctx.now_s, 4)}
+        q = ctx.commanded_q if ctx.commanded_q is not None else ctx.last_state.q_rad
+        event["tcp_m"] = [round(float(v), 4) for v in ctx.motions.tcp_position_m(q)]
         if blocked is not None:
             event["voxel_m"] = [round(v, 3) for v in blocked.voxel_m]
         event.update(extra)

@@ -17,6 +17,7 @@ blocking voxel's position, and kept on the job's notes for the journal and the r
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Generator
 from typing import TYPE_CHECKING
 
@@ -53,8 +54,7 @@ def stream_watched(
     part_lost_outcome: Callable[[JobContext], Outcome | None],
 ) -> Generator[None, None, Outcome | None]:
     """Stream ``approved`` from set-point ``first`` under the watch (module docstring);
-    returns None at its end, or the failed outcome (108, a part lost: what
-    ``part_lost_outcome`` says of the carried part each period)."""
+    returns None at its end, or the failed outcome (108, a part lost)."""
     from cellrunner.execution.context import Stream
 
     guard = ctx.obstacles
@@ -108,15 +108,17 @@ def stream_watched(
         path, pos = result
 
 
-def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float) -> int:
-    """Set-points a stop or a restart at ``u0`` takes at the ramp's acceleration."""
+def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop: bool) -> int:
+    """Set-points a stop (from the speed at ``u0``) or a restart at ``u0`` (up to the top
+    speed of the rest of the path) takes at the ramp's acceleration."""
     assert ctx.obstacles is not None
     traj = path.trajectory
     q = traj.q_rad
     i = min(int(u0), len(q) - 2)
     if i < 0:
         return 1
-    speed = np.abs(np.diff(q[i:], axis=0)).max(axis=0) * traj.rate_hz  # rad/s, the rest's top
+    rest = q[i : i + 2] if stop else q[i:]
+    speed = np.abs(np.diff(rest, axis=0)).max(axis=0) * traj.rate_hz  # rad/s
     seconds = float(np.max(speed / (RAMP_ACCEL_FRACTION * ctx.obstacles.accel_rad_s2)))
     return max(1, math.ceil(seconds * traj.rate_hz))
 
@@ -127,7 +129,7 @@ def _stop_on_path(
     """Slow to rest along ``path`` from set-point ``index`` (commanded now); returns the
     path position (fractional sample) where the arm stands."""
     last = len(path.trajectory.q_rad) - 1
-    n = _ramp_samples(ctx, path, index)
+    n = _ramp_samples(ctx, path, index, stop=True)
     k = np.arange(n + 1, dtype=float)
     u = np.minimum(index + k - k * k / (2 * n), last)
     stop = along_path(path, u)
@@ -142,7 +144,7 @@ def _stop_on_path(
 def _resumed(ctx: JobContext, path: ApprovedTrajectory, u0: float) -> ApprovedTrajectory:
     """``path`` from rest at position ``u0``: speeding up along it, then at its pace."""
     last = len(path.trajectory.q_rad) - 1
-    n = _ramp_samples(ctx, path, u0)
+    n = _ramp_samples(ctx, path, u0, stop=False)
     k = np.arange(n + 1, dtype=float)
     ramp = u0 + k * k / (2 * n)
     tail = np.arange(ramp[-1] + 1.0, last, 1.0)
@@ -187,11 +189,27 @@ def _wait(
             ):
                 guard.replans += 1
                 guard.last_replan_s = now
+                t0 = time.perf_counter()
                 replanned = _replan(ctx, step, held)
+                plan_s = round(time.perf_counter() - t0, 4)
                 if replanned is not None:
-                    guard.note(ctx, "replan", blocked, step=step.index, replans=guard.replans)
+                    guard.note(
+                        ctx,
+                        "replan",
+                        blocked,
+                        step=step.index,
+                        replans=guard.replans,
+                        plan_s=plan_s,
+                    )
                     return replanned, 0
-                guard.note(ctx, "replan failed", blocked, step=step.index, replans=guard.replans)
+                guard.note(
+                    ctx,
+                    "replan failed",
+                    blocked,
+                    step=step.index,
+                    replans=guard.replans,
+                    plan_s=plan_s,
+                )
             if now - since >= policy.wait:
                 message = (
                     f"{step.label}: path blocked by an obstacle not in the cell file "

@@ -1,6 +1,7 @@
-"""Commissioning pace for ``run``: the approved motions at a fraction of their speed
-(``--speed``), and a gate that starts each step only when the operator says so
-(``--step``). ``serve`` uses neither: production runs at the approved pace."""
+"""Commissioning pace for ``run``: a gate that starts each step only when the operator
+says so (``--step``). The approved motions at a fraction of their speed (``--speed``) are
+:meth:`JobPlan.paced <cellrunner.planning.job_plan.JobPlan.paced>`. ``serve`` uses
+neither: production runs at the approved pace."""
 
 from __future__ import annotations
 
@@ -9,44 +10,8 @@ import threading
 from collections.abc import Callable
 from typing import IO
 
-import numpy as np
-
-from cellrunner.execution.context import Motions
 from cellrunner.model.expand import Step
-from cellrunner.model.geometry import Placed
 from cellrunner.model.step import StepKind
-from cellrunner.model.trajectory import ApprovedTrajectory, time_scaled
-
-
-class PacedMotions:
-    """A job's :class:`Motions` streamed at ``speed`` x the approved pace: the very path
-    ``check`` approved, stretched in time only (see :func:`time_scaled`)."""
-
-    def __init__(self, motions: Motions, speed: float) -> None:
-        if not 0.0 < speed <= 1.0:
-            raise ValueError(f"speed {speed:g} is outside (0, 1]")
-        self.motions, self.speed = motions, speed
-
-    def nominal(self, step: Step) -> ApprovedTrajectory | None:
-        approved = self.motions.nominal(step)
-        return None if approved is None else time_scaled(approved, self.speed)
-
-    def continues(self, step: Step) -> bool:
-        return self.motions.continues(step)
-
-    def replan(
-        self, step: Step, q_now_rad: np.ndarray, carrying: bool, obstacles: Placed | None = None
-    ) -> ApprovedTrajectory:
-        return time_scaled(self.motions.replan(step, q_now_rad, carrying, obstacles), self.speed)
-
-    def tcp_position_m(self, q_rad: np.ndarray, step: Step | None = None) -> np.ndarray:
-        return self.motions.tcp_position_m(q_rad, step)
-
-    def tcp_positions_m(self, q_rad: np.ndarray) -> np.ndarray:
-        return self.motions.tcp_positions_m(q_rad)
-
-    def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
-        return self.motions.tcp_pose(q_rad)
 
 
 class EnterGate:

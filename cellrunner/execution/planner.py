@@ -43,25 +43,22 @@ def job_planner(
 ) -> Planner:
     """``speed`` < 1 streams the approved motions slower, in time only (run --speed);
     ``joined=False`` plans every motion to end at rest (run --step)."""
-    from cellrunner.execution.pacing import PacedMotions
-    from cellrunner.model.expand import expand_on_error
-    from cellrunner.planning.cache import plan_cached
+    from cellrunner.planning.job_plan import plan_job
 
     def plan(task: LoadedTask, params: dict[str, ParamValue], q_now_rad: np.ndarray) -> JobPlan:
         q = np.asarray(q_now_rad, float)
         if np.max(np.abs(q - world.q_home_rad)) < HOME_SNAP_RAD:
             q = world.q_home_rad
-        task_plan = plan_cached(world, task, params, q, use_cache=use_cache, joined=joined)
-        if not task_plan.ok:
-            raise InfeasibleError("; ".join(task_plan.errors))
-        _verify_ahead(task_plan)
+        job = plan_job(world, task, params, q, use_cache=use_cache, joined=joined)
+        if not job.ok:
+            first = job.failures[0]
+            raise InfeasibleError(
+                "; ".join(job.errors), first.blockers, step_index=first.step_index
+            )
+        _verify_ahead(job.task_plan)
         # the task's on_error steps ride along, marked, for the runner to keep for a failure
-        steps = task_plan.steps + expand_on_error(
-            task, world.loaded.cell, params, len(task_plan.steps) + 1
-        )
-        if speed != 1.0:
-            return JobPlan(steps, PacedMotions(task_plan, speed), task_plan.cycle_time_s / speed)
-        return JobPlan(steps, task_plan, task_plan.cycle_time_s)
+        paced = job.paced(speed) if speed != 1.0 else job
+        return JobPlan(paced.run_steps, paced.motions, paced.planned_cycle_time_s)
 
     return plan
 
@@ -92,7 +89,8 @@ def warm_up(world: CellWorld) -> None:
         "joint_path",
         "cartesian",
         "collision",
-        "cache",
+        "job_plan",
+        "plan_files",
     ):
         importlib.import_module(f"cellrunner.planning.{module}")
     # joint_path imports OMPL only when it searches (check and validate never load it), so

@@ -10,8 +10,10 @@ map and the verdict; the control thread holds it only to copy a few references.
 :class:`TwinDepthFeed` is the feed of a rehearsal on the in-process twin: a control-loop
 observer that, at each depth camera's rate in simulated time, copies the twin's joints and
 mocap bodies and has the image rendered and integrated on a worker thread. Off real time
-(dry-run) the loop waits for that worker, and the verdict becomes visible the wall time
-the work took after the image was taken (simulated), as it would on a real cell.
+(dry-run) the loop waits for that worker, and the verdict becomes visible as long after
+the image was taken (simulated) as the work took the worker's thread in CPU time (wall
+time on a machine shared with other processes would charge their time); in real time
+verdicts are published as they come.
 """
 
 from __future__ import annotations
@@ -190,6 +192,11 @@ class TwinDepthFeed:
         self.render_s: list[float] = []
 
     def quiet_until_s(self, cell: Any) -> float:
+        """The next image, or a verdict's publication; none while the last verdict
+        blocks the path (the job reacts to it in the coming periods, one at a time)."""
+        verdict = self.zone.verdict()
+        if verdict is not None and verdict.blocked is not None:
+            return 0.0
         times = [*self.next_s.values(), *(t for t, _ in self._pending)]
         return min(times, default=float("inf"))
 
@@ -219,14 +226,22 @@ class TwinDepthFeed:
                 )
                 self._running_at = now
                 self._running = self._pool.submit(self._work, name, snapshot, now, None)
-                if not self.realtime:
-                    self._running.result()  # off real time: simulated time waits for the image
+                if not self.realtime:  # off real time: simulated time waits for the image
+                    verdict, took_s = self._running.result()
+                    self._pending.append((now + took_s, verdict))
+                    self._running = None
                 return
 
     def _work(
         self, name: str, snapshot: tuple[np.ndarray, ...], time_s: float, held: Placed | None
     ) -> tuple[Verdict, float]:
-        t0 = time.perf_counter()
+        """Render, integrate and check one image; returns the verdict and how long the
+        cell's part took: off real time this thread's CPU time for integrating and checking
+        (the render stands in for the camera's exposure, and wall time on a shared machine
+        would charge other processes' time); in real time the wall time of it all."""
+        clock = time.perf_counter if self.realtime else time.thread_time
+        w0 = time.perf_counter()
+        t0 = clock()
         imager = self._imagers.get(name)
         if imager is None:
             from cellrunner.sim.depth import DepthImager
@@ -237,10 +252,11 @@ class TwinDepthFeed:
                 world.model, self.cameras[name], (near, far), self.noise_m, seed=self.seed
             )
         frame = imager.frame(snapshot[0], snapshot[1], snapshot[2], time_s)
-        t1 = time.perf_counter()
+        self.render_s.append(time.perf_counter() - w0)
+        if not self.realtime:
+            t0 = clock()
         verdict = self.zone.integrate(frame, held)
-        self.render_s.append(t1 - t0)
-        return verdict, time.perf_counter() - t0
+        return verdict, clock() - t0
 
     def close(self) -> None:
         self._pool.submit(self._close_imagers).result(timeout=10)
@@ -250,3 +266,15 @@ class TwinDepthFeed:
         for imager in self._imagers.values():
             imager.close()
         self._imagers.clear()
+
+
+def watch_on_twin(
+    world: CellWorld, backend: Any, *, realtime: bool
+) -> tuple[ZoneWatch, TwinDepthFeed] | None:
+    """The watched zone of a cell run on the in-process twin, and its depth feed (add it
+    to the control loop's observers); None when the cell is not watched."""
+    watch = world.loaded.cell.watch
+    if watch is None:
+        return None
+    zone = ZoneWatch(world, watch)
+    return zone, TwinDepthFeed(zone, backend, realtime=realtime)

@@ -228,6 +228,13 @@ class _Builder:
             name = f"{at}+{at_offset}"
         return T @ _offset(offset), name
 
+    def _part_pose(self, at: str, pattern: Pattern | None) -> dict[str, np.ndarray]:
+        """Where the part a pick from a pattern grips lies: its slot of the frame
+        (``part_pose``, world); nothing for a pick from the frame itself."""
+        if pattern is None:
+            return {}
+        return {"part_pose": self._target(at, None, pattern)[0]}
+
     def _pick(self, spec: StepSpec, a: PickArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
         macro = f"pick {name}"
@@ -274,7 +281,7 @@ class _Builder:
                 path,
                 macro,
                 retry=retry,
-                extra={"part_at": a.at},
+                extra={"part_at": a.at, **self._part_pose(a.at, a.pattern)},
             )
         )
         lift = a.lift if a.lift is not None else a.approach
@@ -289,6 +296,9 @@ class _Builder:
                     macro,
                 )
             )
+
+    def _earlier_slots(self, a: PlaceArgs) -> list[np.ndarray]:
+        return _earlier_slots_of(self, a)
 
     def _place(self, spec: StepSpec, a: PlaceArgs) -> None:
         T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
@@ -324,6 +334,8 @@ class _Builder:
         check = {
             "place_check": {"T_world_tcp": T, "tolerance": (tolerance.distance, tolerance.angle)}
         }
+        # where the earlier slots of its pattern put their parts (what this one may rest on)
+        earlier = self._earlier_slots(a)
         back = a.retreat if a.retreat is not None else a.approach
         self.steps.append(
             Step(
@@ -333,7 +345,7 @@ class _Builder:
                 release,
                 path,
                 macro,
-                extra={} if back > 0 else check,
+                extra={"earlier_slots": earlier, **({} if back > 0 else check)},
             )
         )
         if back > 0:
@@ -348,6 +360,19 @@ class _Builder:
                     extra=check,
                 )
             )
+
+
+def _earlier_slots_of(builder: _Builder, a: PlaceArgs) -> list[np.ndarray]:
+    """The TCP targets of the slots before this one in the place's pattern (none without
+    a pattern): the parts earlier jobs put there."""
+    if a.pattern is None:
+        return []
+    slot = int(builder.params[a.pattern.index])
+    out = []
+    for earlier in range(slot):
+        was = _Builder(builder.cell, {**builder.params, a.pattern.index: earlier}, builder.specs)
+        out.append(was._target(a.at, a.offset, a.pattern, a.at_offset)[0])
+    return out
 
 
 def _offset(offset: Offset | None) -> np.ndarray:

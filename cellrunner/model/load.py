@@ -53,7 +53,39 @@ def load_cell(path: str | Path) -> LoadedCell:
     loaded = LoadedCell(cell, path, source, report.warnings)
     _check_cell(loaded, report)
     report.raise_if_errors()
+    loaded.digest = _cell_digest(loaded)
     return loaded
+
+
+def _cell_digest(loaded: LoadedCell) -> str:
+    """The cell file's digest with the bytes of every mesh it names (a mesh edited in
+    place changes the plan's key too)."""
+    import hashlib
+
+    h = hashlib.sha256(loaded.source.digest.encode())
+    for file in sorted(set(_mesh_files(loaded.source.data))):
+        path = loaded.resolve(file)
+        h.update(str(path).encode())
+        try:
+            h.update(path.read_bytes())
+        except OSError:
+            h.update(b"missing")
+    return h.hexdigest()
+
+
+def _mesh_files(data: Any) -> list[str]:
+    """Every ``mesh: {file: ...}`` written anywhere in a cell file's data."""
+    found: list[str] = []
+    if isinstance(data, dict):
+        mesh = data.get("mesh")
+        if isinstance(mesh, dict) and isinstance(mesh.get("file"), str):
+            found.append(mesh["file"])
+        for value in data.values():
+            found.extend(_mesh_files(value))
+    elif isinstance(data, list):
+        for value in data:
+            found.extend(_mesh_files(value))
+    return found
 
 
 def _check_cell(loaded: LoadedCell, report: Report) -> None:

@@ -25,6 +25,9 @@ class LoadedCell:
     path: Path
     source: Source
     warnings: list[Diagnostic]
+    #: the cell file's and every mesh file's SHA-256 together (hex), taken on loading: a
+    #: plan is keyed by it (planning.job_plan), so no file is read again per job
+    digest: str = ""
 
     @property
     def folder(self) -> Path:

@@ -90,6 +90,18 @@ STEP_HELP: dict[str, tuple[str, Any]] = {
         "payload and collision geometry.",
         "cup",
     ),
+    "align": (
+        "Look at an ArUco marker on the part at the next step's frame and correct the TCP "
+        "until the marker is where that frame says; later steps aimed at the frame move "
+        "with the correction; beyond `max_correction` the step fails (3).",
+        {
+            "camera": "wrist",
+            "marker": {"dictionary": "DICT_4X4_50", "id": 7, "size": 0.03},
+            "tolerance": {"xyz": 0.001, "rpy": 0.5},
+            "max_correction": {"xyz": [0.015, 0.015, 0], "rpy": [0, 0, 8]},
+            "attempts": 3,
+        },
+    ),
     "pick": (
         "Macro: approach -> descend -> grip -> lift.",
         {"at": "infeed", "approach": 0.1, "grip": {"confirm": "gripper_closed"}},

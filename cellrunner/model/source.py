@@ -43,6 +43,8 @@ class Source:
     data: Any
     value_pos: dict[PathKey, tuple[int, int]] = field(default_factory=dict)
     key_pos: dict[PathKey, tuple[int, int]] = field(default_factory=dict)
+    #: SHA-256 (hex) of the file's text as read: what a plan of it is keyed by
+    digest: str = ""
 
     def locate(self, path: PathKey, *, at_key: bool = False) -> tuple[int, int]:
         """Line and column of ``path``; falls back to its deepest known ancestor."""
@@ -146,7 +148,9 @@ def load_yaml(path: Path) -> Source:
     except YAMLError as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else "invalid YAML"
         raise InputError(f"YAML syntax: {first}", name) from None
-    source = Source(name, None)
+    import hashlib
+
+    source = Source(name, None, digest=hashlib.sha256(text.encode()).hexdigest())
     if node is None:
         raise InputError([Diagnostic(name, 1, 1, "the file is empty")])
     errors: list[Diagnostic] = []

@@ -56,10 +56,15 @@ class RayTable:
     def matches(self, frame: DepthFrame) -> bool:
         return frame.size == (self.width, self.height) and np.array_equal(frame.K, self.K)
 
-    def points(self, depth_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def points(self, depth_m: np.ndarray, stride: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """The valid pixels' points in the camera frame (N x 3, m) and their flat pixel
-        indices (N)."""
-        z = depth_m.ravel()
+        indices (N); every ``stride``-th pixel along each axis."""
+        if stride > 1:
+            mask = np.zeros(depth_m.shape, bool)
+            mask[::stride, ::stride] = True
+            z = np.where(mask, depth_m, 0).ravel()
+        else:
+            z = depth_m.ravel()
         index = np.flatnonzero(z > 0)
         zs = z[index]
         points = np.empty((len(index), 3), np.float32)

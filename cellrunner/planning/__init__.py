@@ -8,11 +8,16 @@
 - ``cartesian``: :func:`plan_linear` (straight TCP lines on one IK branch)
 - ``timing``: :class:`MotionLimits`, :func:`time_path` (TOPP-RA, controller-rate samples)
 - ``verify``: :func:`verify_trajectory` (the final independent check; seals trajectories)
-- ``task_plan``: :func:`plan_task`, :class:`TaskPlan` (what ``check`` and the engine use:
-  plans, blends, times and verifies a task's steps), with ``force_plan`` (the force
-  steps' lines and contacts) and ``blockers`` (what a failure names as in the way)
-- ``world``: :class:`CellWorld` (a cell's kinematics, collision model and limits)
-- ``cache``: :func:`plan_cached` (approved plans reused while nothing they depend on changed)
+- ``job_plan``: :func:`plan_job` -> :class:`JobPlan` (what ``check``, ``run``, ``dry-run``
+  and ``serve`` share: a job's steps and on_error steps expanded once, its plan, its
+  failures as data)
+- ``task_plan``: :func:`plan_task`, :class:`TaskPlan` (plans, blends, times and verifies
+  a task's steps), with ``force_plan`` (the force steps' lines and contacts),
+  ``blockers`` (what a failure names as in the way) and ``on_error`` (on_error verified
+  from every state a job can fail in)
+- ``world``: :class:`CellWorld` (a cell's kinematics, collision model, limits and plans)
+- ``plan_store``: :class:`PlanStore` (approved plans reused while nothing they depend on
+  changed), with ``plan_files`` (a plan as a file)
 
 Nothing is imported here so that importing the package stays cheap; OMPL and toppra are
 imported inside the functions that use them.

@@ -23,13 +23,17 @@ from cellrunner.model.geometry import Placed
 from cellrunner.model.step import PLANNED_KINDS, Step, StepKind
 from cellrunner.planning.collision import ContactAllowance
 from cellrunner.planning.task_plan import (
+    StepFailure,
     StepPlan,
     TaskPlan,
+    _at,
     _StepPlanner,
-    _strip_label,
     _time_and_verify,
 )
 from cellrunner.planning.world import CellWorld
+
+#: on_error results remembered per world (start states x steps), oldest out
+ON_ERROR_MEMO_SIZE = 256
 
 
 @dataclass(frozen=True)
@@ -43,31 +47,26 @@ class _Start:
     contact: tuple[ContactAllowance, ...] = ()  # a guarded line's, which a retreat leaves
 
 
-def verify_on_error(plan: TaskPlan, cleanup: list[Step]) -> list[StepPlan]:
+def verify_on_error(
+    plan: TaskPlan, cleanup: list[Step]
+) -> tuple[list[StepPlan], list[StepFailure]]:
     """One row per on_error step: ``ok`` with the number of states it was verified from,
     or ``failed`` naming the first state it fails from and the reason (and how many
-    other states fail too). Only a feasible plan has states to start from."""
+    other states fail too); and a failure per failed row. Only a feasible plan has states
+    to start from. What one state gives is remembered by the world (the slots of a
+    pattern share most of their states)."""
     rows = [StepPlan(s) for s in cleanup]
     if not cleanup or not plan.ok:
         for row in rows:
             row.status = "not planned"
-        return rows
+        return rows, []
     starts = _starts(plan)
-    failures: dict[int, list[str]] = {s.index: [] for s in cleanup}
+    failures: dict[int, list[tuple[str, tuple[str, ...]]]] = {s.index: [] for s in cleanup}
+    steps_key = _steps_key(cleanup)
     for start in starts:
-        planner = _StepPlanner(start.world, np.asarray(start.q_rad, float), start.part)
-        planner.contact = start.contact
-        for step in cleanup:
-            q_from, part = planner.q, planner.part
-            try:
-                if step.is_motion:
-                    motion = planner.motion(StepPlan(step))
-                    _time_and_verify(planner.world, motion, q_from)
-                else:
-                    planner.act(StepPlan(step))
-            except InfeasibleError as exc:
-                planner.q, planner.part = q_from, part  # nothing moved: the next step goes on
-                failures[step.index].append(f"{start.label}: {_strip_label(str(exc))}")
+        for index, (reason, blockers) in _failures_from(start, cleanup, steps_key).items():
+            failures[index].append((f"{start.label}: {reason}", blockers))
+    found: list[StepFailure] = []
     for row in rows:
         failed = failures[row.step.index]
         if not failed:
@@ -76,13 +75,55 @@ def verify_on_error(plan: TaskPlan, cleanup: list[Step]) -> list[StepPlan]:
             continue
         row.status = "failed"
         more = len(failed) - 1
-        row.message = failed[0] + (f" (and from {more} more states)" if more else "")
-    return rows
+        row.message = failed[0][0] + (f" (and from {more} more states)" if more else "")
+        found.append(StepFailure(row.step.index, row.message, failed[0][1]))
+    return rows, found
 
 
-def on_error_errors(rows: list[StepPlan]) -> list[str]:
-    """The plan errors of failed on_error rows, each naming its step."""
-    return [f"on_error {r.step.label}: {r.message}" for r in rows if r.status == "failed"]
+def _failures_from(
+    start: _Start, cleanup: list[Step], steps_key: tuple[object, ...]
+) -> dict[int, tuple[str, tuple[str, ...]]]:
+    """The on_error steps that fail when run from ``start``: index -> (reason, blockers),
+    remembered per start state and steps in the world's memo."""
+    key = (_key(start.q_rad, start.world, start.part), start.contact, steps_key)
+    memo = start.world.on_error_memo
+    if key in memo:
+        cached: dict[int, tuple[str, tuple[str, ...]]] = memo[key]
+        return cached
+    planner = _StepPlanner(start.world, np.asarray(start.q_rad, float), start.part)
+    planner.contact = start.contact
+    failed: dict[int, tuple[str, tuple[str, ...]]] = {}
+    for step in cleanup:
+        q_from, part = planner.q, planner.part
+        try:
+            if step.is_motion:
+                motion = _at(step, planner.motion, StepPlan(step))
+                _time_and_verify(planner.world, motion, q_from)
+            else:
+                _at(step, planner.act, StepPlan(step))
+        except InfeasibleError as exc:
+            planner.q, planner.part = q_from, part  # nothing moved: the next step goes on
+            failed[step.index] = (exc.reason, exc.blockers)
+    while len(memo) >= ON_ERROR_MEMO_SIZE:
+        memo.pop(next(iter(memo)))  # the oldest
+    memo[key] = failed
+    return failed
+
+
+def _steps_key(steps: list[Step]) -> tuple[object, ...]:
+    """What makes on_error steps the same for planning: index, kind, arguments, targets."""
+    return tuple(
+        (
+            s.index,
+            s.kind,
+            s.name,
+            repr(s.args),
+            None if s.T_world_tcp is None else np.round(s.T_world_tcp, 9).tobytes(),
+            s.q_goal_deg,
+            repr(sorted(s.extra.items())),
+        )
+        for s in steps
+    )
 
 
 #: joint travel (rad, the largest joint's) between the mid-motion states taken of a motion

@@ -22,7 +22,7 @@ import functools
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, TypedDict
+from typing import TYPE_CHECKING, TypedDict, TypeVar
 
 import numpy as np
 
@@ -36,6 +36,8 @@ from cellrunner.model.timing import close_time_s, release_time_s
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory
 from cellrunner.planning.egress import corridors, egress_pose
 from cellrunner.planning.world import CellWorld
+
+_R = TypeVar("_R")
 
 if TYPE_CHECKING:
     from cellrunner.model.cell import Gripper
@@ -67,6 +69,8 @@ GRAVITY_MPS2 = 9.81
 #: ``serve`` every job that starts where a fault left the arm adds groups used once, and
 #: with 256 kept (cleared when full) they grew its memory for hundreds of jobs (bench_plc)
 TIMING_MEMO_SIZE = 64
+#: planned motions remembered per cell (:meth:`_StepPlanner.motion`), oldest out
+MOTION_MEMO_SIZE = 256
 
 
 class VerifyInputs(TypedDict):
@@ -105,6 +109,17 @@ class StepPlan:
     )
 
 
+@dataclass(frozen=True)
+class StepFailure:
+    """Why a plan is refused: step ``step_index`` (1-based; an on_error step's index
+    follows the job's) cannot be carried out, ``message`` says why with numbers, and
+    ``blockers`` names the links and fixtures in the way (most frequent first)."""
+
+    step_index: int
+    message: str
+    blockers: tuple[str, ...] = ()
+
+
 @dataclass
 class _Motion:
     """A motion step's joint waypoints before timing."""
@@ -128,12 +143,25 @@ class TaskPlan:
     steps: list[Step]
     rows: list[StepPlan]
     q_start_rad: np.ndarray
-    errors: list[str] = field(default_factory=list)
+    failures: list[StepFailure] = field(default_factory=list)
     on_error: list[StepPlan] = field(default_factory=list)  # verified from the plan's states
 
     @property
     def ok(self) -> bool:
-        return not self.errors
+        return not self.failures
+
+    @property
+    def errors(self) -> list[str]:
+        """Each failure as one line naming its step (``on_error`` in front of the task's
+        on_error steps)."""
+        return [self.describe(f) for f in self.failures]
+
+    def describe(self, failure: StepFailure) -> str:
+        for prefix, rows in (("", self.rows), ("on_error ", self.on_error)):
+            for r in rows:
+                if r.step.index == failure.step_index:
+                    return f"{prefix}{r.step.label}: {failure.message}"
+        return failure.message
 
     @property
     def cycle_time_s(self) -> float:
@@ -278,14 +306,14 @@ def plan_task(
                     or not _same_limits(group[-1].limits, planner.limits_for(step))
                 ):
                     flush()
-                group.append(planner.motion(row, then=then))
+                group.append(_at(step, planner.motion, row, then=then))
                 if step.kind in (StepKind.DESCEND, StepKind.LINEAR, *FORCE_KINDS) or _weighed(
                     rows, i
                 ):
                     flush()  # ends at rest: something happens at its end (a grip, weighing the part, a contact)
             else:
                 flush()
-                planner.act(row)
+                _at(step, planner.act, row)
             row.status = "ok"
             row.world = row.world or planner.world
             if not step.is_motion:
@@ -296,15 +324,23 @@ def plan_task(
             if row.step.retry is not None:
                 _check_retry_path(world, row, rows)
     except InfeasibleError as exc:
-        failed = _row_named(rows, str(exc)) or current or rows[-1]
-        failed.status, failed.message = "failed", _strip_label(str(exc))
-        plan.errors.append(f"{failed.step.label}: {failed.message}")
+        failed = next((r for r in rows if r.step.index == exc.step_index), current or rows[-1])
+        failed.status, failed.message = "failed", exc.reason
+        plan.failures.append(StepFailure(failed.step.index, exc.reason, exc.blockers))
         for r in rows:
             if r is not failed and (
                 r.step.index > failed.step.index or (r.step.is_motion and r.approved is None)
             ):
                 r.status, r.approved = "not planned", None
     return plan
+
+
+def _at(step: Step, action: Callable[..., _R], *args: object, **kwargs: object) -> _R:
+    """``action(*args, **kwargs)``, its InfeasibleError marked as about ``step``."""
+    try:
+        return action(*args, **kwargs)
+    except InfeasibleError as exc:
+        raise exc.at_step(step.index, step.label) from None
 
 
 #: a force step's line accelerates and stops at most this hard at the TCP (m/s^2): the
@@ -373,6 +409,63 @@ class _StepPlanner:
         allowances: tuple[ContactAllowance, ...] | None = None,
         then: Step | None = None,
     ) -> _Motion:
+        """``row``'s step planned from where the planner stands (to ``goal_q`` when given,
+        with ``allowances`` when given; ``then``: the step after it). A move planned
+        before from the same state (configuration, tool, carried part, contacts) to the
+        same goal is taken from the world's memo: the slots of a pattern share most of
+        their moves."""
+        key = self._motion_key(row.step, goal_q, allowances, then)
+        memo = self.world.motion_memo
+        hit: _Planned | None = memo.get(key)
+        if hit is None:
+            motion = self._plan_motion(row, goal_q, allowances, then)
+            while len(memo) >= MOTION_MEMO_SIZE:
+                memo.pop(next(iter(memo)))  # the oldest
+            memo[key] = _Planned(motion, row.message, self.contact)
+            return motion
+        self.egress = None  # the first motion's alone
+        self.contact = hit.contact_after
+        m = hit.motion
+        row.message, row.allowances, row.carrying = hit.message, m.row.allowances, self.part
+        row.world, row.q_end_rad = self.world, m.waypoints[-1]
+        self.q = m.waypoints[-1]
+        return _Motion(row, m.waypoints, m.limits, m.line_m, m.collision, m.world, m.proven)
+
+    def _motion_key(
+        self,
+        step: Step,
+        goal_q: np.ndarray | None,
+        allowances: tuple[ContactAllowance, ...] | None,
+        then: Step | None,
+    ) -> tuple[object, ...]:
+        """Everything :meth:`_plan_motion` reads: the step, the state, and the step after
+        it when the move's IK looks ahead to a straight descend."""
+        part = self.part
+        follow = then if then is not None and then.kind in ("descend", "linear") else None
+        return (
+            step.index,
+            step.kind,
+            step.name,
+            repr(step.args),
+            _bytes(step.T_world_tcp),
+            step.q_goal_deg,
+            _bytes(goal_q),
+            allowances,
+            None if follow is None else (follow.kind, _bytes(follow.T_world_tcp)),
+            np.asarray(self.q, float).tobytes(),
+            id(self.world),
+            None if part is None else (part.name, repr(part.shape), _bytes(part.T_parent_shape)),
+            self.contact,
+            None if self.egress is None else (_bytes(self.egress[0]), self.egress[1]),
+        )
+
+    def _plan_motion(
+        self,
+        row: StepPlan,
+        goal_q: np.ndarray | None = None,
+        allowances: tuple[ContactAllowance, ...] | None = None,
+        then: Step | None = None,
+    ) -> _Motion:
         from cellrunner.planning.cartesian import plan_linear
 
         step, kin = row.step, self.world.kinematics
@@ -401,7 +494,9 @@ class _StepPlanner:
 
             T_goal = self._linear_goal(step, T_now) if goal_q is None else kin.T_world_tcp(goal_q)
             if then is not None and then.kind == StepKind.GRIP:  # the jaws must fit the part first
-                part = self.world.part_at(then.extra.get("part_at", ""), T_goal)
+                part = self.world.part_at(
+                    then.extra.get("part_at", ""), T_goal, then.extra.get("part_pose")
+                )
                 _check_jaws_fit(then, self.world.loaded.cell.tool.gripper, part)
             named = named_contacts(step)
             if allowances is None:
@@ -439,12 +534,19 @@ class _StepPlanner:
         gripper = self.world.loaded.cell.tool.gripper
         if step.kind == StepKind.GRIP:
             T = self.world.kinematics.T_world_tcp(self.q)
-            self.part = self.world.part_at(step.extra.get("part_at", ""), T)
+            part = self.world.part_at(step.extra.get("part_at", ""), T, step.extra.get("part_pose"))
+            self.part = self.world.same_grip(part) if part is not None else None
             _check_jaws_fit(step, gripper, self.part)
             weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
             close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
             row.duration_s = WRIST_SETTLE_S + close_s + weigh
         elif step.kind == StepKind.RELEASE:
+            if self.part is not None and step.macro != "on_error":  # on_error may drop it
+                from cellrunner.planning.support import check_support
+
+                check_support(
+                    self.world, step, self.q, self.part, step.extra.get("earlier_slots", [])
+                )
             row.duration_s = release_time_s(gripper)
             self.part = None
         elif step.kind == StepKind.WAIT:
@@ -539,10 +641,14 @@ class _StepPlanner:
                     break
                 if clearance.distance_m < -SET_DOWN_PRESS_M:
                     depth_mm = -clearance.distance_m * 1000
-                    raise InfeasibleError(
-                        f"{step.label}: at its {end} the part '{self.part.name}' would be {depth_mm:.1f} mm inside "
+                    reason = (
+                        f"at its {end} the part '{self.part.name}' would be {depth_mm:.1f} mm inside "
                         f"{clearance.b} (setting a part down may press {SET_DOWN_PRESS_M * 1000:.0f} mm at most); "
                         f"move the target up by {depth_mm - SET_DOWN_PRESS_M * 1000:.1f} mm or more"
+                    )
+                    # about ``step``, which may be the descend an approach looks ahead to
+                    raise InfeasibleError(
+                        f"{step.label}: {reason}", step_index=step.index, reason=reason
                     )
                 allowances.append(
                     ContactAllowance(_fixture_name(clearance.b), "part", -SET_DOWN_PRESS_M)
@@ -577,6 +683,20 @@ class _StepPlanner:
             return None
 
 
+@dataclass(frozen=True)
+class _Planned:
+    """A motion as planned (:meth:`_StepPlanner.motion`'s memo): its waypoints, limits,
+    line, models, the row's message, and the contacts the planner keeps after it."""
+
+    motion: _Motion
+    message: str
+    contact_after: tuple[ContactAllowance, ...]
+
+
+def _bytes(a: np.ndarray | None) -> bytes | None:
+    return None if a is None else np.asarray(a, float).tobytes()
+
+
 def _fixture_name(label: str) -> str:
     """The fixture name of a "fixture 'x'" or "waiting part 'x'" label (``part:x``)."""
     from cellrunner.planning.collision_scene import WAITING_PREFIX
@@ -606,12 +726,14 @@ def _check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) ->
     width = width_across_jaws_m(part.shape, part.T_parent_shape)
     if width is None or width < gripper.stroke:
         return
-    raise InfeasibleError(
-        f"{step.label}: part '{part.name}' is {width * 1000:.1f} mm across the jaws (along the "
+    reason = (
+        f"part '{part.name}' is {width * 1000:.1f} mm across the jaws (along the "
         f"TCP's X) but they open {gripper.stroke * 1000:.1f} mm (tool.gripper.stroke); fix: a "
         "gripper with a longer stroke, or grip the part across a narrower side (turn the "
         "frame's rpy about its Z)"
     )
+    # about the grip, also when the descend before it looks ahead to it
+    raise InfeasibleError(f"{step.label}: {reason}", step_index=step.index, reason=reason)
 
 
 def _joint_path(
@@ -637,7 +759,7 @@ def _time_group(
                 _apply(world, group, _timed_pieces(world, _blend(world, group), q_start))
                 return
             except InfeasibleError as exc:
-                failed = next((m for m in group if _names(str(exc), m.row.step)), None)
+                failed = next((m for m in group if m.row.step.index == exc.step_index), None)
                 if failed is None or not _prove_sampled(failed):
                     break
     q = q_start
@@ -665,17 +787,16 @@ def _prove_sampled(motion: _Motion) -> bool:
     proof of the timed trajectory finds it, and this plans that move the slower way."""
     if motion.proven is None:
         return False
+    # the motion may be the one the world's memo keeps (:meth:`_StepPlanner.motion`): it
+    # keeps the proven path, and the jobs that plan the same move again take that
     try:
         motion.waypoints, motion.proven = motion.proven(), None
     except InfeasibleError as exc:
-        raise InfeasibleError(f"{motion.row.step.label}: {exc}") from None
+        step = motion.row.step
+        raise InfeasibleError(
+            f"{step.label}: {exc.reason}", exc.blockers, step_index=step.index, reason=exc.reason
+        ) from None
     return True
-
-
-def _names(message: str, step: Step) -> bool:
-    """Whether an error ``message`` is about ``step``: it starts with the step's label, or
-    with the verifier's "step N NAME"."""
-    return message.startswith(step.label + ":") or message.startswith(f"step {step.index} ")
 
 
 def _joins(before: Step, after: Step) -> bool:
@@ -955,17 +1076,10 @@ def _check_retry_path(world: CellWorld, row: StepPlan, rows: list[StepPlan]) -> 
             if between.is_motion:
                 q_from = planner.q
                 goal = q_grip if between is descend.step else None
-                _time_and_verify(world, planner.motion(StepPlan(between), goal_q=goal), q_from)
+                motion = _at(between, planner.motion, StepPlan(between), goal_q=goal)
+                _time_and_verify(world, motion, q_from)
     except InfeasibleError as exc:
-        raise InfeasibleError(f"{row.step.label}: retry path: {_strip_label(str(exc))}") from None
-
-
-def _row_named(rows: list[StepPlan], message: str) -> StepPlan | None:
-    return next((r for r in rows if _names(message, r.step)), None)
-
-
-def _strip_label(message: str) -> str:
-    """'step 5 approach 'x': out of reach' -> 'out of reach'."""
-    if message.startswith("step ") and ": " in message:
-        return message.split(": ", 1)[1]
-    return message
+        reason = f"retry path: {exc.reason}"
+        raise InfeasibleError(
+            f"{row.step.label}: {reason}", exc.blockers, step_index=row.step.index, reason=reason
+        ) from None

@@ -55,7 +55,7 @@ def verify_trajectory(
     where = f"step {step_index} {step_name}"
 
     def fail(message: str) -> InfeasibleError:
-        return InfeasibleError(f"{where}: {message}")
+        return InfeasibleError(f"{where}: {message}", step_index=step_index, reason=message)
 
     q = np.asarray(trajectory.q_rad, float)
     rate = float(trajectory.rate_hz)

@@ -17,6 +17,7 @@ from cellrunner.model.load import LoadedCell
 if TYPE_CHECKING:
     from cellrunner.planning.collision import CollisionModel
     from cellrunner.planning.kinematics import ArmKinematics
+    from cellrunner.planning.plan_store import PlanStore
     from cellrunner.planning.timing import MotionLimits
 from cellrunner.model.robots import RobotSpec
 
@@ -127,25 +128,66 @@ class CellWorld:
         )
 
     @cached_property
+    def plans(self) -> PlanStore:
+        """The approved plans of this cell by key (in memory, and under the project's
+        ``var/plan-cache/``); one store for the cell whatever tool is mounted."""
+        if self.base is not None:
+            return self.base.plans
+        from cellrunner.planning.plan_store import PlanStore
+
+        return PlanStore(self.loaded.root / "var" / "plan-cache")
+
+    @cached_property
     def timing_memo(self) -> dict[Any, Any]:
         """Timed, verified motion groups of this cell by their inputs (task_plan)."""
+        return {}
+
+    @cached_property
+    def motion_memo(self) -> dict[Any, Any]:
+        """Planned motions of this cell (tool mounted) by their inputs (task_plan)."""
+        return {}
+
+    @cached_property
+    def on_error_memo(self) -> dict[Any, Any]:
+        """What on_error steps do from a state a job can fail in (planning.on_error)."""
         return {}
 
     @property
     def q_home_rad(self) -> np.ndarray:
         return np.radians(self.loaded.cell.robot.home)
 
-    def part_at(self, frame: str, T_world_tcp: np.ndarray) -> Placed | None:
-        """The part spawned at ``frame``, placed in the TCP frame of a grip at ``T_world_tcp``."""
+    def part_at(
+        self, frame: str, T_world_tcp: np.ndarray, T_world_slot: np.ndarray | None = None
+    ) -> Placed | None:
+        """The part spawned at ``frame``, placed in the TCP frame of a grip at
+        ``T_world_tcp``; ``T_world_slot``: where it lies instead of the frame itself (the
+        slot of a pattern the grip takes it from)."""
         from cellrunner.model.expand import frame_pose
 
         for part in self.loaded.cell.parts:
             if part.at == frame:
                 shape = part.to_shape(self.loaded.resolve)
                 depth = part_center_depth_m(self.loaded.cell.tool.gripper, shape)
-                T_world_part = frame_pose(self.loaded.cell, frame) @ geometry.pose_matrix(
-                    (0, 0, depth)
+                T_world_frame = (
+                    frame_pose(self.loaded.cell, frame) if T_world_slot is None else T_world_slot
                 )
+                T_world_part = T_world_frame @ geometry.pose_matrix((0, 0, depth))
                 T_tcp_part = geometry.invert(T_world_tcp) @ T_world_part
                 return Placed(part.name, shape, T_tcp_part)
         return None
+
+    def same_grip(self, part: Placed) -> Placed:
+        """``part`` as gripped, or the part of an earlier grip of this world held within a
+        nanometre of its pose: the grips of a pattern's slots, each reached by its own IK
+        solution, then hold the part in one pose and share one collision model."""
+        seen = self._grips.setdefault(part.name, [])
+        for earlier in seen:
+            if float(np.abs(earlier.T_parent_shape - part.T_parent_shape).max()) < 1e-9:
+                return earlier
+        if len(seen) < 64:
+            seen.append(part)
+        return part
+
+    @cached_property
+    def _grips(self) -> dict[str, list[Placed]]:
+        return {}

@@ -12,6 +12,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from cellrunner.model.params import UNIT_KINDS
+from cellrunner.model.units import UNITS
+
 PARAM_FIRST = 4
 N_PARAM_REGS = 16
 POSE_REGS = 6
@@ -32,8 +35,9 @@ def decode_params(
     layout: Sequence[tuple[str, str, str | None]], registers: Sequence[int]
 ) -> dict[str, Any]:
     """Param values from the window's ``registers`` for ``layout`` = (name, type, unit)
-    in the task's order: ints, ``"250 ms"`` strings for params with a unit, pose dicts
-    ``{"xyz": [m], "rpy": [deg]}``. The task's param check judges the values."""
+    in the task's order: ints, SI numbers for params with a unit (250 counts of ``ms``:
+    0.25 s), pose dicts ``{"xyz": [m], "rpy": [deg]}``. The task's param check judges the
+    values."""
     out: dict[str, Any] = {}
     i = 0
     for name, kind, unit in layout:
@@ -48,7 +52,8 @@ def decode_params(
                 "rpy": [w * DEG_PER_COUNT for w in words[3:]],
             }
         elif unit:
-            out[name] = f"{words[0]} {unit}"
+            kind = UNIT_KINDS[unit]
+            out[name] = words[0] * UNITS[kind][1][unit]
         else:
             out[name] = words[0]
     return out

@@ -29,7 +29,7 @@ def slot_cycles(
     """(param name, one row per slot) for the task's first pattern param; None when the
     task has no pattern."""
     from cellrunner.model.expand import pattern_params
-    from cellrunner.planning.cache import plan_cached
+    from cellrunner.planning.job_plan import plan_job
 
     patterns = pattern_params(task)
     if not patterns:
@@ -37,8 +37,8 @@ def slot_cycles(
     name, slots = next(iter(patterns.items()))
     rows = []
     for slot in slots:
-        plan = plan_cached(world, task, {**params, name: slot}, world.q_home_rad)
-        steps = {r.step.index: r.duration_s for r in plan.rows}
+        plan = plan_job(world, task, {**params, name: slot}, world.q_home_rad)
+        steps = {r.step.index: r.duration_s for r in plan.task_plan.rows}
         rows.append(
             SlotCycle(
                 slot,

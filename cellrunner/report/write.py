@@ -106,10 +106,10 @@ def _with_planned(
 ) -> list[dict[str, Any]]:
     """The run's step rows with each step's planned duration (s) beside the simulated one
     (a joined, non-stop group of moves is cut into one piece per step when planned)."""
-    from cellrunner.planning.cache import plan_cached
+    from cellrunner.planning.job_plan import plan_job
 
-    plan = plan_cached(world, task, params, world.q_home_rad)
-    planned = {r.step.index: r.duration_s for r in plan.rows}
+    plan = plan_job(world, task, params, world.q_home_rad)
+    planned = {r.step.index: r.duration_s for r in plan.task_plan.rows}
     return [{**r, "planned_s": planned.get(r["index"], 0.0)} for r in step_rows]
 
 

@@ -111,3 +111,24 @@ def image_source(spec: str | None, name: str, camera: Camera, host: str | None) 
     except (ImportError, AttributeError) as exc:
         raise UsageError(f"--image-source {spec!r}: cannot load it ({exc})") from None
     return factory(name, camera, host)
+
+
+class CameraFeeds:
+    """Every camera of a cell through one image source ``spec`` (see :func:`image_source`),
+    each connected on its first :meth:`grab`; :meth:`close` closes them all."""
+
+    def __init__(self, spec: str | None, cameras: dict[str, Camera], host: str | None) -> None:
+        self.spec, self.cameras, self.host = spec, cameras, host
+        self._open: dict[str, ImageSource] = {}
+
+    def grab(self, name: str) -> np.ndarray:
+        if name not in self._open:
+            source = image_source(self.spec, name, self.cameras[name], self.host)
+            source.connect()
+            self._open[name] = source
+        return self._open[name].grab()
+
+    def close(self) -> None:
+        for source in self._open.values():
+            source.close()
+        self._open.clear()

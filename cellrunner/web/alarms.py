@@ -51,6 +51,9 @@ _STATE_FIX = {
     "UNHOLD from the PLC.",
     "aborted": "Fix the cause shown below, then Clear and Reset (PLC RESET bit).",
     "stopped": "Reset (PLC RESET bit) to bring the cell to Idle.",
+    "obstructed": "Take what stands in the watched zone out of the arm's way; the job goes on "
+    "by itself once the depth camera sees the path clear (or plans around it, or ends with "
+    "108 when it waited as long as the task allows).",
 }
 
 
@@ -83,6 +86,16 @@ def active_alarms(status: CellStatus, plc_links: dict[str, bool]) -> list[Alarm]
                 "Protective stop",
                 "The controller stopped the arm (contact or safety limit).",
                 _STATE_FIX["protective_stop"],
+            )
+        )
+    if status.obstructed:
+        alarms.append(
+            Alarm(
+                "warning",
+                "Obstructed",
+                f"The arm waits, stopped on its path, for an obstacle not in the cell file: "
+                f"{status.obstruction}.",
+                _STATE_FIX["obstructed"],
             )
         )
     if status.held and not status.protective_stop:

@@ -89,6 +89,8 @@ class StatusBoard:
             "held": status.held,
             "protective_stop": status.protective_stop,
             "estop": status.estop,
+            "obstructed": status.obstructed,
+            "obstruction": status.obstruction,
             "plc_links": links,
             "job": job,
             "last_results": [_result_row(r) for r in reversed(finished[-LAST_RESULTS:])],

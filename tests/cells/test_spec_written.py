@@ -1,10 +1,12 @@
 """Cells written from SPEC.md alone by someone who did not write the engine (issue 24, item
-7), in tests/cells/spec_written/: a CB3 UR10 tending a CNC with two tools and a vise
-insert, a ceiling-mounted UR5e picking from a conveyor, a UR20 palletizing tall cartons
-onto two pallets in two layers, a UR3e driving a 4-hole screw pattern, and a CB3 UR3
-inserting a 20 mm peg into a 24 mm hole. Each has a part deliberately off its frame
-(``*_off_frame.yaml``) and a deliberately wrong place (a task that lets go over nothing,
-past an edge, or into a stale frame).
+7), in tests/cells/spec_written/, one arm each: a CB3 UR10 tending a CNC with two tools and
+a vise insert, a ceiling-mounted UR5e picking from a conveyor past a waiting box, a UR20
+palletizing tall cartons onto two pallets in two layers, a UR3e driving a 4-hole screw
+pattern, a CB3 UR3 inserting a 20 mm peg into a 24 mm (and 21 mm) hole, a UR10e reaching
+through a guard wall's window, a CB3 UR5 aligning on a marker before its pick (the UR16e
+watched cell is in test_spec_written_watch.py). Each has a part deliberately off its frame
+(``*_off_frame.yaml``, or the align cell's rehearsal offset) and a deliberately wrong place
+(a task that lets go over nothing, past an edge, or into a stale frame).
 
 What is asserted is what a line engineer reads in the SPEC: a correct job checks and
 rehearses to 0 with its part where the task put it; the twin never says 0 for a part
@@ -110,7 +112,26 @@ def test_a_correct_job_checks_and_rehearses_to_0_with_its_part_where_the_task_pu
 # A part off its frame: (cell, task, params, the least offset the result must report, mm;
 # None where the result is a failed insert, which reports its depth).
 OFF_FRAME = {
+    "ceiling_ur5e_box_12mm_12mm_3deg": (
+        "ceiling_conveyor_ur5e_off_frame",
+        "conveyor_pick",
+        (),
+        8.0,
+    ),
+    "ur20_carton_150mm_along_belt": (
+        "two_pallet_ur20_off_frame",
+        "pallet_left",
+        ("slot=0",),
+        100.0,
+    ),
+    "ur3e_bracket_10mm_4deg": ("screwing_ur3e_off_frame", "bracket", (), 7.0),
     "ur10_blank_12mm_into_vise": ("cnc_ur10_off_frame", "cnc", (), None),
+    "ur10e_block_15mm_6deg_behind_the_wall": (
+        "guard_window_ur10e_off_frame",
+        "unload_press",
+        (),
+        10.0,
+    ),
     "ur3_peg_8mm_off_hole": ("peg_ur3_off_frame", "peg", (), None),
 }
 
@@ -151,16 +172,37 @@ def test_a_wrong_place_is_never_0(case):
 
 
 # Parts let go over nothing: (cell, task, the part, its middle at the target, world m).
+# check refuses a place with nothing under the part's centre (issue 24), so only a part
+# check does not see carried reaches the twin: the blank the UR10 takes out of the vise
 FALLEN = {
+    "ur10_blank": ("cnc_ur10", "cnc_past_edge", "blank", (0.40, -0.63, 0.93)),
+}
+# ... the others are refused by check, naming the release and what is nearest
+LET_GO_OVER_NOTHING = {
     "ceiling_ur5e_box": (
         "ceiling_conveyor_ur5e",
         "conveyor_pick_past_table",
-        "box",
-        (0.0, 0.66, 0.925),
+        "step 9 release 'past_outfeed': the part 'box' would be let go with nothing under it",
     ),
-    "ur3e_bracket": ("screwing_ur3e", "bracket_beside_bench", "bracket", (0.12, 0.43, 0.808)),
-    "ur10_blank": ("cnc_ur10", "cnc_past_edge", "blank", (0.40, -0.63, 0.93)),
+    "ur3e_bracket": (
+        "screwing_ur3e",
+        "bracket_beside_bench",
+        "step 8 release 'beside_bench': the part 'bracket' would be let go with nothing under it",
+    ),
+    "ur10e_block": (
+        "guard_window_ur10e",
+        "unload_press_past_table",
+        "step 8 release 'past_table': the part 'block' would be let go with nothing under it",
+    ),
 }
+
+
+@pytest.mark.parametrize("case", LET_GO_OVER_NOTHING.values(), ids=LET_GO_OVER_NOTHING.keys())
+def test_check_refuses_a_part_let_go_over_nothing(case):
+    cell_name, task_name, error = case
+    code, out = cli("check", cell(cell_name), task(task_name))
+    assert code == 1
+    assert out["errors"][0].startswith(error), out["errors"]
 
 
 @pytest.mark.parametrize("case", FALLEN.values(), ids=FALLEN.keys())
@@ -175,6 +217,15 @@ def test_a_failed_place_reports_the_offset_where_the_part_comes_to_rest(case):
         out["result_text"],
         out["parts_end_m"],
     )
+
+
+def test_grip_miss_on_a_tall_suction_carton_is_no_part():
+    """The carton is 200 mm tall: the fault must act on the carton the cups would seal on,
+    wherever its middle is; retries find nothing, the job ends with 1."""
+    code, out = cli(
+        "dry-run", cell("two_pallet_ur20"), task("pallet_left"), "--inject", "grip_miss@grip"
+    )
+    assert (code, out["result_code"]) == (1, 1), out["result_text"]
 
 
 def test_check_refuses_jaws_that_open_narrower_than_the_part():
@@ -236,3 +287,18 @@ def test_bad_input_is_one_located_line_and_exit_2(tmp_path, case):
     assert len(lines) == 1, done.stderr
     assert re.match(rf"^{re.escape(spoiled)}:\d+:\d+: error: ", lines[0]), lines[0]
     assert named in lines[0], lines[0]
+
+
+def test_a_block_off_its_frame_placed_blind_is_refused():
+    """SPEC 12, visual alignment: the block lies 8 mm / 6 mm / 4 deg off its frame."""
+    code, out = cli("dry-run", cell("align_ur5"), task("blind_pick_ur5"))
+    assert (code, out["result_code"]) == (1, 3), out["result_text"]
+    assert place_failed_mm(out) >= 5.0, out["result_text"]
+
+
+def test_a_block_off_its_frame_aligned_before_the_pick_is_placed():
+    code, out = cli("check", cell("align_ur5"), task("align_pick_ur5"))
+    assert (code, out["ok"]) == (0, True), out["errors"]
+    code, out = cli("dry-run", cell("align_ur5"), task("align_pick_ur5"))
+    assert (code, out["result_code"]) == (0, 0), (out["result_text"], out["errors"])
+    assert math.dist(out["parts_end_m"]["block"], (0.40, 0.30, 0.825)) < 0.005

@@ -113,3 +113,18 @@ def test_bad_align_steps_are_located_input_errors(tmp_path, edit, message):
     assert r.returncode == 2
     line = next(x for x in r.stderr.splitlines() if message in x)
     assert line.startswith(f"{task}:") and ": error: " in line, line
+
+
+def test_on_the_arm_align_sees_through_the_image_source(tmp_path):
+    """`run --backend ur` against `cellrunner twin`: the unmodified ur_rtde client moves
+    the arm, the pictures come from the twin's camera server (the default image source)."""
+    from tests.twin.cell_rig import twin
+
+    cell, task, _ = project(tmp_path)
+    with twin(cell, "127.0.26.2"):
+        code, out, err = cellrunner(
+            "run", str(cell), str(task), "--backend", "ur", "--robot-host", "127.0.26.2",
+            "--image-source", "twin", "--json",
+        )  # fmt: skip
+    assert code == 0 and out["result_code"] == 0, (out.get("errors"), err[-2000:])
+    assert "in 2 looks" in align_row(out)["message"]

@@ -138,9 +138,9 @@ def _run(name: str, lookahead: bool, fault: str | None = None, tmp: Path | None 
         )
         description = dataclasses.replace(description, parts=thin)
     if fault == "collision":
-        from cellrunner.planning.cache import plan_cached
+        from cellrunner.planning.job_plan import plan_job
 
-        plan = plan_cached(world, task, params, world.q_home_rad)
+        plan = plan_job(world, task, params, world.q_home_rad).task_plan
         description = dataclasses.replace(
             description, fixtures=(*description.fixtures, _obstacle(world, plan, collide_at))
         )

@@ -144,7 +144,7 @@ def test_bad_param_is_exit_2(tmp_path):
 
 def test_cache_hits_and_misses(tmp_path):
     from cellrunner.model.load import load_cell, load_task
-    from cellrunner.planning.cache import plan_key
+    from cellrunner.planning.job_plan import plan_key
     from cellrunner.planning.world import CellWorld
 
     cell, task = project(tmp_path, PICK_PLACE)
@@ -160,12 +160,15 @@ def test_cache_hits_and_misses(tmp_path):
     world2 = CellWorld(loaded2)
     assert plan_key(world2, load_task(task, loaded2), {}, world2.q_home_rad) != key
     assert plan_key(world, load_task(task, loaded), {}, world.q_home_rad + 1e-3) != key
+    # the key is made of the digests taken on loading: no file is read to make it
+    cell.unlink()
+    assert plan_key(world, load_task(task, loaded), {}, world.q_home_rad) == key
 
 
 def test_cached_plan_is_verified_before_use(tmp_path):
     from cellrunner.errors import InfeasibleError
     from cellrunner.model.load import load_cell, load_task
-    from cellrunner.planning import cache
+    from cellrunner.planning.job_plan import plan_job
     from cellrunner.planning.world import CellWorld
 
     cell, task = project(tmp_path, PICK_PLACE)
@@ -178,7 +181,7 @@ def test_cached_plan_is_verified_before_use(tmp_path):
     np.savez(npz, **data)
     loaded = load_cell(cell)
     world = CellWorld(loaded)
-    plan = cache.plan_cached(world, load_task(task, loaded), {}, world.q_home_rad)
+    plan = plan_job(world, load_task(task, loaded), {}, world.q_home_rad).task_plan
     with pytest.raises(InfeasibleError):
         plan.nominal(plan.rows[2].step)
 
@@ -188,26 +191,25 @@ def test_memory_cache_keeps_the_most_recently_used_plans(monkeypatch):
     one-off plans (a job starting where a fault left the arm) never take the place of the
     plans in use, and of those the least recently used goes first."""
     from cellrunner.model.load import load_cell, load_task
-    from cellrunner.planning import cache
+    from cellrunner.planning.job_plan import plan_job, plan_key
     from cellrunner.planning.world import CellWorld
 
     loaded = load_cell(ROOT / "cells" / "demo_ur5e.yaml")
     task = load_task(ROOT / "tasks" / "pick_place.yaml", loaded)
     world = CellWorld(loaded)
-    monkeypatch.setattr(cache, "_MEMORY", {})
-    monkeypatch.setattr(cache, "_MEMORY_MAX", 2)
-    monkeypatch.setattr(cache, "_ASKED_ONCE", {})
+    store = world.plans
+    monkeypatch.setattr(store, "MEMORY_MAX", 2)
     home = world.q_home_rad
-    key = {s: cache.plan_key(world, task, {"slot": s}, home) for s in range(4)}
+    key = {s: plan_key(world, task, {"slot": s}, home) for s in range(4)}
     for s in (0, 1):
-        cache.plan_cached(world, task, {"slot": s}, home)
-    assert not cache._MEMORY  # asked for once: not kept
-    plans = {s: cache.plan_cached(world, task, {"slot": s}, home) for s in (0, 1)}
-    assert set(cache._MEMORY) == {key[0], key[1]}  # asked for again: kept
-    assert cache.plan_cached(world, task, {"slot": 0}, home) is plans[0]  # from memory
+        plan_job(world, task, {"slot": s}, home)
+    assert not store.memory  # asked for once: not kept
+    plans = {s: plan_job(world, task, {"slot": s}, home).task_plan for s in (0, 1)}
+    assert set(store.memory) == {key[0], key[1]}  # asked for again: kept
+    assert plan_job(world, task, {"slot": 0}, home).task_plan is plans[0]  # from memory
     one_off = home + np.radians([0, 0, 0, 0, 0, 10])
-    assert cache.plan_cached(world, task, {"slot": 3}, one_off).ok
-    assert set(cache._MEMORY) == {key[0], key[1]}  # a one-off plan takes no place
+    assert plan_job(world, task, {"slot": 3}, one_off).ok
+    assert set(store.memory) == {key[0], key[1]}  # a one-off plan takes no place
     for _ in range(2):
-        cache.plan_cached(world, task, {"slot": 2}, home)
-    assert set(cache._MEMORY) == {key[0], key[2]}  # slot 1 was the least recently used
+        plan_job(world, task, {"slot": 2}, home)
+    assert set(store.memory) == {key[0], key[2]}  # slot 1 was the least recently used

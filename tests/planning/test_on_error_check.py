@@ -91,12 +91,12 @@ def test_on_error_retreats_from_where_a_guarded_line_touched(tmp_path):
     assert [s["status"] for s in out["steps"][-2:]] == ["ok", "ok"]
 
     from cellrunner.model.load import load_cell, load_task
-    from cellrunner.planning.cache import plan_cached
+    from cellrunner.planning.job_plan import plan_job
     from cellrunner.planning.on_error import _starts
     from cellrunner.planning.world import CellWorld
 
     world = CellWorld(load_cell(DEMO))
-    plan = plan_cached(world, load_task(str(path), world.loaded), {}, world.q_home_rad)
+    plan = plan_job(world, load_task(str(path), world.loaded), {}, world.q_home_rad).task_plan
     starts = {s.label: s for s in _starts(plan)}
     touch = starts["from the contact of step 3 move_until_contact"]
     assert "from the end of step 3 move_until_contact" not in starts
@@ -123,13 +123,13 @@ def test_a_guarded_line_that_meets_nothing_is_refused(tmp_path):
 
 def test_on_error_is_proved_from_the_middle_of_joint_moves_with_and_without_the_part(tmp_path):
     from cellrunner.model.load import load_cell, load_task
-    from cellrunner.planning.cache import plan_cached
+    from cellrunner.planning.job_plan import plan_job
     from cellrunner.planning.on_error import _starts
     from cellrunner.planning.world import CellWorld
 
     world = CellWorld(load_cell(DEMO))
     path = task(tmp_path, "  - lift: 0.03\n  - move: home\n")
-    plan = plan_cached(world, load_task(path, world.loaded), {}, world.q_home_rad)
+    plan = plan_job(world, load_task(path, world.loaded), {}, world.q_home_rad).task_plan
     starts = {s.label: s for s in _starts(plan)}
     carried = starts["from the middle of step 6 move 'home'"]
     lost = starts["from the middle of step 6 move 'home', the part lost"]

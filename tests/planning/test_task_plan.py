@@ -150,9 +150,16 @@ def test_a_joint_move_sampling_missed_is_planned_again_proven(tmp_path, monkeypa
     off_line = (q - a) - np.outer((q - a) @ u, u)
     assert np.linalg.norm(off_line, axis=1).max() > 0.01  # round the pin, not straight
 
-    # without the proven plan, the verifier refuses the sampled move by the pin's name
+    # the world remembers the move as proven: planned again, the swing is not sampled
+    proven_calls.clear()
+    assert task_plan.plan_task(world, steps, world.q_home_rad).ok
+    assert proven_calls == []
+
+    # without the proven plan, the verifier refuses the sampled move by the pin's name (in a
+    # fresh world, which remembers no move)
     monkeypatch.setattr(task_plan, "_prove_sampled", lambda motion: False)
-    refused = task_plan.plan_task(world, steps, world.q_home_rad)
+    fresh = CellWorld(world.loaded)
+    refused = task_plan.plan_task(fresh, steps, fresh.q_home_rad)
     assert not refused.ok
     assert refused.errors[0].startswith("step 2 move") and "'pin'" in refused.errors[0]
 

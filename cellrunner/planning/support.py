@@ -1,0 +1,127 @@
+"""What a placed part rests on (issue 24: check approved a place in thin air, off the
+pallet, which the twin then failed as the part fell).
+
+At a release, the part must rest, within the cell's ``place_tolerance`` distance, on a
+fixture, on a part waiting at its frame, or on a part an earlier slot of the same pattern
+placed (a carton on the layer below): a thin probe from the part's centre straight down
+(world -Z) to that distance below its lowest point must touch one of them, so that the
+support is under the part's centre (a part half over a table's edge falls, even when its
+edge touches the table).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from cellrunner.errors import InfeasibleError
+from cellrunner.model import geometry
+from cellrunner.model.geometry import Box, Cylinder, Placed, Shape, Sphere
+
+if TYPE_CHECKING:
+    from cellrunner.model.step import Step
+    from cellrunner.planning.world import CellWorld
+
+#: a part this close to a support touches it (m)
+TOUCH_M = 1e-4
+#: radius of the probe under a part's centre (m)
+PROBE_RADIUS_M = 0.001
+
+
+def extent_below_m(shape: Shape, T_world_shape: np.ndarray) -> float:
+    """How far the shape reaches below its origin along world -Z (m); a mesh counts as
+    its bounding sphere."""
+    z = np.asarray(T_world_shape, float)[2, :3]  # world Z in the shape's axes
+    if isinstance(shape, Box):
+        return float(np.abs(z) @ np.asarray(shape.size_m, float)) / 2
+    if isinstance(shape, Cylinder):
+        along = abs(float(z[2]))
+        return (
+            along * shape.length_m / 2
+            + float(np.sqrt(max(0.0, 1 - along * along))) * shape.radius_m
+        )
+    if isinstance(shape, Sphere):
+        return float(shape.radius_m)
+    from cellrunner.planning.coal_shapes import make_coal_shape
+
+    return make_coal_shape(shape)[1]
+
+
+def check_support(
+    world: CellWorld, step: Step, q_rad: np.ndarray, part: Placed, earlier_tcp: list[np.ndarray]
+) -> None:
+    """Raise InfeasibleError unless ``part`` (held in the TCP frame at ``q_rad``) rests on
+    something within ``place_tolerance`` when ``step`` lets it go; ``earlier_tcp``: the
+    TCP targets of the earlier slots of its pattern, each holding the same part."""
+    drop_m = float(world.loaded.cell.place_tolerance.distance)
+    T_world_tcp = world.kinematics.T_world_tcp(q_rad)
+    T_world_part = T_world_tcp @ part.T_parent_shape
+    # the probe: from the part's centre down to drop_m below its lowest point
+    length_m = extent_below_m(part.shape, T_world_part) + drop_m
+    T_world_probe = np.eye(4)
+    T_world_probe[:3, 3] = T_world_part[:3, 3] - (0.0, 0.0, length_m / 2)
+    probe = Placed(part.name, Cylinder(PROBE_RADIUS_M, length_m), T_world_probe)
+    held = Placed(part.name, probe.shape, geometry.invert(T_world_tcp) @ T_world_probe)
+    if _touches_cell(world, q_rad, held) or _touches_earlier(part, probe, earlier_tcp):
+        return
+    gap_m, nearest = _nearest(world, q_rad, part)
+    raise InfeasibleError(
+        f"{step.label}: the part '{part.name}' would be let go with nothing under it within "
+        f"place_tolerance {drop_m * 1000:.0f} mm (the nearest thing is {nearest}, "
+        f"{gap_m * 1000:.1f} mm away): it falls; fix: lower the place frame onto its "
+        "support, or place it where a fixture or an earlier part holds it"
+    )
+
+
+def _part_pairs(world: CellWorld, held: Placed) -> tuple[list[int], list[str]]:
+    model = world.collision.carrying(held)
+    label = f"part '{held.name}'"
+    pairs = [
+        k
+        for k, (a, b) in enumerate(model.pair_labels)
+        if a == label and b.startswith(("fixture ", "waiting part "))
+    ]
+    return pairs, [model.pair_labels[k][1] for k in pairs]
+
+
+def _touches_cell(world: CellWorld, q_rad: np.ndarray, held: Placed) -> bool:
+    pairs, _ = _part_pairs(world, held)
+    distances, _ = world.collision.carrying(held).pair_distances(q_rad)
+    return bool(len(pairs)) and float(distances[pairs].min()) <= TOUCH_M
+
+
+def _nearest(world: CellWorld, q_rad: np.ndarray, held: Placed) -> tuple[float, str]:
+    pairs, names = _part_pairs(world, held)
+    if not pairs:
+        return float("inf"), "nothing"
+    distances, _ = world.collision.carrying(held).pair_distances(q_rad)
+    k = int(np.argmin(distances[pairs]))
+    return float(distances[pairs][k]), names[k]
+
+
+def _touches_earlier(part: Placed, probe: Placed, earlier_tcp: list[np.ndarray]) -> bool:
+    """Whether ``probe`` (placed in the world) touches the part an earlier slot placed at
+    each of ``earlier_tcp`` (TCP targets holding ``part`` as now)."""
+    if not earlier_tcp:
+        return False
+    import coal
+
+    from cellrunner.planning.coal_shapes import make_coal_shape
+
+    shape, _ = make_coal_shape(part.shape)
+    probe_shape, _ = make_coal_shape(probe.shape)
+
+    def transform(T: np.ndarray) -> coal.Transform3s:
+        return coal.Transform3s(np.asarray(T[:3, :3]), np.asarray(T[:3, 3]))
+
+    here = transform(probe.T_parent_shape)
+    for T_tcp in earlier_tcp:
+        there = transform(np.asarray(T_tcp) @ part.T_parent_shape)
+        result = coal.DistanceResult()
+        if (
+            coal.distance(probe_shape, here, shape, there, coal.DistanceRequest(), result)
+            <= TOUCH_M
+        ):
+            return True
+    return False

@@ -1,0 +1,75 @@
+"""A watched cell written from SPEC.md section 12 alone (issue 25, judged by): a UR16e on a
+shared bench under an overhead depth camera (tests/cells/spec_written/cells/watched_ur16e.yaml).
+The totes are rehearsal intruders (`sim: {intruders}`) added to that cell here, one per
+scenario; only the twin's depth camera reveals them.
+
+Timeline of the job (check): approach the infeed 0-1.9 s, grip, lift until 3.1 s, the
+transfer to the tray (step 6) 3.1-4.3 s. A tote on the transfer's path appears at 2.3 s,
+while the arm is at the infeed, 0.4 m from it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from tests.cells.test_spec_written import HERE, cli
+
+pytest.importorskip("mujoco")
+
+TRAY = (0.55, 0.35, 0.93)  # the housing's middle, set down in the tray
+ON_THE_PATH = "{name: tote, box: {size: [0.30, 0.20, 0.30]}, pose: {xyz: [0.65, 0.0, 1.05]}"
+BESIDE_THE_PATH = "{name: tote, box: {size: [0.30, 0.20, 0.15]}, pose: {xyz: [0.95, -0.35, 0.975]}"
+
+
+def watched(tmp_path, intruder: str | None = None) -> str:
+    """The watched cell, with one intruder in its sim: block (beside its tasks)."""
+    text = (HERE / "cells" / "watched_ur16e.yaml").read_text()
+    if intruder is not None:
+        anchor = "  depth_noise: 0.002\n"
+        assert anchor in text
+        text = text.replace(anchor, f"{anchor}  intruders:\n    - {intruder}\n")
+    for sub in ("cells", "tasks"):
+        (tmp_path / sub).mkdir(exist_ok=True)
+    for path in (HERE / "tasks").glob("watched_*.yaml"):
+        (tmp_path / "tasks" / path.name).write_text(path.read_text())
+    path = tmp_path / "cells" / "watched.yaml"
+    path.write_text(text)
+    return str(path)
+
+
+def transfer(replan: bool = False) -> str:
+    name = "watched_transfer_replan" if replan else "watched_transfer"
+    return str(HERE / "tasks" / f"{name}.yaml")
+
+
+def stops(out: dict) -> list[str]:
+    return [event["what"] for event in out.get("obstacles", [])]
+
+
+@pytest.mark.parametrize(
+    "intruder", [None, BESIDE_THE_PATH + ", appear: 0.3}"], ids=["static", "tote_beside_the_path"]
+)
+def test_nothing_in_the_way_costs_nothing(tmp_path, intruder):
+    code, out = cli("dry-run", watched(tmp_path, intruder), transfer())
+    assert (code, out["result_code"]) == (0, 0), out["result_text"]
+    assert stops(out) == []
+    assert out["cycle_time_s"] <= 1.03 * out["planned_cycle_time_s"]
+    assert math.dist(out["parts_end_m"]["housing"], TRAY) < 0.005
+
+
+def test_a_tote_on_the_path_for_4_s_makes_the_arm_wait_then_finish(tmp_path):
+    code, out = cli(
+        "dry-run", watched(tmp_path, ON_THE_PATH + ", appear: 2.3, leave: 6.3}"), transfer()
+    )
+    assert (code, out["result_code"]) == (0, 0), out["result_text"]
+    assert "wait" in stops(out) and "clear" in stops(out), out["obstacles"]
+    assert out["cycle_time_s"] > out["planned_cycle_time_s"] + 2.0
+    assert math.dist(out["parts_end_m"]["housing"], TRAY) < 0.005
+
+
+def test_a_tote_that_stays_ends_the_job_with_108_without_touching_it(tmp_path):
+    code, out = cli("dry-run", watched(tmp_path, ON_THE_PATH + ", appear: 2.3}"), transfer())
+    assert (code, out["result_code"]) == (1, 108), out["result_text"]
+    assert "tote" not in out["result_text"]  # found by the camera, not read from the file

@@ -1,0 +1,98 @@
+"""A real `cellrunner serve` of the watched demo cell on the twin, a tote only its depth
+camera sees standing on the path for 4 s: an independent Modbus client reads status bit
+b10 OBSTRUCTED while the arm waits, a real headless Chromium shows the obstruction on the
+status page, and the job finishes 0 once the tote is gone."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from tests.conftest import ROOT
+from tests.test_serve import free_port
+from tests.web.browser import Chromium, chromium_path
+from tests.web.test_status_page_browser import DONE, ERROR, JOB_ACK, READY, Plc
+
+HOST = "127.0.0.142"
+OBSTRUCTED = 1 << 10
+TOTE = "{name: tote, box: {size: [0.2, 0.14, 0.1]}, pose: {xyz: [0.52, -0.24, 1.1]}, appear: 0.3, leave: 4.3}"
+
+
+@pytest.fixture
+def serving(tmp_path):
+    modbus_port, http_port = free_port(HOST), free_port(HOST)
+    text = (ROOT / "cells" / "watched_ur5e.yaml").read_text()
+    text = text.replace(
+        "sim:\n  depth_noise: 0.002\n", f"sim:\n  depth_noise: 0.002\n  intruders:\n    - {TOTE}\n"
+    )
+    # the task waits up to 10 s (no replanning): the tote leaves after 4
+    text = text.replace("tasks/pick_place_watched.yaml", "tasks/pick_place.yaml")
+    text = text.replace("tasks/", f"{ROOT}/tasks/").replace("var/", f"{tmp_path}/")
+    text = text.replace("bind: 127.0.0.1, port: 1503", f"bind: {HOST}, port: {modbus_port}")
+    text = text.split("  opcua:")[0] + f"journal: {tmp_path}/jobs.sqlite\n"
+    cell = tmp_path / "watched.yaml"
+    cell.write_text(text)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "cellrunner.cli.main",
+            "--log-format",
+            "json",
+            "serve",
+            str(cell),
+            "--backend",
+            "sim",
+            "--http",
+            f"{HOST}:{http_port}",
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "osmesa"},
+    )
+    try:
+        plc = Plc(modbus_port)
+        plc.client.host = HOST
+        deadline = time.monotonic() + 90
+        while not plc.poll():
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()[-2000:]
+            time.sleep(0.2)
+        yield f"http://{HOST}:{http_port}/", plc
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err[-2000:]
+
+
+@pytest.mark.skipif(chromium_path() is None, reason="needs chromium")
+def test_modbus_and_the_browser_show_the_arm_waiting_for_a_tote(serving):
+    url, plc = serving
+    with Chromium(url) as page:
+        plc.wait(READY, 60)
+        plc.client.write_multiple_registers(2, [77, 1])
+        plc.client.write_single_register(1, 1)  # JOB_REQ
+        plc.wait(JOB_ACK, 10)
+        obstructed_seen = shown = False
+        deadline = time.monotonic() + 120
+        regs = None
+        while time.monotonic() < deadline:
+            regs = plc.poll()
+            if regs and regs[1] & OBSTRUCTED:
+                obstructed_seen = True
+            if not shown and "Obstructed" in page.text("alarms"):
+                shown = "occupied voxel at (" in page.text("alarms")
+            if regs and regs[1] & (DONE | ERROR):
+                break
+            time.sleep(0.05)
+        assert regs is not None and regs[1] & DONE and (regs[4], regs[5]) == (77, 0), regs
+        assert not regs[1] & OBSTRUCTED
+        plc.client.write_single_register(1, 0)
+    assert obstructed_seen, "Modbus never showed OBSTRUCTED while the arm waited"
+    assert shown, "the status page never showed the obstruction"
