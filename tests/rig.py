@@ -210,7 +210,7 @@ def start_twin(cell: Path | str, host: str) -> subprocess.Popen[str]:
     line = ""
     while time.monotonic() < deadline and "virtual" not in line:
         line = proc.stderr.readline()
-        assert line or proc.poll() is None, "the twin exited"
+        assert line or proc.poll() is None, f"the twin exited: {proc.stderr.read()[-3000:]}"
     assert "virtual" in line, line
     return proc
 

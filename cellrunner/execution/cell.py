@@ -41,7 +41,7 @@ from cellrunner.execution.job_view import (
 )
 from cellrunner.execution.journal import JournalBackend
 from cellrunner.execution.packml import Command, Event, TransitionRefused
-from cellrunner.execution.planner import JobPlan, Planner
+from cellrunner.execution.planner import PlannedJob, Planner
 from cellrunner.execution.recovery import (
     Recovered,
     clear_steps,
@@ -409,7 +409,7 @@ class CellController:
         (the job is then ended with 103)."""
         assert job.plan is not None
         try:
-            plan: JobPlan = job.plan.result()
+            plan: PlannedJob = job.plan.result()
         except Exception as exc:  # a planner bug must still close the job with a code
             message = (
                 str(exc) if isinstance(exc, CellrunnerError) else f"{type(exc).__name__}: {exc}"

@@ -15,7 +15,7 @@ from cellrunner.execution.context import EventLog, Eye, JobContext, Motions, use
 from cellrunner.execution.job import JobRunner
 from cellrunner.execution.job_book import JobBook
 from cellrunner.execution.job_view import Job
-from cellrunner.execution.planner import JobPlan, Planner
+from cellrunner.execution.planner import PlannedJob, Planner
 from cellrunner.model.expand import Step
 from cellrunner.model.gripper import gripper_channels
 from cellrunner.model.load import LoadedCell
@@ -53,7 +53,7 @@ class JobLauncher:
         """Start planning ``job`` from where the arm stands (its plan: ``job.plan``)."""
         job.plan = self._pool.submit(self.planner, job.task, job.params, q_now_rad)
 
-    def start(self, job: Job, plan: JobPlan) -> JobRunner:
+    def start(self, job: Job, plan: PlannedJob) -> JobRunner:
         """The runner of ``job`` following ``plan``, started (it reads the robot)."""
         job.planned = plan
         ctx = self._context(plan.motions, job.job_id)
@@ -70,7 +70,7 @@ class JobLauncher:
                 job_started()
         runner = JobRunner(
             ctx,
-            plan.steps,
+            plan.run_steps,
             job.task.task.on_protective_stop,
             wait_for_unhold=self.wait_for_unhold,
             gate=self.gate,

@@ -13,7 +13,7 @@ import numpy as np
 from cellrunner.execution.job import JobRunner
 from cellrunner.execution.job_records import JobPhase, StepRecord
 from cellrunner.execution.journal import JobRecord
-from cellrunner.execution.planner import JobPlan
+from cellrunner.execution.planner import PlannedJob
 from cellrunner.model.cellport import CellStatus, JobResult
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
@@ -32,9 +32,9 @@ class Job:
     params: dict[str, ParamValue]
     client_job_id: str
     source: str
-    plan: Future[JobPlan] | None = None
+    plan: Future[PlannedJob] | None = None
     runner: JobRunner | None = None
-    planned: JobPlan | None = None
+    planned: PlannedJob | None = None
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,6 @@ import numpy as np
 from cellrunner.errors import BackendError
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
-from cellrunner.execution.planner import JobPlan
 from cellrunner.model.expand import Step, expand
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.model.robot_state import RobotState, Safety
@@ -197,6 +196,15 @@ class LineMotions:
         return np.asarray(q_rad[:3])
 
 
+@dataclass(frozen=True)
+class FakePlan:
+    """A job's plan as the cell runs it (:class:`~cellrunner.execution.planner.PlannedJob`)."""
+
+    run_steps: list[Step]
+    motions: LineMotions
+    planned_cycle_time_s: float
+
+
 #: a job the fakes run ends within this many ticks
 MAX_TICKS = 200_000
 
@@ -204,7 +212,7 @@ MAX_TICKS = 200_000
 def planner(loaded, params, q_now):
     cell = load_cell(DEMO_CELL)
     steps = expand(loaded, cell.cell, params)
-    return JobPlan(steps, LineMotions(steps), 1.0)
+    return FakePlan(steps, LineMotions(steps), 1.0)
 
 
 def make_cell(tmp_path, arm=None):
