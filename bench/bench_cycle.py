@@ -215,7 +215,12 @@ def run(
                 f"  {cell_path} {Path(task_path).name}: optimal reference (BIT*, {optimal_budget_s:g} s a move)"
             )
         optimal = optimal_reference.reference(
-            world, plan, f"{cell.digest}|{task.source.digest}|{params}", optimal_budget_s, verbose
+            world,
+            plan,
+            steps,
+            f"{cell.digest}|{task.source.digest}|{params}",
+            optimal_budget_s,
+            verbose,
         )
     if verbose:
         print(f"  {cell_path} {Path(task_path).name} {params}: PolyScope program")

@@ -1,14 +1,16 @@
 """The optimal reference of bench_cycle: for every joint move of a plan, the shortest path
 an asymptotically optimal planner finds in a time budget, timed by the same TOPP-RA.
 
-For each ``move``/``approach`` row of the plan: OMPL's BIT* (batch informed trees) with a
-path-length objective (joint-space length, rad) searches from the row's start to its goal
-in the row's own collision model (the tool mounted, the part carried, the cell's
-clearance), every edge proven by :meth:`CollisionModel.check_motion`, for ``budget_s``.
-Its path gets its corners rounded by proven arcs as cellrunner's own paths
+For each ``move``/``approach`` step: our planner's path (its waypoints as planned, the
+corners rounded, before the step is blended into its neighbours) and OMPL's BIT* (batch
+informed trees) with a path-length objective (joint-space length, rad), searching from
+the same start to the same goal in the same collision model (the tool mounted, the part
+carried, the cell's clearance), every edge proven by :meth:`CollisionModel.check_motion`,
+for ``budget_s``. BIT*'s path gets its corners rounded by proven arcs as ours
 (:func:`cellrunner.planning.joint_path.round_corners`), so that neither path is timed
-with sharp corners. Both paths are then timed rest to rest by the same continuous
-TOPP-RA (:func:`cellrunner.planning.timing.optimal_duration_s`) under the row's limits.
+with sharp corners. Both are timed rest to rest by the same continuous TOPP-RA
+(:func:`cellrunner.planning.timing.optimal_duration_s`) under the step's limits; blends
+between steps are left out of both (they are what bench_cycle's other columns measure).
 
 The reference cycle is cellrunner's cycle with each joint move's time replaced by the
 better of the two paths' times (the optimal planner's path, when it found a shorter
@@ -106,24 +108,36 @@ def _length(q: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(q, axis=0), axis=1).sum())
 
 
-def moves_of(world, plan) -> list[tuple[Any, Any, Any]]:
-    """(row, collision model, limits) of every joint move of the plan that moves."""
-    from cellrunner.planning.task_plan import _StepPlanner
+def planned_moves(world, steps, q_start) -> list[Any]:
+    """The joint moves (``_Motion``: waypoints as planned, collision model, limits, world)
+    of the job's steps, planned as ``check`` plans them."""
+    from cellrunner.planning import task_plan
 
+    seen: dict[int, Any] = {}
+    original = task_plan._StepPlanner.motion
+
+    def recording(self, row, *args, **kwargs):
+        motion = original(self, row, *args, **kwargs)
+        if row.step.kind in ("move", "approach"):
+            seen.setdefault(row.step.index, motion)
+        return motion
+
+    task_plan._StepPlanner.motion = recording
+    try:
+        task_plan.plan_task(world, steps, q_start)
+    finally:
+        task_plan._StepPlanner.motion = original
     out = []
-    for row in plan.rows:
-        if row.step.kind not in ("move", "approach") or row.trajectory is None:
-            continue
-        q = row.trajectory.q_rad
-        if len(q) < 2 or float(np.abs(q[-1] - q[0]).max()) < 1e-6:
-            continue
-        w = row.world or world
-        planner = _StepPlanner(w, q[0], row.carrying)
-        out.append((row, planner.collision(row.allowances), planner.limits_for(row.step)))
+    for _, motion in sorted(seen.items()):
+        q = np.asarray(motion.waypoints, float)  # after any proven replanning
+        if len(q) >= 2 and float(np.abs(q[-1] - q[0]).max()) > 1e-6:
+            out.append(motion)
     return out
 
 
-def reference(world, plan, digest: str, budget_s: float = BUDGET_S, verbose: bool = True) -> dict:
+def reference(
+    world, plan, steps, digest: str, budget_s: float = BUDGET_S, verbose: bool = True
+) -> dict:
     """Per joint move: our path's and the optimal planner's (length, TOPP-RA time); and the
     reference cycle (module docstring)."""
     from cellrunner.planning.joint_path import round_corners
@@ -132,9 +146,10 @@ def reference(world, plan, digest: str, budget_s: float = BUDGET_S, verbose: boo
     cache = _load_cache()
     rows = []
     saved_s = 0.0
-    for row, collision, limits in moves_of(world, plan):
-        q = np.asarray(row.trajectory.q_rad, float)
-        kin = (row.world or world).kinematics
+    for motion in planned_moves(world, steps, world.q_home_rad):
+        row, collision, limits = motion.row, motion.collision, motion.limits
+        q = np.asarray(motion.waypoints, float)
+        kin = motion.world.kinematics
         q0, q1 = q[0], q[-1]
         key = hashlib.sha256(
             f"{digest}|{row.step.index}|{budget_s}".encode()

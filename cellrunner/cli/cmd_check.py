@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         ]
     )
     # pose and float params: each failing value on its own
-    poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, (dict, float))]
+    poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, (dict, float, str))]
     rows: list[dict[str, Any]] = [
         {
             "index": r.step.index,
@@ -108,6 +108,11 @@ def run(args: argparse.Namespace) -> int:
             elif isinstance(values[0], dict):
                 out.print(
                     f"pose param {name}: {len(values)} poses checked (its box's centre and corners)",
+                    markup=False,
+                )
+            elif isinstance(values[0], str):
+                out.print(
+                    f"frame param {name}: {', '.join(str(v) for v in values)} checked (every choice)",
                     markup=False,
                 )
             elif isinstance(values[0], float):

@@ -156,6 +156,10 @@ def run(args: argparse.Namespace) -> int:
     guard = runner_done.ctx.obstacles if runner_done is not None else None
     if guard is not None:
         payload["obstacles"] = guard.events
+    if assembled.watch is not None:
+        payload["depth_images"] = assembled.watch.images
+        intruders = backend.world.intruders if backend.world is not None else None
+        payload["intruders_touched"] = sorted(intruders.touched) if intruders else []
     has_pictures = True
     if report is not None:
         from cellrunner.report import write_report

@@ -44,11 +44,15 @@ def run(args: argparse.Namespace) -> int:
         gate=gate,
         eye=True,
         image_source=getattr(args, "image_source", None),
+        watched=True,
+        depth_source=getattr(args, "depth_source", None),
     )
     controller, loop = assembled.controller, assembled.loop
     out = console()
     controller.setup()
     try:
+        if assembled.feed is not None:
+            assembled.feed.start()
         loop.step(5)
         ticket = controller.start_job(1, params, "", "cli")
         if not ticket.accepted:
@@ -65,6 +69,8 @@ def run(args: argparse.Namespace) -> int:
         job = controller.last_job
         result = controller.status().last_result
     finally:
+        if assembled.feed is not None:
+            assembled.feed.close()
         controller.close()
     assert result is not None  # run_job returns once the job has ended
     code = ResultCode(result.result_code)
@@ -82,6 +88,11 @@ def run(args: argparse.Namespace) -> int:
         "steps": rows,
         "errors": [] if code is ResultCode.OK else [result.result_text],
     }
+    if assembled.watch is not None:
+        runner = controller.last_runner
+        guard = runner.ctx.obstacles if runner is not None else None
+        payload["obstacles"] = list(guard.events) if guard is not None else []
+        payload["depth_images"] = assembled.watch.images
     if args.json:
         emit_json(payload)
     else:

@@ -40,6 +40,9 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.twin.camera import CameraServer
 
         physics.reset(np.radians(cell.cell.robot.home))  # builds the world the cameras see
+        intruders = physics.world.intruders
+        if intruders is not None:  # sim: intruders count from the twin's start
+            intruders.start(physics.world.time_s)
         cameras = CameraServer(physics, args.host)
         cameras.start()
     threading.Thread(

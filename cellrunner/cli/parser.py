@@ -31,6 +31,15 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageExit(f"{self.prog}: error: {message}")
 
 
+def _depth_source(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--depth-source",
+        metavar="SPEC",
+        help="a watched cell on the arm: where depth images come from: twin (the virtual "
+        "controller's, the default), replay:DIR, or MODULE:FACTORY (docs/perception.md)",
+    )
+
+
 def _params(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "-p",
@@ -148,6 +157,7 @@ def _job_commands(sub: Commands) -> None:
         action="store_true",
         help="commissioning: show each step and wait for Enter before running it",
     )
+    _depth_source(p)
     p.set_defaults(module="run")
 
 
@@ -173,6 +183,7 @@ def _cell_commands(sub: Commands) -> None:
         metavar="FILE",
         help="a watched cell: write the obstacle map when serving stops (.npz, for check --watch)",
     )
+    _depth_source(p)
     p.set_defaults(module="serve")
 
     p = sub.add_parser("twin", help="a virtual UR controller backed by the MuJoCo twin")

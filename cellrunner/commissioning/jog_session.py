@@ -11,6 +11,7 @@ ends the session (:class:`InputLost`, exit 3); SIGTERM or Ctrl-C stops the arm a
 from __future__ import annotations
 
 import math
+import os
 import re
 import sys
 import threading
@@ -36,6 +37,19 @@ MAX_SESSION_S = 4 * 3600.0
 SPEEDJ_ACCEL_RAD_S2 = 8.0
 
 
+#: SCHED_FIFO priority of the servo loop (below the twin's controller loop, 20)
+SERVO_PRIORITY = 10
+
+
+def _realtime_priority(priority: int) -> bool:
+    """SCHED_FIFO ``priority`` for the calling thread; False where not allowed."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        return True
+    except (AttributeError, OSError):
+        return False
+
+
 class JogSession:
     """Construct, :meth:`connect`, :meth:`run` (until the input quits or ``stop`` is
     set), :meth:`close`."""
@@ -57,10 +71,15 @@ class JogSession:
         self._control: Any = None
         self._receive: Any = None
         self.status = "stopped"
+        self.realtime = False
         self._said = ""
 
     def connect(self) -> None:
         self.source.open()  # a missing terminal, device or port fails before the arm is touched
+        # the loop (and ur_rtde's threads, started below, which inherit it) at real-time
+        # priority where the OS allows it, as a servo node runs: a loaded machine then
+        # delays the arm's commands by microseconds, not by the scheduler's slices
+        self.realtime = _realtime_priority(SERVO_PRIORITY)
         from cellrunner.backends.ur_probe import controller_version
 
         controller_version(self.host, 3.0)

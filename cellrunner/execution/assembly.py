@@ -23,7 +23,7 @@ from cellrunner.model.expand import Step
 from cellrunner.model.load import LoadedCell, LoadedTask
 
 if TYPE_CHECKING:
-    from cellrunner.execution.watch import TwinDepthFeed, ZoneWatch
+    from cellrunner.execution.watch import SourceDepthFeed, TwinDepthFeed, ZoneWatch
     from cellrunner.planning.world import CellWorld
 
 
@@ -39,7 +39,7 @@ class AssembledCell:
     controller: CellController
     loop: ControlLoop
     watch: ZoneWatch | None = None  # the watched zone's map (a cell with watch:)
-    feed: TwinDepthFeed | None = None  # the twin's depth images into it (a loop observer)
+    feed: TwinDepthFeed | SourceDepthFeed | None = None  # depth images into it (an observer)
 
     def setup(self) -> AssembledCell:
         """Open the journal, connect the robot, reset to Idle."""
@@ -71,6 +71,7 @@ def assemble_cell(
     eye: bool = False,
     image_source: str | None = None,
     watched: bool = False,
+    depth_source: str | None = None,
 ) -> AssembledCell:
     """The cell ``loaded`` running ``tasks`` (PLC task number -> task).
 
@@ -84,9 +85,10 @@ def assemble_cell(
     infeed bring a part at each job's start; ``realtime`` and ``lookahead`` to the loop.
     ``eye``: align steps see through the cell's cameras (rendered by the in-process
     twin; on the arm from ``image_source``, default the cameras of a ``cellrunner twin``
-    at the robot's host); ``watched``: a cell with ``watch:`` on the in-process twin
-    checks every motion against its zone's map, fed by the twin's depth cameras (the
-    feed is one of the loop's observers)."""
+    at the robot's host); ``watched``: a cell with ``watch:`` checks every motion against
+    its zone's map, fed by the twin's depth cameras (``sim``) or, on the arm, by
+    ``depth_source`` (default: the virtual controller's at the robot's host). The feed is
+    one of the loop's observers; ``start()`` it once the robot is connected."""
     from cellrunner.planning.world import CellWorld
 
     kind = ""
@@ -101,13 +103,22 @@ def assemble_cell(
     world = CellWorld(loaded)
     if warm:
         warm_up(world)
-    zone = feed = None
-    if watched and kind == "sim":
-        from cellrunner.execution.watch import watch_on_twin
+    zone: ZoneWatch | None = None
+    feed: TwinDepthFeed | SourceDepthFeed | None = None
+    if watched and kind:
+        from cellrunner.execution.watch import watch_cell
 
-        on_twin = watch_on_twin(world, backend, realtime=realtime)
-        if on_twin is not None:
-            zone, feed = on_twin
+        found = watch_cell(
+            world,
+            kind,
+            backend,
+            realtime=realtime,
+            depth_source=depth_source,
+            host=robot_host or loaded.cell.robot.host,
+            log=log,
+        )
+        if found is not None:
+            zone, feed = found
     controller = CellController(
         loaded,
         tasks,

@@ -466,6 +466,7 @@ class CellController:
         self._held = None
         self._last = result
         self._book.refresh_counters()
+        self._publish()  # the snapshot a listener reads holds this result and its counters
         for listener in list(self._listeners):
             with contextlib.suppress(Exception):  # a listener must never take the cell down
                 listener(result)

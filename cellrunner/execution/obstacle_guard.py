@@ -12,6 +12,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from cellrunner.execution.watch import ZoneWatch
+    from cellrunner.model.geometry import Placed
     from cellrunner.model.task import ObstaclePolicy
     from cellrunner.perception.path_check import Blocked
 
@@ -46,6 +47,8 @@ class ObstacleGuard:
     policy: ObstaclePolicy
     accel_rad_s2: np.ndarray
     obstructed: str = ""
+    held: Placed | None = None  # the part carried in the last watched motion
+    why_not: str = ""  # why the last replan found no way
     replans: int = 0
     last_replan_s: float = -math.inf
     events: list[dict[str, Any]] = field(default_factory=list)

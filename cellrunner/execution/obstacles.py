@@ -19,13 +19,13 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Generator
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
 from cellrunner.execution.obstacle_guard import ObstacleGuard as ObstacleGuard  # re-exported
-from cellrunner.execution.outcome import Outcome
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.trajectory import ApprovedTrajectory, along_path
 
@@ -46,15 +46,28 @@ def where(blocked: Blocked) -> str:
     return f"occupied voxel at ({x:.3f}, {y:.3f}, {z:.3f}) m"
 
 
+#: how a watched motion failed: (result code, message)
+Failure = tuple[ResultCode, str]
+
+
+@dataclass(frozen=True)
+class _Go:
+    """The way is clear: stream ``path`` from set-point ``pos``."""
+
+    path: ApprovedTrajectory
+    pos: int
+
+
 def stream_watched(
     ctx: JobContext,
     step: Step,
     approved: ApprovedTrajectory,
     first: int,
-    part_lost_outcome: Callable[[JobContext], Outcome | None],
-) -> Generator[None, None, Outcome | None]:
+    part_lost: Callable[[JobContext], Any],
+) -> Generator[None, None, Any]:
     """Stream ``approved`` from set-point ``first`` under the watch (module docstring);
-    returns None at its end, or the failed outcome (108, a part lost)."""
+    returns None at its end, what ``part_lost(ctx)`` returned once it is not None (the
+    caller's failed outcome), or a :data:`Failure` (108)."""
     from cellrunner.execution.context import Stream
 
     guard = ctx.obstacles
@@ -62,14 +75,17 @@ def stream_watched(
     zone = guard.zone
     carried = getattr(ctx.motions, "carried_during", None)
     held: Placed | None = carried(step) if carried is not None else None
+    if guard.held is not None and held is None:  # released since: it stands where the TCP is
+        zone.set_down(guard.held, ctx.last_state.q_rad)
+    guard.held = held
     path, pos = approved, first
     blocked = zone.check(path.trajectory.q_rad[pos:], held)
     if blocked is not None:
         guard.note(ctx, "blocked before start", blocked, step=step.index)
         result = yield from _wait(ctx, step, path, float(pos), blocked, held)
-        if not isinstance(result, tuple):
+        if not isinstance(result, _Go):
             return result
-        path, pos = result
+        path, pos = result.path, result.pos
     while True:
         q = path.trajectory.q_rad
         follow_id = zone.follow(q, pos, held)
@@ -81,7 +97,7 @@ def stream_watched(
             ctx.commanded_q = q[i]
             stream.next_index = i + 1
             yield
-            lost = part_lost_outcome(ctx)
+            lost = part_lost(ctx)
             if lost is not None:
                 return lost
             verdict = zone.verdict()
@@ -101,14 +117,16 @@ def stream_watched(
             return None
         index, blocked = stopped_at
         guard.note(ctx, "stop", blocked, step=step.index)
-        u_rest = yield from _stop_on_path(ctx, path, index)
+        u_rest = yield from _stop_on_path(ctx, path, index, blocked.index)
         result = yield from _wait(ctx, step, path, u_rest, blocked, held)
-        if not isinstance(result, tuple):
+        if not isinstance(result, _Go):
             return result
-        path, pos = result
+        path, pos = result.path, result.pos
 
 
-def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop: bool) -> int:
+def _ramp_samples(
+    ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop: bool, fraction: float = 0.0
+) -> int:
     """Set-points a stop (from the speed at ``u0``) or a restart at ``u0`` (up to the top
     speed of the rest of the path) takes at the ramp's acceleration."""
     assert ctx.obstacles is not None
@@ -119,17 +137,23 @@ def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop:
         return 1
     rest = q[i : i + 2] if stop else q[i:]
     speed = np.abs(np.diff(rest, axis=0)).max(axis=0) * traj.rate_hz  # rad/s
-    seconds = float(np.max(speed / (RAMP_ACCEL_FRACTION * ctx.obstacles.accel_rad_s2)))
+    accel = (fraction or RAMP_ACCEL_FRACTION) * ctx.obstacles.accel_rad_s2
+    seconds = float(np.max(speed / accel))
     return max(1, math.ceil(seconds * traj.rate_hz))
 
 
 def _stop_on_path(
-    ctx: JobContext, path: ApprovedTrajectory, index: int
+    ctx: JobContext, path: ApprovedTrajectory, index: int, blocked: int
 ) -> Generator[None, None, float]:
-    """Slow to rest along ``path`` from set-point ``index`` (commanded now); returns the
-    path position (fractional sample) where the arm stands."""
+    """Slow to rest along ``path`` from set-point ``index`` (commanded now), before
+    set-point ``blocked`` (the first that comes too near the map) where the joints'
+    full acceleration allows; returns the path position (fractional sample) where the
+    arm stands."""
     last = len(path.trajectory.q_rad) - 1
     n = _ramp_samples(ctx, path, index, stop=True)
+    if index + n / 2 >= blocked - 1:  # too long: as hard as the limits allow, to stop short
+        hardest = _ramp_samples(ctx, path, index, stop=True, fraction=1.0)
+        n = max(hardest, 2 * (blocked - 1 - index), 1)
     k = np.arange(n + 1, dtype=float)
     u = np.minimum(index + k - k * k / (2 * n), last)
     stop = along_path(path, u)
@@ -159,9 +183,10 @@ def _wait(
     u_rest: float,
     blocked: Blocked,
     held: Placed | None,
-) -> Generator[None, None, tuple[ApprovedTrajectory, int] | Outcome]:
+) -> Generator[None, None, _Go | Failure]:
     """The arm stands at ``u_rest`` on ``path``: wait for the way to clear (then the same
     path on from there), replan around the map when the task allows, or fail with 108."""
+
     guard = ctx.obstacles
     assert guard is not None
     zone, policy = guard.zone, guard.policy
@@ -178,7 +203,7 @@ def _wait(
             if verdict is not None and verdict.follow_id == follow_id and verdict.time_s > since:
                 if verdict.blocked is None:
                     guard.note(ctx, "clear", None, step=step.index, waited_s=round(now - since, 3))
-                    return _resumed(ctx, path, u_rest), 1
+                    return _Go(_resumed(ctx, path, u_rest), 1)
                 blocked = verdict.blocked
                 guard.obstructed = f"step {step.index} ({step.name}): {where(blocked)}"
             if (
@@ -190,7 +215,19 @@ def _wait(
                 guard.replans += 1
                 guard.last_replan_s = now
                 t0 = time.perf_counter()
-                replanned = _replan(ctx, step, held)
+                if zone.replan_in_background:  # the control loop ticks on meanwhile
+                    from concurrent.futures import ThreadPoolExecutor
+
+                    pool = ThreadPoolExecutor(1, thread_name_prefix="replan")
+                    try:
+                        future = pool.submit(_replan, ctx, step, held, ctx.last_state.q_rad)
+                        while not future.done():
+                            yield
+                        replanned = future.result()
+                    finally:  # an abort while planning leaves the plan to finish unread
+                        pool.shutdown(wait=False)
+                else:
+                    replanned = _replan(ctx, step, held, ctx.last_state.q_rad)
                 plan_s = round(time.perf_counter() - t0, 4)
                 if replanned is not None:
                     guard.note(
@@ -201,7 +238,7 @@ def _wait(
                         replans=guard.replans,
                         plan_s=plan_s,
                     )
-                    return replanned, 0
+                    return _Go(replanned, 0)
                 guard.note(
                     ctx,
                     "replan failed",
@@ -209,6 +246,7 @@ def _wait(
                     step=step.index,
                     replans=guard.replans,
                     plan_s=plan_s,
+                    why=guard.why_not,
                 )
             if now - since >= policy.wait:
                 message = (
@@ -217,24 +255,27 @@ def _wait(
                     + (f" after {guard.replans} replan(s)" if policy.replan else "")
                 )
                 guard.note(ctx, "blocked", blocked, step=step.index)
-                return Outcome.failed(ResultCode.PATH_BLOCKED, message)
+                return ResultCode.PATH_BLOCKED, message
     finally:
         guard.obstructed = ""
         zone.follow(None)
 
 
-def _replan(ctx: JobContext, step: Step, held: Placed | None) -> ApprovedTrajectory | None:
-    """A verified plan from where the arm stands around the map, clear of it now; None
-    when there is none."""
+def _replan(
+    ctx: JobContext, step: Step, held: Placed | None, q_rad: np.ndarray
+) -> ApprovedTrajectory | None:
+    """A verified plan from ``q_rad`` (where the arm stands) around the map, clear of it
+    now; None when there is none."""
     assert ctx.obstacles is not None
     zone = ctx.obstacles.zone
     obstacles = zone.obstacles()
     try:
-        new = ctx.motions.replan(
-            step, ctx.last_state.q_rad, carrying=ctx.carry is not None, obstacles=obstacles
-        )
-    except InfeasibleError:
+        new = ctx.motions.replan(step, q_rad, carrying=ctx.carry is not None, obstacles=obstacles)
+    except InfeasibleError as exc:
+        ctx.obstacles.why_not = str(exc)
         return None
-    if zone.check(new.trajectory.q_rad, held) is not None:
+    blocked = zone.check(new.trajectory.q_rad, held)
+    if blocked is not None:
+        ctx.obstacles.why_not = f"the new plan meets the map: {where(blocked)}"
         return None
     return new

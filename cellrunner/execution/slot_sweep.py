@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
-from cellrunner.model.expand import box_params, float_params, pattern_params
+from cellrunner.model.expand import box_params, float_params, frame_params, pattern_params
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
 from cellrunner.model.step import Step
@@ -74,11 +74,13 @@ class Sweep:
 
 def checked_values(task: LoadedTask) -> dict[str, list[ParamValue]]:
     """Param -> every value the sweep checks: each slot of each pattern, the centre and
-    corners of each pose param's box and each align's correction box, and the ends and
-    centre of each float param's range that may change a motion."""
+    corners of each pose param's box and each align's correction box, the ends and
+    centre of each float param's range that may change a motion, and every choice of each
+    frame param."""
     checked: dict[str, list[ParamValue]] = {n: list(v) for n, v in pattern_params(task).items()}
     checked.update({n: list(v) for n, v in box_params(task).items()})
     checked.update({n: list(v) for n, v in float_params(task).items()})
+    checked.update({n: list(v) for n, v in frame_params(task).items()})
     return checked
 
 

@@ -9,21 +9,21 @@ is noticed by the jaw sensor and the load falling away.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Generator, Iterable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from cellrunner.backends.base import RobotState
 from cellrunner.execution.context import Carry, Hold, JobContext, Stream
 from cellrunner.execution.correction import corrected
-from cellrunner.execution.outcome import OK as OK  # re-exported: the behaviours' verdicts
-from cellrunner.execution.outcome import Outcome as Outcome
-from cellrunner.execution.outcome import StepGen as StepGen
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
-from cellrunner.model.robot_state import RobotState
 from cellrunner.model.step import StepKind
 from cellrunner.model.trajectory import ApprovedTrajectory
+
+StepGen = Generator[None, None, "Outcome"]
 
 #: joint distance (rad, max over joints) under which the arm is "at" a trajectory's start
 START_TOLERANCE_RAD = 2e-3
@@ -44,6 +44,20 @@ LOAD_LOST_FRACTION = 0.5
 #: the part's apparent weight is scaled by g / |g - a| (:func:`carried_load_N`), at most
 #: by 1 / this
 MIN_FELT_GRAVITY = 0.25
+
+
+@dataclass(frozen=True)
+class Outcome:
+    ok: bool
+    code: ResultCode = ResultCode.OK
+    message: str = ""
+
+    @staticmethod
+    def failed(code: ResultCode, message: str) -> Outcome:
+        return Outcome(False, code, message)
+
+
+OK = Outcome(True)
 
 
 def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
@@ -87,8 +101,10 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
         from cellrunner.execution.obstacles import stream_watched
 
         failed = yield from stream_watched(ctx, step, approved, first, part_lost_outcome)
-        if failed is not None:
+        if isinstance(failed, Outcome):
             return failed
+        if failed is not None:  # the way stayed blocked: (108, why)
+            return Outcome.failed(*failed)
         end_q = ctx.notes.pop("watched_q", q)
         return (yield from _ended(ctx, step, end_q, approved.trajectory.rate_hz))
     # the index lives in ctx.stream so that a look-ahead (execution.lookahead) can move

@@ -80,9 +80,13 @@ class ZoneWatch:
         self._follow: tuple[int, np.ndarray, int, Placed | None] | None = None  # id, q, from, held
         self._follow_id = 0
         self._verdict: Verdict | None = None
-        self.updates: list[MapUpdate] = []
+        self.updates: list[MapUpdate] = []  # the last ones (at most 1000)
+        self.images = 0  # integrated so far
         #: the part the arm carries (TCP frame), as the last motion followed said
         self.held: Placed | None = None
+        #: replans around the map run on a worker thread while the control loop ticks on
+        #: (real time); off real time the loop waits for them (simulated time stands)
+        self.replan_in_background = False
 
     # -- control thread ---------------------------------------------------------------
     def follow(
@@ -104,6 +108,19 @@ class ZoneWatch:
             if f is not None:
                 self._follow = (f[0], f[1], from_index, f[3])
 
+    def set_down(self, part: Placed, q_rad: np.ndarray) -> None:
+        """The arm released ``part`` (placed in the TCP frame) with its joints at ``q_rad``:
+        the part stands there now, known (its voxels are cleared and never hit again)."""
+        from cellrunner.perception.solids import solid_of
+
+        T_world_tcp = self.world.kinematics.T_world_tcp(np.asarray(q_rad, float))
+        self.known.set_down(part, T_world_tcp)
+        placed = [(solid_of(part.shape), T_world_tcp @ part.T_parent_shape)]
+        with self._lock:
+            near = near_any(placed, self.map.centres(), self.pad_m)
+            self.map.known |= near
+            self.map.log_odds[near] = np.minimum(self.map.log_odds[near], 0.0)
+
     def verdict(self) -> Verdict | None:
         return self._verdict
 
@@ -114,17 +131,20 @@ class ZoneWatch:
         return first_blocked(self.known, q_rad, centres, self.pad_m, held=held)
 
     def obstacles(self) -> Placed | None:
-        """The occupied voxels grown by the padding, as one obstacle to plan around (a coal
-        octree); None when the map is empty."""
+        """The occupied voxels grown by the padding (as the path check reads it), as one
+        obstacle to plan around (a coal octree); None when the map is empty."""
         from cellrunner.model.geometry import Voxels
 
         with self._lock:
             centres = self.map.occupied_centres()
         if not len(centres):
             return None
-        return Placed(
-            "watched zone", Voxels(centres, self.map.voxel_m, self.watch.padding), np.eye(4)
-        )
+        # grown so that every point the path check calls too near lies inside (the
+        # padding, the half diagonal, half its step; a cube covers half a voxel itself)
+        from cellrunner.perception.path_check import STEP_M
+
+        grow_m = self.pad_m + STEP_M / 2 - self.map.voxel_m / 2
+        return Placed("watched zone", Voxels(centres, self.map.voxel_m, grow_m), np.eye(4))
 
     # -- feed thread --------------------------------------------------------------------
     def integrate(self, frame: DepthFrame, held: Placed | None = None) -> Verdict:
@@ -139,6 +159,7 @@ class ZoneWatch:
             centres = self.map.occupied_centres()
             follow = self._follow
         self.updates.append(update)
+        self.images += 1
         if len(self.updates) > 1000:
             del self.updates[:500]
         blocked = None
@@ -190,6 +211,9 @@ class TwinDepthFeed:
         self._running: Future[tuple[Verdict, float]] | None = None
         self._running_at = 0.0
         self.render_s: list[float] = []
+
+    def start(self) -> None:
+        """Nothing to connect: the twin is in this process."""
 
     def quiet_until_s(self, cell: Any) -> float:
         """The next image, or a verdict's publication; none while the last verdict
@@ -278,3 +302,119 @@ def watch_on_twin(
         return None
     zone = ZoneWatch(world, watch)
     return zone, TwinDepthFeed(zone, backend, realtime=realtime)
+
+
+class SourceDepthFeed:
+    """Depth cameras on the arm (:mod:`cellrunner.perception.sources`) feeding the zone:
+    one thread per camera grabs, integrates and checks, and publishes each verdict as it
+    comes. As a control-loop observer it keeps the arm's latest measured state, whose
+    clock and joints stamp each image (a camera's own latency is not modelled). ``start``
+    connects the cameras; ``close`` stops the threads and closes them."""
+
+    #: a camera that failed is tried again after this long (s)
+    RETRY_S = 1.0
+
+    def __init__(self, zone: ZoneWatch, sources: dict[str, Any], log: Any = None) -> None:
+        self.zone, self.sources, self.log = zone, sources, log
+        self._state: Any = None
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        cell = zone.world.loaded.cell
+        from cellrunner.model.camera import FLANGE
+        from cellrunner.model.expand import frame_pose
+
+        self._mounts: dict[str, tuple[bool, np.ndarray]] = {}
+        for name in sources:
+            camera = cell.cameras[name]
+            if camera.mount == FLANGE:
+                self._mounts[name] = (True, camera.pose.matrix())
+            else:
+                self._mounts[name] = (False, frame_pose(cell, camera.mount) @ camera.pose.matrix())
+        self.errors: list[str] = []
+
+    def start(self) -> None:
+        for source in self.sources.values():
+            source.connect()
+        for name, source in self.sources.items():
+            thread = threading.Thread(
+                target=self._run, args=(name, source), name=f"depth-{name}", daemon=True
+            )
+            thread.start()
+            self._threads.append(thread)
+
+    def __call__(self, cell: Any) -> None:
+        self._state = cell.backend.read_state()
+
+    def quiet_until_s(self, cell: Any) -> float:
+        return 0.0  # verdicts come on their own clock: no look-ahead
+
+    def _run(self, name: str, source: Any) -> None:
+        on_flange, T_mount_camera = self._mounts[name]
+        while not self._stop.is_set():
+            try:
+                image = source.grab()
+                state = self._state
+                if state is None:
+                    continue
+                T = (
+                    self.zone.world.kinematics.T_world_flange(state.q_rad) @ T_mount_camera
+                    if on_flange
+                    else T_mount_camera
+                )
+                frame = DepthFrame(name, state.time_s, image.depth_m, T, image.K, q_rad=state.q_rad)
+                self.zone.publish(self.zone.integrate(frame))
+            except Exception as exc:  # a camera that fails is reported and tried again
+                self.errors.append(f"{name}: {exc}")
+                if self.log is not None:
+                    self.log.warning("depth_camera_failed", camera=name, error=str(exc))
+                self._stop.wait(self.RETRY_S)
+
+    def close(self) -> None:
+        self._stop.set()
+        for thread in self._threads:
+            thread.join(timeout=5.0)
+        for source in self.sources.values():
+            source.close()
+
+
+def watch_on_sources(
+    world: CellWorld, spec: str | None, host: str | None, log: Any = None
+) -> tuple[ZoneWatch, SourceDepthFeed] | None:
+    """The watched zone of a cell run on the arm (or the twin's virtual controller), fed
+    by the depth source ``spec`` names (:func:`~cellrunner.perception.sources.depth_source`);
+    None when the cell is not watched. ``start()`` the feed after the robot is connected."""
+    from cellrunner.perception.sources import depth_source
+
+    watch = world.loaded.cell.watch
+    if watch is None:
+        return None
+    cameras = world.loaded.cell.cameras
+    sources = {name: depth_source(spec, name, cameras[name], host) for name in watch.cameras}
+    zone = ZoneWatch(world, watch)
+    return zone, SourceDepthFeed(zone, sources, log)
+
+
+def watch_cell(
+    world: CellWorld,
+    kind: str,
+    backend: Any,
+    *,
+    realtime: bool,
+    depth_source: str | None = None,
+    host: str | None = None,
+    log: Any = None,
+) -> tuple[ZoneWatch, TwinDepthFeed | SourceDepthFeed] | None:
+    """The watched zone of a cell and its depth feed, for the backend ``kind``: the
+    in-process twin renders its own (``sim``); the arm, or the twin's virtual controller,
+    takes images from ``depth_source`` (default: the twin's on ``host``). None when the
+    cell is not watched. Add the feed to the control loop's observers and ``start()`` it
+    once the robot is connected; ``close()`` it at the end."""
+    watched: tuple[ZoneWatch, TwinDepthFeed | SourceDepthFeed] | None
+    if kind == "sim":
+        watched = watch_on_twin(world, backend, realtime=realtime)
+    else:
+        watched = watch_on_sources(world, depth_source, host, log)
+        realtime = True  # the arm's clock
+    if watched is not None:
+        watched[0].replan_in_background = realtime
+    return watched

@@ -69,6 +69,10 @@ class AlignArgs(Strict):
     """The box of corrections `check` proves; beyond it the step fails (3). Example: `{xyz: [0.015, 0.015, 0], rpy: [0, 0, 8]}`"""
     attempts: Annotated[int, Field(ge=1, le=10)] = 3
     """Looks at most (each look after the first follows a short verified move). Example: `3`"""
+    look: bool = True
+    """A camera on the flange first moves onto the marker's axis, `standoff` away (a planned move); false: it looks from where the arm stands. Example: `true`"""
+    standoff: PositiveLength | None = None
+    """How far from the marker the camera looks, m (default: the marker spans 10 % of the picture's height, at least 0.1 m). Example: `0.2`"""
 
     def box(self) -> tuple[list[float], list[float]]:
         """The correction box as (min, max), six values each: m then deg."""

@@ -14,11 +14,13 @@ import numpy as np
 
 from cellrunner.errors import InputError
 from cellrunner.model import geometry
-from cellrunner.model.align import aligned_frame, target_frame
+from cellrunner.model.align import AlignArgs, aligned_frame, target_frame
+from cellrunner.model.camera import Camera
 from cellrunner.model.cell import Cell
 from cellrunner.model.frames import frame_pose
 from cellrunner.model.loaded import LoadedTask, StepSpec
 from cellrunner.model.params import Param, ParamValue, PoseValue
+from cellrunner.model.pattern import Pattern
 from cellrunner.model.source import PathKey
 from cellrunner.model.step import (
     LINEAR_KINDS,
@@ -33,8 +35,8 @@ from cellrunner.model.task import (
     DistanceArgs,
     GripArgs,
     LinearArgs,
+    MoveArgs,
     Offset,
-    Pattern,
     PickArgs,
     PlaceArgs,
     TaskFile,
@@ -80,6 +82,10 @@ def expand(loaded: LoadedTask, cell: Cell, params: dict[str, Any]) -> list[Step]
             builder.add(spec)
     return builder.steps
 
+
+#: an align's look: the marker spans this share of the picture's height, from at least
+#: this far (m)
+LOOK_SPAN, LOOK_MIN_M = 0.10, 0.1
 
 #: the key of an align's correction among the params (``align:FRAME``): a pose
 #: ``{xyz, rpy}`` in the frame's axes; ``check`` plans the corners of its box, a job
@@ -130,10 +136,35 @@ class _Builder:
             else None,
             "T_world_camera": None if camera.eye_in_hand else camera_pose(self.cell, args.camera),
         }
+        macro = f"align {frame}"
+        if camera.eye_in_hand and args.look:
+            self.steps.append(
+                Step(
+                    self._next(),
+                    StepKind.MOVE,
+                    frame,
+                    MoveArgs(to=frame),
+                    spec.path,
+                    macro,
+                    self._look_pose(args, camera, extra),
+                )
+            )
         self.steps.append(
-            Step(self._next(), StepKind.ALIGN, frame, args, spec.path, None, extra=extra)
+            Step(self._next(), StepKind.ALIGN, frame, args, spec.path, macro, extra=extra)
         )
         self.aligned.add(frame)
+
+    def _look_pose(self, args: AlignArgs, camera: Camera, extra: dict[str, Any]) -> np.ndarray:
+        """T_world_tcp with the camera on the marker's axis, ``standoff`` out from its
+        face, looking at it (the camera's X along the marker's X)."""
+        fy, height = camera.intrinsics.fy, camera.image_size[1]
+        standoff = args.standoff or max(LOOK_MIN_M, fy * args.marker.size / (LOOK_SPAN * height))
+        T_world_camera = (
+            extra["T_world_frame"]
+            @ extra["T_marker"]
+            @ geometry.pose_matrix((0, 0, standoff), (180, 0, 0))
+        )
+        return np.asarray(T_world_camera @ np.linalg.inv(extra["T_tcp_camera"]))
 
     def _frame(self, name: str) -> np.ndarray:
         """The frame's pose, with the correction of an align before (``align:FRAME``)."""
@@ -184,21 +215,15 @@ class _Builder:
             elif args.to == "home":
                 name, q = "home", tuple(self.cell.robot.home)
             else:
-                name, T = args.to, self._frame(args.to) @ _offset(args.offset)
+                T, name = self._target(args.to, args.offset, args.pattern)
         elif kind == StepKind.APPROACH:
-            name = args.to
-            T = (
-                self._frame(args.to)
-                @ _offset(args.offset)
-                @ geometry.pose_matrix((0, 0, -args.distance))
-            )
+            T, name = self._target(args.to, args.offset, args.pattern)
+            T = T @ geometry.pose_matrix((0, 0, -args.distance))
         elif kind in (StepKind.DESCEND, StepKind.LINEAR):
-            name, T = args.to, self._frame(args.to) @ _offset(args.offset)
+            T, name = self._target(args.to, args.offset, args.pattern)
         elif kind == StepKind.INSERT:  # the line ends ``depth`` past the frame, along its Z
-            name, T = (
-                args.to,
-                self._frame(args.to) @ geometry.pose_matrix((0, 0, args.depth)),
-            )
+            T, name = self._target(args.to, None, args.pattern)
+            T = T @ geometry.pose_matrix((0, 0, args.depth))
         elif kind == StepKind.SET_OUTPUT:
             name = ", ".join(f"{k}={v}" for k, v in args.values.items())
         elif kind == StepKind.WAIT_INPUT:
@@ -426,6 +451,13 @@ def float_params(loaded: LoadedTask) -> dict[str, list[float]]:
     return out
 
 
+def frame_params(loaded: LoadedTask) -> dict[str, list[str]]:
+    """Every frame param, with the choices ``check`` must cover (every one)."""
+    return {
+        name: list(p.choices or []) for name, p in loaded.task.params.items() if p.type == "frame"
+    }
+
+
 __all__ = [
     "ALIGN_KEY",
     "LINEAR_KINDS",
@@ -442,6 +474,7 @@ __all__ = [
     "expand",
     "expand_on_error",
     "float_params",
+    "frame_params",
     "frame_pose",
     "pattern_params",
     "resolve_params",

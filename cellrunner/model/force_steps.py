@@ -13,6 +13,7 @@ from pydantic import Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Strict
+from cellrunner.model.pattern import Pattern
 from cellrunner.model.step import FORCE_KINDS as FORCE_KINDS
 from cellrunner.model.units import Force, Length, NonNegativeLength, PositiveLength, Speed
 
@@ -71,6 +72,8 @@ class InsertArgs(Strict):
     """Fixtures the tool or held part may touch along this line (the walls of a hole). Example: `[hole_wall_x, hole_wall_y]`"""
     clearance: NonNegativeLength | None = None
     """Distance this line keeps from everything else, m (default: the cell's). Example: `0.001`"""
+    pattern: Pattern | None = None
+    """A grid of holes indexed by a param, offsetting the frame as a pick's does. Example: `{grid: [2, 2], pitch: [0.05, 0.05], index: hole}`"""
 
     @model_validator(mode="after")
     def _window(self) -> InsertArgs:

@@ -10,6 +10,10 @@
   camera's frame (the target is then ``T_world_camera @ value``), bounded by a box
   ``min: [x, y, z, rx, ry, rz]``, ``max: [...]``; ``check`` verifies the box's corners
   and centre (:meth:`Param.box_values`), its default is the box's centre.
+- ``frame``: one of the frames in ``choices`` (the left or the right pallet), named
+  wherever a frame is read (``place: {at: side}``); over Modbus the choice's index (0,
+  1, ...), over OPC UA and the CLI its name; ``check`` proves every choice. Its default is
+  the first choice unless written.
 """
 
 from __future__ import annotations
@@ -32,13 +36,13 @@ UNIT_KINDS: dict[str, str] = {
 POSE_AXES = ("x", "y", "z", "rx", "ry", "rz")
 
 PoseValue = dict[str, list[float]]  # {"xyz": [m, m, m], "rpy": [deg, deg, deg]}
-#: a param's value as jobs use it
-ParamValue = int | float | bool | PoseValue
+#: a param's value as jobs use it (a frame param's: the frame's name)
+ParamValue = int | float | bool | str | PoseValue
 
 
 class Param(Strict):
-    type: Literal["int", "float", "bool", "pose"] = "int"
-    """int, float, bool or pose (x y z in m, rx ry rz in deg, in the frame that uses it). Example: `int`"""
+    type: Literal["int", "float", "bool", "pose", "frame"] = "int"
+    """int, float, bool, pose (x y z in m, rx ry rz in deg, in the frame that uses it) or frame (one of `choices`). Example: `int`"""
     unit: str | None = None
     """Float params: the unit of min, max, default and PLC values. Example: `ms`"""
     min: Any = None
@@ -49,6 +53,8 @@ class Param(Strict):
     """Value when the PLC or CLI gives none (a pose: the box's centre). Example: `0`"""
     description: str | None = None
     """What the param means, for people. Example: `pallet slot, row by row`"""
+    choices: list[str] | None = None
+    """Frame params: the frames it may name, in Modbus index order (0, 1, ...). Example: `[pallet_left, pallet_right]`"""
     camera: str | None = None
     """Pose params: the value is the part's pose in this camera's frame (as the vision system reports it, min and max too); it becomes the pose in the world through the camera's calibrated pose. Example: `overhead`"""
 
@@ -83,6 +89,8 @@ class Param(Strict):
             )
         if self.type == "pose":
             return self._pose_box()
+        if self.type == "frame" or self.choices is not None:
+            return self._frame_choices()
         for key in ("min", "max", "default"):
             v = getattr(self, key)
             if v is None:
@@ -105,6 +113,28 @@ class Param(Strict):
                 f"default {d:g} is outside [{self.min:g}, {self.max:g}]"
                 if self.min is not None and self.max is not None
                 else f"default {d:g} is outside its bounds",
+            )
+        return self
+
+    def _frame_choices(self) -> Param:
+        if self.type != "frame":
+            raise PydanticCustomError(
+                "param", f"only frame params take choices, not {self.type} params"
+            )
+        choices = self.choices or []
+        if not choices:
+            raise PydanticCustomError(
+                "param", "a frame param needs choices: the frames it may name, e.g. [left, right]"
+            )
+        if len(set(choices)) != len(choices):
+            raise PydanticCustomError("param", f"choices name a frame twice: {choices}")
+        if self.min is not None or self.max is not None or self.unit is not None:
+            raise PydanticCustomError("param", "a frame param takes choices, not min, max or unit")
+        if self.default is None:
+            object.__setattr__(self, "default", choices[0])
+        elif self.default not in choices:
+            raise PydanticCustomError(
+                "param", f"default {self.default!r} is not one of the choices: {', '.join(choices)}"
             )
         return self
 
@@ -139,6 +169,8 @@ class Param(Strict):
                 return self._pose(name, value)
             except PydanticCustomError as exc:
                 raise ValueError(exc.message()) from None
+        if self.type == "frame":
+            return self._choice(name, value)
         if self.type == "bool":
             if isinstance(value, bool):
                 return value
@@ -177,6 +209,21 @@ class Param(Strict):
             unit = f" {UNITS[self.kind][0]}" if self.kind else ""
             raise ValueError(f"param {name!r} = {out:g}{unit} is outside [{lo}, {hi}]{unit}")
         return out
+
+    def _choice(self, name: str, value: Any) -> str:
+        """A frame param's value: a choice's name, or its index (as Modbus sends it)."""
+        choices = self.choices or []
+        if isinstance(value, str) and value in choices:
+            return value
+        index = value if isinstance(value, int) and not isinstance(value, bool) else None
+        if isinstance(value, str) and value.strip().isdigit():
+            index = int(value)
+        if index is not None and 0 <= index < len(choices):
+            return choices[index]
+        raise ValueError(
+            f"param {name!r} must be one of {', '.join(choices)} "
+            f"(or its index 0-{len(choices) - 1}), got {value!r}"
+        )
 
     def _pose(self, name: str, value: Any) -> PoseValue:
         """A pose value ``{"xyz": [m], "rpy": [deg]}`` (or its JSON text, or six numbers)
@@ -249,6 +296,9 @@ def substitute(raw: Any, params: dict[str, Param], values: dict[str, Any]) -> tu
     used: set[str] = set()
 
     def walk(v: Any) -> Any:
+        if isinstance(v, str) and v in params and params[v].type == "frame":
+            used.add(v)
+            return values.get(v, params[v].default)
         if isinstance(v, str) and v in params and params[v].type == "float":
             used.add(v)
             p = params[v]

@@ -13,8 +13,8 @@ if TYPE_CHECKING:
     from cellrunner.model.cell import Cell
     from cellrunner.model.loaded import LoadedCell, LoadedTask, StepSpec
     from cellrunner.model.report import Report
+    from cellrunner.model.pattern import Pattern
     from cellrunner.model.source import PathKey
-    from cellrunner.model.task import Pattern
 
 _LINEAR_KINDS = ("descend", "linear")
 
@@ -25,6 +25,13 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
     needs_gripper = False
     for step in _all_steps([*task.steps, *task.on_error]):
         kind, args, path = step.kind, step.args, step.path
+        if getattr(args, "pattern", None) is not None and kind not in ("pick", "place"):
+            if kind == "move" and not (isinstance(args.to, str) and args.to != "home"):
+                report.error(
+                    path + ("pattern",), "a pattern offsets a frame; this move's target is not one"
+                )
+            else:
+                _check_pattern(task, args.pattern, path + ("pattern",), report)
         if kind == "align":
             _check_align(task, cell, step, report)
         elif kind == "move":
@@ -76,6 +83,9 @@ def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) 
             ("steps",), f"the task grips and releases but cell {cell.cell!r} has no tool.gripper"
         )
     for name, param in task.task.params.items():
+        for i, choice in enumerate(param.choices or ()):
+            if choice not in cell.frames:
+                report.error(("params", name, "choices", i), unknown_name("frame", choice, frames))
         if param.default is None:
             report.error(
                 ("params", name),

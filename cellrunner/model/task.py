@@ -17,12 +17,12 @@ from cellrunner.model.align import AlignArgs
 from cellrunner.model.base import Name, Pose, Strict
 from cellrunner.model.force_steps import InsertArgs, MoveUntilContactArgs
 from cellrunner.model.params import Param
+from cellrunner.model.pattern import Pattern
 from cellrunner.model.tool_steps import ChangeToolArgs
 from cellrunner.model.units import (
     Duration,
     Force,
     Fraction,
-    Length,
     NonNegativeLength,
     PositiveDuration,
     PositiveLength,
@@ -89,6 +89,8 @@ class MoveArgs(Strict):
     """Offset in the target frame's axes (m, deg), or [dx, dy, dz]. Example: `[0, 0, 0.05]`"""
     speed: Fraction = 1.0
     """Fraction of the joint limits. Example: `0.5`"""
+    pattern: Pattern | None = None
+    """A grid of targets indexed by a param, offsetting the frame as a pick's does. Example: `{grid: [2, 2], pitch: [0.05, 0.05], index: hole}`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
 
@@ -102,6 +104,8 @@ class ApproachArgs(Strict):
     """Offset in the frame's axes (m, deg), or [dx, dy, dz]. Example: `[0, 0.02, 0]`"""
     speed: Fraction = 1.0
     """Fraction of the joint limits. Example: `1.0`"""
+    pattern: Pattern | None = None
+    """A grid of targets indexed by a param, offsetting the frame as a pick's does. Example: `{grid: [2, 2], pitch: [0.05, 0.05], index: hole}`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
 
@@ -117,6 +121,8 @@ class LinearArgs(Strict):
     """Fixtures the tool or held part may touch along this line (the walls of a hole). Example: `[hole_wall_x, hole_wall_y]`"""
     clearance: NonNegativeLength | None = None
     """Distance this line keeps from everything else, m (default: the cell's). Example: `0.001`"""
+    pattern: Pattern | None = None
+    """A grid of targets indexed by a param, offsetting the frame as a pick's does. Example: `{grid: [2, 2], pitch: [0.05, 0.05], index: hole}`"""
 
     _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
 
@@ -190,43 +196,6 @@ class SetOutputArgs(Strict):
     @property
     def values(self) -> dict[str, bool | float]:
         return dict(self.model_extra or {})
-
-
-class Pattern(Strict):
-    """A grid of slots: ``grid: [rows, cols]`` or ``[rows, cols, layers]``.
-
-    Slot ``k`` -> layer ``k // (rows*cols)``, row ``(k % (rows*cols)) // cols``,
-    col ``k % cols``; rows step along the frame's X by ``pitch[0]``, columns along its
-    Y by ``pitch[1]``, layers straight up (world +Z) by ``pitch[2]``.
-    """
-
-    grid: Annotated[list[Annotated[int, Field(ge=1, le=1000)]], Field(min_length=2, max_length=3)]
-    """[rows, cols] or [rows, cols, layers]. Example: `[3, 4]`"""
-    pitch: Annotated[list[Length], Field(min_length=2, max_length=3)]
-    """Spacing in m along the frame's X (rows), Y (columns) and world +Z (layers). Example: `[0.07, 0.07]`"""
-    index: Name
-    """The param that picks the slot (0-based). Example: `slot`"""
-
-    @model_validator(mode="after")
-    def _dims(self) -> Pattern:
-        if len(self.grid) == 3 and len(self.pitch) != 3:
-            raise PydanticCustomError("pattern", "a grid with layers needs 3 pitches [x, y, z]")
-        return self
-
-    @property
-    def slots(self) -> int:
-        n = 1
-        for g in self.grid:
-            n *= g
-        return n
-
-    def offset_m(self, slot: int) -> tuple[float, float, float, float]:
-        """(dx, dy) in the frame's axes and dz straight up, for ``slot``; plus layer."""
-        rows, cols = self.grid[0], self.grid[1]
-        layer, rest = divmod(slot, rows * cols)
-        row, col = divmod(rest, cols)
-        dz = layer * (self.pitch[2] if len(self.pitch) == 3 else 0.0)
-        return row * self.pitch[0], col * self.pitch[1], dz, layer
 
 
 class Retry(Strict):

@@ -268,6 +268,7 @@ class ArmKinematics:
         q_prev = np.asarray(q_prev_rad, float)
         cand = np.array(raw)
         cand = cand + 2 * np.pi * np.round((q_prev - cand) / (2 * np.pi))
+        cand[:, ELBOW] = [_unwrapped_elbow(v) for v in cand[:, ELBOW]]
         order = np.argsort(np.abs(cand - q_prev).max(axis=1))
         for k in order:
             if self.within_limits(cand[k]) and self._verify(cand[k], np.asarray(T_world_tcp)):
@@ -333,9 +334,15 @@ class ArmKinematics:
         return raw
 
     def _wrap_near(self, q_raw: np.ndarray, q_near: np.ndarray) -> np.ndarray | None:
-        """Shift each joint by a multiple of 2 pi to be nearest q_near within limits."""
+        """Shift each joint by a multiple of 2 pi to be nearest q_near within limits; the
+        elbow is never wrapped (:data:`ELBOW`)."""
         q = np.empty(6)
         for i in range(6):
+            if i == ELBOW:
+                elbow = _unwrapped_elbow(q_raw[i])
+                if self.q_min_rad[i] - 1e-9 <= elbow <= self.q_max_rad[i] + 1e-9:
+                    q[i] = min(max(elbow, self.q_min_rad[i]), self.q_max_rad[i])
+                    continue
             best = None
             base = q_raw[i] + 2 * math.pi * round((q_near[i] - q_raw[i]) / (2 * math.pi))
             for k in (0, -1, 1, -2, 2):
@@ -354,6 +361,18 @@ class ArmKinematics:
         dp = np.linalg.norm(T[:3, 3] - T_world_tcp[:3, 3])
         dR = rotation_angle_rad(T[:3, :3].T @ np.asarray(T_world_tcp)[:3, :3])
         return bool(dp < IK_TOLERANCE_M * 10 and dR < IK_TOLERANCE_RAD * 10)
+
+
+#: the elbow's joint index. Its angle is kept in [-pi, pi]: the forearm folds onto the upper
+#: arm at +-pi, so an elbow at 269.8 deg is -90.2 deg reached the wrong way round, through
+#: the upper arm (a joint move there swept the forearm through the arm, and the planner
+#: blamed the fixture it met on the way); the other joints wrap freely
+ELBOW = 2
+
+
+def _unwrapped_elbow(value_rad: float) -> float:
+    """The elbow angle ``value_rad`` in [-pi, pi] (the same configuration)."""
+    return float(math.remainder(float(value_rad), 2 * math.pi))
 
 
 def rotation_angle_rad(R: np.ndarray) -> float:

@@ -499,15 +499,15 @@ class _StepPlanner:
                 )
                 _check_jaws_fit(then, self.world.loaded.cell.tool.gripper, part)
             named = named_contacts(step)
+            # also when replanned at run time from where the arm stands (a retry's retreat)
+            touches = self._waiting_touches(T_goal)
             if allowances is None:
                 if step.kind in FORCE_KINDS:  # contact is what the step is for, where its line ends
                     from cellrunner.planning.force_plan import contact_allowances
 
                     allowances = self.contact + contact_allowances(self, step, T_goal) + named
-                else:
-                    allowances = self._place_allowances(step, T_goal, named)  # with self.contact
-            # also when replanned at run time from where the arm stands (a retry's retreat)
-            touches = self._waiting_touches(T_goal)
+                else:  # with self.contact
+                    allowances = self._place_allowances(step, T_goal, named + touches)
             allowances = (*allowances, *(a for a in touches if a not in allowances))
             collision = self.collision(allowances, step)
             path = plan_linear(kin, collision, self.q, T_goal).q_rad
@@ -534,7 +534,9 @@ class _StepPlanner:
         gripper = self.world.loaded.cell.tool.gripper
         if step.kind == StepKind.GRIP:
             T = self.world.kinematics.T_world_tcp(self.q)
-            part = self.world.part_at(step.extra.get("part_at", ""), T, step.extra.get("part_pose"))
+            # a pick's grip names its frame; a bare grip takes the part waiting at the TCP
+            frame = step.extra.get("part_at") or self._frame_at_tcp()
+            part = self.world.part_at(frame, T, step.extra.get("part_pose"))
             self.part = self.world.same_grip(part) if part is not None else None
             _check_jaws_fit(step, gripper, self.part)
             weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
@@ -650,9 +652,10 @@ class _StepPlanner:
                     raise InfeasibleError(
                         f"{step.label}: {reason}", step_index=step.index, reason=reason
                     )
-                allowances.append(
-                    ContactAllowance(_fixture_name(clearance.b), "part", -SET_DOWN_PRESS_M)
-                )
+                support = _fixture_name(clearance.b)
+                allowances.append(ContactAllowance(support, "part", -SET_DOWN_PRESS_M))
+                # the jaws around a short part come down to what it is set on (or lifted off)
+                allowances.append(ContactAllowance(support, "tool", -GRIP_PRESS_M))
                 model = self.collision(tuple(allowances), step)
         return tuple(allowances)
 
@@ -660,7 +663,8 @@ class _StepPlanner:
         """A straight move's tool may touch the parts waiting at their frames that it is
         within clearance of where the line starts or ends: the jaws or cups reaching to a
         part to grip it, or leaving it (a retry's retreat); never the joint moves, whose
-        sweep must keep clear of every waiting part (SPEC section 12)."""
+        sweep must keep clear of every waiting part (SPEC section 12). Around a short part
+        the jaws may also come down to the fixture it rests on (as far as onto the part)."""
         from cellrunner.planning.collision import ContactAllowance
         from cellrunner.planning.collision_scene import WAITING_PREFIX
 
@@ -668,13 +672,45 @@ class _StepPlanner:
             return ()
         model = self.collision()
         names: set[str] = set()
+        supports: set[str] = set()
         for q in (self.q, self._try_ik(T_goal)):
-            for v in model.violations(q) if q is not None else ():
-                if v.a.startswith("tool ") and v.b.startswith("waiting part '"):
-                    names.add(v.b[len("waiting part '") : -1])
+            violations = model.violations(q) if q is not None else []
+            touched = {
+                WAITING_PREFIX + v.b[len("waiting part '") : -1]
+                for v in violations
+                if v.a.startswith("tool ") and v.b.startswith("waiting part '")
+            }
+            names |= touched
+            held = self._waiting_at_tcp(q) if q is not None else set()
+            under = {f for name in held for f in self.world.waiting_supports.get(name, ())}
+            supports |= {
+                v.b[len("fixture '") : -1]
+                for v in violations
+                if v.a.startswith("tool ") and v.b[len("fixture '") : -1] in under
+            }
         return tuple(
-            ContactAllowance(WAITING_PREFIX + name, "tool", -GRIP_PRESS_M) for name in sorted(names)
-        )
+            ContactAllowance(name, "tool", -GRIP_PRESS_M) for name in sorted(names)
+        ) + tuple(ContactAllowance(f, "tool", -GRIP_PRESS_M) for f in sorted(supports))
+
+    def _waiting_at_tcp(self, q: np.ndarray) -> set[str]:
+        """The waiting parts a grip at ``q`` would take: those whose bounding sphere holds
+        the TCP (centred between jaws, or the top face under the cups)."""
+        from cellrunner.planning.coal_shapes import make_coal_shape
+
+        p = self.world.kinematics.p_world_tcp(q)
+        return {
+            part.name
+            for part in self.world.waiting_parts
+            if np.linalg.norm(np.asarray(part.T_parent_shape)[:3, 3] - p)
+            <= make_coal_shape(part.shape)[1]
+        }
+
+    def _frame_at_tcp(self) -> str:
+        """The frame of the part a grip here takes (:meth:`_waiting_at_tcp`), or ''."""
+        from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+        names = {name[len(WAITING_PREFIX) :] for name in self._waiting_at_tcp(self.q)}
+        return next((p.at for p in self.world.loaded.cell.parts if p.name in names), "")
 
     def _try_ik(self, T: np.ndarray) -> np.ndarray | None:
         try:

@@ -107,6 +107,37 @@ class CellWorld:
         return out
 
     @cached_property
+    def waiting_supports(self) -> dict[str, tuple[str, ...]]:
+        """Per waiting part (``part:NAME``), the fixtures it rests on: those within the
+        cell's place_tolerance of it (the jaws reaching around it may touch them)."""
+        import coal
+
+        from cellrunner.planning.coal_shapes import make_coal_shape
+
+        def transform(T: np.ndarray) -> coal.Transform3s:
+            return coal.Transform3s(np.asarray(T[:3, :3]), np.asarray(T[:3, 3]))
+
+        reach_m = float(self.loaded.cell.place_tolerance.distance)
+        out: dict[str, tuple[str, ...]] = {}
+        for part in self.waiting_parts:
+            shape, _ = make_coal_shape(part.shape)
+            near = []
+            for fixture in self.fixtures:
+                other, _ = make_coal_shape(fixture.shape)
+                d = coal.distance(
+                    shape,
+                    transform(part.T_parent_shape),
+                    other,
+                    transform(fixture.T_parent_shape),
+                    coal.DistanceRequest(),
+                    coal.DistanceResult(),
+                )
+                if d <= reach_m:
+                    near.append(fixture.name)
+            out[part.name] = tuple(near)
+        return out
+
+    @cached_property
     def collision(self) -> CollisionModel:
         from cellrunner.planning.collision import CollisionModel
 

@@ -41,8 +41,7 @@ import logging
 import math
 import os
 import threading
-import time
-from collections import OrderedDict
+from collections import Counter, OrderedDict
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -53,6 +52,13 @@ from urllib.parse import urlparse
 
 from cellrunner.errors import CellrunnerError, InputError
 from cellrunner.model.params import ParamValue
+from cellrunner.plc.opcua_admission import (
+    HANDSHAKE_BURST,
+    HANDSHAKES_PER_S,
+    SourceBudgets,
+    source_of,
+)
+from cellrunner.plc.opcua_admission import install as install_admission
 from cellrunner.plc.port import CellPort, CellStatus, JobResult, ResultCode
 
 if TYPE_CHECKING:
@@ -147,14 +153,16 @@ REFRESH_PERIOD_S = 0.05
 MAX_REMEMBERED_CLIENT_JOBS = 10_000
 #: connections (logged in or not) the server accepts at once
 MAX_CONNECTIONS = 32
-#: a connection that has not logged in this long after connecting is closed (s)
-LOGIN_GRACE_S = 30.0
-#: password checks allowed back to back, and their refill rate (per s)
+#: a connection that has not logged in this long after connecting is closed (s): a PLC
+#: connects and logs in within a second
+LOGIN_GRACE_S = 10.0
+#: password checks allowed back to back from one source, and their refill rate (per s)
 LOGIN_BURST, LOGINS_PER_S = 10, 5.0
 #: threads that hash passwords (one core at most, whatever the flood)
 LOGIN_WORKERS = 1
-#: password checks running or waiting for a worker; a login beyond that is refused at once
-MAX_PENDING_LOGINS = 4
+#: password checks running or waiting for a worker, in all and from one source; a login
+#: beyond that is refused at once (BadTooManyOperations)
+MAX_PENDING_LOGINS, MAX_PENDING_PER_SOURCE = 8, 2
 #: nice value of the hashing thread: below the PLC threads and the control loop, so a
 #: flood's hashing only takes what the cores have left
 LOGIN_WORKER_NICE = 10
@@ -267,29 +275,6 @@ def _nesting(text: str) -> int:
     return deepest
 
 
-class LoginBudget:
-    """A token bucket for password checks: ``burst`` at once, refilled at ``per_s``.
-    Thread-safe; ``clock`` returns monotonic seconds."""
-
-    def __init__(
-        self, burst: int = LOGIN_BURST, per_s: float = LOGINS_PER_S, clock: Any = time.monotonic
-    ) -> None:
-        self.burst, self.per_s, self.clock = burst, per_s, clock
-        self._tokens = float(burst)
-        self._at = clock()
-        self._lock = threading.Lock()
-
-    def take(self) -> bool:
-        with self._lock:
-            now = self.clock()
-            self._tokens = min(self.burst, self._tokens + (now - self._at) * self.per_s)
-            self._at = now
-            if self._tokens < 1.0:
-                return False
-            self._tokens -= 1.0
-            return True
-
-
 #: the verdict of the password check made off the event loop for the ActivateSession being
 #: processed: (username, password, accepted)
 _VERDICT: contextvars.ContextVar[tuple[str, str, bool] | None] = contextvars.ContextVar(
@@ -315,19 +300,21 @@ class HashedUserManager:
         users_file: Path,
         pki: Any,
         allow_insecure: bool,
-        budget: LoginBudget | None = None,
+        budget: SourceBudgets | None = None,
         *,
         max_pending: int = MAX_PENDING_LOGINS,
+        max_pending_per_source: int = MAX_PENDING_PER_SOURCE,
     ) -> None:
         self.users_file = users_file
         self.pki = pki
         self.allow_insecure = allow_insecure
-        self.budget = budget or LoginBudget()
+        self.budget = budget or SourceBudgets(LOGIN_BURST, LOGINS_PER_S)
         self.max_pending = max_pending
+        self.max_pending_per_source = max_pending_per_source
         self._users: dict[str, str] = {}
         self._stamp: tuple[float, int] | None = None
         self._workers: ThreadPoolExecutor | None = None
-        self._pending = 0  # touched on the event loop only
+        self._pending: Counter[str] = Counter()  # per source; touched on the event loop only
 
     def load(self) -> None:
         from cellrunner.plc.users import load_users
@@ -364,30 +351,36 @@ class HashedUserManager:
         elif iserver is not None:  # in the server, unchecked: never hash on the event loop
             accepted = False
         else:  # called on its own: hash here
-            accepted = self._within_budget(username) and self._verify(username, password)
+            accepted = self._within_budget(username, "") and self._verify(username, password)
         return User(role=UserRole.User, name=username) if accepted else None
 
-    async def check_password(self, username: str, password: str, certificate: Any) -> bool:
-        """On the event loop: the login's verdict, hashed on a worker thread. Refused at once
-        (no hash) for an untrusted channel, beyond the budget, or with
-        ``max_pending`` checks already running or waiting."""
+    async def check_password(
+        self, username: str, password: str, certificate: Any, source: str = ""
+    ) -> str:
+        """On the event loop: the login's verdict, hashed on a worker thread: ``"ok"``,
+        ``"refused"`` (an untrusted channel, a wrong password), or ``"busy"``, at once
+        and without a hash, when ``source`` (:func:`source_of`) has spent its budget or
+        has ``max_pending_per_source`` checks waiting, or ``max_pending`` wait in all."""
         if not self._channel_trusted(certificate):
-            return False
-        if self._pending >= self.max_pending:
+            return "refused"
+        pending = self._pending
+        if pending[source] >= self.max_pending_per_source or pending.total() >= self.max_pending:
             _log.warning("OPC UA login refused for user %r: too many logins waiting", username)
-            return False
-        if not self._within_budget(username):
-            return False
+            return "busy"
+        if not self._within_budget(username, source):
+            return "busy"
         if self._workers is None:
             self._workers = ThreadPoolExecutor(
                 LOGIN_WORKERS, thread_name_prefix="opcua-login", initializer=_lower_priority
             )
-        self._pending += 1
+        pending[source] += 1
         try:
             work = self._workers.submit(self._verify, username, password)
-            return await asyncio.wrap_future(work)
+            return "ok" if await asyncio.wrap_future(work) else "refused"
         finally:
-            self._pending -= 1
+            pending[source] -= 1
+            if pending[source] <= 0:
+                del pending[source]
 
     def close(self) -> None:
         """Stop the worker (checks under way finish; none waits for them)."""
@@ -411,11 +404,15 @@ class HashedUserManager:
             return False
         return True
 
-    def _within_budget(self, username: str) -> bool:
-        if self.budget.take():
+    def _within_budget(self, username: str, source: str) -> bool:
+        if self.budget.take(source):
             return True
         # a login flood: refused without spending a hash on it
-        _log.warning("OPC UA login refused for user %r: too many logins at once", username)
+        _log.warning(
+            "OPC UA login refused for user %r: too many logins at once from %s",
+            username,
+            source or "this caller",
+        )
         return False
 
     def _verify(self, username: str, password: str) -> bool:
@@ -732,6 +729,7 @@ def _bound(iserver: Any) -> None:
 
     iserver.max_connections = MAX_CONNECTIONS
     iserver.max_pending_activation_seconds = LOGIN_GRACE_S
+    install_admission(iserver, SourceBudgets(HANDSHAKE_BURST, HANDSHAKES_PER_S))
 
     def refuse_registration(*args: Any, **kwargs: Any) -> None:
         raise ServiceError(ua.status_codes.StatusCodes.BadServiceUnsupported)
@@ -753,6 +751,7 @@ def _check_logins_off_the_loop() -> None:
     inside its synchronous user check on the event loop. Installed once per process;
     servers with another user manager are left as they are."""
     from asyncua import ua
+    from asyncua.common.utils import ServiceError
     from asyncua.server.uaprocessor import UaProcessor
 
     if getattr(UaProcessor, "_cellrunner_logins", False):
@@ -767,6 +766,8 @@ def _check_logins_off_the_loop() -> None:
         if typeid != activate or not isinstance(manager, HashedUserManager):
             return await process(self, typeid, requesthdr, seqhdr, body)
         verdict = await _login_verdict(self, manager, requesthdr, body.copy())
+        if isinstance(verdict, str):  # "busy": a refusal for rate says so, with its status
+            raise ServiceError(ua.status_codes.StatusCodes.BadTooManyOperations)
         token = _VERDICT.set(verdict)
         try:
             return await process(self, typeid, requesthdr, seqhdr, body)
@@ -779,9 +780,10 @@ def _check_logins_off_the_loop() -> None:
 
 async def _login_verdict(
     processor: Any, manager: HashedUserManager, requesthdr: Any, body: Any
-) -> tuple[str, str, bool] | None:
-    """(username, password, accepted) of an ActivateSession's user token, or None when it
-    carries none asyncua would pass to the user manager (asyncua then refuses it itself)."""
+) -> tuple[str, str, bool] | str | None:
+    """(username, password, accepted) of an ActivateSession's user token; ``"busy"`` when
+    its source is over its login budget; None when it carries no token asyncua would pass
+    to the user manager (asyncua then refuses it itself)."""
     from asyncua import ua
     from asyncua.ua.ua_binary import struct_from_binary
 
@@ -800,7 +802,9 @@ async def _login_verdict(
     if username is None or password is None:
         return None
     certificate = processor._connection.security_policy.peer_certificate
-    return username, password, await manager.check_password(username, password, certificate)
+    source = source_of(certificate, processor._transport.get_extra_info("peername"))
+    verdict = await manager.check_password(username, password, certificate, source)
+    return "busy" if verdict == "busy" else (username, password, verdict == "ok")
 
 
 def _last_job_values(result: JobResult) -> dict[str, Any]:

@@ -318,6 +318,8 @@ class SimWorld:
         """What the controller and the line make of a period's physics: contacts (a
         protective stop), the held parts, the cups, faults, the inputs."""
         contacts = self.contacts
+        if self.intruders is not None:
+            self.intruders.note_contacts()
         self._gripped = contacts.check()
         if self._gripped or contacts.held_at:
             contacts.note_held(self._gripped, self.jaws is not None and self.jaws.closing)

@@ -5,6 +5,10 @@ Protocol, one request line, one reply:
 
 - ``list`` -> ``ok NAME ...``
 - ``grab NAME`` -> ``ok WIDTH HEIGHT 3`` then WIDTH x HEIGHT x 3 bytes, RGB, row by row
+- ``depth NAME`` (a depth camera, SPEC section 12) -> ``ok WIDTH HEIGHT 4 TIME_S FX FY CX
+  CY`` then WIDTH x HEIGHT float32 little-endian depths in m along the camera's Z (0: no
+  depth), row by row; TIME_S is the twin's simulated time when it was taken, FX..CY the
+  intrinsics of this image (a GL-less twin casts rays at a reduced resolution)
 - anything wrong -> ``error MESSAGE``
 
 One thread serves one client at a time and owns the GL contexts (rendering must stay on
@@ -94,8 +98,10 @@ class CameraServer:
     def _reply(self, words: list[str], imagers: dict[str, Any]) -> bytes:
         if words == ["list"]:
             return ("ok " + " ".join(self.cameras) + "\n").encode()
+        if len(words) == 2 and words[0] == "depth":
+            return self._depth(words[1], imagers)
         if len(words) != 2 or words[0] != "grab":
-            return b"error requests: list | grab NAME\n"
+            return b"error requests: list | grab NAME | depth NAME\n"
         name = words[1]
         if name not in self.cameras:
             known = ", ".join(self.cameras) or "(none)"
@@ -111,3 +117,32 @@ class CameraServer:
         height, width = image.shape[:2]
         pixels = np.ascontiguousarray(image, dtype=np.uint8).tobytes()
         return f"ok {width} {height} 3\n".encode() + pixels
+
+    def _depth(self, name: str, imagers: dict[str, Any]) -> bytes:
+        description = self.physics.description
+        ranges = {n: (near, far) for n, near, far, _ in description.depth}
+        if name not in ranges:
+            known = ", ".join(ranges) or "(none)"
+            return f"error no depth camera {name!r}; depth cameras: {known}\n".encode()
+        key = f"depth:{name}"
+        try:
+            if key not in imagers:
+                from cellrunner.sim.depth import DepthImager
+
+                imagers[key] = DepthImager(
+                    self.physics.world.model,
+                    self.cameras[name],
+                    ranges[name],
+                    description.depth_noise_m,
+                )
+            qpos, mocap_pos, mocap_quat, time_s = self.physics.snapshot_scene()
+            frame = imagers[key].frame(qpos, mocap_pos, mocap_quat, time_s)
+        except Exception as exc:  # rendering fails in GL-specific ways: report, keep serving
+            return f"error cannot render depth camera {name}: {exc}\n".encode()
+        height, width = frame.depth_m.shape
+        K = frame.K
+        header = (
+            f"ok {width} {height} 4 {time_s:.6f} {K[0, 0]:.9g} {K[1, 1]:.9g} "
+            f"{K[0, 2]:.9g} {K[1, 2]:.9g}\n"
+        )
+        return header.encode() + np.ascontiguousarray(frame.depth_m, "<f4").tobytes()

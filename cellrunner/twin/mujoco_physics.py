@@ -56,6 +56,18 @@ class MujocoPhysics:
         with self._lock:
             return np.asarray(self.world.data.qpos.copy())
 
+    def snapshot_scene(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """Positions, mocap bodies (the intruders) and simulated time, taken together
+        between two physics steps (what a depth camera sees)."""
+        with self._lock:
+            d = self.world.data
+            return (
+                np.asarray(d.qpos.copy()),
+                np.asarray(d.mocap_pos.copy()),
+                np.asarray(d.mocap_quat.copy()),
+                float(self.world.time_s),
+            )
+
     def reset(self, q_rad: np.ndarray) -> None:
         with self._lock:
             self._reset(q_rad)

@@ -302,3 +302,55 @@ def test_a_block_off_its_frame_aligned_before_the_pick_is_placed():
     code, out = cli("dry-run", cell("align_ur5"), task("align_pick_ur5"))
     assert (code, out["result_code"]) == (0, 0), (out["result_text"], out["errors"])
     assert math.dist(out["parts_end_m"]["block"], (0.40, 0.30, 0.825)) < 0.005
+
+
+def test_a_float_param_is_proved_over_its_whole_range_or_refused():
+    """A PLC may send any value in [min, max]: `clear` is 0.05-0.40 m and the UR3e cannot
+    reach 0.40 m above the tray. check (default value) proves the range or refuses it."""
+    code, out = cli("check", cell("screwing_ur3e"), task("bracket_clear"))
+    if code == 0:
+        for value in ("clear=0.05", "clear=0.40"):
+            code, out = cli("check", cell("screwing_ur3e"), task("bracket_clear"), "-p", value)
+            assert (code, out["ok"]) == (0, True), (value, out["errors"])
+    else:
+        assert code == 1 and any("clear" in error for error in out["errors"]), out["errors"]
+
+
+# Boxes shorter than the ceiling cell's 50 mm: (height, m).
+SHORT = {
+    "40mm": 0.04,
+}
+
+
+@pytest.mark.parametrize("height", SHORT.values(), ids=SHORT.keys())
+def test_jaws_pick_a_short_block_resting_on_a_table(tmp_path, height):
+    """The ceiling cell with a 30 or 40 mm box instead of 50 mm, each frame at the box's
+    middle (resting on the belt; 3 mm above the outfeed): nothing else changes."""
+    text = (HERE / "cells" / "ceiling_conveyor_ur5e.yaml").read_text()
+    for old, new in [
+        ("box: {size: [0.05, 0.05, 0.05]}", f"box: {{size: [0.05, 0.05, {height}]}}"),
+        (
+            "0.925], rpy: [180, 0, 0]}   # a box's middle",
+            f"{0.9 + height / 2:.4f}], rpy: [180, 0, 0]}}   #",
+        ),
+        (
+            "0.925], rpy: [180, 0, 0]}    # the next box",
+            f"{0.9 + height / 2:.4f}], rpy: [180, 0, 0]}}    #",
+        ),
+        (
+            "0.928], rpy: [180, 0, 90]}    # a box's middle",
+            f"{0.903 + height / 2:.4f}], rpy: [180, 0, 90]}}    #",
+        ),
+    ]:
+        assert old in text, old
+        text = text.replace(old, new)
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "tasks").mkdir()
+    (tmp_path / "cells" / "c.yaml").write_text(text)
+    (tmp_path / "tasks" / "conveyor_pick.yaml").write_text(
+        (HERE / "tasks" / "conveyor_pick.yaml").read_text()
+    )
+    code, out = cli(
+        "check", str(tmp_path / "cells" / "c.yaml"), str(tmp_path / "tasks" / "conveyor_pick.yaml")
+    )
+    assert (code, out["ok"]) == (0, True), out["errors"]

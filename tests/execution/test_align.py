@@ -5,6 +5,7 @@ proves the max_correction box; bad align steps are located input errors."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -17,6 +18,8 @@ from tests.rig import ENV
 CELL = ROOT / "cells" / "align_pick_ur10e.yaml"
 TASK = ROOT / "tasks" / "align_pick.yaml"
 BLIND = ROOT / "tasks" / "align_pick_blind.yaml"
+#: a loopback address of this process's own: several checkouts run these tests at once
+HOST = f"127.26.{os.getpid() % 250 + 1}.2"
 
 
 def cellrunner(*args: str) -> tuple[int, dict, str]:
@@ -121,9 +124,9 @@ def test_on_the_arm_align_sees_through_the_image_source(tmp_path):
     from tests.twin.cell_rig import twin
 
     cell, task, _ = project(tmp_path)
-    with twin(cell, "127.0.26.2"):
+    with twin(cell, HOST):
         code, out, err = cellrunner(
-            "run", str(cell), str(task), "--backend", "ur", "--robot-host", "127.0.26.2",
+            "run", str(cell), str(task), "--backend", "ur", "--robot-host", HOST,
             "--image-source", "twin", "--json",
         )  # fmt: skip
     assert code == 0 and out["result_code"] == 0, (out.get("errors"), err[-2000:])

@@ -40,7 +40,7 @@ CELLS = {
         "cells/bin_to_shelf_ur5.yaml",
         "tasks/bin_to_shelf_ur5.yaml",
         {"slot": 0},
-        "move#2",
+        "approach#2",  # the move home after it retraces it: no place on that one alone
     ),
     # a tool changer (two changes, its lock output off at the start with a tool mounted)
     # and the machine's input rules
@@ -95,15 +95,27 @@ class _SlipOnLift:
 
 
 def _obstacle(world: CellWorld, plan: Any, kind: str) -> Placed:
-    """A box halfway along the motion of kind ``KIND#N`` of the plan, where the TCP
-    passes: the twin has it, the planner does not."""
+    """A box where the TCP passes during the motion of kind ``KIND#N`` of the plan, and
+    clear of the arm before it (at home and along the joint moves before): the twin has it,
+    the planner does not. Halfway along the motion when that is clear, else the nearest
+    of a few points around it: where the box may go depends on the path, not the test."""
     name, nth = kind.split("#")
-    step = [s for s in plan.steps if s.kind == name][int(nth) - 1]
+    motions = [s for s in plan.steps if s.is_motion]
+    step = [s for s in motions if s.kind == name][int(nth) - 1]
+    before = [  # the joint moves before it (the straight ones may touch what they set down on)
+        plan.nominal(s).trajectory.q_rad
+        for s in motions[: motions.index(step)]
+        if s.kind in ("move", "approach")
+    ]
     q = plan.nominal(step).trajectory.q_rad
-    p = world.kinematics.p_world_tcp(q[len(q) // 2])
-    T = np.eye(4)
-    T[:3, 3] = p
-    return Placed("obstacle", Box((0.08, 0.08, 0.08)), T)
+    for fraction in (0.5, 0.6, 0.4, 0.7, 0.3, 0.8, 0.2, 0.9, 0.1):
+        T = np.eye(4)
+        T[:3, 3] = world.kinematics.p_world_tcp(q[int(fraction * (len(q) - 1))])
+        box = Placed("obstacle", Box((0.08, 0.08, 0.08)), T)
+        model = world.with_obstacles(box).collision
+        if model.is_valid(world.q_home_rad) and all(model.check_path(b).ok for b in before):
+            return box
+    raise AssertionError(f"no place on {kind} for an obstacle clear of the motions before it")
 
 
 def _heavier_window(task_path: Path, tmp: Path) -> Path:

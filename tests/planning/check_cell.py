@@ -26,8 +26,8 @@ fixtures:
   - {name: wall, box: {size: [0.3, 0.02, 0.25]}, pose: {xyz: [0.5, 0.0, 1.025]}}
   - {name: block, box: {size: [0.06, 0.06, 0.18]}, pose: {xyz: [0.35, 0.25, 0.98]}}
 frames:
-  a: {xyz: [0.45, -0.25, 0.95], rpy: [180, 0, 0]}
-  b: {xyz: [0.45, 0.25, 0.95], rpy: [180, 0, 0]}
+  a: {xyz: [0.45, -0.25, 0.923], rpy: [180, 0, 0]}   # the part 3 mm above the table
+  b: {xyz: [0.45, 0.25, 0.923], rpy: [180, 0, 0]}
   over_block: {xyz: [0.35, 0.25, 0.93], rpy: [180, 0, 0]}
   far_away: {xyz: [1.9, 0.0, 1.0], rpy: [180, 0, 0]}
   grid: {xyz: [0.30, -0.45, 0.95], rpy: [180, 0, 0]}

@@ -133,3 +133,20 @@ def test_renamed_arms_are_their_originals():
         a, b = ROBOTS[new], ROBOTS[old]
         assert a.arm == old and b.arm == old
         assert (a.d_m, a.a_m, a.joint_speed_max_deg_s) == (b.d_m, b.a_m, b.joint_speed_max_deg_s)
+
+
+def test_the_elbow_is_never_wrapped_past_half_a_turn():
+    """An elbow at -90.2 deg is the same arm as at 269.8, but reached the wrong way round:
+    through the upper arm. From an elbow at +100 deg the nearest wrap is 269.8 (170 deg
+    away, not 190); the branch must keep -90.2 (issue 24: that branch was chosen, and the
+    hint blamed a pedestal the forearm met on its way round)."""
+    kin = ArmKinematics(ROBOTS["ur5e"], np.eye(4), np.eye(4))
+    T = kin.T_world_tcp(np.radians([10, -100, -90.2, -80, 90, 0]))
+    near = np.radians([10, -100, 100, -80, 90, 0])
+    branches = kin.ik_all(T, near)
+    assert branches and all(abs(q[2]) <= np.pi + 1e-9 for q in branches)
+    assert any(
+        np.allclose(np.degrees(q), [10, -100, -90.2, -80, 90, 0], atol=1e-3) for q in branches
+    )
+    tracked = kin.ik_track(T, near)
+    assert tracked is not None and abs(tracked[2]) <= np.pi + 1e-9

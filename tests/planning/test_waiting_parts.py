@@ -70,3 +70,40 @@ def test_the_pick_touches_its_waiting_part_and_carries_it_away(tmp_path):
     task.write_text("task: t\nsteps:\n  - move: home\n  - pick: {at: infeed}\n  - move: home\n")
     out = json_of("check", str(DEMO_CELL), str(task), "--no-cache")
     assert out["ok"], out["errors"]
+
+
+def test_jaws_around_a_short_block_may_come_down_to_its_table(tmp_path):
+    """A 40 mm block: the open pads reach about 2 mm above the table when the TCP is at
+    its middle, inside the 2 mm clearance. They may touch the fixture the block rests on
+    (picking) or is set on (placing), as the part itself may (issue 24, from the cells
+    written from the SPEC: every block under about 45 mm was refused)."""
+    cell = tmp_path / "short.yaml"
+    cell.write_text(
+        DEMO_CELL.read_text()
+        .replace("size: [0.05, 0.05, 0.05]", "size: [0.04, 0.04, 0.04]")
+        .replace("infeed: {xyz: [0.45, -0.35, 0.925]", "infeed: {xyz: [0.45, -0.35, 0.92]")
+    )
+    task = tmp_path / "t.yaml"
+    task.write_text(
+        "task: t\nsteps:\n  - move: home\n  - pick: {at: infeed}\n"
+        "  - place: {at: pallet, offset: [0, 0, 0.005]}\n  - move: home\n"
+    )
+    out = cli("check", str(cell), str(task), "--no-cache")
+    assert out["ok"], out["errors"]
+
+
+def test_a_bare_grip_carries_the_part_waiting_at_the_tcp_through_check():
+    """A bare ``grip`` (no pick macro) takes the part waiting where the TCP stands; carried
+    20 mm up and along the belt, it runs into the next box waiting there (the spec-written
+    ceiling conveyor cell; before, check carried nothing and approved the sweep)."""
+    root = DEMO_CELL.parent.parent / "tests" / "cells" / "spec_written"
+    out = cli(
+        "check",
+        str(root / "cells" / "ceiling_conveyor_ur5e.yaml"),
+        str(root / "tasks" / "conveyor_sweep.yaml"),
+        "--no-cache",
+    )
+    assert not out["ok"]
+    assert out["errors"][0].startswith(
+        "step 6 linear 'upstream': part 'box' is too close to waiting part 'next_box'"
+    )

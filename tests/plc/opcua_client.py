@@ -33,7 +33,7 @@ async def connect(args: argparse.Namespace) -> Any:
                 return endpoint
 
         Client.find_endpoint = staticmethod(lenient)  # type: ignore[method-assign]
-    client = Client(args.url, timeout=4)
+    client = Client(args.url, timeout=args.timeout)
     client.application_uri = CLIENT_URI
     client.session_timeout = 10_000
     if args.policy != "none":
@@ -250,6 +250,7 @@ async def main() -> None:
     ap.add_argument("--task", default="pick_place")
     ap.add_argument("--params", default="{}")
     ap.add_argument("--wait", type=float, default=60.0)
+    ap.add_argument("--timeout", type=float, default=4.0, help="per request, s")
     args = ap.parse_args()
     result: dict[str, Any] = {"connected": False}
     if args.scenario == "register":

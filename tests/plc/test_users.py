@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from cellrunner.errors import InputError
-from cellrunner.plc.opcua import HashedUserManager, LoginBudget
+from cellrunner.plc.opcua import HashedUserManager
+from cellrunner.plc.opcua_admission import SourceBudgets
 from cellrunner.plc.pki import Pki
 from cellrunner.plc.users import (
     add_user,
@@ -77,7 +78,7 @@ def test_user_manager_refuses_everything_but_a_known_password(tmp_path: Path) ->
     path = tmp_path / "users.yaml"
     add_user(path, "plc1", "pw")
     manager = HashedUserManager(
-        path, Pki(tmp_path / "pki"), allow_insecure=True, budget=LoginBudget(burst=100)
+        path, Pki(tmp_path / "pki"), allow_insecure=True, budget=SourceBudgets(burst=100, per_s=5.0)
     )
     manager.load()
     assert manager.get_user(None, "plc1", "pw").name == "plc1"
@@ -104,7 +105,7 @@ def test_a_login_flood_is_refused_without_hashing_until_the_budget_refills(tmp_p
         path,
         Pki(tmp_path / "pki"),
         allow_insecure=True,
-        budget=LoginBudget(burst=2, per_s=4.0, clock=lambda: now[0]),
+        budget=SourceBudgets(burst=2, per_s=4.0, clock=lambda: now[0]),
     )
     manager.load()
     assert manager.get_user(None, "plc1", "wrong") is None
