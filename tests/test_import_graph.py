@@ -84,7 +84,7 @@ LAYERS: dict[str, set[str]] = {
     "model": set(),
     "planning": {"model"},
     "vision": {"model", "planning"},
-    "perception": {"model", "planning"},
+    "perception": {"model", "planning", "vision"},
     "sim": {"model", "vision", "perception"},
     "twin": {"model", "sim"},
     "backends": {"model", "sim"},

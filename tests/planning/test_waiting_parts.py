@@ -88,7 +88,7 @@ def test_jaws_around_a_short_block_may_come_down_to_its_table(tmp_path):
         "task: t\nsteps:\n  - move: home\n  - pick: {at: infeed}\n"
         "  - place: {at: pallet, offset: [0, 0, 0.005]}\n  - move: home\n"
     )
-    out = cli("check", str(cell), str(task), "--no-cache")
+    out = json_of("check", str(cell), str(task), "--no-cache")
     assert out["ok"], out["errors"]
 
 
@@ -97,7 +97,7 @@ def test_a_bare_grip_carries_the_part_waiting_at_the_tcp_through_check():
     20 mm up and along the belt, it runs into the next box waiting there (the spec-written
     ceiling conveyor cell; before, check carried nothing and approved the sweep)."""
     root = DEMO_CELL.parent.parent / "tests" / "cells" / "spec_written"
-    out = cli(
+    out = json_of(
         "check",
         str(root / "cells" / "ceiling_conveyor_ur5e.yaml"),
         str(root / "tasks" / "conveyor_sweep.yaml"),
