@@ -22,6 +22,10 @@ def run(args: argparse.Namespace) -> int:
     cell, task = load(args.cell, args.task)
     params = parse_params(args.param, task)
     kind = backend_kind(cell, args.backend)
+    if kind == "sim" and cell.cell.cameras:
+        from cellrunner.sim.mujoco_loader import enable_pictures
+
+        enable_pictures()  # before MuJoCo is imported: an align step's camera renders
     log = None
     if args.log_format == "json":
         from cellrunner.cli.logs import configure

@@ -42,6 +42,10 @@ def run(args: argparse.Namespace) -> int:
     # stall the heartbeat for as long as the OS keeps it off the CPU.
     raise_thread_priority()
     kind = backend_kind(cell, args.backend)
+    if kind == "sim" and cell.cell.cameras:
+        from cellrunner.sim.mujoco_loader import enable_pictures
+
+        enable_pictures()  # before MuJoCo is imported: an align step's camera renders
     assembled = assemble_cell(
         cell,
         tasks,

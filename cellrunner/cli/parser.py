@@ -126,6 +126,12 @@ def _job_commands(sub: Commands) -> None:
         help="a watched cell: write the obstacle map as it ended (.npz, for check --watch)",
     )
     p.add_argument(
+        "--slots",
+        metavar="all|A..B",
+        help="a whole run: the task once per value of its pattern param, in order, in one "
+        "twin (parts stay where they were put); -p NAME=A..B does the same for any int param",
+    )
+    p.add_argument(
         "--per-period",
         action="store_true",
         help="step the twin one controller period at a time, without look-ahead "

@@ -55,6 +55,7 @@ def assemble_cell(
     tasks: dict[int, LoadedTask],
     backend: str | RobotBackend,
     *,
+    kind: str = "",
     robot_host: str | None = None,
     journal: JournalBackend | None = None,
     warm: bool = False,
@@ -77,7 +78,8 @@ def assemble_cell(
 
     ``backend`` is a kind (``sim``: the MuJoCo twin in this process, built with the parts
     of ``tasks``; ``ur``: the arm at ``robot_host`` or the cell's ``robot.host``) or a
-    backend already built. ``journal`` defaults to the one the cell file names. ``warm``
+    backend already built (``kind`` says which, e.g. ``sim`` for a twin with its own
+    description). ``journal`` defaults to the one the cell file names. ``warm``
     loads the planning stack and builds the cell's models now (serve, before READY).
     ``use_cache``, ``speed`` and ``joined`` go to the job planner
     (:func:`~cellrunner.execution.planner.job_planner`); ``log``, ``wait_for_unhold``,
@@ -91,7 +93,6 @@ def assemble_cell(
     one of the loop's observers; ``start()`` it once the robot is connected."""
     from cellrunner.planning.world import CellWorld
 
-    kind = ""
     if isinstance(backend, str):
         from cellrunner.backends.factory import make_backend
 

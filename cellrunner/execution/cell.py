@@ -211,6 +211,15 @@ class CellController:
         """The last job that ended, as it ended (its step records, result and tracking)."""
         return self._last_view
 
+    def planned_motion_s(self, step: Step) -> float | None:
+        """How long the running job's approved trajectory of ``step`` lasts (s); None for
+        a step without one, or before the plan is ready."""
+        job = self._job
+        if job is None or job.plan is None or not job.plan.done() or job.plan.exception():
+            return None
+        approved = job.plan.result().motions.nominal(step)
+        return None if approved is None else approved.trajectory.duration_s
+
     def wait_for_plan(self, timeout_s: float) -> bool:
         """Block (not the control loop's business while a job plans) until the running
         job's plan is ready or ``timeout_s`` passed; True when there is nothing to wait for."""

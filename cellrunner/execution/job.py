@@ -424,6 +424,13 @@ class JobRunner:
         return self._current.step.label if self._current else "the job"
 
     def _journal(self, record: StepRecord, attempt: int) -> None:
+        guard = self.ctx.obstacles
+        if guard is not None and record.status is not StepStatus.RUNNING:
+            from cellrunner.execution.obstacles import summary
+
+            met = summary(guard.events, record.index)
+            if met and met not in record.message:
+                record.message = f"{record.message}; {met}" if record.message else met
         if self.on_step is not None:
             self.on_step(record, attempt)
 

@@ -58,6 +58,13 @@ def check_sim_block(cell: Cell, report: Report) -> None:
     """Report rule inputs, outputs and frames the cell does not know."""
     if cell.sim is None:
         return
+    feed = cell.sim.feed
+    if feed is not None:
+        parts = [p.name for p in cell.parts]
+        if feed.part not in parts:
+            report.error(("sim", "feed", "part"), unknown_name("part", feed.part, parts))
+        if feed.at not in cell.frames:
+            report.error(("sim", "feed", "at"), unknown_name("frame", feed.at, cell.frames))
     names = [i.name for i in cell.sim.intruders]
     for i, intruder in enumerate(cell.sim.intruders):
         if names.index(intruder.name) != i:

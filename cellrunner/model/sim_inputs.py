@@ -9,8 +9,7 @@ sim:
     cycle_done: {pulse_after: cnc_start, delay: 20, width: 0.5}  # a pulse after the output rose
 ```
 
-Names are the cell's IO names, checked against the cell by
-:func:`cellrunner.model.checks.check_sim_block`.
+Names are the cell's IO names; :func:`cellrunner.model.checks.check_sim_block` checks them against the cell.
 """
 
 from __future__ import annotations
@@ -92,7 +91,19 @@ class Intruder(Strict):
         return self
 
 
+class Feed(Strict):
+    """A new part at its frame before each job, in rehearsal (``dry-run``, ``twin``,
+    ``serve --backend sim``): a conveyor bringing the next one (SPEC section 12)."""
+
+    part: Name
+    """The cell's part a fed one is a copy of. Example: `carton`"""
+    at: Name
+    """The frame it is put at (as a part `at:` that frame lies). Example: `infeed`"""
+
+
 class SimBlock(Strict):
+    feed: Feed | None = None
+    """A new part at its frame before each job. Example: `{part: carton, at: infeed}`"""
     inputs: dict[Name, InputRule] = Field(default_factory=dict)
     """Input names to the rule that drives them in rehearsal. Example: `{part_present: {part_at: infeed}}`"""
     depth_noise: NonNegativeLength = 0.0

@@ -23,7 +23,10 @@ Two kinds of path:
   every 0.1 rad, like the search), for a caller that proves it anyway. Task planning does:
   the verifier (:mod:`.verify`) proves every timed trajectory before it is approved, and
   proving the same path here first did that work twice. When the proof fails, task
-  planning plans the move again with ``proven=True``.
+  planning takes the same path with its via points where shortcutting left them
+  (:attr:`JointPath.loose`: a pulled via point brings an edge near an obstacle, where
+  sampling may miss it), and when that fails too, plans the move again with
+  ``proven=True``.
 
 OMPL draws its random numbers from a process-wide generator; each call reseeds it with
 ``seed`` so that a call's result depends only on its arguments when it is the first OMPL
@@ -32,6 +35,7 @@ user in the process (and is reproducible run to run when calls come in the same 
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -74,6 +78,11 @@ class JointPath:
     planner: str
     planning_time_s: float
     proven: bool = True
+    #: a sampled path whose via points were pulled in (:func:`tighten`): the same path
+    #: before, for a caller whose proof of ``q_rad`` fails (a pulled via point brings an
+    #: edge near an obstacle, where sampling may miss it): cheaper to prove than planning
+    #: the move proven
+    loose: Callable[[], np.ndarray] | None = None
 
 
 def plan_joint_path(
@@ -112,7 +121,8 @@ def plan_joint_path(
     lazy = _rrt_connect(collision, q0, q1, time_budget_s, seed, conservative=False)
     if not proven:
         sampled = _shorten_and_round(collision, lazy, _sampled_polyline_free)[0]
-        return JointPath(sampled, "rrtconnect", time.perf_counter() - t0, False)
+        loose = functools.partial(_loose, collision, lazy)
+        return JointPath(sampled, "rrtconnect", time.perf_counter() - t0, False, loose)
     # Fast pass: search and shorten with sampled edge checks, round the corners with proven
     # arcs, then prove the straight pieces left between the arcs. When one fails its proof
     # (an obstacle slipped between samples), shorten again proving every edge; when the
@@ -151,12 +161,21 @@ def _shorten_and_round(
     collision: CollisionModel,
     lazy: np.ndarray,
     arc_free: Callable[[CollisionModel, np.ndarray], bool],
+    tight: bool = True,
 ) -> tuple[np.ndarray, list[int]]:
-    """The searched path shortened with sampled checks, then :func:`_with_corner_arcs`
-    with arcs that ``arc_free`` accepts."""
+    """The searched path shortened with sampled checks (its via points pulled in when
+    ``tight``), then :func:`_with_corner_arcs` with arcs that ``arc_free`` accepts."""
     short = shortcut(collision, lazy, direct_blocked=True, free=sampled_free)
     assert short is not None  # the searched edges are taken as sampled: nothing refused
-    return _with_corner_arcs(collision, tighten(collision, short, sampled_free), arc_free)
+    if tight:
+        short = tighten(collision, short, sampled_free)
+    return _with_corner_arcs(collision, short, arc_free)
+
+
+def _loose(collision: CollisionModel, lazy: np.ndarray) -> np.ndarray:
+    """The sampled path of the search ``lazy`` with its via points where shortcutting left
+    them (:attr:`JointPath.loose`)."""
+    return _shorten_and_round(collision, lazy, _sampled_polyline_free, tight=False)[0]
 
 
 def proven_free(collision: CollisionModel, qa: np.ndarray, qb: np.ndarray) -> bool:
