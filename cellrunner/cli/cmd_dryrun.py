@@ -191,10 +191,10 @@ def run(args: argparse.Namespace) -> int:
         if report is not None:
             out.print(f"report written to {report}/index.html", markup=False)
     if not has_pictures:
-        from cellrunner.sim.mujoco_loader import GL_ADVICE
+        from cellrunner.sim.mujoco_loader import GL_ADVICE, no_gl_reason
 
         out.print(
-            f"no pictures in the report: no OpenGL backend here ({GL_ADVICE} gives one)",
+            f"no pictures in the report: {no_gl_reason()} ({GL_ADVICE} gives one)",
             soft_wrap=True,
         )
     return 0 if code is ResultCode.OK else 1
