@@ -25,7 +25,13 @@ from cellrunner.model.references import check_task_references
 from cellrunner.model.report import Report as Report  # re-exported
 from cellrunner.model.robots import RobotSpec, robot_spec
 from cellrunner.model.source import PathKey, file_problem, load_yaml
-from cellrunner.model.task import MACROS, STEP_MODELS, PickArgs, TaskFile, widen_step_args
+from cellrunner.model.task import (
+    STEP_MODELS,
+    TOP_LEVEL_ONLY,
+    PickArgs,
+    TaskFile,
+    widen_step_args,
+)
 
 if TYPE_CHECKING:
     from cellrunner.model.params import Param
@@ -470,7 +476,7 @@ def _parse_steps(
 def _parse_step(
     item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict[str, Param]
 ) -> StepSpec | None:
-    known = [k for k in STEP_MODELS if allow_macros or k not in MACROS]
+    known = [k for k in STEP_MODELS if allow_macros or k not in TOP_LEVEL_ONLY]
     if isinstance(item, str):
         item = {item: None}
     if not isinstance(item, dict) or len(item) != 1:
@@ -484,9 +490,11 @@ def _parse_step(
     if kind not in known:
         hint = (
             ""
-            if kind not in MACROS
+            if kind not in TOP_LEVEL_ONLY
             else (
-                " (on_error takes primitive steps)"
+                " (align belongs in the task's steps)"
+                if kind == "align"
+                else " (on_error takes primitive steps)"
                 if path[0] == "on_error"
                 else " (pick and place cannot be nested)"
             )
