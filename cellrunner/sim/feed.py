@@ -197,6 +197,8 @@ class FeedWorld(Protocol):
     @property
     def gripped(self) -> frozenset[str]: ...
 
+    def contacts_changed(self) -> None: ...
+
 
 class Feeder:
     """The feed of one built :class:`SimWorld` (its description's ``feed``)."""
