@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -29,9 +29,9 @@ from cellrunner.model.geometry import Box, Cylinder, Shape, Sphere
 from cellrunner.sim.mjcf_attrs import PART_HITS, PARTS
 
 if TYPE_CHECKING:
-    from cellrunner.model.load import LoadedCell, LoadedTask
+    from cellrunner.model.loaded import LoadedCell, LoadedTask
     from cellrunner.sim.description import PartDescription, TwinDescription
-    from cellrunner.sim.world import SimWorld
+    from cellrunner.sim.model_ids import ModelIds
 
 PARK_X_M = 200.0  # parked copies lie on the floor this far out along world X ...
 PARK_PITCH_M = 2.0  # ... this far apart along Y
@@ -182,10 +182,28 @@ def _parked(shape: Shape, k: int) -> np.ndarray:
     return T
 
 
+class FeedWorld(Protocol):
+    """What the feed moves in the twin (:class:`~cellrunner.sim.world.SimWorld`)."""
+
+    model: Any
+    data: Any
+
+    @property
+    def mujoco(self) -> Any: ...
+
+    @property
+    def ids(self) -> ModelIds: ...
+
+    @property
+    def gripped(self) -> frozenset[str]: ...
+
+    def contacts_changed(self) -> None: ...
+
+
 class Feeder:
     """The feed of one built :class:`SimWorld` (its description's ``feed``)."""
 
-    def __init__(self, world: SimWorld, feed: FeedDescription) -> None:
+    def __init__(self, world: FeedWorld, feed: FeedDescription) -> None:
         self.world, self.desc = world, feed
         self.parked = list(feed.copies)
         self.fed: list[str] = []  # oldest first

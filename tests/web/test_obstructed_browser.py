@@ -14,7 +14,7 @@ import time
 import pytest
 
 from tests.conftest import ROOT
-from tests.test_serve import free_port
+from tests.rig import free_port
 from tests.web.browser import Chromium, chromium_path
 from tests.web.test_status_page_browser import DONE, ERROR, JOB_ACK, READY, Plc
 
