@@ -82,6 +82,8 @@ class ZoneWatch:
         self._verdict: Verdict | None = None
         self.updates: list[MapUpdate] = []  # the last ones (at most 1000)
         self.images = 0  # integrated so far
+        #: every voxel occupied at any time (for the report's map)
+        self.ever_occupied = np.zeros(self.map.n, bool)
         #: the part the arm carries (TCP frame), as the last motion followed said
         self.held: Placed | None = None
         #: replans around the map run on a worker thread while the control loop ticks on
@@ -156,7 +158,9 @@ class ZoneWatch:
         explain = (lambda c: near_any(robot, c, self.pad_m)) if robot else None
         with self._lock:
             update = self.map.integrate(frame, self.ranges[frame.camera], explain)
-            centres = self.map.occupied_centres()
+            occupied = self.map.occupied()
+            self.ever_occupied[occupied] = True
+            centres = self.map.centres(occupied)
             follow = self._follow
         self.updates.append(update)
         self.images += 1

@@ -133,6 +133,9 @@ class _Motion:
     #: for a joint move the planner only sampled: the same move planned with every piece
     #: proven (:func:`_prove_sampled`), for when its timed trajectory fails verification
     proven: Callable[[], np.ndarray] | None = None
+    #: what ``proven`` leaves for after it: when ``proven`` is the sampled path with its
+    #: via points where the search left them (:attr:`JointPath.loose`), the proven plan
+    then_proven: Callable[[], np.ndarray] | None = None
 
 
 @dataclass
@@ -429,7 +432,9 @@ class _StepPlanner:
         row.message, row.allowances, row.carrying = hit.message, m.row.allowances, self.part
         row.world, row.q_end_rad = self.world, m.waypoints[-1]
         self.q = m.waypoints[-1]
-        return _Motion(row, m.waypoints, m.limits, m.line_m, m.collision, m.world, m.proven)
+        return _Motion(
+            row, m.waypoints, m.limits, m.line_m, m.collision, m.world, m.proven, m.then_proven
+        )
 
     def _motion_key(
         self,
@@ -471,6 +476,7 @@ class _StepPlanner:
         step, kin = row.step, self.world.kinematics
         T_now = kin.T_world_tcp(self.q)
         proven: Callable[[], np.ndarray] | None = None  # a joint move's, planned proven
+        then_proven: Callable[[], np.ndarray] | None = None
         egress, self.egress = self.egress, None  # the first motion's alone
         if step.kind in (StepKind.MOVE, StepKind.APPROACH):
             self.contact = ()  # a joint move leaves a force step's or tight fit's contacts behind
@@ -486,8 +492,10 @@ class _StepPlanner:
             if egress is not None:
                 head = plan_linear(kin, collision, self.q, egress[0]).q_rad
                 row.message = egress[1]
-            path = _joint_path(collision, head, goal_q, proven=False)
+            path, loose = _sampled_joint_path(collision, head, goal_q)
             proven = functools.partial(_joint_path, collision, head, goal_q, proven=True)
+            if loose is not None:
+                proven, then_proven = loose, proven
             line = None
         else:
             from cellrunner.planning.tight_fit import named_contacts
@@ -523,7 +531,7 @@ class _StepPlanner:
 
             row.message = describe(step, line, row.allowances)
         limits = self.limits_for(step, (path[0], path[-1]))
-        motion = _Motion(row, path, limits, line, collision, self.world, proven)
+        motion = _Motion(row, path, limits, line, collision, self.world, proven, then_proven)
         row.world = self.world
         self.q = path[-1]
         row.q_end_rad = path[-1]
@@ -772,6 +780,22 @@ def _check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) ->
     raise InfeasibleError(f"{step.label}: {reason}", step_index=step.index, reason=reason)
 
 
+def _sampled_joint_path(
+    collision: CollisionModel, head: np.ndarray, goal_q: np.ndarray
+) -> tuple[np.ndarray, Callable[[], np.ndarray] | None]:
+    """``head`` then a sampled joint path from its end to ``goal_q`` (:func:`_joint_path`),
+    and the same with the path's via points where the search left them, if they were
+    pulled in (:attr:`JointPath.loose`)."""
+    from cellrunner.planning.joint_path import plan_joint_path
+
+    found = plan_joint_path(collision, head[-1], goal_q, proven=False)
+    path = np.vstack([head, found.q_rad[1:]])
+    loose = found.loose
+    if loose is None:
+        return path, None
+    return path, lambda: np.vstack([head, loose()[1:]])
+
+
 def _joint_path(
     collision: CollisionModel, head: np.ndarray, goal_q: np.ndarray, *, proven: bool
 ) -> np.ndarray:
@@ -826,7 +850,8 @@ def _prove_sampled(motion: _Motion) -> bool:
     # the motion may be the one the world's memo keeps (:meth:`_StepPlanner.motion`): it
     # keeps the proven path, and the jobs that plan the same move again take that
     try:
-        motion.waypoints, motion.proven = motion.proven(), None
+        motion.waypoints, motion.proven = motion.proven(), motion.then_proven
+        motion.then_proven = None
     except InfeasibleError as exc:
         step = motion.row.step
         raise InfeasibleError(

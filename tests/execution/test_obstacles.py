@@ -97,6 +97,9 @@ def test_a_tote_that_stays_from_the_start_is_gone_round_with_replanning(tmp_path
     result = dry_run(tote_cell(tmp_path, tote=TOTE_AROUND), task)
     assert result["result_code"] == code, result["result_text"]
     assert ("replan" in whats(result)) == (code == 0)
+    # the step's journal row says what happened, when and where
+    journaled = [s["message"] for s in result["steps"] if "obstacle: " in s["message"]]
+    assert journaled and " s at (" in journaled[0], result["steps"]
     assert result["intruders_touched"] == []
 
 
