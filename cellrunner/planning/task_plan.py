@@ -551,7 +551,9 @@ class _StepPlanner:
             close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
             row.duration_s = WRIST_SETTLE_S + close_s + weigh
         elif step.kind == StepKind.RELEASE:
-            if self.part is not None and step.macro != "on_error":  # on_error may drop it
+            # a place's release: where the twin judges the part against the place's target
+            # (a bare release, after an insert or in on_error, is judged by its confirm input)
+            if self.part is not None and (step.macro or "").startswith("place "):
                 from cellrunner.planning.support import check_support
 
                 check_support(
