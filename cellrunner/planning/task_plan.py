@@ -213,7 +213,15 @@ class TaskPlan:
         goal_q = (
             row.q_end_rad if row is not None and row.status == "ok" and row.step is step else None
         )
-        motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
+        try:
+            motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
+        except InfeasibleError:
+            if obstacles is None or goal_q is None or not step.is_motion:
+                raise
+            # the planned arm configuration at the goal meets the map: the same goal pose
+            # in another configuration (the steps after it then start from where it ends)
+            planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
+            motion = planner.motion(StepPlan(step), goal_q=None, allowances=allowances)
         approved = _time_and_verify(world, motion, np.asarray(q_now_rad, float)).approved
         assert approved is not None  # _time_and_verify approves every row or raises
         return approved
