@@ -15,7 +15,8 @@ Run from the repository root::
 ``--all`` then runs the others, each as its own process: the dry-run real-time factor and
 planned-vs-simulated cycle (bench_dryrun.py), the PLC soak of 500 Modbus jobs on the real
 engine and twin with random faults, with serve's resident memory after 50 and after 500
-(bench_plc.py), and servoJ streaming through ur_rtde into the virtual controller
+(bench_plc.py), and servoJ streaming through ur_rtde into the virtual controller, then
+the jog's UDP servo against ``cellrunner twin`` and ``align`` over random part offsets
 (bench_servo.py). The last lines are one table of every target.
 
 ``--quick`` does fewer repetitions (1 planning run per problem, 1 cold and 3 warm checks,
@@ -200,7 +201,11 @@ def run_others(quick: bool, results: dict) -> bool:
                 "100" if quick else "500",
             ],
         ),
-        ("(6) servoJ streaming", None, ["bench_servo.py"]),
+        (
+            "(6) servoJ streaming, the jog's UDP servo and align",
+            None,
+            ["bench_servo.py", *(["--udp-probes", "10", "--align-runs", "10"] if quick else [])],
+        ),
     ]
     ok = True
     for title, key, argv in runs:

@@ -37,6 +37,14 @@ class Injection:
     def delay_s(self) -> float:
         return DELAYED_S.get(self.fault, 0.0)
 
+    def delay_within_s(self, step_s: float | None) -> float:
+        """When the fault strikes after its step starts: ``delay_s``, or halfway through a
+        motion shorter than twice that (``step_s``, its planned duration), so that it
+        strikes in its own step, not in the next one."""
+        if step_s is None or step_s <= 0.0:
+            return self.delay_s
+        return min(self.delay_s, 0.5 * step_s)
+
 
 def parse_injections(specs: list[str], steps: list[Step]) -> list[Injection]:
     """Resolve ``FAULT@STEP`` (STEP: an expanded index, a kind, or ``KIND#N``)."""

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
+from cellrunner.commissioning.inputs import InputLost
 from cellrunner.commissioning.servo import Servo, Tick
 from cellrunner.errors import ConnectionLost, PeerUnreachable
 from cellrunner.model.geometry import rpy_deg_of
@@ -117,7 +118,12 @@ class JogSession:
             while time.monotonic() < t_end and not stop.is_set():
                 t_start = self._control.initPeriod()
                 now = time.monotonic()
-                command = self.source.poll(now)
+                try:
+                    command = self.source.poll(now)
+                except InputLost:
+                    self._control.speedStop(SPEEDJ_ACCEL_RAD_S2)  # at once, not at close()
+                    self.status = "stopped: the input went away"
+                    raise
                 if self.source.quit_requested:
                     return
                 if not self._receive.isConnected():

@@ -40,7 +40,7 @@ from cellrunner.execution.steps import (
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.step import StepKind
-from cellrunner.model.trajectory import ApprovedTrajectory
+from cellrunner.model.trajectory import ApprovedTrajectory, backwards
 
 #: one sample of a force step's trace: (time s, step index, wrist force above baseline N)
 ForceSample = tuple[float, int, float]
@@ -162,9 +162,10 @@ def _retract(
     baseline: list[float],
 ) -> Generator[None, None, None]:
     """Stream the approved line backwards from set-point ``i_from`` to ``i_to``, then stand."""
-    for k in range(i_from, i_to - 1, -1):
-        ctx.backend.servo(approved, k)
-        ctx.commanded_q = approved.trajectory.q_rad[k]
+    back = backwards(approved, i_from, i_to)
+    for k in range(len(back.trajectory.q_rad)):
+        ctx.backend.servo(back, k)
+        ctx.commanded_q = back.trajectory.q_rad[k]
         yield
         trace.append(
             (

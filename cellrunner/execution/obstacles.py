@@ -19,21 +19,20 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Generator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
+from cellrunner.execution.obstacle_guard import ObstacleGuard as ObstacleGuard  # re-exported
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.trajectory import ApprovedTrajectory, along_path
 
 if TYPE_CHECKING:
     from cellrunner.execution.context import JobContext
-    from cellrunner.execution.watch import ZoneWatch
     from cellrunner.model.expand import Step
     from cellrunner.model.geometry import Placed
-    from cellrunner.model.task import ObstaclePolicy
     from cellrunner.perception.path_check import Blocked
 
 #: a stop or a restart on the path uses this fraction of each joint's acceleration limit
@@ -42,29 +41,19 @@ RAMP_ACCEL_FRACTION = 0.8
 REPLAN_EVERY_S = 1.0
 
 
-@dataclass
-class ObstacleGuard:
-    """A job's watch on its path: the map, the task's policy, the joints' acceleration
-    limits (rad/s^2) for stops on the path; ``obstructed`` says where while the arm waits."""
-
-    zone: ZoneWatch
-    policy: ObstaclePolicy
-    accel_rad_s2: np.ndarray
-    obstructed: str = ""
-    replans: int = 0
-    last_replan_s: float = -math.inf
-    events: list[dict[str, Any]] = field(default_factory=list)
-
-    def note(self, ctx: JobContext, what: str, blocked: Blocked | None, **extra: Any) -> None:
-        event: dict[str, Any] = {"what": what, "time_s": round(ctx.now_s, 4)}
-        q = ctx.commanded_q if ctx.commanded_q is not None else ctx.last_state.q_rad
-        event["tcp_m"] = [round(float(v), 4) for v in ctx.motions.tcp_position_m(q)]
-        if blocked is not None:
-            event["voxel_m"] = [round(v, 3) for v in blocked.voxel_m]
-        event.update(extra)
-        self.events.append(event)
-        if ctx.log is not None:
-            ctx.log.info("obstacle", **event)
+def summary(events: list[dict[str, Any]], step_index: int) -> str:
+    """One line of what obstacles did to a step, for its journal row: each stop, wait,
+    replan and clear with its time (s) and the voxel's position (m); "" when none."""
+    parts = []
+    for e in events:
+        if e.get("step") != step_index:
+            continue
+        text = f"{e['what']} {e['time_s']:.2f} s"
+        if "voxel_m" in e:
+            x, y, z = e["voxel_m"]
+            text += f" at ({x:.2f}, {y:.2f}, {z:.2f}) m"
+        parts.append(text)
+    return "obstacle: " + "; ".join(parts) if parts else ""
 
 
 def where(blocked: Blocked) -> str:
@@ -101,6 +90,9 @@ def stream_watched(
     zone = guard.zone
     carried = getattr(ctx.motions, "carried_during", None)
     held: Placed | None = carried(step) if carried is not None else None
+    if guard.held is not None and held is None:  # released since: it stands where the TCP is
+        zone.set_down(guard.held, ctx.last_state.q_rad)
+    guard.held = held
     path, pos = approved, first
     blocked = zone.check(path.trajectory.q_rad[pos:], held)
     if blocked is not None:
@@ -136,18 +128,20 @@ def stream_watched(
         ctx.stream = None
         if stopped_at is None:
             zone.follow(None)
-            ctx.notes["watched_q"] = q
+            ctx.notes["watched_path"] = path
             return None
         index, blocked = stopped_at
         guard.note(ctx, "stop", blocked, step=step.index)
-        u_rest = yield from _stop_on_path(ctx, path, index)
+        u_rest = yield from _stop_on_path(ctx, path, index, blocked.index)
         result = yield from _wait(ctx, step, path, u_rest, blocked, held)
         if not isinstance(result, _Go):
             return result
         path, pos = result.path, result.pos
 
 
-def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop: bool) -> int:
+def _ramp_samples(
+    ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop: bool, fraction: float = 0.0
+) -> int:
     """Set-points a stop (from the speed at ``u0``) or a restart at ``u0`` (up to the top
     speed of the rest of the path) takes at the ramp's acceleration."""
     assert ctx.obstacles is not None
@@ -158,17 +152,23 @@ def _ramp_samples(ctx: JobContext, path: ApprovedTrajectory, u0: float, *, stop:
         return 1
     rest = q[i : i + 2] if stop else q[i:]
     speed = np.abs(np.diff(rest, axis=0)).max(axis=0) * traj.rate_hz  # rad/s
-    seconds = float(np.max(speed / (RAMP_ACCEL_FRACTION * ctx.obstacles.accel_rad_s2)))
+    accel = (fraction or RAMP_ACCEL_FRACTION) * ctx.obstacles.accel_rad_s2
+    seconds = float(np.max(speed / accel))
     return max(1, math.ceil(seconds * traj.rate_hz))
 
 
 def _stop_on_path(
-    ctx: JobContext, path: ApprovedTrajectory, index: int
+    ctx: JobContext, path: ApprovedTrajectory, index: int, blocked: int
 ) -> Generator[None, None, float]:
-    """Slow to rest along ``path`` from set-point ``index`` (commanded now); returns the
-    path position (fractional sample) where the arm stands."""
+    """Slow to rest along ``path`` from set-point ``index`` (commanded now), before
+    set-point ``blocked`` (the first that comes too near the map) where the joints'
+    full acceleration allows; returns the path position (fractional sample) where the
+    arm stands."""
     last = len(path.trajectory.q_rad) - 1
     n = _ramp_samples(ctx, path, index, stop=True)
+    if index + n / 2 >= blocked - 1:  # too long: as hard as the limits allow, to stop short
+        hardest = _ramp_samples(ctx, path, index, stop=True, fraction=1.0)
+        n = max(hardest, 2 * (blocked - 1 - index), 1)
     k = np.arange(n + 1, dtype=float)
     u = np.minimum(index + k - k * k / (2 * n), last)
     stop = along_path(path, u)
@@ -230,7 +230,19 @@ def _wait(
                 guard.replans += 1
                 guard.last_replan_s = now
                 t0 = time.perf_counter()
-                replanned = _replan(ctx, step, held)
+                if zone.replan_in_background:  # the control loop ticks on meanwhile
+                    from concurrent.futures import ThreadPoolExecutor
+
+                    pool = ThreadPoolExecutor(1, thread_name_prefix="replan")
+                    try:
+                        future = pool.submit(_replan, ctx, step, held, ctx.last_state.q_rad)
+                        while not future.done():
+                            yield
+                        replanned = future.result()
+                    finally:  # an abort while planning leaves the plan to finish unread
+                        pool.shutdown(wait=False)
+                else:
+                    replanned = _replan(ctx, step, held, ctx.last_state.q_rad)
                 plan_s = round(time.perf_counter() - t0, 4)
                 if replanned is not None:
                     guard.note(
@@ -249,6 +261,7 @@ def _wait(
                     step=step.index,
                     replans=guard.replans,
                     plan_s=plan_s,
+                    why=guard.why_not,
                 )
             if now - since >= policy.wait:
                 message = (
@@ -263,18 +276,21 @@ def _wait(
         zone.follow(None)
 
 
-def _replan(ctx: JobContext, step: Step, held: Placed | None) -> ApprovedTrajectory | None:
-    """A verified plan from where the arm stands around the map, clear of it now; None
-    when there is none."""
+def _replan(
+    ctx: JobContext, step: Step, held: Placed | None, q_rad: np.ndarray
+) -> ApprovedTrajectory | None:
+    """A verified plan from ``q_rad`` (where the arm stands) around the map, clear of it
+    now; None when there is none."""
     assert ctx.obstacles is not None
     zone = ctx.obstacles.zone
     obstacles = zone.obstacles()
     try:
-        new = ctx.motions.replan(
-            step, ctx.last_state.q_rad, carrying=ctx.carry is not None, obstacles=obstacles
-        )
-    except InfeasibleError:
+        new = ctx.motions.replan(step, q_rad, carrying=ctx.carry is not None, obstacles=obstacles)
+    except InfeasibleError as exc:
+        ctx.obstacles.why_not = str(exc)
         return None
-    if zone.check(new.trajectory.q_rad, held) is not None:
+    blocked = zone.check(new.trajectory.q_rad, held)
+    if blocked is not None:
+        ctx.obstacles.why_not = f"the new plan meets the map: {where(blocked)}"
         return None
     return new

@@ -35,6 +35,14 @@ AVERAGE_S = 0.05
 SETTLE_S = 0.1
 #: the jaw sensor must read false this long before the part counts as lost (debounce, s)
 SENSOR_DEBOUNCE_S = 0.05
+#: a motion that ends at rest ends when the arm stands this close to its last set-point
+#: (rad, on every joint) ...
+ARRIVE_RAD = math.radians(1.0)
+#: ... or fails this long (s) after it
+ARRIVE_TIMEOUT_S = 1.0
+#: a trajectory whose last set-points move slower than this (rad/s) ends at rest (the
+#: last period of a time-optimal stop still moves ~0.01 rad/s)
+AT_REST_RAD_S = 0.05
 #: a part set down is measured once it moves slower than this (m/s) ...
 PLACE_REST_MPS = 0.01
 #: ... or this long (s) after the step that let it go ended
@@ -105,8 +113,8 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
             return failed
         if failed is not None:  # the way stayed blocked: (108, why)
             return Outcome.failed(*failed)
-        end_q = ctx.notes.pop("watched_q", q)
-        return (yield from _ended(ctx, step, end_q, approved.trajectory.rate_hz))
+        streamed = ctx.notes.pop("watched_path", approved)  # the last path it followed
+        return (yield from _ended(ctx, step, streamed.trajectory.q_rad, streamed))
     # the index lives in ctx.stream so that a look-ahead (execution.lookahead) can move
     # the stream on by many periods at once
     stream = ctx.stream = Stream(approved, first, *_planned_accel(ctx, approved))
@@ -120,7 +128,7 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
         if lost is not None:
             return lost
     ctx.stream = None
-    return (yield from _ended(ctx, step, q, approved.trajectory.rate_hz))
+    return (yield from _ended(ctx, step, q, approved))
 
 
 def part_lost_outcome(ctx: JobContext) -> Outcome | None:
@@ -136,11 +144,41 @@ def part_lost_outcome(ctx: JobContext) -> Outcome | None:
     return Outcome.failed(ResultCode.PART_LOST, lost)
 
 
-def _ended(ctx: JobContext, step: Step, q: np.ndarray, rate_hz: float) -> StepGen:
+def _ended(ctx: JobContext, step: Step, q: np.ndarray, approved: ApprovedTrajectory) -> StepGen:
     """A motion streamed to its end (set-points ``q``): how fast it ended (a continuation
-    may run on from it), and the place check."""
-    ctx.notes["end_rad_s"] = float(np.abs(q[-1] - q[-2]).max()) * rate_hz if len(q) > 1 else 0.0
+    may run on from it); ended at rest, the arm arriving there; and the place check."""
+    rate_hz = approved.trajectory.rate_hz
+    end_rad_s = float(np.abs(q[-1] - q[-2]).max()) * rate_hz if len(q) > 1 else 0.0
+    ctx.notes["end_rad_s"] = end_rad_s
+    if end_rad_s < AT_REST_RAD_S:
+        short = yield from _arrive(ctx, step, approved, len(q) - 1)
+        if not short.ok:
+            return short
     return (yield from check_place(ctx, step))
+
+
+def _arrive(ctx: JobContext, step: Step, approved: ApprovedTrajectory, last: int) -> StepGen:
+    """Hold the last set-point until the arm stands within ``ARRIVE_RAD`` of it (a stream
+    sent late, under load, leaves the servo behind its set-points when it ends: a job
+    through ur_rtde once ended OK with the arm 5 deg short of home). Failed (105) when it
+    has not arrived ``ARRIVE_TIMEOUT_S`` after the last set-point."""
+    q_end = approved.trajectory.q_rad[last]
+    t0 = ctx.now_s
+    while True:
+        gap = np.abs(np.asarray(ctx.last_state.q_rad) - q_end)
+        if float(gap.max()) <= ARRIVE_RAD:
+            return OK
+        if ctx.now_s - t0 >= ARRIVE_TIMEOUT_S:
+            j = int(np.argmax(gap))
+            return Outcome.failed(
+                ResultCode.STEP_TIMEOUT,
+                f"the arm stopped {np.degrees(gap[j]):.1f} deg short of the end of step "
+                f"{step.index} {step.kind} on joint {j + 1} ({ARRIVE_TIMEOUT_S:g} s after "
+                "its last set-point)",
+            )
+        ctx.backend.servo(approved, last)
+        ctx.commanded_q = q_end
+        yield
 
 
 def check_place(ctx: JobContext, step: Step) -> StepGen:

@@ -82,8 +82,13 @@ class ZoneWatch:
         self._verdict: Verdict | None = None
         self.updates: list[MapUpdate] = []  # the last ones (at most 1000)
         self.images = 0  # integrated so far
+        #: every voxel occupied at any time (for the report's map)
+        self.ever_occupied = np.zeros(self.map.n, bool)
         #: the part the arm carries (TCP frame), as the last motion followed said
         self.held: Placed | None = None
+        #: replans around the map run on a worker thread while the control loop ticks on
+        #: (real time); off real time the loop waits for them (simulated time stands)
+        self.replan_in_background = False
 
     # -- control thread ---------------------------------------------------------------
     def follow(
@@ -105,6 +110,19 @@ class ZoneWatch:
             if f is not None:
                 self._follow = (f[0], f[1], from_index, f[3])
 
+    def set_down(self, part: Placed, q_rad: np.ndarray) -> None:
+        """The arm released ``part`` (placed in the TCP frame) with its joints at ``q_rad``:
+        the part stands there now, known (its voxels are cleared and never hit again)."""
+        from cellrunner.perception.solids import solid_of
+
+        T_world_tcp = self.world.kinematics.T_world_tcp(np.asarray(q_rad, float))
+        self.known.set_down(part, T_world_tcp)
+        placed = [(solid_of(part.shape), T_world_tcp @ part.T_parent_shape)]
+        with self._lock:
+            near = near_any(placed, self.map.centres(), self.pad_m)
+            self.map.known |= near
+            self.map.log_odds[near] = np.minimum(self.map.log_odds[near], 0.0)
+
     def verdict(self) -> Verdict | None:
         return self._verdict
 
@@ -115,17 +133,20 @@ class ZoneWatch:
         return first_blocked(self.known, q_rad, centres, self.pad_m, held=held)
 
     def obstacles(self) -> Placed | None:
-        """The occupied voxels grown by the padding, as one obstacle to plan around (a coal
-        octree); None when the map is empty."""
+        """The occupied voxels grown by the padding (as the path check reads it), as one
+        obstacle to plan around (a coal octree); None when the map is empty."""
         from cellrunner.model.geometry import Voxels
 
         with self._lock:
             centres = self.map.occupied_centres()
         if not len(centres):
             return None
-        return Placed(
-            "watched zone", Voxels(centres, self.map.voxel_m, self.watch.padding), np.eye(4)
-        )
+        # grown so that every point the path check calls too near lies inside (the
+        # padding, the half diagonal, half its step; a cube covers half a voxel itself)
+        from cellrunner.perception.path_check import STEP_M
+
+        grow_m = self.pad_m + STEP_M / 2 - self.map.voxel_m / 2
+        return Placed("watched zone", Voxels(centres, self.map.voxel_m, grow_m), np.eye(4))
 
     # -- feed thread --------------------------------------------------------------------
     def integrate(self, frame: DepthFrame, held: Placed | None = None) -> Verdict:
@@ -137,7 +158,9 @@ class ZoneWatch:
         explain = (lambda c: near_any(robot, c, self.pad_m)) if robot else None
         with self._lock:
             update = self.map.integrate(frame, self.ranges[frame.camera], explain)
-            centres = self.map.occupied_centres()
+            occupied = self.map.occupied()
+            self.ever_occupied[occupied] = True
+            centres = self.map.centres(occupied)
             follow = self._follow
         self.updates.append(update)
         self.images += 1
@@ -390,6 +413,12 @@ def watch_cell(
     takes images from ``depth_source`` (default: the twin's on ``host``). None when the
     cell is not watched. Add the feed to the control loop's observers and ``start()`` it
     once the robot is connected; ``close()`` it at the end."""
+    watched: tuple[ZoneWatch, TwinDepthFeed | SourceDepthFeed] | None
     if kind == "sim":
-        return watch_on_twin(world, backend, realtime=realtime)
-    return watch_on_sources(world, depth_source, host, log)
+        watched = watch_on_twin(world, backend, realtime=realtime)
+    else:
+        watched = watch_on_sources(world, depth_source, host, log)
+        realtime = True  # the arm's clock
+    if watched is not None:
+        watched[0].replan_in_background = realtime
+    return watched

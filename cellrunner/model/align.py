@@ -72,7 +72,7 @@ class AlignArgs(Strict):
     look: bool = True
     """A camera on the flange first moves onto the marker's axis, `standoff` away (a planned move); false: it looks from where the arm stands. Example: `true`"""
     standoff: PositiveLength | None = None
-    """How far from the marker the camera looks, m (default: the marker spans 15 % of the picture's height, at least 0.1 m). Example: `0.2`"""
+    """How far from the marker the camera looks, m (default: the marker spans 10 % of the picture's height, at least 0.1 m). Example: `0.2`"""
 
     def box(self) -> tuple[list[float], list[float]]:
         """The correction box as (min, max), six values each: m then deg."""

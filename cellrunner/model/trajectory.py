@@ -107,6 +107,22 @@ def time_scaled(approved: ApprovedTrajectory, speed: float) -> ApprovedTrajector
     return approve(scaled, approved.step_index, approved.step_name)
 
 
+def backwards(approved: ApprovedTrajectory, i_from: int, i_to: int) -> ApprovedTrajectory:
+    """Set-points ``i_from`` down to ``i_to`` of the approved trajectory, streamed in that
+    order (a guarded line going back to where its contact began): the same approved
+    samples, so the same path, speeds and accelerations mirrored in time; it keeps the
+    approval. Streamed as its own trajectory, its speeds point back along the line (the
+    forward trajectory's, sent in reverse, push the tool into what it touched)."""
+    if not approved.is_sealed:
+        raise ValueError("only an approved (sealed) trajectory can be run backwards")
+    source = approved.trajectory
+    if not 0 <= i_to <= i_from < len(source.q_rad):
+        raise ValueError(f"set-points {i_from}..{i_to} are outside 0..{len(source.q_rad) - 1}")
+    q = source.q_rad[i_to : i_from + 1][::-1].copy()
+    back = Trajectory(source.rate_hz, source.t_s[0] + np.arange(len(q)) / source.rate_hz, q)
+    return approve(back, approved.step_index, approved.step_name)
+
+
 def along_path(approved: ApprovedTrajectory, u: np.ndarray) -> ApprovedTrajectory:
     """The approved path followed at other speeds: set-point ``k`` is the approved path at
     sample position ``u[k]`` (fractional, non-decreasing, within the trajectory), linear

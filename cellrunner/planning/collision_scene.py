@@ -189,6 +189,10 @@ class CollisionScene:
 
     # -- construction ---------------------------------------------------------------------
 
+    def geometry_of(self, shape: Shape) -> coal.CollisionGeometry:
+        """The coal geometry of ``shape``, built once per cell (a mesh is read once)."""
+        return self._coal_shape(shape)[0]
+
     def _coal_shape(self, shape: Shape) -> tuple[coal.CollisionGeometry, float]:
         key = shape if _hashable(shape) else id(shape)  # the same box read twice is one geometry
         cached = self._geometry_cache.get(key)

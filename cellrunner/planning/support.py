@@ -1,7 +1,7 @@
 """What a placed part rests on (issue 24: check approved a place in thin air, off the
 pallet, which the twin then failed as the part fell).
 
-At a release, the part must rest, within the cell's ``place_tolerance`` distance, on a
+At a place's release, the part must rest, within the cell's ``place_tolerance`` distance, on a
 fixture, on a part waiting at its frame, or on a part an earlier slot of the same pattern
 placed (a carton on the layer below): a thin probe from the part's centre straight down
 (world -Z) to that distance below its lowest point must touch one of them, so that the
@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
-from cellrunner.model import geometry
 from cellrunner.model.geometry import Box, Cylinder, Placed, Shape, Sphere
+from cellrunner.planning.collision_scene import WAITING_PREFIX, fixture_label
 
 if TYPE_CHECKING:
     from cellrunner.model.step import Step
@@ -25,6 +25,10 @@ if TYPE_CHECKING:
 
 #: a part this close to a support touches it (m)
 TOUCH_M = 1e-4
+#: a part let go this far above its support lands where it was put, and only the fall
+#: beyond it counts against place_tolerance: the twin's rule (sim/places.PLACE_DROP_M, which
+#: planning may not import; tests/planning/test_support.py keeps the two equal)
+FORGIVEN_DROP_M = 0.01
 #: radius of the probe under a part's centre (m)
 PROBE_RADIUS_M = 0.001
 
@@ -55,49 +59,58 @@ def check_support(
     something within ``place_tolerance`` when ``step`` lets it go; ``earlier_tcp``: the
     TCP targets of the earlier slots of its pattern, each holding the same part."""
     drop_m = float(world.loaded.cell.place_tolerance.distance)
-    T_world_tcp = world.kinematics.T_world_tcp(q_rad)
-    T_world_part = T_world_tcp @ part.T_parent_shape
+    T_world_part = world.kinematics.T_world_tcp(q_rad) @ part.T_parent_shape
     # the probe: from the part's centre down to drop_m below its lowest point
-    length_m = extent_below_m(part.shape, T_world_part) + drop_m
+    length_m = extent_below_m(part.shape, T_world_part) + FORGIVEN_DROP_M + drop_m
     T_world_probe = np.eye(4)
     T_world_probe[:3, 3] = T_world_part[:3, 3] - (0.0, 0.0, length_m / 2)
     probe = Placed(part.name, Cylinder(PROBE_RADIUS_M, length_m), T_world_probe)
-    held = Placed(part.name, probe.shape, geometry.invert(T_world_tcp) @ T_world_probe)
-    if _touches_cell(world, q_rad, held) or _touches_earlier(part, probe, earlier_tcp):
+    supports = _supports(world, part.name)
+    if min(_distances(world, probe, supports), default=np.inf) <= TOUCH_M or _touches_earlier(
+        part, probe, earlier_tcp
+    ):
         return
-    gap_m, nearest = _nearest(world, q_rad, part)
+    held = Placed(part.name, part.shape, T_world_part)
+    gaps = _distances(world, held, supports)
+    k = int(np.argmin(gaps)) if gaps else -1
+    nearest = fixture_label(supports[k].name) if k >= 0 else "nothing"
+    gap_mm = gaps[k] * 1000 if k >= 0 else float("inf")
     raise InfeasibleError(
         f"{step.label}: the part '{part.name}' would be let go with nothing under it within "
         f"place_tolerance {drop_m * 1000:.0f} mm (the nearest thing is {nearest}, "
-        f"{gap_m * 1000:.1f} mm away): it falls; fix: lower the place frame onto its "
+        f"{gap_mm:.1f} mm away): it falls; fix: lower the place frame onto its "
         "support, or place it where a fixture or an earlier part holds it"
     )
 
 
-def _part_pairs(world: CellWorld, held: Placed) -> tuple[list[int], list[str]]:
-    model = world.collision.carrying(held)
-    label = f"part '{held.name}'"
-    pairs = [
-        k
-        for k, (a, b) in enumerate(model.pair_labels)
-        if a == label and b.startswith(("fixture ", "waiting part "))
+def _supports(world: CellWorld, carried: str) -> list[Placed]:
+    """What a part may rest on: the fixtures and the waiting parts (not its own place)."""
+    own = WAITING_PREFIX + carried
+    return [*world.fixtures, *(p for p in world.waiting_parts if p.name != own)]
+
+
+def _distances(world: CellWorld, shape: Placed, others: list[Placed]) -> list[float]:
+    """Signed distances (m) of ``shape`` to each of ``others``, all placed in the world."""
+    import coal
+
+    def transform(T: np.ndarray) -> coal.Transform3s:
+        return coal.Transform3s(np.asarray(T[:3, :3]), np.asarray(T[:3, 3]))
+
+    scene = world.collision
+    here = transform(shape.T_parent_shape)
+    return [
+        float(
+            coal.distance(
+                scene.geometry_of(shape.shape),
+                here,
+                scene.geometry_of(other.shape),
+                transform(other.T_parent_shape),
+                coal.DistanceRequest(),
+                coal.DistanceResult(),
+            )
+        )
+        for other in others
     ]
-    return pairs, [model.pair_labels[k][1] for k in pairs]
-
-
-def _touches_cell(world: CellWorld, q_rad: np.ndarray, held: Placed) -> bool:
-    pairs, _ = _part_pairs(world, held)
-    distances, _ = world.collision.carrying(held).pair_distances(q_rad)
-    return bool(len(pairs)) and float(distances[pairs].min()) <= TOUCH_M
-
-
-def _nearest(world: CellWorld, q_rad: np.ndarray, held: Placed) -> tuple[float, str]:
-    pairs, names = _part_pairs(world, held)
-    if not pairs:
-        return float("inf"), "nothing"
-    distances, _ = world.collision.carrying(held).pair_distances(q_rad)
-    k = int(np.argmin(distances[pairs]))
-    return float(distances[pairs][k]), names[k]
 
 
 def _touches_earlier(part: Placed, probe: Placed, earlier_tcp: list[np.ndarray]) -> bool:

@@ -133,6 +133,9 @@ class _Motion:
     #: for a joint move the planner only sampled: the same move planned with every piece
     #: proven (:func:`_prove_sampled`), for when its timed trajectory fails verification
     proven: Callable[[], np.ndarray] | None = None
+    #: what ``proven`` leaves for after it: when ``proven`` is the sampled path with its
+    #: via points where the search left them (:attr:`JointPath.loose`), the proven plan
+    then_proven: Callable[[], np.ndarray] | None = None
 
 
 @dataclass
@@ -210,7 +213,15 @@ class TaskPlan:
         goal_q = (
             row.q_end_rad if row is not None and row.status == "ok" and row.step is step else None
         )
-        motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
+        try:
+            motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
+        except InfeasibleError:
+            if obstacles is None or goal_q is None or not step.is_motion:
+                raise
+            # the planned arm configuration at the goal meets the map: the same goal pose
+            # in another configuration (the steps after it then start from where it ends)
+            planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
+            motion = planner.motion(StepPlan(step), goal_q=None, allowances=allowances)
         approved = _time_and_verify(world, motion, np.asarray(q_now_rad, float)).approved
         assert approved is not None  # _time_and_verify approves every row or raises
         return approved
@@ -429,7 +440,9 @@ class _StepPlanner:
         row.message, row.allowances, row.carrying = hit.message, m.row.allowances, self.part
         row.world, row.q_end_rad = self.world, m.waypoints[-1]
         self.q = m.waypoints[-1]
-        return _Motion(row, m.waypoints, m.limits, m.line_m, m.collision, m.world, m.proven)
+        return _Motion(
+            row, m.waypoints, m.limits, m.line_m, m.collision, m.world, m.proven, m.then_proven
+        )
 
     def _motion_key(
         self,
@@ -471,6 +484,7 @@ class _StepPlanner:
         step, kin = row.step, self.world.kinematics
         T_now = kin.T_world_tcp(self.q)
         proven: Callable[[], np.ndarray] | None = None  # a joint move's, planned proven
+        then_proven: Callable[[], np.ndarray] | None = None
         egress, self.egress = self.egress, None  # the first motion's alone
         if step.kind in (StepKind.MOVE, StepKind.APPROACH):
             self.contact = ()  # a joint move leaves a force step's or tight fit's contacts behind
@@ -486,8 +500,10 @@ class _StepPlanner:
             if egress is not None:
                 head = plan_linear(kin, collision, self.q, egress[0]).q_rad
                 row.message = egress[1]
-            path = _joint_path(collision, head, goal_q, proven=False)
+            path, loose = _sampled_joint_path(collision, head, goal_q)
             proven = functools.partial(_joint_path, collision, head, goal_q, proven=True)
+            if loose is not None:
+                proven, then_proven = loose, proven
             line = None
         else:
             from cellrunner.planning.tight_fit import named_contacts
@@ -523,7 +539,7 @@ class _StepPlanner:
 
             row.message = describe(step, line, row.allowances)
         limits = self.limits_for(step, (path[0], path[-1]))
-        motion = _Motion(row, path, limits, line, collision, self.world, proven)
+        motion = _Motion(row, path, limits, line, collision, self.world, proven, then_proven)
         row.world = self.world
         self.q = path[-1]
         row.q_end_rad = path[-1]
@@ -534,14 +550,18 @@ class _StepPlanner:
         gripper = self.world.loaded.cell.tool.gripper
         if step.kind == StepKind.GRIP:
             T = self.world.kinematics.T_world_tcp(self.q)
-            part = self.world.part_at(step.extra.get("part_at", ""), T, step.extra.get("part_pose"))
+            # a pick's grip names its frame; a bare grip takes the part waiting at the TCP
+            frame = step.extra.get("part_at") or self._frame_at_tcp()
+            part = self.world.part_at(frame, T, step.extra.get("part_pose"))
             self.part = self.world.same_grip(part) if part is not None else None
             _check_jaws_fit(step, gripper, self.part)
             weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
             close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
             row.duration_s = WRIST_SETTLE_S + close_s + weigh
         elif step.kind == StepKind.RELEASE:
-            if self.part is not None and step.macro != "on_error":  # on_error may drop it
+            # a place's release: where the twin judges the part against the place's target
+            # (a bare release, after an insert or in on_error, is judged by its confirm input)
+            if self.part is not None and (step.macro or "").startswith("place "):
                 from cellrunner.planning.support import check_support
 
                 check_support(
@@ -671,6 +691,7 @@ class _StepPlanner:
         model = self.collision()
         names: set[str] = set()
         supports: set[str] = set()
+        gripped: set[str] = set()  # the part a grip here takes: the tool may reach into it
         for q in (self.q, self._try_ik(T_goal)):
             violations = model.violations(q) if q is not None else []
             touched = {
@@ -680,6 +701,7 @@ class _StepPlanner:
             }
             names |= touched
             held = self._waiting_at_tcp(q) if q is not None else set()
+            gripped |= held & touched
             under = {f for name in held for f in self.world.waiting_supports.get(name, ())}
             supports |= {
                 v.b[len("fixture '") : -1]
@@ -687,7 +709,8 @@ class _StepPlanner:
                 if v.a.startswith("tool ") and v.b[len("fixture '") : -1] in under
             }
         return tuple(
-            ContactAllowance(name, "tool", -GRIP_PRESS_M) for name in sorted(names)
+            ContactAllowance(name, "tool", -1.0 if name in gripped else -GRIP_PRESS_M)
+            for name in sorted(names)
         ) + tuple(ContactAllowance(f, "tool", -GRIP_PRESS_M) for f in sorted(supports))
 
     def _waiting_at_tcp(self, q: np.ndarray) -> set[str]:
@@ -702,6 +725,13 @@ class _StepPlanner:
             if np.linalg.norm(np.asarray(part.T_parent_shape)[:3, 3] - p)
             <= make_coal_shape(part.shape)[1]
         }
+
+    def _frame_at_tcp(self) -> str:
+        """The frame of the part a grip here takes (:meth:`_waiting_at_tcp`), or ''."""
+        from cellrunner.planning.collision_scene import WAITING_PREFIX
+
+        names = {name[len(WAITING_PREFIX) :] for name in self._waiting_at_tcp(self.q)}
+        return next((p.at for p in self.world.loaded.cell.parts if p.name in names), "")
 
     def _try_ik(self, T: np.ndarray) -> np.ndarray | None:
         try:
@@ -763,6 +793,22 @@ def _check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) ->
     raise InfeasibleError(f"{step.label}: {reason}", step_index=step.index, reason=reason)
 
 
+def _sampled_joint_path(
+    collision: CollisionModel, head: np.ndarray, goal_q: np.ndarray
+) -> tuple[np.ndarray, Callable[[], np.ndarray] | None]:
+    """``head`` then a sampled joint path from its end to ``goal_q`` (:func:`_joint_path`),
+    and the same with the path's via points where the search left them, if they were
+    pulled in (:attr:`JointPath.loose`)."""
+    from cellrunner.planning.joint_path import plan_joint_path
+
+    found = plan_joint_path(collision, head[-1], goal_q, proven=False)
+    path = np.vstack([head, found.q_rad[1:]])
+    loose = found.loose
+    if loose is None:
+        return path, None
+    return path, lambda: np.vstack([head, loose()[1:]])
+
+
 def _joint_path(
     collision: CollisionModel, head: np.ndarray, goal_q: np.ndarray, *, proven: bool
 ) -> np.ndarray:
@@ -817,7 +863,8 @@ def _prove_sampled(motion: _Motion) -> bool:
     # the motion may be the one the world's memo keeps (:meth:`_StepPlanner.motion`): it
     # keeps the proven path, and the jobs that plan the same move again take that
     try:
-        motion.waypoints, motion.proven = motion.proven(), None
+        motion.waypoints, motion.proven = motion.proven(), motion.then_proven
+        motion.then_proven = None
     except InfeasibleError as exc:
         step = motion.row.step
         raise InfeasibleError(

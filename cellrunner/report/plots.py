@@ -124,15 +124,20 @@ def plot_tcp_path(
     base_m: np.ndarray,
     step_points: list[tuple[str, np.ndarray]],
     title: str,
+    obstacles_m: np.ndarray | None = None,
 ) -> Path:
     """The TCP path seen from above (x-y) and from the side (x-z, and y-z), the fixtures
-    drawn as their outlines, the robot base as a disc, each step's start labelled."""
+    drawn as their outlines, the robot base as a disc, each step's start labelled; in a
+    watched cell the voxels the obstacle map held occupied (``obstacles_m``, world centres,
+    N x 3) as small squares."""
     tcp = np.asarray(tcp_m, float)
     fig = figure(15, 5.6)
     axes = fig.subplots(1, 3)
     views = (("top (x-y)", 0, 1), ("side (x-z)", 0, 2), ("front (y-z)", 1, 2))
     labels = merged_labels(step_points)
     work = np.vstack([tcp, base_m[None, :]])
+    if obstacles_m is not None and len(obstacles_m):
+        work = np.vstack([work, obstacles_m])
     for ax, (name, i, j) in zip(axes, views, strict=True):
         _frame_axes(ax, work[:, [i, j]])
         (x0, x1), (_, y1) = ax.get_xlim(), ax.get_ylim()
@@ -164,6 +169,17 @@ def plot_tcp_path(
             )
         ax.scatter([base_m[i]], [base_m[j]], s=160, color="#4a78c2", alpha=0.5, zorder=2)
         ax.text(base_m[i], base_m[j], " robot", fontsize=8, color="#2b4f8c", va="bottom", zorder=2)
+        if obstacles_m is not None and len(obstacles_m):
+            ax.scatter(
+                obstacles_m[:, i],
+                obstacles_m[:, j],
+                s=6,
+                marker="s",
+                color="#7b2cbf",
+                alpha=0.35,
+                zorder=2,
+                label="obstacle map (occupied)",
+            )
         ax.plot(tcp[:, i], tcp[:, j], lw=1.6, color="#d62728", zorder=3, label="TCP")
         ax.set_xlim(x0, x1)
         ax.set_ylim(*ax.get_ylim())

@@ -37,10 +37,12 @@ def write_report(
     task: LoadedTask,
     params: dict[str, ParamValue],
     step_rows: list[dict[str, Any]],
+    obstacles_m: np.ndarray | None = None,
 ) -> bool:
     """Write the report of one dry-run into ``folder``; returns whether it holds rendered
     pictures. ``sim_world``: the twin's SimWorld as the run left it; ``world``: the
-    planning CellWorld; ``step_rows``: the --json step rows of the run."""
+    planning CellWorld; ``step_rows``: the --json step rows of the run; ``obstacles_m``:
+    a watched cell's voxels occupied at any time of the run (world centres)."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "result.json").write_text(json.dumps(payload, indent=2))
     title = f"{payload['task']} on {payload['cell']}"
@@ -55,7 +57,13 @@ def write_report(
         fixtures = world.loaded.fixture_shapes()
         base = world.kinematics.T_world_base[:3, 3]
         plots.plot_tcp_path(
-            folder / "tcp_path.png", a["tcp"], fixtures, base, step_points, f"{title}: TCP path"
+            folder / "tcp_path.png",
+            a["tcp"],
+            fixtures,
+            base,
+            step_points,
+            f"{title}: TCP path",
+            obstacles_m,
         )
         plots.plot_joints(
             folder / "joints.png", a["t"], a["q"], a["qd"], a["q_cmd"], marks, f"{title}: joints"

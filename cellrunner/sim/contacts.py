@@ -1,7 +1,9 @@
 """Contacts in the twin, judged every period as the controller and the line would:
 
 - the arm, tool or pads against a fixture or the floor, or the arm or tool against a part
-  it does not hold, harder than the cell's contact force limit: a protective stop;
+  it does not hold, harder than the cell's contact force limit over a few periods (as the
+  controller filters its force estimate), or three times as hard at once: a protective
+  stop;
 - a carried part pushed into a fixture (forced back in the jaws, or pressed too hard): a
   protective stop; setting it down lightly is not;
 - where each gripped part sits in the jaws while nothing presses it (a part forced back
@@ -12,22 +14,41 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from cellrunner.backends.base import Safety
+from cellrunner.model.robot_state import Safety
 from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC, TOOL
 from cellrunner.sim.wrist import GRAVITY_MPS2
 
 if TYPE_CHECKING:
-    from cellrunner.sim.world import SimWorld
+    from cellrunner.sim.description import TwinDescription
+    from cellrunner.sim.model_ids import ModelIds
+    from cellrunner.sim.places import Places
+    from cellrunner.sim.safety import StopReason
 
 AIR_CLEARANCE_M = 0.01  # "in the air": this far from every fixture and the floor
 JAM_SLIDE_M = 0.005  # a gripped part forced back this far in the jaws by a fixture: a collision
 JAM_FORCE_N = 150.0  # or pressed onto a fixture this hard (UR's default force limit)
+#: an unexpected contact stops the arm when its force over the last CONTACT_PERIODS
+#: periods averages over the limit, as the controller filters its force estimate (a
+#: single period's spike of a stiff contact is no collision), or at once over
+#: CONTACT_HARD_FACTOR x the limit
+CONTACT_PERIODS = 3
+CONTACT_HARD_FACTOR = 3.0
 
 NONE: frozenset[str] = frozenset()
+
+
+def collided(recent_N: list[float], force_N: float, limit_N: float) -> bool:
+    """The controller's verdict on this period's unexpected contact force ``force_N``,
+    appended to ``recent_N`` (the periods before, while the contact lasted): over the
+    limit on average over ``CONTACT_PERIODS`` periods, or over ``CONTACT_HARD_FACTOR`` x
+    the limit at once."""
+    recent_N.append(force_N)
+    del recent_N[:-CONTACT_PERIODS]
+    return force_N > CONTACT_HARD_FACTOR * limit_N or sum(recent_N) / CONTACT_PERIODS > limit_N
 
 
 @dataclass
@@ -39,10 +60,36 @@ class ContactEvent:
     geoms: tuple[str, str]
 
 
-class ContactMonitor:
-    """The contact rules of one built :class:`SimWorld`; :meth:`check` runs every period."""
+class ContactWorld(Protocol):
+    """What the contact rules see of the twin (:class:`~cellrunner.sim.world.SimWorld`)."""
 
-    def __init__(self, world: SimWorld) -> None:
+    description: TwinDescription
+    model: Any
+    data: Any
+    safety: Safety
+    last_contact: ContactEvent | None
+    places: Places
+
+    @property
+    def mujoco(self) -> Any: ...
+
+    @property
+    def ids(self) -> ModelIds: ...
+
+    @property
+    def time_s(self) -> float: ...
+
+    def tcp_pose_world(self) -> np.ndarray: ...
+
+    def part_pose_world(self, name: str) -> np.ndarray: ...
+
+    def raise_protective_stop(self, reason: StopReason = ...) -> None: ...
+
+
+class ContactMonitor:
+    """The contact rules of one built twin; :meth:`check` runs every period."""
+
+    def __init__(self, world: ContactWorld) -> None:
         self.world = world
         ids = world.ids
         #: gripped part -> T_tcp_part while no fixture presses it
@@ -55,6 +102,8 @@ class ContactMonitor:
             p.name: float(p.mass_kg) for p in world.description.parts
         }
         self._force6 = np.zeros(6)
+        #: the unexpected contacts' force (N) of the last periods, while they last
+        self._recent_N: list[float] = []
         self._fromto6 = np.zeros(6)
         self._vac_geoms: frozenset[int] = frozenset()  # part geoms the cups hold
         self._kind: list[int] = []
@@ -97,9 +146,11 @@ class ContactMonitor:
         self.pressed = False
         data = self.world.data
         if not data.ncon:
+            self._recent_N.clear()
             return NONE
         pairs = data.contact.geom.tolist()
         if pairs == self._clean_pairs:
+            self._recent_N.clear()
             return self._clean_gripped
         watched = self._robot_or_pad_geoms | self._vac_geoms
         for g1, g2 in pairs:
@@ -107,6 +158,7 @@ class ContactMonitor:
                 break
         else:
             self._clean_pairs, self._clean_gripped = pairs, NONE
+            self._recent_N.clear()
             return NONE
         kind = self._kind
         pad_hits: dict[int, int] = {}
@@ -146,6 +198,8 @@ class ContactMonitor:
             self._judge_pressed(pressed, gripped_geoms)
         if suspicious and self.world.safety is Safety.NORMAL:
             self._judge_contacts(suspicious)
+        else:
+            self._recent_N.clear()
         gripped = frozenset(self._part_of_geom[g] for g in gripped_geoms) if gripped_geoms else NONE
         self._clean_pairs, self._clean_gripped = (
             (None, NONE) if suspicious or pressed else (pairs, gripped)
@@ -161,7 +215,8 @@ class ContactMonitor:
             total += abs(force[0])
             if abs(force[0]) > worst:
                 worst, worst_i = abs(force[0]), i
-        if total > w.description.contact_force_limit_N:
+        if collided(self._recent_N, total, w.description.contact_force_limit_N):
+            self._recent_N.clear()
             self._stop_on(worst_i, total)
 
     def _judge_pressed(self, indices: list[int], gripped_geoms: set[int]) -> None:

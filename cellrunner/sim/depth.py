@@ -88,9 +88,27 @@ class Intruders:
             for i in intruders
         ]
         self.parked = [np.array(data.mocap_pos[m]) for m in self.mocap]
+        self._geoms = {
+            int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"intruder:{i.name}")): i.name
+            for i in intruders
+        }
+        #: intruders something touched (the arm, the tool, a part): the test of "never touched"
+        self.touched: set[str] = set()
         self._t0: float | None = None
         self._injected: dict[int, tuple[np.ndarray, float]] = {}  # index -> (pose, since)
         self._shown = [False] * len(intruders)
+
+    def note_contacts(self) -> None:
+        """Remember every intruder in contact now (call after each physics step)."""
+        if not any(self._shown):
+            return
+        d = self.data
+        for k in range(d.ncon):
+            c = d.contact[k]
+            for g in (int(c.geom1), int(c.geom2)):
+                name = self._geoms.get(g)
+                if name is not None and c.dist < 0:
+                    self.touched.add(name)
 
     def start(self, time_s: float) -> None:
         """A job starts now: the scheduled intruders count from here."""

@@ -130,6 +130,7 @@ class TwinDescription:
     intruders: tuple[Any, ...] = ()  # IntruderDescription (sim.depth): only depth cameras see them
     depth: tuple[tuple[str, float, float, float], ...] = ()  # (camera, near m, far m, rate Hz)
     depth_noise_m: float = 0.0  # sim.depth_noise
+    feed: Any = None  # a FeedDescription (sim.feed): parts fed before each job
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"

@@ -16,6 +16,10 @@ if TYPE_CHECKING:
     from cellrunner.sim.description import TwinDescription
     from cellrunner.sim.input_rules import InputRuleDescription
 
+#: copies of the fed part (``sim: feed``) the twin keeps parked; when all are out, the
+#: oldest comes back
+FEED_COPIES = 12
+
 #: a marker's sheet stands this far out of the face it is printed on (m): coplanar faces
 #: would flicker into each other in the picture
 PRINT_LIFT_M = 0.0003
@@ -32,14 +36,22 @@ if TYPE_CHECKING:
     from cellrunner.sim.vacuum import VacuumDescription
 
 
-def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> TwinDescription:
+def description_of(
+    loaded: LoadedCell,
+    tasks: tuple[LoadedTask, ...] = (),
+    feed: tuple[str, str] | None = None,
+    feed_copies: int = FEED_COPIES,
+) -> TwinDescription:
     """A :class:`TwinDescription` of ``loaded``: arm, mount, tool, gripper, fixtures, parts, IO.
 
     With ``tools:`` and a tool changer every tool is built (each enabled while mounted):
     the jaws of the first tool with jaws, the cups of the first vacuum tool. A part then
     lies as the tool that picks it at its frame holds it (jaws: centred; cups: top face),
-    found in ``tasks`` (loaded tasks) and the cell's own ``tasks:``."""
+    found in ``tasks`` (loaded tasks) and the cell's own ``tasks:``. ``feed`` (part,
+    frame; default the cell's ``sim: feed``) adds ``feed_copies`` copies of the part to
+    be fed there before each job (:mod:`.feed`)."""
     from cellrunner.sim.description import TwinDescription
+    from cellrunner.sim.feed import with_rehearsal_parts
 
     c = loaded.cell
     outputs, inputs = c.io.outputs, c.io.inputs
@@ -58,7 +70,7 @@ def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> Tw
     vacuum = _cups(suction, c) if suction is not None else None
     picks: Picks = _picking_grippers(loaded, tasks) if c.tools else {}
     parts = [_part(loaded, p, picks.get(p.at, c.tool.gripper)) for p in c.parts]
-    return TwinDescription(
+    desc = TwinDescription(
         spec=loaded.spec,
         T_world_base=c.robot.mount.matrix(),
         T_flange_tcp=c.tool.tcp.matrix(),
@@ -85,6 +97,28 @@ def description_of(loaded: LoadedCell, tasks: tuple[LoadedTask, ...] = ()) -> Tw
         depth_noise_m=c.sim.depth_noise if c.sim is not None else 0.0,
         name=c.cell,
     )
+    if feed is None and c.sim is not None and c.sim.feed is not None:
+        feed = (c.sim.feed.part, c.sim.feed.at)
+    if feed is None:
+        return desc
+    part = next(p for p in c.parts if p.name == feed[0])
+    shape = part.to_shape(loaded.resolve)
+    T_fed = _part_pose(frame_pose(c, feed[1]), picks.get(feed[1], c.tool.gripper), shape)
+    return with_rehearsal_parts(desc, (part.name, T_fed), feed_copies)
+
+
+def rehearsal_description(
+    loaded: LoadedCell, task: LoadedTask, params: dict[str, Any], jobs: int = 1
+) -> TwinDescription:
+    """The twin of a ``dry-run`` of ``task`` from ``params`` (resolved), ``jobs`` jobs in
+    a row (SPEC section 12): the cell with a part on every earlier slot of each place
+    pattern, and for several jobs a part fed before each (the cell's ``sim: feed``, else
+    the part the task picks first, at its frame)."""
+    from cellrunner.sim.feed import earlier_slots, feed_of, with_rehearsal_parts
+
+    desc = description_of(loaded, (task,), feed_of(loaded, task, jobs > 1), max(FEED_COPIES, jobs))
+    placed = earlier_slots(loaded, task, params, desc)
+    return with_rehearsal_parts(desc, placed=placed) if placed else desc
 
 
 def _markers(

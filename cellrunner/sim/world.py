@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from cellrunner.backends.base import BackendError, RobotState, Safety
+from cellrunner.errors import BackendError
+from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.sim.contacts import NONE, ContactEvent, ContactMonitor
 from cellrunner.sim.description import TwinDescription
 from cellrunner.sim.faults import Fault, GripFaults
@@ -117,6 +118,11 @@ class SimWorld:
             from cellrunner.sim.tool_changer import ToolChanger
 
             self.changer = ToolChanger(self, d.tool_changer)
+        self.feeder = None
+        if d.feed is not None:
+            from cellrunner.sim.feed import Feeder
+
+            self.feeder = Feeder(self, d.feed)
         self._update_inputs()
 
     @property
@@ -317,6 +323,8 @@ class SimWorld:
         """What the controller and the line make of a period's physics: contacts (a
         protective stop), the held parts, the cups, faults, the inputs."""
         contacts = self.contacts
+        if self.intruders is not None:
+            self.intruders.note_contacts()
         self._gripped = contacts.check()
         if self._gripped or contacts.held_at:
             contacts.note_held(self._gripped, self.jaws is not None and self.jaws.closing)
@@ -462,11 +470,15 @@ class SimWorld:
         return T
 
     def feed_parts(self, moved_m: float = 0.01) -> list[str]:
-        """The twin's infeed: every part not held that lies more than ``moved_m`` from its
-        spawn pose is put back there at rest (a conveyor bringing the next part).
+        """The twin's infeed before a job. With a feed (``sim: feed``), a new part at its
+        frame unless one lies there (:mod:`.feed`). Without one, every part not held that
+        lies more than ``moved_m`` from its spawn pose is put back there at rest.
         Returns the names of the parts fed."""
         from scipy.spatial.transform import Rotation
 
+        if self.feeder is not None:
+            new = self.feeder.feed()
+            return [new] if new is not None else []
         mujoco = load_mujoco()
         fed = []
         for part in self.description.parts:

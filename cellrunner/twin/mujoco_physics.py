@@ -15,11 +15,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cellrunner.backends.base import BackendError, Safety
+from cellrunner.errors import BackendError
+from cellrunner.model.robot_state import Safety
 
 if TYPE_CHECKING:
     from cellrunner.sim.description import TwinDescription
     from cellrunner.twin.physics import Measurement
+
+#: how often (controller periods) the conveyor looks whether its part was taken (sim: feed)
+FEED_EVERY_PERIODS = 50
 
 #: RTDE digital bit layout: DO/DI 0-7 standard, 8-15 configurable, 16-17 tool
 _BIT_OF_PREFIX = {"D": 0, "C": 8, "T": 16}
@@ -107,6 +111,8 @@ class MujocoPhysics:
         if world.safety is Safety.NORMAL and not world.stopping:
             world.command(q_cmd, qd)
         world.step_period()
+        if world.feeder is not None and world.periods % FEED_EVERY_PERIODS == 0:
+            world.feeder.update()  # the conveyor brings the next part once one was taken
         stopped = world.safety is Safety.PROTECTIVE_STOP
         if stopped != self._contact:  # a stop begins or ends: the contact it met, if any
             hit = world.last_contact

@@ -6,17 +6,16 @@ from __future__ import annotations
 
 import pytest
 
-from tests.cells.test_reference_cells import PALLETIZER, dry_run
-from tests.cells.test_vacuum_places import (
+from tests.cells.reference import (
     CARTON,
     PALLET_CELL,
     PALLET_TASK,
+    PALLETIZER,
     place_failed_mm,
     project,
 )
 from tests.conftest import ROOT
-
-pytest.importorskip("mujoco")
+from tests.rig import dry_run
 
 DEMO_CELL = (ROOT / "cells/demo_ur5e.yaml").read_text()
 DEMO_TASK = (ROOT / "tasks/pick_place.yaml").read_text()
@@ -61,10 +60,14 @@ TALL_CELL = (
 )
 
 
-def test_a_tall_carton_is_placed(tmp_path):
-    """(grip_miss on it: tests/sim/test_vacuum.py, in the twin alone)"""
-    out = dry_run(*project(tmp_path, TALL_CELL, PALLET_TASK))
-    assert out["result_code"] == 0, (out["result_text"], out["steps"])
+@pytest.mark.parametrize("fault, code", [(None, 0), ("grip_miss@grip", 1)])
+def test_a_tall_carton_is_placed_and_grip_miss_takes_it_away(tmp_path, fault, code):
+    inject = ("--inject", fault) if fault else ()
+    out = dry_run(*project(tmp_path, TALL_CELL, PALLET_TASK), *inject)
+    assert out["result_code"] == code, (out["result_text"], out["steps"])
+    if fault:  # moved clear of the cups (more than its half-diagonal plus theirs)
+        x, y, _ = out["parts_end_m"]["carton"]
+        assert ((x - 0.15) ** 2 + (y + 0.70) ** 2) ** 0.5 > 0.2
 
 
 def test_the_palletizer_still_places_its_carton(tmp_path):

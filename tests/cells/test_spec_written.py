@@ -20,6 +20,7 @@ import contextlib
 import io
 import json
 import math
+import os
 import re
 import subprocess
 import sys
@@ -28,8 +29,6 @@ from pathlib import Path
 import pytest
 
 from cellrunner.cli.main import main
-
-pytest.importorskip("mujoco")
 
 HERE = Path(__file__).parent / "spec_written"
 
@@ -306,6 +305,20 @@ def test_a_block_off_its_frame_aligned_before_the_pick_is_placed():
     assert math.dist(out["parts_end_m"]["block"], (0.40, 0.30, 0.825)) < 0.005
 
 
+def test_check_refuses_a_carried_box_swept_through_the_box_waiting_on_the_belt():
+    """The box waiting at `queue` is in the cell file: a straight line that carries the
+    held box through it is refused by name, or the twin carries it past untouched."""
+    code, out = cli("check", cell("ceiling_conveyor_ur5e"), task("conveyor_sweep"))
+    if code == 0:
+        code, out = cli("dry-run", cell("ceiling_conveyor_ur5e"), task("conveyor_sweep"))
+        assert (code, out["result_code"]) == (0, 0), out["result_text"]
+        assert math.dist(out["parts_end_m"]["next_box"], (0.45, 0.10, 0.925)) < 0.005, out[
+            "parts_end_m"
+        ]
+    else:
+        assert code == 1 and any("next_box" in error for error in out["errors"]), out["errors"]
+
+
 def test_a_float_param_is_proved_over_its_whole_range_or_refused():
     """A PLC may send any value in [min, max]: `clear` is 0.05-0.40 m and the UR3e cannot
     reach 0.40 m above the tray. check (default value) proves the range or refuses it."""
@@ -316,3 +329,61 @@ def test_a_float_param_is_proved_over_its_whole_range_or_refused():
             assert (code, out["ok"]) == (0, True), (value, out["errors"])
     else:
         assert code == 1 and any("clear" in error for error in out["errors"]), out["errors"]
+
+
+def test_an_align_dry_run_from_a_shell_renders_without_being_told_how():
+    """As a line engineer runs it: a fresh process, no MUJOCO_GL in the environment."""
+    env = {key: value for key, value in os.environ.items() if key != "MUJOCO_GL"}
+    done = subprocess.run(
+        [
+            str(Path(sys.executable).with_name("cellrunner")),
+            "dry-run",
+            cell("align_ur5"),
+            task("align_pick_ur5"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=100,
+        env=env,
+    )
+    assert done.returncode == 0, done.stderr[-600:]
+
+
+# Boxes shorter than the ceiling cell's 50 mm: (height, m).
+SHORT = {
+    "40mm": 0.04,
+}
+
+
+@pytest.mark.parametrize("height", SHORT.values(), ids=SHORT.keys())
+def test_jaws_pick_a_short_block_resting_on_a_table(tmp_path, height):
+    """The ceiling cell with a 30 or 40 mm box instead of 50 mm, each frame at the box's
+    middle (resting on the belt; 3 mm above the outfeed): nothing else changes."""
+    text = (HERE / "cells" / "ceiling_conveyor_ur5e.yaml").read_text()
+    for old, new in [
+        ("box: {size: [0.05, 0.05, 0.05]}", f"box: {{size: [0.05, 0.05, {height}]}}"),
+        (
+            "0.925], rpy: [180, 0, 0]}   # a box's middle",
+            f"{0.9 + height / 2:.4f}], rpy: [180, 0, 0]}}   #",
+        ),
+        (
+            "0.925], rpy: [180, 0, 0]}    # the next box",
+            f"{0.9 + height / 2:.4f}], rpy: [180, 0, 0]}}    #",
+        ),
+        (
+            "0.928], rpy: [180, 0, 90]}    # a box's middle",
+            f"{0.903 + height / 2:.4f}], rpy: [180, 0, 90]}}    #",
+        ),
+    ]:
+        assert old in text, old
+        text = text.replace(old, new)
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "tasks").mkdir()
+    (tmp_path / "cells" / "c.yaml").write_text(text)
+    (tmp_path / "tasks" / "conveyor_pick.yaml").write_text(
+        (HERE / "tasks" / "conveyor_pick.yaml").read_text()
+    )
+    code, out = cli(
+        "check", str(tmp_path / "cells" / "c.yaml"), str(tmp_path / "tasks" / "conveyor_pick.yaml")
+    )
+    assert (code, out["ok"]) == (0, True), out["errors"]

@@ -73,3 +73,25 @@ def test_a_tote_that_stays_ends_the_job_with_108_without_touching_it(tmp_path):
     code, out = cli("dry-run", watched(tmp_path, ON_THE_PATH + ", appear: 2.3}"), transfer())
     assert (code, out["result_code"]) == (1, 108), out["result_text"]
     assert "tote" not in out["result_text"]  # found by the camera, not read from the file
+
+
+# --inject intrusion@STEP: (step, replan, the results that leave the box untouched).
+DROPPED = {
+    "transfer_wait": ("approach#2", False, {0, 108}),
+}
+
+
+@pytest.mark.parametrize("case", DROPPED.values(), ids=DROPPED.keys())
+def test_a_box_dropped_on_the_path_is_never_touched(case):
+    """SPEC 12: --inject intrusion@STEP drops a box onto the path of STEP while it runs;
+    the arm stops short of it (no protective stop, 100); with replanning it goes round."""
+    step, replan, results = case
+    code, out = cli(
+        "dry-run",
+        str(HERE / "cells" / "watched_ur16e.yaml"),
+        transfer(replan),
+        "--inject",
+        f"intrusion@{step}",
+    )
+    assert out["result_code"] in results, (out["result_text"], out.get("obstacles"))
+    assert code == (0 if out["result_code"] == 0 else 1)

@@ -13,7 +13,7 @@ import sys
 import pytest
 
 from tests.conftest import ROOT
-from tests.twin.cell_rig import ENV
+from tests.rig import ENV
 
 CELL = ROOT / "cells" / "align_pick_ur10e.yaml"
 TASK = ROOT / "tasks" / "align_pick.yaml"
@@ -22,10 +22,14 @@ BLIND = ROOT / "tasks" / "align_pick_blind.yaml"
 HOST = f"127.26.{os.getpid() % 250 + 1}.2"
 
 
+#: as a person runs it: no MUJOCO_GL, cellrunner finds a GL backend for the camera itself
+PLAIN_ENV = {k: v for k, v in ENV.items() if k != "MUJOCO_GL"}
+
+
 def cellrunner(*args: str) -> tuple[int, dict, str]:
     r = subprocess.run(
         [sys.executable, "-m", "cellrunner.cli.main", *args],
-        capture_output=True, text=True, cwd=ROOT, env=ENV, timeout=300,
+        capture_output=True, text=True, cwd=ROOT, env=PLAIN_ENV, timeout=300,
     )  # fmt: skip
     return r.returncode, json.loads(r.stdout) if r.stdout.startswith("{") else {}, r.stderr
 

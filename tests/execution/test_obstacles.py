@@ -15,13 +15,16 @@ import pytest
 from tests.conftest import ROOT
 
 WATCHED = ROOT / "cells" / "watched_ur5e.yaml"
+#: a tote dropped on the approach's path 0.3 s into the job
 TOTE = "{name: tote, box: {size: [0.2, 0.14, 0.1]}, pose: {xyz: [0.52, -0.24, 1.1]}, appear: 0.3"
+#: a tote that stands on the approach's path from the start, with room to go round it
+TOTE_AROUND = "{name: tote, box: {size: [0.16, 0.16, 0.1]}, pose: {xyz: [0.64, -0.05, 1.2]}"
 
 
-def tote_cell(tmp_path: Path, leave: str = "") -> Path:
+def tote_cell(tmp_path: Path, leave: str = "", tote: str = TOTE) -> Path:
     text = WATCHED.read_text().replace(
         "sim:\n  depth_noise: 0.002\n",
-        f"sim:\n  depth_noise: 0.002\n  intruders:\n    - {TOTE}{leave}}}\n",
+        f"sim:\n  depth_noise: 0.002\n  intruders:\n    - {tote}{leave}}}\n",
     )
     text = text.replace("tasks/", f"{ROOT}/tasks/")
     path = tmp_path / "tote.yaml"
@@ -55,10 +58,15 @@ def whats(result: dict) -> list[str]:
     return [e["what"] for e in result.get("obstacles", [])]
 
 
-def test_a_static_watched_cell_never_stops():
-    result = dry_run(WATCHED, "pick_place_watched.yaml")
+def test_a_static_watched_cell_never_stops_and_its_placed_part_is_known(tmp_path):
+    from cellrunner.perception.occupancy import OccupancyMap
+
+    result = dry_run(WATCHED, "pick_place_watched.yaml", "--save-map", str(tmp_path / "m.npz"))
     assert result["result_code"] == 0 and whats(result) == []
     assert result["cycle_time_s"] <= result["planned_cycle_time_s"] * 1.03
+    assert result["depth_images"] > 100  # 15 Hz over a 7.6 s job
+    # the block set down on the pallet is the cell file's part, where the arm released it
+    assert len(OccupancyMap.load(tmp_path / "m.npz").occupied()) == 0
 
 
 def test_a_tote_on_the_path_for_four_seconds_makes_the_arm_wait(tmp_path):
@@ -69,6 +77,7 @@ def test_a_tote_on_the_path_for_four_seconds_makes_the_arm_wait(tmp_path):
     clear = next(e for e in result["obstacles"] if e["what"] == "clear")
     assert 4.3 <= clear["time_s"] <= 5.5  # seen free within a second of its leaving
     assert result["cycle_time_s"] > result["planned_cycle_time_s"] + 3.0
+    assert result["intruders_touched"] == []
 
 
 def test_a_tote_that_stays_ends_the_job_with_108_without_replanning(tmp_path):
@@ -84,8 +93,18 @@ def test_a_tote_that_stays_ends_the_job_with_108_without_replanning(tmp_path):
 @pytest.mark.parametrize(
     ("task", "code"), [("pick_place.yaml", 108), ("pick_place_watched.yaml", 0)]
 )
-def test_a_box_dropped_on_the_path_ends_108_or_is_gone_round_with_replanning(task, code):
-    result = dry_run(WATCHED, task, "--inject", "intrusion@2")
+def test_a_tote_that_stays_from_the_start_is_gone_round_with_replanning(tmp_path, task, code):
+    result = dry_run(tote_cell(tmp_path, tote=TOTE_AROUND), task)
     assert result["result_code"] == code, result["result_text"]
-    assert whats(result)[:2] == ["stop", "wait"]
     assert ("replan" in whats(result)) == (code == 0)
+    # the step's journal row says what happened, when and where
+    journaled = [s["message"] for s in result["steps"] if "obstacle: " in s["message"]]
+    assert journaled and " s at (" in journaled[0], result["steps"]
+    assert result["intruders_touched"] == []
+
+
+def test_a_box_dropped_onto_the_path_is_seen_only_by_the_depth_camera():
+    result = dry_run(WATCHED, "pick_place.yaml", "--inject", "intrusion@2")
+    assert result["result_code"] == 108, result["result_text"]
+    assert whats(result)[:2] == ["stop", "wait"]
+    assert result["intruders_touched"] == []

@@ -27,10 +27,10 @@ def test_the_camera_looks_down_the_marker_axis_from_the_standoff():
     assert (look.kind, look.macro, align.kind) == ("move", "align infeed", "align")
     T_world_camera = look.T_world_tcp @ align.extra["T_tcp_camera"]
     T_world_marker = align.extra["T_world_frame"] @ align.extra["T_marker"]
-    # the camera's Z points at the marker along the marker's axis, 0.25 m out
-    # (600 px focal length x 0.03 m / (15 % of 480 px))
+    # the camera's Z points at the marker along the marker's axis, 0.375 m out
+    # (600 px focal length x 0.03 m / (10 % of 480 px))
     v = T_world_marker[:3, 3] - T_world_camera[:3, 3]
-    assert np.allclose(v, T_world_camera[:3, 2] * 0.25, atol=1e-9)
+    assert np.allclose(v, T_world_camera[:3, 2] * 0.375, atol=1e-9)
     assert np.allclose(T_world_camera[:3, 2], -T_world_marker[:3, 2], atol=1e-9)
 
 

@@ -7,11 +7,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cellrunner.backends.base import BackendError, RobotState, Safety
+from cellrunner.errors import BackendError
+from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.sim import demo
 from cellrunner.sim.safety import UNLOCK_DELAY_S
-
-pytest.importorskip("mujoco")
 
 
 def _no_fault_fields(state: RobotState) -> None:
@@ -196,3 +195,17 @@ def test_presence_sensor_sees_the_part_leave(cell) -> None:
     b.inject_fault("grip_miss")
     Driver(b, desc).pick_cube()  # the miss pushes the cube out of the barrier
     assert b.read_state().inputs["DI2"] is False
+
+
+def test_a_contact_is_a_collision_over_a_few_periods_not_one() -> None:
+    """As the controller filters its force estimate: a single period of a stiff contact
+    over the 60 N limit (the flake of the guarded move through ur_rtde) is no collision;
+    a contact that stays over it, or one three times as hard, is."""
+    from cellrunner.sim.contacts import collided
+
+    recent: list[float] = []
+    assert not collided(recent, 95.0, 60.0)  # one period's spike
+    assert not collided(recent, 20.0, 60.0)
+    assert not collided(recent, 20.0, 60.0)
+    assert [collided(recent, f, 60.0) for f in (70.0, 75.0, 80.0)] == [False, False, True]
+    assert collided([], 190.0, 60.0)  # a hard hit stops at once

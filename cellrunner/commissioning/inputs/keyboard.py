@@ -32,7 +32,8 @@ class KeyboardInput:
     def open(self) -> None:
         if not sys.stdin.isatty():
             raise UsageError(
-                "jog --input keyboard needs a terminal: keys are read as they are held"
+                "jog needs a terminal for --input keyboard: keys are read as they are held "
+                "(--input gamepad, spacemouse or udp:PORT jog without one)"
             )
         self._fd = sys.stdin.fileno()
         self._saved = termios.tcgetattr(self._fd)
