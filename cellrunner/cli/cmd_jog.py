@@ -1,5 +1,5 @@
 """``cellrunner jog CELL --robot-host H [--input keyboard|gamepad|spacemouse|udp:PORT]
-[--mode joint|base|tool]``: the arm follows keys, a device or a program at the controller
+[--mode joint|base|tool] [--depth-source SPEC]``: the arm follows keys, a device or a program at the controller
 rate (see :mod:`cellrunner.commissioning.servo` for the governor, dead band, smoothing and
 timeout; :mod:`cellrunner.commissioning.inputs` for each input)."""
 
@@ -31,7 +31,12 @@ def run(args: argparse.Namespace) -> int:
         stop.set()
 
     previous = signal.signal(signal.SIGTERM, on_term)
-    session = JogSession(CellWorld(cell), host, source)
+    world = CellWorld(cell)
+    from cellrunner.execution.watch import watch_on_sources
+
+    # a watched cell: its zone watch governs the jog (the twin's depth camera by default)
+    watched = watch_on_sources(world, getattr(args, "depth_source", None), host)
+    session = JogSession(world, host, source, watched=watched)
     try:
         session.connect()
         session.run(stop)

@@ -233,6 +233,7 @@ def _commissioning_commands(sub: Commands) -> None:
         default=None,
         help="where a person's input starts (default: joint for keys, base for devices)",
     )
+    _depth_source(p)
     p.set_defaults(module="jog")
 
     p = sub.add_parser(

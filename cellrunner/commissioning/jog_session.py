@@ -6,6 +6,10 @@ governor's scale and why it slows.
 On a terminal the screen is redrawn in place; without one (the input is not the keyboard)
 each change of status is one line on ``out``. A device that goes away stops the arm and
 ends the session (:class:`InputLost`, exit 3); SIGTERM or Ctrl-C stops the arm and ends it.
+
+A watched cell (SPEC section 12) is jogged with its zone watch: the depth feed starts once
+the arm is connected, each period stamps its images with the measured joints, and the
+governor slows and stops the arm short of what the map holds, naming the voxel.
 """
 
 from __future__ import annotations
@@ -21,12 +25,14 @@ from typing import TYPE_CHECKING, Any, TextIO
 import numpy as np
 
 from cellrunner.commissioning.inputs import InputLost
+from cellrunner.commissioning.jog import Governor
 from cellrunner.commissioning.servo import Servo, Tick
 from cellrunner.errors import ConnectionLost, PeerUnreachable
 from cellrunner.model.geometry import rpy_deg_of
 
 if TYPE_CHECKING:
     from cellrunner.commissioning.inputs import InputSource
+    from cellrunner.execution.watch import SourceDepthFeed, ZoneWatch
     from cellrunner.planning.world import CellWorld
 
 #: screen refresh (s)
@@ -62,10 +68,13 @@ class JogSession:
         source: InputSource,
         out: TextIO | None = None,
         screen: bool | None = None,
+        watched: tuple[ZoneWatch, SourceDepthFeed] | None = None,
     ) -> None:
         self.world, self.host, self.source = world, host, source
         self.kinematics = world.kinematics
-        self.servo = Servo(world)
+        self.zone: ZoneWatch | None = watched[0] if watched is not None else None
+        self.feed: SourceDepthFeed | None = watched[1] if watched is not None else None
+        self.servo = Servo(world, Governor(world.kinematics, world.collision, self.zone))
         self.out = out if out is not None else sys.stdout
         self.screen = self.out.isatty() if screen is None else screen
         # ur_rtde's RTDEControlInterface and RTDEReceiveInterface (untyped bindings)
@@ -95,9 +104,14 @@ class JogSession:
             self._control = rtde_control.RTDEControlInterface(self.host, rate)
         except (RuntimeError, OSError) as exc:
             raise PeerUnreachable(f"cannot jog the arm at {self.host}: {exc}") from exc
+        if self.feed is not None:
+            self.feed.measured(self._receive.getTimestamp(), np.array(self._receive.getActualQ()))
+            self.feed.start()
 
     def close(self) -> None:
         try:
+            if self.feed is not None:
+                self.feed.close()
             if self._control is not None:
                 try:
                     self._control.speedStop(SPEEDJ_ACCEL_RAD_S2)
@@ -129,6 +143,8 @@ class JogSession:
                 if not self._receive.isConnected():
                     raise ConnectionLost(f"lost the connection to the arm at {self.host}")
                 q = np.array(self._receive.getActualQ())
+                if self.feed is not None:
+                    self.feed.measured(self._receive.getTimestamp(), q)
                 tick = self.servo.step(q, command, now)
                 self._control.speedJ(
                     [float(x) for x in tick.qd_rad_s], SPEEDJ_ACCEL_RAD_S2, period_s
@@ -171,6 +187,14 @@ class JogSession:
         ang = ", ".join(f"{math.degrees(x):.1f}" for x in v[3:])
         return f"{tick.frame} [{lin}] mm/s [{ang}] deg/s"
 
+    def _zone_line(self, q: np.ndarray) -> list[str]:
+        if self.zone is None:
+            return []
+        m, where = self.zone.clearance_m(q)
+        if not where:
+            return ["watched zone: clear"]
+        return [f"watched zone: {where}, {m * 1000:.0f} mm beyond the padding"]
+
     def _show(self, q: np.ndarray, tick: Tick, now: float) -> None:
         if not self.screen:  # one line per change (counters and figures aside)
             line = f"input {self.source.name}: {self.status}"
@@ -188,6 +212,7 @@ class JogSession:
             f"TCP (world): xyz [{xyz}] m  rpy [{rpy}] deg",
             f"joints: [{', '.join(f'{math.degrees(v):.2f}' for v in q)}] deg",
             f"nearest obstacle: {verdict.nearest} {verdict.clearance_m * 1000:.0f} mm beyond its clearance",
+            *self._zone_line(q),
             f"singularity distance: {verdict.singularity}",
             f"governor scale: {scale}",
             f"status: {self.status}",

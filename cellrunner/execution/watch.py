@@ -320,7 +320,7 @@ class SourceDepthFeed:
 
     def __init__(self, zone: ZoneWatch, sources: dict[str, Any], log: Any = None) -> None:
         self.zone, self.sources, self.log = zone, sources, log
-        self._state: Any = None
+        self._stamp: tuple[float, np.ndarray] | None = None  # the arm's clock (s), joints
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         cell = zone.world.loaded.cell
@@ -347,7 +347,13 @@ class SourceDepthFeed:
             self._threads.append(thread)
 
     def __call__(self, cell: Any) -> None:
-        self._state = cell.backend.read_state()
+        state = cell.backend.read_state()
+        self.measured(state.time_s, state.q_rad)
+
+    def measured(self, time_s: float, q_rad: np.ndarray) -> None:
+        """The arm's latest clock and joints, which stamp the next images (the jog
+        session, which has no control loop, calls this each period)."""
+        self._stamp = (time_s, q_rad)
 
     def quiet_until_s(self, cell: Any) -> float:
         return 0.0  # verdicts come on their own clock: no look-ahead
@@ -357,15 +363,16 @@ class SourceDepthFeed:
         while not self._stop.is_set():
             try:
                 image = source.grab()
-                state = self._state
-                if state is None:
+                stamp = self._stamp
+                if stamp is None:
                     continue
+                time_s, q_rad = stamp
                 T = (
-                    self.zone.world.kinematics.T_world_flange(state.q_rad) @ T_mount_camera
+                    self.zone.world.kinematics.T_world_flange(q_rad) @ T_mount_camera
                     if on_flange
                     else T_mount_camera
                 )
-                frame = DepthFrame(name, state.time_s, image.depth_m, T, image.K, q_rad=state.q_rad)
+                frame = DepthFrame(name, time_s, image.depth_m, T, image.K, q_rad=q_rad)
                 self.zone.publish(self.zone.integrate(frame))
             except Exception as exc:  # a camera that fails is reported and tried again
                 self.errors.append(f"{name}: {exc}")
