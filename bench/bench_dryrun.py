@@ -42,10 +42,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from cellrunner.backends.sim.backend import SimBackend  # noqa: E402
-from cellrunner.execution.cell import CellController  # noqa: E402
+from cellrunner.execution.assembly import assemble_cell  # noqa: E402
 from cellrunner.execution.journal import Journal  # noqa: E402
-from cellrunner.execution.loop import ControlLoop  # noqa: E402
-from cellrunner.execution.planner import job_planner  # noqa: E402
 from cellrunner.model.load import load_cell, load_task  # noqa: E402
 from cellrunner.planning.world import CellWorld  # noqa: E402
 from cellrunner.sim.from_cell import description_of  # noqa: E402
@@ -58,13 +56,10 @@ CASES = [
 
 def _started(cell, task, params, lookahead=True):
     """A controller with the job planned and about to move: (controller, loop, backend)."""
-    world = CellWorld(cell)
-    backend = SimBackend(description_of(cell))
-    controller = CellController(
-        cell, {1: task}, backend, Journal(":memory:"), job_planner(world), wait_for_unhold=False
-    )
-    controller.setup()
-    loop = ControlLoop(controller, lookahead=lookahead)
+    assembled = assemble_cell(
+        cell, {1: task}, "sim", journal=Journal(":memory:"), lookahead=lookahead
+    ).setup()
+    controller, loop, backend = assembled.controller, assembled.loop, assembled.backend
     loop.step(3)
     controller.start_job(1, params, "bench", "cli")
     loop.step(1)  # planning starts on the control thread

@@ -154,7 +154,7 @@ class RemoteControlOff(BackendError):
 
 
 class SafetyStop(BackendError):
-    """The controller stopped the arm; ``safety`` (a ``backends.base.Safety``) says how."""
+    """The controller stopped the arm; ``safety`` (a ``model.robot_state.Safety``) says how."""
 
     def __init__(self, message: str, safety: object) -> None:
         super().__init__(message)

@@ -1,9 +1,11 @@
-"""The modules of ``cellrunner`` import each other without a cycle.
+"""The modules of ``cellrunner`` import each other without a cycle, and its packages
+only along the layering (STYLE.md rule 1: dependencies point inward).
 
 The graph is read from the source with ``ast``: every ``import`` counts, the ones inside
-functions too (a lazy import that closes a loop still ties the two modules together), except
-those under ``if TYPE_CHECKING:``, which never run. A module importing its own parent package
-is not an edge: Python imports the parent first in any case.
+functions (a lazy import that closes a loop still ties the two modules together) and
+under ``if TYPE_CHECKING:`` too (a circle closed through a type hint is a concept in the
+wrong file). A module importing its own parent package is not an edge: Python imports the
+parent first in any case.
 """
 
 from __future__ import annotations
@@ -26,27 +28,14 @@ def _modules(root: Path) -> dict[str, Path]:
     return out
 
 
-def _is_type_checking(node: ast.If) -> bool:
-    test = node.test
-    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
-        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
-    )
-
-
 def _imported(tree: ast.AST) -> list[tuple[str, list[str]]]:
-    """(module, names) of every import in ``tree`` outside ``if TYPE_CHECKING:`` blocks."""
+    """(module, names) of every import in ``tree``."""
     found: list[tuple[str, list[str]]] = []
-    todo: list[ast.AST] = [tree]
-    while todo:
-        node = todo.pop()
-        if isinstance(node, ast.If) and _is_type_checking(node):
-            todo.extend(node.orelse)
-            continue
+    for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             found.extend((alias.name, []) for alias in node.names)
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             found.append((node.module, [alias.name for alias in node.names]))
-        todo.extend(ast.iter_child_nodes(node))
     return found
 
 
@@ -89,11 +78,66 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
+#: the packages each package may import (every package may import ``cellrunner.errors``
+#: and itself); the CLI sits on top and may import any
+LAYERS: dict[str, set[str]] = {
+    "model": set(),
+    "planning": {"model"},
+    "vision": {"model", "planning"},
+    "perception": {"model", "planning", "vision"},
+    "sim": {"model", "vision", "perception"},
+    "twin": {"model", "sim"},
+    "backends": {"model", "sim"},
+    "plc": {"model"},
+    # perception: the watched zone's map; vision: align steps' eye; sim: the twin's depth
+    # feed (execution.watch.TwinDepthFeed renders through sim.depth)
+    "execution": {"model", "planning", "backends", "perception", "vision", "sim"},
+    "report": {"model", "planning", "sim"},
+    "web": {"model", "execution"},
+    "commissioning": {"model", "planning", "execution", "backends", "vision"},
+}
+_ANYONE = {"errors"}
+
+
+def _package(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+def layering_breaks(graph: dict[str, set[str]]) -> list[str]:
+    """``a -> b`` for every import of a module ``a`` into a package its layer may not use."""
+    breaks = []
+    for module, targets in sorted(graph.items()):
+        allowed = LAYERS.get(_package(module))
+        if allowed is None:  # the CLI and the package's own top-level modules
+            continue
+        for target in sorted(targets):
+            package = _package(target)
+            if package != _package(module) and package not in allowed | _ANYONE:
+                breaks.append(f"{module} -> {target}")
+    return breaks
+
+
 def test_cellrunner_has_no_import_cycle() -> None:
     graph = import_graph(PACKAGE)
     assert len(graph) > 50, "the package's modules were not found"
     cycle = find_cycle(graph)
     assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
+
+
+def test_packages_import_only_along_the_layering() -> None:
+    graph = import_graph(PACKAGE)
+    assert {_package(m) for m in graph} >= set(LAYERS), "a layered package was not found"
+    assert layering_breaks(graph) == []
+
+
+def test_the_layering_check_sees_sim_importing_backends() -> None:
+    graph = {
+        "cellrunner.sim.world": {"cellrunner.backends.base", "cellrunner.model.cell"},
+        "cellrunner.backends.base": {"cellrunner.model.robot_state"},
+        "cellrunner.cli.main": {"cellrunner.sim.world"},
+    }
+    assert layering_breaks(graph) == ["cellrunner.sim.world -> cellrunner.backends.base"]
 
 
 @pytest.mark.parametrize(
@@ -110,11 +154,11 @@ def test_cellrunner_has_no_import_cycle() -> None:
                 "a": "import pkg.b",
                 "b": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import pkg.a",
             },
-            None,
+            ["a", "b", "a"],
         ),
     ],
 )
-def test_the_cycle_finder_sees_lazy_imports_and_skips_type_checking(
+def test_the_cycle_finder_sees_lazy_imports_and_type_checking_ones(
     tmp_path: Path, sources: dict[str, str], cycle: list[str] | None
 ) -> None:
     root = tmp_path / "pkg"

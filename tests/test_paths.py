@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from cellrunner.model.load import load_cell, serve_file_warnings
 from cellrunner.plc.opcua import OpcUaConfig
-from tests.execution.test_dryrun import CELL
+from tests.rig import CELL
 
 OPCUA = (
     "plc:\n  opcua: {endpoint: 'opc.tcp://127.0.0.1:4840/x', users: opcua-users.yaml, pki: pki}\n"

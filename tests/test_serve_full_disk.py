@@ -8,8 +8,18 @@ import signal
 import time
 
 from tests.execution.small_disk import fill, small_disk
-from tests.execution.test_dryrun import CELL as DRYRUN_CELL
-from tests.test_serve import BUSY, DONE, ERROR, JOB_ACK, JOB_REQ, READY, connect, start, wait
+from tests.rig import (
+    BUSY,
+    DONE,
+    ERROR,
+    JOB_ACK,
+    JOB_REQ,
+    READY,
+    modbus_client,
+    start_serve,
+    wait_bits,
+)
+from tests.rig import CELL as DRYRUN_CELL
 from tests.twin.cell_rig import free_port
 
 WAIT_TASK = "task: dwell\nsteps:\n  - wait: 2.0\n"
@@ -33,25 +43,25 @@ def _project(tmp_path, disk) -> tuple[object, int]:
 def test_a_result_on_a_full_disk_is_held_then_delivered(tmp_path):
     with small_disk(tmp_path, 2048) as disk:
         cell, port = _project(tmp_path, disk)
-        proc = start(cell)
+        proc = start_serve(cell)
         beat = [0]
         try:
-            client = connect(port)
-            wait(client, READY, 30, beat)
+            client = modbus_client(port, "127.0.0.5")
+            wait_bits(client, READY, 30, beat)
             client.write_multiple_registers(2, [301, 1])
             client.write_single_register(1, JOB_REQ)
-            wait(client, JOB_ACK | BUSY, 5, beat)
+            wait_bits(client, JOB_ACK | BUSY, 5, beat)
             filler = fill(disk)  # the disk fills while the job dwells
             ended_by = time.monotonic() + 2.0 + 3.0  # the dwell, and room to end it
             while time.monotonic() < ended_by:
-                regs = wait(client, 0, 5, beat)
+                regs = wait_bits(client, 0, 5, beat)
                 assert regs[1] & BUSY and not regs[1] & (DONE | ERROR), regs  # held, not told
                 time.sleep(0.1)
             filler.unlink()  # space again
-            regs = wait(client, DONE, 10, beat)
+            regs = wait_bits(client, DONE, 10, beat)
             assert (regs[4], regs[5]) == (301, 0) and not regs[1] & BUSY, regs
             client.write_single_register(1, 0)
-            wait(client, READY, 10, beat)
+            wait_bits(client, READY, 10, beat)
         finally:
             proc.send_signal(signal.SIGTERM)
             _, err = proc.communicate(timeout=60)
@@ -68,17 +78,17 @@ def test_a_result_on_a_full_disk_is_held_then_delivered(tmp_path):
 def test_sigterm_names_a_result_still_held(tmp_path):
     with small_disk(tmp_path, 2048) as disk:
         cell, port = _project(tmp_path, disk)
-        proc = start(cell)
+        proc = start_serve(cell)
         beat = [0]
         try:
-            client = connect(port)
-            wait(client, READY, 30, beat)
+            client = modbus_client(port, "127.0.0.5")
+            wait_bits(client, READY, 30, beat)
             client.write_multiple_registers(2, [302, 1])
             client.write_single_register(1, JOB_REQ)
-            wait(client, JOB_ACK | BUSY, 5, beat)
+            wait_bits(client, JOB_ACK | BUSY, 5, beat)
             fill(disk)
             time.sleep(3.0)  # the dwell ends: its result waits for the disk
-            assert wait(client, BUSY, 5, beat)[1] & DONE == 0
+            assert wait_bits(client, BUSY, 5, beat)[1] & DONE == 0
         finally:
             proc.send_signal(signal.SIGTERM)
             _, err = proc.communicate(timeout=60)

@@ -18,8 +18,7 @@ import time
 from pyModbusTCP.client import ModbusClient
 
 from tests.conftest import ROOT
-from tests.execution.test_dryrun import CELL, TASK
-from tests.plc.test_opcua import write_client_cert
+from tests.rig import CELL, TASK, write_client_cert
 from tests.twin.cell_rig import (
     OPCUA_PASSWORD,
     OPCUA_USER,

@@ -17,8 +17,18 @@ from pyModbusTCP.client import ModbusClient
 
 from cellrunner.plc.param_registers import decode_params, encode_pose, from_int16
 from tests.conftest import ROOT
-from tests.test_serve import DONE, ERROR, JOB_REQ, READY, REJECTED, start
-from tests.twin.cell_rig import add_opcua_user, free_port, opcua_job, trusted_plc_certificate
+from tests.rig import (
+    DONE,
+    ERROR,
+    JOB_REQ,
+    READY,
+    REJECTED,
+    add_opcua_user,
+    free_port,
+    opcua_job,
+    start_serve,
+    trusted_plc_certificate,
+)
 
 HOST = "127.0.0.122"
 SEEN = {"xyz": [0.03, -0.02, 0.0], "rpy": [0.0, 0.0, 20.0]}  # where the twin's part lies
@@ -80,7 +90,7 @@ def test_vision_pick_with_the_pose_in_modbus_registers(tmp_path):
     cell = _project(
         tmp_path, f"plc:\n  modbus: {{bind: {HOST}, port: {port}, heartbeat_timeout: 2.0}}\n"
     )
-    proc = start(cell)
+    proc = start_serve(cell)
     beat = [0]
     try:
         client = ModbusClient(host=HOST, port=port, timeout=2.0, auto_open=True)
@@ -109,7 +119,7 @@ def test_vision_pick_with_the_pose_as_opcua_json(tmp_path):
     )
     add_opcua_user(tmp_path / "secrets" / "users.yaml")
     cert, key = trusted_plc_certificate(tmp_path)
-    proc = start(cell)
+    proc = start_serve(cell)
     try:
         params = json.dumps({"part_pose": SEEN, "settle": "80 ms"})
         # serve warms up its planning before it listens

@@ -21,7 +21,7 @@ from pyModbusTCP.client import ModbusClient
 
 from tests.conftest import ROOT
 from tests.execution.pg_server import PgServer, free_port
-from tests.execution.test_dryrun import CELL, TASK
+from tests.rig import CELL, TASK
 
 HOST = "127.0.0.143"
 READY, JOB_ACK, BUSY, DONE, ERROR, REJECTED = 1, 2, 4, 8, 16, 512

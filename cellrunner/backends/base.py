@@ -10,45 +10,15 @@ ur_rtde's initPeriod/waitPeriod do). Nothing here blocks longer than one period 
 
 from __future__ import annotations
 
-import enum
 from collections.abc import Generator
-from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from cellrunner.errors import BackendError as BackendError  # re-exported: backends raise it
+from cellrunner.model.robot_state import RobotState as RobotState  # re-exported
+from cellrunner.model.robot_state import Safety as Safety  # re-exported
 from cellrunner.model.trajectory import ApprovedTrajectory
-
-
-class Safety(enum.Enum):
-    """Controller safety state, as UR's safety modes collapse for the engine."""
-
-    NORMAL = "normal"
-    PROTECTIVE_STOP = "protective_stop"
-    EMERGENCY_STOP = "emergency_stop"  # robot or system e-stop pressed
-    FAULT = "fault"  # violation / fault: needs restart safety
-    DISCONNECTED = "disconnected"
-
-
-@dataclass(frozen=True)
-class RobotState:
-    """One controller cycle's measurements.
-
-    ``wrench_N`` is force (N) and torque (N m) at the tool flange, in the base frame, as
-    UR's ``actual_TCP_force`` reports it. ``inputs`` and ``outputs`` are keyed by channel
-    (``DI0``, ``TI1``, ``DO3``...); analog channels carry floats.
-    """
-
-    time_s: float
-    q_rad: np.ndarray
-    qd_rad_s: np.ndarray
-    wrench_N: np.ndarray
-    safety: Safety
-    inputs: dict[str, float | bool] = field(default_factory=dict)
-    outputs: dict[str, float | bool] = field(default_factory=dict)
-    powered: bool = True
-    brakes_released: bool = True
 
 
 @runtime_checkable

@@ -4,24 +4,32 @@ for the backend in use."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 from cellrunner.backends.base import RobotBackend
 from cellrunner.errors import UsageError
-from cellrunner.model.load import LoadedCell
+from cellrunner.model.load import LoadedCell, LoadedTask
 
 
 def backend_kind(cell: LoadedCell, override: str | None) -> str:
     return override or cell.cell.robot.backend
 
 
-def make_backend(cell: LoadedCell, kind: str, host: str | None = None, **kw: Any) -> RobotBackend:
-    """The backend for ``cell``: ``sim`` (the MuJoCo twin in-process) or ``ur``."""
+def make_backend(
+    cell: LoadedCell,
+    kind: str,
+    host: str | None = None,
+    tasks: Iterable[LoadedTask] = (),
+    **kw: Any,
+) -> RobotBackend:
+    """The backend for ``cell``: ``sim`` (the MuJoCo twin in-process, its parts laid as
+    the tools that pick them in ``tasks`` and the cell's own tasks hold them) or ``ur``."""
     if kind == "sim":
         from cellrunner.backends.sim.backend import SimBackend
         from cellrunner.sim.from_cell import description_of
 
-        return SimBackend(description_of(cell), **kw)
+        return SimBackend(description_of(cell, tuple(tasks)), **kw)
     if kind == "ur":
         host = host or cell.cell.robot.host
         if not host:

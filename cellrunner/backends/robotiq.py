@@ -14,8 +14,7 @@ import socket
 import threading
 from typing import TYPE_CHECKING
 
-from cellrunner.backends.base import BackendError
-from cellrunner.errors import PeerUnreachable
+from cellrunner.errors import BackendError, PeerUnreachable
 
 if TYPE_CHECKING:
     from cellrunner.sim.world import SimWorld

@@ -44,12 +44,12 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
-from cellrunner.backends.base import BackendError, RobotState, Safety
 from cellrunner.backends.ur_control import ControlLost, ControlProcess
 from cellrunner.backends.ur_io import IoConnectionLost, RtdeOutputWriter
 from cellrunner.backends.ur_probe import controller_version, generation_of
 from cellrunner.backends.ur_state import RtdeStateReader
 from cellrunner.errors import (  # re-exported
+    BackendError,
     ConnectionLost,
     ControllerMismatch,
     PeerUnreachable,
@@ -57,6 +57,7 @@ from cellrunner.errors import (  # re-exported
     SafetyStop,
 )
 from cellrunner.model.gripper import ROBOTIQ_CLOSE, ROBOTIQ_OBJECT
+from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.model.robots import RobotSpec
 from cellrunner.model.trajectory import ApprovedTrajectory
 

@@ -20,21 +20,20 @@ from cellrunner.cli.common import (
     parse_params,
     record_rows,
     step_table,
-    twin_eye,
 )
 from cellrunner.cli.faults import Injection, parse_injections
 from cellrunner.cli.slots import whole_run
 from cellrunner.errors import CellrunnerError, UsageError
-from cellrunner.execution.cell import CellController
+from cellrunner.execution.assembly import assemble_cell
 from cellrunner.execution.journal import Journal
-from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.step import StepKind
 from cellrunner.report.recorder import RunRecorder
 
 if TYPE_CHECKING:
     from cellrunner.backends.sim.backend import SimBackend
+    from cellrunner.execution.cell import CellController
+    from cellrunner.execution.loop import ControlLoop
     from cellrunner.model.step import Step
 
 #: e-stop faults are released by the "operator" this long after they struck (sim s)
@@ -70,10 +69,8 @@ def run(args: argparse.Namespace) -> int:
         # cameras cast rays instead where there is none; an align step's camera renders)
         enable_pictures()
     from cellrunner.backends.sim.backend import SimBackend
-    from cellrunner.planning.world import CellWorld
     from cellrunner.sim.from_cell import rehearsal_description
 
-    world = CellWorld(cell)
     # the earlier slots of a place pattern already filled, a part fed before each job of a
     # whole run (SPEC section 12)
     backend = SimBackend(rehearsal_description(cell, task, jobs[0], len(jobs)))
@@ -98,27 +95,22 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.cli.logs import configure
 
         log = configure("json", cell.cell.cell)
-    from cellrunner.execution.watch import watch_cell
-
-    watched = watch_cell(world, "sim", backend, realtime=False)
-    zone, feed = watched if watched is not None else (None, None)
-    controller = CellController(
+    assembled = assemble_cell(
         cell,
         {1: task},
         backend,
-        Journal(":memory:"),
-        job_planner(world),
+        kind="sim",
+        journal=Journal(":memory:"),
         log=log,
-        wait_for_unhold=False,
         on_step_start=on_step_start,
-        eye=twin_eye(cell, backend),
-        watch=zone,
+        lookahead=not getattr(args, "per_period", False),
+        eye=True,
+        watched=True,
     )
+    controller, loop, world = assembled.controller, assembled.loop, assembled.world
+    zone, feed = assembled.watch, assembled.feed
     out = console()
     controller.setup()
-    loop = ControlLoop(controller, lookahead=not getattr(args, "per_period", False))
-    if feed is not None:
-        loop.add_observer(feed)
     loop.step(3)
     job_run = _JobRun(controller, loop, backend, world, out, pending, recorder if report else None)
     payloads = []
@@ -199,10 +191,10 @@ def run(args: argparse.Namespace) -> int:
         if report is not None:
             out.print(f"report written to {report}/index.html", markup=False)
     if not has_pictures:
-        from cellrunner.sim.mujoco_loader import GL_ADVICE
+        from cellrunner.sim.mujoco_loader import GL_ADVICE, no_gl_reason
 
         out.print(
-            f"no pictures in the report: no OpenGL backend here ({GL_ADVICE} gives one)",
+            f"no pictures in the report: {no_gl_reason()} ({GL_ADVICE} gives one)",
             soft_wrap=True,
         )
     return 0 if code is ResultCode.OK else 1

@@ -6,21 +6,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from cellrunner.backends.factory import backend_kind, make_backend
-from cellrunner.cli.common import (
-    console,
-    emit_json,
-    job_eye,
-    load,
-    parse_params,
-    record_rows,
-    step_table,
-)
+from cellrunner.backends.factory import backend_kind
+from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
 from cellrunner.errors import UsageError
-from cellrunner.execution.cell import CellController
-from cellrunner.execution.journal_open import cell_journal
-from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner
+from cellrunner.execution.assembly import assemble_cell
 from cellrunner.model.codes import ResultCode
 
 
@@ -32,14 +21,11 @@ def run(args: argparse.Namespace) -> int:
         )
     cell, task = load(args.cell, args.task)
     params = parse_params(args.param, task)
-    from cellrunner.planning.world import CellWorld
-
     kind = backend_kind(cell, args.backend)
     if kind == "sim" and cell.cell.cameras:
         from cellrunner.sim.mujoco_loader import enable_pictures
 
         enable_pictures()  # before MuJoCo is imported: an align step's camera renders
-    backend = make_backend(cell, kind, args.robot_host)
     log = None
     if args.log_format == "json":
         from cellrunner.cli.logs import configure
@@ -51,39 +37,26 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.execution.pacing import EnterGate, describe_step
 
         gate = EnterGate(describe_step, on_end=lambda: controller.command("abort"))
-    world = CellWorld(cell)
-    planner = job_planner(world, speed=speed, joined=not stepping)
-    from cellrunner.execution.watch import watch_cell
-
-    watched = watch_cell(
-        world,
-        kind,
-        backend,
-        realtime=False,
-        depth_source=getattr(args, "depth_source", None),
-        host=args.robot_host or cell.cell.robot.host,
-        log=log,
-    )
-    controller = CellController(
+    assembled = assemble_cell(
         cell,
         {1: task},
-        backend,
-        cell_journal(cell),
-        planner,
+        kind,
+        robot_host=args.robot_host,
+        speed=speed,
+        joined=not stepping,
         log=log,
-        wait_for_unhold=False,
         gate=gate,
-        watch=watched[0] if watched is not None else None,
-        eye=job_eye(cell, backend, getattr(args, "image_source", None), args.robot_host),
+        eye=True,
+        image_source=getattr(args, "image_source", None),
+        watched=True,
+        depth_source=getattr(args, "depth_source", None),
     )
+    controller, loop = assembled.controller, assembled.loop
     out = console()
     controller.setup()
-    loop = ControlLoop(controller)
-    if watched is not None:
-        loop.add_observer(watched[1])
     try:
-        if watched is not None:
-            watched[1].start()
+        if assembled.feed is not None:
+            assembled.feed.start()
         loop.step(5)
         ticket = controller.start_job(1, params, "", "cli")
         if not ticket.accepted:
@@ -100,8 +73,8 @@ def run(args: argparse.Namespace) -> int:
         job = controller.last_job
         result = controller.status().last_result
     finally:
-        if watched is not None:
-            watched[1].close()
+        if assembled.feed is not None:
+            assembled.feed.close()
         controller.close()
     assert result is not None  # run_job returns once the job has ended
     code = ResultCode(result.result_code)
@@ -119,11 +92,11 @@ def run(args: argparse.Namespace) -> int:
         "steps": rows,
         "errors": [] if code is ResultCode.OK else [result.result_text],
     }
-    if watched is not None:
+    if assembled.watch is not None:
         runner = controller.last_runner
         guard = runner.ctx.obstacles if runner is not None else None
         payload["obstacles"] = list(guard.events) if guard is not None else []
-        payload["depth_images"] = watched[0].images
+        payload["depth_images"] = assembled.watch.images
     if args.json:
         emit_json(payload)
     else:

@@ -10,18 +10,16 @@ import sys
 import threading
 from typing import TYPE_CHECKING
 
-from cellrunner.backends.factory import backend_kind, make_backend
-from cellrunner.cli.common import job_eye
+from cellrunner.backends.factory import backend_kind
 from cellrunner.cli.logs import configure
-from cellrunner.execution.cell import CellController
+from cellrunner.execution.assembly import assemble_cell
 from cellrunner.execution.journal import is_database_url
 from cellrunner.execution.journal_open import cell_journal
-from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner, warm_up
 from cellrunner.model.load import LoadedCell, load_cell, load_task, serve_file_warnings
 from cellrunner.plc.service import raise_thread_priority
 
 if TYPE_CHECKING:
+    from cellrunner.execution.cell import CellController
     from cellrunner.execution.context import EventLog
     from cellrunner.plc.service import PlcService
     from cellrunner.web.server import StatusServer
@@ -48,34 +46,30 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.sim.mujoco_loader import enable_pictures
 
         enable_pictures()  # before MuJoCo is imported: an align step's camera renders
-    backend = make_backend(cell, kind, args.robot_host)
-    from cellrunner.planning.world import CellWorld
-
-    world = CellWorld(cell)
-    warm_up(world)  # before READY: the first job is acknowledged as fast as any other
+    assembled = assemble_cell(
+        cell,
+        tasks,
+        kind,
+        robot_host=args.robot_host,
+        warm=True,  # before READY: the first job is acknowledged as fast as any other
+        log=log,
+        wait_for_unhold=True,
+        feed_parts=True,
+        realtime=kind == "sim",
+        eye=True,
+        image_source=getattr(args, "image_source", None),
+        watched=kind == "sim",
+        depth_source=getattr(args, "depth_source", None),
+    )
+    controller = assembled.controller
+    if cell.cell.watch is not None and assembled.watch is None:
+        log.warning(
+            "not_watched", why="depth images of the arm's cell come with the twin backend only"
+        )
     _load_planning_libraries()
     # the planning thread is CPU-bound; hand the GIL over every 1 ms (Python's default is
     # 5 ms) so the PLC threads answer promptly while a job plans
     sys.setswitchinterval(0.001)
-    from cellrunner.execution.watch import watch_on_twin
-
-    watched = watch_on_twin(world, backend, realtime=True) if kind == "sim" else None
-    if cell.cell.watch is not None and watched is None:
-        log.warning(
-            "not_watched", why="depth images of the arm's cell come with the twin backend only"
-        )
-    controller = CellController(
-        cell,
-        tasks,
-        backend,
-        cell_journal(cell),
-        job_planner(world),
-        log=log,
-        wait_for_unhold=True,
-        on_job_start=getattr(backend, "feed_parts", None),
-        eye=job_eye(cell, backend, getattr(args, "image_source", None), args.robot_host),
-        watch=watched[0] if watched is not None else None,
-    )
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
@@ -97,11 +91,9 @@ def run(args: argparse.Namespace) -> int:
             modbus=getattr(service, "modbus_address", None) if service else None,
             http=status_page.url if status_page else None,
         )
-        loop = ControlLoop(controller, realtime=kind == "sim")
-        if watched is not None:
-            loop.add_observer(watched[1])
-            watched[1].start()
-        loop.run(stop)
+        if assembled.feed is not None:
+            assembled.feed.start()
+        assembled.loop.run(stop)
     except Exception as exc:  # a bug in the control loop: close the job saying so, then exit 1
         reason = f"cellrunner failed: {type(exc).__name__}: {exc}"
         log.exception("control_loop_failed", error=str(exc))
@@ -109,10 +101,10 @@ def run(args: argparse.Namespace) -> int:
     finally:
         gc.unfreeze()  # collected as usual on the way out (native bindings check for leaks)
         controller.shutdown(reason)
-        if watched is not None:
-            watched[1].close()
-            if getattr(args, "save_map", None):
-                watched[0].map.save(args.save_map)
+        if assembled.feed is not None:
+            assembled.feed.close()
+        if assembled.watch is not None and getattr(args, "save_map", None):
+            assembled.watch.map.save(args.save_map)
         for what in controller.held_results():  # the journal tries once more as it closes
             log.warning("result_held_at_stop", held=what)
         if status_page is not None:

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from rich.console import Console, JustifyMethod
     from rich.table import Table
 
-    from cellrunner.execution.cell import JobView
+    from cellrunner.execution.job_view import JobView
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -110,7 +110,7 @@ def step_table(
 
 def record_rows(job: JobView | None, steps: list[Step] | None = None) -> list[dict[str, Any]]:
     """The ``steps`` of a ``--json`` report from a job's step records (a
-    :class:`~cellrunner.execution.cell.JobView`; rows with status "not run" for ``steps``
+    :class:`~cellrunner.execution.job_view.JobView`; rows with status "not run" for ``steps``
     when the job has none, e.g. planning failed)."""
     records = () if job is None else job.records
     if isinstance(records, dict):  # a JobRunner's own records
@@ -140,29 +140,3 @@ def record_rows(job: JobView | None, steps: list[Step] | None = None) -> list[di
         }
         for r in records
     ]
-
-
-def job_eye(cell: LoadedCell, backend: Any, image_source: str | None, host: str | None) -> Any:
-    """The cameras an align step sees through: the in-process twin renders them (``sim``);
-    on the arm (``ur``) pictures come from ``--image-source`` (default: the cameras of a
-    ``cellrunner twin`` at ``host``). None for a cell without cameras."""
-    if not cell.cell.cameras:
-        return None
-    if getattr(backend, "camera_image", None) is not None:
-        return twin_eye(cell, backend)
-    from cellrunner.vision.eye import MarkerEye
-    from cellrunner.vision.images import CameraFeeds
-
-    feeds = CameraFeeds(image_source, dict(cell.cell.cameras), host or cell.cell.robot.host)
-    return MarkerEye(feeds.grab, dict(cell.cell.cameras))
-
-
-def twin_eye(cell: LoadedCell, backend: Any) -> Any:
-    """The cameras an align step sees through: rendered by the in-process twin (``sim``
-    backend), None for a cell without cameras or a backend that renders none."""
-    grab = getattr(backend, "camera_image", None)
-    if not cell.cell.cameras or grab is None:
-        return None
-    from cellrunner.vision.eye import MarkerEye
-
-    return MarkerEye(grab, dict(cell.cell.cameras))

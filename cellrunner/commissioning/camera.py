@@ -117,25 +117,18 @@ def take_shots(
     loaded: LoadedCell, views: list[View], host: str, reader: Any, source: Any, say: Any
 ) -> list[Shot]:
     """Move through ``views`` (then home) as a job on the arm at ``host``; the shots."""
-    from cellrunner.backends.factory import make_backend
-    from cellrunner.execution.cell import CellController
-    from cellrunner.execution.journal_open import cell_journal
-    from cellrunner.execution.loop import ControlLoop
-    from cellrunner.execution.planner import job_planner
+    from cellrunner.execution.assembly import assemble_cell
     from cellrunner.model.codes import ResultCode
-    from cellrunner.planning.world import CellWorld
 
     with tempfile.TemporaryDirectory(prefix="cellrunner-calibrate-") as folder:
         task = load_task(views_task(views, Path(folder)), loaded)
-    backend = make_backend(loaded, "ur", host)
     controller: Any = None
     gate = ShotGate(reader, source, len(views), lambda: controller.command("abort"), say)
-    planner = job_planner(CellWorld(loaded), use_cache=False, joined=False)
-    controller = CellController(
-        loaded, {1: task}, backend, cell_journal(loaded), planner, wait_for_unhold=False, gate=gate
+    assembled = assemble_cell(
+        loaded, {1: task}, "ur", robot_host=host, use_cache=False, joined=False, gate=gate
     )
+    controller, loop = assembled.controller, assembled.loop
     controller.setup()
-    loop = ControlLoop(controller)
     try:
         loop.step(5)
         ticket = controller.start_job(1, {}, "", "calibrate-camera")

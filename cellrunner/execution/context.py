@@ -9,12 +9,13 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from cellrunner.backends.base import RobotBackend, RobotState
+from cellrunner.backends.base import RobotBackend
 from cellrunner.model.expand import Step
+from cellrunner.model.robot_state import RobotState
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 if TYPE_CHECKING:
-    from cellrunner.execution.obstacles import ObstacleGuard
+    from cellrunner.execution.obstacle_guard import ObstacleGuard
     from cellrunner.model.align import Marker, Sighting
     from cellrunner.model.cell import Gripper, Tool
     from cellrunner.model.geometry import Placed
@@ -157,6 +158,17 @@ class JobContext:
     def read(self) -> RobotState:
         self.state = self.backend.read_state()
         return self.state
+
+    def track(self) -> None:
+        """Sample the tracking error: the TCP distance (m) between the set-point streamed
+        last and where the arm is (read last)."""
+        if self.commanded_q is None:
+            return
+        p_cmd = self.motions.tcp_position_m(self.commanded_q)
+        p_meas = self.motions.tcp_position_m(self.last_state.q_rad)
+        error = math.dist(p_cmd.tolist(), p_meas.tolist())
+        if error > self.tracking_error_m:
+            self.tracking_error_m = error
 
 
 def use_gripper(ctx: JobContext, gripper: Gripper | None) -> None:

@@ -10,94 +10,33 @@ holding -> held -> unholding -> execute, or -> aborting; ``done`` at the end wit
 from __future__ import annotations
 
 import contextlib
-import enum
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from cellrunner.backends.base import Safety
-from cellrunner.errors import BackendError, CellrunnerError, InfeasibleError, PeerUnreachable
+from cellrunner.errors import BackendError, InfeasibleError, PeerUnreachable
 from cellrunner.execution import steps as behaviours
-from cellrunner.execution.align import run_align
+from cellrunner.execution.cleanup import Cleanup
 from cellrunner.execution.context import JobContext
-from cellrunner.execution.force import run_force
+from cellrunner.execution.dispatch import behaviour_of
+from cellrunner.execution.hold import PROTECTIVE_STOP, Held, JobHold
+from cellrunner.execution.job_records import AgendaItem, JobPhase, StepRecord, StepStatus
 from cellrunner.execution.lookahead import Clock, fast_forward
-from cellrunner.execution.steps import Outcome, StepGen, run_motion, run_weigh
-from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock
+from cellrunner.execution.reconnect import Link, Reconnect
+from cellrunner.execution.retry import grip_of, retry_agenda, weighing_after
+from cellrunner.execution.steps import Outcome, StepGen
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import ON_ERROR, Step
-from cellrunner.model.force_steps import FORCE_KINDS
-from cellrunner.model.step import StepKind
+from cellrunner.model.robot_state import Safety
 from cellrunner.model.task import ProtectiveStopPolicy
 
-#: the controller refuses to unlock a protective stop sooner (UR e-Series and CB3)
-UNLOCK_DELAY_S = 5.0
 #: tracking error is sampled every this many controller periods (125 Hz at 500 Hz)
 TRACK_EVERY = 4
-#: how long recovery may keep trying to unlock before the job ends with code 100
-RECOVERY_TIMEOUT_S = 30.0
-#: a refused unlock is tried again this often, not every period (s)
-UNLOCK_RETRY_S = 0.25
-#: protective stops of one step with the TCP this close (m) came at the same place
-SAME_PLACE_M = 0.02
-#: reconnect attempts back off from this delay, doubling to 2 s (s)
-RECONNECT_FIRST_DELAY_S = 0.2
 
 _NORMAL = Safety.NORMAL  # looked up once: tick runs every period
-
-#: the behaviour of each step kind that is not a motion
-_BEHAVIOURS = {
-    **behaviours.BEHAVIOURS,
-    StepKind.TOOL_LOCK: run_tool_lock,
-    StepKind.ALIGN: run_align,
-    StepKind.TOOL_UNLOCK: run_tool_unlock,
-}
-
-
-class JobPhase(enum.StrEnum):
-    """Where a job is (PackML's Execute, Holding, Held; ``done`` once it ended)."""
-
-    IDLE = "idle"
-    EXECUTE = "execute"
-    HOLDING = "holding"
-    HELD = "held"
-    DONE = "done"
-
-
-class StepStatus(enum.StrEnum):
-    PENDING = "pending"
-    RUNNING = "running"
-    OK = "ok"
-    FAILED = "failed"
-    SKIPPED = "skipped"
-
-
-@dataclass
-class StepRecord:
-    """One row of the report: an expanded step and what became of it."""
-
-    index: int
-    kind: str
-    name: str
-    status: StepStatus = StepStatus.PENDING
-    attempts: int = 0
-    started_s: float | None = None
-    duration_s: float = 0.0
-    message: str = ""
-
-
-@dataclass
-class _Item:
-    step: Step
-    attempt: int = 1
-    behaviour: str = "step"  # step | weigh | still
-    resume: bool = False
-    gated: bool = False  # the gate (run --step) let it start
-    between: bool = False  # a retry's in-between step (not a row of its own)
 
 
 @dataclass
@@ -119,28 +58,19 @@ class JobRunner:
 
     def __post_init__(self) -> None:
         # the task's on_error steps come last, marked; they run only after a failure
-        self.on_error = [s for s in self.steps if s.macro == ON_ERROR]
+        self._cleanup = Cleanup([s for s in self.steps if s.macro == ON_ERROR])
         self.steps = [s for s in self.steps if s.macro != ON_ERROR]
-        self._cleanup: tuple[ResultCode, str] | None = None  # the failure on_error runs after
-        self._cleanup_failures: list[str] = []
         self.records = {s.index: StepRecord(s.index, s.kind, s.name) for s in self.steps}
-        self._agenda: list[_Item] = [_Item(s) for s in self.steps]
-        self._current: _Item | None = None
+        self._agenda: list[AgendaItem] = [AgendaItem(s) for s in self.steps]
+        self._current: AgendaItem | None = None
         self._gen: StepGen | None = None
         self._item_started_s = 0.0
         self._item_timeout_s = 0.0
-        self._hold_since_s = 0.0
-        self._hold_reason = ""
-        self._unhold_requested = False  # the PLC's Unhold during a protective stop's hold
-        self._stops_at: list[tuple[int, np.ndarray]] = []  # (step index, q rad) per stop
+        self._hold = JobHold(self.protective_stop, self.wait_for_unhold)
         self._requests: list[str] = []
         self._pending_end: tuple[ResultCode, str] | None = None  # after cleanup steps
         self._ticks = 0
-        self._unlock_at_s = 0.0  # robot time of the next unlock attempt
-        self._reconnect_why: str | None = None  # a reconnect under way, polled by tick
-        self._reconnect_until = 0.0  # monotonic s
-        self._reconnect_next = 0.0
-        self._reconnect_delay = RECONNECT_FIRST_DELAY_S
+        self._link = Reconnect()  # a reconnect under way, polled by tick
 
     # ------------------------------------------------------------------ control
     @property
@@ -170,11 +100,11 @@ class JobRunner:
             return
         safety = self.ctx.read().safety
         self._ticks += 1
-        if self._reconnect_why is not None:
+        if self._link.active:
             return self._reconnect()
         if safety is _NORMAL:
             if phase is JobPhase.EXECUTE and self._ticks % TRACK_EVERY == 0:
-                self._track()
+                self.ctx.track()
         elif safety is Safety.DISCONNECTED:
             return self._reconnect()
         elif safety is Safety.EMERGENCY_STOP:
@@ -185,7 +115,7 @@ class JobRunner:
             )
         elif safety is Safety.PROTECTIVE_STOP and phase is JobPhase.EXECUTE:
             self.protective_stops += 1
-            self._enter_hold("protective stop")
+            self._enter_hold(PROTECTIVE_STOP)
         while self._requests:
             self._handle_request(self._requests.pop(0))
             if self.done:
@@ -203,7 +133,7 @@ class JobRunner:
         if (
             self.phase is not JobPhase.EXECUTE
             or self._requests
-            or self._reconnect_why is not None
+            or self._link.active
             or self._gen is None
             or self._current is None
             or (self.ctx.stream is None and self.ctx.hold is None)
@@ -220,72 +150,36 @@ class JobRunner:
         elif what == "hold" and self.phase is JobPhase.EXECUTE:
             self._enter_hold("hold requested")
         elif what == "unhold" and self.phase is JobPhase.HELD:
-            if self._hold_reason == "protective stop":
+            if self._hold.protective:
                 # the controller is still stopped: unlock it (once its delay has passed),
                 # then resume; resuming now would only meet the stop again
-                self._unhold_requested = True
+                self._hold.unhold_requested = True
             else:
                 self._resume()
 
     def _enter_hold(self, reason: str) -> None:
         self.phase = JobPhase.HOLDING
-        self._hold_reason = reason
-        self._unhold_requested = False
-        if reason == "protective stop" and self._current is not None:
-            self._stops_at.append((self._current.step.index, self.ctx.last_state.q_rad.copy()))
-        self._hold_since_s = self.ctx.now_s
-        self._gen = None
-        self.ctx.stream = self.ctx.hold = None
-        self.ctx.commanded_q = None  # not streaming: no tracking error until the next set-point
-        if reason != "protective stop":
+        self._hold.enter(reason, self.ctx.now_s, self._step_index, self.ctx.last_state.q_rad)
+        self._drop_motion()
+        if reason != PROTECTIVE_STOP:
             self.ctx.backend.stop_motion()
         self._log("hold", reason=reason)
 
     def _tick_held(self) -> None:
-        state = self.ctx.last_state
-        if self.phase is JobPhase.HOLDING and np.max(np.abs(state.qd_rad_s)) < 1e-3:
+        if self.phase is JobPhase.HOLDING and np.max(np.abs(self.ctx.last_state.qd_rad_s)) < 1e-3:
             self.phase = JobPhase.HELD
-        if self._hold_reason != "protective stop":
+        if not self._hold.protective:
             return  # a requested hold waits for unhold or abort
-        held_for = self.ctx.now_s - self._hold_since_s
-        automatic = (
-            self.protective_stop.resume and self.protective_stops <= self.protective_stop.max
-        )
-        if not automatic and not self._unhold_requested:
-            if not self.wait_for_unhold:
-                why = (
-                    "the task does not resume after protective stops"
-                    if not self.protective_stop.resume
-                    else f"more than {self.protective_stop.max} protective stops"
-                    + self._same_place()
-                )
-                return self._finish(
-                    ResultCode.PROTECTIVE_STOP, f"protective stop during {self._label()}: {why}"
-                )
-            return
-        if held_for < UNLOCK_DELAY_S:
-            return
-        if state.safety is Safety.PROTECTIVE_STOP:
-            if self.ctx.now_s < self._unlock_at_s:
-                return  # bounded work: one attempt per UNLOCK_RETRY_S, polled by tick
-            self._unlock_at_s = self.ctx.now_s + UNLOCK_RETRY_S
-            try:
-                self.ctx.backend.unlock_protective_stop()
-            except BackendError as exc:
-                if held_for > UNLOCK_DELAY_S + RECOVERY_TIMEOUT_S:
-                    return self._finish(
-                        ResultCode.PROTECTIVE_STOP, f"protective stop not recovered: {exc}"
-                    )
-                return
-        if self.ctx.read().safety is Safety.NORMAL:
+        held = self._hold.poll(self.ctx, self.protective_stops, self._step_index, self._label())
+        if held is Held.FAILED:
+            self._finish(ResultCode.PROTECTIVE_STOP, self._hold.failure)
+        elif held is Held.RESUME:
             self._resume()
 
     def _resume(self) -> None:
         self._log("unhold")
         self.phase = JobPhase.EXECUTE
-        if self._current is not None:
-            self._current.resume = True
-            self._start_item(self._current)
+        self._restart_current()
 
     def _tick_execute(self) -> None:
         if self._current is None:
@@ -314,59 +208,52 @@ class JobRunner:
         safety = getattr(exc, "safety", None)
         if safety is Safety.PROTECTIVE_STOP:
             self.protective_stops += 1
-            self._enter_hold("protective stop")
+            self._enter_hold(PROTECTIVE_STOP)
         elif safety is Safety.EMERGENCY_STOP:
             self._finish(ResultCode.ESTOP, f"e-stop during {self._label()}")
         else:
             self._reconnect(f"{self._label()}: {exc}")
 
     def _reconnect(self, why: str = "robot connection lost") -> None:
-        """Bounded work polled by :meth:`tick`: one connection attempt per call when its
-        backoff delay (0.2 s doubling to 2 s) is due, for at most the backend's
-        ``reconnect_timeout_s`` (a backend without one gets a single attempt); then resume
-        from where the arm stands, or end with 102. No call blocks for longer than one
-        attempt (the backend bounds it)."""
-        now = time.monotonic()
-        if self._reconnect_why is None:
+        """Get the robot link back (bounded, polled by :meth:`tick`; see
+        :mod:`~cellrunner.execution.reconnect`), then resume from where the arm stands,
+        or end with 102."""
+        if not self._link.active:
             self._log("reconnect", why=why)
-            timeout_s = float(getattr(self.ctx.backend, "reconnect_timeout_s", 0.0))
-            self._reconnect_why, self._reconnect_until = why, now + timeout_s
-            self._reconnect_next, self._reconnect_delay = now, RECONNECT_FIRST_DELAY_S
-            self._gen = None
-            self.ctx.stream = self.ctx.hold = None
-            self.ctx.commanded_q = None
-        if now < self._reconnect_next:
-            return
-        try:
-            self.ctx.backend.reconnect(timeout_s=0.0)
-            failure = (
-                "the robot link is still down"
-                if self.ctx.read().safety is Safety.DISCONNECTED
-                else None
-            )
-        except CellrunnerError as exc:
-            failure = str(exc)
-        why = self._reconnect_why
-        if failure is not None:
-            if time.monotonic() + self._reconnect_delay >= self._reconnect_until:
-                self._reconnect_why = None
-                return self._finish(ResultCode.ROBOT_CONNECTION_LOST, f"{why}; {failure}")
-            self._reconnect_next = time.monotonic() + self._reconnect_delay
-            self._reconnect_delay = min(2.0, self._reconnect_delay * 2)
-            return
-        self._reconnect_why = None
-        self._log("reconnected")
-        if self.phase is JobPhase.EXECUTE and self._current is not None:
+            self._link.begin(why, self.ctx.backend)
+            self._drop_motion()
+        link = self._link.poll(self.ctx.backend, self._read_safety)
+        if link is Link.LOST:
+            return self._finish(ResultCode.ROBOT_CONNECTION_LOST, self._link.failure)
+        if link is Link.BACK:
+            self._log("reconnected")
+            if self.phase is JobPhase.EXECUTE:
+                self._restart_current()
+
+    # ------------------------------------------------------------------ items
+    @property
+    def _step_index(self) -> int | None:
+        return self._current.step.index if self._current is not None else None
+
+    def _drop_motion(self) -> None:
+        """Forget the step's generator and the motion it streamed (a hold, a reconnect):
+        no tracking error until the next set-point."""
+        self._gen = None
+        self.ctx.stream = self.ctx.hold = None
+        self.ctx.commanded_q = None
+
+    def _restart_current(self) -> None:
+        """Start the step under way again, resuming from where the arm stands."""
+        if self._current is not None:
             self._current.resume = True
             self._start_item(self._current)
 
-    # ------------------------------------------------------------------ items
     def _next_item(self) -> None:
         self._current = self._agenda.pop(0) if self._agenda else None
         if self._current is not None:
             self._start_item(self._current)
 
-    def _start_item(self, item: _Item) -> None:
+    def _start_item(self, item: AgendaItem) -> None:
         step = item.step
         self.ctx.hold = None
         self.ctx.stream = None  # a motion's generator sets it once it streams
@@ -379,7 +266,7 @@ class JobRunner:
             self._gen = self._await_gate(item)
             return
         self._item_started_s = self.ctx.now_s
-        self._item_timeout_s = self._timeout_s(item)
+        self._item_timeout_s = item.timeout_s(self.ctx.step_timeout_s)
         record = self.records[step.index]
         if not item.between and item.behaviour == "step" and not item.resume:
             record.status, record.attempts = StepStatus.RUNNING, max(record.attempts, item.attempt)
@@ -396,18 +283,9 @@ class JobRunner:
             between=item.between or None,
             resume=item.resume or None,
         )
-        if item.behaviour == "weigh":
-            self._gen = run_weigh(self.ctx, step)
-        elif item.behaviour == "still":
-            self._gen = _stand_still(self.ctx)
-        elif step.kind in FORCE_KINDS:  # a guarded line
-            self._gen = run_force(self.ctx, step, resume=item.resume)
-        elif step.is_motion:
-            self._gen = run_motion(self.ctx, step, resume=item.resume)
-        else:
-            self._gen = _BEHAVIOURS[step.kind](self.ctx, step)
+        self._gen = behaviour_of(self.ctx, item)
 
-    def _await_gate(self, item: _Item) -> StepGen:
+    def _await_gate(self, item: AgendaItem) -> StepGen:
         """Stand still until the gate opens, then start the item (its own behaviour runs
         from the next tick on)."""
         gate = self.gate
@@ -437,7 +315,7 @@ class JobRunner:
                 record.duration_s += self.ctx.now_s - self._item_started_s
             self._after_success(item)
             return self._next_item()
-        grip = self._grip_of(item)
+        grip = grip_of(item)
         if (
             grip is not None
             and outcome.code is ResultCode.NO_PART
@@ -445,144 +323,89 @@ class JobRunner:
             and item.attempt < grip.retry.attempts
         ):
             return self._retry(grip, item.attempt + 1, outcome.message)
-        record = self.records[grip.index if grip is not None else step.index]
-        record.status, record.message = StepStatus.FAILED, outcome.message
-        record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
-        self._journal(record, item.attempt)
+        self._fail(self.records[grip.index if grip is not None else step.index], outcome.message)
         if grip is not None and grip.retry and outcome.code is ResultCode.NO_PART:
             # leave the part area the way the retry would, then end
-            self._agenda = [_Item(b, item.attempt, between=True) for b in grip.retry.between]
+            self._agenda = [AgendaItem(b, item.attempt, between=True) for b in grip.retry.between]
             self._pending_end = (outcome.code, outcome.message)
             return self._next_item()
         self._finish(outcome.code, outcome.message)
 
-    def _after_success(self, item: _Item) -> None:
-        """A lift right after a grip with a force window: weigh the part next."""
-        step = item.step
-        if step.kind == StepKind.LIFT and item.behaviour == "step" and not item.between:
-            grip = self._step(step.index - 1)
-            if grip is not None and grip.kind == "grip" and grip.args.force is not None:
-                self._agenda.insert(0, _Item(grip, item.attempt, behaviour="weigh"))
-
-    def _grip_of(self, item: _Item) -> Step | None:
-        """The grip step an item's NO_PART failure belongs to (the grip itself or its weighing)."""
-        return item.step if item.step.kind == StepKind.GRIP and not item.between else None
+    def _after_success(self, item: AgendaItem) -> None:
+        weighing = weighing_after(self.steps, item)
+        if weighing is not None:
+            self._agenda.insert(0, weighing)
 
     def _retry(self, grip: Step, attempt: int, why: str) -> None:
         self.retries_used += 1
-        record = self.records[grip.index]
-        record.message = f"attempt {attempt - 1} failed: {why}"
+        self.records[grip.index].message = f"attempt {attempt - 1} failed: {why}"
         self._log("retry", attempt=attempt, why=why)
-        retry = grip.retry
-        assert retry is not None  # only a grip with a retry is retried
-        redo = [s for s in self.steps if retry.redo_from <= s.index <= grip.index]
-        # everything after the grip not yet done; a failed weighing also redoes its lift
-        rest = [
-            _Item(s, attempt)
-            for s in self.steps
-            if s.index > grip.index
-            and (self.records[s.index].status is StepStatus.PENDING or s.index == grip.index + 1)
-        ]
-        self._agenda = (
-            [_Item(b, attempt, between=True) for b in retry.between]
-            + [_Item(s, attempt) for s in redo]
-            + rest
-        )
+        self._agenda = retry_agenda(self.steps, self.records, grip, attempt)
         self._next_item()
-
-    def _step(self, index: int) -> Step | None:
-        return next((s for s in self.steps if s.index == index), None)
-
-    def _timeout_s(self, item: _Item) -> float:
-        step = item.step
-        if step.is_motion:
-            return self.ctx.step_timeout_s
-        timeout = (
-            getattr(step.args, "timeout", None)
-            or getattr(step.args, "seconds", 0.0)
-            or getattr(step.args, "pulse", 0.0)
-            or 0.0
-        )
-        return timeout + 5.0
 
     # ------------------------------------------------------------------ end
     def _finish(self, code: ResultCode, message: str) -> None:
         if self.phase is JobPhase.DONE:
             return
-        if self._cleanup is not None:
+        if self._cleanup.running:
             return self._end_cleanup(code, message)
         if code is not ResultCode.OK and code.is_fault:
             with contextlib.suppress(BackendError):
                 self.ctx.backend.stop_motion()
-        if self._current is not None and code is not ResultCode.OK:
-            record = self.records[self._current.step.index]
-            if record.status is StepStatus.RUNNING:
-                record.status, record.message = StepStatus.FAILED, message
-                record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
-                self._journal(record, self._current.attempt)
-        for record in self.records.values():
-            if record.status is StepStatus.PENDING:
-                record.status = StepStatus.SKIPPED
-        if code is not ResultCode.OK and self.on_error and self._arm_can_move(code):
+        if code is not ResultCode.OK:
+            self._fail_running(message)
+        self._skip_pending()
+        if code is not ResultCode.OK and self._cleanup.may_run(code, self._read_safety):
             return self._start_cleanup(code, message)
         self._end(code, message)
 
-    # ------------------------------------------------------------------ on_error
-    def _arm_can_move(self, code: ResultCode) -> bool:
-        """on_error runs only where the arm is able to move: powered, linked, no stop."""
-        if code in (ResultCode.ESTOP, ResultCode.ROBOT_CONNECTION_LOST, ResultCode.PROTECTIVE_STOP):
-            return False
-        try:
-            return self.ctx.read().safety is _NORMAL
-        except (BackendError, CellrunnerError):
-            return False
-
     def _start_cleanup(self, code: ResultCode, message: str) -> None:
         """Run the task's on_error steps (safe outputs, retreat), then end with ``code``."""
-        self._cleanup = (code, message)
         self.ctx.carry = None  # cleaning up: a part still held (or lost) is not watched
         self._log("on_error", result_code=int(code), message=message)
-        for s in self.on_error:
+        for s in self._cleanup.steps:
             self.records[s.index] = StepRecord(s.index, s.kind, s.name)
-        self._agenda = [_Item(self.on_error[0], behaviour="still", between=True)] + [
-            _Item(s) for s in self.on_error
-        ]
+        self._agenda = self._cleanup.begin(code, message)
         self._pending_end = None
         self.phase = JobPhase.EXECUTE
         self.ctx.commanded_q = None
         self._next_item()
 
     def _end_cleanup(self, code: ResultCode, message: str) -> None:
-        """An on_error step ended (or all did, ``code`` OK). A step that fails is noted
-        and the next one runs (best effort: outputs, then motions from where the arm
-        stands); a fault ends cleanup. The job ends with the failure that started it;
-        how on_error went is added to its message (each of its steps is journaled)."""
-        assert self._cleanup is not None  # cleanup ends only after it started
-        first, why = self._cleanup
+        """An on_error step ended (or all did, ``code`` OK); see
+        :mod:`~cellrunner.execution.cleanup`."""
         if code is not ResultCode.OK:
-            if self._current is not None:
-                record = self.records[self._current.step.index]
-                if record.status is StepStatus.RUNNING:
-                    record.status, record.message = StepStatus.FAILED, message
-                    record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
-                    self._journal(record, self._current.attempt)
+            self._fail_running(message)
             label = self._current.step.label if self._current is not None else "on_error"
-            self._cleanup_failures.append(
-                message if message.startswith("step ") else f"{label}: {message}"
-            )
-            # nothing moved on a failed check or a refused plan: the next step may still help
-            if (not code.is_fault or code is ResultCode.PLANNING_FAILED) and self._agenda:
+            if self._cleanup.note(label, code, message) and self._agenda:
                 self.ctx.commanded_q = None
                 return self._next_item()
             if code.is_fault:
                 with contextlib.suppress(BackendError):
                     self.ctx.backend.stop_motion()
-        failures = self._cleanup_failures
-        note = "on_error done" if not failures else f"on_error failed: {'; '.join(failures)}"
+        self._skip_pending()
+        self._end(*self._cleanup.result())
+
+    def _fail(self, record: StepRecord, message: str) -> None:
+        """``record``'s step failed with ``message`` (journaled)."""
+        record.status, record.message = StepStatus.FAILED, message
+        record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
+        self._journal(record, self._current.attempt if self._current is not None else 1)
+
+    def _fail_running(self, message: str) -> None:
+        """The step under way, if it is running, failed with ``message``."""
+        if self._current is not None:
+            record = self.records[self._current.step.index]
+            if record.status is StepStatus.RUNNING:
+                self._fail(record, message)
+
+    def _skip_pending(self) -> None:
         for record in self.records.values():
             if record.status is StepStatus.PENDING:
                 record.status = StepStatus.SKIPPED
-        self._end(first, f"{why}; {note}" if why else note)
+
+    def _read_safety(self) -> Safety:
+        return self.ctx.read().safety
 
     def _end(self, code: ResultCode, message: str) -> None:
         self.result, self.message = code, message
@@ -597,35 +420,8 @@ class JobRunner:
         return (self.ended_s if self.done else self.ctx.now_s) - self.started_s
 
     # ------------------------------------------------------------------ helpers
-    def _track(self) -> None:
-        ctx = self.ctx
-        if ctx.commanded_q is None:
-            return
-        p_cmd = ctx.motions.tcp_position_m(ctx.commanded_q)
-        p_meas = ctx.motions.tcp_position_m(ctx.last_state.q_rad)
-        error = math.dist(p_cmd.tolist(), p_meas.tolist())
-        if error > ctx.tracking_error_m:
-            ctx.tracking_error_m = error
-
     def _label(self) -> str:
         return self._current.step.label if self._current else "the job"
-
-    def _same_place(self) -> str:
-        """What the protective stops of the step under way say when they all came at the
-        same place (the TCP within ``SAME_PLACE_M``), else nothing."""
-        index = self._current.step.index if self._current else None
-        here = [q for i, q in self._stops_at if i == index]
-        if len(here) < 2:
-            return ""
-        tcp = np.array([self.ctx.motions.tcp_position_m(q) for q in here])
-        spread_m = float(np.linalg.norm(tcp[:, None] - tcp[None], axis=2).max())
-        if spread_m > SAME_PLACE_M:
-            return ""
-        which = "both" if len(here) == 2 else f"all {len(here)}"
-        return (
-            f", {which} with the TCP within {spread_m * 1000:.0f} mm: something there stops "
-            "the arm each time"
-        )
 
     def _journal(self, record: StepRecord, attempt: int) -> None:
         guard = self.ctx.obstacles
@@ -649,13 +445,3 @@ class JobRunner:
             }
             fields.update({k: v for k, v in kw.items() if v is not None})
             self.ctx.log.info(event, **fields)
-
-
-def _stand_still(ctx: JobContext) -> StepGen:
-    """Wait (at most 2 s) until the arm stands still: after a failure's stop ramp, before
-    the first on_error motion."""
-    t0 = ctx.now_s
-    while np.max(np.abs(ctx.last_state.qd_rad_s)) > 1e-3 and ctx.now_s - t0 < 2.0:
-        yield
-    yield
-    return behaviours.OK

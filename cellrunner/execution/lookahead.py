@@ -27,7 +27,6 @@ from typing import Any, Protocol, TypeGuard, runtime_checkable
 
 import numpy as np
 
-from cellrunner.backends.base import Safety
 from cellrunner.execution.context import Hold, JobContext
 from cellrunner.execution.steps import (
     LOAD_LOST_FRACTION,
@@ -35,6 +34,7 @@ from cellrunner.execution.steps import (
     next_load_lp,
     watches_load,
 )
+from cellrunner.model.robot_state import Safety
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 #: a look-ahead shorter than this is not worth its fixed cost (periods)

@@ -19,54 +19,26 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Generator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
+from cellrunner.execution.obstacle_guard import ObstacleGuard as ObstacleGuard  # re-exported
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.trajectory import ApprovedTrajectory, along_path
 
 if TYPE_CHECKING:
     from cellrunner.execution.context import JobContext
-    from cellrunner.execution.watch import ZoneWatch
     from cellrunner.model.expand import Step
     from cellrunner.model.geometry import Placed
-    from cellrunner.model.task import ObstaclePolicy
     from cellrunner.perception.path_check import Blocked
 
 #: a stop or a restart on the path uses this fraction of each joint's acceleration limit
 RAMP_ACCEL_FRACTION = 0.8
 #: replans come at most this often (s), and not before the arm has waited this long
 REPLAN_EVERY_S = 1.0
-
-
-@dataclass
-class ObstacleGuard:
-    """A job's watch on its path: the map, the task's policy, the joints' acceleration
-    limits (rad/s^2) for stops on the path; ``obstructed`` says where while the arm waits."""
-
-    zone: ZoneWatch
-    policy: ObstaclePolicy
-    accel_rad_s2: np.ndarray
-    obstructed: str = ""
-    held: Placed | None = None  # the part carried in the last watched motion
-    why_not: str = ""  # why the last replan found no way
-    replans: int = 0
-    last_replan_s: float = -math.inf
-    events: list[dict[str, Any]] = field(default_factory=list)
-
-    def note(self, ctx: JobContext, what: str, blocked: Blocked | None, **extra: Any) -> None:
-        event: dict[str, Any] = {"what": what, "time_s": round(ctx.now_s, 4)}
-        q = ctx.commanded_q if ctx.commanded_q is not None else ctx.last_state.q_rad
-        event["tcp_m"] = [round(float(v), 4) for v in ctx.motions.tcp_position_m(q)]
-        if blocked is not None:
-            event["voxel_m"] = [round(v, 3) for v in blocked.voxel_m]
-        event.update(extra)
-        self.events.append(event)
-        if ctx.log is not None:
-            ctx.log.info("obstacle", **event)
 
 
 def summary(events: list[dict[str, Any]], step_index: int) -> str:

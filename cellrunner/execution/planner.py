@@ -4,18 +4,41 @@ as a whole when any step is infeasible."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
-from cellrunner.execution.cell import JobPlan, Planner
+from cellrunner.execution.context import Motions
+from cellrunner.model.expand import Step
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
 
 if TYPE_CHECKING:
     from cellrunner.planning.task_plan import TaskPlan
     from cellrunner.planning.world import CellWorld
+
+
+class PlannedJob(Protocol):
+    """What the cell runs of a job's plan: the one plan object,
+    :class:`cellrunner.planning.job_plan.JobPlan`, is one."""
+
+    @property
+    def run_steps(self) -> list[Step]:
+        """The steps in order, then the task's on_error steps (marked)."""
+
+    @property
+    def motions(self) -> Motions:
+        """The approved trajectories, as streamed."""
+
+    @property
+    def planned_cycle_time_s(self) -> float:
+        """The cycle time as streamed (s)."""
+
+
+#: plans a job: (task, params, where the arm stands, rad) -> its plan, or raises
+Planner = Callable[[LoadedTask, dict[str, ParamValue], np.ndarray], PlannedJob]
 
 #: a start this close to home (max over joints, rad) is planned from home, so that jobs
 #: that begin at home reuse the cached plan
@@ -29,7 +52,7 @@ def job_planner(
     ``joined=False`` plans every motion to end at rest (run --step)."""
     from cellrunner.planning.job_plan import plan_job
 
-    def plan(task: LoadedTask, params: dict[str, ParamValue], q_now_rad: np.ndarray) -> JobPlan:
+    def plan(task: LoadedTask, params: dict[str, ParamValue], q_now_rad: np.ndarray) -> PlannedJob:
         q = np.asarray(q_now_rad, float)
         if np.max(np.abs(q - world.q_home_rad)) < HOME_SNAP_RAD:
             q = world.q_home_rad
@@ -40,9 +63,8 @@ def job_planner(
                 "; ".join(job.errors), first.blockers, step_index=first.step_index
             )
         _verify_ahead(job.task_plan)
-        # the task's on_error steps ride along, marked, for the runner to keep for a failure
-        paced = job.paced(speed) if speed != 1.0 else job
-        return JobPlan(paced.run_steps, paced.motions, paced.planned_cycle_time_s)
+        # the task's on_error steps ride along (run_steps), marked, for the runner to keep
+        return job.paced(speed) if speed != 1.0 else job
 
     return plan
 

@@ -238,7 +238,7 @@ class OpcUa(Strict):
     )
     """Security policies offered; none only when written here. Example: `[Basic256Sha256_SignAndEncrypt]`"""
     users: str | None = None
-    """Users file (user -> salted hash), written by `cellrunner users add`. Example: `secrets/opcua-users.yaml`"""
+    """Users file (user -> salted hash), written by `cellrunner users add`. Example: `var/opcua-users.yaml`"""
     pki: str | None = None
     """PKI folder (own/, trusted/, rejected/); default pki/ beside the journal. Example: `pki`"""
 
@@ -256,7 +256,7 @@ class Plc(Strict):
     modbus: Modbus | None = None
     """Modbus TCP server (SPEC section 7). Example: `{bind: 127.0.0.1, port: 502, heartbeat_timeout: 1.5}`"""
     opcua: OpcUa | None = None
-    """OPC UA server (SPEC section 8). Example: `{endpoint: 'opc.tcp://127.0.0.1:4840/cellrunner', users: secrets/opcua-users.yaml}`"""
+    """OPC UA server (SPEC section 8). Example: `{endpoint: 'opc.tcp://127.0.0.1:4840/cellrunner', users: var/opcua-users.yaml}`"""
 
 
 class PlaceTolerance(Strict):

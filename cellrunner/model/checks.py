@@ -11,7 +11,7 @@ from cellrunner.model.units import looks_like_radians
 
 if TYPE_CHECKING:
     from cellrunner.model.cell import Cell
-    from cellrunner.model.load import Report
+    from cellrunner.model.report import Report
 
 
 def check_io_name(
@@ -52,3 +52,57 @@ def check_radians(raw: Any, path: PathKey, report: Report) -> None:
             f"{value} looks like radians; angles are in degrees "
             "(write e.g. '1.57 rad' if you mean radians)",
         )
+
+
+def check_sim_block(cell: Cell, report: Report) -> None:
+    """Report rule inputs, outputs and frames the cell does not know."""
+    if cell.sim is None:
+        return
+    feed = cell.sim.feed
+    if feed is not None:
+        parts = [p.name for p in cell.parts]
+        if feed.part not in parts:
+            report.error(("sim", "feed", "part"), unknown_name("part", feed.part, parts))
+        if feed.at not in cell.frames:
+            report.error(("sim", "feed", "at"), unknown_name("frame", feed.at, cell.frames))
+    names = [i.name for i in cell.sim.intruders]
+    for i, intruder in enumerate(cell.sim.intruders):
+        if names.index(intruder.name) != i:
+            report.error(
+                ("sim", "intruders", i, "name"), f"intruder {intruder.name!r} is listed twice"
+            )
+        if intruder.at is not None and intruder.at not in cell.frames:
+            report.error(
+                ("sim", "intruders", i, "at"), unknown_name("frame", intruder.at, cell.frames)
+            )
+    for name, rule in cell.sim.inputs.items():
+        base = ("sim", "inputs", name)
+        check_io_name(cell, name, "inputs", base, report, at_key=True)
+        if rule.part_at is not None and rule.part_at not in cell.frames:
+            report.error(base + ("part_at",), unknown_name("frame", rule.part_at, cell.frames))
+        for key in ("follows", "pulse_after"):
+            output = getattr(rule, key)
+            if output is not None:
+                check_io_name(cell, output, "outputs", base + (key,), report)
+
+
+def check_watch(cell: Cell, report: Report) -> None:
+    """Every watched camera exists and is a depth camera; names appear once."""
+    watch = cell.watch
+    if watch is None:
+        return
+    seen: set[str] = set()
+    for i, name in enumerate(watch.cameras):
+        where = ("watch", "cameras", i)
+        if name in seen:
+            report.error(where, f"camera {name!r} is listed twice")
+        seen.add(name)
+        camera = cell.cameras.get(name)
+        if camera is None:
+            report.error(where, unknown_name("camera", name, cell.cameras))
+        elif camera.depth is None:
+            depth = [n for n, c in cell.cameras.items() if c.depth is not None]
+            report.error(
+                where,
+                f"camera {name!r} has no 'depth:'; depth cameras: {', '.join(depth) or '(none)'}",
+            )

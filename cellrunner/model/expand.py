@@ -18,7 +18,7 @@ from cellrunner.model.align import AlignArgs, aligned_frame, target_frame
 from cellrunner.model.camera import Camera
 from cellrunner.model.cell import Cell
 from cellrunner.model.frames import frame_pose
-from cellrunner.model.load import LoadedTask, StepSpec
+from cellrunner.model.loaded import LoadedTask, StepSpec
 from cellrunner.model.params import Param, ParamValue, PoseValue
 from cellrunner.model.pattern import Pattern
 from cellrunner.model.source import PathKey
@@ -194,7 +194,8 @@ class _Builder:
         elif kind == StepKind.PLACE:
             self._place(spec, args)
         elif kind == StepKind.CHANGE_TOOL:
-            self.tool = expand_change_tool(self, spec, self.tool)
+            steps, self.tool = expand_change_tool(self.cell, spec, self.tool, self._next())
+            self.steps.extend(steps)
         else:
             self.steps.append(self.primitive(kind, args, spec.path, self._next()))
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -18,134 +17,28 @@ from pydantic import ValidationError
 from cellrunner.errors import Diagnostic, InputError
 from cellrunner.model.cell import Cell, Fixture, Part, Tool
 from cellrunner.model.checks import check_io_name, check_radians
-from cellrunner.model.diagnose import diagnostics_of, dotted, known_list, unknown_name
+from cellrunner.model.diagnose import diagnostics_of, known_list, unknown_name
+from cellrunner.model.loaded import LoadedCell as LoadedCell  # re-exported
+from cellrunner.model.loaded import LoadedTask as LoadedTask  # re-exported
+from cellrunner.model.loaded import StepSpec as StepSpec  # re-exported
 from cellrunner.model.references import check_task_references
+from cellrunner.model.report import Report as Report  # re-exported
 from cellrunner.model.robots import RobotSpec, robot_spec
-from cellrunner.model.source import PathKey, Source, file_problem, load_yaml
-from cellrunner.model.task import MACROS, STEP_MODELS, PickArgs, TaskFile, widen_step_args
+from cellrunner.model.source import PathKey, file_problem, load_yaml
+from cellrunner.model.task import (
+    STEP_MODELS,
+    TOP_LEVEL_ONLY,
+    PickArgs,
+    TaskFile,
+    widen_step_args,
+)
 
 if TYPE_CHECKING:
-    from cellrunner.model.geometry import Placed
     from cellrunner.model.params import Param
 
 _CHANNEL = re.compile(r"^(DO|CO|TO|AO|DI|CI|TI|AI)(\d+)$")
 _CHANNEL_COUNT = {"DO": 8, "CO": 8, "TO": 2, "AO": 2, "DI": 8, "CI": 8, "TI": 2, "AI": 2}
 _CHANNEL_HELP = "DO0-7, CO0-7, TO0-1, AO0-1 for outputs; DI0-7, CI0-7, TI0-1, AI0-1 for inputs"
-
-
-@dataclass
-class Report:
-    """Errors and warnings collected while loading one file."""
-
-    source: Source
-    errors: list[Diagnostic] = field(default_factory=list)
-    warnings: list[Diagnostic] = field(default_factory=list)
-
-    def error(self, path: PathKey, message: str, *, at_key: bool = False) -> None:
-        where = dotted(path)
-        self.errors.append(
-            self.source.diagnostic(path, f"{where}: {message}" if where else message, at_key=at_key)
-        )
-
-    def warn(self, path: PathKey, message: str) -> None:
-        self.warnings.append(
-            self.source.diagnostic(path, f"{dotted(path)}: {message}", severity="warning")
-        )
-
-    def raise_if_errors(self) -> None:
-        if self.errors:
-            raise InputError(sorted(self.errors, key=lambda d: (d.line, d.col)))
-
-
-@dataclass
-class LoadedCell:
-    cell: Cell
-    path: Path
-    source: Source
-    warnings: list[Diagnostic]
-    #: the cell file's and every mesh file's SHA-256 together (hex), taken on loading: a
-    #: plan is keyed by it (planning.job_plan), so no file is read again per job
-    digest: str = ""
-
-    @property
-    def folder(self) -> Path:
-        return self.path.parent
-
-    @property
-    def spec(self) -> RobotSpec:
-        """The arm with the cell's ``robot.joint_range`` applied (checked on loading)."""
-        return robot_spec(self.cell.robot.model).narrowed(self.cell.robot.joint_range)
-
-    @property
-    def root(self) -> Path:
-        """The project folder: the parent of ``cells/`` when the cell file lives in one."""
-        folder = self.path.resolve().parent
-        return folder.parent if folder.name == "cells" else folder
-
-    def tool_shapes(self, tool: Tool | None = None) -> list[Placed]:
-        """The declared geometry of ``tool`` (default: the mounted one) as placed shapes in
-        the flange frame."""
-        from cellrunner.model.geometry import Placed
-
-        geometry = (tool or self.cell.tool).geometry
-        return [
-            Placed(
-                f"tool{i}" if len(geometry) > 1 else "gripper", g.to_shape(self.resolve), g.matrix()
-            )
-            for i, g in enumerate(geometry)
-        ]
-
-    def fixture_shapes(self) -> list[Placed]:
-        """The fixtures as placed shapes in the world."""
-        from cellrunner.model.geometry import Placed
-
-        return [Placed(f.name, f.to_shape(self.resolve), f.matrix()) for f in self.cell.fixtures]
-
-    def resolve(self, relative: str) -> Path:
-        """A path written in the cell file. Relative paths are looked up against the
-        project root, then the cell file's folder, then the working directory; the first
-        that exists wins, else the one under the project root (for files to create)."""
-        p = Path(relative)
-        if p.is_absolute():
-            return p
-        for base in (self.root, self.path.resolve().parent, Path.cwd()):
-            if (base / p).exists():
-                return base / p
-        return self.root / p
-
-
-@dataclass
-class StepSpec:
-    """One step as written in a task file, validated: kind, argument model, file path."""
-
-    kind: str
-    args: Any
-    path: PathKey
-    between: list[StepSpec] = field(default_factory=list)  # pick retry.between steps
-    raw: Any = None  # the widened arguments as written, when they name float params
-    refs: frozenset[str] = frozenset()  # the float params they name
-
-    def bind(self, params: dict[str, Param], values: dict[str, Any]) -> Any:
-        """The arguments with the named params' values (``args`` when none are named)."""
-        if not self.refs:
-            return self.args
-        from cellrunner.model.params import substitute
-
-        return STEP_MODELS[self.kind].model_validate(substitute(self.raw, params, values)[0])
-
-
-@dataclass
-class LoadedTask:
-    task: TaskFile
-    path: Path
-    source: Source
-    steps: list[StepSpec]
-    warnings: list[Diagnostic]
-    on_error: list[StepSpec] = field(default_factory=list)
-
-    @property
-    def name(self) -> str:
-        return self.task.task
 
 
 # ---------------------------------------------------------------------------- cell
@@ -240,10 +133,10 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
                     ("fixtures", i, "mesh", "file"),
                     f"mesh file {fixture.mesh.file!r} {problem} (looked under {loaded.root})",
                 )
-    from cellrunner.model.sim_inputs import check_sim_block
+    from cellrunner.model.checks import check_sim_block
 
     check_sim_block(cell, report)
-    from cellrunner.model.watch import check_watch
+    from cellrunner.model.checks import check_watch
 
     check_watch(cell, report)
     for i, part in enumerate(cell.parts):
@@ -583,7 +476,7 @@ def _parse_steps(
 def _parse_step(
     item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict[str, Param]
 ) -> StepSpec | None:
-    known = [k for k in STEP_MODELS if allow_macros or k not in MACROS]
+    known = [k for k in STEP_MODELS if allow_macros or k not in TOP_LEVEL_ONLY]
     if isinstance(item, str):
         item = {item: None}
     if not isinstance(item, dict) or len(item) != 1:
@@ -597,9 +490,11 @@ def _parse_step(
     if kind not in known:
         hint = (
             ""
-            if kind not in MACROS
+            if kind not in TOP_LEVEL_ONLY
             else (
-                " (on_error takes primitive steps)"
+                " (align belongs in the task's steps)"
+                if kind == "align"
+                else " (on_error takes primitive steps)"
                 if path[0] == "on_error"
                 else " (pick and place cannot be nested)"
             )

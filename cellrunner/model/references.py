@@ -11,8 +11,9 @@ from cellrunner.model.step import StepKind
 
 if TYPE_CHECKING:
     from cellrunner.model.cell import Cell
-    from cellrunner.model.load import LoadedCell, LoadedTask, Report, StepSpec
+    from cellrunner.model.loaded import LoadedCell, LoadedTask, StepSpec
     from cellrunner.model.pattern import Pattern
+    from cellrunner.model.report import Report
     from cellrunner.model.source import PathKey
 
 _LINEAR_KINDS = ("descend", "linear")

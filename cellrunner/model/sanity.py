@@ -24,7 +24,7 @@ from cellrunner.model.rotation import rpy_rows
 from cellrunner.model.source import PathKey
 
 if TYPE_CHECKING:
-    from cellrunner.model.load import LoadedCell, LoadedTask
+    from cellrunner.model.loaded import LoadedCell, LoadedTask
     from cellrunner.model.robots import RobotSpec
 
 

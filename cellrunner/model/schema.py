@@ -21,7 +21,7 @@ from pydantic.json_schema import GenerateJsonSchema, JsonSchemaValue
 from pydantic_core import core_schema
 
 from cellrunner.model.cell import Cell
-from cellrunner.model.task import MACROS, STEP_MODELS, Target, TaskFile
+from cellrunner.model.task import STEP_MODELS, TOP_LEVEL_ONLY, Target, TaskFile
 from cellrunner.model.units import NonNegativeLength, PositiveLength
 
 #: a JSON Schema document (or part of one)
@@ -123,7 +123,7 @@ def _steps_schema(defs: JsonDict, allow_macros: bool = True) -> JsonDict:
     lists the known kinds for an unknown one), or a bare ``grip``/``release``."""
     kinds: dict[str, JsonDict] = {}
     for kind, model in STEP_MODELS.items():
-        if not allow_macros and kind in MACROS:
+        if not allow_macros and kind in TOP_LEVEL_ONLY:
             continue
         args = _json_schema(model | None if kind in _BARE else model, defs)
         if kind in _SHORT_FORMS:  # the mapping form, else the short form: errors name the one meant

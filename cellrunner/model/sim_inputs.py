@@ -9,25 +9,16 @@ sim:
     cycle_done: {pulse_after: cnc_start, delay: 20, width: 0.5}  # a pulse after the output rose
 ```
 
-Names are the cell's IO names; :mod:`cellrunner.model.references`-style checks are in
-:func:`check_sim_block`.
+Names are the cell's IO names; :func:`cellrunner.model.checks.check_sim_block` checks them against the cell.
 """
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import BoxShape, CylinderShape, Name, Pose, Strict
-from cellrunner.model.checks import check_io_name
-from cellrunner.model.diagnose import unknown_name
 from cellrunner.model.units import Duration, NonNegativeLength, PositiveDuration, PositiveLength
-
-if TYPE_CHECKING:
-    from cellrunner.model.cell import Cell
-    from cellrunner.model.load import Report
 
 
 class InputRule(Strict):
@@ -119,35 +110,3 @@ class SimBlock(Strict):
     """Standard deviation of the noise on the twin's depth images, m. Example: `0.002`"""
     intruders: list[Intruder] = Field(default_factory=list)
     """Objects the cell file does not know, put into the twin while a job runs; only depth cameras see them. Example: `[{name: tote, box: {size: [0.4, 0.3, 0.2]}, pose: {xyz: [0.5, 0.1, 1.0]}, appear: 1.0, leave: 5.0}]`"""
-
-
-def check_sim_block(cell: Cell, report: Report) -> None:
-    """Report rule inputs, outputs and frames the cell does not know."""
-    if cell.sim is None:
-        return
-    feed = cell.sim.feed
-    if feed is not None:
-        parts = [p.name for p in cell.parts]
-        if feed.part not in parts:
-            report.error(("sim", "feed", "part"), unknown_name("part", feed.part, parts))
-        if feed.at not in cell.frames:
-            report.error(("sim", "feed", "at"), unknown_name("frame", feed.at, cell.frames))
-    names = [i.name for i in cell.sim.intruders]
-    for i, intruder in enumerate(cell.sim.intruders):
-        if names.index(intruder.name) != i:
-            report.error(
-                ("sim", "intruders", i, "name"), f"intruder {intruder.name!r} is listed twice"
-            )
-        if intruder.at is not None and intruder.at not in cell.frames:
-            report.error(
-                ("sim", "intruders", i, "at"), unknown_name("frame", intruder.at, cell.frames)
-            )
-    for name, rule in cell.sim.inputs.items():
-        base = ("sim", "inputs", name)
-        check_io_name(cell, name, "inputs", base, report, at_key=True)
-        if rule.part_at is not None and rule.part_at not in cell.frames:
-            report.error(base + ("part_at",), unknown_name("frame", rule.part_at, cell.frames))
-        for key in ("follows", "pulse_after"):
-            output = getattr(rule, key)
-            if output is not None:
-                check_io_name(cell, output, "outputs", base + (key,), report)

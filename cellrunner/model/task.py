@@ -327,6 +327,8 @@ STEP_MODELS: dict[str, type[Strict]] = {
     "align": AlignArgs,
 }
 MACROS = ("pick", "place", "change_tool")
+#: steps only a task's own steps may hold (not on_error, not a retry's between)
+TOP_LEVEL_ONLY = (*MACROS, "align")
 
 
 def widen_step_args(kind: str, args: Any) -> Any:

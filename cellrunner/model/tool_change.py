@@ -24,16 +24,18 @@ from cellrunner.model.step import Step, StepKind
 from cellrunner.model.task import ApproachArgs, DistanceArgs, GripArgs, LinearArgs
 
 if TYPE_CHECKING:
-    from cellrunner.model.expand import _Builder
-    from cellrunner.model.load import StepSpec
+    from cellrunner.model.cell import Cell
+    from cellrunner.model.loaded import StepSpec
 
 
-def expand_change_tool(builder: _Builder, spec: StepSpec, current: str | None) -> str | None:
-    """Append the steps of ``spec`` (a change_tool) to ``builder``; return the new tool."""
-    cell = builder.cell
+def expand_change_tool(
+    cell: Cell, spec: StepSpec, current: str | None, first_index: int
+) -> tuple[list[Step], str | None]:
+    """The steps of ``spec`` (a change_tool) from the tool ``current``, numbered from
+    ``first_index``, and the tool mounted after them."""
     target: str = spec.args.tool
     if target == current:
-        return current
+        return [], current
     changer = cell.tool_changer
     # the task check refuses change_tool without a tool changer and a mounted tool
     assert changer is not None and current is not None
@@ -68,12 +70,20 @@ def expand_change_tool(builder: _Builder, spec: StepSpec, current: str | None) -
         ("tool_lock", target, GripArgs(confirm=changer.locked, timeout=2.0), None, target),
         ("retreat", f"rack[{target}]", DistanceArgs(distance=d), None, target),
     ]
-    for kind, name, args, T, tool in rows:
-        extra = {"tool": tool, "tcp_of": current, "lock_output": changer.lock}
-        builder.steps.append(
-            Step(builder._next(), StepKind(kind), name, args, path, macro, T, extra=extra)
+    steps = [
+        Step(
+            first_index + i,
+            StepKind(kind),
+            name,
+            args,
+            path,
+            macro,
+            T,
+            extra={"tool": tool, "tcp_of": current, "lock_output": changer.lock},
         )
-    return target
+        for i, (kind, name, args, T, tool) in enumerate(rows)
+    ]
+    return steps, target
 
 
 __all__ = ["expand_change_tool"]

@@ -11,24 +11,19 @@ watch:
   padding: 0.03
 ```
 
-Pure data; :func:`check_watch` reports, located, what refers to the rest of the cell.
+Pure data; :func:`cellrunner.model.checks.check_watch` reports, located, what refers to the rest of the cell.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import BoxShape, Name, Pose, Strict
-from cellrunner.model.diagnose import unknown_name
 from cellrunner.model.units import NonNegativeLength, PositiveLength
-
-if TYPE_CHECKING:
-    from cellrunner.model.cell import Cell
-    from cellrunner.model.load import Report
 
 #: the map covers at most this many voxels (a dense table of log-odds, 4 bytes each)
 MAX_VOXELS = 16_000_000
@@ -80,25 +75,3 @@ class Watch(Strict):
                 f"{MAX_VOXELS:,} (a larger voxel, or a smaller zone)",
             )
         return self
-
-
-def check_watch(cell: Cell, report: Report) -> None:
-    """Every watched camera exists and is a depth camera; names appear once."""
-    watch = cell.watch
-    if watch is None:
-        return
-    seen: set[str] = set()
-    for i, name in enumerate(watch.cameras):
-        where = ("watch", "cameras", i)
-        if name in seen:
-            report.error(where, f"camera {name!r} is listed twice")
-        seen.add(name)
-        camera = cell.cameras.get(name)
-        if camera is None:
-            report.error(where, unknown_name("camera", name, cell.cameras))
-        elif camera.depth is None:
-            depth = [n for n, c in cell.cameras.items() if c.depth is not None]
-            report.error(
-                where,
-                f"camera {name!r} has no 'depth:'; depth cameras: {', '.join(depth) or '(none)'}",
-            )

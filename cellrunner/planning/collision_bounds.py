@@ -6,7 +6,8 @@ conservative advancement that uses these bounds lives there too.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -19,8 +20,33 @@ from cellrunner.planning.motion_bounds import (
 )
 
 if TYPE_CHECKING:
-    from cellrunner.planning.collision_scene import SceneObject
+    import coal
+
+    from cellrunner.model.arm_geometry import ConvexPart
     from cellrunner.planning.kinematics import ArmKinematics
+
+
+class BoundedObject(Protocol):
+    """What the bounds read of one object of the scene
+    (:class:`~cellrunner.planning.collision_scene.SceneObject`)."""
+
+    @property
+    def group(self) -> str: ...
+
+    @property
+    def body(self) -> int: ...
+
+    @property
+    def geometry(self) -> coal.CollisionGeometry: ...
+
+    @property
+    def placement(self) -> np.ndarray: ...
+
+    @property
+    def radius_m(self) -> float: ...
+
+    @property
+    def part(self) -> ConvexPart | None: ...
 
 
 class PairBounds:
@@ -29,7 +55,7 @@ class PairBounds:
     :class:`~cellrunner.planning.collision_scene.CollisionScene`)."""
 
     def __init__(
-        self, kinematics: ArmKinematics, objects: list[SceneObject], pairs: np.ndarray
+        self, kinematics: ArmKinematics, objects: Sequence[BoundedObject], pairs: np.ndarray
     ) -> None:
         self.kinematics = kinematics
         self._objects = objects
@@ -62,10 +88,10 @@ class PairBounds:
         # a primitive's support points
         movers = np.flatnonzero(self._is_mover)
         self._movers = movers
-        self._covers = {int(k): self._cover_spheres(self._objects[k]) for k in movers}
+        self._covers = {int(k): self._cover_spheres(self._objects[int(k)]) for k in movers}
         radial = [
             self._covers[int(k)]
-            if self._objects[k].part is not None
+            if self._objects[int(k)].part is not None
             else (support[k][0], np.full(len(support[k][0]), support[k][1]))
             for k in movers
         ]
@@ -115,7 +141,7 @@ class PairBounds:
         self._prepare_lower_bounds()
 
     @staticmethod
-    def _cover_spheres(obj: SceneObject) -> tuple[np.ndarray, np.ndarray]:
+    def _cover_spheres(obj: BoundedObject) -> tuple[np.ndarray, np.ndarray]:
         """Spheres (centres in the parent joint frame, radii) whose union holds ``obj``."""
         if obj.part is not None:
             return polytope_cover_spheres(obj.part.vertices_m, obj.part.faces)

@@ -11,19 +11,31 @@ full clearance.
 from __future__ import annotations
 
 import itertools
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from cellrunner.model import geometry
 from cellrunner.model.step import StepKind
-from cellrunner.planning.collision import ContactAllowance
+from cellrunner.planning.collision import CollisionModel, ContactAllowance
 
 if TYPE_CHECKING:
     from cellrunner.model.force_steps import MoveUntilContactArgs
+    from cellrunner.model.geometry import Placed
     from cellrunner.model.step import Step
-    from cellrunner.planning.collision import CollisionModel
-    from cellrunner.planning.task_plan import _StepPlanner
+    from cellrunner.planning.world import CellWorld
+
+
+class LineStart(Protocol):
+    """Where a force step's line starts, as the task's step planner tracks it: the cell,
+    the arm's configuration (rad), the part carried, the collision model carrying it."""
+
+    world: CellWorld
+    q: np.ndarray
+    part: Placed | None
+
+    def collision(self, allowances: tuple[ContactAllowance, ...] = ()) -> CollisionModel: ...
+
 
 #: contact allowed beyond the depth measured at the line's end (m)
 CONTACT_SLACK_M = 0.001
@@ -41,7 +53,7 @@ def contact_line_goal(args: MoveUntilContactArgs, T_world_tcp: np.ndarray) -> np
 
 
 def contact_allowances(
-    planner: _StepPlanner, step: Step, T_goal: np.ndarray
+    planner: LineStart, step: Step, T_goal: np.ndarray
 ) -> tuple[ContactAllowance, ...]:
     """Allowances for the fixtures the carried part (or, carrying nothing, the tool) meets
     at the line's end, by no more than it reaches into them there."""

@@ -91,7 +91,7 @@ class OpcUaConfig:
 
     endpoint: str = "opc.tcp://127.0.0.1:4840/cellrunner"
     security: tuple[str, ...] = DEFAULT_SECURITY
-    users_file: Path = Path("secrets/opcua-users.yaml")
+    users_file: Path = Path("var/opcua-users.yaml")
     pki_dir: Path = Path("pki")
 
     @classmethod

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from cellrunner.backends.base import RobotState
+    from cellrunner.model.robot_state import RobotState
     from cellrunner.model.step import Step
     from cellrunner.sim.world import SimWorld
 

@@ -247,6 +247,13 @@ class CameraImager:
         from cellrunner.sim.render import RenderUnavailable
 
         if self._renderer is None:
+            from cellrunner.sim.mujoco_loader import GL_ADVICE, gl_backend, no_gl_reason
+
+            if gl_backend() is None:
+                raise RenderUnavailable(
+                    f"cannot render camera {self.camera.name}: {no_gl_reason()} "
+                    f"({GL_ADVICE} gives pictures)"
+                )
             try:
                 self._renderer = self._mj.Renderer(
                     self.model, self.camera.height, self.camera.width

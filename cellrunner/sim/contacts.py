@@ -14,16 +14,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from cellrunner.backends.base import Safety
+from cellrunner.model.robot_state import Safety
 from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC, TOOL
 from cellrunner.sim.wrist import GRAVITY_MPS2
 
 if TYPE_CHECKING:
-    from cellrunner.sim.world import SimWorld
+    from cellrunner.sim.description import TwinDescription
+    from cellrunner.sim.model_ids import ModelIds
+    from cellrunner.sim.places import Places
+    from cellrunner.sim.safety import StopReason
 
 AIR_CLEARANCE_M = 0.01  # "in the air": this far from every fixture and the floor
 JAM_SLIDE_M = 0.005  # a gripped part forced back this far in the jaws by a fixture: a collision
@@ -57,10 +60,36 @@ class ContactEvent:
     geoms: tuple[str, str]
 
 
-class ContactMonitor:
-    """The contact rules of one built :class:`SimWorld`; :meth:`check` runs every period."""
+class ContactWorld(Protocol):
+    """What the contact rules see of the twin (:class:`~cellrunner.sim.world.SimWorld`)."""
 
-    def __init__(self, world: SimWorld) -> None:
+    description: TwinDescription
+    model: Any
+    data: Any
+    safety: Safety
+    last_contact: ContactEvent | None
+    places: Places
+
+    @property
+    def mujoco(self) -> Any: ...
+
+    @property
+    def ids(self) -> ModelIds: ...
+
+    @property
+    def time_s(self) -> float: ...
+
+    def tcp_pose_world(self) -> np.ndarray: ...
+
+    def part_pose_world(self, name: str) -> np.ndarray: ...
+
+    def raise_protective_stop(self, reason: StopReason = ...) -> None: ...
+
+
+class ContactMonitor:
+    """The contact rules of one built twin; :meth:`check` runs every period."""
+
+    def __init__(self, world: ContactWorld) -> None:
         self.world = world
         ids = world.ids
         #: gripped part -> T_tcp_part while no fixture presses it

@@ -12,14 +12,16 @@ must notice through the jaw sensor and the wrist, never through a flag.
 from __future__ import annotations
 
 import enum
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from cellrunner.sim.wrist import GRAVITY_MPS2
 
 if TYPE_CHECKING:
-    from cellrunner.sim.world import SimWorld
+    from cellrunner.sim.contacts import ContactMonitor
+    from cellrunner.sim.description import TwinDescription
+    from cellrunner.sim.model_ids import ModelIds
 
 SLIP_HOLD_FRACTION = 0.25  # a slipping grip holds only this fraction of the part's weight
 GRIP_MISS_MOVE_M = 0.15  # how far grip_miss moves the part at least, towards the robot base
@@ -44,11 +46,26 @@ class Fault(enum.StrEnum):
             raise ValueError(f"unknown fault {name!r}; known: {known}") from None
 
 
+class FaultWorld(Protocol):
+    """What the grip faults act on in the twin (:class:`~cellrunner.sim.world.SimWorld`)."""
+
+    description: TwinDescription
+    model: Any
+    data: Any
+    contacts: ContactMonitor
+
+    @property
+    def mujoco(self) -> Any: ...
+
+    @property
+    def ids(self) -> ModelIds: ...
+
+
 class GripFaults:
     """grip_miss and part_slip of one built :class:`SimWorld` (the jaws'; the cups keep
     their own, and use :meth:`move_part_away`)."""
 
-    def __init__(self, world: SimWorld) -> None:
+    def __init__(self, world: FaultWorld) -> None:
         self.world = world
         self.grip_miss_armed = False
         self.slip_armed = False

@@ -1,8 +1,8 @@
 """The parts a whole run needs (SPEC section 12): a new part fed at its frame before each
 job, and the parts of the earlier slots of a pattern already in place.
 
-- ``sim: {feed: {part, at}}``: copies of the part wait parked far outside the cell (on
-  the floor, out of every camera's range); before each job (:meth:`Feeder.feed`) one is
+- ``sim: {feed: {part, at}}``: copies of the part wait parked far outside the cell
+  (floating, touching nothing, out of every camera's range); before each job (:meth:`Feeder.feed`) one is
   put at the frame, as a part ``at:`` it lies, unless a part already lies there. In the
   virtual controller, which knows no jobs, :meth:`Feeder.update` feeds once the part fed
   last was taken away (gripped and gone): a part knocked off by ``grip_miss`` is not
@@ -21,16 +21,17 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from cellrunner.model.geometry import Box, Cylinder, Shape, Sphere
+from cellrunner.sim.mjcf_attrs import PART_HITS, PARTS
 
 if TYPE_CHECKING:
-    from cellrunner.model.load import LoadedCell, LoadedTask
+    from cellrunner.model.loaded import LoadedCell, LoadedTask
     from cellrunner.sim.description import PartDescription, TwinDescription
-    from cellrunner.sim.world import SimWorld
+    from cellrunner.sim.model_ids import ModelIds
 
 PARK_X_M = 200.0  # parked copies lie on the floor this far out along world X ...
 PARK_PITCH_M = 2.0  # ... this far apart along Y
@@ -181,10 +182,28 @@ def _parked(shape: Shape, k: int) -> np.ndarray:
     return T
 
 
+class FeedWorld(Protocol):
+    """What the feed moves in the twin (:class:`~cellrunner.sim.world.SimWorld`)."""
+
+    model: Any
+    data: Any
+
+    @property
+    def mujoco(self) -> Any: ...
+
+    @property
+    def ids(self) -> ModelIds: ...
+
+    @property
+    def gripped(self) -> frozenset[str]: ...
+
+    def contacts_changed(self) -> None: ...
+
+
 class Feeder:
     """The feed of one built :class:`SimWorld` (its description's ``feed``)."""
 
-    def __init__(self, world: SimWorld, feed: FeedDescription) -> None:
+    def __init__(self, world: FeedWorld, feed: FeedDescription) -> None:
         self.world, self.desc = world, feed
         self.parked = list(feed.copies)
         self.fed: list[str] = []  # oldest first
@@ -236,6 +255,13 @@ class Feeder:
 
         w = self.world
         m, d = w.model, w.data
+        # parked, it floated touching nothing (gravity compensated, no collisions)
+        body = w.ids.part_bodies[name]
+        m.body_gravcomp[body] = 0.0
+        g = w.ids.part_geom[name]
+        m.geom_contype[g], m.geom_conaffinity[g] = PARTS, PART_HITS
+        m.body_contype[body], m.body_conaffinity[body] = PARTS, PART_HITS  # (broad phase)
+        w.contacts_changed()
         adr = w.ids.part_qpos[name]
         x, y, z, qw = Rotation.from_matrix(T_world_part[:3, :3]).as_quat()
         d.qpos[adr : adr + 7] = [*T_world_part[:3, 3], qw, x, y, z]

@@ -4,11 +4,25 @@ that report a closed grip and open jaws."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
-    from cellrunner.sim.description import GripperDescription
-    from cellrunner.sim.world import SimWorld
+    from cellrunner.sim.description import GripperDescription, TwinDescription
+    from cellrunner.sim.faults import GripFaults
+    from cellrunner.sim.model_ids import ModelIds
+
+
+class JawWorld(Protocol):
+    """What the jaws read and drive in the twin (:class:`~cellrunner.sim.world.SimWorld`)."""
+
+    description: TwinDescription
+    data: Any
+    grip_faults: GripFaults
+    outputs: dict[str, float | bool]
+
+    @property
+    def ids(self) -> ModelIds: ...
+
 
 JAW_REST_SPEED_MPS = 0.005
 
@@ -18,7 +32,7 @@ class Jaws:
     (a tool change swaps in the mounted tool's). ``enabled``: mounted and in use (a tool
     change turns them off); ``closing``: commanded closed at the last :meth:`drive`."""
 
-    def __init__(self, world: SimWorld) -> None:
+    def __init__(self, world: JawWorld) -> None:
         ids = world.ids
         self.world = world
         self.enabled = True

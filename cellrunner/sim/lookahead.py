@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cellrunner.backends.base import Safety
+from cellrunner.model.robot_state import Safety
 from cellrunner.sim.jaws import JAW_REST_SPEED_MPS, switch_readings
 
 if TYPE_CHECKING:

@@ -44,6 +44,7 @@ from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.sim.description import TwinDescription
 from cellrunner.sim.mjcf_attrs import (
     PADS,
+    PART_HITS,
     PARTS,
     ROBOT,
     STATIC,
@@ -585,9 +586,14 @@ class _Builder:
         )
 
     def _part(self, world: ET.Element, part: Any) -> None:
+        feed = self.desc.feed
+        # a copy waiting to be fed (sim.feed) floats, touching nothing, until it is fed
+        parked = feed is not None and part.name in feed.copies
         body = ET.SubElement(
             world, "body", name=f"part:{part.name}", **pose_attrs(part.T_world_part)
         )
+        if parked:
+            body.set("gravcomp", "1")
         ET.SubElement(body, "freejoint", name=f"part:{part.name}")
         ET.SubElement(
             body,
@@ -598,8 +604,8 @@ class _Builder:
             friction=f"{part.friction:g} 0.01 0.0001",
             condim="4",
             solref=self.grasp_solref,
-            contype=str(PARTS),
-            conaffinity=str(STATIC | ROBOT | PADS | PARTS),
+            contype="0" if parked else str(PARTS),
+            conaffinity="0" if parked else str(PART_HITS),
             **self._shape_attrs(part.shape),
         )
 

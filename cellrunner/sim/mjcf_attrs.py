@@ -9,6 +9,8 @@ import numpy as np
 
 #: contype bits of the geom kinds
 STATIC, ROBOT, PADS, PARTS, TOOL = 1, 2, 4, 8, 16
+#: what a part's geom collides with
+PART_HITS = STATIC | ROBOT | PADS | PARTS
 
 
 def quat_of(R: np.ndarray) -> tuple[float, float, float, float]:

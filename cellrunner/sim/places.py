@@ -21,7 +21,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -29,7 +29,7 @@ from cellrunner.model.geometry import Box, Cylinder, Shape, Sphere
 from cellrunner.sim.mjcf_attrs import PADS, PARTS, STATIC
 
 if TYPE_CHECKING:
-    from cellrunner.sim.world import SimWorld
+    from cellrunner.sim.description import TwinDescription
 
 PLACE_DROP_M = 0.01  # a part released this far above its support lands where it was put
 
@@ -53,10 +53,27 @@ class PlaceInspection:
     speed_mps: float
 
 
-class Places:
-    """The place check of one built :class:`SimWorld`: the parts released last."""
+class _Touches(Protocol):
+    def kinds_touching(self, part: str) -> list[int]: ...
 
-    def __init__(self, world: SimWorld) -> None:
+
+class PlaceWorld(Protocol):
+    """What the place check reads of the twin (:class:`~cellrunner.sim.world.SimWorld`)."""
+
+    description: TwinDescription
+
+    @property
+    def contacts(self) -> _Touches: ...
+
+    def part_pose_world(self, name: str) -> np.ndarray: ...
+
+    def part_velocity_world(self, name: str) -> np.ndarray: ...
+
+
+class Places:
+    """The place check of one built twin: the parts released last."""
+
+    def __init__(self, world: PlaceWorld) -> None:
         self.world = world
         parts = world.description.parts
         #: part -> T_tcp_part of the grip the task means

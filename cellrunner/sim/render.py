@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from cellrunner.errors import CellrunnerError
-from cellrunner.sim.mujoco_loader import GL_ADVICE, gl_backend, load_mujoco
+from cellrunner.sim.mujoco_loader import GL_ADVICE, gl_backend, load_mujoco, no_gl_reason
 
 
 class RenderUnavailable(CellrunnerError):
@@ -77,9 +77,7 @@ class CellRenderer:
             mujoco = load_mujoco()
             backend = gl_backend()
             if backend is None:
-                raise RenderUnavailable(
-                    f"no OpenGL backend for pictures here ({GL_ADVICE} gives one)"
-                )
+                raise RenderUnavailable(f"{no_gl_reason()} ({GL_ADVICE} gives one)")
             try:
                 self._renderer = mujoco.Renderer(self.world.model, self.height, self.width)
             except Exception as exc:  # GL backends fail with many exception types

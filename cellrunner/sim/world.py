@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from cellrunner.backends.base import BackendError, RobotState, Safety
+from cellrunner.errors import BackendError
+from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.sim.contacts import NONE, ContactEvent, ContactMonitor
 from cellrunner.sim.description import TwinDescription
 from cellrunner.sim.faults import Fault, GripFaults

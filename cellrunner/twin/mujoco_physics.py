@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cellrunner.backends.base import BackendError, Safety
+from cellrunner.errors import BackendError
+from cellrunner.model.robot_state import Safety
 
 if TYPE_CHECKING:
     from cellrunner.sim.description import TwinDescription

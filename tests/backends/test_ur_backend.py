@@ -7,14 +7,13 @@ import time
 import numpy as np
 import pytest
 
-from cellrunner.backends.base import BackendError, RobotBackend, Safety
+from cellrunner.backends.base import RobotBackend
 from cellrunner.backends.ur import ControllerMismatch, RemoteControlOff, SafetyStop, URBackend
-from cellrunner.errors import PeerUnreachable
+from cellrunner.errors import BackendError, PeerUnreachable
+from cellrunner.model.robot_state import Safety
 from cellrunner.model.robots import robot_spec
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory, approve
 from tests.twin.twin_process import TwinProcess, fresh_host, wait_until
-
-pytest.importorskip("rtde_control")
 
 UR5E = robot_spec("ur5e")
 Q_START = np.array([0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0])

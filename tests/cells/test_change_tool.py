@@ -3,16 +3,11 @@ twin, the changer's lock confirmed by its locked input."""
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 
 from tests.cells.two_tools import CELL, TASK, TOUCH
-from tests.conftest import ROOT
+from tests.rig import dry_run
 
 
 @pytest.fixture(scope="module")
@@ -60,18 +55,6 @@ def test_change_tool_expands_and_plans_with_the_new_tcp(files):
     # the rack approach after the unlock carries no tool geometry, the one after the lock the cup's
     assert [p.name for p in plan.rows[5].world.tool] == []
     assert {p.name for p in plan.rows[9].world.tool} == {"gripper", "cup0"}
-
-
-def dry_run(cell, task) -> dict:
-    r = subprocess.run(
-        [sys.executable, "-m", "cellrunner.cli.main", "dry-run", str(cell), str(task), "--json"],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=300,
-        env={**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"},
-    )
-    return json.loads(r.stdout)
 
 
 def test_change_tool_job_runs_in_the_twin(files):

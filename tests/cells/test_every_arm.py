@@ -6,17 +6,13 @@ meshes are refused with the reason."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from cellrunner.model.robots import ROBOTS
-from tests.conftest import ROOT
+from tests.rig import cli
 
-ENV = {**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"}
 #: arms without a reference cell in cells/ (UR7e and UR12e: the UR5e's and UR10e's geometry)
 ARMS = ["ur3", "ur10", "ur7e", "ur12e", "ur16e", "ur30"]
 #: arms whose collision meshes Universal Robots does not publish: check refuses to guess
@@ -63,17 +59,6 @@ parts:
     (root / "cells" / "c.yaml").write_text(cell)
     (root / "tasks" / "t.yaml").write_text(TASK)
     return root / "cells" / "c.yaml", root / "tasks" / "t.yaml"
-
-
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "cellrunner.cli.main", *args],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=600,
-        env=ENV,
-    )
 
 
 @pytest.mark.parametrize("model", ARMS)

@@ -3,13 +3,10 @@ hull would fill the hole), so the peg goes in as in the cell built from boxes.""
 
 from __future__ import annotations
 
-import itertools
-import struct
-
-import numpy as np
-
-from tests.cells.test_reference_cells import PEG, dry_run
+from tests.cells.meshes import box_triangles, write_stl
+from tests.cells.reference import PEG
 from tests.conftest import ROOT
+from tests.rig import dry_run
 
 #: the block around the hole, as (centre, size) boxes: four walls and the floor (m)
 BOXES = [
@@ -19,38 +16,6 @@ BOXES = [
     ((0.30, 0.1805, 0.82), (0.022, 0.039, 0.04)),
     ((0.30, 0.15, 0.805), (0.022, 0.022, 0.01)),
 ]
-
-
-def box_triangles(centre, size) -> list[np.ndarray]:
-    """The 12 outward-wound triangles of a box."""
-    c, h = np.asarray(centre), np.asarray(size) / 2
-    out = []
-    for axis, sign in itertools.product(range(3), (-1, 1)):
-        u, v = [a for a in range(3) if a != axis]
-        corners = []
-        for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
-            p = c.copy()
-            p[axis] += sign * h[axis]
-            p[u] += su * h[u]
-            p[v] += sv * h[v]
-            corners.append(p)
-        quad = (
-            corners
-            if np.dot(
-                np.cross(corners[1] - corners[0], corners[2] - corners[0]), np.eye(3)[axis] * sign
-            )
-            > 0
-            else corners[::-1]
-        )
-        out += [np.array([quad[0], quad[1], quad[2]]), np.array([quad[0], quad[2], quad[3]])]
-    return out
-
-
-def write_stl(path, triangles) -> None:
-    data = bytearray(80) + struct.pack("<I", len(triangles))
-    for t in triangles:
-        data += struct.pack("<12fH", 0, 0, 0, *t.ravel(), 0)
-    path.write_bytes(bytes(data))
 
 
 def test_peg_goes_into_a_mesh_hole(tmp_path):

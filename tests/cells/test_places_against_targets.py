@@ -6,17 +6,16 @@ from __future__ import annotations
 
 import pytest
 
-from tests.cells.test_reference_cells import PALLETIZER, dry_run
-from tests.cells.test_vacuum_places import (
+from tests.cells.reference import (
     CARTON,
     PALLET_CELL,
     PALLET_TASK,
+    PALLETIZER,
     place_failed_mm,
     project,
 )
 from tests.conftest import ROOT
-
-pytest.importorskip("mujoco")
+from tests.rig import dry_run
 
 DEMO_CELL = (ROOT / "cells/demo_ur5e.yaml").read_text()
 DEMO_TASK = (ROOT / "tasks/pick_place.yaml").read_text()

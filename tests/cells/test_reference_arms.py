@@ -6,19 +6,15 @@ example cells, which must pass `check` as written."""
 from __future__ import annotations
 
 import json
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tests.cells.test_mesh_hole import box_triangles, write_stl
+from tests.cells.meshes import box_triangles, write_stl
 from tests.conftest import ROOT
-
-ENV = {**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"}
+from tests.rig import cli
 
 #: (cell, task, param, slot count, {slot: where the part must end, world m})
 CELLS = {
@@ -51,17 +47,6 @@ CELLS = {
         {0: (0.275, 0.225, 0.885), 7: (0.325, 0.075, 0.885)},
     ),
 }
-
-
-def cli(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "cellrunner.cli.main", *args],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=600,
-        env=ENV,
-    )
 
 
 @pytest.mark.parametrize("arm", sorted(CELLS))
@@ -131,7 +116,7 @@ def test_spec_example_passes_check(tmp_path):
 def test_ur20_palletizer_through_ur_rtde():
     """`cellrunner run --backend ur` against `cellrunner twin` of the UR20 cell: the
     unmodified ur_rtde client streams the approved plan at 500 Hz to the virtual UR20."""
-    from tests.twin.cell_rig import run_ur, twin
+    from tests.rig import run_ur, twin
 
     cell, task, param, _, _ = CELLS["ur20"]
     host = "127.0.0.199"

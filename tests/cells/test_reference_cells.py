@@ -4,44 +4,14 @@ with the SPEC's result codes; the force steps' failures (blocked insert, no cont
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 
 import pytest
 
+from tests.cells.reference import PALLETIZER, PEG, probe_task
 from tests.conftest import ROOT
-
-PALLETIZER = ("cells/palletizer_ur10e.yaml", "tasks/palletize.yaml")
-PEG = ("cells/peg_ur3e.yaml", "tasks/peg_insert.yaml")
-
-
-def probe_task(max_distance_m: float, force_N: float = 8.0) -> str:
-    """The peg cell's probe: the empty gripper down from 30 mm above the hole until a force
-    over ``force_N`` or ``max_distance_m`` (the block is 30-40 mm down)."""
-    return f"""task: probe
-steps:
-  - move: home
-  - approach: {{to: hole, distance: 0.03}}
-  - move_until_contact: {{direction: [0, 0, 1], speed: 0.01, force: {force_N:g}, max_distance: {max_distance_m:g}}}
-  - retreat: 0.05
-  - move: home
-"""
-
-
-def dry_run(cell: str, task: str, *extra: str) -> dict:
-    r = subprocess.run(
-        [sys.executable, "-m", "cellrunner.cli.main", "dry-run", cell, task, "--json", *extra],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=300,
-        env={**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"},
-    )
-    assert r.returncode in (0, 1), r.stderr[-3000:]
-    out = json.loads(r.stdout)
-    assert (r.returncode == 0) == (out["result_code"] == 0)
-    return out
+from tests.rig import dry_run
 
 
 def failed(out: dict) -> list[tuple[int, str]]:

@@ -8,9 +8,9 @@ from __future__ import annotations
 import json
 import time
 
-from tests.cells.test_reference_cells import PALLETIZER, PEG, probe_task
+from tests.cells.reference import PALLETIZER, PEG, probe_task
 from tests.conftest import ROOT
-from tests.twin.cell_rig import fault, fault_once_moving, run_ur, twin
+from tests.rig import fault, fault_once_moving, run_ur, twin
 
 
 def test_palletizer_through_ur_rtde():

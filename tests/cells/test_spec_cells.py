@@ -18,10 +18,8 @@ from pathlib import Path
 import pytest
 
 from cellrunner.cli.main import main
-from tests.cells.test_vacuum_places import project
-from tests.planning.test_on_error_check import run_json
-
-pytest.importorskip("mujoco")
+from tests.cells.reference import project
+from tests.rig import main_json
 
 PRESS_CELL = """cell: press-fit
 robot:
@@ -206,7 +204,7 @@ def test_spec_cells_validate(request, cell, capsys):
 
 
 def test_press_checks_with_the_retreat_leaving_the_contact(press):
-    code, out = run_json("check", *press)
+    code, out = main_json("check", *press)
     assert code == 0, out["errors"]
     rows = {s["index"]: s for s in out["steps"]}
     assert rows[7]["kind"] == "move_until_contact"
@@ -217,7 +215,7 @@ def test_press_checks_with_the_retreat_leaving_the_contact(press):
 
 
 def test_press_runs_in_the_twin(press):
-    code, out = run_json("dry-run", *press)
+    code, out = main_json("dry-run", *press)
     assert (code, out["result_code"]) == (0, 0), out["result_text"]
     rows = {s["index"]: s for s in out["steps"]}
     assert rows[8]["name"] == "0.3 s" and rows[8]["duration_s"] == pytest.approx(0.3, abs=0.01)
@@ -226,7 +224,7 @@ def test_press_runs_in_the_twin(press):
 
 
 def test_float_params_take_plain_si_numbers_on_the_command_line(press):
-    code, out = run_json("dry-run", *press, "-p", "push=25", "-p", "dwell=0", "-p", "reach=0.054")
+    code, out = main_json("dry-run", *press, "-p", "push=25", "-p", "dwell=0", "-p", "reach=0.054")
     assert (code, out["result_code"]) == (0, 0), out["result_text"]
     assert out["params"] == {"push": 25.0, "dwell": 0.0, "reach": 0.054}
 
@@ -239,7 +237,7 @@ def test_a_reach_range_that_falls_short_is_refused_with_the_value(press, tmp_pat
     short.write_text(
         Path(task).read_text().replace("min: 0.05, max: 0.055", "min: 0.01, max: 0.055")
     )
-    code, out = run_json("check", cell, str(short))
+    code, out = main_json("check", cell, str(short))
     assert code == 1
     assert out["errors"][0].startswith(
         "reach=0.01: step 7 move_until_contact: the guarded line meets nothing within its "
@@ -248,21 +246,21 @@ def test_a_reach_range_that_falls_short_is_refused_with_the_value(press, tmp_pat
 
 
 def test_second_tool_picks_the_part_laid_for_its_cups_and_confirms_the_place(tools):
-    code, out = run_json("check", *tools)
+    code, out = main_json("check", *tools)
     assert code == 0, out["errors"]
-    code, out = run_json("dry-run", *tools)
+    code, out = main_json("dry-run", *tools)
     assert (code, out["result_code"]) == (0, 0), (out["result_text"], out["steps"])
     assert out["parts_end_m"]["box"] == pytest.approx([0.6, 0.1, 0.05], abs=0.003)
 
 
 def test_camera_pose_insert_and_confirmed_release(cam):
-    code, out = run_json("check", *cam)
+    code, out = main_json("check", *cam)
     assert code == 0, out["errors"]
     assert len(out["slots_checked"]["seen"]) == 9  # the pose box's centre and corners
     assert [s["message"] for s in out["steps"][-3:]] == [
         "on_error: verified from 15 states the job can fail in"  # mid-move states too
     ] * 3
-    code, out = run_json("dry-run", *cam)
+    code, out = main_json("dry-run", *cam)
     assert (code, out["result_code"]) == (0, 0), (out["result_text"], out["steps"])
     assert out["parts_end_m"]["plug"][:2] == pytest.approx([0.54, 0.25], abs=0.002)
 
@@ -276,14 +274,14 @@ def test_camera_pose_insert_and_confirmed_release(cam):
     ],
 )
 def test_camera_cell_faults_give_the_spec_codes(cam, fault, code, text):
-    _, out = run_json("dry-run", *cam, "--inject", fault)
+    _, out = main_json("dry-run", *cam, "--inject", fault)
     assert out["result_code"] == code
     assert out["result_text"] == (text if code >= 100 else f"{text}; on_error done")
 
 
 def test_a_release_whose_sensor_never_sees_the_part_is_place_failed(tmp_path):
     task = CAM_TASK.replace("release: {confirm: seated}", "release: {confirm: part_present}")
-    _, out = run_json("dry-run", *project(tmp_path, CAM_CELL, task))
+    _, out = main_json("dry-run", *project(tmp_path, CAM_CELL, task))
     assert (out["result_code"], out["result_text"]) == (
         3,
         "place failed: part_present not true within 1.5 s after the release; on_error done",

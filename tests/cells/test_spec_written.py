@@ -30,8 +30,6 @@ import pytest
 
 from cellrunner.cli.main import main
 
-pytest.importorskip("mujoco")
-
 HERE = Path(__file__).parent / "spec_written"
 
 

@@ -7,30 +7,8 @@ from __future__ import annotations
 
 import pytest
 
-from tests.cells.test_reference_cells import PALLETIZER, dry_run
-from tests.conftest import ROOT
-
-pytest.importorskip("mujoco")
-
-PALLET_CELL = (ROOT / PALLETIZER[0]).read_text()
-PALLET_TASK = (ROOT / PALLETIZER[1]).read_text()
-CARTON = "  - {name: carton, box: {size: [0.20, 0.15, 0.10]}, mass: 2.0, at: infeed}\n"
-
-
-def place_failed_mm(out: dict) -> float:
-    """The offset (mm) a result-3 message measured."""
-    assert out["result_code"] == 3, (out["result_text"], out["steps"])
-    text = out["result_text"]
-    assert text.startswith("place failed: part ") and "from its target (tolerance 5 mm" in text
-    return float(text.split(" is ")[1].split(" mm")[0])
-
-
-def project(tmp_path, cell: str, task: str = PALLET_TASK) -> tuple[str, str]:
-    (tmp_path / "cells").mkdir()
-    (tmp_path / "tasks").mkdir()
-    (tmp_path / "cells" / "c.yaml").write_text(cell)
-    (tmp_path / "tasks" / "t.yaml").write_text(task)
-    return str(tmp_path / "cells" / "c.yaml"), str(tmp_path / "tasks" / "t.yaml")
+from tests.cells.reference import CARTON, PALLET_CELL, PALLET_TASK, PALLETIZER, project
+from tests.rig import dry_run
 
 
 def fixed_place(z_m: float) -> tuple[str, str]:

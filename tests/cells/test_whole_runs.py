@@ -12,8 +12,9 @@ import sys
 import pytest
 
 from cellrunner.cli.faults import Injection
-from tests.cells.test_reference_cells import PALLETIZER, dry_run
+from tests.cells.reference import PALLETIZER
 from tests.conftest import ROOT
+from tests.rig import dry_run
 
 pytest.importorskip("mujoco")
 

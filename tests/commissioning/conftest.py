@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tests.twin.cell_rig import cli, fault, twin
+from tests.rig import cli, fault, twin
 
 __all__ = ["CELL", "TASK", "cli", "fault", "twin", "write_project"]
 

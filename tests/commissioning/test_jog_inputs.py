@@ -62,7 +62,7 @@ def test_datagrams_in_si_units():
 
 
 def test_udp_on_a_real_socket_newest_seq_stands_and_bad_ones_are_counted():
-    from tests.twin.cell_rig import free_port
+    from tests.rig import free_port
 
     port = free_port("127.0.0.1")
     source = open_input(f"udp:{port}")

@@ -19,7 +19,7 @@ import numpy as np
 
 from tests.commissioning.conftest import CELL, fault, twin, write_project
 from tests.conftest import ROOT
-from tests.twin.cell_rig import CLI, ENV, free_port
+from tests.rig import CLI, ENV, free_port
 
 #: a loopback address of this process's own: several checkouts run these tests at once
 HOST = f"127.26.{os.getpid() % 250 + 1}.1"

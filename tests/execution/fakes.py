@@ -10,9 +10,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cellrunner.backends.base import BackendError, RobotState, Safety
-from cellrunner.model.expand import Step
+from cellrunner.errors import BackendError
+from cellrunner.execution.cell import CellController
+from cellrunner.execution.journal import Journal
+from cellrunner.model.expand import Step, expand
+from cellrunner.model.load import load_cell, load_task
+from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.model.trajectory import Trajectory, approve
+from tests.conftest import DEMO_CELL
 
 RATE = 500.0
 
@@ -189,3 +194,52 @@ class LineMotions:
 
     def tcp_position_m(self, q_rad):
         return np.asarray(q_rad[:3])
+
+
+@dataclass(frozen=True)
+class FakePlan:
+    """A job's plan as the cell runs it (:class:`~cellrunner.execution.planner.PlannedJob`)."""
+
+    run_steps: list[Step]
+    motions: LineMotions
+    planned_cycle_time_s: float
+
+
+#: a job the fakes run ends within this many ticks
+MAX_TICKS = 200_000
+
+
+def planner(loaded, params, q_now):
+    cell = load_cell(DEMO_CELL)
+    steps = expand(loaded, cell.cell, params)
+    return FakePlan(steps, LineMotions(steps), 1.0)
+
+
+def make_cell(tmp_path, arm=None):
+    """The demo cell's controller on a :class:`ScriptedArm` (journal in ``tmp_path``),
+    set up and in Idle: (controller, arm)."""
+    cell = load_cell(DEMO_CELL)
+    tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
+    arm = arm or ScriptedArm()
+    controller = CellController(cell, tasks, arm, Journal(tmp_path / "jobs.sqlite"), planner)
+    controller.setup()
+    tick(controller, 2)  # Resetting -> Idle
+    return controller, arm
+
+
+def tick(cell, n=1):
+    """``n`` controller periods of ``cell``."""
+    for _ in range(n):
+        cell.backend.wait_period()
+        cell.tick()
+
+
+def run(runner, arm, until=None):
+    """Start ``runner`` and tick it on ``arm`` until it is done (or ``until(runner)``)."""
+    runner.start()
+    for _ in range(MAX_TICKS):
+        if runner.done or (until and until(runner)):
+            return runner
+        arm.wait_period()
+        runner.tick()
+    raise AssertionError("job did not end within the tick budget")

@@ -13,7 +13,7 @@ import sys
 import pytest
 
 from tests.conftest import ROOT
-from tests.twin.cell_rig import ENV
+from tests.rig import ENV
 
 CELL = ROOT / "cells" / "align_pick_ur10e.yaml"
 TASK = ROOT / "tasks" / "align_pick.yaml"

@@ -6,37 +6,11 @@ import time
 
 import pytest
 
-from cellrunner.execution.cell import CellController, JobPlan
 from cellrunner.execution.journal import Journal
 from cellrunner.execution.loop import ControlLoop
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
-from cellrunner.model.expand import expand
-from cellrunner.model.load import load_cell, load_task
-from tests.conftest import DEMO_CELL
-from tests.execution.fakes import LineMotions, ScriptedArm
-
-
-def planner(loaded, params, q_now):
-    cell = load_cell(DEMO_CELL)
-    steps = expand(loaded, cell.cell, params)
-    return JobPlan(steps, LineMotions(steps), 1.0)
-
-
-def make_cell(tmp_path, arm=None):
-    cell = load_cell(DEMO_CELL)
-    tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
-    arm = arm or ScriptedArm()
-    controller = CellController(cell, tasks, arm, Journal(tmp_path / "jobs.sqlite"), planner)
-    controller.setup()
-    tick(controller, 2)  # Resetting -> Idle
-    return controller, arm
-
-
-def tick(cell, n=1):
-    for _ in range(n):
-        cell.backend.wait_period()
-        cell.tick()
+from tests.execution.fakes import ScriptedArm, make_cell, tick
 
 
 def test_job_goes_through_packml_and_is_journaled(tmp_path):

@@ -15,7 +15,7 @@ from cellrunner.model.codes import ResultCode
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.model.trajectory import Trajectory, approve, backwards
 from cellrunner.sim.from_cell import description_of
-from tests.cells.test_reference_cells import probe_task
+from tests.cells.reference import probe_task
 from tests.conftest import ROOT
 from tests.execution.twin_cell import twin_cell
 

@@ -12,9 +12,7 @@ from cellrunner.model.expand import expand, resolve_params
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.model.task import ProtectiveStopPolicy
 from tests.conftest import DEMO_CELL, PICK_PLACE
-from tests.execution.fakes import LineMotions, ScriptedArm
-
-MAX_TICKS = 200_000
+from tests.execution.fakes import MAX_TICKS, LineMotions, ScriptedArm, run
 
 
 def make(arm: ScriptedArm, policy=None, task=PICK_PLACE, **kw):
@@ -33,16 +31,6 @@ def make(arm: ScriptedArm, policy=None, task=PICK_PLACE, **kw):
     )
     runner = JobRunner(ctx, steps, policy or loaded.task.on_protective_stop, **kw)
     return runner, motions
-
-
-def run(runner, arm, until=None):
-    runner.start()
-    for _ in range(MAX_TICKS):
-        if runner.done or (until and until(runner)):
-            return runner
-        arm.wait_period()
-        runner.tick()
-    raise AssertionError("job did not end within the tick budget")
 
 
 def statuses(runner):

@@ -11,7 +11,7 @@ import pytest
 from cellrunner.errors import CellrunnerError
 from cellrunner.execution.journal import Journal
 from cellrunner.model.codes import ResultCode
-from tests.execution.test_cell import make_cell, tick
+from tests.execution.fakes import make_cell, tick
 
 
 def test_an_empty_journal_file_is_an_error_not_a_fresh_start(tmp_path):

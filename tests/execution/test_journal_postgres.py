@@ -129,7 +129,7 @@ def test_an_unreachable_database_is_a_clear_error(pg):
 
 def test_jobs_command_on_an_unreachable_database_is_exit_3(tmp_path, capsys):
     from cellrunner.cli.main import main
-    from tests.execution.test_dryrun import CELL
+    from tests.rig import CELL
 
     (tmp_path / "cells").mkdir()
     cell = tmp_path / "cells" / "c.yaml"

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -31,8 +32,6 @@ from cellrunner.model.codes import ResultCode
 from cellrunner.model.geometry import Box, Placed
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.planning.world import CellWorld
-
-mujoco = pytest.importorskip("mujoco")
 
 ROOT = Path(__file__).resolve().parents[2]
 CELLS = {

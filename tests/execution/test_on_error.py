@@ -11,8 +11,7 @@ from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import expand, expand_on_error, resolve_params
 from cellrunner.model.load import load_cell, load_task
 from tests.conftest import DEMO_CELL
-from tests.execution.fakes import LineMotions, ScriptedArm
-from tests.execution.test_job import run
+from tests.execution.fakes import LineMotions, ScriptedArm, run
 
 
 def make(arm: ScriptedArm, tmp_path, text: str, journal: list):

@@ -19,8 +19,6 @@ import pytest
 from cellrunner.cli.main import main
 from tests.conftest import ROOT
 
-pytest.importorskip("mujoco")
-
 CNC = ("cells/cnc_tending_ur5e.yaml", "tasks/cnc_tend.yaml")
 VISION = ("cells/vision_pick_ur10e.yaml", "tasks/vision_pick.yaml")
 PALLETIZER = ("cells/palletizer_ur10e.yaml", "tasks/palletize.yaml")

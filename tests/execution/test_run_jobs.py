@@ -5,26 +5,20 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
-import subprocess
-import sys
+from pathlib import Path
 
-from tests.conftest import ROOT
-from tests.execution.test_dryrun import project  # noqa: F401 (fixture)
+import pytest
 
-
-def cli(*args, cwd=ROOT):
-    return subprocess.run(
-        [sys.executable, "-m", "cellrunner.cli.main", *args],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=600,
-        env={**os.environ, "MUJOCO_GL": "osmesa"},
-    )
+from tests.rig import CELL, TASK, cli, write_cell
 
 
-def test_run_on_the_twin_is_journaled(project):  # noqa: F811
+@pytest.fixture(scope="module")
+def project(tmp_path_factory) -> tuple[Path, Path]:
+    """The rig's small cell and task, laid out once for this module."""
+    return write_cell(tmp_path_factory.mktemp("project"), CELL, TASK)
+
+
+def test_run_on_the_twin_is_journaled(project):
     cell, task = project
     r = cli("run", str(cell), str(task), "--backend", "sim", "--json")
     assert r.returncode == 0, r.stderr

@@ -17,8 +17,6 @@ from cellrunner.sim.from_cell import description_of
 from tests.conftest import ROOT
 from tests.execution.twin_cell import twin_cell
 
-pytest.importorskip("mujoco")
-
 #: the controller refuses to unlock a stop sooner (job.UNLOCK_DELAY_S)
 UNLOCK_DELAY_S = 5.0
 

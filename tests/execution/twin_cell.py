@@ -5,12 +5,11 @@ from __future__ import annotations
 
 from typing import Any
 
+from cellrunner.execution.assembly import assemble_cell
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
 from cellrunner.execution.loop import ControlLoop
-from cellrunner.execution.planner import job_planner
 from cellrunner.model.load import LoadedCell
-from cellrunner.planning.world import CellWorld
 
 
 def twin_cell(
@@ -19,9 +18,9 @@ def twin_cell(
     """The controller of ``cell`` running ``tasks`` on ``backend`` (planned afresh, no plan
     cache; an in-memory journal; ``kw`` to :class:`CellController`), set up and in Idle,
     and its control loop."""
-    planner = job_planner(CellWorld(cell), use_cache=False)
-    controller = CellController(cell, tasks, backend, Journal(":memory:"), planner, **kw)
-    controller.setup()
-    loop = ControlLoop(controller)
-    loop.step(3)
-    return controller, loop
+    kw.setdefault("wait_for_unhold", True)  # the controller's own default
+    assembled = assemble_cell(
+        cell, tasks, backend, journal=Journal(":memory:"), use_cache=False, **kw
+    ).setup()
+    assembled.loop.step(3)
+    return assembled.controller, assembled.loop

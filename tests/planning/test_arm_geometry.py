@@ -59,8 +59,9 @@ def outside_by(points: np.ndarray, parts) -> np.ndarray:
 @cache
 def cb3_meshes(model: str):
     """pinocchio model, data, collision geometry (meshes) and T_world_base of a CB3 URDF."""
-    pin = pytest.importorskip("pinocchio")
     from importlib import metadata
+
+    import pinocchio as pin
 
     dist = metadata.distribution("example-robot-data")
     urdf = next(
@@ -168,7 +169,8 @@ def test_over_approximation_is_a_few_millimetres(model: str) -> None:
 
 def test_cb3_over_approximation_measured_against_the_real_mesh() -> None:
     """UR5: points on the parts' outer surface lie within the stated max of the mesh."""
-    coal = pytest.importorskip("coal")
+    import coal
+
     from cellrunner.planning.stl import read_stl
 
     pmodel, geoms, T_world_base = cb3_meshes("ur5")

@@ -13,7 +13,7 @@ from cellrunner.cli.main import main
 from cellrunner.model.params import Param
 from cellrunner.plc.param_registers import decode_params
 from tests.conftest import DEMO_CELL
-from tests.planning.cli_json import cli
+from tests.rig import json_of
 
 TASK = """task: side
 params:
@@ -47,20 +47,20 @@ def write(tmp_path, choices: str):
 
 
 def test_every_choice_is_proved(tmp_path, cell):
-    out = cli("check", str(cell), write(tmp_path, "[pallet, left]"), "--no-cache")
+    out = json_of("check", str(cell), write(tmp_path, "[pallet, left]"), "--no-cache")
     assert out["ok"], out["errors"]
     assert out["params"] == {"side": "pallet"}  # the first choice by default
     assert out["slots_checked"] == {"side": ["pallet", "left"]}
     places = [s["name"] for s in out["steps"] if s["kind"] == "descend"]
     assert places[-1] == "pallet"
-    out = cli(
+    out = json_of(
         "check", str(cell), write(tmp_path, "[pallet, left]"), "-p", "side=left", "--no-cache"
     )
     assert out["ok"] and [s["name"] for s in out["steps"] if s["kind"] == "descend"][-1] == "left"
 
 
 def test_a_choice_that_fails_is_named(tmp_path, cell):
-    out = cli("check", str(cell), write(tmp_path, "[pallet, off_table]"), "--no-cache")
+    out = json_of("check", str(cell), write(tmp_path, "[pallet, off_table]"), "--no-cache")
     assert not out["ok"]
     assert out["errors"][0].startswith(
         "side=off_table: step 8 release 'off_table': the part 'block' would be let go with "

@@ -13,6 +13,7 @@ from cellrunner.model.robots import ROBOTS
 from cellrunner.planning.collision import CollisionModel, MotionCheck
 from cellrunner.planning.joint_path import CORNER_POINTS, plan_joint_path, round_corners
 from cellrunner.planning.kinematics import ArmKinematics
+from tests.planning.pins import pin_between_samples
 
 TOOL = (Placed("gripper", Cylinder(0.04, 0.15), pose_matrix((0, 0, 0.075))),)
 HOME = np.radians([0, -90, 90, -90, -90, 0])
@@ -136,22 +137,6 @@ def test_a_plate_the_sampled_shortcut_steps_over_is_caught_by_the_proofs(monkeyp
     assert len(path.q_rad) > 2
     for q0, q1 in zip(path.q_rad[:-1], path.q_rad[1:], strict=True):
         assert world.check_motion(q0, q1).ok
-
-
-def pin_between_samples(kin, a, b, tool_centre_z_m: float, tool_radius_m: float) -> np.ndarray:
-    """Where a 2 mm pin sits 3 mm inside a flange-mounted tool cylinder's rim (centre
-    ``tool_centre_z_m`` along the flange's z) halfway between two of the planner's samples
-    of the joint move a -> b, a turn of the base: on the side away from the base axis,
-    where each sample's cylinder passes clear of it and the swept one does not."""
-    import math
-
-    from cellrunner.planning.joint_path import LAZY_RESOLUTION_RAD
-
-    n = math.ceil(float(np.linalg.norm(b - a)) / LAZY_RESOLUTION_RAD)
-    T = kin.T_world_flange(a + (n // 2 + 0.5) / n * (b - a))
-    centre = T[:3, :3] @ np.array([0, 0, tool_centre_z_m]) + T[:3, 3]
-    radial = np.array([centre[0], centre[1], 0.0]) / np.hypot(centre[0], centre[1])
-    return centre + (tool_radius_m - 0.003) * radial
 
 
 @pytest.mark.parametrize("model", ["ur5e", "ur5", "ur10e", "ur20"])

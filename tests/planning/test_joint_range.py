@@ -16,7 +16,7 @@ from cellrunner.planning.collision import CollisionModel
 from cellrunner.planning.kinematics import ArmKinematics
 from cellrunner.planning.timing import MotionLimits
 from cellrunner.planning.verify import verify_trajectory
-from tests.planning.test_check_cli import CELL, PICK_PLACE, check
+from tests.planning.check_cell import CELL, PICK_PLACE, check
 
 RANGE = [[-120, 120], [-180, 0], [-160, 160], [-270, 90], [-180, 0], [-180, 180]]
 TCP = pose_matrix((0, 0, 0.15))

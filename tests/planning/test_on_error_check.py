@@ -5,15 +5,11 @@ run is refused like any infeasible job."""
 
 from __future__ import annotations
 
-import contextlib
-import io
-import json
-
 import numpy as np
 import pytest
 
-from cellrunner.cli.main import main
 from tests.conftest import ROOT
+from tests.rig import main_json
 
 DEMO = str(ROOT / "cells" / "demo_ur5e.yaml")
 PICK = """task: pick_then_home
@@ -25,13 +21,6 @@ on_error:
 """
 
 
-def run_json(*argv: str) -> tuple[int, dict]:
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()):
-        code = main([*argv, "--json"])
-    return code, json.loads(out.getvalue())
-
-
 def task(tmp_path, on_error: str) -> str:
     path = tmp_path / "t.yaml"
     path.write_text(PICK + on_error)
@@ -41,7 +30,7 @@ def task(tmp_path, on_error: str) -> str:
 def test_a_joint_move_from_a_part_resting_on_the_table_is_refused_by_name(tmp_path):
     """After the grip the block still rests on the table: a planned joint move home from
     there would drag it through the table; check names the on_error step and the state."""
-    code, out = run_json("check", DEMO, task(tmp_path, "  - move: home\n"))
+    code, out = main_json("check", DEMO, task(tmp_path, "  - move: home\n"))
     assert code == 1 and not out["ok"]
     assert out["errors"] == [
         "on_error step 7 move 'home': from the end of step 4 grip 'infeed': start "
@@ -53,7 +42,7 @@ def test_a_joint_move_from_a_part_resting_on_the_table_is_refused_by_name(tmp_pa
 
 
 def test_lifting_first_makes_on_error_feasible_from_every_state(tmp_path):
-    code, out = run_json("check", DEMO, task(tmp_path, "  - lift: 0.03\n  - move: home\n"))
+    code, out = main_json("check", DEMO, task(tmp_path, "  - lift: 0.03\n  - move: home\n"))
     assert code == 0, out["errors"]
     rows = [(s["index"], s["kind"], s["status"], s["message"]) for s in out["steps"][-2:]]
     assert rows == [
@@ -63,7 +52,7 @@ def test_lifting_first_makes_on_error_feasible_from_every_state(tmp_path):
 
 
 def test_an_on_error_line_out_of_reach_is_refused_from_every_state(tmp_path):
-    code, out = run_json("check", DEMO, task(tmp_path, "  - lift: 1.5\n"))
+    code, out = main_json("check", DEMO, task(tmp_path, "  - lift: 1.5\n"))
     assert code == 1
     (error,) = out["errors"]
     assert error.startswith("on_error step 7 lift: from the start: ")
@@ -71,8 +60,7 @@ def test_an_on_error_line_out_of_reach_is_refused_from_every_state(tmp_path):
 
 
 def test_a_job_whose_on_error_cannot_run_is_refused_before_it_moves(tmp_path):
-    pytest.importorskip("mujoco")
-    code, out = run_json("dry-run", DEMO, task(tmp_path, "  - move: home\n"))
+    code, out = main_json("dry-run", DEMO, task(tmp_path, "  - move: home\n"))
     assert code == 1
     assert out["result_code"] == 103  # planning failed
     assert out["result_text"].startswith("on_error step 7 move 'home': from the end of step 4 ")
@@ -98,7 +86,7 @@ def test_on_error_retreats_from_where_a_guarded_line_touched(tmp_path):
     contact (it was proved from the full travel, inside the table, and refused)."""
     path = tmp_path / "probe.yaml"
     path.write_text(PROBE.replace("MAX", "0.08"))
-    code, out = run_json("check", DEMO, str(path), "--no-cache")
+    code, out = main_json("check", DEMO, str(path), "--no-cache")
     assert code == 0, out["errors"]
     assert [s["status"] for s in out["steps"][-2:]] == ["ok", "ok"]
 
@@ -123,7 +111,7 @@ def test_on_error_retreats_from_where_a_guarded_line_touched(tmp_path):
 def test_a_guarded_line_that_meets_nothing_is_refused(tmp_path):
     path = tmp_path / "probe.yaml"
     path.write_text(PROBE.replace("MAX", "0.04"))
-    code, out = run_json("check", DEMO, str(path), "--no-cache")
+    code, out = main_json("check", DEMO, str(path), "--no-cache")
     assert code == 1
     assert out["errors"] == [
         "step 3 move_until_contact: the guarded line meets nothing within its max_distance "

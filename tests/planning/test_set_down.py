@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from tests.conftest import DEMO_CELL
-from tests.planning.cli_json import cli
+from tests.rig import json_of
 
 PLACE = "task: t\nsteps:\n  - move: home\n  - pick: {{at: infeed}}\n  - place: {{at: pallet, offset: [0, 0, {dz}]}}\n"
 
@@ -15,8 +15,8 @@ PLACE = "task: t\nsteps:\n  - move: home\n  - pick: {{at: infeed}}\n  - place: {
 def test_a_set_down_touch_is_approved_and_placed(tmp_path, dz):
     task = tmp_path / "t.yaml"
     task.write_text(PLACE.format(dz=dz))
-    assert cli("check", str(DEMO_CELL), str(task), "--no-cache")["ok"]
-    assert cli("dry-run", str(DEMO_CELL), str(task))["result_code"] == 0
+    assert json_of("check", str(DEMO_CELL), str(task), "--no-cache")["ok"]
+    assert json_of("dry-run", str(DEMO_CELL), str(task))["result_code"] == 0
 
 
 def test_a_part_pushed_into_the_table_is_refused_by_check(tmp_path):
@@ -24,7 +24,7 @@ def test_a_part_pushed_into_the_table_is_refused_by_check(tmp_path):
     task.write_text(
         PLACE.format(dz="0.02")
     )  # the pallet frame's Z points down: 17 mm into the table
-    out = cli("check", str(DEMO_CELL), str(task), "--no-cache")
+    out = json_of("check", str(DEMO_CELL), str(task), "--no-cache")
     assert out["errors"] == [
         "step 7 descend 'pallet': at its end the part 'block' would be 17.0 mm inside fixture 'table' (setting a "
         "part down may press 1 mm at most); move the target up by 16.0 mm or more"

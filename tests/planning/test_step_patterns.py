@@ -12,7 +12,7 @@ from cellrunner.cli.main import main
 from cellrunner.model.expand import expand
 from cellrunner.model.load import load_cell, load_task
 from tests.conftest import DEMO_CELL
-from tests.planning.cli_json import cli
+from tests.rig import json_of
 
 HOLES = "{grid: [2, 2], pitch: [0.05, 0.06], index: hole}"
 TASK = f"""task: screws
@@ -45,7 +45,7 @@ def test_each_hole_of_a_pattern_offsets_every_targeted_step(tmp_path):
 def test_check_proves_every_hole(tmp_path):
     path = tmp_path / "t.yaml"
     path.write_text(TASK)
-    out = cli("check", str(DEMO_CELL), str(path), "--no-cache")
+    out = json_of("check", str(DEMO_CELL), str(path), "--no-cache")
     assert out["ok"], out["errors"]
     assert out["slots_checked"] == {"hole": [0, 1, 2, 3]}
 

@@ -4,7 +4,7 @@ off the pallet, which the twin then failed as the part fell)."""
 from __future__ import annotations
 
 from tests.conftest import DEMO_CELL
-from tests.planning.cli_json import cli
+from tests.rig import json_of
 
 PLACE = "task: t\nsteps:\n  - move: home\n  - pick: {at: infeed}\n  - place: {at: pallet, offset: [0, 0, DZ]}\n  - move: home\n"
 
@@ -13,7 +13,7 @@ def test_a_place_in_thin_air_is_refused(tmp_path):
     """The pallet frame's Z points down: -0.02 lets the block go 23 mm above the table."""
     task = tmp_path / "t.yaml"
     task.write_text(PLACE.replace("DZ", "-0.02"))
-    out = cli("check", str(DEMO_CELL), str(task), "--no-cache")
+    out = json_of("check", str(DEMO_CELL), str(task), "--no-cache")
     assert out["errors"] == [
         "step 8 release 'pallet': the part 'block' would be let go with nothing under it "
         "within place_tolerance 5 mm (the nearest thing is fixture 'table', 23.0 mm away): "
@@ -25,11 +25,11 @@ def test_a_place_in_thin_air_is_refused(tmp_path):
 def test_a_drop_within_the_place_tolerance_is_a_place(tmp_path):
     task = tmp_path / "t.yaml"
     task.write_text(PLACE.replace("DZ", "-0.001"))  # 4 mm above the table
-    assert cli("check", str(DEMO_CELL), str(task), "--no-cache")["ok"]
+    assert json_of("check", str(DEMO_CELL), str(task), "--no-cache")["ok"]
 
 
 def test_an_upper_layer_rests_on_the_slot_below(tmp_path):
     """The palletizer's slot 4 (layer 2) is let go over slot 0's carton, which an earlier
     job put there: it rests on it."""
-    out = cli("check", "cells/palletizer_ur10e.yaml", "tasks/palletize.yaml", "-p", "slot=4")
+    out = json_of("check", "cells/palletizer_ur10e.yaml", "tasks/palletize.yaml", "-p", "slot=4")
     assert out["ok"], out["errors"]

@@ -72,7 +72,7 @@ def test_force_lines_set_off_and_stop_gently(tmp_path, model, task_text) -> None
     """A force step's line accelerates at most ``FORCE_TCP_ACCEL_MPS2`` at the TCP, as
     moveUntilContact does: the tool's mass pushes on the wrist sensor in proportion (the
     peg line set off at ~5 m/s^2: 2.2 N through ur_rtde, a contact to a 1.5 N probe)."""
-    from tests.cells.test_reference_cells import probe_task
+    from tests.cells.reference import probe_task
 
     text = (ROOT / "cells/peg_ur3e.yaml").read_text().replace("model: ur3e", f"model: {model}")
     (tmp_path / "cell.yaml").write_text(text)
@@ -104,7 +104,7 @@ def _pin_between_samples(tmp_path):
     """The demo cell with a 2 mm pin where the tool's rim passes 3 mm deep halfway between
     two of the planner's samples of the joint move of ``SWING`` (the base turning 90 deg),
     and that task: sampling the move every 0.1 rad sees nothing, a proof of it hits the pin."""
-    from tests.planning.test_joint_path import pin_between_samples
+    from tests.planning.pins import pin_between_samples
 
     with contextlib.redirect_stderr(io.StringIO()):
         cell, _ = load(str(ROOT / "cells/demo_ur5e.yaml"), str(ROOT / "tasks/home.yaml"))

@@ -10,15 +10,15 @@ import io
 import pytest
 
 from cellrunner.cli.main import main
-from tests.planning.cli_json import cli
 from tests.planning.tight_peg import WALLS, write
+from tests.rig import json_of
 
 CONTACT = f", contact: [{', '.join(WALLS)}]"
 
 
 @pytest.mark.parametrize("gap_m", [0.002, 0.0005])
 def test_walls_named_in_contact_let_the_peg_in(tmp_path, gap_m):
-    out = cli("check", *write(tmp_path, gap_m, CONTACT, CONTACT), "--no-cache")
+    out = json_of("check", *write(tmp_path, gap_m, CONTACT, CONTACT), "--no-cache")
     assert out["ok"], out["errors"]
     insert = next(s for s in out["steps"] if s["kind"] == "insert")
     assert "wall_xm" in insert["message"]  # the contact allowed, as the row says
@@ -26,11 +26,11 @@ def test_walls_named_in_contact_let_the_peg_in(tmp_path, gap_m):
 
 def test_a_step_clearance_lets_the_peg_in_without_naming_walls(tmp_path):
     clearance = ", clearance: 0.0015"
-    assert cli("check", *write(tmp_path, 0.002, clearance, clearance), "--no-cache")["ok"]
+    assert json_of("check", *write(tmp_path, 0.002, clearance, clearance), "--no-cache")["ok"]
 
 
 def test_without_contact_the_descend_is_refused_and_the_hint_names_contact(tmp_path):
-    out = cli("check", *write(tmp_path, 0.002), "--no-cache")
+    out = json_of("check", *write(tmp_path, 0.002), "--no-cache")
     assert not out["ok"]
     (error,) = out["errors"]
     assert error.startswith("step 7 descend 'hole': part 'peg' is too close to fixture 'wall_")
@@ -42,7 +42,7 @@ def test_without_contact_the_descend_is_refused_and_the_hint_names_contact(tmp_p
 def test_only_the_named_walls_may_be_touched(tmp_path):
     """Naming three walls of four leaves the fourth at the full clearance."""
     three = f", contact: [{', '.join(WALLS[:3])}]"
-    out = cli("check", *write(tmp_path, 0.002, three, three), "--no-cache")
+    out = json_of("check", *write(tmp_path, 0.002, three, three), "--no-cache")
     assert not out["ok"]
     assert "fixture 'wall_yp'" in out["errors"][0]
 

@@ -9,7 +9,7 @@ import numpy as np
 from cellrunner.model.load import load_cell
 from cellrunner.planning.world import CellWorld
 from tests.conftest import DEMO_CELL
-from tests.planning.cli_json import cli
+from tests.rig import json_of
 
 #: two poses 12 cm either side of the block waiting at the infeed, at its height
 SWEEP = """task: t
@@ -24,7 +24,7 @@ steps:
 def test_a_straight_line_through_a_waiting_part_is_refused(tmp_path):
     task = tmp_path / "t.yaml"
     task.write_text(SWEEP.format(kind="linear"))
-    out = cli("check", str(DEMO_CELL), str(task), "--no-cache")
+    out = json_of("check", str(DEMO_CELL), str(task), "--no-cache")
     assert not out["ok"]
     assert out["errors"][0].startswith("step 3 linear 'infeed': tool 'jaw_")
     assert "too close to waiting part 'block'" in out["errors"][0]
@@ -46,7 +46,7 @@ def test_a_joint_move_goes_around_a_waiting_part(tmp_path):
     direct = world.collision.check_motion(*ends)
     assert not direct.ok and direct.clearance is not None
     assert direct.clearance.b == "waiting part 'block'"
-    out = cli("check", str(DEMO_CELL), str(task), "--no-cache")
+    out = json_of("check", str(DEMO_CELL), str(task), "--no-cache")
     assert out["ok"], out["errors"]
 
 
@@ -55,7 +55,7 @@ def test_jaws_narrower_than_the_part_are_refused(tmp_path):
     cell.write_text(DEMO_CELL.read_text().replace("stroke: 0.085", "stroke: 0.045"))
     task = tmp_path / "t.yaml"
     task.write_text("task: t\nsteps:\n  - move: home\n  - pick: {at: infeed}\n  - move: home\n")
-    out = cli("check", str(cell), str(task), "--no-cache")
+    out = json_of("check", str(cell), str(task), "--no-cache")
     assert out["errors"] == [
         "step 4 grip 'infeed': part 'block' is 50.0 mm across the jaws (along the TCP's X) "
         "but they open 45.0 mm (tool.gripper.stroke); fix: a gripper with a longer stroke, "
@@ -68,7 +68,7 @@ def test_the_pick_touches_its_waiting_part_and_carries_it_away(tmp_path):
     block is carried, no longer waiting: the lift is no collision with its own place."""
     task = tmp_path / "t.yaml"
     task.write_text("task: t\nsteps:\n  - move: home\n  - pick: {at: infeed}\n  - move: home\n")
-    out = cli("check", str(DEMO_CELL), str(task), "--no-cache")
+    out = json_of("check", str(DEMO_CELL), str(task), "--no-cache")
     assert out["ok"], out["errors"]
 
 
@@ -88,7 +88,7 @@ def test_jaws_around_a_short_block_may_come_down_to_its_table(tmp_path):
         "task: t\nsteps:\n  - move: home\n  - pick: {at: infeed}\n"
         "  - place: {at: pallet, offset: [0, 0, 0.005]}\n  - move: home\n"
     )
-    out = cli("check", str(cell), str(task), "--no-cache")
+    out = json_of("check", str(cell), str(task), "--no-cache")
     assert out["ok"], out["errors"]
 
 
@@ -97,7 +97,7 @@ def test_a_bare_grip_carries_the_part_waiting_at_the_tcp_through_check():
     20 mm up and along the belt, it runs into the next box waiting there (the spec-written
     ceiling conveyor cell; before, check carried nothing and approved the sweep)."""
     root = DEMO_CELL.parent.parent / "tests" / "cells" / "spec_written"
-    out = cli(
+    out = json_of(
         "check",
         str(root / "cells" / "ceiling_conveyor_ur5e.yaml"),
         str(root / "tasks" / "conveyor_sweep.yaml"),

@@ -27,7 +27,7 @@ from cellrunner.plc.modbus import (
 )
 from cellrunner.plc.service import PlcService
 from tests.plc.conftest import HERE, PlcProcess
-from tests.plc.test_modbus import drop_job_req, raise_job_req, wait_end
+from tests.plc.plc_steps import drop_job_req, raise_job_req, wait_end
 
 
 def test_job_req_toggled_fast_with_the_same_id_never_shows_a_reject(

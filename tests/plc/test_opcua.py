@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import socket
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -11,38 +10,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from cryptography.hazmat.primitives import serialization
-from cryptography.hazmat.primitives.asymmetric import rsa
 
 from cellrunner.plc.fake import FakeCell
-from cellrunner.plc.pki import make_certificate
 from cellrunner.plc.service import PlcService
 from cellrunner.plc.users import add_user
 from tests.plc.conftest import HERE, child_env, plc_test_tasks
+from tests.rig import free_port, write_client_cert
 
 USER, PASSWORD = "line3-plc", "correct horse battery"
-CLIENT_URI = "urn:cellrunner:test-client"
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
-def write_client_cert(directory: Path, name: str) -> tuple[Path, Path]:
-    key = rsa.generate_private_key(public_exponent=65537, key_size=2048)
-    cert = make_certificate(key, name, CLIENT_URI, ["localhost"], server=False)
-    cert_path, key_path = directory / f"{name}.der", directory / f"{name}.pem"
-    cert_path.write_bytes(cert.public_bytes(serialization.Encoding.DER))
-    key_path.write_bytes(
-        key.private_bytes(
-            serialization.Encoding.PEM,
-            serialization.PrivateFormat.PKCS8,
-            serialization.NoEncryption(),
-        )
-    )
-    return cert_path, key_path
 
 
 class Setup:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import socket
 import subprocess
 import sys
 import threading
@@ -25,6 +24,7 @@ from cellrunner.plc.fake import FakeCell
 from cellrunner.plc.service import PlcService
 from cellrunner.plc.users import add_user
 from tests.plc.conftest import HERE, child_env, plc_test_tasks
+from tests.rig import free_port
 
 HOST = "127.0.0.250"
 USER, PASSWORD = "line3", "s3cret pass"
@@ -45,16 +45,10 @@ class TimedCell(FakeCell):
         return super().status()
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind((HOST, 0))
-        return int(sock.getsockname()[1])
-
-
 @pytest.fixture
 def server(tmp_path: Path) -> Iterator[tuple[TimedCell, str]]:
     add_user(tmp_path / "users.yaml", USER, PASSWORD)
-    url = f"opc.tcp://{HOST}:{free_port()}/cellrunner"
+    url = f"opc.tcp://{HOST}:{free_port(HOST)}/cellrunner"
     config = {"opcua": {"endpoint": url, "security": ["none"], "users": "users.yaml"}}
     cell = TimedCell(tasks=plc_test_tasks()).start()
     service = PlcService(cell, config, base_dir=tmp_path)

@@ -25,12 +25,12 @@ class Engine:
     """The real CellController over a scripted arm, ticked by ``settle``."""
 
     def __init__(self, tmp_path: Path) -> None:
-        from tests.execution.test_cell import make_cell
+        from tests.execution.fakes import make_cell
 
         self.cell, _ = make_cell(tmp_path)
 
     def settle(self, until: Callable[[], bool], max_ticks: int = 20_000) -> None:
-        from tests.execution.test_cell import tick
+        from tests.execution.fakes import tick
 
         for _ in range(max_ticks):
             if until():

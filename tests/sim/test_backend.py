@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cellrunner.backends.base import BackendError, RobotBackend, Safety
+from cellrunner.backends.base import RobotBackend
 from cellrunner.backends.sim.backend import SimBackend
+from cellrunner.errors import BackendError
+from cellrunner.model.robot_state import Safety
 from cellrunner.model.trajectory import ApprovedTrajectory, approve
 from cellrunner.sim import demo
-
-pytest.importorskip("mujoco")
 
 GRAVITY = 9.81
 

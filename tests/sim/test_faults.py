@@ -7,11 +7,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cellrunner.backends.base import BackendError, RobotState, Safety
+from cellrunner.errors import BackendError
+from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.sim import demo
 from cellrunner.sim.safety import UNLOCK_DELAY_S
-
-pytest.importorskip("mujoco")
 
 
 def _no_fault_fields(state: RobotState) -> None:

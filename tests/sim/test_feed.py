@@ -41,8 +41,13 @@ def test_a_part_is_fed_only_where_the_spot_is_empty(tmp_path):
     spot = world.part_pose_world("carton")[:3, 3].copy()
     assert world.feed_parts() == []  # the cell file's carton is there
     carry_away(world, "carton")
+    parked = world.part_pose_world("carton#2")[:3, 3].copy()
     assert world.feed_parts() == ["carton#1"]
     assert np.linalg.norm(world.part_pose_world("carton#1")[:3, 3] - spot) < 1e-6
+    for _ in range(250):  # 0.5 s: the fed copy rests on the conveyor (it collides and
+        world.step_period()  # weighs again), the parked one floats where it was
+    assert np.linalg.norm(world.part_pose_world("carton#1")[:3, 3] - spot) < 0.002
+    assert np.linalg.norm(world.part_pose_world("carton#2")[:3, 3] - parked) < 1e-6
     assert world.feed_parts() == []
     carry_away(world, "carton#1")
     assert world.feed_parts() == ["carton#2"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -20,8 +21,6 @@ from cellrunner.sim.description import (
 )
 from cellrunner.sim.mjcf import build_mjcf, compile_model
 from cellrunner.sim.world import SimWorld
-
-mujoco = pytest.importorskip("mujoco")
 
 
 @pytest.mark.parametrize("model_name", available_models())

@@ -6,11 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cellrunner.backends.base import BackendError, Safety
+from cellrunner.errors import BackendError
+from cellrunner.model.robot_state import Safety
 from cellrunner.sim import demo
 from cellrunner.sim.places import PLACE_DROP_M
-
-pytest.importorskip("mujoco")
 
 TABLE_SPOT = np.array((0.30, 0.15, demo.CUBE_XYZ_M[2]))  # free table, where the cube may go
 

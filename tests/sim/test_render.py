@@ -16,7 +16,6 @@ from cellrunner.sim.render import (
     default_view,
 )
 
-pytest.importorskip("mujoco")
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
@@ -50,6 +49,8 @@ def test_default_view_frames_robot_and_fixtures(backend) -> None:
 
 def test_missing_gl_backend_is_a_clear_error_not_a_crash(tmp_path) -> None:
     code = (
+        "from cellrunner.sim.mujoco_loader import enable_pictures\n"
+        "enable_pictures()\n"  # pictures asked for, as dry-run --report does
         "from cellrunner.sim import demo\n"
         "from cellrunner.sim.world import SimWorld\n"
         "from cellrunner.sim.render import render_png, RenderUnavailable\n"

@@ -14,8 +14,6 @@ from cellrunner.model.expand import frame_pose
 from cellrunner.model.load import load_cell
 from tests.conftest import ROOT
 
-pytest.importorskip("mujoco")
-
 CELL = ROOT / "cells" / "palletizer_ur10e.yaml"
 VACUUM_ON, BLOW_OFF, VACUUM_OK = "DO0", "DO1", "DI0"
 
@@ -165,7 +163,8 @@ def test_grip_miss_takes_a_tall_carton_away_from_the_cups(tmp_path):
 
 def test_a_carton_held_by_suction_pushed_into_the_conveyor_is_a_protective_stop():
     """Set back down on the conveyor and driven 30 mm on: a contact, as for jaws."""
-    from cellrunner.backends.base import BackendError, Safety
+    from cellrunner.errors import BackendError
+    from cellrunner.model.robot_state import Safety
 
     world, kin, loaded = build()
     grip_and_lift(world, kin, loaded, lift_m=0.05)

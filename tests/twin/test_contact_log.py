@@ -6,15 +6,12 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import pytest
 
 from cellrunner.model.geometry import Box, Placed, pose_matrix
 from cellrunner.model.load import load_cell
 from cellrunner.planning.world import CellWorld
 from cellrunner.sim.from_cell import description_of
 from tests.conftest import DEMO_CELL
-
-pytest.importorskip("mujoco")
 
 
 def test_the_contact_a_twin_stops_on_is_named():

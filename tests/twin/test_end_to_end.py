@@ -9,18 +9,35 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
 from tests.conftest import ROOT
-from tests.execution.test_dryrun import project  # noqa: F401 (fixture)
-from tests.twin.cell_rig import TOUR, fault_once_moving
+from tests.rig import (
+    CELL,
+    DONE,
+    TASK,
+    TOUR,
+    fault_once_moving,
+    free_port,
+    modbus_client,
+    plc_job,
+    write_cell,
+)
+
+
+@pytest.fixture(scope="module")
+def project(tmp_path_factory) -> tuple[Path, Path]:
+    """The rig's small cell and task, laid out once for this module."""
+    return write_cell(tmp_path_factory.mktemp("project"), CELL, TASK)
+
 
 HOST = "127.0.0.23"
 
 
 @pytest.fixture
-def twin(project):  # noqa: F811
+def twin(project):
     cell, _ = project
     proc = subprocess.Popen(
         [sys.executable, "-m", "cellrunner.cli.main", "twin", str(cell), "--host", HOST],
@@ -41,7 +58,7 @@ def twin(project):  # noqa: F811
     proc.communicate(timeout=30)
 
 
-def run_job(project, *extra):  # noqa: F811
+def run_job(project, *extra):
     cell, task = project
     return subprocess.run(
         [
@@ -65,7 +82,7 @@ def run_job(project, *extra):  # noqa: F811
     )
 
 
-def test_run_through_ur_rtde_on_the_twin(project, twin):  # noqa: F811
+def test_run_through_ur_rtde_on_the_twin(project, twin):
     r = run_job(project)
     assert r.returncode == 0, r.stderr[-3000:]
     out = json.loads(r.stdout)
@@ -74,7 +91,7 @@ def test_run_through_ur_rtde_on_the_twin(project, twin):  # noqa: F811
     assert 4.0 < out["cycle_time_s"] < 15.0
 
 
-def test_protective_stop_on_the_twin_is_recovered(project, twin, tmp_path):  # noqa: F811
+def test_protective_stop_on_the_twin_is_recovered(project, twin, tmp_path):
     # two moves (1.8 s): the stop comes in the first; the whole pick and place runs in
     # test_run_through_ur_rtde_on_the_twin
     cell, _ = project
@@ -88,7 +105,7 @@ def test_protective_stop_on_the_twin_is_recovered(project, twin, tmp_path):  # n
     assert out["cycle_time_s"] > 6.0  # 1.8 s of moves: the controller's 5 s unlock delay is in it
 
 
-def test_unreachable_controller_is_exit_3(project):  # noqa: F811
+def test_unreachable_controller_is_exit_3(project):
     r = run_job(project, "--robot-host", "127.0.0.24")
     assert r.returncode == 3, r.stderr[-2000:]
     assert "Traceback" not in r.stderr
@@ -96,8 +113,6 @@ def test_unreachable_controller_is_exit_3(project):  # noqa: F811
 
 def test_serve_with_the_ur_backend_runs_a_plc_job(tmp_path):
     """serve --backend ur against the twin, a job triggered over Modbus TCP."""
-    from tests.execution.test_dryrun import CELL, TASK
-    from tests.test_serve import DONE, connect, free_port, job
 
     port = free_port("127.0.0.5")
     (tmp_path / "cells").mkdir()
@@ -134,8 +149,8 @@ def test_serve_with_the_ur_backend_runs_a_plc_job(tmp_path):
             stderr=subprocess.PIPE,
             text=True,
         )
-        client = connect(port)
-        regs = job(client, 9, 1, [], [0])
+        client = modbus_client(port, "127.0.0.5")
+        regs = plc_job(client, 9, 1, [], [0])
         assert regs[1] & DONE and (regs[4], regs[5]) == (9, 0), regs
     finally:
         if serve is not None:
@@ -150,7 +165,6 @@ def test_robotiq_gripper_through_its_socket(tmp_path):
     """kind: robotiq: the UR backend drives the gripper through its socket (port 63352 on
     the controller), which the twin serves over its MuJoCo jaws; a grip is confirmed by
     OBJ 2 (object detected), a miss retried and refused."""
-    from tests.execution.test_dryrun import CELL, TASK
 
     (tmp_path / "cells").mkdir()
     (tmp_path / "tasks").mkdir()

@@ -8,12 +8,11 @@ import time
 
 import numpy as np
 import pytest
+import rtde_control
+import rtde_receive
 
 from cellrunner.model.robots import ROBOTS
 from tests.twin.twin_process import Dashboard, TwinProcess
-
-rtde_control = pytest.importorskip("rtde_control")
-rtde_receive = pytest.importorskip("rtde_receive")
 
 RANGE = [[-170, 170], [-180, 0], [-160, 160], [-270, 90], [-180, 0], [-180, 180]]
 MODELS = ["ur20", "ur8long", "ur10", "ur3", "ur15", "ur18", "ur30", "ur7e", "ur12e"]

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.twin.cell_rig import fault_once_moving, run_ur, twin
+from tests.rig import fault_once_moving, run_ur, twin
 
 CNC = ("cells/cnc_tending_ur5e.yaml", "tasks/cnc_tend.yaml")
 VISION = ("cells/vision_pick_ur10e.yaml", "tasks/vision_pick.yaml")

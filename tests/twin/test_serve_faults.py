@@ -10,7 +10,7 @@ import sys
 import time
 
 from tests.conftest import ROOT
-from tests.twin.cell_rig import DONE, ERROR, Rig
+from tests.rig import DONE, ERROR, Rig
 
 #: SPEC section 7 says <= 200 ms; a PLC watchdog would fault the line well before 300 ms
 MAX_GAP_S = 0.3

@@ -12,15 +12,14 @@ import socket
 import struct
 import time
 
+import dashboard_client
 import numpy as np
 import pytest
+import rtde_control
+import rtde_io
+import rtde_receive
 
 from tests.twin.twin_process import Dashboard, TwinProcess, wait_until
-
-rtde_control = pytest.importorskip("rtde_control")
-rtde_receive = pytest.importorskip("rtde_receive")
-rtde_io = pytest.importorskip("rtde_io")
-dashboard_client = pytest.importorskip("dashboard_client")
 
 UNLOCK_REFUSED = (
     "Cannot unlock protective stop until 5s after occurrence. "

@@ -18,8 +18,7 @@ from prometheus_client.parser import text_string_to_metric_families
 from pyModbusTCP.client import ModbusClient
 
 from tests.conftest import ROOT
-from tests.execution.test_dryrun import CELL, TASK
-from tests.test_serve import free_port
+from tests.rig import CELL, TASK, free_port
 from tests.web.browser import Chromium
 
 HOST = "127.0.0.141"

@@ -169,7 +169,7 @@ def test_plc_link_is_up_while_the_heartbeat_moves():
     from pyModbusTCP.client import ModbusClient
 
     from cellrunner.plc.service import PlcService
-    from tests.test_serve import free_port
+    from tests.rig import free_port
 
     port = free_port(HOST)
     with (

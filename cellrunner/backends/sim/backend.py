@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cellrunner.backends.base import BackendError, RobotState, Safety
-from cellrunner.errors import PeerUnreachable
+from cellrunner.errors import BackendError, PeerUnreachable
+from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.model.trajectory import ApprovedTrajectory
 from cellrunner.sim.description import TwinDescription, dh_forward
 from cellrunner.sim.faults import Fault

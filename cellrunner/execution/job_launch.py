@@ -1,0 +1,107 @@
+"""From an accepted job to a running one: its plan made on a worker thread (so that no
+control tick waits for planning), then its runner built with the job's context and
+started on the control thread."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from cellrunner.backends.base import RobotBackend
+from cellrunner.execution.context import EventLog, Eye, JobContext, Motions, use_gripper
+from cellrunner.execution.job import JobRunner
+from cellrunner.execution.job_book import JobBook
+from cellrunner.execution.job_view import Job
+from cellrunner.execution.planner import PlannedJob, Planner
+from cellrunner.model.expand import Step
+from cellrunner.model.gripper import gripper_channels
+from cellrunner.model.load import LoadedCell
+from cellrunner.model.timing import release_time_s
+
+
+class JobLauncher:
+    """Plans a cell's jobs (one at a time, on its own thread) and starts their runners."""
+
+    def __init__(
+        self,
+        cell: LoadedCell,
+        backend: RobotBackend,
+        book: JobBook,
+        planner: Planner,
+        *,
+        log: EventLog | None = None,
+        wait_for_unhold: bool = True,
+        on_step_start: Callable[[Step, int], None] | None = None,
+        gate: Callable[[Step], bool] | None = None,
+        eye: Eye | None = None,
+        watch: Any = None,
+    ) -> None:
+        self.cell, self.backend, self.book, self.planner = cell, backend, book, planner
+        self.log, self.wait_for_unhold = log, wait_for_unhold
+        self.on_step_start = on_step_start
+        self.gate = gate  # run --step: each step starts once gate(step) is true
+        self.eye = eye  # the cameras, for align steps
+        #: the watched zone (execution.watch.ZoneWatch) whose map every motion is checked
+        #: against (SPEC 12); None: the cell is not watched
+        self.watch = watch
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan")
+
+    def plan(self, job: Job, q_now_rad: np.ndarray) -> None:
+        """Start planning ``job`` from where the arm stands (its plan: ``job.plan``)."""
+        job.plan = self._pool.submit(self.planner, job.task, job.params, q_now_rad)
+
+    def start(self, job: Job, plan: PlannedJob) -> JobRunner:
+        """The runner of ``job`` following ``plan``, started (it reads the robot)."""
+        job.planned = plan
+        ctx = self._context(plan.motions, job.job_id)
+        if self.watch is not None:
+            from cellrunner.execution.obstacles import ObstacleGuard
+
+            ctx.obstacles = ObstacleGuard(
+                self.watch,
+                job.task.task.on_obstacle,
+                self.watch.world.limits.joint_accel_rad_s2,
+            )
+            job_started = getattr(self.backend, "job_started", None)
+            if job_started is not None:  # the twin's intruders count from the job's start
+                job_started()
+        runner = JobRunner(
+            ctx,
+            plan.run_steps,
+            job.task.task.on_protective_stop,
+            wait_for_unhold=self.wait_for_unhold,
+            gate=self.gate,
+            on_step=lambda rec, attempt: self.book.step(job, rec, attempt),
+        )
+        runner.start()
+        return runner
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=False, cancel_futures=True)
+
+    def _context(self, motions: Motions, job_id: str) -> JobContext:
+        c = self.cell.cell
+        io_out, io_in = c.io.outputs, c.io.inputs
+        g = c.tool.gripper
+        close, open_, sensor = gripper_channels(g, io_out, io_in)
+        ctx = JobContext(
+            backend=self.backend,
+            motions=motions,
+            outputs=dict(io_out),
+            inputs=dict(io_in),
+            gripper_close=close,
+            gripper_open=open_,
+            gripper_closed_sensor=sensor,
+            gripper_open_s=release_time_s(g),
+            step_timeout_s=c.step_timeout,
+            on_step_start=self.on_step_start,
+            log=None if self.log is None else self.log.bind(job_id=job_id),
+            tools=dict(c.tools),
+            tool_mass_kg=c.tool.payload.mass,
+            eye=self.eye,
+        )
+        use_gripper(ctx, g)
+        return ctx

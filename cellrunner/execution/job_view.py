@@ -1,0 +1,172 @@
+"""A job as the cell holds it (:class:`Job`) and as anyone reporting on it may see it:
+the frozen :class:`JobView`, the PLC's :class:`~cellrunner.model.cellport.CellStatus`
+snapshot, and the :class:`~cellrunner.model.cellport.JobResult` of a job that ended."""
+
+from __future__ import annotations
+
+from concurrent.futures import Future
+from dataclasses import dataclass, replace
+from datetime import UTC, datetime
+
+import numpy as np
+
+from cellrunner.execution.job import JobRunner
+from cellrunner.execution.job_records import JobPhase, StepRecord
+from cellrunner.execution.journal import JobRecord
+from cellrunner.execution.planner import PlannedJob
+from cellrunner.model.cellport import CellStatus, JobResult
+from cellrunner.model.codes import PackMLState as S
+from cellrunner.model.codes import ResultCode
+from cellrunner.model.load import LoadedTask
+from cellrunner.model.params import ParamValue
+from cellrunner.model.robot_state import Safety
+from cellrunner.model.trajectory import ApprovedTrajectory
+
+
+@dataclass
+class Job:
+    """A job the cell accepted: planned on the worker (``plan``), then run (``runner``)."""
+
+    job_id: str
+    task: LoadedTask
+    params: dict[str, ParamValue]
+    client_job_id: str
+    source: str
+    plan: Future[PlannedJob] | None = None
+    runner: JobRunner | None = None
+    planned: PlannedJob | None = None
+
+
+@dataclass(frozen=True)
+class JobView:
+    """What anyone reporting on a job may know of it: a frozen copy, taken on the control
+    thread. ``phase`` is ``None`` while the job is being planned; ``step`` is the 1-based
+    index of the step under way (0 = none); ``records`` are copies of the step rows;
+    ``tracking_error_m`` the largest TCP distance (m) between commanded and measured so far;
+    ``commanded_q_rad`` the set-point streamed last (None when not streaming)."""
+
+    job_id: str
+    task: str
+    phase: JobPhase | None
+    step: int
+    planned_cycle_time_s: float | None
+    records: tuple[StepRecord, ...]
+    tracking_error_m: float
+    retries_used: int
+    cycle_time_s: float
+    commanded_q_rad: np.ndarray | None
+    result_code: ResultCode | None = None
+    message: str = ""
+
+    @property
+    def planning(self) -> bool:
+        return self.phase is None and self.result_code is None
+
+
+def view_of(
+    job: Job,
+    runner: JobRunner | None,
+    code: ResultCode | None = None,
+    message: str = "",
+    records: bool = True,
+) -> JobView:
+    planned = job.planned.planned_cycle_time_s if job.planned is not None else None
+    if runner is None:
+        return JobView(
+            job.job_id, job.task.name, None, 0, planned, (), 0.0, 0, 0.0, None, code, message
+        )
+    ctx = runner.ctx
+    rows = tuple(replace(r) for r in runner.records.values()) if records else ()
+    return JobView(
+        job.job_id,
+        job.task.name,
+        runner.phase,
+        runner.current_step,
+        planned,
+        rows,
+        ctx.tracking_error_m,
+        runner.retries_used,
+        runner.cycle_time_s,
+        None if ctx.commanded_q is None else np.array(ctx.commanded_q),
+        code if code is not None else runner.result,
+        message or runner.message,
+    )
+
+
+def obstruction_of(job: Job | None) -> str:
+    """Where the running job's arm waits for an obstacle of the watched zone ("" when it
+    does not)."""
+    runner = job.runner if job is not None else None
+    guard = runner.ctx.obstacles if runner is not None else None
+    return guard.obstructed if guard is not None else ""
+
+
+def streaming_of(job: Job | None) -> tuple[ApprovedTrajectory, int] | None:
+    """The approved trajectory ``job`` streams now and the index of its next set-point."""
+    runner = job.runner if job is not None else None
+    stream = runner.ctx.stream if runner is not None else None
+    return None if stream is None else (stream.approved, stream.next_index)
+
+
+def status_of(
+    state: S,
+    job: Job | None,
+    safety: Safety,
+    last: JobResult | None,
+    counters: tuple[int, int],
+    *,
+    held: bool = False,
+) -> CellStatus:
+    """The PLC's snapshot of the cell: PackML ``state``, the ``job`` under way, the
+    robot's ``safety``, the ``last`` result and the (processed, defective) ``counters``;
+    ``held``: a job's result waits for the journal (a full disk), so the cell is busy."""
+    obstruction = obstruction_of(job)
+    return CellStatus(
+        state=int(state),
+        state_name=state.display_name,
+        ready=state is S.IDLE and job is None and not held and safety is Safety.NORMAL,
+        busy=job is not None or held,  # a result not yet journaled
+        held=state in (S.HOLDING, S.HELD),
+        protective_stop=safety is Safety.PROTECTIVE_STOP,
+        estop=safety is Safety.EMERGENCY_STOP,
+        job_id=job.job_id if job else "",
+        step_index=job.runner.current_step if job and job.runner else 0,
+        last_result=last,
+        parts_processed=counters[0],
+        parts_defective=counters[1],
+        obstructed=bool(obstruction),
+        obstruction=obstruction,
+    )
+
+
+def result_of_job(
+    job: Job, code: ResultCode, message: str, cycle_time_s: float, retries: int
+) -> JobResult:
+    """The result the PLC reads of ``job``, ended now with ``code``."""
+    return JobResult(
+        job.job_id,
+        int(code),
+        message,
+        cycle_time_s,
+        datetime.now(UTC),
+        retries,
+        job.task.name,
+        job.client_job_id,
+        job.source,
+    )
+
+
+def result_of_record(record: JobRecord) -> JobResult:
+    """The result of a job the journal holds (the last one before a restart)."""
+    end = datetime.fromtimestamp(record.ended_at, UTC) if record.ended_at else None
+    return JobResult(
+        record.job_id,
+        int(record.result_code or 0),
+        record.result_text or "",
+        record.cycle_time_s or 0.0,
+        end,
+        record.retries,
+        record.task,
+        record.client_job_id or "",
+        record.source,
+    )
