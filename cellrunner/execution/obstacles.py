@@ -128,7 +128,7 @@ def stream_watched(
         ctx.stream = None
         if stopped_at is None:
             zone.follow(None)
-            ctx.notes["watched_q"] = q
+            ctx.notes["watched_path"] = path
             return None
         index, blocked = stopped_at
         guard.note(ctx, "stop", blocked, step=step.index)

@@ -113,8 +113,8 @@ def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:
             return failed
         if failed is not None:  # the way stayed blocked: (108, why)
             return Outcome.failed(*failed)
-        end_q = ctx.notes.pop("watched_q", q)
-        return (yield from _ended(ctx, step, end_q, approved))
+        streamed = ctx.notes.pop("watched_path", approved)  # the last path it followed
+        return (yield from _ended(ctx, step, streamed.trajectory.q_rad, streamed))
     # the index lives in ctx.stream so that a look-ahead (execution.lookahead) can move
     # the stream on by many periods at once
     stream = ctx.stream = Stream(approved, first, *_planned_accel(ctx, approved))

@@ -1,7 +1,7 @@
 """What a placed part rests on (issue 24: check approved a place in thin air, off the
 pallet, which the twin then failed as the part fell).
 
-At a release, the part must rest, within the cell's ``place_tolerance`` distance, on a
+At a place's release, the part must rest, within the cell's ``place_tolerance`` distance, on a
 fixture, on a part waiting at its frame, or on a part an earlier slot of the same pattern
 placed (a carton on the layer below): a thin probe from the part's centre straight down
 (world -Z) to that distance below its lowest point must touch one of them, so that the

@@ -213,7 +213,15 @@ class TaskPlan:
         goal_q = (
             row.q_end_rad if row is not None and row.status == "ok" and row.step is step else None
         )
-        motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
+        try:
+            motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
+        except InfeasibleError:
+            if obstacles is None or goal_q is None or not step.is_motion:
+                raise
+            # the planned arm configuration at the goal meets the map: the same goal pose
+            # in another configuration (the steps after it then start from where it ends)
+            planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
+            motion = planner.motion(StepPlan(step), goal_q=None, allowances=allowances)
         approved = _time_and_verify(world, motion, np.asarray(q_now_rad, float)).approved
         assert approved is not None  # _time_and_verify approves every row or raises
         return approved
@@ -551,7 +559,9 @@ class _StepPlanner:
             close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
             row.duration_s = WRIST_SETTLE_S + close_s + weigh
         elif step.kind == StepKind.RELEASE:
-            if self.part is not None and step.macro != "on_error":  # on_error may drop it
+            # a place's release: where the twin judges the part against the place's target
+            # (a bare release, after an insert or in on_error, is judged by its confirm input)
+            if self.part is not None and (step.macro or "").startswith("place "):
                 from cellrunner.planning.support import check_support
 
                 check_support(
@@ -681,6 +691,7 @@ class _StepPlanner:
         model = self.collision()
         names: set[str] = set()
         supports: set[str] = set()
+        gripped: set[str] = set()  # the part a grip here takes: the tool may reach into it
         for q in (self.q, self._try_ik(T_goal)):
             violations = model.violations(q) if q is not None else []
             touched = {
@@ -690,6 +701,7 @@ class _StepPlanner:
             }
             names |= touched
             held = self._waiting_at_tcp(q) if q is not None else set()
+            gripped |= held & touched
             under = {f for name in held for f in self.world.waiting_supports.get(name, ())}
             supports |= {
                 v.b[len("fixture '") : -1]
@@ -697,7 +709,8 @@ class _StepPlanner:
                 if v.a.startswith("tool ") and v.b[len("fixture '") : -1] in under
             }
         return tuple(
-            ContactAllowance(name, "tool", -GRIP_PRESS_M) for name in sorted(names)
+            ContactAllowance(name, "tool", -1.0 if name in gripped else -GRIP_PRESS_M)
+            for name in sorted(names)
         ) + tuple(ContactAllowance(f, "tool", -GRIP_PRESS_M) for f in sorted(supports))
 
     def _waiting_at_tcp(self, q: np.ndarray) -> set[str]:

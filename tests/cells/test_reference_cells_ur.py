@@ -61,7 +61,7 @@ def test_peg_insert_through_ur_rtde(tmp_path):
 
 def test_move_until_contact_through_ur_rtde(tmp_path):
     """The gripper, empty, probes down onto the block: contact within 100 mm is found; the
-    same probe limited to 20 mm finds nothing and fails the step."""
+    same probe limited to 20 mm would find nothing, and check refuses it."""
     (tmp_path / "near.yaml").write_text(probe_task(0.1))
     (tmp_path / "far.yaml").write_text(probe_task(0.02))
     host = "127.0.0.116"
@@ -75,9 +75,13 @@ def test_move_until_contact_through_ur_rtde(tmp_path):
         # for the contact's start and the arm went back up the whole line)
         probe = out["steps"][2]
         assert probe["kind"] == "move_until_contact" and probe["duration_s"] < 8.0, probe
+        # the probe limited to 20 mm meets nothing: check refuses it before anything moves
+        # (issue 24; it ran to "no contact within 20.0 mm" before)
         out = run_ur(PEG[0], str(tmp_path / "far.yaml"), host)
-        assert out["result_code"] == 1
-        assert out["result_text"] == "no contact within 20.0 mm (force stayed under 8 N)"
+        assert out["result_code"] == 103
+        assert out["result_text"].startswith(
+            "step 3 move_until_contact: the guarded line meets nothing within its max_distance 20 mm"
+        )
 
 
 def test_change_tool_through_ur_rtde(tmp_path):

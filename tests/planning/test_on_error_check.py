@@ -46,8 +46,8 @@ def test_lifting_first_makes_on_error_feasible_from_every_state(tmp_path):
     assert code == 0, out["errors"]
     rows = [(s["index"], s["kind"], s["status"], s["message"]) for s in out["steps"][-2:]]
     assert rows == [
-        (7, "lift", "ok", "on_error: verified from 14 states the job can fail in"),
-        (8, "move", "ok", "on_error: verified from 14 states the job can fail in"),
+        (7, "lift", "ok", "on_error: verified from 12 states the job can fail in"),
+        (8, "move", "ok", "on_error: verified from 12 states the job can fail in"),
     ]
 
 
@@ -56,7 +56,7 @@ def test_an_on_error_line_out_of_reach_is_refused_from_every_state(tmp_path):
     assert code == 1
     (error,) = out["errors"]
     assert error.startswith("on_error step 7 lift: from the start: ")
-    assert error.endswith(" (and from 13 more states)")
+    assert error.endswith(" (and from 11 more states)")
 
 
 def test_a_job_whose_on_error_cannot_run_is_refused_before_it_moves(tmp_path):
