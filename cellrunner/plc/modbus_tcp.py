@@ -116,6 +116,11 @@ def _server_class() -> Any:
 
         async def _answer_pending(self, state: _Framing) -> None:
             while state.pending:
+                if self.transport is None or self.transport.is_closing():
+                    # the PLC gave up on this connection (a timeout) and may already ask
+                    # again on another: what it sent here is never applied after that
+                    state.pending.clear()
+                    return
                 frame, addr = state.pending.popleft()
                 # decodes one frame: sets last_pdu, or answers an undecodable one at once
                 ServerRequestHandler.callback_data(self, frame, addr)

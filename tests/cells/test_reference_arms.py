@@ -100,9 +100,12 @@ SPEC_EXAMPLE = ROOT / "tests" / "data" / "spec_example"
 SPEC = ROOT.parent / "shared" / "SPEC.md"
 
 
-def test_spec_example_passes_check(tmp_path):
+def test_spec_example_is_checked_and_its_slots_off_the_table_refused(tmp_path):
     """SPEC section 3 and 4's example files (kept in tests/data/spec_example, checked
-    against the SPEC wherever it sits beside the project), with a fence mesh made here."""
+    against the SPEC wherever it sits beside the project), with a fence mesh made here.
+    The example's pallet pattern runs past the table's edge (y 0.30 + 3 x 0.07 > 0.40):
+    slots 8-11 would let the block go over the floor, and the twin drops it there (3).
+    check plans every slot and refuses exactly those four, saying why."""
     cell = (SPEC_EXAMPLE / "cell.yaml").read_text()
     task = (SPEC_EXAMPLE / "pick_place.yaml").read_text()
     if SPEC.is_file():  # the copy is the SPEC's own text
@@ -110,7 +113,18 @@ def test_spec_example_passes_check(tmp_path):
     (tmp_path / "meshes").mkdir()
     # a 1.2 m x 1 m guard panel standing on the table's far edge
     write_stl(tmp_path / "meshes" / "fence.stl", box_triangles((0.3, 0, 0.5), (1.2, 0.02, 1.0)))
-    _check_example(tmp_path, cell, task)
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "tasks").mkdir()
+    (tmp_path / "cells" / "cell.yaml").write_text(cell)
+    (tmp_path / "tasks" / "pick_place.yaml").write_text(task)
+    (tmp_path / "tasks" / "home.yaml").write_text((ROOT / "tasks" / "home.yaml").read_text())
+    r = cli("check", "cells/cell.yaml", "tasks/pick_place.yaml", "--json", cwd=tmp_path)
+    assert r.returncode == 1, r.stdout[-3000:] + r.stderr[-2000:]
+    out = json.loads(r.stdout)
+    assert out["slots_checked"] == {"slot": list(range(12))}
+    assert [f["slots"] for f in out["failed_slots"]] == [[8, 9, 10, 11]]
+    assert all("nothing under it" in e and "'table'" in e for e in out["errors"])
+    assert [e.split(":")[0] for e in out["errors"]] == [f"slot={k}" for k in (8, 9, 10, 11)]
 
 
 def test_ur20_palletizer_through_ur_rtde():

@@ -33,3 +33,12 @@ def test_an_upper_layer_rests_on_the_slot_below(tmp_path):
     job put there: it rests on it."""
     out = json_of("check", "cells/palletizer_ur10e.yaml", "tasks/palletize.yaml", "-p", "slot=4")
     assert out["ok"], out["errors"]
+
+
+def test_check_forgives_the_drop_the_twin_forgives():
+    """check lets a part fall as far as the twin lands it where it was put (the SPEC's own
+    example lets its block go 10 mm above the table)."""
+    from cellrunner.planning.support import FORGIVEN_DROP_M
+    from cellrunner.sim.places import PLACE_DROP_M
+
+    assert FORGIVEN_DROP_M == PLACE_DROP_M
