@@ -305,6 +305,26 @@ def test_a_block_off_its_frame_aligned_before_the_pick_is_placed():
     assert math.dist(out["parts_end_m"]["block"], (0.40, 0.30, 0.825)) < 0.005
 
 
+def test_an_upper_layer_slot_rehearsed_alone_is_0_on_the_earlier_slots_cartons():
+    """SPEC 12: a single dry-run of a pattern slot rehearses it with the parts of the
+    earlier slots already in place. Slot 7 is layer 2, row 1, column 1."""
+    code, out = cli("dry-run", cell("two_pallet_ur20"), task("pallet_left"), "-p", "slot=7")
+    assert (code, out["result_code"]) == (0, 0), out["result_text"]
+    assert math.dist(out["parts_end_m"]["carton"], (0.205, 0.845, 0.444)) < 0.005, out[
+        "parts_end_m"
+    ]
+
+
+def test_a_whole_pallet_rehearsed_in_one_twin_is_0_for_every_slot():
+    """SPEC 12: --slots all runs the task once per value in one twin, parts staying where
+    they were put; the conveyor refeeds (sim: feed). A row (JSON: a job) per slot."""
+    code, out = cli("dry-run", cell("two_pallet_ur20_fed"), task("pallet_right"), "--slots", "all")
+    assert code == 0, out.get("errors")
+    jobs = out["jobs"]
+    assert [job["params"]["slot"] for job in jobs] == list(range(8))
+    assert [job["result_code"] for job in jobs] == [0] * 8, [job["result_text"] for job in jobs]
+
+
 def test_check_refuses_a_carried_box_swept_through_the_box_waiting_on_the_belt():
     """The box waiting at `queue` is in the cell file: a straight line that carries the
     held box through it is refused by name, or the twin carries it past untouched."""
