@@ -71,10 +71,27 @@ CASES: dict[str, Callable[[], tuple[bytes, str, str]]] = {
 }
 
 
+#: runs ``cellrunner validate`` and writes its own peak resident KB (VmHWM, the peak of
+#: this process's memory) to argv[1] at exit. wait4's ru_maxrss is no measure here: Linux
+#: carries the parent's peak over fork and exec, so a child of a big test process (an
+#: xdist worker at 800 MB) reports at least the parent's size.
+_MEASURED = (
+    "import atexit, re, sys\n"
+    "out = sys.argv.pop(1)\n"
+    "def peak():\n"
+    "    status = open('/proc/self/status').read()\n"
+    "    open(out, 'w').write(re.search(r'VmHWM:\\s*(\\d+)', status).group(1))\n"
+    "atexit.register(peak)\n"
+    "from cellrunner.cli.main import main\n"
+    "sys.exit(main())\n"
+)
+
+
 def _validate(path: Path, cwd: Path) -> tuple[int, str, float, int]:
     """Exit code, stderr, CPU seconds and peak resident KB of ``cellrunner validate``."""
+    peak_file = cwd / "peak_kb"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "cellrunner.cli.main", "validate", str(path)],
+        [sys.executable, "-c", _MEASURED, str(peak_file), "validate", str(path)],
         cwd=cwd,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
@@ -86,7 +103,7 @@ def _validate(path: Path, cwd: Path) -> tuple[int, str, float, int]:
     finally:
         proc.returncode = 0  # reaped above
     cpu_s = usage.ru_utime + usage.ru_stime
-    return os.waitstatus_to_exitcode(status), err, cpu_s, usage.ru_maxrss
+    return os.waitstatus_to_exitcode(status), err, cpu_s, int(peak_file.read_text())
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
