@@ -74,7 +74,9 @@ def test_dry_run_puts_the_part_in_its_slot(arm, slot):
     (end,) = (xyz for name, xyz in out["parts_end_m"].items() if "@" not in name)
     assert np.allclose(end, ends[slot], atol=0.005), end
     earlier = {name for name in out["parts_end_m"] if "@" in name}
-    assert earlier == {f"{name}@{param}={k}" for name in out["parts_end_m"] if "@" not in name for k in range(slot)}
+    assert earlier == {
+        f"{name}@{param}={k}" for name in out["parts_end_m"] if "@" not in name for k in range(slot)
+    }
 
 
 def _yaml_blocks(text: str) -> list[str]:

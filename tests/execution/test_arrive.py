@@ -7,6 +7,7 @@ there; an arm that never gets there fails the step (105), never OK."""
 from __future__ import annotations
 
 import time
+
 import numpy as np
 import pytest
 
