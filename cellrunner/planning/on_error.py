@@ -146,9 +146,18 @@ def _starts(plan: TaskPlan) -> list[_Start]:
             seen.add(key)
             states.append(start)
 
+    # the contact a guarded line stopped at, which the steps after it that do not move
+    # (an output, a wait, a grip) still stand at: (q, allowances, label)
+    touched: tuple[np.ndarray, tuple[ContactAllowance, ...], str] | None = None
     for row in plan.rows:
         world = row.world or world
         samples = row.trajectory.q_rad if row.trajectory is not None else None
+        if touched is not None and samples is None:
+            part = row.carrying
+            q_touch, allowances, at = touched
+            add(_Start(f"from the end of {row.step.label}, {at}", q_touch, world, part, allowances))
+            continue
+        touched = None
         if samples is not None and len(samples) > 2 and row.step.kind in PLANNED_KINDS:
             for k in _middle(samples):
                 where = f"from the middle of {row.step.label}"
@@ -163,6 +172,7 @@ def _starts(plan: TaskPlan) -> list[_Start]:
             if touch is not None:
                 label = f"from the contact of {row.step.label}"
                 add(_Start(label, touch, world, part, tuple(row.allowances)))
+                touched = (touch, tuple(row.allowances), f"at the contact of {row.step.label}")
                 continue
         add(_Start(f"from the end of {row.step.label}", q, world, part))
     return states

@@ -89,6 +89,18 @@ CORRECT = {
     "ur3e_bracket_to_nest": ("screwing_ur3e", "bracket", (), {"bracket": (0.12, 0.25, 0.805)}),
     "ur3_tight_peg_24mm_hole": ("peg_ur3", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
     "ur3_tighter_peg_21mm_hole": ("peg_ur3_21mm", "peg", (), {"peg": (0.30, 0.15, 0.86)}),
+    "ur3e_screw_hole3_of_pattern": (
+        "screwing_ur3e",
+        "screw",
+        ("hole=3",),
+        {"bracket": (0.25, -0.15, 0.805)},
+    ),
+    "ur3e_screw_one_with_on_error": (
+        "screwing_ur3e",
+        "screw_one",
+        (),
+        {"bracket": (0.25, -0.15, 0.805)},
+    ),
     "ur10_cnc_two_tools_vise_insert": ("cnc_ur10", "cnc", (), {"blank": (0.40, -0.35, 0.93)}),
     "ur10e_through_a_guard_window": (
         "guard_window_ur10e",
@@ -337,6 +349,13 @@ def test_check_refuses_a_carried_box_swept_through_the_box_waiting_on_the_belt()
         ]
     else:
         assert code == 1 and any("next_box" in error for error in out["errors"]), out["errors"]
+
+
+def test_on_error_retreat_after_a_touch_is_accepted():
+    """screw_one's on_error backs the nose out along -Z after the guarded line: from where
+    the nose touched the housing, not from the line's full travel inside it."""
+    code, out = cli("check", cell("screwing_ur3e"), task("screw_one"))
+    assert (code, out["ok"]) == (0, True), out["errors"]
 
 
 def test_a_float_param_is_proved_over_its_whole_range_or_refused():
