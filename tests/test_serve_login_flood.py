@@ -90,6 +90,9 @@ def test_the_heartbeat_beats_through_an_encrypted_login_flood(tmp_path):
                 ],
                 stdout=subprocess.PIPE,
                 text=True,
+                # an attacker's crypto runs on its own machine; here it shares the two
+                # cores, so it runs below the cell: what is measured is serve's own stall
+                preexec_fn=lambda: os.nice(10),
             )
             for cert, key in flood_certs
         ]
