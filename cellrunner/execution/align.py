@@ -19,7 +19,8 @@ import math
 import numpy as np
 
 from cellrunner.execution.context import Hold, JobContext
-from cellrunner.execution.steps import Outcome, StepGen, run_motion
+from cellrunner.execution.outcome import Outcome, StepGen
+from cellrunner.execution.steps import run_motion
 from cellrunner.model.align import Marker, Sighting
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.geometry import pose_matrix, rpy_deg_of

@@ -10,7 +10,8 @@ from cellrunner.execution.align import run_align
 from cellrunner.execution.context import JobContext
 from cellrunner.execution.force import run_force
 from cellrunner.execution.job_records import AgendaItem
-from cellrunner.execution.steps import StepGen, run_motion, run_weigh
+from cellrunner.execution.outcome import OK, StepGen
+from cellrunner.execution.steps import run_motion, run_weigh
 from cellrunner.execution.tool_change import run_tool_lock, run_tool_unlock
 from cellrunner.model.force_steps import FORCE_KINDS
 from cellrunner.model.step import StepKind
@@ -45,4 +46,4 @@ def stand_still(ctx: JobContext) -> StepGen:
     while np.max(np.abs(ctx.last_state.qd_rad_s)) > 1e-3 and ctx.now_s - t0 < 2.0:
         yield
     yield
-    return behaviours.OK
+    return OK

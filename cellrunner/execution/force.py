@@ -29,12 +29,11 @@ from collections.abc import Generator
 import numpy as np
 
 from cellrunner.execution.context import JobContext
+from cellrunner.execution.outcome import OK, Outcome
 from cellrunner.execution.steps import (
     AVERAGE_S,
-    OK,
     SETTLE_S,
     START_TOLERANCE_RAD,
-    Outcome,
     sensor_dropped,
 )
 from cellrunner.model.codes import ResultCode

@@ -18,16 +18,15 @@ from typing import Any
 import numpy as np
 
 from cellrunner.errors import BackendError, InfeasibleError, PeerUnreachable
-from cellrunner.execution import steps as behaviours
 from cellrunner.execution.cleanup import Cleanup
 from cellrunner.execution.context import JobContext
 from cellrunner.execution.dispatch import behaviour_of
 from cellrunner.execution.hold import PROTECTIVE_STOP, Held, JobHold
 from cellrunner.execution.job_records import AgendaItem, JobPhase, StepRecord, StepStatus
 from cellrunner.execution.lookahead import Clock, fast_forward
+from cellrunner.execution.outcome import OK, Outcome, StepGen
 from cellrunner.execution.reconnect import Link, Reconnect
 from cellrunner.execution.retry import grip_of, retry_agenda, weighing_after
-from cellrunner.execution.steps import Outcome, StepGen
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import ON_ERROR, Step
 from cellrunner.model.robot_state import Safety
@@ -295,7 +294,7 @@ class JobRunner:
         item.gated = True
         self._start_item(item)
         yield
-        return behaviours.OK  # not reached: _start_item replaced this generator
+        return OK  # not reached: _start_item replaced this generator
 
     def _on_outcome(self, outcome: Outcome) -> None:
         item = self._current

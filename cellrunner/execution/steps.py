@@ -9,8 +9,7 @@ is noticed by the jaw sensor and the load falling away.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Generator, Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
@@ -18,12 +17,11 @@ import numpy as np
 from cellrunner.backends.base import RobotState
 from cellrunner.execution.context import Carry, Hold, JobContext, Stream
 from cellrunner.execution.correction import corrected
+from cellrunner.execution.outcome import OK, Outcome, StepGen
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.step import StepKind
 from cellrunner.model.trajectory import ApprovedTrajectory
-
-StepGen = Generator[None, None, "Outcome"]
 
 #: joint distance (rad, max over joints) under which the arm is "at" a trajectory's start
 START_TOLERANCE_RAD = 2e-3
@@ -52,20 +50,6 @@ LOAD_LOST_FRACTION = 0.5
 #: the part's apparent weight is scaled by g / |g - a| (:func:`carried_load_N`), at most
 #: by 1 / this
 MIN_FELT_GRAVITY = 0.25
-
-
-@dataclass(frozen=True)
-class Outcome:
-    ok: bool
-    code: ResultCode = ResultCode.OK
-    message: str = ""
-
-    @staticmethod
-    def failed(code: ResultCode, message: str) -> Outcome:
-        return Outcome(False, code, message)
-
-
-OK = Outcome(True)
 
 
 def run_motion(ctx: JobContext, step: Step, resume: bool = False) -> StepGen:

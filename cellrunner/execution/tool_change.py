@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Generator
 
 from cellrunner.execution.context import JobContext, use_gripper
-from cellrunner.execution.steps import OK, Outcome
+from cellrunner.execution.outcome import OK, Outcome
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 
