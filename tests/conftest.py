@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import faulthandler
+import os
 from pathlib import Path
 
 import pytest
@@ -42,3 +43,15 @@ def _hang_guard():
     faulthandler.dump_traceback_later(TEST_TIMEOUT_S, exit=True)
     yield
     faulthandler.cancel_dump_traceback_later()
+
+
+@pytest.fixture(autouse=True)
+def _scheduling_guard():
+    """A test must leave the test process's thread at the normal scheduling policy: a
+    thread left at SCHED_FIFO (a jog session, a twin run in-process) makes every program
+    the later tests start real-time too, and a busy one starves the rest (a heartbeat
+    test then failed, its serve and flood processes all at SCHED_FIFO)."""
+    yield
+    if hasattr(os, "sched_getscheduler") and os.sched_getscheduler(0) != os.SCHED_OTHER:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        pytest.fail("the test left its thread at a real-time scheduling policy")

@@ -78,8 +78,8 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
-#: the packages each package may import (every package may import ``cellrunner.errors``
-#: and itself); the CLI sits on top and may import any
+#: the packages each package may import (every package may import ``cellrunner.errors``,
+#: ``cellrunner.thread_priority`` and itself); the CLI sits on top and may import any
 LAYERS: dict[str, set[str]] = {
     "model": set(),
     "planning": {"model"},
@@ -96,7 +96,7 @@ LAYERS: dict[str, set[str]] = {
     "web": {"model", "execution"},
     "commissioning": {"model", "planning", "execution", "backends", "vision"},
 }
-_ANYONE = {"errors"}
+_ANYONE = {"errors", "thread_priority"}
 
 
 def _package(module: str) -> str:

@@ -15,7 +15,6 @@ governor slows and stops the arm short of what the map holds, naming the voxel.
 from __future__ import annotations
 
 import math
-import os
 import re
 import sys
 import threading
@@ -29,6 +28,7 @@ from cellrunner.commissioning.jog import Governor
 from cellrunner.commissioning.servo import Servo, Tick
 from cellrunner.errors import ConnectionLost, PeerUnreachable
 from cellrunner.model.geometry import rpy_deg_of
+from cellrunner.thread_priority import Previous, realtime, restore
 
 if TYPE_CHECKING:
     from cellrunner.commissioning.inputs import InputSource
@@ -46,15 +46,6 @@ SPEEDJ_ACCEL_RAD_S2 = 8.0
 
 #: SCHED_FIFO priority of the servo loop (below the twin's controller loop, 20)
 SERVO_PRIORITY = 10
-
-
-def _realtime_priority(priority: int) -> bool:
-    """SCHED_FIFO ``priority`` for the calling thread; False where not allowed."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-        return True
-    except (AttributeError, OSError):
-        return False
 
 
 class JogSession:
@@ -82,6 +73,7 @@ class JogSession:
         self._receive: Any = None
         self.status = "stopped"
         self.realtime = False
+        self._priority_before: Previous | None = None
         self._said = ""
 
     def connect(self) -> None:
@@ -89,7 +81,8 @@ class JogSession:
         # the loop (and ur_rtde's threads, started below, which inherit it) at real-time
         # priority where the OS allows it, as a servo node runs: a loaded machine then
         # delays the arm's commands by microseconds, not by the scheduler's slices
-        self.realtime = _realtime_priority(SERVO_PRIORITY)
+        self._priority_before = realtime(SERVO_PRIORITY)
+        self.realtime = self._priority_before is not None
         from cellrunner.backends.ur_probe import controller_version
 
         controller_version(self.host, 3.0)
@@ -122,6 +115,8 @@ class JogSession:
                 self._receive.disconnect()
         finally:
             self.source.close()
+            restore(self._priority_before)  # the caller's thread, as it was before connect
+            self._priority_before = None
 
     def run(self, stop: threading.Event | None = None) -> None:
         stop = stop or threading.Event()

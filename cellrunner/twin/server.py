@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import errno
 import json
-import os
 import re
 import selectors
 import socket
@@ -31,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from cellrunner.model.robots import RobotSpec, robot_spec
+from cellrunner.thread_priority import realtime as realtime_priority
 from cellrunner.twin import dashboard
 from cellrunner.twin.controller import (
     Controller,
@@ -63,6 +63,9 @@ record save PATH              -> write them to PATH (.npy: rows of time_s, q1..q
 """
 
 _SEND_LIMIT = 64 * 1024
+#: SCHED_FIFO priorities of the twin's threads (their own: see cellrunner.thread_priority)
+CONTROLLER_PRIORITY = 20  # the real-time loop, as a real controller's
+IO_PRIORITY = 10  # commands must not wait behind other processes either
 
 
 @dataclass(frozen=True)
@@ -204,7 +207,7 @@ class TwinServer:
 
     def _rt_loop(self) -> None:
         period = self.ctl.period_s
-        realtime = self.realtime and _try_realtime_priority()
+        realtime = self.realtime and realtime_priority(CONTROLLER_PRIORITY) is not None
         spin_s = 0.00005 if realtime else 0.0002  # sleep until this close, then spin
         self.ctl.add_log(
             f"real-time loop at {1 / period:g} Hz, SCHED_FIFO {'on' if realtime else 'off'}"
@@ -244,7 +247,7 @@ class TwinServer:
     def _io_loop(self) -> None:
         assert self._selector is not None
         if self.realtime:  # commands must not wait behind other processes either
-            _try_realtime_priority(10)
+            realtime_priority(IO_PRIORITY)
         while not self._stop.is_set():
             try:
                 events = self._selector.select(timeout=0.05)
@@ -535,16 +538,6 @@ class TwinServer:
             "watchdog": list(ctl.watchdog) if ctl.watchdog else None,
             "clients": sum(1 for c in self._conns.values() if c.role != "fault"),
         }
-
-
-def _try_realtime_priority(priority: int = 20) -> bool:
-    """Give the calling thread SCHED_FIFO ``priority``, as a real controller's loop has;
-    False where the OS does not allow it (no CAP_SYS_NICE, not Linux)."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-        return True
-    except (AttributeError, OSError):
-        return False
 
 
 class FaultClient:
