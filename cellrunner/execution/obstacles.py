@@ -276,21 +276,34 @@ def _wait(
         zone.follow(None)
 
 
+#: the map's cubes grown by these in turn until a plan passes the path check (see _replan)
+REPLAN_GROWTH = (1.0, 1.25, 1.5, math.sqrt(3.0))
+
+
 def _replan(
     ctx: JobContext, step: Step, held: Placed | None, q_rad: np.ndarray
 ) -> ApprovedTrajectory | None:
     """A verified plan from ``q_rad`` (where the arm stands) around the map, clear of it
-    now; None when there is none."""
+    now; None when there is none. The planner's cubes and the path check's grown solids
+    differ near a solid's edges: a plan the path check refuses is planned again around
+    cubes grown by sqrt(3), which cover what the path check calls near."""
     assert ctx.obstacles is not None
     zone = ctx.obstacles.zone
-    obstacles = zone.obstacles()
-    try:
-        new = ctx.motions.replan(step, q_rad, carrying=ctx.carry is not None, obstacles=obstacles)
-    except InfeasibleError as exc:
-        ctx.obstacles.why_not = str(exc)
-        return None
-    blocked = zone.check(new.trajectory.q_rad, held)
-    if blocked is not None:
+    for scale in REPLAN_GROWTH:
+        try:
+            new = ctx.motions.replan(
+                step, q_rad, carrying=ctx.carry is not None, obstacles=zone.obstacles(scale)
+            )
+        except InfeasibleError as exc:
+            if scale == 1.0:
+                ctx.obstacles.why_not = str(exc)
+            continue
+        blocked = zone.check(new.trajectory.q_rad, held)
+        if blocked is None:
+            return new
+        at_goal = zone.check(new.trajectory.q_rad[-1:], held)
+        if at_goal is not None:  # no way round: the step's goal itself is within the padding
+            ctx.obstacles.why_not = f"its goal is within the padding of the map: {where(at_goal)}"
+            return None
         ctx.obstacles.why_not = f"the new plan meets the map: {where(blocked)}"
-        return None
-    return new
+    return None

@@ -132,9 +132,12 @@ class ZoneWatch:
             centres = self.map.occupied_centres()
         return first_blocked(self.known, q_rad, centres, self.pad_m, held=held)
 
-    def obstacles(self) -> Placed | None:
+    def obstacles(self, scale: float = 1.0) -> Placed | None:
         """The occupied voxels grown by the padding (as the path check reads it), as one
-        obstacle to plan around (a coal octree); None when the map is empty."""
+        obstacle to plan around (a coal octree); None when the map is empty. ``scale``
+        grows them further: the path check grows each robot solid along its own faces, so
+        near a solid's edge turned away from the world axes it reaches up to sqrt(3) x as
+        far as a world-aligned cube does."""
         from cellrunner.model.geometry import Voxels
 
         with self._lock:
@@ -145,7 +148,7 @@ class ZoneWatch:
         # padding, the half diagonal, half its step; a cube covers half a voxel itself)
         from cellrunner.perception.path_check import STEP_M
 
-        grow_m = self.pad_m + STEP_M / 2 - self.map.voxel_m / 2
+        grow_m = scale * (self.pad_m + STEP_M / 2) - self.map.voxel_m / 2
         return Placed("watched zone", Voxels(centres, self.map.voxel_m, grow_m), np.eye(4))
 
     # -- feed thread --------------------------------------------------------------------

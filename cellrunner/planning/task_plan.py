@@ -213,18 +213,63 @@ class TaskPlan:
         goal_q = (
             row.q_end_rad if row is not None and row.status == "ok" and row.step is step else None
         )
+        then = self._line_after(step) if obstacles is not None else None
         try:
             motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
+            if then is not None:
+                self._line_clear(world, then, motion.waypoints[-1])
         except InfeasibleError:
-            if obstacles is None or goal_q is None or not step.is_motion:
+            if obstacles is None or goal_q is None or step.T_world_tcp is None:
                 raise
-            # the planned arm configuration at the goal meets the map: the same goal pose
-            # in another configuration (the steps after it then start from where it ends)
-            planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
-            motion = planner.motion(StepPlan(step), goal_q=None, allowances=allowances)
+            # the planned arm configuration at the goal, or the straight line that follows
+            # from it, meets the map: the same goal pose in another configuration whose
+            # line is clear (the steps after it then start from where it ends)
+            motion = self._other_branch(world, step, q_now_rad, part, allowances, then)
         approved = _time_and_verify(world, motion, np.asarray(q_now_rad, float)).approved
         assert approved is not None  # _time_and_verify approves every row or raises
         return approved
+
+    def _line_after(self, step: Step) -> Step | None:
+        """The straight line that follows the joint move ``step`` (a descend), if one does."""
+        if step.kind not in (StepKind.MOVE, StepKind.APPROACH):
+            return None
+        after = [s for s in self.steps if s.index == step.index + 1]
+        return after[0] if after and after[0].kind in ("descend", "linear") else None
+
+    def _line_clear(self, world: CellWorld, line: Step, q_rad: np.ndarray) -> None:
+        """Raise InfeasibleError unless ``line`` plans from ``q_rad`` in ``world``."""
+        row = self.row(line)
+        part = row.carrying if row is not None else self._carried_before(line)
+        allowances = row.allowances if row is not None else None
+        _StepPlanner(world, q_rad, part).motion(StepPlan(line), allowances=allowances)
+
+    def _other_branch(
+        self,
+        world: CellWorld,
+        step: Step,
+        q_now_rad: np.ndarray,
+        part: Placed | None,
+        allowances: tuple[ContactAllowance, ...],
+        then: Step | None,
+    ) -> _Motion:
+        """``step`` planned to the first other IK branch of its goal pose (nearest first)
+        that is clear in ``world`` and from which the line ``then`` is clear too."""
+        assert step.T_world_tcp is not None
+        q_now = np.asarray(q_now_rad, float)
+        collision = _StepPlanner(world, q_now, part).collision()
+        why: InfeasibleError | None = None
+        for q_goal in world.kinematics.ik_all(step.T_world_tcp, q_now):
+            if not collision.is_valid(q_goal):
+                continue
+            try:
+                planner = _StepPlanner(world, q_now, part)
+                motion = planner.motion(StepPlan(step), goal_q=q_goal, allowances=allowances)
+                if then is not None:
+                    self._line_clear(world, then, q_goal)
+                return motion
+            except InfeasibleError as exc:
+                why = why or exc
+        raise why or InfeasibleError(f"{step.label}: every arm configuration at it meets the map")
 
     def _world_of(self, step: Step) -> CellWorld:
         worlds = [r.world for r in self.rows if r.step.index <= step.index and r.world is not None]

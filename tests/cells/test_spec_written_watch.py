@@ -75,6 +75,40 @@ def test_a_tote_that_stays_ends_the_job_with_108_without_touching_it(tmp_path):
     assert "tote" not in out["result_text"]  # found by the camera, not read from the file
 
 
+# Totes that stay on the transfer's path, clear of the poses the job must reach: a low one
+# the arm can pass over, a tall one it must go round.
+STAYING = {
+    "low": "{name: tote, box: {size: [0.30, 0.20, 0.15]}, pose: {xyz: [0.65, 0.0, 0.975]}",
+    "tall": "{name: tote, box: {size: [0.30, 0.20, 0.30]}, pose: {xyz: [0.75, 0.0, 1.05]}",
+}
+
+
+@pytest.mark.parametrize("tote", STAYING.values(), ids=STAYING.keys())
+def test_a_tote_that_stays_is_gone_round_with_replanning(tmp_path, tote):
+    cell = watched(tmp_path, tote + ", appear: 2.3}")
+    code, out = cli("dry-run", cell, transfer())
+    assert (code, out["result_code"]) == (1, 108), out["result_text"]
+    code, out = cli("dry-run", cell, transfer(replan=True))
+    assert (code, out["result_code"]) == (0, 0), (out["result_text"], out["obstacles"])
+    assert "replan" in stops(out) and "clear" not in stops(out), out["obstacles"]
+    assert out["intruders_touched"] == []
+    assert math.dist(out["parts_end_m"]["housing"], TRAY) < 0.005
+
+
+def test_a_tote_under_the_home_pose_ends_108_naming_the_goal(tmp_path):
+    """The tall tote on the path reaches within the padding of where the tool stands at
+    home: the part is placed round it, but no plan can end at home."""
+    code, out = cli(
+        "dry-run", watched(tmp_path, ON_THE_PATH + ", appear: 2.3}"), transfer(replan=True)
+    )
+    assert (code, out["result_code"]) == (1, 108), out["result_text"]
+    assert "move 'home'" in out["result_text"]
+    assert math.dist(out["parts_end_m"]["housing"], TRAY) < 0.005
+    whys = [e.get("why", "") for e in out["obstacles"] if e["what"] == "replan failed"]
+    assert any("its goal is within the padding" in why for why in whys), out["obstacles"]
+    assert out["intruders_touched"] == []
+
+
 # --inject intrusion@STEP: (step, replan, the results that leave the box untouched).
 DROPPED = {
     "transfer_wait": ("approach#2", False, {0, 108}),
