@@ -7,8 +7,10 @@ asyncua clients in their own processes.
 
 from __future__ import annotations
 
+import gc
 import itertools
 import json
+import os
 import subprocess
 import sys
 import threading
@@ -53,9 +55,13 @@ def server(tmp_path: Path) -> Iterator[tuple[TimedCell, str]]:
     cell = TimedCell(tasks=plc_test_tasks()).start()
     service = PlcService(cell, config, base_dir=tmp_path)
     service.start()
+    # as serve does once started (cmd_serve): late in a suite this process holds every
+    # earlier test's objects, and a full collection of them stalled the server 0.3 s
+    gc.freeze()
     try:
         yield cell, url
     finally:
+        gc.unfreeze()
         service.stop()
         cell.close()
 
@@ -63,8 +69,16 @@ def server(tmp_path: Path) -> Iterator[tuple[TimedCell, str]]:
 def flood(url: str, logins: int, concurrency: int, password: str = "wrong") -> dict[str, Any]:
     argv = [sys.executable, str(HERE / "opcua_flood.py"), "--url", url, "--user", USER]
     argv += ["--logins", str(logins), "--concurrency", str(concurrency), "--password", password]
+    # an attacker's crypto and start-up run on its own machine; here they share the two
+    # cores, so they run below the server: what is measured is the server's own stall
     done = subprocess.run(
-        argv, capture_output=True, text=True, timeout=120, env=child_env(), check=True
+        argv,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=child_env(),
+        check=True,
+        preexec_fn=lambda: os.nice(10),
     )
     return json.loads(done.stdout.strip().splitlines()[-1])
 
