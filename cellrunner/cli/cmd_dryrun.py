@@ -283,6 +283,11 @@ class _JobRun:
         guard = runner_done.ctx.obstacles if runner_done is not None else None
         if guard is not None:
             payload["obstacles"] = guard.events
+        if rehearsal.not_dropped:
+            payload["errors"].append(
+                "--inject intrusion: no room on the path to drop the box clear of the arm"
+                f" ({rehearsal.not_dropped} x); nothing was dropped"
+            )
         return payload
 
 
@@ -364,6 +369,12 @@ def _whole_run_output(
     return 0 if ok else 1
 
 
+#: an injected intrusion drops at least this far from the arm as it stands (m)
+INTRUSION_MARGIN_M = 0.02
+#: with no room for it yet, an intrusion is tried again this much later (s)
+INTRUSION_RETRY_S = 0.05
+
+
 @dataclass
 class _Rehearsal:
     """A control-loop observer: applies the injections when their moment comes, shows
@@ -378,6 +389,8 @@ class _Rehearsal:
     io_names: dict[str, str]  # IO name -> channel, for the report's IO lanes
     plc_back_at: float | None = None
     last_step: int = -1
+    known: Any = None  # the arm's solids, for where an injected intrusion may drop
+    not_dropped: int = 0  # intrusions with no room on the path: none dropped
 
     def quiet_until_s(self, cell: CellController) -> float:
         """Until when (simulated s) :meth:`observe` has nothing to do while a motion
@@ -392,18 +405,32 @@ class _Rehearsal:
     def __call__(self, cell: CellController) -> None:
         self.observe(cell)
 
-    def _drop_box(self, cell: CellController) -> None:
-        """``intrusion``: the twin's box appears on the path of the motion under way, where
-        its TCP will be two thirds of the way along the rest of it."""
+    def _drop_box(self, cell: CellController) -> bool:
+        """``intrusion``: the twin's box appears on the path of the motion under way,
+        where its TCP (else a wrist or the elbow) will be about two thirds of the way
+        along the rest of it and where the box does not touch the arm as it stands
+        (:func:`spot_ahead`). False: no room yet (the motion is not half done)."""
+        from cellrunner.perception.known import KnownScene
+        from cellrunner.perception.path_check import spot_ahead
+        from cellrunner.sim.from_cell import INJECTED_BOX_M
+
         streaming = cell.streaming()
         if streaming is None:
-            return
+            return True
         approved, index = streaming
         q = approved.trajectory.q_rad
-        k = min(len(q) - 1, index + (len(q) - index) * 2 // 3)
+        if self.known is None:
+            self.known = KnownScene(self.world)
+        at = spot_ahead(self.known, q, index, max(INJECTED_BOX_M) / 2, INTRUSION_MARGIN_M)
+        if at is None:  # try again a little later, until the motion is half done
+            if index < len(q) // 2:
+                return False
+            self.not_dropped += 1
+            return True
         T = np.eye(4)
-        T[:3, 3] = self.world.kinematics.p_world_tcp(q[k])
+        T[:3, 3] = at
         self.backend.inject_intrusion(T)
+        return True
 
     def observe(self, cell: CellController) -> None:
         backend, recorder = self.backend, self.recorder
@@ -419,7 +446,8 @@ class _Rehearsal:
                     cell.command("hold")
                     self.plc_back_at = now + PLC_OUTAGE_S
                 elif inj.fault == "intrusion":
-                    self._drop_box(cell)
+                    if not self._drop_box(cell):
+                        self.pending.append((inj, now + INTRUSION_RETRY_S))
                 else:
                     backend.inject_fault(inj.fault)
         if self.plc_back_at is not None and now >= self.plc_back_at and cell.command("unhold"):

@@ -292,7 +292,10 @@ def _replan(
     for scale in REPLAN_GROWTH:
         try:
             new = ctx.motions.replan(
-                step, q_rad, carrying=ctx.carry is not None, obstacles=zone.obstacles(scale)
+                step,
+                q_rad,
+                carrying=ctx.carry is not None,
+                obstacles=zone.obstacles(scale, leaving=q_rad, held=held),
             )
         except InfeasibleError as exc:
             if scale == 1.0:

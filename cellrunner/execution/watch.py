@@ -18,6 +18,7 @@ verdicts are published as they come.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -48,6 +49,10 @@ class Verdict:
     follow_id: int
     blocked: Blocked | None
     occupied: int
+
+
+#: beyond the cubes an arm stands in, the planner's clearance (m): also left out for a start
+STAND_CLEAR_M = 0.005
 
 
 class ZoneWatch:
@@ -132,12 +137,17 @@ class ZoneWatch:
             centres = self.map.occupied_centres()
         return first_blocked(self.known, q_rad, centres, self.pad_m, held=held)
 
-    def obstacles(self, scale: float = 1.0) -> Placed | None:
+    def obstacles(
+        self, scale: float = 1.0, leaving: np.ndarray | None = None, held: Placed | None = None
+    ) -> Placed | None:
         """The occupied voxels grown by the padding (as the path check reads it), as one
         obstacle to plan around (a coal octree); None when the map is empty. ``scale``
         grows them further: the path check grows each robot solid along its own faces, so
         near a solid's edge turned away from the world axes it reaches up to sqrt(3) x as
-        far as a world-aligned cube does."""
+        far as a world-aligned cube does. ``leaving``: where the arm stands (with
+        ``held``); the cubes it stands in are left out, so that a plan can start there
+        (the arm stopped short of the map as the path check reads it, inside the larger
+        cubes): the path check then judges the whole plan against every voxel."""
         from cellrunner.model.geometry import Voxels
 
         with self._lock:
@@ -149,6 +159,12 @@ class ZoneWatch:
         from cellrunner.perception.path_check import STEP_M
 
         grow_m = scale * (self.pad_m + STEP_M / 2) - self.map.voxel_m / 2
+        if leaving is not None:
+            robot = self.known.robot_at(leaving, held)
+            reach_m = math.sqrt(3.0) * (grow_m + self.map.voxel_m / 2) + STAND_CLEAR_M
+            centres = centres[~near_any(robot, centres, reach_m)]
+            if not len(centres):
+                return None
         return Placed("watched zone", Voxels(centres, self.map.voxel_m, grow_m), np.eye(4))
 
     # -- feed thread --------------------------------------------------------------------

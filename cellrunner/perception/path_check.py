@@ -73,3 +73,32 @@ def first_blocked(
                 int(i), (float(centre[0]), float(centre[1]), float(centre[2])), int(hit.sum())
             )
     return None
+
+
+def spot_ahead(
+    known: KnownScene, q_rad: np.ndarray, index: int, half_m: float, margin_m: float
+) -> np.ndarray | None:
+    """Where a cube (half size ``half_m``, world-aligned) would stand in the way of the
+    rest of a trajectory without touching the arm as it stands now at set-point ``index``
+    (``margin_m`` apart): centred on where the TCP, else a wrist or the elbow, will pass,
+    at the set-point two thirds along the rest first, then later ones, then earlier ones
+    down to a third. Its world centre (m), None when every one meets the arm. What
+    ``--inject intrusion@STEP`` drops in rehearsal."""
+    q = np.asarray(q_rad, float)
+    rest = len(q) - 1 - index
+    if rest < 3:
+        return None
+    step = max(1, rest // 30)
+    mark = index + rest * 2 // 3
+    order = [*range(mark, len(q), step), *range(mark - step, index + rest // 3, -step)]
+    robot = known.robot_at(q[index])
+    grid = np.array([-1.0, 0.0, 1.0]) * half_m
+    cube = np.stack(np.meshgrid(grid, grid, grid, indexing="ij"), axis=-1).reshape(-1, 3)
+    tcp = known.world.kinematics.p_world_tcp_many(q[order])
+    joints = known.world.collision.joint_frames(q[order])[:, 6:2:-1, :3, 3]  # wrists, elbow
+    for where in (tcp[:, None, :], joints):
+        for points in where:
+            for p in points:
+                if not near_any(robot, cube + p, margin_m + half_m / 2).any():
+                    return np.asarray(p)
+    return None

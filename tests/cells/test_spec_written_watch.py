@@ -112,6 +112,10 @@ def test_a_tote_under_the_home_pose_ends_108_naming_the_goal(tmp_path):
 # --inject intrusion@STEP: (step, replan, the results that leave the box untouched).
 DROPPED = {
     "transfer_wait": ("approach#2", False, {0, 108}),
+    # the move home lifts the tool up past where the wrist stands: the box drops once
+    # there is room for it clear of the arm (it used to drop onto the arm: 100)
+    "home_wait": ("move#2", False, {108}),
+    "home_replan": ("move#2", True, {0, 108}),
 }
 
 
@@ -129,3 +133,6 @@ def test_a_box_dropped_on_the_path_is_never_touched(case):
     )
     assert out["result_code"] in results, (out["result_text"], out.get("obstacles"))
     assert code == (0 if out["result_code"] == 0 else 1)
+    assert not any("nothing was dropped" in e for e in out["errors"]), out["errors"]
+    assert "stop" in stops(out), out["obstacles"]  # stopped short of it on its path
+    assert out["intruders_touched"] == []
