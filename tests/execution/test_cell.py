@@ -22,6 +22,8 @@ def test_job_goes_through_packml_and_is_journaled(tmp_path):
     assert ticket.accepted and cell.status().state == S.STARTING and cell.status().busy
     assert cell.journal.get(ticket.job_id).params == {"slot": 3}  # written before the ack returns
     seen = set()
+    tick(cell)  # the control thread starts planning: wait for it, not for a count of ticks
+    assert cell.wait_for_plan(timeout_s=120)
     for _ in range(20000):
         tick(cell)
         seen.add(cell.status().state)
