@@ -55,3 +55,35 @@ def _scheduling_guard():
     if hasattr(os, "sched_getscheduler") and os.sched_getscheduler(0) != os.SCHED_OTHER:
         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
         pytest.fail("the test left its thread at a real-time scheduling policy")
+
+
+#: test folders and files that run in real time (the virtual controller through ur_rtde,
+#: serve, PLC clients, a browser) or bound a wall time: scripts/test runs them one at a
+#: time after the others, which it spreads over the cores (they run in simulated time)
+WALL_CLOCK = (
+    "backends/",
+    "commissioning/",
+    "plc/",
+    "twin/",
+    "web/",
+    "test_serve",
+    "test_fresh_machine.py",
+    "cells/test_reference_arms.py",
+    "cells/test_reference_cells_ur.py",
+    "execution/test_align.py",
+    "execution/test_arrive.py",
+    "execution/test_cell.py",
+    "execution/test_force_jolt.py",
+    "execution/test_journal_full_disk.py",
+    "execution/test_journal_postgres.py",
+    "execution/test_unhold_protective_stop.py",
+    "perception/test_sources.py",
+    "sim/test_faults.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        where = item.path.relative_to(ROOT / "tests").as_posix()
+        if where.startswith(WALL_CLOCK):
+            item.add_marker(pytest.mark.wall_clock)
