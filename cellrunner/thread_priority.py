@@ -1,4 +1,5 @@
-"""Real-time priority for a control loop's own thread, and giving it back.
+"""A thread's own priority: real time for a control loop (and giving it back), a nice
+value for the PLC servers and their workers.
 
 Linux applies ``sched_setscheduler(0, ...)`` to the calling thread only, and every thread
 and process it starts afterwards inherits the policy. A loop that raises its thread must
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 
 #: a thread's scheduling policy and priority before :func:`realtime` raised it
 Previous = tuple[int, int]
@@ -34,3 +36,14 @@ def restore(previous: Previous | None) -> None:
     policy, priority = previous
     with contextlib.suppress(AttributeError, OSError):
         os.sched_setscheduler(0, policy, os.sched_param(priority))
+
+
+def nice(value: int) -> bool:
+    """Run the calling thread (Linux: that thread alone; threads it starts afterwards
+    inherit it) at nice ``value``; False where the OS does not allow it (raising needs
+    CAP_SYS_NICE; not Linux), which leaves the thread as it was."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), value)
+    except (AttributeError, OSError):
+        return False
+    return True

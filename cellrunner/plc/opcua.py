@@ -39,8 +39,6 @@ import contextvars
 import json
 import logging
 import math
-import os
-import threading
 from collections import Counter, OrderedDict
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -60,6 +58,7 @@ from cellrunner.plc.opcua_admission import (
 )
 from cellrunner.plc.opcua_admission import install as install_admission
 from cellrunner.plc.port import CellPort, CellStatus, JobResult, ResultCode
+from cellrunner.thread_priority import nice
 
 if TYPE_CHECKING:
     from asyncua import ua
@@ -741,8 +740,7 @@ def _bound(iserver: Any) -> None:
 def _lower_priority() -> None:
     """Run the calling thread at :data:`LOGIN_WORKER_NICE` (it inherited the PLC thread's
     raised priority); lowering a priority is always allowed."""
-    with contextlib.suppress(AttributeError, OSError):
-        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), LOGIN_WORKER_NICE)
+    nice(LOGIN_WORKER_NICE)
 
 
 def _check_logins_off_the_loop() -> None:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import Future
@@ -28,6 +27,7 @@ from typing import Any
 from cellrunner.errors import CellrunnerError
 from cellrunner.plc.modbus import ModbusConfig, ModbusServer
 from cellrunner.plc.port import CellPort
+from cellrunner.thread_priority import nice
 
 
 def _section(config: Any, name: str) -> Any:
@@ -219,8 +219,4 @@ def raise_thread_priority() -> bool:
     """Run the calling thread at :data:`PLC_THREAD_NICE`; False where the OS does not allow
     it (no CAP_SYS_NICE, not Linux), which leaves the default priority. Threads it starts
     afterwards inherit the priority (Linux)."""
-    try:
-        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), PLC_THREAD_NICE)
-        return True
-    except (AttributeError, OSError):
-        return False
+    return nice(PLC_THREAD_NICE)
