@@ -28,6 +28,7 @@ from tests.rig import (
     opcua_job,
     start_serve,
     trusted_plc_certificate,
+    wait_bits,
 )
 
 HOST = "127.0.0.122"
@@ -59,26 +60,14 @@ def _project(tmp_path: Path, plc: str) -> Path:
     return cell
 
 
-def _wait(client: ModbusClient, mask: int, timeout_s: float, beat: list) -> list[int]:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        beat[0] = (beat[0] + 1) % 65536
-        client.write_single_register(0, beat[0])
-        regs = client.read_holding_registers(100, 14)
-        if regs and regs[1] & mask == mask:
-            return regs
-        time.sleep(0.05)
-    raise AssertionError(f"status bits {mask:#x} not seen within {timeout_s} s")
-
-
 def _job(client: ModbusClient, job_id: int, params: list[int], beat: list) -> list[int]:
-    _wait(client, READY, 60, beat)
+    wait_bits(client, READY, 60, beat)
     client.write_multiple_registers(2, [job_id, 1, *params])
     client.write_single_register(1, JOB_REQ)
     deadline = time.monotonic() + 120
     regs: list[int] = []
     while time.monotonic() < deadline:
-        regs = _wait(client, 0, 5, beat)
+        regs = wait_bits(client, 0, 5, beat)
         if regs[1] & (DONE | ERROR) and regs[4] == job_id:
             break
     client.write_single_register(1, 0)
