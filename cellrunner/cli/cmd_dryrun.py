@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from cellrunner.execution.cell import CellController
     from cellrunner.execution.loop import ControlLoop
     from cellrunner.model.step import Step
+    from cellrunner.perception.known import KnownScene
 
 #: e-stop faults are released by the "operator" this long after they struck (sim s)
 PLC_OUTAGE_S = 2.0
@@ -389,7 +390,7 @@ class _Rehearsal:
     io_names: dict[str, str]  # IO name -> channel, for the report's IO lanes
     plc_back_at: float | None = None
     last_step: int = -1
-    known: Any = None  # the arm's solids, for where an injected intrusion may drop
+    known: KnownScene | None = None  # the arm's solids, for where an injected intrusion may drop
     not_dropped: int = 0  # intrusions with no room on the path: none dropped
 
     def quiet_until_s(self, cell: CellController) -> float:

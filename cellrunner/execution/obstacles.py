@@ -286,7 +286,8 @@ def _replan(
     """A verified plan from ``q_rad`` (where the arm stands) around the map, clear of it
     now; None when there is none. The planner's cubes and the path check's grown solids
     differ near a solid's edges: a plan the path check refuses is planned again around
-    cubes grown by sqrt(3), which cover what the path check calls near."""
+    cubes grown further (:data:`REPLAN_GROWTH`, up to sqrt(3), which covers what the
+    path check calls near)."""
     assert ctx.obstacles is not None
     zone = ctx.obstacles.zone
     for scale in REPLAN_GROWTH:
