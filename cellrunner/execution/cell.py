@@ -15,17 +15,16 @@ PLC commands as commands, what the robot and the job do as events.
 
 from __future__ import annotations
 
-import contextlib
 import threading
 import uuid
-from collections.abc import Callable, Generator
+from collections.abc import Callable
 from concurrent.futures import wait
 from typing import Any
 
 from cellrunner.backends.base import RobotBackend
 from cellrunner.errors import CellrunnerError, InputError
 from cellrunner.execution.cell_states import CellStates
-from cellrunner.execution.context import EventLog, Eye
+from cellrunner.execution.context import QUIET, EventLog, Eye
 from cellrunner.execution.job import JobRunner
 from cellrunner.execution.job_book import JobBook
 from cellrunner.execution.job_launch import JobLauncher
@@ -34,7 +33,6 @@ from cellrunner.execution.job_view import (
     Job,
     JobView,
     obstruction_of,
-    result_of_job,
     status_of,
     streaming_of,
     view_of,
@@ -42,13 +40,8 @@ from cellrunner.execution.job_view import (
 from cellrunner.execution.journal import JournalBackend
 from cellrunner.execution.packml import Command, Event, TransitionRefused
 from cellrunner.execution.planner import PlannedJob, Planner
-from cellrunner.execution.recovery import (
-    Recovered,
-    clear_steps,
-    stop_and_stand,
-    unlock_idle_stop,
-)
-from cellrunner.model.cellport import COMMANDS, CellStatus, JobResult, JobTicket, ResultListener
+from cellrunner.execution.recovery import Recovery, stop_and_stand, unlock_idle_stop
+from cellrunner.model.cellport import COMMANDS, CellStatus, JobTicket, ResultListener
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step, resolve_params
@@ -88,9 +81,9 @@ class CellController:
         watch: Any = None,
     ) -> None:
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
-        self.log = log
+        self.log = log or QUIET
         self.on_job_start = on_job_start  # e.g. the twin's infeed brings the next part
-        self._book = JobBook(journal, cell.cell.cell, log)
+        self._book = JobBook(journal, cell.cell.cell, log, publish=self._publish)
         self._launcher = JobLauncher(
             cell,
             backend,
@@ -106,13 +99,9 @@ class CellController:
         self.states = CellStates()
         self._lock = threading.RLock()
         self._job: Job | None = None
-        self._last: JobResult | None = None
-        self._listeners: list[ResultListener] = []
         self._safety = Safety.NORMAL
         self._actions: list[Callable[[], None]] = []  # backend work asked for by other threads
-        self._recovery: Generator[None, None, Recovered] | None = None  # Clear's, one a tick
-        # a result the journal has not written yet (a full disk), and its "written" event
-        self._held: tuple[JobResult, threading.Event] | None = None
+        self._recovery = Recovery()  # Clear's, one step a tick
         self.last_runner: JobRunner | None = None  # of the last finished job (its step records)
         self._last_view: JobView | None = None
         self._status_key: tuple[object, ...] = ()
@@ -122,7 +111,7 @@ class CellController:
     def setup(self) -> None:
         """Open the journal (closing jobs a restart interrupted with 107), connect the
         robot, and reset to Idle."""
-        self._last = self._book.open() or self._last
+        self._book.open()
         self.backend.connect()
         self.states.now_s = self.backend.read_state().time_s
         with self._lock:
@@ -159,9 +148,9 @@ class CellController:
             self.states.state,
             self._job,
             self._safety,
-            self._last,
+            self._book.last,
             self._book.counters,
-            held=self._held is not None,
+            held=self._book.holding,
         )
 
     def _publish(self) -> None:
@@ -170,10 +159,10 @@ class CellController:
         key = (
             self.states.state,
             job,
-            self._held,
+            self._book.holding,
             self._safety,
             job.runner.current_step if job and job.runner else 0,
-            self._last,
+            self._book.last,
             self._book.counters,
             obstruction_of(job),
         )
@@ -258,7 +247,7 @@ class CellController:
             if (
                 self.states.state is not S.IDLE
                 or self._job is not None
-                or self._held is not None
+                or self._book.holding
                 or self._safety is not Safety.NORMAL
             ):
                 return JobTicket(
@@ -273,7 +262,7 @@ class CellController:
             self._job = job
             self.states.command(Command.START)
             self._publish()
-            self._log(
+            self.log.info(
                 "job_accepted", job_id=job.job_id, task=loaded.name, params=values, source=source
             )
             return JobTicket(job.job_id)  # planning starts on the control thread's next tick
@@ -307,21 +296,23 @@ class CellController:
             if name == "reset" and job is None and self._safety is Safety.PROTECTIVE_STOP:
                 # a stop latched with no job to hold (in Idle, or left by a job that ended
                 # with 100): Reset is the PLC's only way to clear it
-                self._actions.append(self._unlock_idle_stop)
+                self._actions.append(lambda: self._recovered(*unlock_idle_stop(self.backend)))
                 if self.states.state is S.IDLE:
                     return True
             command = _COMMAND_OF[name]
             self.states.command(command)
             if command is Command.CLEAR:
-                self._actions.append(self._start_recovery)  # on the control thread
+                disconnected = self._safety is Safety.DISCONNECTED
+                self._actions.append(lambda: self._recovery.start(self.backend, disconnected))
             return True
         except (TransitionRefused, CellrunnerError):
             return False
 
     def add_result_listener(self, listener: ResultListener) -> Callable[[], None]:
         with self._lock:
-            self._listeners.append(listener)
-        return lambda: self._listeners.remove(listener) if listener in self._listeners else None
+            self._book.listeners.append(listener)
+        listeners = self._book.listeners
+        return lambda: listeners.remove(listener) if listener in listeners else None
 
     # ------------------------------------------------------------------ tick
     def tick(self) -> None:
@@ -335,8 +326,8 @@ class CellController:
             job = self._job
         for action in actions:  # backend work other threads asked for: only this thread does it
             action()
-        if self._recovery is not None:
-            self._step_recovery()
+        if self._recovery.active and (recovered := self._recovery.step()) is not None:
+            self._recovered(*recovered, failed=Event.CLEAR_FAILED)
         runner = job.runner if job is not None else None
         if runner is not None:
             runner.tick()
@@ -353,7 +344,7 @@ class CellController:
             self.states.now_s, self._safety = state.time_s, state.safety
             if job is not None and job is self._job and runner is not None:
                 self._follow(job, runner)
-            self._deliver_held()
+            self._book.deliver()
             self._idle_transitions()
             self._publish()
 
@@ -367,7 +358,7 @@ class CellController:
             job = self._job
             if (
                 self._actions
-                or self._recovery is not None
+                or self._recovery.active
                 or job is None
                 or job.runner is None
                 or self.states.state is not S.EXECUTE
@@ -387,30 +378,16 @@ class CellController:
                 self._publish()
         return n
 
-    def _start_recovery(self) -> None:
-        if self._recovery is None:
-            self._recovery = clear_steps(self.backend, self._safety is Safety.DISCONNECTED)
-
-    def _step_recovery(self) -> None:
-        """One bounded step of Clearing's recovery per tick (polled by :meth:`tick`)."""
-        assert self._recovery is not None
-        try:
-            next(self._recovery)
-        except StopIteration as stop:
-            self._recovery = None
-            error, safety = stop.value
-            with self._lock:
-                if error is not None:
-                    self._log("clear_failed", error=str(error))
-                    self.states.on(Event.CLEAR_FAILED)
-                self._safety = safety
-
-    def _unlock_idle_stop(self) -> None:
-        """Reset with no job (on the control thread): unlock a latched protective stop."""
-        error, safety = unlock_idle_stop(self.backend)
+    def _recovered(
+        self, error: CellrunnerError | None, safety: Safety, failed: Event | None = None
+    ) -> None:
+        """A recovery ended (Clear's, ``failed`` its event when it fails; or Reset's unlock
+        of a stop with no job): the robot's safety state, and why it failed."""
         with self._lock:
             if error is not None:
-                self._log("unlock_failed", error=str(error))
+                self.log.info("clear_failed" if failed else "unlock_failed", error=str(error))
+                if failed is not None:
+                    self.states.on(failed)
             self._safety = safety
 
     def _start_runner(self, job: Job) -> JobRunner | None:
@@ -440,57 +417,24 @@ class CellController:
         self.states.follow(runner.phase)
 
     def _idle_transitions(self) -> None:
-        self.states.settle(self._safety, self._job is not None, self._recovery is not None)
+        self.states.settle(self._safety, self._job is not None, self._recovery.active)
 
     def _end_job(self, code: ResultCode, message: str, runner: JobRunner | None = None) -> None:
         job = self._job
         if job is None:
             return
-        retries = runner.retries_used if runner else 0
-        cycle = runner.cycle_time_s if runner else 0.0
-        durable = self._book.end(job, code, cycle, retries, message or code.text)
-        result = result_of_job(job, code, message or code.text, cycle, retries)
+        message = message or code.text
         self.last_runner = runner
-        self._last_view = view_of(job, runner, code, message or code.text)
+        self._last_view = view_of(job, runner, code, message)
         self._job = None
         self.states.job_ended(code.is_fault)
-        self._log("job_end", job_id=job.job_id, result_code=int(code), message=message)
-        self._held = (result, durable)
-        if not self._deliver_held():  # a full disk: the PLC is told once it is written
-            self._warn(
-                "result_held",
-                job_id=job.job_id,
-                result_code=int(code),
-                error=self._book.last_error,
-            )
-
-    def _deliver_held(self) -> bool:
-        """Tell the PLC (the result listeners, the last result) the result held until the
-        journal has it; False while it is not written yet."""
-        if self._held is None:
-            return True
-        result, durable = self._held
-        if not durable.is_set():
-            return False
-        self._held = None
-        self._last = result
-        self._book.refresh_counters()
-        self._publish()  # the snapshot a listener reads holds this result and its counters
-        for listener in list(self._listeners):
-            with contextlib.suppress(Exception):  # a listener must never take the cell down
-                listener(result)
-        return True
+        self.log.info("job_end", job_id=job.job_id, result_code=int(code), message=message)
+        retries = runner.retries_used if runner else 0
+        cycle = runner.cycle_time_s if runner else 0.0
+        self._book.end(job, code, cycle, retries, message)  # told once written (a full disk)
 
     # ------------------------------------------------------------------ helpers
     def _task(self, task: str | int) -> LoadedTask | None:
         if isinstance(task, int) or (isinstance(task, str) and task.isdigit()):
             return self.tasks.get(int(task))
         return next((t for t in self.tasks.values() if t.name == task), None)
-
-    def _log(self, event: str, **kw: Any) -> None:
-        if self.log is not None:
-            self.log.info(event, **kw)
-
-    def _warn(self, event: str, **kw: Any) -> None:
-        if self.log is not None:
-            self.log.warning(event, **kw)

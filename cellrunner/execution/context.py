@@ -74,6 +74,23 @@ class EventLog(Protocol):
     def bind(self, **fields: Any) -> EventLog: ...
 
 
+class _Quiet:
+    """An :class:`EventLog` that drops every event (a cell run without logging)."""
+
+    def info(self, event: str, **fields: Any) -> None:
+        pass
+
+    def warning(self, event: str, **fields: Any) -> None:
+        pass
+
+    def bind(self, **fields: Any) -> EventLog:
+        return self
+
+
+#: where events go when nobody asked for them
+QUIET: EventLog = _Quiet()
+
+
 @dataclass
 class Carry:
     """The part the gripper holds: the load measured once lifted, for slip detection."""

@@ -38,6 +38,32 @@ def clear_steps(backend: RobotBackend, disconnected: bool) -> Generator[None, No
     return error, backend.read_state().safety
 
 
+class Recovery:
+    """Clearing's recovery under way (:func:`clear_steps`), one bounded step per tick."""
+
+    def __init__(self) -> None:
+        self._steps: Generator[None, None, Recovered] | None = None
+
+    @property
+    def active(self) -> bool:
+        return self._steps is not None
+
+    def start(self, backend: RobotBackend, disconnected: bool) -> None:
+        if self._steps is None:
+            self._steps = clear_steps(backend, disconnected)
+
+    def step(self) -> Recovered | None:
+        """One step; how the recovery ended once it did, else None."""
+        assert self._steps is not None  # stepped only while active
+        try:
+            next(self._steps)
+        except StopIteration as stop:
+            self._steps = None
+            recovered: Recovered = stop.value
+            return recovered
+        return None
+
+
 def unlock_idle_stop(backend: RobotBackend) -> Recovered:
     """Reset with no job: unlock a latched protective stop. The controller refuses within
     5 s of the stop; the next Reset tries again."""
