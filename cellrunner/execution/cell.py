@@ -18,11 +18,10 @@ from __future__ import annotations
 import threading
 import uuid
 from collections.abc import Callable
-from concurrent.futures import wait
 from typing import Any
 
 from cellrunner.backends.base import RobotBackend
-from cellrunner.errors import CellrunnerError, InputError
+from cellrunner.errors import CellrunnerError
 from cellrunner.execution.cell_states import CellStates
 from cellrunner.execution.context import QUIET, EventLog, Eye
 from cellrunner.execution.job import JobRunner
@@ -39,12 +38,13 @@ from cellrunner.execution.job_view import (
 )
 from cellrunner.execution.journal import JournalBackend
 from cellrunner.execution.packml import Command, Event, TransitionRefused
-from cellrunner.execution.planner import PlannedJob, Planner
+from cellrunner.execution.planner import Planner
 from cellrunner.execution.recovery import Recovery, stop_and_stand, unlock_idle_stop
+from cellrunner.execution.task_menu import TaskMenu
 from cellrunner.model.cellport import COMMANDS, CellStatus, JobTicket, ResultListener
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
-from cellrunner.model.expand import Step, resolve_params
+from cellrunner.model.expand import Step
 from cellrunner.model.load import LoadedCell, LoadedTask
 from cellrunner.model.robot_state import Safety
 from cellrunner.model.trajectory import ApprovedTrajectory
@@ -81,6 +81,7 @@ class CellController:
         watch: Any = None,
     ) -> None:
         self.cell, self.tasks, self.backend, self.journal = cell, tasks, backend, journal
+        self._menu = TaskMenu(tasks)
         self.log = log or QUIET
         self.on_job_start = on_job_start  # e.g. the twin's infeed brings the next part
         self._book = JobBook(journal, cell.cell.cell, log, publish=self._publish)
@@ -204,28 +205,19 @@ class CellController:
         """How long the running job's approved trajectory of ``step`` lasts (s); None for
         a step without one, or before the plan is ready."""
         job = self._job
-        if job is None or job.plan is None or not job.plan.done() or job.plan.exception():
-            return None
-        approved = job.plan.result().motions.nominal(step)
-        return None if approved is None else approved.trajectory.duration_s
+        return None if job is None else job.planned_motion_s(step)
 
     def wait_for_plan(self, timeout_s: float) -> bool:
         """Block (not the control loop's business while a job plans) until the running
         job's plan is ready or ``timeout_s`` passed; True when there is nothing to wait for."""
         job = self._job
-        if job is None or job.runner is not None or job.plan is None:
-            return True
-        done, _ = wait([job.plan], timeout=timeout_s)
-        return bool(done)
+        return job is None or job.wait_for_plan(timeout_s)
 
     def task_params(self, task: str | int) -> list[str] | None:
-        loaded = self._task(task)
-        return list(loaded.task.params) if loaded else None
+        return self._menu.param_names(task)
 
     def task_param_specs(self, task: str | int) -> list[tuple[str, str, str | None]] | None:
-        """(name, type, unit) of the task's params in order, for the PLC's register layout."""
-        loaded = self._task(task)
-        return [(n, p.type, p.unit) for n, p in loaded.task.params.items()] if loaded else None
+        return self._menu.param_specs(task)
 
     def start_job(
         self, task: str | int, params: dict[str, Any], client_job_id: str, source: str
@@ -234,16 +226,10 @@ class CellController:
             first = self._book.first_of(source, client_job_id)
             if first is not None:
                 return first
-            loaded = self._task(task)
-            if loaded is None:
-                known = ", ".join(f"{n} ({t.name})" for n, t in self.tasks.items())
-                return JobTicket(
-                    "", ResultCode.REJECT_UNKNOWN_TASK, f"unknown task {task!r}; known: {known}"
-                )
-            try:
-                values = resolve_params(loaded.task, params)
-            except InputError as exc:
-                return JobTicket("", ResultCode.REJECT_BAD_PARAMS, exc.diagnostics[0].message)
+            admitted = self._menu.admit(task, params)
+            if isinstance(admitted, JobTicket):
+                return admitted  # an unknown task, bad params
+            loaded, values = admitted
             if (
                 self.states.state is not S.IDLE
                 or self._job is not None
@@ -339,7 +325,13 @@ class CellController:
                     self.on_job_start()
                 self._launcher.plan(job, state.q_rad)
             elif job is not None and job.plan is not None and job.plan.done():
-                runner = self._start_runner(job)
+                started = self._launcher.start(job)
+                if isinstance(started, str):  # planning failed: the job ends with 103
+                    with self._lock:
+                        if job is self._job:
+                            self._end_job(ResultCode.PLANNING_FAILED, started)
+                else:
+                    runner = started
         with self._lock:
             self.states.now_s, self._safety = state.time_s, state.safety
             if job is not None and job is self._job and runner is not None:
@@ -390,22 +382,6 @@ class CellController:
                     self.states.on(failed)
             self._safety = safety
 
-    def _start_runner(self, job: Job) -> JobRunner | None:
-        """The planned job's runner, started (reads the robot); None when planning failed
-        (the job is then ended with 103)."""
-        assert job.plan is not None
-        try:
-            plan: PlannedJob = job.plan.result()
-        except Exception as exc:  # a planner bug must still close the job with a code
-            message = (
-                str(exc) if isinstance(exc, CellrunnerError) else f"{type(exc).__name__}: {exc}"
-            )
-            with self._lock:
-                if job is self._job:
-                    self._end_job(ResultCode.PLANNING_FAILED, message)
-            return None
-        return self._launcher.start(job, plan)
-
     def _follow(self, job: Job, runner: JobRunner) -> None:
         """Move the PackML state one step towards the runner's phase."""
         if job.runner is None:  # just started: Starting -> Execute
@@ -432,9 +408,3 @@ class CellController:
         retries = runner.retries_used if runner else 0
         cycle = runner.cycle_time_s if runner else 0.0
         self._book.end(job, code, cycle, retries, message)  # told once written (a full disk)
-
-    # ------------------------------------------------------------------ helpers
-    def _task(self, task: str | int) -> LoadedTask | None:
-        if isinstance(task, int) or (isinstance(task, str) and task.isdigit()):
-            return self.tasks.get(int(task))
-        return next((t for t in self.tasks.values() if t.name == task), None)

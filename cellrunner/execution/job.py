@@ -10,7 +10,6 @@ holding -> held -> unholding -> execute, or -> aborting; ``done`` at the end wit
 from __future__ import annotations
 
 import contextlib
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -18,13 +17,13 @@ from typing import Any
 import numpy as np
 
 from cellrunner.errors import BackendError, InfeasibleError, PeerUnreachable
+from cellrunner.execution.agenda import Agenda
 from cellrunner.execution.cleanup import Cleanup
 from cellrunner.execution.context import JobContext
-from cellrunner.execution.dispatch import behaviour_of
 from cellrunner.execution.hold import PROTECTIVE_STOP, Held, JobHold
-from cellrunner.execution.job_records import AgendaItem, JobPhase, StepRecord, StepStatus
+from cellrunner.execution.job_records import AgendaItem, JobPhase, StepRecord, StepRows
 from cellrunner.execution.lookahead import Clock, fast_forward
-from cellrunner.execution.outcome import OK, Outcome, StepGen
+from cellrunner.execution.outcome import Outcome
 from cellrunner.execution.reconnect import Link, Reconnect
 from cellrunner.execution.retry import grip_of, retry_agenda, weighing_after
 from cellrunner.model.codes import ResultCode
@@ -59,12 +58,9 @@ class JobRunner:
         # the task's on_error steps come last, marked; they run only after a failure
         self._cleanup = Cleanup([s for s in self.steps if s.macro == ON_ERROR])
         self.steps = [s for s in self.steps if s.macro != ON_ERROR]
-        self.records = {s.index: StepRecord(s.index, s.kind, s.name) for s in self.steps}
-        self._agenda: list[AgendaItem] = [AgendaItem(s) for s in self.steps]
-        self._current: AgendaItem | None = None
-        self._gen: StepGen | None = None
-        self._item_started_s = 0.0
-        self._item_timeout_s = 0.0
+        self._rows = StepRows(self.steps, self.on_step, self.ctx.obstacles)
+        self.records = self._rows.records  # the report's rows, by step index
+        self._agenda = Agenda(self.ctx, self._rows, self.steps, self.gate, self._log)
         self._hold = JobHold(self.protective_stop, self.wait_for_unhold)
         self._requests: list[str] = []
         self._pending_end: tuple[ResultCode, str] | None = None  # after cleanup steps
@@ -75,7 +71,7 @@ class JobRunner:
     @property
     def current_step(self) -> int:
         """1-based index of the step under way, 0 when none."""
-        return self._current.step.index if self._current and self.phase is not JobPhase.DONE else 0
+        return (self._agenda.step_index or 0) if self.phase is not JobPhase.DONE else 0
 
     @property
     def done(self) -> bool:
@@ -89,7 +85,7 @@ class JobRunner:
         self.ctx.read()
         self.started_s = self.ctx.now_s
         self.phase = JobPhase.EXECUTE
-        self._next_item()
+        self._agenda.next()
 
     # ------------------------------------------------------------------ tick
     def tick(self) -> None:
@@ -107,10 +103,10 @@ class JobRunner:
         elif safety is Safety.DISCONNECTED:
             return self._reconnect()
         elif safety is Safety.EMERGENCY_STOP:
-            return self._finish(ResultCode.ESTOP, f"e-stop during {self._label()}")
+            return self._finish(ResultCode.ESTOP, f"e-stop during {self._agenda.label}")
         elif safety is Safety.FAULT:
             return self._finish(
-                ResultCode.PROTECTIVE_STOP, f"controller fault during {self._label()}"
+                ResultCode.PROTECTIVE_STOP, f"controller fault during {self._agenda.label}"
             )
         elif safety is Safety.PROTECTIVE_STOP and phase is JobPhase.EXECUTE:
             self.protective_stops += 1
@@ -133,19 +129,20 @@ class JobRunner:
             self.phase is not JobPhase.EXECUTE
             or self._requests
             or self._link.active
-            or self._gen is None
-            or self._current is None
+            or self._agenda.gen is None
+            or self._agenda.current is None
             or (self.ctx.stream is None and self.ctx.hold is None)
         ):
             return 0
-        clock = Clock(self._ticks, TRACK_EVERY, self._item_started_s, self._item_timeout_s, until_s)
+        agenda = self._agenda
+        clock = Clock(self._ticks, TRACK_EVERY, agenda.started_s, agenda.timeout_s, until_s)
         n = fast_forward(self.ctx, clock, max_periods)
         self._ticks += n
         return n
 
     def _handle_request(self, what: str) -> None:
         if what == "abort":
-            self._finish(ResultCode.ABORTED_BY_PLC, f"aborted during {self._label()}")
+            self._finish(ResultCode.ABORTED_BY_PLC, f"aborted during {self._agenda.label}")
         elif what == "hold" and self.phase is JobPhase.EXECUTE:
             self._enter_hold("hold requested")
         elif what == "unhold" and self.phase is JobPhase.HELD:
@@ -158,8 +155,8 @@ class JobRunner:
 
     def _enter_hold(self, reason: str) -> None:
         self.phase = JobPhase.HOLDING
-        self._hold.enter(reason, self.ctx.now_s, self._step_index, self.ctx.last_state.q_rad)
-        self._drop_motion()
+        self._hold.enter(reason, self.ctx.now_s, self._agenda.step_index, self.ctx.last_state.q_rad)
+        self._agenda.drop_motion()
         if reason != PROTECTIVE_STOP:
             self.ctx.backend.stop_motion()
         self._log("hold", reason=reason)
@@ -169,7 +166,9 @@ class JobRunner:
             self.phase = JobPhase.HELD
         if not self._hold.protective:
             return  # a requested hold waits for unhold or abort
-        held = self._hold.poll(self.ctx, self.protective_stops, self._step_index, self._label())
+        held = self._hold.poll(
+            self.ctx, self.protective_stops, self._agenda.step_index, self._agenda.label
+        )
         if held is Held.FAILED:
             self._finish(ResultCode.PROTECTIVE_STOP, self._hold.failure)
         elif held is Held.RESUME:
@@ -178,20 +177,20 @@ class JobRunner:
     def _resume(self) -> None:
         self._log("unhold")
         self.phase = JobPhase.EXECUTE
-        self._restart_current()
+        self._agenda.restart()
 
     def _tick_execute(self) -> None:
-        if self._current is None:
+        agenda = self._agenda
+        if agenda.current is None:
             return self._finish(*(self._pending_end or (ResultCode.OK, "")))
-        if self.ctx.last_state.time_s - self._item_started_s > self._item_timeout_s:
+        if agenda.timed_out():
             self.ctx.backend.stop_motion()
-            return self._finish(ResultCode.STEP_TIMEOUT, f"{self._label()} timed out")
-        if self._gen is None:  # a reconnect or hold dropped the step's generator
-            self._current.resume = True
-            return self._start_item(self._current)
+            return self._finish(ResultCode.STEP_TIMEOUT, f"{self._agenda.label} timed out")
+        if agenda.gen is None:  # a reconnect or hold dropped the step's generator
+            return agenda.restart()
         self.ctx.hold = None  # valid only when set by the step in this tick
         try:
-            next(self._gen)
+            next(agenda.gen)
         except StopIteration as stop:
             self._on_outcome(stop.value)
         except InfeasibleError as exc:
@@ -199,7 +198,7 @@ class JobRunner:
         except BackendError as exc:
             self._on_backend_error(exc)
         except PeerUnreachable as exc:
-            self._reconnect(f"{self._label()}: {exc}")
+            self._reconnect(f"{self._agenda.label}: {exc}")
 
     def _on_backend_error(self, exc: BackendError) -> None:
         """A refused command: a safety stop the state had not shown yet is handled as
@@ -209,9 +208,9 @@ class JobRunner:
             self.protective_stops += 1
             self._enter_hold(PROTECTIVE_STOP)
         elif safety is Safety.EMERGENCY_STOP:
-            self._finish(ResultCode.ESTOP, f"e-stop during {self._label()}")
+            self._finish(ResultCode.ESTOP, f"e-stop during {self._agenda.label}")
         else:
-            self._reconnect(f"{self._label()}: {exc}")
+            self._reconnect(f"{self._agenda.label}: {exc}")
 
     def _reconnect(self, why: str = "robot connection lost") -> None:
         """Get the robot link back (bounded, polled by :meth:`tick`; see
@@ -220,100 +219,29 @@ class JobRunner:
         if not self._link.active:
             self._log("reconnect", why=why)
             self._link.begin(why, self.ctx.backend)
-            self._drop_motion()
+            self._agenda.drop_motion()
         link = self._link.poll(self.ctx.backend, self._read_safety)
         if link is Link.LOST:
             return self._finish(ResultCode.ROBOT_CONNECTION_LOST, self._link.failure)
         if link is Link.BACK:
             self._log("reconnected")
             if self.phase is JobPhase.EXECUTE:
-                self._restart_current()
+                self._agenda.restart()
 
-    # ------------------------------------------------------------------ items
-    @property
-    def _step_index(self) -> int | None:
-        return self._current.step.index if self._current is not None else None
-
-    def _drop_motion(self) -> None:
-        """Forget the step's generator and the motion it streamed (a hold, a reconnect):
-        no tracking error until the next set-point."""
-        self._gen = None
-        self.ctx.stream = self.ctx.hold = None
-        self.ctx.commanded_q = None
-
-    def _restart_current(self) -> None:
-        """Start the step under way again, resuming from where the arm stands."""
-        if self._current is not None:
-            self._current.resume = True
-            self._start_item(self._current)
-
-    def _next_item(self) -> None:
-        self._current = self._agenda.pop(0) if self._agenda else None
-        if self._current is not None:
-            self._start_item(self._current)
-
-    def _start_item(self, item: AgendaItem) -> None:
-        step = item.step
-        self.ctx.hold = None
-        self.ctx.stream = None  # a motion's generator sets it once it streams
-        if (
-            self.gate is not None
-            and not (item.gated or item.between or item.resume)
-            and item.behaviour == "step"
-        ):
-            self._item_timeout_s = math.inf
-            self._gen = self._await_gate(item)
-            return
-        self._item_started_s = self.ctx.now_s
-        self._item_timeout_s = item.timeout_s(self.ctx.step_timeout_s)
-        record = self.records[step.index]
-        if not item.between and item.behaviour == "step" and not item.resume:
-            record.status, record.attempts = StepStatus.RUNNING, max(record.attempts, item.attempt)
-            if record.started_s is None:
-                record.started_s = self.ctx.now_s
-            if self.ctx.on_step_start is not None:
-                self.ctx.on_step_start(step, item.attempt)
-            self._journal(record, item.attempt)
-        self._log(
-            "step",
-            kind=step.kind,
-            name=step.name,
-            attempt=item.attempt,
-            between=item.between or None,
-            resume=item.resume or None,
-        )
-        self._gen = behaviour_of(self.ctx, item)
-
-    def _await_gate(self, item: AgendaItem) -> StepGen:
-        """Stand still until the gate opens, then start the item (its own behaviour runs
-        from the next tick on)."""
-        gate = self.gate
-        assert gate is not None  # started only when there is a gate
-        while not gate(item.step):
-            yield
-        item.gated = True
-        self._start_item(item)
-        yield
-        return OK  # not reached: _start_item replaced this generator
-
+    # ------------------------------------------------------------------ outcomes
     def _on_outcome(self, outcome: Outcome) -> None:
-        item = self._current
+        item = self._agenda.current
         assert item is not None  # an outcome comes from the current item's behaviour
         step = item.step
-        record = self.records[step.index]
         if outcome.ok:
             if not item.between and item.behaviour == "step":
-                record.status = StepStatus.OK
-                record.message = outcome.message or record.message  # what an align measured
-                assert record.started_s is not None  # set when the step started
-                record.duration_s = self.ctx.now_s - record.started_s
-                self._journal(record, item.attempt)
-            elif (
-                item.behaviour == "weigh"
-            ):  # the grip's weighing happens after its lift: its time is the grip's
-                record.duration_s += self.ctx.now_s - self._item_started_s
-            self._after_success(item)
-            return self._next_item()
+                self._rows.ok(step.index, item.attempt, self.ctx.now_s, outcome.message)
+            elif item.behaviour == "weigh":  # after the lift: its time is the grip's
+                self.records[step.index].duration_s += self.ctx.now_s - self._agenda.started_s
+            weighing = weighing_after(self.steps, item)
+            if weighing is not None:
+                self._agenda.items.insert(0, weighing)
+            return self._agenda.next()
         grip = grip_of(item)
         if (
             grip is not None
@@ -322,25 +250,21 @@ class JobRunner:
             and item.attempt < grip.retry.attempts
         ):
             return self._retry(grip, item.attempt + 1, outcome.message)
-        self._fail(self.records[grip.index if grip is not None else step.index], outcome.message)
+        failed = grip.index if grip is not None else step.index
+        self._rows.failed(failed, item.attempt, self.ctx.now_s, outcome.message)
         if grip is not None and grip.retry and outcome.code is ResultCode.NO_PART:
             # leave the part area the way the retry would, then end
-            self._agenda = [AgendaItem(b, item.attempt, between=True) for b in grip.retry.between]
             self._pending_end = (outcome.code, outcome.message)
-            return self._next_item()
+            return self._agenda.next(
+                [AgendaItem(b, item.attempt, between=True) for b in grip.retry.between]
+            )
         self._finish(outcome.code, outcome.message)
-
-    def _after_success(self, item: AgendaItem) -> None:
-        weighing = weighing_after(self.steps, item)
-        if weighing is not None:
-            self._agenda.insert(0, weighing)
 
     def _retry(self, grip: Step, attempt: int, why: str) -> None:
         self.retries_used += 1
         self.records[grip.index].message = f"attempt {attempt - 1} failed: {why}"
         self._log("retry", attempt=attempt, why=why)
-        self._agenda = retry_agenda(self.steps, self.records, grip, attempt)
-        self._next_item()
+        self._agenda.next(retry_agenda(self.steps, self.records, grip, attempt))
 
     # ------------------------------------------------------------------ end
     def _finish(self, code: ResultCode, message: str) -> None:
@@ -353,7 +277,7 @@ class JobRunner:
                 self.ctx.backend.stop_motion()
         if code is not ResultCode.OK:
             self._fail_running(message)
-        self._skip_pending()
+        self._rows.skip_pending()
         if code is not ResultCode.OK and self._cleanup.may_run(code, self._read_safety):
             return self._start_cleanup(code, message)
         self._end(code, message)
@@ -362,46 +286,31 @@ class JobRunner:
         """Run the task's on_error steps (safe outputs, retreat), then end with ``code``."""
         self.ctx.carry = None  # cleaning up: a part still held (or lost) is not watched
         self._log("on_error", result_code=int(code), message=message)
-        for s in self._cleanup.steps:
-            self.records[s.index] = StepRecord(s.index, s.kind, s.name)
-        self._agenda = self._cleanup.begin(code, message)
+        self._rows.add(self._cleanup.steps)
         self._pending_end = None
         self.phase = JobPhase.EXECUTE
         self.ctx.commanded_q = None
-        self._next_item()
+        self._agenda.next(self._cleanup.begin(code, message))
 
     def _end_cleanup(self, code: ResultCode, message: str) -> None:
         """An on_error step ended (or all did, ``code`` OK); see
         :mod:`~cellrunner.execution.cleanup`."""
         if code is not ResultCode.OK:
             self._fail_running(message)
-            label = self._current.step.label if self._current is not None else "on_error"
-            if self._cleanup.note(label, code, message) and self._agenda:
+            label = self._agenda.label if self._agenda.current is not None else "on_error"
+            if self._cleanup.note(label, code, message) and self._agenda.items:
                 self.ctx.commanded_q = None
-                return self._next_item()
+                return self._agenda.next()
             if code.is_fault:
                 with contextlib.suppress(BackendError):
                     self.ctx.backend.stop_motion()
-        self._skip_pending()
+        self._rows.skip_pending()
         self._end(*self._cleanup.result())
-
-    def _fail(self, record: StepRecord, message: str) -> None:
-        """``record``'s step failed with ``message`` (journaled)."""
-        record.status, record.message = StepStatus.FAILED, message
-        record.duration_s = self.ctx.now_s - (record.started_s or self.ctx.now_s)
-        self._journal(record, self._current.attempt if self._current is not None else 1)
 
     def _fail_running(self, message: str) -> None:
         """The step under way, if it is running, failed with ``message``."""
-        if self._current is not None:
-            record = self.records[self._current.step.index]
-            if record.status is StepStatus.RUNNING:
-                self._fail(record, message)
-
-    def _skip_pending(self) -> None:
-        for record in self.records.values():
-            if record.status is StepStatus.PENDING:
-                record.status = StepStatus.SKIPPED
+        if (item := self._agenda.current) is not None:
+            self._rows.fail_running(item.step.index, item.attempt, self.ctx.now_s, message)
 
     def _read_safety(self) -> Safety:
         return self.ctx.read().safety
@@ -410,7 +319,7 @@ class JobRunner:
         self.result, self.message = code, message
         self.ended_s = self.ctx.now_s
         self.phase = JobPhase.DONE
-        self._gen = None
+        self._agenda.gen = None
         self.ctx.stream = self.ctx.hold = None
         self._log("job_end", result_code=int(code), message=message)
 
@@ -419,25 +328,11 @@ class JobRunner:
         return (self.ended_s if self.done else self.ctx.now_s) - self.started_s
 
     # ------------------------------------------------------------------ helpers
-    def _label(self) -> str:
-        return self._current.step.label if self._current else "the job"
-
-    def _journal(self, record: StepRecord, attempt: int) -> None:
-        guard = self.ctx.obstacles
-        if guard is not None and record.status is not StepStatus.RUNNING:
-            from cellrunner.execution.obstacles import summary
-
-            met = summary(guard.events, record.index)
-            if met and met not in record.message:
-                record.message = f"{record.message}; {met}" if record.message else met
-        if self.on_step is not None:
-            self.on_step(record, attempt)
-
     def _log(self, event: str, **kw: Any) -> None:
         """A structlog event bound with the step and attempt under way (the logger already
         carries cell and job_id)."""
         if self.ctx.log is not None:
-            current = self._current
+            current = self._agenda.current
             fields = {
                 "step": current.step.index if current else 0,
                 "attempt": current.attempt if current else 0,

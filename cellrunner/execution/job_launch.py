@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from cellrunner.backends.base import RobotBackend
+from cellrunner.errors import CellrunnerError
 from cellrunner.execution.context import EventLog, Eye, JobContext, Motions, use_gripper
 from cellrunner.execution.job import JobRunner
 from cellrunner.execution.job_book import JobBook
@@ -53,8 +54,14 @@ class JobLauncher:
         """Start planning ``job`` from where the arm stands (its plan: ``job.plan``)."""
         job.plan = self._pool.submit(self.planner, job.task, job.params, q_now_rad)
 
-    def start(self, job: Job, plan: PlannedJob) -> JobRunner:
-        """The runner of ``job`` following ``plan``, started (it reads the robot)."""
+    def start(self, job: Job) -> JobRunner | str:
+        """The runner of ``job`` following its plan, started (it reads the robot); why
+        planning failed instead, when it did (the job ends with 103)."""
+        assert job.plan is not None and job.plan.done()  # called once the plan is ready
+        try:
+            plan: PlannedJob = job.plan.result()
+        except Exception as exc:  # a planner bug must still close the job with a code
+            return str(exc) if isinstance(exc, CellrunnerError) else f"{type(exc).__name__}: {exc}"
         job.planned = plan
         ctx = self._context(plan.motions, job.job_id)
         if self.watch is not None:

@@ -5,9 +5,14 @@ on its agenda (:class:`AgendaItem`: a step with its attempt and how it is run)."
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from cellrunner.model.expand import Step
+
+if TYPE_CHECKING:
+    from cellrunner.execution.obstacle_guard import ObstacleGuard
 
 
 class JobPhase(enum.StrEnum):
@@ -40,6 +45,65 @@ class StepRecord:
     started_s: float | None = None
     duration_s: float = 0.0
     message: str = ""
+
+
+class StepRows:
+    """A job's rows, one per expanded step (``records``, by step index), each handed to
+    ``on_step`` (the journal) with the attempt as it changes; a row that ended says what
+    the watched zone's ``obstacles`` did to its step."""
+
+    def __init__(
+        self,
+        steps: list[Step],
+        on_step: Callable[[StepRecord, int], None] | None,
+        obstacles: ObstacleGuard | None,
+    ) -> None:
+        self.records: dict[int, StepRecord] = {}
+        self.on_step, self.obstacles = on_step, obstacles
+        self.add(steps)
+
+    def add(self, steps: list[Step]) -> None:
+        for s in steps:
+            self.records[s.index] = StepRecord(s.index, s.kind, s.name)
+
+    def started(self, index: int, attempt: int, now_s: float) -> None:
+        record = self.records[index]
+        record.status, record.attempts = StepStatus.RUNNING, max(record.attempts, attempt)
+        if record.started_s is None:
+            record.started_s = now_s
+        self._journal(record, attempt)
+
+    def ok(self, index: int, attempt: int, now_s: float, message: str) -> None:
+        """The step went through; ``message`` says what it measured (an align), if anything."""
+        record = self.records[index]
+        record.status, record.message = StepStatus.OK, message or record.message
+        assert record.started_s is not None  # set when the step started
+        record.duration_s = now_s - record.started_s
+        self._journal(record, attempt)
+
+    def failed(self, index: int, attempt: int, now_s: float, message: str) -> None:
+        record = self.records[index]
+        record.status, record.message = StepStatus.FAILED, message
+        record.duration_s = now_s - (record.started_s or now_s)
+        self._journal(record, attempt)
+
+    def fail_running(self, index: int, attempt: int, now_s: float, message: str) -> None:
+        """Step ``index`` failed with ``message`` if it is running."""
+        if self.records[index].status is StepStatus.RUNNING:
+            self.failed(index, attempt, now_s, message)
+
+    def skip_pending(self) -> None:
+        for record in self.records.values():
+            if record.status is StepStatus.PENDING:
+                record.status = StepStatus.SKIPPED
+
+    def _journal(self, record: StepRecord, attempt: int) -> None:
+        if self.obstacles is not None and record.status is not StepStatus.RUNNING:
+            met = self.obstacles.summary(record.index)
+            if met and met not in record.message:
+                record.message = f"{record.message}; {met}" if record.message else met
+        if self.on_step is not None:
+            self.on_step(record, attempt)
 
 
 @dataclass

@@ -4,7 +4,7 @@ snapshot, and the :class:`~cellrunner.model.cellport.JobResult` of a job that en
 
 from __future__ import annotations
 
-from concurrent.futures import Future
+from concurrent.futures import Future, wait
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 
@@ -17,6 +17,7 @@ from cellrunner.execution.planner import PlannedJob
 from cellrunner.model.cellport import CellStatus, JobResult
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
+from cellrunner.model.expand import Step
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
 from cellrunner.model.robot_state import Safety
@@ -35,6 +36,23 @@ class Job:
     plan: Future[PlannedJob] | None = None
     runner: JobRunner | None = None
     planned: PlannedJob | None = None
+
+    def planned_motion_s(self, step: Step) -> float | None:
+        """How long the approved trajectory of ``step`` lasts (s); None for a step
+        without one, or before the plan is ready."""
+        plan = self.plan
+        if plan is None or not plan.done() or plan.exception():
+            return None
+        approved = plan.result().motions.nominal(step)
+        return None if approved is None else approved.trajectory.duration_s
+
+    def wait_for_plan(self, timeout_s: float) -> bool:
+        """Block until the plan is ready or ``timeout_s`` passed; True when there is
+        nothing to wait for (no plan asked for, or it was picked up already)."""
+        if self.runner is not None or self.plan is None:
+            return True
+        done, _ = wait([self.plan], timeout=timeout_s)
+        return bool(done)
 
 
 @dataclass(frozen=True)

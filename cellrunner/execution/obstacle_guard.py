@@ -63,3 +63,17 @@ class ObstacleGuard:
         self.events.append(event)
         if ctx.log is not None:
             ctx.log.info("obstacle", **event)
+
+    def summary(self, step_index: int) -> str:
+        """One line of what obstacles did to a step, for its journal row: each stop, wait,
+        replan and clear with its time (s) and the voxel's position (m); "" when none."""
+        parts = []
+        for e in self.events:
+            if e.get("step") != step_index:
+                continue
+            text = f"{e['what']} {e['time_s']:.2f} s"
+            if "voxel_m" in e:
+                x, y, z = e["voxel_m"]
+                text += f" at ({x:.2f}, {y:.2f}, {z:.2f}) m"
+            parts.append(text)
+        return "obstacle: " + "; ".join(parts) if parts else ""

@@ -41,21 +41,6 @@ RAMP_ACCEL_FRACTION = 0.8
 REPLAN_EVERY_S = 1.0
 
 
-def summary(events: list[dict[str, Any]], step_index: int) -> str:
-    """One line of what obstacles did to a step, for its journal row: each stop, wait,
-    replan and clear with its time (s) and the voxel's position (m); "" when none."""
-    parts = []
-    for e in events:
-        if e.get("step") != step_index:
-            continue
-        text = f"{e['what']} {e['time_s']:.2f} s"
-        if "voxel_m" in e:
-            x, y, z = e["voxel_m"]
-            text += f" at ({x:.2f}, {y:.2f}, {z:.2f}) m"
-        parts.append(text)
-    return "obstacle: " + "; ".join(parts) if parts else ""
-
-
 def where(blocked: Blocked) -> str:
     x, y, z = blocked.voxel_m
     return f"occupied voxel at ({x:.3f}, {y:.3f}, {z:.3f}) m"
