@@ -58,8 +58,9 @@ def _scheduling_guard():
 
 
 #: test folders and files that run in real time (the virtual controller through ur_rtde,
-#: serve, PLC clients, a browser) or bound a wall time: scripts/test runs them one at a
-#: time after the others, which it spreads over the cores (they run in simulated time)
+#: serve, PLC clients, a browser): scripts/test runs them after the tests that run in
+#: simulated time, each round spread over the cores, so that no real-time test shares
+#: the machine with a test that keeps a core busy
 WALL_CLOCK = (
     "backends/",
     "commissioning/",
@@ -82,8 +83,32 @@ WALL_CLOCK = (
 )
 
 
+#: the tests (files, or file::test) that bound a wall time: a heartbeat's or a tick's
+#: gap, a stream's rate, how late a stop comes. scripts/test runs them last, one at a
+#: time, so that what they measure is cellrunner, not a neighbour
+TIME_BOUND = (
+    "backends/test_ur_backend.py::test_streams_an_approved_trajectory_and_tracks_it",
+    "commissioning/test_jog.py::test_jog_stops_before_the_wall_and_before_the_wrist",
+    "commissioning/test_servo_udp.py::test_a_program_streams_twists_the_arm_follows",
+    "commissioning/test_servo_watched.py",
+    "execution/test_cell.py::test_rearming_after_an_estop_is_polled_by_tick",
+    "execution/test_unhold_protective_stop.py",
+    "plc/test_modbus.py::test_cell_heartbeat_increments_at_least_every_200ms",
+    "plc/test_opcua.py::test_encrypted_user_session_runs_a_job_and_gets_the_completion",
+    "plc/test_opcua_login_flood.py",
+    "test_serve_login_flood.py",
+    "twin/test_serve_faults.py",
+    "twin/test_ur_rtde_client.py::test_rtde_streams_500_hz_on_e_series",
+    "twin/test_ur_rtde_client.py::test_movej_reaches_target_with_trapezoid_timing",
+    "twin/test_ur_rtde_client.py::test_cb3_controller_answers_as_cb3_at_125_hz",
+    "twin/test_ur_rtde_client.py::test_move_until_contact_stops_on_tool_force",
+)
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         where = item.path.relative_to(ROOT / "tests").as_posix()
-        if where.startswith(WALL_CLOCK):
+        if f"{where}::{item.name}".startswith(TIME_BOUND):
+            item.add_marker(pytest.mark.time_bound)
+        elif where.startswith(WALL_CLOCK):
             item.add_marker(pytest.mark.wall_clock)
