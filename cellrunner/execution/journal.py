@@ -170,7 +170,52 @@ def display_location(location: str) -> str:
     return f"{parts.scheme}://{user}{parts.hostname or 'localhost'}{port}{parts.path}"
 
 
-class SqliteJournal:
+class JobReads:
+    """The reads every journal answers alike, each in its own SQL: ``_ARG`` is its
+    placeholder and ``_SEQ`` the column that keeps the order jobs were written in. A
+    journal gives :meth:`_select`, and :meth:`_flush` when it queues writes."""
+
+    _ARG = "?"
+    _SEQ = "rowid"
+
+    def _select(
+        self,
+        cond: str,
+        args: tuple[Any, ...] = (),
+        order: str = "",
+        order_args: tuple[Any, ...] = (),
+    ) -> list[JobRecord]:
+        """This journal's jobs ``WHERE cond`` (its cell's only, when it has one)."""
+        raise NotImplementedError
+
+    def _flush(self) -> None:
+        """Commit what is queued before a read that must see it (no queue: nothing)."""
+
+    def get(self, job_id: str) -> JobRecord | None:
+        rows = self._select(f"job_id = {self._ARG}", (job_id,))
+        return rows[0] if rows else None
+
+    def by_client_id(self, source: str, client_job_id: str) -> JobRecord | None:
+        """The first job ``source`` asked for under ``client_job_id`` (OPC UA idempotency)."""
+        self._flush()
+        rows = self._select(
+            f"source = {self._ARG} AND client_job_id = {self._ARG}",
+            (source, client_job_id),
+            f"ORDER BY {self._SEQ} LIMIT 1",
+        )
+        return rows[0] if rows else None
+
+    def last(self, n: int = 20) -> list[JobRecord]:
+        order = f"ORDER BY started_at DESC, {self._SEQ} DESC LIMIT {self._ARG}"
+        return list(reversed(self._select("1 = 1", (), order, (n,))))
+
+    def last_finished(self) -> JobRecord | None:
+        order = f"ORDER BY ended_at DESC, {self._SEQ} DESC LIMIT 1"
+        rows = self._select("ended_at IS NOT NULL", (), order)
+        return rows[0] if rows else None
+
+
+class SqliteJournal(JobReads):
     """One SQLite file (WAL, synchronous FULL), so a crash right after a write never
     loses what it wrote. ``cell`` scopes what is read and closed to one cell (None: every
     cell in the file).
@@ -413,28 +458,6 @@ class SqliteJournal:
             self.end_job(job.job_id, ResultCode.INTERRUPTED, None, job.retries)
         closed = (self.get(job.job_id) for job in open_jobs)
         return [record for record in closed if record is not None]
-
-    def get(self, job_id: str) -> JobRecord | None:
-        rows = self._select("job_id = ?", (job_id,))
-        return rows[0] if rows else None
-
-    def by_client_id(self, source: str, client_job_id: str) -> JobRecord | None:
-        """The first job ``source`` asked for under ``client_job_id`` (OPC UA idempotency)."""
-        rows = self._select(
-            "source = ? AND client_job_id = ?", (source, client_job_id), "ORDER BY rowid LIMIT 1"
-        )
-        return rows[0] if rows else None
-
-    def last(self, n: int = 20) -> list[JobRecord]:
-        return list(
-            reversed(self._select("1", (), "ORDER BY started_at DESC, rowid DESC LIMIT ?", (n,)))
-        )
-
-    def last_finished(self) -> JobRecord | None:
-        rows = self._select(
-            "ended_at IS NOT NULL", (), "ORDER BY ended_at DESC, rowid DESC LIMIT 1"
-        )
-        return rows[0] if rows else None
 
     def counters(self) -> tuple[int, int]:
         """(parts processed, parts defective): OK jobs, and jobs that ended NOK (1-3)."""

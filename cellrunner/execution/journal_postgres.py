@@ -29,7 +29,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from cellrunner.execution.journal import JobRecord, JournalError, display_location
+from cellrunner.execution.journal import JobReads, JobRecord, JournalError, display_location
 from cellrunner.model.codes import ResultCode
 
 #: serialises schema creation when several cells start at once (pg_advisory_xact_lock key)
@@ -89,8 +89,11 @@ class _Write:
     error: str = ""
 
 
-class PostgresJournal:
+class PostgresJournal(JobReads):
     """A journal in a PostgreSQL database, for ``cell`` (None: every cell, read-only use)."""
+
+    _ARG = "%s"
+    _SEQ = "seq"
 
     def __init__(
         self,
@@ -239,32 +242,11 @@ class PostgresJournal:
         open_jobs = self._select("ended_at IS NULL")
         for job in open_jobs:
             self.end_job(job.job_id, ResultCode.INTERRUPTED, None, job.retries)
-        self._drain()
+        self._flush()
         closed = (self.get(job.job_id) for job in open_jobs)
         return [record for record in closed if record is not None]
 
     # ------------------------------------------------------------------ reads
-    def get(self, job_id: str) -> JobRecord | None:
-        rows = self._select("job_id = %s", (job_id,))
-        return rows[0] if rows else None
-
-    def by_client_id(self, source: str, client_job_id: str) -> JobRecord | None:
-        """The first job ``source`` asked this cell for under ``client_job_id``."""
-        self._drain()
-        rows = self._select(
-            "source = %s AND client_job_id = %s", (source, client_job_id), "ORDER BY seq LIMIT 1"
-        )
-        return rows[0] if rows else None
-
-    def last(self, n: int = 20) -> list[JobRecord]:
-        return list(
-            reversed(self._select("TRUE", (), "ORDER BY started_at DESC, seq DESC LIMIT %s", (n,)))
-        )
-
-    def last_finished(self) -> JobRecord | None:
-        rows = self._select("ended_at IS NOT NULL", (), "ORDER BY ended_at DESC, seq DESC LIMIT 1")
-        return rows[0] if rows else None
-
     def counters(self) -> tuple[int, int]:
         """(parts processed, parts defective) of this cell, kept in memory (no I/O)."""
         return self._counters[0], self._counters[1]
@@ -326,7 +308,7 @@ class PostgresJournal:
         self._queue.put(item)
         return item
 
-    def _drain(self) -> None:
+    def _flush(self) -> None:
         """Wait until everything queued so far is committed (reads that must see it)."""
         marker = self._enqueue(None)
         if not marker.done.wait(self.begin_timeout_s):
