@@ -61,11 +61,11 @@ obstacle.
 from __future__ import annotations
 
 import bisect
+import functools
 import heapq
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -79,9 +79,6 @@ from cellrunner.planning.collision_scene import (
     _hashable,
 )
 from cellrunner.planning.motion_bounds import bisection_order
-
-if TYPE_CHECKING:
-    from cellrunner.planning.kinematics import ArmKinematics
 
 __all__ = [
     "STALL_M",
@@ -133,28 +130,11 @@ class CollisionModel(CollisionScene):
     pair must keep (m).
     """
 
-    def __init__(
-        self,
-        kinematics: ArmKinematics,
-        tool: Sequence[Placed] = (),
-        fixtures: Sequence[Placed] = (),
-        clearance_m: float = 0.002,
-        *,
-        part: Placed | None = None,
-        allowances: Sequence[ContactAllowance] = (),
-        _geometry_cache: dict[Any, Any] | None = None,
-    ) -> None:
-        super().__init__(
-            kinematics,
-            tool,
-            fixtures,
-            clearance_m,
-            part=part,
-            allowances=allowances,
-            _geometry_cache=_geometry_cache,
-        )
-        key = self._key(part, self.allowances, self.clearance_m)
-        self._variants: dict[Any, CollisionModel] = {key: self} if _hashable(key) else {}
+    @functools.cached_property
+    def _variants(self) -> dict[Any, CollisionModel]:
+        """The models derived from this one, by their key (shared with each of them)."""
+        key = self._key(self.part, self.allowances, self.clearance_m)
+        return {key: self} if _hashable(key) else {}
 
     # -- derived models -------------------------------------------------------------------
 
