@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import time
 from pathlib import Path
 from typing import Any
@@ -59,23 +58,10 @@ def bit_star_path(collision, q0: np.ndarray, q1: np.ndarray, budget_s: float, se
     proven; None when it finds none."""
     from ompl import base as ob
     from ompl import geometric as og
-    from ompl import util as ou
 
-    ou.setLogLevel(ou.LOG_NONE)
-    ou.RNG.setSeed(seed)
-    kin = collision.kinematics
-    space = ob.RealVectorStateSpace(6)
-    bounds = ob.RealVectorBounds(6)
-    for i in range(6):
-        bounds.setLow(i, float(max(kin.q_min_rad[i], min(q0[i], q1[i]) - math.pi)))
-        bounds.setHigh(i, float(min(kin.q_max_rad[i], max(q0[i], q1[i]) + math.pi)))
-    space.setBounds(bounds)
-    setup = og.SimpleSetup(space)
-    si = setup.getSpaceInformation()
+    from cellrunner.planning.joint_path import ompl_problem
 
-    def as_array(state) -> np.ndarray:
-        return np.array([state[i] for i in range(6)])
-
+    setup, si, _, as_array = ompl_problem(collision, q0, q1, seed)
     setup.setStateValidityChecker(lambda s: collision.is_valid(as_array(s)))
 
     class Proven(ob.MotionValidator):
@@ -83,10 +69,6 @@ def bit_star_path(collision, q0: np.ndarray, q1: np.ndarray, budget_s: float, se
             return collision.check_motion(as_array(a), as_array(b), explain=False).ok
 
     si.setMotionValidator(Proven(si))
-    start, goal = space.allocState(), space.allocState()
-    for i in range(6):
-        start[i], goal[i] = float(q0[i]), float(q1[i])
-    setup.setStartAndGoalStates(start, goal)
     setup.getProblemDefinition().setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
     planner = og.BITstar(si)
     setup.setPlanner(planner)

@@ -332,17 +332,13 @@ def shortcut(
     return q[kept]
 
 
-def _rrt_connect(
-    collision: CollisionModel,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    time_budget_s: float,
-    seed: int,
-    *,
-    conservative: bool,
-) -> np.ndarray:
-    """RRTConnect from q0 to q1. ``conservative``: every edge proven by check_motion;
-    otherwise edges are sampled every ``LAZY_RESOLUTION_RAD`` (to be certified after)."""
+def ompl_problem(
+    collision: CollisionModel, q0: np.ndarray, q1: np.ndarray, seed: int
+) -> tuple[Any, Any, Any, Callable[[Any], np.ndarray]]:
+    """An OMPL problem from ``q0`` to ``q1`` in the arm's joint space, each joint within
+    its limits and within pi beyond both ends, OMPL's generator seeded with ``seed``:
+    (SimpleSetup, its space information, the space, an OMPL state as an array). The
+    caller gives it a validity checker and a planner."""
     from ompl import base as ob
     from ompl import geometric as og
     from ompl import util as ou
@@ -357,11 +353,32 @@ def _rrt_connect(
         bounds.setHigh(i, float(min(kin.q_max_rad[i], max(q0[i], q1[i]) + math.pi)))
     space.setBounds(bounds)
     setup = og.SimpleSetup(space)
-    si = setup.getSpaceInformation()
+    start, goal = space.allocState(), space.allocState()
+    for i in range(6):
+        start[i], goal[i] = float(q0[i]), float(q1[i])
+    setup.setStartAndGoalStates(start, goal)
 
     def as_array(state: Any) -> np.ndarray:  # an OMPL state
         return np.array([state[0], state[1], state[2], state[3], state[4], state[5]])
 
+    return setup, setup.getSpaceInformation(), space, as_array
+
+
+def _rrt_connect(
+    collision: CollisionModel,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    time_budget_s: float,
+    seed: int,
+    *,
+    conservative: bool,
+) -> np.ndarray:
+    """RRTConnect from q0 to q1. ``conservative``: every edge proven by check_motion;
+    otherwise edges are sampled every ``LAZY_RESOLUTION_RAD`` (to be certified after)."""
+    from ompl import base as ob
+    from ompl import geometric as og
+
+    setup, si, space, as_array = ompl_problem(collision, q0, q1, seed)
     in_collision: list[np.ndarray] = []  # a bounded sample of the refused states, for the message
 
     def valid(state: Any) -> bool:
@@ -381,10 +398,6 @@ def _rrt_connect(
         si.setMotionValidator(ConservativeMotionValidator(si))
     else:
         si.setStateValidityCheckingResolution(LAZY_RESOLUTION_RAD / space.getMaximumExtent())
-    start, goal = space.allocState(), space.allocState()
-    for i in range(6):
-        start[i], goal[i] = float(q0[i]), float(q1[i])
-    setup.setStartAndGoalStates(start, goal)
     planner = og.RRTConnect(si)
     planner.setRange(RRT_RANGE_RAD)
     setup.setPlanner(planner)
