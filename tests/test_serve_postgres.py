@@ -9,7 +9,6 @@ from __future__ import annotations
 import csv
 import faulthandler
 import io
-import os
 import signal
 import subprocess
 import sys
@@ -21,7 +20,7 @@ from pyModbusTCP.client import ModbusClient
 
 from tests.conftest import ROOT
 from tests.execution.pg_server import PgServer, free_port
-from tests.rig import CELL, TASK
+from tests.rig import CELL, TASK, start_serve
 
 HOST = "127.0.0.143"
 READY, JOB_ACK, BUSY, DONE, ERROR, REJECTED = 1, 2, 4, 8, 16, 512
@@ -98,27 +97,6 @@ def write_cell(root: Path, name: str, port: int, journal: str) -> Path:
     return path
 
 
-def serve(cell: Path) -> subprocess.Popen:
-    return subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "cellrunner.cli.main",
-            "--log-format",
-            "json",
-            "serve",
-            str(cell),
-            "--backend",
-            "sim",
-        ],
-        cwd=ROOT,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"},
-    )
-
-
 def stop(proc: subprocess.Popen) -> str:
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
@@ -141,7 +119,7 @@ def test_two_cells_share_one_postgres_journal_through_a_database_restart(tmp_pat
     with PgServer(HOST) as pg:
         ports = {"cell-a": free_port(HOST), "cell-b": free_port(HOST)}
         cells = {name: write_cell(tmp_path, name, port, pg.url) for name, port in ports.items()}
-        procs = {name: serve(path) for name, path in cells.items()}
+        procs = {name: start_serve(path) for name, path in cells.items()}
         try:
             plcs = {"cell-a": Plc(ports["cell-a"], 100), "cell-b": Plc(ports["cell-b"], 200)}
             for name, plc in plcs.items():
@@ -188,7 +166,7 @@ def test_two_cells_share_one_postgres_journal_through_a_database_restart(tmp_pat
             time.sleep(1.0)
             procs["cell-a"].kill()
             procs["cell-a"].communicate(timeout=30)
-            procs["cell-a"] = serve(cells["cell-a"])
+            procs["cell-a"] = start_serve(cells["cell-a"])
             wait_up(plc_a, procs["cell-a"])
             regs = plc_a.poll()
             assert (regs[4], regs[5]) == (150, 107), regs

@@ -5,10 +5,6 @@ status page, and the job finishes 0 once the tote is gone."""
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
-import sys
 import time
 
 import pytest
@@ -16,7 +12,7 @@ import pytest
 from tests.conftest import ROOT
 from tests.rig import free_port
 from tests.web.browser import Chromium, chromium_path
-from tests.web.test_status_page_browser import DONE, ERROR, JOB_ACK, READY, Plc
+from tests.web.plc_page import DONE, ERROR, JOB_ACK, READY, serve_with_page
 
 HOST = "127.0.0.142"
 OBSTRUCTED = 1 << 10
@@ -39,38 +35,8 @@ def serving(tmp_path):
     text = text.split("  opcua:")[0] + f"journal: {tmp_path}/jobs.sqlite\n"
     cell = tmp_path / "watched.yaml"
     cell.write_text(text)
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "cellrunner.cli.main",
-            "--log-format",
-            "json",
-            "serve",
-            str(cell),
-            "--backend",
-            "sim",
-            "--http",
-            f"{HOST}:{http_port}",
-        ],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "MUJOCO_GL": "osmesa"},
-    )
-    try:
-        plc = Plc(modbus_port)
-        plc.client.host = HOST
-        deadline = time.monotonic() + 90
-        while not plc.poll():
-            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()[-2000:]
-            time.sleep(0.2)
-        yield f"http://{HOST}:{http_port}/", plc
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 0, err[-2000:]
+    with serve_with_page(cell, HOST, modbus_port, http_port) as served:
+        yield served
 
 
 @pytest.mark.skipif(chromium_path() is None, reason="needs chromium")

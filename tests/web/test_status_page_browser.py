@@ -6,45 +6,18 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
-import subprocess
-import sys
 import time
 import urllib.request
 from pathlib import Path
 
 import pytest
 from prometheus_client.parser import text_string_to_metric_families
-from pyModbusTCP.client import ModbusClient
 
-from tests.conftest import ROOT
 from tests.rig import CELL, TASK, free_port
 from tests.web.browser import Chromium
+from tests.web.plc_page import DONE, ERROR, JOB_ACK, READY, serve_with_page
 
 HOST = "127.0.0.141"
-READY, JOB_ACK, DONE, ERROR = 1, 2, 8, 16
-
-
-class Plc:
-    """A PLC over Modbus TCP that keeps its heartbeat moving."""
-
-    def __init__(self, port: int):
-        self.client = ModbusClient(host=HOST, port=port, timeout=2.0, auto_open=True)
-        self.beat = 0
-
-    def poll(self) -> list[int] | None:
-        self.beat = (self.beat + 1) % 65536
-        self.client.write_single_register(0, self.beat)
-        return self.client.read_holding_registers(100, 14)
-
-    def wait(self, mask: int, timeout_s: float) -> list[int]:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            regs = self.poll()
-            if regs and regs[1] & mask == mask:
-                return regs
-            time.sleep(0.05)
-        raise AssertionError(f"status bits {mask:#x} not seen within {timeout_s} s")
 
 
 @pytest.fixture
@@ -58,38 +31,8 @@ def serving(tmp_path):
         "heartbeat_timeout: 2.0}\n"
     )
     (tmp_path / "tasks" / "t.yaml").write_text(TASK)
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "cellrunner.cli.main",
-            "--log-format",
-            "json",
-            "serve",
-            str(cell),
-            "--backend",
-            "sim",
-            "--http",
-            f"{HOST}:{http_port}",
-        ],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "MUJOCO_GL": "osmesa"},
-    )
-    url = f"http://{HOST}:{http_port}/"
-    try:
-        plc = Plc(modbus_port)
-        deadline = time.monotonic() + 90
-        while not plc.poll():
-            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()[-2000:]
-            time.sleep(0.2)
-        yield url, plc
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 0, err[-2000:]
+    with serve_with_page(cell, HOST, modbus_port, http_port) as served:
+        yield served
 
 
 def keep_artifact(path: Path) -> None:

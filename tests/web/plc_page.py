@@ -1,0 +1,60 @@
+"""`cellrunner serve` with its status page, and a Modbus PLC that keeps its heartbeat
+moving, for the browser tests."""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+from pyModbusTCP.client import ModbusClient
+
+from tests.rig import start_serve
+
+#: status bits (SPEC 8)
+READY, JOB_ACK, DONE, ERROR = 1, 2, 8, 16
+
+
+class Plc:
+    """A PLC over Modbus TCP that keeps its heartbeat moving."""
+
+    def __init__(self, host: str, port: int):
+        self.client = ModbusClient(host=host, port=port, timeout=2.0, auto_open=True)
+        self.beat = 0
+
+    def poll(self) -> list[int] | None:
+        self.beat = (self.beat + 1) % 65536
+        self.client.write_single_register(0, self.beat)
+        return self.client.read_holding_registers(100, 14)
+
+    def wait(self, mask: int, timeout_s: float) -> list[int]:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            regs = self.poll()
+            if regs and regs[1] & mask == mask:
+                return regs
+            time.sleep(0.05)
+        raise AssertionError(f"status bits {mask:#x} not seen within {timeout_s} s")
+
+
+@contextlib.contextmanager
+def serve_with_page(
+    cell: Path, host: str, modbus_port: int, http_port: int
+) -> Iterator[tuple[str, Plc]]:
+    """``serve`` of ``cell`` on the twin with its page at ``host:http_port``, once its
+    Modbus server answers: (the page's URL, a PLC); stopped with SIGTERM after, which
+    must end it with 0."""
+    proc = start_serve(cell, "--backend", "sim", "--http", f"{host}:{http_port}")
+    try:
+        plc = Plc(host, modbus_port)
+        deadline = time.monotonic() + 90
+        while not plc.poll():
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()[-2000:]
+            time.sleep(0.2)
+        yield f"http://{host}:{http_port}/", plc
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err[-2000:]
