@@ -14,9 +14,7 @@ import math
 
 import pytest
 
-from tests.cells.test_spec_written import HERE, cli
-
-pytest.importorskip("mujoco")
+from tests.cells.spec_written_rig import HERE, cli
 
 TRAY = (0.55, 0.35, 0.93)  # the housing's middle, set down in the tray
 ON_THE_PATH = "{name: tote, box: {size: [0.30, 0.20, 0.30]}, pose: {xyz: [0.65, 0.0, 1.05]}"

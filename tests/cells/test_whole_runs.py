@@ -16,8 +16,6 @@ from tests.cells.reference import PALLETIZER
 from tests.conftest import ROOT
 from tests.rig import dry_run
 
-pytest.importorskip("mujoco")
-
 DEMO = ("cells/demo_ur5e.yaml", "tasks/pick_place.yaml")
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from cellrunner.model.load import load_cell
 from cellrunner.planning.world import CellWorld
 from tests.commissioning.conftest import fault, twin
-from tests.commissioning.test_servo_udp import HOST, Recorder, jog_udp, send
+from tests.commissioning.servo_rig import HOST, Recorder, jog_udp, send
 from tests.conftest import ROOT
 from tests.rig import free_port
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import pytest
 
 from cellrunner.backends.sim.backend import SimBackend
 from cellrunner.model.codes import ResultCode
@@ -17,8 +16,6 @@ from cellrunner.model.load import load_cell, load_task
 from cellrunner.sim.from_cell import description_of
 from tests.conftest import DEMO_CELL
 from tests.execution.twin_cell import twin_cell
-
-pytest.importorskip("mujoco")
 
 TASK = """task: out_and_home
 steps:

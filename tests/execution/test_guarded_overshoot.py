@@ -34,7 +34,6 @@ def test_backwards_is_the_approved_set_points_in_reverse_and_stays_approved():
 
 
 def test_a_guarded_line_onto_a_block_peaks_under_twice_its_limit(tmp_path):
-    pytest.importorskip("mujoco")
     text = (ROOT / "cells" / "peg_ur3e.yaml").read_text()
     (tmp_path / "cell.yaml").write_text(text.replace("tasks: {1: tasks/peg_insert.yaml}", ""))
     cell = load_cell(tmp_path / "cell.yaml")

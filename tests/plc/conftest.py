@@ -17,6 +17,8 @@ from cellrunner.plc.fake import FakeCell, FakeParam, FakeTask
 from cellrunner.plc.service import PlcService
 
 HERE = Path(__file__).parent
+#: the OPC UA user the PLC tests log in as
+USER, PASSWORD = "line3-plc", "correct horse battery"
 REPO = HERE.parent.parent
 HEARTBEAT_TIMEOUT_S = 0.6
 

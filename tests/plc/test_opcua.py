@@ -14,10 +14,8 @@ import pytest
 from cellrunner.plc.fake import FakeCell
 from cellrunner.plc.service import PlcService
 from cellrunner.plc.users import add_user
-from tests.plc.conftest import HERE, child_env, plc_test_tasks
+from tests.plc.conftest import HERE, PASSWORD, USER, child_env, plc_test_tasks
 from tests.rig import free_port, write_client_cert
-
-USER, PASSWORD = "line3-plc", "correct horse battery"
 
 
 class Setup:

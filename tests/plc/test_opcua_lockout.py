@@ -22,8 +22,8 @@ from cellrunner.plc.fake import FakeCell
 from cellrunner.plc.opcua import MAX_CONNECTIONS
 from cellrunner.plc.service import PlcService
 from cellrunner.plc.users import add_user
-from tests.plc.conftest import HERE, child_env, plc_test_tasks
-from tests.plc.test_opcua import PASSWORD, USER, free_port, write_client_cert
+from tests.plc.conftest import HERE, PASSWORD, USER, child_env, plc_test_tasks
+from tests.rig import free_port, write_client_cert
 
 POLICY = "Basic256Sha256_SignAndEncrypt"
 

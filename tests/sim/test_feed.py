@@ -11,8 +11,6 @@ from cellrunner.errors import InputError
 from cellrunner.model.load import load_cell
 from tests.conftest import ROOT
 
-pytest.importorskip("mujoco")
-
 CELL = (ROOT / "cells" / "palletizer_ur10e.yaml").read_text()
 FEED = "sim:\n  feed: {part: carton, at: infeed}\n"
 
