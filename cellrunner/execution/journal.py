@@ -172,11 +172,23 @@ def display_location(location: str) -> str:
 
 class JobReads:
     """The reads every journal answers alike, each in its own SQL: ``_ARG`` is its
-    placeholder and ``_SEQ`` the column that keeps the order jobs were written in. A
-    journal gives :meth:`_select`, and :meth:`_flush` when it queues writes."""
+    placeholder and ``_SEQ`` the column that keeps the order jobs were written in; reads
+    are narrowed to ``cell`` (None: every cell). A journal gives :meth:`_jobs`, and
+    :meth:`_flush` when it queues writes."""
 
     _ARG = "?"
     _SEQ = "rowid"
+    cell: str | None
+
+    def _jobs(self, clause: str, args: tuple[Any, ...]) -> list[JobRecord]:
+        """The jobs a ``WHERE ... [ORDER BY ...]`` clause selects."""
+        raise NotImplementedError
+
+    def _where(self, cond: str, args: tuple[Any, ...]) -> tuple[str, tuple[Any, ...]]:
+        """``WHERE cond``, narrowed to this journal's cell."""
+        if self.cell is None:
+            return f"WHERE {cond}", args
+        return f"WHERE cell = {self._ARG} AND ({cond})", (self.cell, *args)
 
     def _select(
         self,
@@ -186,7 +198,8 @@ class JobReads:
         order_args: tuple[Any, ...] = (),
     ) -> list[JobRecord]:
         """This journal's jobs ``WHERE cond`` (its cell's only, when it has one)."""
-        raise NotImplementedError
+        where, args = self._where(cond, args)
+        return self._jobs(f"{where} {order}", (*args, *order_args))
 
     def _flush(self) -> None:
         """Commit what is queued before a read that must see it (no queue: nothing)."""
@@ -474,24 +487,11 @@ class SqliteJournal(JobReads):
             (job_id,),
         )
 
-    def _where(self, cond: str, args: tuple[Any, ...]) -> tuple[str, tuple[Any, ...]]:
-        """``WHERE cond``, narrowed to this journal's cell."""
-        if self.cell is None:
-            return f"WHERE {cond}", args
-        return f"WHERE cell = ? AND ({cond})", (self.cell, *args)
-
-    def _select(
-        self,
-        cond: str,
-        args: tuple[Any, ...] = (),
-        order: str = "",
-        order_args: tuple[Any, ...] = (),
-    ) -> list[JobRecord]:
-        where, args = self._where(cond, args)
+    def _jobs(self, clause: str, args: tuple[Any, ...]) -> list[JobRecord]:
         rows = self._fetchall(
             "SELECT job_id, client_job_id, cell, task, params, source, started_at, ended_at, result_code, "
-            f"result_text, cycle_time_s, retries FROM jobs {where} {order}",
-            (*args, *order_args),
+            f"result_text, cycle_time_s, retries FROM jobs {clause}",
+            args,
         )
         return [JobRecord(r[0], r[1], r[2], r[3], json.loads(r[4]), *r[5:]) for r in rows]
 

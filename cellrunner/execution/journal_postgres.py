@@ -150,7 +150,7 @@ class PostgresJournal(JobReads):
             self.undelivered = self._queue.qsize()
             if self.undelivered:
                 sys.stderr.write(
-                    f"journal: {self.undelivered} writes could not reach {self._where()} "
+                    f"journal: {self.undelivered} writes could not reach {self._location()} "
                     f"({self._last_error})\n"
                 )
             self._writer = None
@@ -173,7 +173,7 @@ class PostgresJournal(JobReads):
 
         if not self._healthy:
             raise JournalError(
-                f"journal database unreachable ({self._where()}: {self._last_error})"
+                f"journal database unreachable ({self._location()}: {self._last_error})"
             )
         self._step_seq[job_id] = 0
         item = self._enqueue(
@@ -189,7 +189,7 @@ class PostgresJournal(JobReads):
         )
         raise JournalError(
             f"job {job_id} could not be journaled within {self.begin_timeout_s:g} s "
-            f"({self._where()}: {item.error or self._last_error or 'no answer'})"
+            f"({self._location()}: {item.error or self._last_error or 'no answer'})"
         )
 
     def step(
@@ -259,19 +259,11 @@ class PostgresJournal(JobReads):
         )
 
     # ------------------------------------------------------------------ internals
-    def _select(
-        self,
-        cond: str,
-        args: tuple[Any, ...] = (),
-        order: str = "",
-        order_args: tuple[Any, ...] = (),
-    ) -> list[JobRecord]:
-        if self.cell is not None:
-            cond, args = f"cell = %s AND ({cond})", (self.cell, *args)
-        rows = self._read(
-            f"SELECT {_COLUMNS} FROM cellrunner_jobs WHERE {cond} {order}", (*args, *order_args)
-        )
-        return [JobRecord(*r) for r in rows]
+    def _jobs(self, clause: str, args: tuple[Any, ...]) -> list[JobRecord]:
+        return [
+            JobRecord(*r)
+            for r in self._read(f"SELECT {_COLUMNS} FROM cellrunner_jobs {clause}", args)
+        ]
 
     def _read(self, sql: str, args: tuple[Any, ...]) -> list[tuple[Any, ...]]:
         """Run a query on the read connection, reconnecting once if it was lost."""
@@ -288,7 +280,7 @@ class PostgresJournal(JobReads):
                     self._drop_read()
                     if attempt == 2:
                         raise JournalError(
-                            f"cannot read the journal ({self._where()}): {_first_line(exc)}"
+                            f"cannot read the journal ({self._location()}): {_first_line(exc)}"
                         ) from exc
                 except JournalError:
                     self._drop_read()
@@ -313,7 +305,7 @@ class PostgresJournal(JobReads):
         marker = self._enqueue(None)
         if not marker.done.wait(self.begin_timeout_s):
             raise JournalError(
-                f"journal database unreachable ({self._where()}: {self._last_error})"
+                f"journal database unreachable ({self._location()}: {self._last_error})"
             )
 
     def _write_loop(self) -> None:
@@ -351,7 +343,7 @@ class PostgresJournal(JobReads):
                 failures += 1
             except psycopg.Error as exc:  # not a connection problem: retrying would not help
                 item.error = _first_line(exc)
-                sys.stderr.write(f"journal: write refused by {self._where()}: {item.error}\n")
+                sys.stderr.write(f"journal: write refused by {self._location()}: {item.error}\n")
                 return
 
     def _probe(self) -> None:
@@ -382,10 +374,10 @@ class PostgresJournal(JobReads):
             )
         except psycopg.Error as exc:
             raise JournalError(
-                f"cannot reach the journal database {self._where()}: {_first_line(exc)}"
+                f"cannot reach the journal database {self._location()}: {_first_line(exc)}"
             ) from exc
 
-    def _where(self) -> str:
+    def _location(self) -> str:
         return display_location(self.url)
 
 
