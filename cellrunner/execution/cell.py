@@ -399,12 +399,12 @@ class CellController:
         job = self._job
         if job is None:
             return
-        message = message or code.text
+        text = message or code.text
         self.last_runner = runner
-        self._last_view = view_of(job, runner, code, message)
+        self._last_view = view_of(job, runner, code, text)
         self._job = None
         self.states.job_ended(code.is_fault)
         self.log.info("job_end", job_id=job.job_id, result_code=int(code), message=message)
         retries = runner.retries_used if runner else 0
         cycle = runner.cycle_time_s if runner else 0.0
-        self._book.end(job, code, cycle, retries, message)  # told once written (a full disk)
+        self._book.end(job, code, cycle, retries, text)  # told once written (a full disk)
