@@ -61,8 +61,8 @@ class Agenda:
             self.start(self.current)
 
     def drop_motion(self) -> None:
-        """Forget the item's generator and the motion it streamed (a hold, a reconnect, the
-        job's end): no tracking error until the next set-point."""
+        """Forget the item's generator and the motion it streamed (a hold, a reconnect): no
+        tracking error until the next set-point."""
         self.gen = None
         self.ctx.stream = self.ctx.hold = None
         self.ctx.commanded_q = None
