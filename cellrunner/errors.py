@@ -13,7 +13,8 @@
      │    ├── RemoteControlOff       the controller is in local control
      │    ├── SafetyStop             the controller stopped the arm (``safety`` says how)
      │    └── ConnectionLost         a connection to the controller dropped
-     └── PeerUnreachable    exit 3   robot controller or another peer cannot be reached
+     ├── PeerUnreachable    exit 3   robot controller or another peer cannot be reached
+     └── StepKindError      exit 1   a step kind registered twice, or one unknown by name
 
 Third-party errors (ur_rtde, pymodbus, asyncua, OMPL, SQLite) are translated into these
 where they enter the program (``raise PeerUnreachable(...) from exc``); ur_rtde's
@@ -134,6 +135,11 @@ class PeerUnreachable(CellrunnerError):
     """The robot controller or another peer cannot be reached, exit code 3."""
 
     exit_code = 3
+
+
+class StepKindError(CellrunnerError):
+    """A step kind's module is wrong (two of one name, no name), or a kind that no
+    module defines is asked for; the message names the known kinds."""
 
 
 class TransitionRefused(CellrunnerError):

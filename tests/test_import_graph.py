@@ -95,6 +95,8 @@ LAYERS: dict[str, set[str]] = {
     "report": {"model", "planning", "sim"},
     "web": {"model", "execution"},
     "commissioning": {"model", "planning", "execution", "backends", "vision"},
+    # a step kind's module: its model, its planning and its run-time behaviour
+    "steps": {"model", "planning", "execution"},
 }
 _ANYONE = {"errors", "thread_priority"}
 

@@ -20,7 +20,6 @@ from cellrunner.execution.correction import corrected
 from cellrunner.execution.outcome import OK, Outcome, StepGen
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
-from cellrunner.model.step import StepKind
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 #: joint distance (rad, max over joints) under which the arm is "at" a trajectory's start
@@ -222,56 +221,6 @@ def _at_rest_for(approved: ApprovedTrajectory, state: RobotState) -> bool:
     )
 
 
-def run_grip(ctx: JobContext, step: Step) -> StepGen:
-    """Close the jaws; succeed when the confirmation input reads true within the timeout."""
-    args = step.args
-    if ctx.gripper_close is None:
-        return Outcome.failed(ResultCode.NO_PART, "the cell has no gripper close output")
-    samples: list[np.ndarray] = []
-    t0 = ctx.now_s
-    while ctx.now_s - t0 < SETTLE_S + AVERAGE_S:  # settle, then the baseline
-        if ctx.now_s - t0 >= SETTLE_S:
-            samples.append(np.array(ctx.last_state.wrench_N[:3], dtype=float))
-        ctx.hold = Hold(t0, until_s=SETTLE_S + AVERAGE_S, sample_from_s=SETTLE_S, samples=samples)
-        yield
-    baseline = (
-        np.mean(samples, axis=0) if samples else np.array(ctx.last_state.wrench_N[:3], dtype=float)
-    )
-    channel, value = ctx.gripper_close
-    ctx.backend.set_output(channel, value)
-    confirm = ctx.inputs.get(args.confirm) if args.confirm else ctx.gripper_closed_sensor
-    t0 = ctx.now_s
-    if confirm is None:  # no sensor: all we can do is let the jaws travel
-        while ctx.now_s - t0 < min(args.timeout, 0.5):
-            ctx.hold = Hold(t0, until_s=min(args.timeout, 0.5))
-            yield
-    else:
-        while not ctx.last_state.inputs.get(confirm):
-            if ctx.now_s - t0 >= args.timeout:
-                return Outcome.failed(
-                    ResultCode.NO_PART,
-                    f"{args.confirm or 'closed sensor'} not true "
-                    f"within {args.timeout:g} s ({_gripped_nothing(ctx)})",
-                )
-            ctx.hold = Hold(t0, timeout_s=args.timeout)
-            yield
-    force_min = args.force.min if args.force else 0.0
-    ctx.notes.pop("sensor_false_since", None)
-    ctx.notes.pop("load_lp", None)
-    ctx.carry = Carry(
-        baseline_N=baseline, min_N=force_min, confirm=confirm, tool_mass_kg=ctx.tool_mass_kg
-    )
-    return OK
-
-
-def _gripped_nothing(ctx: JobContext) -> str:
-    return (
-        "no vacuum: the cups sealed on nothing"
-        if ctx.gripper_kind == "vacuum"
-        else "jaws closed on nothing"
-    )
-
-
 def run_weigh(ctx: JobContext, step: Step) -> StepGen:
     """After the lift: the load the wrist carries must lie within the grip's force window."""
     window = step.args.force
@@ -292,93 +241,6 @@ def run_weigh(ctx: JobContext, step: Step) -> StepGen:
             ResultCode.NO_PART,
             f"load {load:.1f} N after lift is outside [{window.min:g}, {hi:g}] N",
         )
-    return OK
-
-
-def run_release(ctx: JobContext, step: Step) -> StepGen:
-    """Open the jaws; with a confirmation input, wait for it (or the closed sensor) to drop."""
-    args = step.args
-    if ctx.gripper_open is not None:
-        channel, value = ctx.gripper_open
-        ctx.backend.set_output(channel, value)
-    if ctx.gripper_close is not None:
-        channel, value = ctx.gripper_close
-        ctx.backend.set_output(channel, (not value) if isinstance(value, bool) else 0.0)
-    ctx.carry = None
-    t0 = ctx.now_s
-    if ctx.gripper_blow_off is not None:  # a vacuum gripper's blow-off pulse breaks the seal
-        channel, pulse_s = ctx.gripper_blow_off
-        ctx.backend.set_output(channel, True)
-        while ctx.now_s - t0 < pulse_s:
-            yield
-        ctx.backend.set_output(channel, False)
-    confirm = ctx.inputs.get(args.confirm) if args.confirm else None
-    watch = confirm or ctx.gripper_closed_sensor
-    while ctx.now_s - t0 < ctx.gripper_open_s or (
-        watch and _release_pending(ctx, watch, confirm is not None)
-    ):
-        if ctx.now_s - t0 >= args.timeout:
-            if confirm is not None:
-                return Outcome.failed(
-                    ResultCode.PLACE_FAILED,
-                    f"place failed: {args.confirm} not true within "
-                    f"{args.timeout:g} s after the release",
-                )
-            return Outcome.failed(
-                ResultCode.PLACE_FAILED, f"release not confirmed within {args.timeout:g} s"
-            )
-        # the inputs read the same until the look-ahead stops: only the time can end it
-        pending = bool(watch and _release_pending(ctx, watch, confirm is not None))
-        until_s = math.inf if pending else ctx.gripper_open_s
-        ctx.hold = Hold(t0, until_s=until_s, timeout_s=args.timeout)
-        yield
-    return (yield from check_place(ctx, step))
-
-
-def _release_pending(ctx: JobContext, channel: str, is_open_confirm: bool) -> bool:
-    value = bool(ctx.last_state.inputs.get(channel))
-    return not value if is_open_confirm else value
-
-
-def run_set_output(ctx: JobContext, step: Step) -> StepGen:
-    """Set the outputs; with ``pulse``, hold them that long and set them back (false, 0)."""
-    values = step.args.values
-    for name, value in values.items():
-        ctx.backend.set_output(ctx.outputs[name], value)
-    yield
-    pulse_s = step.args.pulse
-    if pulse_s:
-        t0 = ctx.now_s
-        while ctx.now_s - t0 < pulse_s - 1e-9:
-            yield
-        for name, value in values.items():
-            ctx.backend.set_output(ctx.outputs[name], False if isinstance(value, bool) else 0.0)
-        yield
-    return OK
-
-
-def run_wait_input(ctx: JobContext, step: Step) -> StepGen:
-    args = step.args
-    channel = ctx.inputs[args.input]
-    t0 = ctx.now_s
-    while ctx.last_state.inputs.get(channel) != args.value and not (
-        isinstance(args.value, bool) and bool(ctx.last_state.inputs.get(channel)) == args.value
-    ):
-        if ctx.now_s - t0 >= args.timeout:
-            return Outcome.failed(
-                ResultCode.STEP_TIMEOUT,
-                f"input {args.input} did not read {args.value} within {args.timeout:g} s",
-            )
-        ctx.hold = Hold(t0, timeout_s=args.timeout)
-        yield
-    return OK
-
-
-def run_wait(ctx: JobContext, step: Step) -> StepGen:
-    t0 = ctx.now_s
-    while ctx.now_s - t0 < step.args.seconds:
-        ctx.hold = Hold(t0, until_s=step.args.seconds)
-        yield
     return OK
 
 
@@ -494,12 +356,3 @@ def watches_load(carry: Carry | None) -> bool:
 def next_load_lp(load_lp: float, load_N: float) -> float:
     """One period of the low-pass on the carried load (N)."""
     return 0.9 * load_lp + 0.1 * load_N
-
-
-BEHAVIOURS = {
-    StepKind.GRIP: run_grip,
-    StepKind.RELEASE: run_release,
-    StepKind.SET_OUTPUT: run_set_output,
-    StepKind.WAIT_INPUT: run_wait_input,
-    StepKind.WAIT: run_wait,
-}

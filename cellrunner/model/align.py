@@ -19,7 +19,7 @@ from pydantic import Field
 
 from cellrunner.model.base import Name, Pose, Strict
 from cellrunner.model.camera import Dictionary
-from cellrunner.model.step import StepKind
+from cellrunner.model.step_kinds import kind_of
 from cellrunner.model.units import Angle, NonNegativeLength, PositiveLength
 
 if TYPE_CHECKING:
@@ -92,14 +92,7 @@ class Sighting:
 
 def target_frame(spec: Any) -> str | None:
     """The frame a step aims at (None: a joint target, home, a relative move, no motion)."""
-    args = spec.args
-    if spec.kind in (StepKind.PICK, StepKind.PLACE):
-        return str(args.at)
-    if spec.kind in (StepKind.APPROACH, StepKind.DESCEND, StepKind.LINEAR, StepKind.INSERT):
-        return str(args.to)
-    if spec.kind == StepKind.MOVE and isinstance(args.to, str) and args.to != "home":
-        return args.to
-    return None
+    return kind_of(spec.kind).target_frame(spec.args)
 
 
 def aligned_frame(specs: Sequence[Any], index: int) -> str | None:

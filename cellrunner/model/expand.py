@@ -14,34 +14,16 @@ import numpy as np
 
 from cellrunner.errors import InputError
 from cellrunner.model import geometry
-from cellrunner.model.align import AlignArgs, aligned_frame, target_frame
-from cellrunner.model.camera import Camera
+from cellrunner.model.align import aligned_frame
 from cellrunner.model.cell import Cell
 from cellrunner.model.frames import frame_pose
 from cellrunner.model.loaded import LoadedTask, StepSpec
 from cellrunner.model.params import Param, ParamValue, PoseValue
 from cellrunner.model.pattern import Pattern
 from cellrunner.model.source import PathKey
-from cellrunner.model.step import (
-    LINEAR_KINDS,
-    MOTION_KINDS,
-    PLANNED_KINDS,
-    RetryPlan,
-    Step,
-    StepKind,
-)
-from cellrunner.model.task import (
-    ApproachArgs,
-    DistanceArgs,
-    GripArgs,
-    LinearArgs,
-    MoveArgs,
-    Offset,
-    PickArgs,
-    PlaceArgs,
-    TaskFile,
-)
-from cellrunner.model.tool_change import expand_change_tool
+from cellrunner.model.step import RetryPlan, Step, StepKind
+from cellrunner.model.step_kinds import kind_of
+from cellrunner.model.task import GripArgs, Offset, TaskFile
 
 
 def camera_pose(cell: Cell, name: str) -> np.ndarray:
@@ -74,18 +56,12 @@ def resolve_params(task: TaskFile, given: dict[str, Any]) -> dict[str, ParamValu
 
 def expand(loaded: LoadedTask, cell: Cell, params: dict[str, Any]) -> list[Step]:
     """The primitive steps of ``loaded`` for ``params`` (already resolved)."""
-    builder = _Builder(cell, params, loaded.task.params)
+    builder = Expansion(cell, params, loaded.task.params, loaded.steps)
     for i, spec in enumerate(loaded.steps):
-        if spec.kind == StepKind.ALIGN:
-            builder.align(spec, aligned_frame(loaded.steps, i))
-        else:
-            builder.add(spec)
+        builder.position = i
+        builder.add(spec)
     return builder.steps
 
-
-#: an align's look: the marker spans this share of the picture's height, from at least
-#: this far (m)
-LOOK_SPAN, LOOK_MIN_M = 0.10, 0.1
 
 #: the key of an align's correction among the params (``align:FRAME``): a pose
 #: ``{xyz, rpy}`` in the frame's axes; ``check`` plans the corners of its box, a job
@@ -98,7 +74,7 @@ def expand_on_error(
 ) -> list[Step]:
     """The task's ``on_error`` steps, numbered from ``first_index``, marked with the macro
     ``on_error`` (the job runner keeps them for after a failure)."""
-    builder = _Builder(cell, params, loaded.task.params)
+    builder = Expansion(cell, params, loaded.task.params)
     return [
         builder.primitive(
             s.kind, s.bind(loaded.task.params, params), s.path, first_index + i, ON_ERROR
@@ -110,61 +86,29 @@ def expand_on_error(
 ON_ERROR = "on_error"
 
 
-class _Builder:
+class Expansion:
+    """A job's steps as they are expanded, and what each kind's expansion
+    (:meth:`~cellrunner.model.step_kinds.StepKindDef.expand`) needs: the cell, the params,
+    targets resolved to TCP poses, the tool mounted so far and the frames aligned so far."""
+
     def __init__(
-        self, cell: Cell, params: dict[str, Any], specs: dict[str, Param] | None = None
+        self,
+        cell: Cell,
+        params: dict[str, Any],
+        specs: dict[str, Param] | None = None,
+        task_steps: list[StepSpec] | None = None,
     ) -> None:
         self.cell, self.params, self.specs = cell, params, specs or {}
         self.steps: list[Step] = []
         self.tool = cell.robot.tool  # the mounted tool's name (with ``tools:``)
         self.aligned: set[str] = set()  # frames an align step before corrects
+        #: the task's steps as written, and the index of the one being expanded
+        self.task_steps: list[StepSpec] = task_steps or []
+        self.position = 0
 
-    def align(self, spec: StepSpec, frame: str | None) -> None:
-        """An align step: it corrects ``frame`` for the steps after it."""
-        assert frame is not None  # references checked it
-        args = spec.args
-        camera = self.cell.cameras[args.camera]
-        tcp = self.cell.tool.tcp.matrix() if self.cell.tool is not None else np.eye(4)
-        extra = {
-            "T_world_frame": frame_pose(self.cell, frame),
-            "T_marker": args.marker.pose.matrix(),
-            "K": camera.intrinsics.matrix(),
-            "distortion": np.asarray(camera.intrinsics.distortion, float),
-            # the camera on the flange: seen from the TCP; else fixed in the world
-            "T_tcp_camera": np.linalg.inv(tcp) @ camera.pose.matrix()
-            if camera.eye_in_hand
-            else None,
-            "T_world_camera": None if camera.eye_in_hand else camera_pose(self.cell, args.camera),
-        }
-        macro = f"align {frame}"
-        if camera.eye_in_hand and args.look:
-            self.steps.append(
-                Step(
-                    self._next(),
-                    StepKind.MOVE,
-                    frame,
-                    MoveArgs(to=frame),
-                    spec.path,
-                    macro,
-                    self._look_pose(args, camera, extra),
-                )
-            )
-        self.steps.append(
-            Step(self._next(), StepKind.ALIGN, frame, args, spec.path, macro, extra=extra)
-        )
-        self.aligned.add(frame)
-
-    def _look_pose(self, args: AlignArgs, camera: Camera, extra: dict[str, Any]) -> np.ndarray:
-        """T_world_tcp with the camera on the marker's axis, ``standoff`` out from its
-        face, looking at it (the camera's X along the marker's X)."""
-        fy, height = camera.intrinsics.fy, camera.image_size[1]
-        standoff = args.standoff or max(LOOK_MIN_M, fy * args.marker.size / (LOOK_SPAN * height))
-        T_world_camera = (
-            extra["T_world_frame"]
-            @ extra["T_marker"]
-            @ geometry.pose_matrix((0, 0, standoff), (180, 0, 0))
-        )
-        return np.asarray(T_world_camera @ np.linalg.inv(extra["T_tcp_camera"]))
+    def with_params(self, params: dict[str, Any]) -> Expansion:
+        """A fresh expansion of the same cell and task for other param values."""
+        return Expansion(self.cell, params, self.specs, self.task_steps)
 
     def _frame(self, name: str) -> np.ndarray:
         """The frame's pose, with the correction of an align before (``align:FRAME``)."""
@@ -174,30 +118,23 @@ class _Builder:
             T = T @ geometry.pose_matrix(correction["xyz"], correction["rpy"])
         return T
 
-    def _next(self) -> int:
+    def next_index(self) -> int:
+        """The 1-based index the next expanded step takes."""
         return len(self.steps) + 1
+
+    def camera_pose(self, name: str) -> np.ndarray:
+        return camera_pose(self.cell, name)
 
     def add(self, spec: StepSpec) -> None:
         first = len(self.steps)
-        self._add(spec)
-        frame = target_frame(spec)
+        kind = kind_of(spec.kind)
+        kind.expand(self, spec, spec.bind(self.specs, self.params))
+        frame = kind.target_frame(spec.args)
         if frame in self.aligned:  # the job corrects these targets by what the align measured
             for step in self.steps[first:]:
                 if step.T_world_tcp is not None:
                     step.extra["aligned_frame"] = frame
                     step.extra["T_world_frame"] = frame_pose(self.cell, frame)
-
-    def _add(self, spec: StepSpec) -> None:
-        kind, args = spec.kind, spec.bind(self.specs, self.params)
-        if kind == StepKind.PICK:
-            self._pick(spec, args)
-        elif kind == StepKind.PLACE:
-            self._place(spec, args)
-        elif kind == StepKind.CHANGE_TOOL:
-            steps, self.tool = expand_change_tool(self.cell, spec, self.tool, self._next())
-            self.steps.extend(steps)
-        else:
-            self.steps.append(self.primitive(kind, args, spec.path, self._next()))
 
     def primitive(
         self,
@@ -208,31 +145,10 @@ class _Builder:
         macro: str | None = None,
         retry: RetryPlan | None = None,
     ) -> Step:
-        name, T, q = kind, None, None
-        if kind == StepKind.MOVE:
-            if isinstance(args.to, list):
-                name, q = "joints", tuple(args.to)
-            elif args.to == "home":
-                name, q = "home", tuple(self.cell.robot.home)
-            else:
-                T, name = self._target(args.to, args.offset, args.pattern)
-        elif kind == StepKind.APPROACH:
-            T, name = self._target(args.to, args.offset, args.pattern)
-            T = T @ geometry.pose_matrix((0, 0, -args.distance))
-        elif kind in (StepKind.DESCEND, StepKind.LINEAR):
-            T, name = self._target(args.to, args.offset, args.pattern)
-        elif kind == StepKind.INSERT:  # the line ends ``depth`` past the frame, along its Z
-            T, name = self._target(args.to, None, args.pattern)
-            T = T @ geometry.pose_matrix((0, 0, args.depth))
-        elif kind == StepKind.SET_OUTPUT:
-            name = ", ".join(f"{k}={v}" for k, v in args.values.items())
-        elif kind == StepKind.WAIT_INPUT:
-            name = args.input
-        elif kind == StepKind.WAIT:
-            name = f"{args.seconds:g} s"
-        return Step(index, StepKind(kind), name, args, path, macro, T, q, retry)
+        name, T, q = kind_of(kind).target(self, args)
+        return Step(index, kind, name, args, path, macro, T, q, retry)
 
-    def _target(
+    def target(
         self, at: str, offset: Offset | None, pattern: Pattern | None, at_offset: str | None = None
     ) -> tuple[np.ndarray, str]:
         T = self._frame(at)
@@ -253,151 +169,12 @@ class _Builder:
             name = f"{at}+{at_offset}"
         return T @ _offset(offset), name
 
-    def _part_pose(self, at: str, pattern: Pattern | None) -> dict[str, np.ndarray]:
+    def part_pose(self, at: str, pattern: Pattern | None) -> dict[str, np.ndarray]:
         """Where the part a pick from a pattern grips lies: its slot of the frame
         (``part_pose``, world); nothing for a pick from the frame itself."""
         if pattern is None:
             return {}
-        return {"part_pose": self._target(at, None, pattern)[0]}
-
-    def _pick(self, spec: StepSpec, a: PickArgs) -> None:
-        T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
-        macro = f"pick {name}"
-        path = spec.path
-        approach_i = self._next()
-        self.steps.append(
-            Step(
-                approach_i,
-                StepKind.APPROACH,
-                name,
-                ApproachArgs(to=a.at, distance=a.approach),
-                path,
-                macro,
-                T @ geometry.pose_matrix((0, 0, -a.approach)),
-            )
-        )
-        descend_i = self._next()
-        self.steps.append(
-            Step(
-                descend_i,
-                StepKind.DESCEND,
-                name,
-                LinearArgs(to=a.at, speed=a.speed),
-                path,
-                macro,
-                T,
-            )
-        )
-        retry = None
-        if a.retry is not None and a.retry.attempts > 1:
-            between = tuple(
-                self.primitive(
-                    s.kind, s.bind(self.specs, self.params), s.path, descend_i + 1, macro
-                )
-                for s in spec.between
-            )
-            retry = RetryPlan(a.retry.attempts, between, descend_i)
-        self.steps.append(
-            Step(
-                self._next(),
-                StepKind.GRIP,
-                name,
-                a.grip,
-                path,
-                macro,
-                retry=retry,
-                extra={"part_at": a.at, **self._part_pose(a.at, a.pattern)},
-            )
-        )
-        lift = a.lift if a.lift is not None else a.approach
-        if lift > 0:
-            self.steps.append(
-                Step(
-                    self._next(),
-                    StepKind.LIFT,
-                    name,
-                    DistanceArgs(distance=lift, speed=a.speed),
-                    path,
-                    macro,
-                )
-            )
-
-    def _earlier_slots(self, a: PlaceArgs) -> list[np.ndarray]:
-        return _earlier_slots_of(self, a)
-
-    def _place(self, spec: StepSpec, a: PlaceArgs) -> None:
-        T, name = self._target(a.at, a.offset, a.pattern, a.at_offset)
-        macro = f"place {name}"
-        path = spec.path
-        self.steps.append(
-            Step(
-                self._next(),
-                StepKind.APPROACH,
-                name,
-                ApproachArgs(to=a.at, distance=a.approach),
-                path,
-                macro,
-                T @ geometry.pose_matrix((0, 0, -a.approach)),
-            )
-        )
-        self.steps.append(
-            Step(
-                self._next(),
-                StepKind.DESCEND,
-                name,
-                LinearArgs(to=a.at, speed=a.speed),
-                path,
-                macro,
-                T,
-            )
-        )
-        release = (
-            a.release if a.confirm is None else a.release.model_copy(update={"confirm": a.confirm})
-        )
-        tolerance = self.cell.place_tolerance
-        # the twin compares the part's pose with this once the gripper has left it
-        check = {
-            "place_check": {"T_world_tcp": T, "tolerance": (tolerance.distance, tolerance.angle)}
-        }
-        # where the earlier slots of its pattern put their parts (what this one may rest on)
-        earlier = self._earlier_slots(a)
-        back = a.retreat if a.retreat is not None else a.approach
-        self.steps.append(
-            Step(
-                self._next(),
-                StepKind.RELEASE,
-                name,
-                release,
-                path,
-                macro,
-                extra={"earlier_slots": earlier, **({} if back > 0 else check)},
-            )
-        )
-        if back > 0:
-            self.steps.append(
-                Step(
-                    self._next(),
-                    StepKind.RETREAT,
-                    name,
-                    DistanceArgs(distance=back, speed=a.speed),
-                    path,
-                    macro,
-                    extra=check,
-                )
-            )
-
-
-def _earlier_slots_of(builder: _Builder, a: PlaceArgs) -> list[np.ndarray]:
-    """The TCP targets of the slots before this one in the place's pattern (none without
-    a pattern): the parts earlier jobs put there."""
-    if a.pattern is None:
-        return []
-    slot = int(builder.params[a.pattern.index])
-    out = []
-    for earlier in range(slot):
-        was = _Builder(builder.cell, {**builder.params, a.pattern.index: earlier}, builder.specs)
-        out.append(was._target(a.at, a.offset, a.pattern, a.at_offset)[0])
-    return out
+        return {"part_pose": self.target(at, None, pattern)[0]}
 
 
 def _offset(offset: Offset | None) -> np.ndarray:
@@ -460,10 +237,7 @@ def frame_params(loaded: LoadedTask) -> dict[str, list[str]]:
 
 __all__ = [
     "ALIGN_KEY",
-    "LINEAR_KINDS",
-    "MOTION_KINDS",
     "ON_ERROR",
-    "PLANNED_KINDS",
     "GripArgs",
     "RetryPlan",
     "Step",

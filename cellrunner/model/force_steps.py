@@ -14,7 +14,6 @@ from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Strict
 from cellrunner.model.pattern import Pattern
-from cellrunner.model.step import FORCE_KINDS as FORCE_KINDS
 from cellrunner.model.units import Force, Length, NonNegativeLength, PositiveLength, Speed
 
 

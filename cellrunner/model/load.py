@@ -25,13 +25,8 @@ from cellrunner.model.references import check_task_references
 from cellrunner.model.report import Report as Report  # re-exported
 from cellrunner.model.robots import RobotSpec, robot_spec
 from cellrunner.model.source import PathKey, file_problem, load_yaml
-from cellrunner.model.task import (
-    STEP_MODELS,
-    TOP_LEVEL_ONLY,
-    PickArgs,
-    TaskFile,
-    widen_step_args,
-)
+from cellrunner.model.step_kinds import STEP_KINDS
+from cellrunner.model.task import TaskFile
 
 if TYPE_CHECKING:
     from cellrunner.model.params import Param
@@ -476,7 +471,9 @@ def _parse_steps(
 def _parse_step(
     item: Any, path: PathKey, report: Report, allow_macros: bool, params: dict[str, Param]
 ) -> StepSpec | None:
-    known = [k for k in STEP_MODELS if allow_macros or k not in TOP_LEVEL_ONLY]
+    written = [STEP_KINDS[k] for k in STEP_KINDS.written()]
+    known = [k.name for k in written if allow_macros or not k.top_level_only]
+    top_level_only = [k.name for k in written if k.top_level_only]
     if isinstance(item, str):
         item = {item: None}
     if not isinstance(item, dict) or len(item) != 1:
@@ -490,7 +487,7 @@ def _parse_step(
     if kind not in known:
         hint = (
             ""
-            if kind not in TOP_LEVEL_ONLY
+            if kind not in top_level_only
             else (
                 " (align belongs in the task's steps)"
                 if kind == "align"
@@ -501,8 +498,9 @@ def _parse_step(
         )
         report.error(path + (kind,), unknown_name("step", kind, known) + hint, at_key=True)
         return None
-    model = STEP_MODELS[kind]
-    raw = widen_step_args(kind, args)
+    model = STEP_KINDS[kind].args
+    assert model is not None  # a kind a file may write
+    raw = STEP_KINDS[kind].widen(args)
     from cellrunner.model.params import substitute
 
     refs: set[str] = set()
@@ -522,9 +520,10 @@ def _parse_step(
         report.errors.extend(diagnostics_of(exc, report.source, model, prefix=path + (kind,)))
         return None
     spec = StepSpec(kind, parsed, path + (kind,), raw=raw if refs else None, refs=frozenset(refs))
-    if isinstance(parsed, PickArgs) and parsed.retry is not None:
+    retry = getattr(parsed, "retry", None)
+    if retry is not None:  # a pick's retry.between
         spec.between = _parse_steps(
-            parsed.retry.between,
+            retry.between,
             path + (kind, "retry", "between"),
             report,
             allow_macros=False,

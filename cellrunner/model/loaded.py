@@ -12,7 +12,8 @@ from cellrunner.errors import Diagnostic
 from cellrunner.model.cell import Cell, Tool
 from cellrunner.model.robots import RobotSpec, robot_spec
 from cellrunner.model.source import PathKey, Source
-from cellrunner.model.task import STEP_MODELS, TaskFile
+from cellrunner.model.step_kinds import kind_of
+from cellrunner.model.task import TaskFile
 
 if TYPE_CHECKING:
     from cellrunner.model.geometry import Placed
@@ -93,7 +94,9 @@ class StepSpec:
             return self.args
         from cellrunner.model.params import substitute
 
-        return STEP_MODELS[self.kind].model_validate(substitute(self.raw, params, values)[0])
+        model = kind_of(self.kind).args
+        assert model is not None  # a kind a file wrote
+        return model.model_validate(substitute(self.raw, params, values)[0])
 
 
 @dataclass

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from cellrunner.model.checks import check_io_name, check_radians
+from cellrunner.model.checks import check_io_name
 from cellrunner.model.diagnose import unknown_name
 from cellrunner.model.step import StepKind
+from cellrunner.model.step_kinds import kind_of
 
 if TYPE_CHECKING:
     from cellrunner.model.cell import Cell
@@ -16,76 +17,74 @@ if TYPE_CHECKING:
     from cellrunner.model.report import Report
     from cellrunner.model.source import PathKey
 
-_LINEAR_KINDS = ("descend", "linear")
+
+class ReferenceCheck:
+    """What a kind's reference check (:meth:`StepKindDef.check_references`) works with: the
+    task, its cell, the report the errors go to, and the checks steps share."""
+
+    def __init__(self, task: LoadedTask, cell: Cell, report: Report) -> None:
+        self.task, self.cell, self.report = task, cell, report
+        self.frames = list(cell.frames)
+        #: a step grips or releases: the cell needs a gripper
+        self.needs_gripper = False
+
+    def is_short(self, path: PathKey) -> bool:
+        """True when the step at ``path`` was written in short form (``move: [..]``)."""
+        return _is_short(self.report, path)
+
+    def frame(self, name: str, path: PathKey) -> None:
+        if name not in self.cell.frames:
+            self.report.error(path, unknown_name("frame", name, self.frames))
+
+    def contacts(self, args: Any, path: PathKey) -> None:
+        """The fixtures a line's ``contact:`` names exist."""
+        fixtures = [f.name for f in self.cell.fixtures]
+        for i, name in enumerate(getattr(args, "contact", None) or ()):
+            if name not in fixtures:
+                self.report.error(path + ("contact", i), unknown_name("fixture", name, fixtures))
+
+    def at_frame(self, spec: StepSpec) -> None:
+        """A pick's or place's ``at``: its frame, pattern and pose param."""
+        args, path = spec.args, spec.path
+        self.frame(args.at, path + ("at",))
+        if args.pattern is not None:
+            _check_pattern(self.task, args.pattern, path + ("pattern",), self.report)
+        if args.at_offset is not None:
+            _check_pose_param(
+                self.task, self.cell, args.at_offset, path + ("at", "offset"), self.report
+            )
+
+    def input(self, name: str, path: PathKey) -> None:
+        check_io_name(self.cell, name, "inputs", path, self.report)
+
+    def output(self, name: str, path: PathKey) -> None:
+        check_io_name(self.cell, name, "outputs", path, self.report, at_key=True)
 
 
 def check_task_references(task: LoadedTask, loaded: LoadedCell, report: Report) -> None:
     cell = loaded.cell
-    frames = list(cell.frames)
-    needs_gripper = False
+    refs = ReferenceCheck(task, cell, report)
     for step in _all_steps([*task.steps, *task.on_error]):
-        kind, args, path = step.kind, step.args, step.path
-        if getattr(args, "pattern", None) is not None and kind not in ("pick", "place"):
-            if kind == "move" and not (isinstance(args.to, str) and args.to != "home"):
+        kind, args, path = kind_of(step.kind), step.args, step.path
+        if getattr(args, "pattern", None) is not None and not kind.macro:
+            if kind.target_frame(args) is None:
                 report.error(
                     path + ("pattern",), "a pattern offsets a frame; this move's target is not one"
                 )
             else:
                 _check_pattern(task, args.pattern, path + ("pattern",), report)
-        if kind == "align":
-            _check_align(task, cell, step, report)
-        elif kind == "move":
-            if isinstance(args.to, str) and args.to != "home" and args.to not in cell.frames:
-                report.error(path + ("to",), unknown_name("target", args.to, ["home", *frames]))
-            if isinstance(args.to, list):
-                raw_path = path if _is_short(report, path) else path + ("to",)
-                check_radians(report.source.data, raw_path, report)
-        elif kind in ("approach", "insert", *_LINEAR_KINDS):
-            if args.to not in cell.frames:
-                report.error(path + ("to",), unknown_name("frame", args.to, frames))
-            fixtures = [f.name for f in cell.fixtures]
-            for i, name in enumerate(getattr(args, "contact", None) or ()):
-                if name not in fixtures:
-                    report.error(path + ("contact", i), unknown_name("fixture", name, fixtures))
-        elif kind in ("pick", "place"):
-            if args.at not in cell.frames:
-                report.error(path + ("at",), unknown_name("frame", args.at, frames))
-            if args.pattern is not None:
-                _check_pattern(task, args.pattern, path + ("pattern",), report)
-            if args.at_offset is not None:
-                _check_pose_param(task, cell, args.at_offset, path + ("at", "offset"), report)
-            if kind == "place" and args.confirm is not None:
-                check_io_name(cell, args.confirm, "inputs", path + ("confirm",), report)
-            needs_gripper = True
-            grip = args.grip if kind == "pick" else args.release
-            if grip.confirm is not None:
-                check_io_name(
-                    cell,
-                    grip.confirm,
-                    "inputs",
-                    path + ("grip" if kind == "pick" else "release", "confirm"),
-                    report,
-                )
-        elif kind in ("grip", "release"):
-            needs_gripper = True
-            if args.confirm is not None:
-                check_io_name(cell, args.confirm, "inputs", path + ("confirm",), report)
-        elif kind == "set_output":
-            for name in args.values:
-                check_io_name(cell, name, "outputs", path + (name,), report, at_key=True)
-        elif kind == "wait_input":
-            check_io_name(cell, args.input, "inputs", path + ("input",), report)
-        elif kind == "change_tool":
-            _check_change_tool(cell, args.tool, path, report)
+        kind.check_references(refs, step)
     _check_tool_at_end(task, cell, report)
-    if needs_gripper and cell.tool.gripper is None:
+    if refs.needs_gripper and cell.tool.gripper is None:
         report.error(
             ("steps",), f"the task grips and releases but cell {cell.cell!r} has no tool.gripper"
         )
     for name, param in task.task.params.items():
         for i, choice in enumerate(param.choices or ()):
             if choice not in cell.frames:
-                report.error(("params", name, "choices", i), unknown_name("frame", choice, frames))
+                report.error(
+                    ("params", name, "choices", i), unknown_name("frame", choice, refs.frames)
+                )
         if param.default is None:
             report.error(
                 ("params", name),
@@ -140,23 +139,6 @@ def _check_pattern(task: LoadedTask, pattern: Pattern, path: PathKey, report: Re
         )
 
 
-def _check_change_tool(cell: Cell, tool: str, path: PathKey, report: Report) -> None:
-    if tool not in cell.tools:
-        known = list(cell.tools)
-        report.error(
-            path + ("tool",) if not _is_short(report, path) else path,
-            unknown_name("tool", tool, known)
-            if known
-            else f"unknown tool {tool!r}: the cell has no 'tools:' to change between",
-        )
-    elif cell.tool_changer is None:
-        report.error(
-            path,
-            f"change_tool needs the cell's tool_changer: {{lock: OUTPUT, locked: INPUT, "
-            f"rack: {{NAME: FRAME}}}}; cell {cell.cell!r} has none",
-        )
-
-
 def _check_tool_at_end(task: LoadedTask, cell: Cell, report: Report) -> None:
     """Every job starts with ``robot.tool`` mounted, so a task must end with it."""
     last = None
@@ -194,22 +176,3 @@ def _check_pose_param(
         report.error(path, f"offset param {name!r} must be of type pose, not {params[name].type}")
     elif (camera := params[name].camera) is not None:
         _check_param_camera(cell, name, camera, report)
-
-
-def _check_align(task: LoadedTask, cell: Cell, step: StepSpec, report: Report) -> None:
-    """An align names a camera of the cell and is followed by a step aimed at a frame."""
-    from cellrunner.model.align import aligned_frame
-
-    if step.args.camera not in cell.cameras:
-        report.error(
-            step.path + ("camera",), unknown_name("camera", step.args.camera, list(cell.cameras))
-        )
-    at = next((i for i, s in enumerate(task.steps) if s is step), None)
-    if at is None:
-        report.error(step.path, "align belongs in the task's steps (not on_error, not a retry)")
-    elif aligned_frame(task.steps, at) is None:
-        report.error(
-            step.path,
-            "align must come before a step aimed at a frame (pick, place, approach, descend, "
-            "linear, insert or move to a frame): the marker's pose is given in that frame",
-        )

@@ -21,100 +21,12 @@ from pydantic.json_schema import GenerateJsonSchema, JsonSchemaValue
 from pydantic_core import core_schema
 
 from cellrunner.model.cell import Cell
-from cellrunner.model.task import STEP_MODELS, TOP_LEVEL_ONLY, Target, TaskFile
-from cellrunner.model.units import NonNegativeLength, PositiveLength
+from cellrunner.model.step_kinds import STEP_KINDS
+from cellrunner.model.task import TaskFile
+from cellrunner.model.units import NonNegativeLength
 
 #: a JSON Schema document (or part of one)
 JsonDict = dict[str, Any]
-
-_SHORT_FORMS: dict[str, Any] = {
-    "move": Target,
-    "approach": str,
-    "descend": str,
-    "linear": str,
-    "lift": PositiveLength,
-    "retreat": PositiveLength,
-    "wait": float,
-    "change_tool": str,
-}
-_BARE = ("grip", "release")
-
-
-#: what each step kind does and an example of its arguments (hover text and completion)
-STEP_HELP: dict[str, tuple[str, Any]] = {
-    "move": (
-        "Planned, collision-free joint move to a frame, 'home' or six joint angles (deg); "
-        "or {to, offset, speed (fraction of the limits)}.",
-        "home",
-    ),
-    "approach": (
-        "Planned move to `distance` back from a frame along its Z.",
-        {"to": "infeed", "distance": 0.1},
-    ),
-    "descend": ("Straight TCP line to a frame (speed in m/s).", "infeed"),
-    "linear": (
-        "Straight TCP line to a frame (speed in m/s).",
-        {"to": "pallet", "offset": [0, 0, 0.02]},
-    ),
-    "lift": ("Straight line up world +Z by `distance` (m).", 0.1),
-    "retreat": ("Straight line back along the tool's -Z by `distance` (m).", 0.05),
-    "grip": (
-        "Close the jaws, then check the confirmation input and the measured force window.",
-        {"confirm": "gripper_closed", "force": {"min": 2, "max": 40}, "timeout": 1.5},
-    ),
-    "release": ("Open the jaws (optionally confirmed by an input).", {"timeout": 1.0}),
-    "set_output": ("Set outputs by their cell IO names.", {"beacon": True}),
-    "wait_input": (
-        "Wait until an input reads `value`, failing the step after `timeout` (s).",
-        {"input": "part_present", "value": True, "timeout": 10},
-    ),
-    "wait": ("Wait this long, s.", 0.5),
-    "move_until_contact": (
-        "Straight line along `direction` until the wrist force rises by `force` (N); "
-        "fails without contact within `max_distance` (m).",
-        {"direction": [0, 0, 1], "frame": "tool", "speed": 0.01, "force": 10, "max_distance": 0.05},
-    ),
-    "insert": (
-        "Straight in to a frame and `depth` (m) past it under a force limit; ending outside "
-        "`expect_depth` is a failed place (3).",
-        {
-            "to": "hole",
-            "depth": 0.02,
-            "speed": 0.005,
-            "force": {"max": 20},
-            "expect_depth": [0.018, 0.021],
-        },
-    ),
-    "change_tool": (
-        "Macro: park the mounted tool in its rack, take the named tool, switch TCP, "
-        "payload and collision geometry.",
-        "cup",
-    ),
-    "align": (
-        "Look at an ArUco marker on the part at the next step's frame and correct the TCP "
-        "until the marker is where that frame says; later steps aimed at the frame move "
-        "with the correction; beyond `max_correction` the step fails (3).",
-        {
-            "camera": "wrist",
-            "marker": {"dictionary": "DICT_4X4_50", "id": 7, "size": 0.03},
-            "tolerance": {"xyz": 0.001, "rpy": 0.5},
-            "max_correction": {"xyz": [0.015, 0.015, 0], "rpy": [0, 0, 8]},
-            "attempts": 3,
-        },
-    ),
-    "pick": (
-        "Macro: approach -> descend -> grip -> lift.",
-        {"at": "infeed", "approach": 0.1, "grip": {"confirm": "gripper_closed"}},
-    ),
-    "place": (
-        "Macro: approach -> descend -> release -> retreat.",
-        {
-            "at": "pallet",
-            "approach": 0.1,
-            "pattern": {"grid": [3, 4], "pitch": [0.07, 0.07], "index": "slot"},
-        },
-    ),
-}
 
 
 def _steps_schema(defs: JsonDict, allow_macros: bool = True) -> JsonDict:
@@ -122,20 +34,24 @@ def _steps_schema(defs: JsonDict, allow_macros: bool = True) -> JsonDict:
     (the discriminator: an editor validates ARGS against that kind's schema alone and
     lists the known kinds for an unknown one), or a bare ``grip``/``release``."""
     kinds: dict[str, JsonDict] = {}
-    for kind, model in STEP_MODELS.items():
-        if not allow_macros and kind in TOP_LEVEL_ONLY:
+    for kind in (STEP_KINDS[name] for name in STEP_KINDS.written()):
+        if not allow_macros and kind.top_level_only:
             continue
-        args = _json_schema(model | None if kind in _BARE else model, defs)
-        if kind in _SHORT_FORMS:  # the mapping form, else the short form: errors name the one meant
+        model = kind.args
+        assert model is not None  # written() holds the kinds with a model
+        args = _json_schema(model | None if kind.bare else model, defs)
+        # the mapping form, else the short form: errors name the one meant
+        if kind.short_schema is not None:
             args = {
                 "if": {"type": "object"},
                 "then": args,
-                "else": _json_schema(_SHORT_FORMS[kind], defs),
+                "else": _json_schema(kind.short_schema, defs),
             }
-        description, example = STEP_HELP.get(kind, ((model.__doc__ or kind).strip(), None))
-        kinds[kind] = {
+        description = kind.summary or (model.__doc__ or kind.name).strip()
+        example = kind.example
+        kinds[kind.name] = {
             **args,
-            "title": kind,
+            "title": kind.name,
             "description": description,
             **({"examples": [example]} if example is not None else {}),
         }
@@ -149,7 +65,8 @@ def _steps_schema(defs: JsonDict, allow_macros: bool = True) -> JsonDict:
         "minProperties": 1,
         "maxProperties": 1,
     }
-    bare = {"type": "string", "enum": list(_BARE), "description": "A step without arguments."}
+    bare_kinds = [name for name in STEP_KINDS.written() if STEP_KINDS[name].bare]
+    bare = {"type": "string", "enum": bare_kinds, "description": "A step without arguments."}
     return {"type": "array", "items": {"if": {"type": "string"}, "then": bare, "else": step}}
 
 

@@ -6,12 +6,16 @@ import enum
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from cellrunner.model.step_kinds import Motion, kind_of
+
 if TYPE_CHECKING:
     import numpy as np
 
 
 class StepKind(enum.StrEnum):
-    """Every kind of step a task file may write, and the primitives they expand into."""
+    """The names of the built-in step kinds, for code that asks about one of them by name.
+    What a kind is and does lives in its module (:mod:`cellrunner.steps`); a kind added
+    there needs no name here: :attr:`Step.kind` holds any registered kind's name."""
 
     MOVE = "move"
     APPROACH = "approach"
@@ -34,14 +38,6 @@ class StepKind(enum.StrEnum):
     ALIGN = "align"
 
 
-K = StepKind
-#: straight TCP lines stopped by the wrist force
-FORCE_KINDS = (K.MOVE_UNTIL_CONTACT, K.INSERT)
-MOTION_KINDS = (K.MOVE, K.APPROACH, K.DESCEND, K.LINEAR, K.LIFT, K.RETREAT, *FORCE_KINDS)
-PLANNED_KINDS = (K.MOVE, K.APPROACH)  # collision-free planned joint moves
-LINEAR_KINDS = (K.DESCEND, K.LINEAR, K.LIFT, K.RETREAT, *FORCE_KINDS)  # straight TCP lines
-
-
 @dataclass(frozen=True)
 class RetryPlan:
     """What a grip does when its confirmation fails: run ``between``, then redo the steps
@@ -62,7 +58,7 @@ class Step:
     """
 
     index: int
-    kind: StepKind
+    kind: str  # a registered step kind (a StepKind for the built-in ones)
     name: str
     args: Any
     file_path: tuple[Any, ...]  # where the step is written in its file (a PathKey)
@@ -73,11 +69,33 @@ class Step:
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "kind", StepKind(self.kind))  # a kind read from a file
+        kind = kind_of(self.kind)  # a kind read from a file: StepKindError if unknown
+        if kind.name in StepKind.__members__.values():
+            object.__setattr__(self, "kind", StepKind(kind.name))
+
+    @property
+    def motion(self) -> Motion | None:
+        """How the step moves the arm (its kind's), or None."""
+        return kind_of(self.kind).motion
 
     @property
     def is_motion(self) -> bool:
-        return self.kind in MOTION_KINDS
+        return self.motion is not None
+
+    @property
+    def is_planned(self) -> bool:
+        """A collision-free planned joint move."""
+        return self.motion == "planned"
+
+    @property
+    def is_line(self) -> bool:
+        """A straight TCP line (guarded by the wrist force or not)."""
+        return self.motion in ("line", "guarded")
+
+    @property
+    def is_guarded(self) -> bool:
+        """A straight line stopped by the wrist force."""
+        return self.motion == "guarded"
 
     @property
     def label(self) -> str:

@@ -1,9 +1,10 @@
-"""The task file (SPEC section 4) as pydantic models.
+"""The task file (SPEC section 4) as pydantic models, and the argument models that
+several step kinds share (a move's, a line's, a distance, a grip's).
 
 A step in the file is a one-key mapping ``{KIND: ARGS}`` (or a bare ``KIND`` for steps
-without arguments, like ``release``). :data:`STEP_MODELS` maps each kind to the model
-of its arguments; short forms (``move: home``, ``wait: 2``, ``lift: 0.1``) are widened
-to the full form by :func:`widen_step_args` before validation.
+without arguments, like ``release``). Each kind's module (:mod:`cellrunner.steps`) names
+the model of its arguments and widens its short form (``move: home``, ``wait: 2``,
+``lift: 0.1``) before validation.
 """
 
 from __future__ import annotations
@@ -13,14 +14,10 @@ from typing import Annotated, Any
 from pydantic import BeforeValidator, Field, WithJsonSchema, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
-from cellrunner.model.align import AlignArgs
 from cellrunner.model.base import Name, Pose, Strict
-from cellrunner.model.force_steps import InsertArgs, MoveUntilContactArgs
 from cellrunner.model.params import Param
 from cellrunner.model.pattern import Pattern
-from cellrunner.model.tool_steps import ChangeToolArgs
 from cellrunner.model.units import (
-    Duration,
     Force,
     Fraction,
     NonNegativeLength,
@@ -76,7 +73,8 @@ class Offset(Pose):
     """An offset in the target frame's axes (m, deg)."""
 
 
-def _offset(value: Any) -> Any:
+def widen_offset(value: Any) -> Any:
+    """``[dx, dy, dz]`` -> ``{xyz: [dx, dy, dz]}``; anything else as it is."""
     if isinstance(value, list):  # [dx, dy, dz] short form
         return {"xyz": value}
     return value
@@ -92,7 +90,7 @@ class MoveArgs(Strict):
     pattern: Pattern | None = None
     """A grid of targets indexed by a param, offsetting the frame as a pick's does. Example: `{grid: [2, 2], pitch: [0.05, 0.05], index: hole}`"""
 
-    _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+    _o = field_validator("offset", mode="before")(lambda cls, v: widen_offset(v))
 
 
 class ApproachArgs(Strict):
@@ -107,7 +105,7 @@ class ApproachArgs(Strict):
     pattern: Pattern | None = None
     """A grid of targets indexed by a param, offsetting the frame as a pick's does. Example: `{grid: [2, 2], pitch: [0.05, 0.05], index: hole}`"""
 
-    _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+    _o = field_validator("offset", mode="before")(lambda cls, v: widen_offset(v))
 
 
 class LinearArgs(Strict):
@@ -124,7 +122,7 @@ class LinearArgs(Strict):
     pattern: Pattern | None = None
     """A grid of targets indexed by a param, offsetting the frame as a pick's does. Example: `{grid: [2, 2], pitch: [0.05, 0.05], index: hole}`"""
 
-    _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
+    _o = field_validator("offset", mode="before")(lambda cls, v: widen_offset(v))
 
 
 class DistanceArgs(Strict):
@@ -158,46 +156,6 @@ class GripArgs(Strict):
     """Seconds to wait for the confirmation. Example: `1.5`"""
 
 
-class WaitInputArgs(Strict):
-    input: Name
-    """Input name from io.inputs. Example: `part_present`"""
-    value: bool | float = True
-    """Value to wait for. Example: `true`"""
-    timeout: PositiveDuration = 10.0
-    """Seconds before the step fails with 105. Example: `10`"""
-
-
-class WaitArgs(Strict):
-    seconds: Annotated[Duration, Field(le=3600)]
-    """Time to wait, s (or a string with a unit). Example: `0.5`"""
-
-
-class SetOutputArgs(Strict):
-    """``{NAME: value}``: one or more outputs by their cell IO names."""
-
-    model_config = Strict.model_config | {"extra": "allow"}
-
-    pulse: PositiveDuration | None = None
-    """Set the outputs, hold them this long (s), set them back. Example: `0.2`"""
-
-    @model_validator(mode="after")
-    def _values(self) -> SetOutputArgs:
-        extra = self.model_extra or {}
-        if not extra:
-            raise PydanticCustomError("set_output", "set_output needs at least one {NAME: value}")
-        for name, value in extra.items():
-            if not isinstance(value, (bool, int, float)):
-                raise PydanticCustomError(
-                    "set_output",
-                    f"output {name!r}: value must be true/false or a number, got {value!r}",
-                )
-        return self
-
-    @property
-    def values(self) -> dict[str, bool | float]:
-        return dict(self.model_extra or {})
-
-
 class Retry(Strict):
     attempts: Annotated[int, Field(ge=1, le=20)] = 1
     """Attempts in all (1 = no retry). Example: `3`"""
@@ -205,7 +163,7 @@ class Retry(Strict):
     """Primitive steps run before each new attempt. Example: `[release, {retreat: 0.03}]`"""
 
 
-def _at_frame(data: Any) -> Any:
+def at_frame(data: Any) -> Any:
     """``at: {frame: FRAME, offset: POSE_PARAM | {xyz, rpy}}`` -> ``at: FRAME`` plus
     ``at_offset`` (a pose param's name) or ``offset`` (a literal pose)."""
     if not isinstance(data, dict) or not isinstance(data.get("at"), dict):
@@ -228,7 +186,7 @@ def _at_frame(data: Any) -> Any:
     return out
 
 
-#: ``at``: a frame name, or (widened by :func:`_at_frame`) ``{frame, offset}``
+#: ``at``: a frame name, or (widened by :func:`at_frame`) ``{frame, offset}``
 AtFrame = Annotated[
     Name,
     WithJsonSchema(
@@ -257,95 +215,6 @@ AtFrame = Annotated[
         }
     ),
 ]
-
-
-class PickArgs(Strict):
-    at: AtFrame
-    """Frame of the part (where the TCP grips it), or {frame, offset: POSE_PARAM}. Example: `infeed`"""
-    at_offset: Name | None = None
-    """Set from `at: {frame, offset: PARAM}`: the pose param giving where the part is. Example: `part_pose`"""
-    approach: NonNegativeLength = 0.1
-    """Approach distance above the frame along tool -Z, m. Example: `0.1`"""
-    lift: NonNegativeLength | None = None  # default: the approach distance
-    """Lift distance after the grip, m (default: the approach distance). Example: `0.1`"""
-    offset: Offset | None = None
-    """Offset in the frame's axes (m, deg), or [dx, dy, dz]. Example: `[0, 0, 0.005]`"""
-    pattern: Pattern | None = None
-    """A grid of pick positions indexed by a param. Example: `{grid: [3, 4], pitch: [0.07, 0.07], index: slot}`"""
-    grip: GripArgs = Field(default_factory=GripArgs)
-    """How the grip is confirmed. Example: `{confirm: gripper_closed, force: {min: 2, max: 40}, timeout: 1.5}`"""
-    retry: Retry | None = None
-    """Retries of a failed grip. Example: `{attempts: 3, between: [release, {retreat: 0.03}]}`"""
-    speed: Speed | None = None  # descend/lift speed, m/s
-    """Descend and lift speed, m/s. Example: `0.1`"""
-
-    _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
-    _a = model_validator(mode="before")(lambda cls, v: _at_frame(v))
-
-
-class PlaceArgs(Strict):
-    at: AtFrame
-    """Frame where the part is put down, or {frame, offset: POSE_PARAM}. Example: `pallet`"""
-    at_offset: Name | None = None
-    """Set from `at: {frame, offset: PARAM}`: the pose param giving where to put the part. Example: `drop_pose`"""
-    confirm: Name | None = None
-    """Input that must read true after the release (part in place). Example: `part_in_fixture`"""
-    approach: NonNegativeLength = 0.1
-    """Approach distance above the frame along tool -Z, m. Example: `0.1`"""
-    retreat: NonNegativeLength | None = None  # default: the approach distance
-    """Retreat distance after the release, m (default: the approach distance). Example: `0.1`"""
-    offset: Offset | None = None
-    """Offset in the frame's axes (m, deg), or [dx, dy, dz]. Example: `[0, 0, 0.005]`"""
-    pattern: Pattern | None = None
-    """A grid of place positions indexed by a param. Example: `{grid: [3, 4], pitch: [0.07, 0.07], index: slot}`"""
-    release: GripArgs = Field(default_factory=GripArgs)
-    """How the release is confirmed. Example: `{timeout: 1.0}`"""
-    speed: Speed | None = None
-    """Descend and retreat speed, m/s. Example: `0.1`"""
-
-    _o = field_validator("offset", mode="before")(lambda cls, v: _offset(v))
-    _a = model_validator(mode="before")(lambda cls, v: _at_frame(v))
-
-
-STEP_MODELS: dict[str, type[Strict]] = {
-    "move": MoveArgs,
-    "approach": ApproachArgs,
-    "descend": LinearArgs,
-    "linear": LinearArgs,
-    "lift": DistanceArgs,
-    "retreat": DistanceArgs,
-    "grip": GripArgs,
-    "release": GripArgs,
-    "set_output": SetOutputArgs,
-    "wait_input": WaitInputArgs,
-    "wait": WaitArgs,
-    "pick": PickArgs,
-    "place": PlaceArgs,
-    "move_until_contact": MoveUntilContactArgs,
-    "insert": InsertArgs,
-    "change_tool": ChangeToolArgs,
-    "align": AlignArgs,
-}
-MACROS = ("pick", "place", "change_tool")
-#: steps only a task's own steps may hold (not on_error, not a retry's between)
-TOP_LEVEL_ONLY = (*MACROS, "align")
-
-
-def widen_step_args(kind: str, args: Any) -> Any:
-    """The full mapping form of a step's short form arguments (None for bare steps)."""
-    if args is None:
-        return {}
-    if kind == "move" and not isinstance(args, dict):
-        return {"to": args}
-    if kind in ("approach", "descend", "linear") and isinstance(args, str):
-        return {"to": args}
-    if kind == "wait" and not isinstance(args, dict):
-        return {"seconds": args}
-    if kind in ("lift", "retreat") and not isinstance(args, dict):
-        return {"distance": args}
-    if kind == "change_tool" and isinstance(args, str):
-        return {"tool": args}
-    return args
 
 
 class ProtectiveStopPolicy(Strict):

@@ -20,14 +20,14 @@ import numpy as np
 
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.geometry import Placed
-from cellrunner.model.step import PLANNED_KINDS, Step, StepKind
+from cellrunner.model.step import Step, StepKind
 from cellrunner.planning.collision import ContactAllowance
 from cellrunner.planning.task_plan import (
     StepFailure,
     StepPlan,
+    StepPlanner,
     TaskPlan,
     _at,
-    _StepPlanner,
     _time_and_verify,
 )
 from cellrunner.planning.world import CellWorld
@@ -90,7 +90,7 @@ def _failures_from(
     if key in memo:
         cached: dict[int, tuple[str, tuple[str, ...]]] = memo[key]
         return cached
-    planner = _StepPlanner(start.world, np.asarray(start.q_rad, float), start.part)
+    planner = StepPlanner(start.world, np.asarray(start.q_rad, float), start.part)
     planner.contact = start.contact
     failed: dict[int, tuple[str, tuple[str, ...]]] = {}
     for step in cleanup:
@@ -158,7 +158,7 @@ def _starts(plan: TaskPlan) -> list[_Start]:
             add(_Start(f"from the end of {row.step.label}, {at}", q_touch, world, part, allowances))
             continue
         touched = None
-        if samples is not None and len(samples) > 2 and row.step.kind in PLANNED_KINDS:
+        if samples is not None and len(samples) > 2 and row.step.is_planned:
             for k in _middle(samples):
                 where = f"from the middle of {row.step.label}"
                 add(_Start(where, samples[k], world, row.carrying))

@@ -27,12 +27,10 @@ from typing import TYPE_CHECKING, TypedDict, TypeVar
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
-from cellrunner.model import geometry
-from cellrunner.model.expand import LINEAR_KINDS, Step
-from cellrunner.model.force_steps import FORCE_KINDS
+from cellrunner.model.expand import Step
 from cellrunner.model.geometry import Placed
 from cellrunner.model.step import StepKind
-from cellrunner.model.timing import close_time_s, release_time_s
+from cellrunner.model.step_kinds import kind_of
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory
 from cellrunner.planning.egress import corridors, egress_pose
 from cellrunner.planning.world import CellWorld
@@ -45,8 +43,6 @@ if TYPE_CHECKING:
     from cellrunner.planning.kinematics import ArmKinematics
     from cellrunner.planning.timing import MotionLimits
 
-#: the planned time of an align step: one look, its detection, no move (s)
-ALIGN_LOOK_S = 0.5
 #: standing still before a grip's wrist baseline, and before weighing after a lift (s);
 #: the execution engine uses the same figures (execution.steps SETTLE_S + AVERAGE_S)
 WRIST_SETTLE_S = 0.15
@@ -69,7 +65,7 @@ GRAVITY_MPS2 = 9.81
 #: ``serve`` every job that starts where a fault left the arm adds groups used once, and
 #: with 256 kept (cleared when full) they grew its memory for hundreds of jobs (bench_plc)
 TIMING_MEMO_SIZE = 64
-#: planned motions remembered per cell (:meth:`_StepPlanner.motion`), oldest out
+#: planned motions remembered per cell (:meth:`StepPlanner.motion`), oldest out
 MOTION_MEMO_SIZE = 256
 
 
@@ -209,7 +205,7 @@ class TaskPlan:
         world = self._world_of(step)
         if obstacles is not None:
             world = world.with_obstacles(obstacles)
-        planner = _StepPlanner(world, np.asarray(q_now_rad, float), part)
+        planner = StepPlanner(world, np.asarray(q_now_rad, float), part)
         goal_q = (
             row.q_end_rad if row is not None and row.status == "ok" and row.step is step else None
         )
@@ -231,7 +227,7 @@ class TaskPlan:
 
     def _line_after(self, step: Step) -> Step | None:
         """The straight line that follows the joint move ``step`` (a descend), if one does."""
-        if step.kind not in (StepKind.MOVE, StepKind.APPROACH):
+        if not step.is_planned:
             return None
         after = [s for s in self.steps if s.index == step.index + 1]
         return after[0] if after and after[0].kind in ("descend", "linear") else None
@@ -241,7 +237,7 @@ class TaskPlan:
         row = self.row(line)
         part = row.carrying if row is not None else self._carried_before(line)
         allowances = row.allowances if row is not None else None
-        _StepPlanner(world, q_rad, part).motion(StepPlan(line), allowances=allowances)
+        StepPlanner(world, q_rad, part).motion(StepPlan(line), allowances=allowances)
 
     def _other_branch(
         self,
@@ -256,13 +252,13 @@ class TaskPlan:
         that is clear in ``world`` and from which the line ``then`` is clear too."""
         assert step.T_world_tcp is not None
         q_now = np.asarray(q_now_rad, float)
-        collision = _StepPlanner(world, q_now, part).collision()
+        collision = StepPlanner(world, q_now, part).collision()
         why: InfeasibleError | None = None
         for q_goal in world.kinematics.ik_all(step.T_world_tcp, q_now):
             if not collision.is_valid(q_goal):
                 continue
             try:
-                planner = _StepPlanner(world, q_now, part)
+                planner = StepPlanner(world, q_now, part)
                 motion = planner.motion(StepPlan(step), goal_q=q_goal, allowances=allowances)
                 if then is not None:
                     self._line_clear(world, then, q_goal)
@@ -332,7 +328,7 @@ def plan_task(
     ``joined=False`` (run --step) ends every motion at rest: the same waypoints, each
     timed from rest to rest, so that the job can pause between any two steps.
     ``on_step(step)`` is called as each step's planning starts (for a progress bar)."""
-    planner = _StepPlanner(world, np.asarray(q_start_rad, float), None)
+    planner = StepPlanner(world, np.asarray(q_start_rad, float), None)
     planner.egress = egress_pose(
         corridors(steps, world.loaded.cell), world.kinematics.T_world_tcp(planner.q)
     )
@@ -363,8 +359,10 @@ def plan_task(
                 ):
                     flush()
                 group.append(_at(step, planner.motion, row, then=then))
-                if step.kind in (StepKind.DESCEND, StepKind.LINEAR, *FORCE_KINDS) or _weighed(
-                    rows, i
+                if (
+                    step.kind in (StepKind.DESCEND, StepKind.LINEAR)
+                    or step.is_guarded
+                    or _weighed(rows, i)
                 ):
                     flush()  # ends at rest: something happens at its end (a grip, weighing the part, a contact)
             else:
@@ -407,7 +405,7 @@ def _at(step: Step, action: Callable[..., _R], *args: object, **kwargs: object) 
 FORCE_TCP_ACCEL_MPS2 = 0.1
 
 
-class _StepPlanner:
+class StepPlanner:
     """Walks the steps, tracking the configuration and the carried part."""
 
     def __init__(self, world: CellWorld, q: np.ndarray, part: Placed | None) -> None:
@@ -427,9 +425,9 @@ class _StepPlanner:
         its line (``line_q``: the joint configurations at its ends)."""
         limits = self.world.limits
         speed = getattr(step.args, "speed", None)
-        if step.kind in (StepKind.MOVE, StepKind.APPROACH):
+        if step.is_planned:
             return limits.scaled(speed_fraction=speed if speed is not None else 1.0)
-        if step.kind in FORCE_KINDS:
+        if step.is_guarded:
             assert line_q is not None  # a force step is timed along its planned line
             return limits.scaled(tcp_speed_mps=speed, accel_fraction=self._gentle(limits, line_q))
         return limits.scaled(tcp_speed_mps=speed)
@@ -531,7 +529,7 @@ class _StepPlanner:
         proven: Callable[[], np.ndarray] | None = None  # a joint move's, planned proven
         then_proven: Callable[[], np.ndarray] | None = None
         egress, self.egress = self.egress, None  # the first motion's alone
-        if step.kind in (StepKind.MOVE, StepKind.APPROACH):
+        if step.is_planned:
             self.contact = ()  # a joint move leaves a force step's or tight fit's contacts behind
             if goal_q is None and step.q_goal_deg is not None:
                 goal_q = np.radians(step.q_goal_deg)
@@ -558,12 +556,12 @@ class _StepPlanner:
                 part = self.world.part_at(
                     then.extra.get("part_at", ""), T_goal, then.extra.get("part_pose")
                 )
-                _check_jaws_fit(then, self.world.loaded.cell.tool.gripper, part)
+                check_jaws_fit(then, self.world.loaded.cell.tool.gripper, part)
             named = named_contacts(step)
             # also when replanned at run time from where the arm stands (a retry's retreat)
             touches = self._waiting_touches(T_goal)
             if allowances is None:
-                if step.kind in FORCE_KINDS:  # contact is what the step is for, where its line ends
+                if step.is_guarded:  # contact is what the step is for, where its line ends
                     from cellrunner.planning.force_plan import contact_allowances
 
                     allowances = self.contact + contact_allowances(self, step, T_goal) + named
@@ -572,14 +570,13 @@ class _StepPlanner:
             allowances = (*allowances, *(a for a in touches if a not in allowances))
             collision = self.collision(allowances, step)
             path = plan_linear(kin, collision, self.q, T_goal).q_rad
-            if step.kind == StepKind.MOVE_UNTIL_CONTACT:
-                _check_meets_something(self, step, path)
+            kind_of(step.kind).check_line(self, step, path)
             # the next straight move leaves a force step's or tight fit's contacts
-            self.contact = allowances if step.kind in FORCE_KINDS or named else ()
+            self.contact = allowances if step.is_guarded or named else ()
             line = (T_now[:3, 3].copy(), T_goal[:3, 3].copy())
         row.allowances = tuple(allowances or ())
         row.carrying = self.part
-        if step.kind in FORCE_KINDS:
+        if step.is_guarded:
             from cellrunner.planning.force_plan import describe
 
             row.message = describe(step, line, row.allowances)
@@ -591,45 +588,8 @@ class _StepPlanner:
         return motion
 
     def act(self, row: StepPlan) -> None:
-        step = row.step
-        gripper = self.world.loaded.cell.tool.gripper
-        if step.kind == StepKind.GRIP:
-            T = self.world.kinematics.T_world_tcp(self.q)
-            # a pick's grip names its frame; a bare grip takes the part waiting at the TCP
-            frame = step.extra.get("part_at") or self._frame_at_tcp()
-            part = self.world.part_at(frame, T, step.extra.get("part_pose"))
-            self.part = self.world.same_grip(part) if part is not None else None
-            _check_jaws_fit(step, gripper, self.part)
-            weigh = WRIST_SETTLE_S if step.args.force is not None else 0.0
-            close_s = close_time_s(gripper, self.part.shape if self.part is not None else None)
-            row.duration_s = WRIST_SETTLE_S + close_s + weigh
-        elif step.kind == StepKind.RELEASE:
-            # a place's release: where the twin judges the part against the place's target
-            # (a bare release, after an insert or in on_error, is judged by its confirm input)
-            if self.part is not None and (step.macro or "").startswith("place "):
-                from cellrunner.planning.support import check_support
-
-                check_support(
-                    self.world, step, self.q, self.part, step.extra.get("earlier_slots", [])
-                )
-            row.duration_s = release_time_s(gripper)
-            self.part = None
-        elif step.kind == StepKind.WAIT:
-            row.duration_s = step.args.seconds
-        elif step.kind == StepKind.SET_OUTPUT:
-            row.duration_s = (step.args.pulse or 0.0) + 1.0 / self.world.spec.rate_hz
-        elif step.kind == StepKind.WAIT_INPUT:
-            row.message = f"waits up to {step.args.timeout:g} s for {step.args.input}"
-        elif step.kind == StepKind.ALIGN:
-            row.duration_s = ALIGN_LOOK_S
-            row.message = (
-                f"looks at marker {step.args.marker.id} up to {step.args.attempts} times; "
-                f"corrections within the max_correction box are checked as align:{step.name}"
-            )
-        elif step.kind in (StepKind.TOOL_UNLOCK, StepKind.TOOL_LOCK):
-            self.world = self.world.with_tool(step.extra["tool"], tcp_of=step.extra["tcp_of"])
-            row.world = self.world
-            row.duration_s = WRIST_SETTLE_S
+        """Plan a step that does not move (its kind's :meth:`plan`)."""
+        kind_of(row.step.kind).plan(self, row)
 
     def _ik(self, T_world_tcp: np.ndarray, step: Step, then: Step | None) -> np.ndarray:
         """The branch nearest the current configuration that is collision-free and, when
@@ -667,16 +627,7 @@ class _StepPlanner:
         return np.asarray(valid[0])  # the descend that follows will say what is wrong with it
 
     def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
-        if step.kind == StepKind.LIFT:
-            return np.asarray(geometry.pose_matrix((0, 0, step.args.distance)) @ T_now)
-        if step.kind == StepKind.RETREAT:
-            return np.asarray(T_now @ geometry.pose_matrix((0, 0, -step.args.distance)))
-        if step.kind == StepKind.MOVE_UNTIL_CONTACT:
-            from cellrunner.planning.force_plan import contact_line_goal
-
-            return contact_line_goal(step.args, T_now)
-        assert step.T_world_tcp is not None  # descend and linear have a frame target
-        return step.T_world_tcp
+        return kind_of(step.kind).line_goal(self, step, T_now)
 
     def _place_allowances(
         self, step: Step, T_goal: np.ndarray, named: tuple[ContactAllowance, ...] = ()
@@ -686,7 +637,7 @@ class _StepPlanner:
         the step names in ``contact:`` (``named``) anywhere along it."""
         from cellrunner.planning.collision import ContactAllowance
 
-        if self.part is None or step.kind not in LINEAR_KINDS:
+        if self.part is None or not step.is_line:
             return self.contact + named
         q_goal = self._try_ik(T_goal)
         # a force step's contact comes first: the part leaves it as deep as the step let it
@@ -771,7 +722,7 @@ class _StepPlanner:
             <= make_coal_shape(part.shape)[1]
         }
 
-    def _frame_at_tcp(self) -> str:
+    def frame_at_tcp(self) -> str:
         """The frame of the part a grip here takes (:meth:`_waiting_at_tcp`), or ''."""
         from cellrunner.planning.collision_scene import WAITING_PREFIX
 
@@ -787,7 +738,7 @@ class _StepPlanner:
 
 @dataclass(frozen=True)
 class _Planned:
-    """A motion as planned (:meth:`_StepPlanner.motion`'s memo): its waypoints, limits,
+    """A motion as planned (:meth:`StepPlanner.motion`'s memo): its waypoints, limits,
     line, models, the row's message, and the contacts the planner keeps after it."""
 
     motion: _Motion
@@ -808,17 +759,7 @@ def _fixture_name(label: str) -> str:
     return label[len("fixture '") : -1]
 
 
-def _check_meets_something(planner: _StepPlanner, step: Step, path: np.ndarray) -> None:
-    """A move_until_contact must touch something the cell file has (a fixture, a waiting
-    part) within its max_distance, or the step fails on every backend (no contact)."""
-    from cellrunner.planning.force_plan import first_touch, meets_nothing
-
-    bare = planner.world.collision.carrying(planner.part)
-    if first_touch(bare, path, planner.part is not None) is None:
-        raise InfeasibleError(meets_nothing(step, bare, path[-1], planner.part is not None))
-
-
-def _check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) -> None:
+def check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) -> None:
     """A parallel gripper's open jaws must be wider than the part across them (the TCP's
     X axis), or the grip cannot close around it: the twin's jaws land on it."""
     from cellrunner.model.gripper import width_across_jaws_m
@@ -905,7 +846,7 @@ def _prove_sampled(motion: _Motion) -> bool:
     proof of the timed trajectory finds it, and this plans that move the slower way."""
     if motion.proven is None:
         return False
-    # the motion may be the one the world's memo keeps (:meth:`_StepPlanner.motion`): it
+    # the motion may be the one the world's memo keeps (:meth:`StepPlanner.motion`): it
     # keeps the proven path, and the jobs that plan the same move again take that
     try:
         motion.waypoints, motion.proven = motion.proven(), motion.then_proven
@@ -921,9 +862,9 @@ def _prove_sampled(motion: _Motion) -> bool:
 def _joins(before: Step, after: Step) -> bool:
     """Whether ``after`` may continue ``before`` without stopping: a joint move after any
     motion, a straight move only after a joint move (two straight lines meet at a corner)."""
-    if after.kind in FORCE_KINDS:  # a force step starts standing, for its wrist baseline
+    if after.is_guarded:  # a force step starts standing, for its wrist baseline
         return False
-    return after.kind not in LINEAR_KINDS or before.kind not in LINEAR_KINDS
+    return not after.is_line or not before.is_line
 
 
 def _weighed(rows: list[StepPlan], i: int) -> bool:
@@ -1139,7 +1080,7 @@ def seal(world: CellWorld, row: StepPlan) -> ApprovedTrajectory:
 
     world = row.world or world
     assert row.trajectory is not None and row.verify_inputs is not None  # a stored motion row
-    planner = _StepPlanner(world, row.trajectory.q_rad[0], row.carrying)
+    planner = StepPlanner(world, row.trajectory.q_rad[0], row.carrying)
     return verify_trajectory(
         row.trajectory,
         step_index=row.step.index,
@@ -1189,7 +1130,7 @@ def _check_retry_path(world: CellWorld, row: StepPlan, rows: list[StepPlan]) -> 
     q_grip = descend.q_end_rad
     assert q_grip is not None  # the descend was planned before its grip
     world = descend.world or world
-    planner = _StepPlanner(world, q_grip, None)
+    planner = StepPlanner(world, q_grip, None)
     try:
         for between in [*retry.between, descend.step]:
             if between.is_motion:

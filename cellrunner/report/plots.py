@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cellrunner.model.step_kinds import STEP_KINDS
+
 if TYPE_CHECKING:
     from cellrunner.model.geometry import Placed
     from cellrunner.report.recorder import Mark
@@ -19,20 +21,6 @@ if TYPE_CHECKING:
 #: a label's box in display pixels: (x0, y0, x1, y1)
 Box2D = tuple[float, float, float, float]
 
-#: step kinds and the colour of their bar in the steps lane
-KIND_COLOURS = {
-    "move": "#8da0cb",
-    "approach": "#66c2a5",
-    "descend": "#fc8d62",
-    "lift": "#e78ac3",
-    "retreat": "#e78ac3",
-    "linear": "#fc8d62",
-    "grip": "#a6d854",
-    "release": "#ffd92f",
-    "wait": "#cccccc",
-    "wait_input": "#cccccc",
-    "set_output": "#b3b3b3",
-}
 #: points closer than this (m) share one label in the path plots
 LABEL_MERGE_M = 0.015
 
@@ -278,9 +266,7 @@ def draw_steps_lane(ax: Any, marks: list[Mark], t_end_s: float) -> None:
     alternating between two rows so that short steps' labels never overlap."""
     for k, (t0, t1, index, kind) in enumerate(step_spans(marks, t_end_s)):
         row = k % 2
-        ax.barh(
-            row, t1 - t0, left=t0, height=0.8, color=KIND_COLOURS.get(kind, "#dddddd"), ec="white"
-        )
+        ax.barh(row, t1 - t0, left=t0, height=0.8, color=_colour(kind), ec="white")
         text = f"{index} {kind}" if (t1 - t0) > 0.06 * t_end_s else str(index)
         ax.text((t0 + t1) / 2, row, text, ha="center", va="center", fontsize=7, clip_on=True)
     ax.set_ylim(-0.5, 1.5)
@@ -434,3 +420,9 @@ def plot_wrist_force(
         ax.set_title(title)
     fig.tight_layout()
     return save(fig, Path(path))
+
+
+def _colour(kind: str) -> str:
+    """The colour of a step kind's bar (its module's), grey for what is not a kind."""
+    known = STEP_KINDS.get(kind)
+    return known.colour if known is not None else "#dddddd"

@@ -82,8 +82,8 @@ def test_every_key_has_a_description_and_an_example_that_validates():
         assert len(props) > 60
         for path, sub in props:
             assert sub.get("description") and sub.get("examples"), (
-                f"{path}: give the field a docstring ending in Example: `YAML` (a step kind: STEP_HELP "
-                "in cellrunner/model/schema.py)"
+                f"{path}: give the field a docstring ending in Example: `YAML` (a step kind: its summary "
+                "and example in cellrunner/steps/KIND.py)"
             )
             assert "Example:" not in sub["description"], path
             check = jsonschema.Draft7Validator({**sub, "$defs": schema.get("$defs", {})})

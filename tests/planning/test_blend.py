@@ -66,7 +66,7 @@ def test_blends_pay_off(demo):
     joined = _row(plan, "approach", 2), _row(plan, "descend", 2)
     rest_to_rest = 0.0
     q = joined[0].trajectory.q_rad[0]
-    planner = task_plan._StepPlanner(world, q, joined[0].carrying)
+    planner = task_plan.StepPlanner(world, q, joined[0].carrying)
     for row in joined:
         motion = planner.motion(task_plan.StepPlan(row.step), goal_q=None)
         piece = task_plan._timed_pieces(world, [motion], q)[0]
@@ -80,7 +80,7 @@ def test_no_blend_where_the_arc_is_not_collision_free(demo, monkeypatch):
     world, _steps, plan = demo
     approach, descend = _row(plan, "approach", 2), _row(plan, "descend", 2)
     q0 = approach.trajectory.q_rad[0]
-    planner = task_plan._StepPlanner(world, q0, approach.carrying)
+    planner = task_plan.StepPlanner(world, q0, approach.carrying)
     first = planner.motion(task_plan.StepPlan(approach.step), goal_q=None)
     second = planner.motion(task_plan.StepPlan(descend.step), goal_q=None)
     blended = task_plan._blend(world, [first, second])

@@ -1,0 +1,47 @@
+"""``insert``: straight in to a frame and ``depth`` past it under a force limit; ending
+outside ``expect_depth`` is a failed place (3)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from cellrunner.model import geometry
+from cellrunner.model.force_steps import InsertArgs
+from cellrunner.model.step_kinds import register
+from cellrunner.steps._families import GuardedLine
+
+if TYPE_CHECKING:
+    from cellrunner.model.expand import Expansion
+    from cellrunner.model.references import ReferenceCheck
+
+
+@register
+class Insert(GuardedLine):
+    name = "insert"
+    order = 14
+    args = InsertArgs
+    summary = (
+        "Straight in to a frame and `depth` (m) past it under a force limit; ending outside "
+        "`expect_depth` is a failed place (3)."
+    )
+    example: ClassVar[Any] = {
+        "to": "hole",
+        "depth": 0.02,
+        "speed": 0.005,
+        "force": {"max": 20},
+        "expect_depth": [0.018, 0.021],
+    }
+
+    def target(self, builder: Expansion, args: Any) -> tuple[str, np.ndarray | None, Any]:
+        # the line ends ``depth`` past the frame, along its Z
+        T, name = builder.target(args.to, None, args.pattern)
+        return name, T @ geometry.pose_matrix((0, 0, args.depth)), None
+
+    def target_frame(self, args: Any) -> str | None:
+        return str(args.to)
+
+    def check_references(self, refs: ReferenceCheck, spec: Any) -> None:
+        refs.frame(spec.args.to, spec.path + ("to",))
+        refs.contacts(spec.args, spec.path)
