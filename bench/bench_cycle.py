@@ -86,14 +86,14 @@ def taught_waypoints(world, steps, q_start):
     from cellrunner.planning import joint_path, task_plan
 
     taught: dict[int, tuple[np.ndarray, object]] = {}
-    original_motion, original_arcs = task_plan._StepPlanner.motion, joint_path._with_corner_arcs
+    original_motion, original_arcs = task_plan.StepPlanner.motion, joint_path._with_corner_arcs
 
     def recording(self, row, *args, **kwargs):
         motion = original_motion(self, row, *args, **kwargs)
         taught.setdefault(row.step.index, (np.array(motion.waypoints), motion.limits))
         return motion
 
-    task_plan._StepPlanner.motion = recording
+    task_plan.StepPlanner.motion = recording
     # no arcs: every corner stays sharp and every edge is a straight piece (proven)
     joint_path._with_corner_arcs = lambda collision, q, *_, **__: (
         np.asarray(q, float),
@@ -102,7 +102,7 @@ def taught_waypoints(world, steps, q_start):
     try:
         task_plan.plan_task(world, steps, q_start)
     finally:
-        task_plan._StepPlanner.motion, joint_path._with_corner_arcs = original_motion, original_arcs
+        task_plan.StepPlanner.motion, joint_path._with_corner_arcs = original_motion, original_arcs
     return taught
 
 
@@ -170,10 +170,10 @@ def optimal_bound_s(world, plan) -> float:
 
 
 def _limits_of(world, row):
-    from cellrunner.planning.task_plan import _StepPlanner
+    from cellrunner.planning.task_plan import StepPlanner
 
     q = row.trajectory.q_rad
-    return _StepPlanner(world, q[0], None).limits_for(row.step, (q[0], q[-1]))
+    return StepPlanner(world, q[0], None).limits_for(row.step, (q[0], q[-1]))
 
 
 def run(

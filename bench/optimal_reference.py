@@ -96,7 +96,7 @@ def planned_moves(world, steps, q_start) -> list[Any]:
     from cellrunner.planning import task_plan
 
     seen: dict[int, Any] = {}
-    original = task_plan._StepPlanner.motion
+    original = task_plan.StepPlanner.motion
 
     def recording(self, row, *args, **kwargs):
         motion = original(self, row, *args, **kwargs)
@@ -104,11 +104,11 @@ def planned_moves(world, steps, q_start) -> list[Any]:
             seen.setdefault(row.step.index, motion)
         return motion
 
-    task_plan._StepPlanner.motion = recording
+    task_plan.StepPlanner.motion = recording
     try:
         task_plan.plan_task(world, steps, q_start)
     finally:
-        task_plan._StepPlanner.motion = original
+        task_plan.StepPlanner.motion = original
     out = []
     for _, motion in sorted(seen.items()):
         q = np.asarray(motion.waypoints, float)  # after any proven replanning

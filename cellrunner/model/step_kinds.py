@@ -21,11 +21,11 @@ import pkgutil
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, TypeVar
 
-import numpy as np
-
 from cellrunner.errors import StepKindError
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from cellrunner.model.base import Strict
 
 #: how a motion kind moves: a collision-free planned joint move, a straight TCP line, or a
@@ -109,7 +109,8 @@ class StepKindDef:
     def line_goal(self, planner: Any, step: Any, T_now: np.ndarray) -> np.ndarray:
         """T_world_tcp where a straight line of this kind ends, from ``T_now``."""
         assert step.T_world_tcp is not None  # a line with a frame target
-        return np.asarray(step.T_world_tcp)
+        goal: np.ndarray = step.T_world_tcp
+        return goal
 
     def check_line(self, planner: Any, step: Any, path: np.ndarray) -> None:
         """Refuse a planned straight line of this kind (joint samples ``path``) that cannot

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
-
 from cellrunner.model.step_kinds import Motion, StepKindDef
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from cellrunner.execution.context import JobContext
     from cellrunner.execution.outcome import StepGen
     from cellrunner.model.expand import Expansion
@@ -56,7 +56,7 @@ class RelativeLine(MotionKind):
     short_field = "distance"
 
     def line_goal(self, planner: Any, step: Step, T_now: np.ndarray) -> np.ndarray:
-        return np.asarray(self.relative_goal(step.args.distance, T_now))
+        return self.relative_goal(step.args.distance, T_now)
 
     def relative_goal(self, distance_m: float, T_now: np.ndarray) -> np.ndarray:
         """T_world_tcp after ``distance_m`` of this line from ``T_now``."""

@@ -6,17 +6,15 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
-
-from cellrunner.model import geometry
 from cellrunner.model.align import AlignArgs, aligned_frame
 from cellrunner.model.diagnose import unknown_name
-from cellrunner.model.frames import frame_pose
 from cellrunner.model.step import Step, StepKind
 from cellrunner.model.step_kinds import StepKindDef, register
 from cellrunner.model.task import MoveArgs
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from cellrunner.execution.context import JobContext
     from cellrunner.execution.outcome import StepGen
     from cellrunner.model.camera import Camera
@@ -54,6 +52,10 @@ class Align(StepKindDef):
     def expand(self, builder: Expansion, spec: StepSpec, args: Any) -> None:
         """The look (a camera on the flange moves to see the marker) and the align, which
         corrects its frame for the steps after it."""
+        import numpy as np
+
+        from cellrunner.model.frames import frame_pose
+
         frame = aligned_frame(builder.task_steps, builder.position)
         assert frame is not None  # references checked it
         args = spec.args
@@ -125,6 +127,10 @@ class Align(StepKindDef):
 def _look_pose(args: AlignArgs, camera: Camera, extra: dict[str, Any]) -> np.ndarray:
     """T_world_tcp with the camera on the marker's axis, ``standoff`` out from its face,
     looking at it (the camera's X along the marker's X)."""
+    import numpy as np
+
+    from cellrunner.model import geometry
+
     fy, height = camera.intrinsics.fy, camera.image_size[1]
     standoff = args.standoff or max(LOOK_MIN_M, fy * args.marker.size / (LOOK_SPAN * height))
     T_world_camera = (

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
-
-from cellrunner.model import geometry
 from cellrunner.model.step_kinds import Motion, register
 from cellrunner.model.task import ApproachArgs
 from cellrunner.steps._families import FrameLine
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from cellrunner.model.expand import Expansion
 
 
@@ -26,5 +25,7 @@ class Approach(FrameLine):
     colour = "#66c2a5"
 
     def target(self, builder: Expansion, args: Any) -> tuple[str, np.ndarray | None, Any]:
+        from cellrunner.model import geometry
+
         T, name = builder.target(args.to, args.offset, args.pattern)
         return name, T @ geometry.pose_matrix((0, 0, -args.distance)), None

@@ -7,7 +7,6 @@ from typing import TYPE_CHECKING, Any
 
 from cellrunner.model.diagnose import unknown_name
 from cellrunner.model.step_kinds import StepKindDef, register
-from cellrunner.model.tool_change import expand_change_tool
 from cellrunner.model.tool_steps import ChangeToolArgs
 
 if TYPE_CHECKING:
@@ -33,6 +32,8 @@ class ChangeTool(StepKindDef):
     short_types = (str,)
 
     def expand(self, builder: Expansion, spec: StepSpec, args: Any) -> None:
+        from cellrunner.model.tool_change import expand_change_tool
+
         steps, builder.tool = expand_change_tool(
             builder.cell, spec, builder.tool, builder.next_index()
         )

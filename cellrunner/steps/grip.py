@@ -5,12 +5,12 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
-
 from cellrunner.model.step_kinds import StepKindDef, register
 from cellrunner.model.task import GripArgs
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from cellrunner.execution.context import JobContext
     from cellrunner.execution.outcome import StepGen
     from cellrunner.model.references import ReferenceCheck
@@ -59,6 +59,8 @@ class Grip(StepKindDef):
 
 def _run(ctx: JobContext, step: Step) -> StepGen:
     """Close the jaws; succeed when the confirmation input reads true within the timeout."""
+    import numpy as np
+
     from cellrunner.execution.context import Carry, Hold
     from cellrunner.execution.outcome import OK, Outcome
     from cellrunner.execution.steps import AVERAGE_S, SETTLE_S

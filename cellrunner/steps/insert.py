@@ -5,14 +5,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
-
-from cellrunner.model import geometry
 from cellrunner.model.force_steps import InsertArgs
 from cellrunner.model.step_kinds import register
 from cellrunner.steps._families import GuardedLine
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from cellrunner.model.expand import Expansion
     from cellrunner.model.references import ReferenceCheck
 
@@ -36,6 +35,8 @@ class Insert(GuardedLine):
 
     def target(self, builder: Expansion, args: Any) -> tuple[str, np.ndarray | None, Any]:
         # the line ends ``depth`` past the frame, along its Z
+        from cellrunner.model import geometry
+
         T, name = builder.target(args.to, None, args.pattern)
         return name, T @ geometry.pose_matrix((0, 0, args.depth)), None
 

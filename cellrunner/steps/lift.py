@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-import numpy as np
+from typing import TYPE_CHECKING
 
-from cellrunner.model import geometry
 from cellrunner.model.step_kinds import register
 from cellrunner.model.task import DistanceArgs
 from cellrunner.model.units import PositiveLength
 from cellrunner.steps._families import RelativeLine
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 @register
@@ -22,4 +24,8 @@ class Lift(RelativeLine):
     colour = "#e78ac3"
 
     def relative_goal(self, distance_m: float, T_now: np.ndarray) -> np.ndarray:
+        import numpy as np
+
+        from cellrunner.model import geometry
+
         return np.asarray(geometry.pose_matrix((0, 0, distance_m)) @ T_now)

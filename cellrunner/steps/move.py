@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
-
 from cellrunner.model.checks import check_radians
 from cellrunner.model.diagnose import unknown_name
 from cellrunner.model.step_kinds import Motion, register
@@ -13,6 +11,8 @@ from cellrunner.model.task import MoveArgs, Target
 from cellrunner.steps._families import MotionKind
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from cellrunner.model.expand import Expansion
     from cellrunner.model.references import ReferenceCheck
 

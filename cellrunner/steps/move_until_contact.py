@@ -5,13 +5,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
-
 from cellrunner.model.force_steps import MoveUntilContactArgs
 from cellrunner.model.step_kinds import register
 from cellrunner.steps._families import GuardedLine
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from cellrunner.model.step import Step
     from cellrunner.planning.task_plan import StepPlanner
 

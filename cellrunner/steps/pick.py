@@ -6,7 +6,6 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from pydantic import Field, field_validator, model_validator
 
-from cellrunner.model import geometry
 from cellrunner.model.base import Name, Strict
 from cellrunner.model.pattern import Pattern
 from cellrunner.model.step import RetryPlan, Step, StepKind
@@ -78,6 +77,8 @@ class Pick(StepKindDef):
             refs.input(spec.args.grip.confirm, spec.path + ("grip", "confirm"))
 
     def expand(self, builder: Expansion, spec: StepSpec, args: Any) -> None:
+        from cellrunner.model import geometry
+
         a: PickArgs = args
         T, name = builder.target(a.at, a.offset, a.pattern, a.at_offset)
         macro, path = f"pick {name}", spec.path

@@ -5,10 +5,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from cellrunner.model import geometry
 from cellrunner.model.base import Name, Strict
 from cellrunner.model.pattern import Pattern
 from cellrunner.model.step import Step, StepKind
@@ -26,6 +24,8 @@ from cellrunner.model.task import (
 from cellrunner.model.units import NonNegativeLength, Speed
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from cellrunner.model.expand import Expansion
     from cellrunner.model.loaded import StepSpec
     from cellrunner.model.references import ReferenceCheck
@@ -82,6 +82,8 @@ class Place(StepKindDef):
             refs.input(args.release.confirm, path + ("release", "confirm"))
 
     def expand(self, builder: Expansion, spec: StepSpec, args: Any) -> None:
+        from cellrunner.model import geometry
+
         a: PlaceArgs = args
         T, name = builder.target(a.at, a.offset, a.pattern, a.at_offset)
         macro, path = f"place {name}", spec.path
