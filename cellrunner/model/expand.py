@@ -23,7 +23,7 @@ from cellrunner.model.pattern import Pattern
 from cellrunner.model.source import PathKey
 from cellrunner.model.step import RetryPlan, Step, StepKind
 from cellrunner.model.step_kinds import kind_of
-from cellrunner.model.task import GripArgs, Offset, TaskFile
+from cellrunner.model.task import ApproachArgs, GripArgs, LinearArgs, Offset, TaskFile
 
 
 def camera_pose(cell: Cell, name: str) -> np.ndarray:
@@ -135,6 +135,20 @@ class Expansion:
                 if step.T_world_tcp is not None:
                     step.extra["aligned_frame"] = frame
                     step.extra["T_world_frame"] = frame_pose(self.cell, frame)
+
+    def approach_and_descend(
+        self, a: Any, T_world_tcp: np.ndarray, name: str, path: PathKey, macro: str
+    ) -> None:
+        """A pick's or place's way down to ``T_world_tcp`` (its ``at``): a planned approach
+        to ``a.approach`` above it along its Z, then a straight descend at ``a.speed``."""
+        approach = ApproachArgs(to=a.at, distance=a.approach)
+        T_above = T_world_tcp @ geometry.pose_matrix((0, 0, -a.approach))
+        index = self.next_index()
+        self.steps.append(Step(index, StepKind.APPROACH, name, approach, path, macro, T_above))
+        descend = LinearArgs(to=a.at, speed=a.speed)
+        self.steps.append(
+            Step(index + 1, StepKind.DESCEND, name, descend, path, macro, T_world_tcp)
+        )
 
     def primitive(
         self,

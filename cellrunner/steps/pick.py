@@ -11,11 +11,9 @@ from cellrunner.model.pattern import Pattern
 from cellrunner.model.step import RetryPlan, Step, StepKind
 from cellrunner.model.step_kinds import StepKindDef, register
 from cellrunner.model.task import (
-    ApproachArgs,
     AtFrame,
     DistanceArgs,
     GripArgs,
-    LinearArgs,
     Offset,
     Retry,
     at_frame,
@@ -77,19 +75,11 @@ class Pick(StepKindDef):
             refs.input(spec.args.grip.confirm, spec.path + ("grip", "confirm"))
 
     def expand(self, builder: Expansion, spec: StepSpec, args: Any) -> None:
-        from cellrunner.model import geometry
-
         a: PickArgs = args
         T, name = builder.target(a.at, a.offset, a.pattern, a.at_offset)
         macro, path = f"pick {name}", spec.path
-        approach = ApproachArgs(to=a.at, distance=a.approach)
-        T_above = T @ geometry.pose_matrix((0, 0, -a.approach))
-        builder.steps.append(
-            Step(builder.next_index(), StepKind.APPROACH, name, approach, path, macro, T_above)
-        )
-        descend_i = builder.next_index()
-        descend = LinearArgs(to=a.at, speed=a.speed)
-        builder.steps.append(Step(descend_i, StepKind.DESCEND, name, descend, path, macro, T))
+        builder.approach_and_descend(a, T, name, path, macro)
+        descend_i = builder.next_index() - 1
         retry = None
         if a.retry is not None and a.retry.attempts > 1:
             between = tuple(

@@ -12,11 +12,9 @@ from cellrunner.model.pattern import Pattern
 from cellrunner.model.step import Step, StepKind
 from cellrunner.model.step_kinds import StepKindDef, register
 from cellrunner.model.task import (
-    ApproachArgs,
     AtFrame,
     DistanceArgs,
     GripArgs,
-    LinearArgs,
     Offset,
     at_frame,
     widen_offset,
@@ -82,20 +80,10 @@ class Place(StepKindDef):
             refs.input(args.release.confirm, path + ("release", "confirm"))
 
     def expand(self, builder: Expansion, spec: StepSpec, args: Any) -> None:
-        from cellrunner.model import geometry
-
         a: PlaceArgs = args
         T, name = builder.target(a.at, a.offset, a.pattern, a.at_offset)
         macro, path = f"place {name}", spec.path
-        approach = ApproachArgs(to=a.at, distance=a.approach)
-        T_above = T @ geometry.pose_matrix((0, 0, -a.approach))
-        builder.steps.append(
-            Step(builder.next_index(), StepKind.APPROACH, name, approach, path, macro, T_above)
-        )
-        descend = LinearArgs(to=a.at, speed=a.speed)
-        builder.steps.append(
-            Step(builder.next_index(), StepKind.DESCEND, name, descend, path, macro, T)
-        )
+        builder.approach_and_descend(a, T, name, path, macro)
         release = (
             a.release if a.confirm is None else a.release.model_copy(update={"confirm": a.confirm})
         )
