@@ -13,8 +13,31 @@
      │    ├── RemoteControlOff       the controller is in local control
      │    ├── SafetyStop             the controller stopped the arm (``safety`` says how)
      │    └── ConnectionLost         a connection to the controller dropped
+     │         └── IoConnectionLost  the RTDE link for outputs (backends.ur_io)
      ├── PeerUnreachable    exit 3   robot controller or another peer cannot be reached
-     └── StepKindError      exit 1   a step kind registered twice, or one unknown by name
+     │    └── InputLost              a jog input device went away (commissioning.inputs)
+     ├── StepKindError      exit 1   a step kind registered twice, or one unknown by name
+     ├── JournalError       exit 3   the journal cannot be written or read (execution.journal)
+     ├── RenderUnavailable  exit 1   no offscreen rendering on this machine (sim.render)
+     ├── DepthError         exit 1   a depth camera sent no depth image (perception.sources)
+     ├── VisionUnavailable  exit 1   OpenCV (``vision`` extra) not installed (vision.board)
+     ├── ImageError         exit 1   a camera sent no picture (vision.images)
+     ├── CalibrationError   exit 1   no trustworthy camera pose (vision.handeye)
+     ├── TcpError           exit 1   the poses give no TCP (commissioning.tcp)
+     ├── TeachError         exit 1   taught points define no frame (commissioning.teach)
+     ├── CellFileError      exit 2   no place for a taught pose (commissioning.cellfile)
+     └── Aborted            exit 1   the operator ended a session (commissioning.session)
+
+Inside one package, never reaching a user (each is caught where its package meets the
+rest, and turned into one of the above or into a result code):
+
+    ControlLost          backends.ur_control    the UR control process died or hung
+    ArmGeometryMissing   model.arm_geometry     no collision geometry derived for an arm model
+    _TooManyValues       model.source           a file past the loader's size limits (an InputError)
+    Malformed            commissioning.inputs   a UDP datagram that is not a jog command
+    MotionError          twin.motion            the virtual controller cannot continue a motion
+    RtdeError            twin.rtde              an RTDE peer broke the protocol (the twin closes it)
+    ScriptError          twin.script            a URScript program the twin cannot run
 
 Third-party errors (ur_rtde, pymodbus, asyncua, OMPL, SQLite) are translated into these
 where they enter the program (``raise PeerUnreachable(...) from exc``); ur_rtde's

@@ -1,0 +1,47 @@
+"""Every exception class cellrunner defines is drawn in the tree of cellrunner/errors.py,
+so the tree a reader trusts is the whole tree (read from the source, as text)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import cellrunner.errors
+from tests.conftest import ROOT
+
+_BASES = {"Exception", "ValueError", "LookupError", "RuntimeError", "KeyError", "OSError"}
+
+
+def exception_classes(root: Path) -> dict[str, str]:
+    """Name -> module path of every class in ``root`` that derives, directly or through
+    another class defined there, from a built-in exception."""
+    bases: dict[str, tuple[list[str], str]] = {}
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ClassDef):
+                names = [ast.unparse(b).split(".")[-1] for b in node.bases]
+                bases[node.name] = (names, str(path.relative_to(root.parent)))
+
+    def is_exception(name: str, seen: frozenset[str] = frozenset()) -> bool:
+        if name in _BASES:
+            return True
+        if name not in bases or name in seen:
+            return False
+        return any(is_exception(b, seen | {name}) for b in bases[name][0])
+
+    return {name: where for name, (_, where) in bases.items() if is_exception(name)}
+
+
+def test_every_exception_class_is_drawn_in_the_tree():
+    found = exception_classes(ROOT / "cellrunner")
+    assert len(found) > 25, "the exception classes were not found"
+    tree = cellrunner.errors.__doc__ or ""
+    assert {n: w for n, w in found.items() if n not in tree} == {}
+
+
+def test_the_check_sees_a_class_outside_the_tree(tmp_path):
+    pkg = tmp_path / "cellrunner"
+    pkg.mkdir()
+    (pkg / "a.py").write_text("class Odd(ValueError):\n    pass\nclass Child(Odd):\n    pass\n")
+    (pkg / "b.py").write_text("class Plain:\n    pass\n")
+    assert exception_classes(pkg) == {"Odd": "cellrunner/a.py", "Child": "cellrunner/a.py"}
