@@ -635,7 +635,7 @@ class StepPlanner:
         """The carried part may touch the fixture it rests on where a straight move starts
         (lifting it off) or ends (setting it down), and only that fixture; and the fixtures
         the step names in ``contact:`` (``named``) anywhere along it."""
-        from cellrunner.planning.collision import ContactAllowance
+        from cellrunner.planning.collision import STALL_M, ContactAllowance
 
         if self.part is None or not step.is_line:
             return self.contact + named
@@ -649,8 +649,10 @@ class StepPlanner:
             model = self.collision(tuple(allowances), step)
             for _ in range(3):
                 clearance = model.clearance(q)
+                # valid is clear by STALL_M more than required (the verifier's rule): a part
+                # set down within that of its support rests on it
                 if (
-                    clearance.distance_m >= clearance.required_m
+                    clearance.distance_m >= clearance.required_m + STALL_M
                     or clearance.a != f"part '{self.part.name}'"
                     or not clearance.b.startswith(("fixture '", "waiting part '"))
                 ):

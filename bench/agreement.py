@@ -1,0 +1,170 @@
+"""Does ``check`` agree with the twin, and both with the truth, on cells nobody wrote?
+
+Run: ``python bench/agreement.py --cells N --seed S [--jobs J] [--out DIR]`` from the
+repository root. It generates N jobs (``bench/cellgen.py``: feasible by construction, or
+broken in one known way), runs ``check`` on each and, where ``check`` approves, ``dry-run``
+on the twin, and classifies each job:
+
+- **true accept**: feasible, approved, the twin ends 0;
+- **true refuse**: broken, refused;
+- **false approval**: approved, and the twin fails it (check should have refused);
+- **twin false OK**: broken, approved, and the twin reports 0 (both missed the defect);
+- **false refusal**: feasible by construction (a witness configuration exists), refused.
+
+It prints a table (kinds x classes) and the targets of issue 33 (0 false approvals, 0
+twin false OK, at most 1% false refusals), and writes each disagreement's cell and task
+file under ``--out`` (default ``var/agreement``) with the command that replays it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import sys
+import time
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench.cellgen import KINDS, Case, corpus
+
+CLASSES = ("true accept", "true refuse", "false approval", "twin false OK", "false refusal")
+DISAGREEMENTS = ("false approval", "twin false OK", "false refusal")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What check and the twin said of one generated job, and its class."""
+
+    name: str
+    kind: str
+    check_code: int
+    result_code: int | None  # the twin's, where check approved
+    verdict: str
+    message: str
+    check_s: float
+    folder: str
+
+
+def _cli(*argv: str) -> tuple[int, dict]:
+    """One cellrunner command in this process, with --json: its exit code and object."""
+    from cellrunner.cli.main import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main([*argv, "--json"])
+        except SystemExit as leave:
+            code = leave.code if isinstance(leave.code, int) else 2
+    text = out.getvalue().strip()
+    return code, (json.loads(text) if text else {"errors": err.getvalue().splitlines()})
+
+
+def classify(feasible: bool, check_code: int, result_code: int | None) -> str:
+    """The class of a job from its truth, check's exit code and the twin's result code."""
+    if check_code == 2:
+        return "invalid file"  # the generator wrote a file the loader refuses: its bug
+    if check_code != 0:
+        return "false refusal" if feasible else "true refuse"
+    if result_code != 0:
+        return "false approval"
+    return "true accept" if feasible else "twin false OK"
+
+
+def judge(case: Case, out: Path) -> Verdict:
+    """Write ``case`` under ``out``, run check and (if approved) dry-run, classify."""
+    folder = out / case.name
+    cell, task = case.write(folder)
+    t0 = time.perf_counter()
+    check_code, checked = _cli("check", str(cell), str(task))
+    check_s = time.perf_counter() - t0
+    result_code, message = None, "; ".join(checked.get("errors", []))[:300]
+    if check_code == 0:
+        _, rehearsed = _cli("dry-run", str(cell), str(task))
+        result_code = int(rehearsed.get("result_code", -1))
+        message = str(rehearsed.get("result_text", ""))[:300]
+    verdict = classify(case.feasible, check_code, result_code)
+    return Verdict(
+        case.name, case.kind, check_code, result_code, verdict, message, check_s, str(folder)
+    )
+
+
+def _judge_one(args: tuple[int, str, str]) -> Verdict:
+    from bench.cellgen import generate
+
+    seed, kind, out = args
+    return judge(generate(seed, kind), Path(out))
+
+
+def run(count: int, seed: int, jobs: int, out: Path) -> list[Verdict]:
+    """Judge ``count`` generated jobs from ``seed`` on ``jobs`` processes."""
+    cases = [(c.seed, c.kind, str(out)) for c in corpus(count, seed)]
+    if jobs <= 1:
+        return [_judge_one(c) for c in cases]
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        return list(pool.map(_judge_one, cases))
+
+
+def table(verdicts: list[Verdict]) -> str:
+    """Kinds x classes, counts, and the targets."""
+    counts = Counter((v.kind, v.verdict) for v in verdicts)
+    width = max(len(k) for k in KINDS)
+    lines = [f"{'kind':<{width}}  " + "  ".join(f"{c:>14}" for c in CLASSES)]
+    for kind in KINDS:
+        lines.append(f"{kind:<{width}}  " + "  ".join(f"{counts[(kind, c)]:>14}" for c in CLASSES))
+    total = Counter(v.verdict for v in verdicts)
+    lines.append(f"{'all':<{width}}  " + "  ".join(f"{total[c]:>14}" for c in CLASSES))
+    feasible = sum(1 for v in verdicts if v.kind in ("feasible", "near_support"))
+    rate = total["false refusal"] / feasible if feasible else 0.0
+    check_s = sorted(v.check_s for v in verdicts)
+    p95 = check_s[min(len(check_s) - 1, int(0.95 * len(check_s)))] if check_s else 0.0
+    lines.append(
+        f"targets: false approvals {total['false approval']} (0), twin false OK "
+        f"{total['twin false OK']} (0), false refusals {rate:.1%} (<= 1%), "
+        f"cold check p95 {p95:.2f} s (<= 2 s)"
+    )
+    if total["invalid file"]:
+        lines.append(f"generator bugs: {total['invalid file']} files the loader refused")
+    return "\n".join(lines)
+
+
+def write_disagreements(verdicts: list[Verdict], out: Path) -> Path:
+    """A list of each disagreement with the commands that replay it."""
+    path = out / "disagreements.txt"
+    rows = [v for v in verdicts if v.verdict in (*DISAGREEMENTS, "invalid file")]
+    text = "".join(
+        f"{v.verdict}: {v.name}: {v.message}\n"
+        f"  cellrunner check {v.folder}/cell.yaml {v.folder}/task.yaml\n"
+        f"  cellrunner dry-run {v.folder}/cell.yaml {v.folder}/task.yaml\n"
+        for v in rows
+    )
+    path.write_text(text or "none\n")
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cells", type=int, default=60, help="generated jobs (default 60)")
+    parser.add_argument("--seed", type=int, default=1, help="first seed (default 1)")
+    parser.add_argument("--jobs", type=int, default=2, help="processes (default 2)")
+    parser.add_argument("--out", type=Path, default=Path("var/agreement"))
+    parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    args = parser.parse_args(argv)
+    verdicts = run(args.cells, args.seed, args.jobs, args.out)
+    listing = write_disagreements(verdicts, args.out)
+    if args.json:
+        print(json.dumps([asdict(v) for v in verdicts], indent=1))
+    else:
+        print(table(verdicts))
+        print(f"disagreements and how to replay them: {listing}")
+    bad = sum(1 for v in verdicts if v.verdict in (*DISAGREEMENTS, "invalid file"))
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,332 @@
+"""A generator of cells and jobs with their ground truth, for testing ``check`` and the
+twin on cells nobody on the team wrote (issue 33).
+
+``generate(seed)`` writes, from one seed and reproducibly, a pick-and-place cell a line
+would have: one of the arms, a pedestal, a jaw gripper whose stroke fits the part, a part
+on an infeed table, an outfeed table, and a job ``move home -> pick -> place -> move
+home``. Frames are placed from **witness** joint configurations: for each target the
+generator first picks joint angles in the arm's working region (the wrist down, the elbow
+up), then puts the frame where forward kinematics takes the TCP, and the table under it;
+so a job without a defect is feasible by construction (an arm that stands there exists).
+
+``generate(seed, defect)`` breaks that job in one way, the ground truth of what a correct
+``check`` (and twin) must say:
+
+- ``out_of_reach``: the outfeed moved out past the arm's reach;
+- ``unsupported_place``: the place lets the part go 30 mm above the outfeed table;
+- ``into_support``: the place pushes the part 8 mm into the outfeed table;
+- ``jaws_too_narrow``: the gripper's stroke is narrower than the part.
+
+and ``near_support`` is a feasible variant that sets the part down 2 mm above its table
+(a place a line engineer writes, which ``check`` must not refuse).
+
+Run ``python bench/cellgen.py SEED [DEFECT] DIR`` to write one case's files.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: the arms the generator mounts (the pedestal's height, m)
+ARMS = ("ur3e", "ur5e", "ur10e", "ur16e", "ur5", "ur10")
+PEDESTAL_M = 0.90
+#: feasible kinds of jobs, and the defects (each breaks one thing)
+FEASIBLE = ("feasible", "near_support")
+DEFECTS = ("out_of_reach", "unsupported_place", "into_support", "jaws_too_narrow")
+KINDS = FEASIBLE + DEFECTS
+TABLE_THICKNESS_M = 0.04
+
+
+@dataclass
+class Case:
+    """One generated job: its files' contents and what a correct ``check`` says."""
+
+    seed: int
+    kind: str  # "feasible", "near_support" or a defect
+    cell: dict[str, Any]
+    task: dict[str, Any]
+    witness_deg: dict[str, list[float]] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return f"s{self.seed}-{self.cell['robot']['model']}-{self.kind}"
+
+    @property
+    def feasible(self) -> bool:
+        return self.kind in FEASIBLE
+
+    def write(self, folder: Path) -> tuple[Path, Path]:
+        """Write ``cell.yaml`` and ``task.yaml`` into ``folder``; their paths."""
+        folder.mkdir(parents=True, exist_ok=True)
+        cell, task = folder / "cell.yaml", folder / "task.yaml"
+        for path, data in ((cell, self.cell), (task, self.task)):
+            with path.open("w") as out:
+                out.write(f"# generated: seed {self.seed}, {self.kind}\n")
+                _yaml().dump(data, out)
+        return cell, task
+
+
+def _yaml() -> Any:
+    from ruamel.yaml import YAML
+
+    writer = YAML()
+    writer.default_flow_style = None  # short lists and maps on one line
+    return writer
+
+
+def _kinematics(model: str, tcp_m: float) -> Any:
+    from cellrunner.model.robots import robot_spec
+    from cellrunner.planning.kinematics import ArmKinematics
+
+    T_world_base = np.eye(4)
+    T_world_base[2, 3] = PEDESTAL_M
+    T_flange_tcp = np.eye(4)
+    T_flange_tcp[2, 3] = tcp_m
+    return ArmKinematics(robot_spec(model), T_world_base, T_flange_tcp)
+
+
+def _witness(rng: random.Random, kin: Any, base_deg: float, reach_m: float) -> np.ndarray:
+    """Joint angles (rad) with the tool pointing straight down, the elbow up, the TCP at a
+    comfortable radius and height below the shoulder: a configuration that exists."""
+    spec = kin.spec
+    for _ in range(200):
+        radius = rng.uniform(0.45, 0.75) * reach_m
+        height = PEDESTAL_M + rng.uniform(-0.25, 0.05) * reach_m
+        yaw = rng.uniform(-60, 60)
+        T = _down_pose(base_deg, radius, height, yaw)
+        branches = kin.ik_all(T, np.radians(HOME_DEG))
+        for q in branches:
+            q = np.asarray(q, float)
+            if q[2] > 0.2 and q[1] < -0.2:  # elbow up, shoulder raised: the working branch
+                return q
+    raise RuntimeError(f"no witness for {spec.name} at base {base_deg} deg")
+
+
+HOME_DEG = (0.0, -90.0, 90.0, -90.0, -90.0, 0.0)
+
+
+def _down_pose(base_deg: float, radius_m: float, z_m: float, yaw_deg: float) -> np.ndarray:
+    """The TCP pointing down (-Z world) at ``radius_m`` from the base axis, bearing
+    ``base_deg``, height ``z_m``, turned ``yaw_deg`` about the vertical."""
+    from scipy.spatial.transform import Rotation
+
+    b = math.radians(base_deg)
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("xyz", [180, 0, base_deg + yaw_deg], degrees=True).as_matrix()
+    T[:3, 3] = (radius_m * math.cos(b), radius_m * math.sin(b), z_m)
+    return T
+
+
+def _rpy_deg(T: np.ndarray) -> list[float]:
+    from scipy.spatial.transform import Rotation
+
+    return [
+        round(float(a), 4) for a in Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
+    ]
+
+
+def _xyz(T: np.ndarray) -> list[float]:
+    return [round(float(v), 5) for v in T[:3, 3]]
+
+
+def _table(name: str, T_frame: np.ndarray, top_z_m: float) -> dict[str, Any]:
+    """A square table whose top is at ``top_z_m`` under the frame."""
+    x, y, top_z_m = float(T_frame[0, 3]), float(T_frame[1, 3]), float(top_z_m)
+    return {
+        "name": name,
+        "box": {"size": [0.30, 0.30, TABLE_THICKNESS_M]},
+        "pose": {"xyz": [round(x, 5), round(y, 5), round(top_z_m - TABLE_THICKNESS_M / 2, 5)]},
+    }
+
+
+#: a witness configuration keeps every checked pair of the arm and tool this much clear of
+#: what it must keep (m), the waiting part excepted (the jaws stand around it)
+WITNESS_MARGIN_M = 0.005
+#: how many draws a seed may take to find witnesses that keep that margin
+WITNESS_TRIES = 20
+
+
+def generate(seed: int, kind: str = "feasible") -> Case:
+    """The case of ``seed`` broken (or not) as ``kind`` says (one of :data:`KINDS`)."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown case kind {kind!r}; known: {', '.join(KINDS)}")
+    rng = random.Random(seed)
+    for _ in range(WITNESS_TRIES):
+        draw = _draw(rng)
+        if _witnesses_clear(draw):
+            return _case(seed, kind, draw)
+    raise RuntimeError(f"seed {seed}: no witnesses {WITNESS_MARGIN_M * 1000:g} mm clear")
+
+
+@dataclass
+class _Draw:
+    """One draw of the feasible job: the arm, the part, the jaws and the two witnesses."""
+
+    model: str
+    reach_m: float
+    tcp_m: float
+    size: list[float]
+    mass: float
+    stroke: float
+    kin: Any
+    q_pick: np.ndarray
+    q_place: np.ndarray
+
+
+def _draw(rng: random.Random) -> _Draw:
+    from cellrunner.model.robots import robot_spec
+
+    model = rng.choice(ARMS)
+    reach_m = robot_spec(model).reach_m
+    tcp_m = round(rng.uniform(0.12, 0.18), 3)
+    kin = _kinematics(model, tcp_m)
+    # the jaws' pads reach 20 mm below the TCP (the part's centre): a part tall enough
+    # that they stay 10 mm or more above the table it stands on
+    size = [round(rng.uniform(0.03, 0.06), 3) for _ in range(2)]
+    size.append(round(rng.uniform(0.06, 0.08), 3))
+    mass = round(rng.uniform(0.2, 1.0), 2)
+    # the jaws close along the TCP's X, which is the part's X (it lies in its frame's axes)
+    stroke = round(size[0] + rng.uniform(0.02, 0.04), 3)
+    q_pick = _witness(rng, kin, rng.uniform(-150, -40), reach_m)
+    q_place = _witness(rng, kin, rng.uniform(40, 150), reach_m)
+    return _Draw(model, reach_m, tcp_m, size, mass, stroke, kin, q_pick, q_place)
+
+
+def _witnesses_clear(draw: _Draw) -> bool:
+    """Both witnesses, and the approach points above them, keep every checked pair
+    :data:`WITNESS_MARGIN_M` clear of its required clearance (the part excepted)."""
+    import tempfile
+
+    from cellrunner.model.load import load_cell
+    from cellrunner.planning.world import CellWorld
+
+    with tempfile.TemporaryDirectory() as folder:
+        cell, _ = _case(0, "feasible", draw).write(Path(folder))
+        collision = CellWorld(load_cell(cell)).collision
+        labels = collision.pair_labels
+        keep = np.array(["part" not in a and "part" not in b for a, b in labels])
+        for q in (draw.q_pick, draw.q_place):
+            T_above = draw.kin.T_world_tcp(q) @ _up(APPROACH_M)
+            q_above = draw.kin.ik_track(T_above, q)
+            for config in (q, q_above):
+                if config is None:
+                    return False
+                distances, required = collision.pair_distances(config)
+                if np.any((distances - required)[keep] < WITNESS_MARGIN_M):
+                    return False
+    return True
+
+
+def _up(distance_m: float) -> np.ndarray:
+    """Back along the TCP's -Z by ``distance_m`` (the approach point above a frame)."""
+    T = np.eye(4)
+    T[2, 3] = -distance_m
+    return T
+
+
+#: how far above its frame a pick or place approaches (m)
+APPROACH_M = 0.08
+
+
+def _case(seed: int, kind: str, d: _Draw) -> Case:
+    """The files of draw ``d``, broken as ``kind`` says."""
+    T_pick, T_place = d.kin.T_world_tcp(d.q_pick), d.kin.T_world_tcp(d.q_place)
+    half = d.size[2] / 2
+    pick_top, place_top = T_pick[2, 3] - half, T_place[2, 3] - half
+    stroke = d.stroke
+    if kind == "near_support":
+        place_top -= 0.002  # the part is let go 2 mm above the table
+    elif kind == "unsupported_place":
+        place_top -= 0.030
+    elif kind == "into_support":
+        place_top += 0.008
+    elif kind == "out_of_reach":
+        scale = 1.35 * d.reach_m / float(np.linalg.norm(T_place[:2, 3]))
+        T_place = T_place.copy()
+        T_place[:2, 3] *= scale
+    elif kind == "jaws_too_narrow":
+        stroke = round(d.size[0] * 0.7, 3)
+    tcp_m = d.tcp_m
+    body_m = round(tcp_m - 0.06, 3)  # the gripper's body, flange to 60 mm above the TCP
+    cell = {
+        "cell": f"gen-{seed}-{kind}",
+        "robot": {
+            "model": d.model,
+            "host": "127.0.0.2",
+            "backend": "sim",
+            "mount": {"xyz": [0, 0, PEDESTAL_M], "rpy": [0, 0, 0]},
+            "home": list(HOME_DEG),
+        },
+        "tool": {
+            "tcp": {"xyz": [0, 0, tcp_m], "rpy": [0, 0, 0]},
+            "payload": {"mass": 1.0, "cog": [0, 0, round(tcp_m / 3, 3)]},
+            "gripper": {
+                "kind": "io",
+                "close": {"output": "gripper_close", "value": True},
+                "closed_sensor": "gripper_closed",
+                "stroke": stroke,
+            },
+            "geometry": [
+                {
+                    "cylinder": {
+                        "radius": round(max(0.03, stroke / 2 + 0.015), 3),
+                        "length": body_m,
+                    },
+                    "xyz": [0, 0, round(body_m / 2, 4)],
+                }
+            ],
+        },
+        "io": {"outputs": {"gripper_close": "DO0"}, "inputs": {"gripper_closed": "DI0"}},
+        "fixtures": [
+            {
+                "name": "pedestal",
+                "cylinder": {"radius": 0.1, "length": PEDESTAL_M - 0.01},
+                "pose": {"xyz": [0, 0, (PEDESTAL_M - 0.01) / 2]},
+            },
+            _table("infeed_table", T_pick, pick_top),
+            _table("outfeed_table", T_place, place_top),
+        ],
+        "frames": {
+            "infeed": {"xyz": _xyz(T_pick), "rpy": _rpy_deg(T_pick)},
+            "outfeed": {"xyz": _xyz(T_place), "rpy": _rpy_deg(T_place)},
+        },
+        "parts": [{"name": "part", "box": {"size": d.size}, "mass": d.mass, "at": "infeed"}],
+        "tasks": {1: "task.yaml"},
+        "journal": "var/jobs.sqlite",
+    }
+    grip = {"confirm": "gripper_closed"}
+    task = {
+        "task": "pick_place",
+        "steps": [
+            {"move": "home"},
+            {"pick": {"at": "infeed", "approach": APPROACH_M, "grip": grip}},
+            {"place": {"at": "outfeed", "approach": APPROACH_M}},
+            {"move": "home"},
+        ],
+    }
+    witness = {"pick": _deg(d.q_pick), "place": _deg(d.q_place)}
+    return Case(seed, kind, cell, task, witness)
+
+
+def _deg(q_rad: np.ndarray) -> list[float]:
+    return [round(float(v), 3) for v in np.degrees(q_rad)]
+
+
+def corpus(count: int, seed: int) -> list[Case]:
+    """``count`` cases from ``seed``: the kinds in turn, each on its own seed."""
+    return [generate(seed + i, KINDS[i % len(KINDS)]) for i in range(count)]
+
+
+if __name__ == "__main__":
+    if len(sys.argv) not in (3, 4):
+        sys.exit("usage: python bench/cellgen.py SEED [KIND] DIR")
+    kind = sys.argv[2] if len(sys.argv) == 4 else "feasible"
+    case = generate(int(sys.argv[1]), kind)
+    print(*case.write(Path(sys.argv[-1])))

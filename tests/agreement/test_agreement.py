@@ -1,0 +1,71 @@
+"""check and the twin against the truth of generated cells (bench/cellgen.py, issue 33):
+the generator is reproducible and its witnesses are real, and on a fixed sample every
+job is classified as the truth says (no false approval, no twin false OK, no false
+refusal)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench.agreement import DISAGREEMENTS, classify, judge
+from bench.cellgen import DEFECTS, FEASIBLE, KINDS, corpus, generate
+
+#: the fixed sample scripts/test runs: each kind on its own seeds; with the dry-runs of the
+#: approved jobs, over 40 runs of check and the twin
+SAMPLE_SEED, SAMPLE_SIZE = 5000, 36
+#: disagreements the harness found that are not fixed yet, each with its cause
+#: (docs/check-truth.md): the test fails on any other, and on one of these that is gone
+KNOWN_OPEN = {
+    "s5025-ur10e-near_support": "false approval: the approach runs on into the set-down at "
+    "full speed; the heavy arm's lag at the stop presses the part into the table, and the "
+    "twin stops it (100); check has no rule for how fast a part may be set down",
+}
+
+
+def test_the_same_seed_writes_the_same_files_and_another_seed_others():
+    a, b = generate(7, "near_support"), generate(7, "near_support")
+    assert (a.cell, a.task) == (b.cell, b.task)
+    assert generate(8, "near_support").cell != a.cell
+    with pytest.raises(ValueError, match="unknown case kind 'warped'; known: feasible"):
+        generate(7, "warped")
+
+
+def test_each_witness_puts_the_tcp_on_its_frame_within_the_joint_limits():
+    from bench.cellgen import _kinematics
+
+    for case in corpus(6, 300):
+        tcp_m = case.cell["tool"]["tcp"]["xyz"][2]
+        kin = _kinematics(case.cell["robot"]["model"], tcp_m)
+        for frame, witness in (("infeed", "pick"), ("outfeed", "place")):
+            if case.kind == "out_of_reach" and frame == "outfeed":
+                continue  # moved out of reach on purpose: no witness
+            q = np.radians(case.witness_deg[witness])
+            assert np.all(q >= kin.q_min_rad) and np.all(q <= kin.q_max_rad)
+            T = kin.T_world_tcp(q)
+            xyz = case.cell["frames"][frame]["xyz"]
+            assert np.allclose(T[:3, 3], xyz, atol=1e-4), (case.name, frame)
+
+
+def test_the_classes():
+    assert classify(True, 0, 0) == "true accept"
+    assert classify(True, 1, None) == "false refusal"
+    assert classify(True, 0, 100) == "false approval"
+    assert classify(False, 1, None) == "true refuse"
+    assert classify(False, 0, 3) == "false approval"
+    assert classify(False, 0, 0) == "twin false OK"
+    assert classify(False, 2, None) == "invalid file"
+
+
+def test_a_fixed_sample_agrees_with_the_truth(tmp_path):
+    verdicts = [judge(case, tmp_path) for case in corpus(SAMPLE_SIZE, SAMPLE_SEED)]
+    runs = len(verdicts) + sum(1 for v in verdicts if v.result_code is not None)
+    assert runs >= 40
+    assert {v.kind for v in verdicts} == set(KINDS)
+    wrong = {v.name: f"{v.verdict}: {v.message}" for v in verdicts if v.verdict in DISAGREEMENTS}
+    assert sorted(wrong) == sorted(KNOWN_OPEN), wrong
+    for name, why in KNOWN_OPEN.items():
+        assert wrong[name].startswith(why.split(":")[0]), (name, wrong[name])
+    right = [v for v in verdicts if v.name not in KNOWN_OPEN]
+    assert all(v.verdict == "true accept" for v in right if v.kind in FEASIBLE)
+    assert all(v.verdict == "true refuse" for v in right if v.kind in DEFECTS)
