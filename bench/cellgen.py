@@ -7,7 +7,8 @@ on an infeed table, an outfeed table, and a job ``move home -> pick -> place -> 
 home``. Frames are placed from **witness** joint configurations: for each target the
 generator first picks joint angles in the arm's working region (the wrist down, the elbow
 up), then puts the frame where forward kinematics takes the TCP, and the table under it;
-so a job without a defect is feasible by construction (an arm that stands there exists).
+so a job without a defect is feasible by construction: an arm that stands there exists,
+and the straight lines down to the frames keep 5 mm over every clearance.
 
 ``generate(seed, defect)`` breaks that job in one way, the ground truth of what a correct
 ``check`` (and twin) must say:
@@ -200,8 +201,9 @@ def _draw(rng: random.Random) -> _Draw:
 
 
 def _witnesses_clear(draw: _Draw) -> bool:
-    """Both witnesses, and the approach points above them, keep every checked pair
-    :data:`WITNESS_MARGIN_M` clear of its required clearance (the part excepted)."""
+    """Both witnesses, and the straight lines down to them from their approach points, keep
+    every checked pair :data:`WITNESS_MARGIN_M` clear of its required clearance (the part
+    excepted)."""
     import tempfile
 
     from cellrunner.model.load import load_cell
@@ -213,9 +215,11 @@ def _witnesses_clear(draw: _Draw) -> bool:
         labels = collision.pair_labels
         keep = np.array(["part" not in a and "part" not in b for a, b in labels])
         for q in (draw.q_pick, draw.q_place):
-            T_above = draw.kin.T_world_tcp(q) @ _up(APPROACH_M)
-            q_above = draw.kin.ik_track(T_above, q)
-            for config in (q, q_above):
+            # the straight line from the approach point down to the witness, tracked
+            # back up from the witness every 5 mm
+            T_goal, config = draw.kin.T_world_tcp(q), q
+            for k in range(int(APPROACH_M / 0.005) + 1):
+                config = draw.kin.ik_track(T_goal @ _up(k * 0.005), config)
                 if config is None:
                     return False
                 distances, required = collision.pair_distances(config)

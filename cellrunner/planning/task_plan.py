@@ -593,8 +593,8 @@ class StepPlanner:
 
     def _ik(self, T_world_tcp: np.ndarray, step: Step, then: Step | None) -> np.ndarray:
         """The branch nearest the current configuration that is collision-free and, when
-        a straight descend follows, from which that descend's goal is on the same branch
-        and collision-free too."""
+        a straight descend follows, from which that descend runs clear to its goal on the
+        same branch (else the nearest whose descend's goal is clear)."""
         from cellrunner.planning.blockers import every_branch_collides, unreachable
 
         kin = self.world.kinematics
@@ -620,10 +620,18 @@ class StepPlanner:
 
             allowances = self._place_allowances(then, follow, named_contacts(then))
             after = self.collision(allowances + self._waiting_touches(follow), then)
-            for q in valid:
-                q_next = kin.ik_track(follow, q)
-                if q_next is not None and after.is_valid(q_next):
+            ends_clear = [
+                q
+                for q in valid
+                if (q_next := kin.ik_track(follow, q)) is not None and after.is_valid(q_next)
+            ]
+            # the first branch whose whole line down is clear: another branch's descend
+            # may pass an arm link by a fixture on its way (issue 33)
+            for q in ends_clear:
+                if _line_plans(kin, after, np.asarray(q), follow):
                     return np.asarray(q)
+            if ends_clear:
+                return np.asarray(ends_clear[0])  # its descend will say what is in the way
         return np.asarray(valid[0])  # the descend that follows will say what is wrong with it
 
     def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
@@ -746,6 +754,19 @@ class _Planned:
     motion: _Motion
     message: str
     contact_after: tuple[ContactAllowance, ...]
+
+
+def _line_plans(
+    kin: ArmKinematics, collision: CollisionModel, q_start: np.ndarray, T_goal: np.ndarray
+) -> bool:
+    """True when a straight line from ``q_start`` to ``T_goal`` plans clear."""
+    from cellrunner.planning.cartesian import plan_linear
+
+    try:
+        plan_linear(kin, collision, q_start, T_goal)
+    except InfeasibleError:
+        return False
+    return True
 
 
 def _bytes(a: np.ndarray | None) -> bytes | None:
