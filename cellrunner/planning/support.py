@@ -66,12 +66,12 @@ def check_support(
     T_world_probe[:3, 3] = T_world_part[:3, 3] - (0.0, 0.0, length_m / 2)
     probe = Placed(part.name, Cylinder(PROBE_RADIUS_M, length_m), T_world_probe)
     supports = _supports(world, part.name)
-    if min(_distances(world, probe, supports), default=np.inf) <= TOUCH_M or _touches_earlier(
+    if min(distances(world, probe, supports), default=np.inf) <= TOUCH_M or _touches_earlier(
         part, probe, earlier_tcp
     ):
         return
     held = Placed(part.name, part.shape, T_world_part)
-    gaps = _distances(world, held, supports)
+    gaps = distances(world, held, supports)
     k = int(np.argmin(gaps)) if gaps else -1
     nearest = fixture_label(supports[k].name) if k >= 0 else "nothing"
     gap_mm = gaps[k] * 1000 if k >= 0 else float("inf")
@@ -89,7 +89,7 @@ def _supports(world: CellWorld, carried: str) -> list[Placed]:
     return [*world.fixtures, *(p for p in world.waiting_parts if p.name != own)]
 
 
-def _distances(world: CellWorld, shape: Placed, others: list[Placed]) -> list[float]:
+def distances(world: CellWorld, shape: Placed, others: list[Placed]) -> list[float]:
     """Signed distances (m) of ``shape`` to each of ``others``, all placed in the world."""
     import coal
 

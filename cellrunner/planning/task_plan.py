@@ -657,12 +657,17 @@ class StepPlanner:
             model = self.collision(tuple(allowances), step)
             for _ in range(3):
                 clearance = model.clearance(q)
-                # valid is clear by STALL_M more than required (the verifier's rule): a part
-                # set down within that of its support rests on it
                 if (
                     clearance.distance_m >= clearance.required_m + STALL_M
                     or clearance.a != f"part '{self.part.name}'"
                     or not clearance.b.startswith(("fixture '", "waiting part '"))
+                ):
+                    break
+                # valid is clear by STALL_M more than required (the verifier's rule): within
+                # that, a part set down rests on what is under it, and keeps clear of the rest
+                # (a hole's walls stay walls unless the step names them in contact:)
+                if clearance.distance_m >= clearance.required_m and not self._under(
+                    _fixture_name(clearance.b), q
                 ):
                     break
                 if clearance.distance_m < -SET_DOWN_PRESS_M:
@@ -682,6 +687,25 @@ class StepPlanner:
                 allowances.append(ContactAllowance(support, "tool", -GRIP_PRESS_M))
                 model = self.collision(tuple(allowances), step)
         return tuple(allowances)
+
+    def _under(self, name: str, q: np.ndarray) -> bool:
+        """Whether fixture (or waiting part) ``name`` is what the carried part rests on at
+        ``q``: a thin probe from the part's centre straight down, to the clearance below
+        its lowest point, meets it (as :func:`~.support.check_support` finds a support; a
+        hole's wall beside the part is not under it)."""
+        from cellrunner.model.geometry import Cylinder
+        from cellrunner.planning.collision import STALL_M
+        from cellrunner.planning.support import PROBE_RADIUS_M, distances, extent_below_m
+
+        assert self.part is not None  # a part is being set down
+        T_world_part = self.world.kinematics.T_world_tcp(q) @ self.part.T_parent_shape
+        reach_m = extent_below_m(self.part.shape, T_world_part) + self.world.collision.clearance_m
+        reach_m += STALL_M
+        T_probe = np.eye(4)
+        T_probe[:3, 3] = T_world_part[:3, 3] - (0.0, 0.0, reach_m / 2)
+        probe = Placed(self.part.name, Cylinder(PROBE_RADIUS_M, reach_m), T_probe)
+        things = [t for t in (*self.world.fixtures, *self.world.waiting_parts) if t.name == name]
+        return any(d <= STALL_M for d in distances(self.world, probe, things))
 
     def _waiting_touches(self, T_goal: np.ndarray) -> tuple[ContactAllowance, ...]:
         """A straight move's tool may touch the parts waiting at their frames that it is
