@@ -85,8 +85,8 @@ LAYERS: dict[str, set[str]] = {
     "planning": {"model"},
     "vision": {"model", "planning"},
     "perception": {"model", "planning", "vision"},
-    "sim": {"model", "vision", "perception"},
-    "twin": {"model", "sim"},
+    "sim": {"model", "planning", "vision", "perception"},
+    "twin": {"model", "planning", "sim"},
     "backends": {"model", "sim"},
     "plc": {"model"},
     # perception: the watched zone's map; vision: align steps' eye; sim: the twin's depth

@@ -54,48 +54,25 @@ def distance_to_segment_m(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nda
 
 
 def quaternion(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of the rotation matrix ``R`` (Shepperd's method)."""
-    R = np.asarray(R, float)
-    trace = R[0, 0] + R[1, 1] + R[2, 2]
-    k = int(np.argmax([trace, R[0, 0], R[1, 1], R[2, 2]]))
-    if k == 0:
-        r = np.sqrt(1.0 + trace) * 2
-        q = [0.25 * r, (R[2, 1] - R[1, 2]) / r, (R[0, 2] - R[2, 0]) / r, (R[1, 0] - R[0, 1]) / r]
-    elif k == 1:
-        r = np.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2]) * 2
-        q = [(R[2, 1] - R[1, 2]) / r, 0.25 * r, (R[0, 1] + R[1, 0]) / r, (R[0, 2] + R[2, 0]) / r]
-    elif k == 2:
-        r = np.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2]) * 2
-        q = [(R[0, 2] - R[2, 0]) / r, (R[0, 1] + R[1, 0]) / r, 0.25 * r, (R[1, 2] + R[2, 1]) / r]
-    else:
-        r = np.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1]) * 2
-        q = [(R[1, 0] - R[0, 1]) / r, (R[0, 2] + R[2, 0]) / r, (R[1, 2] + R[2, 1]) / r, 0.25 * r]
-    wxyz = np.array(q)
-    return np.asarray(wxyz / np.linalg.norm(wxyz))
+    """Unit quaternion (w, x, y, z) of the rotation matrix ``R``."""
+    from scipy.spatial.transform import Rotation
+
+    return np.asarray(Rotation.from_matrix(np.asarray(R, float)).as_quat(scalar_first=True))
 
 
 def rotation_matrix(q: np.ndarray) -> np.ndarray:
     """Rotation matrix of the unit quaternion ``q`` (w, x, y, z)."""
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    from scipy.spatial.transform import Rotation
+
+    return np.asarray(Rotation.from_quat(np.asarray(q, float), scalar_first=True).as_matrix())
 
 
 def slerp(q0: np.ndarray, q1: np.ndarray, u: float) -> np.ndarray:
     """Spherical interpolation between unit quaternions, the shorter way, ``u`` in [0, 1]."""
-    dot = float(q0 @ q1)
-    if dot < 0:
-        q1, dot = -q1, -dot
-    if dot > 1 - 1e-12:
-        q = q0 + u * (q1 - q0)
-        return np.asarray(q / np.linalg.norm(q))
-    theta = np.arccos(dot)
-    return np.asarray((np.sin((1 - u) * theta) * q0 + np.sin(u * theta) * q1) / np.sin(theta))
+    from scipy.spatial.transform import Rotation, Slerp
+
+    turn = Slerp([0.0, 1.0], Rotation.from_quat([q0, q1], scalar_first=True))
+    return np.asarray(turn(u).as_quat(scalar_first=True))
 
 
 def plan_linear(
@@ -117,13 +94,15 @@ def plan_linear(
     T1 = np.asarray(T_world_tcp_goal, float)
     p0, p1 = T0[:3, 3], T1[:3, 3]
     length_m = float(np.linalg.norm(p1 - p0))
-    quat0, quat1 = quaternion(T0[:3, :3]), quaternion(T1[:3, :3])
+    from scipy.spatial.transform import Rotation, Slerp
+
+    turn = Slerp([0.0, 1.0], Rotation.from_matrix([T0[:3, :3], T1[:3, :3]]))
     angle_rad = rotation_angle_rad(T0[:3, :3].T @ T1[:3, :3])
     n = max(1, int(np.ceil(max(length_m / STEP_M, angle_rad / STEP_RAD))))
 
     def pose(u: float) -> np.ndarray:
         T = np.eye(4)
-        T[:3, :3] = rotation_matrix(slerp(quat0, quat1, u))
+        T[:3, :3] = turn(u).as_matrix()
         T[:3, 3] = p0 + u * (p1 - p0)
         return T
 

@@ -317,6 +317,18 @@ class ArmKinematics:
         inside the joint limits; None when some joint has no such value."""
         return self._wrap_near(np.asarray(q_raw, float), np.asarray(q_near_rad, float))
 
+    def solve_flange(
+        self, T_base_flange: np.ndarray, *, search_dropped: bool = True
+    ) -> list[np.ndarray]:
+        """Every closed-form branch reaching ``T_base_flange`` (the flange in the base
+        frame), raw: neither wrapped, nor checked against the limits, nor verified.
+        ``search_dropped=False`` skips the nudged searches of :meth:`_solve` (three times
+        faster where the pose has fewer than eight branches, for callers that fall back)."""
+        if search_dropped:
+            return self._solve(T_base_flange)
+        with _stdout_silenced():
+            return list(self._ik.inverse_kinematics(np.ascontiguousarray(T_base_flange)))
+
     def _solve(self, T_base_flange: np.ndarray) -> list[np.ndarray]:
         """The closed-form branches. At poses where a branch sits exactly on the edge of
         its formula (UR's usual home, tool straight down with the wrist axes square, is

@@ -72,14 +72,11 @@ class Pki:
         self.ensure_dirs()
         if self.cert_file.is_file() and self.key_file.is_file():
             return self.cert_file, self.key_file
-        key = rsa.generate_private_key(public_exponent=65537, key_size=2048)
+        from asyncua.crypto import cert_gen
+
+        key = cert_gen.generate_private_key()  # RSA 2048, e = 65537
         cert = make_certificate(key, "cellrunner", application_uri, hosts, server=True)
-        key_pem = key.private_bytes(
-            serialization.Encoding.PEM,
-            serialization.PrivateFormat.PKCS8,
-            serialization.NoEncryption(),
-        )
-        _write_private(self.key_file, key_pem)
+        _write_private(self.key_file, cert_gen.dump_private_key_as_pem(key))  # PKCS8 PEM
         self.cert_file.write_bytes(cert.public_bytes(serialization.Encoding.DER))
         return self.cert_file, self.key_file
 
@@ -148,7 +145,13 @@ def make_certificate(
     server: bool,
     days: int = SERVER_CERT_DAYS,
 ) -> x509.Certificate:
-    """A self-signed OPC UA application instance certificate (OPC 10000-6 6.2.2)."""
+    """A self-signed OPC UA application instance certificate (OPC 10000-6 6.2.2).
+
+    Built here rather than by asyncua's ``cert_gen.generate_self_signed_app_certificate``:
+    that one marks the instance certificate as a CA allowed to sign certificates
+    (``cA=TRUE``, ``keyCertSign``), which :meth:`Pki.is_trusted` would then accept as the
+    issuer of other certificates, and starts its validity at this very second, with no
+    margin for a PLC whose clock runs a little behind."""
     name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, common)])
     alt: list[x509.GeneralName] = [x509.UniformResourceIdentifier(application_uri)]
     for host in dict.fromkeys(hosts):

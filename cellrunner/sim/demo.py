@@ -10,14 +10,13 @@ import math
 
 import numpy as np
 
-from cellrunner.model.geometry import Box, Cylinder, Placed, invert, pose_matrix
+from cellrunner.model.geometry import Box, Cylinder, Placed, pose_matrix
 from cellrunner.model.robots import robot_spec
 from cellrunner.model.trajectory import Trajectory
 from cellrunner.sim.description import (
     GripperDescription,
     PartDescription,
     TwinDescription,
-    dh_forward,
 )
 
 TABLE_TOP_Z_M = 0.90
@@ -62,34 +61,39 @@ def demo_description(**overrides: object) -> TwinDescription:
 
 
 # -- demo motion ----------------------------------------------------------------------------
-# A tiny numerical IK and quintic joint blends, enough to drive the demo cell in tests and
+# Closed-form IK and quintic joint blends, enough to drive the demo cell in tests and
 # benchmarks; real jobs get their trajectories from cellrunner.planning.
 
 
-def solve_ik(
-    desc: TwinDescription, T_world_tcp: np.ndarray, q_seed_rad: np.ndarray, tol_m: float = 1e-6
-) -> np.ndarray:
-    """Joint angles (rad) putting the TCP at ``T_world_tcp``, near ``q_seed_rad``
-    (damped least squares on the DH model; raises ValueError when it does not converge)."""
-    T_base_flange = invert(desc.T_world_base) @ T_world_tcp @ invert(desc.T_flange_tcp)
-    q = np.array(q_seed_rad, dtype=float)
-    for _ in range(200):
-        err = _pose_error(dh_forward(desc.spec, q), T_base_flange)
-        if np.linalg.norm(err) < tol_m:
-            return np.asarray(q_seed_rad + (q - q_seed_rad + np.pi) % (2 * np.pi) - np.pi)
-        J = np.zeros((12, 6))
-        for j in range(6):
-            dq = np.zeros(6)
-            dq[j] = 1e-7
-            J[:, j] = (_pose_error(dh_forward(desc.spec, q + dq), T_base_flange) - err) / 1e-7
-        step = np.linalg.solve(J.T @ J + 1e-6 * np.eye(6), J.T @ err)
-        q = q - step * min(1.0, 0.2 / max(float(np.abs(step).max()), 1e-12))
-    raise ValueError("demo IK did not converge")
+def solve_ik(desc: TwinDescription, T_world_tcp: np.ndarray, q_seed_rad: np.ndarray) -> np.ndarray:
+    """Joint angles (rad) putting the TCP at ``T_world_tcp``, on the branch the arm stays
+    on when its TCP is led there from ``q_seed_rad`` in a straight line (closed-form IK
+    tracked along it; raises ValueError when the line leaves the reachable space)."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    from cellrunner.planning.kinematics import ArmKinematics
+
+    arm = ArmKinematics(desc.spec, desc.T_world_base, desc.T_flange_tcp)
+    T_start = arm.T_world_tcp(np.asarray(q_seed_rad, dtype=float))
+    q: np.ndarray | None = np.asarray(q_seed_rad, dtype=float)
+    T_goal = np.asarray(T_world_tcp, dtype=float)
+    turn = Slerp([0.0, 1.0], Rotation.from_matrix([T_start[:3, :3], T_goal[:3, :3]]))
+    for s in np.linspace(0.0, 1.0, _IK_STEPS + 1)[1:]:
+        T = np.eye(4)
+        T[:3, :3] = turn(s).as_matrix()
+        T[:3, 3] = (1 - s) * T_start[:3, 3] + s * T_goal[:3, 3]
+        q = arm.ik_track(T, q) if q is not None else None
+    if q is None:  # the line leaves the reachable space: the branch nearest the seed
+        solutions = arm.ik_all(T_goal, np.asarray(q_seed_rad, dtype=float))
+        if not solutions:
+            raise ValueError("demo IK: the pose is out of reach")
+        q = solutions[0]
+    seed = np.asarray(q_seed_rad, dtype=float)
+    return np.asarray(seed + (q - seed + np.pi) % (2 * np.pi) - np.pi)  # each joint within pi
 
 
-def _pose_error(T: np.ndarray, T_goal: np.ndarray) -> np.ndarray:
-    # The full rotation-matrix difference, not its skew part (which is also zero at 180 deg).
-    return np.concatenate([T[:3, 3] - T_goal[:3, 3], 0.3 * (T[:3, :3] - T_goal[:3, :3]).ravel()])
+#: poses along the line on which :func:`solve_ik` tracks its branch
+_IK_STEPS = 20
 
 
 def quintic_blend(

@@ -13,6 +13,7 @@ given by the cell should therefore end before the pads (it is physical in the tw
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -23,6 +24,7 @@ from cellrunner.model.gripper import FINGER_SIZE_M, PAD_Z_M
 from cellrunner.model.robots import RobotSpec
 
 if TYPE_CHECKING:
+    from cellrunner.planning.kinematics import ArmKinematics
     from cellrunner.sim.cameras import CameraDescription, MarkerDescription
     from cellrunner.sim.input_rules import InputRuleDescription
 
@@ -179,21 +181,24 @@ class TwinDescription:
 
 
 def dh_forward(spec: RobotSpec, q_rad: np.ndarray) -> np.ndarray:
-    """T_base_flange by the DH table (standard DH, theta_i = q_i)."""
-    T = np.eye(4)
-    for i in range(6):
-        ct, st = math.cos(q_rad[i]), math.sin(q_rad[i])
-        ca, sa = math.cos(spec.alpha_rad[i]), math.sin(spec.alpha_rad[i])
-        a, d = spec.a_m[i], spec.d_m[i]
-        T = T @ np.array(
-            [
-                [ct, -st * ca, st * sa, a * ct],
-                [st, ct * ca, -ct * sa, a * st],
-                [0.0, sa, ca, d],
-                [0.0, 0.0, 0.0, 1.0],
-            ]
-        )
-    return T
+    """T_base_flange at ``q_rad`` (standard DH, theta_i = q_i), by the planner's
+    pinocchio model of the arm (:class:`cellrunner.planning.kinematics.ArmKinematics`)."""
+    return arm_kinematics(spec).T_world_flange(q_rad)
+
+
+def arm_kinematics(spec: RobotSpec) -> ArmKinematics:
+    """The kinematics of ``spec`` in its base frame with the flange as TCP, one per model
+    and thread (a pinocchio model's data is not shared between threads)."""
+    from cellrunner.planning.kinematics import ArmKinematics
+
+    arms: dict[RobotSpec, ArmKinematics] = _ARMS.__dict__.setdefault("arms", {})
+    arm = arms.get(spec)
+    if arm is None:
+        arm = arms[spec] = ArmKinematics(spec, np.eye(4), np.eye(4))
+    return arm
+
+
+_ARMS = threading.local()
 
 
 def shape_volume_m3(shape: Shape) -> float:

@@ -6,8 +6,6 @@ along its inward normal), so its surfaces are where the file puts them.
 
 from __future__ import annotations
 
-import struct
-
 import numpy as np
 
 #: how far each triangle's prism reaches into the solid (m)
@@ -16,13 +14,6 @@ PRISM_DEPTH_M = 0.002
 HULL_EXCESS = 1.02
 #: meshes with more triangles than this stay hulls (a prism per triangle would be too many geoms)
 MAX_TRIANGLES = 3000
-
-
-def triangles_of(stl_bytes: bytes, scale: float) -> np.ndarray:
-    """(n, 3, 3) triangle corners (m) of a binary STL."""
-    count = struct.unpack_from("<I", stl_bytes, 80)[0]
-    record = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-    return np.frombuffer(stl_bytes, dtype=record, count=count, offset=84)["v"].astype(float) * scale
 
 
 def is_convex(triangles: np.ndarray) -> bool:

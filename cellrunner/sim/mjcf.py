@@ -30,10 +30,8 @@ set after compiling, from the joint-space inertia at home, for a natural frequen
 from __future__ import annotations
 
 import math
-import struct
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -41,6 +39,7 @@ import numpy as np
 from cellrunner.model.arm_geometry import arm_geometry
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.robots import JOINT_NAMES
+from cellrunner.planning.stl import binary_stl, stl_triangles
 from cellrunner.sim.description import TwinDescription
 from cellrunner.sim.mjcf_attrs import (
     PADS,
@@ -165,34 +164,6 @@ def tune_servo_gains(model: Any, desc: TwinDescription, options: PhysicsOptions)
         model.actuator_biasprm[act, 2] = -kv
 
 
-def binary_stl(path: Path) -> bytes:
-    """The bytes of STL file ``path`` in binary form (MuJoCo reads only binary STL).
-
-    Raises ValueError naming the file when it cannot be read or parsed."""
-    try:
-        raw = Path(path).read_bytes()
-    except OSError as exc:
-        raise ValueError(f"cannot read mesh {path}: {exc.strerror}") from exc
-    if len(raw) >= 84 and len(raw) == 84 + 50 * struct.unpack_from("<I", raw, 80)[0]:
-        return raw  # already binary
-    text = raw.decode("ascii", errors="replace")
-    if not text.lstrip().lower().startswith("solid"):
-        raise ValueError(f"mesh {path} is neither a binary nor an ASCII STL file")
-    vertices = [
-        tuple(float(v) for v in line.split()[1:4])
-        for line in text.splitlines()
-        if line.strip().lower().startswith("vertex")
-    ]
-    if not vertices or len(vertices) % 3:
-        raise ValueError(f"mesh {path}: ASCII STL with {len(vertices)} vertices, not triangles")
-    out = bytearray(80) + struct.pack("<I", len(vertices) // 3)
-    for k in range(0, len(vertices), 3):
-        out += struct.pack(
-            "<12fH", 0.0, 0.0, 0.0, *vertices[k], *vertices[k + 1], *vertices[k + 2], 0
-        )
-    return bytes(out)
-
-
 #: a mesh thinner than this along some axis is treated as flat (m), and given this thickness
 FLAT_MESH_M = 0.001
 
@@ -200,12 +171,7 @@ FLAT_MESH_M = 0.001
 def _flat_mesh_box(mesh: Mesh) -> tuple[np.ndarray, np.ndarray] | None:
     """(centre, full size) of a mesh's bounding box when the mesh is flat (coplanar
     vertices along a frame axis), else None."""
-    raw = binary_stl(mesh.path)
-    count = struct.unpack_from("<I", raw, 80)[0]
-    record = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-    vertices = (
-        np.frombuffer(raw, dtype=record, count=count, offset=84)["v"].reshape(-1, 3) * mesh.scale
-    )
+    vertices = stl_triangles(mesh.path).reshape(-1, 3) * mesh.scale
     if not len(vertices):
         return None
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
@@ -394,7 +360,7 @@ class _Builder:
 
         mesh = placed.shape
         assert isinstance(mesh, Mesh)  # called for mesh fixtures
-        triangles = mesh_pieces.triangles_of(binary_stl(mesh.path), mesh.scale)
+        triangles = stl_triangles(mesh.path) * mesh.scale
         if len(triangles) > mesh_pieces.MAX_TRIANGLES or mesh_pieces.is_convex(triangles):
             return False
         assert self.assets is not None
