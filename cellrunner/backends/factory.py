@@ -4,7 +4,7 @@ for the backend in use."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 from cellrunner.backends.base import RobotBackend
@@ -21,14 +21,21 @@ def make_backend(
     kind: str,
     host: str | None = None,
     tasks: Iterable[LoadedTask] = (),
+    rehearsed: Sequence[dict[str, Any]] = (),
     **kw: Any,
 ) -> RobotBackend:
     """The backend for ``cell``: ``sim`` (the MuJoCo twin in-process, its parts laid as
-    the tools that pick them in ``tasks`` and the cell's own tasks hold them) or ``ur``."""
+    the tools that pick them in ``tasks`` and the cell's own tasks hold them) or ``ur``.
+    ``rehearsed`` (sim, a dry-run's jobs' params in order): the twin of their rehearsal
+    with the first of ``tasks``, the earlier slots of the first job filled and, for
+    several jobs, a part fed before each (SPEC section 12)."""
     if kind == "sim":
         from cellrunner.backends.sim.backend import SimBackend
-        from cellrunner.sim.from_cell import description_of
+        from cellrunner.sim.from_cell import description_of, rehearsal_description
 
+        if rehearsed:
+            task = next(iter(tasks))
+            return SimBackend(rehearsal_description(cell, task, rehearsed[0], len(rehearsed)), **kw)
         return SimBackend(description_of(cell, tuple(tasks)), **kw)
     if kind == "ur":
         host = host or cell.cell.robot.host

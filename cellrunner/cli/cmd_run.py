@@ -76,8 +76,9 @@ def run(args: argparse.Namespace) -> int:
         if assembled.feed is not None:
             assembled.feed.close()
         controller.close()
-    assert result is not None  # run_job returns once the job has ended
-    code = ResultCode(result.result_code)
+    assert result is not None and job is not None  # run_job returns once the job has ended
+    code = job.result_code  # typed: a number only in the JSON and the exit status
+    assert code is not None  # the job has ended
     rows = record_rows(job)
     payload = {
         "ok": code is ResultCode.OK,

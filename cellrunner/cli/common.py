@@ -8,7 +8,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cellrunner.errors import InputError, UsageError
-from cellrunner.model.expand import Step, expand, resolve_params
+from cellrunner.model.expand import Step, resolve_params
+from cellrunner.model.job_steps import job_steps
 from cellrunner.model.load import LoadedCell, LoadedTask, load_cell, load_task
 from cellrunner.model.params import ParamValue
 
@@ -51,7 +52,7 @@ def parse_params(pairs: list[str], task: LoadedTask) -> dict[str, Any]:
 
 
 def expanded(cell: LoadedCell, task: LoadedTask, params: dict[str, ParamValue]) -> list[Step]:
-    return expand(task, cell.cell, params)
+    return job_steps(task, cell.cell, params)
 
 
 def emit_json(payload: dict[str, Any]) -> None:

@@ -24,8 +24,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cellrunner import __version__
-from cellrunner.model.expand import expand, expand_on_error
+from cellrunner.model.expand import expand_on_error
 from cellrunner.model.geometry import Placed
+from cellrunner.model.job_steps import job_steps
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
 from cellrunner.model.step import Step
@@ -152,7 +153,7 @@ def plan_job(
     feasible). ``joined=False`` (run --step) ends every motion at rest. ``on_step(step)``
     is called per step as it is planned (all at once for a stored plan)."""
     values = dict(params)
-    steps = expand(task, world.loaded.cell, values)
+    steps = job_steps(task, world.loaded.cell, values)  # shared with the twin, the runner
     on_error = (
         expand_on_error(task, world.loaded.cell, values, len(steps) + 1) if task.on_error else []
     )

@@ -92,9 +92,10 @@ def feed_of(loaded: LoadedCell, task: LoadedTask | None, whole_run: bool) -> tup
         return sim.feed.part, sim.feed.at
     if not whole_run or task is None:
         return None
-    from cellrunner.model.expand import expand, resolve_params
+    from cellrunner.model.expand import resolve_params
+    from cellrunner.model.job_steps import job_steps
 
-    steps = expand(task, loaded.cell, resolve_params(task.task, {}))
+    steps = job_steps(task, loaded.cell, resolve_params(task.task, {}))
     for step in steps:
         frame = step.extra.get("part_at")
         if isinstance(frame, str):
@@ -113,7 +114,7 @@ def earlier_slots(
     """The parts on the slots of each place pattern below its value in ``params``
     (resolved), where the task puts them: ``(name, copy of, T_world_part)``. A slot a part
     of the cell file already fills is left as it is."""
-    from cellrunner.model.expand import expand
+    from cellrunner.model.job_steps import job_steps
     from cellrunner.model.step import StepKind
 
     places = [s for s in task.steps if s.kind == StepKind.PLACE]
@@ -129,7 +130,7 @@ def earlier_slots(
         if not patterned:
             continue
         for value in range(int(spec.min), int(params[param])):
-            steps = expand(task, loaded.cell, {**params, param: value})
+            steps = job_steps(task, loaded.cell, {**params, param: value})
             for i, (part, T_world_tcp) in enumerate(_places(loaded, steps)):
                 if i not in patterned or part is None:
                     continue

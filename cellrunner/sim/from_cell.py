@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -68,7 +69,8 @@ def description_of(
     jaws.sort(key=lambda t: t is not c.tool)  # the mounted tool's jaws first
     gripper = _jaws(jaws[0], c, io_outputs, io_inputs) if jaws else None
     vacuum = _cups(suction, c) if suction is not None else None
-    picks: Picks = _picking_grippers(loaded, tasks) if c.tools else {}
+    every_task = _cell_tasks(loaded, tasks)
+    picks: Picks = _picking_grippers(loaded, every_task) if c.tools else {}
     parts = [_part(loaded, p, picks.get(p.at, c.tool.gripper)) for p in c.parts]
     desc = TwinDescription(
         spec=loaded.spec,
@@ -87,7 +89,7 @@ def description_of(
         io_inputs=tuple(io_inputs),
         input_rules=_input_rules(loaded, picks),
         cameras=_cameras(loaded),
-        markers=_markers(loaded, tasks, parts),
+        markers=_markers(loaded, every_task, parts),
         intruders=_intruders(loaded),
         depth=tuple(
             (name, cam.depth.range[0], cam.depth.range[1], cam.depth.rate)
@@ -122,9 +124,9 @@ def rehearsal_description(
 
 
 def _markers(
-    loaded: LoadedCell, tasks: tuple[LoadedTask, ...], parts: list[PartDescription]
+    loaded: LoadedCell, tasks: list[LoadedTask], parts: list[PartDescription]
 ) -> tuple[MarkerDescription, ...]:
-    """The marker of every align step (in ``tasks`` and the cell's own ``tasks:``),
+    """The marker of every align step (in ``tasks``: the given and the cell's own),
     printed on each part that lies at the frame it aligns: where the marker's ``pose``
     puts it in that frame, moved with the part's ``offset``."""
     from cellrunner.model.align import aligned_frame
@@ -132,7 +134,7 @@ def _markers(
 
     c = loaded.cell
     out: dict[tuple[str, str, int], MarkerDescription] = {}
-    for task in _cell_tasks(loaded, tasks):
+    for task in tasks:
         for i, spec in enumerate(task.steps):
             frame = aligned_frame(task.steps, i) if spec.kind == StepKind.ALIGN else None
             if frame is None:
@@ -162,14 +164,20 @@ def _markers(
 
 
 def _cell_tasks(loaded: LoadedCell, tasks: tuple[LoadedTask, ...]) -> list[LoadedTask]:
-    """``tasks`` and the cell's own ``tasks:`` (a task file that does not load is skipped)."""
+    """``tasks`` and the cell's own ``tasks:``, each file loaded once: one of ``tasks``
+    is not read again, and a task file that does not load is skipped."""
     from cellrunner.errors import CellrunnerError
     from cellrunner.model.load import load_task
 
     found = list(tasks)
+    seen = {t.path.resolve() for t in tasks}
     for path in loaded.cell.tasks.values():
+        resolved = Path(loaded.resolve(path)).resolve()
+        if resolved in seen:
+            continue
+        seen.add(resolved)
         try:
-            found.append(load_task(loaded.resolve(path), loaded))
+            found.append(load_task(resolved, loaded))
         except (CellrunnerError, OSError):
             continue
     return found
@@ -265,24 +273,18 @@ def _input_rules(loaded: LoadedCell, picks: Picks) -> tuple[InputRuleDescription
     return tuple(out)
 
 
-def _picking_grippers(loaded: LoadedCell, tasks: tuple[LoadedTask, ...]) -> Picks:
+def _picking_grippers(loaded: LoadedCell, tasks: list[LoadedTask]) -> Picks:
     """frame -> the gripper of the tool mounted where a task picks at that frame (the
-    tasks' steps with their params' defaults; a task that does not load is skipped)."""
+    tasks' steps with their params' defaults)."""
     from cellrunner.errors import CellrunnerError
-    from cellrunner.model.expand import expand, resolve_params
-    from cellrunner.model.load import load_task
+    from cellrunner.model.expand import resolve_params
+    from cellrunner.model.job_steps import job_steps
 
     c = loaded.cell
-    found = list(tasks)
-    for path in c.tasks.values():
-        try:
-            found.append(load_task(loaded.resolve(path), loaded))
-        except (CellrunnerError, OSError):
-            continue
     picks: Picks = {}
-    for task in found:
+    for task in tasks:
         try:
-            steps = expand(task, c, resolve_params(task.task, {}))
+            steps = job_steps(task, c, resolve_params(task.task, {}))
         except (CellrunnerError, ValueError):
             continue
         tool = c.robot.tool

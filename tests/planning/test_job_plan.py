@@ -10,8 +10,8 @@ import io
 
 import pytest
 
+import cellrunner.model.expand as expand_module
 from cellrunner.cli.common import load, parse_params
-from cellrunner.planning import job_plan
 from cellrunner.planning.job_plan import plan_job
 from cellrunner.planning.world import CellWorld
 from tests.conftest import ROOT
@@ -26,8 +26,10 @@ def test_a_job_is_expanded_once_and_its_plan_is_frozen(monkeypatch) -> None:
     cell, task = _load("cells/demo_ur5e.yaml", "tasks/pick_place.yaml")
     world = CellWorld(cell)
     calls = []
-    original = job_plan.expand
-    monkeypatch.setattr(job_plan, "expand", lambda *a, **k: calls.append(1) or original(*a, **k))
+    original = expand_module.expand  # plan_job expands through model.job_steps
+    monkeypatch.setattr(
+        expand_module, "expand", lambda *a, **k: calls.append(1) or original(*a, **k)
+    )
     seen = []
     plan = plan_job(world, task, parse_params(["slot=3"], task), world.q_home_rad,
                     use_cache=False, on_step=seen.append)  # fmt: skip
