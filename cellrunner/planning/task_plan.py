@@ -28,6 +28,7 @@ import numpy as np
 
 from cellrunner.errors import InfeasibleError
 from cellrunner.model import geometry
+from cellrunner.model.body import BodyKind
 from cellrunner.model.expand import LINEAR_KINDS, Step
 from cellrunner.model.force_steps import FORCE_KINDS
 from cellrunner.model.geometry import Placed
@@ -700,8 +701,9 @@ class _StepPlanner:
                 clearance = model.clearance(q)
                 if (
                     clearance.distance_m >= clearance.required_m
-                    or clearance.a != f"part '{self.part.name}'"
-                    or not clearance.b.startswith(("fixture '", "waiting part '"))
+                    or clearance.a.kind is not BodyKind.PART
+                    or clearance.a.name != self.part.name
+                    or not clearance.b.is_obstacle
                 ):
                     break
                 if clearance.distance_m < -SET_DOWN_PRESS_M:
@@ -715,7 +717,7 @@ class _StepPlanner:
                     raise InfeasibleError(
                         f"{step.label}: {reason}", step_index=step.index, reason=reason
                     )
-                support = _fixture_name(clearance.b)
+                support = clearance.b.fixture_name
                 allowances.append(ContactAllowance(support, "part", -SET_DOWN_PRESS_M))
                 # the jaws around a short part come down to what it is set on (or lifted off)
                 allowances.append(ContactAllowance(support, "tool", -GRIP_PRESS_M))
@@ -729,7 +731,6 @@ class _StepPlanner:
         sweep must keep clear of every waiting part (SPEC section 12). Around a short part
         the jaws may also come down to the fixture it rests on (as far as onto the part)."""
         from cellrunner.planning.collision import ContactAllowance
-        from cellrunner.planning.collision_scene import WAITING_PREFIX
 
         if not self.world.waiting_parts:
             return ()
@@ -740,18 +741,18 @@ class _StepPlanner:
         for q in (self.q, self._try_ik(T_goal)):
             violations = model.violations(q) if q is not None else []
             touched = {
-                WAITING_PREFIX + v.b[len("waiting part '") : -1]
+                v.b.fixture_name
                 for v in violations
-                if v.a.startswith("tool ") and v.b.startswith("waiting part '")
+                if v.a.kind is BodyKind.TOOL and v.b.kind is BodyKind.WAITING_PART
             }
             names |= touched
             held = self._waiting_at_tcp(q) if q is not None else set()
             gripped |= held & touched
             under = {f for name in held for f in self.world.waiting_supports.get(name, ())}
             supports |= {
-                v.b[len("fixture '") : -1]
+                v.b.name
                 for v in violations
-                if v.a.startswith("tool ") and v.b[len("fixture '") : -1] in under
+                if v.a.kind is BodyKind.TOOL and v.b.kind is BodyKind.FIXTURE and v.b.name in under
             }
         return tuple(
             ContactAllowance(name, "tool", -1.0 if name in gripped else -GRIP_PRESS_M)
@@ -773,7 +774,7 @@ class _StepPlanner:
 
     def _frame_at_tcp(self) -> str:
         """The frame of the part a grip here takes (:meth:`_waiting_at_tcp`), or ''."""
-        from cellrunner.planning.collision_scene import WAITING_PREFIX
+        from cellrunner.model.body import WAITING_PREFIX
 
         names = {name[len(WAITING_PREFIX) :] for name in self._waiting_at_tcp(self.q)}
         return next((p.at for p in self.world.loaded.cell.parts if p.name in names), "")
@@ -797,15 +798,6 @@ class _Planned:
 
 def _bytes(a: np.ndarray | None) -> bytes | None:
     return None if a is None else np.asarray(a, float).tobytes()
-
-
-def _fixture_name(label: str) -> str:
-    """The fixture name of a "fixture 'x'" or "waiting part 'x'" label (``part:x``)."""
-    from cellrunner.planning.collision_scene import WAITING_PREFIX
-
-    if label.startswith("waiting part '"):
-        return WAITING_PREFIX + label[len("waiting part '") : -1]
-    return label[len("fixture '") : -1]
 
 
 def _check_meets_something(planner: _StepPlanner, step: Step, path: np.ndarray) -> None:
