@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from cellrunner.model.body import BodyKind
+
 if TYPE_CHECKING:
     from cellrunner.planning.collision import CollisionModel
     from cellrunner.planning.kinematics import ArmKinematics
@@ -233,9 +235,7 @@ class Governor:
         if self._fixture_pairs is None:
             self._labels = self.collision.pair_labels
             self._fixture_pairs = [
-                k
-                for k, (a, b) in enumerate(self._labels)
-                if a.startswith("fixture") or b.startswith("fixture")
+                k for k, (a, b) in enumerate(self._labels) if BodyKind.FIXTURE in (a.kind, b.kind)
             ]
         if not self._fixture_pairs:
             return np.empty(0)

@@ -26,7 +26,7 @@ from cellrunner.execution.cell_states import CellStates
 from cellrunner.execution.context import QUIET, EventLog, Eye
 from cellrunner.execution.job import JobRunner
 from cellrunner.execution.job_book import JobBook
-from cellrunner.execution.job_launch import JobLauncher
+from cellrunner.execution.job_launch import JobLauncher, PlanRefused
 from cellrunner.execution.job_records import JobPhase
 from cellrunner.execution.job_view import (
     Job,
@@ -326,10 +326,10 @@ class CellController:
                 self._launcher.plan(job, state.q_rad)
             elif job is not None and job.plan is not None and job.plan.done():
                 started = self._launcher.start(job)
-                if isinstance(started, str):  # planning failed: the job ends with 103
+                if isinstance(started, PlanRefused):  # the job ends with 103
                     with self._lock:
                         if job is self._job:
-                            self._end_job(ResultCode.PLANNING_FAILED, started)
+                            self._end_job(ResultCode.PLANNING_FAILED, started.describe())
                 else:
                     runner = started
         with self._lock:

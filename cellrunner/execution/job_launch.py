@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -21,6 +22,20 @@ from cellrunner.model.expand import Step
 from cellrunner.model.gripper import gripper_channels
 from cellrunner.model.load import LoadedCell
 from cellrunner.model.timing import release_time_s
+
+
+@dataclass(frozen=True)
+class PlanRefused:
+    """A job's plan could not be made (the job ends with 103): ``error`` as the planner
+    raised it (an :class:`~cellrunner.errors.InfeasibleError` naming the step and its
+    blockers, or a planner bug)."""
+
+    error: Exception
+
+    def describe(self) -> str:
+        """The job's message: the error's text; a bug's also names its type."""
+        exc = self.error
+        return str(exc) if isinstance(exc, CellrunnerError) else f"{type(exc).__name__}: {exc}"
 
 
 class JobLauncher:
@@ -54,14 +69,14 @@ class JobLauncher:
         """Start planning ``job`` from where the arm stands (its plan: ``job.plan``)."""
         job.plan = self._pool.submit(self.planner, job.task, job.params, q_now_rad)
 
-    def start(self, job: Job) -> JobRunner | str:
+    def start(self, job: Job) -> JobRunner | PlanRefused:
         """The runner of ``job`` following its plan, started (it reads the robot); why
         planning failed instead, when it did (the job ends with 103)."""
         assert job.plan is not None and job.plan.done()  # called once the plan is ready
         try:
             plan: PlannedJob = job.plan.result()
         except Exception as exc:  # a planner bug must still close the job with a code
-            return str(exc) if isinstance(exc, CellrunnerError) else f"{type(exc).__name__}: {exc}"
+            return PlanRefused(exc)
         job.planned = plan
         ctx = self._context(plan.motions, job.job_id)
         if self.watch is not None:

@@ -26,6 +26,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cellrunner.model.body import Body, BodyKind
+
 if TYPE_CHECKING:
     from cellrunner.errors import InfeasibleError
     from cellrunner.planning.collision import Clearance, CollisionModel
@@ -43,14 +45,14 @@ class Blockers:
     """Pairs in the way over ``states`` sampled states, most frequent first:
     ``counts`` is ((robot part, obstacle), number of states) pairs."""
 
-    counts: tuple[tuple[tuple[str, str], int], ...]
+    counts: tuple[tuple[tuple[Body, Body], int], ...]
     states: int
-    obstacles: tuple[tuple[str, int], ...] = ()  # (obstacle, states it blocks), most first
+    obstacles: tuple[tuple[Body, int], ...] = ()  # (obstacle, states it blocks), most first
 
     @property
-    def names(self) -> tuple[str, ...]:
+    def names(self) -> tuple[Body, ...]:
         """Every link and fixture named, most frequent first (no repeats)."""
-        out: list[str] = []
+        out: list[Body] = []
         for (a, b), _ in self.counts:
             for name in (b, a):
                 if name not in out:
@@ -61,7 +63,7 @@ class Blockers:
         """'blocked by fixture 'conveyor' (forearm in 41 of 60 sampled states, wrist_1 in 12)'"""
         if not self.counts:
             return "no sampled state in collision was found (the way is too narrow to sample)"
-        by_obstacle: dict[str, list[tuple[str, int]]] = {}
+        by_obstacle: dict[Body, list[tuple[Body, int]]] = {}
         for (part, obstacle), n in self.counts:  # most frequent first, so each list is too
             by_obstacle.setdefault(obstacle, []).append((part, n))
         pieces = []
@@ -82,8 +84,8 @@ def blocking_summary(
     states = [np.asarray(q, float) for q in q_states]
     if len(states) > max_states:
         states = [states[int(i)] for i in np.linspace(0, len(states) - 1, max_states)]
-    counts: Counter[tuple[str, str]] = Counter()
-    obstacles: Counter[str] = Counter()
+    counts: Counter[tuple[Body, Body]] = Counter()
+    obstacles: Counter[Body] = Counter()
     for q in states:
         pairs = {_ordered(c.a, c.b) for c in collision.violations(q)}
         counts.update(pairs)
@@ -91,9 +93,9 @@ def blocking_summary(
     return Blockers(tuple(counts.most_common()), len(states), tuple(obstacles.most_common()))
 
 
-def _ordered(a: str, b: str) -> tuple[str, str]:
+def _ordered(a: Body, b: Body) -> tuple[Body, Body]:
     """(robot part, obstacle): a fixture is always the obstacle."""
-    if a.startswith(("fixture ", "waiting part ")):
+    if a.is_obstacle:
         return b, a
     return a, b
 
@@ -169,14 +171,12 @@ def _wrappable(value_deg: float, lo: float, hi: float) -> bool:
 # -- fixes --------------------------------------------------------------------------------------
 
 
-def fix_hint(kind: str, obstacles: Sequence[str] = ()) -> str:
+def fix_hint(kind: str, obstacles: Sequence[Body] = ()) -> str:
     """A suggestion for a failure ``kind``: "path" (a joint move finds no way), "goal"
     (every branch at the target collides), "line" (a straight move hits something),
     "reach" (out of reach or outside the joint range)."""
-    fixtures = [o for o in obstacles if o.startswith(("fixture ", "waiting part "))]
-    links = [
-        o for o in obstacles if not o.startswith(("fixture ", "tool ", "part ", "waiting part "))
-    ]
+    fixtures = [o for o in obstacles if o.is_obstacle]
+    links = [o for o in obstacles if o.kind in (BodyKind.ROBOT_LINK, BodyKind.NOTHING)]
     first = fixtures[0] if fixtures else None
     if kind == "reach":
         return "fix: move the frame toward the robot, or widen robot.joint_range if a joint limit refuses it"

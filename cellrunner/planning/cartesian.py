@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
+from cellrunner.model.body import BodyKind
 from cellrunner.planning.collision import Clearance, CollisionModel
 from cellrunner.planning.kinematics import ArmKinematics, rotation_angle_rad
 
@@ -155,8 +156,8 @@ def _line_fix(collision: CollisionModel, q_end: np.ndarray, c: Clearance | None)
     from cellrunner.planning.blockers import fix_hint
     from cellrunner.planning.tight_fit import line_end_hint
 
-    if c is not None and c.b.startswith("fixture ") and c.distance_m > -0.001:
-        at_end = [v for v in collision.violations(q_end) if v.b.startswith("fixture ")]
+    if c is not None and c.b.kind is BodyKind.FIXTURE and c.distance_m > -0.001:
+        at_end = [v for v in collision.violations(q_end) if v.b.kind is BodyKind.FIXTURE]
         if any(v.b == c.b for v in at_end) and min(v.distance_m for v in at_end) > -0.001:
             return line_end_hint(sorted({v.b for v in at_end}), min(v.distance_m for v in at_end))
     return fix_hint("line", (c.b, c.a) if c is not None else ())

@@ -40,6 +40,7 @@ import numpy as np
 
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.arm_geometry import ArmGeometry, ArmGeometryMissing, ConvexPart, arm_geometry
+from cellrunner.model.body import WAITING_PREFIX, Body, BodyKind
 from cellrunner.model.geometry import Placed, Shape
 from cellrunner.planning.coal_shapes import make_coal_shape
 from cellrunner.planning.collision_bounds import PairBounds
@@ -67,16 +68,14 @@ else:
     pin = _LazyModule("pinocchio", "pin")
 
 
-#: prefix of the fixture name of a part waiting at its frame (``part:NAME``)
-WAITING_PREFIX = "part:"
-
-
-def fixture_label(name: str) -> str:
+def fixture_label(name: str) -> Body:
     """How messages name fixture ``name``: "fixture 'table'", or "waiting part 'block'"
-    for a part waiting at its frame."""
-    if name.startswith(WAITING_PREFIX):
-        return f"waiting part {name[len(WAITING_PREFIX) :]!r}"
-    return f"fixture {name!r}"
+    for a part waiting at its frame (:meth:`Body.fixture`)."""
+    return Body.fixture(name)
+
+
+#: what a scene without checked pairs names as its closest pair
+_NO_PAIR = (Body(BodyKind.NOTHING, "robot"), Body(BodyKind.NOTHING, "nothing"))
 
 
 #: Margin below which a pair counts as colliding in addition to its required clearance;
@@ -110,8 +109,8 @@ class Clearance:
 
     distance_m: float
     required_m: float
-    a: str
-    b: str
+    a: Body
+    b: Body
 
     @property
     def margin_m(self) -> float:
@@ -138,7 +137,7 @@ class Clearance:
 class SceneObject:
     """One collision object of the scene (arm part, tool shape, part or fixture)."""
 
-    label: str  # for messages: "upper_arm", "tool 'gripper'", "fixture 'table'"
+    label: Body  # its text names it in messages: "upper_arm", "tool 'gripper'", "fixture 'table'"
     group: str  # "arm" | "tool" | "part" | "fixture"
     body: int  # 0..6 for robot objects (0 = base / world), -1 for fixtures
     geometry: coal.CollisionGeometry = field(compare=False)
@@ -229,7 +228,7 @@ class CollisionScene:
         for part in self._arm.parts:
             objects.append(
                 SceneObject(
-                    part.link,
+                    Body(BodyKind.ROBOT_LINK, part.link),
                     "arm",
                     part.body,
                     self._convex(part),
@@ -243,7 +242,7 @@ class CollisionScene:
             geometry, radius = self._coal_shape(placed.shape)
             objects.append(
                 SceneObject(
-                    f"tool {placed.name!r}",
+                    Body(BodyKind.TOOL, placed.name),
                     "tool",
                     6,
                     geometry,
@@ -256,7 +255,7 @@ class CollisionScene:
             T_joint6_tcp = T_joint6_flange @ kin.T_flange_tcp
             objects.append(
                 SceneObject(
-                    f"part {self.part.name!r}",
+                    Body(BodyKind.PART, self.part.name),
                     "part",
                     6,
                     geometry,
@@ -360,7 +359,7 @@ class CollisionScene:
         return self._geom_model
 
     @property
-    def pair_labels(self) -> list[tuple[str, str]]:
+    def pair_labels(self) -> list[tuple[Body, Body]]:
         return [(self._objects[i].label, self._objects[j].label) for i, j in self._pairs]
 
     def _update(self, q_rad: np.ndarray) -> None:
@@ -389,7 +388,7 @@ class CollisionScene:
     def clearance(self, q_rad: np.ndarray) -> Clearance:
         """The pair with the smallest margin over its required clearance at ``q_rad``."""
         if not len(self._pairs):
-            return Clearance(math.inf, self.clearance_m, "robot", "nothing")
+            return Clearance(math.inf, self.clearance_m, *_NO_PAIR)
         self._update(q_rad)
         distances = self._exact(np.arange(len(self._pairs)))
         k = int(np.argmin(distances - self._required))
@@ -426,10 +425,10 @@ class CollisionScene:
             )
         return sorted(out, key=lambda c: c.margin_m)
 
-    def min_distance(self, q_rad: np.ndarray) -> tuple[float, str, str]:
+    def min_distance(self, q_rad: np.ndarray) -> tuple[float, Body, Body]:
         """The smallest signed distance over the checked pairs (m) and their names."""
         if not len(self._pairs):
-            return math.inf, "robot", "nothing"
+            return (math.inf, *_NO_PAIR)
         self._update(q_rad)
         distances = self._exact(np.arange(len(self._pairs)))
         k = int(np.argmin(distances))

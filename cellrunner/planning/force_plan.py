@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from cellrunner.model import geometry
+from cellrunner.model.body import BodyKind
 from cellrunner.model.step import StepKind
 from cellrunner.planning.collision import CollisionModel, ContactAllowance
 
@@ -63,7 +64,7 @@ def contact_allowances(
         return ()
     # what makes the contact: the carried part, or the tool when nothing is carried (the
     # tool holding a part must keep its clearance, as the arm always does)
-    mover, label = ("part", "part '") if planner.part is not None else ("tool", "tool ")
+    mover, kind = ("part", BodyKind.PART) if planner.part is not None else ("tool", BodyKind.TOOL)
     # while looking for the mover's contacts, the tool's own are left for the line check
     # to report (as the collision it is)
     others = (
@@ -77,11 +78,11 @@ def contact_allowances(
         clearance = model.clearance(q_end)
         if (
             clearance.distance_m >= clearance.required_m
-            or not clearance.b.startswith("fixture '")
-            or not clearance.a.startswith(label)
+            or clearance.b.kind is not BodyKind.FIXTURE
+            or clearance.a.kind is not kind
         ):
             break
-        fixture = clearance.b[len("fixture '") : -1]
+        fixture = clearance.b.name
         allowances.append(
             ContactAllowance(fixture, mover, min(clearance.distance_m, 0.0) - CONTACT_SLACK_M)
         )
@@ -103,13 +104,9 @@ def describe(
 def _touch_pairs(collision: CollisionModel, carrying: bool) -> np.ndarray:
     """The pairs whose touch stops a guarded line: the carried part (or, carrying nothing,
     the tool) against a fixture or a waiting part."""
-    mover = "part '" if carrying else "tool "
+    mover = BodyKind.PART if carrying else BodyKind.TOOL
     return np.array(
-        [
-            k
-            for k, (a, b) in enumerate(collision.pair_labels)
-            if a.startswith(mover) and b.startswith(("fixture ", "waiting part "))
-        ],
+        [k for k, (a, b) in enumerate(collision.pair_labels) if a.kind is mover and b.is_obstacle],
         dtype=int,
     )
 

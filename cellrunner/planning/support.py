@@ -16,8 +16,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
+from cellrunner.model.body import WAITING_PREFIX
 from cellrunner.model.geometry import Box, Cylinder, Placed, Shape, Sphere
-from cellrunner.planning.collision_scene import WAITING_PREFIX, fixture_label
+from cellrunner.planning.collision_scene import fixture_label
 
 if TYPE_CHECKING:
     from cellrunner.model.step import Step

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, TypedDict, TypeVar
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
+from cellrunner.model.body import BodyKind
 from cellrunner.model.expand import Step
 from cellrunner.model.geometry import Placed
 from cellrunner.model.step import StepKind
@@ -659,15 +660,16 @@ class StepPlanner:
                 clearance = model.clearance(q)
                 if (
                     clearance.distance_m >= clearance.required_m + STALL_M
-                    or clearance.a != f"part '{self.part.name}'"
-                    or not clearance.b.startswith(("fixture '", "waiting part '"))
+                    or clearance.a.kind is not BodyKind.PART
+                    or clearance.a.name != self.part.name
+                    or not clearance.b.is_obstacle
                 ):
                     break
                 # valid is clear by STALL_M more than required (the verifier's rule): within
                 # that, a part set down rests on what is under it, and keeps clear of the rest
                 # (a hole's walls stay walls unless the step names them in contact:)
                 if clearance.distance_m >= clearance.required_m and not self._under(
-                    _fixture_name(clearance.b), q
+                    clearance.b.fixture_name, q
                 ):
                     break
                 if clearance.distance_m < -SET_DOWN_PRESS_M:
@@ -681,7 +683,7 @@ class StepPlanner:
                     raise InfeasibleError(
                         f"{step.label}: {reason}", step_index=step.index, reason=reason
                     )
-                support = _fixture_name(clearance.b)
+                support = clearance.b.fixture_name
                 allowances.append(ContactAllowance(support, "part", -SET_DOWN_PRESS_M))
                 # the jaws around a short part come down to what it is set on (or lifted off)
                 allowances.append(ContactAllowance(support, "tool", -GRIP_PRESS_M))
@@ -714,7 +716,6 @@ class StepPlanner:
         sweep must keep clear of every waiting part (SPEC section 12). Around a short part
         the jaws may also come down to the fixture it rests on (as far as onto the part)."""
         from cellrunner.planning.collision import ContactAllowance
-        from cellrunner.planning.collision_scene import WAITING_PREFIX
 
         if not self.world.waiting_parts:
             return ()
@@ -725,18 +726,18 @@ class StepPlanner:
         for q in (self.q, self._try_ik(T_goal)):
             violations = model.violations(q) if q is not None else []
             touched = {
-                WAITING_PREFIX + v.b[len("waiting part '") : -1]
+                v.b.fixture_name
                 for v in violations
-                if v.a.startswith("tool ") and v.b.startswith("waiting part '")
+                if v.a.kind is BodyKind.TOOL and v.b.kind is BodyKind.WAITING_PART
             }
             names |= touched
             held = self._waiting_at_tcp(q) if q is not None else set()
             gripped |= held & touched
             under = {f for name in held for f in self.world.waiting_supports.get(name, ())}
             supports |= {
-                v.b[len("fixture '") : -1]
+                v.b.name
                 for v in violations
-                if v.a.startswith("tool ") and v.b[len("fixture '") : -1] in under
+                if v.a.kind is BodyKind.TOOL and v.b.kind is BodyKind.FIXTURE and v.b.name in under
             }
         return tuple(
             ContactAllowance(name, "tool", -1.0 if name in gripped else -GRIP_PRESS_M)
@@ -758,7 +759,7 @@ class StepPlanner:
 
     def frame_at_tcp(self) -> str:
         """The frame of the part a grip here takes (:meth:`_waiting_at_tcp`), or ''."""
-        from cellrunner.planning.collision_scene import WAITING_PREFIX
+        from cellrunner.model.body import WAITING_PREFIX
 
         names = {name[len(WAITING_PREFIX) :] for name in self._waiting_at_tcp(self.q)}
         return next((p.at for p in self.world.loaded.cell.parts if p.name in names), "")
@@ -795,15 +796,6 @@ def _line_plans(
 
 def _bytes(a: np.ndarray | None) -> bytes | None:
     return None if a is None else np.asarray(a, float).tobytes()
-
-
-def _fixture_name(label: str) -> str:
-    """The fixture name of a "fixture 'x'" or "waiting part 'x'" label (``part:x``)."""
-    from cellrunner.planning.collision_scene import WAITING_PREFIX
-
-    if label.startswith("waiting part '"):
-        return WAITING_PREFIX + label[len("waiting part '") : -1]
-    return label[len("fixture '") : -1]
 
 
 def check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) -> None:

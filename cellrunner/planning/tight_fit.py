@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from cellrunner.planning.collision import ContactAllowance
 
 if TYPE_CHECKING:
+    from cellrunner.model.body import Body
     from cellrunner.model.step import Step
 
 #: how far the tool or held part may press into a fixture named in ``contact`` (m)
@@ -37,11 +38,11 @@ def step_clearance_m(step: Step | None) -> float | None:
     return None if value is None else float(value)
 
 
-def line_end_hint(fixtures: list[str], distance_m: float) -> str:
-    """The fix for a straight line that ends within the clearance of ``fixtures`` ("fixture
-    'x'" labels; the closest ``distance_m`` away there): it is meant to end there (a
-    hole's mouth, a nest) unless the frame is wrong."""
-    names = ", ".join(f[len("fixture '") : -1] for f in fixtures)
+def line_end_hint(fixtures: list[Body], distance_m: float) -> str:
+    """The fix for a straight line that ends within the clearance of ``fixtures`` (the
+    closest ``distance_m`` away there): it is meant to end there (a hole's mouth, a nest)
+    unless the frame is wrong."""
+    names = ", ".join(f.name for f in fixtures)
     keep = max(0.0, distance_m - 0.0002)
     return (
         f"fix: the line ends within the clearance of {', '.join(fixtures)} "

@@ -93,8 +93,8 @@ class CellWorld:
         the frame holds them), named ``part:NAME``: obstacles until carried. A part with
         an ``offset`` lies where a camera finds it, which check does not know (it proves
         the pick's pose box instead): it is no obstacle."""
+        from cellrunner.model.body import WAITING_PREFIX
         from cellrunner.model.expand import frame_pose
-        from cellrunner.planning.collision_scene import WAITING_PREFIX
 
         out = []
         for part in self.loaded.cell.parts:
