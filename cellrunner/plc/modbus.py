@@ -405,7 +405,10 @@ def _plc_job_id(result: JobResult) -> int:
 
 class ModbusServer:
     """The Modbus TCP server of one cell. Construct (no I/O), ``await start()``,
-    ``await stop()``; both run on the caller's asyncio loop."""
+    ``await stop()``; both run on the caller's asyncio loop (a
+    :class:`~cellrunner.plc.server.PlcServer`)."""
+
+    name = "modbus"
 
     def __init__(self, port: CellPort, config: ModbusConfig) -> None:
         self.port = port
@@ -422,6 +425,16 @@ class ModbusServer:
             return (self.config.bind, self.config.port)
         sockname = self._server.transport.sockets[0].getsockname()
         return (sockname[0], sockname[1])
+
+    @property
+    def link_up(self) -> bool:
+        """The PLC heartbeat (register 0) keeps changing."""
+        return self.link.heartbeat_alive
+
+    @property
+    def published_at(self) -> str:
+        host, port = self.address
+        return f"{host}:{port}"
 
     async def start(self) -> None:
         loop = asyncio.get_running_loop()

@@ -425,7 +425,10 @@ class HashedUserManager:
 
 class OpcUaServer:
     """The OPC UA server of one cell. Construct (no I/O), ``await start()``,
-    ``await stop()`` on the caller's asyncio loop."""
+    ``await stop()`` on the caller's asyncio loop (a
+    :class:`~cellrunner.plc.server.PlcServer`)."""
+
+    name = "opcua"
 
     def __init__(self, port: CellPort, config: OpcUaConfig, *, cell_name: str = "cell") -> None:
         self.port = port
@@ -451,6 +454,15 @@ class OpcUaServer:
         """OPC UA clients connected now (read from any thread: a list's length)."""
         bserver = getattr(self._server, "bserver", None)
         return len(getattr(bserver, "clients", ()) or ())
+
+    @property
+    def link_up(self) -> bool:
+        """An OPC UA client is connected."""
+        return self.connected_clients > 0
+
+    @property
+    def published_at(self) -> str:
+        return self.endpoint
 
     # -- lifecycle -------------------------------------------------------------------------
     async def start(self) -> None:
