@@ -89,9 +89,9 @@ LAYERS: dict[str, set[str]] = {
     "twin": {"model", "planning", "sim"},
     "backends": {"model", "sim"},
     "plc": {"model"},
-    # perception: the watched zone's map; vision: align steps' eye; sim: the twin's depth
-    # feed (execution.watch.TwinDepthFeed renders through sim.depth)
-    "execution": {"model", "planning", "backends", "perception", "vision", "sim"},
+    # perception: the watched zone's map; vision: align steps' eye; the twin (sim) only
+    # through the backend Protocols (backends.base.RendersDepth renders its depth images)
+    "execution": {"model", "planning", "backends", "perception", "vision"},
     "report": {"model", "planning", "sim"},
     "web": {"model", "execution"},
     "commissioning": {"model", "planning", "execution", "backends", "vision"},

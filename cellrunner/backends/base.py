@@ -6,12 +6,19 @@ cycle: ``servo(trajectory, i)`` then ``wait_period()`` (the sim backend advances
 physics by one period there; the UR backend waits for the controller's next cycle, as
 ur_rtde's initPeriod/waitPeriod do). Nothing here blocks longer than one period except
 ``connect`` and the recovery actions, which document their own bounds.
+
+Beyond :class:`RobotBackend`, a backend may offer small capabilities the engine asks for
+with ``isinstance`` (each Protocol is runtime-checkable): :class:`FeedsParts` (an infeed
+it drives itself), :class:`CameraImages` (the cell cameras' pictures) and
+:class:`RendersDepth` (the depth cameras of the watched zone). The in-process twin
+(``sim``) has all three; the arm (``ur``) has none: its pictures and depth images come
+from the cameras themselves.
 """
 
 from __future__ import annotations
 
 from collections.abc import Generator
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -24,6 +31,9 @@ from cellrunner.model.trajectory import ApprovedTrajectory
 @runtime_checkable
 class RobotBackend(Protocol):
     rate_hz: float
+    #: how long (s) the engine keeps trying to reconnect a lost robot link before the job
+    #: ends with 102; 0: a single attempt (a backend with nothing to wait for)
+    reconnect_timeout_s: float
 
     def connect(self) -> None:
         """Open connections / build the model; raise PeerUnreachable when unreachable."""
@@ -71,3 +81,57 @@ class RobotBackend(Protocol):
         connections, retrying with backoff for at most ``timeout_s``; raise
         PeerUnreachable if the robot does not come back (result code 102). The sim
         backend has nothing to reconnect and returns at once."""
+
+    def job_started(self) -> None:
+        """A job starts now (after it was planned): the twin's scheduled intruders count
+        from here. Nothing to do on the arm."""
+
+
+@runtime_checkable
+class FeedsParts(Protocol):
+    """A backend that drives its own infeed (the twin's ``sim: feed``)."""
+
+    def feed_parts(self) -> list[str]:
+        """Put parts that were taken away back at their spawn pose; their names."""
+
+
+@runtime_checkable
+class CameraImages(Protocol):
+    """A backend that renders the cell cameras itself (the in-process twin)."""
+
+    def camera_image(self, name: str) -> np.ndarray:
+        """What cell camera ``name`` sees now (RGB, height x width x 3, uint8); raises
+        BackendError for a camera it does not have."""
+
+
+class DepthRenderer(Protocol):
+    """One depth camera's renderer, made by :meth:`RendersDepth.depth_renderer`. It may
+    hold a GL context: make, use and close it on one thread (never the control thread)."""
+
+    def frame(self, scene: object, time_s: float) -> Any:
+        """The depth image of ``scene`` (a :meth:`RendersDepth.depth_scene`) taken at
+        ``time_s`` (s): a :class:`cellrunner.perception.frames.DepthFrame`."""
+
+    def close(self) -> None:
+        """Release the renderer; idempotent."""
+
+
+@runtime_checkable
+class RendersDepth(Protocol):
+    """A backend that renders the depth cameras of the watched zone itself (the in-process
+    twin): the engine copies the scene on the control thread and has it rendered on a
+    worker thread."""
+
+    def depth_rates_hz(self) -> dict[str, float]:
+        """Each depth camera's name and its frame rate (Hz)."""
+
+    def depth_time_s(self) -> float | None:
+        """The backend's clock now (s); None while it is not connected (no images)."""
+
+    def depth_scene(self) -> object:
+        """A copy of the scene now (the arm's joints, the moving bodies), to render later
+        on another thread; only when connected."""
+
+    def depth_renderer(self, camera: str, range_m: tuple[float, float], seed: int) -> DepthRenderer:
+        """A renderer of depth camera ``camera`` that keeps distances within ``range_m``
+        (near, far, in m) and draws its noise from ``seed``."""

@@ -403,6 +403,9 @@ class URBackend:
 
     # ------------------------------------------------------------------ state
 
+    def job_started(self) -> None:
+        """Nothing to do on the arm: the world around it runs on its own."""
+
     @property
     def connected(self) -> bool:
         return self._link_up() and self._control is not None and self._dashboard is not None

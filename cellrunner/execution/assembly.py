@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from cellrunner.backends.base import RobotBackend
+from cellrunner.backends.base import CameraImages, FeedsParts, RobotBackend
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.context import EventLog, Eye
 from cellrunner.execution.journal import JournalBackend
@@ -129,7 +129,7 @@ def assemble_cell(
         log=log,
         wait_for_unhold=wait_for_unhold,
         on_step_start=on_step_start,
-        on_job_start=getattr(backend, "feed_parts", None) if feed_parts else None,
+        on_job_start=_infeed(backend) if feed_parts else None,
         gate=gate,
         eye=_eye(loaded, backend, image_source, robot_host) if eye else None,
         watch=zone,
@@ -138,6 +138,19 @@ def assemble_cell(
     if feed is not None:
         loop.add_observer(feed)
     return AssembledCell(loaded, world, backend, kind, journal, controller, loop, zone, feed)
+
+
+def _infeed(backend: RobotBackend) -> Callable[[], None] | None:
+    """The backend's own infeed, run at each job's start (the twin's ``sim: feed``); None
+    for a backend without one (the arm: the cell's conveyor runs on its own)."""
+    if not isinstance(backend, FeedsParts):
+        return None
+    feeder = backend
+
+    def feed() -> None:
+        feeder.feed_parts()
+
+    return feed
 
 
 def _eye(
@@ -150,8 +163,9 @@ def _eye(
         return None
     from cellrunner.vision.eye import MarkerEye
 
-    grab = getattr(backend, "camera_image", None)
-    if grab is None:
+    if isinstance(backend, CameraImages):
+        grab = backend.camera_image
+    else:
         from cellrunner.vision.images import CameraFeeds
 
         feeds = CameraFeeds(image_source, dict(loaded.cell.cameras), host or loaded.cell.robot.host)

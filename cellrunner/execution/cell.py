@@ -41,7 +41,7 @@ from cellrunner.execution.packml import Command, Event, TransitionRefused
 from cellrunner.execution.planner import Planner
 from cellrunner.execution.recovery import Recovery, stop_and_stand, unlock_idle_stop
 from cellrunner.execution.task_menu import TaskMenu
-from cellrunner.model.cellport import COMMANDS, CellStatus, JobTicket, ResultListener
+from cellrunner.model.cellport import COMMANDS, CellStatus, JobSource, JobTicket, ResultListener
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
@@ -220,10 +220,12 @@ class CellController:
         return self._menu.param_specs(task)
 
     def start_job(
-        self, task: str | int, params: dict[str, Any], client_job_id: str, source: str
+        self, task: str | int, params: dict[str, Any], client_job_id: str, source: str | JobSource
     ) -> JobTicket:
+        requester = JobSource.of(source)
+        source = requester.name
         with self._lock:
-            first = self._book.first_of(source, client_job_id)
+            first = self._book.first_of(requester, client_job_id)
             if first is not None:
                 return first
             admitted = self._menu.admit(task, params)

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from cellrunner.execution.context import QUIET, EventLog
 from cellrunner.execution.job_view import Job, result_of_job, result_of_record
 from cellrunner.execution.journal import JournalBackend, JournalError
-from cellrunner.model.cellport import JobResult, JobTicket, ResultListener
+from cellrunner.model.cellport import JobResult, JobSource, JobTicket, ResultListener
 from cellrunner.model.codes import ResultCode
 
 if TYPE_CHECKING:
@@ -57,13 +57,14 @@ class JobBook:
         if last is not None:
             self.last = result_of_record(last)
 
-    def first_of(self, source: str, client_job_id: str) -> JobTicket | None:
-        """OPC UA's StartJob sent again with the same ClientJobId: the first job's ticket
-        (None: a new job); not ready when the journal cannot be read."""
-        if source != "opcua" or not client_job_id:
+    def first_of(self, source: JobSource, client_job_id: str) -> JobTicket | None:
+        """A request sent again with the same client job id, by a requester whose ids name
+        jobs (OPC UA's StartJob): the first job's ticket (None: a new job); not ready when
+        the journal cannot be read."""
+        if not source.ids_name_jobs or not client_job_id:
             return None
         try:
-            first = self.journal.by_client_id(source, client_job_id)
+            first = self.journal.by_client_id(source.name, client_job_id)
         except JournalError as exc:
             return JobTicket("", ResultCode.REJECT_NOT_READY, f"not ready: {exc}")
         if first is None:

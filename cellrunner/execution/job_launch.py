@@ -87,9 +87,7 @@ class JobLauncher:
                 job.task.task.on_obstacle,
                 self.watch.world.limits.joint_accel_rad_s2,
             )
-            job_started = getattr(self.backend, "job_started", None)
-            if job_started is not None:  # the twin's intruders count from the job's start
-                job_started()
+            self.backend.job_started()  # the twin's intruders count from the job's start
         runner = JobRunner(
             ctx,
             plan.run_steps,

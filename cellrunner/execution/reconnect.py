@@ -1,7 +1,6 @@
 """Getting the robot link back while a job runs: bounded work polled once per tick, one
 connection attempt per poll when its backoff delay (0.2 s doubling to 2 s) is due, for
-at most the backend's ``reconnect_timeout_s`` (a backend without one gets a single
-attempt). No poll blocks for longer than one attempt (the backend bounds it)."""
+at most the backend's ``reconnect_timeout_s`` (0: a single attempt). No poll blocks for longer than one attempt (the backend bounds it)."""
 
 from __future__ import annotations
 
@@ -38,7 +37,7 @@ class Reconnect:
 
     def begin(self, why: str, backend: RobotBackend) -> None:
         now = time.monotonic()
-        timeout_s = float(getattr(backend, "reconnect_timeout_s", 0.0))
+        timeout_s = float(backend.reconnect_timeout_s)
         self.why, self._until = why, now + timeout_s
         self._next, self._delay = now, RECONNECT_FIRST_DELAY_S
 

@@ -8,8 +8,9 @@ no waiting) and tells it what it streams (:meth:`ZoneWatch.follow`). One lock gu
 map and the verdict; the control thread holds it only to copy a few references.
 
 :class:`TwinDepthFeed` is the feed of a rehearsal on the in-process twin: a control-loop
-observer that, at each depth camera's rate in simulated time, copies the twin's joints and
-mocap bodies and has the image rendered and integrated on a worker thread. Off real time
+observer that, at each depth camera's rate in simulated time, has the backend copy its scene
+(:class:`~cellrunner.backends.base.RendersDepth`: the twin renders its own images) and the
+image rendered and integrated on a worker thread. Off real time
 (dry-run) the loop waits for that worker, and the verdict becomes visible as long after
 the image was taken (simulated) as the work took the worker's thread in CPU time (wall
 time on a machine shared with other processes would charge their time); in real time
@@ -27,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cellrunner.backends.base import DepthRenderer, RendersDepth
 from cellrunner.model.geometry import Placed
 from cellrunner.perception.frames import DepthFrame
 from cellrunner.perception.known import KnownScene
@@ -220,16 +222,14 @@ class TwinDepthFeed:
     """Control-loop observer: the twin's depth cameras at their rates (module docstring)."""
 
     def __init__(
-        self, zone: ZoneWatch, backend: Any, *, realtime: bool = False, seed: int = 0
+        self, zone: ZoneWatch, backend: RendersDepth, *, realtime: bool = False, seed: int = 0
     ) -> None:
         self.zone, self.backend, self.realtime, self.seed = zone, backend, realtime, seed
-        d = backend.description
-        self.cameras = {c.name: c for c in d.cameras}
-        self.rates = {name: rate for name, _, _, rate in d.depth if name in zone.ranges}
+        rates = backend.depth_rates_hz()
+        self.rates = {name: rate for name, rate in rates.items() if name in zone.ranges}
         self.next_s = dict.fromkeys(self.rates, 0.0)
-        self.noise_m = d.depth_noise_m
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="depth")
-        self._imagers: dict[str, Any] = {}
+        self._imagers: dict[str, DepthRenderer] = {}
         self._pending: list[tuple[float, Verdict]] = []  # (visible from s, verdict)
         self._running: Future[tuple[Verdict, float]] | None = None
         self._running_at = 0.0
@@ -248,10 +248,9 @@ class TwinDepthFeed:
         return min(times, default=float("inf"))
 
     def __call__(self, cell: Any) -> None:
-        world = self.backend.world
-        if world is None:
+        now = self.backend.depth_time_s()
+        if now is None:
             return
-        now = world.time_s
         if self._running is not None and (not self.realtime or self._running.done()):
             verdict, wall_s = self._running.result()
             self._pending.append((self._running_at + wall_s, verdict))
@@ -265,12 +264,7 @@ class TwinDepthFeed:
         for name, due in self.next_s.items():
             if now >= due - 1e-9:
                 self.next_s[name] = max(due + 1.0 / self.rates[name], now)
-                d = world.data
-                snapshot = (
-                    np.array(d.qpos),
-                    np.array(d.mocap_pos),
-                    np.array(d.mocap_quat),
-                )
+                snapshot = self.backend.depth_scene()
                 self._running_at = now
                 self._running = self._pool.submit(self._work, name, snapshot, now, None)
                 if not self.realtime:  # off real time: simulated time waits for the image
@@ -280,7 +274,7 @@ class TwinDepthFeed:
                 return
 
     def _work(
-        self, name: str, snapshot: tuple[np.ndarray, ...], time_s: float, held: Placed | None
+        self, name: str, snapshot: object, time_s: float, held: Placed | None
     ) -> tuple[Verdict, float]:
         """Render, integrate and check one image; returns the verdict and how long the
         cell's part took: off real time this thread's CPU time for integrating and checking
@@ -291,14 +285,9 @@ class TwinDepthFeed:
         t0 = clock()
         imager = self._imagers.get(name)
         if imager is None:
-            from cellrunner.sim.depth import DepthImager
-
-            world = self.backend.world
             near, far = self.zone.ranges[name]
-            imager = self._imagers[name] = DepthImager(
-                world.model, self.cameras[name], (near, far), self.noise_m, seed=self.seed
-            )
-        frame = imager.frame(snapshot[0], snapshot[1], snapshot[2], time_s)
+            imager = self._imagers[name] = self.backend.depth_renderer(name, (near, far), self.seed)
+        frame = imager.frame(snapshot, time_s)
         self.render_s.append(time.perf_counter() - w0)
         if not self.realtime:
             t0 = clock()
@@ -316,7 +305,7 @@ class TwinDepthFeed:
 
 
 def watch_on_twin(
-    world: CellWorld, backend: Any, *, realtime: bool
+    world: CellWorld, backend: RendersDepth, *, realtime: bool
 ) -> tuple[ZoneWatch, TwinDepthFeed] | None:
     """The watched zone of a cell run on the in-process twin, and its depth feed (add it
     to the control loop's observers); None when the cell is not watched."""

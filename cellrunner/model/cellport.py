@@ -29,9 +29,11 @@ __all__ = [
     "COMMANDS",
     "COMPLETED_CODES",
     "REJECT_CODES",
+    "SPEC_SOURCES",
     "CellPort",
     "CellStatus",
     "JobResult",
+    "JobSource",
     "JobTicket",
     "PackMLState",
     "ResultCode",
@@ -49,6 +51,30 @@ REJECT_CODES = frozenset(
 
 #: Commands accepted by :meth:`CellPort.command`.
 COMMANDS = ("reset", "clear", "hold", "unhold", "abort", "stop")
+
+
+@dataclass(frozen=True)
+class JobSource:
+    """Who asks for a job: ``name`` is the journal's and the results' ``source``
+    (``"modbus"``, ``"opcua"``, ``"cli"``...); ``ids_name_jobs`` says the requester gives
+    each job its own client job id and may send a request again, so the same id twice is
+    the first job, not a second one (OPC UA's ClientJobId, SPEC 8). A Modbus job id wraps
+    at 16 bits and the CLI reuses its labels: theirs do not name jobs."""
+
+    name: str
+    ids_name_jobs: bool = False
+
+    @classmethod
+    def of(cls, source: str | JobSource) -> JobSource:
+        """``source`` as a requester; a plain name is one of :data:`SPEC_SOURCES`, or else a
+        requester whose ids do not name jobs."""
+        if isinstance(source, JobSource):
+            return source
+        return SPEC_SOURCES.get(source) or cls(source)
+
+
+#: the requesters the SPEC defines, for callers that give only their name
+SPEC_SOURCES = {s.name: s for s in (JobSource("modbus"), JobSource("opcua", ids_name_jobs=True))}
 
 
 @dataclass(frozen=True)
@@ -141,9 +167,11 @@ class CellPort(Protocol):
         task: str | int,
         params: dict[str, Any],  # numbers, quantities ("250 ms"), poses
         client_job_id: str,
-        source: str,
+        source: str | JobSource,
     ) -> JobTicket:
-        """Validate, journal and queue one job; never blocks on motion.
+        """Validate, journal and queue one job; never blocks on motion. ``source`` is the
+        requester (a plain name: :meth:`JobSource.of`); when its ids name jobs, a
+        ``client_job_id`` already journaled answers with that job's ticket.
 
         Rejects: 10 unknown task, 11 params outside the task's typed bounds (or
         unknown names), 12 not ready (not Idle, job running, stop active).

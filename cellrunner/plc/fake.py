@@ -24,6 +24,7 @@ from cellrunner.plc.port import (
     COMPLETED_CODES,
     CellStatus,
     JobResult,
+    JobSource,
     JobTicket,
     PackMLState,
     ResultCode,
@@ -175,7 +176,7 @@ class FakeCell:
         task: str | int,
         params: dict[str, int | float],
         client_job_id: str,
-        source: str = "",
+        source: str | JobSource = "",
     ) -> JobTicket:
         found = self._find_task(task)
         if found is None:
@@ -198,7 +199,7 @@ class FakeCell:
                 task=found,
                 params=full,
                 client_job_id=client_job_id,
-                source=source,
+                source=JobSource.of(source).name,
                 result_code=code,
                 started_s=self.clock(),
             )

@@ -33,6 +33,7 @@ from cellrunner.plc.port import (
     CellPort,
     CellStatus,
     JobResult,
+    JobSource,
     PackMLState,
     ResultCode,
 )
@@ -332,7 +333,7 @@ class ModbusLink:
         specs = getattr(self.port, "task_param_specs", None)
         layout = specs(task) if specs is not None else [(name, "int", None) for name in names]
         params = decode_params(layout, self.regs[HR_PARAMS : HR_PARAMS + N_PARAM_REGS])
-        ticket = self.port.start_job(task, params, str(plc_id), "modbus")
+        ticket = self.port.start_job(task, params, str(plc_id), SOURCE)
         if not ticket.accepted:
             self._reject(plc_id, ticket.reject_code or ResultCode.REJECT_NOT_READY)
             return
@@ -398,14 +399,22 @@ _TRANSIENT_STATES = frozenset(
 
 
 def _plc_job_id(result: JobResult) -> int:
-    if result.source == "modbus" and result.client_job_id.isdigit():
+    if result.source == SOURCE.name and result.client_job_id.isdigit():
         return int(result.client_job_id) & 0xFFFF
     return 0
 
 
+#: the requester of a Modbus job: its 16-bit job ids wrap, so they do not name jobs (a PLC's
+#: repeated request is caught by the link itself)
+SOURCE = JobSource("modbus")
+
+
 class ModbusServer:
     """The Modbus TCP server of one cell. Construct (no I/O), ``await start()``,
-    ``await stop()``; both run on the caller's asyncio loop."""
+    ``await stop()``; both run on the caller's asyncio loop (a
+    :class:`~cellrunner.plc.server.PlcServer`)."""
+
+    name = "modbus"
 
     def __init__(self, port: CellPort, config: ModbusConfig) -> None:
         self.port = port
@@ -422,6 +431,16 @@ class ModbusServer:
             return (self.config.bind, self.config.port)
         sockname = self._server.transport.sockets[0].getsockname()
         return (sockname[0], sockname[1])
+
+    @property
+    def link_up(self) -> bool:
+        """The PLC heartbeat (register 0) keeps changing."""
+        return self.link.heartbeat_alive
+
+    @property
+    def published_at(self) -> str:
+        host, port = self.address
+        return f"{host}:{port}"
 
     async def start(self) -> None:
         loop = asyncio.get_running_loop()

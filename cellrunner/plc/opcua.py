@@ -57,7 +57,7 @@ from cellrunner.plc.opcua_admission import (
     source_of,
 )
 from cellrunner.plc.opcua_admission import install as install_admission
-from cellrunner.plc.port import CellPort, CellStatus, JobResult, ResultCode
+from cellrunner.plc.port import CellPort, CellStatus, JobResult, JobSource, ResultCode
 from cellrunner.thread_priority import nice
 
 if TYPE_CHECKING:
@@ -423,9 +423,17 @@ class HashedUserManager:
         return False
 
 
+#: StartJob's requester: a client gives each job its own ClientJobId, and the same one again
+#: is the first job (SPEC 8)
+SOURCE = JobSource("opcua", ids_name_jobs=True)
+
+
 class OpcUaServer:
     """The OPC UA server of one cell. Construct (no I/O), ``await start()``,
-    ``await stop()`` on the caller's asyncio loop."""
+    ``await stop()`` on the caller's asyncio loop (a
+    :class:`~cellrunner.plc.server.PlcServer`)."""
+
+    name = "opcua"
 
     def __init__(self, port: CellPort, config: OpcUaConfig, *, cell_name: str = "cell") -> None:
         self.port = port
@@ -451,6 +459,15 @@ class OpcUaServer:
         """OPC UA clients connected now (read from any thread: a list's length)."""
         bserver = getattr(self._server, "bserver", None)
         return len(getattr(bserver, "clients", ()) or ())
+
+    @property
+    def link_up(self) -> bool:
+        """An OPC UA client is connected."""
+        return self.connected_clients > 0
+
+    @property
+    def published_at(self) -> str:
+        return self.endpoint
 
     # -- lifecycle -------------------------------------------------------------------------
     async def start(self) -> None:
@@ -623,7 +640,7 @@ class OpcUaServer:
         if params is None:
             return "", int(ResultCode.REJECT_BAD_PARAMS)
         task: str | int = int(task_name) if task_name.strip().isdigit() else task_name.strip()
-        ticket = self.port.start_job(task, params, client_job_id, "opcua")
+        ticket = self.port.start_job(task, params, client_job_id, SOURCE)
         if not ticket.accepted:
             return "", ticket.reject_code or int(ResultCode.REJECT_NOT_READY)
         if client_job_id:

@@ -22,11 +22,15 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import Future
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cellrunner.errors import CellrunnerError
 from cellrunner.plc.modbus import ModbusConfig, ModbusServer
 from cellrunner.plc.port import CellPort
+from cellrunner.plc.server import PlcServer
+
+if TYPE_CHECKING:
+    from cellrunner.plc.opcua import OpcUaServer
 from cellrunner.thread_priority import nice
 
 
@@ -39,14 +43,14 @@ def _section(config: Any, name: str) -> Any:
 
 
 class _ServerThread:
-    """One asyncio server (``await start()`` / ``await stop()``) on its own loop in its own
-    thread, so nothing one server does (an OPC UA login hashing a password, a slow
-    client) can delay another (the Modbus heartbeat)."""
+    """One :class:`PlcServer` on its own asyncio loop in its own thread, so nothing one
+    server does (an OPC UA login hashing a password, a slow client) can delay another (the
+    Modbus heartbeat)."""
 
-    def __init__(self, name: str, make: Any) -> None:
+    def __init__(self, name: str, make: Callable[[], PlcServer]) -> None:
         self.name = name
-        self._make = make  # () -> server, called on the thread's loop
-        self.server: Any = None
+        self._make = make  # called on the thread's loop
+        self.server: PlcServer | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._stopped: asyncio.Event | None = None
@@ -92,8 +96,8 @@ class _ServerThread:
         self._loop = asyncio.get_running_loop()
         self._stopped = asyncio.Event()
         try:
-            self.server = self._make()
-            await self.server.start()
+            self.server = server = self._make()
+            await server.start()
         except BaseException as exc:
             started.set_exception(_translate(exc))
             if self.server is not None:
@@ -101,7 +105,7 @@ class _ServerThread:
             return
         started.set_result(None)
         await self._stopped.wait()
-        await self.server.stop()
+        await server.stop()
 
 
 class PlcService:
@@ -135,14 +139,17 @@ class PlcService:
 
     @property
     def modbus(self) -> ModbusServer | None:
-        server: ModbusServer | None = self._server("modbus")
-        return server
+        server = self._server("modbus")
+        return server if isinstance(server, ModbusServer) else None
 
     @property
-    def opcua(self) -> Any:
-        return self._server("opcua")
+    def opcua(self) -> OpcUaServer | None:
+        from cellrunner.plc.opcua import OpcUaServer  # light: no asyncua import
 
-    def _server(self, name: str) -> Any:
+        server = self._server("opcua")
+        return server if isinstance(server, OpcUaServer) else None
+
+    def _server(self, name: str) -> PlcServer | None:
         return next((t.server for t in self._threads if t.name == name), None)
 
     # -- lifecycle -----------------------------------------------------------------------
@@ -155,7 +162,7 @@ class PlcService:
         if self.opcua_config is not None:
             opcua_config = self.opcua_config
 
-            def make_opcua() -> Any:
+            def make_opcua() -> PlcServer:
                 from cellrunner.plc.opcua import OpcUaServer
 
                 return OpcUaServer(self.port, opcua_config, cell_name=self.cell_name)
@@ -197,10 +204,10 @@ class PlcService:
         Modbus while the PLC heartbeat keeps changing, OPC UA while a client is
         connected. Reads plain attributes only (safe from any thread)."""
         out: dict[str, bool] = {}
-        if self.modbus_config is not None:
-            out["modbus"] = self.modbus is not None and self.modbus.link.heartbeat_alive
-        if self.opcua_config is not None:
-            out["opcua"] = self.opcua is not None and self.opcua.connected_clients > 0
+        for name, config in (("modbus", self.modbus_config), ("opcua", self.opcua_config)):
+            if config is not None:
+                server = self._server(name)
+                out[name] = server is not None and server.link_up
         return out
 
 

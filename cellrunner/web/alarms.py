@@ -123,7 +123,12 @@ def active_alarms(status: CellStatus, plc_links: dict[str, bool]) -> list[Alarm]
     for name, up in sorted(plc_links.items()):
         if not up:
             alarms.append(
-                Alarm("warning", f"PLC link down ({name})", _LINK_DETAIL[name], _LINK_FIX[name])
+                Alarm(
+                    "warning",
+                    f"PLC link down ({name})",
+                    _LINK_DETAIL.get(name, f"The {name} link has no peer."),
+                    _LINK_FIX.get(name, _ANY_LINK_FIX),
+                )
             )
     result = status.last_result
     if result is not None and result.result_code != ResultCode.OK:
@@ -152,6 +157,12 @@ _LINK_FIX = {
     "opcua": "Check that the PLC or SCADA client is running and its certificate and user are "
     "accepted (pki/rejected holds refused certificates).",
 }
+
+#: a PLC protocol the texts above do not know yet (a new server): still an alarm, in general
+#: words
+_ANY_LINK_FIX = (
+    "Check that the PLC or client program runs, and the network between it and the cell."
+)
 
 
 def _code(value: int) -> ResultCode | None:

@@ -36,6 +36,7 @@ class ScriptedArm:
     estop_at_s: float | None = None
     disconnect_at_s: float | None = None
     rate_hz: float = RATE
+    reconnect_timeout_s: float = 0.0
     t: float = 0.0
     q: np.ndarray = field(default_factory=lambda: np.zeros(6))
     qd: np.ndarray = field(default_factory=lambda: np.zeros(6))
@@ -56,6 +57,9 @@ class ScriptedArm:
         pass
 
     def reconnect(self, timeout_s=None):
+        pass
+
+    def job_started(self):
         pass
 
     def close(self):

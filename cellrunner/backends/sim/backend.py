@@ -27,6 +27,7 @@ from cellrunner.sim.mjcf import PhysicsOptions
 from cellrunner.sim.world import SimWorld
 
 if TYPE_CHECKING:
+    from cellrunner.backends.sim.depth import TwinDepthRenderer
     from cellrunner.sim.lookahead import Lookahead, Preview
     from cellrunner.sim.places import PlaceInspection
 
@@ -54,6 +55,8 @@ class SimBackend:
         self._imagers: dict[str, Any] = {}  # camera name -> CameraImager, made on first use
         self.options = options if options is not None else PhysicsOptions()
         self.rate_hz = description.rate_hz
+        #: the twin's link comes back only through ``connect()`` (see :meth:`reconnect`)
+        self.reconnect_timeout_s = 0.0
         self.world: SimWorld | None = None
         self._connected = False
         self._link_lost = False
@@ -339,6 +342,36 @@ class SimBackend:
         world = self._world()
         if world.intruders is not None:
             world.intruders.start(world.time_s)
+
+    def depth_rates_hz(self) -> dict[str, float]:
+        """The twin's depth cameras (``sim: depth``) and their frame rates (Hz)."""
+        return {name: rate for name, _, _, rate in self.description.depth}
+
+    def depth_time_s(self) -> float | None:
+        """Simulated time (s); None when not connected."""
+        return None if self.world is None else self.world.time_s
+
+    def depth_scene(self) -> object:
+        """The twin's joints and mocap bodies now, copied (:class:`.depth.DepthScene`)."""
+        from cellrunner.backends.sim.depth import DepthScene
+
+        return DepthScene.of(self._world().data)
+
+    def depth_renderer(
+        self, camera: str, range_m: tuple[float, float], seed: int
+    ) -> TwinDepthRenderer:
+        """A renderer of the twin's depth camera ``camera`` with the cell's depth noise
+        (``sim: depth_noise``); raises BackendError for a camera the twin does not have."""
+        from cellrunner.backends.sim.depth import TwinDepthRenderer
+        from cellrunner.sim.depth import DepthImager
+
+        description = next((c for c in self.description.cameras if c.name == camera), None)
+        if description is None:
+            raise BackendError(f"the twin has no camera {camera!r}")
+        imager = DepthImager(
+            self._world().model, description, range_m, self.description.depth_noise_m, seed=seed
+        )
+        return TwinDepthRenderer(imager)
 
     def inject_intrusion(self, T_world_box: np.ndarray) -> str | None:
         """``--inject intrusion@STEP``: drop the twin's box at ``T_world_box`` now (it
