@@ -111,7 +111,6 @@ def assemble_cell(
 
         found = watch_cell(
             world,
-            kind,
             backend,
             realtime=realtime,
             depth_source=depth_source,

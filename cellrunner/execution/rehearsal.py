@@ -304,9 +304,9 @@ class FaultsAndProgress:
         where its TCP (else a wrist or the elbow) will be about two thirds of the way
         along the rest of it and where the box does not touch the arm as it stands
         (:func:`spot_ahead`). False: no room yet (the motion is not half done)."""
+        from cellrunner.model.watch import INJECTED_BOX_M
         from cellrunner.perception.known import KnownScene
         from cellrunner.perception.path_check import spot_ahead
-        from cellrunner.sim.from_cell import INJECTED_BOX_M
 
         streaming = cell.streaming()
         if streaming is None:

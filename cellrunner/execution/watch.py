@@ -415,7 +415,6 @@ def watch_on_sources(
 
 def watch_cell(
     world: CellWorld,
-    kind: str,
     backend: Any,
     *,
     realtime: bool,
@@ -423,13 +422,16 @@ def watch_cell(
     host: str | None = None,
     log: Any = None,
 ) -> tuple[ZoneWatch, TwinDepthFeed | SourceDepthFeed] | None:
-    """The watched zone of a cell and its depth feed, for the backend ``kind``: the
-    in-process twin renders its own (``sim``); the arm, or the twin's virtual controller,
-    takes images from ``depth_source`` (default: the twin's on ``host``). None when the
-    cell is not watched. Add the feed to the control loop's observers and ``start()`` it
-    once the robot is connected; ``close()`` it at the end."""
+    """The watched zone of a cell and its depth feed: a backend that renders its depth
+    cameras itself (:class:`~cellrunner.backends.base.RendersDepth`, the in-process twin)
+    feeds its own; on the arm, or the twin's virtual controller, images come from
+    ``depth_source`` (default: the twin's on ``host``). None when the cell is not
+    watched. Add the feed to the control loop's observers and ``start()`` it once the
+    robot is connected; ``close()`` it at the end."""
+    from cellrunner.backends.base import RendersDepth
+
     watched: tuple[ZoneWatch, TwinDepthFeed | SourceDepthFeed] | None
-    if kind == "sim":
+    if isinstance(backend, RendersDepth):
         watched = watch_on_twin(world, backend, realtime=realtime)
     else:
         watched = watch_on_sources(world, depth_source, host, log)

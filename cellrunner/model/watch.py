@@ -29,6 +29,11 @@ from cellrunner.model.units import NonNegativeLength, PositiveLength
 MAX_VOXELS = 16_000_000
 
 
+#: the box ``--inject intrusion@STEP`` drops onto a step's path in the twin (m): the twin
+#: builds it and the rehearsal finds room for it on the path
+INJECTED_BOX_M = (0.12, 0.12, 0.12)
+
+
 class Zone(Strict):
     """The watched volume: a box placed in the world."""
 

@@ -12,6 +12,7 @@ from cellrunner.model.expand import frame_pose
 from cellrunner.model.gripper import gripper_channels, part_center_depth_m
 from cellrunner.model.load import LoadedCell, LoadedTask
 from cellrunner.model.step import StepKind
+from cellrunner.model.watch import INJECTED_BOX_M
 
 if TYPE_CHECKING:
     from cellrunner.sim.description import TwinDescription
@@ -181,10 +182,6 @@ def _cell_tasks(loaded: LoadedCell, tasks: tuple[LoadedTask, ...]) -> list[Loade
         except (CellrunnerError, OSError):
             continue
     return found
-
-
-#: the box ``--inject intrusion@STEP`` drops onto a step's path (m)
-INJECTED_BOX_M = (0.12, 0.12, 0.12)
 
 
 def _intruders(loaded: LoadedCell) -> tuple[Any, ...]:
