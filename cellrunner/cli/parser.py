@@ -84,6 +84,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _job_commands(sub: Commands) -> None:
     """validate, check, dry-run, run: one job, proved, rehearsed or run."""
+    _validate_command(sub)
+    _check_command(sub)
+    _dry_run_command(sub)
+    _run_command(sub)
+
+
+def _validate_command(sub: Commands) -> None:
+    """validate: the cell's and its tasks' schema and references, nothing planned."""
     p = sub.add_parser("validate", help="schema and reference checks only")
     p.add_argument("cell")
     p.add_argument(
@@ -94,6 +102,9 @@ def _job_commands(sub: Commands) -> None:
     )
     p.set_defaults(module="validate")
 
+
+def _check_command(sub: Commands) -> None:
+    """check: prove one task feasible and print its plan."""
     p = sub.add_parser("check", help="pre-flight: prove a task feasible, print the plan")
     _cell_task(p)
     _params(p)
@@ -107,6 +118,9 @@ def _job_commands(sub: Commands) -> None:
     )
     p.set_defaults(module="check")
 
+
+def _dry_run_command(sub: Commands) -> None:
+    """dry-run: rehearse one task (or a whole run of slots) on the MuJoCo twin."""
     p = sub.add_parser("dry-run", help="run the real state machine against the MuJoCo twin")
     _cell_task(p)
     _params(p)
@@ -139,6 +153,9 @@ def _job_commands(sub: Commands) -> None:
     )
     p.set_defaults(module="dryrun")
 
+
+def _run_command(sub: Commands) -> None:
+    """run: one job on the arm through ur_rtde, or on the twin."""
     p = sub.add_parser("run", help="one job on the robot through ur_rtde (or on the twin)")
     p.add_argument("cell")
     p.add_argument("task")

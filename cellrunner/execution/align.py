@@ -15,6 +15,7 @@ frame by it.
 from __future__ import annotations
 
 import math
+from collections.abc import Generator
 
 import numpy as np
 
@@ -35,6 +36,8 @@ AXES = ("x", "y", "z", "rx", "ry", "rz")
 
 
 def run_align(ctx: JobContext, step: Step) -> StepGen:
+    """Look, correct, look again (at most ``attempts`` looks), leaving the correction of the
+    target frame (in its own axes) in ``ctx.notes["align"][FRAME]``; the step's Outcome."""
     args, x = step.args, step.extra
     if ctx.eye is None:
         return Outcome.failed(
@@ -42,54 +45,16 @@ def run_align(ctx: JobContext, step: Step) -> StepGen:
         )
     F = x["T_world_frame"]
     applied = np.eye(4)
-    low, high = args.box()
-    # with no correction allowed in z, rx and ry the marker lies in its nominal plane
-    planar = high[2] == 0 and high[3] == 0 and high[4] == 0
     for look in range(1, args.attempts + 1):
-        t0 = ctx.now_s
-        while ctx.now_s - t0 < SETTLE_S:
-            ctx.hold = Hold(t0, until_s=SETTLE_S)
-            yield
+        yield from _settle(ctx)
         q = ctx.last_state.q_rad
-        T_world_camera = (
-            ctx.motions.tcp_pose(q) @ x["T_tcp_camera"]
-            if x["T_tcp_camera"] is not None
-            else x["T_world_camera"]
-        )
-        seen = ctx.eye.sight(args.camera, args.marker)
-        C = None if seen is None else frame_correction(seen, args.marker, T_world_camera, F, planar)
-        if C is None:
-            return Outcome.failed(
-                ResultCode.PLACE_FAILED,
-                f"align: camera {args.camera!r} does not see marker {args.marker.id} "
-                f"({args.marker.dictionary}), look {look}",
-            )
-        six = [*C[:3, 3], *rpy_deg_of(C[:3, :3])]
-        outside = [
-            f"{axis} {v * (1 if i >= 3 else 1000):+.1f} {'deg' if i >= 3 else 'mm'}"
-            for i, (axis, v, a, b) in enumerate(zip(AXES, six, low, high, strict=True))
-            if not a - 1e-9 <= v <= b + 1e-9
-        ]
-        if outside:
-            # a look from off-centre may read a part at the box's edge just beyond it:
-            # within the tolerance of the edge it is at the edge; farther, the arm moves to
-            # the nearest correction inside and looks again; beyond it from there, it is
-            inside = pose_matrix(
-                np.clip(six[:3], low[:3], high[:3]), np.clip(six[3:], low[3:], high[3:])
-            )
-            excess_m, excess_deg = _distance(np.linalg.inv(inside) @ C)
-            at_edge = excess_m <= args.tolerance.xyz and excess_deg <= args.tolerance.rpy
-            gap_m, gap_deg = _distance(np.linalg.inv(applied) @ inside)
-            # already there (within tolerance): the edge is as far as a correction goes
-            stuck = gap_m <= args.tolerance.xyz and gap_deg <= args.tolerance.rpy
-            if not at_edge and (look == args.attempts or stuck):
-                return Outcome.failed(
-                    ResultCode.PLACE_FAILED,
-                    f"align: the part at {step.name!r} lies beyond max_correction "
-                    f"({', '.join(outside)})",
-                )
-            C = inside
-            six = [*C[:3, 3], *rpy_deg_of(C[:3, :3])]
+        C = _look(ctx, step, q, look)
+        if isinstance(C, Outcome):
+            return C
+        within = _within_box(step, C, applied, look)
+        if isinstance(within, Outcome):
+            return within
+        C, six = within
         ctx.notes.setdefault("align", {})[step.name] = C
         moved_m, turned_deg = _distance(np.linalg.inv(applied) @ C)
         if moved_m <= args.tolerance.xyz and turned_deg <= args.tolerance.rpy:
@@ -102,20 +67,90 @@ def run_align(ctx: JobContext, step: Step) -> StepGen:
                 f"{args.tolerance.xyz * 1000:g} mm, {args.tolerance.rpy:g} deg)",
             )
         T_goal = F @ C @ np.linalg.inv(applied) @ np.linalg.inv(F) @ ctx.motions.tcp_pose(q)
-        move = Step(
-            step.index,
-            StepKind.LINEAR,
-            step.name,
-            LinearArgs(to=step.name, speed=CORRECTION_SPEED_MPS),
-            step.file_path,
-            step.macro,
-            T_goal,
-        )
-        outcome = yield from run_motion(ctx, move, resume=True)
+        outcome = yield from run_motion(ctx, _correcting_move(step, T_goal), resume=True)
         if not outcome.ok:
             return outcome
         applied = C
     raise AssertionError("not reached: the last look returns")
+
+
+def _settle(ctx: JobContext) -> Generator[None, None, None]:
+    """Hold the arm still for SETTLE_S (s), one tick at a time, before a look."""
+    t0 = ctx.now_s
+    while ctx.now_s - t0 < SETTLE_S:
+        ctx.hold = Hold(t0, until_s=SETTLE_S)
+        yield
+
+
+def _look(ctx: JobContext, step: Step, q_rad: np.ndarray, look: int) -> np.ndarray | Outcome:
+    """One look with the arm at ``q_rad``: the correction ``C`` of the target frame, in its
+    own axes (4 x 4, m), or a failed Outcome when the camera does not see the marker."""
+    args, x = step.args, step.extra
+    assert ctx.eye is not None
+    _, high = args.box()
+    # with no correction allowed in z, rx and ry the marker lies in its nominal plane
+    planar = high[2] == 0 and high[3] == 0 and high[4] == 0
+    T_world_camera = (
+        ctx.motions.tcp_pose(q_rad) @ x["T_tcp_camera"]
+        if x["T_tcp_camera"] is not None
+        else x["T_world_camera"]
+    )
+    seen = ctx.eye.sight(args.camera, args.marker)
+    F = x["T_world_frame"]
+    C = None if seen is None else frame_correction(seen, args.marker, T_world_camera, F, planar)
+    if C is None:
+        return Outcome.failed(
+            ResultCode.PLACE_FAILED,
+            f"align: camera {args.camera!r} does not see marker {args.marker.id} "
+            f"({args.marker.dictionary}), look {look}",
+        )
+    return C
+
+
+def _within_box(
+    step: Step, C: np.ndarray, applied: np.ndarray, look: int
+) -> tuple[np.ndarray, list[float]] | Outcome:
+    """The correction to apply and its six numbers (x, y, z in m; rx, ry, rz in deg):
+    ``C`` itself inside the step's max_correction box, else the nearest correction inside;
+    a failed Outcome when the part lies beyond the box for good."""
+    args = step.args
+    low, high = args.box()
+    six = [*C[:3, 3], *rpy_deg_of(C[:3, :3])]
+    outside = [
+        f"{axis} {v * (1 if i >= 3 else 1000):+.1f} {'deg' if i >= 3 else 'mm'}"
+        for i, (axis, v, a, b) in enumerate(zip(AXES, six, low, high, strict=True))
+        if not a - 1e-9 <= v <= b + 1e-9
+    ]
+    if not outside:
+        return C, six
+    # a look from off-centre may read a part at the box's edge just beyond it:
+    # within the tolerance of the edge it is at the edge; farther, the arm moves to
+    # the nearest correction inside and looks again; beyond it from there, it is
+    inside = pose_matrix(np.clip(six[:3], low[:3], high[:3]), np.clip(six[3:], low[3:], high[3:]))
+    excess_m, excess_deg = _distance(np.linalg.inv(inside) @ C)
+    at_edge = excess_m <= args.tolerance.xyz and excess_deg <= args.tolerance.rpy
+    gap_m, gap_deg = _distance(np.linalg.inv(applied) @ inside)
+    # already there (within tolerance): the edge is as far as a correction goes
+    stuck = gap_m <= args.tolerance.xyz and gap_deg <= args.tolerance.rpy
+    if not at_edge and (look == args.attempts or stuck):
+        return Outcome.failed(
+            ResultCode.PLACE_FAILED,
+            f"align: the part at {step.name!r} lies beyond max_correction ({', '.join(outside)})",
+        )
+    return inside, [*inside[:3, 3], *rpy_deg_of(inside[:3, :3])]
+
+
+def _correcting_move(step: Step, T_goal: np.ndarray) -> Step:
+    """The straight TCP move (at CORRECTION_SPEED_MPS) to ``T_goal`` (world frame, m)."""
+    return Step(
+        step.index,
+        StepKind.LINEAR,
+        step.name,
+        LinearArgs(to=step.name, speed=CORRECTION_SPEED_MPS),
+        step.file_path,
+        step.macro,
+        T_goal,
+    )
 
 
 def frame_correction(

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Generator
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -72,6 +73,36 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
     baseline = yield from _baseline(ctx)
     args = step.args
     limit_N = args.force if step.kind == StepKind.MOVE_UNTIL_CONTACT else args.force.max
+    approved = _approved_line(ctx, step, resume)
+    trace = ctx.notes.setdefault("force_trace", [])
+    streamed = yield from _stream_until_contact(ctx, step, approved, baseline, limit_N, trace)
+    if isinstance(streamed, Outcome):
+        return streamed
+    if streamed.force_N is not None:
+        ctx.backend.stop_motion()
+        ctx.commanded_q = None  # pressing, not tracking
+        yield from _until_still(ctx, trace, step, baseline)
+    if step.kind == StepKind.MOVE_UNTIL_CONTACT:
+        if (
+            streamed.force_N is not None
+        ):  # back to where the contact began, as moveUntilContact does
+            i_touch = streamed.i if streamed.touch_i is None else streamed.touch_i
+            yield from _retract(
+                ctx, approved, streamed.i, max(i_touch - 1, 0), trace, step, baseline
+            )
+            return OK
+        code = ResultCode.PLACE_FAILED if ctx.carry is not None else ResultCode.NO_PART
+        return Outcome.failed(
+            code,
+            f"no contact within {args.max_distance * 1000:.1f} mm "
+            f"(force stayed under {limit_N:g} N)",
+        )
+    return _insertion_outcome(ctx, step, streamed.force_N)
+
+
+def _approved_line(ctx: JobContext, step: Step, resume: bool) -> ApprovedTrajectory:
+    """The step's nominal approved motion, or one replanned from the measured joints when
+    resuming or when the arm is more than START_TOLERANCE_RAD from its start."""
     q_now = ctx.last_state.q_rad
     approved = None if resume else ctx.motions.nominal(step)
     if (
@@ -79,11 +110,34 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
         or np.max(np.abs(approved.trajectory.q_rad[0] - q_now)) > START_TOLERANCE_RAD
     ):
         approved = ctx.motions.replan(step, q_now, carrying=ctx.carry is not None)
-    trace = ctx.notes.setdefault("force_trace", [])
+    return approved
+
+
+@dataclass(frozen=True)
+class _Streamed:
+    """How the line's streaming ended: the contact force (N, None when the line ran out),
+    the last set-point index sent, and where the force first rose (None if it fell back)."""
+
+    force_N: float | None
+    i: int
+    touch_i: int | None
+
+
+def _stream_until_contact(
+    ctx: JobContext,
+    step: Step,
+    approved: ApprovedTrajectory,
+    baseline: list[float],
+    limit_N: float,
+    trace: list[ForceSample],
+) -> Generator[None, None, _Streamed | Outcome]:
+    """Send the line's set-points one per tick until the force (N, off ``baseline``, in the
+    sensor's frame) confirms a contact over ``limit_N`` or hits hard; a failed Outcome if
+    a sensed part drops."""
     q = approved.trajectory.q_rad
     late_s = LATE_PERIODS / approved.trajectory.rate_hz
     # from the baseline's last measurement: a stall right at the start is a stall too
-    contact_N, touch_i, t_last = None, None, ctx.now_s
+    touch_i, t_last, i = None, ctx.now_s, 0
     recent: list[float] = []
     shaken_until = -math.inf  # the end of a jolt (s)
     for i in range(len(q)):
@@ -104,8 +158,7 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
                 ResultCode.PART_LOST, f"part lost during {step.kind}: the {sensor} dropped"
             )
         if force_N > HARD_HIT_FACTOR * limit_N:
-            contact_N = force_N
-            break
+            return _Streamed(force_N, i, touch_i)
         if ctx.now_s < shaken_until:
             continue
         if force_N <= TOUCH_FRACTION * limit_N:
@@ -114,33 +167,14 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
             touch_i = i
         recent = (recent + [force_N])[-CONFIRM_SAMPLES:]
         if sum(recent) / CONFIRM_SAMPLES > limit_N:
-            contact_N = force_N
-            break
-    if contact_N is not None:
-        ctx.backend.stop_motion()
-        ctx.commanded_q = None  # pressing, not tracking
-        yield from _until_still(ctx, trace, step, baseline)
-    if step.kind == StepKind.MOVE_UNTIL_CONTACT:
-        if contact_N is not None:  # back to where the contact began, as moveUntilContact does
-            yield from _retract(
-                ctx,
-                approved,
-                i,
-                max((i if touch_i is None else touch_i) - 1, 0),
-                trace,
-                step,
-                baseline,
-            )
-        if contact_N is None:
-            code = ResultCode.PLACE_FAILED if ctx.carry is not None else ResultCode.NO_PART
-            return Outcome.failed(
-                code,
-                f"no contact within {args.max_distance * 1000:.1f} mm "
-                f"(force stayed under {limit_N:g} N)",
-            )
-        return OK
+            return _Streamed(force_N, i, touch_i)
+    return _Streamed(None, i, touch_i)
+
+
+def _insertion_outcome(ctx: JobContext, step: Step, contact_N: float | None) -> Outcome:
+    """An insertion's Outcome: OK when the depth reached (m) is within the step's window."""
     depth_m = _depth_m(ctx, step)
-    lo, hi = args.depth_window_m
+    lo, hi = step.args.depth_window_m
     how = f"stopped at {contact_N:.1f} N" if contact_N is not None else "no force stop"
     if not lo - 1e-4 <= depth_m <= hi + 1e-4:
         return Outcome.failed(

@@ -206,48 +206,10 @@ def _wait(
                     return _Go(_resumed(ctx, path, u_rest), 1)
                 blocked = verdict.blocked
                 guard.obstructed = f"step {step.index} ({step.name}): {where(blocked)}"
-            if (
-                policy.replan
-                and guard.replans < policy.max_replans
-                and now - since >= REPLAN_EVERY_S
-                and now - guard.last_replan_s >= REPLAN_EVERY_S
-            ):
-                guard.replans += 1
-                guard.last_replan_s = now
-                t0 = time.perf_counter()
-                if zone.replan_in_background:  # the control loop ticks on meanwhile
-                    from concurrent.futures import ThreadPoolExecutor
-
-                    pool = ThreadPoolExecutor(1, thread_name_prefix="replan")
-                    try:
-                        future = pool.submit(_replan, ctx, step, held, ctx.last_state.q_rad)
-                        while not future.done():
-                            yield
-                        replanned = future.result()
-                    finally:  # an abort while planning leaves the plan to finish unread
-                        pool.shutdown(wait=False)
-                else:
-                    replanned = _replan(ctx, step, held, ctx.last_state.q_rad)
-                plan_s = round(time.perf_counter() - t0, 4)
+            if _replan_due(guard, now, since):
+                replanned = yield from _try_replan(ctx, step, held, blocked)
                 if replanned is not None:
-                    guard.note(
-                        ctx,
-                        "replan",
-                        blocked,
-                        step=step.index,
-                        replans=guard.replans,
-                        plan_s=plan_s,
-                    )
                     return _Go(replanned, 0)
-                guard.note(
-                    ctx,
-                    "replan failed",
-                    blocked,
-                    step=step.index,
-                    replans=guard.replans,
-                    plan_s=plan_s,
-                    why=guard.why_not,
-                )
             if now - since >= policy.wait:
                 message = (
                     f"{step.label}: path blocked by an obstacle not in the cell file "
@@ -259,6 +221,64 @@ def _wait(
     finally:
         guard.obstructed = ""
         zone.follow(None)
+
+
+def _replan_due(guard: ObstacleGuard, now_s: float, since_s: float) -> bool:
+    """Whether to replan now (s, job clock): the task allows it, replans are left, and
+    REPLAN_EVERY_S has passed since the wait began (``since_s``) and since the last replan."""
+    policy = guard.policy
+    return (
+        policy.replan
+        and guard.replans < policy.max_replans
+        and now_s - since_s >= REPLAN_EVERY_S
+        and now_s - guard.last_replan_s >= REPLAN_EVERY_S
+    )
+
+
+def _try_replan(
+    ctx: JobContext, step: Step, held: Placed | None, blocked: Blocked
+) -> Generator[None, None, ApprovedTrajectory | None]:
+    """One replan around the map from the measured joints, counted and journalled (with
+    its planning time, s); the new path, or None when none passes."""
+    guard = ctx.obstacles
+    assert guard is not None
+    guard.replans += 1
+    guard.last_replan_s = ctx.now_s
+    t0 = time.perf_counter()
+    if guard.zone.replan_in_background:  # the control loop ticks on meanwhile
+        replanned = yield from _replan_while_ticking(ctx, step, held)
+    else:
+        replanned = _replan(ctx, step, held, ctx.last_state.q_rad)
+    plan_s = round(time.perf_counter() - t0, 4)
+    if replanned is not None:
+        guard.note(ctx, "replan", blocked, step=step.index, replans=guard.replans, plan_s=plan_s)
+        return replanned
+    guard.note(
+        ctx,
+        "replan failed",
+        blocked,
+        step=step.index,
+        replans=guard.replans,
+        plan_s=plan_s,
+        why=guard.why_not,
+    )
+    return None
+
+
+def _replan_while_ticking(
+    ctx: JobContext, step: Step, held: Placed | None
+) -> Generator[None, None, ApprovedTrajectory | None]:
+    """:func:`_replan` on a worker thread, yielding a tick at a time until it is done."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = ThreadPoolExecutor(1, thread_name_prefix="replan")
+    try:
+        future = pool.submit(_replan, ctx, step, held, ctx.last_state.q_rad)
+        while not future.done():
+            yield
+        return future.result()
+    finally:  # an abort while planning leaves the plan to finish unread
+        pool.shutdown(wait=False)
 
 
 #: the map's cubes grown by these in turn until a plan passes the path check (see _replan)

@@ -123,72 +123,22 @@ def plot_tcp_path(
     axes = fig.subplots(1, 3)
     views = (("top (x-y)", 0, 1), ("side (x-z)", 0, 2), ("front (y-z)", 1, 2))
     labels = merged_labels(step_points)
+    if obstacles_m is not None and not len(obstacles_m):
+        obstacles_m = None
     work = np.vstack([tcp, base_m[None, :]])
-    if obstacles_m is not None and len(obstacles_m):
+    if obstacles_m is not None:
         work = np.vstack([work, obstacles_m])
     for ax, (name, i, j) in zip(axes, views, strict=True):
         _frame_axes(ax, work[:, [i, j]])
         (x0, x1), (_, y1) = ax.get_xlim(), ax.get_ylim()
         for placed in fixtures:
-            pts = shape_points_world(placed)
-            outline = _outline(pts[:, [i, j]])
-            ax.fill(
-                outline[:, 0],
-                outline[:, 1],
-                color="#c9a66b",
-                alpha=0.35,
-                lw=1.0,
-                ec="#8b6d3f",
-                zorder=1,
-            )
-            # under the middle of its top edge, inside the frame: labels of nested outlines part
-            top_y = float(outline[:, 1].max())
-            top_x = float(np.mean(outline[outline[:, 1] > top_y - 1e-6, 0]))
-            ax.text(
-                min(max(top_x, x0 + 0.1 * (x1 - x0)), x1 - 0.1 * (x1 - x0)),
-                min(top_y, y1),
-                placed.name,
-                fontsize=8,
-                color="#6b4f25",
-                ha="center",
-                va="top",
-                zorder=2,
-                clip_on=True,
-            )
-        ax.scatter([base_m[i]], [base_m[j]], s=160, color="#4a78c2", alpha=0.5, zorder=2)
-        ax.text(base_m[i], base_m[j], " robot", fontsize=8, color="#2b4f8c", va="bottom", zorder=2)
-        if obstacles_m is not None and len(obstacles_m):
-            ax.scatter(
-                obstacles_m[:, i],
-                obstacles_m[:, j],
-                s=6,
-                marker="s",
-                color="#7b2cbf",
-                alpha=0.35,
-                zorder=2,
-                label="obstacle map (occupied)",
-            )
-        ax.plot(tcp[:, i], tcp[:, j], lw=1.6, color="#d62728", zorder=3, label="TCP")
-        ax.set_xlim(x0, x1)
-        ax.set_ylim(*ax.get_ylim())
-        ax.scatter(*tcp[0, [i, j]], color="green", s=28, zorder=4, label="start")
-        ax.scatter(*tcp[-1, [i, j]], color="black", s=28, marker="x", zorder=4, label="end")
+            _draw_fixture(ax, placed, (i, j), (x0, x1), y1)
+        _draw_base(ax, base_m, (i, j))
+        if obstacles_m is not None:
+            _draw_obstacles(ax, obstacles_m, (i, j))
+        _draw_tcp(ax, tcp, (i, j), (x0, x1))
         _frame_axes(ax, work[:, [i, j]])  # again: the fixtures' fills moved the limits
-        placed_boxes: list[Box2D] = []
-        for label, p in labels:
-            ax.scatter([p[i]], [p[j]], s=12, color="#333333", zorder=4)
-            xy = ax.transData.transform((p[i], p[j]))
-            offset = free_offset(xy, label, placed_boxes, 7)
-            ax.annotate(
-                label,
-                (p[i], p[j]),
-                xytext=offset,
-                textcoords="offset pixels",
-                fontsize=7,
-                color="#222222",
-                zorder=5,
-                arrowprops={"arrowstyle": "-", "color": "#999999", "lw": 0.5},
-            )
+        _draw_step_labels(ax, labels, (i, j))
         ax.set_xlabel(f"{'xyz'[i]} [m]")
         ax.set_ylabel(f"{'xyz'[j]} [m]")
         ax.set_title(name, fontsize=10)
@@ -197,6 +147,94 @@ def plot_tcp_path(
     fig.suptitle(title)
     fig.tight_layout()
     return save(fig, path)
+
+
+def _draw_fixture(
+    ax: Any, placed: Placed, view: tuple[int, int], x_lim_m: tuple[float, float], y_top_m: float
+) -> None:
+    """One fixture's outline in the view (world axes ``view``, m), its name under the middle
+    of its top edge and inside the frame ``x_lim_m``, ``y_top_m``, so labels of nested
+    outlines part."""
+    i, j = view
+    x0, x1 = x_lim_m
+    outline = _outline(shape_points_world(placed)[:, [i, j]])
+    ax.fill(
+        outline[:, 0],
+        outline[:, 1],
+        color="#c9a66b",
+        alpha=0.35,
+        lw=1.0,
+        ec="#8b6d3f",
+        zorder=1,
+    )
+    top_y = float(outline[:, 1].max())
+    top_x = float(np.mean(outline[outline[:, 1] > top_y - 1e-6, 0]))
+    ax.text(
+        min(max(top_x, x0 + 0.1 * (x1 - x0)), x1 - 0.1 * (x1 - x0)),
+        min(top_y, y_top_m),
+        placed.name,
+        fontsize=8,
+        color="#6b4f25",
+        ha="center",
+        va="top",
+        zorder=2,
+        clip_on=True,
+    )
+
+
+def _draw_base(ax: Any, base_m: np.ndarray, view: tuple[int, int]) -> None:
+    """The robot base (world position, m) as a labelled disc."""
+    i, j = view
+    ax.scatter([base_m[i]], [base_m[j]], s=160, color="#4a78c2", alpha=0.5, zorder=2)
+    ax.text(base_m[i], base_m[j], " robot", fontsize=8, color="#2b4f8c", va="bottom", zorder=2)
+
+
+def _draw_obstacles(ax: Any, obstacles_m: np.ndarray, view: tuple[int, int]) -> None:
+    """The occupied voxels (world centres, m, N x 3) as small squares."""
+    i, j = view
+    ax.scatter(
+        obstacles_m[:, i],
+        obstacles_m[:, j],
+        s=6,
+        marker="s",
+        color="#7b2cbf",
+        alpha=0.35,
+        zorder=2,
+        label="obstacle map (occupied)",
+    )
+
+
+def _draw_tcp(
+    ax: Any, tcp_m: np.ndarray, view: tuple[int, int], x_lim_m: tuple[float, float]
+) -> None:
+    """The TCP path (world, m, N x 3) with its start and end marked; the x limits stay
+    ``x_lim_m``, the y limits as they were before the path."""
+    i, j = view
+    ax.plot(tcp_m[:, i], tcp_m[:, j], lw=1.6, color="#d62728", zorder=3, label="TCP")
+    ax.set_xlim(*x_lim_m)
+    ax.set_ylim(*ax.get_ylim())
+    ax.scatter(*tcp_m[0, [i, j]], color="green", s=28, zorder=4, label="start")
+    ax.scatter(*tcp_m[-1, [i, j]], color="black", s=28, marker="x", zorder=4, label="end")
+
+
+def _draw_step_labels(ax: Any, labels: list[tuple[str, np.ndarray]], view: tuple[int, int]) -> None:
+    """Each step's start (world, m) as a dot and its label, placed where no other label is."""
+    i, j = view
+    placed_boxes: list[Box2D] = []
+    for label, p in labels:
+        ax.scatter([p[i]], [p[j]], s=12, color="#333333", zorder=4)
+        xy = ax.transData.transform((p[i], p[j]))
+        offset = free_offset(xy, label, placed_boxes, 7)
+        ax.annotate(
+            label,
+            (p[i], p[j]),
+            xytext=offset,
+            textcoords="offset pixels",
+            fontsize=7,
+            color="#222222",
+            zorder=5,
+            arrowprops={"arrowstyle": "-", "color": "#999999", "lw": 0.5},
+        )
 
 
 #: label offsets tried (pixels, right/up), nearest first

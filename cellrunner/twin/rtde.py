@@ -65,8 +65,10 @@ def _zeros6(ctl: Controller) -> list[float]:
     return [0.0] * 6
 
 
-def _output_table() -> dict[str, OutputVar]:
-    t: dict[str, OutputVar] = {
+def _motion_outputs() -> dict[str, OutputVar]:
+    """The joint and TCP state: joint values in rad, rad/s, rad/s²; TCP poses in the base frame
+    (m, axis-angle rad), speeds in m/s and rad/s, the TCP wrench in N and N·m."""
+    return {
         "timestamp": OutputVar("DOUBLE", lambda c: c.time_s),
         "target_q": OutputVar("VECTOR6D", lambda c: c.target_q),
         "target_qd": OutputVar("VECTOR6D", lambda c: c.target_qd),
@@ -84,6 +86,12 @@ def _output_table() -> dict[str, OutputVar]:
         "actual_TCP_force": OutputVar("VECTOR6D", lambda c: c.wrench),
         "target_TCP_pose": OutputVar("VECTOR6D", lambda c: c.target_tcp_pose),
         "target_TCP_speed": OutputVar("VECTOR6D", lambda c: c.target_tcp_speed),
+    }
+
+
+def _status_outputs() -> dict[str, OutputVar]:
+    """The controller's status: modes, digital bits, voltages (V), currents (A), temperatures (°C)."""
+    return {
         "actual_digital_input_bits": OutputVar("UINT64", lambda c: c.digital_input_bits),
         "joint_temperatures": OutputVar("VECTOR6D", lambda c: [30.0] * 6),
         "actual_execution_time": OutputVar("DOUBLE", lambda c: 0.2),
@@ -110,6 +118,12 @@ def _output_table() -> dict[str, OutputVar]:
         "robot_status_bits": OutputVar("UINT32", lambda c: c.robot_status_bits),
         "safety_status_bits": OutputVar("UINT32", lambda c: c.safety_status_bits),
         "analog_io_types": OutputVar("UINT32", lambda c: c.analog_out_types << 2),
+    }
+
+
+def _io_outputs() -> dict[str, OutputVar]:
+    """The analog I/O (V or A), the Euromap67 and the tool connector's I/O."""
+    return {
         "standard_analog_input0": OutputVar("DOUBLE", lambda c: c.meas.analog_inputs[0]),
         "standard_analog_input1": OutputVar("DOUBLE", lambda c: c.meas.analog_inputs[1]),
         "standard_analog_output0": OutputVar("DOUBLE", lambda c: c.analog_out[0]),
@@ -126,6 +140,13 @@ def _output_table() -> dict[str, OutputVar]:
         "tool_output_voltage": OutputVar("INT32", lambda c: 24),
         "tool_output_current": OutputVar("DOUBLE", lambda c: 0.0),
         "tool_temperature": OutputVar("DOUBLE", lambda c: 30.0),
+    }
+
+
+def _misc_outputs() -> dict[str, OutputVar]:
+    """The TCP force scalar (N), the bit-register words, the tool output modes, the payload
+    (kg, centre of gravity in m in the flange frame) and the newer diagnostics."""
+    return {
         "tcp_force_scalar": OutputVar("DOUBLE", lambda c: float(np.linalg.norm(c.wrench[:3]))),
         "output_bit_registers0_to_31": OutputVar(
             "UINT32", lambda c: c.reg.output_bits & 0xFFFFFFFF
@@ -149,6 +170,12 @@ def _output_table() -> dict[str, OutputVar]:
         "collision_detection_ratio": OutputVar("DOUBLE", lambda c: 0.0, (5, 8), None),
         "time_scale_source": OutputVar("UINT32", lambda c: 0, (5, 8), None),
     }
+
+
+def _register_outputs() -> dict[str, OutputVar]:
+    """The general-purpose registers: int and double registers 0-47 (24-47 since 5.3 / 3.9),
+    bit registers 64-127, both directions."""
+    t: dict[str, OutputVar] = {}
     for i in range(48):
         since = ((5, 3), (3, 9)) if i >= 24 else ((5, 0), (3, 4))
         t[f"output_int_register_{i}"] = OutputVar("INT32", _register("output_int", i), *since)
@@ -161,6 +188,17 @@ def _output_table() -> dict[str, OutputVar]:
         t[f"output_bit_register_{i}"] = OutputVar("BOOL", _bit_register("output_bits", i))
         t[f"input_bit_register_{i}"] = OutputVar("BOOL", _bit_register("input_bits", i))
     return t
+
+
+def _output_table() -> dict[str, OutputVar]:
+    """Every RTDE output variable the twin serves, by name, in the controller's order."""
+    return {
+        **_motion_outputs(),
+        **_status_outputs(),
+        **_io_outputs(),
+        **_misc_outputs(),
+        **_register_outputs(),
+    }
 
 
 def _input_table() -> dict[str, str]:

@@ -43,90 +43,116 @@ class JobMetrics:
             return dict(self._by_code), list(self._bucket_counts), self._cycle_sum_s
 
 
+Sample = tuple[str, dict[str, str], float]
+"""One sample of a family: the name's suffix (``_bucket``...), its own labels, the value."""
+
+Family = tuple[str, str, str, list[Sample]]
+"""One metric family: name, type (``counter``, ``gauge``, ``histogram``), HELP text, samples."""
+
+
 def render(cell: str, status: CellStatus, jobs: JobMetrics, plc_links: dict[str, bool]) -> str:
-    """The metrics page: every family with its HELP and TYPE lines."""
-    by_code, buckets, cycle_sum_s = jobs.snapshot()
-    base = {"cell": cell}
+    """The metrics page: every family with its HELP and TYPE lines, each sample labelled
+    with the cell's name."""
+    families = [*_job_families(jobs), *_status_families(status), _plc_family(plc_links)]
     out: list[str] = []
+    for family in families:
+        out += _family_lines(family, {"cell": cell})
+    return "\n".join(out) + "\n"
 
-    def family(
-        name: str, kind: str, help_text: str, samples: list[tuple[str, dict[str, str], float]]
-    ) -> None:
-        out.append(f"# HELP {name} {help_text}")
-        out.append(f"# TYPE {name} {kind}")
-        for suffix, labels, value in samples:
-            out.append(f"{name}{suffix}{_labels({**base, **labels})} {_number(value)}")
 
+def _family_lines(family: Family, base: dict[str, str]) -> list[str]:
+    """The HELP, TYPE and sample lines of one family; ``base`` labels come first on each."""
+    name, kind, help_text, samples = family
+    out = [f"# HELP {name} {help_text}", f"# TYPE {name} {kind}"]
+    for suffix, labels, value in samples:
+        out.append(f"{name}{suffix}{_labels({**base, **labels})} {_number(value)}")
+    return out
+
+
+def _job_families(jobs: JobMetrics) -> list[Family]:
+    """The jobs counter by result code (OK always listed) and the cycle time histogram (s)."""
+    by_code, buckets, cycle_sum_s = jobs.snapshot()
     codes = sorted(set(by_code) | {int(ResultCode.OK)})
-    family(
+    jobs_total: Family = (
         "cellrunner_jobs_total",
         "counter",
         "Jobs finished since cellrunner started, by result code (SPEC 7).",
         [("", {"code": str(c), "result": _text(c)}, by_code.get(c, 0)) for c in codes],
     )
     cumulative = 0
-    samples: list[tuple[str, dict[str, str], float]] = []
+    samples: list[Sample] = []
     for bound, count in zip([*jobs.buckets_s, float("inf")], buckets, strict=True):
         cumulative += count
         samples.append(("_bucket", {"le": _number(bound)}, cumulative))
     samples += [("_sum", {}, cycle_sum_s), ("_count", {}, cumulative)]
-    family("cellrunner_cycle_time_seconds", "histogram", "Cycle time of finished jobs, s.", samples)
-    family(
-        "cellrunner_packml_state",
-        "gauge",
-        "PackML StateCurrent number (SPEC 6).",
-        [("", {}, status.state)],
+    cycle_time: Family = (
+        "cellrunner_cycle_time_seconds",
+        "histogram",
+        "Cycle time of finished jobs, s.",
+        samples,
     )
-    family(
-        "cellrunner_packml_state_info",
-        "gauge",
-        "1 for the current PackML state.",
-        [("", {"state": PackMLState(status.state).display_name}, 1)],
-    )
-    family("cellrunner_busy", "gauge", "1 while a job runs.", [("", {}, int(status.busy))])
-    family(
-        "cellrunner_ready",
-        "gauge",
-        "1 while the cell would accept a job.",
-        [("", {}, int(status.ready))],
-    )
-    family(
-        "cellrunner_protective_stop",
-        "gauge",
-        "1 during a protective stop.",
-        [("", {}, int(status.protective_stop))],
-    )
-    family(
-        "cellrunner_estop",
-        "gauge",
-        "1 while the emergency stop is pressed.",
-        [("", {}, int(status.estop))],
-    )
-    family(
-        "cellrunner_current_step",
-        "gauge",
-        "1-based expanded step under way, 0 when none.",
-        [("", {}, status.step_index)],
-    )
-    family(
-        "cellrunner_parts_processed_total",
-        "counter",
-        "Parts processed (OK jobs) in the journal.",
-        [("", {}, status.parts_processed)],
-    )
-    family(
-        "cellrunner_parts_defective_total",
-        "counter",
-        "Jobs that ended NOK (codes 1-3) in the journal.",
-        [("", {}, status.parts_defective)],
-    )
-    family(
+    return [jobs_total, cycle_time]
+
+
+def _status_families(status: CellStatus) -> list[Family]:
+    """The cell's state: PackML state, flags (1 or 0), the step under way, the part counters."""
+
+    def single(name: str, kind: str, help_text: str, value: float) -> Family:
+        return (name, kind, help_text, [("", {}, value)])
+
+    state_name = PackMLState(status.state).display_name
+    return [
+        single(
+            "cellrunner_packml_state", "gauge", "PackML StateCurrent number (SPEC 6).", status.state
+        ),
+        (
+            "cellrunner_packml_state_info",
+            "gauge",
+            "1 for the current PackML state.",
+            [("", {"state": state_name}, 1)],
+        ),
+        single("cellrunner_busy", "gauge", "1 while a job runs.", int(status.busy)),
+        single(
+            "cellrunner_ready", "gauge", "1 while the cell would accept a job.", int(status.ready)
+        ),
+        single(
+            "cellrunner_protective_stop",
+            "gauge",
+            "1 during a protective stop.",
+            int(status.protective_stop),
+        ),
+        single(
+            "cellrunner_estop", "gauge", "1 while the emergency stop is pressed.", int(status.estop)
+        ),
+        single(
+            "cellrunner_current_step",
+            "gauge",
+            "1-based expanded step under way, 0 when none.",
+            status.step_index,
+        ),
+        single(
+            "cellrunner_parts_processed_total",
+            "counter",
+            "Parts processed (OK jobs) in the journal.",
+            status.parts_processed,
+        ),
+        single(
+            "cellrunner_parts_defective_total",
+            "counter",
+            "Jobs that ended NOK (codes 1-3) in the journal.",
+            status.parts_defective,
+        ),
+    ]
+
+
+def _plc_family(plc_links: dict[str, bool]) -> Family:
+    """1 or 0 per PLC link, by the link's name."""
+    return (
         "cellrunner_plc_link_up",
         "gauge",
         "1 while the PLC link is up (Modbus: heartbeat moving; OPC UA: a client connected).",
         [("", {"link": name}, int(up)) for name, up in sorted(plc_links.items())],
     )
-    return "\n".join(out) + "\n"
 
 
 def _text(code: int) -> str:
