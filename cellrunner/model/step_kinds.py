@@ -187,14 +187,6 @@ class StepKinds(Mapping[str, StepKindDef]):
         """The kinds a task file may write, in the registry's order."""
         return [name for name, kind in self.items() if kind.written]
 
-    def named(self, motion: Motion | None = None, *, macro: bool | None = None) -> tuple[str, ...]:
-        """The names of the kinds that move as ``motion`` (or are macros)."""
-        return tuple(
-            name
-            for name, kind in self.items()
-            if (motion is None or kind.motion == motion) and (macro is None or kind.macro == macro)
-        )
-
 
 #: the step kinds (the modules of :mod:`cellrunner.steps`)
 STEP_KINDS = StepKinds(STEPS_PACKAGE)

@@ -61,11 +61,7 @@ def check_support(
     TCP targets of the earlier slots of its pattern, each holding the same part."""
     drop_m = float(world.loaded.cell.place_tolerance.distance)
     T_world_part = world.kinematics.T_world_tcp(q_rad) @ part.T_parent_shape
-    # the probe: from the part's centre down to drop_m below its lowest point
-    length_m = extent_below_m(part.shape, T_world_part) + FORGIVEN_DROP_M + drop_m
-    T_world_probe = np.eye(4)
-    T_world_probe[:3, 3] = T_world_part[:3, 3] - (0.0, 0.0, length_m / 2)
-    probe = Placed(part.name, Cylinder(PROBE_RADIUS_M, length_m), T_world_probe)
+    probe = down_probe(part, T_world_part, FORGIVEN_DROP_M + drop_m)
     supports = _supports(world, part.name)
     if min(distances(world, probe, supports), default=np.inf) <= TOUCH_M or _touches_earlier(
         part, probe, earlier_tcp
@@ -82,6 +78,15 @@ def check_support(
         f"{gap_mm:.1f} mm away): it falls; fix: lower the place frame onto its "
         "support, or place it where a fixture or an earlier part holds it"
     )
+
+
+def down_probe(part: Placed, T_world_part: np.ndarray, below_m: float) -> Placed:
+    """A thin probe from the part's centre straight down (world -Z) to ``below_m`` below
+    its lowest point: what it meets is under the part's centre."""
+    length_m = extent_below_m(part.shape, T_world_part) + below_m
+    T_world_probe = np.eye(4)
+    T_world_probe[:3, 3] = np.asarray(T_world_part)[:3, 3] - (0.0, 0.0, length_m / 2)
+    return Placed(part.name, Cylinder(PROBE_RADIUS_M, length_m), T_world_probe)
 
 
 def _supports(world: CellWorld, carried: str) -> list[Placed]:

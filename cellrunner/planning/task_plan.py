@@ -695,17 +695,13 @@ class StepPlanner:
         ``q``: a thin probe from the part's centre straight down, to the clearance below
         its lowest point, meets it (as :func:`~.support.check_support` finds a support; a
         hole's wall beside the part is not under it)."""
-        from cellrunner.model.geometry import Cylinder
         from cellrunner.planning.collision import STALL_M
-        from cellrunner.planning.support import PROBE_RADIUS_M, distances, extent_below_m
+        from cellrunner.planning.support import distances, down_probe
 
         assert self.part is not None  # a part is being set down
         T_world_part = self.world.kinematics.T_world_tcp(q) @ self.part.T_parent_shape
-        reach_m = extent_below_m(self.part.shape, T_world_part) + self.world.collision.clearance_m
-        reach_m += STALL_M
-        T_probe = np.eye(4)
-        T_probe[:3, 3] = T_world_part[:3, 3] - (0.0, 0.0, reach_m / 2)
-        probe = Placed(self.part.name, Cylinder(PROBE_RADIUS_M, reach_m), T_probe)
+        below_m = self.world.collision.clearance_m + STALL_M
+        probe = down_probe(self.part, T_world_part, below_m)
         things = [t for t in (*self.world.fixtures, *self.world.waiting_parts) if t.name == name]
         return any(d <= STALL_M for d in distances(self.world, probe, things))
 
