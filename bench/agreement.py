@@ -51,8 +51,10 @@ class Verdict:
     folder: str
 
 
-def _cli(*argv: str) -> tuple[int, dict]:
-    """One cellrunner command in this process, with --json: its exit code and object."""
+def cli(*argv: str) -> tuple[int, dict]:
+    """One cellrunner command in this process with --json, as a user runs it: its exit
+    code and object (a command refused before it printed one: its error lines as the
+    object's errors). The tests' rig for the spec-written cells runs commands with it."""
     from cellrunner.cli.main import main
 
     out, err = io.StringIO(), io.StringIO()
@@ -62,7 +64,9 @@ def _cli(*argv: str) -> tuple[int, dict]:
         except SystemExit as leave:
             code = leave.code if isinstance(leave.code, int) else 2
     text = out.getvalue().strip()
-    return code, (json.loads(text) if text else {"errors": err.getvalue().splitlines()})
+    return code, (
+        json.loads(text) if text else {"ok": False, "errors": err.getvalue().splitlines()}
+    )
 
 
 def classify(feasible: bool, check_code: int, result_code: int | None) -> str:
@@ -81,11 +85,11 @@ def judge(case: Case, out: Path) -> Verdict:
     folder = out / case.name
     cell, task = case.write(folder)
     t0 = time.perf_counter()
-    check_code, checked = _cli("check", str(cell), str(task))
+    check_code, checked = cli("check", str(cell), str(task))
     check_s = time.perf_counter() - t0
     result_code, message = None, "; ".join(checked.get("errors", []))[:300]
     if check_code == 0:
-        _, rehearsed = _cli("dry-run", str(cell), str(task))
+        _, rehearsed = cli("dry-run", str(cell), str(task))
         result_code = int(rehearsed.get("result_code", -1))
         message = str(rehearsed.get("result_text", ""))[:300]
     verdict = classify(case.feasible, check_code, result_code)

@@ -3,12 +3,9 @@ one cellrunner command run on them as a user runs it."""
 
 from __future__ import annotations
 
-import contextlib
-import io
-import json
 from pathlib import Path
 
-from cellrunner.cli.main import main
+from bench.agreement import cli as cli  # one command in this process, with --json
 
 HERE = Path(__file__).parent / "spec_written"
 
@@ -19,17 +16,3 @@ def cell(name: str) -> str:
 
 def task(name: str) -> str:
     return str(HERE / "tasks" / f"{name}.yaml")
-
-
-def cli(*argv: str) -> tuple[int, dict]:
-    """One cellrunner command with --json, as a user runs it: its exit code and object
-    (a command refused before it printed one: its error lines as the object's errors)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = main([*argv, "--json"])
-        except SystemExit as leave:
-            code = leave.code if isinstance(leave.code, int) else 2
-    if not out.getvalue().strip():
-        return code, {"ok": False, "errors": err.getvalue().splitlines()}
-    return code, json.loads(out.getvalue())
