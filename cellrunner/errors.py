@@ -49,6 +49,11 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from cellrunner.model.body import Body
+    from cellrunner.model.failure import Failure
 
 MAX_QUOTED_CHARS = 60  # an echoed value longer than this is shown by its start and length
 MAX_MESSAGE_CHARS = 1000
@@ -116,32 +121,34 @@ class UsageError(InputError):
 
 
 class InfeasibleError(CellrunnerError):
-    """A task step cannot be carried out safely; the message names the step, and
-    ``blockers`` the links and fixtures found in the way (most frequent first)."""
+    """A task step cannot be carried out safely: ``failure`` says which step, what kind of
+    refusal, why, what blocked it and the fix, as data; the message is its text."""
 
     exit_code = 1
 
-    def __init__(
-        self,
-        message: str,
-        blockers: tuple[str, ...] = (),
-        *,
-        step_index: int | None = None,
-        reason: str | None = None,
-    ) -> None:
-        super().__init__(message)
-        self.blockers = tuple(blockers)
-        #: the step it is about (1-based), when the raiser knows it; ``reason``: the
-        #: message without the step's name in front
-        self.step_index = step_index
-        self.reason = message if reason is None else reason
+    def __init__(self, failure: Failure, more: tuple[Failure, ...] = ()) -> None:
+        super().__init__("; ".join(f.text() for f in (failure, *more)))
+        #: the first refusal; ``more``: the job's others (its on_error steps')
+        self.failure, self.more = failure, more
+
+    @property
+    def blockers(self) -> tuple[Body, ...]:
+        """The links and fixtures found in the way (most frequent first)."""
+        return self.failure.bodies
+
+    @property
+    def step_index(self) -> int | None:
+        """The step it is about (1-based), when the raiser knows it."""
+        return self.failure.step_index
+
+    @property
+    def reason(self) -> str:
+        """The message without the step's name in front."""
+        return self.failure.summary()
 
     def at_step(self, index: int, label: str) -> InfeasibleError:
         """This error about step ``index`` (``label``), if it names no step yet."""
-        if self.step_index is not None:
-            return self
-        reason = self.reason.removeprefix(f"{label}: ")
-        return InfeasibleError(str(self), self.blockers, step_index=index, reason=reason)
+        return InfeasibleError(self.failure.at_step(index, label), self.more)
 
 
 class JobFailed(CellrunnerError):

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -14,13 +13,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cellrunner.cli.common import console, emit_json, load, parse_params, step_table
-from cellrunner.model.expand import ALIGN_KEY, pattern_params
 from cellrunner.model.robots import JOINT_NAMES
 
 if TYPE_CHECKING:
     from rich.console import Console
     from rich.progress import Progress, TaskID
 
+    from cellrunner.execution.check_report import CheckReport
     from cellrunner.model.step import Step
     from cellrunner.planning.job_plan import JobPlan
     from cellrunner.planning.world import CellWorld
@@ -30,6 +29,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     cell, task = load(args.cell, args.task)
     params = parse_params(args.param, task)
+    from cellrunner.execution.check_report import check_report
     from cellrunner.execution.slot_sweep import other_values, sweep
     from cellrunner.planning.world import CellWorld
 
@@ -42,111 +42,57 @@ def run(args: argparse.Namespace) -> int:
         swept = sweep(
             world, task, params, use_cache=not (args.no_cache or watched), progress=progress
         )
-    plan = swept.plan
-    failures = [(f.param, f.value, f.error) for f in swept.failures]
-    errors = list(plan.errors) + [f"{name}={_shown(slot)}: {e}" for name, slot, e in failures]
-    slots_checked = swept.checked
-    pattern = next(iter(pattern_params(task)), None)
-    requested = [(pattern, params[pattern], e) for e in plan.errors] if pattern is not None else []
-    grouped = group_slot_failures(
-        [
-            (n, s, e)
-            for n, s, e in requested + failures
-            if not isinstance(s, dict) and isinstance(s, int)
-        ]
-    )
-    # pose and float params: each failing value on its own
-    poses = [(name, pose, e) for name, pose, e in failures if isinstance(pose, (dict, float, str))]
-    rows: list[dict[str, Any]] = [
-        {
-            "index": r.step.index,
-            "name": r.step.name,
-            "kind": r.step.kind,
-            "duration_s": round(r.duration_s, 4),
-            "status": r.status,
-            "message": r.message,
-            "attempts": 0,
-        }
-        for r in plan.rows  # on_error's rows last: verified from every state
-    ]
-    if args.save_plan and not errors:
-        _save_plan(Path(args.save_plan), world, plan)
+    report = check_report(swept, task, params)
+    if args.save_plan and report.ok:
+        _save_plan(Path(args.save_plan), world, report.plan)
+    warnings = [str(w) for w in [*cell.warnings, *task.warnings]]
     if args.json:
-        emit_json(
-            {
-                "ok": not errors,
-                "cell": cell.cell.cell,
-                "task": task.name,
-                "params": params,
-                "cycle_time_s": round(plan.cycle_time_s, 4),
-                "steps": rows,
-                "errors": errors,
-                "slots_checked": slots_checked,
-                "failed_slots": [
-                    {"param": name, "slots": slots, "error": message}
-                    for name, slots, message in grouped
-                ],
-                "warnings": [str(w) for w in [*cell.warnings, *task.warnings]],
-            }
-        )
-    else:
-        from rich.text import Text  # human output only: --json needs no rich
+        emit_json(_payload(report, cell.cell.cell, task.name, warnings))
+        return 0 if report.ok else 1
+    assert out is not None  # a console unless --json
+    title = f"check {task.name} on {cell.cell.cell} ({cell.cell.robot.model})" + (
+        f"  params: {_params_text(params)}" if params else ""
+    )
+    _print(out, title, report)
+    verdict = "[green]feasible[/]" if report.ok else "[bold red]infeasible[/]"
+    out.print(
+        f"{verdict}: planned cycle time {report.plan.cycle_time_s:.2f} s "
+        f"(checked in {time.perf_counter() - t0:.2f} s)"
+    )
+    if args.save_plan and report.ok:
+        out.print(f"plan saved to {args.save_plan}", markup=False)
+    return 0 if report.ok else 1
 
-        assert out is not None  # a console unless --json
 
-        title = f"check {task.name} on {cell.cell.cell} ({cell.cell.robot.model})" + (
-            f"  params: {_params_text(params)}" if params else ""
-        )
-        out.print(step_table(title, [{**r, "message": _headline(r["message"])} for r in rows]))
-        for name, values in slots_checked.items():
-            if name.startswith(ALIGN_KEY):
-                out.print(
-                    f"align {name.removeprefix(ALIGN_KEY)}: {len(values)} corrections checked "
-                    "(its max_correction box's centre and corners)",
-                    markup=False,
-                )
-            elif isinstance(values[0], dict):
-                out.print(
-                    f"pose param {name}: {len(values)} poses checked (its box's centre and corners)",
-                    markup=False,
-                )
-            elif isinstance(values[0], str):
-                out.print(
-                    f"frame param {name}: {', '.join(str(v) for v in values)} checked (every choice)",
-                    markup=False,
-                )
-            elif isinstance(values[0], float):
-                out.print(
-                    f"float param {name}: {', '.join(f'{v:g}' for v in values)} checked "
-                    "(its range's ends and centre)",
-                    markup=False,
-                )
-            else:
-                out.print(
-                    f"pattern param {name}: {len(values)} slots checked ({values[0]}..{values[-1]})",
-                    markup=False,
-                )
-        if pattern is None:
-            for e in plan.errors:
-                out.print(Text("infeasible: ", style="bold red") + Text(_lines(e)))
-        for name, slots, message in grouped:
-            out.print(
-                Text("infeasible: ", style="bold red")
-                + Text(_lines(f"{slot_range_text(name, slots)}: {message}"))
-            )
-        for name, pose, message in poses:
-            out.print(
-                Text("infeasible: ", style="bold red")
-                + Text(_lines(f"{name}={_shown(pose)}: {message}"))
-            )
-        verdict = "[green]feasible[/]" if not errors else "[bold red]infeasible[/]"
-        out.print(
-            f"{verdict}: planned cycle time {plan.cycle_time_s:.2f} s "
-            f"(checked in {time.perf_counter() - t0:.2f} s)"
-        )
-        if args.save_plan and not errors:
-            out.print(f"plan saved to {args.save_plan}", markup=False)
-    return 0 if not errors else 1
+def _payload(report: CheckReport, cell: str, task: str, warnings: list[str]) -> dict[str, Any]:
+    """``check --json``'s object."""
+    return {
+        "ok": report.ok,
+        "cell": cell,
+        "task": task,
+        "params": report.params,
+        "cycle_time_s": round(report.plan.cycle_time_s, 4),
+        "steps": report.rows(),
+        "errors": report.errors,
+        "slots_checked": report.checked,
+        "failed_slots": [g.to_json() for g in report.slots],
+        "warnings": warnings,
+    }
+
+
+def _print(out: Console, title: str, report: CheckReport) -> None:
+    """The step table, what was checked and every failure, one clause a line."""
+    from rich.text import Text  # human output only: --json needs no rich
+
+    rows = report.rows()
+    out.print(step_table(title, [{**r, "message": _headline(r["message"])} for r in rows]))
+    for line in report.checked_lines():
+        out.print(line, markup=False)
+    infeasible = Text("infeasible: ", style="bold red")
+    for failure in report.bare:
+        out.print(infeasible + Text(_indented(failure.lines())))
+    for group in [*report.slots, *report.values]:
+        out.print(infeasible + Text(_indented(group.lines())))
 
 
 def _headline(message: str, width: int = 90) -> str:
@@ -156,10 +102,9 @@ def _headline(message: str, width: int = 90) -> str:
     return message[:width].rsplit(" ", 1)[0] + " ... (below)"
 
 
-def _lines(message: str) -> str:
-    """A long diagnostic one clause per line: '; '-separated parts (each IK branch, the
-    blockers, the fix) indented under the first."""
-    first, *rest = message.split("; ")
+def _indented(lines: list[str]) -> str:
+    """A failure's clauses (each IK branch, the blockers, the fix) indented under its first."""
+    first, *rest = lines
     return first + "".join(f"\n    {part}" for part in rest)
 
 
@@ -239,43 +184,6 @@ def _progress(out: Console | None, n_plans: int) -> Iterator[_Counter]:
         yield counter
         progress.update(tasks[0], completed=n_plans)
         progress.update(tasks[1], completed=n_plans * counter._steps_per_plan)
-
-
-def group_slot_failures(failures: list[tuple[str, int, str]]) -> list[tuple[str, list[int], str]]:
-    """Per-slot errors grouped: slots whose errors differ only in numbers (joint angles,
-    distances) share one entry, shown with the first slot's message.
-    ``[(param, slot, error)]`` -> ``[(param, [slots], error)]`` in first-seen order."""
-    groups: dict[tuple[str, str], tuple[list[int], str]] = {}
-    for name, slot, message in failures:
-        key = (name, _NUMBERS.sub("#", message))
-        if key not in groups:
-            groups[key] = ([], message)
-        if slot not in groups[key][0]:
-            groups[key][0].append(slot)
-    return [(name, sorted(slots), message) for (name, _), (slots, message) in groups.items()]
-
-
-_NUMBERS = re.compile(r"-?\d+(?:\.\d+)?")
-
-
-def slot_range_text(name: str, slots: list[int]) -> str:
-    """``slot``, [3, 4, 5, 9] -> 'slots 3-5, 9' (one slot: 'slot=3'; another param: 'k 3-5, 9')."""
-    if len(slots) == 1:
-        return f"{name}={slots[0]}"
-    runs: list[list[int]] = []
-    for s in sorted(slots):
-        if runs and s == runs[-1][-1] + 1:
-            runs[-1].append(s)
-        else:
-            runs.append([s])
-    text = ", ".join(f"{r[0]}-{r[-1]}" if len(r) > 1 else str(r[0]) for r in runs)
-    return f"{'slots' if name == 'slot' else name} {text}"
-
-
-def _shown(value: object) -> str:
-    if isinstance(value, dict):
-        return json.dumps(value, separators=(",", ":"))
-    return str(value)
 
 
 def _save_plan(path: Path, world: CellWorld, plan: JobPlan) -> None:

@@ -14,6 +14,7 @@ from cellrunner.commissioning.session import Operator
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.camera import FLANGE, WORLD, Camera
 from cellrunner.model.expand import frame_pose
+from cellrunner.model.failure import Failure, FailureKind
 from cellrunner.model.geometry import invert, rpy_deg_of
 from cellrunner.model.load import LoadedCell
 
@@ -90,9 +91,12 @@ def _take_views(
         views = plan_views(world, camera, view_count, reader.read_q_rad())
         if len(views) < MIN_VIEWS:
             raise InfeasibleError(
-                f"only {len(views)} views of the board are reachable and collision-free "
-                f"(at least {MIN_VIEWS}); move the board (or camera) where the arm reaches it "
-                "from several sides"
+                Failure(
+                    FailureKind.UNREACHABLE,
+                    f"only {len(views)} views of the board are reachable and collision-free "
+                    f"(at least {MIN_VIEWS})",
+                    fix="move the board (or camera) where the arm reaches it from several sides",
+                )
             )
         operator.say(f"moving through {len(views)} views of the board (planned and checked)")
         return take_shots(planning, views, host, reader, source, operator.say)

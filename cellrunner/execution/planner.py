@@ -58,10 +58,7 @@ def job_planner(
             q = world.q_home_rad
         job = plan_job(world, task, params, q, use_cache=use_cache, joined=joined)
         if not job.ok:
-            first = job.failures[0]
-            raise InfeasibleError(
-                "; ".join(job.errors), first.blockers, step_index=first.step_index
-            )
+            raise InfeasibleError(job.failures[0], job.failures[1:])
         _verify_ahead(job.task_plan)
         # the task's on_error steps ride along (run_steps), marked, for the runner to keep
         return job.paced(speed) if speed != 1.0 else job

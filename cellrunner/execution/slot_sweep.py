@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 from cellrunner.model.expand import box_params, float_params, frame_params, pattern_params
+from cellrunner.model.failure import Failure
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
 from cellrunner.model.step import Step
@@ -51,11 +52,12 @@ class _Silent:
 
 @dataclass(frozen=True)
 class SlotFailure:
-    """Another value ``value`` of param ``param`` cannot be run: ``error`` names the step."""
+    """Another value ``value`` of param ``param`` cannot be run: ``failure`` says which
+    step, what kind of refusal and what blocked it."""
 
     param: str
     value: ParamValue
-    error: str
+    failure: Failure
 
 
 @dataclass(frozen=True)
@@ -151,7 +153,7 @@ def _slot_errors(
     slots: list[dict[str, ParamValue]],
     use_cache: bool,
     progress: SweepProgress,
-) -> list[tuple[dict[str, ParamValue], list[str]]]:
+) -> list[tuple[dict[str, ParamValue], tuple[Failure, ...]]]:
     from cellrunner.planning.job_plan import plan_job
 
     return [
@@ -164,7 +166,7 @@ def _slot_errors(
                 world.q_home_rad,
                 use_cache=use_cache,
                 on_step=progress.plan(_params_text(p)),
-            ).errors,
+            ).failures,
         )
         for p in slots
     ]
@@ -176,7 +178,7 @@ def _plan_split(
     slots: list[dict[str, ParamValue]],
     use_cache: bool,
     progress: SweepProgress,
-) -> list[tuple[dict[str, ParamValue], list[str]]]:
+) -> list[tuple[dict[str, ParamValue], tuple[Failure, ...]]]:
     """``_slot_errors`` of every slot, half of them in a forked child process when this
     process may run on more than one core. If the child fails, the parent plans its half
     too."""

@@ -12,8 +12,8 @@ message name the cause and a fix, from facts measured in the same collision mode
 - :func:`fix_hint`: one suggestion from the kind of cause (move the frame, approach from
   another direction, move the fixture or raise it).
 
-The errors carry the names found in ``InfeasibleError.blockers`` for callers that group
-or count them (``check`` groups identical failures across slots).
+The errors carry a :class:`~cellrunner.model.failure.Failure` whose blockers are the
+bodies found (``check`` groups failures across slots by kind, step and blockers).
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cellrunner.model.body import Body, BodyKind
+from cellrunner.model.failure import Blocker, Failure, FailureKind
 
 if TYPE_CHECKING:
     from cellrunner.errors import InfeasibleError
@@ -59,10 +60,23 @@ class Blockers:
                     out.append(name)
         return tuple(out)
 
+    @property
+    def blockers(self) -> tuple[Blocker, ...]:
+        """:attr:`names` as blockers, each with the number of states it is in the way in."""
+        states: Counter[Body] = Counter()
+        for (a, b), n in self.counts:
+            states[a] += n
+            states[b] += n
+        return tuple(Blocker(body, states=states[body]) for body in self.names)
+
     def describe(self) -> str:
         """'blocked by fixture 'conveyor' (forearm in 41 of 60 sampled states, wrist_1 in 12)'"""
+        return "; ".join(self.clauses())
+
+    def clauses(self) -> list[str]:
+        """:meth:`describe` one obstacle a clause."""
         if not self.counts:
-            return "no sampled state in collision was found (the way is too narrow to sample)"
+            return ["no sampled state in collision was found (the way is too narrow to sample)"]
         by_obstacle: dict[Body, list[tuple[Body, int]]] = {}
         for (part, obstacle), n in self.counts:  # most frequent first, so each list is too
             by_obstacle.setdefault(obstacle, []).append((part, n))
@@ -72,7 +86,7 @@ class Blockers:
             text = f"{first[0]} in {first[1]} of {self.states} sampled states"
             text += "".join(f", {p} in {n}" for p, n in rest)
             pieces.append(f"{obstacle} ({text})")
-        return "blocked by " + "; ".join(pieces)
+        return ["blocked by " + pieces[0], *pieces[1:]]
 
 
 def blocking_summary(
@@ -219,8 +233,7 @@ def unreachable(
 
     reason = kinematics.unreachable_reason(T_world_tcp)
     lines = explain_ik_branches(kinematics, collision, T_world_tcp, q_near_rad)
-    if lines:
-        reason += f"; {len(lines)} branches tried: " + "; ".join(lines)
+    details = (f"{len(lines)} branches tried: {lines[0]}", *lines[1:]) if lines else ()
     fix = fix_hint("reach")
     reach_m = kinematics.spec.reach_m
     if ": did you mean mm?" in reason:
@@ -231,7 +244,7 @@ def unreachable(
             f"the approach distance {approach_m:g} m is longer than the reach: did you mean "
             f"{approach_m:g} mm = {approach_m / 1000:g} m? (write '{approach_m:g} mm')"
         )
-    return InfeasibleError(f"{label}: {reason}; {fix}")
+    return InfeasibleError(Failure(FailureKind.UNREACHABLE, reason, details, fix=fix, step=label))
 
 
 def every_branch_collides(
@@ -253,10 +266,14 @@ def every_branch_collides(
     blockers = blocking_summary(collision, reachable)
     obstacle, n = blockers.obstacles[0] if blockers.obstacles else ("an obstacle", 0)
     part = next((p for (p, o), _ in blockers.counts if o == obstacle), "arm")
+    reason = f"every IK branch collides, {n} of {len(lines)} with {obstacle} (mostly the {part})"
     return InfeasibleError(
-        f"{label}: every IK branch collides, {n} of {len(lines)} with {obstacle} (mostly the {part}); "
-        + "; ".join(lines)
-        + "; "
-        f"{fix_hint('goal', blockers.names)}",
-        blockers.names,
+        Failure(
+            FailureKind.COLLISION,
+            reason,
+            tuple(lines),
+            blockers.blockers,
+            fix_hint("goal", blockers.names),
+            step=label,
+        )
     )

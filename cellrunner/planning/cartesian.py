@@ -23,6 +23,7 @@ import numpy as np
 
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.body import BodyKind
+from cellrunner.model.failure import Blocker, Failure, FailureKind
 from cellrunner.planning.collision import Clearance, CollisionModel
 from cellrunner.planning.kinematics import ArmKinematics, rotation_angle_rad
 
@@ -112,20 +113,28 @@ def plan_linear(
         where = f"{u * length_m * 1000:.0f} mm along the {length_m * 1000:.0f} mm line"
         if q is None:
             raise InfeasibleError(
-                f"line leaves the workspace {where}: {kinematics.unreachable_reason(pose(u))}"
+                Failure(
+                    FailureKind.UNREACHABLE,
+                    f"line leaves the workspace {where}: {kinematics.unreachable_reason(pose(u))}",
+                )
             )
         jump = float(np.abs(q - q_prev).max())
         if jump > MAX_JOINT_STEP_RAD:
             joint = int(np.abs(q - q_prev).argmax()) + 1
             raise InfeasibleError(
-                f"line needs a configuration flip {where} (joint {joint} jumps "
-                f"{np.degrees(jump):.0f} deg between samples)"
+                Failure(
+                    FailureKind.SINGULARITY,
+                    f"line needs a configuration flip {where} (joint {joint} jumps "
+                    f"{np.degrees(jump):.0f} deg between samples)",
+                )
             )
         reason = kinematics.singularity_distance(q).violation(
             min_singularity_angle_deg, min_shoulder_distance_m
         )
         if reason is not None:
-            raise InfeasibleError(f"line passes near the {reason} {where}")
+            raise InfeasibleError(
+                Failure(FailureKind.SINGULARITY, f"line passes near the {reason} {where}")
+            )
         return q
 
     us, qs = [0.0], [q0]
@@ -140,12 +149,17 @@ def plan_linear(
         if not result.ok:
             u_hit = us[int(result.s_blocked or 0)]
             c = result.clearance
-            names = (c.b, c.a) if c is not None else ()
+            blockers = (
+                (Blocker(c.b, c.distance_m), Blocker(c.a, c.distance_m)) if c is not None else ()
+            )
             detail = c.describe() if c is not None else "collision"
             raise InfeasibleError(
-                f"{detail} {u_hit * length_m * 1000:.0f} mm along the line; "
-                f"{_line_fix(collision, q_path[-1], c)}",
-                names,
+                Failure(
+                    FailureKind.COLLISION,
+                    f"{detail} {u_hit * length_m * 1000:.0f} mm along the line",
+                    blockers=blockers,
+                    fix=_line_fix(collision, q_path[-1], c),
+                )
             )
     return LinearPath(q_path, np.array(us), p0.copy(), p1.copy())
 

@@ -41,6 +41,7 @@ import numpy as np
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.arm_geometry import ArmGeometry, ArmGeometryMissing, ConvexPart, arm_geometry
 from cellrunner.model.body import WAITING_PREFIX, Body, BodyKind
+from cellrunner.model.failure import Failure, FailureKind
 from cellrunner.model.geometry import Placed, Shape
 from cellrunner.planning.coal_shapes import make_coal_shape
 from cellrunner.planning.collision_bounds import PairBounds
@@ -206,7 +207,7 @@ class CollisionScene:
         try:
             return arm_geometry(model)
         except ArmGeometryMissing as exc:
-            raise InfeasibleError(str(exc)) from None
+            raise InfeasibleError(Failure(FailureKind.MODEL, str(exc))) from None
 
     def _convex(self, part: ConvexPart) -> coal.CollisionGeometry:
         """The coal polytope of an arm part (built once per cell and shared by variants)."""

@@ -16,7 +16,8 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from cellrunner.model import geometry
-from cellrunner.model.body import BodyKind
+from cellrunner.model.body import Body, BodyKind
+from cellrunner.model.failure import Blocker, Failure, FailureKind
 from cellrunner.model.step import StepKind
 from cellrunner.planning.collision import CollisionModel, ContactAllowance
 
@@ -145,8 +146,10 @@ def first_touch(collision: CollisionModel, q_rad: np.ndarray, carrying: bool) ->
     return None
 
 
-def meets_nothing(step: Step, collision: CollisionModel, q_end: np.ndarray, carrying: bool) -> str:
-    """The error of a move_until_contact whose line touches nothing the cell file has."""
+def meets_nothing(
+    step: Step, collision: CollisionModel, q_end: np.ndarray, carrying: bool
+) -> Failure:
+    """The failure of a move_until_contact whose line touches nothing the cell file has."""
     gap, nearest = _gap_m(collision, _touch_pairs(collision, carrying), q_end)
     mover = "held part" if carrying else "tool"
     where = (
@@ -157,8 +160,12 @@ def meets_nothing(step: Step, collision: CollisionModel, q_end: np.ndarray, carr
     longer = (
         f" (at least {(step.args.max_distance + gap) * 1000:.0f} mm)" if np.isfinite(gap) else ""
     )
-    return (
-        f"{step.label}: the guarded line meets nothing within its max_distance "
-        f"{step.args.max_distance * 1000:.0f} mm: {where}, so the step would fail with no contact; "
-        f"fix: a longer max_distance{longer}, or move the frame it starts from"
+    return Failure(
+        FailureKind.CONTACT,
+        f"the guarded line meets nothing within its max_distance "
+        f"{step.args.max_distance * 1000:.0f} mm: {where}, so the step would fail with no contact",
+        blockers=(Blocker(nearest, gap),) if isinstance(nearest, Body) and np.isfinite(gap) else (),
+        fix=f"fix: a longer max_distance{longer}, or move the frame it starts from",
+        step_index=step.index,
+        step=step.label,
     )

@@ -3,8 +3,8 @@
 :func:`plan_job` expands the task's steps and its on_error steps once, plans them (or
 takes the plan from the world's :class:`~cellrunner.planning.plan_store.PlanStore` when the
 same inputs were planned before) and returns a frozen :class:`JobPlan`. Failures are
-data on it (:class:`~cellrunner.planning.task_plan.StepFailure`: which step, why, what
-blocked it), never text to parse back.
+data on it (:class:`~cellrunner.model.failure.Failure`: which step, what kind, why,
+what blocked it and the fix), never text to parse back.
 
 The plan's key is made of digests taken when the files were loaded
 (:attr:`LoadedCell.digest`, the task's ``source.digest``), the params, the start
@@ -25,13 +25,14 @@ import numpy as np
 
 from cellrunner import __version__
 from cellrunner.model.expand import expand_on_error
+from cellrunner.model.failure import Failure
 from cellrunner.model.geometry import Placed
 from cellrunner.model.job_steps import job_steps
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
 from cellrunner.model.step import Step
 from cellrunner.model.trajectory import ApprovedTrajectory, time_scaled
-from cellrunner.planning.task_plan import StepFailure, StepPlan, TaskPlan, plan_task
+from cellrunner.planning.task_plan import StepPlan, TaskPlan, plan_task
 from cellrunner.planning.world import CellWorld
 
 if TYPE_CHECKING:
@@ -60,7 +61,7 @@ class JobPlan:
         return self.task_plan.ok
 
     @property
-    def failures(self) -> tuple[StepFailure, ...]:
+    def failures(self) -> tuple[Failure, ...]:
         return tuple(self.task_plan.failures)
 
     @property

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
+from cellrunner.model.failure import Blocker, Failure, FailureKind
 from cellrunner.planning.collision import CollisionModel
 from cellrunner.planning.motion_bounds import bisection_order
 
@@ -112,10 +113,19 @@ def plan_joint_path(
     kin = collision.kinematics
     for label, q in (("start", q0), ("goal", q1)):
         if not kin.within_limits(q):
-            raise InfeasibleError(f"{label} configuration outside the joint limits: {_deg(q)}")
-        if not collision.is_valid(q):
             raise InfeasibleError(
-                f"{label} configuration in collision: {collision.clearance(q).describe()}"
+                Failure(
+                    FailureKind.LIMITS, f"{label} configuration outside the joint limits: {_deg(q)}"
+                )
+            )
+        if not collision.is_valid(q):
+            c = collision.clearance(q)
+            raise InfeasibleError(
+                Failure(
+                    FailureKind.COLLISION,
+                    f"{label} configuration in collision: {c.describe()}",
+                    blockers=(Blocker(c.b, c.distance_m), Blocker(c.a, c.distance_m)),
+                )
             )
     if (
         collision.check_motion(q0, q1, explain=False).ok
@@ -447,10 +457,15 @@ def _no_path(
     )
     gap = line_states(near, q1)
     blockers = blocking_summary(collision, gap + refused[:: max(1, len(refused) // 36)])
+    first, *rest = blockers.clauses()
     return InfeasibleError(
-        f"no collision-free joint path found {how}: {blockers.describe()}; "
-        f"{fix_hint('path', blockers.names)}; start {_deg(q0)}, goal {_deg(q1)}",
-        blockers.names,
+        Failure(
+            FailureKind.COLLISION,
+            f"no collision-free joint path found {how}: {first}",
+            (*rest, f"start {_deg(q0)}, goal {_deg(q1)}"),
+            blockers.blockers,
+            fix_hint("path", blockers.names),
+        )
     )
 
 

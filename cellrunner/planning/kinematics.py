@@ -31,6 +31,7 @@ import numpy as np
 import pinocchio as pin
 
 from cellrunner.errors import InfeasibleError
+from cellrunner.model.failure import Failure, FailureKind
 from cellrunner.model.geometry import invert
 from cellrunner.model.robots import JOINT_NAMES, RobotSpec
 
@@ -253,7 +254,9 @@ class ArmKinematics:
         """
         solutions = self.ik_all(T_world_tcp, q_near_rad)
         if not solutions:
-            raise InfeasibleError(self.unreachable_reason(T_world_tcp))
+            raise InfeasibleError(
+                Failure(FailureKind.UNREACHABLE, self.unreachable_reason(T_world_tcp))
+            )
         return solutions[0]
 
     def ik_track(self, T_world_tcp: np.ndarray, q_prev_rad: np.ndarray) -> np.ndarray | None:
@@ -420,7 +423,9 @@ def _ik_module(model_name: str) -> Any:  # a ur_analytic_ik solver module (untyp
     try:
         return getattr(ur_analytic_ik, model_name)
     except AttributeError:
-        raise InfeasibleError(f"no closed-form IK for robot model {model_name!r}") from None
+        raise InfeasibleError(
+            Failure(FailureKind.MODEL, f"no closed-form IK for robot model {model_name!r}")
+        ) from None
 
 
 def _nudge(angle_rad: float, y_m: float) -> np.ndarray:

@@ -14,16 +14,16 @@ it stood for the next one, as at run time.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
+from cellrunner.model.failure import Failure
 from cellrunner.model.geometry import Placed
 from cellrunner.model.step import Step, StepKind
 from cellrunner.planning.collision import ContactAllowance
 from cellrunner.planning.task_plan import (
-    StepFailure,
     StepPlan,
     StepPlanner,
     TaskPlan,
@@ -47,9 +47,7 @@ class _Start:
     contact: tuple[ContactAllowance, ...] = ()  # a guarded line's, which a retreat leaves
 
 
-def verify_on_error(
-    plan: TaskPlan, cleanup: list[Step]
-) -> tuple[list[StepPlan], list[StepFailure]]:
+def verify_on_error(plan: TaskPlan, cleanup: list[Step]) -> tuple[list[StepPlan], list[Failure]]:
     """One row per on_error step: ``ok`` with the number of states it was verified from,
     or ``failed`` naming the first state it fails from and the reason (and how many
     other states fail too); and a failure per failed row. Only a feasible plan has states
@@ -61,12 +59,12 @@ def verify_on_error(
             row.status = "not planned"
         return rows, []
     starts = _starts(plan)
-    failures: dict[int, list[tuple[str, tuple[str, ...]]]] = {s.index: [] for s in cleanup}
+    failures: dict[int, list[Failure]] = {s.index: [] for s in cleanup}
     steps_key = _steps_key(cleanup)
     for start in starts:
-        for index, (reason, blockers) in _failures_from(start, cleanup, steps_key).items():
-            failures[index].append((f"{start.label}: {reason}", blockers))
-    found: list[StepFailure] = []
+        for index, failure in _failures_from(start, cleanup, steps_key).items():
+            failures[index].append(replace(failure, reason=f"{start.label}: {failure.reason}"))
+    found: list[Failure] = []
     for row in rows:
         failed = failures[row.step.index]
         if not failed:
@@ -75,24 +73,27 @@ def verify_on_error(
             continue
         row.status = "failed"
         more = len(failed) - 1
-        row.message = failed[0][0] + (f" (and from {more} more states)" if more else "")
-        found.append(StepFailure(row.step.index, row.message, failed[0][1]))
+        first = failed[0]
+        if more:
+            first = replace(first, reason=f"{first.reason} (and from {more} more states)")
+        row.message = first.summary()
+        found.append(replace(first, step_index=row.step.index, step=f"on_error {row.step.label}"))
     return rows, found
 
 
 def _failures_from(
     start: _Start, cleanup: list[Step], steps_key: tuple[object, ...]
-) -> dict[int, tuple[str, tuple[str, ...]]]:
-    """The on_error steps that fail when run from ``start``: index -> (reason, blockers),
+) -> dict[int, Failure]:
+    """The on_error steps that fail when run from ``start``: index -> its failure,
     remembered per start state and steps in the world's memo."""
     key = (_key(start.q_rad, start.world, start.part), start.contact, steps_key)
     memo = start.world.on_error_memo
     if key in memo:
-        cached: dict[int, tuple[str, tuple[str, ...]]] = memo[key]
+        cached: dict[int, Failure] = memo[key]
         return cached
     planner = StepPlanner(start.world, np.asarray(start.q_rad, float), start.part)
     planner.contact = start.contact
-    failed: dict[int, tuple[str, tuple[str, ...]]] = {}
+    failed: dict[int, Failure] = {}
     for step in cleanup:
         q_from, part = planner.q, planner.part
         try:
@@ -103,7 +104,7 @@ def _failures_from(
                 _at(step, planner.act, StepPlan(step))
         except InfeasibleError as exc:
             planner.q, planner.part = q_from, part  # nothing moved: the next step goes on
-            failed[step.index] = (exc.reason, exc.blockers)
+            failed[step.index] = exc.failure
     while len(memo) >= ON_ERROR_MEMO_SIZE:
         memo.pop(next(iter(memo)))  # the oldest
     memo[key] = failed

@@ -14,10 +14,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cellrunner.model.failure import Failure
 from cellrunner.model.geometry import Placed
 from cellrunner.model.step import Step
 from cellrunner.model.trajectory import Trajectory
-from cellrunner.planning.task_plan import StepFailure, StepPlan, TaskPlan, VerifyInputs
+from cellrunner.planning.task_plan import StepPlan, TaskPlan, VerifyInputs
 
 if TYPE_CHECKING:
     from cellrunner.planning.world import CellWorld
@@ -65,7 +66,7 @@ def write_plan(path: Path, plan: TaskPlan) -> None:
         else np.zeros(0)
     )
     on_error = [[r.status, r.message] for r in plan.on_error]
-    failures = [[f.step_index, f.message, list(f.blockers)] for f in plan.failures]
+    failures = [f.to_json() for f in plan.failures]
     header = json.dumps(
         {"rows": meta, "arrays": index, "on_error": on_error, "failures": failures}
     ).encode()
@@ -136,7 +137,10 @@ def read_plan(
     on_error = [
         StepPlan(s, status, message) for s, (status, message) in zip(cleanup, verified, strict=True)
     ]
-    failures = [StepFailure(i, m, tuple(b)) for i, m, b in header.get("failures", [])]
+    try:
+        failures = [Failure.from_json(f) for f in header.get("failures", [])]
+    except (KeyError, TypeError, ValueError):  # a file written before failures were data
+        return None
     return TaskPlan(
         world, steps, rows, np.asarray(q_start_rad, float), failures=failures, on_error=on_error
     )

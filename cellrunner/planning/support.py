@@ -17,6 +17,7 @@ import numpy as np
 
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.body import WAITING_PREFIX
+from cellrunner.model.failure import Blocker, Failure, FailureKind
 from cellrunner.model.geometry import Box, Cylinder, Placed, Shape, Sphere
 from cellrunner.planning.collision_scene import fixture_label
 
@@ -70,13 +71,20 @@ def check_support(
     held = Placed(part.name, part.shape, T_world_part)
     gaps = distances(world, held, supports)
     k = int(np.argmin(gaps)) if gaps else -1
-    nearest = fixture_label(supports[k].name) if k >= 0 else "nothing"
+    nearest = fixture_label(supports[k].name) if k >= 0 else None
     gap_mm = gaps[k] * 1000 if k >= 0 else float("inf")
     raise InfeasibleError(
-        f"{step.label}: the part '{part.name}' would be let go with nothing under it within "
-        f"place_tolerance {drop_m * 1000:.0f} mm (the nearest thing is {nearest}, "
-        f"{gap_mm:.1f} mm away): it falls; fix: lower the place frame onto its "
-        "support, or place it where a fixture or an earlier part holds it"
+        Failure(
+            FailureKind.SUPPORT,
+            f"the part '{part.name}' would be let go with nothing under it within "
+            f"place_tolerance {drop_m * 1000:.0f} mm (the nearest thing is "
+            f"{nearest or 'nothing'}, {gap_mm:.1f} mm away): it falls",
+            blockers=(Blocker(nearest, gaps[k]),) if nearest is not None else (),
+            fix="fix: lower the place frame onto its support, or place it where a fixture or "
+            "an earlier part holds it",
+            step_index=step.index,
+            step=step.label,
+        )
     )
 
 

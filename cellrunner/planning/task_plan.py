@@ -21,14 +21,15 @@ from __future__ import annotations
 import functools
 import itertools
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, TypedDict, TypeVar
 
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
-from cellrunner.model.body import BodyKind
+from cellrunner.model.body import Body, BodyKind
 from cellrunner.model.expand import Step
+from cellrunner.model.failure import Blocker, Failure, FailureKind
 from cellrunner.model.geometry import Placed
 from cellrunner.model.step import StepKind
 from cellrunner.model.step_kinds import kind_of
@@ -106,17 +107,6 @@ class StepPlan:
     )
 
 
-@dataclass(frozen=True)
-class StepFailure:
-    """Why a plan is refused: step ``step_index`` (1-based; an on_error step's index
-    follows the job's) cannot be carried out, ``message`` says why with numbers, and
-    ``blockers`` names the links and fixtures in the way (most frequent first)."""
-
-    step_index: int
-    message: str
-    blockers: tuple[str, ...] = ()
-
-
 @dataclass
 class _Motion:
     """A motion step's joint waypoints before timing."""
@@ -143,7 +133,8 @@ class TaskPlan:
     steps: list[Step]
     rows: list[StepPlan]
     q_start_rad: np.ndarray
-    failures: list[StepFailure] = field(default_factory=list)
+    #: why the plan is refused, as data (an on_error step's index follows the job's)
+    failures: list[Failure] = field(default_factory=list)
     on_error: list[StepPlan] = field(default_factory=list)  # verified from the plan's states
 
     @property
@@ -154,14 +145,7 @@ class TaskPlan:
     def errors(self) -> list[str]:
         """Each failure as one line naming its step (``on_error`` in front of the task's
         on_error steps)."""
-        return [self.describe(f) for f in self.failures]
-
-    def describe(self, failure: StepFailure) -> str:
-        for prefix, rows in (("", self.rows), ("on_error ", self.on_error)):
-            for r in rows:
-                if r.step.index == failure.step_index:
-                    return f"{prefix}{r.step.label}: {failure.message}"
-        return failure.message
+        return [f.text() for f in self.failures]
 
     @property
     def cycle_time_s(self) -> float:
@@ -266,7 +250,14 @@ class TaskPlan:
                 return motion
             except InfeasibleError as exc:
                 why = why or exc
-        raise why or InfeasibleError(f"{step.label}: every arm configuration at it meets the map")
+        raise why or InfeasibleError(
+            Failure(
+                FailureKind.COLLISION,
+                "every arm configuration at it meets the map",
+                step_index=step.index,
+                step=step.label,
+            )
+        )
 
     def _world_of(self, step: Step) -> CellWorld:
         worlds = [r.world for r in self.rows if r.step.index <= step.index and r.world is not None]
@@ -381,7 +372,9 @@ def plan_task(
     except InfeasibleError as exc:
         failed = next((r for r in rows if r.step.index == exc.step_index), current or rows[-1])
         failed.status, failed.message = "failed", exc.reason
-        plan.failures.append(StepFailure(failed.step.index, exc.reason, exc.blockers))
+        plan.failures.append(
+            replace(exc.failure, step_index=failed.step.index, step=failed.step.label)
+        )
         for r in rows:
             if r is not failed and (
                 r.step.index > failed.step.index or (r.step.is_motion and r.approved is None)
@@ -676,12 +669,18 @@ class StepPlanner:
                     depth_mm = -clearance.distance_m * 1000
                     reason = (
                         f"at its {end} the part '{self.part.name}' would be {depth_mm:.1f} mm inside "
-                        f"{clearance.b} (setting a part down may press {SET_DOWN_PRESS_M * 1000:.0f} mm at most); "
-                        f"move the target up by {depth_mm - SET_DOWN_PRESS_M * 1000:.1f} mm or more"
+                        f"{clearance.b} (setting a part down may press {SET_DOWN_PRESS_M * 1000:.0f} mm at most)"
                     )
                     # about ``step``, which may be the descend an approach looks ahead to
                     raise InfeasibleError(
-                        f"{step.label}: {reason}", step_index=step.index, reason=reason
+                        Failure(
+                            FailureKind.SUPPORT,
+                            reason,
+                            blockers=(Blocker(clearance.b, clearance.distance_m),),
+                            fix=f"move the target up by {depth_mm - SET_DOWN_PRESS_M * 1000:.1f} mm or more",
+                            step_index=step.index,
+                            step=step.label,
+                        )
                     )
                 support = clearance.b.fixture_name
                 allowances.append(ContactAllowance(support, "part", -SET_DOWN_PRESS_M))
@@ -806,12 +805,23 @@ def check_jaws_fit(step: Step, gripper: Gripper | None, part: Placed | None) -> 
         return
     reason = (
         f"part '{part.name}' is {width * 1000:.1f} mm across the jaws (along the "
-        f"TCP's X) but they open {gripper.stroke * 1000:.1f} mm (tool.gripper.stroke); fix: a "
-        "gripper with a longer stroke, or grip the part across a narrower side (turn the "
-        "frame's rpy about its Z)"
+        f"TCP's X) but they open {gripper.stroke * 1000:.1f} mm (tool.gripper.stroke)"
+    )
+    fix = (
+        "fix: a gripper with a longer stroke, or grip the part across a narrower side (turn "
+        "the frame's rpy about its Z)"
     )
     # about the grip, also when the descend before it looks ahead to it
-    raise InfeasibleError(f"{step.label}: {reason}", step_index=step.index, reason=reason)
+    raise InfeasibleError(
+        Failure(
+            FailureKind.GRIP,
+            reason,
+            blockers=(Blocker(Body(BodyKind.PART, part.name)),),
+            fix=fix,
+            step_index=step.index,
+            step=step.label,
+        )
+    )
 
 
 def _sampled_joint_path(
@@ -889,7 +899,7 @@ def _prove_sampled(motion: _Motion) -> bool:
     except InfeasibleError as exc:
         step = motion.row.step
         raise InfeasibleError(
-            f"{step.label}: {exc.reason}", exc.blockers, step_index=step.index, reason=exc.reason
+            replace(exc.failure, step_index=step.index, step=step.label)
         ) from None
     return True
 
@@ -1174,7 +1184,12 @@ def _check_retry_path(world: CellWorld, row: StepPlan, rows: list[StepPlan]) -> 
                 motion = _at(between, planner.motion, StepPlan(between), goal_q=goal)
                 _time_and_verify(world, motion, q_from)
     except InfeasibleError as exc:
-        reason = f"retry path: {exc.reason}"
+        failure = exc.failure
         raise InfeasibleError(
-            f"{row.step.label}: {reason}", exc.blockers, step_index=row.step.index, reason=reason
+            replace(
+                failure,
+                reason=f"retry path: {failure.reason}",
+                step_index=row.step.index,
+                step=row.step.label,
+            )
         ) from None

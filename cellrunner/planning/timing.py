@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
+from cellrunner.model.failure import Failure, FailureKind
 from cellrunner.model.robots import RobotSpec
 from cellrunner.planning.kinematics import ArmKinematics
 
@@ -201,7 +202,12 @@ def time_path(
         excess = _excess(kin, q, limits, rate_hz)
         if excess.max() <= 1.0:
             return TimedPath(rate_hz, t, q, s, problem.s_waypoints)
-    raise InfeasibleError(f"trajectory exceeds its limits after resampling (x{excess.max():.3f})")
+    raise InfeasibleError(
+        Failure(
+            FailureKind.LIMITS,
+            f"trajectory exceeds its limits after resampling (x{excess.max():.3f})",
+        )
+    )
 
 
 def optimal_duration_s(
@@ -349,11 +355,16 @@ class _Problem:
             )
             _, sd, _ = instance.compute_parameterization(0.0, 0.0)
         except Exception as exc:  # toppra raises its own exception types from its solvers
-            raise InfeasibleError(f"time parameterization failed (TOPP-RA: {exc})") from exc
+            raise InfeasibleError(
+                Failure(FailureKind.LIMITS, f"time parameterization failed (TOPP-RA: {exc})")
+            ) from exc
         if sd is None or not np.all(np.isfinite(sd)):
             raise InfeasibleError(
-                "time parameterization failed (TOPP-RA found no speed profile within the joint "
-                "speed, acceleration and TCP speed limits)"
+                Failure(
+                    FailureKind.LIMITS,
+                    "time parameterization failed (TOPP-RA found no speed profile within the "
+                    "joint speed, acceleration and TCP speed limits)",
+                )
             )
         return np.asarray(sd, float)
 

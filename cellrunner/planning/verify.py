@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
+from cellrunner.model.failure import Blocker, Failure, FailureKind
 from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.model.trajectory import ApprovedTrajectory, Trajectory, approve
 from cellrunner.planning.cartesian import distance_to_segment_m
@@ -54,8 +55,12 @@ def verify_trajectory(
     """
     where = f"step {step_index} {step_name}"
 
-    def fail(message: str) -> InfeasibleError:
-        return InfeasibleError(f"{where}: {message}", step_index=step_index, reason=message)
+    def fail(
+        message: str,
+        kind: FailureKind = FailureKind.TRAJECTORY,
+        blockers: tuple[Blocker, ...] = (),
+    ) -> InfeasibleError:
+        return InfeasibleError(Failure(kind, message, (), blockers, "", step_index, where))
 
     q = np.asarray(trajectory.q_rad, float)
     rate = float(trajectory.rate_hz)
@@ -77,7 +82,8 @@ def verify_trajectory(
         raise fail(
             f"joint {i + 1} ({JOINT_NAMES[i]}) at {np.degrees(q[k, i]):.1f} deg is outside "
             f"its range [{np.degrees(kinematics.q_min_rad[i]):.0f}, "
-            f"{np.degrees(kinematics.q_max_rad[i]):.0f}] deg ({source}) at sample {k}"
+            f"{np.degrees(kinematics.q_max_rad[i]):.0f}] deg ({source}) at sample {k}",
+            FailureKind.LIMITS,
         )
 
     head = None
@@ -110,10 +116,14 @@ def verify_trajectory(
             k, i = np.unravel_index(int(ratio.argmax()), ratio.shape)
             raise fail(
                 f"{JOINT_NAMES[i]} {name} {abs(values[k, i]) * scale:.1f} {unit} exceeds "
-                f"the limit {limit[i] * scale:.1f} {unit} (sample {k})"
+                f"the limit {limit[i] * scale:.1f} {unit} (sample {k})",
+                FailureKind.LIMITS,
             )
     if len(tcp) and tcp.max() > limits.tcp_speed_mps * tol:
-        raise fail(f"TCP speed {tcp.max():.3f} m/s exceeds the cap {limits.tcp_speed_mps:.3f} m/s")
+        raise fail(
+            f"TCP speed {tcp.max():.3f} m/s exceeds the cap {limits.tcp_speed_mps:.3f} m/s",
+            FailureKind.LIMITS,
+        )
 
     if line_m is not None:
         p = p_tcp if head is None else p_tcp[1:]
@@ -126,6 +136,11 @@ def verify_trajectory(
 
     result = collision.check_path(q)
     if not result.ok:
-        detail = result.clearance.describe() if result.clearance else "collision"
-        raise fail(f"{detail} at t = {(result.s_blocked or 0.0) / rate:.3f} s")
+        c = result.clearance
+        detail = c.describe() if c else "collision"
+        raise fail(
+            f"{detail} at t = {(result.s_blocked or 0.0) / rate:.3f} s",
+            FailureKind.COLLISION,
+            (Blocker(c.b, c.distance_m), Blocker(c.a, c.distance_m)) if c else (),
+        )
     return approve(trajectory, step_index, step_name)
