@@ -140,7 +140,7 @@ def take_shots(
         controller.close()
     if gate.error is not None:
         raise gate.error
-    if ResultCode(result.result_code) is not ResultCode.OK:
+    if result.result_code is not ResultCode.OK:
         raise CellrunnerError(
             f"the calibration moves failed: {result.result_code} {result.result_text}"
         )

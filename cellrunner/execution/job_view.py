@@ -163,7 +163,7 @@ def result_of_job(
     """The result the PLC reads of ``job``, ended now with ``code``."""
     return JobResult(
         job.job_id,
-        int(code),
+        code,
         message,
         cycle_time_s,
         datetime.now(UTC),
@@ -179,7 +179,7 @@ def result_of_record(record: JobRecord) -> JobResult:
     end = datetime.fromtimestamp(record.ended_at, UTC) if record.ended_at else None
     return JobResult(
         record.job_id,
-        int(record.result_code or 0),
+        ResultCode(record.result_code or 0),  # the journal's number, read back
         record.result_text or "",
         record.cycle_time_s or 0.0,
         end,

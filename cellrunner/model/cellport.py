@@ -84,11 +84,12 @@ class JobResult:
     ``job_id`` is the engine's id (journal key); ``client_job_id`` is what the
     requester gave (the Modbus job id as decimal text, or OPC UA's ClientJobId);
     ``source`` names the requester: ``"modbus"``, ``"opcua"``, ``"cli"``...
-    ``end_time`` is timezone-aware UTC; ``cycle_time_s`` in seconds.
+    ``end_time`` is timezone-aware UTC; ``cycle_time_s`` in seconds. ``result_code`` is
+    the enum everywhere; a PLC server writes its number, at the wire.
     """
 
     job_id: str
-    result_code: int
+    result_code: ResultCode
     result_text: str = ""
     cycle_time_s: float = 0.0
     end_time: datetime | None = None
@@ -136,7 +137,7 @@ class JobTicket:
     """
 
     job_id: str
-    reject_code: int = ResultCode.OK
+    reject_code: ResultCode = ResultCode.OK
     message: str = ""
 
     @property

@@ -65,12 +65,12 @@ class _Job:
     params: dict[str, int | float]
     client_job_id: str
     source: str
-    result_code: int
+    result_code: ResultCode
     started_s: float
     step_index: int = 0
     step_left_s: float = 0.0
     retries: int = 0
-    end_code: int | None = None
+    end_code: ResultCode | None = None
 
 
 @dataclass
@@ -257,10 +257,11 @@ class FakeCell:
             return self._by_number.get(int(task))
         return self._by_name.get(task)
 
-    def _next_result(self, name: str, params: dict[str, int | float]) -> int:
+    def _next_result(self, name: str, params: dict[str, int | float]) -> ResultCode:
+        """The scripted code of the next job (a test's number, a SPEC code)."""
         if self.result_fn is not None:
-            return self.result_fn(name, params)
-        return self._script.popleft() if self._script else 0
+            return ResultCode(self.result_fn(name, params))
+        return ResultCode(self._script.popleft() if self._script else 0)
 
     def _is_ready(self) -> bool:
         return (
@@ -299,14 +300,14 @@ class FakeCell:
         ):
             job = self._job or self._queued
             if job is not None:
-                job.end_code = 106
+                job.end_code = ResultCode.ABORTED_BY_PLC
                 self._finish(job)
             self._enter(S.STOPPING, S.STOPPED)
         else:
             return False
         return True
 
-    def _abort(self, code: int) -> None:
+    def _abort(self, code: ResultCode) -> None:
         job = self._job or self._queued
         if job is not None:
             job.end_code = code
@@ -383,11 +384,8 @@ class FakeCell:
                 listener(result)
 
 
-def _result_text(code: int) -> str:
-    try:
-        return ResultCode(code).text
-    except ValueError:  # a scripted code the SPEC does not name
-        return f"result {code}"
+def _result_text(code: ResultCode) -> str:
+    return code.text
 
 
 def _check_params(task: FakeTask, params: dict[str, int | float]) -> str:

@@ -342,9 +342,9 @@ class ModbusLink:
         self.ack_times_s[plc_id] = now
         self._set_handshake(ST_JOB_ACK | ST_BUSY)
 
-    def _reject(self, plc_id: int, code: int) -> None:
+    def _reject(self, plc_id: int, code: ResultCode) -> None:
         self.regs[HR_RESULT_JOB_ID] = plc_id
-        self.regs[HR_RESULT_CODE] = int(code)
+        self.regs[HR_RESULT_CODE] = int(code)  # the wire
         self._set_handshake(ST_ERROR | ST_REJECTED)
 
     def _set_handshake(self, bits: int) -> None:
@@ -356,7 +356,7 @@ class ModbusLink:
         if plc_job_id is None:
             plc_job_id = _plc_job_id(result)
         self.regs[HR_RESULT_JOB_ID] = plc_job_id
-        self.regs[HR_RESULT_CODE] = result.result_code & 0xFFFF
+        self.regs[HR_RESULT_CODE] = int(result.result_code) & 0xFFFF  # the wire
         self.regs[HR_STEP] = status.step_index & 0xFFFF
         self.regs[HR_RETRIES] = min(result.retries, 0xFFFF)
         self.regs[HR_CYCLE_MS : HR_CYCLE_MS + 2] = split_uint32(round(result.cycle_time_s * 1000))

@@ -642,7 +642,7 @@ class OpcUaServer:
         task: str | int = int(task_name) if task_name.strip().isdigit() else task_name.strip()
         ticket = self.port.start_job(task, params, client_job_id, SOURCE)
         if not ticket.accepted:
-            return "", ticket.reject_code or int(ResultCode.REJECT_NOT_READY)
+            return "", int(ticket.reject_code or ResultCode.REJECT_NOT_READY)  # the wire
         if client_job_id:
             self._client_jobs[client_job_id] = (ticket.job_id, int(ResultCode.OK))
             while len(self._client_jobs) > MAX_REMEMBERED_CLIENT_JOBS:
@@ -721,11 +721,11 @@ class OpcUaServer:
 
         gen = self._event
         gen.event.JobId = result.job_id
-        gen.event.ResultCode = result.result_code
+        gen.event.ResultCode = int(result.result_code)  # the wire
         gen.event.ResultText = result.result_text
         gen.event.ClientJobId = result.client_job_id
         gen.event.Severity = 100 if result.result_code == ResultCode.OK else 500
-        await gen.trigger(message=f"job {result.job_id} ended with {result.result_code}")
+        await gen.trigger(message=f"job {result.job_id} ended with {int(result.result_code)}")
         # the same event (same EventId) for clients subscribed on the Server object
         cell_node = gen.event.emitting_node
         gen.event.emitting_node = _node_id(ua.object_ids.ObjectIds.Server)
@@ -825,7 +825,7 @@ async def _login_verdict(
 def _last_job_values(result: JobResult) -> dict[str, Any]:
     return {
         "LastJob.JobId": result.job_id,
-        "LastJob.ResultCode": result.result_code,
+        "LastJob.ResultCode": int(result.result_code),  # the wire
         "LastJob.ResultText": result.result_text,
         "LastJob.CycleTime": float(result.cycle_time_s),
         "LastJob.EndTime": result.end_time or NULL_DATETIME,

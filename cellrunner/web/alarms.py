@@ -132,15 +132,14 @@ def active_alarms(status: CellStatus, plc_links: dict[str, bool]) -> list[Alarm]
             )
     result = status.last_result
     if result is not None and result.result_code != ResultCode.OK:
-        code = _code(result.result_code)
-        fix = FIX.get(code, "") if code is not None else ""
-        severity = "fault" if code is not None and code.is_fault else "warning"
+        code = result.result_code
+        severity = "fault" if code.is_fault else "warning"
         alarms.append(
             Alarm(
                 severity,
-                f"Last job {result.result_code}: {_code_text(result.result_code)}",
+                f"Last job {int(code)}: {code.text}",
                 _last_text(result),
-                fix,
+                FIX.get(code, ""),
             )
         )
     return alarms
@@ -165,20 +164,8 @@ _ANY_LINK_FIX = (
 )
 
 
-def _code(value: int) -> ResultCode | None:
-    try:
-        return ResultCode(value)
-    except ValueError:
-        return None
-
-
-def _code_text(value: int) -> str:
-    code = _code(value)
-    return code.text if code is not None else "unknown code"
-
-
 def _last_text(result: JobResult | None) -> str:
     if result is None:
         return "No job has run yet."
     task = f" ({result.task})" if result.task else ""
-    return f"job {result.job_id}{task}: {result.result_text or _code_text(result.result_code)}"
+    return f"job {result.job_id}{task}: {result.result_text or result.result_code.text}"

@@ -27,7 +27,7 @@ class JobMetrics:
     def __init__(self, buckets_s: Iterable[float] = CYCLE_BUCKETS_S) -> None:
         self.buckets_s = tuple(sorted(buckets_s))
         self._lock = threading.Lock()
-        self._by_code: dict[int, int] = {}
+        self._by_code: dict[ResultCode, int] = {}
         self._bucket_counts = [0] * (len(self.buckets_s) + 1)  # the last is +Inf
         self._cycle_sum_s = 0.0
 
@@ -38,7 +38,7 @@ class JobMetrics:
                 self._bucket_counts[bisect.bisect_left(self.buckets_s, result.cycle_time_s)] += 1
                 self._cycle_sum_s += result.cycle_time_s
 
-    def snapshot(self) -> tuple[dict[int, int], list[int], float]:
+    def snapshot(self) -> tuple[dict[ResultCode, int], list[int], float]:
         with self._lock:
             return dict(self._by_code), list(self._bucket_counts), self._cycle_sum_s
 
@@ -72,12 +72,12 @@ def _family_lines(family: Family, base: dict[str, str]) -> list[str]:
 def _job_families(jobs: JobMetrics) -> list[Family]:
     """The jobs counter by result code (OK always listed) and the cycle time histogram (s)."""
     by_code, buckets, cycle_sum_s = jobs.snapshot()
-    codes = sorted(set(by_code) | {int(ResultCode.OK)})
+    codes = sorted(set(by_code) | {ResultCode.OK})
     jobs_total: Family = (
         "cellrunner_jobs_total",
         "counter",
         "Jobs finished since cellrunner started, by result code (SPEC 7).",
-        [("", {"code": str(c), "result": _text(c)}, by_code.get(c, 0)) for c in codes],
+        [("", {"code": str(int(c)), "result": c.text}, by_code.get(c, 0)) for c in codes],
     )
     cumulative = 0
     samples: list[Sample] = []
@@ -153,13 +153,6 @@ def _plc_family(plc_links: dict[str, bool]) -> Family:
         "1 while the PLC link is up (Modbus: heartbeat moving; OPC UA: a client connected).",
         [("", {"link": name}, int(up)) for name, up in sorted(plc_links.items())],
     )
-
-
-def _text(code: int) -> str:
-    try:
-        return ResultCode(code).text
-    except ValueError:
-        return "unknown"
 
 
 def _labels(labels: dict[str, str]) -> str:

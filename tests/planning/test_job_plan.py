@@ -12,6 +12,7 @@ import pytest
 
 import cellrunner.model.expand as expand_module
 from cellrunner.cli.common import load, parse_params
+from cellrunner.model.failure import FailureKind
 from cellrunner.planning.job_plan import plan_job
 from cellrunner.planning.world import CellWorld
 from tests.conftest import ROOT
@@ -64,8 +65,9 @@ def test_a_failure_is_data_naming_its_step(tmp_path) -> None:
     failure = plan.failures[0]
     failed = next(r for r in plan.rows if r.status == "failed")
     assert failure.step_index == failed.step.index and failed.step.kind == "approach"
-    assert failure.message == failed.message and not failure.message.startswith("step ")
-    assert plan.errors == [f"{failed.step.label}: {failure.message}"]
+    assert failure.kind is FailureKind.UNREACHABLE and failure.step == failed.step.label
+    assert failure.summary() == failed.message and not failure.reason.startswith("step ")
+    assert plan.errors == [f"{failed.step.label}: {failure.summary()}"]
 
 
 def test_on_error_proofs_are_shared_between_jobs_with_the_same_states() -> None:

@@ -93,9 +93,11 @@ def test_the_same_id_after_its_job_ended_gets_the_result_not_a_second_run(
 def test_a_job_that_ended_before_a_restart_is_not_run_again(cell: FakeCell) -> None:
     """kill -9 right after DONE: the new process finds the job's result as the last one
     (the journal) and answers the re-raised id with it."""
-    from cellrunner.plc.port import JobResult
+    from cellrunner.plc.port import JobResult, ResultCode
 
-    cell.last_result = JobResult("j-61", 0, "OK", 1.5, source="modbus", client_job_id="61")
+    cell.last_result = JobResult(
+        "j-61", ResultCode.OK, "OK", 1.5, source="modbus", client_job_id="61"
+    )
     service = PlcService(cell, {"modbus": {"bind": "127.0.0.1", "port": 0}})
     service.start()
     plc = PlcProcess("pyModbusTCP", *service.modbus_address)

@@ -21,7 +21,7 @@ from cellrunner.plc.modbus import (
     split_uint32,
     to_int16,
 )
-from cellrunner.plc.port import CellPort, JobResult
+from cellrunner.plc.port import CellPort, JobResult, ResultCode
 from tests.plc.conftest import plc_test_tasks
 
 
@@ -125,7 +125,7 @@ def test_watchdog_arms_on_first_heartbeat_change_and_clears_on_next() -> None:
 def test_job_interrupted_by_restart_is_published_and_replayed_once() -> None:
     interrupted = JobResult(
         job_id="J000041",
-        result_code=107,
+        result_code=ResultCode.INTERRUPTED,
         result_text="interrupted",
         retries=0,
         end_time=datetime.now(UTC),
