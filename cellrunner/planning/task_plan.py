@@ -754,9 +754,7 @@ class StepPlanner:
 
     def frame_at_tcp(self) -> str:
         """The frame of the part a grip here takes (:meth:`_waiting_at_tcp`), or ''."""
-        from cellrunner.model.body import WAITING_PREFIX
-
-        names = {name[len(WAITING_PREFIX) :] for name in self._waiting_at_tcp(self.q)}
+        names = {Body.fixture(name).name for name in self._waiting_at_tcp(self.q)}
         return next((p.at for p in self.world.loaded.cell.parts if p.name in names), "")
 
     def _try_ik(self, T: np.ndarray) -> np.ndarray | None:

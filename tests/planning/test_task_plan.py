@@ -13,6 +13,7 @@ import pytest
 
 from cellrunner.cli.common import load, parse_params
 from cellrunner.model.expand import expand
+from cellrunner.model.failure import Failure, FailureKind
 from cellrunner.planning import task_plan
 from cellrunner.planning.world import CellWorld
 from tests.conftest import ROOT
@@ -202,7 +203,9 @@ def test_a_move_planned_again_that_finds_no_path_is_named_itself(tmp_path, monke
 
     def no_proven_path(*args, **kwargs):
         if kwargs.get("proven", True):
-            raise InfeasibleError("no collision-free joint path found within 2.0 s")
+            raise InfeasibleError(
+                Failure(FailureKind.COLLISION, "no collision-free joint path found within 2.0 s")
+            )
         return original(*args, **kwargs)
 
     monkeypatch.setattr(joint_path, "plan_joint_path", no_proven_path)

@@ -97,6 +97,9 @@ def test_an_accepted_job_makes_the_cell_busy_and_ends_through_the_listener(rig: 
         (ticket.job_id, "c3", "opcua")
     ]
     assert port.status().last_result == results[0]
+    # the code travels as the enum; a PLC server makes it a number at the wire
+    assert type(results[0].result_code) is ResultCode and results[0].result_code is ResultCode.OK
+    assert type(second.reject_code) is ResultCode
     remove()
     rig.settle(lambda: port.status().ready)
     port.start_job(TASK, GOOD, "c5", "opcua")
