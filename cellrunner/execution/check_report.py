@@ -35,8 +35,9 @@ class FailedValues:
     @property
     def where(self) -> str:
         """'slots 3-5, 9', 'slot=3', 'pose={...}': the values, as messages name them."""
-        if all(isinstance(v, int) and not isinstance(v, bool) for v in self.values):
-            return slot_range_text(self.param, [int(v) for v in self.values])  # type: ignore[arg-type]
+        slots = [v for v in self.values if isinstance(v, int) and not isinstance(v, bool)]
+        if len(slots) == len(self.values):
+            return slot_range_text(self.param, slots)
         return ", ".join(f"{self.param}={shown(v)}" for v in self.values)
 
     def lines(self) -> list[str]:
@@ -137,19 +138,15 @@ def check_report(swept: Sweep, task: LoadedTask, params: dict[str, ParamValue]) 
     return CheckReport(plan, params, swept.checked, each, slots, values, bare)
 
 
-def group_failures(failures: list[tuple[str, ParamValue, Failure]]) -> list[FailedValues]:
-    """Failures grouped per param by :meth:`Failure.key` (kind, step, bodies in the way),
-    in first-seen order, each shown with its first failure; the values sorted."""
-    groups: dict[tuple[str, tuple[object, ...]], FailedValues] = {}
-    for name, value, failure in failures:
-        key = (name, failure.key())
-        if key not in groups:
-            groups[key] = FailedValues(name, [], failure)
-        if value not in groups[key].values:
-            groups[key].values.append(value)
+def group_failures(failures: list[tuple[str, int, Failure]]) -> list[FailedValues]:
+    """Slot failures grouped per param by :meth:`Failure.key` (kind, step, bodies in the
+    way), in first-seen order, each shown with its first failure; the slots sorted."""
+    groups: dict[tuple[str, tuple[object, ...]], tuple[set[int], Failure]] = {}
+    for name, slot, failure in failures:
+        groups.setdefault((name, failure.key()), (set(), failure))[0].add(slot)
     return [
-        FailedValues(g.param, sorted(g.values), g.failure)  # type: ignore[type-var]
-        for g in groups.values()
+        FailedValues(name, [*sorted(slots)], failure)
+        for (name, _), (slots, failure) in groups.items()
     ]
 
 
