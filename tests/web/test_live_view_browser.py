@@ -17,7 +17,7 @@ import pytest
 
 from tests.rig import CELL, TASK, free_port
 from tests.web.browser import WEBGL_FLAGS, Chromium, chromium_path
-from tests.web.plc_page import DONE, ERROR, JOB_ACK, READY, serve_with_page
+from tests.web.plc_page import DONE, ERROR, JOB_ACK, READY, heartbeat, serve_with_page
 from tests.web.test_status_page_browser import keep_artifact
 
 HOST = "127.0.0.143"
@@ -38,7 +38,10 @@ def serving(tmp_path):
         "heartbeat_timeout: 2.0}\n"
     )
     (tmp_path / "tasks" / "t.yaml").write_text(TASK)
-    with serve_with_page(cell, HOST, modbus_port, http_port) as served:
+    with (
+        serve_with_page(cell, HOST, modbus_port, http_port) as served,
+        heartbeat(HOST, modbus_port),
+    ):
         yield served
 
 
@@ -116,6 +119,7 @@ def test_the_live_cell_draws_the_arm_and_follows_the_backend(serving, tmp_path):
         plc.client.write_single_register(1, 1)  # JOB_REQ
         plc.wait(JOB_ACK, 5)
         compared, behind, moved_pixels, shot = 0, [], 0, None
+        holding: set[str] = set()  # what the page says the gripper holds
         deadline = time.monotonic() + 120
         regs = None
         while time.monotonic() < deadline:
@@ -123,27 +127,32 @@ def test_the_live_cell_draws_the_arm_and_follows_the_backend(serving, tmp_path):
             before = get_json(url + "live/state.json")
             on_page = shown(page)
             after = get_json(url + "live/state.json")
-            # within one update of the backend: the sample it served last before, or newer
+            # how many updates the page is behind the sample served just before it was read
             behind.append(before["seq"] - on_page["seq"])
-            assert before["seq"] - 1 <= on_page["seq"] <= after["seq"], (before, on_page, after)
+            assert on_page["seq"] <= after["seq"], (before, on_page, after)
             for served in (before, after):
                 if served["seq"] == on_page["seq"]:
                     assert on_page["q"] == pytest.approx(served["q_deg"], abs=0.006)
                     compared += served["q_deg"] != pytest.approx(q_home, abs=1.0)
-            if shot is None and before["step"] >= 3 and before["job_id"]:
-                moved = canvas_pixels(page, tmp_path / "moving.png")
-                moved_pixels = changed(idle, moved)
+            holding.add(page.text("live-carried"))
+            if shot is None and before["step"] >= 5 and page.text("live-carried") == "can":
                 shot = page.screenshot(tmp_path / "status_page_live3d.png")
+                moved_pixels = changed(idle, canvas_pixels(page, tmp_path / "moving.png"))
             if regs and regs[1] & (DONE | ERROR):
                 break
             time.sleep(0.05)
         assert regs is not None and regs[1] & DONE and (regs[4], regs[5]) == (601, 0), regs
         plc.client.write_single_register(1, 0)
-        print(f"compared {compared}, behind by {sorted(set(behind))} updates")
         assert compared >= 5, (compared, behind)  # joints matched while the arm was away from home
+        # within one update of the backend: the sample it served last before the read, or a
+        # newer one; a read may find the browser's event loop busy drawing (WebGL in
+        # software on a shared 2-core machine): never more than 0.25 s (5 updates) behind
+        within_one = sum(b <= 1 for b in behind) / len(behind)
+        assert within_one >= 0.9 and max(behind) <= 5, sorted(behind)
         # the arm moved in the picture: a good part of the view changed
         assert moved_pixels > 20 * max(still, 100), (moved_pixels, still)
-        assert shot is not None
+        assert shot is not None, holding  # the can shown in the gripper while carried
+        assert holding == {"nothing", "can"}, holding
         keep_artifact(shot)
         path = get_json(url + "live/job.json")
         assert path["path"] == [] or path["job_id"]  # idle again: no path, or the last one
