@@ -9,6 +9,7 @@ import contextlib
 import http.client
 import io
 import json
+import signal
 import threading
 import time
 import urllib.error
@@ -180,3 +181,47 @@ def test_without_a_live_view_there_are_no_live_routes(tmp_path):
         finally:
             server.stop()
             board.close()
+
+
+def test_serve_ends_within_2_s_of_sigterm_with_five_live_views_open(tmp_path):
+    from tests.rig import free_port, start_serve
+
+    modbus_port, http_port = free_port(HOST), free_port(HOST)
+    cell, _ = write_cell(
+        tmp_path,
+        CELL
+        + f"tasks: {{1: tasks/t.yaml}}\nplc:\n  modbus: {{bind: {HOST}, port: {modbus_port}}}\n",
+        TASK,
+    )
+    proc = start_serve(cell, "--backend", "sim", "--http", f"{HOST}:{http_port}")
+    url = f"http://{HOST}:{http_port}/"
+    streams = []
+    try:
+        deadline = time.monotonic() + 90
+        while get_status(url + "live/state.json") != 200:
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()[-2000:]
+            time.sleep(0.2)
+        for _ in range(5):
+            stream = urllib.request.urlopen(url + "live/stream", timeout=5)
+            streams.append(stream)
+            assert stream.readline() == b"retry: 1000\n"
+            while not stream.readline().startswith(b"data: "):
+                pass
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30)
+        assert time.monotonic() - t0 < 2.0, err[-2000:]
+        assert proc.returncode == 0, err[-2000:]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate(timeout=10)
+        for stream in streams:
+            stream.close()
+
+
+def get_status(url: str) -> int | None:
+    try:
+        return get(url)[0]
+    except OSError:
+        return None
