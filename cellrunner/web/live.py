@@ -10,12 +10,15 @@ does; the control loop only ever published a reference.
 The state of one sample::
 
     {"seq": 12, "time_s": 3.21, "q_deg": [...6], "links": [[16] x 7], "flange": [16],
-     "tcp": [x, y, z], "job_id": "...", "step": 4, "carried": {"name", "T"} | null,
+     "tcp": [x, y, z], "tool": "", "job_id": "...", "step": 4,
+     "carried": {"name", "T"} | null,
      "map": {"voxel": m, "centres": [x, y, z, ...]} | null, "obstructed": false,
      "obstruction": "", "blocked": [x, y, z] | null}
 
 ``links`` are the ``T_world_link`` of the base and the six moving links (row-major 4x4),
-``carried`` the part in the gripper (``T_world_part``; its shape is in the job's JSON),
+``tool`` the tool mounted (:func:`~cellrunner.web.live_scene.tool_key`; "" the cell
+file's, the others' shapes are in the job's JSON), ``carried`` the part in the gripper
+(``T_world_part``; its shape is in the job's JSON),
 ``map`` the occupied voxels of the watched zone, ``blocked`` the voxel that stops the arm.
 """
 
@@ -35,6 +38,8 @@ from cellrunner.web.live_scene import (
     job_of,
     matrix_json,
     scene_of,
+    tool_key,
+    world_at,
 )
 
 if TYPE_CHECKING:
@@ -84,13 +89,15 @@ class LiveView:
             return self._job_pending
         with self._lock:
             if self._job is None or self._job[0] != sample.job_id:
-                self._job = (sample.job_id, _json(job_of(sample.job_id, sample.plan)))
+                job = job_of(sample.job_id, sample.plan, self.world)
+                self._job = (sample.job_id, _json(job))
             return self._job[1]
 
     def _state_of(self, sample: LiveSample) -> dict[str, Any]:
         q = np.array(sample.q_rad)
         poses = self._poses.links(q)
-        T_world_tcp = poses[-1]
+        mounted = world_at(sample.plan, sample.step_index) or self.world
+        T_world_tcp = poses[7] @ mounted.kinematics.T_flange_tcp  # the tool mounted now
         part = carried_part(sample.plan, sample.step_index)
         carried = None
         if part is not None:
@@ -102,6 +109,7 @@ class LiveView:
             "links": [matrix_json(T) for T in poses[:7]],
             "flange": matrix_json(poses[7]),
             "tcp": [round(float(v), DECIMALS) for v in T_world_tcp[:3, 3]],
+            "tool": tool_key(mounted),
             "job_id": sample.job_id,
             "step": sample.step_index,
             "carried": carried,

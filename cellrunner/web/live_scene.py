@@ -130,6 +130,28 @@ class ArmPoses:
         return poses
 
 
+def tool_key(world: CellWorld) -> str:
+    """A name for the tool a world mounts: "" for the cell file's, else the tool's name
+    (``-`` for the bare flange), with the TCP it carries when that is another tool's."""
+    if world.tool_key is None:
+        return ""
+    tool, tcp_of = world.tool_key
+    return (tool or "-") + (f"@{tcp_of}" if tcp_of and tcp_of != tool else "")
+
+
+def world_at(plan: PlannedJob | None, step_index: int) -> CellWorld | None:
+    """The world (the mounted tool) step ``step_index`` (1-based) runs in, as the plan
+    has it: that of the last step up to it that names one; None: the plan's first."""
+    rows = getattr(plan, "rows", None) or []
+    found = None
+    for row in rows:
+        if row.step.index > step_index or row.step.macro == ON_ERROR:
+            break
+        if row.world is not None:
+            found = row.world
+    return found
+
+
 def _holdings(plan: PlannedJob) -> list[tuple[int, Placed | None]]:
     """(step index, the part held once it ended) of each step that is not a motion (a
     grip takes a part, a release lets it go), in run order, the on_error steps left out."""
@@ -141,29 +163,36 @@ def _holdings(plan: PlannedJob) -> list[tuple[int, Placed | None]]:
     ]
 
 
-def job_of(job_id: str, plan: PlannedJob) -> dict[str, Any]:
+def job_of(job_id: str, plan: PlannedJob, world: CellWorld) -> dict[str, Any]:
     """A job's planned TCP path (one polyline per approved motion, in run order, the
-    on_error steps left out) and the shapes of the parts it carries (TCP frame)."""
+    on_error steps left out, each with the tool mounted then), the shapes of the parts it
+    carries (TCP frame) and of the tools it mounts (flange frame, by :func:`tool_key`).
+    ``world``: the cell's, for steps the plan names no world for."""
     motions = plan.motions
-    segments: list[tuple[int, str, np.ndarray]] = []
+    segments: list[tuple[int, str, np.ndarray, CellWorld]] = []
+    tools: dict[str, list[dict[str, Any]]] = {}
     for step in plan.run_steps:
         if step.macro == ON_ERROR:
             continue
+        mounted = world_at(plan, step.index) or world
+        key = tool_key(mounted)
+        if key not in tools:
+            tools[key] = placed_json(mounted.tool)
         approved = motions.nominal(step)
         if approved is not None:
-            segments.append((step.index, step.name, approved.trajectory.q_rad))
+            segments.append((step.index, step.name, approved.trajectory.q_rad, mounted))
     carried: dict[str, dict[str, Any]] = {}
     for _, part in _holdings(plan):
         if part is not None and part.name not in carried:
             carried[part.name] = {"T": matrix_json(part.T_parent_shape), **shape_json(part.shape)}
-    total = sum(len(q) for _, _, q in segments)
+    total = sum(len(q) for _, _, q, _ in segments)
     stride = max(1, -(-total // PATH_POINTS_MAX))
     path = []
-    for index, name, q in segments:
+    for index, name, q, mounted in segments:
         keep = np.unique(np.r_[np.arange(0, len(q), stride), len(q) - 1])
-        points = motions.tcp_positions_m(q[keep])
+        points = mounted.kinematics.p_world_tcp_many(q[keep])
         path.append({"step": index, "name": name, "points": _lengths(points)})
-    return {"job_id": job_id, "path": path, "parts": carried}
+    return {"job_id": job_id, "path": path, "parts": carried, "tools": tools}
 
 
 def carried_part(plan: PlannedJob | None, step_index: int) -> Placed | None:

@@ -17,7 +17,8 @@ from cellrunner.cli.common import load
 from cellrunner.model.arm_geometry import arm_geometry
 from cellrunner.planning.job_plan import plan_job
 from cellrunner.planning.world import CellWorld
-from cellrunner.web.live_scene import ArmPoses, carried_part, job_of, scene_of
+from cellrunner.web.live_scene import ArmPoses, carried_part, job_of, scene_of, tool_key, world_at
+from tests.conftest import ROOT
 from tests.rig import CELL, TASK, write_cell
 
 
@@ -76,8 +77,10 @@ def test_a_jobs_path_and_the_part_in_the_gripper_step_by_step(world_and_task):
     world, task = world_and_task
     plan = plan_job(world, task, {}, world.q_home_rad, use_cache=False)
     assert plan.ok
-    job = job_of("j1", plan)
+    job = job_of("j1", plan, world)
     json.dumps(job, allow_nan=False)
+    assert list(job["tools"]) == [""]  # the cell file's tool all along
+    assert job["tools"][""] == scene_of(world)["tool"]
     motions = [s for s in plan.steps if plan.motions.nominal(s) is not None]
     assert [seg["step"] for seg in job["path"]] == [s.index for s in motions]
     for seg, step in zip(job["path"], motions, strict=True):
@@ -95,3 +98,38 @@ def test_a_jobs_path_and_the_part_in_the_gripper_step_by_step(world_and_task):
     assert all(p is not None and p.name == "can" for p in by_step[grip + 1 : release + 1])
     assert all(p is None for p in by_step[release + 1 :])
     assert carried_part(None, 3) is None and carried_part(plan, 0) is None
+
+
+def test_the_tool_mounted_at_each_step_and_the_path_drawn_with_its_tcp():
+    """cnc_tend changes to the finished-part gripper while the machine cuts, and back."""
+    with contextlib.redirect_stderr(io.StringIO()):
+        cell, task = load(
+            str(ROOT / "cells/cnc_tending_ur5e.yaml"), str(ROOT / "tasks/cnc_tend.yaml")
+        )
+    world = CellWorld(cell)
+    plan = plan_job(world, task, {"door_time": 3.0, "cycle_time": 10.0}, world.q_home_rad)
+    assert plan.ok, plan.errors
+    kinds = [s.kind for s in plan.steps]
+    keys = [tool_key(world_at(plan, s.index) or world) for s in plan.steps]
+    # the gripper leaves the flange at each unlock and the next one is on it from its lock
+    unlock, lock = kinds.index("tool_unlock"), kinds.index("tool_lock")
+    unlock2, lock2 = (
+        i + lock + 1 for i in (kinds[lock + 1 :].index(k) for k in ("tool_unlock", "tool_lock"))
+    )
+    assert set(keys[:unlock]) == {""}  # the cell file's tool (raw)
+    assert set(keys[unlock:lock]) == {"-@raw"}  # the bare flange, raw's TCP
+    assert set(keys[lock:unlock2]) == {"finished"}
+    assert set(keys[unlock2:lock2]) == {"-@finished"}
+    assert set(keys[lock2:]) == {""}  # raw again
+    job = job_of("j2", plan, world)
+    assert set(job["tools"]) == {"", "-@raw", "finished", "-@finished"}
+    radii = {
+        k: [t["radius"] for t in v if t["kind"] == "cylinder"] for k, v in job["tools"].items()
+    }
+    assert radii["-@raw"] == radii["-@finished"] == []  # nothing on the flange
+    assert radii[""] and radii["finished"] and radii[""] != radii["finished"]
+    for seg in job["path"]:  # each motion's TCP path with the tool mounted then
+        step = next(s for s in plan.steps if s.index == seg["step"])
+        q = plan.motions.nominal(step).trajectory.q_rad
+        first_point = np.array(seg["points"][:3])
+        np.testing.assert_allclose(first_point, plan.motions.tcp_position_m(q[0], step), atol=1e-4)
