@@ -120,6 +120,7 @@ def test_the_live_cell_draws_the_arm_and_follows_the_backend(serving, tmp_path):
         plc.wait(JOB_ACK, 5)
         compared, behind, moved_pixels, shot = 0, [], 0, None
         holding: set[str] = set()  # what the page says the gripper holds
+        job = None
         deadline = time.monotonic() + 120
         regs = None
         while time.monotonic() < deadline:
@@ -134,6 +135,9 @@ def test_the_live_cell_draws_the_arm_and_follows_the_backend(serving, tmp_path):
                 if served["seq"] == on_page["seq"]:
                     assert on_page["q"] == pytest.approx(served["q_deg"], abs=0.006)
                     compared += served["q_deg"] != pytest.approx(q_home, abs=1.0)
+            if job is None and before["step"] >= 2:  # executing: its plan is ready
+                job = get_json(url + "live/job.json")
+                assert job["job_id"] == before["job_id"], job
             holding.add(page.text("live-carried"))
             if shot is None and before["step"] >= 5 and page.text("live-carried") == "can":
                 shot = page.screenshot(tmp_path / "status_page_live3d.png")
@@ -154,8 +158,11 @@ def test_the_live_cell_draws_the_arm_and_follows_the_backend(serving, tmp_path):
         assert shot is not None, holding  # the can shown in the gripper while carried
         assert holding == {"nothing", "can"}, holding
         keep_artifact(shot)
-        path = get_json(url + "live/job.json")
-        assert path["path"] == [] or path["job_id"]  # idle again: no path, or the last one
+        # the job's planned path, as the page fetched it: one polyline per motion of
+        # TASK (home; approach, descend, lift at the pick; approach, descend, retreat at
+        # the drop; home), none for the grip and the release
+        assert job is not None and [seg["step"] for seg in job["path"]] == [1, 2, 3, 5, 6, 7, 9, 10]
+        assert page.evaluate("window.cellrunnerLive.path.length") in (0, len(job["path"]))
 
         # the mouse orbits and zooms (the arm stands still at home again)
         time.sleep(0.5)
@@ -195,8 +202,6 @@ def test_the_live_cell_draws_the_arm_and_follows_the_backend(serving, tmp_path):
         time.sleep(0.3)
         orbited = canvas_pixels(page, tmp_path / "orbited.png")
         assert changed(rest, orbited) > 2000
-        distance = "cellrunnerLive && document.querySelector('#live3d canvas') ? 1 : 0"
-        assert page.evaluate(distance) == 1
         page.call("Input.dispatchMouseEvent", type="mouseWheel", x=x, y=y, deltaX=0, deltaY=-600)
         time.sleep(0.3)
         zoomed = canvas_pixels(page, tmp_path / "zoomed.png")
