@@ -93,7 +93,8 @@ LAYERS: dict[str, set[str]] = {
     # through the backend Protocols (backends.base.RendersDepth renders its depth images)
     "execution": {"model", "planning", "backends", "perception", "vision"},
     "report": {"model", "planning", "sim"},
-    "web": {"model", "execution"},
+    # planning: the live 3D view poses the arm with its one kinematics (pinocchio)
+    "web": {"model", "planning", "execution"},
     "commissioning": {"model", "planning", "execution", "backends", "vision"},
     # a step kind's module: its model, its planning and its run-time behaviour
     "steps": {"model", "planning", "execution"},

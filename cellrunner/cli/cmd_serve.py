@@ -19,6 +19,7 @@ from cellrunner.model.load import LoadedCell, load_cell, load_task, serve_file_w
 from cellrunner.plc.service import raise_thread_priority
 
 if TYPE_CHECKING:
+    from cellrunner.execution.assembly import AssembledCell
     from cellrunner.execution.cell import CellController
     from cellrunner.execution.context import EventLog
     from cellrunner.plc.service import PlcService
@@ -78,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     reason = "cellrunner stopped (SIGTERM)"
     try:
         service = _plc_service(controller, cell)
-        status_page = _status_page(controller, cell, service, http, log) if http else None
+        status_page = _status_page(assembled, service, http, log) if http else None
         # everything built so far lives until exit: out of the collector's sight, so a full
         # collection (40-120 ms over the planning world and the OPC UA address space,
         # measured, holding the GIL) never stalls the Modbus heartbeat under a login flood
@@ -118,17 +119,23 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _status_page(
-    controller: CellController,
-    cell: LoadedCell,
+    assembled: AssembledCell,
     service: PlcService | None,
     address: tuple[str, int],
     log: EventLog,
 ) -> StatusServer:
     """The status page and /metrics on their own thread, reading the journal through
-    their own connection."""
+    their own connection; its live 3D view samples the arm as one of the control loop's
+    observers (built now: the arm's geometry and the cell's meshes load before READY)."""
     from cellrunner.web.board import StatusBoard
+    from cellrunner.web.live import LiveView
+    from cellrunner.web.live_feed import LiveFeed
     from cellrunner.web.server import StatusServer, is_loopback
 
+    controller, cell = assembled.controller, assembled.loaded
+    feed = LiveFeed()
+    live = LiveView(feed, assembled.world, assembled.watch)
+    assembled.loop.add_observer(feed)
     host, port = address
     journal = cell_journal(cell)
     board = StatusBoard(
@@ -137,7 +144,7 @@ def _status_page(
         cell.cell.cell,
         plc_links=service.links if service is not None else dict,
     ).setup()
-    server = StatusServer(board, host, port)
+    server = StatusServer(board, host, port, live)
     try:
         server.start()
     except Exception:

@@ -38,7 +38,7 @@ from cellrunner.execution.job_view import (
 )
 from cellrunner.execution.journal import JournalBackend
 from cellrunner.execution.packml import Command, Event, TransitionRefused
-from cellrunner.execution.planner import Planner
+from cellrunner.execution.planner import PlannedJob, Planner
 from cellrunner.execution.recovery import Recovery, stop_and_stand, unlock_idle_stop
 from cellrunner.execution.task_menu import TaskMenu
 from cellrunner.model.cellport import COMMANDS, CellStatus, JobSource, JobTicket, ResultListener
@@ -195,6 +195,12 @@ class CellController:
         """The approved trajectory the running job streams now and the index of its next
         set-point, or None (call on the control thread)."""
         return streaming_of(self._job)
+
+    def planned_job(self) -> PlannedJob | None:
+        """The running job's plan once it is ready (None before, and with no job): a
+        frozen object that any thread may read (the status page draws its path)."""
+        job = self._job
+        return None if job is None else job.planned
 
     @property
     def last_job(self) -> JobView | None:

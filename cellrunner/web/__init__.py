@@ -7,5 +7,10 @@ that updates live and Prometheus metrics.
 * :mod:`~cellrunner.web.alarms` - the active alarms and what to do about each.
 * :mod:`~cellrunner.web.metrics` - the Prometheus text exposition format.
 * :mod:`~cellrunner.web.server` - a stdlib HTTP server on its own thread: ``/`` (the
-  page), ``/status.json``, ``/metrics``.
+  page), ``/status.json``, ``/metrics``, the live 3D view's ``/live/...`` and three.js.
+* :mod:`~cellrunner.web.live_feed` - :class:`LiveFeed`, the control loop's observer that
+  samples the measured arm 20 times a second without waiting on anything.
+* :mod:`~cellrunner.web.live_scene` - the 3D scene from the cell model, link poses by the
+  arm's kinematics, a job's planned path and the part held at each step.
+* :mod:`~cellrunner.web.live` - :class:`LiveView`, the cached JSON the page draws from.
 """

@@ -32,6 +32,9 @@ FLAGS = (
     "--remote-debugging-address=127.0.0.1",
     "--remote-debugging-port=0",
 )
+#: WebGL with no GPU: ANGLE on SwiftShader, the software renderer Chromium ships (which
+#: it no longer falls back to by itself); for pages that draw in 3D
+WEBGL_FLAGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader")
 
 
 def chromium_path() -> str | None:
@@ -45,8 +48,17 @@ def chromium_path() -> str | None:
 class Chromium:
     """``with Chromium(url) as page: page.evaluate("document.title")``."""
 
-    def __init__(self, url: str, *, width: int = 1280, height: int = 900, timeout_s: float = 30.0):
+    def __init__(
+        self,
+        url: str,
+        *,
+        width: int = 1280,
+        height: int = 900,
+        timeout_s: float = 30.0,
+        flags: tuple[str, ...] = (),
+    ):
         self.url, self.width, self.height, self.timeout_s = url, width, height, timeout_s
+        self.flags = flags
         self._profile = Path(tempfile.mkdtemp(prefix="cellrunner-chromium-"))
         self._proc: subprocess.Popen | None = None
         self._ws = None
@@ -62,6 +74,7 @@ class Chromium:
             [
                 exe,
                 *FLAGS,
+                *self.flags,
                 f"--user-data-dir={self._profile}",
                 f"--window-size={self.width},{self.height}",
                 self.url,
@@ -126,8 +139,12 @@ class Chromium:
             f"(document.getElementById({json.dumps(element_id)}) || {{}}).textContent || ''"
         )
 
-    def screenshot(self, path: Path) -> Path:
-        data = self.call("Page.captureScreenshot", format="png", captureBeyondViewport=True)["data"]
+    def screenshot(self, path: Path, clip: dict | None = None) -> Path:
+        """The page as PNG (``clip``: {x, y, width, height, scale} of it only)."""
+        params: dict = {"format": "png", "captureBeyondViewport": True}
+        if clip is not None:
+            params["clip"] = clip
+        data = self.call("Page.captureScreenshot", **params)["data"]
         path.write_bytes(base64.b64decode(data))
         return path
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -37,6 +38,30 @@ class Plc:
                 return regs
             time.sleep(0.05)
         raise AssertionError(f"status bits {mask:#x} not seen within {timeout_s} s")
+
+
+@contextlib.contextmanager
+def heartbeat(host: str, port: int, period_s: float = 0.1, max_s: float = 300.0) -> Iterator[None]:
+    """The PLC's heartbeat moved by a task of its own (its own connection and thread, as
+    a PLC runs it), for tests whose browser calls may take longer than the heartbeat
+    timeout (a screenshot of a WebGL page drawn in software on a loaded machine)."""
+    client = ModbusClient(host=host, port=port, timeout=2.0, auto_open=True)
+    stop = threading.Event()
+
+    def beat() -> None:
+        value, deadline = 40000, time.monotonic() + max_s
+        while not stop.wait(period_s) and time.monotonic() < deadline:
+            value = value + 1 if value < 65535 else 40000
+            client.write_single_register(0, value)
+
+    thread = threading.Thread(target=beat, name="plc-heartbeat", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(timeout=5)
+        client.close()
 
 
 @contextlib.contextmanager
