@@ -71,19 +71,6 @@ class RuntimeState(enum.IntEnum):
     RESUMING = 5
 
 
-# safety_status_bits per safety mode (bit numbers from UR's RTDE guide)
-_SAFETY_BITS = {
-    SafetyMode.NORMAL: 1 << 0,
-    SafetyMode.REDUCED: 1 << 1,
-    SafetyMode.PROTECTIVE_STOP: 1 << 2 | 1 << 10,
-    SafetyMode.RECOVERY: 1 << 3,
-    SafetyMode.SAFEGUARD_STOP: 1 << 4 | 1 << 10,
-    SafetyMode.SYSTEM_EMERGENCY_STOP: 1 << 5 | 1 << 7 | 1 << 10,
-    SafetyMode.ROBOT_EMERGENCY_STOP: 1 << 6 | 1 << 7 | 1 << 10,
-    SafetyMode.VIOLATION: 1 << 8 | 1 << 10,
-    SafetyMode.FAULT: 1 << 9 | 1 << 10,
-}
-
 DEFAULT_VERSIONS = {"e-Series": (5, 11, 1, 108318), "CB3": (3, 15, 7, 106331)}
 UNLOCK_REFUSED = (
     "Cannot unlock protective stop until 5s after occurrence. "
@@ -213,21 +200,6 @@ class Controller:
         return self.robot_mode == RobotMode.RUNNING and self.safety_mode == SafetyMode.NORMAL
 
     @property
-    def safety_status_bits(self) -> int:
-        return _SAFETY_BITS.get(self.safety_mode, 0)
-
-    @property
-    def robot_status_bits(self) -> int:
-        powered = self.robot_mode in (
-            RobotMode.POWER_ON,
-            RobotMode.IDLE,
-            RobotMode.RUNNING,
-            RobotMode.BACKDRIVE,
-        )
-        running = self.runtime_state == RuntimeState.PLAYING
-        return int(powered) | int(running) << 1
-
-    @property
     def digital_input_bits(self) -> int:
         bits = self.meas.digital_inputs
         for bit, value in self.input_overrides.items():
@@ -242,14 +214,6 @@ class Controller:
     def wrench(self) -> np.ndarray:
         """``actual_TCP_force``: the flange wrench minus the zeroing offset (N, N m)."""
         return self.meas.wrench_flange - self.ft_offset
-
-    @property
-    def joint_mode(self) -> int:
-        if self.robot_mode == RobotMode.RUNNING:
-            return 253
-        if self.robot_mode in (RobotMode.IDLE, RobotMode.POWER_ON):
-            return 255
-        return 239
 
     def seconds_since_protective_stop(self) -> float | None:
         return (
@@ -393,63 +357,6 @@ class Controller:
 
     def set_tool_outputs(self, mask: int, value: int) -> None:
         self.tool_do = (self.tool_do & ~mask | value & mask) & 0x03
-
-    def set_input_register(self, name: str, value: Any) -> None:
-        """An RTDE input field by name (registers and IO commands); records the write."""
-        self.last_input_write[name] = self.time_s
-        kind, _, index = name.rpartition("_")
-        if kind == "input_int_register":
-            self.reg.input_int[int(index)] = int(value)
-        elif kind == "input_double_register":
-            self.reg.input_double[int(index)] = float(value)
-        elif kind == "input_bit_register":
-            bit = int(index)
-            self.reg.input_bits = (
-                self.reg.input_bits | (1 << bit) if value else self.reg.input_bits & ~(1 << bit)
-            )
-        elif name == "input_bit_registers0_to_31":
-            self.reg.input_bits = self.reg.input_bits & ~0xFFFFFFFF | int(value)
-        elif name == "input_bit_registers32_to_63":
-            self.reg.input_bits = self.reg.input_bits & ~(0xFFFFFFFF << 32) | int(value) << 32
-        elif name == "external_force_torque":
-            self.external_ft = np.asarray(value, float)
-
-    def apply_io_package(self, fields: dict[str, Any]) -> None:
-        """Masks and values of one RTDE input package (standard/configurable/tool IO...)."""
-        if "standard_digital_output_mask" in fields:
-            self.set_standard_outputs(
-                fields["standard_digital_output_mask"], fields.get("standard_digital_output", 0)
-            )
-        if "configurable_digital_output_mask" in fields:
-            self.set_configurable_outputs(
-                fields["configurable_digital_output_mask"],
-                fields.get("configurable_digital_output", 0),
-            )
-        if "tool_digital_output_mask" in fields:
-            self.set_tool_outputs(
-                fields["tool_digital_output_mask"], fields.get("tool_digital_output", 0)
-            )
-        if fields.get("speed_slider_mask", 0) & 1:
-            self.speed_slider = min(1.0, max(0.0, float(fields.get("speed_slider_fraction", 1.0))))
-        mask = fields.get("standard_analog_output_mask", 0)
-        for i in range(2):
-            if mask >> i & 1:
-                self.analog_out[i] = float(fields.get(f"standard_analog_output_{i}", 0.0))
-                bit = 1 << i
-                types = fields.get("standard_analog_output_type", 0)
-                self.analog_out_types = self.analog_out_types & ~bit | types & bit
-        for name, value in fields.items():
-            if name.startswith(("input_", "external_force_torque")):
-                self.set_input_register(name, value)
-        program = self.program
-        if (
-            self.servo_record is not None
-            and program is not None
-            and hasattr(program, "servo_target")
-        ):
-            q = program.servo_target(self)
-            if q is not None:  # one row per servoJ package received (``record on``)
-                self.servo_record.append((self.time_s, *(float(v) for v in q)))
 
     # ------------------------------------------------------------------ motion helpers
 

@@ -24,6 +24,12 @@ from typing import Any
 import numpy as np
 
 from cellrunner.twin.controller import Controller
+from cellrunner.twin.rtde_io import (
+    apply_input_package,
+    joint_mode,
+    robot_status_bits,
+    safety_status_bits,
+)
 
 HEADER = struct.Struct(">HB")
 V, v, M, O, I, S, P, U = (ord(c) for c in "VvMOISPU")  # noqa: E741
@@ -96,7 +102,7 @@ def _status_outputs() -> dict[str, OutputVar]:
         "joint_temperatures": OutputVar("VECTOR6D", lambda c: [30.0] * 6),
         "actual_execution_time": OutputVar("DOUBLE", lambda c: 0.2),
         "robot_mode": OutputVar("INT32", lambda c: int(c.robot_mode)),
-        "joint_mode": OutputVar("VECTOR6INT32", lambda c: [c.joint_mode] * 6),
+        "joint_mode": OutputVar("VECTOR6INT32", lambda c: [joint_mode(c)] * 6),
         "safety_mode": OutputVar("INT32", lambda c: int(c.safety_mode)),
         "safety_status": OutputVar("INT32", lambda c: int(c.safety_mode), (5, 4), (3, 10)),
         "actual_tool_accelerometer": OutputVar("VECTOR3D", lambda c: [0.0, 0.0, 9.81]),
@@ -105,18 +111,18 @@ def _status_outputs() -> dict[str, OutputVar]:
         "actual_momentum": OutputVar("DOUBLE", lambda c: 0.0),
         "actual_main_voltage": OutputVar("DOUBLE", lambda c: 48.0),
         "actual_robot_voltage": OutputVar(
-            "DOUBLE", lambda c: 48.0 if c.robot_status_bits & 1 else 0.0
+            "DOUBLE", lambda c: 48.0 if robot_status_bits(c) & 1 else 0.0
         ),
         "actual_robot_current": OutputVar(
-            "DOUBLE", lambda c: 0.5 if c.robot_status_bits & 1 else 0.0
+            "DOUBLE", lambda c: 0.5 if robot_status_bits(c) & 1 else 0.0
         ),
         "actual_joint_voltage": OutputVar("VECTOR6D", lambda c: [48.0] * 6),
         "actual_digital_output_bits": OutputVar("UINT64", lambda c: c.digital_output_bits),
         "runtime_state": OutputVar("UINT32", lambda c: int(c.runtime_state)),
         "elbow_position": OutputVar("VECTOR3D", lambda c: [0.0] * 3),
         "elbow_velocity": OutputVar("VECTOR3D", lambda c: [0.0] * 3),
-        "robot_status_bits": OutputVar("UINT32", lambda c: c.robot_status_bits),
-        "safety_status_bits": OutputVar("UINT32", lambda c: c.safety_status_bits),
+        "robot_status_bits": OutputVar("UINT32", lambda c: robot_status_bits(c)),
+        "safety_status_bits": OutputVar("UINT32", lambda c: safety_status_bits(c)),
         "analog_io_types": OutputVar("UINT32", lambda c: c.analog_out_types << 2),
     }
 
@@ -411,7 +417,7 @@ class RtdeSession:
             fields[name] = values[k] if width == 1 else list(values[k : k + width])
             k += width
         with self.ctl.lock:
-            self.ctl.apply_io_package(fields)
+            apply_input_package(self.ctl, fields)
 
     def close(self) -> None:
         self.owners.release(self.session_id)
