@@ -94,6 +94,8 @@ LAYERS: dict[str, set[str]] = {
     "execution": {"model", "planning", "backends", "perception", "vision"},
     "report": {"model", "planning", "sim"},
     "web": {"model", "execution"},
+    # recordings: the twin's model of the cell (sim), posed on the engine's observer points
+    "record": {"model", "sim", "execution"},
     "commissioning": {"model", "planning", "execution", "backends", "vision"},
     # a step kind's module: its model, its planning and its run-time behaviour
     "steps": {"model", "planning", "execution"},

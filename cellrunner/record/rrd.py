@@ -1,0 +1,80 @@
+"""A :class:`~cellrunner.record.sink.Sink` writing Rerun's ``.rrd`` (``rerun-sdk``, the
+``cellrunner[record]`` extra): one timeline ``time`` (s of the backend's clock), the world
+frame Z up, meshes static, poses as transforms of their entities."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cellrunner.record.sink import Rgba
+
+#: the timeline every entity is logged on
+TIMELINE = "time"
+
+
+def _colour(rgba: Rgba) -> list[int]:
+    return [round(255 * c) for c in rgba]
+
+
+class RerunSink:
+    """Writes one ``.rrd`` file (see the module docstring)."""
+
+    def __init__(self, path: Path, name: str) -> None:
+        import rerun as rr
+
+        self._rr: Any = rr
+        self._rec: Any = rr.RecordingStream("cellrunner", recording_id=None)
+        self._rec.save(str(path))
+        self._rec.send_recording_name(name)
+        self._rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+
+    def _at(self, time_s: float) -> None:
+        self._rec.set_time(TIMELINE, duration=time_s)
+
+    def mesh(self, path: str, vertices_m: np.ndarray, faces: np.ndarray, rgba: Rgba) -> None:
+        rr = self._rr
+        mesh = rr.Mesh3D(
+            vertex_positions=np.asarray(vertices_m, np.float32),
+            triangle_indices=np.asarray(faces, np.uint32),
+            albedo_factor=_colour(rgba),
+        )
+        self._rec.log(path, mesh, static=True)
+
+    def pose(self, time_s: float, path: str, T_parent_child: np.ndarray) -> None:
+        self._at(time_s)
+        T = T_parent_child
+        self._rec.log(path, self._rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]))
+
+    def line(self, time_s: float, path: str, points_m: np.ndarray, rgba: Rgba) -> None:
+        self._at(time_s)
+        strip = self._rr.LineStrips3D([np.asarray(points_m, np.float32)], colors=[_colour(rgba)])
+        self._rec.log(path, strip)
+
+    def points(self, time_s: float, path: str, points_m: np.ndarray, rgba: Rgba) -> None:
+        self._at(time_s)
+        cloud = self._rr.Points3D(np.asarray(points_m, np.float32), colors=[_colour(rgba)])
+        self._rec.log(path, cloud)
+
+    def scalar(self, time_s: float, path: str, value: float) -> None:
+        self._at(time_s)
+        self._rec.log(path, self._rr.Scalars(value))
+
+    def text(self, time_s: float, path: str, text: str, level: str) -> None:
+        self._at(time_s)
+        self._rec.log(path, self._rr.TextLog(text, level=level))
+
+    def depth(self, time_s: float, path: str, depth_m: np.ndarray) -> None:
+        self._at(time_s)
+        depth = np.nan_to_num(np.asarray(depth_m, np.float32), posinf=0.0)
+        self._rec.log(path, self._rr.DepthImage(depth, meter=1.0))
+
+    def image(self, time_s: float, path: str, rgb: np.ndarray) -> None:
+        self._at(time_s)
+        self._rec.log(path, self._rr.Image(np.asarray(rgb, np.uint8)))
+
+    def close(self) -> None:
+        self._rec.flush()
+        self._rec.disconnect()
