@@ -73,3 +73,10 @@ def finish(collector: Collector, target: Path) -> str:
         return f"recording {target} stopped early: {collector.error}"
     dropped = f", {collector.dropped} dropped" if collector.dropped else ""
     return f"recorded {collector.written} samples to {target}{dropped}"
+
+
+def record_jobs(assembled: AssembledCell, folder: Path, suffix: str, max_mb: float) -> Collector:
+    """``serve --record DIR``: each job in its own file (:class:`~.files.JobFolder`)."""
+    from cellrunner.record.files import JobFolder
+
+    return record_cell(assembled, JobFolder(folder, max_mb, suffix).open, per_job=True)

@@ -136,15 +136,14 @@ class Collector:
             while (snap := self._queue.get()) is not None:
                 if scene is None:  # the first snapshot: the twin is built by now
                     scene = self._scene_of()
+                writer = self._writer_for(snap, writer, scene)
                 if writer is None:
-                    writer = _Writer(scene, self._open_sink(snap.job_id), snap.job_id)
-                elif snap.job_id and snap.job_id != writer.job_id:
-                    if self.per_job and writer.job_id:  # the next job: its own file
-                        writer.close()
-                        writer = _Writer(scene, self._open_sink(snap.job_id), snap.job_id)
-                    writer.job_id = snap.job_id
+                    continue  # serve between jobs: nothing recorded
                 writer.write(snap, self)
                 self.written += 1
+                if self.per_job and snap.ended is not None and not snap.job_id:
+                    writer.close()  # the job's end is in its file
+                    writer = None
         except Exception as exc:  # a recording must never take the cell down
             self.error = f"{type(exc).__name__}: {exc}"
             while self._queue.get() is not None:  # keep draining until closed
@@ -153,6 +152,24 @@ class Collector:
             if writer is not None:
                 with contextlib.suppress(Exception):
                     writer.close()
+
+    def _writer_for(
+        self, snap: Snapshot, writer: _Writer | None, scene: SceneModel
+    ) -> _Writer | None:
+        """The open recording ``snap`` goes to: one for the whole run, or (``per_job``)
+        the file of the job under way, opened as it starts, none between jobs."""
+        if not self.per_job:
+            if writer is None:
+                return _Writer(scene, self._open_sink(snap.job_id), snap.job_id)
+            writer.job_id = snap.job_id or writer.job_id
+            return writer
+        if not snap.job_id:
+            return writer if snap.ended is not None else None
+        if writer is not None and writer.job_id == snap.job_id:
+            return writer
+        if writer is not None:
+            writer.close()
+        return _Writer(scene, self._open_sink(snap.job_id), snap.job_id)
 
 
 class _Writer:

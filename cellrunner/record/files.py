@@ -65,8 +65,28 @@ class JobFolder:
 
     def open(self, job_id: str) -> Sink:
         self.prune()
-        name = re.sub(r"[^A-Za-z0-9_.-]+", "_", job_id or "idle")
-        return open_sink(self.folder / f"{name}{self.suffix}", job_id)
+        return open_sink(self.path_of(job_id), job_id)
+
+    def path_of(self, job_id: str) -> Path:
+        """``DIR/<job id>.rrd``; ``<job id>-2.rrd`` and on when a PLC reused the id."""
+        name = re.sub(r"[^A-Za-z0-9_.-]+", "_", job_id) or "job"
+        path, n = self.folder / f"{name}{self.suffix}", 1
+        while path.exists():
+            n += 1
+            path = self.folder / f"{name}-{n}{self.suffix}"
+        return path
+
+    @staticmethod
+    def check(folder: str, suffix: str) -> Path:
+        """``serve --record DIR``: the folder (made if missing); a UsageError when it
+        cannot be or the writer's library is missing."""
+        path = Path(folder)
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UsageError(f"--record {folder}: cannot make the folder ({exc.strerror})") from exc
+        need_library(suffix)
+        return path
 
     def prune(self) -> list[Path]:
         """Remove the oldest recordings beyond the cap; the removed files."""
