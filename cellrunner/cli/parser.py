@@ -88,6 +88,7 @@ def _job_commands(sub: Commands) -> None:
     _check_command(sub)
     _dry_run_command(sub)
     _run_command(sub)
+    _replay_command(sub)
 
 
 def _validate_command(sub: Commands) -> None:
@@ -161,6 +162,25 @@ def _record(p: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="record the job in 3D over time: FILE.rrd (Rerun) or FILE.mcap (Foxglove)",
     )
+
+
+def _replay_command(sub: Commands) -> None:
+    """replay: a recording in its viewer, or a journaled job's report."""
+    p = sub.add_parser(
+        "replay",
+        help="open a recording (FILE.rrd|FILE.mcap) or a journal's job (CELL|JOURNAL JOB_ID)",
+    )
+    p.add_argument("source", metavar="FILE.rrd|FILE.mcap|CELL|JOURNAL")
+    p.add_argument("job_id", nargs="?", metavar="JOB_ID")
+    p.add_argument(
+        "--out", metavar="DIR", help="where the job's report goes (default report-JOB_ID)"
+    )
+    p.add_argument(
+        "--recordings",
+        metavar="DIR",
+        help="serve --record's folder: open the job's recording if kept",
+    )
+    p.set_defaults(module="replay")
 
 
 def _run_command(sub: Commands) -> None:
