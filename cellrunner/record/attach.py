@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cellrunner.record.collector import Collector
+from cellrunner.record.files import warm_up
 from cellrunner.record.sink import Sink
 
 if TYPE_CHECKING:
@@ -18,7 +19,11 @@ if TYPE_CHECKING:
 
 
 def record_cell(
-    assembled: AssembledCell, open_sink: Callable[[str], Sink], *, per_job: bool = False
+    assembled: AssembledCell,
+    open_sink: Callable[[str], Sink],
+    suffix: str,
+    *,
+    per_job: bool = False,
 ) -> Collector:
     """A :class:`Collector` on ``assembled``'s loop (added as its observer); ``close()`` it
     after the loop stopped."""
@@ -54,6 +59,7 @@ def record_cell(
         qpos_of=qpos_of if twin is not None else None,
         obstacles_of=obstacles_of,
         per_job=per_job,
+        warm_up=lambda: warm_up(suffix),
     )
     assembled.loop.add_observer(collector)
     return collector
@@ -63,7 +69,8 @@ def record_to_file(assembled: AssembledCell, target: Path) -> Collector:
     """``--record FILE`` of ``dry-run`` and ``run``: the whole run in one file."""
     from cellrunner.record.files import open_sink
 
-    return record_cell(assembled, lambda job_id: open_sink(target, assembled.loaded.cell.cell))
+    name = assembled.loaded.cell.cell
+    return record_cell(assembled, lambda job_id: open_sink(target, name), target.suffix)
 
 
 def finish(collector: Collector, target: Path) -> str:
@@ -79,4 +86,4 @@ def record_jobs(assembled: AssembledCell, folder: Path, suffix: str, max_mb: flo
     """``serve --record DIR``: each job in its own file (:class:`~.files.JobFolder`)."""
     from cellrunner.record.files import JobFolder
 
-    return record_cell(assembled, JobFolder(folder, max_mb, suffix).open, per_job=True)
+    return record_cell(assembled, JobFolder(folder, max_mb, suffix).open, suffix, per_job=True)

@@ -61,7 +61,8 @@ class Collector:
     worker; ``qpos_of()`` copies the twin's state (None: a real arm);
     ``open_sink(job_id)`` the file a job is written to (``per_job``: a file per job, else
     one for the whole run); ``io_names``: IO name -> channel;
-    ``obstacles_of()`` the obstacle map's occupied points (N x 3, world), if watched."""
+    ``obstacles_of()`` the obstacle map's occupied points (N x 3, world), if watched;
+    ``warm_up()`` runs first on the worker (the writer's imports)."""
 
     def __init__(
         self,
@@ -73,8 +74,9 @@ class Collector:
         obstacles_of: Callable[[], np.ndarray | None] | None = None,
         depth_of: Callable[[], dict[str, np.ndarray]] | None = None,
         per_job: bool = False,
+        warm_up: Callable[[], None] | None = None,
     ) -> None:
-        self.per_job = per_job
+        self.per_job, self._warm_up = per_job, warm_up
         self._scene_of, self._open_sink = scene_of, open_sink
         self.io_names = dict(io_names)
         self._qpos_of, self._obstacles_of, self._depth_of = qpos_of, obstacles_of, depth_of
@@ -132,6 +134,8 @@ class Collector:
     def _work(self) -> None:
         writer: _Writer | None = None
         try:
+            if self._warm_up is not None:
+                self._warm_up()  # the writer's imports, before any job
             scene: SceneModel | None = None
             while (snap := self._queue.get()) is not None:
                 if scene is None:  # the first snapshot: the twin is built by now

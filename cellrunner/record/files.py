@@ -45,6 +45,17 @@ def need_library(suffix: str) -> None:
         )
 
 
+def warm_up(suffix: str) -> None:
+    """Import the writer of ``suffix`` now (the recorder's worker, before any job), not
+    as the first job starts: an import holds the GIL for a long while."""
+    if suffix == ".mcap":
+        import cellrunner.record.mcap_file as mcap_file
+
+        mcap_file._messages()
+    else:
+        import rerun  # noqa: F401
+
+
 def open_sink(path: Path, name: str) -> Sink:
     """A writer for ``path`` by its suffix."""
     if path.suffix == ".mcap":

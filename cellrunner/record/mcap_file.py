@@ -3,6 +3,7 @@ log: Foxglove's well-known schemas in protobuf (``foxglove-schemas-protobuf``, p
 by Foxglove with the schemas, written with ``mcap`` and ``mcap-protobuf-support``):
 
     /tf                  foxglove.FrameTransforms   each body's frame in ``world``, the TCP
+                                                    (one message per sample)
     /scene               foxglove.SceneUpdate       the meshes, one entity per geom,
                                                     locked to its body's frame
     /paths               foxglove.SceneUpdate       the planned and measured TCP paths
@@ -18,6 +19,7 @@ message so the file starts where the run does."""
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +34,39 @@ _PLOTS_SCHEMA = {
     "properties": {},
     "additionalProperties": True,
 }
+
+
+#: meshes already built, by (path, the vertex array's id, its length, colour): serve's
+#: recordings repeat the same scene in every file, built once (protobuf objects are slow
+#: to build in Python; the cached array is kept, so its id is not reused)
+_MESHES: dict[tuple[str, int, int, Rgba], tuple[np.ndarray, Any]] = {}
+
+
+#: MCAP chunk size (bytes)
+CHUNK_BYTES = 256 * 1024
+
+#: vertices built per protobuf call before the worker lets other threads run
+_POINTS_PER_SLICE = 2000
+
+
+def quaternion_xyzw(R: np.ndarray) -> tuple[float, float, float, float]:
+    """The unit quaternion (x, y, z, w) of rotation matrix ``R`` (Shepperd's method)."""
+    m = R
+    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    if trace > 0:
+        s = 2.0 * np.sqrt(trace + 1.0)
+        q = (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, s / 4
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = s / 4, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = (m[0, 1] + m[1, 0]) / s, s / 4, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s
+    else:
+        s = 2.0 * np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, s / 4, (m[1, 0] - m[0, 1]) / s
+    x, y, z, w = (float(v) for v in q)
+    return x, y, z, w
 
 
 def frame_of(path: str) -> str:
@@ -57,7 +92,9 @@ class McapSink:
         self._pb: dict[str, Any] = _messages()
         self._color, self._log, self._scene = Color_pb2.Color, Log_pb2.Log, SceneUpdate_pb2
         self._file = path.open("wb")
-        self._writer = Writer(self._file, compression=CompressionType.ZSTD)
+        # LZ4 in 256 KiB chunks: each chunk is compressed holding the GIL, so small and fast
+        # (zstd over 1 MiB chunks held it for milliseconds: the control loop waited)
+        self._writer = Writer(self._file, chunk_size=CHUNK_BYTES, compression=CompressionType.LZ4)
         self._writer.start(profile="", library="cellrunner")
         self._writer.add_metadata("cellrunner", {"recording": name})
         self._register = register_schema
@@ -66,6 +103,8 @@ class McapSink:
         self._plots: dict[str, float] = {}
         self._plots_s: float | None = None
         self._last_ns = 0
+        self._tf: list[Any] = []
+        self._tf_s = 0.0
         plots_schema = self._writer.register_schema(
             "cellrunner.Plots", "jsonschema", json.dumps(_PLOTS_SCHEMA).encode()
         )
@@ -95,6 +134,14 @@ class McapSink:
             self._pending_meshes = []
         if self._plots_s is not None and self._plots_s != time_s:
             self._flush_plots()
+        if self._tf and self._tf_s != time_s:
+            self._flush_tf()
+
+    def _flush_tf(self) -> None:
+        """The frames of one sample in one FrameTransforms message."""
+        if self._tf:
+            self._write("/tf", self._pb["FrameTransforms"](transforms=self._tf), self._tf_s)
+            self._tf = []
 
     def _flush_plots(self) -> None:
         if self._plots_s is None:
@@ -108,24 +155,34 @@ class McapSink:
 
     # -- the Sink -----------------------------------------------------------------------
     def mesh(self, path: str, vertices_m: np.ndarray, faces: np.ndarray, rgba: Rgba) -> None:
+        key = (path, id(vertices_m), len(vertices_m), rgba)
+        cached = _MESHES.get(key)
+        if cached is not None and cached[0] is vertices_m:
+            entity = self._pb["SceneEntity"]()
+            entity.CopyFrom(cached[1])
+            self._pending_meshes.append(entity)
+            return
         pb = self._pb
         triangles = pb["TriangleListPrimitive"](
             pose=pb["Pose"](orientation=pb["Quaternion"](w=1.0)),
-            points=[pb["Point3"](x=float(x), y=float(y), z=float(z)) for x, y, z in vertices_m],
             color=self._color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]),
-            indices=[int(i) for i in np.asarray(faces).ravel()],
         )
+        point = pb["Point3"]
+        for i in range(0, len(vertices_m), _POINTS_PER_SLICE):  # in slices: the GIL moves
+            rows = vertices_m[i : i + _POINTS_PER_SLICE].tolist()
+            triangles.points.extend([point(x=x, y=y, z=z) for x, y, z in rows])
+            time.sleep(0)
+        triangles.indices.extend(np.asarray(faces, np.uint32).ravel().tolist())
         entity = pb["SceneEntity"](
             frame_id=frame_of(path), id=path, frame_locked=True, triangles=[triangles]
         )
         self._pending_meshes.append(entity)
+        _MESHES[key] = (vertices_m, entity)
 
     def pose(self, time_s: float, path: str, T_parent_child: np.ndarray) -> None:
-        from scipy.spatial.transform import Rotation
-
         self._timed(time_s)
         pb = self._pb
-        x, y, z, w = Rotation.from_matrix(T_parent_child[:3, :3]).as_quat()
+        x, y, z, w = quaternion_xyzw(T_parent_child[:3, :3])
         tx, ty, tz = (float(v) for v in T_parent_child[:3, 3])
         transform = pb["FrameTransform"](
             parent_frame_id="world",
@@ -134,7 +191,8 @@ class McapSink:
             rotation=pb["Quaternion"](x=float(x), y=float(y), z=float(z), w=float(w)),
         )
         self._stamp(transform, time_s)
-        self._write("/tf", pb["FrameTransforms"](transforms=[transform]), time_s)
+        self._tf.append(transform)
+        self._tf_s = time_s
 
     def line(self, time_s: float, path: str, points_m: np.ndarray, rgba: Rgba) -> None:
         self._timed(time_s)
@@ -200,6 +258,7 @@ class McapSink:
     def close(self) -> None:
         self._timed(self._plots_s if self._plots_s is not None else 0.0)
         self._flush_plots()
+        self._flush_tf()
         self._writer.finish()  # type: ignore[no-untyped-call]
         self._file.close()
 

@@ -108,7 +108,7 @@ def test_mcap_is_foxglove_schemas_in_time_order(tmp_path: Path) -> None:
             elif channel.topic == "/plots":
                 plots.append(decoded)
     assert times == sorted(times) and times[-1] - times[0] > 5e9  # the job's ~7 s, in order
-    assert counts["/tf"] > 1000 and counts["/plots"] > 300
+    assert counts["/tf"] > 300 and counts["/plots"] > 300  # one of each per sample (50 Hz)
     assert meshes >= 8  # six arm links, the tool, the fixtures, the part
     assert {"link6", "tool", "part_block", "tcp"} <= frames
     assert any("grip" in line for line in logs) and any(
