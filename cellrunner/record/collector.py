@@ -54,6 +54,7 @@ class Snapshot:
     step: int  # 1-based step under way, 0 none
     plan: Any  # the ApprovedTrajectory streamed now, or None
     ended: Any  # the JobView of a job that ended since the last snapshot, or None
+    started: str = ""  # "4 grip infeed": the step that started since the last snapshot
 
 
 class Collector:
@@ -83,6 +84,7 @@ class Collector:
         self._queue: queue.Queue[Snapshot | None] = queue.Queue(QUEUE_SIZE)
         self._next_s = -1.0
         self._last_view: Any = None
+        self._step = 0
         self.dropped = 0
         self.written = 0
         self.error: str | None = None  # what stopped the worker, if anything
@@ -101,6 +103,13 @@ class Collector:
             return
         self._next_s = state.time_s + 1.0 / SAMPLE_HZ
         view = cell.job_view(records=False)
+        started = ""
+        if view is not None and view.step and view.step != self._step:
+            full = cell.job_view()  # the step rows copied: once per step, not per sample
+            rows = {r.index: r for r in full.records} if full is not None else {}
+            row = rows.get(view.step)
+            started = f"{view.step} {row.kind} {row.name}" if row is not None else str(view.step)
+        self._step = view.step if view is not None else 0
         streaming = cell.streaming()
         values = {**state.outputs, **state.inputs}
         snap = Snapshot(
@@ -116,6 +125,7 @@ class Collector:
             step=view.step if view is not None else 0,
             plan=streaming[0] if streaming is not None else None,
             ended=ended if ended is not self._last_view else None,
+            started=started,
         )
         self._last_view = ended
         try:
@@ -209,7 +219,6 @@ class _Writer:
             q = snap.plan.trajectory.q_rad
             rows = q[np.linspace(0, len(q) - 1, min(len(q), PLAN_POINTS)).astype(int)]
             sink.line(t, "world/paths/planned", self.scene.tcp_path_m(qpos, rows), PLANNED)
-            sink.text(t, "steps", f"motion: {snap.plan.step_name}", "INFO")
         for i, q in enumerate(snap.q_rad):
             sink.scalar(t, f"plots/joints/q{i + 1}_rad", float(q))
         sink.scalar(t, "plots/wrist/force_N", float(np.linalg.norm(snap.wrench_N[:3])))
@@ -218,22 +227,26 @@ class _Writer:
         if snap.step != self.step:
             self.step = snap.step
             sink.scalar(t, "plots/step", float(snap.step))
+        if snap.started:
+            sink.text(t, "steps", f"step {snap.started}: started", "INFO")
         if snap.ended is not None:
             self._ended(t, snap.ended)
         self._perception(t, collector)
 
     def _ended(self, t: float, view: Any) -> None:
         """The job's step timeline with each step's result, and its result."""
-        for r in view.records:
+        for r in sorted(view.records, key=lambda r: r.started_s or 0.0):
             if r.started_s is None:
                 continue
             level = "INFO" if r.status.value in ("ok", "skipped") else "ERROR"
             line = f"step {r.index} {r.kind} {r.name}: {r.status.value} ({r.duration_s:.2f} s)"
-            self.sink.text(t, "steps", f"{line} {r.message}".rstrip(), level)
+            at_s = min(t, r.started_s + r.duration_s)  # as it ended (MCAP: logged now)
+            self.sink.text(at_s, "steps", f"{line} {r.message}".rstrip(), level)
         code = view.result_code
         level = "INFO" if code is None or int(code) == 0 else "ERROR"
         name = code.name if code is not None else "?"
-        self.sink.text(t, "steps", f"job {view.job_id}: {name} {view.message}".rstrip(), level)
+        message = f" {view.message}" if view.message and view.message != name else ""
+        self.sink.text(t, "steps", f"job {view.job_id}: {name}{message}", level)
         if len(self.measured) > 1:
             self.sink.line(t, "world/paths/measured", np.array(self.measured), MEASURED)
 
