@@ -44,12 +44,15 @@ def record_cell(
 
         return SceneModel(compile_model(description_of(loaded)))
 
-    obstacles_of = None
+    obstacles_of = depth_of = None
     zone = assembled.watch
     if zone is not None:
 
         def obstacles_of() -> np.ndarray | None:
             return zone.map.occupied_centres()
+
+        def depth_of() -> dict[str, Any]:
+            return dict(zone.last_frames)
 
     io = loaded.cell.io
     collector = Collector(
@@ -58,6 +61,7 @@ def record_cell(
         {**io.outputs, **io.inputs},
         qpos_of=qpos_of if twin is not None else None,
         obstacles_of=obstacles_of,
+        depth_of=depth_of,
         per_job=per_job,
         warm_up=lambda: warm_up(suffix),
     )

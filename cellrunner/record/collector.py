@@ -63,6 +63,7 @@ class Collector:
     ``open_sink(job_id)`` the file a job is written to (``per_job``: a file per job, else
     one for the whole run); ``io_names``: IO name -> channel;
     ``obstacles_of()`` the obstacle map's occupied points (N x 3, world), if watched;
+    ``depth_of()`` each depth camera's latest frame (a DepthFrame: image, pose, time);
     ``warm_up()`` runs first on the worker (the writer's imports)."""
 
     def __init__(
@@ -73,7 +74,7 @@ class Collector:
         *,
         qpos_of: Callable[[], np.ndarray | None] | None = None,
         obstacles_of: Callable[[], np.ndarray | None] | None = None,
-        depth_of: Callable[[], dict[str, np.ndarray]] | None = None,
+        depth_of: Callable[[], dict[str, Any]] | None = None,
         per_job: bool = False,
         warm_up: Callable[[], None] | None = None,
     ) -> None:
@@ -197,6 +198,7 @@ class _Writer:
         self.plan: Any = None
         self.step = -1
         self.obstacles_at_s = -1.0
+        self.frames: dict[str, Any] = {}  # the depth image of each camera written last
         for mesh in scene.meshes:
             sink.mesh(mesh.path, mesh.vertices_m, mesh.faces, mesh.rgba)
 
@@ -259,8 +261,12 @@ class _Writer:
             if points is not None:
                 self.sink.points(t, "world/obstacles", points, OBSTACLES)
         if collector._depth_of is not None:
-            for name, depth in collector._depth_of().items():
-                self.sink.depth(t, f"cameras/{name}/depth", depth)
+            for name, frame in collector._depth_of().items():
+                if self.frames.get(name) is not frame:  # a new image since the last look
+                    self.frames[name] = frame
+                    at_s = min(t, frame.time_s)
+                    self.sink.pose(at_s, f"world/cameras/{name}", frame.T_world_camera)
+                    self.sink.depth(at_s, f"cameras/{name}/depth", frame.depth_m)
 
     def close(self) -> None:
         self.sink.close()

@@ -245,7 +245,7 @@ class McapSink:
     def _raw(self, time_s: float, path: str, pixels: np.ndarray, encoding: str, step: int) -> None:
         self._timed(time_s)
         image = self._pb["RawImage"](
-            frame_id=path.split("/")[1] if "/" in path else path,
+            frame_id=path.rsplit("/", 1)[0],  # cameras/NAME: the camera's frame in /tf
             width=pixels.shape[1],
             height=pixels.shape[0],
             encoding=encoding,

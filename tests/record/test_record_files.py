@@ -128,3 +128,17 @@ def test_a_bad_record_target_is_exit_2(
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2
     assert len(err) == 1 and "--record" in err[0] and "Traceback" not in err[0]
+
+
+def test_a_watched_cell_records_its_depth_images_and_obstacle_map(tmp_path: Path) -> None:
+    from tests.conftest import ROOT
+
+    target = tmp_path / "watched.rrd"
+    cell, task = ROOT / "cells" / "watched_ur5e.yaml", ROOT / "tasks" / "pick_place_watched.yaml"
+    assert main(["dry-run", str(cell), str(task), "--json", "--record", str(target)]) == 0
+    components, moves = _rrd_columns(target)
+    assert "Points3D:positions" in components["/world/obstacles"]
+    depth = [p for p in components if p.startswith("/cameras/") and p.endswith("/depth")]
+    assert depth and all("DepthImage:buffer" in components[p] for p in depth)
+    camera = "/world" + depth[0].removesuffix("/depth")  # the camera's pose in the scene
+    assert len(moves[camera]) >= 5
