@@ -31,7 +31,7 @@ class RerunSink:
 
         self._rr: Any = rr
         self._rec: Any = rr.RecordingStream("cellrunner", recording_id=None)
-        self._rec.save(str(path))
+        self._rec.save(str(path), default_blueprint=_layout())
         self._rec.send_recording_name(name)
         self._rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         self._poses: dict[str, list[tuple[float, np.ndarray]]] = {}
@@ -109,3 +109,23 @@ class RerunSink:
         self._flush()
         self._rec.flush()
         self._rec.disconnect()
+
+
+def _layout() -> Any:
+    """The viewer's layout a recording opens with: the cell in 3D beside the plots and
+    the step log."""
+    import rerun.blueprint as rrb
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial3DView(origin="world", name="cell"),
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="plots/joints", name="joints (rad)"),
+                rrb.TimeSeriesView(origin="plots/wrist", name="wrist force (N)"),
+                rrb.TimeSeriesView(origin="plots/io", name="IO"),
+                rrb.TextLogView(origin="steps", name="steps"),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )

@@ -62,6 +62,9 @@ def test_rrd_holds_the_scene_moving_on_one_timeline(tmp_path: Path) -> None:
     for path in ("/world/paths/planned", "/world/paths/measured"):
         assert "LineStrips3D:strips" in components[path]
     assert "TextLog:text" in components["/steps"]
+    from rerun.chunk import RrdReader
+
+    assert RrdReader(target).blueprints()  # opens laid out: the cell, the plots, the log
     for plot in (
         "/plots/wrist/force_N",
         "/plots/step",
