@@ -54,6 +54,13 @@ def record_cell(
         def depth_of() -> dict[str, Any]:
             return dict(zone.last_frames)
 
+    pictures_of = None
+    eye: Any = assembled.controller.eye
+    if eye is not None and hasattr(eye, "last_pictures"):  # the cameras align steps look through
+
+        def pictures_of() -> dict[str, np.ndarray]:
+            return dict(eye.last_pictures)
+
     io = loaded.cell.io
     collector = Collector(
         scene_of,
@@ -62,6 +69,7 @@ def record_cell(
         qpos_of=qpos_of if twin is not None else None,
         obstacles_of=obstacles_of,
         depth_of=depth_of,
+        pictures_of=pictures_of,
         per_job=per_job,
         warm_up=lambda: warm_up(suffix),
     )

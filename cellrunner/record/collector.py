@@ -64,6 +64,7 @@ class Collector:
     one for the whole run); ``io_names``: IO name -> channel;
     ``obstacles_of()`` the obstacle map's occupied points (N x 3, world), if watched;
     ``depth_of()`` each depth camera's latest frame (a DepthFrame: image, pose, time);
+    ``pictures_of()`` each camera's latest picture an align step looked at;
     ``warm_up()`` runs first on the worker (the writer's imports)."""
 
     def __init__(
@@ -75,6 +76,7 @@ class Collector:
         qpos_of: Callable[[], np.ndarray | None] | None = None,
         obstacles_of: Callable[[], np.ndarray | None] | None = None,
         depth_of: Callable[[], dict[str, Any]] | None = None,
+        pictures_of: Callable[[], dict[str, np.ndarray]] | None = None,
         per_job: bool = False,
         warm_up: Callable[[], None] | None = None,
     ) -> None:
@@ -82,6 +84,7 @@ class Collector:
         self._scene_of, self._open_sink = scene_of, open_sink
         self.io_names = dict(io_names)
         self._qpos_of, self._obstacles_of, self._depth_of = qpos_of, obstacles_of, depth_of
+        self._pictures_of = pictures_of
         self._queue: queue.Queue[Snapshot | None] = queue.Queue(QUEUE_SIZE)
         self._next_s = -1.0
         self._last_view: Any = None
@@ -199,6 +202,7 @@ class _Writer:
         self.step = -1
         self.obstacles_at_s = -1.0
         self.frames: dict[str, Any] = {}  # the depth image of each camera written last
+        self.pictures: dict[str, np.ndarray] = {}  # the picture of each camera written last
         for mesh in scene.meshes:
             sink.mesh(mesh.path, mesh.vertices_m, mesh.faces, mesh.rgba)
 
@@ -253,6 +257,11 @@ class _Writer:
             self.sink.line(t, "world/paths/measured", np.array(self.measured), MEASURED)
 
     def _perception(self, t: float, collector: Collector) -> None:
+        if collector._pictures_of is not None:  # an align step's look: each one written
+            for name, picture in collector._pictures_of().items():
+                if self.pictures.get(name) is not picture:
+                    self.pictures[name] = picture
+                    self.sink.image(t, f"cameras/{name}/image", picture)
         if t - self.obstacles_at_s < PATH_EVERY_S:
             return
         self.obstacles_at_s = t

@@ -240,7 +240,10 @@ class McapSink:
 
     def image(self, time_s: float, path: str, rgb: np.ndarray) -> None:
         img = np.asarray(rgb, np.uint8)
-        self._raw(time_s, path, img, "rgb8", 3 * img.shape[1])
+        if img.ndim == 2:  # a grey camera
+            self._raw(time_s, path, img, "mono8", img.shape[1])
+        else:
+            self._raw(time_s, path, img, "rgb8", 3 * img.shape[1])
 
     def _raw(self, time_s: float, path: str, pixels: np.ndarray, encoding: str, step: int) -> None:
         self._timed(time_s)

@@ -40,7 +40,7 @@ class Sink(Protocol):
         """A depth image (H x W, metres; 0 or inf: no return)."""
 
     def image(self, time_s: float, path: str, rgb: np.ndarray) -> None:
-        """A colour image (H x W x 3, uint8)."""
+        """A camera's picture (H x W x 3 RGB or H x W grey, uint8)."""
 
     def close(self) -> None:
         """Flush and close the file."""

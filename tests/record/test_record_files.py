@@ -145,3 +145,29 @@ def test_a_watched_cell_records_its_depth_images_and_obstacle_map(tmp_path: Path
     assert depth and all("DepthImage:buffer" in components[p] for p in depth)
     camera = "/world" + depth[0].removesuffix("/depth")  # the camera's pose in the scene
     assert len(moves[camera]) >= 5
+
+
+def test_an_align_step_records_what_its_camera_saw(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    from tests.conftest import ROOT
+
+    target = tmp_path / "align.mcap"
+    cell, task = ROOT / "cells" / "align_pick_ur10e.yaml", ROOT / "tasks" / "align_pick.yaml"
+    assert main(["dry-run", str(cell), str(task), "--json", "--record", str(target)]) == 0
+    with target.open("rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        images = [
+            decoded
+            for _, channel, _, decoded in reader.iter_decoded_messages(
+                topics=["/cameras/wrist/image"]
+            )
+        ]
+    assert images  # each look of the align step
+    for image in images:
+        channels = {"rgb8": 3, "mono8": 1}[image.encoding]
+        assert image.width > 100 and len(image.data) == image.height * image.width * channels
+        assert (
+            len(set(image.data[:: max(1, len(image.data) // 5000)])) > 10
+        )  # a picture, not a blank
