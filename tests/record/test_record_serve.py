@@ -24,6 +24,12 @@ from tests.rig import (
 HOST = "127.0.0.5"
 
 
+def _own_journal(tmp_path: Path) -> str:
+    """A journal of the test's own (a relative one may resolve to one in the working
+    directory, which other tests count jobs in)."""
+    return f"journal: {tmp_path / 'var' / 'jobs.sqlite'}\n"
+
+
 def _steps_text(path: Path) -> list[str]:
     from rerun.chunk import RrdReader
 
@@ -41,7 +47,8 @@ def test_serve_records_one_file_per_job(tmp_path: Path) -> None:
     (tmp_path / "tasks").mkdir()
     cell = tmp_path / "cells" / "c.yaml"
     cell.write_text(
-        CELL
+        _own_journal(tmp_path)
+        + CELL
         + f"tasks: {{1: tasks/t.yaml}}\nplc:\n  modbus: {{bind: {HOST}, port: {port}, heartbeat_timeout: 2.0}}\n"
     )
     (tmp_path / "tasks" / "t.yaml").write_text(TASK)
@@ -86,7 +93,7 @@ def test_run_on_the_arm_records_the_measured_arm(tmp_path: Path) -> None:
     from tests.twin.cell_rig import twin
 
     host = f"127.27.{os.getpid() % 250 + 1}.2"
-    cell, task = write_cell(tmp_path, CELL, TASK)
+    cell, task = write_cell(tmp_path, _own_journal(tmp_path) + CELL, TASK)
     target = tmp_path / "arm.rrd"
     with twin(cell, host):
         r = cli(
