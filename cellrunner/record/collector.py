@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import queue
 import threading
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -215,6 +216,7 @@ class _Writer:
             if last is None or not np.allclose(last, T, atol=1e-6):
                 sink.pose(t, path, T)
                 self.poses[path] = T
+                time.sleep(0)  # the GIL to a waiting thread (the control loop) between bodies
         sink.pose(t, "world/tcp", T_tcp)
         self.measured.append(T_tcp[:3, 3].copy())
         if t - self.path_at_s >= PATH_EVERY_S and len(self.measured) > 1:

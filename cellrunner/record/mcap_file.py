@@ -123,6 +123,7 @@ class McapSink:
         ns = max(_ns(time_s), self._last_ns)  # log time never goes back
         self._last_ns = ns
         self._writer.add_message(channel, log_time=ns, data=data, publish_time=ns)
+        time.sleep(0)  # let a waiting thread (the control loop) have the GIL between messages
 
     def _timed(self, time_s: float) -> None:
         """Before a message at ``time_s``: the meshes held back, the last sample's plots."""
