@@ -4,8 +4,8 @@ back with Rerun's own reader and drawn headless, beside the twin's render of the
 moment from ``dry-run --report``.
 
     PYTHONPATH=. MUJOCO_GL=osmesa python -m cellrunner.cli.main dry-run \\
-        cells/demo_ur5e.yaml tasks/pick_place.yaml --report /tmp/r --record /tmp/r.rrd
-    PYTHONPATH=. python scripts/recording_picture.py /tmp/r.rrd /tmp/r/step04_grip.png \\
+        cells/demo_ur5e.yaml tasks/pick_place.yaml --report run --record run.rrd
+    PYTHONPATH=. python scripts/recording_picture.py run.rrd run/step04_grip.png \\
         docs/images/recording.png
 """
 
