@@ -95,6 +95,8 @@ LAYERS: dict[str, set[str]] = {
     "report": {"model", "planning", "sim"},
     # planning: the live 3D view poses the arm with its one kinematics (pinocchio)
     "web": {"model", "planning", "execution"},
+    # recordings: the twin's model of the cell (sim), posed on the engine's observer points
+    "record": {"model", "sim", "execution"},
     "commissioning": {"model", "planning", "execution", "backends", "vision"},
     # a step kind's module: its model, its planning and its run-time behaviour
     "steps": {"model", "planning", "execution"},

@@ -6,6 +6,7 @@ and prints."""
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -28,6 +29,8 @@ from cellrunner.errors import UsageError
 from cellrunner.execution.rehearsal import RehearsedJob, start_rehearsal
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.step import StepKind
+from cellrunner.record.attach import finish, record_to_file
+from cellrunner.record.files import check_target
 from cellrunner.report.recorder import RunRecorder
 
 if TYPE_CHECKING:
@@ -43,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
     jobs = [params] if whole is None else [{**params, whole[0]: v} for v in whole[1]]
     if whole is not None and args.report:
         raise UsageError("--report rehearses one job; drop --slots (or the -p range) for it")
+    recording = check_target(args.record) if getattr(args, "record", None) else None
     steps = expanded(cell, task, jobs[0])
     injections = parse_injections(args.inject, steps)
     if args.report or cell.cell.watch is not None or cell.cell.cameras:
@@ -72,7 +76,10 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         lookahead=not getattr(args, "per_period", False),
     )
+    recorder = record_to_file(rehearsal.assembled, recording) if recording else None
     rehearsed = rehearsal.rehearse_all(jobs, task)
+    if recorder is not None and recording is not None:
+        sys.stderr.write(finish(recorder, recording) + "\n")
     if whole is not None:
         rehearsal.close(getattr(args, "save_map", None))
         return _whole_run_output(args, cell.cell.cell, task.name, whole[0], rehearsed, out)

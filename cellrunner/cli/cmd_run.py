@@ -11,6 +11,8 @@ from cellrunner.cli.common import console, emit_json, load, parse_params, record
 from cellrunner.errors import UsageError
 from cellrunner.execution.assembly import assemble_cell
 from cellrunner.model.codes import ResultCode
+from cellrunner.record.attach import finish, record_to_file
+from cellrunner.record.files import check_target
 
 
 def run(args: argparse.Namespace) -> int:
@@ -19,6 +21,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(
             f"--speed {speed:g}: give a fraction of the approved pace, 0 < F <= 1 (e.g. 0.25)"
         )
+    recording = check_target(args.record) if getattr(args, "record", None) else None
     cell, task = load(args.cell, args.task)
     params = parse_params(args.param, task)
     kind = backend_kind(cell, args.backend)
@@ -52,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
         depth_source=getattr(args, "depth_source", None),
     )
     controller, loop = assembled.controller, assembled.loop
+    recorder = record_to_file(assembled, recording) if recording else None
     out = console()
     controller.setup()
     try:
@@ -76,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
         if assembled.feed is not None:
             assembled.feed.close()
         controller.close()
+        if recorder is not None and recording is not None:
+            sys.stderr.write(finish(recorder, recording) + "\n")
     assert result is not None and job is not None  # run_job returns once the job has ended
     code = job.result_code  # typed: a number only in the JSON and the exit status
     assert code is not None  # the job has ended

@@ -32,6 +32,11 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.web.server import parse_address
 
         http = parse_address(args.http)  # a bad address is exit 2 before anything starts
+    record = getattr(args, "record", None)
+    if record:
+        from cellrunner.record.files import JobFolder
+
+        folder = JobFolder.check(record, "." + args.record_format)
     cell = load_cell(args.cell)
     tasks = {n: load_task(cell.resolve(p), cell) for n, p in cell.cell.tasks.items()}
     for w in cell.warnings + serve_file_warnings(cell):
@@ -63,6 +68,11 @@ def run(args: argparse.Namespace) -> int:
         depth_source=getattr(args, "depth_source", None),
     )
     controller = assembled.controller
+    recorder = None
+    if record:
+        from cellrunner.record.attach import record_jobs
+
+        recorder = record_jobs(assembled, folder, "." + args.record_format, args.record_max_mb)
     if cell.cell.watch is not None and assembled.watch is None:
         log.warning(
             "not_watched", why="depth images of the arm's cell come with the twin backend only"
@@ -104,6 +114,8 @@ def run(args: argparse.Namespace) -> int:
         controller.shutdown(reason)
         if assembled.feed is not None:
             assembled.feed.close()
+        if recorder is not None:
+            recorder.close(timeout_s=0.8)  # within the 2 s a SIGTERM allows
         if assembled.watch is not None and getattr(args, "save_map", None):
             assembled.watch.map.save(args.save_map)
         for what in controller.held_results():  # the journal tries once more as it closes

@@ -88,6 +88,7 @@ def _job_commands(sub: Commands) -> None:
     _check_command(sub)
     _dry_run_command(sub)
     _run_command(sub)
+    _replay_command(sub)
 
 
 def _validate_command(sub: Commands) -> None:
@@ -133,6 +134,7 @@ def _dry_run_command(sub: Commands) -> None:
         "plc_disconnect, intrusion (a watched cell) at a step (index, kind, or KIND#N)",
     )
     p.add_argument("--report", metavar="DIR", help="write JSON, pictures and plots here")
+    _record(p)
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument(
         "--save-map",
@@ -152,6 +154,33 @@ def _dry_run_command(sub: Commands) -> None:
         "(slower; the same results)",
     )
     p.set_defaults(module="dryrun")
+
+
+def _record(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--record",
+        metavar="FILE",
+        help="record the job in 3D over time: FILE.rrd (Rerun) or FILE.mcap (Foxglove)",
+    )
+
+
+def _replay_command(sub: Commands) -> None:
+    """replay: a recording in its viewer, or a journaled job's report."""
+    p = sub.add_parser(
+        "replay",
+        help="open a recording (FILE.rrd|FILE.mcap) or a journal's job (CELL|JOURNAL JOB_ID)",
+    )
+    p.add_argument("source", metavar="FILE.rrd|FILE.mcap|CELL|JOURNAL")
+    p.add_argument("job_id", nargs="?", metavar="JOB_ID")
+    p.add_argument(
+        "--out", metavar="DIR", help="where the job's report goes (default report-JOB_ID)"
+    )
+    p.add_argument(
+        "--recordings",
+        metavar="DIR",
+        help="serve --record's folder: open the job's recording if kept",
+    )
+    p.set_defaults(module="replay")
 
 
 def _run_command(sub: Commands) -> None:
@@ -181,6 +210,7 @@ def _run_command(sub: Commands) -> None:
         help="commissioning: show each step and wait for Enter before running it",
     )
     _depth_source(p)
+    _record(p)
     p.set_defaults(module="run")
 
 
@@ -207,6 +237,19 @@ def _cell_commands(sub: Commands) -> None:
         help="a watched cell: write the obstacle map when serving stops (.npz, for check --watch)",
     )
     _depth_source(p)
+    p.add_argument(
+        "--record",
+        metavar="DIR",
+        help="record each job in 3D to DIR/<job id>.rrd (Rerun; --record-format mcap: Foxglove)",
+    )
+    p.add_argument("--record-format", choices=("rrd", "mcap"), default="rrd")
+    p.add_argument(
+        "--record-max-mb",
+        type=float,
+        default=2048.0,
+        metavar="MB",
+        help="the recordings folder's size cap: the oldest files go first (default 2048)",
+    )
     p.set_defaults(module="serve")
 
     p = sub.add_parser("twin", help="a virtual UR controller backed by the MuJoCo twin")

@@ -203,6 +203,11 @@ class CellController:
         return None if job is None else job.planned
 
     @property
+    def eye(self) -> Eye | None:
+        """The cameras align steps look through (None: the cell has none)."""
+        return self._launcher.eye
+
+    @property
     def last_job(self) -> JobView | None:
         """The last job that ended, as it ended (its step records, result and tracking)."""
         return self._last_view

@@ -88,6 +88,7 @@ class ZoneWatch:
         self._follow_id = 0
         self._verdict: Verdict | None = None
         self.updates: list[MapUpdate] = []  # the last ones (at most 1000)
+        self.last_frames: dict[str, DepthFrame] = {}  # each camera's latest (a recording's)
         self.images = 0  # integrated so far
         #: every voxel occupied at any time (for the report's map)
         self.ever_occupied = np.zeros(self.map.n, bool)
@@ -184,6 +185,7 @@ class ZoneWatch:
             centres = self.map.centres(occupied)
             follow = self._follow
         self.updates.append(update)
+        self.last_frames[frame.camera] = frame
         self.images += 1
         if len(self.updates) > 1000:
             del self.updates[:500]

@@ -19,12 +19,14 @@ class MarkerEye:
 
     def __init__(self, grab: Callable[[str], np.ndarray], cameras: dict[str, Camera]) -> None:
         self.grab, self.cameras = grab, cameras
+        self.last_pictures: dict[str, np.ndarray] = {}  # each camera's latest (a recording's)
 
     def sight(self, camera: str, marker: Marker) -> Sighting | None:
         c = self.cameras[camera]
         K = c.intrinsics.matrix()
         distortion = np.asarray(c.intrinsics.distortion, float)
-        corners = find_corners(self.grab(camera), marker)
+        picture = self.last_pictures[camera] = self.grab(camera)
+        corners = find_corners(picture, marker)
         if corners is None:
             return None
         return Sighting(
