@@ -233,6 +233,41 @@ def test_twin_ends_within_the_bound_when_its_client_was_killed(project, signum):
     assert "Traceback" not in twin.text, twin.text[-3000:]
 
 
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_shift_in_rehearsal_ends_within_the_bound_and_reports_the_jobs_so_far(signum):
+    shift = subprocess.Popen(
+        [
+            *CLI,
+            "dry-run",
+            str(ROOT / "cells" / "demo_ur5e.yaml"),
+            str(ROOT / "tasks" / "pick_place.yaml"),
+            "--shift",
+            "8h",
+            "--progress",
+            "--json",
+        ],
+        cwd=ROOT,
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        time.sleep(6.0)  # planning and the first slots rehearsing in the twin
+        assert shift.poll() is None
+        t0 = time.monotonic()
+        shift.send_signal(signum)
+        out, err = shift.communicate(timeout=15)
+        elapsed = time.monotonic() - t0
+    finally:
+        if shift.poll() is None:
+            shift.kill()
+            shift.communicate(timeout=10)
+    assert elapsed < STOP_BOUND_S, err[-2000:]
+    assert shift.returncode == 1, err[-2000:]
+    assert "Traceback" not in err
+
+
 # ---------------------------------------------------------------- the mechanism alone
 
 STUCK = """
