@@ -55,7 +55,8 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         wait_for_unhold=True,
         feed_parts=True,
-        realtime=kind == "sim",
+        # the twin at the clock's pace, unless a soak asks for its fastest
+        realtime=kind == "sim" and not getattr(args, "sim_fast", False),
         eye=True,
         image_source=getattr(args, "image_source", None),
         watched=kind == "sim",

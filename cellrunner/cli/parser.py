@@ -236,6 +236,12 @@ def _cell_commands(sub: Commands) -> None:
         metavar="FILE",
         help="a watched cell: write the obstacle map when serving stops (.npz, for check --watch)",
     )
+    p.add_argument(
+        "--sim-fast",
+        action="store_true",
+        help="with --backend sim: the twin runs as fast as it can, not at the clock's pace "
+        "(soak tests: days of jobs in hours)",
+    )
     _depth_source(p)
     p.set_defaults(module="serve")
 
