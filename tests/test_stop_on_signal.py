@@ -257,7 +257,7 @@ def test_a_shift_in_rehearsal_ends_within_the_bound_and_reports_the_jobs_so_far(
         assert shift.poll() is None
         t0 = time.monotonic()
         shift.send_signal(signum)
-        out, err = shift.communicate(timeout=15)
+        _out, err = shift.communicate(timeout=15)
         elapsed = time.monotonic() - t0
     finally:
         if shift.poll() is None:
