@@ -97,6 +97,7 @@ TIME_BOUND = (
     "plc/test_opcua.py::test_encrypted_user_session_runs_a_job_and_gets_the_completion",
     "plc/test_opcua_login_flood.py",
     "test_serve_login_flood.py",
+    "test_stop_on_signal.py",
     "twin/test_serve_faults.py",
     "twin/test_ur_rtde_client.py::test_rtde_streams_500_hz_on_e_series",
     "twin/test_ur_rtde_client.py::test_movej_reaches_target_with_trapezoid_timing",

@@ -40,6 +40,10 @@ if TYPE_CHECKING:
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "shift", None):
+        from cellrunner.cli.shift import run_shift
+
+        return run_shift(args)
     cell, task = load(args.cell, args.task)
     pairs, whole = whole_run(getattr(args, "slots", None), args.param, task)
     params = parse_params(pairs, task)

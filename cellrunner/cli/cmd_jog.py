@@ -6,11 +6,9 @@ timeout; :mod:`cellrunner.commissioning.inputs` for each input)."""
 from __future__ import annotations
 
 import argparse
-import signal
-import threading
-from types import FrameType
 
-from cellrunner.errors import UsageError
+from cellrunner.cli.stopping import end_process, stop_on_signals
+from cellrunner.errors import CellrunnerError, UsageError
 from cellrunner.model.load import load_cell
 
 
@@ -25,22 +23,25 @@ def run(args: argparse.Namespace) -> int:
     from cellrunner.commissioning.jog_session import JogSession
     from cellrunner.planning.world import CellWorld
 
-    stop = threading.Event()
-
-    def on_term(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    previous = signal.signal(signal.SIGTERM, on_term)
     world = CellWorld(cell)
     from cellrunner.execution.watch import watch_on_sources
 
     # a watched cell: its zone watch governs the jog (the twin's depth camera by default)
     watched = watch_on_sources(world, getattr(args, "depth_source", None), host)
     session = JogSession(world, host, source, watched=watched)
+    # SIGTERM and Ctrl-C end the session within 2 s, even while ur_rtde waits on a
+    # controller that is gone (see cellrunner.cli.stopping)
     try:
-        session.connect()
-        session.run(stop)
-    finally:
-        session.close()
-        signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
+        with stop_on_signals(exit_code=0) as stop:
+            try:
+                session.connect()
+                session.run(stop.event)
+            finally:
+                session.close()
+    except CellrunnerError as exc:
+        if session.abandoned:  # the link dropped: say why, then past ur_rtde's destructors
+            end_process(exc.exit_code, f"cellrunner jog: error: {exc}")
+        raise
+    if session.abandoned:
+        end_process(0)
     return 0

@@ -4,10 +4,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 
 from cellrunner.backends.factory import backend_kind
 from cellrunner.cli.common import console, emit_json, load, parse_params, record_rows, step_table
+from cellrunner.cli.stopping import stop_on_signals
 from cellrunner.errors import UsageError
 from cellrunner.execution.assembly import assemble_cell
 from cellrunner.model.codes import ResultCode
@@ -57,6 +59,10 @@ def run(args: argparse.Namespace) -> int:
     controller, loop = assembled.controller, assembled.loop
     recorder = record_to_file(assembled, recording) if recording else None
     out = console()
+    # SIGTERM and Ctrl-C: the arm stopped, the job closed with 107 and reported, exit 1,
+    # within 2 s even with a controller that does not answer (cellrunner.cli.stopping)
+    signals = contextlib.ExitStack()
+    stopping = signals.enter_context(stop_on_signals(exit_code=1))
     controller.setup()
     try:
         if assembled.feed is not None:
@@ -70,10 +76,12 @@ def run(args: argparse.Namespace) -> int:
         if gate is not None:  # no spinner: the operator reads each step's preview
             out.print(f"running {task.name} on the {kind} backend{pace}, one step at a time")
             gate.start()
-            loop.run_job(max_s=24 * 3600.0)
+            loop.run_job(max_s=24 * 3600.0, stop=stopping.event)
         else:
             with out.status(f"running {task.name} on the {kind} backend{pace}", spinner="dots"):
-                loop.run_job(max_s=3600.0 / speed)
+                loop.run_job(max_s=3600.0 / speed, stop=stopping.event)
+        if stopping.event.is_set():
+            controller.shutdown(stopping.reason)
         job = controller.last_job
         result = controller.status().last_result
     finally:
@@ -82,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
         controller.close()
         if recorder is not None and recording is not None:
             sys.stderr.write(finish(recorder, recording) + "\n")
+        signals.close()
     assert result is not None and job is not None  # run_job returns once the job has ended
     code = job.result_code  # typed: a number only in the JSON and the exit status
     assert code is not None  # the job has ended

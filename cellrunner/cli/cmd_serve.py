@@ -4,14 +4,14 @@ journal, until SIGTERM (which stops motion, closes the running job with 107, exi
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
-import signal
 import sys
-import threading
 from typing import TYPE_CHECKING
 
 from cellrunner.backends.factory import backend_kind
 from cellrunner.cli.logs import configure
+from cellrunner.cli.stopping import stop_on_signals
 from cellrunner.execution.assembly import assemble_cell
 from cellrunner.execution.journal import is_database_url
 from cellrunner.execution.journal_open import cell_journal
@@ -61,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
         log=log,
         wait_for_unhold=True,
         feed_parts=True,
-        realtime=kind == "sim",
+        # the twin at the clock's pace, unless a soak asks for its fastest
+        realtime=kind == "sim" and not getattr(args, "sim_fast", False),
         eye=True,
         image_source=getattr(args, "image_source", None),
         watched=kind == "sim",
@@ -81,12 +82,14 @@ def run(args: argparse.Namespace) -> int:
     # the planning thread is CPU-bound; hand the GIL over every 1 ms (Python's default is
     # 5 ms) so the PLC threads answer promptly while a job plans
     sys.setswitchinterval(0.001)
-    stop = threading.Event()
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(sig, lambda *_: stop.set())
+    # SIGTERM and Ctrl-C: the job closed with 107 and exit 0 within 2 s, even with a
+    # controller that does not answer (see cellrunner.cli.stopping)
+    signals = contextlib.ExitStack()
+    stopping = signals.enter_context(stop_on_signals(exit_code=0))
+    stop = stopping.event
     controller.setup()
     service = status_page = None
-    reason = "cellrunner stopped (SIGTERM)"
+    reason = ""
     try:
         service = _plc_service(controller, cell)
         status_page = _status_page(assembled, service, http, log) if http else None
@@ -111,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
         raise
     finally:
         gc.unfreeze()  # collected as usual on the way out (native bindings check for leaks)
+        reason = reason or stopping.reason
         controller.shutdown(reason)
         if assembled.feed is not None:
             assembled.feed.close()
@@ -127,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
             service.stop()
         controller.close()
         log.info("stopped", reason=reason)
+        signals.close()
     return 0
 
 

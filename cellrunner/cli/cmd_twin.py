@@ -5,13 +5,14 @@ that ``run``/``serve --backend ur`` and the unmodified ur_rtde client work witho
 from __future__ import annotations
 
 import argparse
-import signal
+import contextlib
 import sys
 import threading
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cellrunner.cli.stopping import stop_on_signals
 from cellrunner.model.load import load_cell
 
 if TYPE_CHECKING:
@@ -26,9 +27,9 @@ def run(args: argparse.Namespace) -> int:
     from cellrunner.twin.mujoco_physics import MujocoPhysics
     from cellrunner.twin.server import run_twin
 
-    stop, ready = threading.Event(), threading.Event()
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(sig, lambda *_: stop.set())
+    # SIGTERM and Ctrl-C end the twin within 2 s, whatever its clients do
+    signals = contextlib.ExitStack()
+    stop, ready = signals.enter_context(stop_on_signals(exit_code=0)).event, threading.Event()
     if cell.cell.cameras:
         from cellrunner.sim.mujoco_loader import enable_pictures
 
@@ -70,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if cameras is not None:
             cameras.stop()
+        signals.close()
     return 0
 
 

@@ -153,6 +153,7 @@ def _dry_run_command(sub: Commands) -> None:
         help="step the twin one controller period at a time, without look-ahead "
         "(slower; the same results)",
     )
+    _shift_options(p)
     p.set_defaults(module="dryrun")
 
 
@@ -181,6 +182,35 @@ def _replay_command(sub: Commands) -> None:
         help="serve --record's folder: open the job's recording if kept",
     )
     p.set_defaults(module="replay")
+
+
+def _shift_options(p: argparse.ArgumentParser) -> None:
+    """dry-run --shift: the task back to back for a simulated shift (SPEC 13)."""
+    p.add_argument(
+        "--shift",
+        metavar="DURATION",
+        help="a whole shift in rehearsal: the task back to back for DURATION of simulated "
+        "time (8h, 90m, 1h30m), pattern slots in turn; prints parts/h, availability, "
+        "MTBF, MTTR, result codes, the slowest steps and each failure's replay",
+    )
+    p.add_argument(
+        "--faults",
+        metavar="FILE",
+        help="--shift: YAML of fault -> probability per job, e.g. {grip_miss: 0.005}",
+    )
+    p.add_argument(
+        "--feed-every", type=float, metavar="S", help="--shift: a part arrives every S s"
+    )
+    p.add_argument(
+        "--seed", type=int, default=0, help="--shift: the faults' random seed (default 0)"
+    )
+    p.add_argument(
+        "--operator-s",
+        type=float,
+        metavar="S",
+        help="--shift: the operator's time to clear a failed job and reset (default 60)",
+    )
+    p.add_argument("--progress", action="store_true", help="--shift: show a progress bar")
 
 
 def _run_command(sub: Commands) -> None:
@@ -235,6 +265,12 @@ def _cell_commands(sub: Commands) -> None:
         "--save-map",
         metavar="FILE",
         help="a watched cell: write the obstacle map when serving stops (.npz, for check --watch)",
+    )
+    p.add_argument(
+        "--sim-fast",
+        action="store_true",
+        help="with --backend sim: the twin runs as fast as it can, not at the clock's pace "
+        "(soak tests: days of jobs in hours)",
     )
     _depth_source(p)
     p.add_argument(

@@ -75,6 +75,9 @@ class JogSession:
         self.realtime = False
         self._priority_before: Previous | None = None
         self._said = ""
+        #: the link to the controller dropped and ur_rtde's interfaces were left as they
+        #: were: end the process with os._exit, not through their destructors
+        self.abandoned = False
 
     def connect(self) -> None:
         self.source.open()  # a missing terminal, device or port fails before the arm is touched
@@ -105,6 +108,13 @@ class JogSession:
         try:
             if self.feed is not None:
                 self.feed.close()
+            if self._link_lost():
+                # a controller that is gone has stopped its arm. Asking it again blocks in
+                # ur_rtde's reconnect loop for minutes, and disconnecting (or destroying)
+                # the interfaces waits 0.5 s each on their reconnecting threads: they are
+                # kept, untouched, for the process to end without them (:attr:`abandoned`)
+                self.abandoned = True
+                return
             if self._control is not None:
                 try:
                     self._control.speedStop(SPEEDJ_ACCEL_RAD_S2)
@@ -117,6 +127,12 @@ class JogSession:
             self.source.close()
             restore(self._priority_before)  # the caller's thread, as it was before connect
             self._priority_before = None
+
+    def _link_lost(self) -> bool:
+        return any(
+            interface is not None and not interface.isConnected()
+            for interface in (self._control, self._receive)
+        )
 
     def run(self, stop: threading.Event | None = None) -> None:
         stop = stop or threading.Event()

@@ -45,6 +45,7 @@ from cellrunner.model.cellport import COMMANDS, CellStatus, JobSource, JobTicket
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
+from cellrunner.model.hold_source import HoldSource
 from cellrunner.model.load import LoadedCell, LoadedTask
 from cellrunner.model.robot_state import Safety
 from cellrunner.model.trajectory import ApprovedTrajectory
@@ -266,15 +267,15 @@ class CellController:
             )
             return JobTicket(job.job_id)  # planning starts on the control thread's next tick
 
-    def command(self, name: str) -> bool:
+    def command(self, name: str, source: HoldSource = HoldSource.PLC) -> bool:
         if name not in COMMANDS:
             raise ValueError(f"unknown command {name!r}; known: {', '.join(COMMANDS)}")
         with self._lock:
-            accepted = self._command(name)
+            accepted = self._command(name, source)
             self._publish()
             return accepted
 
-    def _command(self, name: str) -> bool:
+    def _command(self, name: str, source: HoldSource) -> bool:
         job = self._job
         runner = job.runner if job else None
         if name in ("hold", "unhold", "abort") and runner is not None and not runner.done:
@@ -282,7 +283,7 @@ class CellController:
                 return False
             if name == "hold" and runner.phase is not JobPhase.EXECUTE:
                 return False
-            runner.request(name)  # the control thread acts on it at its next tick
+            runner.request(name, source)  # the control thread acts on it at its next tick
             return True
         try:
             if name == "abort" and job is not None and runner is None:  # still planning

@@ -12,6 +12,7 @@ import numpy as np
 
 from cellrunner.errors import BackendError
 from cellrunner.execution.context import JobContext
+from cellrunner.model.hold_source import HoldSource
 from cellrunner.model.robot_state import Safety
 from cellrunner.model.task import ProtectiveStopPolicy
 
@@ -24,7 +25,7 @@ UNLOCK_RETRY_S = 0.25
 #: protective stops of one step with the TCP this close (m) came at the same place
 SAME_PLACE_M = 0.02
 
-PROTECTIVE_STOP = "protective stop"  # the reason of a hold the robot's stop started
+PROTECTIVE_STOP = HoldSource.PROTECTIVE_STOP.reason  # the reason of a hold the robot's stop started
 
 
 class Held(enum.Enum):
@@ -40,6 +41,7 @@ class JobHold:
     policy: ProtectiveStopPolicy
     wait_for_unhold: bool = False  # serve: a stop past the policy waits for the PLC's Unhold
     reason: str = ""
+    source: HoldSource | None = None  # who held (None: not held yet)
     since_s: float = 0.0
     unhold_requested: bool = False  # the PLC's Unhold during a protective stop's hold
     failure: str = ""
@@ -50,10 +52,11 @@ class JobHold:
     def protective(self) -> bool:
         return self.reason == PROTECTIVE_STOP
 
-    def enter(self, reason: str, now_s: float, step: int | None, q_rad: np.ndarray) -> None:
-        """JobHold for ``reason`` at ``now_s`` (s), in step ``step`` (None: between steps)
-        with the arm at ``q_rad``."""
-        self.reason, self.since_s, self.unhold_requested = reason, now_s, False
+    def enter(self, source: HoldSource, now_s: float, step: int | None, q_rad: np.ndarray) -> None:
+        """JobHold asked by ``source`` at ``now_s`` (s), in step ``step`` (None: between
+        steps) with the arm at ``q_rad``."""
+        self.source, self.reason = source, source.reason
+        self.since_s, self.unhold_requested = now_s, False
         if self.protective and step is not None:
             self.stops_at.append((step, q_rad.copy()))
 

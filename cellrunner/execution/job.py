@@ -20,7 +20,7 @@ from cellrunner.errors import BackendError, InfeasibleError, PeerUnreachable
 from cellrunner.execution.agenda import Agenda
 from cellrunner.execution.cleanup import Cleanup
 from cellrunner.execution.context import JobContext
-from cellrunner.execution.hold import PROTECTIVE_STOP, Held, JobHold
+from cellrunner.execution.hold import Held, JobHold
 from cellrunner.execution.job_records import AgendaItem, JobPhase, StepRecord, StepRows
 from cellrunner.execution.lookahead import Clock, fast_forward
 from cellrunner.execution.outcome import Outcome
@@ -28,6 +28,7 @@ from cellrunner.execution.reconnect import Link, Reconnect
 from cellrunner.execution.retry import grip_of, retry_agenda, weighing_after
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import ON_ERROR, Step
+from cellrunner.model.hold_source import HoldSource
 from cellrunner.model.robot_state import Safety
 from cellrunner.model.task import ProtectiveStopPolicy
 
@@ -62,7 +63,7 @@ class JobRunner:
         self.records = self._rows.records  # the report's rows, by step index
         self._agenda = Agenda(self.ctx, self._rows, self.steps, self.gate, self._log)
         self._hold = JobHold(self.protective_stop, self.wait_for_unhold)
-        self._requests: list[str] = []
+        self._requests: list[tuple[str, HoldSource]] = []
         self._pending_end: tuple[ResultCode, str] | None = None  # after cleanup steps
         self._ticks = 0
         self._link = Reconnect()  # a reconnect under way, polled by tick
@@ -77,9 +78,15 @@ class JobRunner:
     def done(self) -> bool:
         return self.phase is JobPhase.DONE
 
-    def request(self, what: str) -> None:
-        """Queue 'hold', 'unhold' or 'abort' (from the PLC or the watchdog)."""
-        self._requests.append(what)
+    def request(self, what: str, source: HoldSource = HoldSource.PLC) -> None:
+        """Queue 'hold', 'unhold' or 'abort', asked by ``source`` (the PLC, its watchdog,
+        an operator over OPC UA...)."""
+        self._requests.append((what, source))
+
+    @property
+    def hold(self) -> JobHold:
+        """The hold under way or last (its source and reason)."""
+        return self._hold
 
     def start(self) -> None:
         self.ctx.read()
@@ -110,9 +117,9 @@ class JobRunner:
             )
         elif safety is Safety.PROTECTIVE_STOP and phase is JobPhase.EXECUTE:
             self.protective_stops += 1
-            self._enter_hold(PROTECTIVE_STOP)
+            self._enter_hold(HoldSource.PROTECTIVE_STOP)
         while self._requests:
-            self._handle_request(self._requests.pop(0))
+            self._handle_request(*self._requests.pop(0))
             if self.done:
                 return
         phase = self.phase
@@ -140,11 +147,11 @@ class JobRunner:
         self._ticks += n
         return n
 
-    def _handle_request(self, what: str) -> None:
+    def _handle_request(self, what: str, source: HoldSource) -> None:
         if what == "abort":
             self._finish(ResultCode.ABORTED_BY_PLC, f"aborted during {self._agenda.label}")
         elif what == "hold" and self.phase is JobPhase.EXECUTE:
-            self._enter_hold("hold requested")
+            self._enter_hold(source)
         elif what == "unhold" and self.phase is JobPhase.HELD:
             if self._hold.protective:
                 # the controller is still stopped: unlock it (once its delay has passed),
@@ -153,13 +160,16 @@ class JobRunner:
             else:
                 self._resume()
 
-    def _enter_hold(self, reason: str) -> None:
+    def _enter_hold(self, source: HoldSource) -> None:
         self.phase = JobPhase.HOLDING
-        self._hold.enter(reason, self.ctx.now_s, self._agenda.step_index, self.ctx.last_state.q_rad)
+        self._hold.enter(source, self.ctx.now_s, self._agenda.step_index, self.ctx.last_state.q_rad)
         self._agenda.drop_motion()
-        if reason != PROTECTIVE_STOP:
+        if source is not HoldSource.PROTECTIVE_STOP:
             self.ctx.backend.stop_motion()
-        self._log("hold", reason=reason)
+        self._log("hold", reason=source.reason, source=source.value)
+        current = self._agenda.current
+        if current is not None:  # the journal: who held, in the step it held
+            self._rows.held(current.step.index, current.attempt, f"{source.value}: {source.reason}")
 
     def _tick_held(self) -> None:
         if self.phase is JobPhase.HOLDING and np.max(np.abs(self.ctx.last_state.qd_rad_s)) < 1e-3:
@@ -206,7 +216,7 @@ class JobRunner:
         safety = getattr(exc, "safety", None)
         if safety is Safety.PROTECTIVE_STOP:
             self.protective_stops += 1
-            self._enter_hold(PROTECTIVE_STOP)
+            self._enter_hold(HoldSource.PROTECTIVE_STOP)
         elif safety is Safety.EMERGENCY_STOP:
             self._finish(ResultCode.ESTOP, f"e-stop during {self._agenda.label}")
         else:

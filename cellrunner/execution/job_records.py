@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import enum
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from cellrunner.model.expand import Step
@@ -31,6 +31,7 @@ class StepStatus(enum.StrEnum):
     OK = "ok"
     FAILED = "failed"
     SKIPPED = "skipped"
+    HELD = "held"  # a journal row only: the job was held in this step (who, in its message)
 
 
 @dataclass
@@ -91,6 +92,13 @@ class StepRows:
         """Step ``index`` failed with ``message`` if it is running."""
         if self.records[index].status is StepStatus.RUNNING:
             self.failed(index, attempt, now_s, message)
+
+    def held(self, index: int, attempt: int, message: str) -> None:
+        """The job was held in step ``index``: one journal row (status ``held``) whose
+        ``message`` says who held and why; the step's own row goes on as it was."""
+        if self.on_step is not None:
+            record = self.records[index]
+            self.on_step(replace(record, status=StepStatus.HELD, message=message), attempt)
 
     def skip_pending(self) -> None:
         for record in self.records.values():

@@ -18,6 +18,7 @@ from cellrunner.model.cellport import CellStatus, JobResult
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
+from cellrunner.model.hold_source import HoldSource
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
 from cellrunner.model.robot_state import Safety
@@ -139,6 +140,9 @@ def status_of(
     robot's ``safety``, the ``last`` result and the (processed, defective) ``counters``;
     ``held``: a job's result waits for the journal (a full disk), so the cell is busy."""
     obstruction = obstruction_of(job)
+    holder = hold_of(job) if state in (S.HOLDING, S.HELD) else None
+    if holder is None and obstruction:
+        holder = HoldSource.OBSTACLE, f"{HoldSource.OBSTACLE.reason}: {obstruction}"
     return CellStatus(
         state=int(state),
         state_name=state.display_name,
@@ -154,7 +158,18 @@ def status_of(
         parts_defective=counters[1],
         obstructed=bool(obstruction),
         obstruction=obstruction,
+        hold_source=holder[0].value if holder else "",
+        hold_reason=holder[1] if holder else "",
     )
+
+
+def hold_of(job: Job | None) -> tuple[HoldSource, str] | None:
+    """Who holds the running job and why (None: not held)."""
+    runner = job.runner if job is not None else None
+    hold = runner.hold if runner is not None else None
+    if hold is None or hold.source is None:
+        return None
+    return hold.source, hold.reason
 
 
 def result_of_job(

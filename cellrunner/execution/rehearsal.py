@@ -23,6 +23,7 @@ from cellrunner.errors import CellrunnerError
 from cellrunner.execution.assembly import assemble_cell
 from cellrunner.execution.journal import Journal
 from cellrunner.model.codes import ResultCode
+from cellrunner.model.hold_source import HoldSource
 from cellrunner.model.step import StepKind
 
 if TYPE_CHECKING:
@@ -337,7 +338,7 @@ class FaultsAndProgress:
                 if (
                     inj.fault == "plc_disconnect"
                 ):  # the PLC watchdog holds the cell; the PLC comes back
-                    cell.command("hold")
+                    cell.command("hold", HoldSource.PLC_WATCHDOG)
                     self.plc_back_at = now + PLC_OUTAGE_S
                 elif inj.fault == "intrusion":
                     if not self._drop_box(cell):

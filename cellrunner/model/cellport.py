@@ -24,6 +24,7 @@ from datetime import datetime
 from typing import Any, Protocol, runtime_checkable
 
 from cellrunner.model.codes import PackMLState, ResultCode
+from cellrunner.model.hold_source import HoldSource
 
 __all__ = [
     "COMMANDS",
@@ -126,6 +127,12 @@ class CellStatus:
     #: ``obstruction`` says where ("" when not obstructed)
     obstructed: bool = False
     obstruction: str = ""
+    #: who holds the cell (a :class:`~cellrunner.model.hold_source.HoldSource` value:
+    #: ``plc``, ``plc_watchdog``, ``opcua``, ``page``, ``obstacle``, ``protective_stop``)
+    #: and why, in words; "" when nothing holds it. An arm waiting for an obstacle is
+    #: held by ``obstacle`` (the job goes on once the zone clears)
+    hold_source: str = ""
+    hold_reason: str = ""
 
 
 @dataclass(frozen=True)
@@ -179,8 +186,9 @@ class CellPort(Protocol):
         """
         ...
 
-    def command(self, name: str) -> bool:
-        """A PackML command: one of :data:`COMMANDS`.
+    def command(self, name: str, source: HoldSource = HoldSource.PLC) -> bool:
+        """A PackML command: one of :data:`COMMANDS`, asked by ``source`` (who holds, for
+        a hold: the PLC, its watchdog, an operator over OPC UA or on the status page).
 
         Returns False (and does nothing) when the command is not valid in the
         current state; never raises for that. An unknown name raises ValueError.

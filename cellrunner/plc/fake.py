@@ -19,6 +19,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
+from cellrunner.model.hold_source import HoldSource
 from cellrunner.plc.port import (
     COMMANDS,
     COMPLETED_CODES,
@@ -126,6 +127,8 @@ class FakeCell:
         self._last_tick_s = 0.0
         self.finished: list[JobResult] = []  # every result, in order (the "journal")
         self.commands: list[str] = []  # every accepted command, in order
+        self.sources: list[HoldSource] = []  # who asked each of them
+        self._hold_source: HoldSource | None = None  # who held the job held now
 
     # -- lifecycle -----------------------------------------------------------------
     def start(self) -> FakeCell:
@@ -152,12 +155,13 @@ class FakeCell:
         with self._lock:
             job = self._job or self._queued
             state = self._state
+            held = state in (S.HOLDING, S.HELD, S.UNHOLDING)
             return CellStatus(
                 state=int(state),
                 state_name=state.display_name,
                 ready=self._is_ready(),
                 busy=job is not None,
-                held=state in (S.HOLDING, S.HELD, S.UNHOLDING),
+                held=held,
                 protective_stop=self._injected.protective_stop,
                 estop=self._injected.estop,
                 job_id=job.job_id if job else "",
@@ -165,6 +169,8 @@ class FakeCell:
                 last_result=self.last_result,
                 parts_processed=self._processed,
                 parts_defective=self._defective,
+                hold_source=self._hold_source.value if held and self._hold_source else "",
+                hold_reason=self._hold_source.reason if held and self._hold_source else "",
             )
 
     def task_params(self, task: str | int) -> list[str] | None:
@@ -207,13 +213,16 @@ class FakeCell:
             self._enter(S.STARTING, S.EXECUTE)
             return JobTicket(job.job_id)
 
-    def command(self, name: str) -> bool:
+    def command(self, name: str, source: HoldSource = HoldSource.PLC) -> bool:
         if name not in COMMANDS:
             raise ValueError(f"unknown command {name!r}; known: {', '.join(COMMANDS)}")
         with self._lock:
             accepted = self._apply_command(name)
+            if accepted and name == "hold":
+                self._hold_source = source
             if accepted:
                 self.commands.append(name)
+                self.sources.append(source)
             return accepted
 
     def add_result_listener(self, listener: ResultListener) -> Callable[[], None]:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from cellrunner.errors import CellrunnerError, InputError
+from cellrunner.model.hold_source import HoldSource
 from cellrunner.plc.modbus_tcp import tcp_server
 from cellrunner.plc.param_registers import N_PARAM_REGS, PARAM_FIRST, decode_params
 from cellrunner.plc.param_registers import to_int16 as to_int16  # re-exported: the register codec
@@ -204,7 +205,7 @@ class ModbusLink:
         ):
             self._watchdog = True
             if status.busy:
-                self.port.command("hold")
+                self.port.command("hold", HoldSource.PLC_WATCHDOG)
             status = self.port.status()
         if self._reset_until_s is not None:
             if now > self._reset_until_s:

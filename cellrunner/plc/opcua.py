@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING, Any
 from urllib.parse import urlparse
 
 from cellrunner.errors import CellrunnerError, InputError
+from cellrunner.model.hold_source import HoldSource
 from cellrunner.model.params import ParamValue
 from cellrunner.plc.opcua_admission import (
     HANDSHAKE_BURST,
@@ -182,6 +183,8 @@ _CELL_VARIABLES = (
     ("ProtectiveStop", "Boolean", False),
     ("EmergencyStop", "Boolean", False),
     ("Obstructed", "Boolean", False),
+    ("HoldSource", "String", ""),  # who holds the cell (HoldSource's value), "" when none
+    ("HoldReason", "String", ""),
     ("CurrentJobId", "String", ""),
     ("CurrentStep", "Int32", 0),
     ("ProdProcessed", "UInt32", 0),
@@ -655,7 +658,7 @@ class OpcUaServer:
 
             if args:
                 return _status(ua.status_codes.StatusCodes.BadTooManyArguments)
-            if not self.port.command(command):
+            if not self.port.command(command, HoldSource.OPCUA):
                 return _status(ua.status_codes.StatusCodes.BadInvalidState)
             return []
 
@@ -689,6 +692,8 @@ class OpcUaServer:
             "ProtectiveStop": status.protective_stop,
             "EmergencyStop": status.estop,
             "Obstructed": status.obstructed,
+            "HoldSource": status.hold_source,
+            "HoldReason": status.hold_reason,
             "CurrentJobId": status.job_id,
             "CurrentStep": status.step_index,
             "ProdProcessed": min(max(status.parts_processed, 0), 0xFFFFFFFF),

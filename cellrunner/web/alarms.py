@@ -103,7 +103,9 @@ def active_alarms(status: CellStatus, plc_links: dict[str, bool]) -> list[Alarm]
             Alarm(
                 "warning",
                 f"Cell {state.display_name}",
-                "The running job is held.",
+                f"The running job is held by {status.hold_source}: {status.hold_reason}."
+                if status.hold_source
+                else "The running job is held.",
                 _STATE_FIX["held"],
             )
         )

@@ -91,6 +91,8 @@ class StatusBoard:
             "estop": status.estop,
             "obstructed": status.obstructed,
             "obstruction": status.obstruction,
+            "hold_source": status.hold_source,
+            "hold_reason": status.hold_reason,
             "plc_links": links,
             "job": job,
             "last_results": [_result_row(r) for r in reversed(finished[-LAST_RESULTS:])],

@@ -152,6 +152,26 @@ async def scenario_run(client: Any, task: str, params: str, wait_s: float) -> di
     return out
 
 
+async def scenario_hold(client: Any) -> dict[str, Any]:
+    """StartJob of the slow task, Hold over OPC UA: who the cell says holds it, then Abort."""
+    ns = await client.get_namespace_index("urn:cellrunner")
+    cell = await client.nodes.objects.get_child(f"{ns}:Cell")
+    job_id, code = await cell.call_method(f"{ns}:StartJob", "slow", "", "hold-1")
+    await asyncio.sleep(0.2)
+    await cell.call_method(f"{ns}:Hold")
+    source = await cell.get_child(f"{ns}:HoldSource")
+    deadline = time.monotonic() + 5
+    while not await source.read_value() and time.monotonic() < deadline:
+        await asyncio.sleep(0.02)
+    out = {
+        "job": [job_id, code],
+        "hold_source": await source.read_value(),
+        "hold_reason": await (await cell.get_child(f"{ns}:HoldReason")).read_value(),
+    }
+    await cell.call_method(f"{ns}:Abort")
+    return out
+
+
 async def scenario_write(client: Any) -> dict[str, Any]:
     from asyncua import ua
 
@@ -276,6 +296,8 @@ async def main() -> None:
             )
         elif args.scenario == "hostile":
             result.update(await asyncio.wait_for(scenario_hostile(client), 60))
+        elif args.scenario == "hold":
+            result.update(await asyncio.wait_for(scenario_hold(client), 15))
         elif args.scenario == "write":
             result.update(await asyncio.wait_for(scenario_write(client), 15))
         else:

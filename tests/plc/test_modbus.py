@@ -137,6 +137,7 @@ def test_watchdog_holds_running_job_then_unhold_completes(plc: PlcProcess, cell:
     assert regs[1] & ST_BUSY
     plc.call("heartbeat", on=False)
     assert plc.wait_bits(ST_PLC_WATCHDOG | ST_HELD, ST_PLC_WATCHDOG | ST_HELD, timeout=2.0)["ok"]
+    assert cell.status().hold_source == "plc_watchdog"  # not the words of a PLC's Hold
     # Unhold is a command of Held (11), not of Holding (10): a PLC waits for it
     assert plc.wait_bits(0xFFFF, 11, addr=102, timeout=2.0)["ok"]
     plc.call("heartbeat", on=True)
@@ -153,6 +154,7 @@ def test_hold_unhold_abort_bits(plc: PlcProcess, cell: FakeCell) -> None:
     assert plc.write(1, [CMD_JOB_REQ | CMD_HOLD])["ok"]
     assert plc.wait_bits(0xFFFF, 11, addr=102, timeout=2.0)["ok"]
     assert plc.read(101)[0] & ST_HELD
+    assert (cell.status().hold_source, cell.status().hold_reason) == ("plc", "hold requested")
     assert plc.write(1, [CMD_JOB_REQ | CMD_UNHOLD])["ok"]
     assert plc.wait_bits(0xFFFF, 6, addr=102, timeout=2.0)["ok"]
     assert plc.write(1, [CMD_JOB_REQ | CMD_ABORT])["ok"]

@@ -206,3 +206,11 @@ def test_hostile_start_jobs_are_refused_cleanly(opcua: Setup) -> None:
 def test_register_server_without_a_session_is_refused(opcua: Setup) -> None:
     [out] = run_clients([[*opcua.args(scenario="register", policy="none")]])
     assert out.get("register") == "BadServiceUnsupported", out
+
+
+def test_a_hold_over_opcua_is_published_as_held_by_opcua(opcua: Setup) -> None:
+    [out] = run_clients([opcua.args(scenario="hold")])
+    assert out["connected"], out
+    assert out["job"][1] == 0, out
+    assert (out["hold_source"], out["hold_reason"]) == ("opcua", "hold requested over OPC UA")
+    assert opcua.cell.sources[opcua.cell.commands.index("hold")] == "opcua"
