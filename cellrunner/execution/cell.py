@@ -41,12 +41,19 @@ from cellrunner.execution.packml import Command, Event, TransitionRefused
 from cellrunner.execution.planner import Planner
 from cellrunner.execution.recovery import Recovery, stop_and_stand, unlock_idle_stop
 from cellrunner.execution.task_menu import TaskMenu
-from cellrunner.model.cellport import COMMANDS, CellStatus, JobSource, JobTicket, ResultListener
+from cellrunner.model.cellport import (
+    COMMANDS,
+    ArmStatus,
+    CellStatus,
+    JobSource,
+    JobTicket,
+    ResultListener,
+)
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.load import LoadedCell, LoadedTask
-from cellrunner.model.robot_state import Safety
+from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 #: the PLC's commands that go to the state machine as they are
@@ -107,6 +114,7 @@ class CellController:
         self._last_view: JobView | None = None
         self._status_key: tuple[object, ...] = ()
         self._status = self._snapshot()
+        self._robot: RobotState | None = None  # the last measurement a tick read
 
     # ------------------------------------------------------------------ lifecycle
     def setup(self) -> None:
@@ -143,6 +151,22 @@ class CellController:
     def status(self) -> CellStatus:
         """The snapshot published after the last change; takes no lock, never waits."""
         return self._status
+
+    def arm(self) -> ArmStatus:
+        """The arm as the last tick measured it (:class:`~cellrunner.model.cellport.ArmPort`);
+        takes no lock, never touches the backend."""
+        robot, job = self._robot, self._job
+        return ArmStatus(
+            model=self.cell.cell.robot.model,
+            serial_number=str(getattr(self.backend, "serial_number", "") or ""),
+            controller=str(getattr(self.backend, "robot_model", "") or ""),
+            q_rad=() if robot is None else tuple(float(q) for q in robot.q_rad),
+            qd_rad_s=() if robot is None else tuple(float(v) for v in robot.qd_rad_s),
+            emergency_stop=robot is not None and robot.safety is Safety.EMERGENCY_STOP,
+            protective_stop=robot is not None and robot.safety is Safety.PROTECTIVE_STOP,
+            task=job.task.name if job is not None else "",
+            time_s=0.0 if robot is None else robot.time_s,
+        )
 
     def _snapshot(self) -> CellStatus:
         return status_of(
@@ -334,6 +358,7 @@ class CellController:
                             self._end_job(ResultCode.PLANNING_FAILED, started.describe())
                 else:
                     runner = started
+        self._robot = state  # one reference: arm() reads it from any thread
         with self._lock:
             self.states.now_s, self._safety = state.time_s, state.safety
             if job is not None and job is self._job and runner is not None:

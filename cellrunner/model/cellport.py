@@ -30,6 +30,8 @@ __all__ = [
     "COMPLETED_CODES",
     "REJECT_CODES",
     "SPEC_SOURCES",
+    "ArmPort",
+    "ArmStatus",
     "CellPort",
     "CellStatus",
     "JobResult",
@@ -145,6 +147,37 @@ class JobTicket:
 
 
 ResultListener = Callable[[JobResult], object]  # what it returns is ignored
+
+
+@dataclass(frozen=True)
+class ArmStatus:
+    """The arm as the plant's language describes it (OPC 40010 Robotics, SPEC 13): what
+    it is (``model``, the controller's ``serial_number``, "" when unknown), where each
+    joint is (``q_rad``, base to wrist 3) and how fast it turns (``qd_rad_s``), the
+    controller's safety (``emergency_stop``, ``protective_stop``), and ``task``, the
+    name of the task the running job runs ("" when none). ``time_s`` is the controller
+    time of the measurement."""
+
+    model: str
+    serial_number: str = ""
+    manufacturer: str = "Universal Robots"
+    controller: str = ""
+    q_rad: tuple[float, ...] = ()
+    qd_rad_s: tuple[float, ...] = ()
+    emergency_stop: bool = False
+    protective_stop: bool = False
+    task: str = ""
+    time_s: float = 0.0
+
+
+@runtime_checkable
+class ArmPort(Protocol):
+    """What a cell that can describe its arm adds to :class:`CellPort`; the OPC UA
+    server's Robotics objects read it (a port without it shows no arm)."""
+
+    def arm(self) -> ArmStatus:
+        """The arm's last measurement; cheap, non-blocking, from any thread."""
+        ...
 
 
 @runtime_checkable

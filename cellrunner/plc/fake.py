@@ -22,6 +22,7 @@ from datetime import UTC, datetime
 from cellrunner.plc.port import (
     COMMANDS,
     COMPLETED_CODES,
+    ArmStatus,
     CellStatus,
     JobResult,
     JobSource,
@@ -165,6 +166,24 @@ class FakeCell:
                 last_result=self.last_result,
                 parts_processed=self._processed,
                 parts_defective=self._defective,
+            )
+
+    def arm(self) -> ArmStatus:
+        """A UR5e whose base joint turns at 0.5 rad/s while a job runs (an ArmPort)."""
+        with self._lock:
+            job = self._job
+            now = self.clock()
+            base = 0.5 * (now - job.started_s) if job is not None else 0.0
+            return ArmStatus(
+                model="ur5e",
+                serial_number="20235500042",
+                controller="UR5e (fake)",
+                q_rad=(base, -1.57, 1.57, -1.57, -1.57, 0.0),
+                qd_rad_s=(0.5 if job is not None else 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+                emergency_stop=self._injected.estop,
+                protective_stop=self._injected.protective_stop,
+                task=job.task.name if job is not None else "",
+                time_s=now,
             )
 
     def task_params(self, task: str | int) -> list[str] | None:
