@@ -45,6 +45,7 @@ from cellrunner.model.cellport import (
     COMMANDS,
     ArmStatus,
     CellStatus,
+    JobResult,
     JobSource,
     JobTicket,
     ResultListener,
@@ -151,6 +152,12 @@ class CellController:
     def status(self) -> CellStatus:
         """The snapshot published after the last change; takes no lock, never waits."""
         return self._status
+
+    def finished_job(self, source: str, client_job_id: str) -> JobResult | None:
+        """The journal's result of the job ``source`` named ``client_job_id`` (a
+        :class:`~cellrunner.model.cellport.JobHistory`); None when it has not ended."""
+        with self._lock:
+            return self._book.finished(source, client_job_id)
 
     def arm(self) -> ArmStatus:
         """The arm as the last tick measured it (:class:`~cellrunner.model.cellport.ArmPort`);

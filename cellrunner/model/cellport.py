@@ -34,6 +34,7 @@ __all__ = [
     "ArmStatus",
     "CellPort",
     "CellStatus",
+    "JobHistory",
     "JobResult",
     "JobSource",
     "JobTicket",
@@ -168,6 +169,17 @@ class ArmStatus:
     protective_stop: bool = False
     task: str = ""
     time_s: float = 0.0
+
+
+@runtime_checkable
+class JobHistory(Protocol):
+    """What a cell with a journal adds to :class:`CellPort`: the end of a job a requester
+    named, so an ISA-95 job order answers after a restart (SPEC 13)."""
+
+    def finished_job(self, source: str, client_job_id: str) -> JobResult | None:
+        """How the job ``source`` named ``client_job_id`` ended; None when no such job
+        has ended. Reads the journal: a few milliseconds, from any thread."""
+        ...
 
 
 @runtime_checkable

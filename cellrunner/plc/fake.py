@@ -186,6 +186,15 @@ class FakeCell:
                 time_s=now,
             )
 
+    def finished_job(self, source: str, client_job_id: str) -> JobResult | None:
+        """The first finished job ``source`` named ``client_job_id`` (a JobHistory: the
+        ``finished`` list is this cell's journal)."""
+        with self._lock:
+            for result in self.finished:
+                if result.source == source and result.client_job_id == client_job_id:
+                    return result
+            return None
+
     def task_params(self, task: str | int) -> list[str] | None:
         found = self._find_task(task)
         return None if found is None else [p.name for p in found.params]

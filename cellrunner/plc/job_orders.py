@@ -27,7 +27,7 @@ import enum
 import itertools
 import json
 from collections import OrderedDict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from typing import Any
 
@@ -35,6 +35,7 @@ from cellrunner.model.cellport import (
     COMPLETED_CODES,
     CellPort,
     CellStatus,
+    JobHistory,
     JobResult,
     JobSource,
     ResultCode,
@@ -130,6 +131,10 @@ class JobOrder:
     def substate(self) -> tuple[str, int] | None:
         return SUBSTATE.get(self.state)
 
+    def at(self, state: OrderState) -> JobOrder:
+        """This order as it was in ``state`` (for an event about that state)."""
+        return replace(self, state=state)
+
     @property
     def finished(self) -> bool:
         return self.state in (OrderState.ENDED, OrderState.ABORTED)
@@ -172,8 +177,8 @@ def parse_request(
 
 @dataclass
 class OrderBook:
-    """The job orders of one cell and their states; :meth:`take_changes` gives the
-    orders whose state changed since it was last called (one status event each)."""
+    """The job orders of one cell and their states; :meth:`take_changes` gives each
+    state an order entered since it was last called (one status event each)."""
 
     port: CellPort
     source: JobSource
@@ -182,7 +187,7 @@ class OrderBook:
     #: ended orders Clear removed from the list; their responses are still answered
     cleared: OrderedDict[str, JobOrder] = field(default_factory=OrderedDict)
     _seq: Any = field(default_factory=lambda: itertools.count(1))
-    _changed: list[JobOrder] = field(default_factory=list)
+    _changed: list[tuple[JobOrder, OrderState]] = field(default_factory=list)
 
     # -- the methods ---------------------------------------------------------------
     def store(self, request: OrderRequest, *, start: bool) -> ReturnStatus:
@@ -200,7 +205,7 @@ class OrderBook:
         state = OrderState.ALLOWED_TO_START if start else OrderState.NOT_ALLOWED_TO_START
         order = JobOrder(request, state, next(self._seq))
         self.orders[request.order_id] = order
-        self._changed.append(order)
+        self._changed.append((order, state))
         self._forget_old()
         return ReturnStatus.NO_ERROR
 
@@ -248,11 +253,15 @@ class OrderBook:
     def follow(self, status: CellStatus) -> None:
         """Follow the cell's status (every refresh): running orders held or going on, and
         the next allowed order started when the cell is ready."""
-        for order in self.orders.values():
-            if order.job_id and order.job_id == status.job_id and not order.finished:
+        for order in list(self.orders.values()):
+            if not order.job_id or order.finished:
+                continue
+            if order.job_id == status.job_id:
                 wanted = OrderState.INTERRUPTED if status.held else OrderState.RUNNING
                 if order.state is not wanted:
                     self._move(order, wanted)
+            elif not status.busy and (done := self._history(order.order_id)) is not None:
+                self._end(order, done)  # it ended while no listener heard (a restart)
         if status.ready and not any(o.state is OrderState.RUNNING for o in self.orders.values()):
             self._start_next(status)
 
@@ -279,9 +288,9 @@ class OrderBook:
             return
         order.job_id, order.start_time = ticket.job_id, self.clock()
         self._move(order, OrderState.RUNNING)
-        last = status.last_result
-        if last is not None and last.job_id == ticket.job_id:  # a job the journal had ended
-            self._end(order, last)
+        done = self._history(request.order_id) or status.last_result
+        if done is not None and done.job_id == ticket.job_id:  # a job the journal had ended
+            self._end(order, done)
 
     def _end(self, order: JobOrder, result: JobResult) -> None:
         order.result = result
@@ -291,7 +300,7 @@ class OrderBook:
 
     def _move(self, order: JobOrder, state: OrderState) -> None:
         order.state = state
-        self._changed.append(order)
+        self._changed.append((order, state))
 
     def _forget_old(self) -> None:
         ended = [key for key, o in self.orders.items() if o.finished]
@@ -300,7 +309,25 @@ class OrderBook:
 
     # -- reading -----------------------------------------------------------------------
     def find(self, order_id: str) -> JobOrder | None:
-        return self.orders.get(order_id) or self.cleared.get(order_id)
+        """The order of that JobOrderID: in the book, cleared, or one the journal ran
+        before a restart (then put back in the book, Ended or Aborted)."""
+        known = self.orders.get(order_id) or self.cleared.get(order_id)
+        if known is not None or not order_id:
+            return known
+        done = self._history(order_id)
+        if done is None:
+            return None
+        request = OrderRequest(order_id, done.task, {})
+        order = JobOrder(request, OrderState.RUNNING, next(self._seq), job_id=done.job_id)
+        self.orders[order_id] = order
+        self._end(order, done)
+        return order
+
+    def _history(self, order_id: str) -> JobResult | None:
+        port = self.port
+        return (
+            port.finished_job(self.source.name, order_id) if isinstance(port, JobHistory) else None
+        )
 
     def in_state(self, wanted: list[tuple[int, int | None]]) -> list[JobOrder]:
         """The orders (cleared ones included) in one of the ``wanted`` (state, sub-state)
@@ -314,7 +341,7 @@ class OrderBook:
                     break
         return found
 
-    def take_changes(self) -> list[JobOrder]:
+    def take_changes(self) -> list[tuple[JobOrder, OrderState]]:
         changed, self._changed = self._changed, []
         return changed
 

@@ -296,9 +296,11 @@ class JobOrderServer:
         self.book.finish(result)
         await self._publish()
 
-    async def _publish(self) -> None:
+    async def _publish(self, *, lists: bool = False) -> None:
+        """The lists written and one event per order whose state changed (with ``lists``
+        the lists are written even when no state changed: an order was cleared)."""
         changed = self.book.take_changes()
-        if not changed or self._values is None:
+        if (not changed and not lists) or self._values is None:
             return
         await self._values.write(
             {
@@ -308,8 +310,8 @@ class JobOrderServer:
                 ],
             }
         )
-        for order in changed:
-            await self._raise_event(order)
+        for order, state in changed:
+            await self._raise_event(order.at(state))
 
     async def _raise_event(self, order: JobOrder) -> None:
         from asyncua import ua
@@ -364,7 +366,7 @@ class JobOrderServer:
                 status = ReturnStatus.INVALID_REQUEST
             else:
                 status = command(order_id)
-                await self._publish()
+                await self._publish(lists=True)
             return [ua.Variant(int(status), ua.VariantType.UInt64)]
 
         return call

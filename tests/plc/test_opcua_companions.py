@@ -27,6 +27,15 @@ class Plant:
         self.cert, self.key = write_client_cert(root, "mes")
         (root / "pki" / "trusted").mkdir(parents=True, exist_ok=True)
         (root / "pki" / "trusted" / "mes.der").write_bytes(self.cert.read_bytes())
+        self.service: PlcService | None = None
+
+    def restart(self) -> None:
+        """A new OPC UA server (a restart of serve) on the same cell and journal."""
+        if self.service is not None:
+            self.service.stop()
+        config = {"opcua": {"endpoint": self.url, "users": "users.yaml", "pki": "pki"}}
+        self.service = PlcService(self.cell, config, base_dir=self.root, cell_name="line3")
+        self.service.start()
 
     def client(
         self, scenario: str, *, user: str = USER, password: str = PASSWORD, **kw: Any
@@ -54,13 +63,12 @@ def plant(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Plant]:
     url = f"opc.tcp://127.0.0.1:{free_port()}/cellrunner"
     cell = FakeCell(tasks=plc_test_tasks(), parts_processed=7).start()
     plant = Plant(root, cell, url)
-    config = {"opcua": {"endpoint": url, "users": "users.yaml", "pki": "pki"}}
-    service = PlcService(cell, config, base_dir=root, cell_name="line3")
-    service.start()
+    plant.restart()
     try:
         yield plant
     finally:
-        service.stop()
+        assert plant.service is not None
+        plant.service.stop()
         cell.close()
 
 
@@ -107,6 +115,18 @@ def test_a_job_order_runs_once_and_answers_by_id_and_by_state(plant: Plant) -> N
     assert events.index(["MES-7", [3]]) < events.index(["MES-7", [5, 1]])
     assert ["MES-7-b", [1, 2]] in events and ["MES-7-b", [6]] in events
     assert not [r for r in plant.cell.finished[before:] if r.client_job_id == "MES-7-b"]
+
+
+def test_after_a_restart_an_order_is_answered_from_the_journal_and_not_run_again(
+    plant: Plant,
+) -> None:
+    before = plant.client("orders", task="home", order="MES-R")
+    plant.restart()
+    after = plant.client("orders", task="home", order="MES-R")
+    assert after["store_and_start"] == 1 and after["first"]["states"] == [5, 1]
+    assert after["first"]["data"] == before["first"]["data"]  # the same job, its response
+    assert ["MES-R", [5, 1]] in after["list"]
+    assert len([r for r in plant.cell.finished if r.client_job_id == "MES-R"]) == 1
 
 
 def test_a_viewer_reads_everything_and_starts_holds_aborts_nothing(plant: Plant) -> None:
