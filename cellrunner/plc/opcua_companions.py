@@ -6,6 +6,9 @@ ISA-95 job orders beside ``Objects/Cell``, under one machine object::
       PackML                                           see cellrunner.plc.opcua_packml
       MotionDeviceSystem                               see cellrunner.plc.opcua_robotics
 
+and where the standards say clients look: ``Objects/Machines`` (OPC 40001-1) organizes
+the cell's object, ``Objects/DeviceSet`` (OPC 10000-100) its MotionDeviceSystem.
+
 The server builds them once (:meth:`Companions.build`), refreshes them with ``Cell``
 (:meth:`Companions.publish`) and hands them each finished job (:meth:`Companions.finish`).
 """
@@ -16,7 +19,11 @@ from typing import Any
 
 from cellrunner.model.cellport import ArmPort, CellPort, CellStatus, JobResult, JobSource
 from cellrunner.plc import opcua_jobs, opcua_packml, opcua_robotics
-from cellrunner.plc.opcua_nodes import node_id, qname
+from cellrunner.plc.opcua_nodes import DI_URI, MACHINERY_URI, node_id, qname
+
+#: the standards' entry points: (namespace URI, id, BrowseName)
+MACHINES = (MACHINERY_URI, 1001, "Machines")
+DEVICE_SET = (DI_URI, 5001, "DeviceSet")
 
 
 class Companions:
@@ -49,7 +56,11 @@ class Companions:
         )
         await self.jobs.build(server, machine, own, isa, jobs)
         await self.packml.build(server, machine, own, packml, cell_name)
-        await self.robotics.build(server, machine, own, di, rob)
+        system = await self.robotics.build(server, machine, own, di, rob)
+        for (uri, ident, browse), target in ((MACHINES, machine), (DEVICE_SET, system)):
+            ns = await server.register_namespace(uri)
+            folder = await server.nodes.objects.add_folder(node_id(ident, ns), qname(browse, ns))
+            await folder.add_reference(target.nodeid, ua.object_ids.ObjectIds.Organizes)
 
     async def publish(self, status: CellStatus) -> None:
         arm = self.port.arm() if isinstance(self.port, ArmPort) else None

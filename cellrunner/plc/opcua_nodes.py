@@ -23,6 +23,7 @@ ROBOTICS_URI = "http://opcfoundation.org/UA/Robotics/"
 PACKML_URI = "http://opcfoundation.org/UA/PackML/"
 ISA95_URI = "http://opcfoundation.org/UA/ISA95-JOBCONTROL_V2/"
 MACHINERY_JOBS_URI = "http://opcfoundation.org/UA/Machinery/Jobs/"
+MACHINERY_URI = "http://opcfoundation.org/UA/Machinery/"
 
 
 @dataclass(frozen=True)

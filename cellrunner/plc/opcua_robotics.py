@@ -102,7 +102,8 @@ class RoboticsObjects:
         self._values: Values | None = None
         self._identity: tuple[str, str, str] | None = None
 
-    async def build(self, server: Any, machine: Any, own: int, di: int, rob: int) -> None:
+    async def build(self, server: Any, machine: Any, own: int, di: int, rob: int) -> Any:
+        """The objects under ``machine``; returns the MotionDeviceSystem's node."""
         from asyncua import ua
 
         nodes = Instances(own, "Robotics")
@@ -186,6 +187,7 @@ class RoboticsObjects:
         for name in ("EmergencyStop", "ProtectiveStop"):
             await nodes.var(safety_params, f"Safety.{name}", name, rob, False, "Boolean", key=name)
         self._values = Values(server, nodes.variables)
+        return system
 
     @staticmethod
     async def _identify(nodes: Instances, parent: Any, path: str, di: int, rob: int) -> None:

@@ -23,6 +23,7 @@ DI = "http://opcfoundation.org/UA/DI/"
 PACKML = "http://opcfoundation.org/UA/PackML/"
 ISA95 = "http://opcfoundation.org/UA/ISA95-JOBCONTROL_V2/"
 JOBS = "http://opcfoundation.org/UA/Machinery/Jobs/"
+MACHINERY = "http://opcfoundation.org/UA/Machinery/"
 MAX_BROWSED = 400  # nodes looked at while searching for a type's instance
 
 
@@ -80,6 +81,19 @@ async def children(node: Any) -> list[Any]:
     from asyncua import ua
 
     return list(await node.get_children(nodeclassmask=ua.NodeClass.Object))
+
+
+async def entry_points(client: Any) -> dict[str, list[str]]:
+    """What Objects/Machines (OPC 40001-1) and Objects/DeviceSet (DI) organize: the
+    type names of the objects there."""
+    out = {}
+    for uri, name in ((MACHINERY, "Machines"), (DI, "DeviceSet")):
+        folder = await path(client, client.nodes.objects, (uri, name))
+        out[name] = [
+            (await client.get_node(await c.read_type_definition()).read_browse_name()).Name
+            for c in await children(folder)
+        ]
+    return out
 
 
 # -- what an MES reads -------------------------------------------------------------------
@@ -310,6 +324,7 @@ async def main(args: argparse.Namespace) -> dict[str, Any]:
     out["connected"] = True
     try:
         if args.scenario == "browse":
+            out["entry_points"] = await entry_points(client)
             out["robotics"] = await read_robotics(client)
             out["packml"] = await read_packml(client)
         elif args.scenario == "orders":

@@ -78,3 +78,20 @@ def test_an_order_the_cell_ran_before_a_restart_is_answered_and_not_run_again(
     assert [r.job_id for r in cell.finished if r.client_job_id == "WO-9"] == [job_id]
     assert again.find("never-sent") is None
     assert again.start("never-sent") is ReturnStatus.UNKNOWN_JOB_ORDER_ID
+
+
+def test_a_job_orders_task_and_params_are_read_as_the_standard_carries_them() -> None:
+    from cellrunner.plc.job_orders import parse_request
+
+    by_work_master = parse_request("A", ["pick_place"], [("slot", 3)], 2)
+    assert by_work_master == OrderRequest("A", "pick_place", {"slot": 3}, 2)
+    by_parameter = parse_request("B", [], [("Task", "1"), ("at", '{"xyz": [0.1, 0, 0]}')], None)
+    assert by_parameter == OrderRequest("B", 1, {"at": {"xyz": [0.1, 0, 0]}}, 0)
+    assert parse_request("C", [], [("slot", 1)], None) == (
+        "no task: give it as the first work master's ID or as a parameter 'Task'"
+    )
+    assert parse_request("D", ["home"], [("a", 1), ("a", 2)], None) == "parameter 'a' given twice"
+    assert parse_request("", ["home"], [], None) == "JobOrderID must have 1 to 128 characters"
+    assert parse_request("E", ["home"], [("on", True)], None) == (
+        "parameter 'on': a bool is no param value"
+    )

@@ -75,6 +75,10 @@ def plant(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Plant]:
 def test_a_generic_client_finds_the_arm_its_axes_and_the_packml_state(plant: Plant) -> None:
     out = plant.client("browse")
     robot, packml = out["robotics"], out["packml"]
+    assert out["entry_points"] == {
+        "Machines": ["BaseObjectType"],  # the cell
+        "DeviceSet": ["MotionDeviceSystemType"],
+    }
     assert robot["model"] == "UR5e" and robot["serial"] == "20235500042"
     assert robot["axes"] == ["Base", "Shoulder", "Elbow", "Wrist1", "Wrist2", "Wrist3"]
     for row in robot["positions"]:  # degrees, as OPC 40010 gives rotary axes
