@@ -19,6 +19,8 @@ States (the standard's numbers)::
     the job completes (OK or NOK)   -> Ended (5) / Completed (1)
     the job faults, Abort           -> Aborted (6)
     Clear removes an Ended or Aborted order from the list (its response stays).
+    RevokeStart moves 2 back to 1; Cancel aborts an order that has not started; Pause and
+    Resume hold and unhold the cell while the order runs.
 """
 
 from __future__ import annotations
@@ -236,6 +238,53 @@ class OrderBook:
             order.abort_requested = True
             return ReturnStatus.NO_ERROR
         return ReturnStatus.INVALID_JOB_ORDER_COMMAND
+
+    def revoke_start(self, order_id: str) -> ReturnStatus:
+        """An allowed order that has not started is no longer allowed to start."""
+        return self._if_state(
+            order_id, OrderState.ALLOWED_TO_START, OrderState.NOT_ALLOWED_TO_START
+        )
+
+    def cancel(self, order_id: str) -> ReturnStatus:
+        """An order that has not started is aborted (a running one needs Abort)."""
+        order = self.orders.get(order_id)
+        if order is not None and order.state in (
+            OrderState.NOT_ALLOWED_TO_START,
+            OrderState.ALLOWED_TO_START,
+        ):
+            return self.abort(order_id)
+        return (
+            ReturnStatus.UNKNOWN_JOB_ORDER_ID
+            if order is None
+            else ReturnStatus.INVALID_JOB_ORDER_STATUS
+        )
+
+    def pause(self, order_id: str) -> ReturnStatus:
+        """Hold the cell while this order runs (it becomes Interrupted/Held)."""
+        return self._command_while(order_id, OrderState.RUNNING, "hold")
+
+    def resume(self, order_id: str) -> ReturnStatus:
+        """Unhold the cell for this interrupted order."""
+        return self._command_while(order_id, OrderState.INTERRUPTED, "unhold")
+
+    def _if_state(self, order_id: str, now: OrderState, then: OrderState) -> ReturnStatus:
+        order = self.orders.get(order_id)
+        if order is None:
+            return ReturnStatus.UNKNOWN_JOB_ORDER_ID
+        if order.state is not now:
+            return ReturnStatus.INVALID_JOB_ORDER_STATUS
+        self._move(order, then)
+        return ReturnStatus.NO_ERROR
+
+    def _command_while(self, order_id: str, state: OrderState, command: str) -> ReturnStatus:
+        order = self.orders.get(order_id)
+        if order is None:
+            return ReturnStatus.UNKNOWN_JOB_ORDER_ID
+        if order.state is not state:
+            return ReturnStatus.INVALID_JOB_ORDER_STATUS
+        if not self.port.command(command):
+            return ReturnStatus.INVALID_JOB_ORDER_COMMAND
+        return ReturnStatus.NO_ERROR
 
     def clear(self, order_id: str) -> ReturnStatus:
         order = self.orders.get(order_id)

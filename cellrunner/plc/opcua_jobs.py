@@ -10,6 +10,7 @@ uses it): the address space of :class:`~cellrunner.plc.job_orders.OrderBook`.
         MaxDownloadableJobOrders UInt16
         Store(JobOrder, Comment) StoreAndStart(...) -> ReturnStatus UInt64
         Start(JobOrderID, Comment) Abort(...) Clear(...) -> ReturnStatus
+        RevokeStart(...) Cancel(...) Pause(...) Resume(...) -> ReturnStatus
       JobOrderResults                          (ISA95JobResponseProviderObjectType)
         JobOrderResponseList ISA95JobResponseDataType[]
         RequestJobResponseByJobOrderID(JobOrderID) -> (JobResponse, ReturnStatus)
@@ -269,6 +270,10 @@ class JobOrderServer:
             ("Start", self._command(self.book.start), [order_id, comment]),
             ("Abort", self._command(self.book.abort), [order_id, comment]),
             ("Clear", self._command(self.book.clear), [order_id, comment]),
+            ("RevokeStart", self._command(self.book.revoke_start), [order_id, comment]),
+            ("Cancel", self._command(self.book.cancel), [order_id, comment]),
+            ("Pause", self._command(self.book.pause), [order_id, comment]),
+            ("Resume", self._command(self.book.resume), [order_id, comment]),
         ):
             await add_method(control, own, c + name, name, isa, handler, inputs, [status])
         by_id = await add_method(

@@ -95,3 +95,27 @@ def test_a_job_orders_task_and_params_are_read_as_the_standard_carries_them() ->
     assert parse_request("E", ["home"], [("on", True)], None) == (
         "parameter 'on': a bool is no param value"
     )
+
+
+def test_revoke_cancel_pause_and_resume_act_only_in_their_states(cell: FakeCell) -> None:
+    book = OrderBook(cell, SOURCE)
+    assert book.store(OrderRequest("R", "slow", {}), start=True) is ReturnStatus.NO_ERROR
+    assert book.revoke_start("R") is ReturnStatus.NO_ERROR
+    assert book.orders["R"].state is OrderState.NOT_ALLOWED_TO_START
+    assert book.revoke_start("R") is ReturnStatus.INVALID_JOB_ORDER_STATUS
+    assert book.pause("R") is ReturnStatus.INVALID_JOB_ORDER_STATUS  # not running
+    book.follow(cell.status())  # not allowed: it does not start
+    assert not book.orders["R"].job_id
+    assert book.cancel("R") is ReturnStatus.NO_ERROR
+    assert book.orders["R"].state is OrderState.ABORTED
+    assert book.cancel("R") is ReturnStatus.INVALID_JOB_ORDER_STATUS
+    book.store(OrderRequest("P", "slow", {}), start=True)
+    order = book.orders["P"]
+    follow_until(book, cell, lambda: order.state is OrderState.RUNNING)
+    assert book.cancel("P") is ReturnStatus.INVALID_JOB_ORDER_STATUS  # running: Abort it
+    assert book.pause("P") is ReturnStatus.NO_ERROR
+    follow_until(book, cell, lambda: order.state is OrderState.INTERRUPTED)
+    assert book.resume("P") is ReturnStatus.NO_ERROR
+    follow_until(book, cell, lambda: order.finished, 20)
+    assert order.state is OrderState.ENDED and cell.commands[-2:] == ["hold", "unhold"]
+    assert book.resume("nope") is ReturnStatus.UNKNOWN_JOB_ORDER_ID
