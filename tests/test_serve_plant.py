@@ -85,3 +85,18 @@ def test_a_job_order_runs_on_the_sim_and_modbus_and_cell_see_the_same_job(tmp_pa
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err[-2000:]
+    # serve again: the counters come from the journal, the order is answered from it
+    proc = start_serve(cell)
+    try:
+        again = companion_client(
+            url, cert, key, "--scenario", "orders", "--task", "move_can", "--order", "WO-1",
+            "--wait", "30",
+        )  # fmt: skip
+        assert again.get("connected") and "error" not in again, again
+        assert again["store_and_start"] == 1 and again["first"]["data"] == first["data"]
+        browse = companion_client(url, cert, key, "--scenario", "browse")
+        assert browse["packml"]["ProdProcessedCount"] == [1]  # no second job ran
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err[-2000:]
