@@ -92,7 +92,7 @@ class ReturnStatus(enum.IntFlag):
 #: orders stored and not ended at once (the MaxDownloadableJobOrders the cell announces)
 MAX_OPEN_ORDERS = 100
 #: ended and aborted orders remembered (list and responses); older ones are forgotten
-MAX_ENDED_ORDERS = 1000
+MAX_ENDED_ORDERS = 200
 #: the longest JobOrderID (the ClientJobId's bound, SPEC 8)
 MAX_ORDER_ID = 128
 #: the parameter IDs that name the task instead of the work master

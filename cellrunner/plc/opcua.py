@@ -10,7 +10,12 @@ Address space (namespace ``urn:cellrunner``)::
       StartJob(TaskName, Parameters JSON, ClientJobId) -> (JobId, ReturnCode)
       Reset() Hold() Unhold() Abort() Clear() Stop()
 
-Every variable is read-only for clients; the server refreshes them every 50 ms.
+Beside ``Cell``, the same cell in the plant's language (SPEC 13): ISA-95 job orders, PackML
+and OPC 40010 Robotics under ``Objects/<cell name>``, in the standards' namespaces
+(:mod:`cellrunner.plc.opcua_companions`).
+
+Every variable is read-only for clients; the server refreshes them every 50 ms. Users are
+operators or viewers; a viewer calls no method that acts (:mod:`cellrunner.plc.opcua_roles`).
 Security: only the configured policies; username/password from the users file
 (:mod:`cellrunner.plc.users`); client certificates must be in ``pki/trusted/``
 (unknown ones are filed in ``pki/rejected/``); the server certificate is created in

@@ -11,6 +11,7 @@ from typing import Any
 
 import pytest
 
+from cellrunner.errors import InputError
 from cellrunner.plc.fake import FakeCell
 from cellrunner.plc.service import PlcService
 from cellrunner.plc.users import add_user, load_user_entries
@@ -174,3 +175,23 @@ def test_the_example_client_of_the_plc_interface_page_runs_a_job_order(
     assert run.stdout.splitlines() == ["StoreAndStart: accepted", "Completed result 0"]
     [job] = [r for r in plant.cell.finished if r.client_job_id == "DOC-1"]
     assert job.task == "home" and job.result_code == 0
+
+
+def test_users_add_takes_a_role_and_refuses_an_unknown_one(tmp_path: Path) -> None:
+    from tests.rig import cli
+
+    users = tmp_path / "users.yaml"
+    made = cli("users", "add", str(users), "dash", "--role", "viewer", "--password-stdin",
+               input="pw\n", timeout_s=60)  # fmt: skip
+    assert made.returncode == 0, made.stderr
+    assert load_user_entries(users)["dash"].role == "viewer"
+    refused = cli("users", "add", str(users), "x", "--role", "admin", "--password-stdin",
+                  input="pw\n", timeout_s=60)  # fmt: skip
+    assert refused.returncode == 2 and "Traceback" not in refused.stderr
+    assert "admin" in refused.stderr and "x" not in load_user_entries(users)
+    users.write_text("'dash': {hash: 'scrypt$1$1$1$AA==$AA==', role: root}\n")
+    with pytest.raises(InputError) as err:
+        load_user_entries(users)
+    assert err.value.diagnostics[0].message == (
+        "user 'dash': role 'root' is not one of operator, viewer"
+    )
