@@ -72,6 +72,7 @@ def test_a_job_order_runs_on_the_sim_and_modbus_and_cell_see_the_same_job(tmp_pa
         assert "move_can" in out["task_programs"]
         assert out["again"] == 1 and out["again_response"]["data"] == first["data"]
         assert out["cell_last_job"] == first["data"]["JobId"]
+        assert out["work_masters"] == [["move_can", []]]
         browse = companion_client(url, cert, key, "--scenario", "browse")
         assert browse["robotics"]["model"] == "UR10e", browse
         assert len(browse["robotics"]["positions"][0]) == 6

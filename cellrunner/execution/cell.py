@@ -247,6 +247,10 @@ class CellController:
     def task_params(self, task: str | int) -> list[str] | None:
         return self._menu.param_names(task)
 
+    def task_names(self) -> list[str]:
+        """The tasks' names in PLC task number order (a TaskCatalog)."""
+        return [loaded.name for _, loaded in sorted(self.tasks.items())]
+
     def task_param_specs(self, task: str | int) -> list[tuple[str, str, str | None]] | None:
         return self._menu.param_specs(task)
 

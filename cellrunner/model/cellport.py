@@ -41,6 +41,7 @@ __all__ = [
     "PackMLState",
     "ResultCode",
     "ResultListener",
+    "TaskCatalog",
 ]
 
 #: Codes with which a job *completed* (OK or NOK, not a fault): the PLC sees DONE.
@@ -169,6 +170,16 @@ class ArmStatus:
     protective_stop: bool = False
     task: str = ""
     time_s: float = 0.0
+
+
+@runtime_checkable
+class TaskCatalog(Protocol):
+    """What a cell adds to :class:`CellPort` to list what may be ordered: an ISA-95 job
+    order's work masters (SPEC 13)."""
+
+    def task_names(self) -> list[str]:
+        """The names of the cell's tasks, in PLC task number order."""
+        ...
 
 
 @runtime_checkable

@@ -195,6 +195,9 @@ class FakeCell:
                     return result
             return None
 
+    def task_names(self) -> list[str]:
+        return [t.name for t in sorted(self.tasks, key=lambda t: t.number)]
+
     def task_params(self, task: str | int) -> list[str] | None:
         found = self._find_task(task)
         return None if found is None else [p.name for p in found.params]

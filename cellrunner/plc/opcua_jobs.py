@@ -6,7 +6,7 @@ uses it): the address space of :class:`~cellrunner.plc.job_orders.OrderBook`.
     <machine>/JobManagement                    (Machinery/Jobs: JobManagementType)
       JobOrderControl                          (ISA95JobOrderReceiverObjectType)
         JobOrderList  ISA95JobOrderAndStateDataType[]     the orders and their states
-        WorkMaster    ISA95WorkMasterDataType[]           (empty: any task of the cell)
+        WorkMaster    ISA95WorkMasterDataType[]           the tasks and their params
         MaxDownloadableJobOrders UInt16
         Store(JobOrder, Comment) StoreAndStart(...) -> ReturnStatus UInt64
         Start(JobOrderID, Comment) Abort(...) Clear(...) -> ReturnStatus
@@ -31,7 +31,7 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-from cellrunner.model.cellport import CellPort, CellStatus, JobResult, JobSource
+from cellrunner.model.cellport import CellPort, CellStatus, JobResult, JobSource, TaskCatalog
 from cellrunner.plc.job_orders import (
     MAX_OPEN_ORDERS,
     STATE_NAMES,
@@ -239,7 +239,7 @@ class JobOrderServer:
             datatype=dt("ISA95JobOrderAndStateDataType"), key="JobOrderList",
         )  # fmt: skip
         await nodes.var(
-            control, c + "WorkMaster", "WorkMaster", isa, [], "ExtensionObject",
+            control, c + "WorkMaster", "WorkMaster", isa, self._work_masters(), "ExtensionObject",
             datatype=dt("ISA95WorkMasterDataType"),
         )  # fmt: skip
         for name in (
@@ -412,6 +412,23 @@ class JobOrderServer:
         ]
 
     # -- the standard's structures --------------------------------------------------------
+    def _work_masters(self) -> list[Any]:
+        """What may be ordered: each task (its name the work master's ID) and its params."""
+        from asyncua import ua
+
+        port = self.book.port
+        if not isinstance(port, TaskCatalog):
+            return []
+        work_master = getattr(ua, "ISA95WorkMasterDataType")  # noqa: B009 - loaded type
+        param = getattr(ua, "ISA95ParameterDataType")  # noqa: B009 - loaded type
+        return [
+            work_master(
+                ID=name,
+                Parameters=[param(ID=p, Value=ua.Variant()) for p in port.task_params(name) or []],
+            )
+            for name in port.task_names()
+        ]
+
     def _original(self, order: JobOrder) -> Any:
         from asyncua import ua
 

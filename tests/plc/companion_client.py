@@ -271,6 +271,8 @@ async def scenario_orders(client: Any, args: argparse.Namespace) -> dict[str, An
     out["ended_orders"] = [r.JobOrderID for r in by_state]
     listed = await (await path(client, control, (ISA95, "JobOrderList"))).read_value()
     out["list"] = [[x.JobOrder.JobOrderID, [s.StateNumber for s in x.State]] for x in listed]
+    masters = await (await path(client, control, (ISA95, "WorkMaster"))).read_value()
+    out["work_masters"] = [[w.ID, [p.ID for p in w.Parameters or []]] for w in masters]
     await asyncio.sleep(0.3)
     out["events"] = events.received
     if args.cell:

@@ -115,6 +115,7 @@ def test_a_job_order_runs_once_and_answers_by_id_and_by_state(plant: Plant) -> N
     assert out["clear"] == 1 and out["unknown"] == 2  # unknown job order id
     assert "MES-7" in out["ended_orders"] and "MES-7-b" not in out["ended_orders"]
     assert ["MES-7", [5, 1]] in out["list"]
+    assert out["work_masters"] == [["pick_place", ["slot", "depth"]], ["home", []], ["slow", []]]
     assert all(order != "MES-7-b" for order, _ in out["list"])
     events = out["events"]
     assert events.index(["MES-7", [3]]) < events.index(["MES-7", [5, 1]])
