@@ -119,3 +119,19 @@ def test_revoke_cancel_pause_and_resume_act_only_in_their_states(cell: FakeCell)
     follow_until(book, cell, lambda: order.finished, 20)
     assert order.state is OrderState.ENDED and cell.commands[-2:] == ["hold", "unhold"]
     assert book.resume("nope") is ReturnStatus.UNKNOWN_JOB_ORDER_ID
+
+
+def test_an_order_for_an_unknown_task_or_beyond_the_open_orders_is_not_accepted(
+    cell: FakeCell,
+) -> None:
+    from cellrunner.plc.job_orders import MAX_OPEN_ORDERS
+
+    book = OrderBook(cell, SOURCE)
+    refused = book.store(OrderRequest("U", "nope", {}), start=True)
+    assert refused is ReturnStatus.UNABLE_TO_ACCEPT_JOB_ORDER and "U" not in book.orders
+    for i in range(MAX_OPEN_ORDERS):
+        assert book.store(OrderRequest(f"O{i}", "home", {}), start=False) is ReturnStatus.NO_ERROR
+    over = book.store(OrderRequest("one-more", "home", {}), start=False)
+    assert over is ReturnStatus.UNABLE_TO_ACCEPT_JOB_ORDER
+    assert book.cancel("O0") is ReturnStatus.NO_ERROR  # an aborted order is no longer open
+    assert book.store(OrderRequest("one-more", "home", {}), start=False) is ReturnStatus.NO_ERROR
