@@ -3,7 +3,7 @@ knows only the companion specifications' namespace URIs and BrowseNames (OPC 400
 Robotics, OPC 30050 PackML, ISA-95 job control / Machinery Jobs), finds the objects by
 browsing from Objects for their types, and prints one JSON object.
 
-    python companion_client.py --url URL --scenario browse|orders|viewer \
+    python companion_client.py --url URL --scenario browse|orders|abort|viewer \
         [--policy Basic256Sha256_SignAndEncrypt|none] [--cert C --key K] --user U --password P
         [--task NAME] [--params JSON] [--order ID] [--wait S]
 
@@ -282,6 +282,31 @@ async def scenario_orders(client: Any, args: argparse.Namespace) -> dict[str, An
     return out
 
 
+async def scenario_abort(client: Any, args: argparse.Namespace) -> dict[str, Any]:
+    """StoreAndStart an order, Abort it once it runs, read how it ended."""
+    from asyncua import ua
+
+    control, results = await job_management(client)
+    order = job_order(args.order, args.task, json.loads(args.params))
+    out: dict[str, Any] = {
+        "store_and_start": await call(client, control, "StoreAndStart", ua.Variant(order))
+    }
+    seen: list[int] = []
+    deadline = time.monotonic() + args.wait
+    while time.monotonic() < deadline:
+        state = (await response(client, results, args.order))[0].JobState[0].StateNumber
+        seen.append(state)
+        if state == 3 and "abort" not in out:  # Running: abort it
+            out["abort"] = await call(client, control, "Abort", args.order)
+        if state in (5, 6):
+            break
+        await asyncio.sleep(0.05)
+    out["seen"] = sorted(set(seen))
+    out["ended"] = summary((await response(client, results, args.order))[0])
+    out["abort_again"] = await call(client, control, "Abort", args.order)
+    return out
+
+
 async def scenario_viewer(client: Any, args: argparse.Namespace) -> dict[str, Any]:
     from asyncua import ua
 
@@ -331,6 +356,8 @@ async def main(args: argparse.Namespace) -> dict[str, Any]:
             out["packml"] = await read_packml(client)
         elif args.scenario == "orders":
             out.update(await scenario_orders(client, args))
+        elif args.scenario == "abort":
+            out.update(await scenario_abort(client, args))
         elif args.scenario == "viewer":
             out.update(await scenario_viewer(client, args))
     except Exception as exc:
@@ -343,7 +370,9 @@ async def main(args: argparse.Namespace) -> dict[str, Any]:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser()
     parser.add_argument("--url", required=True)
-    parser.add_argument("--scenario", choices=("browse", "orders", "viewer"), required=True)
+    parser.add_argument(
+        "--scenario", choices=("browse", "orders", "abort", "viewer"), required=True
+    )
     parser.add_argument("--policy", default="Basic256Sha256_SignAndEncrypt")
     parser.add_argument("--cert")
     parser.add_argument("--key")

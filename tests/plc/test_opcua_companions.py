@@ -5,6 +5,7 @@ trusted client certificate, users from the users file)."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -121,6 +122,25 @@ def test_a_job_order_runs_once_and_answers_by_id_and_by_state(plant: Plant) -> N
     assert events.index(["MES-7", [3]]) < events.index(["MES-7", [5, 1]])
     assert ["MES-7-b", [1, 2]] in events and ["MES-7-b", [6]] in events
     assert not [r for r in plant.cell.finished[before:] if r.client_job_id == "MES-7-b"]
+
+
+def test_a_running_order_aborted_ends_aborted_with_the_cells_result(plant: Plant) -> None:
+    out = plant.client("abort", task="slow", order="MES-A")
+    assert out["store_and_start"] == 1 and out["abort"] == 1
+    assert 3 in out["seen"] and out["ended"]["states"] == [6]  # Running, then Aborted
+    assert out["ended"]["data"]["ResultCode"] == 106  # aborted by the PLC (SPEC 7)
+    assert out["abort_again"] == 8  # an aborted order: invalid status
+    [job] = [r for r in plant.cell.finished if r.client_job_id == "MES-A"]
+    assert job.result_code == 106
+    for command in ("clear", "reset"):  # the cell back to Idle for the next tests
+        deadline = time.monotonic() + 5
+        while not plant.cell.command(command):
+            assert time.monotonic() < deadline, plant.cell.status()
+            time.sleep(0.05)
+    deadline = time.monotonic() + 5
+    while not plant.cell.status().ready:
+        assert time.monotonic() < deadline, plant.cell.status()
+        time.sleep(0.05)
 
 
 def test_after_a_restart_an_order_is_answered_from_the_journal_and_not_run_again(
