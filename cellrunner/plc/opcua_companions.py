@@ -19,11 +19,34 @@ from typing import Any
 
 from cellrunner.model.cellport import ArmPort, CellPort, CellStatus, JobResult, JobSource
 from cellrunner.plc import opcua_jobs, opcua_packml, opcua_robotics
-from cellrunner.plc.opcua_nodes import DI_URI, MACHINERY_URI, node_id, qname
+from cellrunner.plc.opcua_nodes import DI_URI, MACHINERY_URI, declare_members, node_id, qname
 
 #: the standards' entry points: (namespace URI, id, BrowseName)
 MACHINES = (MACHINERY_URI, 1001, "Machines")
 DEVICE_SET = (DI_URI, 5001, "DeviceSet")
+
+
+async def _declare_types_members(machine: Any, own: int, max_nodes: int = 400) -> None:
+    """Each standard ObjectType used below ``machine`` gets the members its first
+    instance shows (:func:`~cellrunner.plc.opcua_nodes.declare_members`), containers
+    before their parts."""
+    from asyncua import ua
+
+    done: set[Any] = set()
+    queue, seen = [machine], 0
+    while queue and seen < max_nodes:
+        node = queue.pop(0)
+        for child in await node.get_children(nodeclassmask=ua.NodeClass.Object):
+            seen += 1
+            typedef = await child.read_type_definition()
+            if (
+                typedef is not None
+                and typedef.NamespaceIndex not in (0, own)
+                and typedef not in done
+            ):
+                done.add(typedef)
+                await declare_members(typedef, child)
+            queue.append(child)
 
 
 class Companions:
@@ -57,6 +80,7 @@ class Companions:
         await self.jobs.build(server, machine, own, isa, jobs)
         await self.packml.build(server, machine, own, packml, cell_name)
         system = await self.robotics.build(server, machine, own, di, rob)
+        await _declare_types_members(machine, own)
         for (uri, ident, browse), target in ((MACHINES, machine), (DEVICE_SET, system)):
             ns = await server.register_namespace(uri)
             folder = await server.nodes.objects.add_folder(node_id(ident, ns), qname(browse, ns))

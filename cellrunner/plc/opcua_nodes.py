@@ -7,7 +7,9 @@ import the Machinery Jobs one (its issue 1869), so the types are declared in cod
 the specifications' tables: each in the standard's namespace URI, with the standard's
 BrowseName and numeric NodeId, structures with the standard's fields (so a client built
 from the official nodeset encodes and decodes them alike). Instances live in the cell's
-own namespace (string NodeIds) and carry the standards' BrowseNames.
+own namespace (string NodeIds) and carry the standards' BrowseNames; once built, each
+ObjectType is given the members its instance shows as Mandatory InstanceDeclarations
+(:func:`declare_members`).
 
 Imports asyncua lazily, inside the functions.
 """
@@ -238,3 +240,78 @@ def eu_information(unece_code: str, display: str, description: str) -> Any:
         DisplayName=ua.LocalizedText(display),
         Description=ua.LocalizedText(description),
     )
+
+
+async def declare_members(type_id: Any, instance: Any, depth: int = 3) -> None:
+    """Give the ObjectType ``type_id`` the InstanceDeclarations its ``instance`` shows
+    (Mandatory, in the type's namespace), so a client reading the type sees the members
+    the standard's table lists; down to ``depth`` levels. The contents of folders (the
+    standard's placeholders: axes, controllers...) and children named in the cell's own
+    namespace are left out. Call after the instances are built: an instance made later of
+    the type gets these members from asyncua."""
+    type_node = _node(instance, type_id)
+    prefix = (await type_node.read_browse_name()).Name
+    await _mirror(type_node, instance, type_id.NamespaceIndex, prefix, depth)
+
+
+def _node(like: Any, node_id_: Any) -> Any:
+    from asyncua.common.node import Node
+
+    return Node(like.session, node_id_)
+
+
+async def _mirror(target: Any, source: Any, ns: int, prefix: str, depth: int) -> None:
+    from asyncua import ua
+
+    own = source.nodeid.NamespaceIndex
+    properties = {n.nodeid for n in await source.get_properties()}
+    present = {_key(await c.read_browse_name()) for c in await target.get_children()}
+    for child in await source.get_children():
+        name = await child.read_browse_name()
+        if name.NamespaceIndex == own or _key(name) in present:
+            if _key(name) in present and depth > 1:
+                await _mirror(
+                    await target.get_child(name), child, ns, f"{prefix}.{name.Name}", depth - 1
+                )
+            continue
+        path = node_id(f"{prefix}.{name.Name}", ns)
+        node_class = await child.read_node_class()
+        if node_class == ua.NodeClass.Variable:
+            value = await child.read_data_value()
+            dtype = await child.read_data_type()
+            add = target.add_property if child.nodeid in properties else target.add_variable
+            made = await add(path, name, value.Value.Value, value.Value.VariantType, dtype)
+            await made.write_value_rank(await child.read_value_rank())
+        elif node_class == ua.NodeClass.Object:
+            typedef = await child.read_type_definition()
+            made = await target.add_object(path, name, objecttype=typedef)
+            if depth > 1 and typedef != node_id(61):  # a folder's contents are placeholders
+                await _mirror(made, child, ns, f"{prefix}.{name.Name}", depth - 1)
+        elif node_class == ua.NodeClass.Method:
+            made = await target.add_method(
+                path, name, _declaration, await _arguments(child, "InputArguments"),
+                await _arguments(child, "OutputArguments"),
+            )  # fmt: skip
+        else:
+            continue
+        await made.set_modelling_rule(True)
+
+
+def _key(name: Any) -> tuple[int, str]:
+    return (int(name.NamespaceIndex), str(name.Name))
+
+
+async def _arguments(method: Any, which: str) -> list[Any]:
+    try:
+        found = await method.get_child(f"0:{which}")
+    except Exception:  # no arguments
+        return []
+    value = await found.read_value()
+    return list(value or [])
+
+
+def _declaration(parent: Any, *args: Any) -> Any:
+    """A type's method declaration is not called (a client calls an instance's method)."""
+    from asyncua import ua
+
+    return ua.StatusCode(ua.status_codes.StatusCodes.BadNotImplemented)  # type: ignore[arg-type]

@@ -104,6 +104,10 @@ async def read_robotics(client: Any) -> dict[str, Any]:
     arm = devices[0]
     out["model"] = (await (await path(client, arm, (DI, "Model"))).read_value()).Text
     out["serial"] = await (await path(client, arm, (DI, "SerialNumber"))).read_value()
+    arm_type = client.get_node(await arm.read_type_definition())
+    out["arm_type_members"] = sorted(
+        [(await c.read_browse_name()).Name for c in await arm_type.get_children()]
+    )
     axes = await children(await path(client, arm, (ROBOTICS, "Axes")))
     out["axes"] = [(await a.read_browse_name()).Name for a in axes]
     positions = []

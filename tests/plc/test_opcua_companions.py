@@ -82,6 +82,9 @@ def test_a_generic_client_finds_the_arm_its_axes_and_the_packml_state(plant: Pla
         "DeviceSet": ["MotionDeviceSystemType"],
     }
     assert robot["model"] == "UR5e" and robot["serial"] == "20235500042"
+    assert {"Manufacturer", "Model", "SerialNumber", "Axes", "ParameterSet"} <= set(
+        robot["arm_type_members"]
+    )  # the type declares what its instances show
     assert robot["axes"] == ["Base", "Shoulder", "Elbow", "Wrist1", "Wrist2", "Wrist3"]
     for row in robot["positions"]:  # degrees, as OPC 40010 gives rotary axes
         assert [round(p) for p, _ in row] == [0, -90, 90, -90, -90, 0]
