@@ -128,6 +128,16 @@ def _safety_of(bits: int) -> Safety:
     return Safety.NORMAL
 
 
+def _serial_number(dashboard: Any) -> str:
+    """The controller's serial number, "" when the dashboard does not give one (an old
+    controller, an answer that is no number)."""
+    try:
+        text = str(dashboard.getSerialNumber()).strip()
+    except RuntimeError:
+        return ""
+    return text if text.isalnum() else ""
+
+
 def _channel(name: str) -> tuple[str, int]:
     kind, index = name[:2].upper(), name[2:]
     limits = {"DO": 8, "CO": 8, "TO": 2, "AO": 2, "DI": 8, "CI": 8, "TI": 2, "AI": 2}
@@ -172,6 +182,8 @@ class URBackend:
         self.payload_cog_m = payload_cog_m
         self.controller_versions: tuple[int, ...] | None = None
         self.robot_model = ""
+        #: the controller's serial number (its dashboard's), "" until connected
+        self.serial_number = ""
         self._dashboard: Any = None
         self._receive: Any = None
         self._control: ControlProcess | None = None
@@ -210,6 +222,7 @@ class URBackend:
             self._dashboard = dashboard_client.DashboardClient(self.host)
             self._dashboard.connect(int(self.connect_timeout_s * 1000))
             self.robot_model = self._dashboard.getRobotModel().strip()
+            self.serial_number = _serial_number(self._dashboard)
             expected = _model_family(self.spec.name)
             # the dashboard answers "UR5" for a UR5 and a UR5e alike (the generation was
             # checked above); a reply that names no model is not held against the robot

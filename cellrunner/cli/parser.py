@@ -395,4 +395,10 @@ def _file_commands(sub: Commands) -> None:
         action="store_true",
         help="read the password from standard input (else prompt twice)",
     )
+    u.add_argument(
+        "--role",
+        choices=("operator", "viewer"),
+        default="operator",
+        help="operator (starts, holds, aborts jobs) or viewer (reads only); default operator",
+    )
     p.set_defaults(module="users")

@@ -41,13 +41,21 @@ from cellrunner.execution.packml import Command, Event, TransitionRefused
 from cellrunner.execution.planner import PlannedJob, Planner
 from cellrunner.execution.recovery import Recovery, stop_and_stand, unlock_idle_stop
 from cellrunner.execution.task_menu import TaskMenu
-from cellrunner.model.cellport import COMMANDS, CellStatus, JobSource, JobTicket, ResultListener
+from cellrunner.model.cellport import (
+    COMMANDS,
+    ArmStatus,
+    CellStatus,
+    JobResult,
+    JobSource,
+    JobTicket,
+    ResultListener,
+)
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
 from cellrunner.model.hold_source import HoldSource
 from cellrunner.model.load import LoadedCell, LoadedTask
-from cellrunner.model.robot_state import Safety
+from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 #: the PLC's commands that go to the state machine as they are
@@ -108,6 +116,7 @@ class CellController:
         self._last_view: JobView | None = None
         self._status_key: tuple[object, ...] = ()
         self._status = self._snapshot()
+        self._robot: RobotState | None = None  # the last measurement a tick read
 
     # ------------------------------------------------------------------ lifecycle
     def setup(self) -> None:
@@ -144,6 +153,28 @@ class CellController:
     def status(self) -> CellStatus:
         """The snapshot published after the last change; takes no lock, never waits."""
         return self._status
+
+    def finished_job(self, source: str, client_job_id: str) -> JobResult | None:
+        """The journal's result of the job ``source`` named ``client_job_id`` (a
+        :class:`~cellrunner.model.cellport.JobHistory`); None when it has not ended."""
+        with self._lock:
+            return self._book.finished(source, client_job_id)
+
+    def arm(self) -> ArmStatus:
+        """The arm as the last tick measured it (:class:`~cellrunner.model.cellport.ArmPort`);
+        takes no lock, never touches the backend."""
+        robot, job = self._robot, self._job
+        return ArmStatus(
+            model=self.cell.cell.robot.model,
+            serial_number=str(getattr(self.backend, "serial_number", "") or ""),
+            controller=str(getattr(self.backend, "robot_model", "") or ""),
+            q_rad=() if robot is None else tuple(float(q) for q in robot.q_rad),
+            qd_rad_s=() if robot is None else tuple(float(v) for v in robot.qd_rad_s),
+            emergency_stop=robot is not None and robot.safety is Safety.EMERGENCY_STOP,
+            protective_stop=robot is not None and robot.safety is Safety.PROTECTIVE_STOP,
+            task=job.task.name if job is not None else "",
+            time_s=0.0 if robot is None else robot.time_s,
+        )
 
     def _snapshot(self) -> CellStatus:
         return status_of(
@@ -227,6 +258,10 @@ class CellController:
 
     def task_params(self, task: str | int) -> list[str] | None:
         return self._menu.param_names(task)
+
+    def task_names(self) -> list[str]:
+        """The tasks' names in PLC task number order (a TaskCatalog)."""
+        return [loaded.name for _, loaded in sorted(self.tasks.items())]
 
     def task_param_specs(self, task: str | int) -> list[tuple[str, str, str | None]] | None:
         return self._menu.param_specs(task)
@@ -346,6 +381,7 @@ class CellController:
                             self._end_job(ResultCode.PLANNING_FAILED, started.describe())
                 else:
                     runner = started
+        self._robot = state  # one reference: arm() reads it from any thread
         with self._lock:
             self.states.now_s, self._safety = state.time_s, state.safety
             if job is not None and job is self._job and runner is not None:

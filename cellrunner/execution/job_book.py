@@ -71,6 +71,19 @@ class JobBook:
             return None
         return JobTicket(first.job_id, ResultCode.OK, "the same ClientJobId again: the first job")
 
+    def finished(self, source: str, client_job_id: str) -> JobResult | None:
+        """How the job ``source`` named ``client_job_id`` ended, as the journal has it
+        (None: no such job, not ended yet, or the journal cannot be read)."""
+        if not client_job_id:
+            return None
+        try:
+            record = self.journal.by_client_id(source, client_job_id)
+        except (JournalError, sqlite3.Error):
+            return None
+        if record is None or record.result_code is None:
+            return None
+        return result_of_record(record)
+
     def begin(self, job: Job) -> JobTicket | None:
         """Journal ``job`` before it is acknowledged; a refusal when that fails."""
         try:

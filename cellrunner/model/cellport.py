@@ -31,14 +31,18 @@ __all__ = [
     "COMPLETED_CODES",
     "REJECT_CODES",
     "SPEC_SOURCES",
+    "ArmPort",
+    "ArmStatus",
     "CellPort",
     "CellStatus",
+    "JobHistory",
     "JobResult",
     "JobSource",
     "JobTicket",
     "PackMLState",
     "ResultCode",
     "ResultListener",
+    "TaskCatalog",
 ]
 
 #: Codes with which a job *completed* (OK or NOK, not a fault): the PLC sees DONE.
@@ -153,6 +157,58 @@ class JobTicket:
 
 
 ResultListener = Callable[[JobResult], object]  # what it returns is ignored
+
+
+@dataclass(frozen=True)
+class ArmStatus:
+    """The arm as the plant's language describes it (OPC 40010 Robotics, SPEC 13): what
+    it is (``model``, the controller's ``serial_number``, "" when unknown), where each
+    joint is (``q_rad``, base to wrist 3) and how fast it turns (``qd_rad_s``), the
+    controller's safety (``emergency_stop``, ``protective_stop``), and ``task``, the
+    name of the task the running job runs ("" when none). ``time_s`` is the controller
+    time of the measurement."""
+
+    model: str
+    serial_number: str = ""
+    manufacturer: str = "Universal Robots"
+    controller: str = ""
+    q_rad: tuple[float, ...] = ()
+    qd_rad_s: tuple[float, ...] = ()
+    emergency_stop: bool = False
+    protective_stop: bool = False
+    task: str = ""
+    time_s: float = 0.0
+
+
+@runtime_checkable
+class TaskCatalog(Protocol):
+    """What a cell adds to :class:`CellPort` to list what may be ordered: an ISA-95 job
+    order's work masters (SPEC 13)."""
+
+    def task_names(self) -> list[str]:
+        """The names of the cell's tasks, in PLC task number order."""
+        ...
+
+
+@runtime_checkable
+class JobHistory(Protocol):
+    """What a cell with a journal adds to :class:`CellPort`: the end of a job a requester
+    named, so an ISA-95 job order answers after a restart (SPEC 13)."""
+
+    def finished_job(self, source: str, client_job_id: str) -> JobResult | None:
+        """How the job ``source`` named ``client_job_id`` ended; None when no such job
+        has ended. Reads the journal: a few milliseconds, from any thread."""
+        ...
+
+
+@runtime_checkable
+class ArmPort(Protocol):
+    """What a cell that can describe its arm adds to :class:`CellPort`; the OPC UA
+    server's Robotics objects read it (a port without it shows no arm)."""
+
+    def arm(self) -> ArmStatus:
+        """The arm's last measurement; cheap, non-blocking, from any thread."""
+        ...
 
 
 @runtime_checkable

@@ -23,6 +23,7 @@ from cellrunner.model.hold_source import HoldSource
 from cellrunner.plc.port import (
     COMMANDS,
     COMPLETED_CODES,
+    ArmStatus,
     CellStatus,
     JobResult,
     JobSource,
@@ -172,6 +173,36 @@ class FakeCell:
                 hold_source=self._hold_source.value if held and self._hold_source else "",
                 hold_reason=self._hold_source.reason if held and self._hold_source else "",
             )
+
+    def arm(self) -> ArmStatus:
+        """A UR5e whose base joint turns at 0.5 rad/s while a job runs (an ArmPort)."""
+        with self._lock:
+            job = self._job
+            now = self.clock()
+            base = 0.5 * (now - job.started_s) if job is not None else 0.0
+            return ArmStatus(
+                model="ur5e",
+                serial_number="20235500042",
+                controller="UR5e (fake)",
+                q_rad=(base, -1.57, 1.57, -1.57, -1.57, 0.0),
+                qd_rad_s=(0.5 if job is not None else 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+                emergency_stop=self._injected.estop,
+                protective_stop=self._injected.protective_stop,
+                task=job.task.name if job is not None else "",
+                time_s=now,
+            )
+
+    def finished_job(self, source: str, client_job_id: str) -> JobResult | None:
+        """The first finished job ``source`` named ``client_job_id`` (a JobHistory: the
+        ``finished`` list is this cell's journal)."""
+        with self._lock:
+            for result in self.finished:
+                if result.source == source and result.client_job_id == client_job_id:
+                    return result
+            return None
+
+    def task_names(self) -> list[str]:
+        return [t.name for t in sorted(self.tasks, key=lambda t: t.number)]
 
     def task_params(self, task: str | int) -> list[str] | None:
         found = self._find_task(task)

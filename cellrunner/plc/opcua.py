@@ -10,7 +10,12 @@ Address space (namespace ``urn:cellrunner``)::
       StartJob(TaskName, Parameters JSON, ClientJobId) -> (JobId, ReturnCode)
       Reset() Hold() Unhold() Abort() Clear() Stop()
 
-Every variable is read-only for clients; the server refreshes them every 50 ms.
+Beside ``Cell``, the same cell in the plant's language (SPEC 13): ISA-95 job orders, PackML
+and OPC 40010 Robotics under ``Objects/<cell name>``, in the standards' namespaces
+(:mod:`cellrunner.plc.opcua_companions`).
+
+Every variable is read-only for clients; the server refreshes them every 50 ms. Users are
+operators or viewers; a viewer calls no method that acts (:mod:`cellrunner.plc.opcua_roles`).
 Security: only the configured policies; username/password from the users file
 (:mod:`cellrunner.plc.users`); client certificates must be in ``pki/trusted/``
 (unknown ones are filed in ``pki/rejected/``); the server certificate is created in
@@ -314,15 +319,18 @@ class HashedUserManager:
         self.max_pending = max_pending
         self.max_pending_per_source = max_pending_per_source
         self._users: dict[str, str] = {}
+        self._roles: dict[str, str] = {}
         self._stamp: tuple[float, int] | None = None
         self._workers: ThreadPoolExecutor | None = None
         self._pending: Counter[str] = Counter()  # per source; touched on the event loop only
 
     def load(self) -> None:
-        from cellrunner.plc.users import load_users
+        from cellrunner.plc.users import load_user_entries
 
         stat = self.users_file.stat() if self.users_file.exists() else None
-        self._users = load_users(self.users_file)
+        entries = load_user_entries(self.users_file)
+        self._users = {name: entry.hash for name, entry in entries.items()}
+        self._roles = {name: entry.role for name, entry in entries.items()}
         self._stamp = None if stat is None else (stat.st_mtime, stat.st_size)
 
     def _current_users(self) -> dict[str, str]:
@@ -333,6 +341,11 @@ class HashedUserManager:
         except (OSError, CellrunnerError):
             _log.warning("users file %s unreadable; keeping the previous users", self.users_file)
         return self._users
+
+    def role_of(self, username: str) -> str:
+        """``"operator"`` or ``"viewer"``; an unknown name is a viewer (it cannot log in)."""
+        self._current_users()
+        return self._roles.get(username, "viewer")
 
     def get_user(
         self,
@@ -448,6 +461,8 @@ class OpcUaServer:
         self._values: dict[str, Any] = {}
         self._client_jobs: OrderedDict[str, tuple[str, int]] = OrderedDict()
         self._event: Any = None
+        self._ruleset: Any = None
+        self._companions: Any = None
         self._aspace: Any = None
         self._refresh_task: asyncio.Task[None] | None = None
         self._remove_listener: Callable[[], None] | None = None
@@ -475,9 +490,9 @@ class OpcUaServer:
     # -- lifecycle -------------------------------------------------------------------------
     async def start(self) -> None:
         from asyncua import ua
-        from asyncua.crypto.permission_rules import SimpleRoleRuleset, UserRole
         from asyncua.server.server import Server
 
+        from cellrunner.plc.opcua_roles import RoleRuleset
         from cellrunner.plc.pki import Pki, default_hosts
 
         pki = Pki(self.config.pki_dir)
@@ -496,12 +511,11 @@ class OpcUaServer:
             server.set_server_name(f"cellrunner {self.cell_name}")
             await server.set_application_uri(APPLICATION_URI)
             server.allow_remote_admin(False)
-            ruleset = SimpleRoleRuleset()  # type: ignore[no-untyped-call]  # asyncua: unannotated
-            write = _node_id(ua.object_ids.ObjectIds.WriteRequest_Encoding_DefaultBinary)
-            ruleset._permission_dict[UserRole.User].discard(write)  # clients never write
+            ruleset = RoleRuleset(users.role_of)  # clients never write; viewers only read
+            self._ruleset = ruleset
             server.set_security_policy(
                 [getattr(ua.SecurityPolicyType, _POLICY_TYPES[p]) for p in self.config.security],
-                permission_ruleset=ruleset,
+                permission_ruleset=ruleset,  # type: ignore[arg-type]  # any PermissionRuleset
             )
             server.set_identity_tokens([ua.UserNameIdentityToken])
             await server.load_certificate(str(cert_file))
@@ -602,6 +616,12 @@ class OpcUaServer:
         )
         self._event = await server.get_event_generator(etype, cell)
         await server.nodes.server.set_event_notifier([ua.EventNotifier.SubscribeToEvents])
+        from cellrunner.plc.opcua_companions import Companions
+
+        self._companions = Companions(self.port, SOURCE)  # SPEC 13: the plant's language
+        await self._companions.build(server, idx, self.cell_name)
+        if self._ruleset is not None:
+            self._ruleset.reading_methods.update(self._companions.reading_methods)
 
     # -- methods ---------------------------------------------------------------------------
     async def _start_job_method(self, parent: Any, *args: Any) -> Any:
@@ -702,9 +722,13 @@ class OpcUaServer:
         if initial and status.last_result is not None:
             values.update(_last_job_values(status.last_result))
         await self._write_values(values)
+        if self._companions is not None:
+            await self._companions.publish(status)
 
     async def _publish_result(self, result: JobResult) -> None:
         await self._write_values(_last_job_values(result))
+        if self._companions is not None:
+            await self._companions.finish(result)
         await self._publish_status(self.port.status())
         await self._trigger_completion(result)
 

@@ -1,9 +1,15 @@
-"""OPC UA users: a YAML file of ``user: hash`` with salted scrypt hashes.
+"""OPC UA users: a YAML file of ``user: hash`` with salted scrypt hashes, and roles.
 
-``cellrunner users add FILE NAME --password-stdin`` adds (or replaces) one entry::
+``cellrunner users add FILE NAME [--role operator|viewer] --password-stdin`` adds (or
+replaces) one entry; an operator (the default) is written as its hash alone, a viewer
+as a mapping with its role::
 
-    # cellrunner OPC UA users: name -> scrypt$N$r$p$salt$hash (base64)
+    # cellrunner OPC UA users: name -> scrypt$N$r$p$salt$hash (base64), or {hash, role}
     plc1: scrypt$16384$8$1$0mB1...$Yx3f...
+    mes-dashboard: {hash: scrypt$16384$8$1$a9Qw...$Lm2p..., role: viewer}
+
+An operator may start, hold and abort jobs; a viewer reads everything and starts, holds
+or aborts nothing (SPEC section 13).
 
 Passwords are never stored; each user has its own 16-byte random salt; checks use
 :func:`hmac.compare_digest`, and an unknown user costs the same time as a known one.
@@ -20,8 +26,9 @@ import re
 import secrets
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import Literal, TextIO
 
 from cellrunner.errors import InputError
 
@@ -30,7 +37,19 @@ SCRYPT_N, SCRYPT_R, SCRYPT_P = 2**14, 8, 1
 SALT_BYTES = 16
 KEY_BYTES = 32
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9_.@-]{1,64}$")
-HEADER = "# cellrunner OPC UA users: name -> scrypt$N$r$p$salt$hash (base64)\n"
+HEADER = "# cellrunner OPC UA users: name -> scrypt$N$r$p$salt$hash (base64), or {hash, role}\n"
+
+Role = Literal["operator", "viewer"]
+#: the roles a user may have; the first is the default
+ROLES: tuple[Role, ...] = ("operator", "viewer")
+
+
+@dataclass(frozen=True)
+class UserEntry:
+    """One user of the users file: its salted hash and its role."""
+
+    hash: str
+    role: Role = "operator"
 
 
 def _b64(data: bytes) -> str:
@@ -75,6 +94,11 @@ def verify_password(stored: str | None, password: str) -> bool:
 
 def load_users(path: Path | str) -> dict[str, str]:
     """The ``name -> hash`` entries of a users file; InputError if unreadable or malformed."""
+    return {name: entry.hash for name, entry in load_user_entries(path).items()}
+
+
+def load_user_entries(path: Path | str) -> dict[str, UserEntry]:
+    """The users of a users file with their roles; InputError if unreadable or malformed."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -99,23 +123,34 @@ def load_users(path: Path | str) -> dict[str, str]:
         return {}
     if not isinstance(data, dict):
         raise InputError("users file must be a mapping of user name -> hash", file=path)
-    users: dict[str, str] = {}
-    for name, value in data.items():
-        if (
-            not isinstance(name, str)
-            or not isinstance(value, str)
-            or not value.startswith(SCHEME + "$")
-        ):
-            raise InputError(
-                f"user {name!r}: expected a '{SCHEME}$...' hash written by `cellrunner users add`",
-                file=path,
-            )
-        users[name] = value
-    return users
+    return {name: _entry(name, value, path) for name, value in data.items()}
 
 
-def add_user(path: Path | str, name: str, password: str) -> None:
-    """Add or replace ``name`` in the users file (created 0600 if absent), atomically."""
+def _entry(name: object, value: object, path: Path) -> UserEntry:
+    """A users file entry: ``hash`` (an operator) or ``{hash: ..., role: ...}``."""
+    role: object = ROLES[0]
+    if isinstance(value, dict):
+        mapping: dict[str, object] = value
+        value, role = mapping.get("hash"), mapping.get("role", ROLES[0])
+    if (
+        not isinstance(name, str)
+        or not isinstance(value, str)
+        or not value.startswith(SCHEME + "$")
+    ):
+        raise InputError(
+            f"user {name!r}: expected a '{SCHEME}$...' hash written by `cellrunner users add`",
+            file=path,
+        )
+    if role not in ROLES:
+        raise InputError(
+            f"user {name!r}: role {role!r} is not one of {', '.join(ROLES)}", file=path
+        )
+    return UserEntry(value, role)
+
+
+def add_user(path: Path | str, name: str, password: str, role: str = ROLES[0]) -> None:
+    """Add or replace ``name`` with ``role`` in the users file (created 0600 if absent),
+    atomically."""
     path = Path(path)
     if not NAME_PATTERN.match(name):
         raise InputError(
@@ -123,10 +158,12 @@ def add_user(path: Path | str, name: str, password: str) -> None:
         )
     if not password:
         raise InputError("empty password; give a non-empty password on stdin", file=path)
-    users = load_users(path) if path.exists() else {}
-    users[name] = hash_password(password)
+    if role not in ROLES:
+        raise InputError(f"role {role!r} is not one of {', '.join(ROLES)}", file=path)
+    users = load_user_entries(path) if path.exists() else {}
+    users[name] = UserEntry(hash_password(password), role)
     path.parent.mkdir(parents=True, exist_ok=True)
-    body = HEADER + "".join(f"'{user}': '{value}'\n" for user, value in sorted(users.items()))
+    body = HEADER + "".join(_line(user, entry) for user, entry in sorted(users.items()))
     fd, tmp = tempfile.mkstemp(prefix=".users-", dir=path.parent)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as handle:
@@ -136,6 +173,12 @@ def add_user(path: Path | str, name: str, password: str) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _line(name: str, entry: UserEntry) -> str:
+    if entry.role == ROLES[0]:
+        return f"'{name}': '{entry.hash}'\n"
+    return f"'{name}': {{hash: '{entry.hash}', role: {entry.role}}}\n"
 
 
 # -- CLI: `cellrunner users add FILE NAME --password-stdin` ------------------------------
@@ -149,6 +192,12 @@ def configure_users_parser(parser: argparse.ArgumentParser) -> None:
         "--password-stdin",
         action="store_true",
         help="read the password from the first line of stdin",
+    )
+    add.add_argument(
+        "--role",
+        choices=ROLES,
+        default=ROLES[0],
+        help="operator (starts and stops jobs) or viewer (reads only); default operator",
     )
     add.set_defaults(handler=run_users_command)
 
@@ -170,6 +219,7 @@ def read_password(stdin: TextIO, *, from_stdin: bool) -> str:
 def run_users_command(args: argparse.Namespace, stdin: TextIO | None = None) -> int:
     """Run ``users add``; returns the exit code (InputError propagates: exit 2)."""
     password = read_password(stdin or sys.stdin, from_stdin=args.password_stdin)
-    add_user(args.file, args.name, password)
-    print(f"{args.file}: user {args.name} written", file=sys.stderr)
+    role = getattr(args, "role", None) or ROLES[0]
+    add_user(args.file, args.name, password, role)
+    print(f"{args.file}: user {args.name} ({role}) written", file=sys.stderr)
     return 0

@@ -103,6 +103,12 @@ def test_connect_sets_tool_and_payload(backend, twin):
     assert state["payload_kg"] == pytest.approx(1.2)
 
 
+def test_connect_reads_the_controllers_serial_number(backend):
+    from cellrunner.twin.controller import ControllerConfig
+
+    assert backend.serial_number == ControllerConfig.serial_number  # the dashboard's answer
+
+
 def test_streams_an_approved_trajectory_and_tracks_it(backend):
     approved = approve(wave(500.0, 1.5, backend.read_state().q_rad), 0, "wave")
     t0 = time.monotonic()
