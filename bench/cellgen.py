@@ -40,9 +40,15 @@ ARMS = ("ur3e", "ur5e", "ur10e", "ur16e", "ur5", "ur10")
 PEDESTAL_M = 0.90
 #: feasible kinds of jobs, and the defects (each breaks one thing)
 FEASIBLE = ("feasible", "near_support")
-DEFECTS = ("out_of_reach", "unsupported_place", "into_support", "jaws_too_narrow")
+DEFECTS = ("out_of_reach", "unsupported_place", "into_support", "jaws_too_narrow", "weak_vacuum")
 KINDS = FEASIBLE + DEFECTS
+#: the kinds that need one gripper: the others draw jaws or cups (VACUUM_SHARE of them cups)
+NEEDS_GRIPPER = {"jaws_too_narrow": "jaws", "weak_vacuum": "vacuum"}
+VACUUM_SHARE = 0.4
 TABLE_THICKNESS_M = 0.04
+GRAVITY_MPS2 = 9.81
+#: the seal's load per kg of part when the arm brakes at its limits (N/kg, see _draw_cups)
+FULL_ACCEL_PULL_N_PER_KG = 110.0
 
 
 @dataclass
@@ -160,7 +166,7 @@ def generate(seed: int, kind: str = "feasible") -> Case:
         raise ValueError(f"unknown case kind {kind!r}; known: {', '.join(KINDS)}")
     rng = random.Random(seed)
     for _ in range(WITNESS_TRIES):
-        draw = _draw(rng)
+        draw = _draw(rng, kind)
         if _witnesses_clear(draw):
             return _case(seed, kind, draw)
     raise RuntimeError(f"seed {seed}: no witnesses {WITNESS_MARGIN_M * 1000:g} mm clear")
@@ -179,12 +185,16 @@ class _Draw:
     kin: Any
     q_pick: np.ndarray
     q_place: np.ndarray
+    gripper: str = "jaws"  # or "vacuum": cups on the part's top face
+    cups: list[dict[str, Any]] = field(default_factory=list)
+    holding_N: float = 0.0
 
 
-def _draw(rng: random.Random) -> _Draw:
+def _draw(rng: random.Random, kind: str) -> _Draw:
     from cellrunner.model.robots import robot_spec
 
     model = rng.choice(ARMS)
+    gripper = NEEDS_GRIPPER.get(kind) or ("vacuum" if rng.random() < VACUUM_SHARE else "jaws")
     reach_m = robot_spec(model).reach_m
     tcp_m = round(rng.uniform(0.12, 0.18), 3)
     kin = _kinematics(model, tcp_m)
@@ -197,7 +207,25 @@ def _draw(rng: random.Random) -> _Draw:
     stroke = round(size[0] + rng.uniform(0.02, 0.04), 3)
     q_pick = _witness(rng, kin, rng.uniform(-150, -40), reach_m)
     q_place = _witness(rng, kin, rng.uniform(40, 150), reach_m)
-    return _Draw(model, reach_m, tcp_m, size, mass, stroke, kin, q_pick, q_place)
+    draw = _Draw(model, reach_m, tcp_m, size, mass, stroke, kin, q_pick, q_place, gripper)
+    if gripper == "vacuum":
+        _draw_cups(rng, draw)
+    return draw
+
+
+def _draw_cups(rng: random.Random, d: _Draw) -> None:
+    """One, two or four cups on the part's top face, and cups that hold the part through
+    the carrying moves at the arm's full acceleration (up to ~5 g at a UR10e's TCP, whose
+    shear the cups hold by friction, 0.5: ~110 N per kg) and 20 N more."""
+    d.size = [round(rng.uniform(0.08, 0.20), 3), round(rng.uniform(0.08, 0.16), 3)]
+    d.size.append(round(rng.uniform(0.05, 0.12), 3))
+    d.mass = round(rng.uniform(0.5, 3.0), 2)
+    radius = round(rng.uniform(0.01, 0.02), 3)
+    n = rng.choice((1, 2, 4))
+    dx, dy = (d.size[0] / 2 - radius - 0.005), (d.size[1] / 2 - radius - 0.005)
+    spots = {1: [(0, 0)], 2: [(dx, 0), (-dx, 0)], 4: [(dx, dy), (dx, -dy), (-dx, dy), (-dx, -dy)]}
+    d.cups = [{"xyz": [round(x, 4), round(y, 4), 0], "radius": radius} for x, y in spots[n]]
+    d.holding_N = round(rng.uniform(1.0, 1.5) * d.mass * FULL_ACCEL_PULL_N_PER_KG + 20, 1)
 
 
 def _witnesses_clear(draw: _Draw) -> bool:
@@ -242,9 +270,11 @@ APPROACH_M = 0.08
 def _case(seed: int, kind: str, d: _Draw) -> Case:
     """The files of draw ``d``, broken as ``kind`` says."""
     T_pick, T_place = d.kin.T_world_tcp(d.q_pick), d.kin.T_world_tcp(d.q_place)
-    half = d.size[2] / 2
-    pick_top, place_top = T_pick[2, 3] - half, T_place[2, 3] - half
+    # the jaws hold the part at its centre, the cups at its top face
+    below = d.size[2] if d.gripper == "vacuum" else d.size[2] / 2
+    pick_top, place_top = T_pick[2, 3] - below, T_place[2, 3] - below
     stroke = d.stroke
+    holding_N = d.holding_N
     if kind == "near_support":
         place_top -= 0.002  # the part is let go 2 mm above the table
     elif kind == "unsupported_place":
@@ -257,8 +287,32 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
         T_place[:2, 3] *= scale
     elif kind == "jaws_too_narrow":
         stroke = round(d.size[0] * 0.7, 3)
+    elif kind == "weak_vacuum":  # the cups hold less than the part weighs
+        holding_N = round(random.Random(seed).uniform(0.4, 0.9) * d.mass * GRAVITY_MPS2, 1)
     tcp_m = d.tcp_m
-    body_m = round(tcp_m - 0.06, 3)  # the gripper's body, flange to 60 mm above the TCP
+    if d.gripper == "vacuum":
+        # the cups' body ends 30 mm above the TCP (the cups' faces, 20 mm long)
+        body_m, body_r = round(tcp_m - 0.03, 3), 0.03
+        gripper: dict[str, Any] = {
+            "kind": "vacuum",
+            "suction": {"output": "vacuum_on", "value": True},
+            "vacuum_ok": "vacuum_ok",
+            "cups": d.cups,
+            "holding_force": holding_N,
+        }
+        io = {"outputs": {"vacuum_on": "DO0"}, "inputs": {"vacuum_ok": "DI0"}}
+        grip = {"confirm": "vacuum_ok"}
+    else:
+        body_m = round(tcp_m - 0.06, 3)  # the gripper's body, flange to 60 mm above the TCP
+        body_r = round(max(0.03, stroke / 2 + 0.015), 3)
+        gripper = {
+            "kind": "io",
+            "close": {"output": "gripper_close", "value": True},
+            "closed_sensor": "gripper_closed",
+            "stroke": stroke,
+        }
+        io = {"outputs": {"gripper_close": "DO0"}, "inputs": {"gripper_closed": "DI0"}}
+        grip = {"confirm": "gripper_closed"}
     cell = {
         "cell": f"gen-{seed}-{kind}",
         "robot": {
@@ -271,23 +325,15 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
         "tool": {
             "tcp": {"xyz": [0, 0, tcp_m], "rpy": [0, 0, 0]},
             "payload": {"mass": 1.0, "cog": [0, 0, round(tcp_m / 3, 3)]},
-            "gripper": {
-                "kind": "io",
-                "close": {"output": "gripper_close", "value": True},
-                "closed_sensor": "gripper_closed",
-                "stroke": stroke,
-            },
+            "gripper": gripper,
             "geometry": [
                 {
-                    "cylinder": {
-                        "radius": round(max(0.03, stroke / 2 + 0.015), 3),
-                        "length": body_m,
-                    },
+                    "cylinder": {"radius": body_r, "length": body_m},
                     "xyz": [0, 0, round(body_m / 2, 4)],
                 }
             ],
         },
-        "io": {"outputs": {"gripper_close": "DO0"}, "inputs": {"gripper_closed": "DI0"}},
+        "io": io,
         "fixtures": [
             {
                 "name": "pedestal",
@@ -305,7 +351,6 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
         "tasks": {1: "task.yaml"},
         "journal": "var/jobs.sqlite",
     }
-    grip = {"confirm": "gripper_closed"}
     task = {
         "task": "pick_place",
         "steps": [

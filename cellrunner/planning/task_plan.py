@@ -355,7 +355,7 @@ def plan_task(
             then = rows[i + 1].step if i + 1 < len(rows) else None
             if step.is_motion:
                 if group and (
-                    not _joins(group[-1].row.step, step)
+                    not _joins(group[-1].row.step, step, planner.world)
                     or not _same_limits(group[-1].limits, planner.limits_for(step))
                 ):
                     flush()
@@ -378,6 +378,9 @@ def plan_task(
         for row in rows:
             if row.step.retry is not None:
                 _check_retry_path(world, row, rows)
+        from cellrunner.planning.suction_hold import check_suction_hold
+
+        check_suction_hold(world, rows)
     except InfeasibleError as exc:
         failed = next((r for r in rows if r.step.index == exc.step_index), current or rows[-1])
         failed.status, failed.message = "failed", exc.reason
@@ -434,7 +437,7 @@ class StepPlanner:
         speed = getattr(step.args, "speed", None)
         if step.is_planned:
             return limits.scaled(speed_fraction=speed if speed is not None else 1.0)
-        if step.is_guarded or (sets_down(step) and self.part is not None):
+        if step.is_guarded or sets_down(step, self.world):
             assert line_q is not None  # a force step or set-down is timed along its line
             accel = FORCE_TCP_ACCEL_MPS2 if step.is_guarded else SET_DOWN_TCP_ACCEL_MPS2
             return limits.scaled(
@@ -920,20 +923,27 @@ def _prove_sampled(motion: _Motion) -> bool:
     return True
 
 
-def _joins(before: Step, after: Step) -> bool:
+def _joins(before: Step, after: Step, world: CellWorld) -> bool:
     """Whether ``after`` may continue ``before`` without stopping: a joint move after any
     motion, a straight move only after a joint move (two straight lines meet at a corner)."""
     if after.is_guarded:  # a force step starts standing, for its wrist baseline
         return False
-    if sets_down(after):  # timed gently from rest (StepPlanner.limits_for)
+    if sets_down(after, world):  # timed gently from rest (StepPlanner.limits_for)
         return False
     return not after.is_line or not before.is_line
 
 
-def sets_down(step: Step) -> bool:
-    """Whether ``step`` is a place's descend, which sets the carried part down on its
-    support (timed at ``SET_DOWN_TCP_ACCEL_MPS2``)."""
-    return step.kind == StepKind.DESCEND and (step.macro or "").startswith("place ")
+def sets_down(step: Step, world: CellWorld | None = None) -> bool:
+    """Whether ``step`` comes down onto something, timed at ``SET_DOWN_TCP_ACCEL_MPS2``:
+    a place's descend (the part onto its support), or a pick's with suction cups (the
+    cups onto the part's face; jaws come down around a part, touching nothing)."""
+    if step.kind != StepKind.DESCEND:
+        return False
+    macro = step.macro or ""
+    if macro.startswith("place "):
+        return True
+    gripper = world.loaded.cell.tool.gripper if world is not None else None
+    return macro.startswith("pick ") and gripper is not None and gripper.kind == "vacuum"
 
 
 def _weighed(rows: list[StepPlan], i: int) -> bool:
