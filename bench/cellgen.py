@@ -38,6 +38,16 @@ import numpy as np
 #: the arms the generator mounts (the pedestal's height, m)
 ARMS = ("ur3e", "ur5e", "ur10e", "ur16e", "ur5", "ur10")
 PEDESTAL_M = 0.90
+#: how the arm is mounted: base position (m) and rpy (deg) in the world, and where its
+#: targets lie below the base (fractions of the reach). Floor: on a pedestal, the targets
+#: around the shoulder's height; ceiling: hanging from a plate, the targets well below
+MOUNTS: dict[
+    str, tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float]]
+] = {
+    "floor": ((0.0, 0.0, PEDESTAL_M), (0.0, 0.0, 0.0), (-0.25, 0.05)),
+    "ceiling": ((0.0, 0.0, 2.0), (180.0, 0.0, 0.0), (-0.75, -0.45)),
+}
+CEILING_SHARE = 0.3
 #: feasible kinds of jobs, and the defects (each breaks one thing)
 FEASIBLE = ("feasible", "near_support")
 DEFECTS = ("out_of_reach", "unsupported_place", "into_support", "jaws_too_narrow", "weak_vacuum")
@@ -88,24 +98,28 @@ def _yaml() -> Any:
     return writer
 
 
-def _kinematics(model: str, tcp_m: float) -> Any:
+def _kinematics(model: str, tcp_m: float, mount: str = "floor") -> Any:
+    from cellrunner.model.geometry import pose_matrix
     from cellrunner.model.robots import robot_spec
     from cellrunner.planning.kinematics import ArmKinematics
 
-    T_world_base = np.eye(4)
-    T_world_base[2, 3] = PEDESTAL_M
+    xyz, rpy, _ = MOUNTS[mount]
     T_flange_tcp = np.eye(4)
     T_flange_tcp[2, 3] = tcp_m
-    return ArmKinematics(robot_spec(model), T_world_base, T_flange_tcp)
+    return ArmKinematics(robot_spec(model), pose_matrix(xyz, rpy), T_flange_tcp)
 
 
-def _witness(rng: random.Random, kin: Any, base_deg: float, reach_m: float) -> np.ndarray:
-    """Joint angles (rad) with the tool pointing straight down, the elbow up, the TCP at a
-    comfortable radius and height below the shoulder: a configuration that exists."""
+def _witness(
+    rng: random.Random, kin: Any, base_deg: float, reach_m: float, mount: str = "floor"
+) -> np.ndarray:
+    """Joint angles (rad) with the tool pointing straight down, the elbow bent the
+    working way (up on a pedestal, towards the ceiling when hanging), the TCP at a
+    comfortable radius and height: a configuration that exists."""
     spec = kin.spec
+    (_, _, base_z), _, (low, high) = MOUNTS[mount]
     for _ in range(200):
         radius = rng.uniform(0.45, 0.75) * reach_m
-        height = PEDESTAL_M + rng.uniform(-0.25, 0.05) * reach_m
+        height = base_z + rng.uniform(low, high) * reach_m
         yaw = rng.uniform(-60, 60)
         T = _down_pose(base_deg, radius, height, yaw)
         branches = kin.ik_all(T, np.radians(HOME_DEG))
@@ -186,6 +200,7 @@ class _Draw:
     q_pick: np.ndarray
     q_place: np.ndarray
     gripper: str = "jaws"  # or "vacuum": cups on the part's top face
+    mount: str = "floor"  # or "ceiling" (MOUNTS)
     cups: list[dict[str, Any]] = field(default_factory=list)
     holding_N: float = 0.0
 
@@ -195,9 +210,10 @@ def _draw(rng: random.Random, kind: str) -> _Draw:
 
     model = rng.choice(ARMS)
     gripper = NEEDS_GRIPPER.get(kind) or ("vacuum" if rng.random() < VACUUM_SHARE else "jaws")
+    mount = "ceiling" if rng.random() < CEILING_SHARE else "floor"
     reach_m = robot_spec(model).reach_m
     tcp_m = round(rng.uniform(0.12, 0.18), 3)
-    kin = _kinematics(model, tcp_m)
+    kin = _kinematics(model, tcp_m, mount)
     # the jaws' pads reach 20 mm below the TCP (the part's centre): a part tall enough
     # that they stay 10 mm or more above the table it stands on
     size = [round(rng.uniform(0.03, 0.06), 3) for _ in range(2)]
@@ -205,9 +221,10 @@ def _draw(rng: random.Random, kind: str) -> _Draw:
     mass = round(rng.uniform(0.2, 1.0), 2)
     # the jaws close along the TCP's X, which is the part's X (it lies in its frame's axes)
     stroke = round(size[0] + rng.uniform(0.02, 0.04), 3)
-    q_pick = _witness(rng, kin, rng.uniform(-150, -40), reach_m)
-    q_place = _witness(rng, kin, rng.uniform(40, 150), reach_m)
+    q_pick = _witness(rng, kin, rng.uniform(-150, -40), reach_m, mount)
+    q_place = _witness(rng, kin, rng.uniform(40, 150), reach_m, mount)
     draw = _Draw(model, reach_m, tcp_m, size, mass, stroke, kin, q_pick, q_place, gripper)
+    draw.mount = mount
     if gripper == "vacuum":
         _draw_cups(rng, draw)
     return draw
@@ -319,7 +336,7 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
             "model": d.model,
             "host": "127.0.0.2",
             "backend": "sim",
-            "mount": {"xyz": [0, 0, PEDESTAL_M], "rpy": [0, 0, 0]},
+            "mount": {"xyz": list(MOUNTS[d.mount][0]), "rpy": list(MOUNTS[d.mount][1])},
             "home": list(HOME_DEG),
         },
         "tool": {
@@ -335,11 +352,7 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
         },
         "io": io,
         "fixtures": [
-            {
-                "name": "pedestal",
-                "cylinder": {"radius": 0.1, "length": PEDESTAL_M - 0.01},
-                "pose": {"xyz": [0, 0, (PEDESTAL_M - 0.01) / 2]},
-            },
+            _base_fixture(d.mount),
             _table("infeed_table", T_pick, pick_top),
             _table("outfeed_table", T_place, place_top),
         ],
@@ -362,6 +375,22 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
     }
     witness = {"pick": _deg(d.q_pick), "place": _deg(d.q_place)}
     return Case(seed, kind, cell, task, witness)
+
+
+def _base_fixture(mount: str) -> dict[str, Any]:
+    """What the arm stands on: a pedestal from the floor, or a plate on the ceiling."""
+    if mount == "ceiling":
+        z = MOUNTS[mount][0][2]
+        return {
+            "name": "ceiling_plate",
+            "box": {"size": [0.4, 0.4, 0.02]},
+            "pose": {"xyz": [0, 0, z + 0.02]},
+        }
+    return {
+        "name": "pedestal",
+        "cylinder": {"radius": 0.1, "length": PEDESTAL_M - 0.01},
+        "pose": {"xyz": [0, 0, (PEDESTAL_M - 0.01) / 2]},
+    }
 
 
 def _deg(q_rad: np.ndarray) -> list[float]:

@@ -34,7 +34,8 @@ def test_each_witness_puts_the_tcp_on_its_frame_within_the_joint_limits():
 
     for case in corpus(6, 300):
         tcp_m = case.cell["tool"]["tcp"]["xyz"][2]
-        kin = _kinematics(case.cell["robot"]["model"], tcp_m)
+        mount = "ceiling" if case.cell["robot"]["mount"]["rpy"][0] == 180 else "floor"
+        kin = _kinematics(case.cell["robot"]["model"], tcp_m, mount)
         for frame, witness in (("infeed", "pick"), ("outfeed", "place")):
             if case.kind == "out_of_reach" and frame == "outfeed":
                 continue  # moved out of reach on purpose: no witness
@@ -60,8 +61,9 @@ def test_a_fixed_sample_agrees_with_the_truth(tmp_path):
     runs = len(verdicts) + sum(1 for v in verdicts if v.result_code is not None)
     assert runs >= 40
     assert {v.kind for v in verdicts} == set(KINDS)
-    grippers = {c.cell["tool"]["gripper"]["kind"] for c in corpus(SAMPLE_SIZE, SAMPLE_SEED)}
-    assert grippers == {"io", "vacuum"}
+    cases = corpus(SAMPLE_SIZE, SAMPLE_SEED)
+    assert {c.cell["tool"]["gripper"]["kind"] for c in cases} == {"io", "vacuum"}
+    assert {c.cell["robot"]["mount"]["rpy"][0] for c in cases} == {0, 180}  # floor, ceiling
     wrong = {v.name: f"{v.verdict}: {v.message}" for v in verdicts if v.verdict in DISAGREEMENTS}
     assert sorted(wrong) == sorted(KNOWN_OPEN), wrong
     for name, why in KNOWN_OPEN.items():
