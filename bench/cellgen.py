@@ -38,11 +38,27 @@ import numpy as np
 #: the arms the generator mounts (the pedestal's height, m)
 ARMS = ("ur3e", "ur5e", "ur10e", "ur16e", "ur5", "ur10")
 PEDESTAL_M = 0.90
+#: how the arm is mounted: base position (m) and rpy (deg) in the world, and where its
+#: targets lie below the base (fractions of the reach). Floor: on a pedestal, the targets
+#: around the shoulder's height; ceiling: hanging from a plate, the targets well below
+MOUNTS: dict[
+    str, tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float]]
+] = {
+    "floor": ((0.0, 0.0, PEDESTAL_M), (0.0, 0.0, 0.0), (-0.25, 0.05)),
+    "ceiling": ((0.0, 0.0, 2.0), (180.0, 0.0, 0.0), (-0.75, -0.45)),
+}
+CEILING_SHARE = 0.3
 #: feasible kinds of jobs, and the defects (each breaks one thing)
 FEASIBLE = ("feasible", "near_support")
-DEFECTS = ("out_of_reach", "unsupported_place", "into_support", "jaws_too_narrow")
+DEFECTS = ("out_of_reach", "unsupported_place", "into_support", "jaws_too_narrow", "weak_vacuum")
 KINDS = FEASIBLE + DEFECTS
+#: the kinds that need one gripper: the others draw jaws or cups (VACUUM_SHARE of them cups)
+NEEDS_GRIPPER = {"jaws_too_narrow": "jaws", "weak_vacuum": "vacuum"}
+VACUUM_SHARE = 0.4
 TABLE_THICKNESS_M = 0.04
+GRAVITY_MPS2 = 9.81
+#: the seal's load per kg of part when the arm brakes at its limits (N/kg, see _draw_cups)
+FULL_ACCEL_PULL_N_PER_KG = 110.0
 
 
 @dataclass
@@ -82,24 +98,28 @@ def _yaml() -> Any:
     return writer
 
 
-def _kinematics(model: str, tcp_m: float) -> Any:
+def _kinematics(model: str, tcp_m: float, mount: str = "floor") -> Any:
+    from cellrunner.model.geometry import pose_matrix
     from cellrunner.model.robots import robot_spec
     from cellrunner.planning.kinematics import ArmKinematics
 
-    T_world_base = np.eye(4)
-    T_world_base[2, 3] = PEDESTAL_M
+    xyz, rpy, _ = MOUNTS[mount]
     T_flange_tcp = np.eye(4)
     T_flange_tcp[2, 3] = tcp_m
-    return ArmKinematics(robot_spec(model), T_world_base, T_flange_tcp)
+    return ArmKinematics(robot_spec(model), pose_matrix(xyz, rpy), T_flange_tcp)
 
 
-def _witness(rng: random.Random, kin: Any, base_deg: float, reach_m: float) -> np.ndarray:
-    """Joint angles (rad) with the tool pointing straight down, the elbow up, the TCP at a
-    comfortable radius and height below the shoulder: a configuration that exists."""
+def _witness(
+    rng: random.Random, kin: Any, base_deg: float, reach_m: float, mount: str = "floor"
+) -> np.ndarray:
+    """Joint angles (rad) with the tool pointing straight down, the elbow bent the
+    working way (up on a pedestal, towards the ceiling when hanging), the TCP at a
+    comfortable radius and height: a configuration that exists."""
     spec = kin.spec
+    (_, _, base_z), _, (low, high) = MOUNTS[mount]
     for _ in range(200):
         radius = rng.uniform(0.45, 0.75) * reach_m
-        height = PEDESTAL_M + rng.uniform(-0.25, 0.05) * reach_m
+        height = base_z + rng.uniform(low, high) * reach_m
         yaw = rng.uniform(-60, 60)
         T = _down_pose(base_deg, radius, height, yaw)
         branches = kin.ik_all(T, np.radians(HOME_DEG))
@@ -160,7 +180,7 @@ def generate(seed: int, kind: str = "feasible") -> Case:
         raise ValueError(f"unknown case kind {kind!r}; known: {', '.join(KINDS)}")
     rng = random.Random(seed)
     for _ in range(WITNESS_TRIES):
-        draw = _draw(rng)
+        draw = _draw(rng, kind)
         if _witnesses_clear(draw):
             return _case(seed, kind, draw)
     raise RuntimeError(f"seed {seed}: no witnesses {WITNESS_MARGIN_M * 1000:g} mm clear")
@@ -179,15 +199,21 @@ class _Draw:
     kin: Any
     q_pick: np.ndarray
     q_place: np.ndarray
+    gripper: str = "jaws"  # or "vacuum": cups on the part's top face
+    mount: str = "floor"  # or "ceiling" (MOUNTS)
+    cups: list[dict[str, Any]] = field(default_factory=list)
+    holding_N: float = 0.0
 
 
-def _draw(rng: random.Random) -> _Draw:
+def _draw(rng: random.Random, kind: str) -> _Draw:
     from cellrunner.model.robots import robot_spec
 
     model = rng.choice(ARMS)
+    gripper = NEEDS_GRIPPER.get(kind) or ("vacuum" if rng.random() < VACUUM_SHARE else "jaws")
+    mount = "ceiling" if rng.random() < CEILING_SHARE else "floor"
     reach_m = robot_spec(model).reach_m
     tcp_m = round(rng.uniform(0.12, 0.18), 3)
-    kin = _kinematics(model, tcp_m)
+    kin = _kinematics(model, tcp_m, mount)
     # the jaws' pads reach 20 mm below the TCP (the part's centre): a part tall enough
     # that they stay 10 mm or more above the table it stands on
     size = [round(rng.uniform(0.03, 0.06), 3) for _ in range(2)]
@@ -195,9 +221,28 @@ def _draw(rng: random.Random) -> _Draw:
     mass = round(rng.uniform(0.2, 1.0), 2)
     # the jaws close along the TCP's X, which is the part's X (it lies in its frame's axes)
     stroke = round(size[0] + rng.uniform(0.02, 0.04), 3)
-    q_pick = _witness(rng, kin, rng.uniform(-150, -40), reach_m)
-    q_place = _witness(rng, kin, rng.uniform(40, 150), reach_m)
-    return _Draw(model, reach_m, tcp_m, size, mass, stroke, kin, q_pick, q_place)
+    q_pick = _witness(rng, kin, rng.uniform(-150, -40), reach_m, mount)
+    q_place = _witness(rng, kin, rng.uniform(40, 150), reach_m, mount)
+    draw = _Draw(model, reach_m, tcp_m, size, mass, stroke, kin, q_pick, q_place, gripper)
+    draw.mount = mount
+    if gripper == "vacuum":
+        _draw_cups(rng, draw)
+    return draw
+
+
+def _draw_cups(rng: random.Random, d: _Draw) -> None:
+    """One, two or four cups on the part's top face, and cups that hold the part through
+    the carrying moves at the arm's full acceleration (up to ~5 g at a UR10e's TCP, whose
+    shear the cups hold by friction, 0.5: ~110 N per kg) and 20 N more."""
+    d.size = [round(rng.uniform(0.08, 0.20), 3), round(rng.uniform(0.08, 0.16), 3)]
+    d.size.append(round(rng.uniform(0.05, 0.12), 3))
+    d.mass = round(rng.uniform(0.5, 3.0), 2)
+    radius = round(rng.uniform(0.01, 0.02), 3)
+    n = rng.choice((1, 2, 4))
+    dx, dy = (d.size[0] / 2 - radius - 0.005), (d.size[1] / 2 - radius - 0.005)
+    spots = {1: [(0, 0)], 2: [(dx, 0), (-dx, 0)], 4: [(dx, dy), (dx, -dy), (-dx, dy), (-dx, -dy)]}
+    d.cups = [{"xyz": [round(x, 4), round(y, 4), 0], "radius": radius} for x, y in spots[n]]
+    d.holding_N = round(rng.uniform(1.0, 1.5) * d.mass * FULL_ACCEL_PULL_N_PER_KG + 20, 1)
 
 
 def _witnesses_clear(draw: _Draw) -> bool:
@@ -242,9 +287,11 @@ APPROACH_M = 0.08
 def _case(seed: int, kind: str, d: _Draw) -> Case:
     """The files of draw ``d``, broken as ``kind`` says."""
     T_pick, T_place = d.kin.T_world_tcp(d.q_pick), d.kin.T_world_tcp(d.q_place)
-    half = d.size[2] / 2
-    pick_top, place_top = T_pick[2, 3] - half, T_place[2, 3] - half
+    # the jaws hold the part at its centre, the cups at its top face
+    below = d.size[2] if d.gripper == "vacuum" else d.size[2] / 2
+    pick_top, place_top = T_pick[2, 3] - below, T_place[2, 3] - below
     stroke = d.stroke
+    holding_N = d.holding_N
     if kind == "near_support":
         place_top -= 0.002  # the part is let go 2 mm above the table
     elif kind == "unsupported_place":
@@ -257,43 +304,55 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
         T_place[:2, 3] *= scale
     elif kind == "jaws_too_narrow":
         stroke = round(d.size[0] * 0.7, 3)
+    elif kind == "weak_vacuum":  # the cups hold less than the part weighs
+        holding_N = round(random.Random(seed).uniform(0.4, 0.9) * d.mass * GRAVITY_MPS2, 1)
     tcp_m = d.tcp_m
-    body_m = round(tcp_m - 0.06, 3)  # the gripper's body, flange to 60 mm above the TCP
+    if d.gripper == "vacuum":
+        # the cups' body ends 30 mm above the TCP (the cups' faces, 20 mm long)
+        body_m, body_r = round(tcp_m - 0.03, 3), 0.03
+        gripper: dict[str, Any] = {
+            "kind": "vacuum",
+            "suction": {"output": "vacuum_on", "value": True},
+            "vacuum_ok": "vacuum_ok",
+            "cups": d.cups,
+            "holding_force": holding_N,
+        }
+        io = {"outputs": {"vacuum_on": "DO0"}, "inputs": {"vacuum_ok": "DI0"}}
+        grip = {"confirm": "vacuum_ok"}
+    else:
+        body_m = round(tcp_m - 0.06, 3)  # the gripper's body, flange to 60 mm above the TCP
+        body_r = round(max(0.03, stroke / 2 + 0.015), 3)
+        gripper = {
+            "kind": "io",
+            "close": {"output": "gripper_close", "value": True},
+            "closed_sensor": "gripper_closed",
+            "stroke": stroke,
+        }
+        io = {"outputs": {"gripper_close": "DO0"}, "inputs": {"gripper_closed": "DI0"}}
+        grip = {"confirm": "gripper_closed"}
     cell = {
         "cell": f"gen-{seed}-{kind}",
         "robot": {
             "model": d.model,
             "host": "127.0.0.2",
             "backend": "sim",
-            "mount": {"xyz": [0, 0, PEDESTAL_M], "rpy": [0, 0, 0]},
+            "mount": {"xyz": list(MOUNTS[d.mount][0]), "rpy": list(MOUNTS[d.mount][1])},
             "home": list(HOME_DEG),
         },
         "tool": {
             "tcp": {"xyz": [0, 0, tcp_m], "rpy": [0, 0, 0]},
             "payload": {"mass": 1.0, "cog": [0, 0, round(tcp_m / 3, 3)]},
-            "gripper": {
-                "kind": "io",
-                "close": {"output": "gripper_close", "value": True},
-                "closed_sensor": "gripper_closed",
-                "stroke": stroke,
-            },
+            "gripper": gripper,
             "geometry": [
                 {
-                    "cylinder": {
-                        "radius": round(max(0.03, stroke / 2 + 0.015), 3),
-                        "length": body_m,
-                    },
+                    "cylinder": {"radius": body_r, "length": body_m},
                     "xyz": [0, 0, round(body_m / 2, 4)],
                 }
             ],
         },
-        "io": {"outputs": {"gripper_close": "DO0"}, "inputs": {"gripper_closed": "DI0"}},
+        "io": io,
         "fixtures": [
-            {
-                "name": "pedestal",
-                "cylinder": {"radius": 0.1, "length": PEDESTAL_M - 0.01},
-                "pose": {"xyz": [0, 0, (PEDESTAL_M - 0.01) / 2]},
-            },
+            _base_fixture(d.mount),
             _table("infeed_table", T_pick, pick_top),
             _table("outfeed_table", T_place, place_top),
         ],
@@ -305,7 +364,6 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
         "tasks": {1: "task.yaml"},
         "journal": "var/jobs.sqlite",
     }
-    grip = {"confirm": "gripper_closed"}
     task = {
         "task": "pick_place",
         "steps": [
@@ -317,6 +375,22 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
     }
     witness = {"pick": _deg(d.q_pick), "place": _deg(d.q_place)}
     return Case(seed, kind, cell, task, witness)
+
+
+def _base_fixture(mount: str) -> dict[str, Any]:
+    """What the arm stands on: a pedestal from the floor, or a plate on the ceiling."""
+    if mount == "ceiling":
+        z = MOUNTS[mount][0][2]
+        return {
+            "name": "ceiling_plate",
+            "box": {"size": [0.4, 0.4, 0.02]},
+            "pose": {"xyz": [0, 0, z + 0.02]},
+        }
+    return {
+        "name": "pedestal",
+        "cylinder": {"radius": 0.1, "length": PEDESTAL_M - 0.01},
+        "pose": {"xyz": [0, 0, (PEDESTAL_M - 0.01) / 2]},
+    }
 
 
 def _deg(q_rad: np.ndarray) -> list[float]:

@@ -169,8 +169,8 @@ class Expansion:
         name = at
         if pattern is not None:
             slot = int(self.params[pattern.index])
-            dx, dy, dz, _ = pattern.offset_m(slot)
-            T = geometry.pose_matrix((0, 0, dz)) @ T @ geometry.pose_matrix((dx, dy, 0))
+            dz = pattern.offset_m(slot)[2]
+            T = geometry.pose_matrix((0, 0, dz)) @ T @ pattern.T_frame_slot(slot)
             name = f"{at}[{pattern.index}={slot}]"
         if (
             at_offset is not None

@@ -130,7 +130,8 @@ def _check_pattern(task: LoadedTask, pattern: Pattern, path: PathKey, report: Re
             at_key=True,
         )
     elif lo < 0 or hi > pattern.slots - 1:
-        grid = " x ".join(str(g) for g in pattern.grid)
+        dims = [*pattern.grid, *([pattern.layers] if pattern.layers else [])]
+        grid = " x ".join(str(g) for g in dims)
         report.error(
             ("params", pattern.index),
             f"param {pattern.index!r} range [{lo:g}, {hi:g}] "

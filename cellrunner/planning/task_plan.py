@@ -346,7 +346,7 @@ def plan_task(
             then = rows[i + 1].step if i + 1 < len(rows) else None
             if step.is_motion:
                 if group and (
-                    not _joins(group[-1].row.step, step)
+                    not _joins(group[-1].row.step, step, planner.world)
                     or not _same_limits(group[-1].limits, planner.limits_for(step))
                 ):
                     flush()
@@ -369,6 +369,9 @@ def plan_task(
         for row in rows:
             if row.step.retry is not None:
                 _check_retry_path(world, row, rows)
+        from cellrunner.planning.suction_hold import check_suction_hold
+
+        check_suction_hold(world, rows)
     except InfeasibleError as exc:
         failed = next((r for r in rows if r.step.index == exc.step_index), current or rows[-1])
         failed.status, failed.message = "failed", exc.reason
@@ -397,6 +400,12 @@ def _at(step: Step, action: Callable[..., _R], *args: object, **kwargs: object) 
 #: 2.2 N at the ~5 m/s^2 the joint limits allowed, which a 1.5 N probe took for a contact
 #: in the air). At 0.1 the push stays near 0.2 N; the ramps cost v / a (0.1 s at 10 mm/s)
 FORCE_TCP_ACCEL_MPS2 = 0.1
+#: a place's descend sets its part down on its support: its line speeds up and brakes at
+#: most this hard at the TCP (m/s^2), as a careful program sets a part down. Braking at
+#: the joints' limits (~40 m/s^2 at a UR10e's TCP, from 1.5 m/s in 30 ms) onto a part
+#: that ends on its table leaves no room for the arm's tracking (issue 33: the twin's
+#: UR10e pressed the part into the table, 198 N). Costs ~0.3 s on an 80 mm descend
+SET_DOWN_TCP_ACCEL_MPS2 = 2.0
 
 
 class StepPlanner:
@@ -421,21 +430,26 @@ class StepPlanner:
         speed = getattr(step.args, "speed", None)
         if step.is_planned:
             return limits.scaled(speed_fraction=speed if speed is not None else 1.0)
-        if step.is_guarded:
-            assert line_q is not None  # a force step is timed along its planned line
-            return limits.scaled(tcp_speed_mps=speed, accel_fraction=self._gentle(limits, line_q))
+        if step.is_guarded or sets_down(step, self.world):
+            assert line_q is not None  # a force step or set-down is timed along its line
+            accel = FORCE_TCP_ACCEL_MPS2 if step.is_guarded else SET_DOWN_TCP_ACCEL_MPS2
+            return limits.scaled(
+                tcp_speed_mps=speed, accel_fraction=self._gentle(limits, line_q, accel)
+            )
         return limits.scaled(tcp_speed_mps=speed)
 
-    def _gentle(self, limits: MotionLimits, line_q: tuple[np.ndarray, np.ndarray]) -> float:
-        """The fraction of the joint accelerations at which a force step's line reaches
-        ``FORCE_TCP_ACCEL_MPS2`` at the TCP: along the line joint j turns by about dq_j per
-        metre of TCP travel (the chord's), so A m/s^2 there takes A |dq_j| rad/s^2 of it."""
+    def _gentle(
+        self, limits: MotionLimits, line_q: tuple[np.ndarray, np.ndarray], accel_mps2: float
+    ) -> float:
+        """The fraction of the joint accelerations at which a line reaches ``accel_mps2``
+        at the TCP: along the line joint j turns by about dq_j per metre of TCP travel
+        (the chord's), so A m/s^2 there takes A |dq_j| rad/s^2 of it."""
         q0, q1 = line_q
         kin = self.world.kinematics
         length_m = float(np.linalg.norm(kin.p_world_tcp(q1) - kin.p_world_tcp(q0)))
         if length_m <= 0.0:
             return 1.0
-        need = np.abs(q1 - q0) / length_m * FORCE_TCP_ACCEL_MPS2 / limits.joint_accel_rad_s2
+        need = np.abs(q1 - q0) / length_m * accel_mps2 / limits.joint_accel_rad_s2
         return min(1.0, float(need.max()))
 
     def collision(
@@ -612,40 +626,55 @@ class StepPlanner:
         if follow is not None and then is not None:
             from cellrunner.planning.tight_fit import named_contacts
 
-            allowances = self._place_allowances(then, follow, named_contacts(then))
-            after = self.collision(allowances + self._waiting_touches(follow), then)
+            named, touches = named_contacts(then), self._waiting_touches(follow)
+
+            def line_model(q: np.ndarray, q_next: np.ndarray) -> CollisionModel:
+                """The model the line after the approach is planned with from branch
+                ``q``: what the part may touch where it sets down depends on the branch
+                (the nearest branch's arm may pass the support closer than the part)."""
+                allowances = self._place_allowances(then, follow, named, (q, q_next))
+                return self.collision(allowances + touches, then)
+
             ends_clear = [
-                q
+                (q, after)
                 for q in valid
-                if (q_next := kin.ik_track(follow, q)) is not None and after.is_valid(q_next)
+                if (q_next := kin.ik_track(follow, q)) is not None
+                and (after := line_model(np.asarray(q), q_next)).is_valid(q_next)
             ]
             # the first branch whose whole line down is clear: another branch's descend
             # may pass an arm link by a fixture on its way (issue 33)
-            for q in ends_clear:
+            for q, after in ends_clear:
                 if _line_plans(kin, after, np.asarray(q), follow):
                     return np.asarray(q)
             if ends_clear:
-                return np.asarray(ends_clear[0])  # its descend will say what is in the way
+                return np.asarray(ends_clear[0][0])  # its descend will say what is in the way
         return np.asarray(valid[0])  # the descend that follows will say what is wrong with it
 
     def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
         return kind_of(step.kind).line_goal(self, step, T_now)
 
     def _place_allowances(
-        self, step: Step, T_goal: np.ndarray, named: tuple[ContactAllowance, ...] = ()
+        self,
+        step: Step,
+        T_goal: np.ndarray,
+        named: tuple[ContactAllowance, ...] = (),
+        ends_q: tuple[np.ndarray, np.ndarray | None] | None = None,
     ) -> tuple[ContactAllowance, ...]:
         """The carried part may touch the fixture it rests on where a straight move starts
         (lifting it off) or ends (setting it down), and only that fixture; and the fixtures
-        the step names in ``contact:`` (``named``) anywhere along it."""
+        the step names in ``contact:`` (``named``) anywhere along it. ``ends_q``: the
+        line's start and end configurations, where they are not where the planner stands
+        and the nearest branch of ``T_goal`` (an approach weighing a branch for the line
+        after it)."""
         from cellrunner.planning.collision import STALL_M, ContactAllowance
 
         if self.part is None or not step.is_line:
             return self.contact + named
-        q_goal = self._try_ik(T_goal)
+        q_start, q_goal = ends_q if ends_q is not None else (self.q, self._try_ik(T_goal))
         # a force step's contact comes first: the part leaves it as deep as the step let it
         # go (the set-down rule below is for the surfaces it is lifted off or set down on)
         allowances: list[ContactAllowance] = [*self.contact, *named]
-        for end, q in (("start", self.q), ("end", q_goal)):
+        for end, q in (("start", q_start), ("end", q_goal)):
             if q is None:
                 continue
             model = self.collision(tuple(allowances), step)
@@ -902,12 +931,27 @@ def _prove_sampled(motion: _Motion) -> bool:
     return True
 
 
-def _joins(before: Step, after: Step) -> bool:
+def _joins(before: Step, after: Step, world: CellWorld) -> bool:
     """Whether ``after`` may continue ``before`` without stopping: a joint move after any
     motion, a straight move only after a joint move (two straight lines meet at a corner)."""
     if after.is_guarded:  # a force step starts standing, for its wrist baseline
         return False
+    if sets_down(after, world):  # timed gently from rest (StepPlanner.limits_for)
+        return False
     return not after.is_line or not before.is_line
+
+
+def sets_down(step: Step, world: CellWorld | None = None) -> bool:
+    """Whether ``step`` comes down onto something, timed at ``SET_DOWN_TCP_ACCEL_MPS2``:
+    a place's descend (the part onto its support), or a pick's with suction cups (the
+    cups onto the part's face; jaws come down around a part, touching nothing)."""
+    if step.kind != StepKind.DESCEND:
+        return False
+    macro = step.macro or ""
+    if macro.startswith("place "):
+        return True
+    gripper = world.loaded.cell.tool.gripper if world is not None else None
+    return macro.startswith("pick ") and gripper is not None and gripper.kind == "vacuum"
 
 
 def _weighed(rows: list[StepPlan], i: int) -> bool:

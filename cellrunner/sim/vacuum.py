@@ -9,8 +9,8 @@ equality to the tool body, inactive at start. Every period, with the suction out
   square to one of the part's faces (within ``SEAL_ANGLE_DEG``); the part's weld is then
   activated at the pose the part has (no jump);
 - the weld's force on the part, split into pull along the cup axis and shear across it,
-  is held only while ``pull + shear / CUP_FRICTION`` (low-pass filtered, PULL_TAU_S)
-  stays under the holding force; above it the part tears off (and does not seal again
+  is held only while ``pull + shear / CUP_FRICTION`` (low-pass filtered, PULL_TAU_S:
+  :mod:`cellrunner.model.suction`, the rule check applies too) stays under the holding force; above it the part tears off (and does not seal again
   until suction is switched off and on);
 - suction off (or a blow-off pulse) releases at once; ``part_slip`` opens a leak once the
   held part is in the air (the seal is lost until suction is switched off and on again);
@@ -32,6 +32,7 @@ import numpy as np
 from cellrunner.model.gripper import (
     CUP_LENGTH_M,
 )  # a cup's body above its face, as planning checks it
+from cellrunner.model.suction import filter_step, seal_load_N
 from cellrunner.sim.mjcf_attrs import PADS, pose_attrs
 
 #: a cup seals on a face this close (m) ...
@@ -41,14 +42,9 @@ SEAL_GAP_M = 0.002
 if TYPE_CHECKING:
     from cellrunner.sim.description import PartDescription
 SEAL_ANGLE_DEG = 10.0
-#: friction of a sealed cup against shear (lateral force holds up to this x the pull rating)
-CUP_FRICTION = 0.5
 #: a cup's rubber lip is compliant: its contacts are MuJoCo's default softness, not the
 #: stiff grasp contacts of the jaws (a held part hangs on its weld, not on the contact)
 CUP_SOLREF = "0.02 1"
-#: time constant (s) of the low-pass on the pull: a seal leaks for a while before it lets
-#: go, so a jolt of a few milliseconds does not tear a part off, a sustained pull does
-PULL_TAU_S = 0.05
 #: grip_miss takes away the part whose face is this close (m) to a cup as suction comes on
 GRIP_MISS_REACH_M = 0.05
 
@@ -294,11 +290,9 @@ class VacuumCups:
             return self._pull_lp.get(name, 0.0)
         f_on_part = -np.asarray(d.efc_force[rows[:3]]) + self._cups_push(name)
         axis = d.site_xmat[w.ids.tcp_site].reshape(3, 3)[:, 2]  # out of the cups, into the part
-        pull = float(np.dot(f_on_part, -axis))  # towards the cups: what the seal must hold
-        shear = float(np.linalg.norm(f_on_part + pull * axis))
-        load = max(pull, 0.0) + shear / CUP_FRICTION
-        alpha = min(1.0, w.period_s / PULL_TAU_S)
-        lp: float = (1 - alpha) * self._pull_lp.get(name, load) + alpha * load
+        # pull towards the cups plus shear over friction (model.suction: check's rule too)
+        load = float(seal_load_N(f_on_part, axis))
+        lp = filter_step(self._pull_lp.get(name, load), load, w.period_s)
         self._pull_lp[name] = lp
         self.last_pull_N = lp
         return lp
