@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
+from cellrunner.model.failure import Failure, FailureKind
 from cellrunner.model.suction import filter_step, seal_load_N
 
 if TYPE_CHECKING:
@@ -105,5 +106,6 @@ def _torn_off(
             "(tool.gripper.holding_force): the part tears off"
         )
         fix = "a lower speed or acceleration for the moves that carry it, or stronger cups"
-    reason = f"{why}; fix: {fix}"
-    return InfeasibleError(f"{step.label}: {reason}", step_index=step.index, reason=reason)
+    return InfeasibleError(
+        Failure(FailureKind.HOLD, why, fix=f"fix: {fix}", step_index=step.index, step=step.label)
+    )

@@ -395,10 +395,10 @@ class OrderBook:
         return changed
 
 
-def _rejected(order: JobOrder, code: int, message: str, now: datetime) -> JobResult:
+def _rejected(order: JobOrder, code: ResultCode, message: str, now: datetime) -> JobResult:
     return JobResult(
         order.job_id,
-        int(code),
+        ResultCode(code),
         message,
         0.0,
         now,
