@@ -39,6 +39,14 @@ STOP_BOUND_S = 2.0
 SIGNALS = (signal.SIGTERM, signal.SIGINT)
 #: the byte the context's own exit writes to the wakeup pipe (no signal is numbered 0)
 _CLOSING = 0
+#: set by the first SIGTERM or SIGINT any command of this process was stopped by
+_SIGNALLED = threading.Event()
+
+
+def signalled() -> bool:
+    """Whether a signal stopped a command of this process (its exit then skips the
+    interpreter's teardown: :func:`end_process`)."""
+    return _SIGNALLED.is_set()
 
 
 class Stop:
@@ -57,6 +65,7 @@ class Stop:
     def request(self, signum: int) -> None:
         if self.signal_name is None:
             self.signal_name = signal.Signals(signum).name
+        _SIGNALLED.set()
         self.event.set()
 
 
