@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     all_cells = getattr(args, "all_cells", False)
     where = cell.cell.journal
     if not is_database_url(where):
-        path = cell.resolve(where)
+        path = cell.resolve_output(where)
         if not path.exists():
             sys.stderr.write(f"{path}: no journal yet (no job has run)\n")
             return 0

@@ -183,11 +183,11 @@ def _plc_service(controller: CellController, cell: LoadedCell) -> PlcService | N
     from cellrunner.plc.service import PlcService
 
     if plc.opcua and plc.opcua.pki:
-        pki = cell.resolve(plc.opcua.pki)
+        pki = cell.resolve_output(plc.opcua.pki)
     elif is_database_url(cell.cell.journal):
-        pki = cell.resolve("var/pki")
+        pki = cell.resolve_output("var/pki")
     else:
-        pki = cell.resolve(cell.cell.journal).parent / "pki"
+        pki = cell.resolve_output(cell.cell.journal).parent / "pki"
     service = PlcService(
         controller, plc, resolve=cell.resolve, pki_dir=pki, cell_name=cell.cell.cell
     )

@@ -23,4 +23,6 @@ def journal_for(
 
 def cell_journal(cell: LoadedCell, *, all_cells: bool = False) -> JournalBackend:
     """The journal of a loaded cell (``LoadedCell``); ``all_cells`` reads every cell's jobs."""
-    return journal_for(cell.cell.journal, None if all_cells else cell.cell.cell, cell.resolve)
+    return journal_for(
+        cell.cell.journal, None if all_cells else cell.cell.cell, cell.resolve_output
+    )

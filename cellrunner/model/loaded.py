@@ -76,6 +76,17 @@ class LoadedCell:
                 return base / p
         return self.root / p
 
+    def resolve_output(self, relative: str) -> Path:
+        """A file cellrunner writes (the journal, the PKI folder): relative paths are the
+        project root's, or the cell file folder's where one already exists there; never
+        the working directory's, so that a cell served from another folder does not take
+        over that folder's journal."""
+        p = Path(relative)
+        if p.is_absolute():
+            return p
+        beside = self.path.resolve().parent / p
+        return beside if not (self.root / p).exists() and beside.exists() else self.root / p
+
 
 @dataclass
 class StepSpec:

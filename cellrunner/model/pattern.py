@@ -4,14 +4,16 @@ takes a frame target (pick, place, move, approach, descend, linear, insert)."""
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import Name, Strict
 from cellrunner.model.units import Angle, Length
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 class Pattern(Strict):
@@ -81,6 +83,8 @@ class Pattern(Strict):
         dx, dy, _, layer = self.offset_m(slot)
         a = math.radians(self.turn_deg(int(layer)))
         c, s = math.cos(a), math.sin(a)
+        import numpy as np  # lazily: validating a file imports no numpy
+
         T = np.eye(4)
         T[:2, :2] = ((c, -s), (s, c))
         T[:2, 3] = (c * dx - s * dy, s * dx + c * dy)
