@@ -23,6 +23,7 @@ if TYPE_CHECKING:
 
     from cellrunner.model.step import Step
     from cellrunner.planning.job_plan import JobPlan
+    from cellrunner.planning.tracking import TrackingProof
     from cellrunner.planning.world import CellWorld
 
 
@@ -45,6 +46,8 @@ def run(args: argparse.Namespace) -> int:
     plan = swept.plan
     failures = [(f.param, f.value, f.error) for f in swept.failures]
     errors = list(plan.errors) + [f"{name}={_shown(slot)}: {e}" for name, slot, e in failures]
+    tracking = _prove_tracking(world, plan)
+    errors += [p.error for p in tracking if p.error is not None]
     slots_checked = swept.checked
     pattern = next(iter(pattern_params(task)), None)
     requested = [(pattern, params[pattern], e) for e in plan.errors] if pattern is not None else []
@@ -87,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
                     for name, slots, message in grouped
                 ],
                 "warnings": [str(w) for w in [*cell.warnings, *task.warnings]],
+                "conveyors": [p.to_json() for p in tracking],
             }
         )
     else:
@@ -139,6 +143,10 @@ def run(args: argparse.Namespace) -> int:
                 Text("infeasible: ", style="bold red")
                 + Text(_lines(f"{name}={_shown(pose)}: {message}"))
             )
+        for proof in tracking:
+            out.print(_lines(proof.summary()), markup=False)
+            if proof.error is not None:
+                out.print(Text("infeasible: ", style="bold red") + Text(_lines(proof.error)))
         verdict = "[green]feasible[/]" if not errors else "[bold red]infeasible[/]"
         out.print(
             f"{verdict}: planned cycle time {plan.cycle_time_s:.2f} s "
@@ -147,6 +155,15 @@ def run(args: argparse.Namespace) -> int:
         if args.save_plan and not errors:
             out.print(f"plan saved to {args.save_plan}", markup=False)
     return 0 if not errors else 1
+
+
+def _prove_tracking(world: CellWorld, plan: JobPlan) -> list[TrackingProof]:
+    """The proof of the task's tracked steps on its conveyors (none without a track)."""
+    if not any(step.kind == "track" for step in plan.steps):
+        return []
+    from cellrunner.planning.tracking import prove_tracking
+
+    return prove_tracking(world, plan.task_plan)
 
 
 def _headline(message: str, width: int = 90) -> str:

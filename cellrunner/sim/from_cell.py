@@ -101,7 +101,7 @@ def description_of(
         name=c.cell,
     )
     if feed is None and c.sim is not None and c.sim.feed is not None:
-        feed = (c.sim.feed.part, c.sim.feed.at)
+        feed = (c.sim.feed.part, c.sim.feed.frame(c.conveyors))
     if feed is None:
         return desc
     part = next(p for p in c.parts if p.name == feed[0])

@@ -1,0 +1,82 @@
+"""``track``: start following the oldest part the conveyor's photo-eye latched (SPEC
+section 13). Until ``untrack``, the steps are planned for the part standing still at the
+conveyor's frame and run with the belt's offset added (:mod:`cellrunner.planning.tracking`
+proves them; :mod:`cellrunner.planning.belt_ramp` takes up the belt's motion)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from cellrunner.model.base import Name, Strict
+from cellrunner.model.diagnose import unknown_name
+from cellrunner.model.step_kinds import StepKindDef, register
+
+if TYPE_CHECKING:
+    from cellrunner.execution.context import JobContext
+    from cellrunner.execution.outcome import StepGen
+    from cellrunner.model.references import ReferenceCheck
+    from cellrunner.model.step import Step
+    from cellrunner.planning.task_plan import StepPlan, StepPlanner
+
+
+class TrackArgs(Strict):
+    conveyor: Name
+    """The conveyor (from the cell's conveyors) whose oldest latched part the arm follows. Example: `belt`"""
+
+
+@register
+class Track(StepKindDef):
+    name = "track"
+    order = 14
+    args = TrackArgs
+    top_level_only = True
+    summary = "Follow the oldest part the conveyor latched: until untrack, targets on the belt move with it."
+    example: ClassVar[Any] = {"conveyor": "belt"}
+    short_field = "conveyor"
+    short_types = (str,)
+    short_schema = str
+    colour = "#66c2a5"
+
+    def target(self, builder: Any, args: Any) -> tuple[str, None, None]:
+        return str(args.conveyor), None, None
+
+    def check_references(self, refs: ReferenceCheck, spec: Any) -> None:
+        conveyors = refs.cell.conveyors
+        if spec.args.conveyor not in conveyors:
+            refs.report.error(
+                spec.path + ("conveyor",), unknown_name("conveyor", spec.args.conveyor, conveyors)
+            )
+        kinds = [s.kind for s in refs.task.steps]
+        at = next(i for i, s in enumerate(refs.task.steps) if s is spec)
+        after = kinds[at + 1 :]
+        closing = after.index("untrack") if "untrack" in after else None
+        if closing is None:
+            refs.report.error(
+                spec.path, "a track needs an untrack after it (where the arm lets the belt go)"
+            )
+        elif "track" in after[:closing]:
+            refs.report.error(
+                spec.path, "a track before the untrack of the one before it: untrack first"
+            )
+
+    def plan(self, planner: StepPlanner, row: StepPlan) -> None:
+        from cellrunner.planning.belt_ramp import worst_ramp_s
+
+        conveyor = planner.world.loaded.cell.conveyors[row.step.args.conveyor]
+        lo, hi = (float(w) for w in conveyor.window)
+        row.duration_s = worst_ramp_s((lo, hi), float(conveyor.speed_max))
+
+    def run(self, ctx: JobContext, step: Step, resume: bool) -> StepGen:
+        return _run(ctx, step)
+
+
+def _run(ctx: JobContext, step: Step) -> StepGen:
+    from cellrunner.execution.outcome import Outcome
+    from cellrunner.model.codes import ResultCode
+
+    return Outcome.failed(
+        ResultCode.PLANNING_FAILED,
+        f"conveyor {step.args.conveyor!r}: this backend cannot follow a belt yet "
+        "(check proves tracked steps; running them is not built)",
+    )
+    yield  # a generator
