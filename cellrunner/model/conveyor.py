@@ -68,8 +68,11 @@ class ArcPath(Strict):
 
     @model_validator(mode="after")
     def _turns(self) -> ArcPath:
-        if abs(self.to_deg - self.from_deg) < 1e-3:
-            raise PydanticCustomError("conveyor", "an arc path needs from_deg and to_deg apart")
+        span = abs(self.to_deg - self.from_deg)
+        if not 1e-3 <= span <= 360.0:
+            raise PydanticCustomError(
+                "conveyor", f"an arc path turns between 0 and 360 deg, not {span:g} deg"
+            )
         return self
 
 
@@ -204,7 +207,8 @@ def s_of_point_m(path: ConveyorPath, p_world_m: Sequence[float]) -> tuple[float,
     dx, dy = x - arc.centre[0], y - arc.centre[1]
     sign = 1.0 if arc.to_deg > arc.from_deg else -1.0
     turn = (math.degrees(math.atan2(dy, dx)) - arc.from_deg) * sign
-    turn = (turn + 180.0) % 360.0 - 180.0  # the nearest way round from the start
+    gap = (360.0 - abs(arc.to_deg - arc.from_deg)) / 2  # half the way round outside the arc
+    turn = (turn + gap) % 360.0 - gap  # from the start, in [-gap, span + gap)
     return math.radians(turn) * arc.radius, abs(math.hypot(dx, dy) - arc.radius)
 
 
