@@ -10,9 +10,11 @@ so the commanded TCP has no step in speed or acceleration when tracking starts o
 - out (``untrack``): from the part's offset at the belt speed back to ``sigma = 0`` at
   rest, so that the rest of the job starts where its plan starts.
 
-A ramp's duration is the shortest of a doubling sequence whose peak acceleration along
-the path stays within ``RAMP_ACCEL_MPS2`` and whose peak speed stays within
-``RAMP_SPEED_MPS``; check then proves every joint's limits along it.
+A ramp's duration is the shortest of a growing sequence whose peak acceleration along
+the path stays within its bounds (:func:`ramp_bounds`: ``RAMP_ACCEL_MPS2`` and
+``RAMP_SPEED_MPS`` on a line; on a round table also what turns the wrist at most
+``RAMP_TURN_RAD_S`` and ``RAMP_TURN_RAD_S2``); check then proves every joint's limits
+along it.
 """
 
 from __future__ import annotations
@@ -24,11 +26,17 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    from cellrunner.model.conveyor import ConveyorPath
     from cellrunner.planning.timing import MotionLimits
 
-#: peak acceleration (m/s^2) and speed (m/s) along the belt's path a ramp may ask of the TCP
+#: peak acceleration (m/s^2) along the belt's path a ramp may ask of the TCP, and peak
+#: speed (m/s) beyond the belt's
 RAMP_ACCEL_MPS2 = 2.0
 RAMP_SPEED_MPS = 1.0
+#: on a round table, the ramp turns the part (and the wrist following it) at most this
+#: fast (rad/s) and this hard (rad/s^2)
+RAMP_TURN_RAD_S = 0.8
+RAMP_TURN_RAD_S2 = 3.0
 #: the fraction of the joint limits (x margin) a tracked step's relative motion is timed
 #: with: the rest is the belt's, whose motion adds to it (check proves the sum)
 TRACKED_LIMIT_FRACTION = 0.75
@@ -84,13 +92,33 @@ class Ramp:
         return float(np.abs(v).max()), float(np.abs(a).max())
 
 
-def _fitted(s0_m: float, v0_mps: float, end: _End) -> Ramp:
+@dataclass(frozen=True)
+class RampBounds:
+    """The peak speed (m/s) and acceleration (m/s^2) along the path a ramp may reach."""
+
+    speed_mps: float = RAMP_SPEED_MPS
+    accel_mps2: float = RAMP_ACCEL_MPS2
+
+
+def ramp_bounds(path: ConveyorPath) -> RampBounds:
+    """The bounds of a ramp along ``path``: on an arc, also those that keep the turn of
+    the part (and of the wrist that follows it) gentle."""
+    if path.arc is None:
+        return RampBounds()
+    r = float(path.arc.radius)
+    return RampBounds(
+        min(RAMP_SPEED_MPS, RAMP_TURN_RAD_S * r), min(RAMP_ACCEL_MPS2, RAMP_TURN_RAD_S2 * r)
+    )
+
+
+def _fitted(s0_m: float, v0_mps: float, end: _End, bounds: RampBounds) -> Ramp:
     T = RAMP_MIN_S
     for _ in range(RAMP_ROUNDS):
         s1, v1 = end(T)
         ramp = Ramp(s0_m, v0_mps, s1, v1, T)
         speed, accel = ramp.peaks()
-        if accel <= RAMP_ACCEL_MPS2 and speed <= max(RAMP_SPEED_MPS, abs(v0_mps), abs(v1)):
+        # catching up with a part ahead, or going back, at most this much faster than the belt
+        if accel <= bounds.accel_mps2 and speed <= bounds.speed_mps + max(abs(v0_mps), abs(v1)):
             return ramp
         T *= RAMP_GROWTH
     return ramp
@@ -108,33 +136,38 @@ class _End:
         return self.s_m, 0.0
 
 
-def ramp_in(d0_m: float, speed_mps: float) -> Ramp:
+def ramp_in(d0_m: float, speed_mps: float, bounds: RampBounds | None = None) -> Ramp:
     """The ramp onto a part that is ``d0_m`` from the conveyor's frame, moving at
     ``speed_mps``, from the arm at rest at the frame."""
-    return _fitted(0.0, 0.0, _End(d0_m, speed_mps, moving=True))
+    return _fitted(0.0, 0.0, _End(d0_m, speed_mps, moving=True), bounds or RampBounds())
 
 
-def ramp_out(s_m: float, speed_mps: float) -> Ramp:
+def ramp_out(s_m: float, speed_mps: float, bounds: RampBounds | None = None) -> Ramp:
     """The ramp from following a part at ``s_m`` (moving at ``speed_mps``) back to the
     frame, at rest."""
-    return _fitted(s_m, speed_mps, _End(0.0, 0.0, moving=False))
+    return _fitted(s_m, speed_mps, _End(0.0, 0.0, moving=False), bounds or RampBounds())
 
 
-def nominal_start_m(speed_mps: float, window_start_m: float) -> float:
+def nominal_start_m(
+    speed_mps: float, window_start_m: float, bounds: RampBounds | None = None
+) -> float:
     """Where a part is, m from the frame, when the arm starts onto it at the earliest: half
     a speed ramp upstream, so that the arm meets it at the belt speed with no catch-up
     (never before the window starts)."""
-    T = max(RAMP_MIN_S, 1.875 * speed_mps / RAMP_ACCEL_MPS2)  # a quintic's peak accel
+    accel = (bounds or RampBounds()).accel_mps2
+    T = max(RAMP_MIN_S, 1.875 * speed_mps / accel)  # a quintic's peak acceleration
     return max(window_start_m, -speed_mps * T / 2)
 
 
-def worst_ramp_s(window_m: tuple[float, float], speed_max_mps: float) -> float:
+def worst_ramp_s(
+    window_m: tuple[float, float], speed_max_mps: float, bounds: RampBounds | None = None
+) -> float:
     """The longest ramp (in or out) anywhere in ``window_m`` at up to ``speed_max_mps``, s:
     what ``check`` counts in a cycle."""
     reach = max(abs(window_m[0]), abs(window_m[1]))
     return max(
-        ramp_in(math.copysign(reach, window_m[1]), speed_max_mps).duration_s,
-        ramp_out(reach, speed_max_mps).duration_s,
+        ramp_in(math.copysign(reach, window_m[1]), speed_max_mps, bounds).duration_s,
+        ramp_out(reach, speed_max_mps, bounds).duration_s,
     )
 
 

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cellrunner.model.conveyor import Conveyor, T_world_shift
-from cellrunner.planning.belt_ramp import Ramp, nominal_start_m, ramp_in, ramp_out
+from cellrunner.planning.belt_ramp import Ramp, nominal_start_m, ramp_bounds, ramp_in, ramp_out
 
 if TYPE_CHECKING:
     from cellrunner.model.geometry import Placed
@@ -313,10 +313,11 @@ def latest_fitting_start_m(conveyor: Conveyor, tracked_s: float, speed_mps: floa
     """The latest start (m from the frame) whose ramp and tracked steps end before the
     part leaves the window, at ``speed_mps``; None when even the earliest does not."""
     lo, hi = (float(w) for w in conveyor.window)
-    first = nominal_start_m(speed_mps, lo)
+    bounds = ramp_bounds(conveyor.path)
+    first = nominal_start_m(speed_mps, lo, bounds)
     best = None
     for d0 in np.linspace(first, hi, START_CANDIDATES):
-        end = d0 + speed_mps * (ramp_in(float(d0), speed_mps).duration_s + tracked_s)
+        end = d0 + speed_mps * (ramp_in(float(d0), speed_mps, bounds).duration_s + tracked_s)
         if end <= hi + 1e-9:
             best = float(d0)
     return best
@@ -328,10 +329,12 @@ def prove_speed(
     """The cases of one belt speed: starts from the earliest to the latest the window
     allows. A speed at which no start fits the window is one failed case."""
     lo = float(conveyor.window[0])
-    first = nominal_start_m(speed_mps, lo)
+    bounds = ramp_bounds(conveyor.path)
+    first = nominal_start_m(speed_mps, lo, bounds)
     last = latest_fitting_start_m(conveyor, piece.duration_s, speed_mps)
     if last is None:
-        end = first + speed_mps * (ramp_in(first, speed_mps).duration_s + piece.duration_s)
+        ramp_s = ramp_in(first, speed_mps, bounds).duration_s
+        end = first + speed_mps * (ramp_s + piece.duration_s)
         return [
             CaseResult(
                 speed_mps,
@@ -365,13 +368,14 @@ def _slower_speed(world: CellWorld, conveyor: Conveyor, piece: TrackedPiece) -> 
 
 
 def commanded_offsets(
-    piece: TrackedPiece, speed_mps: float, start_m: float
+    piece: TrackedPiece, conveyor: Conveyor, speed_mps: float, start_m: float
 ) -> tuple[np.ndarray, np.ndarray, Ramp, Ramp]:
     """(sigma m at every sample, the still sample each one holds, the ramp in, the ramp
     out) of one case, on one grid of ``SAMPLE_S``: the ramp onto the part (the arm
     holding its pose at ``track``; past the ramp's end the part's own travel), the steps
     with the part's travel, the ramp back (holding the pose at ``untrack``)."""
-    r_in = ramp_in(start_m, speed_mps)
+    bounds = ramp_bounds(conveyor.path)
+    r_in = ramp_in(start_m, speed_mps, bounds)
     n_in = max(1, math.ceil(r_in.duration_s / SAMPLE_S))
     t_in = np.arange(n_in) * SAMPLE_S
     s_ramp, _, _ = r_in.at(t_in)
@@ -379,7 +383,7 @@ def commanded_offsets(
     n = len(piece.q_rad)
     t_follow = (n_in + np.arange(n)) * SAMPLE_S
     s_follow = start_m + speed_mps * t_follow
-    r_out = ramp_out(float(s_follow[-1]), speed_mps)
+    r_out = ramp_out(float(s_follow[-1]), speed_mps, bounds)
     n_out = max(1, math.ceil(r_out.duration_s / SAMPLE_S))
     s_out, _, _ = r_out.at(np.arange(1, n_out + 1) * SAMPLE_S)
     sigma = np.concatenate([s_in, s_follow, s_out])
@@ -391,7 +395,7 @@ def prove_case(
     world: CellWorld, conveyor: Conveyor, piece: TrackedPiece, speed_mps: float, start_m: float
 ) -> CaseResult:
     """Reach, joint and TCP limits, and collisions of one belt speed and start."""
-    sigma, held, _, _ = commanded_offsets(piece, speed_mps, start_m)
+    sigma, held, _, _ = commanded_offsets(piece, conveyor, speed_mps, start_m)
     kin, limits = world.kinematics, world.limits
     q = np.empty((len(sigma), 6))
     q_prev = piece.q_rad[0]

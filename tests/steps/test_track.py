@@ -126,17 +126,32 @@ def test_the_earliest_start_meets_the_part_at_belt_speed_without_catching_up():
 # ------------------------------------------------------------------ check
 
 
-def test_check_proves_the_reference_belt_and_says_how_late_a_pick_may_start():
-    code, out = cli("check", str(CELL), str(TASK))
+@pytest.mark.parametrize(
+    ("cell", "task", "name", "speed_max"),
+    [
+        (CELL, TASK, "belt", 0.3),
+        (
+            ROOT / "cells" / "round_table_ur10e.yaml",
+            ROOT / "tasks" / "round_table_pick.yaml",
+            "table",
+            0.2,
+        ),
+    ],
+    ids=["belt", "round-table"],
+)
+def test_check_proves_the_reference_conveyors_and_says_how_late_a_pick_may_start(
+    cell, task, name, speed_max
+):
+    code, out = cli("check", str(cell), str(task))
     assert code == 0, out["errors"]
     (belt,) = out["conveyors"]
-    assert belt["name"] == "belt" and belt["error"] is None
+    assert belt["name"] == name and belt["error"] is None
     assert belt["cases_proved"] == belt["cases_checked"] >= 30
     lo, hi = belt["window_m"]
     assert lo <= belt["latest_start_m"] < hi
     assert belt["reachable_m"] == [[lo, hi]]
     assert belt["parts_per_minute"] == pytest.approx(60 / out["cycle_time_s"], rel=1e-3)
-    assert belt["min_pitch_m"] == pytest.approx(0.3 * out["cycle_time_s"], rel=1e-3)
+    assert belt["min_pitch_m"] == pytest.approx(speed_max * out["cycle_time_s"], rel=1e-3)
 
 
 def _variant(tmp_path: Path, **replace: str) -> Path:
