@@ -57,7 +57,8 @@ class TrackedPiece:
     T_world_tcp: np.ndarray  # (N, 4, 4)
     models: tuple[CollisionModel, ...]  # per sample run (see ``runs``)
     runs: tuple[tuple[int, int], ...]  # [start, end) sample ranges of each model
-    grip_index: int  # the sample where the part is taken (its reach is measured there)
+    grip_index: int  # the sample where the part is taken or set down (its reach is measured there)
+    what: str = "pick"  # a pick (a grip among the steps) or a place onto the belt
 
     @property
     def duration_s(self) -> float:
@@ -88,6 +89,7 @@ class TrackingProof:
     speed_ok_mps: float | None = None
     cases: list[CaseResult] = field(default_factory=list)
     error: str | None = None
+    what: str = "pick"  # what the tracked steps do: a pick, or a place onto the belt
 
     @property
     def parts_per_minute(self) -> float:
@@ -105,11 +107,12 @@ class TrackingProof:
         reach = ", ".join(f"[{a:+.3f}, {b:+.3f}]" for a, b in self.reachable_m) or "none"
         text = (
             f"conveyor {self.conveyor}: window [{lo:+.3f}, {hi:+.3f}] m, reachable {reach} m; "
-            f"{len(self.cases)} cases proved (speeds 0-{self.speed_max_mps:g} m/s)"
+            f"{sum(c.ok for c in self.cases)} of {len(self.cases)} cases proved "
+            f"(speeds 0-{self.speed_max_mps:g} m/s)"
         )
         if self.latest_start_m is not None:
             text += (
-                f"; at {self.speed_max_mps:g} m/s the pick may start until the part is "
+                f"; at {self.speed_max_mps:g} m/s the {self.what} may start until the part is "
                 f"{self.latest_start_m:+.3f} m from the frame; {self.parts_per_minute:.1f} "
                 f"parts/min at most (cycle {self.cycle_s:.2f} s, parts at least "
                 f"{self.min_pitch_m:.3f} m apart)"
@@ -119,6 +122,7 @@ class TrackingProof:
     def to_json(self) -> dict[str, Any]:
         return {
             "name": self.conveyor,
+            "what": self.what,
             "speed_max_mps": self.speed_max_mps,
             "window_m": list(self.window_m),
             "reachable_m": [list(r) for r in self.reachable_m],
@@ -180,6 +184,7 @@ def still_piece(world: CellWorld, plan: TaskPlan, rows: list[StepPlan]) -> Track
     bounds: list[tuple[float, float]] = []
     models: list[CollisionModel] = []
     t0, t_grip = 0.0, None
+    standing: tuple[Any, ...] = ()  # the contacts of the last motion, held while standing
     for row in rows[1:-1]:
         if row.trajectory is not None:
             traj = row.trajectory
@@ -193,7 +198,9 @@ def still_piece(world: CellWorld, plan: TaskPlan, rows: list[StepPlan]) -> Track
             points.append(q[None, :])
         if row.step.kind == "grip" and t_grip is None:
             t_grip = t0
-        models.append(base.carrying(part).allowing(*row.allowances))
+        if row.step.is_motion:
+            standing = tuple(row.allowances)
+        models.append(base.carrying(part).allowing(*(row.allowances or standing)))
         if not row.step.is_motion:
             part = row.carrying
         bounds.append((t0, t1))
@@ -209,10 +216,12 @@ def still_piece(world: CellWorld, plan: TaskPlan, rows: list[StepPlan]) -> Track
         models = [base.carrying(part)]
     T_all = np.array([world.kinematics.T_world_tcp(qk) for qk in q_all])
     if t_grip is not None:
-        grip_index = min(n - 1, round(t_grip / SAMPLE_S))
-    else:  # no grip: the lowest pose (a place onto the belt sets down there)
-        grip_index = int(np.argmin(T_all[:, 2, 3]))
-    return TrackedPiece(q_all, T_all, tuple(models), tuple(runs), grip_index)
+        return TrackedPiece(
+            q_all, T_all, tuple(models), tuple(runs), min(n - 1, round(t_grip / SAMPLE_S))
+        )
+    # no grip: a place onto the belt, whose lowest pose sets the part down
+    lowest = int(np.argmin(T_all[:, 2, 3]))
+    return TrackedPiece(q_all, T_all, tuple(models), tuple(runs), lowest, what="place")
 
 
 def _q_before(plan: TaskPlan, row: StepPlan) -> np.ndarray:
@@ -243,13 +252,14 @@ def prove_stretch(
 ) -> TrackingProof:
     lo, hi = (float(w) for w in conveyor.window)
     v_max = float(conveyor.speed_max)
-    proof = TrackingProof(name, v_max, (lo, hi), piece.duration_s, cycle_s)
+    proof = TrackingProof(name, v_max, (lo, hi), piece.duration_s, cycle_s, what=piece.what)
     proof.reachable_m = reachable_spans(world, conveyor, piece)
     span = sum(b - a for a, b in proof.reachable_m)
     if not proof.reachable_m:
         proof.error = (
             f"conveyor {name!r}: the arm reaches none of the window [{lo:+.3f}, {hi:+.3f}] m "
-            "(the pick's grip pose moved along the belt has no IK solution anywhere in it)"
+            f"(the {piece.what}'s {'grip' if piece.what == 'pick' else 'set-down'} pose moved "
+            "along the belt has no IK solution anywhere in it)"
         )
         return proof
     for fraction in SPEED_FRACTIONS:
@@ -259,15 +269,21 @@ def prove_stretch(
         if fraction == 1.0:
             proof.latest_start_m = _latest_ok(cases)
     if proof.latest_start_m is None:
-        proof.speed_ok_mps = _slower_speed(world, conveyor, piece)
+        still = [c for c in proof.cases if c.speed_mps == 0.0]
+        # a belt that stands still fails too: no slower speed helps
+        proof.speed_ok_mps = (
+            _slower_speed(world, conveyor, piece) if _latest_ok(still) is not None else None
+        )
         why = next((c.reason for c in proof.cases if c.speed_mps == v_max and not c.ok), "")
         can = (
             f"it can at {proof.speed_ok_mps:.3f} m/s"
             if proof.speed_ok_mps is not None
+            else "it cannot at any speed, the belt standing still included"
+            if _latest_ok(still) is None
             else "it cannot at any speed down to 5% of it"
         )
         proof.error = (
-            f"conveyor {name!r}: the pick cannot be made at {v_max:g} m/s anywhere in the "
+            f"conveyor {name!r}: the {piece.what} cannot be made at {v_max:g} m/s anywhere in the "
             f"window [{lo:+.3f}, {hi:+.3f}] m ({why}); {can}"
         )
         if span < hi - lo - 1e-9:
@@ -278,7 +294,7 @@ def prove_stretch(
         c = slower[0]
         proof.error = (
             f"conveyor {name!r}: at {c.speed_mps:g} m/s with the part at {c.start_m:+.3f} m "
-            f"the pick fails: {c.reason}"
+            f"the {piece.what} fails: {c.reason}"
         )
     return proof
 

@@ -203,3 +203,23 @@ def test_a_task_without_a_track_has_no_conveyor_proof():
         "check", str(ROOT / "cells" / "demo_ur5e.yaml"), str(ROOT / "tasks" / "home.yaml")
     )
     assert code == 0 and out["conveyors"] == []
+
+
+def test_a_place_onto_the_moving_belt_is_proved_too(tmp_path):
+    cell = _variant(tmp_path, **{"mass: 0.2, at: belt_pick}": "mass: 0.2, at: tray_slot}"})
+    task = tmp_path / "onto_belt.yaml"
+    task.write_text(
+        "task: onto_belt\n"
+        "steps:\n"
+        "  - pick: {at: tray_slot, approach: 0.1, grip: {confirm: jaws_closed}}\n"
+        "  - move: above_belt\n"
+        "  - track: belt\n"
+        "  - place: {at: belt_pick, approach: 0.08}\n"
+        "  - untrack\n"
+        "  - move: home\n"
+    )
+    code, out = cli("check", str(cell), str(task), "--no-cache")
+    assert code == 0, out["errors"]
+    (belt,) = out["conveyors"]
+    assert belt["what"] == "place" and belt["cases_proved"] == belt["cases_checked"]
+    assert belt["latest_start_m"] is not None
