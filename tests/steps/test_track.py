@@ -223,3 +223,13 @@ def test_a_place_onto_the_moving_belt_is_proved_too(tmp_path):
     (belt,) = out["conveyors"]
     assert belt["what"] == "place" and belt["cases_proved"] == belt["cases_checked"]
     assert belt["latest_start_m"] is not None
+
+
+def test_a_rehearsal_never_runs_tracked_steps_as_if_the_part_stood_still():
+    """Running on a moving belt is not built: the job ends at its track step with 103,
+    before the arm goes for a part it would miss."""
+    code, out = cli("dry-run", str(CELL), str(TASK))
+    assert code == 1 and out["result_code"] == 103
+    assert out["result_text"].startswith("conveyor 'belt': this backend cannot follow a belt yet")
+    kinds = [(s["kind"], s["status"]) for s in out["steps"][:3]]
+    assert kinds == [("move", "ok"), ("track", "failed"), ("approach", "skipped")]
