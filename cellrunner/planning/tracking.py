@@ -24,12 +24,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cellrunner.model.conveyor import Conveyor, T_world_shift
-from cellrunner.planning.belt_ramp import Ramp, nominal_start_m, ramp_bounds, ramp_in, ramp_out
+from cellrunner.planning.belt_ramp import nominal_start_m, ramp_bounds, ramp_in
+from cellrunner.planning.tracked_piece import (
+    TrackedPiece,
+    commanded_offsets,
+    still_piece,
+    tracked_stretches,
+)
 
 if TYPE_CHECKING:
-    from cellrunner.model.geometry import Placed
-    from cellrunner.planning.collision import CollisionModel
-    from cellrunner.planning.task_plan import StepPlan, TaskPlan
+    from cellrunner.planning.task_plan import TaskPlan
     from cellrunner.planning.world import CellWorld
 
 #: the proof samples the commanded motion this often, s
@@ -46,23 +50,6 @@ REACH_SAMPLES = 45
 SLOWER_FRACTIONS = tuple(round(1.0 - 0.05 * k, 2) for k in range(1, 20))
 #: a limit counts as kept within this relative excess (finite differences of the samples)
 LIMIT_TOLERANCE = 1e-6
-
-
-@dataclass(frozen=True)
-class TrackedPiece:
-    """The still plan of the tracked steps: joint samples every ``SAMPLE_S`` s, the TCP
-    pose of each, and the collision model (part carried, contacts allowed) of each."""
-
-    q_rad: np.ndarray  # (N, 6)
-    T_world_tcp: np.ndarray  # (N, 4, 4)
-    models: tuple[CollisionModel, ...]  # per sample run (see ``runs``)
-    runs: tuple[tuple[int, int], ...]  # [start, end) sample ranges of each model
-    grip_index: int  # the sample where the part is taken or set down (its reach is measured there)
-    what: str = "pick"  # a pick (a grip among the steps) or a place onto the belt
-
-    @property
-    def duration_s(self) -> float:
-        return len(self.q_rad) * SAMPLE_S
 
 
 @dataclass(frozen=True)
@@ -141,22 +128,6 @@ def _rounded(x: float | None) -> float | None:
     return None if x is None else round(x, 4)
 
 
-# ------------------------------------------------------------------ the stretches
-
-
-def tracked_stretches(plan: TaskPlan) -> list[tuple[str, list[StepPlan]]]:
-    """(conveyor, the rows from ``track`` to its ``untrack``, both included) of a plan."""
-    out: list[tuple[str, list[StepPlan]]] = []
-    open_at: int | None = None
-    for i, row in enumerate(plan.rows):
-        if row.step.kind == "track":
-            open_at = i
-        elif row.step.kind == "untrack" and open_at is not None:
-            out.append((plan.rows[open_at].step.args.conveyor, plan.rows[open_at : i + 1]))
-            open_at = None
-    return out
-
-
 def prove_tracking(world: CellWorld, plan: TaskPlan) -> list[TrackingProof]:
     """The proof of every tracked stretch of an approved plan (none when it was refused:
     its steps are not planned)."""
@@ -165,83 +136,9 @@ def prove_tracking(world: CellWorld, plan: TaskPlan) -> list[TrackingProof]:
     proofs = []
     for name, rows in tracked_stretches(plan):
         conveyor = world.loaded.cell.conveyors[name]
-        piece = still_piece(world, plan, rows)
+        piece = still_piece(world, plan, rows, SAMPLE_S)
         proofs.append(prove_stretch(world, name, conveyor, piece, plan.cycle_time_s))
     return proofs
-
-
-def still_piece(world: CellWorld, plan: TaskPlan, rows: list[StepPlan]) -> TrackedPiece:
-    """The tracked steps (between the ``track`` and ``untrack`` rows) as planned for the
-    still part, on one timeline resampled every ``SAMPLE_S`` (a motion's set-points by
-    linear interpolation, a step that does not move holding its pose)."""
-    from cellrunner.planning.collision import CollisionModel
-
-    base = CollisionModel(world.kinematics, world.tool, world.fixtures)
-    q = _q_before(plan, rows[0])
-    part = _carried_before(plan, rows[0])
-    times: list[np.ndarray] = [np.zeros(1)]
-    points: list[np.ndarray] = [q[None, :]]
-    bounds: list[tuple[float, float]] = []
-    models: list[CollisionModel] = []
-    t0, t_grip = 0.0, None
-    standing: tuple[Any, ...] = ()  # the contacts of the last motion, held while standing
-    for row in rows[1:-1]:
-        if row.trajectory is not None:
-            traj = row.trajectory
-            times.append(t0 + np.asarray(traj.t_s[1:], float) - float(traj.t_s[0]))
-            points.append(np.asarray(traj.q_rad[1:], float))
-            q = np.asarray(traj.q_rad[-1], float)
-            t1 = t0 + float(traj.t_s[-1] - traj.t_s[0])
-        else:
-            t1 = t0 + float(row.duration_s)
-            times.append(np.array([t1]))
-            points.append(q[None, :])
-        if row.step.kind == "grip" and t_grip is None:
-            t_grip = t0
-        if row.step.is_motion:
-            standing = tuple(row.allowances)
-        models.append(base.carrying(part).allowing(*(row.allowances or standing)))
-        if not row.step.is_motion:
-            part = row.carrying
-        bounds.append((t0, t1))
-        t0 = t1
-    t_all, q_src = np.concatenate(times), np.concatenate(points)
-    n = max(1, math.ceil(t0 / SAMPLE_S) + 1)
-    t_grid = np.minimum(np.arange(n) * SAMPLE_S, t0)
-    q_all = np.column_stack([np.interp(t_grid, t_all, q_src[:, j]) for j in range(6)])
-    runs = [(math.floor(a / SAMPLE_S), min(n, math.ceil(b / SAMPLE_S) + 1)) for a, b in bounds] or [
-        (0, n)
-    ]
-    if not models:
-        models = [base.carrying(part)]
-    T_all = np.array([world.kinematics.T_world_tcp(qk) for qk in q_all])
-    if t_grip is not None:
-        return TrackedPiece(
-            q_all, T_all, tuple(models), tuple(runs), min(n - 1, round(t_grip / SAMPLE_S))
-        )
-    # no grip: a place onto the belt, whose lowest pose sets the part down
-    lowest = int(np.argmin(T_all[:, 2, 3]))
-    return TrackedPiece(q_all, T_all, tuple(models), tuple(runs), lowest, what="place")
-
-
-def _q_before(plan: TaskPlan, row: StepPlan) -> np.ndarray:
-    q = np.asarray(plan.q_start_rad, float)
-    for r in plan.rows:
-        if r is row:
-            break
-        if r.trajectory is not None:
-            q = np.asarray(r.trajectory.q_rad[-1], float)
-    return q
-
-
-def _carried_before(plan: TaskPlan, row: StepPlan) -> Placed | None:
-    part = None
-    for r in plan.rows:
-        if r is row:
-            break
-        if not r.step.is_motion:
-            part = r.carrying
-    return part
 
 
 # ------------------------------------------------------------------ the proof
@@ -383,30 +280,6 @@ def _slower_speed(world: CellWorld, conveyor: Conveyor, piece: TrackedPiece) -> 
     return None
 
 
-def commanded_offsets(
-    piece: TrackedPiece, conveyor: Conveyor, speed_mps: float, start_m: float
-) -> tuple[np.ndarray, np.ndarray, Ramp, Ramp]:
-    """(sigma m at every sample, the still sample each one holds, the ramp in, the ramp
-    out) of one case, on one grid of ``SAMPLE_S``: the ramp onto the part (the arm
-    holding its pose at ``track``; past the ramp's end the part's own travel), the steps
-    with the part's travel, the ramp back (holding the pose at ``untrack``)."""
-    bounds = ramp_bounds(conveyor.path)
-    r_in = ramp_in(start_m, speed_mps, bounds)
-    n_in = max(1, math.ceil(r_in.duration_s / SAMPLE_S))
-    t_in = np.arange(n_in) * SAMPLE_S
-    s_ramp, _, _ = r_in.at(t_in)
-    s_in = np.where(t_in <= r_in.duration_s, s_ramp, start_m + speed_mps * t_in)
-    n = len(piece.q_rad)
-    t_follow = (n_in + np.arange(n)) * SAMPLE_S
-    s_follow = start_m + speed_mps * t_follow
-    r_out = ramp_out(float(s_follow[-1]), speed_mps, bounds)
-    n_out = max(1, math.ceil(r_out.duration_s / SAMPLE_S))
-    s_out, _, _ = r_out.at(np.arange(1, n_out + 1) * SAMPLE_S)
-    sigma = np.concatenate([s_in, s_follow, s_out])
-    held = np.concatenate([np.zeros(n_in, int), np.arange(n), np.full(n_out, n - 1)])
-    return sigma, held, r_in, r_out
-
-
 def prove_case(
     world: CellWorld, conveyor: Conveyor, piece: TrackedPiece, speed_mps: float, start_m: float
 ) -> CaseResult:
@@ -423,11 +296,11 @@ def prove_case(
                 speed_mps,
                 start_m,
                 False,
-                f"no joined IK solution {k * SAMPLE_S:.2f} s into the pick, the arm "
+                f"no joined IK solution {k * piece.sample_s:.2f} s into the pick, the arm "
                 f"{float(s):+.3f} m along the belt from the frame",
             )
         q[k] = q_prev = qk
-    failed = _limit_failure(q, limits, kin)
+    failed = _limit_failure(q, limits, kin, piece.sample_s)
     if failed is None:
         failed = _collision_failure(q, held, piece)
     if failed is not None:
@@ -435,11 +308,11 @@ def prove_case(
     return CaseResult(speed_mps, start_m, True)
 
 
-def _limit_failure(q: np.ndarray, limits: Any, kin: Any) -> str | None:
+def _limit_failure(q: np.ndarray, limits: Any, kin: Any, dt: float) -> str | None:
     if len(q) < 3:
         return None
-    dq = np.diff(q, axis=0) / SAMPLE_S
-    ddq = np.diff(dq, axis=0) / SAMPLE_S
+    dq = np.diff(q, axis=0) / dt
+    ddq = np.diff(dq, axis=0) / dt
     for what, values, bound, unit in (
         ("speed", dq, limits.joint_speed_rad_s, "deg/s"),
         ("acceleration", ddq, limits.joint_accel_rad_s2, "deg/s^2"),
@@ -449,15 +322,15 @@ def _limit_failure(q: np.ndarray, limits: Any, kin: Any) -> str | None:
         if excess[k, j] > 1.0 + LIMIT_TOLERANCE:
             return (
                 f"joint {j + 1} {what} {math.degrees(abs(values[k, j])):.0f} {unit} over its "
-                f"limit x margin {math.degrees(bound[j]):.0f} {unit} {k * SAMPLE_S:.2f} s in"
+                f"limit x margin {math.degrees(bound[j]):.0f} {unit} {k * dt:.2f} s in"
             )
     p = kin.p_world_tcp_many(q)
-    v_tcp = np.linalg.norm(np.diff(p, axis=0), axis=1) / SAMPLE_S
+    v_tcp = np.linalg.norm(np.diff(p, axis=0), axis=1) / dt
     i = int(np.argmax(v_tcp))
     if v_tcp[i] > limits.tcp_speed_mps * (1.0 + LIMIT_TOLERANCE):
         return (
             f"TCP speed {v_tcp[i]:.2f} m/s over its cap x margin {limits.tcp_speed_mps:.2f} m/s "
-            f"{i * SAMPLE_S:.2f} s in"
+            f"{i * dt:.2f} s in"
         )
     return None
 
@@ -476,6 +349,6 @@ def _collision_failure(q: np.ndarray, held: np.ndarray, piece: TrackedPiece) -> 
         check = model.check_path(q[lo : hi + 1])
         if not check.ok:
             where = f" ({check.clearance})" if check.clearance is not None else ""
-            s = (lo + (check.s_blocked or 0.0)) * SAMPLE_S
+            s = (lo + (check.s_blocked or 0.0)) * piece.sample_s
             return f"a collision {s:.2f} s into the pick{where}"
     return None

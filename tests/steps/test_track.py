@@ -235,13 +235,14 @@ def test_a_rehearsal_never_runs_tracked_steps_as_if_the_part_stood_still():
     assert kinds == [("move", "ok"), ("track", "failed"), ("approach", "skipped")]
 
 
-def test_what_the_proof_passes_at_8_ms_holds_at_the_controller_rate(monkeypatch):
+def test_what_the_proof_passes_at_8_ms_holds_at_the_controller_rate():
     """The proof samples every 8 ms; the same cases resampled every 2 ms (the e-Series
     controller's period) keep reach, limits and clearance too, at the earliest start and
     at the latest start the proof reported, at top speed."""
-    import cellrunner.planning.tracking as tracking
     from cellrunner.planning.belt_ramp import ramp_bounds
     from cellrunner.planning.task_plan import plan_task
+    from cellrunner.planning.tracked_piece import still_piece, tracked_stretches
+    from cellrunner.planning.tracking import SAMPLE_S, prove_case, prove_tracking
     from cellrunner.planning.world import CellWorld
 
     cell = load_cell(CELL)
@@ -250,14 +251,13 @@ def test_what_the_proof_passes_at_8_ms_holds_at_the_controller_rate(monkeypatch)
     plan = plan_task(
         world, expand(task, cell.cell, resolve_params(task.task, {})), world.q_home_rad
     )
-    (proof,) = tracking.prove_tracking(world, plan)
-    assert proof.latest_start_m is not None
-    ((name, rows),) = tracking.tracked_stretches(plan)
+    (proof,) = prove_tracking(world, plan)
+    assert proof.latest_start_m is not None and SAMPLE_S == 0.008
+    ((name, rows),) = tracked_stretches(plan)
     belt = cell.cell.conveyors[name]
-    monkeypatch.setattr(tracking, "SAMPLE_S", 0.002)
-    piece = tracking.still_piece(world, plan, rows)
+    piece = still_piece(world, plan, rows, 0.002)
     v = float(belt.speed_max)
     earliest = nominal_start_m(v, float(belt.window[0]), ramp_bounds(belt.path))
     for start in (earliest, proof.latest_start_m):
-        case = tracking.prove_case(world, belt, piece, v, start)
+        case = prove_case(world, belt, piece, v, start)
         assert case.ok, case.reason
