@@ -178,6 +178,12 @@ class Conveyor(Strict):
 
     @model_validator(mode="after")
     def _window_order(self) -> Conveyor:
+        if self.encoder.mps is not None and self.encoder.mps > self.speed_max + 1e-12:
+            raise PydanticCustomError(
+                "conveyor",
+                f"the belt runs at {self.encoder.mps:g} m/s (encoder mps), above the "
+                f"speed_max {self.speed_max:g} m/s the cell is proved for",
+            )
         lo, hi = self.window
         if not lo < hi:
             raise PydanticCustomError(

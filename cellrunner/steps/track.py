@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from cellrunner.model.base import Name, Strict
 from cellrunner.model.diagnose import unknown_name
-from cellrunner.model.step_kinds import StepKindDef, register
+from cellrunner.model.step_kinds import StepKindDef, kind_of, register
 
 if TYPE_CHECKING:
     from cellrunner.execution.context import JobContext
@@ -58,6 +58,9 @@ class Track(StepKindDef):
             refs.report.error(
                 spec.path, "a track before the untrack of the one before it: untrack first"
             )
+        elif spec.args.conveyor in conveyors:
+            tracked = refs.task.steps[at + 1 : at + 1 + closing]
+            _check_on_belt(refs, conveyors[spec.args.conveyor].frame, tracked)
 
     def plan(self, planner: StepPlanner, row: StepPlan) -> None:
         from cellrunner.planning.belt_ramp import ramp_bounds, worst_ramp_s
@@ -70,6 +73,30 @@ class Track(StepKindDef):
 
     def run(self, ctx: JobContext, step: Step, resume: bool) -> StepGen:
         return _run(ctx, step)
+
+
+def _check_on_belt(refs: ReferenceCheck, belt_frame: str, tracked: list[Any]) -> None:
+    """While tracking, every target moves with the belt: a step aimed at a frame that is
+    not the conveyor's (or one given in it), or a joint move, is refused."""
+    frames = refs.cell.frames
+    on_belt = {belt_frame}
+    for _ in range(len(frames)):  # frames given in a frame on the belt ride it too
+        on_belt |= {name for name, f in frames.items() if f.parent in on_belt}
+    for spec in tracked:
+        kind = kind_of(spec.kind)
+        frame = kind.target_frame(spec.args)
+        if frame is not None and frame in frames and frame not in on_belt:
+            refs.report.error(
+                spec.path,
+                f"between track and untrack every target moves with the belt; {frame!r} is "
+                f"not on it (frames on it: {', '.join(sorted(on_belt))}); untrack first",
+            )
+        elif frame is None and kind.motion == "planned":
+            refs.report.error(
+                spec.path,
+                "between track and untrack every target moves with the belt; a joint target "
+                "does not: untrack first",
+            )
 
 
 def _run(ctx: JobContext, step: Step) -> StepGen:

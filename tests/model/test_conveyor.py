@@ -148,6 +148,10 @@ def test_references_are_located_errors(tmp_path, change, line, message):
             "encoder source speed takes no ticks_per_m",
         ),
         (
+            {"ENCODER": "{source: speed, mps: 0.4}"},
+            "the belt runs at 0.4 m/s (encoder mps), above the speed_max 0.3 m/s",
+        ),
+        (
             {"WINDOW": "[0.4, -0.25]"},
             "window [0.4, -0.25] m must run from its start to a later end",
         ),

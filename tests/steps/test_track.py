@@ -71,6 +71,18 @@ def test_short_and_bare_forms_load_and_untrack_marks_the_tracked_steps():
             3,
             "steps[0].track: a track before the untrack of the one before it: untrack first",
         ),
+        (
+            "  - track: belt\n  - move: tray_slot\n  - untrack\n",
+            4,
+            "steps[1].move: between track and untrack every target moves with the belt; "
+            "'tray_slot' is not on it (frames on it: belt_pick); untrack first",
+        ),
+        (
+            "  - track: belt\n  - move: home\n  - untrack\n",
+            4,
+            "steps[1].move: between track and untrack every target moves with the belt; a "
+            "joint target does not: untrack first",
+        ),
     ],
 )
 def test_task_mistakes_are_located_errors(tmp_path, steps, line, message):
