@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from cellrunner.model.conveyor import ConveyorPath
+    from cellrunner.model.conveyor import Conveyor, ConveyorPath
     from cellrunner.planning.timing import MotionLimits
 
 #: peak acceleration (m/s^2) along the belt's path a ramp may ask of the TCP, and peak
@@ -182,3 +182,10 @@ def tracked_limits(limits: MotionLimits, speed_max_mps: float) -> MotionLimits:
         limits.joint_accel_rad_s2 * f,
         max(0.05, limits.tcp_speed_mps - speed_max_mps),
     )
+
+
+def conveyor_ramp_s(conveyor: Conveyor) -> float:
+    """The longest ramp of ``conveyor`` (its window, its top speed, its path's bounds), s:
+    what ``track`` and ``untrack`` count in a plan's cycle."""
+    lo, hi = (float(w) for w in conveyor.window)
+    return worst_ramp_s((lo, hi), float(conveyor.speed_max), ramp_bounds(conveyor.path))

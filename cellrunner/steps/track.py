@@ -63,12 +63,10 @@ class Track(StepKindDef):
             _check_on_belt(refs, conveyors[spec.args.conveyor].frame, tracked)
 
     def plan(self, planner: StepPlanner, row: StepPlan) -> None:
-        from cellrunner.planning.belt_ramp import ramp_bounds, worst_ramp_s
+        from cellrunner.planning.belt_ramp import conveyor_ramp_s
 
-        conveyor = planner.world.loaded.cell.conveyors[row.step.args.conveyor]
-        lo, hi = (float(w) for w in conveyor.window)
-        row.duration_s = worst_ramp_s(
-            (lo, hi), float(conveyor.speed_max), ramp_bounds(conveyor.path)
+        row.duration_s = conveyor_ramp_s(
+            planner.world.loaded.cell.conveyors[row.step.args.conveyor]
         )
 
     def run(self, ctx: JobContext, step: Step, resume: bool) -> StepGen:

@@ -54,16 +54,12 @@ class Untrack(StepKindDef):
             refs.report.error(spec.path, "an untrack needs a track before it")
 
     def plan(self, planner: StepPlanner, row: StepPlan) -> None:
-        from cellrunner.planning.belt_ramp import ramp_bounds, worst_ramp_s
+        from cellrunner.planning.belt_ramp import conveyor_ramp_s
 
         track = row.step.extra.get("conveyor")
         if track is None:
             return
-        conveyor = planner.world.loaded.cell.conveyors[track]
-        lo, hi = (float(w) for w in conveyor.window)
-        row.duration_s = worst_ramp_s(
-            (lo, hi), float(conveyor.speed_max), ramp_bounds(conveyor.path)
-        )
+        row.duration_s = conveyor_ramp_s(planner.world.loaded.cell.conveyors[track])
 
     def run(self, ctx: JobContext, step: Step, resume: bool) -> StepGen:
         return _run(ctx, step)
