@@ -284,6 +284,19 @@ def prove_case(
     world: CellWorld, conveyor: Conveyor, piece: TrackedPiece, speed_mps: float, start_m: float
 ) -> CaseResult:
     """Reach, joint and TCP limits, and collisions of one belt speed and start."""
+    _, failed = tracked_joint_path(world, conveyor, piece, speed_mps, start_m)
+    if failed is not None:
+        return CaseResult(speed_mps, start_m, False, failed)
+    return CaseResult(speed_mps, start_m, True)
+
+
+def tracked_joint_path(
+    world: CellWorld, conveyor: Conveyor, piece: TrackedPiece, speed_mps: float, start_m: float
+) -> tuple[np.ndarray, str | None]:
+    """The commanded joint path of one belt speed and start, a sample every
+    ``piece.sample_s`` (ramp in, the tracked steps, ramp out), and why it fails reach,
+    limits or collisions (None: it passes). ``check`` proves cases with it; the run time
+    approves the one case the belt's measured speed and the latched part make."""
     sigma, held, _, _ = commanded_offsets(piece, conveyor, speed_mps, start_m)
     kin, limits = world.kinematics, world.limits
     q = np.empty((len(sigma), 6))
@@ -292,20 +305,15 @@ def prove_case(
         T = T_world_shift(conveyor.path, float(s)) @ piece.T_world_tcp[h]
         qk = kin.ik_track(T, q_prev)
         if qk is None or float(np.abs(qk - q_prev).max()) > 0.5:
-            return CaseResult(
-                speed_mps,
-                start_m,
-                False,
+            return q[:k], (
                 f"no joined IK solution {k * piece.sample_s:.2f} s into the pick, the arm "
-                f"{float(s):+.3f} m along the belt from the frame",
+                f"{float(s):+.3f} m along the belt from the frame"
             )
         q[k] = q_prev = qk
     failed = _limit_failure(q, limits, kin, piece.sample_s)
     if failed is None:
         failed = _collision_failure(q, held, piece)
-    if failed is not None:
-        return CaseResult(speed_mps, start_m, False, failed)
-    return CaseResult(speed_mps, start_m, True)
+    return q, failed
 
 
 def _limit_failure(q: np.ndarray, limits: Any, kin: Any, dt: float) -> str | None:

@@ -98,12 +98,6 @@ def _check_on_belt(refs: ReferenceCheck, belt_frame: str, tracked: list[Any]) ->
 
 
 def _run(ctx: JobContext, step: Step) -> StepGen:
-    from cellrunner.execution.outcome import Outcome
-    from cellrunner.model.codes import ResultCode
+    from cellrunner.execution.belt_tracking import run_track
 
-    return Outcome.failed(
-        ResultCode.PLANNING_FAILED,
-        f"conveyor {step.args.conveyor!r}: this backend cannot follow a belt yet "
-        "(check proves tracked steps; running them is not built)",
-    )
-    yield  # a generator
+    return run_track(ctx, step)

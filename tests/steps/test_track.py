@@ -237,14 +237,25 @@ def test_a_place_onto_the_moving_belt_is_proved_too(tmp_path):
     assert belt["latest_start_m"] is not None
 
 
-def test_a_rehearsal_never_runs_tracked_steps_as_if_the_part_stood_still():
-    """Running on a moving belt is not built: the job ends at its track step with 103,
-    before the arm goes for a part it would miss."""
+def test_a_rehearsal_picks_the_block_off_the_moving_belt_into_the_tray():
+    """The twin's belt carries the block past the eye; the arm follows it, grips it on the
+    move and puts it in the tray: the job ends 0, the tracked steps run within track."""
     code, out = cli("dry-run", str(CELL), str(TASK))
-    assert code == 1 and out["result_code"] == 103
-    assert out["result_text"].startswith("conveyor 'belt': this backend cannot follow a belt yet")
-    kinds = [(s["kind"], s["status"]) for s in out["steps"][:3]]
-    assert kinds == [("move", "ok"), ("track", "failed"), ("approach", "skipped")]
+    assert code == 0, out["errors"]
+    kinds = [(s["kind"], s["status"]) for s in out["steps"][:7]]
+    assert kinds == [
+        ("move", "ok"),
+        ("track", "ok"),
+        ("approach", "ok"),
+        ("descend", "ok"),
+        ("grip", "ok"),
+        ("lift", "ok"),
+        ("untrack", "ok"),
+    ]
+    x, y, z = out["parts_end_m"]["block"]
+    # tray_slot is the TCP at the block's centre: 0.35, 0.55; the block rests on the tray
+    # (top at 0.80 m) with its centre 25 mm up
+    assert np.hypot(x - 0.35, y - 0.55) < 0.005 and abs(z - 0.825) < 0.003
 
 
 def test_what_the_proof_passes_at_8_ms_holds_at_the_controller_rate():
