@@ -102,8 +102,15 @@ def run_track(ctx: JobContext, step: Step) -> StepGen:
             "let go",
         )
     speed = min(max(speed, 0.0), v_max)
-    start = max(nominal_start_m(speed, lo, ramp_bounds(conveyor.path)), offset_m())
-    start += speed * LEAD_PERIODS / rate_hz
+    # the part's offset when the first set-point is reached: it is sent ``lead`` periods
+    # from now (the earliest start, or as soon as it can be) and reached one period later
+    dt = 1.0 / rate_hz
+    earliest = nominal_start_m(speed, lo, ramp_bounds(conveyor.path))
+    lead = LEAD_PERIODS
+    if speed > 0 and offset_m() + speed * (lead + 1) * dt < earliest:
+        lead = int(np.ceil((earliest - offset_m()) / (speed * dt))) - 1
+    start = offset_m() + speed * (lead + 1) * dt
+    t_send = ctx.now_s + lead * dt
     latest = latest_fitting_start_m(conveyor, piece.duration_s, speed)
     if latest is None or start > latest + 1e-9:
         return Outcome.failed(
@@ -120,17 +127,18 @@ def run_track(ctx: JobContext, step: Step) -> StepGen:
             f"conveyor {name!r}: the {piece.what} at {speed:.3f} m/s from {start:+.3f} m is "
             f"refused: {run}",
         )
-    # the arm stands over the frame until the part reaches the start
-    t_wait = ctx.now_s
-    wait_s = (start - offset_m()) / speed + 1.0 if speed > 0 else ctx.step_timeout_s
-    while offset_m() + speed / rate_hz < start:
-        if ctx.now_s - t_wait > wait_s:
-            return Outcome.failed(
-                ResultCode.STEP_TIMEOUT,
-                f"conveyor {name!r}: the part did not reach {start:+.3f} m (it is at "
-                f"{offset_m():+.3f} m): the belt slowed before the {piece.what}",
-            )
+    # the arm stands over the frame until then; the belt must keep its speed meanwhile
+    t_made, s_made = ctx.now_s, offset_m()
+    while ctx.now_s < t_send - dt / 2:
         yield
+        drift = offset_m() - (s_made + speed * (ctx.now_s - t_made))
+        if abs(drift) > BELT_TOLERANCE_M:
+            return Outcome.failed(
+                ResultCode.PROTECTIVE_STOP,
+                f"conveyor {name!r}: the belt is {drift * 1000:+.1f} mm off its measured "
+                f"{speed:.3f} m/s before the {piece.what} started (stopped or jumped): the "
+                "arm stays where it is",
+            )
     return (yield from _stream(ctx, step, run, offset_m))
 
 

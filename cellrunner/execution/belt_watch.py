@@ -1,7 +1,8 @@
 """The engine's view of the cell's conveyors (SPEC section 13), updated every period it
 reads the robot's state: each belt's travel from its encoder, its measured speed (the
 travel over the last ``SPEED_WINDOW_S``), and the parts its photo-eye latched (the travel
-at each rising edge of the eye's input, oldest first).
+at each rising edge of the eye's input, oldest first; the edge is taken in the middle of
+the period it came in).
 """
 
 from __future__ import annotations
@@ -63,7 +64,6 @@ class BeltWatch:
             travel = self.backend.conveyor_travel_m(belt.name)
             if travel is None:
                 continue
-            belt.travel_m = travel
             history = belt.history
             if history and state.time_s <= history[-1][0]:
                 history.pop()  # the same period read again
@@ -72,5 +72,8 @@ class BeltWatch:
                 history.popleft()
             on = bool(state.inputs.get(belt.eye_channel))
             if on and not belt.eye_on:
-                belt.latched_m.append(travel)
+                # the part crossed the eye during the period just past: at its middle
+                before = belt.travel_m if belt.travel_m is not None else travel
+                belt.latched_m.append((before + travel) / 2)
+            belt.travel_m = travel
             belt.eye_on = on

@@ -10,7 +10,7 @@ so a part resting on it feels nothing. The belt's travel since the twin started 
 encoder (:meth:`Belts.travel_m`), counted in ticks as a pulse decoder counts them.
 
 The photo-eye is a presence sensor on the path (:func:`eye_sensor`): its input reads true
-while a part's centre is within ``EYE_HALF_WIDTH_M`` of the eye along the path.
+once a part's centre has passed the eye (for ``2 * EYE_HALF_WIDTH_M`` along the path).
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ LIFT_M = 0.002
 #: the slab's mass (kg) and its velocity servo's gain (N s/m): stiff against a part's drag
 MASS_KG = 50.0
 SERVO_KV = 20000.0
-#: the eye's beam: a part's centre within this of the eye along the path, m
+#: the eye's beam: a part's centre from the eye to twice this downstream of it, m (the
+#: beam rises within a period's travel after the centre passed the eye)
 EYE_HALF_WIDTH_M = 0.001
 #: how wide the slab is, m
 WIDTH_M = 0.2
@@ -87,7 +88,9 @@ def eye_sensor(belt: BeltDescription, channel: str, eye_s_m: float) -> PresenceS
     thin along the path, as wide as the slab across it."""
     from cellrunner.sim.description import PresenceSensor
 
-    p = np.asarray(belt.start_m) + belt.direction * eye_s_m
+    # the beam reads a part from the moment its centre passes the eye: a box from the eye
+    # to 2 half widths downstream
+    p = np.asarray(belt.start_m) + belt.direction * (eye_s_m + EYE_HALF_WIDTH_M)
     along = np.abs(belt.direction)
     half = np.where(along > 0.5, EYE_HALF_WIDTH_M, WIDTH_M / 2)
     half[2] = 0.2
