@@ -22,6 +22,7 @@ from cellrunner.execution.planner import PlannedJob, Planner
 from cellrunner.model.expand import Step
 from cellrunner.model.gripper import gripper_channels
 from cellrunner.model.load import LoadedCell
+from cellrunner.model.robot_state import RobotState
 from cellrunner.model.timing import release_time_s
 
 
@@ -115,6 +116,24 @@ class JobLauncher:
         if self._belts is None:
             self._belts = BeltWatch(self.backend, dict(c.conveyors), dict(c.io.inputs))
         return self._belts
+
+    def note_belts(self, state: RobotState) -> None:
+        """Between jobs: the conveyors' encoders and eyes of this period."""
+        belts = self._belt_watch()
+        if belts is not None:
+            belts.note(state)
+
+    def conveyor_speeds_mmps(self) -> tuple[tuple[str, int], ...]:
+        """Each measured conveyor's speed, mm/s (rounded), for the PLC."""
+        belts = self._belts
+        if belts is None:
+            return ()
+        out = []
+        for name, view in belts.belts.items():
+            speed = view.speed_mps()
+            if speed is not None:
+                out.append((name, round(speed * 1000)))
+        return tuple(out)
 
     def _context(self, motions: Motions, job_id: str) -> JobContext:
         c = self.cell.cell

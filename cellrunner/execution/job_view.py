@@ -134,6 +134,7 @@ def status_of(
     counters: tuple[int, int],
     *,
     held: bool = False,
+    conveyor_speeds_mmps: tuple[tuple[str, int], ...] = (),
 ) -> CellStatus:
     """The PLC's snapshot of the cell: PackML ``state``, the ``job`` under way, the
     robot's ``safety``, the ``last`` result and the (processed, defective) ``counters``;
@@ -154,6 +155,7 @@ def status_of(
         parts_defective=counters[1],
         obstructed=bool(obstruction),
         obstruction=obstruction,
+        conveyor_speeds_mmps=conveyor_speeds_mmps,
     )
 
 

@@ -125,6 +125,9 @@ class CellStatus:
     #: ``obstruction`` says where ("" when not obstructed)
     obstructed: bool = False
     obstruction: str = ""
+    #: each conveyor's measured speed, mm/s, in the cell file's order (SPEC 13): (name,
+    #: speed); none while the backend cannot measure them
+    conveyor_speeds_mmps: tuple[tuple[str, int], ...] = ()
 
 
 @dataclass(frozen=True)

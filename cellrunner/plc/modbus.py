@@ -61,6 +61,7 @@ HR_RETRIES = 107
 HR_CYCLE_MS = 108  # uint32 108-109
 HR_PROCESSED = 110  # uint32 110-111
 HR_DEFECTIVE = 112  # uint32 112-113
+HR_CONVEYOR_SPEED = 114  # the first conveyor's measured speed, mm/s (int16, SPEC 13)
 CELL_FIRST, CELL_LAST = 100, 119
 N_REGS = 120
 
@@ -389,6 +390,9 @@ class ModbusLink:
         self.regs[HR_STATE] = status.state & 0xFFFF
         self.regs[HR_STEP] = status.step_index & 0xFFFF
         self._write_counters(status)
+        speeds = status.conveyor_speeds_mmps
+        speed = min(max(speeds[0][1], -0x8000), 0x7FFF) if speeds else 0
+        self.regs[HR_CONVEYOR_SPEED] = speed & 0xFFFF  # int16, two's complement
 
 
 _TRANSIENT_STATES = frozenset(
