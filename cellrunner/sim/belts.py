@@ -157,6 +157,11 @@ class Belts:
         self.speed_mps[name] = float(speed_mps)
         self.data.ctrl[self._ctrl[name]] = float(speed_mps)
 
+    def jump_encoder(self, name: str, distance_m: float) -> None:
+        """An encoder fault: belt ``name``'s reading jumps by ``distance_m`` (the belt
+        itself runs on as it did)."""
+        self._wrapped_m[name] += float(distance_m)
+
     def update(self) -> None:
         """After a period: a slab that has travelled ``WRAP_M`` jumps back by it."""
         for name, adr in self._qpos.items():

@@ -5,6 +5,7 @@ controlled stop (100), not a chase."""
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
@@ -82,6 +83,68 @@ def test_a_belt_above_its_speed_max_lets_the_part_go_with_109():
         assert float(world.part_velocity_world("block")[1]) == pytest.approx(0.6, abs=0.01)
         assert float(world.part_pose_world("block")[2, 3]) == pytest.approx(0.827, abs=0.002)
         assert np.linalg.norm(world.tcp_pose_world()[:3, 3] - [0.75, 0.0, 0.95]) < 0.01
+    finally:
+        rehearsal.close()
+
+
+def test_a_part_latched_before_the_job_and_past_the_latest_start_ends_109():
+    """The block crosses the eye while the cell stands idle (the engine latches it between
+    jobs); by the time the arm is over the belt it is past the latest start the window
+    allows at 0.3 m/s (-0.031 m): the part is let go, the arm does not go for it."""
+    cell = load_cell(CELL)
+    task = load_task(TASK, cell)
+    backend = make_backend(cell, "sim", tasks=(task,), rehearsed=[{}])
+    rehearsal = start_rehearsal(cell, task, backend, console())
+    try:
+        rehearsal.loop.step(750)  # 1.5 s idle: the block passes the eye (at 0.83 s)
+        job = rehearsal.rehearse({}, job_steps(task, cell.cell, {}))
+        assert job.code is ResultCode.PART_LEFT_WINDOW, job.payload["result_text"]
+        assert "must start by -0.03" in job.payload["result_text"]
+        world = backend.world
+        assert float(world.part_velocity_world("block")[1]) == pytest.approx(0.3, abs=0.01)
+        assert np.linalg.norm(world.tcp_pose_world()[:3, 3] - [0.75, 0.0, 0.95]) < 0.01
+    finally:
+        rehearsal.close()
+
+
+class _Follows:
+    """Acts once the arm follows the block (the TCP within 5 cm of it seen from above and
+    moving along the belt faster than 0.25 m/s); remembers when."""
+
+    def __init__(self, act: Any) -> None:
+        self.act = act
+        self.acted_at_s: float | None = None
+        self.last: tuple[float, float] | None = None
+
+    def __call__(self, cell: Any) -> None:
+        world = cell.backend.world
+        if self.acted_at_s is not None or world is None:
+            return
+        tcp = world.tcp_pose_world()[:2, 3]
+        part = world.part_pose_world("block")[:2, 3]
+        last, self.last = self.last, (world.time_s, float(tcp[1]))
+        if last is None or world.time_s <= last[0]:
+            return
+        vy = (float(tcp[1]) - last[1]) / (world.time_s - last[0])
+        if np.linalg.norm(tcp - part) < 0.05 and vy > 0.25:
+            self.act(cell.backend)
+            self.acted_at_s = world.time_s
+
+
+def test_an_encoder_jump_while_following_is_a_controlled_stop():
+    jump = _Follows(lambda backend: backend.jump_belt_encoder("belt", 0.05))
+    job, rehearsal = _rehearse(observer=jump)
+    try:
+        assert jump.acted_at_s is not None
+        assert job.code is ResultCode.PROTECTIVE_STOP, job.payload["result_text"]
+        # the 50 mm jump and the belt's travel over the period it came in
+        text = job.payload["result_text"]
+        assert re.search(r"belt is \+50\.\d mm off its measured 0\.300 m/s", text), text
+        world = rehearsal.backend.world
+        rehearsal.loop.step(250)  # 0.5 s: the stop ramp ends
+        assert float(np.abs(world.measure().qd_rad_s).max()) < 1e-2
+        # the arm did not chase the reading 5 cm on: it stopped, the block rode on
+        assert float(world.part_pose_world("block")[1, 3]) > float(world.tcp_pose_world()[1, 3])
     finally:
         rehearsal.close()
 

@@ -353,6 +353,15 @@ class SimBackend:
         self._fresh = None
         belts.set_speed(name, speed_mps)
 
+    def jump_belt_encoder(self, name: str, distance_m: float) -> None:
+        """An encoder fault on the twin's belt ``name``: its reading jumps by
+        ``distance_m`` while the belt runs on (for tests and benches)."""
+        belts = self._world().belts
+        if belts is None:
+            raise BackendError(f"the twin has no belt {name!r}")
+        self._fresh = None
+        belts.jump_encoder(name, distance_m)
+
     def job_started(self) -> None:
         """A job starts now: the twin's scheduled intruders (``sim: intruders``) count from
         here."""
