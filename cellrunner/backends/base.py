@@ -96,6 +96,15 @@ class FeedsParts(Protocol):
 
 
 @runtime_checkable
+class MeasuresConveyors(Protocol):
+    """A backend that reads the cell's conveyor encoders (the twin's belts; SPEC 13)."""
+
+    def conveyor_travel_m(self, name: str) -> float | None:
+        """How far conveyor ``name`` has travelled, m, as its encoder reads it now; None
+        when this backend cannot measure it."""
+
+
+@runtime_checkable
 class CameraImages(Protocol):
     """A backend that renders the cell cameras itself (the in-process twin)."""
 

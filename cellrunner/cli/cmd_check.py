@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from cellrunner.execution.check_report import CheckReport
     from cellrunner.model.step import Step
     from cellrunner.planning.job_plan import JobPlan
+    from cellrunner.planning.tracking import TrackingProof
     from cellrunner.planning.world import CellWorld
 
 
@@ -42,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         swept = sweep(
             world, task, params, use_cache=not (args.no_cache or watched), progress=progress
         )
-    report = check_report(swept, task, params)
+    report = check_report(swept, task, params, _prove_tracking(world, swept.plan))
     if args.save_plan and report.ok:
         _save_plan(Path(args.save_plan), world, report.plan)
     warnings = [str(w) for w in [*cell.warnings, *task.warnings]]
@@ -77,6 +78,7 @@ def _payload(report: CheckReport, cell: str, task: str, warnings: list[str]) -> 
         "slots_checked": report.checked,
         "failed_slots": [g.to_json() for g in report.slots],
         "warnings": warnings,
+        "conveyors": [p.to_json() for p in report.tracking],
     }
 
 
@@ -93,6 +95,19 @@ def _print(out: Console, title: str, report: CheckReport) -> None:
         out.print(infeasible + Text(_indented(failure.lines())))
     for group in [*report.slots, *report.values]:
         out.print(infeasible + Text(_indented(group.lines())))
+    for proof in report.tracking:
+        out.print(_indented(proof.summary().split("; ")), markup=False)
+        if proof.error is not None:
+            out.print(infeasible + Text(_indented(proof.error.split("; "))))
+
+
+def _prove_tracking(world: CellWorld, plan: JobPlan) -> list[TrackingProof]:
+    """The proof of the task's tracked steps on its conveyors (none without a track)."""
+    if not any(step.kind == "track" for step in plan.steps):
+        return []
+    from cellrunner.planning.tracking import prove_tracking
+
+    return prove_tracking(world, plan.task_plan)
 
 
 def _headline(message: str, width: int = 90) -> str:

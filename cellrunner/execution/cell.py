@@ -184,6 +184,7 @@ class CellController:
             self._book.last,
             self._book.counters,
             held=self._book.holding,
+            conveyor_speeds_mmps=self._launcher.conveyor_speeds_mmps(),
         )
 
     def _publish(self) -> None:
@@ -198,6 +199,7 @@ class CellController:
             self._book.last,
             self._book.counters,
             obstruction_of(job),
+            self._launcher.conveyor_speeds_mmps(),
         )
         if key != self._status_key:
             self._status_key = key
@@ -369,6 +371,7 @@ class CellController:
             state = runner.ctx.state or self.backend.read_state()
         else:
             state = self.backend.read_state()
+            self._launcher.note_belts(state)  # a job's context notes them while it runs
             if job is not None and job.plan is None:
                 if self.on_job_start is not None:
                     self.on_job_start()

@@ -11,7 +11,7 @@ text is made from the fields here and in the CLI's printer, the edge.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from cellrunner.model.expand import ALIGN_KEY, pattern_params
@@ -22,6 +22,7 @@ from cellrunner.model.params import ParamValue
 if TYPE_CHECKING:
     from cellrunner.execution.slot_sweep import Sweep
     from cellrunner.planning.job_plan import JobPlan
+    from cellrunner.planning.tracking import TrackingProof
 
 
 @dataclass(frozen=True)
@@ -79,13 +80,16 @@ class CheckReport:
     slots: list[FailedValues]
     values: list[FailedValues]
     bare: list[Failure]
+    tracking: list[TrackingProof] = field(default_factory=list)
 
     @property
     def errors(self) -> list[str]:
-        """Every failure on one line: the requested plan's, then each other value's."""
+        """Every failure on one line: the requested plan's, then each other value's, then
+        the conveyors'."""
         return [
             *self.plan.errors,
             *(f"{g.param}={shown(g.values[0])}: {g.failure.text()}" for g in self.found),
+            *(p.error for p in self.tracking if p.error is not None),
         ]
 
     @property
@@ -112,8 +116,14 @@ class CheckReport:
         return [_checked_line(name, values) for name, values in self.checked.items()]
 
 
-def check_report(swept: Sweep, task: LoadedTask, params: dict[str, ParamValue]) -> CheckReport:
-    """``swept`` (the requested plan and every other value's failures) as a report."""
+def check_report(
+    swept: Sweep,
+    task: LoadedTask,
+    params: dict[str, ParamValue],
+    tracking: list[TrackingProof] | None = None,
+) -> CheckReport:
+    """``swept`` (the requested plan and every other value's failures) and the conveyors'
+    ``tracking`` proofs as a report."""
     plan = swept.plan
     pattern = next(iter(pattern_params(task)), None)
     found = [(f.param, f.value, f.failure) for f in swept.failures]
@@ -135,7 +145,7 @@ def check_report(swept: Sweep, task: LoadedTask, params: dict[str, ParamValue]) 
         if isinstance(value, (dict, float, str))
     ]
     bare = list(plan.failures) if pattern is None else []
-    return CheckReport(plan, params, swept.checked, each, slots, values, bare)
+    return CheckReport(plan, params, swept.checked, each, slots, values, bare, tracking or [])
 
 
 def group_failures(failures: list[tuple[str, int, Failure]]) -> list[FailedValues]:

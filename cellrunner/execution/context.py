@@ -15,6 +15,7 @@ from cellrunner.model.robot_state import RobotState
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 if TYPE_CHECKING:
+    from cellrunner.execution.belt_watch import BeltWatch
     from cellrunner.execution.obstacle_guard import ObstacleGuard
     from cellrunner.model.align import Marker, Sighting
     from cellrunner.model.cell import Gripper, Tool
@@ -160,6 +161,7 @@ class JobContext:
     notes: dict[str, Any] = field(default_factory=dict)
     eye: Eye | None = None  # the cameras, for align steps
     obstacles: ObstacleGuard | None = None  # a watched cell's map on the job's path (SPEC 12)
+    belts: BeltWatch | None = None  # the conveyors' encoders and eyes (SPEC 13)
 
     @property
     def now_s(self) -> float:
@@ -174,6 +176,8 @@ class JobContext:
 
     def read(self) -> RobotState:
         self.state = self.backend.read_state()
+        if self.belts is not None:
+            self.belts.note(self.state)
         return self.state
 
     def track(self) -> None:

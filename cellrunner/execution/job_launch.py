@@ -13,6 +13,7 @@ import numpy as np
 
 from cellrunner.backends.base import RobotBackend
 from cellrunner.errors import CellrunnerError
+from cellrunner.execution.belt_watch import BeltWatch
 from cellrunner.execution.context import EventLog, Eye, JobContext, Motions, use_gripper
 from cellrunner.execution.job import JobRunner
 from cellrunner.execution.job_book import JobBook
@@ -21,6 +22,7 @@ from cellrunner.execution.planner import PlannedJob, Planner
 from cellrunner.model.expand import Step
 from cellrunner.model.gripper import gripper_channels
 from cellrunner.model.load import LoadedCell
+from cellrunner.model.robot_state import RobotState
 from cellrunner.model.timing import release_time_s
 
 
@@ -60,6 +62,7 @@ class JobLauncher:
         self.on_step_start = on_step_start
         self.gate = gate  # run --step: each step starts once gate(step) is true
         self.eye = eye  # the cameras, for align steps
+        self._belts: BeltWatch | None = None
         #: the watched zone (execution.watch.ZoneWatch) whose map every motion is checked
         #: against (SPEC 12); None: the cell is not watched
         self.watch = watch
@@ -102,6 +105,36 @@ class JobLauncher:
     def close(self) -> None:
         self._pool.shutdown(wait=False, cancel_futures=True)
 
+    def _belt_watch(self) -> BeltWatch | None:
+        """The conveyors' watch, kept from job to job (parts latched between them stay),
+        when the cell has conveyors the backend measures."""
+        from cellrunner.backends.base import MeasuresConveyors
+
+        c = self.cell.cell
+        if not c.conveyors or not isinstance(self.backend, MeasuresConveyors):
+            return None
+        if self._belts is None:
+            self._belts = BeltWatch(self.backend, dict(c.conveyors), dict(c.io.inputs))
+        return self._belts
+
+    def note_belts(self, state: RobotState) -> None:
+        """Between jobs: the conveyors' encoders and eyes of this period."""
+        belts = self._belt_watch()
+        if belts is not None:
+            belts.note(state)
+
+    def conveyor_speeds_mmps(self) -> tuple[tuple[str, int], ...]:
+        """Each measured conveyor's speed, mm/s (rounded), for the PLC."""
+        belts = self._belts
+        if belts is None:
+            return ()
+        out = []
+        for name, view in belts.belts.items():
+            speed = view.speed_mps()
+            if speed is not None:
+                out.append((name, round(speed * 1000)))
+        return tuple(out)
+
     def _context(self, motions: Motions, job_id: str) -> JobContext:
         c = self.cell.cell
         io_out, io_in = c.io.outputs, c.io.inputs
@@ -122,6 +155,7 @@ class JobLauncher:
             tools=dict(c.tools),
             tool_mass_kg=c.tool.payload.mass,
             eye=self.eye,
+            belts=self._belt_watch(),
         )
         use_gripper(ctx, g)
         return ctx

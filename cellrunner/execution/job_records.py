@@ -126,10 +126,11 @@ class AgendaItem:
     between: bool = False  # a retry's in-between step (not a row of its own)
 
     def timeout_s(self, motion_timeout_s: float) -> float:
-        """How long the item may take (s): a motion the cell's ``step_timeout``, any other
-        step its own timeout (or wait, or pulse) and 5 s."""
+        """How long the item may take (s): a motion, or a ``track`` (it waits for a part
+        and runs its tracked stretch), the cell's ``step_timeout``; any other step its own
+        timeout (or wait, or pulse) and 5 s."""
         step = self.step
-        if step.is_motion:
+        if step.is_motion or step.kind == "track":
             return motion_timeout_s
         timeout = (
             getattr(step.args, "timeout", None)

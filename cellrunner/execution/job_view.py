@@ -135,6 +135,7 @@ def status_of(
     counters: tuple[int, int],
     *,
     held: bool = False,
+    conveyor_speeds_mmps: tuple[tuple[str, int], ...] = (),
 ) -> CellStatus:
     """The PLC's snapshot of the cell: PackML ``state``, the ``job`` under way, the
     robot's ``safety``, the ``last`` result and the (processed, defective) ``counters``;
@@ -160,6 +161,7 @@ def status_of(
         obstruction=obstruction,
         hold_source=holder[0].value if holder else "",
         hold_reason=holder[1] if holder else "",
+        conveyor_speeds_mmps=conveyor_speeds_mmps,
     )
 
 

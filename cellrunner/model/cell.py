@@ -9,6 +9,7 @@ from pydantic import Field, field_validator, model_validator
 
 from cellrunner.model.base import Name, PlacedShape, Pose, Shaped, Strict, Vec3
 from cellrunner.model.camera import Camera
+from cellrunner.model.conveyor import Conveyor
 from cellrunner.model.robots import ROBOTS
 from cellrunner.model.sim_inputs import SimBlock
 from cellrunner.model.units import (
@@ -304,6 +305,9 @@ class Cell(Strict):
     """Inputs the twin drives in rehearsal (dry-run and twin). Example: `{inputs: {part_present: {part_at: infeed}}}`"""
     cameras: dict[Name, Camera] = Field(default_factory=dict)
     """Cameras by name: intrinsics, image size, mount (world, a frame, flange) and pose, calibration board. Example: `{top: {intrinsics: {fx: 600, fy: 600, cx: 320, cy: 240}, image_size: [640, 480], pose: {xyz: [0.6, 0, 1.6], rpy: [180, 0, 90]}}}`"""
+
+    conveyors: dict[Name, Conveyor] = Field(default_factory=dict)
+    """Belts and round tables that carry parts past the arm (SPEC section 13): path, encoder, photo-eye, frame, window, top speed. Example: `{belt: {path: {line: {from: [0.9, -0.6, 0.8], to: [0.9, 0.8, 0.8]}}, encoder: {source: speed, mps: 0.25}, trigger: {input: part_at_eye}, eye_to_frame: 0.35, frame: belt_pick, window: [-0.1, 0.45], speed_max: 0.3}}`"""
 
     watch: Watch | None = None
     """A live obstacle map from depth cameras: jobs stop, wait or replan around what the cell file does not say. Example: `{cameras: [overhead], zone: {box: {size: [1.6, 1.2, 1.0]}, pose: {xyz: [0.4, 0, 1.4]}}, voxel: 0.02}`"""

@@ -137,6 +137,9 @@ class CellStatus:
     #: held by ``obstacle`` (the job goes on once the zone clears)
     hold_source: str = ""
     hold_reason: str = ""
+    #: each conveyor's measured speed, mm/s, in the cell file's order (SPEC 13): (name,
+    #: speed); none while the backend cannot measure them
+    conveyor_speeds_mmps: tuple[tuple[str, int], ...] = ()
 
 
 @dataclass(frozen=True)

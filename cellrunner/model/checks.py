@@ -63,8 +63,12 @@ def check_sim_block(cell: Cell, report: Report) -> None:
         parts = [p.name for p in cell.parts]
         if feed.part not in parts:
             report.error(("sim", "feed", "part"), unknown_name("part", feed.part, parts))
-        if feed.at not in cell.frames:
+        if feed.at is not None and feed.at not in cell.frames:
             report.error(("sim", "feed", "at"), unknown_name("frame", feed.at, cell.frames))
+        if feed.conveyor is not None and feed.conveyor not in cell.conveyors:
+            report.error(
+                ("sim", "feed", "conveyor"), unknown_name("conveyor", feed.conveyor, cell.conveyors)
+            )
     names = [i.name for i in cell.sim.intruders]
     for i, intruder in enumerate(cell.sim.intruders):
         if names.index(intruder.name) != i:

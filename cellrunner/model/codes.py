@@ -52,6 +52,7 @@ class ResultCode(enum.IntEnum):
     ABORTED_BY_PLC = 106
     INTERRUPTED = 107
     PATH_BLOCKED = 108
+    PART_LEFT_WINDOW = 109
 
     @property
     def text(self) -> str:
@@ -80,4 +81,5 @@ _TEXT = {
     ResultCode.ABORTED_BY_PLC: "aborted by PLC",
     ResultCode.INTERRUPTED: "interrupted (cellrunner restarted mid-job)",
     ResultCode.PATH_BLOCKED: "path blocked by an obstacle not in the cell file",
+    ResultCode.PART_LEFT_WINDOW: "part left the conveyor window",
 }

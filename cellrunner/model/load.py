@@ -134,6 +134,9 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     from cellrunner.model.checks import check_watch
 
     check_watch(cell, report)
+    from cellrunner.model.conveyor_checks import check_conveyors
+
+    check_conveyors(cell, report)
     for i, part in enumerate(cell.parts):
         if part.at not in cell.frames:
             report.error(("parts", i, "at"), unknown_name("frame", part.at, cell.frames))

@@ -14,11 +14,18 @@ Names are the cell's IO names; :func:`cellrunner.model.checks.check_sim_block` c
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
 from cellrunner.model.base import BoxShape, CylinderShape, Name, Pose, Strict
 from cellrunner.model.units import Duration, NonNegativeLength, PositiveDuration, PositiveLength
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    from cellrunner.model.conveyor import Conveyor
 
 
 class InputRule(Strict):
@@ -97,8 +104,28 @@ class Feed(Strict):
 
     part: Name
     """The cell's part a fed one is a copy of. Example: `carton`"""
-    at: Name
+    at: Name | None = None
     """The frame it is put at (as a part `at:` that frame lies). Example: `infeed`"""
+    conveyor: Name | None = None
+    """Instead of `at`: the conveyor that brings it (SPEC section 13). Example: `belt`"""
+    every: PositiveDuration | None = None
+    """With `conveyor`: a part every this many s. Example: `2.0`"""
+    jitter: NonNegativeLength = 0.0
+    """With `conveyor`: how far a part lies from its even spacing, m (uniform, +-). Example: `0.02`"""
+
+    @model_validator(mode="after")
+    def _one_source(self) -> Feed:
+        if (self.at is None) == (self.conveyor is None):
+            raise PydanticCustomError("sim", "a feed needs exactly one of at (a frame), conveyor")
+        return self
+
+    def frame(self, conveyors: Mapping[str, Conveyor]) -> str:
+        """The frame a fed part lies at: ``at``, or the frame of its conveyor (one of
+        the cell's ``conveyors``)."""
+        if self.at is not None:
+            return self.at
+        assert self.conveyor is not None
+        return conveyors[self.conveyor].frame
 
 
 class SimBlock(Strict):

@@ -427,6 +427,11 @@ class StepPlanner:
         """The limits ``step`` is timed and verified with; a force step's also depend on
         its line (``line_q``: the joint configurations at its ends)."""
         limits = self.world.limits
+        if "tracked" in step.extra:  # on a moving belt: room left for the belt's motion
+            from cellrunner.planning.belt_ramp import tracked_limits
+
+            conveyor = self.world.loaded.cell.conveyors[step.extra["tracked"]]
+            limits = tracked_limits(limits, float(conveyor.speed_max))
         speed = getattr(step.args, "speed", None)
         if step.is_planned:
             return limits.scaled(speed_fraction=speed if speed is not None else 1.0)

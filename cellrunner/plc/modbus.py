@@ -7,11 +7,12 @@ Two layers, so the handshake can be tested tick by tick without sockets:
   ``on_result`` (a job finished), all on one thread.
 * :class:`ModbusServer` - pymodbus's asyncio TCP server around a link (see
   :mod:`cellrunner.plc.modbus_tcp`: every request of a segment answered, in order;
-  writes outside 0-19 are answered with exception 02 ILLEGAL DATA ADDRESS, all or
+  writes outside 0-29 are answered with exception 02 ILLEGAL DATA ADDRESS, all or
   nothing).
 
-Holding registers (0-based): the PLC writes 0-19, the cell writes 100-119; reads are
-allowed anywhere in 0-119. uint32 values are two registers, high word first.
+Holding registers (0-based): the PLC writes 0-29 (20-29: conveyor encoders), the cell
+writes 100-119; reads are allowed anywhere in 0-119. uint32 values are two registers,
+high word first.
 """
 
 from __future__ import annotations
@@ -45,7 +46,10 @@ HR_COMMAND = 1
 HR_JOB_ID = 2
 HR_TASK = 3
 HR_PARAMS = PARAM_FIRST  # 4..19, in the task's params: order (see param_registers)
-PLC_FIRST, PLC_LAST = 0, 19
+#: conveyor encoder counts the PLC writes (SPEC section 13): uint32, high word first,
+#: 20-21 for a conveyor with ``encoder: {source: plc, register: 20}``, up to 28-29
+HR_ENCODERS = 20
+PLC_FIRST, PLC_LAST = 0, 29
 
 HR_CELL_HEARTBEAT = 100
 HR_STATUS = 101
@@ -58,6 +62,7 @@ HR_RETRIES = 107
 HR_CYCLE_MS = 108  # uint32 108-109
 HR_PROCESSED = 110  # uint32 110-111
 HR_DEFECTIVE = 112  # uint32 112-113
+HR_CONVEYOR_SPEED = 114  # the first conveyor's measured speed, mm/s (int16, SPEC 13)
 CELL_FIRST, CELL_LAST = 100, 119
 N_REGS = 120
 
@@ -173,7 +178,7 @@ class ModbusLink:
         return self.regs[address : address + count]
 
     def write(self, address: int, values: Sequence[int]) -> int | None:
-        """Write PLC registers; None, or exception 02 when any address is not 0-19."""
+        """Write PLC registers; None, or exception 02 when any address is not 0-29."""
         if address < PLC_FIRST or address + len(values) - 1 > PLC_LAST or not values:
             return EXC_ILLEGAL_ADDRESS
         old_heartbeat = self.regs[HR_HEARTBEAT]
@@ -386,6 +391,9 @@ class ModbusLink:
         self.regs[HR_STATE] = status.state & 0xFFFF
         self.regs[HR_STEP] = status.step_index & 0xFFFF
         self._write_counters(status)
+        speeds = status.conveyor_speeds_mmps
+        speed = min(max(speeds[0][1], -0x8000), 0x7FFF) if speeds else 0
+        self.regs[HR_CONVEYOR_SPEED] = speed & 0xFFFF  # int16, two's complement
 
 
 _TRANSIENT_STATES = frozenset(

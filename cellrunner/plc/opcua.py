@@ -63,6 +63,7 @@ from cellrunner.plc.opcua_admission import (
     source_of,
 )
 from cellrunner.plc.opcua_admission import install as install_admission
+from cellrunner.plc.opcua_conveyors import ConveyorNodes
 from cellrunner.plc.port import CellPort, CellStatus, JobResult, JobSource, ResultCode
 from cellrunner.thread_priority import nice
 
@@ -464,6 +465,7 @@ class OpcUaServer:
         self._ruleset: Any = None
         self._companions: Any = None
         self._aspace: Any = None
+        self._conveyors: ConveyorNodes | None = None
         self._refresh_task: asyncio.Task[None] | None = None
         self._remove_listener: Callable[[], None] | None = None
         self._results: asyncio.Queue[JobResult] | None = None
@@ -565,6 +567,7 @@ class OpcUaServer:
         last = await cell.add_object(
             _node_id("Cell.LastJob", idx), ua.QualifiedName("LastJob", idx)
         )
+        self._conveyors = ConveyorNodes(cell, idx, self._nodes, self._types)
         for parent, prefix, table in (
             (cell, "", _CELL_VARIABLES),
             (last, "LastJob.", _LAST_JOB_VARIABLES),
@@ -721,6 +724,8 @@ class OpcUaServer:
         }
         if initial and status.last_result is not None:
             values.update(_last_job_values(status.last_result))
+        if self._conveyors is not None:  # SPEC 13: Cell.Conveyors.<name>.Speed, mm/s
+            values.update(await self._conveyors.values(status.conveyor_speeds_mmps))
         await self._write_values(values)
         if self._companions is not None:
             await self._companions.publish(status)

@@ -133,6 +133,7 @@ class TwinDescription:
     depth: tuple[tuple[str, float, float, float], ...] = ()  # (camera, near m, far m, rate Hz)
     depth_noise_m: float = 0.0  # sim.depth_noise
     feed: Any = None  # a FeedDescription (sim.feed): parts fed before each job
+    belts: tuple[Any, ...] = ()  # BeltDescription (sim.belts): conveyors that carry parts
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     floor: bool = True
     name: str = "cell"
@@ -145,6 +146,7 @@ class TwinDescription:
             "io_outputs",
             "io_inputs",
             "presence_sensors",
+            "belts",
             "input_rules",
             "cameras",
             "markers",

@@ -89,7 +89,7 @@ def feed_of(loaded: LoadedCell, task: LoadedTask | None, whole_run: bool) -> tup
     each)."""
     sim = loaded.cell.sim
     if sim is not None and sim.feed is not None:
-        return sim.feed.part, sim.feed.at
+        return sim.feed.part, sim.feed.frame(loaded.cell.conveyors)
     if not whole_run or task is None:
         return None
     from cellrunner.model.expand import resolve_params

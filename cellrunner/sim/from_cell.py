@@ -100,14 +100,48 @@ def description_of(
         depth_noise_m=c.sim.depth_noise if c.sim is not None else 0.0,
         name=c.cell,
     )
+    shifts: dict[str, np.ndarray] = {}
+    if c.conveyors:  # the twin's belts carry the parts lying at their frames
+        desc, shifts = _on_belts(loaded, desc)
     if feed is None and c.sim is not None and c.sim.feed is not None:
-        feed = (c.sim.feed.part, c.sim.feed.at)
+        feed = (c.sim.feed.part, c.sim.feed.frame(c.conveyors))
     if feed is None:
         return desc
     part = next(p for p in c.parts if p.name == feed[0])
     shape = part.to_shape(loaded.resolve)
     T_fed = _part_pose(frame_pose(c, feed[1]), picks.get(feed[1], c.tool.gripper), shape)
+    if shifts:
+        from cellrunner.sim.belts import upstream
+
+        T_fed = upstream(T_fed, _belt_frames(loaded), shifts)
     return with_rehearsal_parts(desc, (part.name, T_fed), feed_copies)
+
+
+def _belt_frames(loaded: LoadedCell) -> dict[str, np.ndarray]:
+    c = loaded.cell
+    return {name: frame_pose(c, conv.frame) for name, conv in c.conveyors.items()}
+
+
+def _on_belts(
+    loaded: LoadedCell, desc: TwinDescription
+) -> tuple[TwinDescription, dict[str, np.ndarray]]:
+    """``desc`` with the twin's belts and photo-eyes, each part lying at a belt's frame
+    put upstream of its eye (:mod:`.belts`); and the shifts that do that."""
+    import dataclasses
+
+    from cellrunner.sim.belts import belts_of_cell, upstream
+
+    c = loaded.cell
+    frames = _belt_frames(loaded)
+    belts, eyes, shifts = belts_of_cell(dict(c.conveyors), dict(c.io.inputs), frames)
+    parts = tuple(
+        dataclasses.replace(p, T_world_part=upstream(p.T_world_part, frames, shifts))
+        for p in desc.parts
+    )
+    out = dataclasses.replace(
+        desc, belts=belts, parts=parts, presence_sensors=(*desc.presence_sensors, *eyes)
+    )
+    return out, shifts
 
 
 def rehearsal_description(

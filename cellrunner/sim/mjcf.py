@@ -272,6 +272,12 @@ class _Builder:
 
             add_intruders(self, d.intruders)
         self._actuators_and_sensors()
+        if d.belts:
+            from cellrunner.sim.belts import add_belts
+
+            actuators = self.root.find("actuator")
+            assert actuators is not None  # written just before
+            add_belts(world, actuators, d.belts)
         ET.indent(self.root)
         return ET.tostring(self.root, encoding="unicode")
 

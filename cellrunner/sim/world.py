@@ -118,6 +118,11 @@ class SimWorld:
             from cellrunner.sim.tool_changer import ToolChanger
 
             self.changer = ToolChanger(self, d.tool_changer)
+        self.belts = None
+        if d.belts:
+            from cellrunner.sim.belts import Belts
+
+            self.belts = Belts(self.model, self.data, d.belts)
         self.feeder = None
         if d.feed is not None:
             from cellrunner.sim.feed import Feeder
@@ -323,6 +328,8 @@ class SimWorld:
         """What the controller and the line make of a period's physics: contacts (a
         protective stop), the held parts, the cups, faults, the inputs."""
         contacts = self.contacts
+        if self.belts is not None:
+            self.belts.update()
         if self.intruders is not None:
             self.intruders.note_contacts()
         self._gripped = contacts.check()

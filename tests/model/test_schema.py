@@ -111,7 +111,7 @@ def test_step_kinds_discriminate_so_errors_name_the_step():
     error = _first_error(schema, {"task": "t", "steps": [{"mvoe": "home"}]})
     assert error.message.startswith("'mvoe' is not one of ['move', 'approach', 'descend', 'linear'")
     error = _first_error(schema, {"task": "t", "steps": ["gripp"]})
-    assert error.message == "'gripp' is not one of ['grip', 'release']"
+    assert error.message == "'gripp' is not one of ['grip', 'release', 'untrack']"
     error = _first_error(schema, {"task": "t", "steps": [{"move": "home", "wait": 1}]})
     assert "has too many properties" in error.message  # one step per list item
     between = _first_error(

@@ -172,16 +172,18 @@ def test_writes_outside_plc_registers_get_exception_02(plc: PlcProcess) -> None:
         (101, [0, 0]),
         (105, [7]),
         (119, [1]),
-        (19, [0, 0]),
-        (20, [1]),
+        (29, [0, 0]),
+        (30, [1]),
         (200, [1]),
     ]:
         reply = plc.write(addr, values)
         assert not reply["ok"] and reply["exception"] == ILLEGAL_DATA_ADDRESS, (addr, reply)
-    assert plc.read(19)[0] == 0  # the refused 19-20 write changed nothing
+    assert plc.read(29)[0] == 0  # the refused 29-30 write changed nothing
     after = plc.read(101, 13)
     assert after[3:] == before[3:]
     assert plc.write(19, [1234])["ok"] and plc.read(19) == [1234]
+    # SPEC section 13: 20-29 carry conveyor encoder counts (uint32, high word first)
+    assert plc.write(20, [0x0001, 0x86A0])["ok"] and plc.read(20, 2) == [0x0001, 0x86A0]
     reply = plc.call("read", addr=118, count=4)
     assert not reply["ok"] and reply["exception"] == ILLEGAL_DATA_ADDRESS
 

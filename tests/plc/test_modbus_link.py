@@ -79,8 +79,9 @@ def test_words() -> None:
 
 def test_refused_write_changes_nothing() -> None:
     _, link, _ = make()
-    assert link.write(18, [1, 2, 3]) == EXC_ILLEGAL_ADDRESS
-    assert link.regs[18:21] == [0, 0, 0]
+    assert link.write(28, [1, 2, 3]) == EXC_ILLEGAL_ADDRESS  # 20-29: encoders (SPEC 13)
+    assert link.regs[28:31] == [0, 0, 0]
+    assert link.write(18, [1, 2, 3]) is None and link.regs[18:21] == [1, 2, 3]
     assert link.write(100, [1]) == EXC_ILLEGAL_ADDRESS
     assert link.read(119, 1) == [0] and link.read(119, 2) == EXC_ILLEGAL_ADDRESS
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import json
-import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -14,7 +12,8 @@ import pytest
 from cellrunner.plc.fake import FakeCell
 from cellrunner.plc.service import PlcService
 from cellrunner.plc.users import add_user
-from tests.plc.conftest import HERE, PASSWORD, USER, child_env, plc_test_tasks
+from tests.plc.client_procs import run_clients
+from tests.plc.conftest import HERE, PASSWORD, USER, plc_test_tasks
 from tests.rig import free_port, write_client_cert
 
 
@@ -43,28 +42,6 @@ class Setup:
             if value is not None:
                 argv += [f"--{key}", str(value)]
         return argv
-
-
-def run_clients(argvs: list[list[str]], timeout_s: float = 60) -> list[dict[str, Any]]:
-    """Run client processes in parallel; each prints one JSON object."""
-    procs = [
-        subprocess.Popen(
-            a, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=child_env()
-        )
-        for a in argvs
-    ]
-    results = []
-    for proc in procs:
-        try:
-            out, err = proc.communicate(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            out, err = proc.communicate()
-        lines = [line for line in out.splitlines() if line.startswith("{")]
-        results.append(
-            json.loads(lines[-1]) if lines else {"connected": False, "error": err[-2000:]}
-        )
-    return results
 
 
 @pytest.fixture(scope="module")

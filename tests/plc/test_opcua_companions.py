@@ -16,8 +16,8 @@ from cellrunner.errors import InputError
 from cellrunner.plc.fake import FakeCell
 from cellrunner.plc.service import PlcService
 from cellrunner.plc.users import add_user, load_user_entries
+from tests.plc.client_procs import run_clients
 from tests.plc.conftest import HERE, PASSWORD, USER, plc_test_tasks
-from tests.plc.test_opcua import run_clients
 from tests.rig import free_port, write_client_cert
 
 VIEWER, VIEWER_PASSWORD = "mes-dashboard", "only looking"

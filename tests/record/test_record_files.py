@@ -4,7 +4,7 @@ for the .rrd, the mcap reader (and Foxglove's protobuf schemas) for the .mcap.""
 from __future__ import annotations
 
 import json
-from collections import Counter, defaultdict
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +12,7 @@ import pytest
 
 from cellrunner.cli.main import main
 from tests.conftest import DEMO_CELL, PICK_PLACE
+from tests.record.record_rig import rrd_columns
 
 ARM_LINKS = [f"/world/link{i}" for i in range(1, 7)]
 
@@ -22,32 +23,10 @@ def _dry_run(target: Path) -> None:
     assert target.stat().st_size > 10_000
 
 
-def _rrd_columns(path: Path) -> tuple[dict[str, set[str]], dict[str, list[list[float]]]]:
-    """Components by entity path, and each entity's poses (translation, then the 3x3
-    rotation) in time order."""
-    from rerun.chunk import RrdReader
-
-    components: dict[str, set[str]] = defaultdict(set)
-    moves: dict[str, list[tuple[int, list[float]]]] = defaultdict(list)
-    for chunk in RrdReader(path).store().stream():
-        batch = chunk.to_record_batch()
-        components[chunk.entity_path] |= set(batch.schema.names)
-        if "Transform3D:translation" in batch.schema.names and "time" in batch.schema.names:
-            times = batch.column("time").to_pylist()
-            translations = batch.column("Transform3D:translation").to_pylist()
-            rotations = batch.column("Transform3D:mat3x3").to_pylist()
-            for t, p, r in zip(times, translations, rotations, strict=True):
-                moves[chunk.entity_path].append((t, [*p[0], *r[0]]))
-    ordered = {
-        path: [p for _, p in sorted(rows, key=lambda r: r[0])] for path, rows in moves.items()
-    }
-    return components, ordered
-
-
 def test_rrd_holds_the_scene_moving_on_one_timeline(tmp_path: Path) -> None:
     target = tmp_path / "job.rrd"
     _dry_run(target)
-    components, moves = _rrd_columns(target)
+    components, moves = rrd_columns(target)
     for link in ARM_LINKS:  # the arm as meshes, each in its link's frame, moving
         assert any(
             "Mesh3D:vertex_positions" in components[p]
@@ -139,7 +118,7 @@ def test_a_watched_cell_records_its_depth_images_and_obstacle_map(tmp_path: Path
     target = tmp_path / "watched.rrd"
     cell, task = ROOT / "cells" / "watched_ur5e.yaml", ROOT / "tasks" / "pick_place_watched.yaml"
     assert main(["dry-run", str(cell), str(task), "--json", "--record", str(target)]) == 0
-    components, moves = _rrd_columns(target)
+    components, moves = rrd_columns(target)
     assert "Points3D:positions" in components["/world/obstacles"]
     depth = [p for p in components if p.startswith("/cameras/") and p.endswith("/depth")]
     assert depth and all("DepthImage:buffer" in components[p] for p in depth)

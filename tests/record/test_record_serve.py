@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from cellrunner.record.files import JobFolder
+from tests.record.record_rig import own_journal, rrd_columns
 from tests.rig import (
     CELL,
     DONE,
@@ -22,12 +23,6 @@ from tests.rig import (
 )
 
 HOST = "127.0.0.5"
-
-
-def _own_journal(tmp_path: Path) -> str:
-    """A journal of the test's own (a relative one may resolve to one in the working
-    directory, which other tests count jobs in)."""
-    return f"journal: {tmp_path / 'var' / 'jobs.sqlite'}\n"
 
 
 def _steps_text(path: Path) -> list[str]:
@@ -47,7 +42,7 @@ def test_serve_records_one_file_per_job(tmp_path: Path) -> None:
     (tmp_path / "tasks").mkdir()
     cell = tmp_path / "cells" / "c.yaml"
     cell.write_text(
-        _own_journal(tmp_path)
+        own_journal(tmp_path)
         + CELL
         + f"tasks: {{1: tasks/t.yaml}}\nplc:\n  modbus: {{bind: {HOST}, port: {port}, heartbeat_timeout: 2.0}}\n"
     )
@@ -88,12 +83,11 @@ def test_run_on_the_arm_records_the_measured_arm(tmp_path: Path) -> None:
 
     import numpy as np
 
-    from tests.record.test_record_files import _rrd_columns
     from tests.rig import cli, write_cell
     from tests.twin.cell_rig import twin
 
     host = f"127.27.{os.getpid() % 250 + 1}.2"
-    cell, task = write_cell(tmp_path, _own_journal(tmp_path) + CELL, TASK)
+    cell, task = write_cell(tmp_path, own_journal(tmp_path) + CELL, TASK)
     target = tmp_path / "arm.rrd"
     with twin(cell, host):
         r = cli(
@@ -109,7 +103,7 @@ def test_run_on_the_arm_records_the_measured_arm(tmp_path: Path) -> None:
         )
     assert r.returncode == 0, r.stderr[-2000:]
     assert f"to {target}" in r.stderr
-    components, moves = _rrd_columns(target)
+    components, moves = rrd_columns(target)
     assert any(
         p.startswith("/world/link6/") and "Mesh3D:vertex_positions" in c
         for p, c in components.items()

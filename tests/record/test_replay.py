@@ -6,14 +6,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from tests.record.test_record_serve import _own_journal
+from tests.record.record_rig import own_journal
 from tests.rig import CELL, ENV, TASK, cli, write_cell
 
 NO_DISPLAY = {k: v for k, v in ENV.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
 
 
 def test_replay_a_journaled_job_and_its_recording(tmp_path: Path) -> None:
-    cell, task = write_cell(tmp_path, _own_journal(tmp_path) + CELL, TASK)
+    cell, task = write_cell(tmp_path, own_journal(tmp_path) + CELL, TASK)
     recording = tmp_path / "run.rrd"
     r = cli("run", str(cell), str(task), "--backend", "sim", "--json", "--record", str(recording))
     assert r.returncode == 0, r.stderr[-2000:]
@@ -38,7 +38,7 @@ def test_replay_a_journaled_job_and_its_recording(tmp_path: Path) -> None:
 
 
 def test_replay_bad_input_is_one_located_line(tmp_path: Path) -> None:
-    cell, _ = write_cell(tmp_path, _own_journal(tmp_path) + CELL, TASK)
+    cell, _ = write_cell(tmp_path, own_journal(tmp_path) + CELL, TASK)
     for args, where in (
         ((str(tmp_path / "none.rrd"),), f"{tmp_path / 'none.rrd'}:1:1: error: no such recording"),
         ((str(tmp_path / "job.txt"),), "error: replay"),

@@ -11,6 +11,7 @@ import base64
 import contextlib
 import itertools
 import json
+import os
 import shutil
 import subprocess
 import tempfile
@@ -159,3 +160,11 @@ class Chromium:
             assert self._proc.poll() is None, f"chromium exited with {self._proc.returncode}"
             time.sleep(0.05)
         raise TimeoutError("chromium did not open its DevTools port")
+
+
+def keep_artifact(path: Path) -> None:
+    """Copy a screenshot where a person can look at it (CELLRUNNER_ARTIFACTS=DIR)."""
+    if os.environ.get("CELLRUNNER_ARTIFACTS"):
+        target = Path(os.environ["CELLRUNNER_ARTIFACTS"])
+        target.mkdir(parents=True, exist_ok=True)
+        shutil.copy(path, target / path.name)

@@ -11,12 +11,10 @@ import time
 import numpy as np
 import pytest
 
+from tests.web.browser import keep_artifact
 from tests.web.firefox import Firefox, firefox_path, virtual_display
+from tests.web.live_rig import BACKGROUND, changed, get_json, shown
 from tests.web.plc_page import DONE, ERROR, JOB_ACK, READY
-from tests.web.test_live_view_browser import BACKGROUND, changed, get_json, serving, shown
-from tests.web.test_status_page_browser import keep_artifact
-
-__all__ = ["serving"]  # the fixture: serve and a PLC
 
 pytestmark = pytest.mark.skipif(
     firefox_path() is None or shutil.which("Xvfb") is None, reason="needs firefox and Xvfb"
@@ -37,8 +35,8 @@ def canvas_pixels(page: Firefox, path) -> np.ndarray:
     return image[:, :, ::-1].astype(int)
 
 
-def test_the_live_cell_in_firefox(serving, tmp_path):
-    url, plc = serving
+def test_the_live_cell_in_firefox(live_serving, tmp_path):
+    url, plc = live_serving
     get_json(url + "live/scene.json", wait_s=30)
     with virtual_display() as display, Firefox(url, display=display) as page:
         deadline = time.monotonic() + 60

@@ -12,9 +12,8 @@ import pytest
 
 from tests.conftest import ROOT
 from tests.rig import free_port
-from tests.web.browser import WEBGL_FLAGS, Chromium, chromium_path
+from tests.web.browser import WEBGL_FLAGS, Chromium, chromium_path, keep_artifact
 from tests.web.plc_page import DONE, ERROR, JOB_ACK, READY, heartbeat, serve_with_page
-from tests.web.test_status_page_browser import keep_artifact
 
 HOST = "127.0.0.142"
 OBSTRUCTED = 1 << 10

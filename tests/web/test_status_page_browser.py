@@ -4,17 +4,14 @@ it, and /metrics parses with Prometheus' text-format parser."""
 
 from __future__ import annotations
 
-import os
-import shutil
 import time
 import urllib.request
-from pathlib import Path
 
 import pytest
 from prometheus_client.parser import text_string_to_metric_families
 
 from tests.rig import CELL, TASK, free_port
-from tests.web.browser import Chromium
+from tests.web.browser import Chromium, keep_artifact
 from tests.web.plc_page import DONE, ERROR, JOB_ACK, READY, serve_with_page
 
 HOST = "127.0.0.141"
@@ -33,14 +30,6 @@ def serving(tmp_path):
     (tmp_path / "tasks" / "t.yaml").write_text(TASK)
     with serve_with_page(cell, HOST, modbus_port, http_port) as served:
         yield served
-
-
-def keep_artifact(path: Path) -> None:
-    """Copy a screenshot where a person can look at it (CELLRUNNER_ARTIFACTS=DIR)."""
-    if os.environ.get("CELLRUNNER_ARTIFACTS"):
-        target = Path(os.environ["CELLRUNNER_ARTIFACTS"])
-        target.mkdir(parents=True, exist_ok=True)
-        shutil.copy(path, target / path.name)
 
 
 def test_page_follows_a_running_job_in_chromium(serving, tmp_path):

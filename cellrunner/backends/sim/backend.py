@@ -336,6 +336,32 @@ class SimBackend:
         self._fresh = None
         return self._world().feed_parts()
 
+    def conveyor_travel_m(self, name: str) -> float | None:
+        """How far belt ``name`` has travelled, m, as its encoder reads it now (None: the
+        twin has no such belt)."""
+        belts = self._world().belts
+        if belts is None or name not in belts.descs:
+            return None
+        return belts.travel_m(name)
+
+    def set_belt_speed(self, name: str, speed_mps: float) -> None:
+        """Run the twin's belt ``name`` at ``speed_mps`` (0 stops it): what a line does
+        to the cell, for tests and benches."""
+        belts = self._world().belts
+        if belts is None:
+            raise BackendError(f"the twin has no belt {name!r}")
+        self._fresh = None
+        belts.set_speed(name, speed_mps)
+
+    def jump_belt_encoder(self, name: str, distance_m: float) -> None:
+        """An encoder fault on the twin's belt ``name``: its reading jumps by
+        ``distance_m`` while the belt runs on (for tests and benches)."""
+        belts = self._world().belts
+        if belts is None:
+            raise BackendError(f"the twin has no belt {name!r}")
+        self._fresh = None
+        belts.jump_encoder(name, distance_m)
+
     def job_started(self) -> None:
         """A job starts now: the twin's scheduled intruders (``sim: intruders``) count from
         here."""

@@ -1,0 +1,113 @@
+"""How closely the arm follows a part on the twin's moving belt while it grips it.
+
+Run: ``python bench/bench_conveyor.py [--speeds 0.15 0.25 0.30]`` from the repository root.
+
+For each belt speed, one job of the reference task (``cells/conveyor_pick_ur10e.yaml``,
+``tasks/conveyor_pick.yaml``) is rehearsed on the MuJoCo twin with the belt running at that
+speed. Every period where the TCP is down at the part (within ``DOWN_M`` of the part's
+centre in height, the part still resting on the belt: the descent's end, the grip's
+dwell and the jaws closing, until the lift raises it) the tracking error is taken as the TCP's distance from the part's centre seen
+from above, both measured in the physics (the TCP against the part, not the set-point
+against itself: the grip frame is the part's centre). Printed: the job's result, the
+samples, the error's median, p99 and maximum (mm), and the p99 against the 1 mm target.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+CELL = REPO / "cells" / "conveyor_pick_ur10e.yaml"
+TASK = REPO / "tasks" / "conveyor_pick.yaml"
+#: a period counts when the TCP is within this of the part's centre in height, m
+DOWN_M = 0.005
+#: the part rests on the twin's belt with its centre this high, m; it counts as on the belt
+#: (not lifted yet) within ON_BELT_M of it
+RESTING_Z_M = 0.827
+ON_BELT_M = 0.002
+#: the belt's path runs along world Y at this X, m (the part is on it, not in the tray)
+BELT_X_M = 0.75
+#: the target on the p99 tracking error while gripping, m
+TARGET_M = 0.001
+
+
+class Sampler:
+    """The TCP's distance from the part seen from above, every period it is down at it."""
+
+    def __init__(self, part: str) -> None:
+        self.part = part
+        self.errors_m: list[float] = []
+
+    def __call__(self, cell: Any) -> None:
+        world = cell.backend.world
+        if world is None:
+            return
+        tcp = world.tcp_pose_world()[:3, 3]
+        part = world.part_pose_world(self.part)[:3, 3]
+        on_belt = (
+            abs(float(part[2]) - RESTING_Z_M) <= ON_BELT_M
+            and abs(float(part[0]) - BELT_X_M) <= ON_BELT_M
+        )
+        if on_belt and abs(float(tcp[2] - part[2])) <= DOWN_M:
+            self.errors_m.append(float(np.linalg.norm(tcp[:2] - part[:2])))
+
+
+def measure(speed_mps: float) -> dict[str, Any]:
+    from cellrunner.backends.factory import make_backend
+    from cellrunner.cli.common import console
+    from cellrunner.execution.rehearsal import start_rehearsal
+    from cellrunner.model.job_steps import job_steps
+    from cellrunner.model.load import load_cell, load_task
+
+    cell = load_cell(CELL)
+    task = load_task(TASK, cell)
+    backend = make_backend(cell, "sim", tasks=(task,), rehearsed=[{}])
+    rehearsal = start_rehearsal(cell, task, backend, console())
+    sampler = Sampler("block")
+    try:
+        backend.set_belt_speed("belt", speed_mps)
+        rehearsal.loop.add_observer(sampler)
+        t0 = time.perf_counter()
+        job = rehearsal.rehearse({}, job_steps(task, cell.cell, {}))
+        wall_s = time.perf_counter() - t0
+    finally:
+        rehearsal.close()
+    e = np.asarray(sampler.errors_m) * 1000
+    return {
+        "speed": speed_mps,
+        "result": int(job.code),
+        "samples": len(e),
+        "p50": float(np.median(e)) if len(e) else float("nan"),
+        "p99": float(np.percentile(e, 99)) if len(e) else float("nan"),
+        "max": float(e.max()) if len(e) else float("nan"),
+        "wall_s": wall_s,
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--speeds", type=float, nargs="+", default=[0.15, 0.25, 0.30])
+    args = parser.parse_args()
+    sys.path.insert(0, str(REPO))
+    os.environ.setdefault("MUJOCO_GL", "osmesa")
+    rows = [measure(v) for v in args.speeds]
+    print("| belt m/s | result | samples | p50 mm | p99 mm | max mm | p99/target | wall s |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(
+            f"| {r['speed']:.2f} | {r['result']} | {r['samples']} | {r['p50']:.3f} | "
+            f"{r['p99']:.3f} | {r['max']:.3f} | {r['p99'] / (TARGET_M * 1000):.2f} | "
+            f"{r['wall_s']:.1f} |"
+        )
+    return 0 if all(r["result"] == 0 for r in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

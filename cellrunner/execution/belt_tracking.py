@@ -1,0 +1,207 @@
+"""Running a tracked stretch (SPEC section 13): from ``track`` to ``untrack``, as one
+approved trajectory.
+
+At ``track`` the engine takes the oldest part the eye latched and the belt's measured
+speed (:mod:`.belt_watch`), makes the stretch's commanded motion for them (the ramp onto
+the part, the still plan of the tracked steps with the part's travel added, the ramp
+back: :mod:`cellrunner.planning.tracked_approval`), has it checked by ``check``'s own
+proof and sealed, waits for the part to reach the start, and streams it. The grip's own
+behaviour (baseline, close, confirm) runs alongside while the arm keeps following the
+belt; the tracked steps and ``untrack`` then count as done.
+
+- A belt above its ``speed_max``, or a part past the latest start the window allows: the
+  part is let go, the job ends 109 before the arm moves onto the belt.
+- A belt whose travel leaves the measured speed by more than ``BELT_TOLERANCE_M`` while
+  the arm follows it (stopped, slipped, an encoder jump): a controlled stop, 100; the arm
+  does not chase it.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from cellrunner.execution.outcome import OK, Outcome, StepGen
+from cellrunner.model.codes import ResultCode
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from cellrunner.execution.context import JobContext
+    from cellrunner.model.expand import Step
+    from cellrunner.planning.tracked_approval import TrackedRun
+
+#: a measured speed this far above speed_max (relative) is still taken as speed_max's
+SPEED_TOLERANCE = 0.02
+#: the belt's travel may leave the line of its measured speed by this much while the arm
+#: follows it, m, before the arm stops
+BELT_TOLERANCE_M = 0.005
+#: the stretch starts this many periods after it was made (the part's offset then)
+LEAD_PERIODS = 2
+#: the grip must have confirmed this long after its planned end, s (the jaws' travel)
+GRIP_SLACK_S = 0.1
+#: after the last set-point the arm must stand this close to it, rad, within ARRIVE_S
+ARRIVE_RAD = np.radians(1.0)
+ARRIVE_S = 1.0
+#: notes key: the step indices a tracked stretch ran (the runner skips them)
+DONE_KEY = "belt_done"
+
+
+def run_track(ctx: JobContext, step: Step) -> StepGen:
+    """The behaviour of a ``track`` step; see the module docstring."""
+    from cellrunner.planning.belt_ramp import nominal_start_m, ramp_bounds
+    from cellrunner.planning.task_plan import TaskPlan
+    from cellrunner.planning.tracked_approval import approve_tracked, stretch_piece
+    from cellrunner.planning.tracking import latest_fitting_start_m
+
+    name = step.args.conveyor
+    plan = ctx.motions
+    view = ctx.belts.belts.get(name) if ctx.belts is not None else None
+    if not isinstance(plan, TaskPlan):
+        return Outcome.failed(
+            ResultCode.PLANNING_FAILED,
+            f"conveyor {name!r}: a tracked stretch runs at full pace only (the belt does not "
+            "slow down with the job's speed)",
+        )
+    if view is None or view.travel_m is None:
+        return Outcome.failed(
+            ResultCode.PLANNING_FAILED,
+            f"conveyor {name!r}: this backend cannot measure the belt (no encoder reading), "
+            "so it cannot follow it",
+        )
+    conveyor = plan.world.loaded.cell.conveyors[name]
+    rate_hz = float(ctx.backend.rate_hz)
+    piece = stretch_piece(plan, step.index, rate_hz)
+    if piece is None:
+        return Outcome.failed(ResultCode.PLANNING_FAILED, f"conveyor {name!r}: no tracked steps")
+    t0 = ctx.now_s
+    while not view.latched_m or view.speed_mps() is None:
+        if ctx.now_s - t0 >= ctx.step_timeout_s:
+            return Outcome.failed(
+                ResultCode.STEP_TIMEOUT,
+                f"conveyor {name!r}: no part crossed the eye within {ctx.step_timeout_s:g} s",
+            )
+        yield
+    latched = view.latched_m.popleft()
+    eye_to_frame = float(conveyor.eye_to_frame)
+
+    def offset_m() -> float:
+        assert view.travel_m is not None
+        return view.travel_m - latched - eye_to_frame
+
+    speed = view.speed_mps()
+    assert speed is not None
+    v_max = float(conveyor.speed_max)
+    lo, hi = (float(w) for w in conveyor.window)
+    if speed > v_max * (1 + SPEED_TOLERANCE):
+        return Outcome.failed(
+            ResultCode.PART_LEFT_WINDOW,
+            f"conveyor {name!r}: the belt runs at {speed:.3f} m/s, above its speed_max "
+            f"{v_max:g} m/s (the pick is proved up to it): the part at {offset_m():+.3f} m is "
+            "let go",
+        )
+    speed = min(max(speed, 0.0), v_max)
+    # the part's offset when the first set-point is reached: it is sent ``lead`` periods
+    # from now (the earliest start, or as soon as it can be) and reached one period later
+    dt = 1.0 / rate_hz
+    earliest = nominal_start_m(speed, lo, ramp_bounds(conveyor.path))
+    lead = LEAD_PERIODS
+    if speed > 0 and offset_m() + speed * (lead + 1) * dt < earliest:
+        lead = int(np.ceil((earliest - offset_m()) / (speed * dt))) - 1
+    start = offset_m() + speed * (lead + 1) * dt
+    t_send = ctx.now_s + lead * dt
+    latest = latest_fitting_start_m(conveyor, piece.duration_s, speed)
+    if latest is None or start > latest + 1e-9:
+        return Outcome.failed(
+            ResultCode.PART_LEFT_WINDOW,
+            f"conveyor {name!r}: the part is at {offset_m():+.3f} m from the frame at "
+            f"{speed:.3f} m/s; the {piece.what} must start by "
+            + ("-" if latest is None else f"{latest:+.3f} m")
+            + f" to end in the window [{lo:+.3f}, {hi:+.3f}] m: the part is let go",
+        )
+    run = approve_tracked(plan, step.index, conveyor, piece, speed, start)
+    if isinstance(run, str):
+        return Outcome.failed(
+            ResultCode.PLANNING_FAILED,
+            f"conveyor {name!r}: the {piece.what} at {speed:.3f} m/s from {start:+.3f} m is "
+            f"refused: {run}",
+        )
+    # the arm stands over the frame until then; the belt must keep its speed meanwhile
+    t_made, s_made = ctx.now_s, offset_m()
+    while ctx.now_s < t_send - dt / 2:
+        yield
+        drift = offset_m() - (s_made + speed * (ctx.now_s - t_made))
+        if abs(drift) > BELT_TOLERANCE_M:
+            return Outcome.failed(
+                ResultCode.PROTECTIVE_STOP,
+                f"conveyor {name!r}: the belt is {drift * 1000:+.1f} mm off its measured "
+                f"{speed:.3f} m/s before the {piece.what} started (stopped or jumped): the "
+                "arm stays where it is",
+            )
+    return (yield from _stream(ctx, step, run, offset_m))
+
+
+def _stream(ctx: JobContext, step: Step, run: TrackedRun, offset_m: Callable[[], float]) -> StepGen:
+    from cellrunner.execution.steps import part_lost_outcome
+    from cellrunner.model.step_kinds import kind_of
+
+    approved = run.approved
+    q = approved.trajectory.q_rad
+    rate_hz = approved.trajectory.rate_hz
+    steps = {s.index: s for s in _job_steps(ctx)}
+    grip = next(((i, a, b) for i, a, b in run.spans if steps[i].kind == "grip"), None)
+    grip_gen: StepGen | None = None
+    grip_done: Outcome | None = None if grip is not None else OK
+    slack = round(GRIP_SLACK_S * rate_hz)
+    t_start, s_start = ctx.now_s, float(offset_m())
+    for i in range(len(q)):
+        ctx.backend.servo(approved, i)
+        ctx.commanded_q = q[i]
+        if grip is not None and i == grip[1]:
+            grip_gen = kind_of("grip").run(ctx, steps[grip[0]], False)
+        yield
+        drift = float(offset_m()) - (s_start + run.speed_mps * (ctx.now_s - t_start))
+        if abs(drift) > BELT_TOLERANCE_M:
+            ctx.backend.stop_motion()
+            return Outcome.failed(
+                ResultCode.PROTECTIVE_STOP,
+                f"conveyor {step.args.conveyor!r}: the belt is {drift * 1000:+.1f} mm off its "
+                f"measured {run.speed_mps:.3f} m/s {i / rate_hz:.2f} s into the tracked "
+                "stretch (stopped or jumped): controlled stop",
+            )
+        if grip_gen is not None and grip_done is None:
+            try:
+                next(grip_gen)
+            except StopIteration as end:
+                grip_done = end.value
+            ctx.hold = None  # the arm follows the belt, it does not hold still
+            if grip_done is not None and not grip_done.ok:
+                ctx.backend.stop_motion()
+                return grip_done
+        if grip is not None and grip_done is None and i >= grip[2] + slack:
+            ctx.backend.stop_motion()
+            return Outcome.failed(
+                ResultCode.NO_PART,
+                f"the grip did not confirm within its {(grip[2] - grip[1]) / rate_hz:.2f} s on "
+                "the belt",
+            )
+        lost = part_lost_outcome(ctx)
+        if lost is not None:
+            return lost
+    ctx.notes[DONE_KEY] = {i for i, _, _ in run.spans} | {run.untrack_index}
+    t_end = ctx.now_s
+    while float(np.abs(np.asarray(ctx.last_state.q_rad) - q[-1]).max()) > ARRIVE_RAD:
+        if ctx.now_s - t_end >= ARRIVE_S:
+            return Outcome.failed(
+                ResultCode.STEP_TIMEOUT,
+                f"the arm did not arrive at the end of the tracked stretch within {ARRIVE_S:g} s",
+            )
+        ctx.backend.servo(approved, len(q) - 1)
+        yield
+    return OK
+
+
+def _job_steps(ctx: JobContext) -> list[Step]:
+    plan = ctx.motions
+    return [row.step for row in getattr(plan, "rows", [])]
