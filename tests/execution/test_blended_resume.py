@@ -39,7 +39,8 @@ def test_a_stop_in_a_blended_approach_replans_the_descend_from_rest():
     steps = expand(task, cell.cell, resolve_params(task.task, {}))
     plan = plan_task(world, steps, world.q_home_rad)
     approach, descend = (
-        next(s for s in steps if s.kind == k and "pallet" in s.name)
+        # the pick's: a place's descend starts from rest (docs/check-truth.md, set-down)
+        next(s for s in steps if s.kind == k and s.name == "infeed")
         for k in ("approach", "descend")
     )
     assert plan.continues(descend) and not plan.continues(approach)
@@ -64,7 +65,7 @@ def test_a_stop_in_a_blended_approach_replans_the_descend_from_rest():
             and arm.sent
             and arm.sent[-1][0] == approach.index
         ):
-            arm.protective_stop_at_s = arm.t + 0.5  # half a second into the pallet approach
+            arm.protective_stop_at_s = arm.t + 0.5  # half a second into the infeed approach
         arm.wait_period()
         runner.tick()
     assert runner.result is ResultCode.OK, runner.message

@@ -162,7 +162,8 @@ def test_check_proves_the_reference_conveyors_and_says_how_late_a_pick_may_start
     lo, hi = belt["window_m"]
     assert lo <= belt["latest_start_m"] < hi
     assert belt["reachable_m"] == [[lo, hi]]
-    assert belt["parts_per_minute"] == pytest.approx(60 / out["cycle_time_s"], rel=1e-3)
+    # both rounded in the JSON: parts per minute to 0.01, the cycle to 0.1 ms
+    assert belt["parts_per_minute"] == pytest.approx(60 / out["cycle_time_s"], abs=0.0051)
     assert belt["min_pitch_m"] == pytest.approx(speed_max * out["cycle_time_s"], rel=1e-3)
 
 
