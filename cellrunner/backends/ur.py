@@ -31,23 +31,31 @@ Recovery, as UR prescribes it:
 - connection loss: :meth:`reconnect` retries with exponential backoff for a bounded
   time, then raises :class:`PeerUnreachable` (result code 102 for the engine).
 
-ur_rtde's exceptions (``RuntimeError``/``logic_error`` with text) are translated here.
+ur_rtde's exceptions (``RuntimeError``/``logic_error`` with text) are translated here
+(:mod:`ur_identity`); recovery lives in :mod:`ur_recovery`, the state in :mod:`ur_state`,
+the outputs in :mod:`ur_io`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import re
 import time
-from collections.abc import Generator, Iterator
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cellrunner.backends.ur_control import ControlLost, ControlProcess
-from cellrunner.backends.ur_io import IoConnectionLost, RtdeOutputWriter
+from cellrunner.backends.ur_control import ControlProcess
+from cellrunner.backends.ur_identity import UR_RTDE_ERRORS, check_dashboard
+from cellrunner.backends.ur_io import RtdeOutputWriter, write_output
 from cellrunner.backends.ur_probe import controller_version, generation_of
-from cellrunner.backends.ur_state import RtdeStateReader
+from cellrunner.backends.ur_recovery import URRecovery
+from cellrunner.backends.ur_state import (
+    RECEIVE_VARIABLES,
+    ROBOT_MODE_RUNNING,
+    RtdeStateReader,
+    robot_state_of,
+    safety_of,
+)
 from cellrunner.errors import (  # re-exported
     BackendError,
     ConnectionLost,
@@ -56,97 +64,28 @@ from cellrunner.errors import (  # re-exported
     RemoteControlOff,
     SafetyStop,
 )
-from cellrunner.model.gripper import ROBOTIQ_CLOSE, ROBOTIQ_OBJECT
+from cellrunner.model.gripper import ROBOTIQ_CLOSE
 from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.model.robots import RobotSpec
 from cellrunner.model.trajectory import ApprovedTrajectory
 
-_T = TypeVar("_T")
-#: a blocking call that runs bounded steps looks again this often (s)
-_POLL_S = 0.01
-
-
-def _drive(steps: Generator[None, None, _T]) -> _T:
-    """Run bounded steps to the end, :data:`_POLL_S` apart; their value."""
-    while True:
-        try:
-            next(steps)
-        except StopIteration as stop:
-            value: _T = stop.value
-            return value
-        time.sleep(_POLL_S)
-
-
 if TYPE_CHECKING:
     from cellrunner.backends.robotiq import RobotiqClient
 
-RECEIVE_VARIABLES = [
-    "timestamp",
-    "actual_q",
-    "actual_qd",
-    "target_q",
-    "actual_TCP_force",
-    "robot_mode",
-    "safety_mode",
-    "robot_status_bits",
-    "safety_status_bits",
-    "runtime_state",
-    "actual_digital_input_bits",
-    "actual_digital_output_bits",
-    "standard_analog_input0",
-    "standard_analog_input1",
-    "standard_analog_output0",
-    "standard_analog_output1",
+__all__ = [
+    "RECEIVE_VARIABLES",
+    "UR_RTDE_ERRORS",
+    "BackendError",
+    "ConnectionLost",
+    "ControllerMismatch",
+    "PeerUnreachable",
+    "RemoteControlOff",
+    "SafetyStop",
+    "URBackend",
 ]
-_ROBOT_MODE_RUNNING = 7
-_ROBOT_MODE_IDLE = 5
-_CHANNELS = "DO0-7, CO0-7, TO0-1, AO0-1"
 
 
-#: ur_rtde's RuntimeError texts -> (cellrunner error, message); the first marker found wins
-UR_RTDE_ERRORS: tuple[tuple[str, type[BackendError] | type[PeerUnreachable], str], ...] = (
-    ("Could not connect", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
-    ("Timeout connecting", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
-    ("End of file", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
-    ("connection", PeerUnreachable, "cannot reach the robot controller at {host}: {text}"),
-    ("remote control", RemoteControlOff, "the controller at {host}: {text}"),
-)
-
-
-def _model_family(name: str) -> str:
-    """``ur5e`` / ``UR5e`` / ``UR5`` -> ``UR5``."""
-    return name.strip().upper().removesuffix("E")
-
-
-def _safety_of(bits: int) -> Safety:
-    if bits & (1 << 5 | 1 << 6 | 1 << 7):
-        return Safety.EMERGENCY_STOP
-    if bits & (1 << 8 | 1 << 9):
-        return Safety.FAULT
-    if bits & (1 << 2 | 1 << 4):
-        return Safety.PROTECTIVE_STOP
-    return Safety.NORMAL
-
-
-def _serial_number(dashboard: Any) -> str:
-    """The controller's serial number, "" when the dashboard does not give one (an old
-    controller, an answer that is no number)."""
-    try:
-        text = str(dashboard.getSerialNumber()).strip()
-    except RuntimeError:
-        return ""
-    return text if text.isalnum() else ""
-
-
-def _channel(name: str) -> tuple[str, int]:
-    kind, index = name[:2].upper(), name[2:]
-    limits = {"DO": 8, "CO": 8, "TO": 2, "AO": 2, "DI": 8, "CI": 8, "TI": 2, "AI": 2}
-    if kind not in limits or not index.isdigit() or int(index) >= limits[kind]:
-        raise BackendError(f"unknown output channel {name!r}; valid: {_CHANNELS}")
-    return kind, int(index)
-
-
-class URBackend:
+class URBackend(URRecovery):
     """A UR arm through ur_rtde; see the module docstring for the lifecycle."""
 
     def __init__(
@@ -221,27 +160,13 @@ class URBackend:
         try:
             self._dashboard = dashboard_client.DashboardClient(self.host)
             self._dashboard.connect(int(self.connect_timeout_s * 1000))
-            self.robot_model = self._dashboard.getRobotModel().strip()
-            self.serial_number = _serial_number(self._dashboard)
-            expected = _model_family(self.spec.name)
-            # the dashboard answers "UR5" for a UR5 and a UR5e alike (the generation was
-            # checked above); a reply that names no model is not held against the robot
-            reported = _model_family(self.robot_model)
-            if re.fullmatch(r"UR\d+", reported) and reported != expected:
-                raise ControllerMismatch(
-                    f"the controller at {self.host} drives a {self.robot_model} "
-                    f"but the cell's robot is {self.spec.name} ({expected})"
-                )
-            if (
-                self.require_remote_control
-                and versions[0] == 5
-                and versions[1] >= 6
-                and not self._dashboard.isInRemoteControl()
-            ):
-                raise RemoteControlOff(
-                    f"the controller at {self.host} is in local control; "
-                    "switch the teach pendant to Remote Control"
-                )
+            self.robot_model, self.serial_number = check_dashboard(
+                self._dashboard,
+                self.host,
+                self.spec,
+                versions,
+                require_remote_control=self.require_remote_control,
+            )
             self._receive = RtdeStateReader(
                 self.host, self.rate_hz, RECEIVE_VARIABLES, timeout_s=self.connect_timeout_s
             )
@@ -257,18 +182,6 @@ class URBackend:
             self._close_quietly()
             raise self._translate(exc) from exc
 
-    def _configure_tool(self) -> None:
-        if self.tcp_pose is not None and not self._call("setTcp", list(self.tcp_pose)):
-            raise BackendError(
-                f"the controller at {self.host} refused setTcp({list(self.tcp_pose)})"
-            )
-        if self.payload_kg is not None and not self._call(
-            "setPayload", self.payload_kg, list(self.payload_cog_m)
-        ):
-            raise BackendError(
-                f"the controller at {self.host} refused setPayload({self.payload_kg})"
-            )
-
     def set_tool(
         self, T_flange_tcp: np.ndarray, payload_kg: float, payload_cog_m: tuple[float, float, float]
     ) -> None:
@@ -283,85 +196,6 @@ class URBackend:
             self._call("servoStop", 4.0)
             self._servoing, self._t_cycle = False, None
         self._configure_tool()
-
-    def _call(self, name: str, *args: Any, timeout_s: float | None = None) -> Any:
-        """One RTDEControlInterface call in the control process, translated: ur_rtde's
-        texts through :meth:`_translate`, a lost process as :class:`ConnectionLost`."""
-        control = self._running_control()
-        with self._control_errors():
-            if timeout_s is None:
-                return control.call(name, *args)
-            return control.call(name, *args, timeout_s=timeout_s)
-
-    def _call_steps(self, name: str, *args: Any) -> Generator[None, None, Any]:
-        """:meth:`_call` as bounded steps: the answer is looked for once per ``next``."""
-        control = self._running_control()
-        with self._control_errors():
-            return (yield from control.call_steps(name, *args))
-
-    def _running_control(self) -> ControlProcess:
-        if self._control is None:
-            raise BackendError("the control script is not running; recover the arm first")
-        return self._control
-
-    @contextlib.contextmanager
-    def _control_errors(self) -> Iterator[None]:
-        try:
-            yield
-        except ControlLost as exc:
-            self._drop_control()
-            raise ConnectionLost(f"lost the control connection to {self.host}: {exc}") from exc
-        except RuntimeError as exc:
-            error = self._translate(exc)
-            if isinstance(error, PeerUnreachable):  # the link broke under the call
-                self._drop_control()
-                raise ConnectionLost(str(error)) from exc
-            raise error from exc
-
-    def _drop_control(self) -> None:
-        control, self._control = self._control, None
-        self._servoing = False
-        self._t_cycle = None
-        if control is not None:
-            control.close()
-
-    def _arm_ready(self) -> bool:
-        return (
-            _safety_of(self._receive.getSafetyStatusBits()) == Safety.NORMAL
-            and self._receive.getRobotMode() == _ROBOT_MODE_RUNNING
-        )
-
-    def _open_control(self) -> None:
-        """RTDEControl (in its process) uploads ur_rtde's control script; then the tool
-        is configured."""
-        _drive(self._open_control_steps())
-
-    def _open_control_steps(self) -> Generator[None, None, None]:
-        """:meth:`_open_control` as bounded steps (the child starts while we yield)."""
-        control = ControlProcess(
-            self.host, self.rate_hz, start_timeout_s=self.connect_timeout_s + 10.0
-        )
-        try:
-            yield from control.start_steps()
-        except ControlLost as exc:
-            raise PeerUnreachable(
-                f"cannot reach the robot controller at {self.host}: {exc}"
-            ) from exc
-        except RuntimeError as exc:
-            raise self._translate(exc) from exc
-        self._control = control
-        self._configure_tool()
-
-    def _translate(self, exc: Exception) -> BackendError | PeerUnreachable:
-        """ur_rtde's ``RuntimeError`` (or a socket's ``OSError``) as cellrunner's error,
-        through :data:`UR_RTDE_ERRORS`."""
-        text = str(exc)
-        if isinstance(exc, OSError):
-            return PeerUnreachable(f"cannot reach the robot controller at {self.host}: {text}")
-        for marker, error, template in UR_RTDE_ERRORS:
-            if marker in text:
-                return error(template.format(host=self.host, text=text))
-        return BackendError(f"ur_rtde: {text}")
 
     def close(self) -> None:
         """Stop motion and release every connection; idempotent."""
@@ -431,46 +265,12 @@ class URBackend:
         return self._control is None or self._control.alive
 
     def read_state(self) -> RobotState:
-        receive = self._receive
-        if receive is None or not receive.isConnected():
-            return RobotState(
-                0.0, np.zeros(6), np.zeros(6), np.zeros(6), Safety.DISCONNECTED, powered=False
-            )
-        safety = _safety_of(receive.getSafetyStatusBits())
-        if self._control is not None and not self._control.alive:
-            safety = Safety.DISCONNECTED
-        inputs_bits, output_bits = (
-            receive.getActualDigitalInputBits(),
-            receive.getActualDigitalOutputBits(),
-        )
-        inputs: dict[str, float | bool] = {}
-        outputs: dict[str, float | bool] = {}
-        for prefix, bits, target in (("I", inputs_bits, inputs), ("O", output_bits, outputs)):
-            for i in range(8):
-                target[f"D{prefix}{i}"] = bool(bits >> i & 1)
-                target[f"C{prefix}{i}"] = bool(bits >> (8 + i) & 1)
-            for i in range(2):
-                target[f"T{prefix}{i}"] = bool(bits >> (16 + i) & 1)
-        inputs["AI0"], inputs["AI1"] = (
-            receive.getStandardAnalogInput0(),
-            receive.getStandardAnalogInput1(),
-        )
-        if self._robotiq is not None:
-            inputs[ROBOTIQ_OBJECT] = self._robotiq.object_detected
-        outputs["AO0"], outputs["AO1"] = (
-            receive.getStandardAnalogOutput0(),
-            receive.getStandardAnalogOutput1(),
-        )
-        return RobotState(
-            time_s=receive.getTimestamp(),
-            q_rad=np.array(receive.getActualQ()),
-            qd_rad_s=np.array(receive.getActualQd()),
-            wrench_N=np.array(receive.getActualTCPForce()),
-            safety=safety,
-            inputs=inputs,
-            outputs=outputs,
-            powered=bool(receive.getRobotStatus() & 1),
-            brakes_released=receive.getRobotMode() == _ROBOT_MODE_RUNNING,
+        control_lost = self._control is not None and not self._control.alive
+        robotiq = self._robotiq
+        return robot_state_of(
+            self._receive,
+            control_lost=control_lost,
+            robotiq_object=None if robotiq is None else robotiq.object_detected,
         )
 
     # ------------------------------------------------------------------ streaming
@@ -481,7 +281,7 @@ class URBackend:
         if not self._link_up():
             self._drop_control()  # never let ur_rtde reconnect by itself: it races
             raise ConnectionLost(f"lost the connection to the controller at {self.host}")
-        safety = _safety_of(self._receive.getSafetyStatusBits())
+        safety = safety_of(self._receive.getSafetyStatusBits())
         if safety != Safety.NORMAL:
             if safety == Safety.PROTECTIVE_STOP and self._protective_stop_seen_at is None:
                 self._protective_stop_seen_at = time.monotonic()
@@ -491,7 +291,7 @@ class URBackend:
                 f"the controller at {self.host} stopped the arm: {safety.value}", safety
             )
         if self._control is None:
-            if self._receive.getRobotMode() != _ROBOT_MODE_RUNNING:
+            if self._receive.getRobotMode() != ROBOT_MODE_RUNNING:
                 raise BackendError(
                     f"the arm at {self.host} is not ready (robot mode {self._receive.getRobotMode()}); "
                     "power it on and release the brakes (recover_from_estop)"
@@ -560,23 +360,7 @@ class URBackend:
         if channel == ROBOTIQ_CLOSE and self._robotiq is not None:
             self._robotiq.move(bool(value))
             return
-        kind, index = _channel(channel)
-        io = self._io
-        if io is None:
-            raise BackendError("not connected; call connect() first")
-        try:
-            if kind in ("DO", "CO", "TO"):
-                io.set_digital(kind, index, bool(value))
-            elif kind == "AO":
-                if not 0.0 <= float(value) <= 1.0:
-                    raise BackendError(
-                        f"{channel}: {value} is not a fraction of the range in [0, 1]"
-                    )
-                io.set_analog_voltage(index, float(value))
-            else:
-                raise BackendError(f"{channel} is an input; valid outputs: {_CHANNELS}")
-        except IoConnectionLost as exc:
-            raise ConnectionLost(str(exc)) from exc
+        write_output(self._io, channel, value)
 
     def zero_ft_sensor(self) -> None:
         if self.spec.generation != "e-Series":
@@ -586,107 +370,3 @@ class URBackend:
         self._check_link_and_safety()
         if not self._call("zeroFtSensor"):
             raise BackendError(f"the controller at {self.host} refused zeroFtSensor")
-
-    # ------------------------------------------------------------------ recovery
-
-    def unlock_protective_stop(self) -> None:
-        """Close the safety popup, unlock, re-upload the control script.
-
-        Raises :class:`BackendError` with UR's reply when the controller refuses
-        (within 5 s of the stop)."""
-        if self._dashboard is None:
-            raise BackendError("not connected; call connect() first")
-        try:
-            self._dashboard.closeSafetyPopup()
-            self._dashboard.unlockProtectiveStop()
-        except RuntimeError as exc:
-            text = str(exc).removeprefix("Unlock protective stop failure: ")
-            raise BackendError(
-                f"the controller refused to unlock the protective stop: {text}"
-            ) from exc
-        self._protective_stop_seen_at = None
-        self._wait_for(
-            lambda: _safety_of(self._receive.getSafetyStatusBits()) == Safety.NORMAL,
-            2.0,
-            "the protective stop did not clear",
-        )
-        self._reupload()
-
-    def recover_from_protective_stop(
-        self, unlock_delay_s: float = 5.0, timeout_s: float = 12.0
-    ) -> None:
-        """Wait until the controller accepts the unlock (``unlock_delay_s`` after the stop
-        was first seen), then :meth:`unlock_protective_stop`; bounded by ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
-        seen = self._protective_stop_seen_at or time.monotonic()
-        time.sleep(max(0.0, min(seen + unlock_delay_s + 0.05, deadline) - time.monotonic()))
-        while True:
-            try:
-                self.unlock_protective_stop()
-                return
-            except BackendError:
-                if time.monotonic() + 0.25 > deadline:
-                    raise
-                time.sleep(0.25)
-
-    def recover_from_estop(self) -> None:
-        """After a person released the e-stop (or for an arm found powered off): power
-        on, release the brakes, (re)start the control script."""
-        _drive(self.recover_from_estop_steps())
-
-    def recover_from_estop_steps(self) -> Generator[None, None, None]:
-        """:meth:`recover_from_estop` as bounded steps, for a control loop that keeps
-        ticking meanwhile: each ``next`` makes at most one dashboard or control call or
-        looks at the state once; the waits keep their bounds (power on 30 s, brakes 30 s,
-        the control script 5 s) and raise :class:`BackendError` as the blocking call does."""
-        if self._dashboard is None or self._receive is None:
-            raise BackendError("not connected; call connect() first")
-        if _safety_of(self._receive.getSafetyStatusBits()) == Safety.EMERGENCY_STOP:
-            raise BackendError(
-                "the emergency stop is still pressed; a person must release it first"
-            )
-        dashboard, receive = self._dashboard, self._receive
-        try:
-            dashboard.closeSafetyPopup()
-            yield
-            dashboard.powerOn()
-            yield from self._until(
-                lambda: receive.getRobotMode() in (_ROBOT_MODE_IDLE, _ROBOT_MODE_RUNNING),
-                30.0,
-                "the arm did not power on",
-            )
-            dashboard.brakeRelease()
-            yield from self._until(
-                lambda: receive.getRobotMode() == _ROBOT_MODE_RUNNING,
-                30.0,
-                "the brakes were not released",
-            )
-        except RuntimeError as exc:
-            raise self._translate(exc) from exc
-        yield from self._reupload_steps()
-
-    def _reupload(self) -> None:
-        _drive(self._reupload_steps())
-
-    def _reupload_steps(self) -> Generator[None, None, None]:
-        if self._control is None or not self._control.alive:
-            self._drop_control()
-            yield from self._open_control_steps()
-            return
-        if not (yield from self._call_steps("reuploadScript")):
-            raise BackendError(f"could not re-upload the control script to {self.host}")
-        yield from self._until(
-            lambda: bool(self._call("isProgramRunning")), 5.0, "the control script did not start"
-        )
-        self._configure_tool()
-
-    def _wait_for(self, predicate: Any, timeout_s: float, what: str) -> None:
-        _drive(self._until(predicate, timeout_s, what))
-
-    def _until(self, predicate: Any, timeout_s: float, what: str) -> Generator[None, None, None]:
-        """Yield until ``predicate()``; BackendError naming ``what`` after ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
-        while not predicate():
-            if time.monotonic() > deadline:
-                raise BackendError(f"{what} within {timeout_s:g} s (controller at {self.host})")
-            yield

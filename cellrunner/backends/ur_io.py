@@ -139,3 +139,33 @@ def recv_exact(sock: socket.socket, n: int) -> bytes:
             raise ConnectionError("controller closed the connection")
         data += chunk
     return data
+
+
+#: the outputs :func:`write_output` knows
+CHANNELS = "DO0-7, CO0-7, TO0-1, AO0-1"
+
+
+def _channel(name: str) -> tuple[str, int]:
+    kind, index = name[:2].upper(), name[2:]
+    limits = {"DO": 8, "CO": 8, "TO": 2, "AO": 2, "DI": 8, "CI": 8, "TI": 2, "AI": 2}
+    if kind not in limits or not index.isdigit() or int(index) >= limits[kind]:
+        raise BackendError(f"unknown output channel {name!r}; valid: {CHANNELS}")
+    return kind, int(index)
+
+
+def write_output(io: RtdeOutputWriter | None, channel: str, value: bool | float) -> None:
+    """Set output ``channel`` (DOn, COn, TOn: a bool; AOn: a fraction of its range)."""
+    kind, index = _channel(channel)
+    if io is None:
+        raise BackendError("not connected; call connect() first")
+    try:
+        if kind in ("DO", "CO", "TO"):
+            io.set_digital(kind, index, bool(value))
+        elif kind == "AO":
+            if not 0.0 <= float(value) <= 1.0:
+                raise BackendError(f"{channel}: {value} is not a fraction of the range in [0, 1]")
+            io.set_analog_voltage(index, float(value))
+        else:
+            raise BackendError(f"{channel} is an input; valid outputs: {CHANNELS}")
+    except IoConnectionLost as exc:
+        raise ConnectionLost(str(exc)) from exc

@@ -16,7 +16,11 @@ import struct
 import threading
 from typing import Any
 
+import numpy as np
+
 from cellrunner.backends.ur_io import recv_exact
+from cellrunner.model.gripper import ROBOTIQ_OBJECT
+from cellrunner.model.robot_state import RobotState, Safety
 
 #: RTDE type name -> struct code (big-endian, SPEC of the RTDE guide)
 _TYPES = {
@@ -187,3 +191,80 @@ class RtdeStateReader:
 
     def getStandardAnalogOutput1(self) -> float:
         return float(self._get("standard_analog_output1"))
+
+
+#: the variables the UR backend subscribes
+RECEIVE_VARIABLES = [
+    "timestamp",
+    "actual_q",
+    "actual_qd",
+    "target_q",
+    "actual_TCP_force",
+    "robot_mode",
+    "safety_mode",
+    "robot_status_bits",
+    "safety_status_bits",
+    "runtime_state",
+    "actual_digital_input_bits",
+    "actual_digital_output_bits",
+    "standard_analog_input0",
+    "standard_analog_input1",
+    "standard_analog_output0",
+    "standard_analog_output1",
+]
+ROBOT_MODE_RUNNING = 7
+ROBOT_MODE_IDLE = 5
+
+
+def safety_of(bits: int) -> Safety:
+    if bits & (1 << 5 | 1 << 6 | 1 << 7):
+        return Safety.EMERGENCY_STOP
+    if bits & (1 << 8 | 1 << 9):
+        return Safety.FAULT
+    if bits & (1 << 2 | 1 << 4):
+        return Safety.PROTECTIVE_STOP
+    return Safety.NORMAL
+
+
+def robot_state_of(receive: Any, *, control_lost: bool, robotiq_object: bool | None) -> RobotState:
+    """The arm's state from the latest package of ``receive`` (DISCONNECTED when the
+    stream or, ``control_lost``, the control process is down); ``robotiq_object``, when a
+    Robotiq gripper is fitted, is its object-detected input."""
+    if receive is None or not receive.isConnected():
+        return RobotState(
+            0.0, np.zeros(6), np.zeros(6), np.zeros(6), Safety.DISCONNECTED, powered=False
+        )
+    safety = Safety.DISCONNECTED if control_lost else safety_of(receive.getSafetyStatusBits())
+    inputs_bits, output_bits = (
+        receive.getActualDigitalInputBits(),
+        receive.getActualDigitalOutputBits(),
+    )
+    inputs: dict[str, float | bool] = {}
+    outputs: dict[str, float | bool] = {}
+    for prefix, bits, target in (("I", inputs_bits, inputs), ("O", output_bits, outputs)):
+        for i in range(8):
+            target[f"D{prefix}{i}"] = bool(bits >> i & 1)
+            target[f"C{prefix}{i}"] = bool(bits >> (8 + i) & 1)
+        for i in range(2):
+            target[f"T{prefix}{i}"] = bool(bits >> (16 + i) & 1)
+    inputs["AI0"], inputs["AI1"] = (
+        receive.getStandardAnalogInput0(),
+        receive.getStandardAnalogInput1(),
+    )
+    if robotiq_object is not None:
+        inputs[ROBOTIQ_OBJECT] = robotiq_object
+    outputs["AO0"], outputs["AO1"] = (
+        receive.getStandardAnalogOutput0(),
+        receive.getStandardAnalogOutput1(),
+    )
+    return RobotState(
+        time_s=receive.getTimestamp(),
+        q_rad=np.array(receive.getActualQ()),
+        qd_rad_s=np.array(receive.getActualQd()),
+        wrench_N=np.array(receive.getActualTCPForce()),
+        safety=safety,
+        inputs=inputs,
+        outputs=outputs,
+        powered=bool(receive.getRobotStatus() & 1),
+        brakes_released=receive.getRobotMode() == ROBOT_MODE_RUNNING,
+    )

@@ -5,9 +5,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import gc
 import sys
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from cellrunner.backends.factory import backend_kind
 from cellrunner.cli.logs import configure
@@ -15,7 +14,14 @@ from cellrunner.cli.stopping import stop_on_signals
 from cellrunner.execution.assembly import assemble_cell
 from cellrunner.execution.journal import is_database_url
 from cellrunner.execution.journal_open import cell_journal
-from cellrunner.model.load import LoadedCell, load_cell, load_task, serve_file_warnings
+from cellrunner.execution.serving import Closer, serve
+from cellrunner.model.load import (
+    LoadedCell,
+    LoadedTask,
+    load_cell,
+    load_task,
+    serve_file_warnings,
+)
 from cellrunner.plc.service import raise_thread_priority
 
 if TYPE_CHECKING:
@@ -68,7 +74,6 @@ def run(args: argparse.Namespace) -> int:
         watched=kind == "sim",
         depth_source=getattr(args, "depth_source", None),
     )
-    controller = assembled.controller
     recorder = None
     if record:
         from cellrunner.record.attach import record_jobs
@@ -86,53 +91,72 @@ def run(args: argparse.Namespace) -> int:
     # controller that does not answer (see cellrunner.cli.stopping)
     signals = contextlib.ExitStack()
     stopping = signals.enter_context(stop_on_signals(exit_code=0))
-    stop = stopping.event
-    controller.setup()
-    service = status_page = None
-    reason = ""
-    try:
-        service = _plc_service(controller, cell)
-        status_page = _status_page(assembled, service, http, log) if http else None
-        # everything built so far lives until exit: out of the collector's sight, so a full
-        # collection (40-120 ms over the planning world and the OPC UA address space,
-        # measured, holding the GIL) never stalls the Modbus heartbeat under a login flood
-        gc.collect()
-        gc.freeze()
-        log.info(
-            "serving",
-            backend=kind,
-            tasks={n: t.name for n, t in tasks.items()},
-            modbus=getattr(service, "modbus_address", None) if service else None,
-            http=status_page.url if status_page else None,
-        )
-        if assembled.feed is not None:
-            assembled.feed.start()
-        assembled.loop.run(stop)
-    except Exception as exc:  # a bug in the control loop: close the job saying so, then exit 1
-        reason = f"cellrunner failed: {type(exc).__name__}: {exc}"
-        log.exception("control_loop_failed", error=str(exc))
-        raise
-    finally:
-        gc.unfreeze()  # collected as usual on the way out (native bindings check for leaks)
-        reason = reason or stopping.reason
-        controller.shutdown(reason)
-        if assembled.feed is not None:
-            assembled.feed.close()
+    links = _Links(assembled, cell, tasks, http, log)
+
+    def on_stopped() -> None:
         if recorder is not None:
             recorder.close(timeout_s=0.8)  # within the 2 s a SIGTERM allows
         if assembled.watch is not None and getattr(args, "save_map", None):
             assembled.watch.map.save(args.save_map)
-        for what in controller.held_results():  # the journal tries once more as it closes
-            log.warning("result_held_at_stop", held=what)
-        if status_page is not None:
-            status_page.stop()
-            status_page.board.close()
-        if service is not None:
-            service.stop()
-        controller.close()
-        log.info("stopped", reason=reason)
+
+    try:
+        serve(
+            assembled,
+            stopping.event,
+            log,
+            stop_reason=lambda: stopping.reason,
+            open_links=links.open,
+            on_serving=links.serving,
+            on_stopped=on_stopped,
+        )
+    finally:
         signals.close()
     return 0
+
+
+class _Links:
+    """The PLC servers and the status page of one ``serve``: started, logged, closed."""
+
+    def __init__(
+        self,
+        assembled: AssembledCell,
+        cell: LoadedCell,
+        tasks: dict[int, LoadedTask],
+        http: tuple[str, int] | None,
+        log: Any,
+    ) -> None:
+        self.assembled, self.cell, self.tasks, self.http, self.log = (
+            assembled,
+            cell,
+            tasks,
+            http,
+            log,
+        )
+        self.service: PlcService | None = None
+        self.status_page: StatusServer | None = None
+
+    def open(self, closers: list[Closer]) -> None:
+        service = self.service = _plc_service(self.assembled.controller, self.cell)
+        if service is not None:
+            closers.append(service.stop)
+        if self.http:
+            page = self.status_page = _status_page(self.assembled, service, self.http, self.log)
+
+            def close_page() -> None:
+                page.stop()
+                page.board.close()
+
+            closers.append(close_page)
+
+    def serving(self) -> None:
+        service, status_page = self.service, self.status_page
+        self.log.info(
+            "serving",
+            backend=self.assembled.backend_kind,
+            tasks={n: t.name for n, t in self.tasks.items()},
+            modbus=getattr(service, "modbus_address", None) if service else None,
+            http=status_page.url if status_page else None,
+        )
 
 
 def _status_page(

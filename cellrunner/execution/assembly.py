@@ -104,21 +104,11 @@ def assemble_cell(
     world = CellWorld(loaded)
     if warm:
         warm_up(world)
-    zone: ZoneWatch | None = None
-    feed: TwinDepthFeed | SourceDepthFeed | None = None
-    if watched and kind:
-        from cellrunner.execution.watch import watch_cell
-
-        found = watch_cell(
-            world,
-            backend,
-            realtime=realtime,
-            depth_source=depth_source,
-            host=robot_host or loaded.cell.robot.host,
-            log=log,
-        )
-        if found is not None:
-            zone, feed = found
+    zone, feed = (
+        _watch(world, backend, realtime, depth_source, robot_host or loaded.cell.robot.host, log)
+        if watched and kind
+        else (None, None)
+    )
     controller = CellController(
         loaded,
         tasks,
@@ -137,6 +127,24 @@ def assemble_cell(
     if feed is not None:
         loop.add_observer(feed)
     return AssembledCell(loaded, world, backend, kind, journal, controller, loop, zone, feed)
+
+
+def _watch(
+    world: CellWorld,
+    backend: RobotBackend,
+    realtime: bool,
+    depth_source: str | None,
+    host: str | None,
+    log: EventLog | None,
+) -> tuple[ZoneWatch | None, TwinDepthFeed | SourceDepthFeed | None]:
+    """The watched zone's map and its depth feed (:func:`~cellrunner.execution.watch.watch_cell`),
+    (None, None) for a cell without ``watch:``."""
+    from cellrunner.execution.watch import watch_cell
+
+    found = watch_cell(
+        world, backend, realtime=realtime, depth_source=depth_source, host=host, log=log
+    )
+    return (None, None) if found is None else found
 
 
 def _infeed(backend: RobotBackend) -> Callable[[], None] | None:

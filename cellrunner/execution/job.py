@@ -14,13 +14,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from cellrunner.errors import BackendError, InfeasibleError, PeerUnreachable
 from cellrunner.execution.agenda import Agenda
 from cellrunner.execution.cleanup import Cleanup
 from cellrunner.execution.context import JobContext
-from cellrunner.execution.hold import Held, JobHold
+from cellrunner.execution.hold import JobHold
+from cellrunner.execution.job_holding import JobHolding
 from cellrunner.execution.job_records import AgendaItem, JobPhase, StepRecord, StepRows
 from cellrunner.execution.lookahead import Clock, fast_forward
 from cellrunner.execution.outcome import Outcome
@@ -39,7 +38,7 @@ _NORMAL = Safety.NORMAL  # looked up once: tick runs every period
 
 
 @dataclass
-class JobRunner:
+class JobRunner(JobHolding):
     ctx: JobContext
     steps: list[Step]
     protective_stop: ProtectiveStopPolicy = field(default_factory=ProtectiveStopPolicy)
@@ -146,48 +145,6 @@ class JobRunner:
         n = fast_forward(self.ctx, clock, max_periods)
         self._ticks += n
         return n
-
-    def _handle_request(self, what: str, source: HoldSource) -> None:
-        if what == "abort":
-            self._finish(ResultCode.ABORTED_BY_PLC, f"aborted during {self._agenda.label}")
-        elif what == "hold" and self.phase is JobPhase.EXECUTE:
-            self._enter_hold(source)
-        elif what == "unhold" and self.phase is JobPhase.HELD:
-            if self._hold.protective:
-                # the controller is still stopped: unlock it (once its delay has passed),
-                # then resume; resuming now would only meet the stop again
-                self._hold.unhold_requested = True
-            else:
-                self._resume()
-
-    def _enter_hold(self, source: HoldSource) -> None:
-        self.phase = JobPhase.HOLDING
-        self._hold.enter(source, self.ctx.now_s, self._agenda.step_index, self.ctx.last_state.q_rad)
-        self._agenda.drop_motion()
-        if source is not HoldSource.PROTECTIVE_STOP:
-            self.ctx.backend.stop_motion()
-        self._log("hold", reason=source.reason, source=source.value)
-        current = self._agenda.current
-        if current is not None:  # the journal: who held, in the step it held
-            self._rows.held(current.step.index, current.attempt, f"{source.value}: {source.reason}")
-
-    def _tick_held(self) -> None:
-        if self.phase is JobPhase.HOLDING and np.max(np.abs(self.ctx.last_state.qd_rad_s)) < 1e-3:
-            self.phase = JobPhase.HELD
-        if not self._hold.protective:
-            return  # a requested hold waits for unhold or abort
-        held = self._hold.poll(
-            self.ctx, self.protective_stops, self._agenda.step_index, self._agenda.label
-        )
-        if held is Held.FAILED:
-            self._finish(ResultCode.PROTECTIVE_STOP, self._hold.failure)
-        elif held is Held.RESUME:
-            self._resume()
-
-    def _resume(self) -> None:
-        self._log("unhold")
-        self.phase = JobPhase.EXECUTE
-        self._agenda.restart()
 
     def _tick_execute(self) -> None:
         agenda = self._agenda

@@ -40,11 +40,21 @@ _ENUMERATION_TYPES = {"RelativePath": 540, "EUInformation": 887, "DecimalString"
 
 def _fields(ns: int) -> dict[str, list[Field]]:
     """The structures' fields, in the specification's order (OPC 10031-4 V2, 6.3)."""
+    return {**_resource_fields(ns), **_job_fields(ns)}
+
+
+def _datatype(ns: int, name: str) -> Any:
+    """The DataType node of ``name``: ISA-95's (namespace ``ns``) or a base one."""
+    if name in _ENUMERATION_TYPES:
+        return node_id(_ENUMERATION_TYPES[name])
+    return node_id(DATATYPES[name][0], ns)
+
+
+def _resource_fields(ns: int) -> dict[str, list[Field]]:
+    """Properties, parameters, the resources and a state."""
 
     def t(name: str) -> Any:
-        if name in _ENUMERATION_TYPES:
-            return node_id(_ENUMERATION_TYPES[name])
-        return node_id(DATATYPES[name][0], ns)
+        return _datatype(ns, name)
 
     prop = t("ISA95PropertyDataType")
     param = t("ISA95ParameterDataType")
@@ -96,6 +106,18 @@ def _fields(ns: int) -> dict[str, list[Field]]:
             Field("StateText", text),
             Field("StateNumber", "UInt32"),
         ],
+    }
+
+
+def _job_fields(ns: int) -> dict[str, list[Field]]:
+    """Work masters, job orders and their responses."""
+
+    def t(name: str) -> Any:
+        return _datatype(ns, name)
+
+    param = t("ISA95ParameterDataType")
+    text = "LocalizedText"
+    return {
         "ISA95WorkMasterDataType": [
             Field("ID", "String"),
             Field("Description", text, optional=True),

@@ -104,25 +104,24 @@ class RoboticsObjects:
 
     async def build(self, server: Any, machine: Any, own: int, di: int, rob: int) -> Any:
         """The objects under ``machine``; returns the MotionDeviceSystem's node."""
-        from asyncua import ua
-
         nodes = Instances(own, "Robotics")
-
-        def t(name: str) -> Any:
-            return node_id(_TYPES[name], rob)
-
-        def enum(name: str) -> Any:
-            return node_id(_ENUMS[name][0], rob)
-
         system = await nodes.obj(
-            machine, "Self", "MotionDeviceSystem", own, t("MotionDeviceSystemType")
+            machine, "Self", "MotionDeviceSystem", own, _type(rob, "MotionDeviceSystemType")
         )
+        await self._build_arm(nodes, system, own, di, rob)
+        await self._build_controller(nodes, system, own, di, rob)
+        await _build_safety(nodes, system, own, di, rob)
+        self._values = Values(server, nodes.variables)
+        return system
+
+    async def _build_arm(self, nodes: Instances, system: Any, own: int, di: int, rob: int) -> None:
+        """MotionDevices/Arm: its identity, category, speed override and axes."""
         devices = await nodes.folder(system, "MotionDevices", "MotionDevices", rob)
-        arm = await nodes.obj(devices, "Arm", "Arm", own, t("MotionDeviceType"))
+        arm = await nodes.obj(devices, "Arm", "Arm", own, _type(rob, "MotionDeviceType"))
         await self._identify(nodes, arm, "Arm", di, rob)
         await nodes.var(
             arm, "Arm.MotionDeviceCategory", "MotionDeviceCategory", rob, ARTICULATED_ROBOT,
-            "Int32", datatype=enum("MotionDeviceCategoryEnumeration"), prop=True,
+            "Int32", datatype=_enum(rob, "MotionDeviceCategoryEnumeration"), prop=True,
         )  # fmt: skip
         params = await nodes.obj(arm, "Arm.ParameterSet", "ParameterSet", di)
         await nodes.var(params, "Arm.SpeedOverride", "SpeedOverride", rob, 1.0, "Double")
@@ -134,10 +133,10 @@ class RoboticsObjects:
         degrees_per_s = eu_information("E96", "°/s", "degree per second")
         for axis in AXES:
             path = f"Arm.Axes.{axis}"
-            node = await nodes.obj(axes, path, axis, own, t("AxisType"))
+            node = await nodes.obj(axes, path, axis, own, _type(rob, "AxisType"))
             await nodes.var(
                 node, f"{path}.MotionProfile", "MotionProfile", rob, ROTARY, "Int32",
-                datatype=enum("AxisMotionProfileEnumeration"), prop=True,
+                datatype=_enum(rob, "AxisMotionProfileEnumeration"), prop=True,
             )  # fmt: skip
             axis_params = await nodes.obj(node, f"{path}.ParameterSet", "ParameterSet", di)
             for name, unit in (("ActualPosition", degrees), ("ActualSpeed", degrees_per_s)):
@@ -151,18 +150,24 @@ class RoboticsObjects:
                 )  # fmt: skip
         await nodes.folder(arm, "Arm.PowerTrains", "PowerTrains", rob)
 
+    async def _build_controller(
+        self, nodes: Instances, system: Any, own: int, di: int, rob: int
+    ) -> None:
+        """Controllers/Controller: its identity, user and the task it runs."""
+        from asyncua import ua
+
         controllers = await nodes.folder(system, "Controllers", "Controllers", rob)
         controller = await nodes.obj(
-            controllers, "Controller", "Controller", own, t("ControllerType")
+            controllers, "Controller", "Controller", own, _type(rob, "ControllerType")
         )
         await self._identify(nodes, controller, "Controller", di, rob)
         await nodes.folder(controller, "Controller.Software", "Software", rob)
         user = await nodes.obj(
-            controller, "Controller.CurrentUser", "CurrentUser", rob, t("UserType")
+            controller, "Controller.CurrentUser", "CurrentUser", rob, _type(rob, "UserType")
         )
         await nodes.var(user, "Controller.CurrentUser.Level", "Level", rob, "operator", "String")
         tasks = await nodes.folder(controller, "Controller.TaskControls", "TaskControls", rob)
-        task = await nodes.obj(tasks, "Task", "Task", own, t("TaskControlType"))
+        task = await nodes.obj(tasks, "Task", "Task", own, _type(rob, "TaskControlType"))
         await nodes.var(
             task, "Task.ComponentName", "ComponentName", di, ua.LocalizedText("cellrunner task"),
             "LocalizedText", prop=True,
@@ -176,18 +181,6 @@ class RoboticsObjects:
             task_params, "Task.TaskProgramLoaded", "TaskProgramLoaded", rob, False, "Boolean",
             key="TaskProgramLoaded",
         )  # fmt: skip
-
-        states = await nodes.folder(system, "SafetyStates", "SafetyStates", rob)
-        safety = await nodes.obj(states, "Safety", "Safety", own, t("SafetyStateType"))
-        safety_params = await nodes.obj(safety, "Safety.ParameterSet", "ParameterSet", di)
-        await nodes.var(
-            safety_params, "Safety.OperationalMode", "OperationalMode", rob, AUTOMATIC_EXTERNAL,
-            "Int32", datatype=enum("OperationalModeEnumeration"),
-        )  # fmt: skip
-        for name in ("EmergencyStop", "ProtectiveStop"):
-            await nodes.var(safety_params, f"Safety.{name}", name, rob, False, "Boolean", key=name)
-        self._values = Values(server, nodes.variables)
-        return system
 
     @staticmethod
     async def _identify(nodes: Instances, parent: Any, path: str, di: int, rob: int) -> None:
@@ -228,3 +221,26 @@ class RoboticsObjects:
                 values[f"{part}.ProductCode"] = arm.model
                 values[f"{part}.SerialNumber"] = arm.serial_number
         await self._values.write(values)
+
+
+async def _build_safety(nodes: Instances, system: Any, own: int, di: int, rob: int) -> None:
+    """SafetyStates/Safety: the operational mode and the stops."""
+    states = await nodes.folder(system, "SafetyStates", "SafetyStates", rob)
+    safety = await nodes.obj(states, "Safety", "Safety", own, _type(rob, "SafetyStateType"))
+    safety_params = await nodes.obj(safety, "Safety.ParameterSet", "ParameterSet", di)
+    await nodes.var(
+        safety_params, "Safety.OperationalMode", "OperationalMode", rob, AUTOMATIC_EXTERNAL,
+        "Int32", datatype=_enum(rob, "OperationalModeEnumeration"),
+    )  # fmt: skip
+    for name in ("EmergencyStop", "ProtectiveStop"):
+        await nodes.var(safety_params, f"Safety.{name}", name, rob, False, "Boolean", key=name)
+
+
+def _type(rob: int, name: str) -> Any:
+    """The Robotics namespace's ObjectType ``name``."""
+    return node_id(_TYPES[name], rob)
+
+
+def _enum(rob: int, name: str) -> Any:
+    """The Robotics namespace's enumeration DataType ``name``."""
+    return node_id(_ENUMS[name][0], rob)
