@@ -38,8 +38,10 @@ _log = logging.getLogger(__name__)
 POSTGRES_SCHEMES = ("postgresql://", "postgres://")
 #: waits between tries of a write that failed (a full disk, an I/O error), s
 RETRY_BACKOFF_S = (0.1, 0.2, 0.5, 1.0)
-#: how long close() waits for waiting writes to land, s
-FLUSH_TIMEOUT_S = 5.0
+#: how long close() waits for waiting writes to land, s: within the second and a half a
+#: stopped command has to end (cellrunner.cli.stopping.GRACE_S), so that what could not be
+#: written is still named on the way out (a write that can land does within 0.1-0.3 s)
+FLUSH_TIMEOUT_S = 0.8
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS jobs (
