@@ -234,7 +234,12 @@ def test_twin_ends_within_the_bound_when_its_client_was_killed(project, signum):
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
-def test_a_shift_in_rehearsal_ends_within_the_bound_and_reports_the_jobs_so_far(signum):
+def test_a_shift_in_rehearsal_ends_within_the_bound_and_reports_the_jobs_so_far(signum, tmp_path):
+    # faults on every other job: each faulted job is rehearsed alone in a fresh twin, so
+    # the shift is still running when the signal comes, however fast the machine (the
+    # fault-free slots, rehearsed once and reused, make an 8-hour shift 4-13 s in all)
+    faults = tmp_path / "faults.yaml"
+    faults.write_text("grip_miss: 0.5\n")
     shift = subprocess.Popen(
         [
             *CLI,
@@ -243,6 +248,8 @@ def test_a_shift_in_rehearsal_ends_within_the_bound_and_reports_the_jobs_so_far(
             str(ROOT / "tasks" / "pick_place.yaml"),
             "--shift",
             "8h",
+            "--faults",
+            str(faults),
             "--progress",
             "--json",
         ],
