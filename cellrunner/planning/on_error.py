@@ -30,7 +30,7 @@ from cellrunner.planning.task_plan import (
     _at,
     _time_and_verify,
 )
-from cellrunner.planning.world import CellWorld
+from cellrunner.planning.world import CellWorld, placed_key
 
 #: on_error results remembered per world (start states x steps), oldest out
 ON_ERROR_MEMO_SIZE = 256
@@ -197,5 +197,6 @@ def _key(q: np.ndarray, world: CellWorld, part: Placed | None) -> tuple[object, 
     return (
         np.round(q, 6).tobytes(),
         world.tool_key,
+        placed_key(world.placed),
         None if part is None else (part.name, np.round(part.T_parent_shape, 6).tobytes()),
     )

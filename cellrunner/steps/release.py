@@ -45,6 +45,14 @@ class Release(StepKindDef):
                 planner.world, step, planner.q, planner.part, step.extra.get("earlier_slots", [])
             )
         row.duration_s = release_time_s(planner.world.loaded.cell.tool.gripper)
+        if planner.part is not None:  # it stays where it was let go: an obstacle from now on
+            from cellrunner.model.body import PLACED_PREFIX
+            from cellrunner.model.geometry import Placed
+
+            part = planner.part
+            T_world_part = planner.world.kinematics.T_world_tcp(planner.q) @ part.T_parent_shape
+            name = f"{PLACED_PREFIX}{part.name}@{step.index}"
+            planner.world = planner.world.with_placed(Placed(name, part.shape, T_world_part))
         planner.part = None
 
     def run(self, ctx: JobContext, step: Step, resume: bool) -> StepGen:
