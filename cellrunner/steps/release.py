@@ -38,14 +38,18 @@ class Release(StepKindDef):
         step = row.step
         # a place's release: where the twin judges the part against the place's target
         # (a bare release, after an insert or in on_error, is judged by its confirm input)
-        if planner.part is not None and (step.macro or "").startswith("place "):
+        placed = planner.part is not None and (step.macro or "").startswith("place ")
+        if placed:
             from cellrunner.planning.support import check_support
 
+            assert planner.part is not None
             check_support(
                 planner.world, step, planner.q, planner.part, step.extra.get("earlier_slots", [])
             )
         row.duration_s = release_time_s(planner.world.loaded.cell.tool.gripper)
-        if planner.part is not None:  # it stays where it was let go: an obstacle from now on
+        if placed and planner.part is not None:
+            # it rests where it was let go (check_support): an obstacle to every later step;
+            # a part let go elsewhere (on_error, after an insert) lies where nobody knows
             from cellrunner.model.body import PLACED_PREFIX
             from cellrunner.model.geometry import Placed
 
