@@ -49,8 +49,19 @@ MOUNTS: dict[
 }
 CEILING_SHARE = 0.3
 #: feasible kinds of jobs, and the defects (each breaks one thing)
-FEASIBLE = ("feasible", "near_support")
-DEFECTS = ("out_of_reach", "unsupported_place", "into_support", "jaws_too_narrow", "weak_vacuum")
+FEASIBLE = ("feasible", "near_support", "layered")
+DEFECTS = (
+    "out_of_reach",
+    "unsupported_place",
+    "into_support",
+    "jaws_too_narrow",
+    "weak_vacuum",
+    "blocked_layer",
+)
+#: the kinds that place on a pattern of two layers, the job's part on the upper one (on
+#: the part an earlier job put on the lower): ``layered`` 2 mm above it, ``blocked_layer``
+#: with a layer pitch 10 mm under the part's height (it would go into the part below)
+LAYERED = {"layered": 0.002, "blocked_layer": -0.010}
 KINDS = FEASIBLE + DEFECTS
 #: the kinds that need one gripper: the others draw jaws or cups (VACUUM_SHARE of them cups)
 NEEDS_GRIPPER = {"jaws_too_narrow": "jaws", "weak_vacuum": "vacuum"}
@@ -203,6 +214,9 @@ class _Draw:
     mount: str = "floor"  # or "ceiling" (MOUNTS)
     cups: list[dict[str, Any]] = field(default_factory=list)
     holding_N: float = 0.0
+    #: how far above the place's witness the job's place lies (a layered pattern's upper
+    #: layer, m): the witness's line down is proven from that height plus the approach
+    rise_m: float = 0.0
 
 
 def _draw(rng: random.Random, kind: str) -> _Draw:
@@ -227,6 +241,8 @@ def _draw(rng: random.Random, kind: str) -> _Draw:
     draw.mount = mount
     if gripper == "vacuum":
         _draw_cups(rng, draw)
+    if kind in LAYERED:
+        draw.rise_m = round(draw.size[2] + LAYERED[kind], 4)
     return draw
 
 
@@ -259,11 +275,11 @@ def _witnesses_clear(draw: _Draw) -> bool:
         collision = CellWorld(load_cell(cell)).collision
         labels = collision.pair_labels
         keep = np.array(["part" not in a and "part" not in b for a, b in labels])
-        for q in (draw.q_pick, draw.q_place):
-            # the straight line from the approach point down to the witness, tracked
-            # back up from the witness every 5 mm
+        for q, rise_m in ((draw.q_pick, 0.0), (draw.q_place, max(0.0, draw.rise_m))):
+            # the straight line from the approach point down to the witness (or to the
+            # upper layer above it), tracked back up from the witness every 5 mm
             T_goal, config = draw.kin.T_world_tcp(q), q
-            for k in range(int(APPROACH_M / 0.005) + 1):
+            for k in range(int((APPROACH_M + rise_m) / 0.005) + 1):
                 config = draw.kin.ik_track(T_goal @ _up(k * 0.005), config)
                 if config is None:
                     return False
@@ -373,6 +389,10 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
             {"move": "home"},
         ],
     }
+    if kind in LAYERED:  # the upper of two layers, on the part an earlier job put below
+        pitch = [0.1, 0.1, d.rise_m]
+        task["params"] = {"slot": {"type": "int", "min": 0, "max": 1, "default": 1}}
+        task["steps"][2]["place"]["pattern"] = {"grid": [1, 1, 2], "pitch": pitch, "index": "slot"}
     witness = {"pick": _deg(d.q_pick), "place": _deg(d.q_place)}
     return Case(seed, kind, cell, task, witness)
 
