@@ -22,7 +22,7 @@ if TYPE_CHECKING:
 from cellrunner.model.robots import RobotSpec
 
 #: worlds with placed parts kept per world (the states of the jobs planned last)
-PLACED_WORLDS_MAX = 256
+PLACED_WORLDS_MAX = 64
 
 
 def placed_key(placed: tuple[Placed, ...]) -> tuple[object, ...]:
