@@ -3,9 +3,10 @@ to a place onto them (issue 33).
 
 - A place's release leaves its part where it was let go (``placed:NAME@STEP``; the
   release checks that it rests there, :mod:`.support`).
-- The earlier slots of a place's pattern hold the parts earlier jobs put there
-  (``placed:NAME@slotK``): the carton on the layer below, the one beside it. The twin
-  spawns them (sim/feed); check plans the whole job around them, from its start.
+- Not yet: the parts earlier jobs left on a pattern's earlier slots (the twin spawns
+  them, sim/feed) as obstacles; they are supports only (:mod:`.support`). Planned
+  around, they moved the pattern's joint paths, one of which then failed verification
+  by a hair (issue 33, docs/check-truth.md).
 
 The planner's world carries them (:meth:`CellWorld.with_placed
 <cellrunner.planning.world.CellWorld.with_placed>`) as parts lying in the cell, beside the
@@ -15,51 +16,12 @@ one, and every other move keeps the cell's clearance from them.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from cellrunner.model.body import PLACED_PREFIX
 from cellrunner.model.geometry import Placed
-from cellrunner.model.step import StepKind
-
-if TYPE_CHECKING:
-    from cellrunner.model.step import Step
-    from cellrunner.planning.world import CellWorld
-
-#: an earlier slot whose part lies this close to a part of the cell file is that part (m)
-SAME_PLACE_M = 0.01
 
 
 def placed_part(part: Placed, T_world_part: np.ndarray, where: str) -> Placed:
     """The carried ``part`` set down at ``T_world_part``, named ``placed:NAME@WHERE``."""
     return Placed(f"{PLACED_PREFIX}{part.name}@{where}", part.shape, T_world_part)
-
-
-def earlier_slot_parts(world: CellWorld, steps: list[Step]) -> tuple[Placed, ...]:
-    """The parts on the earlier slots of each patterned place in ``steps``, where the
-    grip before that place holds its part: what earlier jobs left there. A slot where a
-    part of the cell file (or another slot's part) already lies is left to that part."""
-    out: list[Placed] = []
-    lying = [np.asarray(p.T_parent_shape)[:3, 3] for p in world.waiting_parts]
-    T_last: np.ndarray | None = None  # where the last move to a frame put the TCP
-    part: Placed | None = None  # what the last grip holds, in the TCP frame
-    for step in steps:
-        if step.is_motion and step.T_world_tcp is not None:
-            T_last = np.asarray(step.T_world_tcp, float)
-        elif step.kind == StepKind.GRIP and T_last is not None:
-            frame = step.extra.get("part_at")
-            pose = step.extra.get("part_pose")
-            part = world.part_at(frame, T_last, pose) if isinstance(frame, str) else None
-        elif step.kind == StepKind.RELEASE:
-            for k, T_world_tcp in enumerate(step.extra.get("earlier_slots", [])):
-                if part is None:
-                    break
-                T_world_part = np.asarray(T_world_tcp, float) @ part.T_parent_shape
-                p = T_world_part[:3, 3]
-                if any(float(np.linalg.norm(p - q)) < SAME_PLACE_M for q in lying):
-                    continue
-                lying.append(p)
-                out.append(placed_part(part, T_world_part, f"slot{k}"))
-            part = None
-    return tuple(out)
