@@ -38,10 +38,9 @@ _log = logging.getLogger(__name__)
 POSTGRES_SCHEMES = ("postgresql://", "postgres://")
 #: waits between tries of a write that failed (a full disk, an I/O error), s
 RETRY_BACKOFF_S = (0.1, 0.2, 0.5, 1.0)
-#: how long close() waits for waiting writes to land, s: within the second and a half a
-#: stopped command has to end (cellrunner.cli.stopping.GRACE_S), so that what could not be
-#: written is still named on the way out (a write that can land does within 0.1-0.3 s)
-FLUSH_TIMEOUT_S = 0.8
+#: how long close() waits for waiting writes to land, s (a command stopped by a signal
+#: waits less: ``serve`` bounds it by what is left of its grace, cli/cmd_serve.py)
+FLUSH_TIMEOUT_S = 5.0
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS jobs (
@@ -116,6 +115,8 @@ class JournalBackend(Protocol):
     """
 
     cell: str | None
+    #: how long :meth:`close` waits for what is queued to land, s
+    flush_timeout_s: float
 
     def open(self) -> JournalBackend: ...
     def close(self) -> None: ...
