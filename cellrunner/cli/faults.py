@@ -6,17 +6,11 @@ import re
 from dataclasses import dataclass
 
 from cellrunner.errors import UsageError
+from cellrunner.execution.shift import SHIFT_FAULTS
 from cellrunner.model.expand import Step
 
-FAULTS = (
-    "grip_miss",
-    "part_slip",
-    "protective_stop",
-    "estop",
-    "robot_disconnect",
-    "plc_disconnect",
-    "intrusion",  # a watched cell: a box dropped onto the step's path (SPEC 12)
-)
+#: the shift's faults, and in a watched cell a box dropped onto the step's path (SPEC 12)
+FAULTS = (*SHIFT_FAULTS, "intrusion")
 #: faults that strike a while into their step (a stop in the middle of a move), not at its start
 DELAYED_S = {
     "protective_stop": 0.3,
