@@ -12,7 +12,11 @@
   and ``serve`` share: a job's steps and on_error steps expanded once, its plan, its
   failures as data)
 - ``task_plan``: :func:`plan_task`, :class:`TaskPlan` (plans, blends, times and verifies
-  a task's steps), with ``force_plan`` (the force steps' lines and contacts),
+  a task's steps), with ``step_planner`` (:class:`StepPlanner`: each step's motion or
+  action), ``step_contacts`` (what a step may touch), ``move_plans`` (a joint move's
+  sampled, proven and margin plans), ``group_timing`` (motions timed as one and verified
+  piece by piece), ``corner_blend`` (their corners rounded), ``step_plan`` (the rows),
+  ``force_plan`` (the force steps' lines and contacts),
   ``blockers`` (what a failure names as in the way) and ``on_error`` (on_error verified
   from every state a job can fail in)
 - ``world``: :class:`CellWorld` (a cell's kinematics, collision model, limits and plans)

@@ -23,12 +23,12 @@ from cellrunner.model.failure import Failure
 from cellrunner.model.geometry import Placed
 from cellrunner.model.step import Step, StepKind
 from cellrunner.planning.collision import ContactAllowance
+from cellrunner.planning.group_timing import _time_and_verify
 from cellrunner.planning.task_plan import (
     StepPlan,
     StepPlanner,
     TaskPlan,
     _at,
-    _time_and_verify,
 )
 from cellrunner.planning.world import CellWorld
 

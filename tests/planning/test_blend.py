@@ -11,7 +11,7 @@ import pytest
 
 from cellrunner.cli.common import load, parse_params
 from cellrunner.model.expand import expand
-from cellrunner.planning import task_plan
+from cellrunner.planning import corner_blend, group_timing, task_plan
 from cellrunner.planning.collision import MotionCheck
 from cellrunner.planning.world import CellWorld
 from tests.conftest import ROOT
@@ -83,7 +83,7 @@ def test_blends_pay_off(demo):
     planner = task_plan.StepPlanner(world, q, joined[0].carrying)
     for row in joined:
         motion = planner.motion(task_plan.StepPlan(row.step), goal_q=None)
-        piece = task_plan._timed_pieces(world, [motion], q)[0]
+        piece = group_timing._timed_pieces(world, [motion], q)[0]
         rest_to_rest += (len(piece["trajectory"].q_rad) - 1) / world.spec.rate_hz
         q = piece["trajectory"].q_rad[-1]
     blended = sum(r.duration_s for r in joined)
@@ -97,10 +97,10 @@ def test_no_blend_where_the_arc_is_not_collision_free(demo, monkeypatch):
     planner = task_plan.StepPlanner(world, q0, approach.carrying)
     first = planner.motion(task_plan.StepPlan(approach.step), goal_q=None)
     second = planner.motion(task_plan.StepPlan(descend.step), goal_q=None)
-    blended = task_plan._blend(world, [first, second])
+    blended = corner_blend._blend(world, [first, second])
     assert len(blended[1].waypoints) < len(second.waypoints)  # the line was shortened
     monkeypatch.setattr(type(first.collision), "check_path", lambda self, q: MotionCheck(ok=False))
-    sharp = task_plan._blend(world, [first, second])
+    sharp = corner_blend._blend(world, [first, second])
     assert np.array_equal(sharp[0].waypoints, first.waypoints)
     assert np.array_equal(sharp[1].waypoints, second.waypoints)
     assert sharp[1].line_m is second.line_m

@@ -14,7 +14,7 @@ import pytest
 from cellrunner.cli.common import load, parse_params
 from cellrunner.model.expand import expand
 from cellrunner.model.failure import Failure, FailureKind
-from cellrunner.planning import task_plan
+from cellrunner.planning import group_timing, task_plan
 from cellrunner.planning.world import CellWorld
 from tests.conftest import ROOT
 
@@ -158,7 +158,7 @@ def test_a_joint_move_sampling_missed_is_planned_again_proven(tmp_path, monkeypa
 
     # without the proven plan, the verifier refuses the sampled move by the pin's name (in a
     # fresh world, which remembers no move)
-    monkeypatch.setattr(task_plan, "_prove_sampled", lambda motion: False)
+    monkeypatch.setattr(group_timing, "_prove_sampled", lambda motion: False)
     fresh = CellWorld(world.loaded)
     refused = task_plan.plan_task(fresh, steps, fresh.q_home_rad)
     assert not refused.ok
