@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import sys
 from typing import TYPE_CHECKING, Any
 
@@ -29,6 +30,7 @@ if TYPE_CHECKING:
     from cellrunner.execution.cell import CellController
     from cellrunner.execution.context import EventLog
     from cellrunner.plc.service import PlcService
+    from cellrunner.record.collector import Collector
     from cellrunner.web.server import StatusServer
 
 
@@ -63,22 +65,7 @@ def run(args: argparse.Namespace) -> int:
         from cellrunner.sim.mujoco_loader import enable_pictures
 
         enable_pictures()  # before MuJoCo is imported: an align step's camera renders
-    assembled = assemble_cell(
-        cell,
-        tasks,
-        kind,
-        robot_host=args.robot_host,
-        warm=True,  # before READY: the first job is acknowledged as fast as any other
-        log=log,
-        wait_for_unhold=True,
-        feed_parts=True,
-        # the twin at the clock's pace, unless a soak asks for its fastest
-        realtime=kind == "sim" and not getattr(args, "sim_fast", False),
-        eye=True,
-        image_source=getattr(args, "image_source", None),
-        watched=kind == "sim",
-        depth_source=getattr(args, "depth_source", None),
-    )
+    assembled = _assemble(args, cell, tasks, kind, log)
     recorder = None
     if record:
         from cellrunner.record.attach import record_jobs
@@ -97,17 +84,6 @@ def run(args: argparse.Namespace) -> int:
     signals = contextlib.ExitStack()
     stopping = signals.enter_context(stop_on_signals(exit_code=0))
     links = _Links(assembled, cell, tasks, http, log)
-
-    def on_stopped() -> None:
-        if recorder is not None:
-            recorder.close(timeout_s=0.8)  # within the 2 s a SIGTERM allows
-        # the journal's last writes too, so that one that cannot land is still named on the
-        # way out, before the grace runs out (a write that can land does within 0.1-0.3 s)
-        journal = assembled.journal
-        journal.flush_timeout_s = min(journal.flush_timeout_s, JOURNAL_STOP_FLUSH_S)
-        if assembled.watch is not None and getattr(args, "save_map", None):
-            assembled.watch.map.save(args.save_map)
-
     try:
         serve(
             assembled,
@@ -116,11 +92,51 @@ def run(args: argparse.Namespace) -> int:
             stop_reason=lambda: stopping.reason,
             open_links=links.open,
             on_serving=links.serving,
-            on_stopped=on_stopped,
+            on_stopped=functools.partial(_on_stopped, args, assembled, recorder),
         )
     finally:
         signals.close()
     return 0
+
+
+def _assemble(
+    args: argparse.Namespace,
+    cell: LoadedCell,
+    tasks: dict[int, LoadedTask],
+    kind: str,
+    log: Any,
+) -> AssembledCell:
+    """The cell as ``serve`` runs it: warmed, watched and fed on the twin."""
+    return assemble_cell(
+        cell,
+        tasks,
+        kind,
+        robot_host=args.robot_host,
+        warm=True,  # before READY: the first job is acknowledged as fast as any other
+        log=log,
+        wait_for_unhold=True,
+        feed_parts=True,
+        # the twin at the clock's pace, unless a soak asks for its fastest
+        realtime=kind == "sim" and not getattr(args, "sim_fast", False),
+        eye=True,
+        image_source=getattr(args, "image_source", None),
+        watched=kind == "sim",
+        depth_source=getattr(args, "depth_source", None),
+    )
+
+
+def _on_stopped(
+    args: argparse.Namespace, assembled: AssembledCell, recorder: Collector | None
+) -> None:
+    """What a stopped ``serve`` closes last: the recorder, the journal's last writes, the map."""
+    if recorder is not None:
+        recorder.close(timeout_s=0.8)  # within the 2 s a SIGTERM allows
+    # the journal's last writes too, so that one that cannot land is still named on the
+    # way out, before the grace runs out (a write that can land does within 0.1-0.3 s)
+    journal = assembled.journal
+    journal.flush_timeout_s = min(journal.flush_timeout_s, JOURNAL_STOP_FLUSH_S)
+    if assembled.watch is not None and getattr(args, "save_map", None):
+        assembled.watch.map.save(args.save_map)
 
 
 class _Links:

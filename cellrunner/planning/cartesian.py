@@ -145,23 +145,29 @@ def plan_linear(
         qs.extend(qs_new)
     q_path = np.array(qs)
     if collision is not None:
-        result = collision.check_path(q_path)
-        if not result.ok:
-            u_hit = us[int(result.s_blocked or 0)]
-            c = result.clearance
-            blockers = (
-                (Blocker(c.b, c.distance_m), Blocker(c.a, c.distance_m)) if c is not None else ()
-            )
-            detail = c.describe() if c is not None else "collision"
-            raise InfeasibleError(
-                Failure(
-                    FailureKind.COLLISION,
-                    f"{detail} {u_hit * length_m * 1000:.0f} mm along the line",
-                    blockers=blockers,
-                    fix=_line_fix(collision, q_path[-1], c),
-                )
-            )
+        _check_line_clear(collision, q_path, us, length_m)
     return LinearPath(q_path, np.array(us), p0.copy(), p1.copy())
+
+
+def _check_line_clear(
+    collision: CollisionModel, q_path: np.ndarray, us: list[float], length_m: float
+) -> None:
+    """Raise :class:`InfeasibleError` naming what blocks the line's samples ``q_path``
+    (at fractions ``us`` of its ``length_m``) and where along it, if anything does."""
+    result = collision.check_path(q_path)
+    if not result.ok:
+        u_hit = us[int(result.s_blocked or 0)]
+        c = result.clearance
+        blockers = (Blocker(c.b, c.distance_m), Blocker(c.a, c.distance_m)) if c is not None else ()
+        detail = c.describe() if c is not None else "collision"
+        raise InfeasibleError(
+            Failure(
+                FailureKind.COLLISION,
+                f"{detail} {u_hit * length_m * 1000:.0f} mm along the line",
+                blockers=blockers,
+                fix=_line_fix(collision, q_path[-1], c),
+            )
+        )
 
 
 def _line_fix(collision: CollisionModel, q_end: np.ndarray, c: Clearance | None) -> str:

@@ -223,9 +223,36 @@ class CollisionScene:
     def _build(self) -> None:
         kin = self.kinematics
         model = kin.model
-        spec = kin.spec
+        self._arm = self._arm_geometry(kin.spec.arm)
+        objects = self._scene_objects()
+        self._objects = objects
+
+        geom_model = _geometry_model(kin, objects)
+        pairs, required = self._checked_pairs(objects)
+        for i, j in pairs:
+            geom_model.addCollisionPair(pin.CollisionPair(i, j))
+        self._geom_model = geom_model
+        self._geom_data = pin.GeometryData(geom_model)
+        self._data = model.createData()
+        self._pairs = np.array(pairs, dtype=int).reshape(-1, 2)
+        self._required = np.array(required, dtype=float)
+        self._required_list = self._required.tolist()
+        for k, req in enumerate(self._geom_data.collisionRequests):
+            req.security_margin = float(self._required[k] + STALL_M)
+            req.num_max_contacts = 1
+        # AABB culling before the exact tests; pinocchio inflates each object's box by the
+        # largest security margin of its pairs, so no pair within its clearance is culled
+        self._broadphase = pin.BroadPhaseManager_NaiveCollisionManager(
+            model, geom_model, self._geom_data
+        )
+        self.bounds = PairBounds(kin, objects, self._pairs)
+
+    def _scene_objects(self) -> list[SceneObject]:
+        """The arm's parts, the tool, the carried part and the fixtures, each on the body
+        that carries it."""
+        kin = self.kinematics
+        model = kin.model
         objects: list[SceneObject] = []
-        self._arm = self._arm_geometry(spec.arm)
         for part in self._arm.parts:
             objects.append(
                 SceneObject(
@@ -277,20 +304,12 @@ class CollisionScene:
                     fixture=placed.name,
                 )
             )
-        self._objects = objects
+        return objects
 
-        geom_model = pin.GeometryModel()
-        for k, obj in enumerate(objects):
-            if obj.group == "fixture":
-                joint, placement = 0, obj.placement
-            elif obj.body == 0:
-                joint, placement = 0, kin.T_world_base @ obj.placement
-            else:
-                joint, placement = obj.body, obj.placement
-            geom_model.addGeometryObject(
-                pin.GeometryObject(f"g{k}", joint, pin.SE3(placement), obj.geometry)
-            )
-
+    def _checked_pairs(
+        self, objects: list[SceneObject]
+    ) -> tuple[list[tuple[int, int]], list[float]]:
+        """The pairs of ``objects`` checked against each other, with their clearances (m)."""
         pairs: list[tuple[int, int]] = []
         required: list[float] = []
         for i, a in enumerate(objects):
@@ -300,23 +319,7 @@ class CollisionScene:
                     continue
                 pairs.append((i, j))
                 required.append(self._required_m(a, b))
-        for i, j in pairs:
-            geom_model.addCollisionPair(pin.CollisionPair(i, j))
-        self._geom_model = geom_model
-        self._geom_data = pin.GeometryData(geom_model)
-        self._data = model.createData()
-        self._pairs = np.array(pairs, dtype=int).reshape(-1, 2)
-        self._required = np.array(required, dtype=float)
-        self._required_list = self._required.tolist()
-        for k, req in enumerate(self._geom_data.collisionRequests):
-            req.security_margin = float(self._required[k] + STALL_M)
-            req.num_max_contacts = 1
-        # AABB culling before the exact tests; pinocchio inflates each object's box by the
-        # largest security margin of its pairs, so no pair within its clearance is culled
-        self._broadphase = pin.BroadPhaseManager_NaiveCollisionManager(
-            model, geom_model, self._geom_data
-        )
-        self.bounds = PairBounds(kin, objects, self._pairs)
+        return pairs, required
 
     def _checked(self, a: SceneObject, b: SceneObject) -> bool:
         groups = {a.group, b.group}
@@ -441,6 +444,22 @@ class CollisionScene:
         for n, k in enumerate(indices):
             out[n] = pin.computeDistance(self._geom_model, self._geom_data, int(k)).min_distance
         return out
+
+
+def _geometry_model(kin: ArmKinematics, objects: list[SceneObject]) -> pin.GeometryModel:
+    """The pinocchio geometry model of ``objects`` (the fixed ones in the world)."""
+    geom_model = pin.GeometryModel()
+    for k, obj in enumerate(objects):
+        if obj.group == "fixture":
+            joint, placement = 0, obj.placement
+        elif obj.body == 0:
+            joint, placement = 0, kin.T_world_base @ obj.placement
+        else:
+            joint, placement = obj.body, obj.placement
+        geom_model.addGeometryObject(
+            pin.GeometryObject(f"g{k}", joint, pin.SE3(placement), obj.geometry)
+        )
+    return geom_model
 
 
 def _hashable(value: object) -> bool:

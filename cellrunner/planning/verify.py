@@ -18,6 +18,8 @@ Any failure raises :class:`InfeasibleError` naming the step and the violation wi
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
@@ -32,6 +34,17 @@ from cellrunner.planning.timing import MotionLimits, sample_measures
 RELATIVE_TOLERANCE = 1e-6
 STRAIGHTNESS_M = 0.001
 CONTINUITY_RAD = 1e-9
+
+
+class _Fail(Protocol):
+    """Builds the refusal of the step being verified (:func:`verify_trajectory`)."""
+
+    def __call__(
+        self,
+        message: str,
+        kind: FailureKind = FailureKind.TRAJECTORY,
+        blockers: tuple[Blocker, ...] = (),
+    ) -> InfeasibleError: ...
 
 
 def verify_trajectory(
@@ -64,6 +77,22 @@ def verify_trajectory(
 
     q = np.asarray(trajectory.q_rad, float)
     rate = float(trajectory.rate_hz)
+    _check_grid(trajectory, q, rate, kinematics, fail)
+    _check_joint_range(q, kinematics, fail)
+    head = _head(q, previous_q_rad, previous_moving, fail)
+    padded = q if head is None else np.vstack([head, q])
+    p_tcp = kinematics.p_world_tcp_many(padded)  # for the TCP speed and the straightness
+    _check_rates(kinematics, limits, padded, rate, head is None, ends_at_rest, p_tcp, fail)
+    if line_m is not None:
+        _check_straight(p_tcp if head is None else p_tcp[1:], line_m, fail)
+    _check_collisions(collision, q, rate, fail)
+    return approve(trajectory, step_index, step_name)
+
+
+def _check_grid(
+    trajectory: Trajectory, q: np.ndarray, rate: float, kinematics: ArmKinematics, fail: _Fail
+) -> None:
+    """Samples there are, at the controller's rate, on its time grid t = k / rate."""
     if len(q) == 0:
         raise fail("empty trajectory")
     if abs(rate - kinematics.spec.rate_hz) > 1e-9:
@@ -74,6 +103,9 @@ def verify_trajectory(
     if np.abs(np.asarray(trajectory.t_s) - grid).max() > 1e-9:
         raise fail("samples are not on the controller's time grid t = k / rate")
 
+
+def _check_joint_range(q: np.ndarray, kinematics: ArmKinematics, fail: _Fail) -> None:
+    """Every sample within the joints' ranges."""
     below = q < kinematics.q_min_rad - 1e-12
     above = q > kinematics.q_max_rad + 1e-12
     if below.any() or above.any():
@@ -86,6 +118,12 @@ def verify_trajectory(
             FailureKind.LIMITS,
         )
 
+
+def _head(
+    q: np.ndarray, previous_q_rad: np.ndarray | None, previous_moving: bool, fail: _Fail
+) -> np.ndarray | None:
+    """The sample before the first one when the previous motion runs straight into this
+    one (None: from rest), after checking that this one starts where that one ended."""
     head = None
     if previous_q_rad is not None:
         prev = np.atleast_2d(np.asarray(previous_q_rad, float))
@@ -96,13 +134,25 @@ def verify_trajectory(
             )
         if previous_moving and len(prev) >= 2:
             head = prev[-2:-1]
-    padded = q if head is None else np.vstack([head, q])
-    p_tcp = kinematics.p_world_tcp_many(padded)  # for the TCP speed and the straightness
+    return head
+
+
+def _check_rates(
+    kinematics: ArmKinematics,
+    limits: MotionLimits,
+    padded: np.ndarray,
+    rate: float,
+    rest_before: bool,
+    ends_at_rest: bool,
+    p_tcp: np.ndarray,
+    fail: _Fail,
+) -> None:
+    """Joint speeds and accelerations and the TCP's speed within the limits."""
     v, a, tcp = sample_measures(
         kinematics,
         padded,
         rate,
-        rest_before=head is None,
+        rest_before=rest_before,
         rest_after=ends_at_rest,
         p_world_tcp_m=p_tcp,
     )
@@ -125,15 +175,19 @@ def verify_trajectory(
             FailureKind.LIMITS,
         )
 
-    if line_m is not None:
-        p = p_tcp if head is None else p_tcp[1:]
-        off = distance_to_segment_m(p, np.asarray(line_m[0]), np.asarray(line_m[1]))
-        if off.max() > STRAIGHTNESS_M:
-            raise fail(
-                f"TCP leaves the straight line by {off.max() * 1000:.2f} mm "
-                f"(allowed {STRAIGHTNESS_M * 1000:.1f} mm, sample {int(off.argmax())})"
-            )
 
+def _check_straight(p: np.ndarray, line_m: tuple[np.ndarray, np.ndarray], fail: _Fail) -> None:
+    """Every sample's TCP (``p``) within ``STRAIGHTNESS_M`` of the line."""
+    off = distance_to_segment_m(p, np.asarray(line_m[0]), np.asarray(line_m[1]))
+    if off.max() > STRAIGHTNESS_M:
+        raise fail(
+            f"TCP leaves the straight line by {off.max() * 1000:.2f} mm "
+            f"(allowed {STRAIGHTNESS_M * 1000:.1f} mm, sample {int(off.argmax())})"
+        )
+
+
+def _check_collisions(collision: CollisionModel, q: np.ndarray, rate: float, fail: _Fail) -> None:
+    """No collision between consecutive samples (proven by the model's path check)."""
     result = collision.check_path(q)
     if not result.ok:
         c = result.clearance
@@ -143,4 +197,3 @@ def verify_trajectory(
             FailureKind.COLLISION,
             (Blocker(c.b, c.distance_m), Blocker(c.a, c.distance_m)) if c else (),
         )
-    return approve(trajectory, step_index, step_name)
