@@ -8,16 +8,15 @@ take a screenshot. The browser runs with a fresh profile and no network but loop
 from __future__ import annotations
 
 import base64
-import contextlib
-import itertools
 import json
 import os
 import shutil
 import subprocess
-import tempfile
 import time
 import urllib.request
 from pathlib import Path
+
+from tests.web.websocket_browser import WebSocketBrowser
 
 FLAGS = (
     "--headless",
@@ -46,8 +45,10 @@ def chromium_path() -> str | None:
     )
 
 
-class Chromium:
+class Chromium(WebSocketBrowser):
     """``with Chromium(url) as page: page.evaluate("document.title")``."""
+
+    name = "chromium"
 
     def __init__(
         self,
@@ -58,15 +59,10 @@ class Chromium:
         timeout_s: float = 30.0,
         flags: tuple[str, ...] = (),
     ):
-        self.url, self.width, self.height, self.timeout_s = url, width, height, timeout_s
+        super().__init__(url, width=width, height=height, timeout_s=timeout_s)
         self.flags = flags
-        self._profile = Path(tempfile.mkdtemp(prefix="cellrunner-chromium-"))
-        self._proc: subprocess.Popen | None = None
-        self._ws = None
-        self._stack = contextlib.ExitStack()
-        self._ids = itertools.count(1)
 
-    def __enter__(self) -> Chromium:
+    def _open(self) -> Chromium:
         from websockets.sync.client import connect
 
         exe = chromium_path()
@@ -104,29 +100,9 @@ class Chromium:
         )
         return self
 
-    def __exit__(self, *exc) -> None:
-        self._stack.close()
-        if self._proc is not None:
-            self._proc.terminate()
-            try:
-                self._proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self._proc.kill()
-                self._proc.wait(timeout=10)
-        shutil.rmtree(self._profile, ignore_errors=True)
-
-    def call(self, method: str, **params) -> dict:
-        """One CDP command; its result (events on the way are skipped)."""
-        msg_id = next(self._ids)
-        self._ws.send(json.dumps({"id": msg_id, "method": method, "params": params}))
-        deadline = time.monotonic() + self.timeout_s
-        while time.monotonic() < deadline:
-            reply = json.loads(self._ws.recv(timeout=max(0.1, deadline - time.monotonic())))
-            if reply.get("id") == msg_id:
-                if "error" in reply:
-                    raise RuntimeError(f"{method}: {reply['error']}")
-                return reply["result"]
-        raise TimeoutError(f"{method}: no answer within {self.timeout_s} s")
+    @staticmethod
+    def _error(reply: dict) -> str | None:
+        return str(reply["error"]) if "error" in reply else None
 
     def evaluate(self, expression: str):
         """The value of a JavaScript expression in the page (JSON-serialisable)."""
@@ -134,11 +110,6 @@ class Chromium:
         if "exceptionDetails" in result:
             raise RuntimeError(f"{expression}: {result['exceptionDetails']}")
         return result["result"].get("value")
-
-    def text(self, element_id: str) -> str:
-        return self.evaluate(
-            f"(document.getElementById({json.dumps(element_id)}) || {{}}).textContent || ''"
-        )
 
     def screenshot(self, path: Path, clip: dict | None = None) -> Path:
         """The page as PNG (``clip``: {x, y, width, height, scale} of it only)."""

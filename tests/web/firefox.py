@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import base64
 import contextlib
-import itertools
 import json
 import shutil
 import socket
 import subprocess
-import tempfile
 import time
 from pathlib import Path
+
+from tests.web.websocket_browser import WebSocketBrowser
 
 PREFS = {
     "webgl.force-enabled": True,  # no GPU: Mesa's software rasteriser
@@ -85,8 +85,10 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-class Firefox:
+class Firefox(WebSocketBrowser):
     """``with Firefox(url) as page: page.evaluate("document.title")``."""
+
+    name = "firefox"
 
     def __init__(
         self,
@@ -99,21 +101,9 @@ class Firefox:
     ):
         """``display``: an X display to run on (e.g. from :func:`virtual_display`);
         None: ``--headless``."""
-        self.url, self.width, self.height, self.timeout_s = url, width, height, timeout_s
+        super().__init__(url, width=width, height=height, timeout_s=timeout_s)
         self.display = display
-        self._profile = Path(tempfile.mkdtemp(prefix="cellrunner-firefox-"))
-        self._proc: subprocess.Popen | None = None
-        self._ws = None
-        self._stack = contextlib.ExitStack()
-        self._ids = itertools.count(1)
         self.context = ""
-
-    def __enter__(self) -> Firefox:
-        try:
-            return self._open()
-        except BaseException:
-            self.__exit__()  # no browser left behind when it could not be opened
-            raise
 
     def _open(self) -> Firefox:
         from websockets.sync.client import connect
@@ -164,32 +154,14 @@ class Firefox:
         self.call("browsingContext.navigate", context=self.context, url=self.url, wait="complete")
         return self
 
-    def __exit__(self, *exc) -> None:
-        if self._ws is not None:
-            with contextlib.suppress(Exception):
-                self.call("session.end")
-        self._stack.close()
-        if self._proc is not None:
-            self._proc.terminate()
-            try:
-                self._proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self._proc.kill()
-                self._proc.wait(timeout=10)
-        shutil.rmtree(self._profile, ignore_errors=True)
+    def _before_close(self) -> None:
+        self.call("session.end")
 
-    def call(self, method: str, **params) -> dict:
-        """One BiDi command; its result (events on the way are skipped)."""
-        msg_id = next(self._ids)
-        self._ws.send(json.dumps({"id": msg_id, "method": method, "params": params}))
-        deadline = time.monotonic() + self.timeout_s
-        while time.monotonic() < deadline:
-            reply = json.loads(self._ws.recv(timeout=max(0.1, deadline - time.monotonic())))
-            if reply.get("id") == msg_id:
-                if reply.get("type") == "error":
-                    raise RuntimeError(f"{method}: {reply.get('error')}: {reply.get('message')}")
-                return reply["result"]
-        raise TimeoutError(f"{method}: no answer within {self.timeout_s} s")
+    @staticmethod
+    def _error(reply: dict) -> str | None:
+        if reply.get("type") != "error":
+            return None
+        return f"{reply.get('error')}: {reply.get('message')}"
 
     def evaluate(self, expression: str):
         """The value of a JavaScript expression in the page (through JSON)."""
@@ -203,11 +175,6 @@ class Firefox:
             raise RuntimeError(f"{expression}: {result.get('exceptionDetails')}")
         value = result["result"].get("value")
         return None if value is None else json.loads(value)
-
-    def text(self, element_id: str) -> str:
-        return self.evaluate(
-            f"(document.getElementById({json.dumps(element_id)}) || {{}}).textContent || ''"
-        )
 
     def screenshot(self, path: Path, clip: dict | None = None) -> Path:
         """The viewport as PNG (``clip``: {x, y, width, height} of it only, page pixels)."""
