@@ -153,5 +153,8 @@ def _result_row(r: JobRecord) -> dict[str, Any]:
         "result_text": r.result_text or "",
         "cycle_time_s": r.cycle_time_s,
         "retries": r.retries,
+        # why the planner refused it, as data (None for any other end)
+        "failure": r.failure.to_json() if r.failure else None,
+        "failure_brief": r.failure.brief() if r.failure else "",
         "ended_at": datetime.fromtimestamp(r.ended_at, UTC).isoformat(timespec="seconds"),
     }
