@@ -4,12 +4,18 @@ so the tree a reader trusts is the whole tree (read from the source, as text).""
 from __future__ import annotations
 
 import ast
+import builtins
 from pathlib import Path
 
 import cellrunner.errors
 from tests.conftest import ROOT
 
-_BASES = {"Exception", "ValueError", "LookupError", "RuntimeError", "KeyError", "OSError"}
+#: every built-in exception (SystemExit and KeyboardInterrupt included)
+_BASES = {
+    name
+    for name, value in vars(builtins).items()
+    if isinstance(value, type) and issubclass(value, BaseException)
+}
 
 
 def exception_classes(root: Path) -> dict[str, str]:
@@ -43,5 +49,9 @@ def test_the_check_sees_a_class_outside_the_tree(tmp_path):
     pkg = tmp_path / "cellrunner"
     pkg.mkdir()
     (pkg / "a.py").write_text("class Odd(ValueError):\n    pass\nclass Child(Odd):\n    pass\n")
-    (pkg / "b.py").write_text("class Plain:\n    pass\n")
-    assert exception_classes(pkg) == {"Odd": "cellrunner/a.py", "Child": "cellrunner/a.py"}
+    (pkg / "b.py").write_text("class Plain:\n    pass\nclass Leave(SystemExit):\n    pass\n")
+    assert exception_classes(pkg) == {
+        "Odd": "cellrunner/a.py",
+        "Child": "cellrunner/a.py",
+        "Leave": "cellrunner/b.py",
+    }

@@ -244,8 +244,8 @@ def _snapshot_obstacles(path: str, cell: Any) -> list[Any]:
 
     try:
         snapshot = OccupancyMap.load(path)
-    except ValueError as exc:
-        raise UsageError(f"--watch {exc}") from None
+    except UsageError as exc:
+        raise UsageError(f"--watch {exc.message}") from None
     centres = snapshot.occupied_centres()
     if not len(centres):
         return []

@@ -197,7 +197,7 @@ class CellController(CellViews):
             return JobTicket(job.job_id)  # planning starts on the control thread's next tick
 
     def command(self, name: str, source: HoldSource = HoldSource.PLC) -> bool:
-        if name not in COMMANDS:
+        if name not in COMMANDS:  # ValueError: CellPort.command's contract for an unknown name
             raise ValueError(f"unknown command {name!r}; known: {', '.join(COMMANDS)}")
         with self._lock:
             accepted = self._command(name, source)

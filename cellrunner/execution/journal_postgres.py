@@ -372,7 +372,7 @@ class PostgresJournal(JobReads):
                 self._write_conn = self._connect()
             self._write_conn.execute("SELECT 1")
             self._healthy = True
-        except Exception as exc:
+        except Exception as exc:  # the writer thread's health probe: any failure means away
             self._last_error = _first_line(exc)
             self._drop_write()
 

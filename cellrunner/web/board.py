@@ -137,7 +137,7 @@ class StatusBoard:
     def _links(self) -> dict[str, bool]:
         try:
             return dict(self.plc_links())
-        except Exception:
+        except Exception:  # the PLC service's own failure: the page still shows the cell
             return {}
 
 
