@@ -29,14 +29,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from cellrunner.execution.journal import (
-    JobReads,
-    JobRecord,
-    JournalError,
-    display_location,
-    failure_json,
-    record_of,
-)
+from cellrunner.execution.journal import JobReads, JournalError, display_location
+from cellrunner.execution.journal_rows import JobRecord, failure_json, record_of
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.failure import Failure
 
