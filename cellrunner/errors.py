@@ -17,6 +17,7 @@
      ├── PeerUnreachable    exit 3   robot controller or another peer cannot be reached
      │    └── InputLost              a jog input device went away (commissioning.inputs)
      ├── StepKindError      exit 1   a step kind registered twice, or one unknown by name
+     ├── InternalError      exit 1   a call breaking a function's contract: a bug, never input
      ├── JournalError       exit 3   the journal cannot be written or read (execution.journal)
      ├── RenderUnavailable  exit 1   no offscreen rendering on this machine (sim.render)
      ├── DepthError         exit 1   a depth camera sent no depth image (perception.sources)
@@ -38,6 +39,7 @@ rest, and turned into one of the above or into a result code):
     MotionError          twin.motion            the virtual controller cannot continue a motion
     RtdeError            twin.rtde              an RTDE peer broke the protocol (the twin closes it)
     ScriptError          twin.script            a URScript program the twin cannot run
+    _UsageExit           cli.parser             argparse's usage error: a SystemExit with exit 2
 
 Third-party errors (ur_rtde, pymodbus, asyncua, OMPL, SQLite) are translated into these
 where they enter the program (``raise PeerUnreachable(...) from exc``); ur_rtde's
@@ -170,6 +172,12 @@ class PeerUnreachable(CellrunnerError):
 class StepKindError(CellrunnerError):
     """A step kind's module is wrong (two of one name, no name), or a kind that no
     module defines is asked for; the message names the known kinds."""
+
+
+class InternalError(CellrunnerError):
+    """A call that breaks a function's documented contract (an unsealed trajectory to
+    time-scale, a speed outside (0, 1]): a bug of its caller, never the user's input,
+    which is checked where it enters and is an :class:`InputError`."""
 
 
 class TransitionRefused(CellrunnerError):

@@ -29,6 +29,8 @@ import time
 from collections.abc import Generator
 from typing import Any
 
+from cellrunner.errors import InternalError
+
 #: the RTDEControlInterface methods the parent may call (nothing else is forwarded)
 METHODS = frozenset(
     {
@@ -134,7 +136,9 @@ class ControlProcess:
 
     def _send(self, name: str, args: tuple[Any, ...]) -> None:
         if name not in METHODS:
-            raise ValueError(f"unknown control call {name!r}; known: {', '.join(sorted(METHODS))}")
+            raise InternalError(
+                f"unknown control call {name!r}; known: {', '.join(sorted(METHODS))}"
+            )
         if self._conn is None:
             raise ControlLost("the control process is not running")
         try:

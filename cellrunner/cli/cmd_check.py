@@ -96,9 +96,9 @@ def _print(out: Console, title: str, report: CheckReport) -> None:
     for group in [*report.slots, *report.values]:
         out.print(infeasible + Text(_indented(group.lines())))
     for proof in report.tracking:
-        out.print(_indented(proof.summary().split("; ")), markup=False)
-        if proof.error is not None:
-            out.print(infeasible + Text(_indented(proof.error.split("; "))))
+        out.print(_indented(proof.summary_lines()), markup=False)
+        if proof.error_lines:
+            out.print(infeasible + Text(_indented(proof.error_lines)))
 
 
 def _prove_tracking(world: CellWorld, plan: JobPlan) -> list[TrackingProof]:
@@ -244,8 +244,8 @@ def _snapshot_obstacles(path: str, cell: Any) -> list[Any]:
 
     try:
         snapshot = OccupancyMap.load(path)
-    except ValueError as exc:
-        raise UsageError(f"--watch {exc}") from None
+    except UsageError as exc:
+        raise UsageError(f"--watch {exc.message}") from None
     centres = snapshot.occupied_centres()
     if not len(centres):
         return []

@@ -25,6 +25,10 @@ COLUMNS = (
     "result_text",
     "cycle_time_s",
     "retries",
+    # why the planner refused a job, as data (empty for any other end, and in old journals)
+    "failure_kind",
+    "failure_step",
+    "blockers",
 )
 
 
@@ -59,6 +63,12 @@ def run(args: argparse.Namespace) -> int:
             "result_text": r.result_text or ("running" if r.ended_at is None else ""),
             "cycle_time_s": "" if r.cycle_time_s is None else f"{r.cycle_time_s:.2f}",
             "retries": r.retries,
+            "failure_kind": r.failure.kind.value if r.failure else "",
+            "failure_step": ""
+            if r.failure is None or r.failure.step_index is None
+            else r.failure.step_index,
+            "blockers": r.failure.blockers_text() if r.failure else "",
+            "failure": r.failure.brief() if r.failure else "",
         }
         for r in records
     ]
@@ -71,6 +81,11 @@ def run(args: argparse.Namespace) -> int:
 
     from cellrunner.cli.common import console
 
+    # the table shows a refusal's kind, step and blockers in one column, when there is one
+    columns = (
+        *columns[: -len(_FAILURE_COLUMNS)],
+        *(("failure",) if any(r.failure for r in records) else ()),
+    )
     whose = "all cells" if all_cells else cell.cell.cell
     table = Table(title=f"jobs of {whose} ({display_location(where)})", title_justify="left")
     from rich.text import Text
@@ -88,6 +103,9 @@ def run(args: argparse.Namespace) -> int:
         table.add_row(*[Text(str(row[c])) for c in columns])
     console().print(table)
     return 0
+
+
+_FAILURE_COLUMNS = ("failure_kind", "failure_step", "blockers")
 
 
 def _time(ts: float) -> str:

@@ -213,7 +213,7 @@ def _status_page(
     server = StatusServer(board, host, port, live)
     try:
         server.start()
-    except Exception:
+    except Exception:  # whatever stopped the page's server, the board is closed, then re-raised
         board.close()
         raise
     if not is_loopback(host):

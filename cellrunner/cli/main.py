@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return EXIT_INPUT
-    from cellrunner.errors import CellrunnerError, InputError, UsageError
+    from cellrunner.errors import CellrunnerError, InputError, InternalError, UsageError
 
     try:
         module = importlib.import_module(f"cellrunner.cli.cmd_{args.module}")
@@ -71,6 +71,8 @@ def main(argv: list[str] | None = None) -> int:
             sys.stderr.write(f"{diagnostic}\n")
         _json_failure(args, [str(d) for d in exc.diagnostics])
         return EXIT_INPUT
+    except InternalError as exc:  # a bug of ours, caught by its callee: reported as one
+        return _internal_error(args, exc)
     except CellrunnerError as exc:
         sys.stderr.write(f"cellrunner {args.command}: error: {exc}\n")
         _json_failure(args, [f"cellrunner {args.command}: error: {exc}"])
@@ -81,13 +83,19 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         return EXIT_OK
     except Exception as exc:  # a bug of ours: say so in one line unless debugging
-        if os.environ.get("CELLRUNNER_DEBUG"):
-            raise
-        sys.stderr.write(
-            f"cellrunner {args.command}: internal error: {type(exc).__name__}: {exc} "
-            "(set CELLRUNNER_DEBUG=1 for details)\n"
-        )
-        return EXIT_FAILED
+        return _internal_error(args, exc)
+
+
+def _internal_error(args: argparse.Namespace, exc: Exception) -> int:
+    """A bug reported in one line (exit 1); with CELLRUNNER_DEBUG set, raised again for
+    its traceback."""
+    if os.environ.get("CELLRUNNER_DEBUG"):
+        raise exc
+    sys.stderr.write(
+        f"cellrunner {args.command}: internal error: {type(exc).__name__}: {exc} "
+        "(set CELLRUNNER_DEBUG=1 for details)\n"
+    )
+    return EXIT_FAILED
 
 
 def _json_failure(args: argparse.Namespace, errors: list[str]) -> None:

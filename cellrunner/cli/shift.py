@@ -37,8 +37,8 @@ from cellrunner.model.load import LoadedCell, LoadedTask
 def run_shift(args: argparse.Namespace) -> int:
     try:
         duration_s = parse_duration(args.shift)
-    except ValueError as exc:
-        raise UsageError(f"--shift: {exc}") from None
+    except UsageError as exc:
+        raise UsageError(f"--shift: {exc.message}") from None
     if args.inject or args.report or getattr(args, "slots", None):
         raise UsageError("--shift draws its own faults and slots: drop --inject, --report, --slots")
     feed_every_s = float(args.feed_every or 0.0)

@@ -126,7 +126,7 @@ def _flow_end(text: str, start: int, open_: str, close: str) -> int:
             depth -= 1
             if depth == 0:
                 return i + 1
-    raise ValueError("unbalanced brackets")
+    raise CellFileError("unbalanced brackets")
 
 
 def _splice(

@@ -49,6 +49,7 @@ from cellrunner.model.cellport import (
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
+from cellrunner.model.failure import Failure
 from cellrunner.model.hold_source import HoldSource
 from cellrunner.model.load import LoadedCell, LoadedTask
 from cellrunner.model.robot_state import RobotState, Safety
@@ -196,7 +197,7 @@ class CellController(CellViews):
             return JobTicket(job.job_id)  # planning starts on the control thread's next tick
 
     def command(self, name: str, source: HoldSource = HoldSource.PLC) -> bool:
-        if name not in COMMANDS:
+        if name not in COMMANDS:  # ValueError: CellPort.command's contract for an unknown name
             raise ValueError(f"unknown command {name!r}; known: {', '.join(COMMANDS)}")
         with self._lock:
             accepted = self._command(name, source)
@@ -272,7 +273,11 @@ class CellController(CellViews):
                 if isinstance(started, PlanRefused):  # the job ends with 103
                     with self._lock:
                         if job is self._job:
-                            self._end_job(ResultCode.PLANNING_FAILED, started.describe())
+                            self._end_job(
+                                ResultCode.PLANNING_FAILED,
+                                started.describe(),
+                                failure=started.failure,
+                            )
                 else:
                     runner = started
         self._robot = state  # one reference: arm() reads it from any thread
@@ -339,7 +344,16 @@ class CellController(CellViews):
     def _idle_transitions(self) -> None:
         self.states.settle(self._safety, self._job is not None, self._recovery.active)
 
-    def _end_job(self, code: ResultCode, message: str, runner: JobRunner | None = None) -> None:
+    def _end_job(
+        self,
+        code: ResultCode,
+        message: str,
+        runner: JobRunner | None = None,
+        *,
+        failure: Failure | None = None,
+    ) -> None:
+        """End the current job with ``code``: ``message`` its text, ``failure`` the
+        planner's refusal behind it as data (a runner's own when None)."""
         job = self._job
         if job is None:
             return
@@ -351,4 +365,6 @@ class CellController(CellViews):
         self.log.info("job_end", job_id=job.job_id, result_code=int(code), message=message)
         retries = runner.retries_used if runner else 0
         cycle = runner.cycle_time_s if runner else 0.0
-        self._book.end(job, code, cycle, retries, text)  # told once written (a full disk)
+        if failure is None and runner is not None:
+            failure = runner.failure
+        self._book.end(job, code, cycle, retries, text, failure)  # told once written (a full disk)

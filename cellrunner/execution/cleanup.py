@@ -46,10 +46,11 @@ class Cleanup:
             AgendaItem(s) for s in self.steps
         ]
 
-    def note(self, label: str, code: ResultCode, message: str) -> bool:
-        """An on_error step (``label``) failed; whether the next one may still run
-        (nothing moved on a failed check or a refused plan)."""
-        self.failures.append(message if message.startswith("step ") else f"{label}: {message}")
+    def note(self, label: str, code: ResultCode, message: str, *, names_step: bool) -> bool:
+        """An on_error step (``label``) failed with ``message`` (which starts with the
+        step's label when ``names_step``: a timeout, a lost link, a refused plan); whether
+        the next one may still run (nothing moved on a failed check or a refused plan)."""
+        self.failures.append(message if names_step else f"{label}: {message}")
         return not code.is_fault or code is ResultCode.PLANNING_FAILED
 
     def result(self) -> tuple[ResultCode, str]:

@@ -27,6 +27,7 @@ from cellrunner.execution.reconnect import Link, Reconnect
 from cellrunner.execution.retry import grip_of, retry_agenda, weighing_after
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import ON_ERROR, Step
+from cellrunner.model.failure import Failure
 from cellrunner.model.hold_source import HoldSource
 from cellrunner.model.robot_state import Safety
 from cellrunner.model.task import ProtectiveStopPolicy
@@ -49,6 +50,8 @@ class JobRunner(JobHolding):
     phase: JobPhase = JobPhase.IDLE
     result: ResultCode | None = None
     message: str = ""
+    #: why the job failed, as data, when a planner refused a step (the journal keeps it)
+    failure: Failure | None = None
     retries_used: int = 0
     protective_stops: int = 0
     started_s: float = 0.0
@@ -66,6 +69,7 @@ class JobRunner(JobHolding):
         self._pending_end: tuple[ResultCode, str] | None = None  # after cleanup steps
         self._ticks = 0
         self._link = Reconnect()  # a reconnect under way, polled by tick
+        self._link_names_step = False  # the reconnect's reason starts with the step's label
 
     # ------------------------------------------------------------------ control
     @property
@@ -152,7 +156,9 @@ class JobRunner(JobHolding):
             return self._finish(*(self._pending_end or (ResultCode.OK, "")))
         if agenda.timed_out():
             self.ctx.backend.stop_motion()
-            return self._finish(ResultCode.STEP_TIMEOUT, f"{self._agenda.label} timed out")
+            return self._finish(
+                ResultCode.STEP_TIMEOUT, f"{self._agenda.label} timed out", names_step=True
+            )
         if agenda.gen is None:  # a reconnect or hold dropped the step's generator
             return agenda.restart()
         self.ctx.hold = None  # valid only when set by the step in this tick
@@ -161,11 +167,11 @@ class JobRunner(JobHolding):
         except StopIteration as stop:
             self._on_outcome(stop.value)
         except InfeasibleError as exc:
-            self._finish(ResultCode.PLANNING_FAILED, str(exc))
+            self._finish(ResultCode.PLANNING_FAILED, str(exc), failure=exc.failure)
         except BackendError as exc:
             self._on_backend_error(exc)
         except PeerUnreachable as exc:
-            self._reconnect(f"{self._agenda.label}: {exc}")
+            self._reconnect(f"{self._agenda.label}: {exc}", names_step=True)
 
     def _on_backend_error(self, exc: BackendError) -> None:
         """A refused command: a safety stop the state had not shown yet is handled as
@@ -177,19 +183,24 @@ class JobRunner(JobHolding):
         elif safety is Safety.EMERGENCY_STOP:
             self._finish(ResultCode.ESTOP, f"e-stop during {self._agenda.label}")
         else:
-            self._reconnect(f"{self._agenda.label}: {exc}")
+            self._reconnect(f"{self._agenda.label}: {exc}", names_step=True)
 
-    def _reconnect(self, why: str = "robot connection lost") -> None:
+    def _reconnect(self, why: str = "robot connection lost", *, names_step: bool = False) -> None:
         """Get the robot link back (bounded, polled by :meth:`tick`; see
         :mod:`~cellrunner.execution.reconnect`), then resume from where the arm stands,
         or end with 102."""
         if not self._link.active:
             self._log("reconnect", why=why)
+            self._link_names_step = names_step
             self._link.begin(why, self.ctx.backend)
             self._agenda.drop_motion()
         link = self._link.poll(self.ctx.backend, self._read_safety)
         if link is Link.LOST:
-            return self._finish(ResultCode.ROBOT_CONNECTION_LOST, self._link.failure)
+            return self._finish(
+                ResultCode.ROBOT_CONNECTION_LOST,
+                self._link.failure,
+                names_step=self._link_names_step,
+            )
         if link is Link.BACK:
             self._log("reconnected")
             if self.phase is JobPhase.EXECUTE:
@@ -234,11 +245,23 @@ class JobRunner(JobHolding):
         self._agenda.next(retry_agenda(self.steps, self.records, grip, attempt))
 
     # ------------------------------------------------------------------ end
-    def _finish(self, code: ResultCode, message: str) -> None:
+    def _finish(
+        self,
+        code: ResultCode,
+        message: str,
+        *,
+        failure: Failure | None = None,
+        names_step: bool = False,
+    ) -> None:
+        """End the job (or the on_error step under way) with ``code`` and ``message``;
+        ``failure``: the planner's refusal it comes from, as data; ``names_step``: the
+        message starts with the step's label (a failure that names its step does too)."""
         if self.phase is JobPhase.DONE:
             return
+        names_step = names_step or (failure is not None and bool(failure.step))
         if self._cleanup.running:
-            return self._end_cleanup(code, message)
+            return self._end_cleanup(code, message, names_step)
+        self.failure = failure
         if code is not ResultCode.OK and code.is_fault:
             with contextlib.suppress(BackendError):
                 self.ctx.backend.stop_motion()
@@ -259,13 +282,15 @@ class JobRunner(JobHolding):
         self.ctx.commanded_q = None
         self._agenda.next(self._cleanup.begin(code, message))
 
-    def _end_cleanup(self, code: ResultCode, message: str) -> None:
+    def _end_cleanup(self, code: ResultCode, message: str, names_step: bool) -> None:
         """An on_error step ended (or all did, ``code`` OK); see
         :mod:`~cellrunner.execution.cleanup`."""
         if code is not ResultCode.OK:
             self._fail_running(message)
             label = self._agenda.label if self._agenda.current is not None else "on_error"
-            if self._cleanup.note(label, code, message) and self._agenda.items:
+            if self._cleanup.note(label, code, message, names_step=names_step) and (
+                self._agenda.items
+            ):
                 self.ctx.commanded_q = None
                 return self._agenda.next()
             if code.is_fault:

@@ -17,6 +17,7 @@ from cellrunner.execution.job_view import Job, result_of_job, result_of_record
 from cellrunner.execution.journal import JournalBackend, JournalError
 from cellrunner.model.cellport import JobResult, JobSource, JobTicket, ResultListener
 from cellrunner.model.codes import ResultCode
+from cellrunner.model.failure import Failure
 
 if TYPE_CHECKING:
     from cellrunner.execution.job_records import StepRecord
@@ -111,17 +112,25 @@ class JobBook:
         except sqlite3.Error as exc:  # disk full: the job goes on; its row is missing a step
             self.log.info("journal_failed", job_id=job.job_id, error=str(exc))
 
-    def end(self, job: Job, code: ResultCode, cycle_s: float, retries: int, message: str) -> None:
+    def end(
+        self,
+        job: Job,
+        code: ResultCode,
+        cycle_s: float,
+        retries: int,
+        message: str,
+        failure: Failure | None = None,
+    ) -> None:
         """Journal ``job``'s end and tell its result once it is written (a full disk holds
         it until there is room: :meth:`deliver` tells it then), or at once when the journal
         refused it for good."""
         try:
-            durable = self.journal.end_job(job.job_id, code, cycle_s, retries, message)
+            durable = self.journal.end_job(job.job_id, code, cycle_s, retries, message, failure)
         except (JournalError, sqlite3.Error) as exc:  # refused for good: the PLC still hears
             self.log.warning("journal_failed", job_id=job.job_id, error=str(exc))
             durable = threading.Event()
             durable.set()
-        self._held = (result_of_job(job, code, message, cycle_s, retries), durable)
+        self._held = (result_of_job(job, code, message, cycle_s, retries, failure), durable)
         if not self.deliver():
             self.log.warning(
                 "result_held", job_id=job.job_id, result_code=int(code), error=self._last_error

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from cellrunner.backends.base import RobotBackend
-from cellrunner.errors import CellrunnerError
+from cellrunner.errors import CellrunnerError, InfeasibleError
 from cellrunner.execution.belt_watch import BeltWatch
 from cellrunner.execution.context import EventLog, Eye, JobContext, Motions, use_gripper
 from cellrunner.execution.job import JobRunner
@@ -20,6 +20,7 @@ from cellrunner.execution.job_book import JobBook
 from cellrunner.execution.job_view import Job
 from cellrunner.execution.planner import PlannedJob, Planner
 from cellrunner.model.expand import Step
+from cellrunner.model.failure import Failure
 from cellrunner.model.gripper import gripper_channels
 from cellrunner.model.load import LoadedCell
 from cellrunner.model.robot_state import RobotState
@@ -33,6 +34,11 @@ class PlanRefused:
     blockers, or a planner bug)."""
 
     error: Exception
+
+    @property
+    def failure(self) -> Failure | None:
+        """The planner's refusal as data (None for a planner bug)."""
+        return self.error.failure if isinstance(self.error, InfeasibleError) else None
 
     def describe(self) -> str:
         """The job's message: the error's text; a bug's also names its type."""

@@ -18,6 +18,7 @@ from cellrunner.model.cellport import CellStatus, JobResult
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.expand import Step
+from cellrunner.model.failure import Failure
 from cellrunner.model.hold_source import HoldSource
 from cellrunner.model.load import LoadedTask
 from cellrunner.model.params import ParamValue
@@ -175,9 +176,15 @@ def hold_of(job: Job | None) -> tuple[HoldSource, str] | None:
 
 
 def result_of_job(
-    job: Job, code: ResultCode, message: str, cycle_time_s: float, retries: int
+    job: Job,
+    code: ResultCode,
+    message: str,
+    cycle_time_s: float,
+    retries: int,
+    failure: Failure | None = None,
 ) -> JobResult:
-    """The result the PLC reads of ``job``, ended now with ``code``."""
+    """The result the PLC reads of ``job``, ended now with ``code`` (``failure``: the
+    planner's refusal behind it, as data)."""
     return JobResult(
         job.job_id,
         code,
@@ -188,6 +195,7 @@ def result_of_job(
         job.task.name,
         job.client_job_id,
         job.source,
+        failure,
     )
 
 
@@ -204,4 +212,5 @@ def result_of_record(record: JobRecord) -> JobResult:
         record.task,
         record.client_job_id or "",
         record.source,
+        record.failure,
     )

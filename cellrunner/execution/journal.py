@@ -10,6 +10,11 @@ with ``cell=None`` reads across cells (``cellrunner jobs --all-cells``).
 
 A job found unfinished at start-up is closed with result 107 by
 :meth:`JournalBackend.close_interrupted` and reported as the last result.
+
+A job the planner refused keeps its typed failure (:class:`~cellrunner.model.failure.Failure`
+as JSON in ``jobs.failure``: kind, step, blockers with their distances, fix) beside its
+text; a journal written before that column existed gains it when opened, its old jobs
+with none.
 """
 
 from __future__ import annotations
@@ -25,12 +30,14 @@ import stat
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
 from cellrunner.errors import CellrunnerError
+from cellrunner.execution.journal_rows import JobRecord as JobRecord
+from cellrunner.execution.journal_rows import failure_json, record_of
 from cellrunner.model.codes import ResultCode
+from cellrunner.model.failure import Failure
 
 _log = logging.getLogger(__name__)
 
@@ -55,7 +62,8 @@ CREATE TABLE IF NOT EXISTS jobs (
     result_code INTEGER,
     result_text TEXT,
     cycle_time_s REAL,
-    retries INTEGER DEFAULT 0
+    retries INTEGER DEFAULT 0,
+    failure TEXT
 );
 CREATE TABLE IF NOT EXISTS steps (
     job_id TEXT NOT NULL REFERENCES jobs(job_id),
@@ -78,22 +86,6 @@ class _Write:
     def __init__(self, sql: str, args: tuple[Any, ...], what: str, *, result: bool = False) -> None:
         self.sql, self.args, self.what, self.result = sql, args, what, result
         self.done = threading.Event()
-
-
-@dataclass(frozen=True)
-class JobRecord:
-    job_id: str
-    client_job_id: str | None
-    cell: str
-    task: str
-    params: dict[str, Any]
-    source: str
-    started_at: float
-    ended_at: float | None
-    result_code: int | None
-    result_text: str | None
-    cycle_time_s: float | None
-    retries: int
 
 
 class JournalError(CellrunnerError):
@@ -146,6 +138,7 @@ class JournalBackend(Protocol):
         cycle_time_s: float | None,
         retries: int,
         text: str | None = None,
+        failure: Failure | None = None,
     ) -> threading.Event: ...
     def close_interrupted(self) -> list[JobRecord]: ...
     def held(self) -> list[str]: ...
@@ -290,6 +283,7 @@ class SqliteJournal(JobReads):
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.executescript(_SCHEMA)
+            _add_failure_column(self._db)
             if on_disk:
                 for path in (self.path, Path(f"{self.path}-wal"), Path(f"{self.path}-shm")):
                     if path.exists():
@@ -386,12 +380,21 @@ class SqliteJournal(JobReads):
         cycle_time_s: float | None,
         retries: int,
         text: str | None = None,
+        failure: Failure | None = None,
     ) -> threading.Event:
         return self._write(
             _Write(
                 "UPDATE jobs SET ended_at = ?, result_code = ?, result_text = ?, cycle_time_s = ?, "
-                "retries = ? WHERE job_id = ? AND ended_at IS NULL",
-                (time.time(), int(code), text or code.text, cycle_time_s, retries, job_id),
+                "retries = ?, failure = ? WHERE job_id = ? AND ended_at IS NULL",
+                (
+                    time.time(),
+                    int(code),
+                    text or code.text,
+                    cycle_time_s,
+                    retries,
+                    failure_json(failure),
+                    job_id,
+                ),
                 f"the result of job {job_id} ({int(code)} {code.text})",
                 result=True,
             )
@@ -493,10 +496,18 @@ class SqliteJournal(JobReads):
     def _jobs(self, clause: str, args: tuple[Any, ...]) -> list[JobRecord]:
         rows = self._fetchall(
             "SELECT job_id, client_job_id, cell, task, params, source, started_at, ended_at, result_code, "
-            f"result_text, cycle_time_s, retries FROM jobs {clause}",
+            f"result_text, cycle_time_s, retries, failure FROM jobs {clause}",
             args,
         )
-        return [JobRecord(r[0], r[1], r[2], r[3], json.loads(r[4]), *r[5:]) for r in rows]
+        return [record_of(r) for r in rows]
+
+
+def _add_failure_column(db: sqlite3.Connection) -> None:
+    """A journal written before jobs had a ``failure`` column gains it (its old jobs
+    read with none)."""
+    columns = {row[1] for row in db.execute("PRAGMA table_info(jobs)")}
+    if "failure" not in columns:
+        db.execute("ALTER TABLE jobs ADD COLUMN failure TEXT")
 
 
 _SQLITE_MAGIC = b"SQLite format 3\x00"

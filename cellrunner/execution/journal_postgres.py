@@ -29,8 +29,10 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from cellrunner.execution.journal import JobReads, JobRecord, JournalError, display_location
+from cellrunner.execution.journal import JobReads, JournalError, display_location
+from cellrunner.execution.journal_rows import JobRecord, failure_json, record_of
 from cellrunner.model.codes import ResultCode
+from cellrunner.model.failure import Failure
 
 #: serialises schema creation when several cells start at once (pg_advisory_xact_lock key)
 _SCHEMA_LOCK = 0x63656C6C  # "cell"
@@ -48,7 +50,10 @@ _SCHEMA = (
         result_code INTEGER,
         result_text TEXT,
         cycle_time_s DOUBLE PRECISION,
-        retries INTEGER NOT NULL DEFAULT 0)""",
+        retries INTEGER NOT NULL DEFAULT 0,
+        failure TEXT)""",
+    # a journal made before jobs kept their typed failure gains the column
+    "ALTER TABLE cellrunner_jobs ADD COLUMN IF NOT EXISTS failure TEXT",
     """CREATE TABLE IF NOT EXISTS cellrunner_steps (
         job_id TEXT NOT NULL REFERENCES cellrunner_jobs(job_id) ON DELETE CASCADE,
         seq INTEGER NOT NULL,
@@ -66,7 +71,7 @@ _SCHEMA = (
 )
 _COLUMNS = (
     "job_id, client_job_id, cell, task, params, source, started_at, ended_at, result_code, "
-    "result_text, cycle_time_s, retries"
+    "result_text, cycle_time_s, retries, failure"
 )
 
 #: how long begin_job waits for its commit before the job is refused, s
@@ -217,11 +222,20 @@ class PostgresJournal(JobReads):
         cycle_time_s: float | None,
         retries: int,
         text: str | None = None,
+        failure: Failure | None = None,
     ) -> threading.Event:
         item = self._enqueue(
             "UPDATE cellrunner_jobs SET ended_at = %s, result_code = %s, result_text = %s, cycle_time_s = %s, "
-            "retries = %s WHERE job_id = %s AND ended_at IS NULL",
-            (time.time(), int(code), text or code.text, cycle_time_s, retries, job_id),
+            "retries = %s, failure = %s WHERE job_id = %s AND ended_at IS NULL",
+            (
+                time.time(),
+                int(code),
+                text or code.text,
+                cycle_time_s,
+                retries,
+                failure_json(failure),
+                job_id,
+            ),
             f"the result of job {job_id} ({int(code)} {code.text})",
         )
         self._step_seq.pop(job_id, None)
@@ -261,7 +275,7 @@ class PostgresJournal(JobReads):
     # ------------------------------------------------------------------ internals
     def _jobs(self, clause: str, args: tuple[Any, ...]) -> list[JobRecord]:
         return [
-            JobRecord(*r)
+            record_of(r)
             for r in self._read(f"SELECT {_COLUMNS} FROM cellrunner_jobs {clause}", args)
         ]
 
@@ -352,7 +366,7 @@ class PostgresJournal(JobReads):
                 self._write_conn = self._connect()
             self._write_conn.execute("SELECT 1")
             self._healthy = True
-        except Exception as exc:
+        except Exception as exc:  # the writer thread's health probe: any failure means away
             self._last_error = _first_line(exc)
             self._drop_write()
 

@@ -43,6 +43,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from cellrunner.errors import InternalError, UsageError
 from cellrunner.model.cellport import COMPLETED_CODES
 from cellrunner.model.step import Step, StepKind
 
@@ -278,7 +279,7 @@ class ShiftRehearsal:
         rehearse_faulted: Callable[[dict[str, Any], Drawn], Timeline],
     ) -> None:
         if plan.duration_s <= 0:
-            raise ValueError(f"a shift of {plan.duration_s:g} s: give a duration above 0")
+            raise InternalError(f"a shift of {plan.duration_s:g} s: give a duration above 0")
         self.plan, self.slots = plan, list(slots)
         self.steps_of = steps_of
         self.rehearse_clean, self.rehearse_faulted = rehearse_clean, rehearse_faulted
@@ -345,15 +346,17 @@ def failure_kind(job: ShiftJob) -> str:
 
 def parse_duration(text: str) -> float:
     """``8h``, ``90m``, ``45s``, ``1h30m`` or plain seconds: the duration in s; a
-    ValueError naming the forms otherwise."""
+    :class:`~cellrunner.errors.UsageError` naming the forms otherwise."""
     units = {"h": 3600.0, "m": 60.0, "s": 1.0}
     rest, total = text.strip().lower(), 0.0
     if not rest:
-        raise ValueError("an empty duration: write 8h, 90m, 45s, 1h30m or seconds")
+        raise UsageError("an empty duration: write 8h, 90m, 45s, 1h30m or seconds")
     try:
-        return _positive(float(rest), text)
-    except ValueError:
-        pass
+        seconds: float | None = float(rest)
+    except ValueError:  # float()'s own: not plain seconds, so read the units below
+        seconds = None
+    if seconds is not None and math.isfinite(seconds) and seconds > 0:
+        return seconds
     number = ""
     for ch in rest:
         if ch.isdigit() or ch == ".":
@@ -365,11 +368,11 @@ def parse_duration(text: str) -> float:
             number = "!"
             break
     if number:
-        raise ValueError(f"duration {text!r}: write 8h, 90m, 45s, 1h30m or seconds")
+        raise UsageError(f"duration {text!r}: write 8h, 90m, 45s, 1h30m or seconds")
     return _positive(total, text)
 
 
 def _positive(value_s: float, text: str) -> float:
     if not math.isfinite(value_s) or value_s <= 0:
-        raise ValueError(f"duration {text!r}: give a time above 0 (8h, 90m, 45s)")
+        raise UsageError(f"duration {text!r}: give a time above 0 (8h, 90m, 45s)")
     return value_s

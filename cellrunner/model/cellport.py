@@ -24,6 +24,7 @@ from datetime import datetime
 from typing import Any, Protocol, runtime_checkable
 
 from cellrunner.model.codes import PackMLState, ResultCode
+from cellrunner.model.failure import Failure
 from cellrunner.model.hold_source import HoldSource
 
 __all__ = [
@@ -90,7 +91,9 @@ class JobResult:
     requester gave (the Modbus job id as decimal text, or OPC UA's ClientJobId);
     ``source`` names the requester: ``"modbus"``, ``"opcua"``, ``"cli"``...
     ``end_time`` is timezone-aware UTC; ``cycle_time_s`` in seconds. ``result_code`` is
-    the enum everywhere; a PLC server writes its number, at the wire.
+    the enum everywhere; a PLC server writes its number, at the wire. ``failure`` is
+    why a job the planner refused failed, as data (kind, step, blockers, fix; None for
+    any other end): the text is ``result_text``.
     """
 
     job_id: str
@@ -102,6 +105,7 @@ class JobResult:
     task: str = ""
     client_job_id: str = ""
     source: str = ""
+    failure: Failure | None = None
 
 
 @dataclass(frozen=True)

@@ -96,6 +96,21 @@ class Failure:
         """The reason and its details without the step's name (a table row's message)."""
         return "; ".join([self.reason, *self.details, *([self.fix] if self.fix else [])])
 
+    def blockers_text(self) -> str:
+        """The blockers on one line, most in the way first, each with its distance in mm
+        where measured: ``fixture 'table' -4.0 mm, upper_arm``."""
+        return ", ".join(
+            str(b.body) if b.distance_m is None else f"{b.body} {b.distance_m * 1000:+.1f} mm"
+            for b in self.blockers
+        )
+
+    def brief(self) -> str:
+        """Kind, step and blockers on one short line (a journal listing's column):
+        ``collision at step 3: fixture 'table' -4.0 mm``."""
+        where = f" at step {self.step_index}" if self.step_index is not None else ""
+        blockers = self.blockers_text()
+        return f"{self.kind.value}{where}: {blockers}" if blockers else f"{self.kind.value}{where}"
+
     def to_json(self) -> dict[str, object]:
         """The failure as JSON data (the plan files keep it; :meth:`from_json` reads it)."""
         return {

@@ -33,6 +33,7 @@ class HoldSource(enum.StrEnum):
             return cls(name)
         except ValueError:
             known = ", ".join(s.value for s in cls)
+            # ValueError, as the enum's own lookup raises (this one names the known sources)
             raise ValueError(f"unknown hold source {name!r}; known: {known}") from None
 
 

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from cellrunner.errors import InternalError
+
 # A per-process secret: an ApprovedTrajectory cannot be forged by building one by hand
 # (the seal would not match), only by calling approve() -- which planning's verifier does.
 _SEAL_KEY = secrets.token_bytes(16)
@@ -33,6 +35,8 @@ class Trajectory:
             array.setflags(write=False)
             object.__setattr__(self, name, array)
         if self.q_rad.ndim != 2 or self.q_rad.shape[1] != 6 or len(self.t_s) != len(self.q_rad):
+            # ValueError, as numpy's own for arrays that do not fit: the plan store reads
+            # stored arrays through here and drops a file whose shapes are wrong
             raise ValueError(f"trajectory shapes t{self.t_s.shape} q{self.q_rad.shape}")
 
     @property
@@ -88,9 +92,9 @@ def time_scaled(approved: ApprovedTrajectory, speed: float) -> ApprovedTrajector
     so the result keeps the approval (sealed here, from a sealed input only).
     """
     if not approved.is_sealed:
-        raise ValueError("only an approved (sealed) trajectory can be time-scaled")
+        raise InternalError("only an approved (sealed) trajectory can be time-scaled")
     if not 0.0 < speed <= 1.0:
-        raise ValueError(f"speed {speed:g} is outside (0, 1]: a fraction of the approved pace")
+        raise InternalError(f"speed {speed:g} is outside (0, 1]: a fraction of the approved pace")
     source = approved.trajectory
     if speed == 1.0 or len(source.q_rad) < 2:
         return approved
@@ -114,10 +118,10 @@ def backwards(approved: ApprovedTrajectory, i_from: int, i_to: int) -> ApprovedT
     approval. Streamed as its own trajectory, its speeds point back along the line (the
     forward trajectory's, sent in reverse, push the tool into what it touched)."""
     if not approved.is_sealed:
-        raise ValueError("only an approved (sealed) trajectory can be run backwards")
+        raise InternalError("only an approved (sealed) trajectory can be run backwards")
     source = approved.trajectory
     if not 0 <= i_to <= i_from < len(source.q_rad):
-        raise ValueError(f"set-points {i_from}..{i_to} are outside 0..{len(source.q_rad) - 1}")
+        raise InternalError(f"set-points {i_from}..{i_to} are outside 0..{len(source.q_rad) - 1}")
     q = source.q_rad[i_to : i_from + 1][::-1].copy()
     back = Trajectory(source.rate_hz, source.t_s[0] + np.arange(len(q)) / source.rate_hz, q)
     return approve(back, approved.step_index, approved.step_name)
@@ -131,12 +135,12 @@ def along_path(approved: ApprovedTrajectory, u: np.ndarray) -> ApprovedTrajector
     approved path, so the result keeps the approval (sealed here, from a sealed input only).
     The caller keeps the speeds and accelerations that ``u`` implies within the limits."""
     if not approved.is_sealed:
-        raise ValueError("only an approved (sealed) trajectory can be followed along its path")
+        raise InternalError("only an approved (sealed) trajectory can be followed along its path")
     source = approved.trajectory
     last = len(source.q_rad) - 1
     u = np.asarray(u, float)
     if not len(u) or np.any(np.diff(u) < -1e-12) or u[0] < -1e-9 or u[-1] > last + 1e-9:
-        raise ValueError(f"path positions must rise within [0, {last}]")
+        raise InternalError(f"path positions must rise within [0, {last}]")
     u = np.clip(u, 0.0, last)
     i = np.minimum(np.floor(u + 1e-9).astype(int), last)
     frac = np.clip(u - i, 0.0, 1.0)[:, None]

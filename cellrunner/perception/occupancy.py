@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cellrunner.errors import UsageError
 from cellrunner.perception.frames import DepthFrame, RayTable
 
 #: a voxel needs this many points of one image to count as hit (fewer: outliers)
@@ -272,7 +273,8 @@ class OccupancyMap:
 
     @classmethod
     def load(cls, path: str | Path) -> OccupancyMap:
-        """A map written by :meth:`save`; raises ValueError on a file that is not one."""
+        """A map written by :meth:`save`; a :class:`~cellrunner.errors.UsageError` naming
+        the file when it is not one."""
         try:
             with np.load(Path(path)) as data:
                 size = tuple(float(s) for s in data["size_m"])
@@ -286,12 +288,12 @@ class OccupancyMap:
                 )
                 log_odds = np.asarray(data["log_odds"], np.float32)
         except FileNotFoundError:
-            raise ValueError(f"{path}: no such file") from None
+            raise UsageError(f"{path}: no such file") from None
         except (OSError, KeyError, ValueError, EOFError):
-            raise ValueError(
+            raise UsageError(
                 f"{path}: not a map snapshot (dry-run or serve --save-map writes one)"
             ) from None
         if log_odds.shape != (m.n,):
-            raise ValueError(f"{path}: {log_odds.shape[0]} voxels, its zone has {m.n}")
+            raise UsageError(f"{path}: {log_odds.shape[0]} voxels, its zone has {m.n}")
         m.log_odds = log_odds
         return m

@@ -231,20 +231,22 @@ def unreachable(
     named when it is what puts the pose out of reach (a length written in mm)."""
     from cellrunner.errors import InfeasibleError
 
-    reason = kinematics.unreachable_reason(T_world_tcp)
+    reason, mm_hint = kinematics.unreachable_why(T_world_tcp)
     lines = explain_ik_branches(kinematics, collision, T_world_tcp, q_near_rad)
     details = (f"{len(lines)} branches tried: {lines[0]}", *lines[1:]) if lines else ()
     fix = fix_hint("reach")
     reach_m = kinematics.spec.reach_m
-    if ": did you mean mm?" in reason:
+    if mm_hint:
         fix = "fix: write the frame's xyz in metres, or each with its unit ('450 mm')"
     if approach_m is not None and approach_m > reach_m:
-        reason = reason.split(": did you mean mm?")[0]
+        mm_hint = ""  # the approach distance is what was written in mm: the fix says so
         fix = (
             f"the approach distance {approach_m:g} m is longer than the reach: did you mean "
             f"{approach_m:g} mm = {approach_m / 1000:g} m? (write '{approach_m:g} mm')"
         )
-    return InfeasibleError(Failure(FailureKind.UNREACHABLE, reason, details, fix=fix, step=label))
+    return InfeasibleError(
+        Failure(FailureKind.UNREACHABLE, reason + mm_hint, details, fix=fix, step=label)
+    )
 
 
 def every_branch_collides(

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cellrunner.errors import InfeasibleError
+from cellrunner.errors import InfeasibleError, InternalError
 from cellrunner.model.arm_geometry import ArmGeometry, ArmGeometryMissing, ConvexPart, arm_geometry
 from cellrunner.model.body import WAITING_PREFIX, Body, BodyKind
 from cellrunner.model.failure import Failure, FailureKind
@@ -101,7 +101,7 @@ class ContactAllowance:
 
     def __post_init__(self) -> None:
         if self.robot_part not in ("tool", "part"):
-            raise ValueError(f"robot_part must be 'tool' or 'part', not {self.robot_part!r}")
+            raise InternalError(f"robot_part must be 'tool' or 'part', not {self.robot_part!r}")
 
 
 @dataclass(frozen=True)
@@ -177,10 +177,10 @@ class CollisionScene:
         names = [f.name for f in self.fixtures]
         duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
-            raise ValueError(f"duplicate fixture names: {', '.join(duplicates)}")
+            raise InternalError(f"duplicate fixture names: {', '.join(duplicates)}")
         for allowance in self.allowances:
             if allowance.fixture not in names:
-                raise ValueError(
+                raise InternalError(
                     f"contact allowance names unknown fixture {allowance.fixture!r}; "
                     f"known: {', '.join(names) or '(none)'}"
                 )

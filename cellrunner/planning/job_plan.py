@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cellrunner import __version__
+from cellrunner.errors import InternalError
 from cellrunner.model.expand import expand_on_error
 from cellrunner.model.failure import Failure
 from cellrunner.model.geometry import Placed
@@ -101,7 +102,7 @@ class JobPlan:
     def paced(self, speed: float) -> JobPlan:
         """The same plan streamed at ``speed`` x the approved pace."""
         if not 0.0 < speed <= 1.0:
-            raise ValueError(f"speed {speed:g} is outside (0, 1]")
+            raise InternalError(f"speed {speed:g} is outside (0, 1]")
         return replace(self, speed=speed, _paced={})
 
 
@@ -111,7 +112,7 @@ class PacedMotions:
 
     def __init__(self, motions: TaskPlan, speed: float) -> None:
         if not 0.0 < speed <= 1.0:
-            raise ValueError(f"speed {speed:g} is outside (0, 1]")
+            raise InternalError(f"speed {speed:g} is outside (0, 1]")
         self.motions, self.speed = motions, speed
 
     def nominal(self, step: Step) -> ApprovedTrajectory | None:

@@ -280,6 +280,13 @@ class ArmKinematics:
 
     def unreachable_reason(self, T_world_tcp: np.ndarray) -> str:
         """Why ``T_world_tcp`` has no IK solution inside the limits, with numbers."""
+        reason, mm_hint = self.unreachable_why(T_world_tcp)
+        return reason + mm_hint
+
+    def unreachable_why(self, T_world_tcp: np.ndarray) -> tuple[str, str]:
+        """:meth:`unreachable_reason` in its two parts, the reason and the hint that its
+        lengths were written in mm (``: did you mean mm? ...``, '' when they look right),
+        so a caller decides on the hint without reading the text."""
         T_base_flange = (
             invert(self.T_world_base) @ np.asarray(T_world_tcp) @ invert(self.T_flange_tcp)
         )
@@ -295,16 +302,18 @@ class ArmKinematics:
             )
             return (
                 f"out of reach ({from_shoulder_m:.2f} m from the shoulder, "
-                f"{model} reach {self.spec.reach_m:.2f} m){hint}"
+                f"{model} reach {self.spec.reach_m:.2f} m)",
+                hint,
             )
         raw = self._solve(T_base_flange)
         if len(raw) == 0:
             return (
                 f"no arm configuration reaches this pose (flange {from_shoulder_m:.2f} m from the "
                 f"shoulder, {model} reach {self.spec.reach_m:.2f} m; orientation or position "
-                f"too close to the base axis)"
+                f"too close to the base axis)",
+                "",
             )
-        return f"all {len(raw)} IK solutions exceed the joint limits"
+        return f"all {len(raw)} IK solutions exceed the joint limits", ""
 
     def ik_raw(self, T_world_tcp: np.ndarray) -> list[np.ndarray]:
         """Every closed-form IK solution of ``T_world_tcp`` verified by FK, unwrapped and

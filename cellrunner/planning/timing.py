@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from cellrunner.errors import InfeasibleError
+from cellrunner.errors import InfeasibleError, InternalError
 from cellrunner.model.failure import Failure, FailureKind
 from cellrunner.model.robots import RobotSpec
 from cellrunner.planning.kinematics import ArmKinematics
@@ -90,7 +90,7 @@ class MotionLimits:
         """Cell limits (degrees, as in the cell file) clamped to the controller's own, x
         ``margin``. Omitted values default to the controller's limits."""
         if not 0 < margin <= 1:
-            raise ValueError(f"margin must be in (0, 1], not {margin}")
+            raise InternalError(f"margin must be in (0, 1], not {margin}")
         speed = np.broadcast_to(
             np.asarray(
                 joint_speed_deg_s if joint_speed_deg_s is not None else spec.joint_speed_max_deg_s,

@@ -75,7 +75,8 @@ class TrackingProof:
     latest_start_m: float | None = None
     speed_ok_mps: float | None = None
     cases: list[CaseResult] = field(default_factory=list)
-    error: str | None = None
+    #: why the stretch is refused, one clause a line (empty: proved); :attr:`error` joins them
+    error_lines: list[str] = field(default_factory=list)
     what: str = "pick"  # what the tracked steps do: a pick, or a place onto the belt
 
     @property
@@ -88,23 +89,36 @@ class TrackingProof:
         every one, m: the belt's travel in one cycle."""
         return self.speed_max_mps * self.cycle_s
 
-    def summary(self) -> str:
-        """One line for ``check``'s human output."""
+    @property
+    def error(self) -> str | None:
+        """Why the stretch is refused on one line (None: proved)."""
+        return "; ".join(self.error_lines) if self.error_lines else None
+
+    @error.setter
+    def error(self, text: str | None) -> None:
+        self.error_lines = [] if text is None else [text]
+
+    def summary_lines(self) -> list[str]:
+        """What ``check`` prints of the stretch, one clause a line."""
         lo, hi = self.window_m
         reach = ", ".join(f"[{a:+.3f}, {b:+.3f}]" for a, b in self.reachable_m) or "none"
-        text = (
-            f"conveyor {self.conveyor}: window [{lo:+.3f}, {hi:+.3f}] m, reachable {reach} m; "
+        lines = [
+            f"conveyor {self.conveyor}: window [{lo:+.3f}, {hi:+.3f}] m, reachable {reach} m",
             f"{sum(c.ok for c in self.cases)} of {len(self.cases)} cases proved "
-            f"(speeds 0-{self.speed_max_mps:g} m/s)"
-        )
+            f"(speeds 0-{self.speed_max_mps:g} m/s)",
+        ]
         if self.latest_start_m is not None:
-            text += (
-                f"; at {self.speed_max_mps:g} m/s the {self.what} may start until the part is "
-                f"{self.latest_start_m:+.3f} m from the frame; {self.parts_per_minute:.1f} "
-                f"parts/min at most (cycle {self.cycle_s:.2f} s, parts at least "
-                f"{self.min_pitch_m:.3f} m apart)"
-            )
-        return text
+            lines += [
+                f"at {self.speed_max_mps:g} m/s the {self.what} may start until the part is "
+                f"{self.latest_start_m:+.3f} m from the frame",
+                f"{self.parts_per_minute:.1f} parts/min at most (cycle {self.cycle_s:.2f} s, "
+                f"parts at least {self.min_pitch_m:.3f} m apart)",
+            ]
+        return lines
+
+    def summary(self) -> str:
+        """The stretch on one line."""
+        return "; ".join(self.summary_lines())
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -179,12 +193,15 @@ def prove_stretch(
             if _latest_ok(still) is None
             else "it cannot at any speed down to 5% of it"
         )
-        proof.error = (
+        proof.error_lines = [
             f"conveyor {name!r}: the {piece.what} cannot be made at {v_max:g} m/s anywhere in the "
-            f"window [{lo:+.3f}, {hi:+.3f}] m ({why}); {can}"
-        )
+            f"window [{lo:+.3f}, {hi:+.3f}] m ({why})",
+            can,
+        ]
         if span < hi - lo - 1e-9:
-            proof.error += f"; the arm reaches {span:.3f} m of the window's {hi - lo:.3f} m"
+            proof.error_lines.append(
+                f"the arm reaches {span:.3f} m of the window's {hi - lo:.3f} m"
+            )
         return proof
     slower = [c for c in proof.cases if not c.ok]
     if slower:

@@ -185,7 +185,7 @@ class OpcUaServer:
             await server.start()
         except CellrunnerError:
             raise
-        except Exception as exc:
+        except Exception as exc:  # asyncua, cryptography and sockets fail in their own types
             raise CellrunnerError(
                 f"OPC UA server failed to start on {self.config.endpoint}: {exc}"
             ) from exc

@@ -33,6 +33,9 @@ _LAST_JOB_VARIABLES = (
     ("ResultText", "String", ""),
     ("CycleTime", "Double", 0.0),
     ("EndTime", "DateTime", NULL_DATETIME),
+    # why the planner refused the job ("" / 0 for any other end): its kind and 1-based step
+    ("FailureKind", "String", ""),
+    ("FailureStep", "Int32", 0),
 )
 
 _MISSING = object()
@@ -151,10 +154,13 @@ class CellObject:
 
 
 def last_job_values(result: JobResult) -> dict[str, Any]:
+    failure = result.failure
     return {
         "LastJob.JobId": result.job_id,
         "LastJob.ResultCode": int(result.result_code),  # the wire
         "LastJob.ResultText": result.result_text,
         "LastJob.CycleTime": float(result.cycle_time_s),
         "LastJob.EndTime": result.end_time or NULL_DATETIME,
+        "LastJob.FailureKind": failure.kind.value if failure else "",
+        "LastJob.FailureStep": (failure.step_index or 0) if failure else 0,
     }

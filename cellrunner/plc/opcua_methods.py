@@ -134,6 +134,7 @@ class CellMethods:
 
 
 def _refuse_constant(name: str) -> float:
+    # ValueError: json.loads's parse_constant contract (its caller catches it)
     raise ValueError(f"{name} is not a number JSON allows")
 
 
@@ -171,7 +172,7 @@ def parse_job_parameters(text: str) -> dict[str, ParamValue | str] | None:
 
 def _bounded_int(text: str) -> int:
     """A JSON integer that a param can hold (int64 at most; a 1000-digit one is refused)."""
-    if len(text.lstrip("-")) > MAX_INT_DIGITS:
+    if len(text.lstrip("-")) > MAX_INT_DIGITS:  # ValueError: json.loads's parse_int contract
         raise ValueError(f"an integer of {len(text)} digits")
     return int(text)
 

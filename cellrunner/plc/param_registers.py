@@ -66,5 +66,6 @@ def encode_pose(xyz_m: Sequence[float], rpy_deg: Sequence[float]) -> list[int]:
     ]
     for c in counts:
         if not -0x8000 <= c <= 0x7FFF:
+            # ValueError, as struct's own for a number a register cannot hold (a client's helper)
             raise ValueError(f"pose value {c} counts does not fit an int16 register")
     return [from_int16(c) for c in counts]

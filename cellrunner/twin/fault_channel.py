@@ -4,6 +4,10 @@ One command per line, one reply line, ``ok ...`` or ``error ...``; :data:`FAULT_
 lists them. :class:`~cellrunner.twin.server.TwinServer` answers the ones about its
 connections and timing; :func:`controller_command` the ones about the controller, under its
 lock. :class:`FaultClient` is the other end.
+
+A command it cannot run raises ``ValueError``: the channel's one refusal, which the server
+answers as ``error TEXT`` and :class:`FaultClient` raises again for the line it sent (a
+test's tool, never reached by a cell's user).
 """
 
 from __future__ import annotations

@@ -29,6 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from cellrunner.errors import InternalError
 from cellrunner.model.robots import RobotSpec, robot_spec
 from cellrunner.thread_priority import realtime as realtime_priority
 from cellrunner.twin import dashboard
@@ -392,7 +393,7 @@ class TwinServer:
             if cmd == "state":
                 return json.dumps(self.state())
             reply = controller_command(ctl, cmd, args)
-        if reply is None:
+        if reply is None:  # ValueError: the fault channel answers it as "error TEXT" (_on_fault)
             raise ValueError(
                 f"unknown command {cmd!r}; known: "
                 + ", ".join(ln.split()[0] for ln in FAULT_COMMANDS.splitlines())
@@ -428,7 +429,9 @@ def make_controller(
         wiring = {parse_channel(out): parse_channel(inp) for out, inp in (loopback or {}).items()}
         physics = KinematicPhysics(spec, loopback=wiring)
     elif loopback:
-        raise ValueError("loopback wires the kinematic physics only; this physics has its own IO")
+        raise InternalError(
+            "loopback wires the kinematic physics only; this physics has its own IO"
+        )
     return Controller(ControllerConfig(spec=spec, **config), physics)
 
 

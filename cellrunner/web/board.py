@@ -137,7 +137,7 @@ class StatusBoard:
     def _links(self) -> dict[str, bool]:
         try:
             return dict(self.plc_links())
-        except Exception:
+        except Exception:  # the PLC service's own failure: the page still shows the cell
             return {}
 
 
@@ -153,5 +153,8 @@ def _result_row(r: JobRecord) -> dict[str, Any]:
         "result_text": r.result_text or "",
         "cycle_time_s": r.cycle_time_s,
         "retries": r.retries,
+        # why the planner refused it, as data (None for any other end)
+        "failure": r.failure.to_json() if r.failure else None,
+        "failure_brief": r.failure.brief() if r.failure else "",
         "ended_at": datetime.fromtimestamp(r.ended_at, UTC).isoformat(timespec="seconds"),
     }

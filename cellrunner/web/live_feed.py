@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+from cellrunner.errors import InternalError
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.planner import PlannedJob
 
@@ -43,7 +44,7 @@ class LiveFeed:
 
     def __init__(self, rate_hz: float = DEFAULT_RATE_HZ) -> None:
         if not rate_hz > 0:
-            raise ValueError(f"rate_hz must be > 0, got {rate_hz!r}")
+            raise InternalError(f"rate_hz must be > 0, got {rate_hz!r}")
         self.period_s = 1.0 / rate_hz
         self._next_s = 0.0
         self._seq = 0

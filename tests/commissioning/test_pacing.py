@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from cellrunner.errors import InternalError
 from cellrunner.execution.pacing import EnterGate
 from cellrunner.model.trajectory import Trajectory, approve, time_scaled
 
@@ -36,10 +37,10 @@ def test_scaled_trajectory_stays_on_the_approved_segments(n, speed, seed):
 
 def test_only_sealed_trajectories_at_a_fraction_of_their_pace():
     approved = _approved(10)
-    with pytest.raises(ValueError, match="outside"):
+    with pytest.raises(InternalError, match="outside"):
         time_scaled(approved, 1.5)
     forged = type(approved)(approved.trajectory, 3, "x", "0" * 64)
-    with pytest.raises(ValueError, match="only an approved"):
+    with pytest.raises(InternalError, match="only an approved"):
         time_scaled(forged, 0.5)
 
 

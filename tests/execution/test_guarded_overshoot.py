@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from cellrunner.backends.sim.backend import SimBackend
+from cellrunner.errors import InternalError
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.model.trajectory import Trajectory, approve, backwards
@@ -29,7 +30,7 @@ def test_backwards_is_the_approved_set_points_in_reverse_and_stays_approved():
     assert back.is_sealed and (back.step_index, back.step_name) == (3, "line")
     np.testing.assert_array_equal(back.trajectory.q_rad, q[2:9][::-1])
     assert (back.trajectory.qd_rad_s < 0).all()  # its speeds point back along the line
-    with pytest.raises(ValueError, match=r"outside 0\.\.10"):
+    with pytest.raises(InternalError, match=r"outside 0\.\.10"):
         backwards(approved, 11, 2)
 
 

@@ -139,3 +139,29 @@ def test_jobs_command_on_an_unreachable_database_is_exit_3(tmp_path, capsys):
     assert len(err) == 1 and err[0].startswith(
         f"cellrunner jobs: error: cannot reach the journal database postgresql://cellrunner@{HOST}:1/plant: "
     )
+
+
+def test_a_refused_jobs_failure_survives_and_an_old_table_gains_its_column(clean):
+    from tests.execution.test_journal_failure import REFUSAL
+
+    clean.sql(  # the jobs table as a journal made before the failure column wrote it
+        "CREATE TABLE cellrunner_jobs (seq BIGSERIAL UNIQUE, job_id TEXT PRIMARY KEY, "
+        "client_job_id TEXT, cell TEXT NOT NULL, task TEXT NOT NULL, params JSONB NOT NULL, "
+        "source TEXT NOT NULL, started_at DOUBLE PRECISION NOT NULL, ended_at DOUBLE PRECISION, "
+        "result_code INTEGER, result_text TEXT, cycle_time_s DOUBLE PRECISION, "
+        "retries INTEGER NOT NULL DEFAULT 0)"
+    )
+    clean.sql(
+        "INSERT INTO cellrunner_jobs (job_id, cell, task, params, source, started_at, ended_at, "
+        "result_code, result_text) VALUES ('old', 'c', 't', '{}', 'cli', 1, 2, 0, 'OK')"
+    )
+    journal = PostgresJournal(clean.url, "c").open()
+    try:
+        assert journal.get("old").failure is None and journal.get("old").result_text == "OK"
+        journal.begin_job("bad", "c", "t", {}, "modbus", "5")
+        done = journal.end_job("bad", ResultCode.PLANNING_FAILED, 0.0, 0, REFUSAL.text(), REFUSAL)
+        assert done.wait(10)
+        record = journal.get("bad")
+        assert record.failure == REFUSAL and record.result_text == REFUSAL.text()
+    finally:
+        journal.close()

@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 
+from cellrunner.errors import UsageError
 from cellrunner.execution.shift import (
     ShiftPlan,
     ShiftRehearsal,
@@ -147,7 +148,7 @@ def test_durations(text, seconds):
 
 @pytest.mark.parametrize("text", ["", "0", "-3h", "8x", "h"])
 def test_bad_durations_say_the_forms(text):
-    with pytest.raises(ValueError, match="8h"):
+    with pytest.raises(UsageError, match="8h"):
         parse_duration(text)
 
 

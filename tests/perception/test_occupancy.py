@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cellrunner.errors import UsageError
 from cellrunner.model.load import load_cell
 from cellrunner.perception.frames import DepthFrame
 from cellrunner.perception.known import KnownScene
@@ -63,7 +64,7 @@ def test_a_snapshot_reads_back_the_same_map(tmp_path):
     back = OccupancyMap.load(tmp_path / "map.npz")
     assert np.array_equal(back.occupied(), m.occupied()) and back.voxel_m == 0.02
     (tmp_path / "bad.npz").write_bytes(b"nope")
-    with pytest.raises(ValueError, match="not a map snapshot"):
+    with pytest.raises(UsageError, match="not a map snapshot"):
         OccupancyMap.load(tmp_path / "bad.npz")
 
 

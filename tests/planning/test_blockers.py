@@ -112,6 +112,19 @@ def test_out_of_reach_in_metres_that_were_meant_as_mm_says_so():
     assert message.endswith(" m is 1.262 m)")
 
 
+def test_the_mm_hint_is_data_and_the_approach_fix_replaces_it():
+    kin = _kinematics()
+    far = pose_matrix((1253.0, 30.0, 150.0), DOWN)
+    reason, hint = kin.unreachable_why(far)
+    assert reason.startswith("out of reach (") and hint.startswith(": did you mean mm?")
+    assert kin.unreachable_why(pose_matrix((1.2, 0.0, 0.2), DOWN))[1] == ""  # merely far
+    scene = CollisionModel(kin, TOOL, [])
+    frame = unreachable("step 2 approach 'y'", kin, scene, far, NEAR).failure
+    assert frame.reason == reason + hint and "frame's xyz in metres" in frame.fix
+    approach = unreachable("step 2 approach 'y'", kin, scene, far, NEAR, approach_m=50.0).failure
+    assert approach.reason == reason and "did you mean 50 mm" in approach.fix
+
+
 @pytest.mark.parametrize(
     "distance_m, required_m, expected",
     [

@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from cellrunner.errors import InternalError
 from cellrunner.model.arm_geometry import available_models
 from cellrunner.model.geometry import Box, Cylinder, Placed, pose_matrix
 from cellrunner.model.robots import ROBOTS
@@ -57,7 +58,7 @@ def test_touching_obstacle_needs_an_allowance():
 
 
 def test_unknown_fixture_in_allowance_lists_known():
-    with pytest.raises(ValueError, match="unknown fixture 'palet'; known: pallet"):
+    with pytest.raises(InternalError, match="unknown fixture 'palet'; known: pallet"):
         CollisionModel(
             kin(),
             TOOL,

@@ -91,7 +91,15 @@ async def scenario_job(client: Any) -> dict[str, Any]:
         dv = await (await cell.get_child(f"{ns}:{name}")).read_data_value()
         out["types"][name] = dv.Value.VariantType.name
     last = await cell.get_child(f"{ns}:LastJob")
-    for name in ("JobId", "ResultCode", "ResultText", "CycleTime", "EndTime"):
+    for name in (
+        "JobId",
+        "ResultCode",
+        "ResultText",
+        "CycleTime",
+        "EndTime",
+        "FailureKind",
+        "FailureStep",
+    ):
         dv = await (await last.get_child(f"{ns}:{name}")).read_data_value()
         out["types"]["LastJob." + name] = dv.Value.VariantType.name
 

@@ -88,6 +88,8 @@ def test_encrypted_user_session_runs_a_job_and_gets_the_completion_event(opcua: 
         "LastJob.ResultText": "String",
         "LastJob.CycleTime": "Double",
         "LastJob.EndTime": "DateTime",
+        "LastJob.FailureKind": "String",
+        "LastJob.FailureStep": "Int32",
     }
     job_id, code = out["first"]
     assert code == 0 and job_id
