@@ -176,6 +176,9 @@ def plan_job(
                     on_step(step)
             return made(stored)
     plan = plan_task(world, steps, q_start, joined=joined, on_step=on_step)
+    from cellrunner.planning.watch_view import watch_view_failures
+
+    plan.failures.extend(watch_view_failures(world.loaded.cell))
     if on_error:
         from cellrunner.planning.on_error import verify_on_error
 
