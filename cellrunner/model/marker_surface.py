@@ -80,7 +80,7 @@ def nearest_face(shape: Shape, p_m: np.ndarray) -> Face | None:
                 other = [half[k] for k in range(3) if k != axis]
                 name = _box_face_name(axis, sign, label)
                 faces.append(Face(name, n * half[axis], n, (other[0], other[1])))
-        return min(faces, key=lambda f: abs(float(np.dot(p - f.point_m, f.normal))))
+        return min(faces, key=lambda f: _to_box_face_m(p, half, f))
     if isinstance(shape, Cylinder):
         r, h = shape.radius_m, shape.length_m / 2
         radial = np.array([p[0], p[1], 0.0])
@@ -99,6 +99,15 @@ def nearest_face(shape: Shape, p_m: np.ndarray) -> Face | None:
         n = p / norm if norm > 1e-9 else np.array([0.0, 0, 1])
         return Face("surface", n * shape.radius_m, n, None)
     return None
+
+
+def _to_box_face_m(p: np.ndarray, half: np.ndarray, face: Face) -> float:
+    """Distance (m) from ``p`` to the nearest point of a box's face (the rectangle, not
+    its plane)."""
+    q = np.clip(p, -half, half)
+    k = int(np.argmax(np.abs(face.normal)))
+    q[k] = face.point_m[k]
+    return float(np.linalg.norm(p - q))
 
 
 def _box_face_name(axis: int, sign: float, label: str) -> str:
