@@ -69,6 +69,8 @@ DEFECTS = (
     *CAMERA_DEFECTS,
 )
 KINDS = FEASIBLE + DEFECTS
+#: the kinds without cameras (the fixed sample's first part keeps its seeds)
+PLAIN_KINDS = tuple(k for k in KINDS if k not in CAMERA_KINDS)
 #: the kinds that need one gripper: the others draw jaws or cups (VACUUM_SHARE of them cups)
 NEEDS_GRIPPER = {"jaws_too_narrow": "jaws", "weak_vacuum": "vacuum", **NEEDS_JAWS}
 VACUUM_SHARE = 0.4
@@ -415,9 +417,9 @@ def _deg(q_rad: np.ndarray) -> list[float]:
     return [round(float(v), 3) for v in np.degrees(q_rad)]
 
 
-def corpus(count: int, seed: int) -> list[Case]:
-    """``count`` cases from ``seed``: the kinds in turn, each on its own seed."""
-    return [generate(seed + i, KINDS[i % len(KINDS)]) for i in range(count)]
+def corpus(count: int, seed: int, kinds: tuple[str, ...] = KINDS) -> list[Case]:
+    """``count`` cases from ``seed``: the ``kinds`` in turn, each on its own seed."""
+    return [generate(seed + i, kinds[i % len(kinds)]) for i in range(count)]
 
 
 if __name__ == "__main__":

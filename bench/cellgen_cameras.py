@@ -99,7 +99,14 @@ def _align(case: Any, rng: random.Random) -> None:
     standoff = STANDOFF_M
     if case.kind == "marker_too_small":
         edge, standoff = 0.006, 0.3
-    case.cell["cameras"] = {"wrist": dict(WRIST)}
+    # beside the gripper, clear of its body and of the rail across the fingers' tops
+    # that the twin draws (it reaches 10 mm and a finger past the open jaws)
+    body_r = max(g["cylinder"]["radius"] for g in case.cell["tool"]["geometry"])
+    stroke = case.cell["tool"]["gripper"]["stroke"]
+    beside = round(max(body_r, stroke / 2 + 0.04) + 0.02, 3)
+    case.cell["cameras"] = {
+        "wrist": {**WRIST, "pose": {"xyz": [beside, 0, 0.05], "rpy": [0, 0, 0]}}
+    }
     top = round(size[2] / 2, 4)
     part["offset"] = {
         "xyz": [round(rng.uniform(-OFF_M, OFF_M), 4), round(rng.uniform(-OFF_M, OFF_M), 4), 0],

@@ -43,6 +43,7 @@ def prove_align(planner: StepPlanner, step: Step) -> None:
         else step.extra["T_world_camera"]
     )
     _sees_marker(step, camera, T_world_camera)
+    _nothing_in_the_way(planner, step, T_world_camera)
     _reads_within_tolerance(step, camera, T_world_camera)
 
 
@@ -129,6 +130,39 @@ def _sees_marker(step: Step, camera: Camera, T_world_camera: np.ndarray) -> None
             details=(f"correction {first_text}: " + "; ".join(first_why),),
             fix="fix: a look farther from the marker (standoff), a smaller max_correction, "
             "or a camera that looks at the marker's face",
+        )
+    )
+
+
+#: points sampled along each sight line from the lens to a marker corner, and the stretch
+#: before the marker left out (m: the part it is printed on lies there)
+SIGHT_SAMPLES, SIGHT_END_M = 80, 0.003
+
+
+def _nothing_in_the_way(planner: StepPlanner, step: Step, T_world_camera: np.ndarray) -> None:
+    """No part of the tool (its geometry and open fingers, at the look) and no fixture
+    stands between the lens and the marker's corners (for the nominal correction): a
+    wrist camera beside a wide gripper body sees the body, not the marker."""
+    from cellrunner.planning.sight import first_in_the_way
+
+    world = planner.world
+    T_world_flange = world.kinematics.T_world_flange(planner.q)
+    bodies = [(f"tool geometry {p.name!r}", p.shape, T_world_flange @ p.T_parent_shape)
+              for p in world.tool]  # fmt: skip
+    bodies += [(f"fixture {p.name!r}", p.shape, p.T_parent_shape) for p in world.fixtures]
+    corners = _marker_corners(step, np.eye(4))
+    targets = np.vstack([corners, corners.mean(axis=0)])
+    hit = first_in_the_way(T_world_camera[:3, 3], targets, bodies, SIGHT_SAMPLES, SIGHT_END_M)
+    if hit is None:
+        return
+    name, distance_m = hit
+    raise InfeasibleError(
+        Failure(
+            FailureKind.CAMERA_VIEW,
+            f"camera {step.args.camera!r} does not see marker {step.args.marker.id}: {name} "
+            f"stands in its line of sight {distance_m * 1000:.0f} mm from the lens",
+            fix="fix: mount the camera clear of the tool (its pose on the flange), or look "
+            "from another side",
         )
     )
 

@@ -116,3 +116,22 @@ def test_a_watch_camera_rolled_to_the_ceiling_is_refused(tmp_path):
         "watch camera 'overhead': the watch cameras see 0% of the 1.3 x 1 x 0.9 m zone"
     ), error
     assert "looks along [+0.00, +0.00, +1.00] (world)" in error, error
+
+
+def test_a_sight_line_through_a_body_is_found_and_its_distance_given():
+    from cellrunner.model.geometry import Box, Cylinder
+    from cellrunner.planning.sight import first_in_the_way
+
+    eye = np.zeros(3)
+    targets = np.array([[0.0, 0.0, 0.2], [0.02, 0.0, 0.2]])
+    body = Cylinder(0.01, 0.04)  # along Z, 50-90 mm out, 15 mm beside the straight line
+    beside = [("tool geometry 'body'", body, pose_matrix((0.015, 0, 0.07), (0, 0, 0)))]
+    # the line to the first target passes 15 mm from the axis: clear; to the second it
+    # reaches 0.02 x 0.05/0.2 = 5 mm over by the body's near end: inside its 10 mm radius
+    hit = first_in_the_way(eye, targets, beside, 200, 0.003)
+    assert hit is not None and hit[0] == "tool geometry 'body'"
+    assert hit[1] == pytest.approx(0.0501, abs=0.002)
+    assert first_in_the_way(eye, targets[:1], beside, 200, 0.003) is None
+    # the target's own carrier, right under it, is left out
+    under = [("fixture 'table'", Box((0.1, 0.1, 0.01)), pose_matrix((0, 0, 0.2), (0, 0, 0)))]
+    assert first_in_the_way(eye, targets[:1], under, 200, 0.006) is None
