@@ -31,7 +31,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.cellgen import KINDS, Case, corpus
+from bench.cellgen import FEASIBLE, KINDS, Case, corpus
 
 CLASSES = ("true accept", "true refuse", "false approval", "twin false OK", "false refusal")
 DISAGREEMENTS = ("false approval", "twin false OK", "false refusal")
@@ -105,9 +105,11 @@ def _judge_one(args: tuple[int, str, str]) -> Verdict:
     return judge(generate(seed, kind), Path(out))
 
 
-def run(count: int, seed: int, jobs: int, out: Path) -> list[Verdict]:
-    """Judge ``count`` generated jobs from ``seed`` on ``jobs`` processes."""
-    cases = [(c.seed, c.kind, str(out)) for c in corpus(count, seed)]
+def run(
+    count: int, seed: int, jobs: int, out: Path, kinds: tuple[str, ...] = KINDS
+) -> list[Verdict]:
+    """Judge ``count`` generated jobs of ``kinds`` from ``seed`` on ``jobs`` processes."""
+    cases = [(c.seed, c.kind, str(out)) for c in corpus(count, seed, kinds)]
     if jobs <= 1:
         return [_judge_one(c) for c in cases]
     with ProcessPoolExecutor(max_workers=jobs) as pool:
@@ -119,11 +121,11 @@ def table(verdicts: list[Verdict]) -> str:
     counts = Counter((v.kind, v.verdict) for v in verdicts)
     width = max(len(k) for k in KINDS)
     lines = [f"{'kind':<{width}}  " + "  ".join(f"{c:>14}" for c in CLASSES)]
-    for kind in KINDS:
+    for kind in [k for k in KINDS if any(v.kind == k for v in verdicts)]:
         lines.append(f"{kind:<{width}}  " + "  ".join(f"{counts[(kind, c)]:>14}" for c in CLASSES))
     total = Counter(v.verdict for v in verdicts)
     lines.append(f"{'all':<{width}}  " + "  ".join(f"{total[c]:>14}" for c in CLASSES))
-    feasible = sum(1 for v in verdicts if v.kind in ("feasible", "near_support"))
+    feasible = sum(1 for v in verdicts if v.kind in FEASIBLE)
     rate = total["false refusal"] / feasible if feasible else 0.0
     check_s = sorted(v.check_s for v in verdicts)
     p95 = check_s[min(len(check_s) - 1, int(0.95 * len(check_s)))] if check_s else 0.0
@@ -158,8 +160,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=2, help="processes (default 2)")
     parser.add_argument("--out", type=Path, default=Path("var/agreement"))
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    parser.add_argument(
+        "--kinds", default=",".join(KINDS), help="comma-separated kinds (default: all)"
+    )
     args = parser.parse_args(argv)
-    verdicts = run(args.cells, args.seed, args.jobs, args.out)
+    kinds = tuple(k for k in args.kinds.split(",") if k)
+    unknown = sorted(set(kinds) - set(KINDS))
+    if unknown:
+        parser.error(f"unknown kinds {', '.join(unknown)}; known: {', '.join(KINDS)}")
+    verdicts = run(args.cells, args.seed, args.jobs, args.out, kinds)
     listing = write_disagreements(verdicts, args.out)
     if args.json:
         print(json.dumps([asdict(v) for v in verdicts], indent=1))

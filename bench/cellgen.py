@@ -35,6 +35,16 @@ from typing import Any
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench.cellgen_cameras import (
+    CAMERA_DEFECTS,
+    CAMERA_FEASIBLE,
+    CAMERA_KINDS,
+    NEEDS_JAWS,
+    with_cameras,
+)
+
 #: the arms the generator mounts (the pedestal's height, m)
 ARMS = ("ur3e", "ur5e", "ur10e", "ur16e", "ur5", "ur10")
 PEDESTAL_M = 0.90
@@ -49,11 +59,20 @@ MOUNTS: dict[
 }
 CEILING_SHARE = 0.3
 #: feasible kinds of jobs, and the defects (each breaks one thing)
-FEASIBLE = ("feasible", "near_support")
-DEFECTS = ("out_of_reach", "unsupported_place", "into_support", "jaws_too_narrow", "weak_vacuum")
+FEASIBLE = ("feasible", "near_support", *CAMERA_FEASIBLE)
+DEFECTS = (
+    "out_of_reach",
+    "unsupported_place",
+    "into_support",
+    "jaws_too_narrow",
+    "weak_vacuum",
+    *CAMERA_DEFECTS,
+)
 KINDS = FEASIBLE + DEFECTS
+#: the kinds without cameras (the fixed sample's first part keeps its seeds)
+PLAIN_KINDS = tuple(k for k in KINDS if k not in CAMERA_KINDS)
 #: the kinds that need one gripper: the others draw jaws or cups (VACUUM_SHARE of them cups)
-NEEDS_GRIPPER = {"jaws_too_narrow": "jaws", "weak_vacuum": "vacuum"}
+NEEDS_GRIPPER = {"jaws_too_narrow": "jaws", "weak_vacuum": "vacuum", **NEEDS_JAWS}
 VACUUM_SHARE = 0.4
 TABLE_THICKNESS_M = 0.04
 GRAVITY_MPS2 = 9.81
@@ -374,7 +393,8 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
         ],
     }
     witness = {"pick": _deg(d.q_pick), "place": _deg(d.q_place)}
-    return Case(seed, kind, cell, task, witness)
+    case = Case(seed, kind, cell, task, witness)
+    return with_cameras(case, seed) if kind in CAMERA_KINDS else case
 
 
 def _base_fixture(mount: str) -> dict[str, Any]:
@@ -397,9 +417,9 @@ def _deg(q_rad: np.ndarray) -> list[float]:
     return [round(float(v), 3) for v in np.degrees(q_rad)]
 
 
-def corpus(count: int, seed: int) -> list[Case]:
-    """``count`` cases from ``seed``: the kinds in turn, each on its own seed."""
-    return [generate(seed + i, KINDS[i % len(KINDS)]) for i in range(count)]
+def corpus(count: int, seed: int, kinds: tuple[str, ...] = KINDS) -> list[Case]:
+    """``count`` cases from ``seed``: the ``kinds`` in turn, each on its own seed."""
+    return [generate(seed + i, kinds[i % len(kinds)]) for i in range(count)]
 
 
 if __name__ == "__main__":

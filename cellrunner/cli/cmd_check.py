@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     report = check_report(swept, task, params, _prove_tracking(world, swept.plan))
     if args.save_plan and report.ok:
         _save_plan(Path(args.save_plan), world, report.plan)
-    warnings = [str(w) for w in [*cell.warnings, *task.warnings]]
+    warnings = [str(w) for w in [*cell.warnings, *task.warnings]] + report.plan.warnings
     if args.json:
         emit_json(_payload(report, cell.cell.cell, task.name, warnings))
         return 0 if report.ok else 1
@@ -55,6 +55,8 @@ def run(args: argparse.Namespace) -> int:
         f"  params: {_params_text(params)}" if params else ""
     )
     _print(out, title, report)
+    for warning in report.plan.warnings:
+        out.print(f"warning: {warning}", markup=False, style="yellow")
     verdict = "[green]feasible[/]" if report.ok else "[bold red]infeasible[/]"
     out.print(
         f"{verdict}: planned cycle time {report.plan.cycle_time_s:.2f} s "

@@ -127,7 +127,13 @@ def check_report(
     plan = swept.plan
     pattern = next(iter(pattern_params(task)), None)
     found = [(f.param, f.value, f.failure) for f in swept.failures]
-    each = [FailedValues(name, [value], f) for name, value, f in found]
+    each = _once(
+        [
+            (name, value, f)
+            for name, value, f in found
+            if (isinstance(value, int) and not isinstance(value, bool)) or f not in plan.failures
+        ]
+    )
     requested = (
         [(pattern, params[pattern], f) for f in plan.failures] if pattern is not None else []
     )
@@ -139,13 +145,26 @@ def check_report(
         ]
     )
     # pose, float and frame params: each failing value on its own
-    values = [
-        FailedValues(name, [value], f)
-        for name, value, f in found
-        if isinstance(value, (dict, float, str))
-    ]
+    values = _once(
+        [
+            (name, value, f)
+            for name, value, f in found
+            if isinstance(value, (dict, float, str)) and f not in plan.failures
+        ]
+    )
     bare = list(plan.failures) if pattern is None else []
     return CheckReport(plan, params, swept.checked, each, slots, values, bare, tracking or [])
+
+
+def _once(failures: list[tuple[str, ParamValue, Failure]]) -> list[FailedValues]:
+    """Each failing value on its own, except that one failure, equal in every field
+    (text included), for several values of a param is one cause, shown once with them
+    all (an align's camera that cannot read its marker fails every correction alike);
+    the requested plan's own failures are left out by the caller."""
+    groups: dict[tuple[str, Failure], list[ParamValue]] = {}
+    for name, value, failure in failures:
+        groups.setdefault((name, failure), []).append(value)
+    return [FailedValues(name, values, f) for (name, f), values in groups.items()]
 
 
 def group_failures(failures: list[tuple[str, int, Failure]]) -> list[FailedValues]:

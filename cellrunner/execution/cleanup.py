@@ -1,6 +1,7 @@
 """The task's ``on_error`` steps after a failure: safe outputs, a retreat, run best
-effort (a step that fails is noted and the next one runs; a fault ends them), only where
-the arm is able to move. The job ends with the failure that started them; how they went
+effort (a step that cannot be planned from where the arm stands is skipped and the next
+one runs; a step that fails is noted and the next one runs; a fault ends them), only
+where the arm is able to move. The job ends with the failure that started them; how they went
 is added to its message."""
 
 from __future__ import annotations
@@ -23,6 +24,9 @@ class Cleanup:
     steps: list[Step]  # the task's on_error steps, expanded
     first: tuple[ResultCode, str] | None = None  # the failure they run after
     failures: list[str] = field(default_factory=list)
+    #: steps whose plan failed from where the arm stood: skipped, the next one runs
+    #: (best-effort recovery; check proved the rest brings the arm to its end)
+    skipped: list[str] = field(default_factory=list)
 
     @property
     def running(self) -> bool:
@@ -50,8 +54,12 @@ class Cleanup:
         """An on_error step (``label``) failed with ``message`` (which starts with the
         step's label when ``names_step``: a timeout, a lost link, a refused plan); whether
         the next one may still run (nothing moved on a failed check or a refused plan)."""
-        self.failures.append(message if names_step else f"{label}: {message}")
-        return not code.is_fault or code is ResultCode.PLANNING_FAILED
+        text = message if names_step else f"{label}: {message}"
+        if code is ResultCode.PLANNING_FAILED:  # nothing moved: skipped, the next one runs
+            self.skipped.append(text)
+            return True
+        self.failures.append(text)
+        return not code.is_fault
 
     def result(self) -> tuple[ResultCode, str]:
         """The job's end: the first failure, with how on_error went."""
@@ -59,4 +67,6 @@ class Cleanup:
         first, why = self.first
         failures = self.failures
         note = "on_error done" if not failures else f"on_error failed: {'; '.join(failures)}"
+        if self.skipped:
+            note += f" (skipped: {'; '.join(self.skipped)})"
         return first, f"{why}; {note}" if why else note

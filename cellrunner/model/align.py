@@ -17,8 +17,9 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 from pydantic import Field
 
-from cellrunner.model.base import Name, Pose, Strict
-from cellrunner.model.camera import Dictionary
+from cellrunner.model.base import Name, Strict
+from cellrunner.model.marker import Marker as Marker
+from cellrunner.model.marker import MarkerId
 from cellrunner.model.step_kinds import kind_of
 from cellrunner.model.units import Angle, NonNegativeLength, PositiveLength
 
@@ -27,19 +28,6 @@ if TYPE_CHECKING:
 
 Vec3NonNeg = Annotated[list[NonNegativeLength], Field(min_length=3, max_length=3)]
 Rpy3 = Annotated[list[Annotated[Angle, Field(ge=0, le=45)]], Field(min_length=3, max_length=3)]
-
-
-class Marker(Strict):
-    """An ArUco marker (OpenCV's predefined dictionaries)."""
-
-    dictionary: Dictionary = "DICT_4X4_50"
-    """ArUco dictionary. Example: `DICT_4X4_50`"""
-    id: Annotated[int, Field(ge=0, le=999)]
-    """Marker id in its dictionary. Example: `7`"""
-    size: PositiveLength
-    """Edge of the black square, m. Example: `0.03`"""
-    pose: Pose = Field(default_factory=Pose)
-    """Where the marker sits in the target frame of the next step (its centre, Z out of the printed face), m and deg. Example: `{xyz: [0, 0, -0.02], rpy: [180, 0, 0]}`"""
 
 
 class Tolerance(Strict):
@@ -61,8 +49,8 @@ class AlignArgs(Strict):
 
     camera: Name
     """The camera that sees the marker (a `cameras:` entry; on the flange, or fixed). Example: `wrist`"""
-    marker: Marker
-    """The marker and where it sits in the target frame. Example: `{dictionary: DICT_4X4_50, id: 7, size: 0.03}`"""
+    marker: MarkerId | Marker
+    """The id of a marker the part (or a fixture) at the target carries (its `markers:`), or the marker and where it sits in the target frame (on the part at the target). Example: `7`"""
     tolerance: Tolerance = Field(default_factory=Tolerance)
     """When the marker is where the step expects it. Example: `{xyz: 0.001, rpy: 0.5}`"""
     max_correction: MaxCorrection = Field(default_factory=MaxCorrection)

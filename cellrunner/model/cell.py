@@ -10,6 +10,7 @@ from pydantic import Field, field_validator, model_validator
 from cellrunner.model.base import Name, PlacedShape, Pose, Shaped, Strict, Vec3
 from cellrunner.model.camera import Camera
 from cellrunner.model.conveyor import Conveyor
+from cellrunner.model.marker import PrintedMarker
 from cellrunner.model.robots import ROBOTS
 from cellrunner.model.sim_inputs import SimBlock
 from cellrunner.model.units import (
@@ -190,6 +191,8 @@ class Io(Strict):
 class Fixture(PlacedShape):
     name: Name
     """Fixture name, used in messages and reports. Example: `table`"""
+    markers: list[PrintedMarker] = Field(default_factory=list)
+    """ArUco markers printed on it (pose in the fixture's own frame, on its surface). Example: `[{dictionary: DICT_4X4_50, id: 3, size: 0.04, pose: {xyz: [0.2, 0, 0.025]}}]`"""
 
 
 class Frame(Pose):
@@ -208,6 +211,8 @@ class Part(Shaped):
     """Twin only: where the part really lies from `at` (what a camera would find). Example: `{xyz: [0.01, -0.02, 0], rpy: [0, 0, 15]}`"""
     friction: float = Field(default=0.8, gt=0, le=2)
     """Friction coefficient in the twin. Example: `0.8`"""
+    markers: list[PrintedMarker] = Field(default_factory=list)
+    """ArUco markers printed on it (pose in the part's own frame: its centre, upright as it lies at its frame; on its surface). Example: `[{dictionary: DICT_4X4_50, id: 7, size: 0.03, pose: {xyz: [0, 0, 0.025]}}]`"""
 
 
 class Modbus(Strict):

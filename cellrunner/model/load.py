@@ -137,6 +137,9 @@ def _check_cell(loaded: LoadedCell, report: Report) -> None:
     from cellrunner.model.conveyor_checks import check_conveyors
 
     check_conveyors(cell, report)
+    from cellrunner.model.marker_checks import check_markers
+
+    check_markers(loaded, report)
     for i, part in enumerate(cell.parts):
         if part.at not in cell.frames:
             report.error(("parts", i, "at"), unknown_name("frame", part.at, cell.frames))

@@ -66,6 +66,12 @@ class JobPlan:
         return tuple(self.task_plan.failures)
 
     @property
+    def warnings(self) -> list[str]:
+        """What does not refuse the job but a user should know: each on_error step
+        skipped from some states, on one line."""
+        return [w.text() for w in self.task_plan.warnings]
+
+    @property
     def errors(self) -> list[str]:
         """Each failure as one line naming its step."""
         return self.task_plan.errors
@@ -177,10 +183,13 @@ def plan_job(
                     on_step(step)
             return made(stored)
     plan = plan_task(world, steps, q_start, joined=joined, on_step=on_step)
+    from cellrunner.planning.watch_view import watch_view_failures
+
+    plan.failures.extend(watch_view_failures(world.loaded.cell))
     if on_error:
         from cellrunner.planning.on_error import verify_on_error
 
-        plan.on_error, failures = verify_on_error(plan, on_error)
+        plan.on_error, failures, plan.warnings = verify_on_error(plan, on_error)
         plan.failures.extend(failures)
     if use_cache:
         from cellrunner.planning.plan_files import write_plan

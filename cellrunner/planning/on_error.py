@@ -10,6 +10,14 @@ state the on_error steps are planned and verified in order, as the runner runs t
 every motion under the limits x margin, the TCP cap and collisions (with the part still
 in the gripper where the job held one), and a step that fails there leaves the arm where
 it stood for the next one, as at run time.
+
+on_error is best-effort recovery: a step that cannot run from a state is a warning
+(``check`` shows it, ``--json`` in ``warnings``) when the rest of the cleanup, verified
+from where the arm then stands, still brings the arm to the cleanup's end (its last
+motion runs from there): a ``retreat`` from the middle of a joint move near a
+singularity, followed by ``move: home``. At run time that step fails its plan, is
+skipped, and the rest runs. It is infeasible only from a state where the cleanup's last
+motion cannot run.
 """
 
 from __future__ import annotations
@@ -47,29 +55,47 @@ class _Start:
     contact: tuple[ContactAllowance, ...] = ()  # a guarded line's, which a retreat leaves
 
 
-def verify_on_error(plan: TaskPlan, cleanup: list[Step]) -> tuple[list[StepPlan], list[Failure]]:
+def verify_on_error(
+    plan: TaskPlan, cleanup: list[Step]
+) -> tuple[list[StepPlan], list[Failure], list[Failure]]:
     """One row per on_error step: ``ok`` with the number of states it was verified from,
     or ``failed`` naming the first state it fails from and the reason (and how many
-    other states fail too); and a failure per failed row. Only a feasible plan has states
-    to start from. What one state gives is remembered by the world (the slots of a
-    pattern share most of their states)."""
+    other states fail too); a failure per failed row; and a warning per step skipped
+    from some states (best-effort recovery: a step that cannot run from a state, while
+    the rest of the cleanup, planned from where the arm then stands, still brings the
+    arm to the cleanup's end: its last motion). Only a feasible plan has states to start
+    from. What one state gives is remembered by the world (the slots of a pattern share
+    most of their states)."""
     rows = [StepPlan(s) for s in cleanup]
     if not cleanup or not plan.ok:
         for row in rows:
             row.status = "not planned"
-        return rows, []
+        return rows, [], []
     starts = _starts(plan)
     failures: dict[int, list[Failure]] = {s.index: [] for s in cleanup}
+    skipped: dict[int, list[Failure]] = {s.index: [] for s in cleanup}
     steps_key = _steps_key(cleanup)
+    last_motion = next((s.index for s in reversed(cleanup) if s.is_motion), None)
     for start in starts:
-        for index, failure in _failures_from(start, cleanup, steps_key).items():
-            failures[index].append(replace(failure, reason=f"{start.label}: {failure.reason}"))
+        failed_here = _failures_from(start, cleanup, steps_key)
+        reaches_end = last_motion is not None and last_motion not in failed_here
+        for index, failure in failed_here.items():
+            labelled = replace(failure, reason=f"{start.label}: {failure.reason}")
+            (skipped if reaches_end else failures)[index].append(labelled)
     found: list[Failure] = []
+    warnings: list[Failure] = []
     for row in rows:
-        failed = failures[row.step.index]
+        failed, passed_by = failures[row.step.index], skipped[row.step.index]
+        verified = f"on_error: verified from {len(starts)} states the job can fail in"
         if not failed:
             row.status = "ok"
-            row.message = f"on_error: verified from {len(starts)} states the job can fail in"
+            row.message = verified
+            if passed_by:
+                row.message += (
+                    f"; skipped from {len(passed_by)} of them (the steps after it bring the "
+                    "arm to its end)"
+                )
+                warnings.append(_skipped(row, passed_by))
             continue
         row.status = "failed"
         more = len(failed) - 1
@@ -78,7 +104,22 @@ def verify_on_error(plan: TaskPlan, cleanup: list[Step]) -> tuple[list[StepPlan]
             first = replace(first, reason=f"{first.reason} (and from {more} more states)")
         row.message = first.summary()
         found.append(replace(first, step_index=row.step.index, step=f"on_error {row.step.label}"))
-    return rows, found
+    return rows, found, warnings
+
+
+def _skipped(row: StepPlan, passed_by: list[Failure]) -> Failure:
+    """The warning of an on_error step that cannot run from some states: the first one
+    and why, how many more, and what happens there at run time."""
+    first = passed_by[0]
+    more = f" (and from {len(passed_by) - 1} more states)" if len(passed_by) > 1 else ""
+    return replace(
+        first,
+        reason=f"{first.reason}{more}; there it is skipped and the steps after it, verified "
+        "from where the arm stands, bring the arm to the end of on_error",
+        fix="",
+        step_index=row.step.index,
+        step=f"on_error {row.step.label}",
+    )
 
 
 def _failures_from(

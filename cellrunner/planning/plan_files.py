@@ -67,8 +67,15 @@ def write_plan(path: Path, plan: TaskPlan) -> None:
     )
     on_error = [[r.status, r.message] for r in plan.on_error]
     failures = [f.to_json() for f in plan.failures]
+    warnings = [f.to_json() for f in plan.warnings]
     header = json.dumps(
-        {"rows": meta, "arrays": index, "on_error": on_error, "failures": failures}
+        {
+            "rows": meta,
+            "arrays": index,
+            "on_error": on_error,
+            "failures": failures,
+            "warnings": warnings,
+        }
     ).encode()
     buffer = io.BytesIO()
     np.savez(buffer, meta=np.frombuffer(header, dtype=np.uint8), blob=blob)
@@ -139,8 +146,15 @@ def read_plan(
     ]
     try:
         failures = [Failure.from_json(f) for f in header.get("failures", [])]
+        warnings = [Failure.from_json(f) for f in header.get("warnings", [])]
     except (KeyError, TypeError, ValueError):  # a file written before failures were data
         return None
     return TaskPlan(
-        world, steps, rows, np.asarray(q_start_rad, float), failures=failures, on_error=on_error
+        world,
+        steps,
+        rows,
+        np.asarray(q_start_rad, float),
+        failures=failures,
+        on_error=on_error,
+        warnings=warnings,
     )

@@ -89,6 +89,7 @@ class TaskPlan:
     #: why the plan is refused, as data (an on_error step's index follows the job's)
     failures: list[Failure] = field(default_factory=list)
     on_error: list[StepPlan] = field(default_factory=list)  # verified from the plan's states
+    warnings: list[Failure] = field(default_factory=list)  # on_error steps skipped from some states
 
     @property
     def ok(self) -> bool:

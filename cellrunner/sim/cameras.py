@@ -40,9 +40,10 @@ class BoardDescription:
 
 @dataclass(frozen=True, eq=False)
 class MarkerDescription:
-    """An ArUco marker printed on part ``part`` (an align step's; see
-    :mod:`cellrunner.vision.marker`): its sheet (grey, marker +Y edge in row 0) of
-    ``size_m`` square, centred on the marker frame at ``T_part_marker``."""
+    """An ArUco marker printed on part ``part`` (on a fixture when ``part`` is '': then
+    ``T_part_marker`` is in the world; see :mod:`cellrunner.vision.marker`): its sheet
+    (grey, marker +Y edge in row 0) of ``size_m`` square, centred on the marker frame at
+    ``T_part_marker``."""
 
     part: str
     key: str
@@ -159,7 +160,7 @@ def add_cameras(
     for m in markers:
         _add_sheet(
             builder,
-            bodies[f"part:{m.part}"],
+            bodies[f"part:{m.part}"] if m.part else world,
             f"marker-{m.key}",
             f"marker:{m.key}",
             m.picture,

@@ -161,40 +161,52 @@ def rehearsal_description(
 def _markers(
     loaded: LoadedCell, tasks: list[LoadedTask], parts: list[PartDescription]
 ) -> tuple[MarkerDescription, ...]:
-    """The marker of every align step (in ``tasks``: the given and the cell's own),
-    printed on each part that lies at the frame it aligns: where the marker's ``pose``
-    puts it in that frame, moved with the part's ``offset``."""
+    """The markers where the cell file puts them (SPEC section 13): each part's and
+    fixture's ``markers:``; and an align's inline marker (in ``tasks``: the given and
+    the cell's own), which means a marker on the part at the frame it aligns, where its
+    ``pose`` puts it in that frame, moved with the part's ``offset``. An align that names
+    a marker by id prints nothing: the marker is where its carrier has it."""
     from cellrunner.model.align import aligned_frame
+    from cellrunner.model.marker import Marker
     from cellrunner.sim.cameras import MarkerDescription
+    from cellrunner.vision.marker import picture, printed_size_m
 
     c = loaded.cell
     out: dict[tuple[str, str, int], MarkerDescription] = {}
+
+    def printed(carrier: str, marker: Marker, T_carrier_marker: np.ndarray) -> None:
+        key = (carrier, marker.dictionary, marker.id)
+        if key in out:
+            return
+        T = np.array(T_carrier_marker, float)
+        T[:3, 3] += T[:3, 2] * PRINT_LIFT_M
+        name = carrier or "fixture"
+        out[key] = MarkerDescription(
+            carrier, f"{name}-{marker.id}", T, printed_size_m(marker), picture(marker)
+        )
+
+    for part in c.parts:
+        for marker in part.markers:
+            printed(part.name, marker, marker.pose.matrix())
+    for fixture in c.fixtures:
+        for marker in fixture.markers:
+            printed("", marker, fixture.matrix() @ marker.pose.matrix())
     for task in tasks:
         for i, spec in enumerate(task.steps):
             frame = aligned_frame(task.steps, i) if spec.kind == StepKind.ALIGN else None
-            if frame is None:
+            if frame is None or not isinstance(spec.args.marker, Marker):
                 continue
-            marker = spec.args.marker
+            inline: Marker = spec.args.marker
             for part, described in zip(c.parts, parts, strict=True):
-                key = (part.name, marker.dictionary, marker.id)
-                if part.at != frame or key in out:
+                if part.at != frame:
                     continue
-                from cellrunner.vision.marker import picture, printed_size_m
-
                 T_world_grip = frame_pose(c, frame)
                 if part.offset is not None:
                     T_world_grip = T_world_grip @ part.offset.matrix()
                 T_part_marker = (
-                    np.linalg.inv(described.T_world_part) @ T_world_grip @ marker.pose.matrix()
+                    np.linalg.inv(described.T_world_part) @ T_world_grip @ inline.pose.matrix()
                 )
-                T_part_marker[:3, 3] += T_part_marker[:3, 2] * PRINT_LIFT_M
-                out[key] = MarkerDescription(
-                    part.name,
-                    f"{part.name}-{marker.id}",
-                    T_part_marker,
-                    printed_size_m(marker),
-                    picture(marker),
-                )
+                printed(part.name, inline, T_part_marker)
     return tuple(out.values())
 
 
@@ -415,23 +427,7 @@ def _changer(
 
 
 def _part_pose(T_world_grip: np.ndarray, gripper: Gripper | None, shape: Shape) -> np.ndarray:
-    """A part lies upright where a TCP at ``T_world_grip`` grips it: centred (jaws) or
-    with its top face there (suction)."""
-    T = _upright(T_world_grip)
-    T[2, 3] -= part_center_depth_m(gripper, shape)
-    return T
+    """A part lies upright where a TCP at ``T_world_grip`` grips it (the model's rule)."""
+    from cellrunner.model.part_pose import part_pose
 
-
-def _upright(T_world_frame: np.ndarray) -> np.ndarray:
-    """A part lies upright at its frame: the frame's position and yaw, no roll or pitch
-    (grip frames point their Z down into the part)."""
-    x = T_world_frame[:3, 0].copy()
-    x[2] = 0.0
-    if np.linalg.norm(x) < 1e-9:
-        x = np.array([1.0, 0.0, 0.0])
-    x /= np.linalg.norm(x)
-    T = np.eye(4)
-    T[:3, 0], T[:3, 2] = x, (0.0, 0.0, 1.0)
-    T[:3, 1] = np.cross(T[:3, 2], x)
-    T[:3, 3] = T_world_frame[:3, 3]
-    return T
+    return part_pose(T_world_grip, gripper, shape)

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from cellrunner.model.align import AlignArgs, aligned_frame
 from cellrunner.model.diagnose import unknown_name
+from cellrunner.model.marker import Marker
 from cellrunner.model.step import Step, StepKind
 from cellrunner.model.step_kinds import StepKindDef, register
 from cellrunner.model.task import MoveArgs
@@ -55,11 +56,14 @@ class Align(StepKindDef):
         import numpy as np
 
         from cellrunner.model.frames import frame_pose
+        from cellrunner.model.marker_place import marker_in_frame
 
         frame = aligned_frame(builder.task_steps, builder.position)
         assert frame is not None  # references checked it
-        args = spec.args
         cell = builder.cell
+        # the marker in the target frame: an id resolved on the part (or fixture) carrying it
+        marker = marker_in_frame(cell, frame, spec.args.marker)
+        args = spec.args.model_copy(update={"marker": marker})
         camera = cell.cameras[args.camera]
         tcp = cell.tool.tcp.matrix() if cell.tool is not None else np.eye(4)
         extra = {
@@ -87,6 +91,7 @@ class Align(StepKindDef):
                     look,
                 )
             )
+        extra["marker_id_given"] = not isinstance(spec.args.marker, Marker)
         builder.steps.append(
             Step(builder.next_index(), StepKind.ALIGN, frame, args, spec.path, macro, extra=extra)
         )
@@ -109,9 +114,14 @@ class Align(StepKindDef):
                 "align must come before a step aimed at a frame (pick, place, approach, descend, "
                 "linear, insert or move to a frame): the marker's pose is given in that frame",
             )
+        elif not isinstance(spec.args.marker, Marker):
+            _check_marker_id(refs, spec, aligned_frame(steps, at) or "")
 
     def plan(self, planner: StepPlanner, row: StepPlan) -> None:
+        from cellrunner.planning.align_proof import prove_align
+
         step = row.step
+        prove_align(planner, step)
         row.duration_s = ALIGN_LOOK_S
         row.message = (
             f"looks at marker {step.args.marker.id} up to {step.args.attempts} times; "
@@ -124,6 +134,27 @@ class Align(StepKindDef):
         return run_align(ctx, step)
 
 
+def _check_marker_id(refs: ReferenceCheck, spec: Any, frame: str) -> None:
+    """``marker: ID`` names a marker the part at the target frame, or a fixture, carries."""
+    from cellrunner.model.marker_place import find_marker, part_at
+
+    cell = refs.cell
+    if find_marker(cell, frame, spec.args.marker) is not None:
+        return
+    part = part_at(cell, frame)
+    known = [m.id for m in part.markers] if part is not None else []
+    known += [m.id for f in cell.fixtures for m in f.markers]
+    where = (
+        f"part {part.name!r} at frame {frame!r}" if part is not None else f"no part at {frame!r}"
+    )
+    refs.report.error(
+        spec.path + ("marker",),
+        f"marker {spec.args.marker} is printed on no part or fixture ({where}); markers "
+        f"there and on the fixtures: {', '.join(map(str, sorted(known))) or '(none)'}; "
+        "a part's or fixture's `markers:` puts one there",
+    )
+
+
 def _look_pose(args: AlignArgs, camera: Camera, extra: dict[str, Any]) -> np.ndarray:
     """T_world_tcp with the camera on the marker's axis, ``standoff`` out from its face,
     looking at it (the camera's X along the marker's X)."""
@@ -132,6 +163,7 @@ def _look_pose(args: AlignArgs, camera: Camera, extra: dict[str, Any]) -> np.nda
     from cellrunner.model import geometry
 
     fy, height = camera.intrinsics.fy, camera.image_size[1]
+    assert isinstance(args.marker, Marker)  # resolved on its carrier by expand
     standoff = args.standoff or max(LOOK_MIN_M, fy * args.marker.size / (LOOK_SPAN * height))
     T_world_camera = (
         extra["T_world_frame"]

@@ -9,11 +9,24 @@ import numpy as np
 import pytest
 
 from bench.agreement import DISAGREEMENTS, classify, judge
-from bench.cellgen import DEFECTS, FEASIBLE, KINDS, corpus, generate
+from bench.cellgen import DEFECTS, FEASIBLE, KINDS, PLAIN_KINDS, corpus, generate
+from bench.cellgen_cameras import CAMERA_KINDS
 
 #: the fixed sample scripts/test runs: each kind on its own seeds (jaws and cups); with
 #: the dry-runs of the approved jobs, over 40 runs of check and the twin
 SAMPLE_SEED, SAMPLE_SIZE = 5000, 42
+#: and one job of each kind with a camera (bench/cellgen_cameras.py), on its own seeds
+CAMERA_SEED = 5100
+
+
+def sample() -> list:
+    """The fixed sample: the plain kinds' jobs, then one of each camera kind."""
+    return [
+        *corpus(SAMPLE_SIZE, SAMPLE_SEED, PLAIN_KINDS),
+        *corpus(len(CAMERA_KINDS), CAMERA_SEED, CAMERA_KINDS),
+    ]
+
+
 #: disagreements the harness found that are not fixed yet, each with its cause
 #: (docs/check-truth.md): the test fails on any other, and on one of these that is gone.
 #: Fixed: s5025 (a UR10e's set-down at full speed pressed the part into its table; a
@@ -57,11 +70,11 @@ def test_the_classes():
 
 
 def test_a_fixed_sample_agrees_with_the_truth(tmp_path):
-    verdicts = [judge(case, tmp_path) for case in corpus(SAMPLE_SIZE, SAMPLE_SEED)]
+    verdicts = [judge(case, tmp_path) for case in sample()]
     runs = len(verdicts) + sum(1 for v in verdicts if v.result_code is not None)
     assert runs >= 40
     assert {v.kind for v in verdicts} == set(KINDS)
-    cases = corpus(SAMPLE_SIZE, SAMPLE_SEED)
+    cases = sample()
     assert {c.cell["tool"]["gripper"]["kind"] for c in cases} == {"io", "vacuum"}
     assert {c.cell["robot"]["mount"]["rpy"][0] for c in cases} == {0, 180}  # floor, ceiling
     wrong = {v.name: f"{v.verdict}: {v.message}" for v in verdicts if v.verdict in DISAGREEMENTS}
