@@ -35,6 +35,10 @@ from typing import Any
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench import cellgen_holes
+
 #: the arms the generator mounts (the pedestal's height, m)
 ARMS = ("ur3e", "ur5e", "ur10e", "ur16e", "ur5", "ur10")
 PEDESTAL_M = 0.90
@@ -49,8 +53,9 @@ MOUNTS: dict[
 }
 CEILING_SHARE = 0.3
 #: feasible kinds of jobs, and the defects (each breaks one thing)
-FEASIBLE = ("feasible", "near_support")
+FEASIBLE = ("feasible", "near_support", *cellgen_holes.HOLE_FEASIBLE)
 DEFECTS = ("out_of_reach", "unsupported_place", "into_support", "jaws_too_narrow", "weak_vacuum")
+DEFECTS += cellgen_holes.HOLE_DEFECTS
 KINDS = FEASIBLE + DEFECTS
 #: the kinds that need one gripper: the others draw jaws or cups (VACUUM_SHARE of them cups)
 NEEDS_GRIPPER = {"jaws_too_narrow": "jaws", "weak_vacuum": "vacuum"}
@@ -178,6 +183,8 @@ def generate(seed: int, kind: str = "feasible") -> Case:
     """The case of ``seed`` broken (or not) as ``kind`` says (one of :data:`KINDS`)."""
     if kind not in KINDS:
         raise ValueError(f"unknown case kind {kind!r}; known: {', '.join(KINDS)}")
+    if kind in cellgen_holes.HOLE_KINDS:  # a pin into a hole (bench/cellgen_holes.py)
+        return cellgen_holes.generate(seed, kind)
     rng = random.Random(seed)
     for _ in range(WITNESS_TRIES):
         draw = _draw(rng, kind)

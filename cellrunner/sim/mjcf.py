@@ -53,6 +53,7 @@ from cellrunner.sim.mjcf_attrs import (
     pose_attrs,
 )
 from cellrunner.sim.mujoco_loader import load_mujoco
+from cellrunner.sim.rigid_contacts import rigid_contact_attrs
 from cellrunner.sim.tool_changer import add_tools
 from cellrunner.sim.vacuum import add_cups, add_welds
 
@@ -355,6 +356,7 @@ class _Builder:
             material="fixture",
             contype=str(STATIC),
             conaffinity=str(ROBOT | PADS | PARTS),
+            **rigid_contact_attrs(self.timestep_s),
             **self._shape_attrs(shape),
             **pose_attrs(T),
         )
