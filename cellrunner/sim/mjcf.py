@@ -356,7 +356,11 @@ class _Builder:
             material="fixture",
             contype=str(STATIC),
             conaffinity=str(ROBOT | PADS | PARTS),
-            **rigid_contact_attrs(self.timestep_s),
+            **(
+                rigid_contact_attrs(self.timestep_s)
+                if placed.name in self.desc.rigid_fixtures
+                else {}
+            ),
             **self._shape_attrs(shape),
             **pose_attrs(T),
         )

@@ -126,6 +126,11 @@ def test_out_of_reach_in_metres_that_were_meant_as_mm_says_so():
             "upper_arm is too close to fixture 'wall' (2.095 mm apart, 0.005 mm short of the 2.1 mm it must keep)",
         ),
         (-0.003, 0.002, "upper_arm collides with fixture 'wall' (3.0 mm deep; must keep 2.0 mm)"),
+        (  # a contact allowance never reads as a clearance below zero (issue 33)
+            -0.0009,
+            -0.0008,
+            "upper_arm presses 0.90 mm into fixture 'wall', 0.10 mm more than the 0.80 mm it may",
+        ),
     ],
 )
 def test_clearance_message_never_reads_as_no_shortfall(distance_m, required_m, expected):
