@@ -1,6 +1,6 @@
 """Does ``check`` agree with the twin, and both with the truth, on cells nobody wrote?
 
-Run: ``python bench/agreement.py --cells N --seed S [--jobs J] [--out DIR]`` from the
+Run: ``python bench/agreement.py --cells N --seed S [--jobs J] [--out DIR] [--kinds K,...]`` from the
 repository root. It generates N jobs (``bench/cellgen.py``: feasible by construction, or
 broken in one known way), runs ``check`` on each and, where ``check`` approves, ``dry-run``
 on the twin, and classifies each job:
@@ -31,7 +31,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.cellgen import FEASIBLE, KINDS, Case, corpus
+from bench.cellgen import FEASIBLE, KINDS, Case
 
 CLASSES = ("true accept", "true refuse", "false approval", "twin false OK", "false refusal")
 DISAGREEMENTS = ("false approval", "twin false OK", "false refusal")
@@ -105,9 +105,12 @@ def _judge_one(args: tuple[int, str, str]) -> Verdict:
     return judge(generate(seed, kind), Path(out))
 
 
-def run(count: int, seed: int, jobs: int, out: Path) -> list[Verdict]:
-    """Judge ``count`` generated jobs from ``seed`` on ``jobs`` processes."""
-    cases = [(c.seed, c.kind, str(out)) for c in corpus(count, seed)]
+def run(
+    count: int, seed: int, jobs: int, out: Path, kinds: tuple[str, ...] = KINDS
+) -> list[Verdict]:
+    """Judge ``count`` generated jobs from ``seed`` on ``jobs`` processes: ``kinds`` in
+    turn, each on its own seed (all of them: :func:`bench.cellgen.corpus`)."""
+    cases = [(seed + i, kinds[i % len(kinds)], str(out)) for i in range(count)]
     if jobs <= 1:
         return [_judge_one(c) for c in cases]
     with ProcessPoolExecutor(max_workers=jobs) as pool:
@@ -158,8 +161,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=2, help="processes (default 2)")
     parser.add_argument("--out", type=Path, default=Path("var/agreement"))
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    parser.add_argument(
+        "--kinds", default=",".join(KINDS), help="comma-separated kinds (default: all)"
+    )
     args = parser.parse_args(argv)
-    verdicts = run(args.cells, args.seed, args.jobs, args.out)
+    kinds = tuple(k for k in args.kinds.split(",") if k)
+    unknown = sorted(set(kinds) - set(KINDS))
+    if unknown:
+        parser.error(f"unknown kinds {', '.join(unknown)}; known: {', '.join(KINDS)}")
+    verdicts = run(args.cells, args.seed, args.jobs, args.out, kinds)
     listing = write_disagreements(verdicts, args.out)
     if args.json:
         print(json.dumps([asdict(v) for v in verdicts], indent=1))

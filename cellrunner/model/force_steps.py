@@ -54,7 +54,8 @@ class ForceLimit(Strict):
 
     @model_validator(mode="after")
     def _order(self) -> ForceLimit:
-        if self.min is not None and self.min >= self.max:
+        low, high = self.min, self.max  # (a param's name is judged with its value)
+        if isinstance(low, float | int) and isinstance(high, float | int) and low >= high:
             raise PydanticCustomError(
                 "force", f"force min {self.min:g} N is not below max {self.max:g} N"
             )

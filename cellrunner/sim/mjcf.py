@@ -349,21 +349,19 @@ class _Builder:
             T = T.copy()
             T[:3, 3] = T[:3, :3] @ center + T[:3, 3]
             shape = Box(tuple(size))
-        ET.SubElement(
+        geom = ET.SubElement(
             parent,
             "geom",
             name=f"fixture:{placed.name}",
             material="fixture",
             contype=str(STATIC),
             conaffinity=str(ROBOT | PADS | PARTS),
-            **(
-                rigid_contact_attrs(self.timestep_s)
-                if placed.name in self.desc.rigid_fixtures
-                else {}
-            ),
             **self._shape_attrs(shape),
             **pose_attrs(T),
         )
+        if placed.name in self.desc.rigid_fixtures:  # a hole's walls (issue 33)
+            for key, value in rigid_contact_attrs(self.timestep_s).items():
+                geom.set(key, value)
 
     def _mesh_pieces(self, parent: ET.Element, placed: Placed) -> bool:
         """A non-convex mesh fixture as one thin prism per triangle (see :mod:`.mesh_pieces`);

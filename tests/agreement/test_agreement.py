@@ -11,9 +11,10 @@ import pytest
 from bench.agreement import DISAGREEMENTS, classify, judge
 from bench.cellgen import DEFECTS, FEASIBLE, KINDS, corpus, generate
 
-#: the fixed sample scripts/test runs: each kind on its own seeds (jaws and cups); with
-#: the dry-runs of the approved jobs, over 40 runs of check and the twin
-SAMPLE_SEED, SAMPLE_SIZE = 5000, 42
+#: the fixed sample scripts/test runs: each kind on its own seeds (jaws and cups, and the
+#: holes: a fit, a hole too shallow, a rim and an interference jam); with the dry-runs
+#: of the approved jobs, over 40 runs of check and the twin
+SAMPLE_SEED, SAMPLE_SIZE = 5000, 44
 #: disagreements the harness found that are not fixed yet, each with its cause
 #: (docs/check-truth.md): the test fails on any other, and on one of these that is gone.
 #: Fixed: s5025 (a UR10e's set-down at full speed pressed the part into its table; a

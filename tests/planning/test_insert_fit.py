@@ -51,7 +51,7 @@ def test_force_min_over_max_is_a_located_error(tmp_path):
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
         assert main(["validate", cell, task]) == 2
     text = err.getvalue()
-    assert "task.yaml:6:" in text and "force min 20 N is not below max 10 N" in text, text
+    assert "task.yaml:7:" in text and "force min 20 N is not below max 10 N" in text, text
 
 
 def test_a_press_fit_whose_force_never_builds_up_fails_in_the_twin(tmp_path):
