@@ -21,6 +21,9 @@ and the straight lines down to the frames keep 5 mm over every clearance.
 and ``near_support`` is a feasible variant that sets the part down 2 mm above its table
 (a place a line engineer writes, which ``check`` must not refuse).
 
+The kinds of :mod:`bench.cellgen_holes` (a pin into a hole: a fit, a hole too shallow, a
+rim and an interference jam) are generated there.
+
 Run ``python bench/cellgen.py SEED [DEFECT] DIR`` to write one case's files.
 """
 

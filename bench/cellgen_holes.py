@@ -2,16 +2,18 @@
 
 The hole is a block on the outfeed table modelled as the cell file allows: four walls
 (boxes ``wall_xm``, ``wall_xp``, ``wall_ym``, ``wall_yp``) around a square hole, and its
-floor (``hole_floor``) under it. The pin is a cylinder standing on its end, held by jaws
-at its centre; the frame ``hole`` is where the TCP stands when the pin's tip is at the
+floor (``hole_floor``) under it, turned with the pin. The pin is a square bar standing on
+its end, held by jaws at its centre (flat faces on the pads: a round pin between flat
+pads pivots about the jaws' axis as the arm carries it, 1.5 deg puts its tip 1.2 mm
+off, and a UR10e's carry did); the frame ``hole`` is where the TCP stands when the pin's tip is at the
 hole's mouth (as in SPEC section 12). The job: ``move home -> pick -> approach the hole
 -> descend to its mouth -> insert (contact: the walls) -> release -> retreat -> home``.
 
 The place witness is a joint configuration over the hole (``bench/cellgen.py``'s
 witnesses), so the job is reachable by construction; the kinds set the fit:
 
-- ``hole_fit`` (feasible): the pin's faces 0.25-3 mm from the walls, the floor 1.5-3 mm
-  below the insert's end;
+- ``hole_fit`` (feasible): the pin's faces 0.25-3 mm from the walls, the floor 2.5-4 mm
+  below the insert's end (it keeps the cell's clearance: it is not in ``contact:``);
 - ``hole_too_shallow``: the floor 6-12 mm above the insert's end (a hole 8 mm deep for
   an insert of 20): the pin meets a fixture not in ``contact:`` before ``expect_depth``,
   the insert stops there and fails (3);
@@ -80,7 +82,9 @@ def _draw(rng: random.Random, kind: str) -> dict[str, Any]:
     clearance = round(rng.uniform(0.00025, 0.003), 5)
     if kind == "jam_interference":
         clearance = INTERFERENCE_M
-    floor_below = round(rng.uniform(0.0015, 0.003), 4)  # under the insert's end (m)
+    # the floor under the insert's end (m): beyond the cell's clearance (2 mm and 0.1 mm
+    # of proof tolerance), which it keeps, as it is not named in contact:
+    floor_below = round(rng.uniform(0.0025, 0.004), 4)
     if kind == "hole_too_shallow":
         floor_below = -round(rng.uniform(0.006, 0.012), 4)
     return {
@@ -113,24 +117,35 @@ def _case(seed: int, kind: str, d: dict[str, Any]) -> Any:
     table_top = mouth_z - WALL_HEIGHT_M
     cx, cy = float(T_hole[0, 3]), float(T_hole[1, 3])
     frame = T_hole.copy()
+    # the hole's axes: the pin's (the TCP's X, across the jaws, and the horizontal normal)
+    ux = [float(v) for v in T_hole[:3, 0] / float(np.linalg.norm(T_hole[:3, 0]))]
+    uy = [-ux[1], ux[0], 0.0]
+    yaw_deg = round(float(np.degrees(np.arctan2(ux[1], ux[0]))), 4)
     if kind == "jam_rim":  # the pin's tip over the rim of wall_xp by RIM_OVERLAP_M
-        frame[0, 3] += d["clearance"] + RIM_OVERLAP_M
+        frame[:3, 3] += (d["clearance"] + RIM_OVERLAP_M) * np.asarray(ux)
     w = 2 * (d["radius"] + d["clearance"])  # the hole's side
     t = WALL_THICKNESS_M
     z = round(mouth_z - WALL_HEIGHT_M / 2, 5)
     walls = [
-        ("wall_xm", (cx - w / 2 - t / 2, cy), (t, w + 2 * t)),
-        ("wall_xp", (cx + w / 2 + t / 2, cy), (t, w + 2 * t)),
-        ("wall_ym", (cx, cy - w / 2 - t / 2), (w, t)),
-        ("wall_yp", (cx, cy + w / 2 + t / 2), (w, t)),
+        ("wall_xm", (-w / 2 - t / 2, 0.0), (t, w + 2 * t)),
+        ("wall_xp", (w / 2 + t / 2, 0.0), (t, w + 2 * t)),
+        ("wall_ym", (0.0, -w / 2 - t / 2), (w, t)),
+        ("wall_yp", (0.0, w / 2 + t / 2), (w, t)),
     ]
     fixtures = [
         {
             "name": name,
             "box": {"size": [round(sx, 5), round(sy, 5), WALL_HEIGHT_M]},
-            "pose": {"xyz": [round(x, 5), round(y, 5), z]},
+            "pose": {
+                "xyz": [
+                    round(cx + a * ux[0] + b * uy[0], 5),
+                    round(cy + a * ux[1] + b * uy[1], 5),
+                    z,
+                ],
+                "rpy": [0, 0, yaw_deg],
+            },
         }
-        for name, (x, y), (sx, sy) in walls
+        for name, (a, b), (sx, sy) in walls
     ]
     floor_top = mouth_z - d["depth"] - d["floor_below"]
     floor_h = floor_top - table_top
@@ -138,7 +153,10 @@ def _case(seed: int, kind: str, d: dict[str, Any]) -> Any:
         {
             "name": "hole_floor",
             "box": {"size": [round(w, 5), round(w, 5), round(floor_h, 5)]},
-            "pose": {"xyz": [round(cx, 5), round(cy, 5), round(table_top + floor_h / 2, 5)]},
+            "pose": {
+                "xyz": [round(cx, 5), round(cy, 5), round(table_top + floor_h / 2, 5)],
+                "rpy": [0, 0, yaw_deg],
+            },
         }
     )
     tcp_m = d["tcp_m"]
@@ -188,7 +206,9 @@ def _case(seed: int, kind: str, d: dict[str, Any]) -> Any:
         "parts": [
             {
                 "name": "pin",
-                "cylinder": {"radius": d["radius"], "length": d["length"]},
+                "box": {
+                    "size": [round(2 * d["radius"], 5), round(2 * d["radius"], 5), d["length"]]
+                },
                 "mass": d["mass"],
                 "at": "infeed",
             }

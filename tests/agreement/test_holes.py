@@ -5,6 +5,8 @@ alone is judged)."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from bench.agreement import cli
@@ -19,12 +21,12 @@ def _walls(case) -> dict[str, dict]:
 
 
 def _gap_m(case) -> float:
-    """The gap between the pin's faces and the hole's walls along X (m, negative: overlap)."""
+    """The gap between the pin's faces and the hole's walls across the jaws (m, negative:
+    overlap)."""
     f = _walls(case)
-    inner_xm = f["wall_xm"]["pose"]["xyz"][0] + f["wall_xm"]["box"]["size"][0] / 2
-    inner_xp = f["wall_xp"]["pose"]["xyz"][0] - f["wall_xp"]["box"]["size"][0] / 2
-    radius = case.cell["parts"][0]["cylinder"]["radius"]
-    return (inner_xp - inner_xm) / 2 - radius
+    between = math.dist(f["wall_xm"]["pose"]["xyz"], f["wall_xp"]["pose"]["xyz"])
+    thickness = f["wall_xp"]["box"]["size"][0]
+    return (between - thickness) / 2 - case.cell["parts"][0]["box"]["size"][0] / 2
 
 
 @pytest.mark.parametrize("kind", HOLE_KINDS)
@@ -32,11 +34,10 @@ def test_each_hole_kind_is_reproducible_and_has_its_fit(kind):
     a, b = generate(SEED, kind), generate(SEED, kind)
     assert (a.cell, a.task) == (b.cell, b.task)
     gap = _gap_m(a)
-    frame_x = a.cell["frames"]["hole"]["xyz"][0]
     f = _walls(a)
-    centre_x = f["hole_floor"]["pose"]["xyz"][0]
+    off_m = math.dist(a.cell["frames"]["hole"]["xyz"][:2], f["hole_floor"]["pose"]["xyz"][:2])
     insert = a.task["steps"][4]["insert"]
-    mouth_z = a.cell["frames"]["hole"]["xyz"][2] - a.cell["parts"][0]["cylinder"]["length"] / 2
+    mouth_z = a.cell["frames"]["hole"]["xyz"][2] - a.cell["parts"][0]["box"]["size"][2] / 2
     floor = f["hole_floor"]
     floor_depth = mouth_z - (floor["pose"]["xyz"][2] + floor["box"]["size"][2] / 2)
     if kind == "jam_interference":
@@ -44,9 +45,9 @@ def test_each_hole_kind_is_reproducible_and_has_its_fit(kind):
     else:
         assert 0.0002 < gap < 0.0031
     if kind == "jam_rim":  # the pin's edge over wall_xp's inner face
-        assert frame_x - centre_x == pytest.approx(gap + RIM_OVERLAP_M, abs=2e-5)
+        assert off_m == pytest.approx(gap + RIM_OVERLAP_M, abs=2e-5)
     else:
-        assert frame_x == pytest.approx(centre_x, abs=2e-5)
+        assert off_m == pytest.approx(0.0, abs=2e-5)
     if kind == "hole_too_shallow":
         assert floor_depth < insert["expect_depth"][0] - 0.005
     else:
@@ -76,7 +77,9 @@ def test_check_refuses_a_pin_over_the_rim_and_an_interference_fit_as_jams(tmp_pa
     code, out = _check(generate(SEED, "jam_interference"), tmp_path)
     assert code == 1
     (error,) = out["errors"]
-    assert "by up to 0.10 mm from 0.0 mm past frame 'hole' (an interference fit): it jams" in error
+    assert "fixture 'wall_xm'" in error and "fixture 'wall_yp'" in error  # every face
+    assert " by up to 0.1" in error  # 0.1 mm per face, and the turned walls' rounding
+    assert "mm from 0.0 mm past frame 'hole' (an interference fit): it jams" in error
     assert "declare the press fit: force: {min: N, max: N}" in error
 
 
