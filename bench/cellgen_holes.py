@@ -277,7 +277,7 @@ def _witness_clear(case: Any, d: dict[str, Any]) -> bool:
         for q, below_m, above_m in lines:
             T_goal, config = kin.T_world_tcp(q), q
             steps = int((above_m - below_m) / 0.005) + 1
-            for k in range(steps + 1):
+            for k in range(steps):
                 config = kin.ik_track(T_goal @ cellgen._up(below_m + k * 0.005), config)
                 if config is None:
                     return False
