@@ -1,6 +1,6 @@
 """Does ``check`` agree with the twin, and both with the truth, on cells nobody wrote?
 
-Run: ``python bench/agreement.py --cells N --seed S [--jobs J] [--out DIR]`` from the
+Run: ``python bench/agreement.py --cells N --seed S [--jobs J] [--out DIR] [--kinds K,...]`` from the
 repository root. It generates N jobs (``bench/cellgen.py``: feasible by construction, or
 broken in one known way), runs ``check`` on each and, where ``check`` approves, ``dry-run``
 on the twin, and classifies each job:

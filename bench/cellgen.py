@@ -21,6 +21,9 @@ and the straight lines down to the frames keep 5 mm over every clearance.
 and ``near_support`` is a feasible variant that sets the part down 2 mm above its table
 (a place a line engineer writes, which ``check`` must not refuse).
 
+The kinds of :mod:`bench.cellgen_holes` (a pin into a hole: a fit, a hole too shallow, a
+rim and an interference jam) are generated there.
+
 Run ``python bench/cellgen.py SEED [DEFECT] DIR`` to write one case's files.
 """
 
@@ -37,6 +40,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from bench import cellgen_holes
 from bench.cellgen_cameras import (
     CAMERA_DEFECTS,
     CAMERA_FEASIBLE,
@@ -59,7 +63,7 @@ MOUNTS: dict[
 }
 CEILING_SHARE = 0.3
 #: feasible kinds of jobs, and the defects (each breaks one thing)
-FEASIBLE = ("feasible", "near_support", *CAMERA_FEASIBLE)
+FEASIBLE = ("feasible", "near_support", *CAMERA_FEASIBLE, *cellgen_holes.HOLE_FEASIBLE)
 DEFECTS = (
     "out_of_reach",
     "unsupported_place",
@@ -67,6 +71,7 @@ DEFECTS = (
     "jaws_too_narrow",
     "weak_vacuum",
     *CAMERA_DEFECTS,
+    *cellgen_holes.HOLE_DEFECTS,
 )
 KINDS = FEASIBLE + DEFECTS
 #: the kinds without cameras (the fixed sample's first part keeps its seeds)
@@ -197,6 +202,8 @@ def generate(seed: int, kind: str = "feasible") -> Case:
     """The case of ``seed`` broken (or not) as ``kind`` says (one of :data:`KINDS`)."""
     if kind not in KINDS:
         raise ValueError(f"unknown case kind {kind!r}; known: {', '.join(KINDS)}")
+    if kind in cellgen_holes.HOLE_KINDS:  # a pin into a hole (bench/cellgen_holes.py)
+        return cellgen_holes.generate(seed, kind)
     rng = random.Random(seed)
     for _ in range(WITNESS_TRIES):
         draw = _draw(rng, kind)

@@ -13,7 +13,8 @@ it is:
   nothing found);
 - ``insert``: the depth reached past the frame (the TCP measured along the frame's Z)
   must lie in ``expect_depth``; outside it the place failed (3), with the depth in the
-  message.
+  message. A press fit (``force: {min}``) whose force never built up to ``min`` on the way
+  in failed too (3): the part went in loose (a worn hole, the wrong part).
 
 Why not ur_rtde's moveUntilContact: it is a speedL without an end, so it could run past
 the line ``check`` approved; the guarded servo cannot (and reads the same sensor).
@@ -75,6 +76,7 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
     limit_N = args.force if step.kind == StepKind.MOVE_UNTIL_CONTACT else args.force.max
     approved = _approved_line(ctx, step, resume)
     trace = ctx.notes.setdefault("force_trace", [])
+    first = len(trace)
     streamed = yield from _stream_until_contact(ctx, step, approved, baseline, limit_N, trace)
     if isinstance(streamed, Outcome):
         return streamed
@@ -97,7 +99,8 @@ def run_force(ctx: JobContext, step: Step, resume: bool = False) -> Generator[No
             f"no contact within {args.max_distance * 1000:.1f} mm "
             f"(force stayed under {limit_N:g} N)",
         )
-    return _insertion_outcome(ctx, step, streamed.force_N)
+    peak_N = max((sample[2] for sample in trace[first:]), default=0.0)
+    return _insertion_outcome(ctx, step, streamed.force_N, peak_N)
 
 
 def _approved_line(ctx: JobContext, step: Step, resume: bool) -> ApprovedTrajectory:
@@ -171,8 +174,12 @@ def _stream_until_contact(
     return _Streamed(None, i, touch_i)
 
 
-def _insertion_outcome(ctx: JobContext, step: Step, contact_N: float | None) -> Outcome:
-    """An insertion's Outcome: OK when the depth reached (m) is within the step's window."""
+def _insertion_outcome(
+    ctx: JobContext, step: Step, contact_N: float | None, peak_N: float
+) -> Outcome:
+    """An insertion's Outcome: OK when the depth reached (m) is within the step's window
+    and, for a press fit, the force (``peak_N``, the most above the baseline) built up to
+    its ``force.min``."""
     depth_m = _depth_m(ctx, step)
     lo, hi = step.args.depth_window_m
     how = f"stopped at {contact_N:.1f} N" if contact_N is not None else "no force stop"
@@ -181,6 +188,13 @@ def _insertion_outcome(ctx: JobContext, step: Step, contact_N: float | None) -> 
             ResultCode.PLACE_FAILED,
             f"inserted {depth_m * 1000:.1f} mm, expected "
             f"{lo * 1000:.1f}-{hi * 1000:.1f} mm ({how})",
+        )
+    low_N = step.args.force.min
+    if low_N is not None and peak_N < low_N:
+        return Outcome.failed(
+            ResultCode.PLACE_FAILED,
+            f"press fit not made: the force built up to {peak_N:.1f} N, under the "
+            f"{low_N:g} N of force.min, by {depth_m * 1000:.1f} mm (the part went in loose)",
         )
     return OK
 

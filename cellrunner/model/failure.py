@@ -31,7 +31,8 @@ class FailureKind(StrEnum):
     SUPPORT = "support"  # a part let go over nothing, or set down into what is under it
     GRIP = "grip"  # the open jaws narrower than the part
     HOLD = "hold"  # suction cups that cannot hold the part through the moves that carry it
-    CONTACT = "contact"  # a force step that would meet nothing
+    CONTACT = "contact"  # a force step that would meet nothing, or an insert stopped short
+    JAM = "jam"  # a part pressed into a fixture it may only touch (a rim, an interference fit)
     CAMERA_VIEW = "camera_view"  # a camera that cannot see its zone or its whole marker, or reads it too noisily
     MARKER = "marker"  # an align's marker off the surface of what carries it, or carried by nothing
     MODEL = "model"  # the robot model or the collision scene cannot be built

@@ -49,6 +49,17 @@ class MoveUntilContactArgs(Strict):
 class ForceLimit(Strict):
     max: Annotated[Force, Field(gt=0)]
     """Wrist force, N, above which the insert stops. Example: `20`"""
+    min: Annotated[Force, Field(gt=0)] | None = None
+    """A press fit: the wrist force, N, the insert must build up on its way in, else it failed (3). Example: `40`"""
+
+    @model_validator(mode="after")
+    def _order(self) -> ForceLimit:
+        low, high = self.min, self.max  # (a param's name is judged with its value)
+        if isinstance(low, float | int) and isinstance(high, float | int) and low >= high:
+            raise PydanticCustomError(
+                "force", f"force min {self.min:g} N is not below max {self.max:g} N"
+            )
+        return self
 
 
 class InsertArgs(Strict):
@@ -64,7 +75,7 @@ class InsertArgs(Strict):
     speed: Speed = 0.005
     """Insertion speed, m/s. Example: `0.005`"""
     force: ForceLimit
-    """Force limit of the insertion. Example: `{max: 20}`"""
+    """Force limit of the insertion; `min` declares a press fit. Example: `{max: 20}`"""
     expect_depth: Annotated[list[Length], Field(min_length=2, max_length=2)] | None = None
     """Depth window [min, max] in m the insert must end in, else the place failed (3). Example: `[0.018, 0.021]`"""
     contact: list[Name] | None = None

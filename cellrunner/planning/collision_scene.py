@@ -118,9 +118,19 @@ class Clearance:
         return self.distance_m - self.required_m
 
     def describe(self) -> str:
-        """'tool collides with fixture 'table' (3.0 mm deep; keeps >= 2.0 mm)' or
+        """'tool collides with fixture 'table' (3.0 mm deep; must keep 2.0 mm)', 'part 'p'
+        presses 1.30 mm into fixture 'pallet', 0.30 mm more than the 1.00 mm it may' (a
+        contact allowance, which must never read as a clearance below zero) or
         'upper_arm is too close to fixture 'wall' (1.96 mm apart, 0.14 mm short of 2.1 mm)':
         the shortfall is printed with enough digits never to read as no shortfall."""
+        if self.distance_m <= 0 and self.required_m < 0:  # an allowance: it may press in
+            over_mm = (self.required_m - self.distance_m) * 1000
+            digits = 1 if over_mm >= 0.1 else 2 if over_mm >= 0.01 else 3
+            return (
+                f"{self.a} presses {-self.distance_m * 1000:.{digits}f} mm into {self.b}, "
+                f"{over_mm:.{digits}f} mm more than the {-self.required_m * 1000:.{digits}f} mm "
+                "it may"
+            )
         if self.distance_m <= 0:
             return (
                 f"{self.a} collides with {self.b} ({-self.distance_m * 1000:.1f} mm deep; "

@@ -102,12 +102,18 @@ def describe(
     return f"guarded: stops above {limit:g} N; {length_mm:.0f} mm line checked; contact allowed with: {where}"
 
 
-def _touch_pairs(collision: CollisionModel, carrying: bool) -> np.ndarray:
+def _touch_pairs(
+    collision: CollisionModel, carrying: bool, exclude: frozenset[str] = frozenset()
+) -> np.ndarray:
     """The pairs whose touch stops a guarded line: the carried part (or, carrying nothing,
-    the tool) against a fixture or a waiting part."""
+    the tool) against a fixture or a waiting part (not one named in ``exclude``)."""
     mover = BodyKind.PART if carrying else BodyKind.TOOL
     return np.array(
-        [k for k, (a, b) in enumerate(collision.pair_labels) if a.kind is mover and b.is_obstacle],
+        [
+            k
+            for k, (a, b) in enumerate(collision.pair_labels)
+            if a.kind is mover and b.is_obstacle and b.name not in exclude
+        ],
         dtype=int,
     )
 
@@ -121,12 +127,17 @@ def _gap_m(collision: CollisionModel, pairs: np.ndarray, q_rad: np.ndarray) -> t
     return float(distances[k]), collision.pair_labels[k][1]
 
 
-def first_touch(collision: CollisionModel, q_rad: np.ndarray, carrying: bool) -> np.ndarray | None:
+def first_touch(
+    collision: CollisionModel,
+    q_rad: np.ndarray,
+    carrying: bool,
+    exclude: frozenset[str] = frozenset(),
+) -> np.ndarray | None:
     """Where a guarded line along the joint samples ``q_rad`` (N x 6) first touches (its
-    mover within ``TOUCH_M`` of a fixture or waiting part), located between samples by
-    bisection to 1/1024 of their step; None when it touches nothing. ``collision``: the
-    cell's model with the carried part and no allowances."""
-    pairs = _touch_pairs(collision, carrying)
+    mover within ``TOUCH_M`` of a fixture or waiting part, not one named in ``exclude``),
+    located between samples by bisection to 1/1024 of their step; None when it touches
+    nothing. ``collision``: the cell's model with the carried part and no allowances."""
+    pairs = _touch_pairs(collision, carrying, exclude)
     if not len(pairs):
         return None
     q = np.asarray(q_rad, float)

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
-from cellrunner.model.body import WAITING_PREFIX
+from cellrunner.model.body import WAITING_PREFIX, Body, BodyKind
 from cellrunner.model.failure import Blocker, Failure, FailureKind
 from cellrunner.model.geometry import Box, Cylinder, Placed, Shape, Sphere
 from cellrunner.planning.collision_scene import fixture_label
@@ -69,16 +69,28 @@ def check_support(
     ):
         return
     held = Placed(part.name, part.shape, T_world_part)
-    gaps = distances(world, held, supports)
+    # the nearest thing is among the fixtures and the parts earlier slots put down (the
+    # carton 23 mm below, not the pallet 173 mm below it)
+    earlier = [
+        Placed(part.name, part.shape, np.asarray(T) @ part.T_parent_shape) for T in earlier_tcp
+    ]
+    gaps = distances(world, held, [*supports, *earlier])
     k = int(np.argmin(gaps)) if gaps else -1
-    nearest = fixture_label(supports[k].name) if k >= 0 else None
+    nearest: Body | None = None
+    what = "nothing"
+    if 0 <= k < len(supports):
+        nearest = fixture_label(supports[k].name)
+        what = str(nearest)
+    elif k >= len(supports):
+        nearest = Body(BodyKind.PART, part.name)
+        what = f"the {nearest} an earlier slot put down"
     gap_mm = gaps[k] * 1000 if k >= 0 else float("inf")
     raise InfeasibleError(
         Failure(
             FailureKind.SUPPORT,
             f"the part '{part.name}' would be let go with nothing under it within "
             f"place_tolerance {drop_m * 1000:.0f} mm (the nearest thing is "
-            f"{nearest or 'nothing'}, {gap_mm:.1f} mm away): it falls",
+            f"{what}, {gap_mm:.1f} mm away): it falls",
             blockers=(Blocker(nearest, gaps[k]),) if nearest is not None else (),
             fix="fix: lower the place frame onto its support, or place it where a fixture or "
             "an earlier part holds it",

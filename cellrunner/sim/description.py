@@ -135,6 +135,7 @@ class TwinDescription:
     feed: Any = None  # a FeedDescription (sim.feed): parts fed before each job
     belts: tuple[Any, ...] = ()  # BeltDescription (sim.belts): conveyors that carry parts
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
+    rigid_fixtures: frozenset[str] = frozenset()  # named in a step's contact: (sim.rigid_contacts)
     floor: bool = True
     name: str = "cell"
 

@@ -53,6 +53,7 @@ from cellrunner.sim.mjcf_attrs import (
     pose_attrs,
 )
 from cellrunner.sim.mujoco_loader import load_mujoco
+from cellrunner.sim.rigid_contacts import rigid_contact_attrs
 from cellrunner.sim.tool_changer import add_tools
 from cellrunner.sim.vacuum import add_cups, add_welds
 
@@ -348,7 +349,7 @@ class _Builder:
             T = T.copy()
             T[:3, 3] = T[:3, :3] @ center + T[:3, 3]
             shape = Box(tuple(size))
-        ET.SubElement(
+        geom = ET.SubElement(
             parent,
             "geom",
             name=f"fixture:{placed.name}",
@@ -358,6 +359,9 @@ class _Builder:
             **self._shape_attrs(shape),
             **pose_attrs(T),
         )
+        if placed.name in self.desc.rigid_fixtures:  # a hole's walls (issue 33)
+            for key, value in rigid_contact_attrs(self.timestep_s).items():
+                geom.set(key, value)
 
     def _mesh_pieces(self, parent: ET.Element, placed: Placed) -> bool:
         """A non-convex mesh fixture as one thin prism per triangle (see :mod:`.mesh_pieces`);

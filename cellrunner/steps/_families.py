@@ -49,6 +49,19 @@ class FrameLine(MotionKind):
         refs.frame(spec.args.to, spec.path + ("to",))
         refs.contacts(spec.args, spec.path)
 
+    def check_line(self, planner: Any, step: Step, path: np.ndarray) -> None:
+        """A line into a tight fit slides along the fixtures named in ``contact:``; pressed
+        into them (over a rim, an interference fit) it jams."""
+        if not getattr(step.args, "contact", None):
+            return
+        from cellrunner.errors import InfeasibleError
+        from cellrunner.planning.insert_fit import jam
+
+        bare = planner.world.collision.carrying(planner.part)
+        failure = jam(planner.world.kinematics, step, bare, path)
+        if failure is not None:
+            raise InfeasibleError(failure)
+
 
 class RelativeLine(MotionKind):
     """A straight line of ``distance`` m from where the TCP stands."""

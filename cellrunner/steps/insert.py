@@ -43,6 +43,18 @@ class Insert(GuardedLine):
     def target_frame(self, args: Any) -> str | None:
         return str(args.to)
 
+    def check_line(self, planner: Any, step: Any, path: np.ndarray) -> None:
+        """It must reach ``expect_depth`` before it meets a fixture not in ``contact:``,
+        and slide into the fixtures named there, not jam on them."""
+        from cellrunner.errors import InfeasibleError
+        from cellrunner.planning.insert_fit import early_stop, jam
+
+        kin, carrying = planner.world.kinematics, planner.part is not None
+        bare = planner.world.collision.carrying(planner.part)
+        failure = early_stop(kin, step, bare, path, carrying) or jam(kin, step, bare, path)
+        if failure is not None:
+            raise InfeasibleError(failure)
+
     def check_references(self, refs: ReferenceCheck, spec: Any) -> None:
         refs.frame(spec.args.to, spec.path + ("to",))
         refs.contacts(spec.args, spec.path)

@@ -12,9 +12,10 @@ from bench.agreement import DISAGREEMENTS, classify, judge
 from bench.cellgen import DEFECTS, FEASIBLE, KINDS, PLAIN_KINDS, corpus, generate
 from bench.cellgen_cameras import CAMERA_KINDS
 
-#: the fixed sample scripts/test runs: each kind on its own seeds (jaws and cups); with
-#: the dry-runs of the approved jobs, over 40 runs of check and the twin
-SAMPLE_SEED, SAMPLE_SIZE = 5000, 42
+#: the fixed sample scripts/test runs: each kind on its own seeds (jaws and cups, and the
+#: holes: a fit, a hole too shallow, a rim and an interference jam); with the dry-runs
+#: of the approved jobs, over 40 runs of check and the twin
+SAMPLE_SEED, SAMPLE_SIZE = 5000, 44
 #: and one job of each kind with a camera (bench/cellgen_cameras.py), on its own seeds
 CAMERA_SEED = 5100
 
@@ -31,7 +32,12 @@ def sample() -> list:
 #: (docs/check-truth.md): the test fails on any other, and on one of these that is gone.
 #: Fixed: s5025 (a UR10e's set-down at full speed pressed the part into its table; a
 #: place's descend is now timed gently)
-KNOWN_OPEN: dict[str, str] = {}
+KNOWN_OPEN: dict[str, str] = {
+    # the pin (1.3 mm clear of its walls) slides in the jaws as the UR10e carries it
+    # and its tip meets the rim (inserted 0.0 mm); check has no rule for a jaw grip's
+    # friction against the carrying accelerations yet (docs/check-truth.md)
+    "s5013-ur10e-hole_fit": "false approval: inserted 0.0 mm",
+}
 
 
 def test_the_same_seed_writes_the_same_files_and_another_seed_others():
@@ -49,9 +55,10 @@ def test_each_witness_puts_the_tcp_on_its_frame_within_the_joint_limits():
         tcp_m = case.cell["tool"]["tcp"]["xyz"][2]
         mount = "ceiling" if case.cell["robot"]["mount"]["rpy"][0] == 180 else "floor"
         kin = _kinematics(case.cell["robot"]["model"], tcp_m, mount)
-        for frame, witness in (("infeed", "pick"), ("outfeed", "place")):
-            if case.kind == "out_of_reach" and frame == "outfeed":
-                continue  # moved out of reach on purpose: no witness
+        place = "hole" if "hole" in case.cell["frames"] else "outfeed"  # (cellgen_holes)
+        for frame, witness in (("infeed", "pick"), (place, "place")):
+            if case.kind in ("out_of_reach", "jam_rim") and witness == "place":
+                continue  # moved on purpose (out of reach, over the rim): no witness
             q = np.radians(case.witness_deg[witness])
             assert np.all(q >= kin.q_min_rad) and np.all(q <= kin.q_max_rad)
             T = kin.T_world_tcp(q)

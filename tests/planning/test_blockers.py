@@ -139,6 +139,11 @@ def test_the_mm_hint_is_data_and_the_approach_fix_replaces_it():
             "upper_arm is too close to fixture 'wall' (2.095 mm apart, 0.005 mm short of the 2.1 mm it must keep)",
         ),
         (-0.003, 0.002, "upper_arm collides with fixture 'wall' (3.0 mm deep; must keep 2.0 mm)"),
+        (  # a contact allowance never reads as a clearance below zero (issue 33)
+            -0.0009,
+            -0.0008,
+            "upper_arm presses 0.90 mm into fixture 'wall', 0.10 mm more than the 0.80 mm it may",
+        ),
     ],
 )
 def test_clearance_message_never_reads_as_no_shortfall(distance_m, required_m, expected):

@@ -42,3 +42,19 @@ def test_check_forgives_the_drop_the_twin_forgives():
     from cellrunner.sim.places import PLACE_DROP_M
 
     assert FORGIVEN_DROP_M == PLACE_DROP_M
+
+
+def test_the_nearest_thing_named_is_the_carton_below_not_the_pallet(tmp_path):
+    """Slot 4 (layer 2) let go 20 mm above slot 0's carton: the message names that carton
+    (an earlier slot's), not the pallet far under it (issue 33)."""
+    from pathlib import Path
+
+    task = tmp_path / "palletize.yaml"
+    text = Path("tasks/palletize.yaml").read_text()
+    task.write_text(text.replace("[0.22, 0.17, 0.10]", "[0.22, 0.17, 0.12]"))
+    out = json_of("check", "cells/palletizer_ur10e.yaml", str(task), "-p", "slot=4")
+    error = out["errors"][0]  # and one per slot of the upper layers after it
+    assert error.startswith("step 9 release 'pallet_slot0[slot=4]': the part 'carton' "), error
+    assert (
+        "(the nearest thing is the part 'carton' an earlier slot put down, 20.0 mm away)" in error
+    )

@@ -1,0 +1,108 @@
+"""Holes in generated cells (bench/cellgen_holes.py, issue 33): the pin's fit is what the
+kind says, check refuses the hole too shallow and the jams with the fixture and depth
+named, and the twin fails the jams too (with check's fit rule switched off, so the twin
+alone is judged)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from bench.agreement import cli
+from bench.cellgen import generate
+from bench.cellgen_holes import HOLE_KINDS, INTERFERENCE_M, RIM_OVERLAP_M
+
+SEED = 11
+
+
+def _walls(case) -> dict[str, dict]:
+    return {f["name"]: f for f in case.cell["fixtures"]}
+
+
+def _gap_m(case) -> float:
+    """The gap between the pin's faces and the hole's walls across the jaws (m, negative:
+    overlap)."""
+    f = _walls(case)
+    between = math.dist(f["wall_xm"]["pose"]["xyz"], f["wall_xp"]["pose"]["xyz"])
+    thickness = f["wall_xp"]["box"]["size"][0]
+    return (between - thickness) / 2 - case.cell["parts"][0]["box"]["size"][0] / 2
+
+
+@pytest.mark.parametrize("kind", HOLE_KINDS)
+def test_each_hole_kind_is_reproducible_and_has_its_fit(kind):
+    a, b = generate(SEED, kind), generate(SEED, kind)
+    assert (a.cell, a.task) == (b.cell, b.task)
+    gap = _gap_m(a)
+    f = _walls(a)
+    off_m = math.dist(a.cell["frames"]["hole"]["xyz"][:2], f["hole_floor"]["pose"]["xyz"][:2])
+    insert = a.task["steps"][4]["insert"]
+    mouth_z = a.cell["frames"]["hole"]["xyz"][2] - a.cell["parts"][0]["box"]["size"][2] / 2
+    floor = f["hole_floor"]
+    floor_depth = mouth_z - (floor["pose"]["xyz"][2] + floor["box"]["size"][2] / 2)
+    if kind == "jam_interference":
+        assert gap == pytest.approx(INTERFERENCE_M, abs=2e-5)
+    else:
+        assert 0.0002 < gap < 0.0031
+    if kind == "jam_rim":  # the pin's edge over wall_xp's inner face
+        assert off_m == pytest.approx(gap + RIM_OVERLAP_M, abs=2e-5)
+    else:
+        assert off_m == pytest.approx(0.0, abs=2e-5)
+    if kind == "hole_too_shallow":
+        assert floor_depth < insert["expect_depth"][0] - 0.005
+    else:
+        assert floor_depth > insert["depth"] + 0.001
+
+
+def _check(case, tmp_path) -> tuple[int, dict]:
+    cell, task = case.write(tmp_path / case.name)
+    return cli("check", str(cell), str(task), "--no-cache")
+
+
+def test_check_refuses_a_hole_too_shallow_naming_the_fixture_and_depth(tmp_path):
+    code, out = _check(generate(SEED, "hole_too_shallow"), tmp_path)
+    assert code == 1
+    (error,) = out["errors"]
+    assert error.startswith("step 8 insert 'hole': the held part meets fixture 'hole_floor' ")
+    assert "mm past frame 'hole', before the" in error
+    assert "the insert would stop there and fail (3)" in error
+
+
+def test_check_refuses_a_pin_over_the_rim_and_an_interference_fit_as_jams(tmp_path):
+    code, out = _check(generate(SEED, "jam_rim"), tmp_path)
+    assert code == 1
+    (error,) = out["errors"]
+    assert "part 'pin' comes 0.70 mm over the rim of fixture 'wall_xp' 0.0 mm past frame" in error
+    assert "it jams on the rim; fix: centre frame 'hole' over the hole" in error
+    code, out = _check(generate(SEED, "jam_interference"), tmp_path)
+    assert code == 1
+    (error,) = out["errors"]
+    assert "fixture 'wall_xm'" in error and "fixture 'wall_yp'" in error  # every face
+    assert " by up to 0.1" in error  # 0.1 mm per face, and the turned walls' rounding
+    assert "mm from 0.0 mm past frame 'hole' (an interference fit): it jams" in error
+    assert "declare the press fit: force: {min: N, max: N}" in error
+
+
+def test_check_approves_the_fit(tmp_path):
+    code, out = _check(generate(SEED, "hole_fit"), tmp_path)
+    assert code == 0, out["errors"]
+
+
+@pytest.fixture
+def twin_only(monkeypatch):
+    """check's fit rules off: the job runs in the twin as check approved it before them."""
+    from cellrunner.steps import _families, insert
+
+    monkeypatch.setattr(insert.Insert, "check_line", lambda *args: None)
+    monkeypatch.setattr(_families.FrameLine, "check_line", lambda *args: None)
+
+
+@pytest.mark.parametrize("kind, result", [("jam_interference", 3), ("jam_rim", 100)])
+def test_the_twin_fails_the_jams(tmp_path, twin_only, kind, result):
+    """Its walls are rigid (sim/rigid_contacts.py): the pin with 0.1 mm of interference
+    stops at the mouth (3), the one over the rim hits it as the descend ends (a protective
+    stop, 100); with soft contacts both sank in and reported 0."""
+    case = generate(SEED, kind)
+    cell, task = case.write(tmp_path / case.name)
+    _, out = cli("dry-run", str(cell), str(task))
+    assert out["result_code"] == result, out
