@@ -60,13 +60,17 @@ def test_at_run_time_a_step_that_cannot_be_planned_is_skipped_and_the_rest_runs(
 def test_the_cleanup_notes_a_step_that_could_not_be_planned_as_skipped():
     cleanup = Cleanup(steps=[])
     cleanup.first = (ResultCode.STEP_TIMEOUT, "input x did not read True within 1 s")
-    assert cleanup.note("on_error step 7 lift", ResultCode.PLANNING_FAILED, "out of reach")
+    assert cleanup.note(
+        "on_error step 7 lift", ResultCode.PLANNING_FAILED, "out of reach", names_step=False
+    )
     assert cleanup.result() == (
         ResultCode.STEP_TIMEOUT,
         "input x did not read True within 1 s; on_error done (skipped: on_error step 7 "
         "lift: out of reach)",
     )
-    assert not cleanup.note("on_error step 8 move", ResultCode.PROTECTIVE_STOP, "stopped")
+    assert not cleanup.note(
+        "on_error step 8 move", ResultCode.PROTECTIVE_STOP, "stopped", names_step=False
+    )
     assert cleanup.result()[1].endswith(
         "on_error failed: on_error step 8 move: stopped (skipped: on_error step 7 lift: out "
         "of reach)"
