@@ -31,7 +31,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.cellgen import KINDS, Case, corpus
+from bench.cellgen import FEASIBLE, KINDS, Case, corpus
 
 CLASSES = ("true accept", "true refuse", "false approval", "twin false OK", "false refusal")
 DISAGREEMENTS = ("false approval", "twin false OK", "false refusal")
@@ -123,7 +123,7 @@ def table(verdicts: list[Verdict]) -> str:
         lines.append(f"{kind:<{width}}  " + "  ".join(f"{counts[(kind, c)]:>14}" for c in CLASSES))
     total = Counter(v.verdict for v in verdicts)
     lines.append(f"{'all':<{width}}  " + "  ".join(f"{total[c]:>14}" for c in CLASSES))
-    feasible = sum(1 for v in verdicts if v.kind in ("feasible", "near_support"))
+    feasible = sum(1 for v in verdicts if v.kind in FEASIBLE)
     rate = total["false refusal"] / feasible if feasible else 0.0
     check_s = sorted(v.check_s for v in verdicts)
     p95 = check_s[min(len(check_s) - 1, int(0.95 * len(check_s)))] if check_s else 0.0

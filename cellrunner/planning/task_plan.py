@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, TypedDict, TypeVar
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
-from cellrunner.model.body import Body, BodyKind
+from cellrunner.model.body import LYING_KINDS, Body, BodyKind
 from cellrunner.model.expand import Step
 from cellrunner.model.failure import Blocker, Failure, FailureKind
 from cellrunner.model.geometry import Placed
@@ -775,7 +775,7 @@ class StepPlanner:
             touched = {
                 v.b.fixture_name
                 for v in violations
-                if v.a.kind is BodyKind.TOOL and v.b.kind is BodyKind.WAITING_PART
+                if v.a.kind is BodyKind.TOOL and v.b.kind in LYING_KINDS
             }
             names |= touched
             held = self._waiting_at_tcp(q) if q is not None else set()
