@@ -17,7 +17,9 @@ and the straight lines down to the frames keep 5 mm over every clearance.
 - ``unsupported_place``: the place lets the part go 30 mm above the outfeed table;
 - ``into_support``: the place pushes the part 8 mm into the outfeed table;
 - ``jaws_too_narrow``: the gripper's stroke is narrower than the part;
-- ``weak_vacuum``: the cups hold less than the part weighs.
+- ``weak_vacuum``: the cups hold less than the part weighs;
+- ``blocked_layer``: the place is the upper of two layers whose pitch is 10 mm under the
+  part's height (it would go into the part an earlier job put below).
 
 and ``near_support`` is a feasible variant that sets the part down 2 mm above its table,
 ``layered`` one that sets it 2 mm above the part an earlier job put on the layer below
@@ -61,12 +63,12 @@ DEFECTS = (
     "into_support",
     "jaws_too_narrow",
     "weak_vacuum",
+    "blocked_layer",
 )
 #: the kinds that place on a pattern of two layers, the job's part on the upper one (on
-#: the part an earlier job put on the lower): ``layered`` 2 mm above it. Not generated
-#: yet: ``blocked_layer``, a layer pitch 10 mm under the part's height (check does not
-#: treat the earlier slots' parts as obstacles yet: docs/check-truth.md)
-LAYERED = {"layered": 0.002}
+#: the part an earlier job put on the lower): ``layered`` 2 mm above it, ``blocked_layer``
+#: with a layer pitch 10 mm under the part's height (it would go into the part below)
+LAYERED = {"layered": 0.002, "blocked_layer": -0.010}
 KINDS = FEASIBLE + DEFECTS
 #: the kinds that need one gripper: the others draw jaws or cups (VACUUM_SHARE of them cups)
 NEEDS_GRIPPER = {"jaws_too_narrow": "jaws", "weak_vacuum": "vacuum"}

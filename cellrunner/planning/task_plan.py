@@ -323,6 +323,10 @@ def plan_task(
     ``joined=False`` (run --step) ends every motion at rest: the same waypoints, each
     timed from rest to rest, so that the job can pause between any two steps.
     ``on_step(step)`` is called as each step's planning starts (for a progress bar)."""
+    from cellrunner.planning.placed import earlier_slot_parts
+
+    # the parts earlier jobs left on the slots before this job's: there from the start
+    world = world.with_placed(*earlier_slot_parts(world, steps))
     planner = StepPlanner(world, np.asarray(q_start_rad, float), None)
     planner.egress = egress_pose(
         corridors(steps, world.loaded.cell), world.kinematics.T_world_tcp(planner.q)
@@ -690,6 +694,7 @@ class StepPlanner:
         and the nearest branch of ``T_goal`` (an approach weighing a branch for the line
         after it)."""
         from cellrunner.planning.collision import STALL_M, ContactAllowance
+        from cellrunner.planning.placed import beside_refusal
 
         if self.part is None or not step.is_line:
             return self.contact + named
@@ -717,6 +722,10 @@ class StepPlanner:
                     clearance.b.fixture_name, q
                 ):
                     break
+                if not self._under(clearance.b.fixture_name, q) and (
+                    beside := beside_refusal(step, self.part.name, clearance, end)
+                ):
+                    raise InfeasibleError(beside)
                 if clearance.distance_m < -SET_DOWN_PRESS_M:
                     depth_mm = -clearance.distance_m * 1000
                     reason = (

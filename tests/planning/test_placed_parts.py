@@ -135,3 +135,65 @@ def test_a_placed_part_is_named_in_failures() -> None:
 def test_one_place_and_the_move_home_check_feasible(tmp_path) -> None:
     out = json_of("check", str(DEMO_CELL), str(_task(tmp_path, 1)), "--no-cache")
     assert out["ok"], out["errors"]
+
+
+PALLET_CELL = ROOT / "cells/palletizer_ur10e.yaml"
+
+
+def _palletize(tmp_path, pitch: str):
+    text = (ROOT / "tasks/palletize.yaml").read_text()
+    task = tmp_path / "palletize.yaml"
+    task.write_text(text.replace("pitch: [0.22, 0.17, 0.10]", f"pitch: {pitch}"))
+    assert task.read_text() != text
+    return task
+
+
+def test_a_layer_pitch_under_the_carton_is_refused_on_the_carton_below(tmp_path) -> None:
+    """Cartons 100 mm tall stacked 90 mm apart: slot 4 comes down 10 mm into slot 0's
+    carton, which an earlier job put there (the twin spawns it too)."""
+    task = _palletize(tmp_path, "[0.22, 0.17, 0.09]")
+    out = json_of("check", str(PALLET_CELL), str(task), "-p", "slot=4", "--no-cache")
+    assert not out["ok"]
+    assert any(
+        "the part 'carton' would be 10.0 mm inside placed part 'carton@slot0'" in e
+        for e in out["errors"]
+    ), out["errors"]
+
+
+def test_a_column_pitch_equal_to_the_carton_is_refused_beside_the_carton_before(
+    tmp_path,
+) -> None:
+    """Cartons 150 mm wide laid 150 mm apart: slot 1 comes down touching slot 0's
+    carton, inside the cell's clearance of it."""
+    task = _palletize(tmp_path, "[0.22, 0.15, 0.10]")
+    out = json_of("check", str(PALLET_CELL), str(task), "-p", "slot=1", "--no-cache")
+    assert not out["ok"]
+    assert any(
+        "the part 'carton' would be 0.0 mm from placed part 'carton@slot0' beside it" in e
+        for e in out["errors"]
+    ), out["errors"]
+
+
+def test_the_earlier_slots_are_there_from_the_start_of_the_job() -> None:
+    with contextlib.redirect_stderr(io.StringIO()):
+        cell, task = load(str(PALLET_CELL), str(ROOT / "tasks/palletize.yaml"))
+    world = CellWorld(cell)
+    plan = plan_job(world, task, {"slot": 5}, world.q_home_rad, use_cache=False)
+    assert plan.ok, plan.errors
+    first = plan.task_plan.rows[0].world
+    assert first is not None
+    names = [p.name for p in first.placed]
+    assert names == [f"placed:carton@slot{k}" for k in range(5)]
+    # slot 4's carton lies on slot 0's, 100 mm up
+    (slot0,) = (p for p in first.placed if p.name.endswith("@slot0"))
+    (slot4,) = (p for p in first.placed if p.name.endswith("@slot4"))
+    assert np.allclose(slot4.T_parent_shape[:3, 3] - slot0.T_parent_shape[:3, 3], [0, 0, 0.1])
+
+
+def test_the_demo_pattern_checks_feasible_with_its_earlier_blocks(tmp_path) -> None:
+    """The demo's 70 mm pitch around 50 mm blocks: the jaws, closed on the block they
+    carry, pass the blocks beside its slot (check models the pads fully open)."""
+    out = json_of(
+        "check", str(DEMO_CELL), str(ROOT / "tasks/pick_place.yaml"), "-p", "slot=10", "--no-cache"
+    )
+    assert out["ok"], out["errors"]
