@@ -376,9 +376,11 @@ def plan_task(
         for row in rows:
             if row.step.retry is not None:
                 _check_retry_path(world, row, rows)
+        from cellrunner.planning.jaw_hold import check_jaw_hold
         from cellrunner.planning.suction_hold import check_suction_hold
 
         check_suction_hold(world, rows)
+        check_jaw_hold(world, rows)
     except InfeasibleError as exc:
         failed = next((r for r in rows if r.step.index == exc.step_index), current or rows[-1])
         failed.status, failed.message = "failed", exc.reason
