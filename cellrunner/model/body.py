@@ -18,6 +18,12 @@ WAITING_PREFIX = "part:"
 PLACED_PREFIX = "placed:"
 
 
+def is_earlier_slot(fixture_name: str) -> bool:
+    """Whether ``fixture_name`` is a part an earlier job left on a pattern's slot
+    (``placed:NAME@slotK``, planning/placed.py)."""
+    return fixture_name.startswith(PLACED_PREFIX) and "@slot" in fixture_name
+
+
 class BodyKind(StrEnum):
     """What a :class:`Body` is; the value is the word messages put before its name."""
 

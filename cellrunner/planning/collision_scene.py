@@ -40,13 +40,12 @@ import numpy as np
 
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.arm_geometry import ArmGeometry, ArmGeometryMissing, ConvexPart, arm_geometry
-from cellrunner.model.body import WAITING_PREFIX, Body, BodyKind
+from cellrunner.model.body import WAITING_PREFIX, Body, BodyKind, is_earlier_slot
 from cellrunner.model.failure import Failure, FailureKind
 from cellrunner.model.geometry import Placed, Shape
 from cellrunner.model.gripper import JAW_PADS
 from cellrunner.planning.coal_shapes import make_coal_shape
 from cellrunner.planning.collision_bounds import PairBounds
-from cellrunner.planning.placed import is_earlier_slot
 
 if TYPE_CHECKING:
     import coal

@@ -38,11 +38,6 @@ if TYPE_CHECKING:
 SAME_PLACE_M = 0.01
 
 
-def is_earlier_slot(fixture_name: str) -> bool:
-    """Whether ``fixture_name`` is a part an earlier job left on a pattern's slot."""
-    return fixture_name.startswith(PLACED_PREFIX) and "@slot" in fixture_name
-
-
 def placed_part(part: Placed, T_world_part: np.ndarray, where: str) -> Placed:
     """The carried ``part`` set down at ``T_world_part``, named ``placed:NAME@WHERE``."""
     return Placed(f"{PLACED_PREFIX}{part.name}@{where}", part.shape, T_world_part)
