@@ -2,7 +2,7 @@
 twin on cells nobody on the team wrote (issue 33).
 
 ``generate(seed)`` writes, from one seed and reproducibly, a pick-and-place cell a line
-would have: one of the arms, a pedestal, a jaw gripper whose stroke fits the part, a part
+would have: one of the arms on a pedestal, hanging from the ceiling or on a wall, a jaw gripper whose stroke fits the part, a part
 on an infeed table, an outfeed table, and a job ``move home -> pick -> place -> move
 home``. Frames are placed from **witness** joint configurations: for each target the
 generator first picks joint angles in the arm's working region (the wrist down, the elbow
@@ -16,10 +16,14 @@ and the straight lines down to the frames keep 5 mm over every clearance.
 - ``out_of_reach``: the outfeed moved out past the arm's reach;
 - ``unsupported_place``: the place lets the part go 30 mm above the outfeed table;
 - ``into_support``: the place pushes the part 8 mm into the outfeed table;
-- ``jaws_too_narrow``: the gripper's stroke is narrower than the part.
+- ``jaws_too_narrow``: the gripper's stroke is narrower than the part;
+- ``weak_vacuum``: the cups hold less than the part weighs;
+- ``blocked_layer``: the place is the upper of two layers whose pitch is 10 mm under the
+  part's height (it would go into the part an earlier job put below).
 
-and ``near_support`` is a feasible variant that sets the part down 2 mm above its table
-(a place a line engineer writes, which ``check`` must not refuse).
+and ``near_support`` is a feasible variant that sets the part down 2 mm above its table,
+``layered`` one that sets it 2 mm above the part an earlier job put on the layer below
+(places a line engineer writes, which ``check`` must not refuse).
 
 The kinds of :mod:`bench.cellgen_holes` (a pin into a hole: a fit, a hole too shallow, a
 rim and an interference jam) are generated there.
@@ -60,19 +64,27 @@ MOUNTS: dict[
 ] = {
     "floor": ((0.0, 0.0, PEDESTAL_M), (0.0, 0.0, 0.0), (-0.25, 0.05)),
     "ceiling": ((0.0, 0.0, 2.0), (180.0, 0.0, 0.0), (-0.75, -0.45)),
+    # on a wall (the plane x = 0), the base's Z along world +X: the targets in front of
+    # the wall, below the base
+    "wall": ((0.0, 0.0, 1.4), (0.0, 90.0, 0.0), (-0.55, -0.25)),
 }
-CEILING_SHARE = 0.3
+CEILING_SHARE, WALL_SHARE = 0.3, 0.15
 #: feasible kinds of jobs, and the defects (each breaks one thing)
-FEASIBLE = ("feasible", "near_support", *CAMERA_FEASIBLE, *cellgen_holes.HOLE_FEASIBLE)
+FEASIBLE = ("feasible", "near_support", "layered", *CAMERA_FEASIBLE, *cellgen_holes.HOLE_FEASIBLE)
 DEFECTS = (
     "out_of_reach",
     "unsupported_place",
     "into_support",
     "jaws_too_narrow",
     "weak_vacuum",
+    "blocked_layer",
     *CAMERA_DEFECTS,
     *cellgen_holes.HOLE_DEFECTS,
 )
+#: the kinds that place on a pattern of two layers, the job's part on the upper one (on
+#: the part an earlier job put on the lower): ``layered`` 2 mm above it, ``blocked_layer``
+#: with a layer pitch 10 mm under the part's height (it would go into the part below)
+LAYERED = {"layered": 0.002, "blocked_layer": -0.010}
 KINDS = FEASIBLE + DEFECTS
 #: the kinds without cameras (the fixed sample's first part keeps its seeds)
 PLAIN_KINDS = tuple(k for k in KINDS if k not in CAMERA_KINDS)
@@ -141,6 +153,8 @@ def _witness(
     comfortable radius and height: a configuration that exists."""
     spec = kin.spec
     (_, _, base_z), _, (low, high) = MOUNTS[mount]
+    if mount == "wall":  # in front of the wall, on the side base_deg is on
+        base_deg = math.copysign(rng.uniform(20, 60), base_deg)
     for _ in range(200):
         radius = rng.uniform(0.45, 0.75) * reach_m
         height = base_z + rng.uniform(low, high) * reach_m
@@ -149,7 +163,9 @@ def _witness(
         branches = kin.ik_all(T, np.radians(HOME_DEG))
         for q in branches:
             q = np.asarray(q, float)
-            if q[2] > 0.2 and q[1] < -0.2:  # elbow up, shoulder raised: the working branch
+            if mount == "wall" or (q[2] > 0.2 and q[1] < -0.2):
+                # elbow up, shoulder raised: the working branch (on a wall, the branch
+                # nearest home; the witness check below proves it clear)
                 return q
     raise RuntimeError(f"no witness for {spec.name} at base {base_deg} deg")
 
@@ -226,9 +242,12 @@ class _Draw:
     q_pick: np.ndarray
     q_place: np.ndarray
     gripper: str = "jaws"  # or "vacuum": cups on the part's top face
-    mount: str = "floor"  # or "ceiling" (MOUNTS)
+    mount: str = "floor"  # or "ceiling", "wall" (MOUNTS)
     cups: list[dict[str, Any]] = field(default_factory=list)
     holding_N: float = 0.0
+    #: how far above the place's witness the job's place lies (a layered pattern's upper
+    #: layer, m): the witness's line down is proven from that height plus the approach
+    rise_m: float = 0.0
 
 
 def _draw(rng: random.Random, kind: str) -> _Draw:
@@ -236,7 +255,10 @@ def _draw(rng: random.Random, kind: str) -> _Draw:
 
     model = rng.choice(ARMS)
     gripper = NEEDS_GRIPPER.get(kind) or ("vacuum" if rng.random() < VACUUM_SHARE else "jaws")
-    mount = "ceiling" if rng.random() < CEILING_SHARE else "floor"
+    r = rng.random()
+    mount = (
+        "ceiling" if r < CEILING_SHARE else "wall" if r < CEILING_SHARE + WALL_SHARE else "floor"
+    )
     reach_m = robot_spec(model).reach_m
     tcp_m = round(rng.uniform(0.12, 0.18), 3)
     kin = _kinematics(model, tcp_m, mount)
@@ -253,6 +275,8 @@ def _draw(rng: random.Random, kind: str) -> _Draw:
     draw.mount = mount
     if gripper == "vacuum":
         _draw_cups(rng, draw)
+    if kind in LAYERED:
+        draw.rise_m = round(draw.size[2] + LAYERED[kind], 4)
     return draw
 
 
@@ -272,9 +296,9 @@ def _draw_cups(rng: random.Random, d: _Draw) -> None:
 
 
 def _witnesses_clear(draw: _Draw) -> bool:
-    """Both witnesses, and the straight lines down to them from their approach points, keep
-    every checked pair :data:`WITNESS_MARGIN_M` clear of its required clearance (the part
-    excepted)."""
+    """Both witnesses, the straight lines down to them from their approach points, and
+    home keep every checked pair :data:`WITNESS_MARGIN_M` clear of its required clearance
+    (the part excepted)."""
     import tempfile
 
     from cellrunner.model.load import load_cell
@@ -285,17 +309,21 @@ def _witnesses_clear(draw: _Draw) -> bool:
         collision = CellWorld(load_cell(cell)).collision
         labels = collision.pair_labels
         keep = np.array(["part" not in a and "part" not in b for a, b in labels])
-        for q in (draw.q_pick, draw.q_place):
-            # the straight line from the approach point down to the witness, tracked
-            # back up from the witness every 5 mm
+        for q, rise_m in ((draw.q_pick, 0.0), (draw.q_place, max(0.0, draw.rise_m))):
+            # the straight line from the approach point down to the witness (or to the
+            # upper layer above it), tracked back up from the witness every 5 mm
             T_goal, config = draw.kin.T_world_tcp(q), q
-            for k in range(int(APPROACH_M / 0.005) + 1):
+            for k in range(int((APPROACH_M + rise_m) / 0.005) + 1):
                 config = draw.kin.ik_track(T_goal @ _up(k * 0.005), config)
                 if config is None:
                     return False
                 distances, required = collision.pair_distances(config)
                 if np.any((distances - required)[keep] < WITNESS_MARGIN_M):
                     return False
+        # and home, where the job starts and ends (on a wall, the tables may come near it)
+        distances, required = collision.pair_distances(np.radians(HOME_DEG))
+        if np.any((distances - required)[keep] < WITNESS_MARGIN_M):
+            return False
     return True
 
 
@@ -399,19 +427,31 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
             {"move": "home"},
         ],
     }
+    if kind in LAYERED:  # the upper of two layers, on the part an earlier job put below
+        pitch = [0.1, 0.1, d.rise_m]
+        task["params"] = {"slot": {"type": "int", "min": 0, "max": 1, "default": 1}}
+        task["steps"][2]["place"]["pattern"] = {"grid": [1, 1, 2], "pitch": pitch, "index": "slot"}
     witness = {"pick": _deg(d.q_pick), "place": _deg(d.q_place)}
     case = Case(seed, kind, cell, task, witness)
     return with_cameras(case, seed) if kind in CAMERA_KINDS else case
 
 
 def _base_fixture(mount: str) -> dict[str, Any]:
-    """What the arm stands on: a pedestal from the floor, or a plate on the ceiling."""
+    """What the arm stands on: a pedestal from the floor, or a plate on the ceiling or the
+    wall."""
     if mount == "ceiling":
         z = MOUNTS[mount][0][2]
         return {
             "name": "ceiling_plate",
             "box": {"size": [0.4, 0.4, 0.02]},
             "pose": {"xyz": [0, 0, z + 0.02]},
+        }
+    if mount == "wall":
+        z = MOUNTS[mount][0][2]
+        return {
+            "name": "wall_plate",
+            "box": {"size": [0.02, 0.4, 0.4]},
+            "pose": {"xyz": [-0.02, 0, z]},
         }
     return {
         "name": "pedestal",

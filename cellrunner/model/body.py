@@ -13,6 +13,15 @@ from enum import StrEnum
 
 #: prefix of the fixture name of a part waiting at its frame (``part:NAME``)
 WAITING_PREFIX = "part:"
+#: prefix of the fixture name of a part an earlier step of the job set down
+#: (``placed:NAME@STEP``: part NAME let go by step STEP)
+PLACED_PREFIX = "placed:"
+
+
+def is_earlier_slot(fixture_name: str) -> bool:
+    """Whether ``fixture_name`` is a part an earlier job left on a pattern's slot
+    (``placed:NAME@slotK``, planning/placed.py)."""
+    return fixture_name.startswith(PLACED_PREFIX) and "@slot" in fixture_name
 
 
 class BodyKind(StrEnum):
@@ -23,6 +32,7 @@ class BodyKind(StrEnum):
     PART = "part"  # the carried part
     FIXTURE = "fixture"
     WAITING_PART = "waiting part"  # a part waiting at its frame (fixture ``part:NAME``)
+    PLACED_PART = "placed part"  # a part set down by the job (fixture ``placed:NAME@STEP``)
     NOTHING = "nothing"  # a scene without pairs: named bare, "robot" and "nothing"
 
 
@@ -31,7 +41,9 @@ BARE_KINDS = frozenset({BodyKind.ROBOT_LINK, BodyKind.NOTHING})
 
 
 #: the kinds that stand still in the cell (a pair's obstacle)
-OBSTACLE_KINDS = frozenset({BodyKind.FIXTURE, BodyKind.WAITING_PART})
+OBSTACLE_KINDS = frozenset({BodyKind.FIXTURE, BodyKind.WAITING_PART, BodyKind.PLACED_PART})
+#: the kinds that are parts lying in the cell (a grip there would take them)
+LYING_KINDS = frozenset({BodyKind.WAITING_PART, BodyKind.PLACED_PART})
 
 
 class Body(str):
@@ -58,6 +70,8 @@ class Body(str):
         """Fixture ``name`` of the collision scene: a waiting part for ``part:NAME``."""
         if name.startswith(WAITING_PREFIX):
             return cls(BodyKind.WAITING_PART, name[len(WAITING_PREFIX) :])
+        if name.startswith(PLACED_PREFIX):
+            return cls(BodyKind.PLACED_PART, name[len(PLACED_PREFIX) :])
         return cls(BodyKind.FIXTURE, name)
 
     @property
@@ -71,4 +85,6 @@ class Body(str):
         part); '' for the robot's bodies."""
         if self.kind is BodyKind.WAITING_PART:
             return WAITING_PREFIX + self.name
+        if self.kind is BodyKind.PLACED_PART:
+            return PLACED_PREFIX + self.name
         return self.name if self.kind is BodyKind.FIXTURE else ""

@@ -8,6 +8,7 @@ planning and execution work from one list of :class:`Step` objects.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -183,12 +184,26 @@ class Expansion:
             name = f"{at}+{at_offset}"
         return T @ _offset(offset), name
 
-    def part_pose(self, at: str, pattern: Pattern | None) -> dict[str, np.ndarray]:
-        """Where the part a pick from a pattern grips lies: its slot of the frame
-        (``part_pose``, world); nothing for a pick from the frame itself."""
-        if pattern is None:
+    def part_pose(
+        self, at: str, pattern: Pattern | None, at_offset: str | None = None
+    ) -> dict[str, np.ndarray]:
+        """Where the part a pick grips lies (``part_pose``, world): its slot of a pattern,
+        or where the pose param ``at_offset`` (a camera's detection) says it is; nothing
+        for a pick from the frame itself."""
+        if pattern is None and at_offset is None:
             return {}
-        return {"part_pose": self.target(at, None, pattern)[0]}
+        T_world_frame = self.target(at, None, pattern)[0]
+        if at_offset is None:
+            return {"part_pose": T_world_frame}
+        # the part rests on what its frame stands on: the detection moves it across the
+        # frame's XY plane and turns it about the frame's Z; its height and tilt out of that
+        # plane are the camera's error (a box given in a tilted camera's axes leaves the plane)
+        T_frame_seen = geometry.invert(T_world_frame) @ self.target(at, None, pattern, at_offset)[0]
+        yaw_rad = math.atan2(T_frame_seen[1, 0], T_frame_seen[0, 0])
+        T_frame_part = geometry.pose_matrix(
+            (T_frame_seen[0, 3], T_frame_seen[1, 3], 0.0), (0.0, 0.0, math.degrees(yaw_rad))
+        )
+        return {"part_pose": T_world_frame @ T_frame_part}
 
 
 def _offset(offset: Offset | None) -> np.ndarray:

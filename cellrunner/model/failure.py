@@ -30,7 +30,7 @@ class FailureKind(StrEnum):
     TRAJECTORY = "trajectory"  # a trajectory off the controller's grid, discontinuous or bent
     SUPPORT = "support"  # a part let go over nothing, or set down into what is under it
     GRIP = "grip"  # the open jaws narrower than the part
-    HOLD = "hold"  # suction cups that cannot hold the part through the moves that carry it
+    HOLD = "hold"  # cups or jaws that cannot hold the part through the moves that carry it
     CONTACT = "contact"  # a force step that would meet nothing, or an insert stopped short
     JAM = "jam"  # a part pressed into a fixture it may only touch (a rim, an interference fit)
     CAMERA_VIEW = "camera_view"  # a camera that cannot see its zone or its whole marker, or reads it too noisily

@@ -29,6 +29,8 @@ ROBOTIQ_OBJECT = "RQ_OBJ"  # input: true when the gripper reports an object dete
 
 FINGER_SIZE_M = (0.012, 0.022, 0.045)  # thickness (X), width (Y), length (Z)
 PAD_Z_M = (-0.02, 0.02)  # pad extent along the TCP's Z, around the TCP
+#: the two pads' names (+X, -X)
+JAW_PADS = ("jaw_a", "jaw_b")
 
 
 def open_pads(stroke_m: float, T_flange_tcp: np.ndarray) -> list[Placed]:
@@ -36,7 +38,7 @@ def open_pads(stroke_m: float, T_flange_tcp: np.ndarray) -> list[Placed]:
     t, w, _ = FINGER_SIZE_M
     z0, z1 = PAD_Z_M
     pads = []
-    for name, sign in (("jaw_a", 1.0), ("jaw_b", -1.0)):
+    for name, sign in zip(JAW_PADS, (1.0, -1.0), strict=True):
         x = sign * (stroke_m / 2 + t / 2)
         pads.append(
             Placed(

@@ -40,9 +40,10 @@ import numpy as np
 
 from cellrunner.errors import InfeasibleError, InternalError
 from cellrunner.model.arm_geometry import ArmGeometry, ArmGeometryMissing, ConvexPart, arm_geometry
-from cellrunner.model.body import WAITING_PREFIX, Body, BodyKind
+from cellrunner.model.body import WAITING_PREFIX, Body, BodyKind, is_earlier_slot
 from cellrunner.model.failure import Failure, FailureKind
 from cellrunner.model.geometry import Placed, Shape
+from cellrunner.model.gripper import JAW_PADS
 from cellrunner.planning.coal_shapes import make_coal_shape
 from cellrunner.planning.collision_bounds import PairBounds
 
@@ -339,6 +340,8 @@ class CollisionScene:
             robot, fixture = (a, b) if b.group == "fixture" else (b, a)
             if self.part is not None and fixture.fixture == WAITING_PREFIX + self.part.name:
                 return False  # the part carried is no longer waiting at its frame
+            if robot.label.name in JAW_PADS and is_earlier_slot(fixture.fixture):
+                return False  # open pads (check's model) beside a slot's part: placed.py
             return robot.body != 0
         if a.group == b.group == "arm":
             assert a.part is not None and b.part is not None

@@ -38,7 +38,7 @@ from cellrunner.planning.task_plan import (
     TaskPlan,
     _at,
 )
-from cellrunner.planning.world import CellWorld
+from cellrunner.planning.world import CellWorld, placed_key
 
 #: on_error results remembered per world (start states x steps), oldest out
 ON_ERROR_MEMO_SIZE = 256
@@ -192,7 +192,7 @@ def _starts(plan: TaskPlan) -> list[_Start]:
     # (an output, a wait, a grip) still stand at: (q, allowances, label)
     touched: tuple[np.ndarray, tuple[ContactAllowance, ...], str] | None = None
     for row in plan.rows:
-        world = row.world or world
+        before, world = world, row.world or world
         samples = row.trajectory.q_rad if row.trajectory is not None else None
         if touched is not None and samples is None:
             part = row.carrying
@@ -216,7 +216,11 @@ def _starts(plan: TaskPlan) -> list[_Start]:
                 add(_Start(label, touch, world, part, tuple(row.allowances)))
                 touched = (touch, tuple(row.allowances), f"at the contact of {row.step.label}")
                 continue
-        add(_Start(f"from the end of {row.step.label}", q, world, part))
+        # a release that fails (its confirm input never came) has not set its part down
+        # where the place meant to: its state is the world before it (from the step
+        # after it on, the part lies where it was let go)
+        at_end = before if row.step.kind == StepKind.RELEASE else world
+        add(_Start(f"from the end of {row.step.label}", q, at_end, part))
     return states
 
 
@@ -238,5 +242,6 @@ def _key(q: np.ndarray, world: CellWorld, part: Placed | None) -> tuple[object, 
     return (
         np.round(q, 6).tobytes(),
         world.tool_key,
+        placed_key(world.placed),
         None if part is None else (part.name, np.round(part.T_parent_shape, 6).tobytes()),
     )

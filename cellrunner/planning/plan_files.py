@@ -9,6 +9,7 @@ from __future__ import annotations
 import io
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -39,6 +40,11 @@ def write_plan(path: Path, plan: TaskPlan) -> None:
             if row.world is not None and row.world.tool_key
             else None,
         }
+        # the parts set down before this step: obstacles its plan was made around
+        placed = row.world.placed if row.world is not None else ()
+        entry["placed"] = [[p.name, p.shape_name] for p in _placed_parts(placed)]
+        for k, p in enumerate(placed):
+            arrays[f"placed{i}_{k}"] = p.T_parent_shape
         if row.carrying is not None:
             arrays[f"part{i}"] = row.carrying.T_parent_shape
         if row.q_end_rad is not None:
@@ -88,6 +94,21 @@ def write_plan(path: Path, plan: TaskPlan) -> None:
         pass  # a read-only project: the cache is an optimisation only
 
 
+@dataclass(frozen=True)
+class _PlacedPart:
+    """A placed part as the plan file names it: its fixture name and the cell's part."""
+
+    name: str
+    shape_name: str
+
+
+def _placed_parts(placed: tuple[Placed, ...]) -> list[_PlacedPart]:
+    """``placed:NAME@STEP`` -> (that name, NAME)."""
+    from cellrunner.model.body import Body
+
+    return [_PlacedPart(p.name, Body.fixture(p.name).name.rsplit("@", 1)[0]) for p in placed]
+
+
 def read_plan(
     path: Path,
     world: CellWorld,
@@ -127,6 +148,13 @@ def read_plan(
                 )
             row.allowances = tuple(ContactAllowance(*a) for a in entry["allow"])
             row.world = world.with_tool(*entry["tool"]) if entry.get("tool") else world
+            placed = []
+            for k, (name, part_name) in enumerate(entry["placed"]):
+                spec = next(p for p in world.loaded.cell.parts if p.name == part_name)
+                placed.append(
+                    Placed(name, spec.to_shape(world.loaded.resolve), data[f"placed{i}_{k}"])
+                )
+            row.world = row.world.with_placed(*placed)
             if f"qend{i}" in data:
                 row.q_end_rad = data[f"qend{i}"]
             if f"q{i}" in data:

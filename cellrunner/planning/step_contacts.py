@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cellrunner.errors import InfeasibleError
-from cellrunner.model.body import Body, BodyKind
+from cellrunner.model.body import LYING_KINDS, Body, BodyKind
 from cellrunner.model.expand import Step
 from cellrunner.model.failure import Blocker, Failure, FailureKind
 from cellrunner.model.geometry import Placed
@@ -66,6 +66,7 @@ class StepContacts:
         and the nearest branch of ``T_goal`` (an approach weighing a branch for the line
         after it)."""
         from cellrunner.planning.collision import STALL_M, ContactAllowance
+        from cellrunner.planning.placed import beside_refusal
 
         if self.part is None or not step.is_line:
             return self.contact + named
@@ -93,6 +94,10 @@ class StepContacts:
                     clearance.b.fixture_name, q
                 ):
                     break
+                if not self._under(clearance.b.fixture_name, q) and (
+                    beside := beside_refusal(step, self.part.name, clearance, end)
+                ):
+                    raise InfeasibleError(beside)
                 if clearance.distance_m < -SET_DOWN_PRESS_M:
                     depth_mm = -clearance.distance_m * 1000
                     reason = (
@@ -151,7 +156,7 @@ class StepContacts:
             touched = {
                 v.b.fixture_name
                 for v in violations
-                if v.a.kind is BodyKind.TOOL and v.b.kind is BodyKind.WAITING_PART
+                if v.a.kind is BodyKind.TOOL and v.b.kind in LYING_KINDS
             }
             names |= touched
             held = self._waiting_at_tcp(q) if q is not None else set()

@@ -274,6 +274,10 @@ def plan_task(
     ``joined=False`` (run --step) ends every motion at rest: the same waypoints, each
     timed from rest to rest, so that the job can pause between any two steps.
     ``on_step(step)`` is called as each step's planning starts (for a progress bar)."""
+    from cellrunner.planning.placed import earlier_slot_parts
+
+    # the parts earlier jobs left on the slots before this job's: there from the start
+    world = world.with_placed(*earlier_slot_parts(world, steps))
     planner = StepPlanner(world, np.asarray(q_start_rad, float), None)
     planner.egress = egress_pose(
         corridors(steps, world.loaded.cell), world.kinematics.T_world_tcp(planner.q)
@@ -323,9 +327,11 @@ def plan_task(
         for row in rows:
             if row.step.retry is not None:
                 _check_retry_path(world, row, rows)
+        from cellrunner.planning.jaw_hold import check_jaw_hold
         from cellrunner.planning.suction_hold import check_suction_hold
 
         check_suction_hold(world, rows)
+        check_jaw_hold(world, rows)
     except InfeasibleError as exc:
         failed = next((r for r in rows if r.step.index == exc.step_index), current or rows[-1])
         failed.status, failed.message = "failed", exc.reason

@@ -21,6 +21,14 @@ if TYPE_CHECKING:
     from cellrunner.planning.timing import MotionLimits
 from cellrunner.model.robots import RobotSpec
 
+#: worlds with placed parts kept per world (the states of the jobs planned last)
+PLACED_WORLDS_MAX = 64
+
+
+def placed_key(placed: tuple[Placed, ...]) -> tuple[object, ...]:
+    """What tells two sets of placed parts apart: names and poses (to the nanometre)."""
+    return tuple((p.name, np.round(p.T_parent_shape, 9).tobytes()) for p in placed)
+
 
 @dataclass(frozen=True, eq=False)
 class CellWorld:
@@ -34,6 +42,11 @@ class CellWorld:
     #: obstacles beyond the cell file's fixtures (the watched zone's map, when a job
     #: replans around it; SPEC section 12)
     extra: tuple[Placed, ...] = ()
+    #: the parts earlier steps of the job set down, where they were let go (fixtures
+    #: ``placed:NAME@STEP``): obstacles to every later step, supports to a later place
+    placed: tuple[Placed, ...] = ()
+    #: the world without ``placed`` (None when ``placed`` is empty)
+    unplaced: CellWorld | None = None
 
     @property
     def spec(self) -> RobotSpec:
@@ -55,7 +68,10 @@ class CellWorld:
 
     def with_tool(self, name: str | None, tcp_of: str | None = None) -> CellWorld:
         """The same cell with tool ``name`` mounted (from ``tools:``); None: the bare
-        flange, carrying tool ``tcp_of``'s TCP as a virtual point (no geometry, no payload)."""
+        flange, carrying tool ``tcp_of``'s TCP as a virtual point (no geometry, no payload).
+        The parts the job set down stay where they lie."""
+        if self.unplaced is not None:
+            return self.unplaced.with_tool(name, tcp_of).with_placed(*self.placed)
         if self.base is not None:
             return self.base.with_tool(name, tcp_of)
         if name is not None and name == self.loaded.cell.robot.tool:
@@ -87,10 +103,36 @@ class CellWorld:
         """The same cell with ``obstacles`` beside its fixtures (a fresh collision model)."""
         return dataclasses.replace(self, extra=tuple(obstacles))
 
+    def with_placed(self, *parts: Placed) -> CellWorld:
+        """This world with ``parts`` (named ``placed:NAME@STEP``, placed in the world) set
+        down besides the ones it has: one world per set of placed parts, kept by the world
+        without them, so that a plan read back from the plan store finds the same ones.
+        The arm's model, the tool and the limits are shared (a fresh collision model)."""
+        if not parts:
+            return self
+        root = self.unplaced if self.unplaced is not None else self
+        placed = (*self.placed, *parts)
+        key = placed_key(placed)
+        worlds = root._placed_worlds
+        if key not in worlds:
+            world = dataclasses.replace(root, placed=placed, unplaced=root)
+            for name in ("kinematics", "tool", "limits"):  # shared, not built again
+                if name in root.__dict__:
+                    world.__dict__[name] = root.__dict__[name]
+            while len(worlds) >= PLACED_WORLDS_MAX:
+                worlds.pop(next(iter(worlds)))  # the oldest
+            worlds[key] = world
+        return worlds[key]
+
+    @cached_property
+    def _placed_worlds(self) -> dict[tuple[object, ...], CellWorld]:
+        return {}
+
     @cached_property
     def waiting_parts(self) -> list[Placed]:
         """The cell's parts where they wait to be picked, at their frames (as a grip at
-        the frame holds them), named ``part:NAME``: obstacles until carried. A part with
+        the frame holds them), named ``part:NAME``: obstacles until carried; then the
+        parts the job set down (``placed:NAME@STEP``), which lie where they were let go. A part with
         an ``offset`` lies where a camera finds it, which check does not know (it proves
         the pick's pose box instead): it is no obstacle."""
         from cellrunner.model.body import WAITING_PREFIX
@@ -104,7 +146,7 @@ class CellWorld:
             depth = part_center_depth_m(self.loaded.cell.tool.gripper, shape)
             T = frame_pose(self.loaded.cell, part.at) @ geometry.pose_matrix((0, 0, depth))
             out.append(Placed(WAITING_PREFIX + part.name, shape, T))
-        return out
+        return out + list(self.placed)
 
     @cached_property
     def waiting_supports(self) -> dict[str, tuple[str, ...]]:
@@ -162,6 +204,8 @@ class CellWorld:
     def plans(self) -> PlanStore:
         """The approved plans of this cell by key (in memory, and under the project's
         ``var/plan-cache/``); one store for the cell whatever tool is mounted."""
+        if self.unplaced is not None:
+            return self.unplaced.plans
         if self.base is not None:
             return self.base.plans
         from cellrunner.planning.plan_store import PlanStore

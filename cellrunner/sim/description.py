@@ -21,6 +21,7 @@ import numpy as np
 
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.gripper import FINGER_SIZE_M, PAD_Z_M
+from cellrunner.model.jaw_grip import JAW_GRIP_FORCE_N, JAW_PAD_FRICTION
 from cellrunner.model.robots import RobotSpec
 
 if TYPE_CHECKING:
@@ -49,12 +50,12 @@ class GripperDescription:
     close_value: bool | float = True
     closed_sensor_input: str | None = "DI0"
     open_sensor_input: str | None = None
-    grip_force_N: float = 40.0  # per jaw
+    grip_force_N: float = JAW_GRIP_FORCE_N  # per jaw (model.jaw_grip: check's rule too)
     jaw_speed_mps: float = 0.15  # per jaw
     finger_size_m: tuple[float, float, float] = FINGER_SIZE_M  # thick, wide, long
     pad_z_m: tuple[float, float] = PAD_Z_M  # pad extent along TCP Z (planning checks the same)
     finger_mass_kg: float = 0.05
-    friction: float = 1.0
+    friction: float = JAW_PAD_FRICTION
     sensor_min_gap_m: float = 0.002
     T_flange_tcp: np.ndarray | None = None  # the jaws' tool's TCP (default: the twin's)
 

@@ -89,7 +89,7 @@ class Pick(StepKindDef):
                 for s in spec.between
             )
             retry = RetryPlan(a.retry.attempts, between, descend_i)
-        extra = {"part_at": a.at, **builder.part_pose(a.at, a.pattern)}
+        extra = {"part_at": a.at, **builder.part_pose(a.at, a.pattern, a.at_offset)}
         builder.steps.append(
             Step(
                 builder.next_index(),

@@ -38,13 +38,21 @@ class Release(StepKindDef):
         step = row.step
         # a place's release: where the twin judges the part against the place's target
         # (a bare release, after an insert or in on_error, is judged by its confirm input)
-        if planner.part is not None and (step.macro or "").startswith("place "):
+        part = planner.part if (step.macro or "").startswith("place ") else None
+        if part is not None:
             from cellrunner.planning.support import check_support
 
-            check_support(
-                planner.world, step, planner.q, planner.part, step.extra.get("earlier_slots", [])
-            )
+            check_support(planner.world, step, planner.q, part, step.extra.get("earlier_slots", []))
         row.duration_s = release_time_s(planner.world.loaded.cell.tool.gripper)
+        if part is not None:
+            # it rests where it was let go (check_support): an obstacle to every later step;
+            # a part let go elsewhere (on_error, after an insert) lies where nobody knows
+            from cellrunner.planning.placed import placed_part
+
+            T_world_part = planner.world.kinematics.T_world_tcp(planner.q) @ part.T_parent_shape
+            planner.world = planner.world.with_placed(
+                placed_part(part, T_world_part, str(step.index))
+            )
         planner.part = None
 
     def run(self, ctx: JobContext, step: Step, resume: bool) -> StepGen:
