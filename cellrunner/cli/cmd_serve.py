@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 from cellrunner.backends.factory import backend_kind
 from cellrunner.cli.logs import configure
 from cellrunner.cli.stopping import stop_on_signals
+from cellrunner.errors import UsageError
 from cellrunner.execution.assembly import assemble_cell
 from cellrunner.execution.journal import is_database_url
 from cellrunner.execution.journal_open import cell_journal
@@ -28,6 +29,7 @@ if TYPE_CHECKING:
     from cellrunner.execution.assembly import AssembledCell
     from cellrunner.execution.cell import CellController
     from cellrunner.execution.context import EventLog
+    from cellrunner.execution.serve_faults import ServeFaults
     from cellrunner.plc.service import PlcService
     from cellrunner.web.server import StatusServer
 
@@ -59,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
     # stall the heartbeat for as long as the OS keeps it off the CPU.
     raise_thread_priority()
     kind = backend_kind(cell, args.backend)
+    faults = _faults(args, kind, log)
     if kind == "sim" and cell.cell.cameras:
         from cellrunner.sim.mujoco_loader import enable_pictures
 
@@ -78,7 +81,13 @@ def run(args: argparse.Namespace) -> int:
         image_source=getattr(args, "image_source", None),
         watched=kind == "sim",
         depth_source=getattr(args, "depth_source", None),
+        on_step_start=faults.on_step_start if faults is not None else None,
     )
+    if faults is not None:
+        faults.attach(assembled.controller)
+        assembled.loop.add_observer(faults)
+    if kind == "sim" and getattr(args, "sim_fast", False):
+        assembled.loop.run_ahead = True  # a job's motions in look-aheads (RUN_AHEAD_S)
     recorder = None
     if record:
         from cellrunner.record.attach import record_jobs
@@ -121,6 +130,28 @@ def run(args: argparse.Namespace) -> int:
     finally:
         signals.close()
     return 0
+
+
+def _faults(args: argparse.Namespace, kind: str, log: Any) -> ServeFaults | None:
+    """``--faults FILE``: the twin's faults at per-job rates (a soak's), or None."""
+    path = getattr(args, "faults", None)
+    if not path:
+        return None
+    from pathlib import Path
+
+    from cellrunner.cli.shift import load_rates
+    from cellrunner.execution.serve_faults import SERVE_FAULTS, ServeFaults
+
+    if kind != "sim":
+        raise UsageError("--faults makes faults happen in the twin: use it with --backend sim")
+    rates = load_rates(Path(path))
+    other = sorted(set(rates) - set(SERVE_FAULTS))
+    if other:
+        raise UsageError(
+            f"--faults {path}: serve makes {', '.join(SERVE_FAULTS)} happen in the twin, "
+            f"not {', '.join(other)} (kill the process or stop the PLC's heartbeat for those)"
+        )
+    return ServeFaults(rates, seed=getattr(args, "seed", 0) or 0, log=log)
 
 
 class _Links:
