@@ -199,6 +199,18 @@ class _Links:
         )
 
 
+def _page_controls(controller: CellController, cell: LoadedCell, log: EventLog) -> Any:
+    """The page's Hold, Resume and Clear buttons for the operators of the cell's OPC UA
+    users file (the same users and roles); None (a read-only page) without one."""
+    opcua = cell.cell.plc.opcua
+    if opcua is None or not opcua.users:
+        return None
+    from cellrunner.plc.users import role_checker
+    from cellrunner.web.controls import PageControls
+
+    return PageControls(controller, role_checker(cell.resolve(opcua.users)), log)
+
+
 def _status_page(
     assembled: AssembledCell,
     service: PlcService | None,
@@ -225,7 +237,7 @@ def _status_page(
         cell.cell.cell,
         plc_links=service.links if service is not None else dict,
     ).setup()
-    server = StatusServer(board, host, port, live)
+    server = StatusServer(board, host, port, live, _page_controls(controller, cell, log))
     try:
         server.start()
     except Exception:
