@@ -15,7 +15,7 @@ from tests.rig import free_port
 from tests.web.plc_page import DONE, ERROR, JOB_ACK, READY, heartbeat, serve_with_page
 from tests.web.test_obstructed_browser import OBSTRUCTED, TOTE
 
-HOST = "127.0.0.143"
+HOST = "127.0.0.147"
 
 
 @pytest.fixture

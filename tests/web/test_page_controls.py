@@ -28,7 +28,7 @@ from tests.plc.client_procs import run_clients
 from tests.plc.conftest import HERE
 from tests.rig import free_port
 
-HOST = "127.0.0.141"
+HOST = "127.0.0.146"
 REASON = "hold requested on the status page"
 
 
