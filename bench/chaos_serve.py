@@ -61,6 +61,8 @@ READY, ACK, BUSY, DONE, ERROR, REJECTED, HELD_BIT, PSTOP, ESTOP, WATCHDOG = (
     256,
 )
 JOB_REQ, RESET, UNHOLD = 1, 2, 16
+#: a PLC heartbeat outage (s): past the cell's heartbeat_timeout (2 s), so its watchdog holds
+OUTAGE_S = 3.0
 STOPPED, IDLE, ABORTED, HELD = 2, 4, 9, 11
 
 TOUR = """task: tour
@@ -72,14 +74,19 @@ on_protective_stop: {resume: true, max: 3}
 
 
 # -- the PLC (a child process) --------------------------------------------------------------
-def plc_main(host: str, port: int, seconds: float, seed: int) -> None:
-    """Jobs until ``seconds`` have passed; one JSON line per event on stdout."""
+def plc_main(host: str, port: int, seconds: float, seed: int, outage_rate: float = 0.0) -> None:
+    """Jobs until ``seconds`` have passed; one JSON line per event on stdout. With
+    ``outage_rate`` (per job) the PLC stops its heartbeat for OUTAGE_S once a job is
+    acknowledged (a PLC that drops off the network): the cell's watchdog holds it, and
+    the PLC presses UNHOLD once it is back, as a PLC program does."""
     from pyModbusTCP.client import ModbusClient
 
     rng = random.Random(seed)
+    outages = random.Random(seed + 1)  # its own draws: the jobs' tasks stay the same
     client = ModbusClient(host=host, port=port, timeout=1.0, auto_open=True)
     lock = threading.Lock()
     stop = threading.Event()
+    silent_until = [0.0]
 
     def emit(**event: Any) -> None:
         print(json.dumps({"t": time.time(), **event}), flush=True)
@@ -91,6 +98,8 @@ def plc_main(host: str, port: int, seconds: float, seed: int) -> None:
     def beat() -> None:
         value = 0
         while not stop.wait(0.1):
+            if time.monotonic() < silent_until[0]:
+                continue
             value = (value + 1) & 0xFFFF
             with lock:
                 client.write_single_register(0, value)
@@ -165,6 +174,9 @@ def plc_main(host: str, port: int, seconds: float, seed: int) -> None:
             if not seen_ack:
                 emit(ev="ack", id=job_id, task=task)
                 seen_ack = True
+                if outage_rate and outages.random() < outage_rate:
+                    silent_until[0] = time.monotonic() + OUTAGE_S
+                    emit(ev="outage", id=job_id)
             # the end, or READY: a restarted cell that no longer runs it (its register
             # image starts with JOB_REQ low)
             r = wait(
@@ -413,7 +425,9 @@ class Chaos:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv and argv[0] == "--plc":
-        plc_main(argv[1], int(argv[2]), float(argv[3]), int(argv[4]))
+        plc_main(
+            argv[1], int(argv[2]), float(argv[3]), int(argv[4]), float(argv[5]) if argv[5:] else 0.0
+        )
         return 0
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--minutes", type=float, default=30.0)

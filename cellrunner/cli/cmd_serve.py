@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 from cellrunner.backends.factory import backend_kind
 from cellrunner.cli.logs import configure
 from cellrunner.cli.stopping import stop_on_signals
+from cellrunner.errors import UsageError
 from cellrunner.execution.assembly import assemble_cell
 from cellrunner.execution.journal import is_database_url
 from cellrunner.execution.journal_open import cell_journal
@@ -29,6 +30,7 @@ if TYPE_CHECKING:
     from cellrunner.execution.assembly import AssembledCell
     from cellrunner.execution.cell import CellController
     from cellrunner.execution.context import EventLog
+    from cellrunner.execution.serve_faults import ServeFaults
     from cellrunner.plc.service import PlcService
     from cellrunner.record.collector import Collector
     from cellrunner.web.server import StatusServer
@@ -61,11 +63,17 @@ def run(args: argparse.Namespace) -> int:
     # stall the heartbeat for as long as the OS keeps it off the CPU.
     raise_thread_priority()
     kind = backend_kind(cell, args.backend)
+    faults = _faults(args, kind, log)
     if kind == "sim" and cell.cell.cameras:
         from cellrunner.sim.mujoco_loader import enable_pictures
 
         enable_pictures()  # before MuJoCo is imported: an align step's camera renders
-    assembled = _assemble(args, cell, tasks, kind, log)
+    assembled = _assemble(args, cell, tasks, kind, log, faults)
+    if faults is not None:
+        faults.attach(assembled.controller)
+        assembled.loop.add_observer(faults)
+    if kind == "sim" and getattr(args, "sim_fast", False):
+        assembled.loop.run_ahead = True  # a job's motions in look-aheads (RUN_AHEAD_S)
     recorder = None
     if record:
         from cellrunner.record.attach import record_jobs
@@ -105,6 +113,7 @@ def _assemble(
     tasks: dict[int, LoadedTask],
     kind: str,
     log: Any,
+    faults: ServeFaults | None,
 ) -> AssembledCell:
     """The cell as ``serve`` runs it: warmed, watched and fed on the twin."""
     return assemble_cell(
@@ -122,6 +131,7 @@ def _assemble(
         image_source=getattr(args, "image_source", None),
         watched=kind == "sim",
         depth_source=getattr(args, "depth_source", None),
+        on_step_start=faults.on_step_start if faults is not None else None,
     )
 
 
@@ -137,6 +147,23 @@ def _on_stopped(
     journal.flush_timeout_s = min(journal.flush_timeout_s, JOURNAL_STOP_FLUSH_S)
     if assembled.watch is not None and getattr(args, "save_map", None):
         assembled.watch.map.save(args.save_map)
+
+
+def _faults(args: argparse.Namespace, kind: str, log: Any) -> ServeFaults | None:
+    """``--faults FILE``: the twin's faults at per-job rates (a soak's), or None."""
+    path = getattr(args, "faults", None)
+    if not path:
+        return None
+    from pathlib import Path
+
+    from cellrunner.cli.shift import load_rates
+    from cellrunner.execution.serve_faults import SERVE_FAULTS, ServeFaults
+
+    if kind != "sim":
+        raise UsageError("--faults makes faults happen in the twin: use it with --backend sim")
+    # robot_disconnect and plc_disconnect: a soak's kill -9 and PLC outage rehearse those
+    rates = load_rates(Path(path), SERVE_FAULTS)
+    return ServeFaults(rates, seed=getattr(args, "seed", 0) or 0, log=log)
 
 
 class _Links:
@@ -184,6 +211,18 @@ class _Links:
         )
 
 
+def _page_controls(controller: CellController, cell: LoadedCell, log: EventLog) -> Any:
+    """The page's Hold, Resume and Clear buttons for the operators of the cell's OPC UA
+    users file (the same users and roles); None (a read-only page) without one."""
+    opcua = cell.cell.plc.opcua
+    if opcua is None or not opcua.users:
+        return None
+    from cellrunner.plc.users import role_checker
+    from cellrunner.web.controls import PageControls
+
+    return PageControls(controller, role_checker(cell.resolve(opcua.users)), log)
+
+
 def _status_page(
     assembled: AssembledCell,
     service: PlcService | None,
@@ -210,7 +249,7 @@ def _status_page(
         cell.cell.cell,
         plc_links=service.links if service is not None else dict,
     ).setup()
-    server = StatusServer(board, host, port, live)
+    server = StatusServer(board, host, port, live, _page_controls(controller, cell, log))
     try:
         server.start()
     except Exception:  # whatever stopped the page's server, the board is closed, then re-raised

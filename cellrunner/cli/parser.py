@@ -272,6 +272,13 @@ def _cell_commands(sub: Commands) -> None:
         help="with --backend sim: the twin runs as fast as it can, not at the clock's pace "
         "(soak tests: days of jobs in hours)",
     )
+    p.add_argument(
+        "--faults",
+        metavar="FILE",
+        help="with --backend sim: YAML of fault -> probability per job, e.g. "
+        "{protective_stop: 0.01, estop: 0.002}; the twin makes them happen (soak tests)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="--faults: the random seed (default 0)")
     _depth_source(p)
     p.add_argument(
         "--record",

@@ -90,8 +90,9 @@ def run_shift(args: argparse.Namespace) -> int:
     return 0 if payload["ok"] else 1
 
 
-def load_rates(path: Path) -> dict[str, float]:
-    """The faults file: fault -> probability per job (0..1); located errors otherwise."""
+def load_rates(path: Path, known: tuple[str, ...] = SHIFT_FAULTS) -> dict[str, float]:
+    """The faults file: fault -> probability per job (0..1), each one of ``known``;
+    located errors otherwise."""
     from cellrunner.model.source import load_yaml
 
     source = load_yaml(path)
@@ -105,11 +106,13 @@ def load_rates(path: Path) -> dict[str, float]:
     problems = []
     rates: dict[str, float] = {}
     for name, value in data.items():
-        if name not in SHIFT_FAULTS:
+        if name not in known:
             problems.append(
                 source.diagnostic(
                     (name,),
-                    f"unknown fault {name!r}; known: {', '.join(SHIFT_FAULTS)}",
+                    f"unknown fault {name!r}; known: {', '.join(known)}"
+                    if name not in SHIFT_FAULTS
+                    else f"{name} is not a fault serve makes happen; known: {', '.join(known)}",
                     at_key=True,
                 )
             )

@@ -25,6 +25,12 @@ LOOKAHEAD_PERIODS = 1024
 #: a real-time loop that fell this far behind the wall clock restarts its schedule (s)
 MAX_LAG_S = 0.5
 
+#: the most simulated time one look-ahead of a running job covers in :meth:`ControlLoop.run`
+#: (s; serve on a twin at its fastest): a PLC's command (HOLD, STOP) that arrives during
+#: one is taken at its end, at most this much of the twin's time later (a look-ahead's
+#: cost is fixed plus per period: shorter ones cost more than the periods they save)
+RUN_AHEAD_S = 2.0
+
 
 class ControlLoop:
     """Ticks one :class:`CellController`; see the module docstring."""
@@ -48,6 +54,9 @@ class ControlLoop:
         self.ticks = 0
         self.ticks_ahead = 0  # of which in look-aheads
         self._next_wall_s: float | None = None
+        #: :meth:`run` (serve on a twin at its fastest): the periods of a running job's
+        #: motions in look-aheads of at most RUN_AHEAD_S (where ``lookahead`` allows)
+        self.run_ahead = False
 
     def add_observer(self, observer: Observer) -> None:
         self.observers.append(observer)
@@ -65,7 +74,13 @@ class ControlLoop:
 
     def run(self, stop: threading.Event) -> None:
         """Tick until ``stop`` is set (serve)."""
+        cell = self.cell
         while not stop.is_set():
+            if self.run_ahead and self.lookahead and cell.busy and not cell.planning:
+                now_s = cell.backend.read_state().time_s
+                periods = min(LOOKAHEAD_PERIODS, max(1, round(RUN_AHEAD_S / self.period_s)))
+                if self._fast_forward(now_s + RUN_AHEAD_S, periods):
+                    continue
             self.step()
 
     def run_job(self, *, max_s: float, stop: threading.Event | None = None) -> None:
@@ -91,7 +106,7 @@ class ControlLoop:
                 continue
             self.step()
 
-    def _fast_forward(self, limit_s: float) -> int:
+    def _fast_forward(self, limit_s: float, max_periods: int = LOOKAHEAD_PERIODS) -> int:
         """Periods advanced by the cell in one look-ahead (none past ``limit_s`` or the
         moment an observer asks for), 0 when the next period runs as usual."""
         until_s = limit_s
@@ -100,7 +115,7 @@ class ControlLoop:
             if quiet_until is None:
                 return 0
             until_s = min(until_s, quiet_until(self.cell))
-        n = self.cell.fast_forward(LOOKAHEAD_PERIODS, until_s)
+        n = self.cell.fast_forward(max_periods, until_s)
         self.ticks += n
         self.ticks_ahead += n
         return n

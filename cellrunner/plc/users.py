@@ -26,6 +26,7 @@ import re
 import secrets
 import sys
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, TextIO
@@ -124,6 +125,22 @@ def load_user_entries(path: Path | str) -> dict[str, UserEntry]:
     if not isinstance(data, dict):
         raise InputError("users file must be a mapping of user name -> hash", file=path)
     return {name: _entry(name, value, path) for name, value in data.items()}
+
+
+def role_checker(path: Path | str) -> Callable[[str, str], Role | None]:
+    """``(name, password) -> role`` of the users file at ``path``, None for an unknown user,
+    a wrong password or an unreadable file; the file is read at each check (``users add``
+    takes effect at once), an unknown user costs the same time as a known one."""
+
+    def check(name: str, password: str) -> Role | None:
+        try:
+            entry = load_user_entries(path).get(name)
+        except InputError:
+            entry = None
+        ok = verify_password(entry.hash if entry is not None else None, password)
+        return entry.role if entry is not None and ok else None
+
+    return check
 
 
 def _entry(name: object, value: object, path: Path) -> UserEntry:

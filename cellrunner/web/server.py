@@ -6,8 +6,10 @@ Routes: ``/`` the page (self-contained HTML and JS that polls ``/status.json``),
 :class:`~cellrunner.web.live.LiveView`, the live 3D view's: ``/live/scene.json``,
 ``/live/state.json``, ``/live/job.json``, ``/live/stream`` (server-sent events, one
 state per sample, at most :data:`MAX_STREAMS` at once) and the three.js modules under
-``/static/three/`` (vendored, scripts/vendor-three). Everything else is 404; any method
-but GET and HEAD is 405: nothing here changes the cell.
+``/static/three/`` (vendored, scripts/vendor-three). Everything else is 404. With
+:class:`~cellrunner.web.controls.PageControls` (a users file names the operators) the
+page's buttons ``POST /control/hold``, ``/control/unhold``, ``/control/clear``; any other
+POST, and any method but GET, HEAD and those, is 405: nothing else changes the cell.
 """
 
 from __future__ import annotations
@@ -21,9 +23,11 @@ from typing import TYPE_CHECKING, Any
 
 from cellrunner.errors import CellrunnerError, UsageError
 from cellrunner.web.board import StatusBoard
+from cellrunner.web.controls import HEADER as CONTROL_HEADER
 from cellrunner.web.metrics import CONTENT_TYPE as METRICS_TYPE
 
 if TYPE_CHECKING:
+    from cellrunner.web.controls import PageControls
     from cellrunner.web.live import LiveView
 
 DEFAULT_HOST = "127.0.0.1"
@@ -64,8 +68,10 @@ class StatusServer:
         host: str = DEFAULT_HOST,
         port: int = 8080,
         live: LiveView | None = None,
+        controls: PageControls | None = None,
     ) -> None:
         self.board, self.host, self.port, self.live = board, host, port, live
+        self.controls = controls
         self._stopping = threading.Event()
         self._httpd: ThreadingHTTPServer | None = None
         self._thread: threading.Thread | None = None
@@ -85,6 +91,7 @@ class StatusServer:
                 "board": self.board,
                 "page": _page(),
                 "live": self.live,
+                "controls": self.controls,
                 "static": _static() if self.live is not None else {},
                 "stopping": self._stopping,
                 "streams": threading.BoundedSemaphore(MAX_STREAMS),
@@ -135,6 +142,7 @@ class _Handler(BaseHTTPRequestHandler):
     board: StatusBoard
     page: bytes
     live: LiveView | None
+    controls: PageControls | None
     static: dict[str, tuple[str, bytes]]
     stopping: threading.Event
     streams: threading.BoundedSemaphore
@@ -145,7 +153,8 @@ class _Handler(BaseHTTPRequestHandler):
         if path in ("/", "/index.html"):
             self._send(200, "text/html; charset=utf-8", self.page)
         elif path == "/status.json":
-            body = json.dumps(self.board.snapshot(), separators=(",", ":")).encode()
+            snapshot = {**self.board.snapshot(), "controls": self.controls is not None}
+            body = json.dumps(snapshot, separators=(",", ":")).encode()
             self._send(200, "application/json", body)
         elif path == "/metrics":
             self._send(200, METRICS_TYPE, self.board.metrics().encode())
@@ -165,7 +174,23 @@ class _Handler(BaseHTTPRequestHandler):
     def _refuse(self) -> None:
         self._send(405, "text/plain; charset=utf-8", b"read-only: GET only\n", allow="GET, HEAD")
 
-    do_POST = do_PUT = do_DELETE = do_PATCH = _refuse
+    do_PUT = do_DELETE = do_PATCH = _refuse
+
+    def do_POST(self) -> None:  # http.server's name
+        """A button of the page (see :mod:`cellrunner.web.controls`); else read-only."""
+        path = self.path.split("?", 1)[0]
+        if self.controls is None or not path.startswith("/control/"):
+            return self._refuse()
+        length = int(self.headers.get("Content-Length") or 0)
+        if 0 < length <= 4096:
+            self.rfile.read(length)  # a body is ignored
+        answer = self.controls.press(
+            path.removeprefix("/control/"),
+            self.headers.get("Authorization"),
+            self.headers.get(CONTROL_HEADER) == "1",
+        )
+        body = json.dumps({"ok": answer.status == 200, "message": answer.message}).encode()
+        self._send(answer.status, "application/json", body, **dict(answer.headers))
 
     def _live(self, path: str, live: LiveView) -> None:
         if path == "/live/scene.json":

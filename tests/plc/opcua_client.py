@@ -306,6 +306,11 @@ async def main() -> None:
             result.update(await asyncio.wait_for(scenario_hostile(client), 60))
         elif args.scenario == "hold":
             result.update(await asyncio.wait_for(scenario_hold(client), 15))
+        elif args.scenario == "held":  # who holds the cell, as OPC UA publishes it
+            ns = await client.get_namespace_index("urn:cellrunner")
+            cell = await client.nodes.objects.get_child(f"{ns}:Cell")
+            result["hold_source"] = await (await cell.get_child(f"{ns}:HoldSource")).read_value()
+            result["hold_reason"] = await (await cell.get_child(f"{ns}:HoldReason")).read_value()
         elif args.scenario == "write":
             result.update(await asyncio.wait_for(scenario_write(client), 15))
         else:
