@@ -74,11 +74,54 @@ class _Job:
     retries: int = 0
     end_code: ResultCode | None = None
 
+    def result(self, code: ResultCode, now_s: float) -> JobResult:
+        """This job's result, ended now (clock time ``now_s``) with ``code``."""
+        return JobResult(
+            job_id=self.job_id,
+            result_code=code,
+            result_text=_result_text(code),
+            cycle_time_s=now_s - self.started_s,
+            end_time=datetime.now(UTC),
+            retries=1 if code == ResultCode.NO_PART else 0,
+            task=self.task.name,
+            client_job_id=self.client_job_id,
+            source=self.source,
+        )
+
 
 @dataclass
 class _Injected:
     protective_stop: bool = False
     estop: bool = False
+
+
+class _Fanout:
+    """The result listeners and the results not yet told to them (told outside the
+    cell's lock, so a listener may call back into the cell)."""
+
+    def __init__(self, lock: threading.RLock) -> None:
+        self._lock = lock
+        self._listeners: list[ResultListener] = []
+        self.pending: list[JobResult] = []
+
+    def add(self, listener: ResultListener) -> Callable[[], None]:
+        with self._lock:
+            self._listeners.append(listener)
+
+        def remove() -> None:
+            with self._lock:
+                if listener in self._listeners:
+                    self._listeners.remove(listener)
+
+        return remove
+
+    def notify(self) -> None:
+        with self._lock:
+            pending, self.pending = self.pending, []
+            listeners = list(self._listeners)
+        for result in pending:
+            for listener in listeners:
+                listener(result)
 
 
 def default_tasks() -> list[FakeTask]:
@@ -118,8 +161,7 @@ class FakeCell:
         self._job: _Job | None = None
         self._queued: _Job | None = None
         self._ids = itertools.count(1)
-        self._listeners: list[ResultListener] = []
-        self._pending: list[JobResult] = []
+        self._fanout = _Fanout(self._lock)
         self._injected = _Injected()
         self._processed = self.parts_processed
         self._defective = self.parts_defective
@@ -177,20 +219,7 @@ class FakeCell:
     def arm(self) -> ArmStatus:
         """A UR5e whose base joint turns at 0.5 rad/s while a job runs (an ArmPort)."""
         with self._lock:
-            job = self._job
-            now = self.clock()
-            base = 0.5 * (now - job.started_s) if job is not None else 0.0
-            return ArmStatus(
-                model="ur5e",
-                serial_number="20235500042",
-                controller="UR5e (fake)",
-                q_rad=(base, -1.57, 1.57, -1.57, -1.57, 0.0),
-                qd_rad_s=(0.5 if job is not None else 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
-                emergency_stop=self._injected.estop,
-                protective_stop=self._injected.protective_stop,
-                task=job.task.name if job is not None else "",
-                time_s=now,
-            )
+            return _arm_status(self._job, self._injected, self.clock())
 
     def finished_job(self, source: str, client_job_id: str) -> JobResult | None:
         """The first finished job ``source`` named ``client_job_id`` (a JobHistory: the
@@ -257,15 +286,7 @@ class FakeCell:
             return accepted
 
     def add_result_listener(self, listener: ResultListener) -> Callable[[], None]:
-        with self._lock:
-            self._listeners.append(listener)
-
-        def remove() -> None:
-            with self._lock:
-                if listener in self._listeners:
-                    self._listeners.remove(listener)
-
-        return remove
+        return self._fanout.add(listener)
 
     # -- fault injection (what the twin's physics would cause) --------------------------
     def inject_protective_stop(self) -> None:
@@ -360,20 +381,10 @@ class FakeCell:
             self._processed += 1
             if code != ResultCode.OK:
                 self._defective += 1
-        result = JobResult(
-            job_id=job.job_id,
-            result_code=code,
-            result_text=_result_text(code),
-            cycle_time_s=self.clock() - job.started_s,
-            end_time=datetime.now(UTC),
-            retries=1 if code == ResultCode.NO_PART else 0,
-            task=job.task.name,
-            client_job_id=job.client_job_id,
-            source=job.source,
-        )
+        result = job.result(code, self.clock())
         self.last_result = result
         self.finished.append(result)
-        self._pending.append(result)
+        self._fanout.pending.append(result)
         self._job = None
         self._queued = None
 
@@ -416,12 +427,23 @@ class FakeCell:
             job.step_left_s += job.task.step_durations_s[job.step_index - 1]
 
     def _notify(self) -> None:
-        with self._lock:
-            pending, self._pending = self._pending, []
-            listeners = list(self._listeners)
-        for result in pending:
-            for listener in listeners:
-                listener(result)
+        self._fanout.notify()
+
+
+def _arm_status(job: _Job | None, injected: _Injected, now: float) -> ArmStatus:
+    """A UR5e whose base joint turns at 0.5 rad/s while ``job`` runs."""
+    base = 0.5 * (now - job.started_s) if job is not None else 0.0
+    return ArmStatus(
+        model="ur5e",
+        serial_number="20235500042",
+        controller="UR5e (fake)",
+        q_rad=(base, -1.57, 1.57, -1.57, -1.57, 0.0),
+        qd_rad_s=(0.5 if job is not None else 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+        emergency_stop=injected.estop,
+        protective_stop=injected.protective_stop,
+        task=job.task.name if job is not None else "",
+        time_s=now,
+    )
 
 
 def _result_text(code: ResultCode) -> str:

@@ -154,3 +154,23 @@ class GripFaults:
                 if d < best_d:
                     best, best_d = name, d
         return best
+
+
+def inject(world: Any, fault: str | Fault) -> None:
+    """Make ``fault`` happen physically in ``world`` (a built SimWorld; see
+    :meth:`~cellrunner.sim.world.SimWorld.inject_fault`)."""
+    from cellrunner.sim.safety import StopReason
+
+    f = Fault.parse(fault)
+    if f in (Fault.GRIP_MISS, Fault.PART_SLIP) and world.vacuum is not None:
+        setattr(world.vacuum, "grip_miss_armed" if f is Fault.GRIP_MISS else "slip_armed", True)
+    elif f is Fault.GRIP_MISS:
+        world.grip_faults.grip_miss_armed = True
+    elif f is Fault.PART_SLIP:
+        world.grip_faults.arm_slip(world._gripped)  # fires once a gripped part is in the air
+    elif f is Fault.PROTECTIVE_STOP:
+        world.raise_protective_stop(StopReason.INJECTED)
+    elif f is Fault.ESTOP:
+        world.press_estop()
+    else:
+        raise ValueError(f"fault {f.value!r} is handled by the backend, not the physics")

@@ -36,67 +36,18 @@ from typing import Any
 
 import numpy as np
 
-from cellrunner.model.arm_geometry import arm_geometry
-from cellrunner.model.geometry import Box, Cylinder, Mesh, Placed, Shape, Sphere
 from cellrunner.model.robots import JOINT_NAMES
-from cellrunner.planning.stl import binary_stl, stl_triangles
 from cellrunner.sim.description import TwinDescription
-from cellrunner.sim.mjcf_attrs import (
-    PADS,
-    PART_HITS,
-    PARTS,
-    ROBOT,
-    STATIC,
-    TOOL,
-    ShapeAttrs,
-    fmt,
-    pose_attrs,
-)
+from cellrunner.sim.mjcf_arm import ARM_MASS_KG as ARM_MASS_KG
+from cellrunner.sim.mjcf_arm import JOINT_TORQUE_MAX_NM as JOINT_TORQUE_MAX_NM
+from cellrunner.sim.mjcf_arm import add_arm
+from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC
+from cellrunner.sim.mjcf_bodies import FLAT_MESH_M as FLAT_MESH_M
+from cellrunner.sim.mjcf_bodies import add_fixture, add_part
+from cellrunner.sim.mjcf_document import MjcfDocument
+from cellrunner.sim.mjcf_sensors import add_actuators_and_sensors
 from cellrunner.sim.mujoco_loader import load_mujoco
-from cellrunner.sim.rigid_contacts import rigid_contact_attrs
-from cellrunner.sim.tool_changer import add_tools
-from cellrunner.sim.vacuum import add_cups, add_welds
-
-# Arm masses (kg) and joint torque limits (N m, base..wrist 3), datasheets / UR manuals.
-ARM_MASS_KG = {
-    "ur3": 11.0,
-    "ur5": 18.4,
-    "ur10": 28.9,
-    "ur3e": 11.2,
-    "ur5e": 20.6,
-    "ur10e": 33.5,
-    "ur16e": 33.1,
-    "ur7e": 20.6,  # the UR5e renamed
-    "ur12e": 33.5,  # the UR10e renamed
-    "ur15": 40.2,  # sums of ur_description's link masses (UR15, UR18); UR8 Long assumed
-    "ur18": 39.5,
-    "ur8long": 42.0,
-    "ur20": 64.0,  # datasheets
-    "ur30": 63.5,
-}
-_TORQUE_SMALL = (56.0, 56.0, 28.0, 12.0, 12.0, 12.0)
-_TORQUE_MEDIUM = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)
-_TORQUE_LARGE = (330.0, 330.0, 150.0, 56.0, 56.0, 56.0)
-_TORQUE_UR18 = (433.0, 433.0, 204.0, 70.0, 70.0, 70.0)  # ur_description max_effort
-_TORQUE_UR20 = (738.0, 738.0, 433.0, 107.0, 107.0, 107.0)  # ur_description max_effort
-JOINT_TORQUE_MAX_NM = {
-    "ur3": _TORQUE_SMALL,
-    "ur3e": _TORQUE_SMALL,
-    "ur5": _TORQUE_MEDIUM,
-    "ur5e": _TORQUE_MEDIUM,
-    "ur10": _TORQUE_LARGE,
-    "ur10e": _TORQUE_LARGE,
-    "ur16e": _TORQUE_LARGE,
-    "ur7e": _TORQUE_MEDIUM,
-    "ur12e": _TORQUE_LARGE,
-    "ur15": _TORQUE_UR18,  # assumed: the UR18's joint sizes (same DH d1, d4-d6)
-    "ur18": _TORQUE_UR18,
-    "ur8long": _TORQUE_UR18,  # assumed, as the UR15
-    "ur20": _TORQUE_UR20,
-    "ur30": _TORQUE_UR20,
-}
-# Reflected rotor inertia of the harmonic drives (kg m^2), scaled by arm size.
-_ARMATURE_UR5 = (0.6, 0.6, 0.3, 0.06, 0.06, 0.06)
+from cellrunner.sim.vacuum import add_welds
 
 
 @dataclass(frozen=True)
@@ -165,33 +116,25 @@ def tune_servo_gains(model: Any, desc: TwinDescription, options: PhysicsOptions)
         model.actuator_biasprm[act, 2] = -kv
 
 
-#: a mesh thinner than this along some axis is treated as flat (m), and given this thickness
-FLAT_MESH_M = 0.001
+class _Builder(MjcfDocument):
+    """Writes the sections of the MJCF in MuJoCo's order; each concern's bodies, actuators
+    and sensors come from its module (:mod:`.mjcf_arm`, :mod:`.mjcf_bodies`,
+    :mod:`.mjcf_sensors`, cameras, intruders, vacuum, tool changer, belts)."""
 
-
-def _flat_mesh_box(mesh: Mesh) -> tuple[np.ndarray, np.ndarray] | None:
-    """(centre, full size) of a mesh's bounding box when the mesh is flat (coplanar
-    vertices along a frame axis), else None."""
-    vertices = stl_triangles(mesh.path).reshape(-1, 3) * mesh.scale
-    if not len(vertices):
-        return None
-    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
-    size = hi - lo
-    if size.min() >= FLAT_MESH_M:
-        return None
-    return (lo + hi) / 2, np.maximum(size, FLAT_MESH_M)
-
-
-class _Builder:
     def __init__(self, desc: TwinDescription, options: PhysicsOptions) -> None:
-        self.desc = desc
+        super().__init__(desc)
         self.options = options
-        self.root = ET.Element("mujoco", model=desc.name)
-        self.assets: ET.Element | None = None
-        self._meshes: dict[str, str] = {}
-        self.mesh_files: dict[str, bytes] = {}
 
     def build(self) -> str:
+        self._header()
+        self._assets()
+        self._world()
+        ET.indent(self.root)
+        return ET.tostring(self.root, encoding="unicode")
+
+    def _header(self) -> None:
+        """The compiler, the physics options (the step from the control rate) and the
+        visual settings."""
         d, o = self.desc, self.options
         ET.SubElement(
             self.root,
@@ -234,7 +177,11 @@ class _Builder:
             diffuse="0.5 0.5 0.5",
             specular="0.1 0.1 0.1",
         )
-        self._assets()
+
+    def _world(self) -> None:
+        """The world body (light, floor, fixtures, arm, parts, cameras, intruders), then
+        the actuators and sensors, then the belts."""
+        d = self.desc
         world = ET.SubElement(self.root, "worldbody")
         ET.SubElement(
             world,
@@ -258,10 +205,10 @@ class _Builder:
                 conaffinity=str(ROBOT | PADS | PARTS),
             )
         for fixture in d.fixtures:
-            self._static_geom(world, fixture)
-        self._arm(world)
+            add_fixture(self, world, fixture)
+        add_arm(self, world)
         for part in d.parts:
-            self._part(world, part)
+            add_part(self, world, part)
         if d.vacuum is not None and d.parts:
             add_welds(self.root, d.parts)
         if d.cameras or d.markers:
@@ -272,379 +219,10 @@ class _Builder:
             from cellrunner.sim.depth import add_intruders
 
             add_intruders(self, d.intruders)
-        self._actuators_and_sensors()
+        add_actuators_and_sensors(self)
         if d.belts:
             from cellrunner.sim.belts import add_belts
 
             actuators = self.root.find("actuator")
             assert actuators is not None  # written just before
             add_belts(world, actuators, d.belts)
-        ET.indent(self.root)
-        return ET.tostring(self.root, encoding="unicode")
-
-    # -- assets ---------------------------------------------------------------------
-    def _assets(self) -> None:
-        a = self.assets = ET.SubElement(self.root, "asset")
-        ET.SubElement(
-            a,
-            "texture",
-            name="grid",
-            type="2d",
-            builtin="checker",
-            width="512",
-            height="512",
-            rgb1="0.80 0.80 0.78",
-            rgb2="0.74 0.74 0.72",
-        )
-        ET.SubElement(
-            a,
-            "material",
-            name="floor",
-            texture="grid",
-            texrepeat="2 2",
-            texuniform="true",
-            reflectance="0",
-        )
-        for name, rgba in (
-            ("arm", "0.78 0.80 0.82 1"),
-            ("joint", "0.20 0.45 0.70 1"),
-            ("tool", "0.25 0.25 0.28 1"),
-            ("pad", "0.10 0.10 0.10 1"),
-            ("fixture", "0.62 0.52 0.40 1"),
-            ("part", "0.95 0.55 0.10 1"),
-        ):
-            ET.SubElement(a, "material", name=name, rgba=rgba, specular="0.3")
-
-    def _mesh_asset(self, mesh: Mesh) -> str:
-        key = f"{mesh.path}|{mesh.scale}"
-        if key not in self._meshes:
-            name = f"mesh{len(self._meshes)}"
-            assert self.assets is not None
-            self.mesh_files[f"{name}.stl"] = binary_stl(mesh.path)
-            ET.SubElement(
-                self.assets, "mesh", name=name, file=f"{name}.stl", scale=fmt([mesh.scale] * 3)
-            )
-            self._meshes[key] = name
-        return self._meshes[key]
-
-    def _shape_attrs(self, shape: Shape) -> ShapeAttrs:
-        if isinstance(shape, Box):
-            return {"type": "box", "size": fmt(np.asarray(shape.size_m) / 2)}
-        if isinstance(shape, Cylinder):
-            return {"type": "cylinder", "size": fmt([shape.radius_m, shape.length_m / 2])}
-        if isinstance(shape, Sphere):
-            return {"type": "sphere", "size": fmt([shape.radius_m])}
-        if isinstance(shape, Mesh):
-            return {"type": "mesh", "mesh": self._mesh_asset(shape)}
-        raise TypeError(f"unsupported shape {type(shape).__name__}")
-
-    # -- bodies ---------------------------------------------------------------------
-    def _static_geom(self, parent: ET.Element, placed: Placed) -> None:
-        shape, T = placed.shape, placed.T_parent_shape
-        if isinstance(shape, Mesh) and self._mesh_pieces(parent, placed):
-            return
-        flat = _flat_mesh_box(shape) if isinstance(shape, Mesh) else None
-        if flat is not None:  # MuJoCo cannot hull a flat mesh: a thin box over its bounds
-            center, size = flat
-            T = T.copy()
-            T[:3, 3] = T[:3, :3] @ center + T[:3, 3]
-            shape = Box(tuple(size))
-        geom = ET.SubElement(
-            parent,
-            "geom",
-            name=f"fixture:{placed.name}",
-            material="fixture",
-            contype=str(STATIC),
-            conaffinity=str(ROBOT | PADS | PARTS),
-            **self._shape_attrs(shape),
-            **pose_attrs(T),
-        )
-        if placed.name in self.desc.rigid_fixtures:  # a hole's walls (issue 33)
-            for key, value in rigid_contact_attrs(self.timestep_s).items():
-                geom.set(key, value)
-
-    def _mesh_pieces(self, parent: ET.Element, placed: Placed) -> bool:
-        """A non-convex mesh fixture as one thin prism per triangle (see :mod:`.mesh_pieces`);
-        False when the mesh is convex (or too big), to be built as usual."""
-        from cellrunner.sim import mesh_pieces
-
-        mesh = placed.shape
-        assert isinstance(mesh, Mesh)  # called for mesh fixtures
-        triangles = stl_triangles(mesh.path) * mesh.scale
-        if len(triangles) > mesh_pieces.MAX_TRIANGLES or mesh_pieces.is_convex(triangles):
-            return False
-        assert self.assets is not None
-        for k, vertices in enumerate(mesh_pieces.prisms(triangles)):
-            name = f"{placed.name}_piece{k}"
-            ET.SubElement(self.assets, "mesh", name=name, vertex=fmt(vertices))
-            ET.SubElement(
-                parent,
-                "geom",
-                name=f"fixture:{placed.name}:{k}",
-                material="fixture",
-                type="mesh",
-                mesh=name,
-                contype=str(STATIC),
-                conaffinity=str(ROBOT | PADS | PARTS),
-                **pose_attrs(placed.T_parent_shape),
-            )
-        return True
-
-    def _arm(self, world: ET.Element) -> None:
-        d = self.desc
-        spec = d.spec
-        parts = arm_geometry(spec.arm).parts
-        volume = sum(p.volume_m3 for p in parts if p.body > 0)
-        density = ARM_MASS_KG.get(spec.name, 20.0) / volume
-        scale = (spec.reach_m / 0.85) ** 2
-        torque = JOINT_TORQUE_MAX_NM.get(spec.name, _TORQUE_MEDIUM)
-        body = ET.SubElement(world, "body", name="base", **pose_attrs(d.T_world_base))
-        parent = body
-        for i in range(7):
-            if i > 0:
-                T = np.eye(4)
-                if i > 1:
-                    T[:3, 3] = (spec.a_m[i - 2], 0.0, spec.d_m[i - 2])
-                    ca, sa = math.cos(spec.alpha_rad[i - 2]), math.sin(spec.alpha_rad[i - 2])
-                    T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
-                body = ET.SubElement(parent, "body", name=f"link{i}", gravcomp="1", **pose_attrs(T))
-                ET.SubElement(
-                    body,
-                    "joint",
-                    name=JOINT_NAMES[i - 1],
-                    type="hinge",
-                    axis="0 0 1",
-                    armature=f"{_ARMATURE_UR5[i - 1] * scale:.6g}",
-                    damping="0.5",
-                    range=fmt(np.radians([spec.joint_min_deg[i - 1], spec.joint_max_deg[i - 1]])),
-                    actuatorfrcrange=fmt([-torque[i - 1], torque[i - 1]]),
-                )
-            assert self.assets is not None
-            for k, part in enumerate(x for x in parts if x.body == i):
-                bits = (0, 0) if i == 0 else (ROBOT, STATIC | PARTS)
-                name = f"arm{i}_{k}"
-                ET.SubElement(self.assets, "mesh", name=name, vertex=fmt(part.vertices_m.ravel()))
-                ET.SubElement(
-                    body,
-                    "geom",
-                    name=name,
-                    type="mesh",
-                    mesh=name,
-                    density=f"{density if i > 0 else 0:.6g}",
-                    material="arm",
-                    contype=str(bits[0]),
-                    conaffinity=str(bits[1]),
-                )
-            parent = body
-        flange_T = np.eye(4)
-        flange_T[:3, 3] = (spec.a_m[5], 0.0, spec.d_m[5])
-        ca, sa = math.cos(spec.alpha_rad[5]), math.sin(spec.alpha_rad[5])
-        flange_T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
-        flange = ET.SubElement(parent, "body", name="flange", gravcomp="1", **pose_attrs(flange_T))
-        ET.SubElement(flange, "inertial", pos="0 0 0", mass="1e-3", diaginertia="1e-7 1e-7 1e-7")
-        self._tool(flange)
-
-    def _tool(self, flange: ET.Element) -> None:
-        d = self.desc
-        g = d.gripper
-        fingers_kg = 2 * g.finger_mass_kg if g is not None else 0.0
-        tool_kg = max(d.payload_mass_kg - fingers_kg, 0.02)
-        tool = ET.SubElement(flange, "body", name="tool", gravcomp="1")
-        r = 0.03  # inertia of the payload as a 3 cm radius solid sphere at its cog
-        ET.SubElement(
-            tool,
-            "inertial",
-            pos=fmt(d.payload_cog_m),
-            mass=f"{tool_kg:.6g}",
-            diaginertia=fmt([0.4 * tool_kg * r * r] * 3),
-        )
-        ET.SubElement(tool, "site", name="ft", pos="0 0 0", size="0.01", rgba="0 0 0 0")
-        ET.SubElement(
-            tool, "site", name="tcp", size="0.006", rgba="1 0 0 0.6", **pose_attrs(d.T_flange_tcp)
-        )
-        for k, placed in enumerate(d.tool_geometry):
-            ET.SubElement(
-                tool,
-                "geom",
-                name=f"tool:{placed.name or k}",
-                material="tool",
-                density="0",
-                contype=str(TOOL),
-                conaffinity=str(STATIC),
-                **self._shape_attrs(placed.shape),
-                **pose_attrs(placed.T_parent_shape),
-            )
-        if g is not None:
-            self._gripper(tool, g)
-        if d.vacuum is not None:
-            T = d.vacuum.T_flange_tcp if d.vacuum.T_flange_tcp is not None else d.T_flange_tcp
-            add_cups(self, tool, d.vacuum, T, PADS, STATIC | PARTS)
-        if d.tool_changer is not None:
-            worldbody = self.root.find("worldbody")
-            assert worldbody is not None  # built before the tool
-            add_tools(self, tool, worldbody, d.tool_changer, TOOL, STATIC)
-
-    def _gripper(self, tool: ET.Element, g: Any) -> None:
-        d = self.desc
-        t, w, _ = g.finger_size_m
-        z0, z1 = g.pad_z_m
-        half_stroke = g.stroke_m / 2
-        # Visual rail across the fingers' tops, fixed to the tool at the TCP frame.
-        T_flange_jaws = g.T_flange_tcp if g.T_flange_tcp is not None else d.T_flange_tcp
-        rail = ET.SubElement(tool, "body", name="gripper", **pose_attrs(T_flange_jaws))
-        ET.SubElement(
-            rail,
-            "geom",
-            name="gripper:rail",
-            type="box",
-            material="tool",
-            pos=fmt([0, 0, z0 - 0.02]),
-            size=fmt([half_stroke + t + 0.01, w / 2 + 0.004, 0.008]),
-            contype="0",
-            conaffinity="0",
-            density="0",
-            group="1",
-        )
-        ET.SubElement(rail, "inertial", pos="0 0 0", mass="1e-3", diaginertia="1e-7 1e-7 1e-7")
-        for jaw, sign in (("jaw_a", 1.0), ("jaw_b", -1.0)):
-            body = ET.SubElement(rail, "body", name=jaw)
-            ET.SubElement(
-                body,
-                "joint",
-                name=jaw,
-                type="slide",
-                axis=fmt([-sign, 0, 0]),
-                range=fmt([0.0, half_stroke]),
-                armature="0.2",
-                solreflimit="0.004 1",
-                solimplimit="0.99 0.999 0.001",
-                damping=f"{g.grip_force_N / g.jaw_speed_mps:.6g}",
-            )
-            x = sign * (half_stroke + t / 2)
-            ET.SubElement(
-                body,
-                "geom",
-                name=f"pad:{jaw}",
-                type="box",
-                material="pad",
-                pos=fmt([x, 0, (z0 + z1) / 2]),
-                size=fmt([t / 2, w / 2, (z1 - z0) / 2]),
-                friction=f"{g.friction:g} 0.01 0.0001",
-                condim="4",
-                solref=self.grasp_solref,
-                contype=str(PADS),
-                conaffinity=str(STATIC | PARTS),
-                mass=f"{g.finger_mass_kg:.6g}",
-            )
-            ET.SubElement(
-                body,
-                "geom",
-                name=f"stem:{jaw}",
-                type="box",
-                material="tool",
-                pos=fmt([x, 0, z0 - 0.012]),
-                size=fmt([t / 2, w / 2, 0.012]),
-                contype="0",
-                conaffinity="0",
-                density="0",
-                group="1",
-            )
-        eq = self.root.find("equality")
-        if eq is None:
-            eq = ET.SubElement(self.root, "equality")
-        ET.SubElement(
-            eq,
-            "joint",
-            name="jaw_sync",
-            joint1="jaw_a",
-            joint2="jaw_b",
-            solref=f"{2 * self.timestep_s:.6g} 1",
-        )
-
-    def _part(self, world: ET.Element, part: Any) -> None:
-        feed = self.desc.feed
-        # a copy waiting to be fed (sim.feed) floats, touching nothing, until it is fed
-        parked = feed is not None and part.name in feed.copies
-        body = ET.SubElement(
-            world, "body", name=f"part:{part.name}", **pose_attrs(part.T_world_part)
-        )
-        if parked:
-            body.set("gravcomp", "1")
-        ET.SubElement(body, "freejoint", name=f"part:{part.name}")
-        ET.SubElement(
-            body,
-            "geom",
-            name=f"part:{part.name}",
-            material="part",
-            mass=f"{part.mass_kg:.6g}",
-            friction=f"{part.friction:g} 0.01 0.0001",
-            condim="4",
-            solref=self.grasp_solref,
-            contype="0" if parked else str(PARTS),
-            conaffinity="0" if parked else str(PART_HITS),
-            **self._shape_attrs(part.shape),
-        )
-
-    def _actuators_and_sensors(self) -> None:
-        d = self.desc
-        act = ET.SubElement(self.root, "actuator")
-        for name in JOINT_NAMES:
-            # kp/kv placeholders; tune_servo_gains sets them from the compiled inertia.
-            ET.SubElement(act, "position", name=f"servo:{name}", joint=name, kp="1", kv="1")
-        g = d.gripper
-        if g is not None:
-            # Pneumatic-like jaws: a constant force, with viscous damping on the slide
-            # (joint damping) that limits the free closing speed to jaw_speed_mps.
-            for jaw in ("jaw_a", "jaw_b"):
-                ET.SubElement(
-                    act,
-                    "motor",
-                    name=f"drive:{jaw}",
-                    joint=jaw,
-                    gear="1",
-                    ctrlrange=fmt([-g.grip_force_N, g.grip_force_N]),
-                )
-        sensors = ET.SubElement(self.root, "sensor")
-        ET.SubElement(sensors, "force", name="ft_force", site="ft")
-        ET.SubElement(sensors, "torque", name="ft_torque", site="ft")
-        self._lookahead_sensors(sensors)
-
-    def _lookahead_sensors(self, sensors: ET.Element) -> None:
-        """What a look-ahead (:mod:`.lookahead`) needs recorded from every physics step,
-        as sensors (MuJoCo computes them in C and they do not change the dynamics):
-        contact counts (anything on the arm and tool, one part on each finger pad, one
-        part on anything; the part is chosen before each look-ahead), the frame of the
-        wrist sensor and the tool's centre of mass (the wrench reading), the TCP with a
-        tool changer (parking at a rack place) and each part's position (presence sensors
-        and ``part_at`` rules)."""
-        d = self.desc
-        ET.SubElement(sensors, "contact", name="ahead:arm", subtree1="base", data="found")
-        if d.parts:
-            first = f"part:{d.parts[0].name}"
-            if d.gripper is not None:
-                for jaw in ("jaw_a", "jaw_b"):
-                    ET.SubElement(
-                        sensors,
-                        "contact",
-                        name=f"ahead:pad_{jaw[-1]}",
-                        geom1=f"pad:{jaw}",
-                        geom2=first,
-                        data="found",
-                    )
-            ET.SubElement(sensors, "contact", name="ahead:part", geom1=first, data="found")
-        for axis in ("x", "y", "z"):
-            ET.SubElement(
-                sensors, f"frame{axis}axis", name=f"ahead:ft_{axis}", objtype="site", objname="ft"
-            )
-        ET.SubElement(sensors, "framepos", name="ahead:ft_pos", objtype="site", objname="ft")
-        ET.SubElement(sensors, "subtreecom", name="ahead:tool_com", body="tool")
-        if d.tool_changer is not None:  # where the mounted tool's TCP is (its rack place?)
-            ET.SubElement(sensors, "framepos", name="ahead:tcp", objtype="site", objname="tcp")
-        for part in d.parts:
-            ET.SubElement(
-                sensors,
-                "framepos",
-                name=f"ahead:part:{part.name}",
-                objtype="body",
-                objname=f"part:{part.name}",
-            )

@@ -27,21 +27,20 @@ from cellrunner.errors import BackendError
 from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.sim.contacts import NONE, ContactEvent, ContactMonitor
 from cellrunner.sim.description import TwinDescription
-from cellrunner.sim.faults import Fault, GripFaults
+from cellrunner.sim.faults import Fault, GripFaults, inject
+from cellrunner.sim.infeed import attach_equipment
+from cellrunner.sim.infeed import feed_parts as _feed_parts
 from cellrunner.sim.input_rules import InputRules
 from cellrunner.sim.jaws import Jaws
 from cellrunner.sim.mjcf import PhysicsOptions, compile_model
 from cellrunner.sim.model_ids import ModelIds, lookup_ids
 from cellrunner.sim.mujoco_loader import load_mujoco
 from cellrunner.sim.places import PlaceInspection, Places
-from cellrunner.sim.safety import (
-    COLLISION_BACKOFF_S,
-    STOP_DECEL_RAD_S2,
-    UNLOCK_DELAY_S,
-    StopRamp,
-    StopReason,
-)
-from cellrunner.sim.servo import hermite_table
+from cellrunner.sim.safety import STOP_DECEL_RAD_S2, StopRamp, StopReason
+from cellrunner.sim.servo import ZERO6 as _ZERO6
+from cellrunner.sim.servo import ServoInput
+from cellrunner.sim.world_io import IoImage
+from cellrunner.sim.world_stops import StopControl
 from cellrunner.sim.wrist import WristSensor
 
 
@@ -78,23 +77,20 @@ class SimWorld:
         self.last_contact: ContactEvent | None = None
         self._stop: StopRamp | None = None
         d = self.description
-        self.outputs: dict[str, float | bool] = {c: _zero(c) for c in d.io_outputs}
-        self.inputs: dict[str, float | bool] = {c: _zero(c) for c in d.io_inputs}
-        self._scripted_inputs: dict[str, float | bool] = {}
-        self._rules = InputRules(d.input_rules) if d.input_rules else None
+        self.io = IoImage(self)
+        self.outputs, self.inputs, self._rules = self.io.outputs, self.io.inputs, self.io.rules
+        self.stops = StopControl(self)
         # Hot-path views into MjData (its buffers never move). The arm's joints and
         # servos come first in the model, so they are plain slices.
         assert list(ids.qpos) == list(range(6)) and list(ids.dof) == list(range(6))
         assert list(ids.servo) == list(range(6))
         self._q_view = self.data.qpos[0:6]
         self._qd_view = self.data.qvel[0:6]
-        self._servo_ctrl = self.data.ctrl[0:6]
-        self._ctrl_tmp = np.zeros(6)
-        # The arm settles one physics step ahead of its servo input (measured), hence -h.
-        self._ff_lead = ids.ff_gain - self.period_s / self.substeps
+        self.servo = ServoInput(
+            self._mj, self.model, self.data, ids.ff_gain, self.substeps, self.period_s
+        )
         self._q_prev_ref = self.q_ref.copy()
         self._qd_prev_ref: np.ndarray = _ZERO6
-        self._hermite = hermite_table(self.substeps, self.period_s)
         self._gripped: frozenset[str] = NONE
         self.wrist = WristSensor(self.data, ids, d.T_world_base)
         self.places = Places(self)
@@ -103,31 +99,7 @@ class SimWorld:
         self.jaws = Jaws(self) if d.gripper is not None else None
         self.data.ctrl[ids.servo] = self.q_ref
         self._mj.mj_forward(self.model, self.data)
-        self.vacuum = None
-        if d.vacuum is not None:
-            from cellrunner.sim.vacuum import VacuumCups
-
-            self.vacuum = VacuumCups(self, d.vacuum)
-        self.intruders = None
-        if d.intruders:
-            from cellrunner.sim.depth import Intruders
-
-            self.intruders = Intruders(self.model, self.data, d.intruders)
-        self.changer = None
-        if d.tool_changer is not None:
-            from cellrunner.sim.tool_changer import ToolChanger
-
-            self.changer = ToolChanger(self, d.tool_changer)
-        self.belts = None
-        if d.belts:
-            from cellrunner.sim.belts import Belts
-
-            self.belts = Belts(self.model, self.data, d.belts)
-        self.feeder = None
-        if d.feed is not None:
-            from cellrunner.sim.feed import Feeder
-
-            self.feeder = Feeder(self, d.feed)
+        self.vacuum, self.intruders, self.changer, self.belts, self.feeder = attach_equipment(self)
         self._update_inputs()
 
     @property
@@ -189,90 +161,39 @@ class SimWorld:
 
     def stop_motion(self, decel_rad_s2: float = STOP_DECEL_RAD_S2) -> None:
         """Ramp the set-point to standstill, along the current commanded motion."""
-        self._begin_stop(decel_rad_s2)
+        self.stops.begin_stop(decel_rad_s2)
 
     def set_output(self, channel: str, value: bool | float) -> None:
-        if channel not in self.outputs:
-            raise BackendError(f"unknown output {channel!r}; known: {', '.join(self.outputs)}")
-        self.outputs[channel] = value
+        self.io.set_output(channel, value)
 
     def set_input(self, channel: str, value: bool | float) -> None:
         """Drive an input that no twin sensor drives (a test or a scripted peer)."""
-        if channel not in self.inputs:
-            raise BackendError(f"unknown input {channel!r}; known: {', '.join(self.inputs)}")
-        if channel in self._sensor_channels():
-            raise BackendError(f"input {channel!r} is driven by a twin sensor")
-        self._scripted_inputs[channel] = value
-        self.inputs[channel] = value
+        self.io.set_input(channel, value)
 
     def zero_ft_sensor(self) -> None:
         self.wrist.zero()
 
     def unlock_protective_stop(self) -> None:
-        if self.safety is Safety.NORMAL:
-            return
-        if self.safety is not Safety.PROTECTIVE_STOP:
-            raise BackendError(f"cannot unlock a protective stop in state {self.safety.value}")
-        assert self.stop_time_s is not None
-        elapsed = self.time_s - self.stop_time_s
-        if elapsed < UNLOCK_DELAY_S:
-            raise BackendError(
-                f"protective stop cannot be unlocked yet: {elapsed:.2f} s since the stop, "
-                f"the controller needs {UNLOCK_DELAY_S:.0f} s"
-            )
-        self._resume()
+        self.stops.unlock_protective_stop()
 
     def press_estop(self) -> None:
         """A person presses the emergency stop: category 1 stop, then power off."""
-        self.estop_pressed = True
-        if self.safety is not Safety.EMERGENCY_STOP:
-            self.safety = Safety.EMERGENCY_STOP
-            self.stop_time_s = self.time_s
-            self._begin_stop(STOP_DECEL_RAD_S2)
+        self.stops.press_estop()
 
     def release_estop(self) -> None:
         """A person twists the e-stop button out; the robot stays off until recovered."""
         self.estop_pressed = False
 
     def recover_from_estop(self) -> None:
-        if self.safety is not Safety.EMERGENCY_STOP:
-            return
-        if self.estop_pressed:
-            raise BackendError("emergency stop is still pressed; a person must release it first")
-        self.powered = True
-        self._resume()
+        self.stops.recover_from_estop()
 
     def raise_protective_stop(self, reason: StopReason = StopReason.INJECTED) -> None:
-        if self.safety is not Safety.NORMAL:
-            return
-        self.safety = Safety.PROTECTIVE_STOP
-        self.stop_time_s = self.time_s
-        if reason is StopReason.CONTACT:
-            # A collision: hold where the arm was just before (backing off 20 ms of the
-            # motion, as UR arms back off) rather than ramp on into the obstacle.
-            self._stop = None
-            q, qd = self.data.qpos[self.ids.qpos], self.data.qvel[self.ids.dof]
-            self.q_ref = self._q_prev_ref = q - COLLISION_BACKOFF_S * qd
-            self.qd_ref = self._qd_prev_ref = _ZERO6
-        else:
-            self._begin_stop(STOP_DECEL_RAD_S2)
+        self.stops.raise_protective_stop(reason)
 
     def inject_fault(self, fault: str | Fault) -> None:
         """Make ``fault`` happen physically (see :class:`Fault`); robot_disconnect is the
         backend's business."""
-        f = Fault.parse(fault)
-        if f in (Fault.GRIP_MISS, Fault.PART_SLIP) and self.vacuum is not None:
-            setattr(self.vacuum, "grip_miss_armed" if f is Fault.GRIP_MISS else "slip_armed", True)
-        elif f is Fault.GRIP_MISS:
-            self.grip_faults.grip_miss_armed = True
-        elif f is Fault.PART_SLIP:
-            self.grip_faults.arm_slip(self._gripped)  # fires once a gripped part is in the air
-        elif f is Fault.PROTECTIVE_STOP:
-            self.raise_protective_stop(StopReason.INJECTED)
-        elif f is Fault.ESTOP:
-            self.press_estop()
-        else:
-            raise ValueError(f"fault {f.value!r} is handled by the backend, not the physics")
+        inject(self, fault)
 
     # -- stepping -----------------------------------------------------------------------
     def step_period(self) -> None:
@@ -289,34 +210,9 @@ class SimWorld:
                 self._stop = None
                 if self.safety is Safety.EMERGENCY_STOP:
                     self.powered = False  # category 1: power off once standing, brakes on
-        # servoJ semantics: be at q_ref at the end of this period. The PD with velocity
-        # feed-forward settles onto its position input one physics step ahead, so that
-        # input is the set-point one step back along the commanded speed (plus the kv/kp
-        # feed-forward term). With several steps per period (CB3) the set-point is
-        # interpolated linearly across them.
+        # servoJ semantics: be at q_ref at the end of this period (see ServoInput)
         self.drive_outputs()
-        k = self.substeps
-        if k == 1:
-            if self.qd_ref is _ZERO6:
-                self._servo_ctrl[:] = self.q_ref
-            else:  # ctrl = q_ref + ff_lead * qd_ref, with no temporaries
-                np.add(
-                    np.multiply(self._ff_lead, self.qd_ref, self._ctrl_tmp),
-                    self.q_ref,
-                    self._servo_ctrl,
-                )
-            self._mj.mj_step(self.model, data)
-        else:
-            # cubic Hermite between the last and this set-point (positions and speeds),
-            # so the servo input and its speed feed-forward are continuous (a stepped
-            # feed-forward at 125 Hz shakes a gripped part loose)
-            ends = np.stack([self._q_prev_ref, self._qd_prev_ref, self.q_ref, self.qd_ref])
-            q_sub = self._hermite[0] @ ends
-            qd_sub = self._hermite[1] @ ends
-            ctrl = q_sub + self._ff_lead * qd_sub
-            for s in range(k):
-                self._servo_ctrl[:] = ctrl[s]
-                self._mj.mj_step(self.model, data)
+        self.servo.step(data, (self._q_prev_ref, self._qd_prev_ref, self.q_ref, self.qd_ref))
         self._q_prev_ref = self.q_ref
         self._qd_prev_ref = self.qd_ref
         self._periods += 1
@@ -356,18 +252,7 @@ class SimWorld:
         """The arm servos' inputs for consecutive periods whose set-points are the rows of
         ``q_rad``/``qd_rad_s`` (the first row being the set-point now commanded): one row
         per physics step, computed exactly as :meth:`step_period` does."""
-        k = self.substeps
-        if k == 1:
-            return np.asarray(np.add(np.multiply(self._ff_lead, qd_rad_s), q_rad))
-        rows = np.empty((len(q_rad) * k, 6))
-        q_prev, qd_prev = self._q_prev_ref, self._qd_prev_ref
-        for i in range(len(q_rad)):
-            ends = np.stack([q_prev, qd_prev, q_rad[i], qd_rad_s[i]])
-            rows[i * k : (i + 1) * k] = self._hermite[0] @ ends + self._ff_lead * (
-                self._hermite[1] @ ends
-            )
-            q_prev, qd_prev = q_rad[i], qd_rad_s[i]
-        return rows
+        return self.servo.inputs(self._q_prev_ref, self._qd_prev_ref, q_rad, qd_rad_s)
 
     def advanced(self, periods: int, q_ref_rad: np.ndarray, qd_ref_rad_s: np.ndarray) -> None:
         """The physics was advanced ``periods`` whole periods in one go (the data now holds
@@ -402,55 +287,13 @@ class SimWorld:
         """The cups sealed on or let go of a part."""
         self.contacts.suction_changed(self.vacuum.held if self.vacuum is not None else NONE)
 
-    # -- safety helpers -----------------------------------------------------------------
-    def _begin_stop(self, decel_rad_s2: float) -> None:
-        qd0 = self.qd_ref.copy() if self._stop is None else self._stop.speed(self.time_s)
-        self._stop = StopRamp.from_speed(self.time_s, qd0, decel_rad_s2)
-
-    def _resume(self) -> None:
-        self.safety = Safety.NORMAL
-        self.stop_time_s = None
-        self._stop = None
-        self.q_ref = self._q_prev_ref = self.data.qpos[self.ids.qpos].copy()
-        self.qd_ref = self._qd_prev_ref = _ZERO6
-
     # -- measurements ---------------------------------------------------------------------
-    def _sensor_channels(self) -> set[str]:
-        chans = {s.channel for s in self.description.presence_sensors}
-        if self.description.vacuum is not None and self.description.vacuum.vacuum_ok_input:
-            chans.add(self.description.vacuum.vacuum_ok_input)
-        if self.description.tool_changer is not None and self.description.tool_changer.locked_input:
-            chans.add(self.description.tool_changer.locked_input)
-        if self._rules is not None:
-            chans |= self._rules.channels()
-        if self.jaws is not None:
-            chans |= self.jaws.channels()
-        return chans
-
     def jaw_gap_m(self) -> float:
         """Distance between the finger pads (m); stroke when open, 0 when fully closed."""
         return 0.0 if self.jaws is None else self.jaws.gap_m()
 
     def _update_inputs(self) -> None:
-        if self.jaws is not None:
-            self.jaws.update_inputs(self.inputs)
-        if self.vacuum is not None and self.vacuum.vac.vacuum_ok_input:
-            self.inputs[self.vacuum.vac.vacuum_ok_input] = self.vacuum.vacuum_ok
-        if self.changer is not None and self.changer.desc.locked_input:
-            self.inputs[self.changer.desc.locked_input] = self.changer.locked
-        for sensor in self.description.presence_sensors:
-            self.inputs[sensor.channel] = any(
-                bool(sensor.sees(self.data.xpos[b])) for b in self.ids.part_bodies.values()
-            )
-        if self._rules is not None:
-            xpos = self.data.xpos
-            self.inputs.update(
-                self._rules.evaluate(
-                    self.time_s,
-                    self.outputs,
-                    (xpos[b].tolist() for b in self.ids.part_bodies.values()),
-                )
-            )
+        self.io.update_inputs()
 
     def measure(self) -> RobotState:
         """This period's measurements, as the controller reports them."""
@@ -481,28 +324,7 @@ class SimWorld:
         frame unless one lies there (:mod:`.feed`). Without one, every part not held that
         lies more than ``moved_m`` from its spawn pose is put back there at rest.
         Returns the names of the parts fed."""
-        from scipy.spatial.transform import Rotation
-
-        if self.feeder is not None:
-            new = self.feeder.feed()
-            return [new] if new is not None else []
-        mujoco = load_mujoco()
-        fed = []
-        for part in self.description.parts:
-            if part.name in self._gripped:
-                continue
-            spawn = part.T_world_part
-            if np.linalg.norm(self.part_pose_world(part.name)[:3, 3] - spawn[:3, 3]) <= moved_m:
-                continue
-            adr = self.ids.part_qpos[part.name]
-            x, y, z, w = Rotation.from_matrix(spawn[:3, :3]).as_quat()
-            self.data.qpos[adr : adr + 7] = [*spawn[:3, 3], w, x, y, z]
-            dof = self.model.jnt_dofadr[self.model.joint(f"part:{part.name}").id]
-            self.data.qvel[dof : dof + 6] = 0.0
-            fed.append(part.name)
-        if fed:
-            mujoco.mj_forward(self.model, self.data)
-        return fed
+        return _feed_parts(self, moved_m)
 
     def inspect_place(self, T_world_tcp: np.ndarray) -> PlaceInspection | None:
         """See :meth:`.places.Places.inspect`."""
@@ -519,11 +341,3 @@ class SimWorld:
         T[:3, :3] = self.data.xmat[body].reshape(3, 3)
         T[:3, 3] = self.data.xpos[body]
         return T
-
-
-_ZERO6 = np.zeros(6)
-_ZERO6.setflags(write=False)
-
-
-def _zero(channel: str) -> float | bool:
-    return 0.0 if channel[:2] in ("AI", "AO") else False

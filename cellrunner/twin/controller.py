@@ -19,7 +19,6 @@ State follows UR's numbering (RTDE ``robot_mode``, ``safety_mode``, ``runtime_st
 from __future__ import annotations
 
 import collections
-import enum
 import threading
 import time
 from dataclasses import dataclass, field
@@ -29,47 +28,13 @@ import numpy as np
 
 from cellrunner.model.robots import RobotSpec
 from cellrunner.twin import motion as mo
-from cellrunner.twin.kinematics import (
-    Kinematics,
-    matrix_to_pose,
-    matrix_to_rotvec,
-    rotvec_to_matrix,
-)
+from cellrunner.twin.kinematics import Kinematics
+from cellrunner.twin.modes import RobotMode as RobotMode
+from cellrunner.twin.modes import RuntimeState as RuntimeState
+from cellrunner.twin.modes import SafetyMode as SafetyMode
 from cellrunner.twin.physics import KinematicPhysics, Measurement, Physics
-
-
-class RobotMode(enum.IntEnum):
-    NO_CONTROLLER = -1
-    DISCONNECTED = 0
-    CONFIRM_SAFETY = 1
-    BOOTING = 2
-    POWER_OFF = 3
-    POWER_ON = 4
-    IDLE = 5
-    BACKDRIVE = 6
-    RUNNING = 7
-
-
-class SafetyMode(enum.IntEnum):
-    NORMAL = 1
-    REDUCED = 2
-    PROTECTIVE_STOP = 3
-    RECOVERY = 4
-    SAFEGUARD_STOP = 5
-    SYSTEM_EMERGENCY_STOP = 6
-    ROBOT_EMERGENCY_STOP = 7
-    VIOLATION = 8
-    FAULT = 9
-
-
-class RuntimeState(enum.IntEnum):
-    STOPPING = 0
-    STOPPED = 1
-    PLAYING = 2
-    PAUSING = 3
-    PAUSED = 4
-    RESUMING = 5
-
+from cellrunner.twin.setpoint import advance_motion, pose_rate
+from cellrunner.twin.watchdog import check_watchdog
 
 DEFAULT_VERSIONS = {"e-Series": (5, 11, 1, 108318), "CB3": (3, 15, 7, 106331)}
 UNLOCK_REFUSED = (
@@ -397,59 +362,19 @@ class Controller:
             mode = self._mode_timer[1]
             self._mode_timer = None
             self.robot_mode = mode
-        self._check_watchdog()
+        check_watchdog(self)
         if self.runtime_state == RuntimeState.PAUSED:
             pass  # a paused program keeps its place and does not run
         elif self.program is not None and not self.program.tick(self):
             # a program that ends stops the arm (servo and speed threads end with it)
             self._halt_program("finished")
-        self._advance_motion(dt)
+        advance_motion(self, dt)
         self.physics.apply_outputs(self.digital_output_bits)
         self.physics.step(self.target_q, dt)
         previous_tcp = self.actual_tcp_pose
         self.meas = self.physics.measure()
         self.actual_tcp_pose = self.kinematics.tcp_pose(self.meas.q_rad)
-        self.actual_tcp_speed = _pose_rate(previous_tcp, self.actual_tcp_pose, dt)
+        self.actual_tcp_speed = pose_rate(previous_tcp, self.actual_tcp_pose, dt)
         if self.meas.contact and self.safety_mode == SafetyMode.NORMAL:
             what = self.meas.contact_what
             self.protective_stop(f"collision detected: {what}" if what else "collision detected")
-
-    def _advance_motion(self, dt: float) -> None:
-        previous_qd = self.target_qd
-        previous_tcp = self.target_tcp_pose
-        if self.robot_mode != RobotMode.RUNNING or self.estop_pressed:
-            # brakes on: the set-point is where the arm is
-            self.motion = None
-            self.target_q, self.target_qd = self.meas.q_rad.copy(), np.zeros(6)
-        elif self.motion is not None:
-            try:
-                q, qd, done = self.motion.advance(self.target_q, self.target_qd, dt)
-            except mo.MotionError as exc:
-                self.add_log(str(exc))
-                self._halt_program(str(exc))
-                q, qd, done = self.target_q, np.zeros(6), True
-                self.motion = mo.Stop(self.accel_max)
-            self.target_q, self.target_qd = np.asarray(q, float), np.asarray(qd, float)
-            if done:
-                self.motion = None
-                self.target_qd = np.zeros(6)
-        else:
-            self.target_qd = np.zeros(6)
-        self.target_qdd = (self.target_qd - previous_qd) / dt
-        self.target_tcp_pose = matrix_to_pose(self.kinematics.tcp(self.target_q))
-        self.target_tcp_speed = _pose_rate(previous_tcp, self.target_tcp_pose, dt)
-
-    def _check_watchdog(self) -> None:
-        if self.watchdog is None or self.program is None:
-            return
-        name, min_hz = self.watchdog
-        last = self.last_input_write.get(name, -1e9)
-        if self.time_s - last > 1.0 / min_hz:
-            self.add_log(f"RTDE watchdog: {name} not updated at {min_hz} Hz; program stopped")
-            self._halt_program("rtde watchdog")
-
-
-def _pose_rate(p0: np.ndarray, p1: np.ndarray, dt: float) -> np.ndarray:
-    """Finite-difference TCP twist (m/s, rad/s) between two UR poses."""
-    w = matrix_to_rotvec(rotvec_to_matrix(p1[3:]) @ rotvec_to_matrix(p0[3:]).T)
-    return np.concatenate([(p1[:3] - p0[:3]) / dt, w / dt])

@@ -14,36 +14,34 @@ notice a missed or slipped part through the jaw sensor and the wrist load.
 from __future__ import annotations
 
 from collections.abc import Generator
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cellrunner.backends.sim import line
+from cellrunner.backends.sim.cameras import TwinCameras
+from cellrunner.backends.sim.pacing import LookaheadPacer
+from cellrunner.backends.sim.setpoints import (
+    SET_POINT_JUMP_MARGIN as SET_POINT_JUMP_MARGIN,
+)
+from cellrunner.backends.sim.setpoints import (
+    accept,
+    check_jump,
+    step_limit_rad,
+    tracking_error_m,
+)
 from cellrunner.errors import BackendError, PeerUnreachable
 from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.model.trajectory import ApprovedTrajectory
-from cellrunner.sim.description import TwinDescription, dh_forward
+from cellrunner.sim.description import TwinDescription
 from cellrunner.sim.faults import Fault
 from cellrunner.sim.mjcf import PhysicsOptions
 from cellrunner.sim.world import SimWorld
 
 if TYPE_CHECKING:
     from cellrunner.backends.sim.depth import TwinDepthRenderer
-    from cellrunner.sim.lookahead import Lookahead, Preview
+    from cellrunner.sim.lookahead import Preview
     from cellrunner.sim.places import PlaceInspection
-
-# servoJ set-points further apart than the joint speed limit allows (with this margin)
-# are refused, as the controller would protective-stop on them.
-SET_POINT_JUMP_MARGIN = 1.5
-#: a look-ahead covers this many periods at first, doubling while they pass whole up
-#: to the most; one cut short (a contact, an input, a check ahead) starts again small,
-#: since its physics beyond the cut is computed in vain
-AHEAD_FIRST_PERIODS = 64
-AHEAD_MAX_PERIODS = 1024
-#: a hold's look-ahead starts this small when an output changed since the last
-#: look-ahead (the jaws moving soon cut it: a contact, the sensor), else at most this
-#: big (a hold's end in time bounds it too)
-AHEAD_FIRST_HOLD_PERIODS = 16
-AHEAD_CALM_HOLD_PERIODS = 256
 
 
 class SimBackend:
@@ -52,7 +50,7 @@ class SimBackend:
 
     def __init__(self, description: TwinDescription, options: PhysicsOptions | None = None) -> None:
         self.description = description
-        self._imagers: dict[str, Any] = {}  # camera name -> CameraImager, made on first use
+        self._cameras = TwinCameras(description)
         self.options = options if options is not None else PhysicsOptions()
         self.rate_hz = description.rate_hz
         #: the twin's link comes back only through ``connect()`` (see :meth:`reconnect`)
@@ -66,19 +64,8 @@ class SimBackend:
         self._accepted: tuple[ApprovedTrajectory, np.ndarray, np.ndarray] | None = None
         self._next_index = -1
         self._last_q: np.ndarray | None = None
-        self._ahead: Lookahead | None = None
-        self._ahead_cap = AHEAD_FIRST_PERIODS  # grows while look-aheads pass whole
-        self._ahead_not_before = 0  # no look-ahead before this period (a cut one's end)
-        # a hold's cap, apart: it starts small again when an output changed (the jaws
-        # moving soon end a hold's quiet stretch, and the periods rolled out beyond such a
-        # cut are wasted)
-        self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
-        self._ahead_outputs: dict[str, bool | float] | None = None  # at the last look-ahead
-        self._max_step_rad = (
-            np.radians(description.spec.joint_speed_max_deg_s)
-            / self.rate_hz
-            * SET_POINT_JUMP_MARGIN
-        )
+        self._pacer = LookaheadPacer(self)
+        self._max_step_rad = step_limit_rad(description.spec.joint_speed_max_deg_s, self.rate_hz)
 
     # -- lifecycle --------------------------------------------------------------------------
     def connect(self) -> None:
@@ -92,21 +79,19 @@ class SimBackend:
             except ValueError as exc:
                 raise BackendError(str(exc)) from exc
             self.world = world
-            self._lookahead(world)  # its scratch data is built with the model
+            self._pacer.lookahead(world)  # its scratch data is built with the model
         self._connected = True
         self._link_lost = False
 
     def close(self) -> None:
-        for imager in self._imagers.values():
-            imager.close()
-        self._imagers.clear()
+        self._cameras.close()
         self._fresh = None
         if self.world is not None and self._connected:
             self.world.stop_motion()
         self._connected = False
         self.world = None
         self._accepted = None
-        self._ahead = None
+        self._pacer.ahead = None
 
     @property
     def sim_time_s(self) -> float:
@@ -157,14 +142,7 @@ class SimBackend:
         # (after the safety state, which world.command checks for the others).
         if index != self._next_index or world.q_ref is not self._last_q:
             world.check_can_move()
-            jump = np.abs(q - world.q_ref)
-            if (jump > self._max_step_rad).any():
-                j = int(np.argmax(jump - self._max_step_rad))
-                raise BackendError(
-                    f"set-point {index} of step {trajectory.step_index} ({trajectory.step_name}) "
-                    f"jumps {np.degrees(jump[j]):.2f} deg on joint {j + 1} in one period; the "
-                    f"joint speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg"
-                )
+            check_jump(trajectory, index, q, world.q_ref, self._max_step_rad)
         world.command(q, qd_all[index])
         self._next_index, self._last_q = index + 1, q
 
@@ -172,98 +150,20 @@ class SimBackend:
     def look_ahead(
         self, trajectory: ApprovedTrajectory, next_index: int, periods: int
     ) -> Preview | None:
-        """The coming periods' measurements if ``trajectory`` keeps streaming (set-point
-        ``next_index - 1``, the one commanded last, then one more each period), without
-        taking them yet; None when the twin cannot look ahead now. Covers at most
-        ``periods`` periods (fewer after a look-ahead that was cut short)."""
-        world = self.world
-        accepted = self._accepted
-        if (
-            world is None
-            or not self._connected
-            or accepted is None
-            or accepted[0] is not trajectory
-            or next_index != self._next_index
-            or world.q_ref is not self._last_q
-            or next_index < 1
-            or world.periods < self._ahead_not_before
-        ):
-            return None
-        self._outputs_changed(world)
-        self._hold_cap = AHEAD_CALM_HOLD_PERIODS
-        n = min(periods, self._ahead_cap, len(accepted[1]) - next_index + 1)
-        j0 = next_index - 1
-        preview = self._lookahead(world).preview(accepted[1][j0 : j0 + n], accepted[2][j0 : j0 + n])
-        if self._cut_short(world, preview, n):
-            self._ahead_cap = AHEAD_FIRST_PERIODS
-        return preview
+        """See :meth:`.pacing.LookaheadPacer.look_ahead`."""
+        return self._pacer.look_ahead(trajectory, next_index, periods)
 
     def look_ahead_hold(self, periods: int) -> Preview | None:
-        """The coming periods' measurements if the set-point stays where it is (a step
-        waiting with the arm still), without taking them yet; None when the twin cannot
-        look ahead now. Covers at most ``periods`` periods."""
-        world = self.world
-        if (
-            world is None
-            or not self._connected
-            or world.periods < self._ahead_not_before
-            or world.stopping
-        ):
-            return None
-        if self._outputs_changed(world):
-            self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
-        n = min(periods, self._hold_cap)
-        preview = self._lookahead(world).preview_hold(n)
-        if self._cut_short(world, preview, n):
-            self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
-        return preview
-
-    def _lookahead(self, world: SimWorld) -> Lookahead:
-        """The world's look-ahead engine, made at the first look-ahead."""
-        if self._ahead is None:
-            from cellrunner.sim.lookahead import Lookahead
-
-            self._ahead = Lookahead(world)
-        return self._ahead
-
-    def _outputs_changed(self, world: SimWorld) -> bool:
-        """Whether the outputs changed since the last look-ahead (remembered from now)."""
-        if world.outputs == self._ahead_outputs:
-            return False
-        self._ahead_outputs = dict(world.outputs)
-        return True
-
-    def _cut_short(self, world: SimWorld, preview: Preview | None, n: int) -> bool:
-        """Whether ``preview`` of ``n`` periods ends before them: the period after its
-        quiet ones is no plain motion or hold, so no look-ahead starts before it."""
-        if preview is None or preview.quiet >= n:
-            return False
-        self._ahead_not_before = world.periods + preview.quiet + 1
-        return True
+        """See :meth:`.pacing.LookaheadPacer.look_ahead_hold`."""
+        return self._pacer.look_ahead_hold(periods)
 
     def commit_look_ahead(self, preview: Preview, periods: int) -> None:
-        """Take over the first ``periods`` periods of ``preview`` (at most its quiet
-        ones): the twin then stands where that many ``wait_period`` calls, with
-        ``servo`` sending the trajectory's set-points between them (none for a hold),
-        would have left it."""
-        assert self._ahead is not None and self.world is not None  # a preview was made
-        self._fresh = None
-        self._ahead.commit(preview, periods)
-        if preview.holds:
-            if periods == preview.periods:
-                self._hold_cap = min(2 * self._hold_cap, AHEAD_MAX_PERIODS)
-            return
-        self._last_q = self.world.q_ref
-        self._next_index += periods
-        if periods == preview.periods:
-            self._ahead_cap = min(2 * self._ahead_cap, AHEAD_MAX_PERIODS)
+        """See :meth:`.pacing.LookaheadPacer.commit_look_ahead`."""
+        self._pacer.commit_look_ahead(preview, periods)
 
     def discard_look_ahead(self, preview: Preview) -> None:
         """A preview none of whose periods is taken (the next period runs as usual)."""
-        if preview.holds:
-            self._hold_cap = AHEAD_FIRST_HOLD_PERIODS
-        else:
-            self._ahead_cap = AHEAD_FIRST_PERIODS
+        self._pacer.discard_look_ahead(preview)
 
     def wait_period(self) -> None:
         self._fresh = None
@@ -339,35 +239,26 @@ class SimBackend:
     def conveyor_travel_m(self, name: str) -> float | None:
         """How far belt ``name`` has travelled, m, as its encoder reads it now (None: the
         twin has no such belt)."""
-        belts = self._world().belts
-        if belts is None or name not in belts.descs:
-            return None
-        return belts.travel_m(name)
+        return line.conveyor_travel_m(self._world(), name)
 
     def set_belt_speed(self, name: str, speed_mps: float) -> None:
         """Run the twin's belt ``name`` at ``speed_mps`` (0 stops it): what a line does
         to the cell, for tests and benches."""
-        belts = self._world().belts
-        if belts is None:
-            raise BackendError(f"the twin has no belt {name!r}")
+        belts = line.belts_of(self._world(), name)
         self._fresh = None
         belts.set_speed(name, speed_mps)
 
     def jump_belt_encoder(self, name: str, distance_m: float) -> None:
         """An encoder fault on the twin's belt ``name``: its reading jumps by
         ``distance_m`` while the belt runs on (for tests and benches)."""
-        belts = self._world().belts
-        if belts is None:
-            raise BackendError(f"the twin has no belt {name!r}")
+        belts = line.belts_of(self._world(), name)
         self._fresh = None
         belts.jump_encoder(name, distance_m)
 
     def job_started(self) -> None:
         """A job starts now: the twin's scheduled intruders (``sim: intruders``) count from
         here."""
-        world = self._world()
-        if world.intruders is not None:
-            world.intruders.start(world.time_s)
+        line.job_started(self._world())
 
     def depth_rates_hz(self) -> dict[str, float]:
         """The twin's depth cameras (``sim: depth``) and their frame rates (Hz)."""
@@ -388,25 +279,13 @@ class SimBackend:
     ) -> TwinDepthRenderer:
         """A renderer of the twin's depth camera ``camera`` with the cell's depth noise
         (``sim: depth_noise``); raises BackendError for a camera the twin does not have."""
-        from cellrunner.backends.sim.depth import TwinDepthRenderer
-        from cellrunner.sim.depth import DepthImager
-
-        description = next((c for c in self.description.cameras if c.name == camera), None)
-        if description is None:
-            raise BackendError(f"the twin has no camera {camera!r}")
-        imager = DepthImager(
-            self._world().model, description, range_m, self.description.depth_noise_m, seed=seed
-        )
-        return TwinDepthRenderer(imager)
+        return self._cameras.depth_renderer(self._world(), camera, range_m, seed)
 
     def inject_intrusion(self, T_world_box: np.ndarray) -> str | None:
         """``--inject intrusion@STEP``: drop the twin's box at ``T_world_box`` now (it
         stays); its name, or None when the cell has none (not watched)."""
         self._fresh = None
-        world = self._world()
-        if world.intruders is None:
-            return None
-        return world.intruders.inject(T_world_box, world.time_s)
+        return line.inject_intrusion(self._world(), T_world_box)
 
     def release_estop(self) -> None:
         """A person releases the e-stop button (the robot stays off until recovered)."""
@@ -426,25 +305,12 @@ class SimBackend:
     def camera_image(self, name: str) -> np.ndarray:
         """What cell camera ``name`` sees now (RGB, height x width x 3, uint8), rendered
         from the twin through the camera's intrinsics (:class:`CameraImager`)."""
-        from cellrunner.sim.cameras import CameraImager
-
-        world = self._world()
-        imagers = self._imagers
-        if name not in imagers:
-            camera = next((c for c in self.description.cameras if c.name == name), None)
-            if camera is None:
-                raise BackendError(f"the twin has no camera {name!r}")
-            imagers[name] = CameraImager(world.model, camera)
-        return np.asarray(imagers[name].image(np.array(world.data.qpos)))
+        return self._cameras.camera_image(self._world(), name)
 
     def tcp_tracking_error_m(self) -> float:
         """Distance (m) between the TCP at the last set-point and the measured TCP."""
         world = self._world()
-        q = world.q_measured()
-        T_ft = self.description.T_flange_tcp
-        p_ref = (dh_forward(self.description.spec, world.q_ref) @ T_ft)[:3, 3]
-        p_act = (dh_forward(self.description.spec, q) @ T_ft)[:3, 3]
-        return float(np.linalg.norm(p_ref - p_act))
+        return tracking_error_m(self.description, world.q_ref, world.q_measured())
 
     # -- helpers ----------------------------------------------------------------------------
     def _world(self) -> SimWorld:
@@ -463,31 +329,12 @@ class SimBackend:
     def _accept(
         self, trajectory: ApprovedTrajectory
     ) -> tuple[ApprovedTrajectory, np.ndarray, np.ndarray]:
-        """Check an approved trajectory once (seal, rate, speed) and remember it with its
-        joint positions and speeds.
+        """Check an approved trajectory once (seal, rate, speed: :func:`.setpoints.accept`)
+        and remember it with its joint positions and speeds.
 
         The seal is verified on the first set-point of each trajectory object and
         remembered by identity: ApprovedTrajectory is frozen and its arrays read-only.
         """
-        if not isinstance(trajectory, ApprovedTrajectory) or not trajectory.is_sealed:
-            raise BackendError(
-                "refusing an unsealed trajectory: only trajectories approved by check can move "
-                "the robot"
-            )
-        traj = trajectory.trajectory
-        if abs(traj.rate_hz - self.rate_hz) > 1e-9:
-            raise BackendError(
-                f"trajectory sampled at {traj.rate_hz:g} Hz, the controller runs "
-                f"at {self.rate_hz:g} Hz"
-            )
-        steps = np.abs(np.diff(traj.q_rad, axis=0))
-        if len(steps) and (steps > self._max_step_rad).any():
-            i, j = np.unravel_index(int(np.argmax(steps - self._max_step_rad)), steps.shape)
-            raise BackendError(
-                f"set-point {i + 1} of step {trajectory.step_index} ({trajectory.step_name}) "
-                f"jumps {np.degrees(steps[i, j]):.2f} deg on joint {j + 1} in one period; the "
-                f"joint speed limit allows {np.degrees(self._max_step_rad[j]):.2f} deg"
-            )
-        self._accepted = (trajectory, traj.q_rad, traj.qd_rad_s)
+        self._accepted = accept(trajectory, self.rate_hz, self._max_step_rad)
         self._next_index, self._last_q = -1, None
         return self._accepted
