@@ -324,26 +324,37 @@ def plan_task(
                 row.carrying = planner.part
         current = None
         flush()
-        for row in rows:
-            if row.step.retry is not None:
-                _check_retry_path(world, row, rows)
-        from cellrunner.planning.jaw_hold import check_jaw_hold
-        from cellrunner.planning.suction_hold import check_suction_hold
-
-        check_suction_hold(world, rows)
-        check_jaw_hold(world, rows)
+        _check_whole_job(world, rows)
     except InfeasibleError as exc:
-        failed = next((r for r in rows if r.step.index == exc.step_index), current or rows[-1])
-        failed.status, failed.message = "failed", exc.reason
-        plan.failures.append(
-            replace(exc.failure, step_index=failed.step.index, step=failed.step.label)
-        )
-        for r in rows:
-            if r is not failed and (
-                r.step.index > failed.step.index or (r.step.is_motion and r.approved is None)
-            ):
-                r.status, r.approved = "not planned", None
+        _mark_failed(plan, exc, current)
     return plan
+
+
+def _check_whole_job(world: CellWorld, rows: list[StepPlan]) -> None:
+    """What needs the whole job planned: retry paths, and the grip holding the part
+    through every move that carries it (cups, jaws)."""
+    from cellrunner.planning.jaw_hold import check_jaw_hold
+    from cellrunner.planning.suction_hold import check_suction_hold
+
+    for row in rows:
+        if row.step.retry is not None:
+            _check_retry_path(world, row, rows)
+    check_suction_hold(world, rows)
+    check_jaw_hold(world, rows)
+
+
+def _mark_failed(plan: TaskPlan, exc: InfeasibleError, current: StepPlan | None) -> None:
+    """The row ``exc`` is about failed (``current`` where it names none); the rows after
+    it, and the motions not yet approved, not planned."""
+    rows = plan.rows
+    failed = next((r for r in rows if r.step.index == exc.step_index), current or rows[-1])
+    failed.status, failed.message = "failed", exc.reason
+    plan.failures.append(replace(exc.failure, step_index=failed.step.index, step=failed.step.label))
+    for r in rows:
+        if r is not failed and (
+            r.step.index > failed.step.index or (r.step.is_motion and r.approved is None)
+        ):
+            r.status, r.approved = "not planned", None
 
 
 def _at(step: Step, action: Callable[..., _R], *args: object, **kwargs: object) -> _R:
