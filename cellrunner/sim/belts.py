@@ -53,6 +53,8 @@ class BeltDescription:
     end_m: tuple[float, float, float]
     speed_mps: float
     ticks_per_m: float | None = None
+    #: the controller's pulse decoder this belt's encoder is wired to (``source: ur``)
+    encoder_index: int | None = None
 
     @property
     def direction(self) -> np.ndarray:
@@ -80,6 +82,7 @@ def belt_of(name: str, conveyor: Conveyor) -> BeltDescription | None:
         tuple(float(v) for v in line.to),  # type: ignore[arg-type]
         speed if speed is not None else float(conveyor.speed_max),
         ticks,
+        enc.index if enc.source == "ur" else None,
     )
 
 
@@ -175,6 +178,16 @@ class Belts:
         exact = self._wrapped_m[name] + float(self.data.qpos[self._qpos[name]])
         ticks = self.descs[name].ticks_per_m
         return exact if ticks is None else math.floor(exact * ticks) / ticks
+
+    def encoder_ticks(self, index: int) -> int | None:
+        """The whole ticks the encoder wired to the controller's pulse decoder ``index``
+        has given since the twin started (its belt's travel x ticks_per_m); None when no
+        belt's encoder is wired there."""
+        for name, desc in self.descs.items():
+            if desc.encoder_index == index and desc.ticks_per_m is not None:
+                exact = self._wrapped_m[name] + float(self.data.qpos[self._qpos[name]])
+                return math.floor(exact * desc.ticks_per_m)
+        return None
 
 
 #: a part the rehearsal puts on a belt lies this far upstream of the eye, m (at most: never

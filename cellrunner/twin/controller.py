@@ -36,6 +36,7 @@ from cellrunner.twin.kinematics import (
     rotvec_to_matrix,
 )
 from cellrunner.twin.physics import KinematicPhysics, Measurement, Physics
+from cellrunner.twin.pulse_decoder import PulseDecoders
 
 
 class RobotMode(enum.IntEnum):
@@ -138,6 +139,7 @@ class Controller:
         self.accel_max = float(np.radians(self.spec.joint_accel_max_deg_s2))
         self.reg = _Registers()
         self.log: collections.deque[str] = collections.deque(maxlen=500)
+        self.pulse_decoders = PulseDecoders()  # conveyor encoders (SPEC 13)
         # modes
         self.robot_mode = RobotMode.RUNNING if config.start_running else RobotMode.POWER_OFF
         self.safety_mode = SafetyMode.NORMAL
@@ -408,6 +410,7 @@ class Controller:
         self.physics.step(self.target_q, dt)
         previous_tcp = self.actual_tcp_pose
         self.meas = self.physics.measure()
+        self.pulse_decoders.update(self.physics, self.reg.output_int)
         self.actual_tcp_pose = self.kinematics.tcp_pose(self.meas.q_rad)
         self.actual_tcp_speed = _pose_rate(previous_tcp, self.actual_tcp_pose, dt)
         if self.meas.contact and self.safety_mode == SafetyMode.NORMAL:
