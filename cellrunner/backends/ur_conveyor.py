@@ -92,7 +92,11 @@ class UREncoders:
             return
         with socket.create_connection((host, SCRIPT_PORT), timeout=timeout_s) as sock:
             sock.sendall(setup_program(indices).encode())
-        for i in indices:
+        self.restart_counts()
+
+    def restart_counts(self) -> None:
+        """Count from the next reading on, the travel going on from where it was."""
+        for i in self.decoder_indices:
             count = self._counts.get(i)
             self._counts[i] = _Count(ticks=count.ticks if count is not None else 0)
 

@@ -46,7 +46,7 @@ LEAD_PERIODS = 2
 BUILD_BUDGET_S = 0.3
 BUILD_ATTEMPTS = 3
 #: the grip must have confirmed this long after its planned end, s (the jaws' travel)
-GRIP_SLACK_S = 0.3
+GRIP_SLACK_S = 0.1
 #: after the last set-point the arm must stand this close to it, rad, within ARRIVE_S
 ARRIVE_RAD = np.radians(1.0)
 ARRIVE_S = 1.0
@@ -165,7 +165,7 @@ def run_track(ctx: JobContext, step: Step) -> StepGen:
         stopped = _belt_off(ctx, name, offset_m, s_made, t_made, speed, piece.what)
         if stopped is not None:
             return stopped
-    return (yield from _stream(ctx, step, run, offset_m, t_send))
+    return (yield from _stream(ctx, step, run, offset_m))
 
 
 def _belt_off(
@@ -226,11 +226,8 @@ def _stream(
     step: Step,
     run: TrackedRun,
     offset_m: Callable[[], float],
-    t_send: float,
 ) -> StepGen:
-    """Stream the stretch, set-point ``i`` at ``t_send + i`` periods of the backend's time:
-    a period the engine missed (a slow tick on a controller whose time runs on) skips its
-    set-points rather than letting the arm fall behind the part."""
+    """Stream the stretch, one set-point a period, the grip's behaviour alongside."""
     from cellrunner.execution.steps import part_lost_outcome
     from cellrunner.model.step_kinds import kind_of
 
@@ -243,12 +240,10 @@ def _stream(
     grip_done: Outcome | None = None if grip is not None else OK
     slack = round(GRIP_SLACK_S * rate_hz)
     t_start, s_start = ctx.now_s, float(offset_m())
-    i = -1
-    while i < len(q) - 1:
-        i = min(len(q) - 1, max(i + 1, round((ctx.now_s - t_send) * rate_hz)))
+    for i in range(len(q)):
         ctx.backend.servo(approved, i)
         ctx.commanded_q = q[i]
-        if grip is not None and grip_gen is None and i >= grip[1]:
+        if grip is not None and i == grip[1]:
             grip_gen = kind_of("grip").run(ctx, steps[grip[0]], False)
         yield
         drift = float(offset_m()) - (s_start + run.speed_mps * (ctx.now_s - t_start))

@@ -10,6 +10,7 @@ import json
 import socket
 import threading
 import time
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,7 +19,7 @@ from cellrunner.backends.ur_conveyor import TICK_REGISTER, setup_program
 from tests.rig import fault, run_ur, twin, wait_moving
 
 CELL, TASK = "cells/conveyor_pick_ur10e.yaml", "tasks/conveyor_pick.yaml"
-HOST = "127.0.0.163"
+HOST, JUMP_HOST = "127.0.0.163", "127.0.0.164"
 #: the reference belt: 0.30 m/s (its speed_max), 4000 ticks/m, a block every 8 s
 TICKS_PER_S = 0.30 * 4000
 TRAY_PART_XYZ = (0.35, 0.55, 0.826)  # the block's centre once placed (the grip frame)
@@ -99,27 +100,40 @@ def _wait_still(host: str, still_s: float, timeout_s: float) -> None:
         time.sleep(0.02)
 
 
+def _run_with_the_line_held(host: str, once_following: str | None = None) -> dict[str, Any]:
+    """``run --backend ur`` of the reference task with the line standing still until the
+    arm waits over the belt (however long the job takes to start on a loaded machine: a
+    block the eye latched long before the arm is there would be let go, 109); then the
+    belt runs at its speed_max again and, ``once_following``, that fault-channel command
+    is sent 0.3 s after the arm set off after the block."""
+    assert _wait_for_a_block_at_the_eye(host)
+    fault(host, "belt belt speed 0")
+    result: dict[str, dict[str, Any]] = {}
+    job = threading.Thread(target=lambda: result.update(out=run_ur(CELL, TASK, host)))
+    job.start()
+    try:
+        moving = wait_moving(host, 300, ended=lambda: not job.is_alive())
+        job.join(0 if moving else 400)
+        assert moving, (result["out"]["result_code"], result["out"]["result_text"])
+        _wait_still(host, 0.3, 60)
+    finally:
+        fault(host, "belt belt speed 0.3")
+    if once_following is not None:
+        moving = wait_moving(host, 30, ended=lambda: not job.is_alive())
+        job.join(0 if moving else 400)
+        assert moving, (result["out"]["result_code"], result["out"]["result_text"])
+        time.sleep(0.3)
+        fault(host, once_following)
+    job.join(400)
+    return result["out"]
+
+
 def test_a_tracked_pick_through_ur_rtde_on_the_twin_ends_0_with_the_block_in_the_tray(
     belt_twin,
 ):
-    # the line stands still until the arm waits over the belt (however long the job takes
-    # to start on a loaded machine; a block the eye latched long before the arm is there
-    # would be let go, 109), then runs at its speed_max again
-    assert _wait_for_a_block_at_the_eye(belt_twin)
-    fault(belt_twin, "belt belt speed 0")
-    result: dict[str, dict[str, object]] = {}
-    job = threading.Thread(target=lambda: result.update(out=run_ur(CELL, TASK, belt_twin)))
-    job.start()
-    try:
-        assert wait_moving(belt_twin, 300, ended=lambda: not job.is_alive())
-        _wait_still(belt_twin, 0.3, 60)
-    finally:
-        fault(belt_twin, "belt belt speed 0.3")
-    job.join(400)
-    out = result["out"]
+    out = _run_with_the_line_held(belt_twin)
     assert (out["backend"], out["result_code"]) == ("ur", 0), out["result_text"]
     steps = out["steps"]
-    assert isinstance(steps, list)
     assert [s["status"] for s in steps] == ["ok"] * len(steps)
     parts = fault(belt_twin, "parts")
     placed = [
@@ -128,3 +142,20 @@ def test_a_tracked_pick_through_ur_rtde_on_the_twin_ends_0_with_the_block_in_the
         if np.linalg.norm(np.subtract(xyz, TRAY_PART_XYZ)) < 0.01
     ]
     assert len(placed) == 1, parts
+
+
+def test_an_encoder_jump_on_the_twin_is_a_controlled_stop_not_a_chase():
+    with twin(CELL, JUMP_HOST):  # an arm at home, that the job moves over the belt
+        _an_encoder_jump_is_a_controlled_stop(JUMP_HOST)
+
+
+def _an_encoder_jump_is_a_controlled_stop(belt_twin: str) -> None:
+    out = _run_with_the_line_held(belt_twin, once_following="belt belt jump 0.05")
+    assert out["result_code"] == 100, out["result_text"]
+    assert "mm off its measured 0.300 m/s" in out["result_text"]
+    assert "controlled stop" in out["result_text"] or "stays where it is" in out["result_text"]
+    # the arm stands where it stopped, it does not go after the reading
+    before = json.loads(fault(belt_twin, "state"))["target_q_rad"]
+    time.sleep(0.5)
+    after = json.loads(fault(belt_twin, "state"))["target_q_rad"]
+    assert max(abs(a - b) for a, b in zip(before, after, strict=True)) < 1e-4
