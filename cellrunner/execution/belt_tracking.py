@@ -227,7 +227,8 @@ def _stream(
     run: TrackedRun,
     offset_m: Callable[[], float],
 ) -> StepGen:
-    """Stream the stretch, one set-point a period, the grip's behaviour alongside."""
+    """Stream the stretch, one set-point a period (catching up by one more a period when
+    the engine fell behind the backend's time), the grip's behaviour alongside."""
     from cellrunner.execution.steps import part_lost_outcome
     from cellrunner.model.step_kinds import kind_of
 
@@ -240,10 +241,15 @@ def _stream(
     grip_done: Outcome | None = None if grip is not None else OK
     slack = round(GRIP_SLACK_S * rate_hz)
     t_start, s_start = ctx.now_s, float(offset_m())
-    for i in range(len(q)):
+    i = -1
+    while i < len(q) - 1:
+        # one set-point a period; behind the backend's time (periods the engine missed on a
+        # controller whose time runs on), two, until the arm is back with the part
+        behind = round((ctx.now_s - t_start) * rate_hz) > i + 1
+        i = min(len(q) - 1, i + (2 if behind else 1))
         ctx.backend.servo(approved, i)
         ctx.commanded_q = q[i]
-        if grip is not None and i == grip[1]:
+        if grip is not None and grip_gen is None and i >= grip[1]:
             grip_gen = kind_of("grip").run(ctx, steps[grip[0]], False)
         yield
         drift = float(offset_m()) - (s_start + run.speed_mps * (ctx.now_s - t_start))

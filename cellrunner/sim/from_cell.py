@@ -128,8 +128,8 @@ def _timed_feed(loaded: LoadedCell, desc: TwinDescription) -> TwinDescription:
     if desc.feed is None or feed is None or feed.conveyor is None or feed.every is None:
         return desc
     belt = next((b for b in desc.belts if b.name == feed.conveyor), None)
-    if belt is None:
-        return desc
+    if belt is None or belt.arc is not None:
+        return desc  # a round table's feed comes before each job
     timed = dataclasses.replace(
         desc.feed,
         every_s=float(feed.every),

@@ -31,26 +31,6 @@ def belt_twin():
         yield HOST
 
 
-def _wait_for_a_block_at_the_eye(host: str, timeout_s: float = 10.0) -> bool:
-    """Watch DI0 (the photo-eye) over RTDE until a block crosses it: True; False after
-    ``timeout_s``."""
-    import rtde_receive
-
-    receive = rtde_receive.RTDEReceiveInterface(host, 500.0, ["actual_digital_input_bits"])
-    try:
-        was_on = True
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            on = bool(receive.getActualDigitalInputBits() & 1)
-            if on and not was_on:
-                return True
-            was_on = on
-            time.sleep(0.001)
-        return False
-    finally:
-        receive.disconnect()
-
-
 def _enable_decoder(host: str) -> None:
     with socket.create_connection((host, 30002), timeout=3.0) as sock:
         sock.sendall(setup_program([0]).encode())
@@ -106,7 +86,6 @@ def _run_with_the_line_held(host: str, once_following: str | None = None) -> dic
     block the eye latched long before the arm is there would be let go, 109); then the
     belt runs at its speed_max again and, ``once_following``, that fault-channel command
     is sent 0.3 s after the arm set off after the block."""
-    assert _wait_for_a_block_at_the_eye(host)
     fault(host, "belt belt speed 0")
     result: dict[str, dict[str, Any]] = {}
     job = threading.Thread(target=lambda: result.update(out=run_ur(CELL, TASK, host)))
