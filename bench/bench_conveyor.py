@@ -155,6 +155,11 @@ def run_line(jobs: int) -> dict[str, Any]:
         for _ in range(jobs):
             job = rehearsal.rehearse({}, steps)
             codes.append(int(job.code))
+            print(
+                f"job {len(codes)}: {int(job.code)} at {world.time_s - t0:.0f} s "
+                f"({time.perf_counter() - w0:.0f} s wall)",
+                file=sys.stderr,
+            )
             if job.code != 0:
                 print(f"job {len(codes)}: {job.payload['result_text']}", file=sys.stderr)
                 break  # the cell stopped: the line run ends there
