@@ -1,6 +1,7 @@
 """How closely the arm follows a part on the twin's moving belt while it grips it.
 
-Run: ``python bench/bench_conveyor.py [--speeds 0.15 0.25 0.30]`` from the repository root.
+Run: ``python bench/bench_conveyor.py [--speeds 0.15 0.25 0.30] [--parts 20]`` from the
+repository root.
 
 For each belt speed, one job of the reference task (``cells/conveyor_pick_ur10e.yaml``,
 ``tasks/conveyor_pick.yaml``) is rehearsed on the MuJoCo twin with the belt running at that
@@ -10,6 +11,13 @@ dwell and the jaws closing, until the lift raises it) the tracking error is take
 from above, both measured in the physics (the TCP against the part, not the set-point
 against itself: the grip frame is the part's centre). Printed: the job's result, the
 samples, the error's median, p99 and maximum (mm), and the p99 against the 1 mm target.
+
+Then the line (``--parts N``, 0 skips it): the reference cell's belt at ``speed_max`` with its
+feed (``sim: feed``: a block every ``every`` s, jittered), jobs one after another until N
+have ended, the feed driven by the twin's time. Printed: the parts fed, picked (jobs that
+ended 0), let go (jobs that ended 109), gone by (blocks downstream of the window on the
+belt, never picked), the picks per minute of the twin's time against the cell's own bound
+(``check``'s parts/min at speed_max), and the wall time.
 """
 
 from __future__ import annotations
@@ -91,12 +99,118 @@ def measure(speed_mps: float) -> dict[str, Any]:
     }
 
 
+def bound_parts_per_minute() -> float:
+    """``check``'s parts/min at speed_max for the reference task (its tracking proof)."""
+    from cellrunner.model.expand import expand, resolve_params
+    from cellrunner.model.load import load_cell, load_task
+    from cellrunner.planning.task_plan import plan_task
+    from cellrunner.planning.tracking import prove_tracking
+    from cellrunner.planning.world import CellWorld
+
+    cell = load_cell(CELL)
+    task = load_task(TASK, cell)
+    world = CellWorld(cell)
+    plan = plan_task(
+        world, expand(task, cell.cell, resolve_params(task.task, {})), world.q_home_rad
+    )
+    (proof,) = prove_tracking(world, plan)
+    return float(proof.parts_per_minute)
+
+
+def _take_away_placed(world: Any, feeder: Any) -> None:
+    """The line takes the placed block out of the tray (the task has one slot): parked far
+    out, where the feed takes its spare copies from."""
+    from cellrunner.sim.feed import PARK_X_M
+
+    for name in ("block", *feeder.fed):
+        xyz = world.part_pose_world(name)[:3, 3]
+        if abs(float(xyz[0]) - BELT_X_M) > 0.2 and abs(float(xyz[0])) < PARK_X_M / 2:
+            T = np.eye(4)
+            T[:3, 3] = (PARK_X_M, -5.0 - len(feeder.fed), 0.03)
+            feeder._put(name, T)
+
+
+def run_line(jobs: int) -> dict[str, Any]:
+    """``jobs`` jobs of the reference task in a row on the twin's belt at speed_max, the
+    cell's feed coming by the twin's time (see the module docstring)."""
+    from cellrunner.backends.factory import make_backend
+    from cellrunner.cli.common import console
+    from cellrunner.execution.rehearsal import start_rehearsal
+    from cellrunner.model.job_steps import job_steps
+    from cellrunner.model.load import load_cell, load_task
+
+    cell = load_cell(CELL)
+    task = load_task(TASK, cell)
+    conveyor = cell.cell.conveyors["belt"]
+    backend = make_backend(cell, "sim", tasks=(task,), rehearsed=[{}] * jobs)
+    rehearsal = start_rehearsal(cell, task, backend, console())
+    codes: list[int] = []
+    try:
+        world = backend.world
+        feeder = world.feeder
+        assert feeder is not None and feeder.desc.every_s is not None, "the cell feeds by time"
+        rehearsal.loop.add_observer(lambda _cell: feeder.update())
+        steps = job_steps(task, cell.cell, {})
+        t0, w0 = world.time_s, time.perf_counter()
+        for _ in range(jobs):
+            job = rehearsal.rehearse({}, steps)
+            codes.append(int(job.code))
+            print(
+                f"job {len(codes)}: {int(job.code)} at {world.time_s - t0:.0f} s "
+                f"({time.perf_counter() - w0:.0f} s wall)",
+                file=sys.stderr,
+            )
+            if job.code != 0:
+                print(f"job {len(codes)}: {job.payload['result_text']}", file=sys.stderr)
+                break  # the cell stopped: the line run ends there
+            _take_away_placed(world, feeder)
+        elapsed_s, wall_s = world.time_s - t0, time.perf_counter() - w0
+        window_end_y = float(conveyor.window[1])  # the belt runs along +Y from the frame at y=0
+        names = {"block", *feeder.fed}
+        gone_by = sum(
+            1
+            for n in names
+            if abs(float(world.part_pose_world(n)[0, 3]) - BELT_X_M) < 0.2
+            and float(world.part_pose_world(n)[1, 3]) > window_end_y
+        )
+        fed = len(names)
+    finally:
+        rehearsal.close()
+    picked = codes.count(0)
+    return {
+        "jobs": jobs,
+        "fed": fed,
+        "picked": picked,
+        "let_go": codes.count(109),
+        "other": len(codes) - picked - codes.count(109),
+        "gone_by": gone_by,
+        "codes": codes,
+        "ppm": 60.0 * picked / elapsed_s if elapsed_s > 0 else float("nan"),
+        "sim_s": elapsed_s,
+        "wall_s": wall_s,
+    }
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--speeds", type=float, nargs="+", default=[0.15, 0.25, 0.30])
+    parser.add_argument("--parts", type=int, default=20, help="jobs of the line run (0: none)")
     args = parser.parse_args()
     sys.path.insert(0, str(REPO))
     os.environ.setdefault("MUJOCO_GL", "osmesa")
+    if args.parts > 0:
+        line = run_line(args.parts)
+        bound = bound_parts_per_minute()
+        print(
+            "| jobs | fed | picked | let go (109) | other | gone by | picks/min | bound | ratio | twin s | wall s |"
+        )
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        print(
+            f"| {line['jobs']} | {line['fed']} | {line['picked']} | {line['let_go']} | "
+            f"{line['other']} | {line['gone_by']} | {line['ppm']:.2f} | {bound:.2f} | "
+            f"{line['ppm'] / bound:.2f} | {line['sim_s']:.0f} | {line['wall_s']:.0f} |"
+        )
+        print(f"job results: {line['codes']}\n")
     rows = [measure(v) for v in args.speeds]
     print("| belt m/s | result | samples | p50 mm | p99 mm | max mm | p99/target | wall s |")
     print("|---|---|---|---|---|---|---|---|")

@@ -56,6 +56,7 @@ def make_backend(
             payload_kg=c.tool.payload.mass,
             payload_cog_m=c.tool.payload.cog_m,
             robotiq_port=robotiq,
+            conveyors=dict(c.conveyors),
             **kw,
         )
     raise UsageError(f"unknown backend {kind!r}; known: ur, sim")

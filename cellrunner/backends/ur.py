@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cellrunner.backends.ur_control import ControlProcess
+from cellrunner.backends.ur_conveyor import UREncoders
 from cellrunner.backends.ur_identity import UR_RTDE_ERRORS, check_dashboard
 from cellrunner.backends.ur_io import RtdeOutputWriter, write_output
 from cellrunner.backends.ur_probe import controller_version, generation_of
@@ -70,7 +71,10 @@ from cellrunner.model.robots import RobotSpec
 from cellrunner.model.trajectory import ApprovedTrajectory
 
 if TYPE_CHECKING:
+    from collections.abc import Mapping
+
     from cellrunner.backends.robotiq import RobotiqClient
+    from cellrunner.model.conveyor import Conveyor
 
 __all__ = [
     "RECEIVE_VARIABLES",
@@ -88,6 +92,10 @@ __all__ = [
 class URBackend(URRecovery):
     """A UR arm through ur_rtde; see the module docstring for the lifecycle."""
 
+    #: the controller's time runs on while the engine works between two periods (a
+    #: tracked stretch is made off the control thread: execution.belt_tracking)
+    clock_runs_on = True
+
     def __init__(
         self,
         host: str,
@@ -102,6 +110,7 @@ class URBackend(URRecovery):
         tcp_pose: tuple[float, ...] | None = None,
         payload_kg: float | None = None,
         payload_cog_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        conveyors: Mapping[str, Conveyor] | None = None,
     ) -> None:
         self.host = host
         self.spec = spec
@@ -130,6 +139,8 @@ class URBackend(URRecovery):
         self._t_cycle: float | None = None  # monotonic time of the current period's start
         self._servoing = False
         self._protective_stop_seen_at: float | None = None
+        #: the cell's conveyor encoders (the pulse decoder's count on the state stream)
+        self._encoders = UREncoders(conveyors or {})
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -168,9 +179,13 @@ class URBackend(URRecovery):
                 require_remote_control=self.require_remote_control,
             )
             self._receive = RtdeStateReader(
-                self.host, self.rate_hz, RECEIVE_VARIABLES, timeout_s=self.connect_timeout_s
+                self.host,
+                self.rate_hz,
+                RECEIVE_VARIABLES + self._encoders.receive_variables(),
+                timeout_s=self.connect_timeout_s,
             )
             self._receive.connect()
+            self._encoders.configure(self.host, self.connect_timeout_s)
             self._io = RtdeOutputWriter(self.host, timeout_s=self.connect_timeout_s)
             self._io.connect()
             if self._arm_ready():
@@ -272,6 +287,14 @@ class URBackend(URRecovery):
             control_lost=control_lost,
             robotiq_object=None if robotiq is None else robotiq.object_detected,
         )
+
+    def conveyor_travel_m(self, name: str) -> float | None:
+        """How far conveyor ``name`` has travelled, m, as its encoder reads it in the
+        latest state (:mod:`ur_conveyor`); None when this backend cannot measure it."""
+        receive = self._receive
+        if receive is None or not receive.isConnected():
+            return None
+        return self._encoders.travel_m(name, receive, receive.getTimestamp())
 
     # ------------------------------------------------------------------ streaming
 

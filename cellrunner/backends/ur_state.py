@@ -144,6 +144,10 @@ class RtdeStateReader:
     def _get(self, name: str) -> Any:
         return self._latest[name]
 
+    def value(self, name: str) -> Any:
+        """The latest package's value of subscribed variable ``name``."""
+        return self._latest[name]
+
     def getTimestamp(self) -> float:
         return float(self._get("timestamp"))
 

@@ -18,7 +18,8 @@ belt; the tracked steps and ``untrack`` then count as done.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import threading
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -39,6 +40,11 @@ SPEED_TOLERANCE = 0.02
 BELT_TOLERANCE_M = 0.005
 #: the stretch starts this many periods after it was made (the part's offset then)
 LEAD_PERIODS = 2
+#: on a backend whose time runs on by itself (``clock_runs_on``: the controller), the
+#: stretch is made on a worker thread for a start this far ahead at least, s; made too
+#: late, it is made again with twice the time it took (at most ``BUILD_ATTEMPTS`` times)
+BUILD_BUDGET_S = 0.3
+BUILD_ATTEMPTS = 3
 #: the grip must have confirmed this long after its planned end, s (the jaws' travel)
 GRIP_SLACK_S = 0.1
 #: after the last set-point the arm must stand this close to it, rad, within ARRIVE_S
@@ -102,47 +108,127 @@ def run_track(ctx: JobContext, step: Step) -> StepGen:
             "let go",
         )
     speed = min(max(speed, 0.0), v_max)
-    # the part's offset when the first set-point is reached: it is sent ``lead`` periods
-    # from now (the earliest start, or as soon as it can be) and reached one period later
     dt = 1.0 / rate_hz
     earliest = nominal_start_m(speed, lo, ramp_bounds(conveyor.path))
-    lead = LEAD_PERIODS
-    if speed > 0 and offset_m() + speed * (lead + 1) * dt < earliest:
-        lead = int(np.ceil((earliest - offset_m()) / (speed * dt))) - 1
-    start = offset_m() + speed * (lead + 1) * dt
-    t_send = ctx.now_s + lead * dt
-    latest = latest_fitting_start_m(conveyor, piece.duration_s, speed)
-    if latest is None or start > latest + 1e-9:
-        return Outcome.failed(
-            ResultCode.PART_LEFT_WINDOW,
-            f"conveyor {name!r}: the part is at {offset_m():+.3f} m from the frame at "
-            f"{speed:.3f} m/s; the {piece.what} must start by "
-            + ("-" if latest is None else f"{latest:+.3f} m")
-            + f" to end in the window [{lo:+.3f}, {hi:+.3f}] m: the part is let go",
-        )
-    run = approve_tracked(plan, step.index, conveyor, piece, speed, start)
-    if isinstance(run, str):
+    runs_on = bool(getattr(ctx.backend, "clock_runs_on", False))
+    budget_s = BUILD_BUDGET_S if runs_on else 0.0
+    for _attempt in range(BUILD_ATTEMPTS):
+        # the part's offset when the first set-point is reached: it is sent ``lead`` periods
+        # from now (the earliest start, or once the stretch is made) and reached one later
+        lead = max(LEAD_PERIODS, int(np.ceil(budget_s / dt)))
+        if speed > 0 and offset_m() + speed * (lead + 1) * dt < earliest:
+            lead = int(np.ceil((earliest - offset_m()) / (speed * dt))) - 1
+        start = offset_m() + speed * (lead + 1) * dt
+        t_send = ctx.now_s + lead * dt
+        latest = latest_fitting_start_m(conveyor, piece.duration_s, speed)
+        if latest is None or start > latest + 1e-9:
+            return Outcome.failed(
+                ResultCode.PART_LEFT_WINDOW,
+                f"conveyor {name!r}: the part is at {offset_m():+.3f} m from the frame at "
+                f"{speed:.3f} m/s; the {piece.what} must start by "
+                + ("-" if latest is None else f"{latest:+.3f} m")
+                + f" to end in the window [{lo:+.3f}, {hi:+.3f}] m: the part is let go",
+            )
+        t_made, s_made = ctx.now_s, offset_m()
+
+        def make(start: float = start) -> TrackedRun | str:
+            return approve_tracked(plan, step.index, conveyor, piece, speed, start)
+
+        made = _MadeOffThread(make)
+        if not runs_on:
+            made.join()  # the twin's time waits for the engine
+        while not made.done():  # the controller's does not: keep watching the belt
+            yield
+            stopped = _belt_off(ctx, name, offset_m, s_made, t_made, speed, piece.what)
+            if stopped is not None:
+                made.join()
+                return stopped
+        run = made.result()
+        if isinstance(run, str):
+            return Outcome.failed(
+                ResultCode.PLANNING_FAILED,
+                f"conveyor {name!r}: the {piece.what} at {speed:.3f} m/s from {start:+.3f} m is "
+                f"refused: {run}",
+            )
+        if ctx.now_s < t_send - dt / 2:
+            break
+        budget_s = 2 * (ctx.now_s - t_made) + dt  # made too late: again, with more lead
+    else:
         return Outcome.failed(
             ResultCode.PLANNING_FAILED,
-            f"conveyor {name!r}: the {piece.what} at {speed:.3f} m/s from {start:+.3f} m is "
-            f"refused: {run}",
+            f"conveyor {name!r}: the {piece.what} could not be made before the part reached "
+            f"its start in {BUILD_ATTEMPTS} attempts",
         )
     # the arm stands over the frame until then; the belt must keep its speed meanwhile
-    t_made, s_made = ctx.now_s, offset_m()
     while ctx.now_s < t_send - dt / 2:
         yield
-        drift = offset_m() - (s_made + speed * (ctx.now_s - t_made))
-        if abs(drift) > BELT_TOLERANCE_M:
-            return Outcome.failed(
-                ResultCode.PROTECTIVE_STOP,
-                f"conveyor {name!r}: the belt is {drift * 1000:+.1f} mm off its measured "
-                f"{speed:.3f} m/s before the {piece.what} started (stopped or jumped): the "
-                "arm stays where it is",
-            )
+        stopped = _belt_off(ctx, name, offset_m, s_made, t_made, speed, piece.what)
+        if stopped is not None:
+            return stopped
     return (yield from _stream(ctx, step, run, offset_m))
 
 
-def _stream(ctx: JobContext, step: Step, run: TrackedRun, offset_m: Callable[[], float]) -> StepGen:
+def _belt_off(
+    ctx: JobContext,
+    name: str,
+    offset_m: Callable[[], float],
+    s_made: float,
+    t_made: float,
+    speed: float,
+    what: str,
+) -> Outcome | None:
+    """A controlled stop when the belt left the line of its measured speed before the
+    stretch started (stopped or jumped); None while it keeps it."""
+    drift = offset_m() - (s_made + speed * (ctx.now_s - t_made))
+    if abs(drift) <= BELT_TOLERANCE_M:
+        return None
+    return Outcome.failed(
+        ResultCode.PROTECTIVE_STOP,
+        f"conveyor {name!r}: the belt is {drift * 1000:+.1f} mm off its measured "
+        f"{speed:.3f} m/s before the {what} started (stopped or jumped): the arm stays where "
+        "it is",
+    )
+
+
+class _MadeOffThread:
+    """``make()`` run on a worker thread, so the control loop keeps its period while a
+    tracked stretch is made (an IK solution and a collision check per set-point)."""
+
+    def __init__(self, make: Callable[[], Any]) -> None:
+        self._value: Any = None
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(
+            target=self._run, args=(make,), daemon=True, name="belt-stretch"
+        )
+        self._thread.start()
+
+    def _run(self, make: Callable[[], Any]) -> None:
+        try:
+            self._value = make()
+        except BaseException as exc:  # handed to the control thread, raised there
+            self._error = exc
+
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    def join(self) -> None:
+        self._thread.join()
+
+    def result(self) -> Any:
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._value
+
+
+def _stream(
+    ctx: JobContext,
+    step: Step,
+    run: TrackedRun,
+    offset_m: Callable[[], float],
+) -> StepGen:
+    """Stream the stretch, one set-point a period (catching up by one more a period when
+    the engine fell behind the backend's time), the grip's behaviour alongside."""
     from cellrunner.execution.steps import part_lost_outcome
     from cellrunner.model.step_kinds import kind_of
 
@@ -155,10 +241,15 @@ def _stream(ctx: JobContext, step: Step, run: TrackedRun, offset_m: Callable[[],
     grip_done: Outcome | None = None if grip is not None else OK
     slack = round(GRIP_SLACK_S * rate_hz)
     t_start, s_start = ctx.now_s, float(offset_m())
-    for i in range(len(q)):
+    i = -1
+    while i < len(q) - 1:
+        # one set-point a period; behind the backend's time (periods the engine missed on a
+        # controller whose time runs on), two, until the arm is back with the part
+        behind = round((ctx.now_s - t_start) * rate_hz) > i + 1
+        i = min(len(q) - 1, i + (2 if behind else 1))
         ctx.backend.servo(approved, i)
         ctx.commanded_q = q[i]
-        if grip is not None and i == grip[1]:
+        if grip is not None and grip_gen is None and i >= grip[1]:
             grip_gen = kind_of("grip").run(ctx, steps[grip[0]], False)
         yield
         drift = float(offset_m()) - (s_start + run.speed_mps * (ctx.now_s - t_start))

@@ -37,6 +37,9 @@ if TYPE_CHECKING:
 #: the PLC's encoder registers (uint32, high word first): 20-21 for the first conveyor,
 #: up to 28-29
 PLC_ENCODER_REGISTERS = range(20, 30, 2)
+#: the UR controller's RTDE output int register the program relays pulse decoder 0's tick
+#: count into (decoder 1: the next one); 18-19 lie in ur_rtde's user range (12-19)
+UR_TICK_REGISTER = 18
 #: how far a conveyor's frame may lie off its path, m, before the cell file is refused
 FRAME_ON_PATH_M = 0.02
 

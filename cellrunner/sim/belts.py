@@ -53,33 +53,75 @@ class BeltDescription:
     end_m: tuple[float, float, float]
     speed_mps: float
     ticks_per_m: float | None = None
+    #: the controller's pulse decoder this belt's encoder is wired to (``source: ur``)
+    encoder_index: int | None = None
+    #: a round table: ``(centre (world, m), radius m, from rad, +1 ccw / -1 cw)``; then the
+    #: belt is a disc turning about the centre (``start_m``/``end_m`` are the arc's ends)
+    arc: tuple[tuple[float, float, float], float, float, float] | None = None
 
     @property
     def direction(self) -> np.ndarray:
-        d = np.subtract(self.end_m, self.start_m)
-        out: np.ndarray = d / np.linalg.norm(d)
-        return out
+        """The direction parts travel at the path's start (world, unit)."""
+        return self.tangent_at(0.0)
+
+    def point_at(self, s_m: float) -> np.ndarray:
+        """The path's point ``s_m`` along it (world, m)."""
+        if self.arc is None:
+            out: np.ndarray = np.asarray(self.start_m) + self.tangent_at(0.0) * s_m
+            return out
+        centre, radius, a0, sign = self.arc
+        a = a0 + sign * s_m / radius
+        return np.asarray(centre) + radius * np.array([math.cos(a), math.sin(a), 0.0])
+
+    def tangent_at(self, s_m: float) -> np.ndarray:
+        """The direction parts travel ``s_m`` along the path (world, unit)."""
+        if self.arc is None:
+            d = np.subtract(self.end_m, self.start_m)
+            line: np.ndarray = d / np.linalg.norm(d)
+            return line
+        _, radius, a0, sign = self.arc
+        a = a0 + sign * s_m / radius
+        return sign * np.array([-math.sin(a), math.cos(a), 0.0])
 
     @property
     def length_m(self) -> float:
         return float(math.dist(self.start_m, self.end_m))
 
 
-def belt_of(name: str, conveyor: Conveyor) -> BeltDescription | None:
-    """The twin's belt of a cell's conveyor; None for a round table (not built in the
-    twin). It runs at the encoder's constant speed, else at ``speed_max``."""
-    line = conveyor.path.line
-    if line is None:
-        return None
+def belt_of(name: str, conveyor: Conveyor) -> BeltDescription:
+    """The twin's belt of a cell's conveyor, a slab for a line, a disc for a round table.
+    It runs at the encoder's constant speed, else at ``speed_max``."""
     enc = conveyor.encoder
     speed = float(enc.mps) if enc.source == "speed" and enc.mps is not None else None
     ticks = float(enc.ticks_per_m) if enc.ticks_per_m is not None else None
+    index = enc.index if enc.source == "ur" else None
+    speed_mps = speed if speed is not None else float(conveyor.speed_max)
+    line = conveyor.path.line
+    if line is not None:
+        return BeltDescription(
+            name,
+            tuple(float(v) for v in line.from_),  # type: ignore[arg-type]
+            tuple(float(v) for v in line.to),  # type: ignore[arg-type]
+            speed_mps,
+            ticks,
+            index,
+        )
+    arc = conveyor.path.arc
+    assert arc is not None
+    centre = (float(arc.centre[0]), float(arc.centre[1]), float(arc.centre[2]))
+    a0, a1 = math.radians(float(arc.from_deg)), math.radians(float(arc.to_deg))
+    ends = [
+        (centre[0] + arc.radius * math.cos(a), centre[1] + arc.radius * math.sin(a), centre[2])
+        for a in (a0, a1)
+    ]
     return BeltDescription(
         name,
-        tuple(float(v) for v in line.from_),  # type: ignore[arg-type]
-        tuple(float(v) for v in line.to),  # type: ignore[arg-type]
-        speed if speed is not None else float(conveyor.speed_max),
+        ends[0],
+        ends[1],
+        speed_mps,
         ticks,
+        index,
+        (centre, float(arc.radius), a0, 1.0 if a1 > a0 else -1.0),
     )
 
 
@@ -90,8 +132,8 @@ def eye_sensor(belt: BeltDescription, channel: str, eye_s_m: float) -> PresenceS
 
     # the beam reads a part from the moment its centre passes the eye: a box from the eye
     # to 2 half widths downstream
-    p = np.asarray(belt.start_m) + belt.direction * (eye_s_m + EYE_HALF_WIDTH_M)
-    along = np.abs(belt.direction)
+    p = belt.point_at(eye_s_m + EYE_HALF_WIDTH_M)
+    along = np.abs(belt.tangent_at(eye_s_m))
     half = np.where(along > 0.5, EYE_HALF_WIDTH_M, WIDTH_M / 2)
     half[2] = 0.2
     return PresenceSensor(channel, (float(p[0]), float(p[1]), float(p[2])), tuple(half.tolist()))
@@ -100,6 +142,9 @@ def eye_sensor(belt: BeltDescription, channel: str, eye_s_m: float) -> PresenceS
 def add_belts(world: ET.Element, actuators: ET.Element, belts: tuple[BeltDescription, ...]) -> None:
     """The slabs (bodies ``belt:<name>``, slide joints and velocity servos of that name)."""
     for belt in belts:
+        if belt.arc is not None:
+            _add_disc(world, actuators, belt)
+            continue
         d = belt.direction
         # the slab's frame: x along the path, centred on the path's middle
         x = d
@@ -137,6 +182,37 @@ def add_belts(world: ET.Element, actuators: ET.Element, belts: tuple[BeltDescrip
         )
 
 
+def _add_disc(world: ET.Element, actuators: ET.Element, belt: BeltDescription) -> None:
+    """A round table: a disc (body ``belt:<name>``) on a hinge about the arc's centre
+    (world Z, turned the way the arc runs), its top ``LIFT_M`` above the path, as wide as
+    the slab around the parts' circle, driven by a velocity servo (rad/s)."""
+    assert belt.arc is not None
+    centre, radius, _, sign = belt.arc
+    pos = np.asarray(centre) + np.array([0.0, 0.0, LIFT_M - THICKNESS_M / 2])
+    body = ET.SubElement(world, "body", name=f"belt:{belt.name}", pos=fmt(pos))
+    axis = "0 0 1" if sign > 0 else "0 0 -1"
+    ET.SubElement(body, "joint", name=f"belt:{belt.name}", type="hinge", axis=axis)
+    ET.SubElement(
+        body,
+        "geom",
+        name=f"belt:{belt.name}",
+        type="cylinder",
+        size=fmt([radius + WIDTH_M / 2, THICKNESS_M / 2]),
+        mass=f"{MASS_KG:g}",
+        friction="1.0 0.01 0.0001",
+        rgba="0.15 0.15 0.15 1",
+        contype=str(STATIC),
+        conaffinity=str(PARTS),
+    )
+    ET.SubElement(
+        actuators,
+        "velocity",
+        name=f"belt:{belt.name}",
+        joint=f"belt:{belt.name}",
+        kv=f"{SERVO_KV * radius**2:g}",  # the slab's stiffness at the parts' radius
+    )
+
+
 class Belts:
     """The belts of one built twin: their speeds, the jump back, the encoders."""
 
@@ -149,13 +225,15 @@ class Belts:
         }
         self._ctrl = {b.name: int(model.actuator(f"belt:{b.name}").id) for b in belts}
         self._wrapped_m = dict.fromkeys(self.descs, 0.0)
+        #: m of travel per unit of the joint: 1 for a slab, the radius for a disc (rad)
+        self._m_per_q = {b.name: b.arc[1] if b.arc is not None else 1.0 for b in belts}
         for name in self.descs:
-            data.ctrl[self._ctrl[name]] = self.speed_mps[name]
+            data.ctrl[self._ctrl[name]] = self.speed_mps[name] / self._m_per_q[name]
 
     def set_speed(self, name: str, speed_mps: float) -> None:
         """Run belt ``name`` at ``speed_mps`` from the next physics step (0: it stops)."""
         self.speed_mps[name] = float(speed_mps)
-        self.data.ctrl[self._ctrl[name]] = float(speed_mps)
+        self.data.ctrl[self._ctrl[name]] = float(speed_mps) / self._m_per_q[name]
 
     def jump_encoder(self, name: str, distance_m: float) -> None:
         """An encoder fault: belt ``name``'s reading jumps by ``distance_m`` (the belt
@@ -165,16 +243,30 @@ class Belts:
     def update(self) -> None:
         """After a period: a slab that has travelled ``WRAP_M`` jumps back by it."""
         for name, adr in self._qpos.items():
-            if self.data.qpos[adr] >= WRAP_M:
+            if self.descs[name].arc is None and self.data.qpos[adr] >= WRAP_M:
                 self.data.qpos[adr] -= WRAP_M
                 self._wrapped_m[name] += WRAP_M
+
+    def _q_m(self, name: str) -> float:
+        """The joint's travel along the parts' path, m."""
+        return float(self.data.qpos[self._qpos[name]]) * self._m_per_q[name]
 
     def travel_m(self, name: str) -> float:
         """The belt's travel since the twin started, m, as its encoder reads it (whole
         ticks)."""
-        exact = self._wrapped_m[name] + float(self.data.qpos[self._qpos[name]])
+        exact = self._wrapped_m[name] + self._q_m(name)
         ticks = self.descs[name].ticks_per_m
         return exact if ticks is None else math.floor(exact * ticks) / ticks
+
+    def encoder_ticks(self, index: int) -> int | None:
+        """The whole ticks the encoder wired to the controller's pulse decoder ``index``
+        has given since the twin started (its belt's travel x ticks_per_m); None when no
+        belt's encoder is wired there."""
+        for name, desc in self.descs.items():
+            if desc.encoder_index == index and desc.ticks_per_m is not None:
+                exact = self._wrapped_m[name] + self._q_m(name)
+                return math.floor(exact * desc.ticks_per_m)
+        return None
 
 
 #: a part the rehearsal puts on a belt lies this far upstream of the eye, m (at most: never
@@ -187,7 +279,7 @@ AT_FRAME_M = 0.05
 def belts_of_cell(
     conveyors: dict[str, Conveyor], inputs: dict[str, str], frames: dict[str, np.ndarray]
 ) -> tuple[tuple[BeltDescription, ...], tuple[PresenceSensor, ...], dict[str, np.ndarray]]:
-    """The twin's belts of a cell's straight conveyors, their photo-eyes (on the channel
+    """The twin's belts of a cell's conveyors (slabs and discs), their photo-eyes (on the channel
     of each trigger input), and for each the shift (4x4, world) that moves a part lying
     at the conveyor's frame to where the rehearsal puts it: ``FEED_LEAD_M`` upstream of
     the eye, resting on the slab. ``frames``: each conveyor's frame pose (world)."""
@@ -196,8 +288,6 @@ def belts_of_cell(
     belts, eyes, shifts = [], [], {}
     for name, conveyor in conveyors.items():
         belt = belt_of(name, conveyor)
-        if belt is None:
-            continue
         s_frame, _ = s_of_point_m(conveyor.path, frames[name][:3, 3].tolist())
         s_eye = s_frame - float(conveyor.eye_to_frame)
         belts.append(belt)

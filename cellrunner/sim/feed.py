@@ -48,6 +48,15 @@ class FeedDescription:
     T_world_part: np.ndarray
     copies: tuple[str, ...]
     within_m: float
+    #: a conveyor's feed (``sim: feed: {conveyor, every, jitter}``): a part every
+    #: ``every_s`` of the twin's time, each off its even spacing by up to ``jitter_m``
+    #: along ``along`` (the belt's direction at the spot, world) whose speed is
+    #: ``speed_mps``; drawn from a generator seeded with ``seed``
+    every_s: float | None = None
+    jitter_m: float = 0.0
+    along: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    speed_mps: float = 0.0
+    seed: int = 0
 
 
 def copy_name(part: str, k: int) -> str:
@@ -198,6 +207,9 @@ class FeedWorld(Protocol):
     @property
     def gripped(self) -> frozenset[str]: ...
 
+    @property
+    def time_s(self) -> float: ...
+
     def contacts_changed(self) -> None: ...
 
 
@@ -210,6 +222,11 @@ class Feeder:
         self.fed: list[str] = []  # oldest first
         self._at_spot: str | None = self._lying_at_spot()
         self._taken = False
+        self._rng = np.random.default_rng(feed.seed)
+        # the first fed part follows the parts the cell file lays on the belt
+        self._due_s = feed.every_s if feed.every_s is not None else float("inf")
+        #: (name, twin time s) of each part fed by time, oldest first
+        self.timed: list[tuple[str, float]] = []
 
     def feed(self) -> str | None:
         """Before a job: a copy at the spot unless a part lies there; its name, or None."""
@@ -224,13 +241,35 @@ class Feeder:
 
     def update(self) -> str | None:
         """Without jobs (the virtual controller): feed once the part at the spot was
-        gripped and has left it; the name fed, or None."""
+        gripped and has left it (a conveyor's feed: once its ``every`` is due); the name
+        fed, or None."""
+        if self.desc.every_s is not None:
+            return self._update_timed(self.desc.every_s)
         gripped = self.world.gripped
         if self._at_spot is not None and self._at_spot in gripped:
             self._taken = True
         if self._taken and not gripped and self._lying_at_spot() is None:
             return self.feed()
         return None
+
+    def _update_timed(self, every_s: float) -> str | None:
+        """A conveyor's feed: a part every ``every_s`` of the twin's time, put where an
+        even feed would have carried it by now (the update comes late by up to its own
+        period) and off that by the jitter; none while the part fed last still lies at
+        the spot (the belt stopped)."""
+        now = self.world.time_s
+        if now < self._due_s or self._lying_at_spot() is not None:
+            return None  # not yet, or the last one still lies there (a stopped belt)
+        late_s, self._due_s = now - self._due_s, max(self._due_s + every_s, now)
+        name = self._next_copy()
+        if name is None:
+            return None
+        jitter = float(self._rng.uniform(-1.0, 1.0)) * self.desc.jitter_m
+        T = np.array(self.desc.T_world_part, dtype=float)
+        T[:3, 3] += np.asarray(self.desc.along) * (self.desc.speed_mps * late_s + jitter)
+        self._put(name, T)
+        self.timed.append((name, now))
+        return name
 
     def _lying_at_spot(self) -> str | None:
         w, spot = self.world, self.desc.T_world_part[:3, 3]

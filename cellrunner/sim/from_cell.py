@@ -116,7 +116,30 @@ def description_of(
         from cellrunner.sim.belts import upstream
 
         T_fed = upstream(T_fed, _belt_frames(loaded), shifts)
-    return with_rehearsal_parts(desc, (part.name, T_fed), feed_copies)
+    desc = with_rehearsal_parts(desc, (part.name, T_fed), feed_copies)
+    return _timed_feed(loaded, desc)
+
+
+def _timed_feed(loaded: LoadedCell, desc: TwinDescription) -> TwinDescription:
+    """``desc`` whose feed comes by time when the cell's ``sim: feed`` names a straight
+    conveyor and ``every`` (:mod:`.feed`)."""
+    import dataclasses
+
+    sim = loaded.cell.sim
+    feed = sim.feed if sim is not None else None
+    if desc.feed is None or feed is None or feed.conveyor is None or feed.every is None:
+        return desc
+    belt = next((b for b in desc.belts if b.name == feed.conveyor), None)
+    if belt is None or belt.arc is not None:
+        return desc  # a round table's feed comes before each job
+    timed = dataclasses.replace(
+        desc.feed,
+        every_s=float(feed.every),
+        jitter_m=float(feed.jitter),
+        along=tuple(float(v) for v in belt.direction),
+        speed_mps=float(belt.speed_mps),
+    )
+    return dataclasses.replace(desc, feed=timed)
 
 
 def _belt_frames(loaded: LoadedCell) -> dict[str, np.ndarray]:

@@ -33,6 +33,7 @@ from cellrunner.twin.modes import RobotMode as RobotMode
 from cellrunner.twin.modes import RuntimeState as RuntimeState
 from cellrunner.twin.modes import SafetyMode as SafetyMode
 from cellrunner.twin.physics import KinematicPhysics, Measurement, Physics
+from cellrunner.twin.pulse_decoder import PulseDecoders
 from cellrunner.twin.setpoint import advance_motion, pose_rate
 from cellrunner.twin.watchdog import check_watchdog
 
@@ -103,6 +104,7 @@ class Controller:
         self.accel_max = float(np.radians(self.spec.joint_accel_max_deg_s2))
         self.reg = _Registers()
         self.log: collections.deque[str] = collections.deque(maxlen=500)
+        self.pulse_decoders = PulseDecoders()  # conveyor encoders (SPEC 13)
         # modes
         self.robot_mode = RobotMode.RUNNING if config.start_running else RobotMode.POWER_OFF
         self.safety_mode = SafetyMode.NORMAL
@@ -373,6 +375,7 @@ class Controller:
         self.physics.step(self.target_q, dt)
         previous_tcp = self.actual_tcp_pose
         self.meas = self.physics.measure()
+        self.pulse_decoders.update(self.physics, self.reg.output_int)
         self.actual_tcp_pose = self.kinematics.tcp_pose(self.meas.q_rad)
         self.actual_tcp_speed = pose_rate(previous_tcp, self.actual_tcp_pose, dt)
         if self.meas.contact and self.safety_mode == SafetyMode.NORMAL:

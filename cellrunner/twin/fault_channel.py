@@ -18,6 +18,7 @@ import socket
 from typing import Any
 
 from cellrunner.twin.controller import Controller, RobotMode, RuntimeState, SafetyMode
+from cellrunner.twin.conveyor_channel import CONVEYOR_COMMANDS, conveyor_command
 
 FAULT_PORT = 29990
 
@@ -38,6 +39,8 @@ disconnect                    -> close every client connection now
 blackout SECONDS              -> close every client and refuse connections for SECONDS
 record on|off                 -> start (afresh) / stop recording the servo set-points received
 record save PATH              -> write them to PATH (.npy: rows of time_s, q1..q6 rad); -> ok N
+parts                         -> ok {json: part name -> [x, y, z] world m} (a cell's twin)
+belt NAME speed MPS | jump M  -> the twin's belt runs at MPS / its encoder jumps by M m
 """
 
 
@@ -56,6 +59,8 @@ def parse_channel(name: str) -> int:
 def controller_command(ctl: Controller, cmd: str, args: list[str]) -> str | None:
     """Execute one controller command of the fault channel (call under ``ctl.lock``);
     its reply text, or None when ``cmd`` is not one of them."""
+    if cmd in CONVEYOR_COMMANDS:
+        return conveyor_command(ctl.physics, cmd, args)
     if cmd == "log":
         n = int(args[0]) if args else 50
         return json.dumps(list(ctl.log)[-n:])

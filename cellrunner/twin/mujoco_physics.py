@@ -82,6 +82,13 @@ class MujocoPhysics:
         self.world.place_arm(q)
         self._q_prev = q
 
+    def encoder_ticks(self, index: int) -> int | None:
+        """The ticks of the belt encoder wired to pulse decoder ``index`` (see
+        :mod:`cellrunner.twin.pulse_decoder`); None when none is, or before the world is
+        built."""
+        belts = self.world.belts if self.world.built else None
+        return None if belts is None else belts.encoder_ticks(index)
+
     def inject_fault(self, fault: str) -> None:
         """grip_miss or part_slip, made to happen in the MuJoCo twin (as dry-run does)."""
         self.world.inject_fault(fault)

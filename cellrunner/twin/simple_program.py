@@ -22,7 +22,8 @@ _SIMPLE = {
     "movej", "movel", "stopj", "stopl", "set_standard_digital_out", "set_digital_out",
     "set_configurable_digital_out", "set_tool_digital_out", "write_output_integer_register",
     "write_output_float_register", "write_output_boolean_register", "set_tcp", "set_payload",
-    "sleep", "textmsg", "popup", "protective_stop", "sync",
+    "sleep", "textmsg", "popup", "protective_stop", "sync", "encoder_enable_pulse_decode",
+    "encoder_set_tick_count",
 }  # fmt: skip
 
 
@@ -66,7 +67,11 @@ class SimpleProgram:
             if name in ("movej", "movel", "stopj", "stopl", "sleep", "sync"):
                 ctl.add_log(f"secondary program {self.name!r}: {name} ignored (no motion in sec)")
                 continue
-            self._execute(ctl, name, args, kwargs)
+            try:
+                self._execute(ctl, name, args, kwargs)
+            except mo.MotionError as exc:  # the program fails, as a controller's does
+                ctl.add_log(f"secondary program {self.name!r}: {exc}")
+                return
 
     def tick(self, ctl: Controller) -> bool:
         if self.waiting is not None:
@@ -141,5 +146,15 @@ class SimpleProgram:
             ctl.add_log("textmsg: " + " ".join(str(a) for a in args))
         elif name == "popup":
             ctl.popup = str(args[0]) if args else ""
+        elif name == "encoder_enable_pulse_decode":
+            try:
+                ctl.pulse_decoders.enable(*(int(a) for a in args[:4]))
+            except (ValueError, TypeError) as exc:
+                raise mo.MotionError(f"encoder_enable_pulse_decode: {exc}") from exc
+        elif name == "encoder_set_tick_count":
+            try:
+                ctl.pulse_decoders.set_tick_count(int(args[0]), int(args[1]))
+            except (ValueError, TypeError, IndexError) as exc:
+                raise mo.MotionError(f"encoder_set_tick_count: {exc}") from exc
         elif name == "protective_stop":
             ctl.protective_stop("protective_stop() called by the program")
