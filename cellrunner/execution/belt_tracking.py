@@ -27,10 +27,12 @@ from cellrunner.execution.outcome import OK, Outcome, StepGen
 from cellrunner.model.codes import ResultCode
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Generator
 
+    from cellrunner.execution.belt_watch import BeltView
     from cellrunner.execution.context import JobContext
     from cellrunner.model.expand import Step
+    from cellrunner.planning.task_plan import TaskPlan
     from cellrunner.planning.tracked_approval import TrackedRun
 
 #: a measured speed this far above speed_max (relative) is still taken as speed_max's
@@ -56,29 +58,15 @@ DONE_KEY = "belt_done"
 
 def run_track(ctx: JobContext, step: Step) -> StepGen:
     """The behaviour of a ``track`` step; see the module docstring."""
-    from cellrunner.planning.belt_ramp import nominal_start_m, ramp_bounds
-    from cellrunner.planning.task_plan import TaskPlan
-    from cellrunner.planning.tracked_approval import approve_tracked, stretch_piece
-    from cellrunner.planning.tracking import latest_fitting_start_m
+    from cellrunner.planning.tracked_approval import stretch_piece
 
     name = step.args.conveyor
-    plan = ctx.motions
-    view = ctx.belts.belts.get(name) if ctx.belts is not None else None
-    if not isinstance(plan, TaskPlan):
-        return Outcome.failed(
-            ResultCode.PLANNING_FAILED,
-            f"conveyor {name!r}: a tracked stretch runs at full pace only (the belt does not "
-            "slow down with the job's speed)",
-        )
-    if view is None or view.travel_m is None:
-        return Outcome.failed(
-            ResultCode.PLANNING_FAILED,
-            f"conveyor {name!r}: this backend cannot measure the belt (no encoder reading), "
-            "so it cannot follow it",
-        )
+    ready = _ready(ctx, name)
+    if isinstance(ready, Outcome):
+        return ready
+    plan, view = ready
     conveyor = plan.world.loaded.cell.conveyors[name]
-    rate_hz = float(ctx.backend.rate_hz)
-    piece = stretch_piece(plan, step.index, rate_hz)
+    piece = stretch_piece(plan, step.index, float(ctx.backend.rate_hz))
     if piece is None:
         return Outcome.failed(ResultCode.PLANNING_FAILED, f"conveyor {name!r}: no tracked steps")
     t0 = ctx.now_s
@@ -99,7 +87,6 @@ def run_track(ctx: JobContext, step: Step) -> StepGen:
     speed = view.speed_mps()
     assert speed is not None
     v_max = float(conveyor.speed_max)
-    lo, hi = (float(w) for w in conveyor.window)
     if speed > v_max * (1 + SPEED_TOLERANCE):
         return Outcome.failed(
             ResultCode.PART_LEFT_WINDOW,
@@ -107,65 +94,132 @@ def run_track(ctx: JobContext, step: Step) -> StepGen:
             f"{v_max:g} m/s (the pick is proved up to it): the part at {offset_m():+.3f} m is "
             "let go",
         )
-    speed = min(max(speed, 0.0), v_max)
-    dt = 1.0 / rate_hz
-    earliest = nominal_start_m(speed, lo, ramp_bounds(conveyor.path))
-    runs_on = bool(getattr(ctx.backend, "clock_runs_on", False))
-    budget_s = BUILD_BUDGET_S if runs_on else 0.0
-    for _attempt in range(BUILD_ATTEMPTS):
-        # the part's offset when the first set-point is reached: it is sent ``lead`` periods
-        # from now (the earliest start, or once the stretch is made) and reached one later
-        lead = max(LEAD_PERIODS, int(np.ceil(budget_s / dt)))
-        if speed > 0 and offset_m() + speed * (lead + 1) * dt < earliest:
-            lead = int(np.ceil((earliest - offset_m()) / (speed * dt))) - 1
-        start = offset_m() + speed * (lead + 1) * dt
-        t_send = ctx.now_s + lead * dt
-        latest = latest_fitting_start_m(conveyor, piece.duration_s, speed)
-        if latest is None or start > latest + 1e-9:
-            return Outcome.failed(
-                ResultCode.PART_LEFT_WINDOW,
-                f"conveyor {name!r}: the part is at {offset_m():+.3f} m from the frame at "
-                f"{speed:.3f} m/s; the {piece.what} must start by "
-                + ("-" if latest is None else f"{latest:+.3f} m")
-                + f" to end in the window [{lo:+.3f}, {hi:+.3f}] m: the part is let go",
-            )
-        t_made, s_made = ctx.now_s, offset_m()
+    stretch = _Stretch(ctx, name, plan, step, conveyor, piece, min(max(speed, 0.0), v_max))
+    made = yield from stretch.make(offset_m)
+    if isinstance(made, Outcome):
+        return made
+    run, t_send = made
+    # the arm stands over the frame until then; the belt must keep its speed meanwhile
+    while ctx.now_s < t_send - stretch.dt / 2:
+        yield
+        stopped = stretch.belt_off(offset_m)
+        if stopped is not None:
+            return stopped
+    return (yield from _stream(ctx, step, run, offset_m))
 
-        def make(start: float = start) -> TrackedRun | str:
-            return approve_tracked(plan, step.index, conveyor, piece, speed, start)
 
-        made = _MadeOffThread(make)
-        if not runs_on:
-            made.join()  # the twin's time waits for the engine
-        while not made.done():  # the controller's does not: keep watching the belt
-            yield
-            stopped = _belt_off(ctx, name, offset_m, s_made, t_made, speed, piece.what)
-            if stopped is not None:
-                made.join()
-                return stopped
-        run = made.result()
-        if isinstance(run, str):
-            return Outcome.failed(
-                ResultCode.PLANNING_FAILED,
-                f"conveyor {name!r}: the {piece.what} at {speed:.3f} m/s from {start:+.3f} m is "
-                f"refused: {run}",
-            )
-        if ctx.now_s < t_send - dt / 2:
-            break
-        budget_s = 2 * (ctx.now_s - t_made) + dt  # made too late: again, with more lead
-    else:
+def _ready(ctx: JobContext, name: str) -> Outcome | tuple[TaskPlan, BeltView]:
+    """The job's plan and the belt's view, or why this job cannot follow the belt."""
+    from cellrunner.planning.task_plan import TaskPlan
+
+    plan = ctx.motions
+    view = ctx.belts.belts.get(name) if ctx.belts is not None else None
+    if not isinstance(plan, TaskPlan):
+        return Outcome.failed(
+            ResultCode.PLANNING_FAILED,
+            f"conveyor {name!r}: a tracked stretch runs at full pace only (the belt does not "
+            "slow down with the job's speed)",
+        )
+    if view is None or view.travel_m is None:
+        return Outcome.failed(
+            ResultCode.PLANNING_FAILED,
+            f"conveyor {name!r}: this backend cannot measure the belt (no encoder reading), "
+            "so it cannot follow it",
+        )
+    return plan, view
+
+
+class _Stretch:
+    """Making one tracked stretch for a part at a measured ``speed``: in time for the part,
+    off the control thread where the backend's time runs on, and again with more lead
+    when it was made too late."""
+
+    def __init__(
+        self,
+        ctx: JobContext,
+        name: str,
+        plan: TaskPlan,
+        step: Step,
+        conveyor: Any,
+        piece: Any,
+        speed: float,
+    ) -> None:
+        self.ctx, self.name, self.plan, self.step = ctx, name, plan, step
+        self.conveyor, self.piece, self.speed = conveyor, piece, speed
+        self.dt = 1.0 / float(ctx.backend.rate_hz)
+        self.s_made, self.t_made = 0.0, ctx.now_s
+
+    def belt_off(self, offset_m: Callable[[], float]) -> Outcome | None:
+        return _belt_off(
+            self.ctx, self.name, offset_m, self.s_made, self.t_made, self.speed, self.piece.what
+        )
+
+    def make(self, offset_m: Callable[[], float]) -> Generator[None, None, Any]:
+        """The approved stretch and when its first set-point is sent, or the outcome
+        that ends the job."""
+        from cellrunner.planning.belt_ramp import nominal_start_m, ramp_bounds
+        from cellrunner.planning.tracked_approval import approve_tracked
+        from cellrunner.planning.tracking import latest_fitting_start_m
+
+        ctx, name, conveyor, piece, speed, dt = (
+            self.ctx,
+            self.name,
+            self.conveyor,
+            self.piece,
+            self.speed,
+            self.dt,
+        )
+        lo, hi = (float(w) for w in conveyor.window)
+        earliest = nominal_start_m(speed, lo, ramp_bounds(conveyor.path))
+        runs_on = bool(getattr(ctx.backend, "clock_runs_on", False))
+        budget_s = BUILD_BUDGET_S if runs_on else 0.0
+        for _attempt in range(BUILD_ATTEMPTS):
+            # the part's offset when the first set-point is reached: it is sent ``lead``
+            # periods from now (the earliest start, or once the stretch is made) and reached
+            # one later
+            lead = max(LEAD_PERIODS, int(np.ceil(budget_s / dt)))
+            if speed > 0 and offset_m() + speed * (lead + 1) * dt < earliest:
+                lead = int(np.ceil((earliest - offset_m()) / (speed * dt))) - 1
+            start = offset_m() + speed * (lead + 1) * dt
+            t_send = ctx.now_s + lead * dt
+            latest = latest_fitting_start_m(conveyor, piece.duration_s, speed)
+            if latest is None or start > latest + 1e-9:
+                return Outcome.failed(
+                    ResultCode.PART_LEFT_WINDOW,
+                    f"conveyor {name!r}: the part is at {offset_m():+.3f} m from the frame at "
+                    f"{speed:.3f} m/s; the {piece.what} must start by "
+                    + ("-" if latest is None else f"{latest:+.3f} m")
+                    + f" to end in the window [{lo:+.3f}, {hi:+.3f}] m: the part is let go",
+                )
+            self.t_made, self.s_made = ctx.now_s, offset_m()
+
+            def make(start: float = start) -> TrackedRun | str:
+                return approve_tracked(self.plan, self.step.index, conveyor, piece, speed, start)
+
+            made = _MadeOffThread(make)
+            if not runs_on:
+                made.join()  # the twin's time waits for the engine
+            while not made.done():  # the controller's does not: keep watching the belt
+                yield
+                stopped = self.belt_off(offset_m)
+                if stopped is not None:
+                    made.join()
+                    return stopped
+            run = made.result()
+            if isinstance(run, str):
+                return Outcome.failed(
+                    ResultCode.PLANNING_FAILED,
+                    f"conveyor {name!r}: the {piece.what} at {speed:.3f} m/s from {start:+.3f} m "
+                    f"is refused: {run}",
+                )
+            if ctx.now_s < t_send - dt / 2:
+                return run, t_send
+            budget_s = 2 * (ctx.now_s - self.t_made) + dt  # made too late: again, more lead
         return Outcome.failed(
             ResultCode.PLANNING_FAILED,
             f"conveyor {name!r}: the {piece.what} could not be made before the part reached "
             f"its start in {BUILD_ATTEMPTS} attempts",
         )
-    # the arm stands over the frame until then; the belt must keep its speed meanwhile
-    while ctx.now_s < t_send - dt / 2:
-        yield
-        stopped = _belt_off(ctx, name, offset_m, s_made, t_made, speed, piece.what)
-        if stopped is not None:
-            return stopped
-    return (yield from _stream(ctx, step, run, offset_m))
 
 
 def _belt_off(
