@@ -89,6 +89,20 @@ __all__ = [
 ]
 
 
+def _same_generation(host: str, spec: RobotSpec, timeout_s: float) -> tuple[int, ...]:
+    """The controller's PolyScope version, refused when it is not the cell's robot's
+    generation (e-Series or CB3)."""
+    versions = controller_version(host, timeout_s)
+    generation = generation_of(versions)
+    if generation != spec.generation:
+        version_text = ".".join(str(v) for v in versions)
+        raise ControllerMismatch(
+            f"the controller at {host} is {generation} (PolyScope {version_text}) "
+            f"but the cell's robot {spec.name} is {spec.generation}"
+        )
+    return versions
+
+
 class URBackend(URRecovery):
     """A UR arm through ur_rtde; see the module docstring for the lifecycle."""
 
@@ -157,15 +171,9 @@ class URBackend(URRecovery):
             self._robotiq = RobotiqClient(self.host, self.robotiq_port, self.connect_timeout_s)
             self._robotiq.connect()
         self._close_quietly()
-        versions = controller_version(self.host, self.connect_timeout_s)
-        generation = generation_of(versions)
-        version_text = ".".join(str(v) for v in versions)
-        if generation != self.spec.generation:
-            raise ControllerMismatch(
-                f"the controller at {self.host} is {generation} (PolyScope {version_text}) "
-                f"but the cell's robot {self.spec.name} is {self.spec.generation}"
-            )
-        self.controller_versions = versions
+        versions = self.controller_versions = _same_generation(
+            self.host, self.spec, self.connect_timeout_s
+        )
         import dashboard_client
 
         try:

@@ -32,7 +32,6 @@ from cellrunner.execution.job_records import JobPhase
 from cellrunner.execution.job_view import (
     Job,
     JobView,
-    obstruction_of,
     view_of,
 )
 from cellrunner.execution.journal import JournalBackend
@@ -144,18 +143,7 @@ class CellController(CellViews):
     # ------------------------------------------------------------------ CellPort
     def _publish(self) -> None:
         """Publish a new status snapshot (under the lock) when anything in it changed."""
-        job = self._job
-        key = (
-            self.states.state,
-            job,
-            self._book.holding,
-            self._safety,
-            job.runner.current_step if job and job.runner else 0,
-            self._book.last,
-            self._book.counters,
-            obstruction_of(job),
-            self._launcher.conveyor_speeds_mmps(),
-        )
+        key = self._status_inputs()
         if key != self._status_key:
             self._status_key = key
             self._status = self._snapshot()

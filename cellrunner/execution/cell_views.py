@@ -8,7 +8,7 @@ import threading
 from typing import TYPE_CHECKING
 
 from cellrunner.execution.context import Eye
-from cellrunner.execution.job_view import JobView, status_of, streaming_of, view_of
+from cellrunner.execution.job_view import JobView, obstruction_of, status_of, streaming_of, view_of
 from cellrunner.model.cellport import ArmStatus, CellStatus, JobResult
 from cellrunner.model.codes import PackMLState as S
 from cellrunner.model.robot_state import Safety
@@ -47,6 +47,21 @@ class CellViews:
     def held_results(self) -> list[str]:
         """The results the journal has not written yet (a full disk), for SIGTERM's report."""
         return self._book.held()
+
+    def _status_inputs(self) -> tuple[object, ...]:
+        """Everything the status snapshot shows: a new one is made when this changed."""
+        job = self._job
+        return (
+            self.states.state,
+            job,
+            self._book.holding,
+            self._safety,
+            job.runner.current_step if job and job.runner else 0,
+            self._book.last,
+            self._book.counters,
+            obstruction_of(job),
+            self._launcher.conveyor_speeds_mmps(),
+        )
 
     def status(self) -> CellStatus:
         """The snapshot published after the last change; takes no lock, never waits."""
