@@ -59,8 +59,8 @@ class JobRunner(JobHolding):
 
     def __post_init__(self) -> None:
         # the task's on_error steps come last, marked; they run only after a failure
-        self._cleanup = Cleanup([s for s in self.steps if s.macro == ON_ERROR])
-        self.steps = [s for s in self.steps if s.macro != ON_ERROR]
+        self._cleanup = Cleanup([s for s in self.steps if s.macro_kind == ON_ERROR.kind])
+        self.steps = [s for s in self.steps if s.macro_kind != ON_ERROR.kind]
         self._rows = StepRows(self.steps, self.on_step, self.ctx.obstacles)
         self.records = self._rows.records  # the report's rows, by step index
         self._agenda = Agenda(self.ctx, self._rows, self.steps, self.gate, self._log)

@@ -22,7 +22,7 @@ from cellrunner.model.loaded import LoadedTask, StepSpec
 from cellrunner.model.params import Param, ParamValue, PoseValue
 from cellrunner.model.pattern import Pattern
 from cellrunner.model.source import PathKey
-from cellrunner.model.step import RetryPlan, Step, StepKind
+from cellrunner.model.step import Macro, RetryPlan, Step, StepKind
 from cellrunner.model.step_kinds import kind_of
 from cellrunner.model.task import ApproachArgs, GripArgs, LinearArgs, Offset, TaskFile
 
@@ -84,7 +84,7 @@ def expand_on_error(
     ]
 
 
-ON_ERROR = "on_error"
+ON_ERROR = Macro("on_error")
 
 
 class Expansion:

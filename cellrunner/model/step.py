@@ -38,6 +38,22 @@ class StepKind(enum.StrEnum):
     ALIGN = "align"
 
 
+class Macro(str):
+    """The step a primitive was expanded from, as messages and reports name it (``place
+    outfeed``), knowing its kind: code asks :attr:`Step.macro_kind`, never the text."""
+
+    kind: str
+
+    def __new__(cls, kind: str, target: str | None = None) -> Macro:
+        macro = super().__new__(cls, kind if target is None else f"{kind} {target}")
+        macro.kind = kind
+        return macro
+
+    def __reduce__(self) -> tuple[Any, ...]:  # pickled (the plan store) with its kind
+        target = str(self)[len(self.kind) + 1 :] or None
+        return (Macro, (self.kind, target))
+
+
 @dataclass(frozen=True)
 class RetryPlan:
     """What a grip does when its confirmation fails: run ``between``, then redo the steps
@@ -72,6 +88,12 @@ class Step:
         kind = kind_of(self.kind)  # a kind read from a file: StepKindError if unknown
         if kind.name in StepKind.__members__.values():
             object.__setattr__(self, "kind", StepKind(kind.name))
+
+    @property
+    def macro_kind(self) -> str | None:
+        """The kind of the step this one was expanded from (``place``, ``pick``,
+        ``on_error``, ...), None for a step written as it is."""
+        return self.macro.kind if isinstance(self.macro, Macro) else None
 
     @property
     def motion(self) -> Motion | None:

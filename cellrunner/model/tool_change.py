@@ -20,7 +20,7 @@ import numpy as np
 
 from cellrunner.model import geometry
 from cellrunner.model.frames import frame_pose
-from cellrunner.model.step import Step, StepKind
+from cellrunner.model.step import Macro, Step, StepKind
 from cellrunner.model.task import ApproachArgs, DistanceArgs, GripArgs, LinearArgs
 
 if TYPE_CHECKING:
@@ -41,7 +41,7 @@ def expand_change_tool(
     assert changer is not None and current is not None
     d = changer.approach
     path = spec.path
-    macro = f"change_tool {target}"
+    macro = Macro("change_tool", target)
     tcp_a = cell.tools[current].tcp.matrix()
     tcp_b = cell.tools[target].tcp.matrix()
     T_rack_a = frame_pose(cell, changer.rack[current])

@@ -355,8 +355,7 @@ def sets_down(step: Step, world: CellWorld | None = None) -> bool:
     cups onto the part's face; jaws come down around a part, touching nothing)."""
     if step.kind != StepKind.DESCEND:
         return False
-    macro = step.macro or ""
-    if macro.startswith("place "):
+    if step.macro_kind == "place":
         return True
     gripper = world.loaded.cell.tool.gripper if world is not None else None
-    return macro.startswith("pick ") and gripper is not None and gripper.kind == "vacuum"
+    return step.macro_kind == "pick" and gripper is not None and gripper.kind == "vacuum"

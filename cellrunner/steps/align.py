@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 from cellrunner.model.align import AlignArgs, aligned_frame
 from cellrunner.model.diagnose import unknown_name
 from cellrunner.model.marker import Marker
-from cellrunner.model.step import Step, StepKind
+from cellrunner.model.step import Macro, Step, StepKind
 from cellrunner.model.step_kinds import StepKindDef, register
 from cellrunner.model.task import MoveArgs
 
@@ -77,7 +77,7 @@ class Align(StepKindDef):
             else None,
             "T_world_camera": None if camera.eye_in_hand else builder.camera_pose(args.camera),
         }
-        macro = f"align {frame}"
+        macro = Macro("align", frame)
         if camera.eye_in_hand and args.look:
             look = _look_pose(args, camera, extra)
             builder.steps.append(

@@ -8,7 +8,7 @@ from pydantic import Field, field_validator, model_validator
 
 from cellrunner.model.base import Name, Strict
 from cellrunner.model.pattern import Pattern
-from cellrunner.model.step import RetryPlan, Step, StepKind
+from cellrunner.model.step import Macro, RetryPlan, Step, StepKind
 from cellrunner.model.step_kinds import StepKindDef, register
 from cellrunner.model.task import (
     AtFrame,
@@ -77,7 +77,7 @@ class Pick(StepKindDef):
     def expand(self, builder: Expansion, spec: StepSpec, args: Any) -> None:
         a: PickArgs = args
         T, name = builder.target(a.at, a.offset, a.pattern, a.at_offset)
-        macro, path = f"pick {name}", spec.path
+        macro, path = Macro("pick", name), spec.path
         builder.approach_and_descend(a, T, name, path, macro)
         descend_i = builder.next_index() - 1
         retry = None

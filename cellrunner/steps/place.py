@@ -9,7 +9,7 @@ from pydantic import Field, field_validator, model_validator
 
 from cellrunner.model.base import Name, Strict
 from cellrunner.model.pattern import Pattern
-from cellrunner.model.step import Step, StepKind
+from cellrunner.model.step import Macro, Step, StepKind
 from cellrunner.model.step_kinds import StepKindDef, register
 from cellrunner.model.task import (
     AtFrame,
@@ -82,7 +82,7 @@ class Place(StepKindDef):
     def expand(self, builder: Expansion, spec: StepSpec, args: Any) -> None:
         a: PlaceArgs = args
         T, name = builder.target(a.at, a.offset, a.pattern, a.at_offset)
-        macro, path = f"place {name}", spec.path
+        macro, path = Macro("place", name), spec.path
         builder.approach_and_descend(a, T, name, path, macro)
         release = (
             a.release if a.confirm is None else a.release.model_copy(update={"confirm": a.confirm})

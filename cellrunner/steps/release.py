@@ -38,7 +38,7 @@ class Release(StepKindDef):
         step = row.step
         # a place's release: where the twin judges the part against the place's target
         # (a bare release, after an insert or in on_error, is judged by its confirm input)
-        part = planner.part if (step.macro or "").startswith("place ") else None
+        part = planner.part if step.macro_kind == "place" else None
         if part is not None:
             from cellrunner.planning.support import check_support
 

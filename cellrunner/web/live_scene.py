@@ -145,7 +145,7 @@ def world_at(plan: PlannedJob | None, step_index: int) -> CellWorld | None:
     rows = getattr(plan, "rows", None) or []
     found = None
     for row in rows:
-        if row.step.index > step_index or row.step.macro == ON_ERROR:
+        if row.step.index > step_index or row.step.macro_kind == ON_ERROR.kind:
             break
         if row.world is not None:
             found = row.world
@@ -159,7 +159,7 @@ def _holdings(plan: PlannedJob) -> list[tuple[int, Placed | None]]:
     return [
         (row.step.index, row.carrying)
         for row in rows
-        if row.step.macro != ON_ERROR and not row.step.is_motion
+        if row.step.macro_kind != ON_ERROR.kind and not row.step.is_motion
     ]
 
 
@@ -172,7 +172,7 @@ def job_of(job_id: str, plan: PlannedJob, world: CellWorld) -> dict[str, Any]:
     segments: list[tuple[int, str, np.ndarray, CellWorld]] = []
     tools: dict[str, list[dict[str, Any]]] = {}
     for step in plan.run_steps:
-        if step.macro == ON_ERROR:
+        if step.macro_kind == ON_ERROR.kind:
             continue
         mounted = world_at(plan, step.index) or world
         key = tool_key(mounted)
