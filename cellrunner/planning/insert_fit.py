@@ -69,9 +69,9 @@ def early_stop(
     mover = "held part" if carrying else "tool"
     return Failure(
         FailureKind.CONTACT,
-        f"the {mover} meets {blocker.body} {depth_m * 1000:.1f} mm past frame "
-        f"'{step.args.to}', before the {lo_m * 1000:.1f} mm expect_depth asks: the insert "
-        "would stop there and fail (3)",
+        f"the {mover} meets {blocker.body} {_where(depth_m)} frame '{step.args.to}', "
+        f"before the {lo_m * 1000:.1f} mm expect_depth asks: the insert would stop there "
+        "and fail (3)",
         blockers=(blocker,),
         fix=(
             f"fix: a deeper hole ({blocker.body} at least {(lo_m - depth_m) * 1000:.1f} mm "
@@ -202,3 +202,9 @@ def _jam_failure(
     return Failure(
         FailureKind.JAM, reason, blockers=blockers, fix=fix, step_index=step.index, step=step.label
     )
+
+
+def _where(depth_m: float) -> str:
+    """``12.0 mm past`` or ``10.1 mm before`` (a frame), never a negative distance."""
+    side = "past" if depth_m >= 0 else "before"
+    return f"{abs(depth_m) * 1000:.1f} mm {side}"

@@ -65,13 +65,16 @@ def test_change_tool_job_runs_in_the_twin(files):
 
 def test_the_twin_swaps_the_tool_physically(files):
     """The cup, mounted by the change, meets the table where its TCP says; without the
-    change the jaws never reach the table within the insert's 20 mm."""
+    change the jaws would meet it before the frame, and check knows it from the jaws'
+    geometry."""
     cell = files[0]
     out = dry_run(cell, cell.parent / "touch.yaml")
     assert out["result_code"] == 0, out
     out = dry_run(cell, cell.parent / "touch_jaws.yaml")
-    assert out["result_code"] != 0  # the jaws' pads hit the table before the frame
-    assert [s["index"] for s in out["steps"] if s["status"] == "failed"] == [3]
+    # the jaws' pads would hit the table before the frame: check refuses it before it moves
+    assert out["result_code"] == 103
+    assert out["result_text"].startswith("step 3 insert 'touch': the tool meets fixture 'table' ")
+    assert " mm before frame 'touch'" in out["result_text"]
 
 
 def test_a_second_jaw_gripper_after_the_change_grips_with_its_own_io(tmp_path):

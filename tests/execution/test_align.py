@@ -4,57 +4,18 @@ proves the max_correction box; bad align steps are located input errors."""
 
 from __future__ import annotations
 
-import json
 import os
-import shutil
 import subprocess
 import sys
 
 import pytest
 
 from tests.conftest import ROOT
+from tests.execution.align_rig import align_row, cellrunner, project
 from tests.rig import ENV
 
-CELL = ROOT / "cells" / "align_pick_ur10e.yaml"
-TASK = ROOT / "tasks" / "align_pick.yaml"
-BLIND = ROOT / "tasks" / "align_pick_blind.yaml"
 #: a loopback address of this process's own: several checkouts run these tests at once
 HOST = f"127.26.{os.getpid() % 250 + 1}.2"
-
-
-#: as a person runs it: no MUJOCO_GL, cellrunner finds a GL backend for the camera itself
-PLAIN_ENV = {k: v for k, v in ENV.items() if k != "MUJOCO_GL"}
-
-
-def cellrunner(*args: str) -> tuple[int, dict, str]:
-    r = subprocess.run(
-        [sys.executable, "-m", "cellrunner.cli.main", *args],
-        capture_output=True, text=True, cwd=ROOT, env=PLAIN_ENV, timeout=300,
-    )  # fmt: skip
-    return r.returncode, json.loads(r.stdout) if r.stdout.startswith("{") else {}, r.stderr
-
-
-def project(tmp_path, offset: str = "{xyz: [0.008, 0.006, 0], rpy: [0, 0, 4]}", task_edit=None):
-    """The example cell and tasks in ``tmp_path``, the block at ``offset`` from its frame."""
-    (tmp_path / "cells").mkdir(parents=True)
-    (tmp_path / "tasks").mkdir()
-    text = CELL.read_text().replace("{xyz: [0.008, 0.006, 0], rpy: [0, 0, 4]}", offset)
-    assert offset in text
-    (tmp_path / "cells" / "c.yaml").write_text(text)
-    for t in (TASK, BLIND):
-        shutil.copy(t, tmp_path / "tasks" / t.name)
-    if task_edit is not None:
-        t = tmp_path / "tasks" / TASK.name
-        t.write_text(task_edit(t.read_text()))
-    return (
-        tmp_path / "cells" / "c.yaml",
-        tmp_path / "tasks" / TASK.name,
-        tmp_path / "tasks" / BLIND.name,
-    )
-
-
-def align_row(out: dict) -> dict:
-    return next(s for s in out["steps"] if s["kind"] == "align")
 
 
 def test_aligned_the_block_off_its_frame_is_placed_blind_it_is_refused(tmp_path):

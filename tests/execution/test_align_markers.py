@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 from tests.conftest import ROOT
-from tests.execution.test_align import align_row, cellrunner, project
+from tests.execution.align_rig import align_row, cellrunner, project
 from tests.rig import ENV
 
 #: the block (40 x 40 x 50 mm) carries marker 7 on its top face, in its own frame

@@ -14,9 +14,8 @@ import urllib.request
 from cellrunner.errors import InfeasibleError
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.journal import Journal
-from cellrunner.model.body import Body, BodyKind
 from cellrunner.model.codes import ResultCode
-from cellrunner.model.failure import Blocker, Failure, FailureKind
+from cellrunner.model.failure import Failure
 from cellrunner.model.load import load_cell, load_task
 from cellrunner.plc.fake import FakeCell
 from cellrunner.plc.opcua_address_space import last_job_values
@@ -24,20 +23,8 @@ from cellrunner.web.board import StatusBoard
 from cellrunner.web.server import StatusServer
 from tests.conftest import DEMO_CELL
 from tests.execution.fakes import ScriptedArm, tick
+from tests.execution.refusal import REFUSAL
 from tests.rig import ENV, cli
-
-REFUSAL = Failure(
-    FailureKind.COLLISION,
-    "every IK branch meets something",
-    ("branch 1: fixture 'table'",),
-    (
-        Blocker(Body(BodyKind.FIXTURE, "table"), -0.004, 3),
-        Blocker(Body(BodyKind.ROBOT_LINK, "wrist_3")),
-    ),
-    "fix: raise the approach by 30 mm",
-    3,
-    "step 3 approach 'pick'",
-)
 
 #: the jobs table as journals wrote it before jobs had a failure column
 OLD_SCHEMA = """

@@ -142,7 +142,7 @@ def test_jobs_command_on_an_unreachable_database_is_exit_3(tmp_path, capsys):
 
 
 def test_a_refused_jobs_failure_survives_and_an_old_table_gains_its_column(clean):
-    from tests.execution.test_journal_failure import REFUSAL
+    from tests.execution.refusal import REFUSAL
 
     clean.sql(  # the jobs table as a journal made before the failure column wrote it
         "CREATE TABLE cellrunner_jobs (seq BIGSERIAL UNIQUE, job_id TEXT PRIMARY KEY, "

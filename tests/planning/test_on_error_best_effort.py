@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from cellrunner.execution.cleanup import Cleanup
 from cellrunner.model.codes import ResultCode
-from tests.planning.test_on_error_check import DEMO, task
+from tests.planning.on_error_rig import DEMO, task
 from tests.rig import main_json
 
 #: a lift the arm cannot make from anywhere (1.5 m up), then a way home that works

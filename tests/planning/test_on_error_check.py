@@ -8,23 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.conftest import ROOT
+from tests.planning.on_error_rig import DEMO, task
 from tests.rig import main_json
-
-DEMO = str(ROOT / "cells" / "demo_ur5e.yaml")
-PICK = """task: pick_then_home
-steps:
-  - move: home
-  - pick: {at: infeed, approach: 0.1, grip: {confirm: gripper_closed}}
-  - move: home
-on_error:
-"""
-
-
-def task(tmp_path, on_error: str) -> str:
-    path = tmp_path / "t.yaml"
-    path.write_text(PICK + on_error)
-    return str(path)
 
 
 def test_a_joint_move_from_a_part_resting_on_the_table_is_refused_by_name(tmp_path):

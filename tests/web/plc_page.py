@@ -17,6 +17,11 @@ from tests.rig import start_serve
 #: status bits (SPEC 8)
 READY, JOB_ACK, DONE, ERROR = 1, 2, 8, 16
 
+OBSTRUCTED = 1 << 10
+#: on the path from the job's start for 4 s (appearing under a moving arm, under load the
+#: real-time latency could let the arm stop over it and hide it from the camera)
+TOTE = "{name: tote, box: {size: [0.2, 0.14, 0.1]}, pose: {xyz: [0.52, -0.24, 1.1]}, appear: 0.0, leave: 4.0}"
+
 
 class Plc:
     """A PLC over Modbus TCP that keeps its heartbeat moving."""

@@ -12,8 +12,16 @@ import urllib.request
 import pytest
 
 from tests.rig import free_port
-from tests.web.plc_page import DONE, ERROR, JOB_ACK, READY, heartbeat, serve_with_page
-from tests.web.test_obstructed_browser import OBSTRUCTED, TOTE
+from tests.web.plc_page import (
+    DONE,
+    ERROR,
+    JOB_ACK,
+    OBSTRUCTED,
+    READY,
+    TOTE,
+    heartbeat,
+    serve_with_page,
+)
 
 HOST = "127.0.0.147"
 

@@ -13,13 +13,18 @@ import pytest
 from tests.conftest import ROOT
 from tests.rig import free_port
 from tests.web.browser import WEBGL_FLAGS, Chromium, chromium_path, keep_artifact
-from tests.web.plc_page import DONE, ERROR, JOB_ACK, READY, heartbeat, serve_with_page
+from tests.web.plc_page import (
+    DONE,
+    ERROR,
+    JOB_ACK,
+    OBSTRUCTED,
+    READY,
+    TOTE,
+    heartbeat,
+    serve_with_page,
+)
 
 HOST = "127.0.0.142"
-OBSTRUCTED = 1 << 10
-#: on the path from the job's start for 4 s (appearing under a moving arm, under load the
-#: real-time latency could let the arm stop over it and hide it from the camera)
-TOTE = "{name: tote, box: {size: [0.2, 0.14, 0.1]}, pose: {xyz: [0.52, -0.24, 1.1]}, appear: 0.0, leave: 4.0}"
 
 
 @pytest.fixture

@@ -23,7 +23,7 @@ from cellrunner.web.board import StatusBoard
 from cellrunner.web.controls import HEADER, PageControls
 from cellrunner.web.server import StatusServer
 from tests.execution.fakes import ScriptedArm, tick
-from tests.execution.test_hold_source import held_cell
+from tests.execution.held import held_cell
 from tests.plc.client_procs import run_clients
 from tests.plc.conftest import HERE
 from tests.rig import free_port
