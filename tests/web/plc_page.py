@@ -17,6 +17,7 @@ from tests.rig import start_serve
 #: status bits (SPEC 8)
 READY, JOB_ACK, DONE, ERROR = 1, 2, 8, 16
 
+#: status bit: the arm waits for an obstacle in the watched zone
 OBSTRUCTED = 1 << 10
 #: on the path from the job's start for 4 s (appearing under a moving arm, under load the
 #: real-time latency could let the arm stop over it and hide it from the camera)
@@ -88,3 +89,29 @@ def serve_with_page(
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err[-2000:]
+
+
+@contextlib.contextmanager
+def serving_the_tote(tmp_path: Path, host: str) -> Iterator[object]:
+    """`serve` of the watched demo cell on the twin with its page, a tote only the depth
+    camera sees on the job's path for 4 s (the task waits up to 10 s, no replanning), and
+    a PLC keeping its heartbeat; what :func:`serve_with_page` yields."""
+    from tests.conftest import ROOT
+    from tests.rig import free_port
+
+    modbus_port, http_port = free_port(host), free_port(host)
+    text = (ROOT / "cells" / "watched_ur5e.yaml").read_text()
+    text = text.replace(
+        "sim:\n  depth_noise: 0.002\n", f"sim:\n  depth_noise: 0.002\n  intruders:\n    - {TOTE}\n"
+    )
+    text = text.replace("tasks/pick_place_watched.yaml", "tasks/pick_place.yaml")
+    text = text.replace("tasks/", f"{ROOT}/tasks/").replace("var/", f"{tmp_path}/")
+    text = text.replace("bind: 127.0.0.1, port: 1503", f"bind: {host}, port: {modbus_port}")
+    text = text.split("  opcua:")[0] + f"journal: {tmp_path}/jobs.sqlite\n"
+    cell = tmp_path / "watched.yaml"
+    cell.write_text(text)
+    with (
+        serve_with_page(cell, host, modbus_port, http_port) as served,
+        heartbeat(host, modbus_port),
+    ):
+        yield served

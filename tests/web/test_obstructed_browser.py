@@ -10,8 +10,6 @@ import time
 
 import pytest
 
-from tests.conftest import ROOT
-from tests.rig import free_port
 from tests.web.browser import WEBGL_FLAGS, Chromium, chromium_path, keep_artifact
 from tests.web.plc_page import (
     DONE,
@@ -19,9 +17,7 @@ from tests.web.plc_page import (
     JOB_ACK,
     OBSTRUCTED,
     READY,
-    TOTE,
-    heartbeat,
-    serve_with_page,
+    serving_the_tote,
 )
 
 HOST = "127.0.0.142"
@@ -29,22 +25,7 @@ HOST = "127.0.0.142"
 
 @pytest.fixture
 def serving(tmp_path):
-    modbus_port, http_port = free_port(HOST), free_port(HOST)
-    text = (ROOT / "cells" / "watched_ur5e.yaml").read_text()
-    text = text.replace(
-        "sim:\n  depth_noise: 0.002\n", f"sim:\n  depth_noise: 0.002\n  intruders:\n    - {TOTE}\n"
-    )
-    # the task waits up to 10 s (no replanning): the tote leaves after 4
-    text = text.replace("tasks/pick_place_watched.yaml", "tasks/pick_place.yaml")
-    text = text.replace("tasks/", f"{ROOT}/tasks/").replace("var/", f"{tmp_path}/")
-    text = text.replace("bind: 127.0.0.1, port: 1503", f"bind: {HOST}, port: {modbus_port}")
-    text = text.split("  opcua:")[0] + f"journal: {tmp_path}/jobs.sqlite\n"
-    cell = tmp_path / "watched.yaml"
-    cell.write_text(text)
-    with (
-        serve_with_page(cell, HOST, modbus_port, http_port) as served,
-        heartbeat(HOST, modbus_port),
-    ):
+    with serving_the_tote(tmp_path, HOST) as served:
         yield served
 
 
