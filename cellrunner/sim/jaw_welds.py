@@ -16,7 +16,11 @@ or when the weld's force on the part across the jaw axis exceeds
 :func:`cellrunner.model.jaw_grip.jaws_hold_N` (the rule ``check`` applies,
 :mod:`cellrunner.planning.jaw_hold`): then the pads' friction alone holds it and it
 slides as before, until it is free of the fixtures again. Along the jaw axis the pads
-hold by their clamp, so the force along it never lets go.
+hold by their clamp, so the force along it never lets go. The look-ahead
+(:mod:`.lookahead`) carries the weld through its periods (``eq_active`` is in the state
+it rolls out) but does not judge the load there: it looks ahead only while the part
+touches nothing but the pads, where the load is the part's inertia, which ``check``
+keeps under the pads' hold.
 """
 
 from __future__ import annotations
