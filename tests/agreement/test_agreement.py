@@ -32,12 +32,7 @@ def sample() -> list:
 #: (docs/check-truth.md): the test fails on any other, and on one of these that is gone.
 #: Fixed: s5025 (a UR10e's set-down at full speed pressed the part into its table; a
 #: place's descend is now timed gently)
-KNOWN_OPEN: dict[str, str] = {
-    # the pin (1.3 mm clear of its walls) slides in the jaws as the UR10e carries it
-    # and its tip meets the rim (inserted 0.0 mm); check has no rule for a jaw grip's
-    # friction against the carrying accelerations yet (docs/check-truth.md)
-    "s5013-ur10e-hole_fit": "false approval: inserted 0.0 mm",
-}
+KNOWN_OPEN: dict[str, str] = {}
 
 
 def test_the_same_seed_writes_the_same_files_and_another_seed_others():
