@@ -201,9 +201,6 @@ def _add_gripper(builder: MjcfDocument, tool: ET.Element, g: Any) -> None:
             size=fmt([t / 2, w / 2, (z1 - z0) / 2]),
             friction=f"{g.friction:g} 0.01 0.0001",
             condim="4",
-            # the pads' contact parameters win over a part's (sim.jaw_welds turns their
-            # friction off while a weld holds the part)
-            priority="1",
             solref=builder.grasp_solref,
             contype=str(PADS),
             conaffinity=str(STATIC | PARTS),
