@@ -161,25 +161,8 @@ def add_belts(world: ET.Element, actuators: ET.Element, belts: tuple[BeltDescrip
         )
         ET.SubElement(body, "joint", name=f"belt:{belt.name}", type="slide", axis="1 0 0")
         half_len = belt.length_m / 2 + 2 * WRAP_M
-        ET.SubElement(
-            body,
-            "geom",
-            name=f"belt:{belt.name}",
-            type="box",
-            size=fmt([half_len, WIDTH_M / 2, THICKNESS_M / 2]),
-            mass=f"{MASS_KG:g}",
-            friction="1.0 0.01 0.0001",
-            rgba="0.15 0.15 0.15 1",
-            contype=str(STATIC),
-            conaffinity=str(PARTS),
-        )
-        ET.SubElement(
-            actuators,
-            "velocity",
-            name=f"belt:{belt.name}",
-            joint=f"belt:{belt.name}",
-            kv=f"{SERVO_KV:g}",
-        )
+        size = [half_len, WIDTH_M / 2, THICKNESS_M / 2]
+        _add_surface(body, actuators, belt.name, "box", size, SERVO_KV)
 
 
 def _add_disc(world: ET.Element, actuators: ET.Element, belt: BeltDescription) -> None:
@@ -192,25 +175,34 @@ def _add_disc(world: ET.Element, actuators: ET.Element, belt: BeltDescription) -
     body = ET.SubElement(world, "body", name=f"belt:{belt.name}", pos=fmt(pos))
     axis = "0 0 1" if sign > 0 else "0 0 -1"
     ET.SubElement(body, "joint", name=f"belt:{belt.name}", type="hinge", axis=axis)
+    size = [radius + WIDTH_M / 2, THICKNESS_M / 2]
+    # the servo's gain in rad/s: the slab's stiffness at the parts' radius
+    _add_surface(body, actuators, belt.name, "cylinder", size, SERVO_KV * radius**2)
+
+
+def _add_surface(
+    body: ET.Element,
+    actuators: ET.Element,
+    name: str,
+    shape: str,
+    size: list[float],
+    kv: float,
+) -> None:
+    """What carries the parts on a belt's body: its surface (``shape`` of ``size``, the
+    friction parts ride on) and the velocity servo on its joint (gain ``kv``)."""
     ET.SubElement(
         body,
         "geom",
-        name=f"belt:{belt.name}",
-        type="cylinder",
-        size=fmt([radius + WIDTH_M / 2, THICKNESS_M / 2]),
+        name=f"belt:{name}",
+        type=shape,
+        size=fmt(size),
         mass=f"{MASS_KG:g}",
         friction="1.0 0.01 0.0001",
         rgba="0.15 0.15 0.15 1",
         contype=str(STATIC),
         conaffinity=str(PARTS),
     )
-    ET.SubElement(
-        actuators,
-        "velocity",
-        name=f"belt:{belt.name}",
-        joint=f"belt:{belt.name}",
-        kv=f"{SERVO_KV * radius**2:g}",  # the slab's stiffness at the parts' radius
-    )
+    ET.SubElement(actuators, "velocity", name=f"belt:{name}", joint=f"belt:{name}", kv=f"{kv:g}")
 
 
 class Belts:
