@@ -318,12 +318,29 @@ def test_a_main_thread_that_does_not_stop_is_ended_after_the_grace_with_its_exit
     )
 
 
-def test_a_signal_sets_the_stop_and_leaving_restores_the_handlers():
-    before = signal.getsignal(signal.SIGTERM)
+def test_leaving_without_a_signal_restores_the_handlers():
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGINT)}
     with stop_on_signals(grace_s=10.0) as stop:
-        assert not stop.event.is_set() and stop.signal_name is None
-        os.kill(os.getpid(), signal.SIGTERM)
-        assert stop.event.wait(5)
-        assert stop.signal_name == "SIGTERM"
-        assert stop.reason == "cellrunner stopped (SIGTERM)"
-    assert signal.getsignal(signal.SIGTERM) == before
+        assert signal.getsignal(signal.SIGINT) != before[signal.SIGINT]
+    assert stop.signal_name is None
+    assert {sig: signal.getsignal(sig) for sig in before} == before
+
+
+def test_a_signal_sets_the_stop_and_a_late_delivery_raises_nothing_after_leaving():
+    """CI once saw KeyboardInterrupt in a jog's last line: the watcher had set the stop
+    before the main thread ran the SIGINT's Python handler, the block was left and the
+    restored default handler ran for it. A stopped block leaves the stop's own handler."""
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        with stop_on_signals(grace_s=10.0) as stop:
+            assert not stop.event.is_set() and stop.signal_name is None
+            os.kill(os.getpid(), signal.SIGINT)
+            assert stop.event.wait(5)
+            assert stop.signal_name == "SIGINT"
+            assert stop.reason == "cellrunner stopped (SIGINT)"
+        os.kill(os.getpid(), signal.SIGINT)  # a delivery after the block: no KeyboardInterrupt
+        time.sleep(0.05)
+        assert signal.getsignal(signal.SIGINT) not in (before[signal.SIGINT], signal.SIG_DFL)
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)

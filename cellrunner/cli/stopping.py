@@ -97,6 +97,13 @@ def stop_on_signals(exit_code: int = 0, grace_s: float = GRACE_S) -> Iterator[St
         finished.set()
         signal.set_wakeup_fd(previous_fd)
         for sig, handler in previous_handlers.items():
+            if stop.signal_name is not None:
+                # The watcher may have set the stop before the main thread ran the signal's
+                # Python handler; restored now, Python's own SIGINT handler would run for it
+                # and raise KeyboardInterrupt in the process's last lines. A stopped
+                # process is ending: its handler stays the stop's own, which only sets
+                # the stop again.
+                continue
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
         with contextlib.suppress(OSError):
             os.write(write_fd, bytes([_CLOSING]))
