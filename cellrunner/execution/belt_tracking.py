@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cellrunner.execution.belt_follow import FOLLOW_FROM_M, BeltFollower
 from cellrunner.execution.outcome import OK, Outcome, StepGen
 from cellrunner.model.codes import ResultCode
 
@@ -33,6 +34,7 @@ if TYPE_CHECKING:
     from cellrunner.execution.context import JobContext
     from cellrunner.model.expand import Step
     from cellrunner.planning.task_plan import TaskPlan
+    from cellrunner.planning.timing import MotionLimits
     from cellrunner.planning.tracked_approval import TrackedRun
 
 #: a measured speed this far above speed_max (relative) is still taken as speed_max's
@@ -99,13 +101,15 @@ def run_track(ctx: JobContext, step: Step) -> StepGen:
     if isinstance(made, Outcome):
         return made
     run, t_send = made
-    # the arm stands over the frame until then; the belt must keep its speed meanwhile
+    # the arm stands over the frame until then; a belt that leaves its measured speed
+    # meanwhile is followed from there (the stretch starts when the part reaches it)
+    follow: BeltFollower | None = None
     while ctx.now_s < t_send - stretch.dt / 2:
         yield
-        stopped = stretch.belt_off(offset_m)
-        if stopped is not None:
-            return stopped
-    return (yield from _stream(ctx, step, run, offset_m))
+        if stretch.drift_m(offset_m) > FOLLOW_FROM_M:
+            follow = BeltFollower(run, plan.world.limits, 0.0, 0.0)
+            break
+    return (yield from _stream(ctx, step, run, offset_m, plan.world.limits, follow))
 
 
 def _ready(ctx: JobContext, name: str) -> Outcome | tuple[TaskPlan, BeltView]:
@@ -153,6 +157,10 @@ class _Stretch:
         return _belt_off(
             self.ctx, self.name, offset_m, self.s_made, self.t_made, self.speed, self.piece.what
         )
+
+    def drift_m(self, offset_m: Callable[[], float]) -> float:
+        """How far the belt's travel is off the line of the speed the stretch is made for."""
+        return abs(offset_m() - (self.s_made + self.speed * (self.ctx.now_s - self.t_made)))
 
     def make(self, offset_m: Callable[[], float]) -> Generator[None, None, Any]:
         """The approved stretch and when its first set-point is sent, or the outcome
@@ -280,41 +288,64 @@ def _stream(
     step: Step,
     run: TrackedRun,
     offset_m: Callable[[], float],
+    limits: MotionLimits,
+    follow: BeltFollower | None,
 ) -> StepGen:
-    """Stream the stretch, one set-point a period (catching up by one more a period when
-    the engine fell behind the backend's time), the grip's behaviour alongside."""
+    """Stream the stretch, one set-point a period while the belt keeps the speed it was
+    made for (catching up by one more a period when the engine fell behind the backend's
+    time), along the belt's travel once it does not (:mod:`.belt_follow`); the grip's
+    behaviour alongside."""
     from cellrunner.execution.steps import part_lost_outcome
     from cellrunner.model.step_kinds import kind_of
 
     approved = run.approved
     q = approved.trajectory.q_rad
     rate_hz = approved.trajectory.rate_hz
+    conveyor = step.args.conveyor
     steps = {s.index: s for s in _job_steps(ctx)}
     grip = next(((i, a, b) for i, a, b in run.spans if steps[i].kind == "grip"), None)
     grip_gen: StepGen | None = None
     grip_done: Outcome | None = None if grip is not None else OK
     slack = round(GRIP_SLACK_S * rate_hz)
     t_start, s_start = ctx.now_s, float(offset_m())
+    standing_since: float | None = None
     i = -1
-    while i < len(q) - 1:
-        # one set-point a period; behind the backend's time (periods the engine missed on a
-        # controller whose time runs on), two, until the arm is back with the part
-        behind = round((ctx.now_s - t_start) * rate_hz) > i + 1
-        i = min(len(q) - 1, i + (2 if behind else 1))
-        ctx.backend.servo(approved, i)
-        ctx.commanded_q = q[i]
+    while (i < len(q) - 1) if follow is None else not follow.at_end:
+        if follow is None:
+            # one set-point a period; behind the backend's time (periods the engine missed
+            # on a controller whose time runs on), two, until the arm is back with the part
+            behind = round((ctx.now_s - t_start) * rate_hz) > i + 1
+            i = min(len(q) - 1, i + (2 if behind else 1))
+            ctx.backend.servo(approved, i)
+            ctx.commanded_q = q[i]
+        else:
+            command = follow.next(float(offset_m()), ctx.now_s)
+            if abs(command.lag_m) > BELT_TOLERANCE_M and not command.late:
+                ctx.backend.stop_motion()
+                return Outcome.failed(
+                    ResultCode.PROTECTIVE_STOP,
+                    f"conveyor {conveyor!r}: the belt is {command.lag_m * 1000:+.1f} mm off "
+                    f"its measured {run.speed_mps:.3f} m/s {command.u / rate_hz:.2f} s into "
+                    "the tracked stretch, more than the arm can follow (stopped at once or "
+                    "jumped): controlled stop",
+                )
+            ctx.backend.servo(command.trajectory, command.index)
+            ctx.commanded_q = command.trajectory.trajectory.q_rad[command.index]
+            i = int(command.u)
+            standing_since = None if follow.rate > 0 else (standing_since or ctx.now_s)
+            if standing_since is not None and ctx.now_s - standing_since > ctx.step_timeout_s:
+                return Outcome.failed(
+                    ResultCode.STEP_TIMEOUT,
+                    f"conveyor {conveyor!r}: the belt stood still for more than "
+                    f"{ctx.step_timeout_s:g} s while the arm followed it",
+                )
         if grip is not None and grip_gen is None and i >= grip[1]:
             grip_gen = kind_of("grip").run(ctx, steps[grip[0]], False)
         yield
-        drift = float(offset_m()) - (s_start + run.speed_mps * (ctx.now_s - t_start))
-        if abs(drift) > BELT_TOLERANCE_M:
-            ctx.backend.stop_motion()
-            return Outcome.failed(
-                ResultCode.PROTECTIVE_STOP,
-                f"conveyor {step.args.conveyor!r}: the belt is {drift * 1000:+.1f} mm off its "
-                f"measured {run.speed_mps:.3f} m/s {i / rate_hz:.2f} s into the tracked "
-                "stretch (stopped or jumped): controlled stop",
-            )
+        if follow is None:
+            drift = float(offset_m()) - (s_start + run.speed_mps * (ctx.now_s - t_start))
+            if abs(drift) > FOLLOW_FROM_M:  # slowed, stopped or jumped: follow its travel
+                follow = BeltFollower(run, limits, float(i), 1.0)
         if grip_gen is not None and grip_done is None:
             try:
                 next(grip_gen)

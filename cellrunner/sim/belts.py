@@ -208,10 +208,15 @@ def _add_surface(
 class Belts:
     """The belts of one built twin: their speeds, the jump back, the encoders."""
 
-    def __init__(self, model: Any, data: Any, belts: tuple[BeltDescription, ...]) -> None:
+    def __init__(
+        self, model: Any, data: Any, belts: tuple[BeltDescription, ...], period_s: float
+    ) -> None:
         self.data = data
+        self.period_s = float(period_s)
         self.descs = {b.name: b for b in belts}
         self.speed_mps = {b.name: b.speed_mps for b in belts}
+        #: a speed change under way: belt -> (the speed it goes to, m/s; its ramp, m/s^2)
+        self._ramps: dict[str, tuple[float, float]] = {}
         self._qpos = {
             b.name: int(model.jnt_qposadr[model.joint(f"belt:{b.name}").id]) for b in belts
         }
@@ -222,10 +227,19 @@ class Belts:
         for name in self.descs:
             data.ctrl[self._ctrl[name]] = self.speed_mps[name] / self._m_per_q[name]
 
-    def set_speed(self, name: str, speed_mps: float) -> None:
-        """Run belt ``name`` at ``speed_mps`` from the next physics step (0: it stops)."""
-        self.speed_mps[name] = float(speed_mps)
-        self.data.ctrl[self._ctrl[name]] = float(speed_mps) / self._m_per_q[name]
+    def set_speed(self, name: str, speed_mps: float, ramp_mps2: float | None = None) -> None:
+        """Run belt ``name`` at ``speed_mps`` (0: it stops): from the next physics step,
+        or, with ``ramp_mps2``, changing its speed by that much a second as a drive's
+        ramp does (a line's motor does not stop a loaded belt at once)."""
+        self._ramps.pop(name, None)
+        if ramp_mps2 is not None and ramp_mps2 > 0:
+            self._ramps[name] = (float(speed_mps), float(ramp_mps2))
+            return
+        self._command(name, float(speed_mps))
+
+    def _command(self, name: str, speed_mps: float) -> None:
+        self.speed_mps[name] = speed_mps
+        self.data.ctrl[self._ctrl[name]] = speed_mps / self._m_per_q[name]
 
     def jump_encoder(self, name: str, distance_m: float) -> None:
         """An encoder fault: belt ``name``'s reading jumps by ``distance_m`` (the belt
@@ -233,7 +247,17 @@ class Belts:
         self._wrapped_m[name] += float(distance_m)
 
     def update(self) -> None:
-        """After a period: a slab that has travelled ``WRAP_M`` jumps back by it."""
+        """After a period: a ramping belt's speed one period on; a slab that has
+        travelled ``WRAP_M`` jumps back by it."""
+        for name, (target, ramp) in list(self._ramps.items()):
+            now = self.speed_mps[name]
+            step = ramp * self.period_s
+            self._command(
+                name,
+                target if abs(target - now) <= step else now + math.copysign(step, target - now),
+            )
+            if self.speed_mps[name] == target:
+                del self._ramps[name]
         for name, adr in self._qpos.items():
             if self.descs[name].arc is None and self.data.qpos[adr] >= WRAP_M:
                 self.data.qpos[adr] -= WRAP_M

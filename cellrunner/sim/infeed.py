@@ -73,7 +73,7 @@ def attach_equipment(
     if d.belts:
         from cellrunner.sim.belts import Belts
 
-        belts = Belts(world.model, world.data, d.belts)
+        belts = Belts(world.model, world.data, d.belts, world.period_s)
     world.belts = belts
     feeder: Feeder | None = None
     if d.feed is not None:

@@ -3,7 +3,8 @@ does to the twin's belts and asks of its parts.
 
 - ``parts`` -> ``ok {json: part name -> [x, y, z], world m}`` (the MuJoCo twin's parts
   that are in the cell, parked copies left out);
-- ``belt NAME speed MPS`` -> the belt runs at MPS from the next period (0 stops it);
+- ``belt NAME speed MPS [RAMP]`` -> the belt runs at MPS from the next period (0 stops
+  it), or gets there along a drive's ramp of RAMP m/s^2;
 - ``belt NAME jump M`` -> an encoder fault: the belt's encoder reading jumps by M m while
   the belt runs on.
 """
@@ -35,13 +36,16 @@ def conveyor_command(physics: Any, cmd: str, args: list[str]) -> str:
         return json.dumps(out)
     belts = world.belts
     known = sorted(belts.descs) if belts is not None else []
-    if len(args) != 3 or args[1] not in ("speed", "jump"):
-        raise ValueError("usage: belt NAME speed MPS | belt NAME jump M")
+    if not (len(args) == 3 or (len(args) == 4 and args[1] == "speed")) or args[1] not in (
+        "speed",
+        "jump",
+    ):
+        raise ValueError("usage: belt NAME speed MPS [RAMP_MPS2] | belt NAME jump M")
     if belts is None or args[0] not in belts.descs:
         raise ValueError(f"unknown belt {args[0]!r}; known: {', '.join(known) or 'none'}")
     value = float(args[2])
     if args[1] == "speed":
-        belts.set_speed(args[0], value)
+        belts.set_speed(args[0], value, float(args[3]) if len(args) == 4 else None)
     else:
         belts.jump_encoder(args[0], value)
     return f"belt {args[0]} {args[1]} {value:g}"

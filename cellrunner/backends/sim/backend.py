@@ -241,12 +241,12 @@ class SimBackend:
         twin has no such belt)."""
         return line.conveyor_travel_m(self._world(), name)
 
-    def set_belt_speed(self, name: str, speed_mps: float) -> None:
-        """Run the twin's belt ``name`` at ``speed_mps`` (0 stops it): what a line does
-        to the cell, for tests and benches."""
+    def set_belt_speed(self, name: str, speed_mps: float, ramp_mps2: float | None = None) -> None:
+        """Run the twin's belt ``name`` at ``speed_mps`` (0 stops it), at once or along a
+        drive's ramp of ``ramp_mps2``: what a line does to the cell, for tests and benches."""
         belts = line.belts_of(self._world(), name)
         self._fresh = None
-        belts.set_speed(name, speed_mps)
+        belts.set_speed(name, speed_mps, ramp_mps2)
 
     def jump_belt_encoder(self, name: str, distance_m: float) -> None:
         """An encoder fault on the twin's belt ``name``: its reading jumps by
