@@ -34,6 +34,17 @@ from cellrunner.execution.shift import (
 from cellrunner.model.load import LoadedCell, LoadedTask
 
 
+def _belt_feed_every_s(cell: LoadedCell) -> float:
+    """A cell whose twin feeds a belt (``sim: {feed: {conveyor, every}}``) brings a part
+    every that many s: its shift's jobs start no earlier than their part (0: a part is
+    always waiting)."""
+    sim = cell.cell.sim
+    feed = sim.feed if sim is not None else None
+    if feed is None or feed.conveyor is None or feed.every is None:
+        return 0.0
+    return float(feed.every)
+
+
 def run_shift(args: argparse.Namespace) -> int:
     try:
         duration_s = parse_duration(args.shift)
@@ -48,6 +59,8 @@ def run_shift(args: argparse.Namespace) -> int:
     if not (math.isfinite(operator_s) and operator_s >= 0):
         raise UsageError(f"--operator-s {args.operator_s}: give seconds, 0 or more")
     cell, task = load(args.cell, args.task)
+    if args.feed_every is None:
+        feed_every_s = _belt_feed_every_s(cell)
     rates = load_rates(Path(args.faults)) if args.faults else {}
     slots = _slots(args, task)
     plan = ShiftPlan(duration_s, rates, args.seed, feed_every_s, operator_s)

@@ -28,6 +28,8 @@ from tests.rig import cli, main_json
 
 DEMO = ROOT / "cells" / "demo_ur5e.yaml"
 PICK_PLACE = ROOT / "tasks" / "pick_place.yaml"
+BELT_CELL = ROOT / "cells" / "conveyor_pick_ur10e.yaml"
+BELT_TASK = ROOT / "tasks" / "conveyor_pick.yaml"
 
 
 def demo_steps(slot: int = 0) -> list[Any]:
@@ -215,3 +217,17 @@ def test_a_failed_job_rehearsed_alone_with_its_faults_gives_the_shifts_result(re
     )
     assert alone["params"] == replay["params"]
     assert json.dumps(alone["injected"]) == json.dumps(replay["inject"])
+
+
+def test_a_belt_cells_shift_is_paced_by_its_feed():
+    """The reference belt cell's twin feeds a block every 8 s and its job takes about 7 s:
+    the shift takes its pace from the feed (no more than 450 parts an hour), unless told
+    that a part is always waiting."""
+    args = ["dry-run", str(BELT_CELL), str(BELT_TASK), "--shift", "4m"]
+    code, fed = main_json(*args)
+    assert code == 0, fed
+    assert fed["parts_good"] == fed["jobs"] > 0
+    assert fed["parts_per_hour"] <= 3600 / 8.0 + 15  # the first part is there at 0 s
+    code, waiting = main_json(*args, "--feed-every", "0")
+    assert code == 0, waiting
+    assert waiting["jobs"] > fed["jobs"]
