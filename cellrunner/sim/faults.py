@@ -6,7 +6,9 @@ must notice through the jaw sensor and the wrist, never through a flag.
   the gripper closes on nothing;
 - ``part_slip``: once a gripped part is in the air, the pads lose their grip on it (their
   friction drops until they hold a fraction of its weight) and it falls; the friction
-  comes back once it left the fingers.
+  comes back once it left the fingers (``SLIP_CLEAR_M`` clear of both pads: a part
+  falling between them may lose their contact for a period, and with their friction back
+  they caught it again, 33 mm down).
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ if TYPE_CHECKING:
     from cellrunner.sim.model_ids import ModelIds
 
 SLIP_HOLD_FRACTION = 0.25  # a slipping grip holds only this fraction of the part's weight
+#: a slipping part has left the fingers when this far from both pads (m)
+SLIP_CLEAR_M = 0.005
 GRIP_MISS_MOVE_M = 0.15  # how far grip_miss moves the part at least, towards the robot base
 GRIP_MISS_CLEAR_M = 0.02  # and the gap it leaves between the part and the gripper
 
@@ -96,11 +100,23 @@ class GripFaults:
         if self.slip_armed:
             self._maybe_slip({p for p in gripped if w.contacts.in_air(p)})
         for name in list(self.slipping):
-            if not w.contacts.touches_pads(name):
+            if not w.contacts.touches_pads(name) and self._clear_of_pads(name):
                 w.model.geom_friction[ids.part_geom[name]] = ids.part_friction[name]
                 self.slipping.discard(name)
         if not self.slipping and ids.pad_geoms[0] >= 0:
             w.model.geom_friction[list(ids.pad_geoms)] = ids.pad_friction
+
+    def _clear_of_pads(self, name: str) -> bool:
+        """Whether part ``name`` is ``SLIP_CLEAR_M`` clear of both pads."""
+        w = self.world
+        g = w.ids.part_geom[name]
+        fromto = np.zeros(6)
+        return all(
+            w.mujoco.mj_geomDistance(w.model, w.data, g, int(pad), SLIP_CLEAR_M, fromto)
+            >= SLIP_CLEAR_M
+            for pad in w.ids.pad_geoms
+            if int(pad) >= 0
+        )
 
     def _maybe_slip(self, candidates: set[str]) -> None:
         if not candidates:

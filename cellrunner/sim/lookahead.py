@@ -222,6 +222,8 @@ class Lookahead:
             return "free" if closing or not w.contacts.held_at else None
         if len(gripped) != 1 or not closing or self._s_part < 0 or self._s_pad[0] < 0:
             return None
+        if w.jaw_welds is not None and w.jaw_welds.pending(gripped):
+            return None  # the part is welded in a coming period: period by period until then
         (part,) = gripped
         g = w.ids.part_geom[part]
         m = w.model

@@ -38,6 +38,7 @@ import numpy as np
 
 from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.sim.description import TwinDescription
+from cellrunner.sim.jaw_welds import add_jaw_welds
 from cellrunner.sim.mjcf_arm import ARM_MASS_KG as ARM_MASS_KG
 from cellrunner.sim.mjcf_arm import JOINT_TORQUE_MAX_NM as JOINT_TORQUE_MAX_NM
 from cellrunner.sim.mjcf_arm import add_arm
@@ -211,6 +212,8 @@ class _Builder(MjcfDocument):
             add_part(self, world, part)
         if d.vacuum is not None and d.parts:
             add_welds(self.root, d.parts)
+        if d.gripper is not None and d.parts:
+            add_jaw_welds(self.root, d.parts)
         if d.cameras or d.markers:
             from cellrunner.sim.cameras import add_cameras
 

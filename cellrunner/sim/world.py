@@ -31,6 +31,7 @@ from cellrunner.sim.faults import Fault, GripFaults, inject
 from cellrunner.sim.infeed import attach_equipment
 from cellrunner.sim.infeed import feed_parts as _feed_parts
 from cellrunner.sim.input_rules import InputRules
+from cellrunner.sim.jaw_welds import JawWelds
 from cellrunner.sim.jaws import Jaws
 from cellrunner.sim.mjcf import PhysicsOptions, compile_model
 from cellrunner.sim.model_ids import ModelIds, lookup_ids
@@ -97,6 +98,7 @@ class SimWorld:
         self.contacts = ContactMonitor(self)
         self.grip_faults = GripFaults(self)
         self.jaws = Jaws(self) if d.gripper is not None else None
+        self.jaw_welds = JawWelds(self) if d.gripper is not None and d.parts else None
         self.data.ctrl[ids.servo] = self.q_ref
         self._mj.mj_forward(self.model, self.data)
         self.vacuum, self.intruders, self.changer, self.belts, self.feeder = attach_equipment(self)
@@ -231,6 +233,9 @@ class SimWorld:
         self._gripped = contacts.check()
         if self._gripped or contacts.held_at:
             contacts.note_held(self._gripped, self.jaws is not None and self.jaws.closing)
+        if self.jaw_welds is not None and self.jaw_welds.busy(self._gripped):
+            closing = self.jaws is not None and self.jaws.closing
+            self.jaw_welds.update(self._gripped, closing, self.grip_faults.slipping)
         if self.vacuum is not None:
             self.vacuum.update()
             self._gripped = self._gripped | self.vacuum.held

@@ -31,14 +31,9 @@ def sample() -> list:
 #: disagreements the harness found that are not fixed yet, each with its cause
 #: (docs/check-truth.md): the test fails on any other, and on one of these that is gone.
 #: Fixed: s5025 (a UR10e's set-down at full speed pressed the part into its table; a
-#: place's descend is now timed gently)
-KNOWN_OPEN: dict[str, str] = {
-    # the pin creeps 1-3 mm (and turns) in the twin's jaws as it is carried, far under
-    # the force the pads hold: MuJoCo's velocity-level friction, not the jaws' rule; its
-    # tip then meets the rim (docs/check-truth.md, holes: the twin's grip crept)
-    "s5003-ur10e-hole_fit": "false approval: inserted 0.3 mm",
-    "s5016-ur5-hole_fit": "false approval: inserted 0.4 mm",
-}
+#: place's descend is now timed gently); s5003 and s5016 (the pin crept 1-3 mm in the
+#: twin's jaws as it was carried and met the rim: the jaws' weld holds it now)
+KNOWN_OPEN: dict[str, str] = {}
 
 
 def test_the_same_seed_writes_the_same_files_and_another_seed_others():
