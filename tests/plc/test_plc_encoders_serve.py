@@ -136,10 +136,16 @@ def _placed(belt: _TwinBelt) -> list[str]:
 
 
 def _job(
-    client: Any, job_id: int, belt: _TwinBelt, encoder: _EncoderTask, *, stale: bool
+    client: Any,
+    job_id: int,
+    belt: _TwinBelt,
+    encoder: _EncoderTask,
+    why: Any,
+    *,
+    stale: bool,
 ) -> list[int]:
     """One job of the reference task as the PLC runs it, the line held until the job
-    waits at its track step (step 1); with ``stale``, the encoder task stops writing 0.3 s
+    waits at its track step (register 106, 1-based: step 2); with ``stale``, the encoder task stops writing 0.3 s
     after the arm set off after the block. The registers at its end."""
     beat = [1000 * job_id]
     belt.speed_mps = 0.0
@@ -149,7 +155,7 @@ def _job(
     wait_bits(client, JOB_ACK, 5, beat)
     deadline = time.monotonic() + 120
     regs = wait_bits(client, 0, 5, beat)
-    while time.monotonic() < deadline and regs[6] < 1 and not regs[1] & (DONE | ERROR):
+    while time.monotonic() < deadline and regs[6] < 2 and not regs[1] & (DONE | ERROR):
         regs = wait_bits(client, 0, 5, beat)
     time.sleep(0.5)  # the arm stands over the belt
     assert belt.q_rad is not None
@@ -161,7 +167,11 @@ def _job(
             if np.max(np.abs(q - q0)) > 0.02:
                 break
             regs = wait_bits(client, 0, 5, beat)
-        assert not regs[1] & (DONE | ERROR), f"job {job_id} ended before the arm moved: {regs}"
+        assert not regs[1] & (DONE | ERROR), (
+            f"job {job_id} ended before the arm moved",
+            regs,
+            why(),
+        )
         time.sleep(0.3)  # the arm follows the block
         encoder.writing.clear()
     while time.monotonic() < deadline and not regs[1] & (DONE | ERROR):
@@ -210,15 +220,16 @@ def test_serve_tracks_a_belt_the_plc_counts_and_stops_when_the_count_goes_stale(
         try:
             client = modbus_client(port, HOST)
             encoder.thread.start()
-            regs = _job(client, 1, belt, encoder, stale=False)
-            assert regs[1] & DONE and regs[5] == 0, (
-                regs,
-                [e.get("message") for e in events if e.get("event") == "job_end"],
-            )
+
+            def why() -> list[Any]:  # the jobs' ends, as the engine logged them
+                return [e.get("message") for e in events if e.get("event") == "job_end"]
+
+            regs = _job(client, 1, belt, encoder, why, stale=False)
+            assert regs[1] & DONE and regs[5] == 0, (regs, why())
             time.sleep(0.2)  # the observer's next look at the blocks
             assert len(_placed(belt)) == 1, belt.parts
             assert encoder.writes > 100  # the count the job tracked came from the PLC
-            stale = _job(client, 2, belt, encoder, stale=True)
+            stale = _job(client, 2, belt, encoder, why, stale=True)
             time.sleep(0.3)
         finally:
             encoder.stop.set()
