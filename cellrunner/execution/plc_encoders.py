@@ -29,7 +29,7 @@ within 2 mm/s (writes every 12 ms, up to 3 ms late: within 1.7 mm/s, the travel 
 leaves the line: ``RESTART_SAMPLES`` samples in a row more than ``RESTART_M`` off it on
 the same side start the line again from them, so a belt that stops is seen as one within
 three or four scans (the PLC keeps writing the same count; a belt stopping dead from 0.3
-m/s reads up to 13 mm past its stop meanwhile, then back); one late write alone (the
+m/s reads up to 15 mm past its stop meanwhile, back on it 60 ms after); one late write alone (the
 Modbus server's thread kept from the interpreter a few ms) does not. A write late or
 lost is bridged at the speed until the count is stale.
 
@@ -55,6 +55,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from itertools import pairwise
 from typing import TYPE_CHECKING
 
 from cellrunner.execution.context import QUIET, EventLog
@@ -74,7 +75,7 @@ FIT_WINDOW_S = 0.5
 MIN_SPEED_SPAN_S = 0.02
 #: this many samples in a row this far off the line, on the same side, start it again (m)
 RESTART_SAMPLES = 3
-RESTART_M = 0.003
+RESTART_M = 0.006
 #: no write (or no change of a moving count) for longer than this is a stale count, s:
 #: a few scans, and the Modbus server's thread kept from the interpreter by planning
 #: (writes then arrive late, in bursts: up to 55 ms apart measured, under load)
@@ -139,7 +140,7 @@ class PlcBelt:
         # RESTART_SAMPLES samples off it on the same side; the line starts again from them
         n = RESTART_SAMPLES
         off = [s - self._line(t) for t, s in list(samples)[-n:]] if len(samples) > n else []
-        if len(off) == n and (min(off) > RESTART_M or max(off) < -RESTART_M):
+        if len(off) == n and _growing(off):
             for _ in range(len(samples) - n):
                 samples.popleft()
         self.fit = _fit(samples)
@@ -166,6 +167,15 @@ class PlcBelt:
                 f"for {still:.3f} s after the belt ran at {self.speed_at_change_mps:.3f} m/s"
             )
         return ""
+
+
+def _growing(off: list[float]) -> bool:
+    """Whether offsets from the line, oldest first, all lie more than ``RESTART_M`` off it
+    on one side and grow away from it: a belt that changed its speed, not the jitter of
+    the writes' arrival (which scatters them)."""
+    sign = 1.0 if off[-1] > 0 else -1.0
+    away = [sign * d for d in off]
+    return away[0] > RESTART_M and all(b > a for a, b in pairwise(away))
 
 
 def _fit(samples: deque[tuple[float, float]]) -> tuple[float, float, float]:

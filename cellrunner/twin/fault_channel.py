@@ -40,7 +40,7 @@ blackout SECONDS              -> close every client and refuse connections for S
 record on|off                 -> start (afresh) / stop recording the servo set-points received
 record save PATH              -> write them to PATH (.npy: rows of time_s, q1..q6 rad); -> ok N
 parts                         -> ok {json: part name -> [x, y, z] world m} (a cell's twin)
-belt NAME speed MPS | jump M  -> the twin's belt runs at MPS / its encoder jumps by M m
+belt NAME speed MPS | jump M | travel -> the belt runs at MPS / its encoder jumps by M m / ok its travel, m
 """
 
 

@@ -1,6 +1,6 @@
 """The PLC's encoder registers as the engine reads them (cellrunner.execution.plc_encoders):
 a count written every scan, read every period, is a line (not a staircase) through a
-wrap; a belt that stops reads stopped within a few scans; a silent PLC leaves the belt
+wrap; a belt that stops reads stopped within a few scans (5); a silent PLC leaves the belt
 unmeasured until it writes again. The registers come from the Modbus server's own
 register image (ModbusLink, driven as pymodbus drives it); times are the engine's."""
 
@@ -120,8 +120,8 @@ def test_a_belt_that_stops_reads_stopped_within_a_few_scans(conveyors):
     t, _, read = (np.array(c, dtype=float) for c in zip(*rows[10:], strict=True))
     at_stop = read[t <= stop_s][-1]
     after = read[t >= stop_s + 0.1]
-    # it ran on past the stop for at most 4 scans at the speed, then stood
-    assert np.max(read) - at_stop < 4 * SCAN_S * SPEED_MPS
+    # it ran on past the stop for at most 5 scans at the speed, then stood
+    assert np.max(read) - at_stop < 5 * SCAN_S * SPEED_MPS
     assert np.ptp(after) < 0.0005
     assert abs(after[-1] - at_stop) < 0.002
     # stopped hard (from 0.3 m/s within a scan): logged, and still measured

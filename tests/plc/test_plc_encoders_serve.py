@@ -1,15 +1,17 @@
 """A belt whose encoder the PLC counts (SPEC section 13, ``encoder: {source: plc,
-register: 20}``), tracked by ``serve`` on the twin: a PLC on loopback runs the jobs with
-the handshake of docs/plc-interface.md (pyModbusTCP) while its encoder task (a pymodbus
+register: 20}``), tracked by ``serve`` on the twin (its assembly and links, the Modbus
+server among them, in the test's process): a PLC on loopback runs the jobs with the
+handshake of docs/plc-interface.md (pyModbusTCP) while its encoder task (a pymodbus
 client of its own) writes the belt's count into registers 20-21 every 10 ms.
 
-The PLC's count is the twin's own belt travel, read every period on the control thread
-(one of the loop's observers) and handed to the PLC's encoder task: the belt that carries
-the blocks is the one the PLC counts, as on a line. A count computed from the belt's
-nominal speed and the test's clock would drift from the twin's belt whenever the loaded
-machine makes the real-time twin fall behind the wall clock, and then the count no longer
-says where the blocks are. The count starts 2000 ticks below 2**32 so that it wraps
-during the first job.
+The PLC's count is the twin's own belt travel, and its scan is paced by the twin's time:
+the encoder task writes from the control thread, every 5 periods (one of the loop's
+observers). On a line the PLC and the belt run in the same time; the real-time twin runs
+in bursts on a loaded machine (it catches up after a period that took long), and a PLC
+paced by the wall clock would then write counts 10-20 ms of the belt's travel old
+(measured: the arm stopped 5.5 mm off the belt's line). A count computed from the belt's
+nominal speed and the test's clock would drift from the twin's belt for the same reason.
+The count starts 2000 ticks below 2**32 so that it wraps during the first job.
 
 Then the PLC's encoder task stops writing while the arm follows the next block: the arm
 does not follow a belt it cannot see (a controlled stop, 100), and the engine logs the
@@ -49,24 +51,30 @@ TICKS_PER_M = 4000
 #: the count at the twin's belt travel 0: it wraps (2**32 -> 0) 2000 ticks (0.5 m) on
 COUNT_AT_ZERO = 2**32 - 2000
 TRAY_PART_XYZ = (0.35, 0.55, 0.826)  # the block's centre once placed (the grip frame)
-#: the PLC's scan: it writes the count this often, s
-SCAN_S = 0.01
+#: the PLC's scan: it writes the count every this many periods of the twin (10 ms)
+SCAN_PERIODS = 5
 #: the belt's speed while the line runs: the reference cell's speed_max
 SPEED_MPS = 0.30
 
 
 class _TwinBelt:
-    """The twin's belt and arm as the control thread leaves them each period (an
-    observer of the loop): the PLC's encoder reads ``travel_m``; the test the arm's joints
-    and where the blocks are. The test holds the line (``speed_mps``, set on the control
-    thread) until the arm waits over the belt, as a line's PLC would start it."""
+    """The twin's belt, its PLC's encoder task and the arm, each period of the control
+    thread (an observer of the loop). Every ``SCAN_PERIODS`` periods of the twin's time
+    the PLC's encoder task (a pymodbus client) writes the belt's count into registers
+    20-21 (once ``port`` is set and while ``writing``); the test reads the arm's joints
+    and where the blocks are. The test holds the line (``speed_mps``) until the arm waits
+    over the belt, as a line's PLC would start it."""
 
     def __init__(self) -> None:
-        self.travel_m: float | None = None
         self.q_rad: np.ndarray | None = None
         self.parts: dict[str, np.ndarray] = {}
         self.speed_mps = 0.0
         self._speed_set: float | None = None
+        self.port: int | None = None
+        self.writing = threading.Event()
+        self.writing.set()
+        self.writes = 0
+        self._client: ModbusTcpClient | None = None
         self._ticks = 0
 
     def __call__(self, cell: CellController) -> None:
@@ -75,8 +83,15 @@ class _TwinBelt:
         if self.speed_mps != self._speed_set:
             world.belts.set_speed("belt", self.speed_mps)
             self._speed_set = self.speed_mps
-        self.travel_m = backend.conveyor_travel_m("belt")
         self._ticks += 1
+        if self._ticks % SCAN_PERIODS == 0 and self.port is not None and self.writing.is_set():
+            travel = backend.conveyor_travel_m("belt")
+            count = (COUNT_AT_ZERO + round(travel * TICKS_PER_M)) % 2**32
+            if self._client is None:
+                self._client = ModbusTcpClient(HOST, port=self.port, timeout=2)
+            if self._client.connected or self._client.connect():
+                self._client.write_registers(20, [count >> 16, count & 0xFFFF])
+                self.writes += 1
         if self._ticks % 10 == 0:
             self.q_rad = np.array(world.q_measured())
             self.parts = {
@@ -84,33 +99,9 @@ class _TwinBelt:
                 for name, body in world.ids.part_bodies.items()
             }
 
-
-class _EncoderTask:
-    """The PLC's encoder task: the belt's count into registers 20-21 (uint32, high word
-    first) every scan, until ``writing`` is cleared or ``stop`` set."""
-
-    def __init__(self, belt: _TwinBelt, port: int) -> None:
-        self.belt, self.port = belt, port
-        self.writing, self.stop = threading.Event(), threading.Event()
-        self.writing.set()
-        self.writes = 0
-        self.thread = threading.Thread(target=self._run, name="plc-encoder", daemon=True)
-
-    def _run(self) -> None:
-        client = ModbusTcpClient(HOST, port=self.port, timeout=2)
-        deadline = time.monotonic() + 600
-        try:
-            while not self.stop.is_set() and time.monotonic() < deadline:
-                travel = self.belt.travel_m
-                if travel is not None and self.writing.is_set():
-                    if not client.connected:
-                        client.connect()
-                    count = (COUNT_AT_ZERO + round(travel * TICKS_PER_M)) % 2**32
-                    client.write_registers(20, [count >> 16, count & 0xFFFF])
-                    self.writes += 1
-                time.sleep(SCAN_S)
-        finally:
-            client.close()
+    def close(self) -> None:
+        if self._client is not None:
+            self._client.close()
 
 
 def _cell(tmp_path: Path, port: int) -> Path:
@@ -139,14 +130,13 @@ def _job(
     client: Any,
     job_id: int,
     belt: _TwinBelt,
-    encoder: _EncoderTask,
     why: Any,
     *,
     stale: bool,
 ) -> list[int]:
     """One job of the reference task as the PLC runs it, the line held until the job
-    waits at its track step (register 106, 1-based: step 2); with ``stale``, the encoder task stops writing 0.3 s
-    after the arm set off after the block. The registers at its end."""
+    waits at its track step (register 106, 1-based: step 2); with ``stale``, the encoder
+    task stops writing 0.3 s after the arm set off after the block. The registers at its end."""
     beat = [1000 * job_id]
     belt.speed_mps = 0.0
     wait_bits(client, READY, 30, beat)
@@ -173,7 +163,7 @@ def _job(
             why(),
         )
         time.sleep(0.3)  # the arm follows the block
-        encoder.writing.clear()
+        belt.writing.clear()
     while time.monotonic() < deadline and not regs[1] & (DONE | ERROR):
         regs = wait_bits(client, 0, 5, beat)
         time.sleep(0.05)
@@ -216,26 +206,24 @@ def test_serve_tracks_a_belt_the_plc_counts_and_stops_when_the_count_goes_stale(
             name="serve",
         )
         server.start()
-        encoder = _EncoderTask(belt, port)
         try:
             client = modbus_client(port, HOST)
-            encoder.thread.start()
+            belt.port = port
 
             def why() -> list[Any]:  # the jobs' ends, as the engine logged them
                 return [e.get("message") for e in events if e.get("event") == "job_end"]
 
-            regs = _job(client, 1, belt, encoder, why, stale=False)
+            regs = _job(client, 1, belt, why, stale=False)
             assert regs[1] & DONE and regs[5] == 0, (regs, why())
             time.sleep(0.2)  # the observer's next look at the blocks
             assert len(_placed(belt)) == 1, belt.parts
-            assert encoder.writes > 100  # the count the job tracked came from the PLC
-            stale = _job(client, 2, belt, encoder, why, stale=True)
+            assert belt.writes > 100  # the count the job tracked came from the PLC
+            stale = _job(client, 2, belt, why, stale=True)
             time.sleep(0.3)
         finally:
-            encoder.stop.set()
             stop.set()
             server.join(30)
-            encoder.thread.join(5)
+            belt.close()
             sys.setswitchinterval(switch)
     assert not server.is_alive()
     assert stale[1] & ERROR and stale[5] == 100, stale
