@@ -7,22 +7,24 @@ backend's ``conveyor_travel_m``.
   control script without stopping it); the decoder's tick count is relayed by the program
   into ``output_int_register_{TICK_REGISTER + index}``, which the backend subscribes on
   its RTDE state stream and reads every controller period. The count is a signed 32-bit
-  integer that wraps: its steps are unwrapped here, so the travel runs on.
+  integer that wraps: its steps are unwrapped
+  (:class:`~cellrunner.model.encoder_count.WrappingCount`), so the travel runs on.
 - ``{source: speed, mps}``: no encoder; the belt's travel is ``mps`` x the controller's
   time.
 - ``{source: plc, register}``: the count is in the PLC's holding registers, which the
-  engine's PLC server holds, not the controller: not read by this backend (the belt is
-  not measured, so a ``track`` step on it ends 103).
+  engine's PLC server holds, not the controller: not read by this backend. ``serve``
+  reads them (:mod:`cellrunner.execution.plc_encoders`); ``run`` has no PLC, so the belt
+  is not measured there and a ``track`` step on it ends 103.
 """
 
 from __future__ import annotations
 
 import socket
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from cellrunner.model.conveyor import UR_TICK_REGISTER
+from cellrunner.model.encoder_count import WrappingCount
 
 if TYPE_CHECKING:
     from cellrunner.model.conveyor import Conveyor
@@ -50,27 +52,13 @@ def setup_program(indices: list[int]) -> str:
     return "sec cellrunner_encoders():\n" + "\n".join(lines) + "\nend\n"
 
 
-@dataclass
-class _Count:
-    """One decoder's count, unwrapped: the last raw int32 and the ticks so far."""
-
-    raw: int | None = None
-    ticks: int = 0
-
-    def note(self, raw: int) -> int:
-        if self.raw is not None:
-            self.ticks += (raw - self.raw + 2**31) % 2**32 - 2**31
-        self.raw = raw
-        return self.ticks
-
-
 class UREncoders:
     """The conveyors of one cell as the UR backend measures them; construct (no I/O),
     :meth:`configure` at every connect, :meth:`travel_m` every period."""
 
     def __init__(self, conveyors: Mapping[str, Conveyor]) -> None:
         self.conveyors = dict(conveyors)
-        self._counts: dict[int, _Count] = {}
+        self._counts: dict[int, WrappingCount] = {}
 
     @property
     def decoder_indices(self) -> list[int]:
@@ -98,7 +86,7 @@ class UREncoders:
         """Count from the next reading on, the travel going on from where it was."""
         for i in self.decoder_indices:
             count = self._counts.get(i)
-            self._counts[i] = _Count(ticks=count.ticks if count is not None else 0)
+            self._counts[i] = WrappingCount(ticks=count.ticks if count is not None else 0)
 
     def travel_m(self, name: str, receive: Any, time_s: float) -> float | None:
         """How far conveyor ``name`` has travelled, m, by the latest state of ``receive``

@@ -280,6 +280,10 @@ def _plc_service(controller: CellController, cell: LoadedCell) -> PlcService | N
         controller, plc, resolve=cell.resolve, pki_dir=pki, cell_name=cell.cell.cell
     )
     service.start()
+    modbus = service.modbus
+    if modbus is not None:
+        link = modbus.link  # the belts the PLC counts: their encoders in its registers 20-29
+        controller.read_plc_encoders(lambda: link.encoder_registers)
     return service
 
 

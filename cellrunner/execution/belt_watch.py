@@ -2,14 +2,16 @@
 reads the robot's state: each belt's travel from its encoder, its measured speed (the
 travel over the last ``SPEED_WINDOW_S``), and the parts its photo-eye latched (the travel
 at each rising edge of the eye's input, oldest first; the edge is taken in the middle of
-the period it came in).
+the period it came in). A belt whose encoder cannot be read in a period keeps its travel and
+loses its speed (measured again from the next readings): ``serve`` reads the PLC's
+encoders (:mod:`.plc_encoders`), which say so while the PLC is silent.
 """
 
 from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 if TYPE_CHECKING:
     from cellrunner.backends.base import MeasuresConveyors
@@ -20,6 +22,16 @@ if TYPE_CHECKING:
 SPEED_WINDOW_S = 0.1
 #: at most this many latched parts are kept per belt (the oldest drop out)
 MAX_LATCHED = 64
+
+
+@runtime_checkable
+class MeasuresConveyorsAt(Protocol):
+    """A measurement of the belts that takes the period's time (the PLC's encoders,
+    extrapolated to it between the PLC's writes)."""
+
+    def conveyor_travel_at_m(self, name: str, time_s: float) -> float | None:
+        """How far conveyor ``name`` has travelled at engine time ``time_s``, m; None when
+        it is not measured."""
 
 
 @dataclass
@@ -49,7 +61,7 @@ class BeltWatch:
 
     def __init__(
         self,
-        backend: MeasuresConveyors,
+        backend: MeasuresConveyors | MeasuresConveyorsAt,
         conveyors: dict[str, Conveyor],
         inputs: dict[str, str],
     ) -> None:
@@ -61,8 +73,13 @@ class BeltWatch:
     def note(self, state: RobotState) -> None:
         """One period's state: encoder travel, the eye's edges."""
         for belt in self.belts.values():
-            travel = self.backend.conveyor_travel_m(belt.name)
+            travel = (
+                self.backend.conveyor_travel_at_m(belt.name, state.time_s)
+                if isinstance(self.backend, MeasuresConveyorsAt)
+                else self.backend.conveyor_travel_m(belt.name)
+            )
             if travel is None:
+                belt.history.clear()  # the speed is measured again from the next readings
                 continue
             history = belt.history
             if history and state.time_s <= history[-1][0]:

@@ -37,6 +37,7 @@ from cellrunner.execution.job_view import (
 from cellrunner.execution.journal import JournalBackend
 from cellrunner.execution.packml import Command, Event, TransitionRefused
 from cellrunner.execution.planner import Planner
+from cellrunner.execution.plc_encoders import Registers
 from cellrunner.execution.recovery import Recovery, stop_and_stand, unlock_idle_stop
 from cellrunner.execution.task_menu import TaskMenu
 from cellrunner.model.cellport import (
@@ -134,6 +135,12 @@ class CellController(CellViews):
         with self._lock:
             self._end_job(ResultCode.INTERRUPTED, f"interrupted: {reason}", job.runner)
             self._publish()
+
+    def read_plc_encoders(self, registers: Callable[[], Registers]) -> None:
+        """``serve``: the cell's ``source: plc`` belts are measured from ``registers()``,
+        the PLC server's (see :mod:`~cellrunner.execution.plc_encoders`); call before the
+        control loop runs."""
+        self._launcher.read_plc_encoders(registers)
 
     def close(self) -> None:
         self._launcher.close()

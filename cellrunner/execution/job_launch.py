@@ -7,24 +7,28 @@ from __future__ import annotations
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cellrunner.backends.base import RobotBackend
 from cellrunner.errors import CellrunnerError, InfeasibleError
 from cellrunner.execution.belt_watch import BeltWatch
-from cellrunner.execution.context import EventLog, Eye, JobContext, Motions, use_gripper
+from cellrunner.execution.context import QUIET, EventLog, Eye, JobContext, Motions, use_gripper
 from cellrunner.execution.job import JobRunner
 from cellrunner.execution.job_book import JobBook
 from cellrunner.execution.job_view import Job
 from cellrunner.execution.planner import PlannedJob, Planner
+from cellrunner.execution.plc_encoders import PlcEncoders, Registers, has_plc_encoders
 from cellrunner.model.expand import Step
 from cellrunner.model.failure import Failure
 from cellrunner.model.gripper import gripper_channels
 from cellrunner.model.load import LoadedCell
 from cellrunner.model.robot_state import RobotState
 from cellrunner.model.timing import release_time_s
+
+if TYPE_CHECKING:
+    from cellrunner.backends.base import MeasuresConveyors
 
 
 @dataclass(frozen=True)
@@ -69,6 +73,9 @@ class JobLauncher:
         self.gate = gate  # run --step: each step starts once gate(step) is true
         self.eye = eye  # the cameras, for align steps
         self._belts: BeltWatch | None = None
+        #: the PLC server's registers, where ``serve`` has a Modbus server: the encoders of
+        #: the cell's ``source: plc`` belts (:mod:`.plc_encoders`)
+        self._plc_registers: Callable[[], Registers] | None = None
         #: the watched zone (execution.watch.ZoneWatch) whose map every motion is checked
         #: against (SPEC 12); None: the cell is not watched
         self.watch = watch
@@ -111,16 +118,38 @@ class JobLauncher:
     def close(self) -> None:
         self._pool.shutdown(wait=False, cancel_futures=True)
 
-    def _belt_watch(self) -> BeltWatch | None:
-        """The conveyors' watch, kept from job to job (parts latched between them stay),
-        when the cell has conveyors the backend measures."""
+    def read_plc_encoders(self, registers: Callable[[], Registers]) -> None:
+        """Measure the cell's ``source: plc`` belts from now on from ``registers()`` (the
+        PLC server's, read every period), the others from the backend as before."""
+        self._plc_registers = registers
+        if self._belts is not None:
+            measure = self._measure()
+            if measure is not None:
+                self._belts.backend = measure
+
+    def _measure(self) -> MeasuresConveyors | PlcEncoders | None:
+        """What measures the cell's belts: the backend, and the PLC's registers for the
+        belts the PLC counts once they are there; None when nothing does."""
         from cellrunner.backends.base import MeasuresConveyors
 
         c = self.cell.cell
-        if not c.conveyors or not isinstance(self.backend, MeasuresConveyors):
+        backend = self.backend if isinstance(self.backend, MeasuresConveyors) else None
+        registers = self._plc_registers
+        if registers is not None and has_plc_encoders(c.conveyors):
+            return PlcEncoders(c.conveyors, registers, backend, self.log or QUIET)
+        return backend
+
+    def _belt_watch(self) -> BeltWatch | None:
+        """The conveyors' watch, kept from job to job (parts latched between them stay),
+        when the cell has conveyors the backend (or the PLC) measures."""
+        c = self.cell.cell
+        if not c.conveyors:
             return None
         if self._belts is None:
-            self._belts = BeltWatch(self.backend, dict(c.conveyors), dict(c.io.inputs))
+            measure = self._measure()
+            if measure is None:
+                return None
+            self._belts = BeltWatch(measure, dict(c.conveyors), dict(c.io.inputs))
         return self._belts
 
     def note_belts(self, state: RobotState) -> None:

@@ -155,6 +155,10 @@ class ModbusLink:
             None  # the last Modbus job's result, owed to a re-sent request
         )
         self.ack_times_s: dict[int, float] = {}  # PLC job id -> time of ACK (bench)
+        #: the PLC's registers 0-29 as its last write of the encoder registers (20-29) left
+        #: them, and how many such writes came so far: ``(writes, registers)``, replaced
+        #: whole (one assignment, so another thread never reads half a uint32)
+        self.encoder_registers: tuple[int, tuple[int, ...]] = (0, tuple(self.regs[: PLC_LAST + 1]))
 
     # -- start-up ------------------------------------------------------------------
     def restore(self) -> None:
@@ -192,6 +196,9 @@ class ModbusLink:
             self._watchdog = False
         if address <= HR_COMMAND < address + len(values):
             self._on_command(old_cmd, self.regs[HR_COMMAND], now)
+        if address + len(values) > HR_ENCODERS:
+            writes = self.encoder_registers[0] + 1
+            self.encoder_registers = (writes, tuple(self.regs[: PLC_LAST + 1]))
         self._refresh(self.port.status())
         return None
 

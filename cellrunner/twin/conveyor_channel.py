@@ -6,7 +6,9 @@ does to the twin's belts and asks of its parts.
 - ``belt NAME speed MPS [RAMP]`` -> the belt runs at MPS from the next period (0 stops
   it), or gets there along a drive's ramp of RAMP m/s^2;
 - ``belt NAME jump M`` -> an encoder fault: the belt's encoder reading jumps by M m while
-  the belt runs on.
+  the belt runs on;
+- ``belt NAME travel`` -> the belt's travel so far, m, as its encoder reads it: what a
+  test's PLC counts for a belt whose encoder the PLC reads (``source: plc``).
 """
 
 from __future__ import annotations
@@ -36,11 +38,16 @@ def conveyor_command(physics: Any, cmd: str, args: list[str]) -> str:
         return json.dumps(out)
     belts = world.belts
     known = sorted(belts.descs) if belts is not None else []
+    usage = "usage: belt NAME speed MPS [RAMP_MPS2] | belt NAME jump M | belt NAME travel"
+    if len(args) == 2 and args[1] == "travel":
+        if belts is None or args[0] not in belts.descs:
+            raise ValueError(f"unknown belt {args[0]!r}; known: {', '.join(known) or 'none'}")
+        return f"{belts.travel_m(args[0]):.6f}"
     if not (len(args) == 3 or (len(args) == 4 and args[1] == "speed")) or args[1] not in (
         "speed",
         "jump",
     ):
-        raise ValueError("usage: belt NAME speed MPS [RAMP_MPS2] | belt NAME jump M")
+        raise ValueError(usage)
     if belts is None or args[0] not in belts.descs:
         raise ValueError(f"unknown belt {args[0]!r}; known: {', '.join(known) or 'none'}")
     value = float(args[2])

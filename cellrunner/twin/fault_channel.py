@@ -40,7 +40,7 @@ blackout SECONDS              -> close every client and refuse connections for S
 record on|off                 -> start (afresh) / stop recording the servo set-points received
 record save PATH              -> write them to PATH (.npy: rows of time_s, q1..q6 rad); -> ok N
 parts                         -> ok {json: part name -> [x, y, z] world m} (a cell's twin)
-belt NAME speed MPS [RAMP] | jump M -> the belt runs at MPS (ramp m/s^2) / its encoder jumps M m
+belt NAME speed MPS [RAMP] | jump M | travel -> runs at MPS (ramp m/s^2) / encoder jumps M m / ok travel m
 """
 
 
