@@ -109,7 +109,7 @@ def run_track(ctx: JobContext, step: Step) -> StepGen:
         if stretch.drift_m(offset_m) > FOLLOW_FROM_M:
             follow = BeltFollower(run, plan.world.limits, 0.0, 0.0)
             break
-    return (yield from _stream(ctx, step, run, offset_m, plan.world.limits, follow))
+    return (yield from _stream(ctx, step, run, (view, offset_m), plan.world.limits, follow))
 
 
 def _ready(ctx: JobContext, name: str) -> Outcome | tuple[TaskPlan, BeltView]:
@@ -287,7 +287,7 @@ def _stream(
     ctx: JobContext,
     step: Step,
     run: TrackedRun,
-    offset_m: Callable[[], float],
+    belt: tuple[BeltView, Callable[[], float]],
     limits: MotionLimits,
     follow: BeltFollower | None,
 ) -> StepGen:
@@ -298,6 +298,7 @@ def _stream(
     from cellrunner.execution.steps import part_lost_outcome
     from cellrunner.model.step_kinds import kind_of
 
+    view, offset_m = belt
     approved = run.approved
     q = approved.trajectory.q_rad
     rate_hz = approved.trajectory.rate_hz
@@ -342,6 +343,13 @@ def _stream(
         if grip is not None and grip_gen is None and i >= grip[1]:
             grip_gen = kind_of("grip").run(ctx, steps[grip[0]], False)
         yield
+        if view.speed_mps() is None:  # not measured any more (a PLC's count went stale)
+            ctx.backend.stop_motion()
+            return Outcome.failed(
+                ResultCode.PROTECTIVE_STOP,
+                f"conveyor {conveyor!r}: the belt is not measured any more {i / rate_hz:.2f} s "
+                "into the tracked stretch (its encoder's count stopped coming): controlled stop",
+            )
         if follow is None:
             drift = float(offset_m()) - (s_start + run.speed_mps * (ctx.now_s - t_start))
             if abs(drift) > FOLLOW_FROM_M:  # slowed, stopped or jumped: follow its travel

@@ -38,15 +38,17 @@ class Release(StepKindDef):
         step = row.step
         # a place's release: where the twin judges the part against the place's target
         # (a bare release, after an insert or in on_error, is judged by its confirm input)
-        part = planner.part if step.macro_kind == "place" else None
-        if part is not None:
+        part = planner.part
+        if part is not None and step.macro_kind == "place":
             from cellrunner.planning.support import check_support
 
             check_support(planner.world, step, planner.q, part, step.extra.get("earlier_slots", []))
         row.duration_s = release_time_s(planner.world.loaded.cell.tool.gripper)
         if part is not None:
-            # it rests where it was let go (check_support): an obstacle to every later step;
-            # a part let go elsewhere (on_error, after an insert) lies where nobody knows
+            # it rests where it was let go (a place's: check_support), or, let go by a bare
+            # release (after an insert: in its hole), no higher than that: an obstacle to
+            # every later step either way (the open jaws of the move home once swept through
+            # the top of a pin standing in its hole: issue 33, s3000)
             from cellrunner.planning.placed import placed_part
 
             T_world_part = planner.world.kinematics.T_world_tcp(planner.q) @ part.T_parent_shape
