@@ -18,6 +18,10 @@ have ended, the feed driven by the twin's time. Printed: the parts fed, picked (
 ended 0), let go (jobs that ended 109), gone by (blocks downstream of the window on the
 belt, never picked), the picks per minute of the twin's time against the cell's own bound
 (``check``'s parts/min at speed_max), and the wall time.
+
+Then what a line does to the belt under a pick (``bench/conveyor_faults.py``): a drive's
+ramp down, a stand and a ramp up (the arm holds with it: 0), a stop at once and an encoder
+jump (controlled stops: 100), each in its own job, every run.
 """
 
 from __future__ import annotations
@@ -249,6 +253,24 @@ def main() -> int:
             f"{line['ppm'] / bound:.2f} | {line['sim_s']:.0f} | {line['wall_s']:.0f} |"
         )
         print(f"job results: {line['codes']}\n")
+    from bench.conveyor_faults import EXPECTED, run_fault
+
+    faults = [run_fault(kind, CELL, TASK) for kind in EXPECTED]
+    print(
+        "| the line does | result | expected | spread while standing mm | arm's speed then rad/s | wall s |"
+    )
+    print("|---|---|---|---|---|---|")
+    for f in faults:
+        print(
+            f"| {f['kind']} | {f['result']} | {EXPECTED[f['kind']]} | "
+            + ("-" if np.isnan(f["spread_mm"]) else f"{f['spread_mm']:.2f}")
+            + " | "
+            + ("-" if np.isnan(f["still_rad_s"]) else f"{f['still_rad_s']:.4f}")
+            + f" | {f['wall_s']:.1f} |"
+        )
+        if f["result"] != 0:
+            print(f"  {f['kind']}: {f['text']}")
+    print()
     rows = [measure(v) for v in args.speeds]
     print("| belt m/s | result | samples | p50 mm | p99 mm | max mm | p99/target | wall s |")
     print("|---|---|---|---|---|---|---|---|")
@@ -258,7 +280,8 @@ def main() -> int:
             f"{r['p99']:.3f} | {r['max']:.3f} | {r['p99'] / (TARGET_M * 1000):.2f} | "
             f"{r['wall_s']:.1f} |"
         )
-    return 0 if all(r["result"] == 0 for r in rows) else 1
+    handled = all(f["acted"] and f["result"] == EXPECTED[f["kind"]] for f in faults)
+    return 0 if handled and all(r["result"] == 0 for r in rows) else 1
 
 
 if __name__ == "__main__":
