@@ -101,6 +101,9 @@ TIME_BOUND = (
     "test_serve_login_flood.py",
     "test_stop_on_signal.py",
     "twin/test_conveyor_twin.py",  # the engine keeps pace with a belt the controller counts
+    # ... or the PLC counts, its writes timed by the engine's clock
+    "twin/test_plc_encoder_on_run.py::test_serve_on_the_arm_tracks_a_belt_the_plc_counts",
+    "plc/test_plc_encoders_serve.py",
     "twin/test_serve_faults.py",
     "twin/test_ur_rtde_client.py::test_rtde_streams_500_hz_on_e_series",
     "twin/test_ur_rtde_client.py::test_movej_reaches_target_with_trapezoid_timing",

@@ -42,6 +42,7 @@ import numpy as np
 
 from cellrunner.model.jaw_grip import slip_load_N
 from cellrunner.sim.mjcf_attrs import PADS
+from cellrunner.sim.weld_pose import weld_where_it_is
 
 if TYPE_CHECKING:
     from cellrunner.sim.description import PartDescription
@@ -162,18 +163,9 @@ class JawWelds:
 
     def _weld(self, name: str) -> None:
         w = self.world
-        m, d = w.model, w.data
-        eq = self.weld[name]
-        t, p = w.ids.tool_body, w.ids.part_bodies[name]
-        R1 = d.xmat[t].reshape(3, 3)
-        R2 = d.xmat[p].reshape(3, 3)
-        quat = np.zeros(4)
-        self._mj.mju_mat2Quat(quat, (R1.T @ R2).ravel())
-        m.eq_data[eq, 0:3] = 0.0
-        m.eq_data[eq, 3:6] = R1.T @ (d.xpos[p] - d.xpos[t])
-        m.eq_data[eq, 6:10] = quat
-        m.eq_data[eq, 10] = 1.0
-        d.eq_active[eq] = 1
+        weld_where_it_is(
+            self._mj, w.model, w.data, self.weld[name], w.ids.tool_body, w.ids.part_bodies[name]
+        )
         self.held.add(name)
         self._pads_hold(welded=True)
 

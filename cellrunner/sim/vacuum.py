@@ -34,6 +34,7 @@ from cellrunner.model.gripper import (
 )  # a cup's body above its face, as planning checks it
 from cellrunner.model.suction import filter_step, seal_load_N
 from cellrunner.sim.mjcf_attrs import PADS, pose_attrs
+from cellrunner.sim.weld_pose import weld_where_it_is
 
 #: a cup seals on a face this close (m) ...
 SEAL_GAP_M = 0.002
@@ -225,18 +226,9 @@ class VacuumCups:
 
     def _weld(self, name: str) -> None:
         w = self.world
-        m, d = w.model, w.data
-        eq = self.weld[name]
-        t, p = w.ids.tool_body, w.ids.part_bodies[name]
-        R1 = d.xmat[t].reshape(3, 3)
-        R2 = d.xmat[p].reshape(3, 3)
-        quat = np.zeros(4)
-        self._mj.mju_mat2Quat(quat, (R1.T @ R2).ravel())
-        m.eq_data[eq, 0:3] = 0.0
-        m.eq_data[eq, 3:6] = R1.T @ (d.xpos[p] - d.xpos[t])
-        m.eq_data[eq, 6:10] = quat
-        m.eq_data[eq, 10] = 1.0
-        d.eq_active[eq] = 1
+        weld_where_it_is(
+            self._mj, w.model, w.data, self.weld[name], w.ids.tool_body, w.ids.part_bodies[name]
+        )
         self.held = self.held | {name}
         self._pull_lp[name] = 0.0
         w.contacts_changed_held()

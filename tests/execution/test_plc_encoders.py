@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import random
 import re
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -21,8 +20,8 @@ from cellrunner.model.load import load_cell
 from cellrunner.model.robot_state import RobotState, Safety
 from cellrunner.plc.fake import FakeCell
 from cellrunner.plc.modbus import ModbusLink
-from tests.conftest import ROOT
 from tests.plc.conftest import plc_test_tasks
+from tests.plc_belt_rig import plc_belt_project
 
 PERIOD_S = 0.002  # the engine's (a UR's)
 SCAN_S = 0.012  # the PLC's
@@ -47,18 +46,8 @@ class _Log:
 
 @pytest.fixture(scope="module")
 def conveyors(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    root = tmp_path_factory.mktemp("cell")
-    (root / "cells").mkdir()
-    (root / "tasks").mkdir()
-    text = (ROOT / "cells" / "conveyor_pick_ur10e.yaml").read_text()
-    ur = "encoder: {source: ur, index: 0, ticks_per_m: 4000}"
-    assert ur in text
-    text = text.replace(ur, "encoder: {source: plc, register: 22, ticks_per_m: 4000}")
-    (root / "cells" / "c.yaml").write_text(text)
-    (root / "tasks" / "conveyor_pick.yaml").write_text(
-        (ROOT / "tasks" / "conveyor_pick.yaml").read_text()
-    )
-    cell = load_cell(Path(root / "cells" / "c.yaml"))
+    cell_path, _ = plc_belt_project(tmp_path_factory.mktemp("cell"), register=22)
+    cell = load_cell(cell_path)
     return dict(cell.cell.conveyors)
 
 

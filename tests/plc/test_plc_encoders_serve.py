@@ -34,7 +34,7 @@ from cellrunner.execution.assembly import assemble_cell
 from cellrunner.execution.cell import CellController
 from cellrunner.execution.serving import serve
 from cellrunner.model.load import load_cell, load_task
-from tests.conftest import ROOT
+from tests.plc_belt_rig import plc_belt_project
 from tests.rig import (
     DONE,
     ERROR,
@@ -105,17 +105,8 @@ class _TwinBelt:
 
 
 def _cell(tmp_path: Path, port: int) -> Path:
-    (tmp_path / "cells").mkdir()
-    (tmp_path / "tasks").mkdir()
-    text = (ROOT / "cells" / "conveyor_pick_ur10e.yaml").read_text()
-    ur = "encoder: {source: ur, index: 0, ticks_per_m: 4000}"
-    assert ur in text
-    text = text.replace(ur, "encoder: {source: plc, register: 20, ticks_per_m: 4000}")
-    text += f"plc:\n  modbus: {{bind: {HOST}, port: {port}, heartbeat_timeout: 2.0}}\n"
-    (tmp_path / "cells" / "c.yaml").write_text(text)
-    task = (ROOT / "tasks" / "conveyor_pick.yaml").read_text()
-    (tmp_path / "tasks" / "conveyor_pick.yaml").write_text(task)
-    return tmp_path / "cells" / "c.yaml"
+    plc = f"plc:\n  modbus: {{bind: {HOST}, port: {port}, heartbeat_timeout: 2.0}}\n"
+    return plc_belt_project(tmp_path, extra=plc)[0]
 
 
 def _placed(belt: _TwinBelt) -> list[str]:

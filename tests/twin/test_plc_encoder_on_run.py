@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from pymodbus.client import ModbusTcpClient
 
-from tests.conftest import ROOT
+from tests.plc_belt_rig import plc_belt_project
 from tests.rig import (
     DONE,
     ERROR,
@@ -41,17 +41,7 @@ TRAY_PART_XYZ = (0.35, 0.55, 0.826)  # the block's centre once placed (the grip 
 
 
 def _cell(tmp_path: Path, plc: str = "") -> tuple[Path, Path]:
-    (tmp_path / "cells").mkdir()
-    (tmp_path / "tasks").mkdir()
-    text = (ROOT / "cells" / "conveyor_pick_ur10e.yaml").read_text()
-    ur = "encoder: {source: ur, index: 0, ticks_per_m: 4000}"
-    assert ur in text
-    text = text.replace(ur, "encoder: {source: plc, register: 20, ticks_per_m: 4000}")
-    cell = tmp_path / "cells" / "c.yaml"
-    cell.write_text(text + plc)
-    task = tmp_path / "tasks" / "conveyor_pick.yaml"
-    task.write_text((ROOT / "tasks" / "conveyor_pick.yaml").read_text())
-    return cell, task
+    return plc_belt_project(tmp_path, extra=plc)
 
 
 def test_run_on_the_arm_refuses_to_track_a_belt_the_plc_counts(tmp_path: Path) -> None:

@@ -1,0 +1,22 @@
+"""Welding a part to the tool where it is now: the equality constraint a gripper's hold
+uses in the twin (the cups' seal, sim/vacuum.py; the jaws' friction, sim/jaw_welds.py)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+
+def weld_where_it_is(mj: Any, model: Any, data: Any, eq: int, tool: int, part: int) -> None:
+    """Activate weld ``eq`` holding body ``part`` to body ``tool`` at their current
+    relative pose (no pull towards another one)."""
+    R_tool = data.xmat[tool].reshape(3, 3)
+    R_part = data.xmat[part].reshape(3, 3)
+    quat = np.zeros(4)
+    mj.mju_mat2Quat(quat, (R_tool.T @ R_part).ravel())
+    model.eq_data[eq, 0:3] = 0.0
+    model.eq_data[eq, 3:6] = R_tool.T @ (data.xpos[part] - data.xpos[tool])
+    model.eq_data[eq, 6:10] = quat
+    model.eq_data[eq, 10] = 1.0
+    data.eq_active[eq] = 1
