@@ -8,7 +8,8 @@ what blocked it and the fix), never text to parse back.
 
 The plan's key is made of digests taken when the files were loaded
 (:attr:`LoadedCell.digest`, the task's ``source.digest``), the params, the start
-configuration and the planning code itself: no file is read again per job.
+configuration and the code that plans (the planning, model and step kinds' modules,
+:data:`PLAN_SOURCES`): no file is read again per job.
 """
 
 from __future__ import annotations
@@ -198,12 +199,35 @@ def plan_job(
     return made(plan)
 
 
+#: what a plan is made by, under the package: the modules and packages (with their data
+#: files, e.g. the arms' link geometry) that planning a job reads. Each step kind plans
+#: its own steps (``steps/``): a release that began to leave the pin in its hole as an
+#: obstacle kept the old digest, and check approved the plan stored before, which swept
+#: the open jaws through that pin (issue 33, s3000)
+PLAN_SOURCES = ("__init__.py", "errors.py", "model", "planning", "steps")
+
+
+def code_files() -> list[Path]:
+    """The files of :data:`PLAN_SOURCES`, sorted (compiled caches left out)."""
+    package = Path(__file__).resolve().parent.parent
+    out: list[Path] = []
+    for name in PLAN_SOURCES:
+        path = package / name
+        if path.is_dir():
+            out.extend(p for p in path.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
+        else:
+            out.append(path)
+    return sorted(out)
+
+
 @functools.lru_cache(maxsize=1)
 def code_digest() -> bytes:
-    """The planning and model sources: a plan made by other code is another plan."""
+    """The code and data that plan a job (:func:`code_files`): a plan made by other code
+    is another plan."""
     h = hashlib.sha256(__version__.encode())
     package = Path(__file__).resolve().parent.parent
-    for path in sorted([*package.glob("planning/*.py"), *package.glob("model/*.py")]):
+    for path in code_files():
+        h.update(path.relative_to(package).as_posix().encode())
         h.update(path.read_bytes())
     return h.digest()
 

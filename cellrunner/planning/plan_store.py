@@ -3,7 +3,7 @@
 
 A key (:func:`~cellrunner.planning.job_plan.plan_key`) is made of everything a plan
 depends on: the cell, task and mesh files' digests, the params, the start configuration
-and the planning code itself. A repeated job reuses its approved trajectories without
+and the code that plans (planning, model and the step kinds, ``PLAN_SOURCES``). A repeated job reuses its approved trajectories without
 planning; any change to the files misses. The store knows files only as paths: reading
 and writing a plan is :mod:`.plan_files`'s.
 """
