@@ -74,11 +74,15 @@ on_protective_stop: {resume: true, max: 3}
 
 
 # -- the PLC (a child process) --------------------------------------------------------------
-def plc_main(host: str, port: int, seconds: float, seed: int, outage_rate: float = 0.0) -> None:
-    """Jobs until ``seconds`` have passed; one JSON line per event on stdout. With
-    ``outage_rate`` (per job) the PLC stops its heartbeat for OUTAGE_S once a job is
-    acknowledged (a PLC that drops off the network): the cell's watchdog holds it, and
-    the PLC presses UNHOLD once it is back, as a PLC program does."""
+def plc_main(
+    host: str, port: int, seconds: float, seed: int, outage_rate: float = 0.0, first_id: int = 1
+) -> None:
+    """Jobs until ``seconds`` have passed; one JSON line per event on stdout, each with the
+    job's id and its number ``n`` (1, 2, ...). With ``outage_rate`` (per job) the PLC stops
+    its heartbeat for OUTAGE_S once a job is acknowledged (a PLC that drops off the
+    network): the cell's watchdog holds it, and the PLC presses UNHOLD once it is back, as
+    a PLC program does. The ids start at ``first_id`` and wrap from 65535 to 1, as a PLC's
+    16-bit counter does (SPEC 7: register 2)."""
     from pyModbusTCP.client import ModbusClient
 
     rng = random.Random(seed)
@@ -143,9 +147,9 @@ def plc_main(host: str, port: int, seconds: float, seed: int, outage_rate: float
 
     threading.Thread(target=beat, daemon=True).start()
     end_at = time.monotonic() + seconds
-    job_id = 0
+    job_id, n = (first_id - 2) % MAX_JOB_ID + 1, 0
     while time.monotonic() < end_at:
-        job_id += 1
+        job_id, n = job_id % MAX_JOB_ID + 1, n + 1
         task = 1 if rng.random() < 0.8 else 2
         seen_ack = False
         for _attempt in range(200):  # the same id until its end is read
@@ -165,18 +169,18 @@ def plc_main(host: str, port: int, seconds: float, seed: int, outage_rate: float
             if r is None:
                 continue  # the cell went away: ask again with the same id
             if r[1] & REJECTED:
-                emit(ev="reject", id=job_id, code=r[5])
+                emit(ev="reject", id=job_id, n=n, code=r[5])
                 write(1, [0])
                 if r[5] == 12:
                     time.sleep(0.5)
                     continue  # not ready (a full journal, a restart): the same id later
                 break
             if not seen_ack:
-                emit(ev="ack", id=job_id, task=task)
+                emit(ev="ack", id=job_id, n=n, task=task)
                 seen_ack = True
                 if outage_rate and outages.random() < outage_rate:
                     silent_until[0] = time.monotonic() + OUTAGE_S
-                    emit(ev="outage", id=job_id)
+                    emit(ev="outage", id=job_id, n=n)
             # the end, or READY: a restarted cell that no longer runs it (its register
             # image starts with JOB_REQ low)
             r = wait(
@@ -187,7 +191,7 @@ def plc_main(host: str, port: int, seconds: float, seed: int, outage_rate: float
             raw("end", r)
             if r is None or not r[1] & (DONE | ERROR):
                 continue  # killed mid-job: after the restart, the same id again
-            emit(ev="end", id=job_id, code=r[5], done=bool(r[1] & DONE))
+            emit(ev="end", id=job_id, n=n, code=r[5], done=bool(r[1] & DONE))
             write(1, [0])
             wait(lambda r: not r[1] & (ACK | DONE | ERROR | REJECTED), 5.0, 0)
             break
@@ -196,6 +200,10 @@ def plc_main(host: str, port: int, seconds: float, seed: int, outage_rate: float
 
 
 # -- the chaos (this process) ---------------------------------------------------------------
+#: the largest job id (SPEC 7, register 2: 1-65535); the PLC's next one is 1 again
+MAX_JOB_ID = 65535
+
+
 class Chaos:
     def __init__(self, root: Path, host: str, seconds: float, seed: int, disk_at: float) -> None:
         self.root, self.host, self.seconds, self.disk_at = root, host, seconds, disk_at
@@ -387,21 +395,35 @@ class Chaos:
         self.disk_full_s = time.monotonic() - t
 
     def reconcile(self, journal_path: Path) -> dict[str, Any]:
+        """The PLC's jobs against the journal's rows. A job is its number ``n``; its id
+        comes round again every 65535 jobs, so the k-th job the PLC ran under an id is the
+        k-th row the journal has for that id (in the order written)."""
         db = sqlite3.connect(journal_path)
         rows = db.execute(
-            "SELECT client_job_id, result_code, ended_at FROM jobs WHERE source = 'modbus'"
+            "SELECT client_job_id, result_code, ended_at FROM jobs WHERE source = 'modbus' "
+            "ORDER BY rowid"
         ).fetchall()
         db.close()
-        per_id = Counter(int(r[0]) for r in rows)
-        code_of = {int(r[0]): r[1] for r in rows}
+        rows_of: dict[int, list[tuple[Any, ...]]] = {}
+        for r in rows:
+            rows_of.setdefault(int(r[0]), []).append(r)
         unfinished = [int(r[0]) for r in rows if r[2] is None]
-        acks = {e["id"] for e in self.events if e["ev"] == "ack"}
-        ends = {e["id"]: e["code"] for e in self.events if e["ev"] == "end"}
-        accepted = acks | set(ends)
-        lost = sorted(i for i in accepted if i not in per_id)
-        duplicated = sorted(i for i, n in per_id.items() if n > 1)
-        mismatched = sorted(i for i, code in ends.items() if code_of.get(i) != code)
-        codes = Counter(code_of[i] for i in accepted if i in code_of)
+        id_of = {e.get("n", e["id"]): e["id"] for e in self.events if e["ev"] in ("ack", "end")}
+        ends = {e.get("n", e["id"]): e["code"] for e in self.events if e["ev"] == "end"}
+        accepted = sorted(id_of)
+        jobs_of: dict[int, list[int]] = {}
+        for n in accepted:
+            jobs_of.setdefault(id_of[n], []).append(n)
+        row_of = {
+            n: rows_of[i][k]
+            for i, ns in jobs_of.items()
+            for k, n in enumerate(ns)
+            if k < len(rows_of.get(i, []))
+        }
+        lost = [n for n in accepted if n not in row_of]
+        duplicated = sorted(i for i, rs in rows_of.items() if len(rs) > len(jobs_of.get(i, [])))
+        mismatched = sorted(n for n, code in ends.items() if n in row_of and row_of[n][1] != code)
+        codes = Counter(row_of[n][1] for n in accepted if n in row_of)
         return {
             "minutes": round(self.seconds / 60, 1),
             "kills": dict(self.kills),
@@ -409,7 +431,7 @@ class Chaos:
             "serve_exits_restarted": self.self_exits,
             "disk_full_s": round(self.disk_full_s, 1),
             "accepted": len(accepted),
-            "recorded": sum(1 for i in accepted if i in per_id),
+            "recorded": len(row_of),
             "journal_rows": len(rows),
             "lost": lost,
             "duplicated": duplicated,
@@ -426,7 +448,12 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv and argv[0] == "--plc":
         plc_main(
-            argv[1], int(argv[2]), float(argv[3]), int(argv[4]), float(argv[5]) if argv[5:] else 0.0
+            argv[1],
+            int(argv[2]),
+            float(argv[3]),
+            int(argv[4]),
+            float(argv[5]) if argv[5:] else 0.0,
+            int(argv[6]) if argv[6:] else 1,
         )
         return 0
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

@@ -68,6 +68,7 @@ class Soak(Chaos):
         self.jobs, self.kill_every = jobs, kill_every
         self.faults, self.outage_rate = faults or {}, outage_rate
         self.max_wall_s = float("inf")  # then the jobs done so far are reconciled
+        self.first_id = 1  # the PLC's first job id (it wraps after 65535)
         self.samples: list[dict[str, Any]] = []
         self.ends = 0
 
@@ -166,6 +167,7 @@ class Soak(Chaos):
                 str(PLC_SECONDS),
                 str(self.seed),
                 str(self.outage_rate),
+                str(self.first_id),
             ],
             stdout=subprocess.PIPE,
             text=True,
@@ -274,6 +276,12 @@ def main(argv: list[str] | None = None) -> int:
         "--plc-outage-rate", type=float, default=0.0, help="per job: the PLC's heartbeat stops 3 s"
     )
     ap.add_argument(
+        "--first-id",
+        type=int,
+        default=1,
+        help="the PLC's first job id (1-65535; ids wrap after 65535 as a PLC's counter does)",
+    )
+    ap.add_argument(
         "--max-wall-s",
         type=float,
         default=float("inf"),
@@ -290,6 +298,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = max(1, round(args.hours * JOBS_PER_HOUR))
     soak = Soak(root, jobs, args.kill_every, args.seed, faults, args.plc_outage_rate)
     soak.max_wall_s = args.max_wall_s
+    soak.first_id = args.first_id
     report = soak.run()
     report["work_dir"] = str(root)
     text = json.dumps(report, indent=2)
