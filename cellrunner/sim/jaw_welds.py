@@ -42,7 +42,7 @@ import numpy as np
 
 from cellrunner.model.jaw_grip import slip_load_N
 from cellrunner.sim.mjcf_attrs import PADS
-from cellrunner.sim.weld_pose import weld_where_it_is
+from cellrunner.sim.weld_pose import add_tool_welds, weld_where_it_is
 
 if TYPE_CHECKING:
     from cellrunner.sim.description import PartDescription
@@ -60,20 +60,7 @@ PAD_CONDIM = 4
 
 def add_jaw_welds(root: ET.Element, parts: Iterable[PartDescription]) -> None:
     """One inactive weld per part, tool to part (MJCF)."""
-    eq = root.find("equality")
-    if eq is None:
-        eq = ET.SubElement(root, "equality")
-    for part in parts:
-        ET.SubElement(
-            eq,
-            "weld",
-            name=f"{JAW_WELD_PREFIX}{part.name}",
-            body1="tool",
-            body2=f"part:{part.name}",
-            active="false",
-            solref=JAW_WELD_SOLREF,
-            solimp=JAW_WELD_SOLIMP,
-        )
+    add_tool_welds(root, parts, JAW_WELD_PREFIX, solref=JAW_WELD_SOLREF, solimp=JAW_WELD_SOLIMP)
 
 
 class JawWelds:

@@ -34,7 +34,7 @@ from cellrunner.model.gripper import (
 )  # a cup's body above its face, as planning checks it
 from cellrunner.model.suction import filter_step, seal_load_N
 from cellrunner.sim.mjcf_attrs import PADS, pose_attrs
-from cellrunner.sim.weld_pose import weld_where_it_is
+from cellrunner.sim.weld_pose import add_tool_welds, weld_where_it_is
 
 #: a cup seals on a face this close (m) ...
 SEAL_GAP_M = 0.002
@@ -96,19 +96,7 @@ def add_cups(
 
 def add_welds(root: ET.Element, parts: Iterable[PartDescription]) -> None:
     """One inactive weld per part, tool to part (MJCF)."""
-    eq = root.find("equality")
-    if eq is None:
-        eq = ET.SubElement(root, "equality")
-    for part in parts:
-        ET.SubElement(
-            eq,
-            "weld",
-            name=f"vac:{part.name}",
-            body1="tool",
-            body2=f"part:{part.name}",
-            active="false",
-            solref="0.004 1",
-        )
+    add_tool_welds(root, parts, "vac:", solref="0.004 1")
 
 
 class VacuumCups:

@@ -3,9 +3,14 @@ uses in the twin (the cups' seal, sim/vacuum.py; the jaws' friction, sim/jaw_wel
 
 from __future__ import annotations
 
-from typing import Any
+import xml.etree.ElementTree as ET
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from cellrunner.sim.description import PartDescription
 
 
 def weld_where_it_is(mj: Any, model: Any, data: Any, eq: int, tool: int, part: int) -> None:
@@ -20,3 +25,16 @@ def weld_where_it_is(mj: Any, model: Any, data: Any, eq: int, tool: int, part: i
     model.eq_data[eq, 6:10] = quat
     model.eq_data[eq, 10] = 1.0
     data.eq_active[eq] = 1
+
+
+def add_tool_welds(
+    root: ET.Element, parts: Iterable[PartDescription], prefix: str, **attrs: str
+) -> None:
+    """One inactive weld per part, tool to part, named ``prefix`` + the part's name, with
+    the constraint's ``attrs`` (solref, solimp) (MJCF)."""
+    eq = root.find("equality")
+    if eq is None:
+        eq = ET.SubElement(root, "equality")
+    for part in parts:
+        weld = {"name": f"{prefix}{part.name}", "body1": "tool", "body2": f"part:{part.name}"}
+        ET.SubElement(eq, "weld", {**weld, "active": "false", **attrs})
