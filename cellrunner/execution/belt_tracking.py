@@ -54,6 +54,9 @@ GRIP_SLACK_S = 0.1
 #: after the last set-point the arm must stand this close to it, rad, within ARRIVE_S
 ARRIVE_RAD = np.radians(1.0)
 ARRIVE_S = 1.0
+#: a followed belt that has not moved this far (m, a tick or so) stands still; standing
+#: longer than the step's timeout ends the job
+STILL_M = 0.0005
 #: notes key: the step indices a tracked stretch ran (the runner skips them)
 DONE_KEY = "belt_done"
 
@@ -309,7 +312,7 @@ def _stream(
     grip_done: Outcome | None = None if grip is not None else OK
     slack = round(GRIP_SLACK_S * rate_hz)
     t_start, s_start = ctx.now_s, float(offset_m())
-    standing_since: float | None = None
+    still = (ctx.now_s, float(offset_m()))  # since when the belt has not moved, and where
     i = -1
     while (i < len(q) - 1) if follow is None else not follow.at_end:
         if follow is None:
@@ -333,8 +336,9 @@ def _stream(
             ctx.backend.servo(command.trajectory, command.index)
             ctx.commanded_q = command.trajectory.trajectory.q_rad[command.index]
             i = int(command.u)
-            standing_since = None if follow.rate > 0 else (standing_since or ctx.now_s)
-            if standing_since is not None and ctx.now_s - standing_since > ctx.step_timeout_s:
+            if abs(float(offset_m()) - still[1]) > STILL_M:
+                still = (ctx.now_s, float(offset_m()))
+            elif ctx.now_s - still[0] > ctx.step_timeout_s:
                 return Outcome.failed(
                     ResultCode.STEP_TIMEOUT,
                     f"conveyor {conveyor!r}: the belt stood still for more than "

@@ -301,3 +301,21 @@ def test_a_standing_belt_that_starts_again_mid_pick_is_a_controlled_stop():
         assert "measured 0.000 m/s" in job.payload["result_text"]
     finally:
         rehearsal.close()
+
+
+def test_a_belt_that_stays_stopped_under_a_pick_ends_with_the_step_timeout():
+    """Ramped down while the arm follows the block and never started again: the arm stands
+    with it until the step's timeout (60 s of the twin's time), then the job ends 105, the
+    arm standing over the block."""
+    go = _StopAndGo(ramp=2.0, stand_s=1e9)
+    job, rehearsal = _rehearse(observer=go)
+    try:
+        assert go.follows.acted_at_s is not None and go.restarted_at_s is None
+        assert job.code is ResultCode.STEP_TIMEOUT, job.payload["result_text"]
+        # the step's own timeout (60 s from the track step's start) comes first
+        assert "track 'belt' timed out" in job.payload["result_text"]
+        # the arm stood over the block all the while
+        gaps = [gap for _, gap, _ in go.standing]
+        assert max(gaps) - min(gaps) < 0.001
+    finally:
+        rehearsal.close()
