@@ -64,8 +64,9 @@ class BeltFollower:
         traj = run.approved.trajectory
         dt = 1.0 / traj.rate_hz
         q = traj.q_rad
-        self._q_u = np.abs(np.gradient(q, axis=0)) if len(q) > 1 else np.zeros_like(q)
-        self._q_uu = np.abs(np.gradient(self._q_u, axis=0)) if len(q) > 1 else np.zeros_like(q)
+        q_u = np.gradient(q, axis=0) if len(q) > 1 else np.zeros_like(q)
+        q_uu = np.gradient(q_u, axis=0) if len(q) > 1 else np.zeros_like(q)
+        self._q_u, self._q_uu = np.abs(q_u), np.abs(q_uu)  # rad a sample, a sample^2
         self._dt = dt
         self._v_lim = np.asarray(limits.joint_speed_rad_s) * dt  # rad a period
         self._a_lim = np.asarray(limits.joint_accel_rad_s2) * dt * dt  # rad a period^2
