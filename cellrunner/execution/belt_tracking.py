@@ -54,9 +54,6 @@ GRIP_SLACK_S = 0.1
 #: after the last set-point the arm must stand this close to it, rad, within ARRIVE_S
 ARRIVE_RAD = np.radians(1.0)
 ARRIVE_S = 1.0
-#: a followed belt that has not moved this far (m, a tick or so) stands still; standing
-#: longer than the step's timeout ends the job
-STILL_M = 0.0005
 #: notes key: the step indices a tracked stretch ran (the runner skips them)
 DONE_KEY = "belt_done"
 
@@ -109,7 +106,7 @@ def run_track(ctx: JobContext, step: Step) -> StepGen:
     follow: BeltFollower | None = None
     while ctx.now_s < t_send - stretch.dt / 2:
         yield
-        if stretch.drift_m(offset_m) > FOLLOW_FROM_M:
+        if abs(stretch.drift_m(offset_m)) > FOLLOW_FROM_M:
             follow = BeltFollower(run, plan.world.limits, 0.0, 0.0)
             break
     return (yield from _stream(ctx, step, run, (view, offset_m), plan.world.limits, follow))
@@ -156,14 +153,23 @@ class _Stretch:
         self.dt = 1.0 / float(ctx.backend.rate_hz)
         self.s_made, self.t_made = 0.0, ctx.now_s
 
-    def belt_off(self, offset_m: Callable[[], float]) -> Outcome | None:
-        return _belt_off(
-            self.ctx, self.name, offset_m, self.s_made, self.t_made, self.speed, self.piece.what
-        )
-
     def drift_m(self, offset_m: Callable[[], float]) -> float:
-        """How far the belt's travel is off the line of the speed the stretch is made for."""
-        return abs(offset_m() - (self.s_made + self.speed * (self.ctx.now_s - self.t_made)))
+        """How far the belt's travel is off the line of the speed the stretch is made for
+        (m, positive: ahead of it)."""
+        return offset_m() - (self.s_made + self.speed * (self.ctx.now_s - self.t_made))
+
+    def belt_off(self, offset_m: Callable[[], float]) -> Outcome | None:
+        """A controlled stop when the belt left the line of its measured speed before the
+        stretch started (stopped or jumped); None while it keeps it."""
+        drift = self.drift_m(offset_m)
+        if abs(drift) <= BELT_TOLERANCE_M:
+            return None
+        return Outcome.failed(
+            ResultCode.PROTECTIVE_STOP,
+            f"conveyor {self.name!r}: the belt is {drift * 1000:+.1f} mm off its measured "
+            f"{self.speed:.3f} m/s before the {self.piece.what} started (stopped or jumped): "
+            "the arm stays where it is",
+        )
 
     def make(self, offset_m: Callable[[], float]) -> Generator[None, None, Any]:
         """The approved stretch and when its first set-point is sent, or the outcome
@@ -233,28 +239,6 @@ class _Stretch:
         )
 
 
-def _belt_off(
-    ctx: JobContext,
-    name: str,
-    offset_m: Callable[[], float],
-    s_made: float,
-    t_made: float,
-    speed: float,
-    what: str,
-) -> Outcome | None:
-    """A controlled stop when the belt left the line of its measured speed before the
-    stretch started (stopped or jumped); None while it keeps it."""
-    drift = offset_m() - (s_made + speed * (ctx.now_s - t_made))
-    if abs(drift) <= BELT_TOLERANCE_M:
-        return None
-    return Outcome.failed(
-        ResultCode.PROTECTIVE_STOP,
-        f"conveyor {name!r}: the belt is {drift * 1000:+.1f} mm off its measured "
-        f"{speed:.3f} m/s before the {what} started (stopped or jumped): the arm stays where "
-        "it is",
-    )
-
-
 class _MadeOffThread:
     """``make()`` run on a worker thread, so the control loop keeps its period while a
     tracked stretch is made (an IK solution and a collision check per set-point)."""
@@ -312,7 +296,6 @@ def _stream(
     grip_done: Outcome | None = None if grip is not None else OK
     slack = round(GRIP_SLACK_S * rate_hz)
     t_start, s_start = ctx.now_s, float(offset_m())
-    still = (ctx.now_s, float(offset_m()))  # since when the belt has not moved, and where
     i = -1
     while (i < len(q) - 1) if follow is None else not follow.at_end:
         if follow is None:
@@ -336,14 +319,6 @@ def _stream(
             ctx.backend.servo(command.trajectory, command.index)
             ctx.commanded_q = command.trajectory.trajectory.q_rad[command.index]
             i = int(command.u)
-            if abs(float(offset_m()) - still[1]) > STILL_M:
-                still = (ctx.now_s, float(offset_m()))
-            elif ctx.now_s - still[0] > ctx.step_timeout_s:
-                return Outcome.failed(
-                    ResultCode.STEP_TIMEOUT,
-                    f"conveyor {conveyor!r}: the belt stood still for more than "
-                    f"{ctx.step_timeout_s:g} s while the arm followed it",
-                )
         if grip is not None and grip_gen is None and i >= grip[1]:
             grip_gen = kind_of("grip").run(ctx, steps[grip[0]], False)
         yield
