@@ -408,8 +408,8 @@ class Chaos:
         for r in rows:
             rows_of.setdefault(int(r[0]), []).append(r)
         unfinished = [int(r[0]) for r in rows if r[2] is None]
-        id_of = {e.get("n", e["id"]): e["id"] for e in self.events if e["ev"] in ("ack", "end")}
-        ends = {e.get("n", e["id"]): e["code"] for e in self.events if e["ev"] == "end"}
+        id_of = {e["n"]: e["id"] for e in self.events if e["ev"] in ("ack", "end")}
+        ends = {e["n"]: e["code"] for e in self.events if e["ev"] == "end"}
         accepted = sorted(id_of)
         jobs_of: dict[int, list[int]] = {}
         for n in accepted:
@@ -421,7 +421,11 @@ class Chaos:
             if k < len(rows_of.get(i, []))
         }
         lost = [n for n in accepted if n not in row_of]
-        duplicated = sorted(i for i, rs in rows_of.items() if len(rs) > len(jobs_of.get(i, [])))
+        # more rows than the PLC's jobs under the id (one row for a job it never saw
+        # acknowledged, the last when the soak ended, is not a job run twice)
+        duplicated = sorted(
+            i for i, rs in rows_of.items() if len(rs) > max(1, len(jobs_of.get(i, [])))
+        )
         mismatched = sorted(n for n, code in ends.items() if n in row_of and row_of[n][1] != code)
         codes = Counter(row_of[n][1] for n in accepted if n in row_of)
         return {
