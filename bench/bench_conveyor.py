@@ -72,25 +72,10 @@ class Sampler:
 
 
 def measure(speed_mps: float) -> dict[str, Any]:
-    from cellrunner.backends.factory import make_backend
-    from cellrunner.cli.common import console
-    from cellrunner.execution.rehearsal import start_rehearsal
-    from cellrunner.model.job_steps import job_steps
-    from cellrunner.model.load import load_cell, load_task
+    from bench.conveyor_faults import rehearse_one
 
-    cell = load_cell(CELL)
-    task = load_task(TASK, cell)
-    backend = make_backend(cell, "sim", tasks=(task,), rehearsed=[{}])
-    rehearsal = start_rehearsal(cell, task, backend, console())
     sampler = Sampler("block")
-    try:
-        backend.set_belt_speed("belt", speed_mps)
-        rehearsal.loop.add_observer(sampler)
-        t0 = time.perf_counter()
-        job = rehearsal.rehearse({}, job_steps(task, cell.cell, {}))
-        wall_s = time.perf_counter() - t0
-    finally:
-        rehearsal.close()
+    job, wall_s = rehearse_one(CELL, TASK, sampler, belt_mps=speed_mps)
     e = np.asarray(sampler.errors_m) * 1000
     return {
         "speed": speed_mps,

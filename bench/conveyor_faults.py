@@ -58,8 +58,11 @@ class _Fault:
             self.restarted = True
 
 
-def run_fault(kind: str, cell_path: Any, task_path: Any) -> dict[str, Any]:
-    """One job of the reference task with the line's ``kind`` of fault: ramp, stop, jump."""
+def rehearse_one(
+    cell_path: Any, task_path: Any, observer: Any, belt_mps: float | None = None
+) -> tuple[Any, float]:
+    """One job of the reference task on the twin, ``observer`` called every period (and
+    the belt at ``belt_mps`` when given): the job and its wall time, s."""
     from cellrunner.backends.factory import make_backend
     from cellrunner.cli.common import console
     from cellrunner.execution.rehearsal import start_rehearsal
@@ -70,14 +73,21 @@ def run_fault(kind: str, cell_path: Any, task_path: Any) -> dict[str, Any]:
     task = load_task(task_path, cell)
     backend = make_backend(cell, "sim", tasks=(task,), rehearsed=[{}])
     rehearsal = start_rehearsal(cell, task, backend, console())
-    fault = _Fault(kind)
     try:
-        rehearsal.loop.add_observer(fault)
+        if belt_mps is not None:
+            backend.set_belt_speed("belt", belt_mps)
+        rehearsal.loop.add_observer(observer)
         t0 = time.perf_counter()
         job = rehearsal.rehearse({}, job_steps(task, cell.cell, {}))
-        wall_s = time.perf_counter() - t0
+        return job, time.perf_counter() - t0
     finally:
         rehearsal.close()
+
+
+def run_fault(kind: str, cell_path: Any, task_path: Any) -> dict[str, Any]:
+    """One job of the reference task with the line's ``kind`` of fault: ramp, stop, jump."""
+    fault = _Fault(kind)
+    job, wall_s = rehearse_one(cell_path, task_path, fault)
     gaps = np.asarray(fault.gaps_m) * 1000
     return {
         "kind": kind,
