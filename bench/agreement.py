@@ -31,7 +31,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.cellgen import FEASIBLE, KINDS, Case, corpus
+from bench.cellgen import FEASIBLE, KINDS, Case, corpus_seeds
 
 CLASSES = ("true accept", "true refuse", "false approval", "twin false OK", "false refusal")
 DISAGREEMENTS = ("false approval", "twin false OK", "false refusal")
@@ -106,14 +106,42 @@ def _judge_one(args: tuple[int, str, str]) -> Verdict:
 
 
 def run(
-    count: int, seed: int, jobs: int, out: Path, kinds: tuple[str, ...] = KINDS
+    count: int,
+    seed: int,
+    jobs: int,
+    out: Path,
+    kinds: tuple[str, ...] = KINDS,
+    progress: bool = False,
 ) -> list[Verdict]:
-    """Judge ``count`` generated jobs of ``kinds`` from ``seed`` on ``jobs`` processes."""
-    cases = [(c.seed, c.kind, str(out)) for c in corpus(count, seed, kinds)]
-    if jobs <= 1:
-        return [_judge_one(c) for c in cases]
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        return list(pool.map(_judge_one, cases))
+    """Judge ``count`` generated jobs of ``kinds`` from ``seed`` on ``jobs`` processes: the
+    kinds in turn, each job on its own seed (``corpus_seeds``). Each verdict is appended to
+    ``out/verdicts.jsonl`` as it comes, so a long run's findings can be read before it ends
+    and are kept if it is stopped; ``progress`` prints a line per job on stderr."""
+    cases = [(s, kind, str(out)) for s, kind in corpus_seeds(count, seed, kinds)]
+    out.mkdir(parents=True, exist_ok=True)
+    verdicts: list[Verdict] = []
+    with (out / "verdicts.jsonl").open("w") as log:
+
+        def keep(verdict: Verdict) -> None:
+            verdicts.append(verdict)
+            log.write(json.dumps(asdict(verdict)) + "\n")
+            log.flush()
+            if progress:
+                print(
+                    f"[{len(verdicts)}/{count}] {verdict.name}: {verdict.verdict}"
+                    f" (check {verdict.check_s:.2f} s)",
+                    file=sys.stderr,
+                    flush=True,
+                )
+
+        if jobs <= 1:
+            for case in cases:
+                keep(_judge_one(case))
+        else:
+            with ProcessPoolExecutor(max_workers=jobs) as pool:
+                for verdict in pool.map(_judge_one, cases):
+                    keep(verdict)
+    return verdicts
 
 
 def table(verdicts: list[Verdict]) -> str:
@@ -160,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=2, help="processes (default 2)")
     parser.add_argument("--out", type=Path, default=Path("var/agreement"))
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    parser.add_argument("--progress", action="store_true", help="a line per job on stderr")
     parser.add_argument(
         "--kinds", default=",".join(KINDS), help="comma-separated kinds (default: all)"
     )
@@ -168,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(kinds) - set(KINDS))
     if unknown:
         parser.error(f"unknown kinds {', '.join(unknown)}; known: {', '.join(KINDS)}")
-    verdicts = run(args.cells, args.seed, args.jobs, args.out, kinds)
+    verdicts = run(args.cells, args.seed, args.jobs, args.out, kinds, args.progress)
     listing = write_disagreements(verdicts, args.out)
     if args.json:
         print(json.dumps([asdict(v) for v in verdicts], indent=1))

@@ -464,9 +464,15 @@ def _deg(q_rad: np.ndarray) -> list[float]:
     return [round(float(v), 3) for v in np.degrees(q_rad)]
 
 
+def corpus_seeds(count: int, seed: int, kinds: tuple[str, ...] = KINDS) -> list[tuple[int, str]]:
+    """The seed and kind of ``count`` cases from ``seed``: the ``kinds`` in turn, each on
+    its own seed."""
+    return [(seed + i, kinds[i % len(kinds)]) for i in range(count)]
+
+
 def corpus(count: int, seed: int, kinds: tuple[str, ...] = KINDS) -> list[Case]:
-    """``count`` cases from ``seed``: the ``kinds`` in turn, each on its own seed."""
-    return [generate(seed + i, kinds[i % len(kinds)]) for i in range(count)]
+    """``count`` cases from ``seed`` (``corpus_seeds``)."""
+    return [generate(s, kind) for s, kind in corpus_seeds(count, seed, kinds)]
 
 
 if __name__ == "__main__":
