@@ -35,6 +35,8 @@ from bench.cellgen import FEASIBLE, KINDS, Case, corpus_seeds
 
 CLASSES = ("true accept", "true refuse", "false approval", "twin false OK", "false refusal")
 DISAGREEMENTS = ("false approval", "twin false OK", "false refusal")
+#: verdicts that are the generator's or the bench's fault, not check's or the twin's
+BENCH_FAULTS = ("invalid file", "twin did not run")
 
 
 @dataclass(frozen=True)
@@ -75,6 +77,8 @@ def classify(feasible: bool, check_code: int, result_code: int | None) -> str:
         return "invalid file"  # the generator wrote a file the loader refuses: its bug
     if check_code != 0:
         return "false refusal" if feasible else "true refuse"
+    if result_code is None:
+        return "twin did not run"  # the rehearsal ended without a result: the bench's fault
     if result_code != 0:
         return "false approval"
     return "true accept" if feasible else "twin false OK"
@@ -90,8 +94,8 @@ def judge(case: Case, out: Path) -> Verdict:
     result_code, message = None, "; ".join(checked.get("errors", []))[:300]
     if check_code == 0:
         _, rehearsed = cli("dry-run", str(cell), str(task))
-        result_code = int(rehearsed.get("result_code", -1))
-        message = str(rehearsed.get("result_text", ""))[:300]
+        result_code = rehearsed.get("result_code")
+        message = str(rehearsed.get("result_text") or "; ".join(rehearsed.get("errors", [])))[:300]
     verdict = classify(case.feasible, check_code, result_code)
     return Verdict(
         case.name, case.kind, check_code, result_code, verdict, message, check_s, str(folder)
@@ -117,6 +121,9 @@ def run(
     kinds in turn, each job on its own seed (``corpus_seeds``). Each verdict is appended to
     ``out/verdicts.jsonl`` as it comes, so a long run's findings can be read before it ends
     and are kept if it is stopped; ``progress`` prints a line per job on stderr."""
+    from cellrunner.sim.mujoco_loader import enable_pictures
+
+    enable_pictures()  # before any job imports MuJoCo: the align cameras draw pictures
     cases = [(s, kind, str(out)) for s, kind in corpus_seeds(count, seed, kinds)]
     out.mkdir(parents=True, exist_ok=True)
     verdicts: list[Verdict] = []
@@ -164,13 +171,15 @@ def table(verdicts: list[Verdict]) -> str:
     )
     if total["invalid file"]:
         lines.append(f"generator bugs: {total['invalid file']} files the loader refused")
+    if total["twin did not run"]:
+        lines.append(f"rehearsals that gave no result: {total['twin did not run']}")
     return "\n".join(lines)
 
 
 def write_disagreements(verdicts: list[Verdict], out: Path) -> Path:
     """A list of each disagreement with the commands that replay it."""
     path = out / "disagreements.txt"
-    rows = [v for v in verdicts if v.verdict in (*DISAGREEMENTS, "invalid file")]
+    rows = [v for v in verdicts if v.verdict in (*DISAGREEMENTS, *BENCH_FAULTS)]
     text = "".join(
         f"{v.verdict}: {v.name}: {v.message}\n"
         f"  cellrunner check {v.folder}/cell.yaml {v.folder}/task.yaml\n"
@@ -204,7 +213,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(table(verdicts))
         print(f"disagreements and how to replay them: {listing}")
-    bad = sum(1 for v in verdicts if v.verdict in (*DISAGREEMENTS, "invalid file"))
+    bad = sum(1 for v in verdicts if v.verdict in (*DISAGREEMENTS, *BENCH_FAULTS))
     return 1 if bad else 0
 
 

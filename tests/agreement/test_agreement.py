@@ -75,6 +75,7 @@ def test_the_classes():
     assert classify(False, 0, 3) == "false approval"
     assert classify(False, 0, 0) == "twin false OK"
     assert classify(False, 2, None) == "invalid file"
+    assert classify(True, 0, None) == "twin did not run"
 
 
 def test_a_fixed_sample_agrees_with_the_truth(tmp_path):
