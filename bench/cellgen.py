@@ -298,7 +298,8 @@ def _draw_cups(rng: random.Random, d: _Draw) -> None:
 def _witnesses_clear(draw: _Draw) -> bool:
     """Both witnesses, the straight lines down to them from their approach points, and
     home keep every checked pair :data:`WITNESS_MARGIN_M` clear of its required clearance
-    (the part excepted)."""
+    (the part excepted), and on those lines the part as carried keeps it from the arm's
+    links (a lift or a set-down where the arm folds onto its load is no witness)."""
     import tempfile
 
     from cellrunner.model.load import load_cell
@@ -306,9 +307,16 @@ def _witnesses_clear(draw: _Draw) -> bool:
 
     with tempfile.TemporaryDirectory() as folder:
         cell, _ = _case(0, "feasible", draw).write(Path(folder))
-        collision = CellWorld(load_cell(cell)).collision
+        world = CellWorld(load_cell(cell))
+        held = world.part_at("infeed", draw.kin.T_world_tcp(draw.q_pick))
+        collision = world.collision.carrying(held)
         labels = collision.pair_labels
-        keep = np.array(["part" not in a and "part" not in b for a, b in labels])
+        keep = np.array(
+            [
+                ("part" not in a and "part" not in b) or {a.kind.name, b.kind.name} == _ARM_LOAD
+                for a, b in labels
+            ]
+        )
         for q, rise_m in ((draw.q_pick, 0.0), (draw.q_place, max(0.0, draw.rise_m))):
             # the straight line from the approach point down to the witness (or to the
             # upper layer above it), tracked back up from the witness every 5 mm
@@ -325,6 +333,10 @@ def _witnesses_clear(draw: _Draw) -> bool:
         if np.any((distances - required)[keep] < WITNESS_MARGIN_M):
             return False
     return True
+
+
+#: the pairs of an arm's link and its carried part
+_ARM_LOAD = {"ROBOT_LINK", "PART"}
 
 
 def _up(distance_m: float) -> np.ndarray:

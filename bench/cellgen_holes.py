@@ -249,8 +249,8 @@ def _case(seed: int, kind: str, d: dict[str, Any]) -> Any:
 
 
 def _witness_clear(case: Any, d: dict[str, Any]) -> bool:
-    """The pick witness's line down and the place witness's line from above the hole to
-    the insert's end keep every checked pair :data:`bench.cellgen.WITNESS_MARGIN_M` clear
+    """The pick witness's line down and the place witness's line from the insert's end up
+    through the approach over the hole and the retreat keep every checked pair :data:`bench.cellgen.WITNESS_MARGIN_M` clear
     of its clearance, the pin and the hole block excepted."""
     import tempfile
     from pathlib import Path
@@ -272,7 +272,9 @@ def _witness_clear(case: Any, d: dict[str, Any]) -> bool:
         kin = d["kin"]
         lines = (
             (d["q_pick"], 0.0, cellgen.APPROACH_M),
-            (d["q_place"], -d["depth"], APPROACH_ABOVE_M),
+            # from the insert's end up to the higher of the approach over the hole and
+            # the retreat's end (the retreat rises from the insert's end)
+            (d["q_place"], -d["depth"], max(APPROACH_ABOVE_M, cellgen.APPROACH_M - d["depth"])),
         )
         for q, below_m, above_m in lines:
             T_goal, config = kin.T_world_tcp(q), q
