@@ -317,6 +317,7 @@ def _witnesses_clear(draw: _Draw) -> bool:
                 for a, b in labels
             ]
         )
+        tops = []
         for q, rise_m in ((draw.q_pick, 0.0), (draw.q_place, max(0.0, draw.rise_m))):
             # the straight line from the approach point down to the witness (or to the
             # upper layer above it), tracked back up from the witness every 5 mm
@@ -328,11 +329,44 @@ def _witnesses_clear(draw: _Draw) -> bool:
                 distances, required = collision.pair_distances(config)
                 if np.any((distances - required)[keep] < WITNESS_MARGIN_M):
                     return False
+            tops.append(config)
         # and home, where the job starts and ends (on a wall, the tables may come near it)
         distances, required = collision.pair_distances(np.radians(HOME_DEG))
         if np.any((distances - required)[keep] < WITNESS_MARGIN_M):
             return False
+        return joint_paths_exist(world, draw.q_pick, tops[0], tops[1])
     return True
+
+
+def joint_paths_exist(
+    world: Any, q_grip: np.ndarray, q_pick_top: np.ndarray, q_place_top: np.ndarray
+) -> bool:
+    """A collision-free joint path is found from home to the pick's approach point, on to
+    the place's (the part carried, as gripped at ``q_grip``) and back home: without one the approach points are no
+    witness (on a wall, the upper arm may have to pass through the plate to get there).
+    A path found is a witness; the planner ``check`` uses searches far longer here."""
+    from cellrunner.errors import InfeasibleError
+    from cellrunner.planning.joint_path import plan_joint_path
+
+    home = np.radians(HOME_DEG)
+    carrying = world.collision.carrying(
+        world.part_at("infeed", world.kinematics.T_world_tcp(q_grip))
+    )
+    legs = (
+        (world.collision, home, q_pick_top),
+        (carrying, q_pick_top, q_place_top),
+        (world.collision, q_place_top, home),
+    )
+    try:
+        for collision, q0, q1 in legs:
+            plan_joint_path(collision, q0, q1, time_budget_s=WITNESS_PATH_S, proven=False)
+    except InfeasibleError:
+        return False
+    return True
+
+
+#: how long a witness's joint path is searched for (s)
+WITNESS_PATH_S = 10.0
 
 
 #: the pairs of an arm's link and its carried part

@@ -250,8 +250,9 @@ def _case(seed: int, kind: str, d: dict[str, Any]) -> Any:
 
 def _witness_clear(case: Any, d: dict[str, Any]) -> bool:
     """The pick witness's line down and the place witness's line from the insert's end up
-    through the approach over the hole and the retreat keep every checked pair :data:`bench.cellgen.WITNESS_MARGIN_M` clear
-    of its clearance, the pin and the hole block excepted."""
+    through the approach over the hole and the retreat keep every checked pair
+    :data:`bench.cellgen.WITNESS_MARGIN_M` clear of its clearance, the pin and the hole
+    block excepted, and joint paths join them to home (``cellgen.joint_paths_exist``)."""
     import tempfile
     from pathlib import Path
 
@@ -262,7 +263,8 @@ def _witness_clear(case: Any, d: dict[str, Any]) -> bool:
     block = {*WALLS, "hole_floor", "pin"}
     with tempfile.TemporaryDirectory() as folder:
         cell, _ = case.write(Path(folder))
-        collision = CellWorld(load_cell(cell)).collision
+        world = CellWorld(load_cell(cell))
+        collision = world.collision
         keep = np.array(
             [
                 not any(b in f"{a} {c}" for b in block) and "part" not in f"{a} {c}"
@@ -276,6 +278,7 @@ def _witness_clear(case: Any, d: dict[str, Any]) -> bool:
             # the retreat's end (the retreat rises from the insert's end)
             (d["q_place"], -d["depth"], max(APPROACH_ABOVE_M, cellgen.APPROACH_M - d["depth"])),
         )
+        tops = []
         for q, below_m, above_m in lines:
             T_goal, config = kin.T_world_tcp(q), q
             steps = int((above_m - below_m) / 0.005) + 1
@@ -286,4 +289,5 @@ def _witness_clear(case: Any, d: dict[str, Any]) -> bool:
                 distances, required = collision.pair_distances(config)
                 if np.any((distances - required)[keep] < cellgen.WITNESS_MARGIN_M):
                     return False
-    return True
+            tops.append(config)
+        return cellgen.joint_paths_exist(world, d["q_pick"], tops[0], tops[1])

@@ -6,7 +6,8 @@ timed with, and each standing step through its kind's ``plan`` (SPEC section 10)
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+import itertools
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -36,6 +37,8 @@ if TYPE_CHECKING:
 WRIST_SETTLE_S = 0.15
 #: planned motions remembered per cell (:meth:`StepPlanner.motion`), oldest out
 MOTION_MEMO_SIZE = 256
+#: how many of a goal's IK branches a joint move tries to reach before it is refused
+MAX_GOAL_BRANCHES = 4
 #: a force step's line accelerates and stops at most this hard at the TCP (m/s^2): the
 #: tool's mass and the servo's response push on the wrist sensor by about 2 N per m/s^2
 #: (the peg tool on the twin: 1.1 N at ur_rtde moveUntilContact's default 0.5 m/s^2, and
@@ -175,9 +178,6 @@ class StepPlanner(StepContacts):
             self.contact = ()  # a joint move leaves a force step's or tight fit's contacts behind
             if goal_q is None and step.q_goal_deg is not None:
                 goal_q = np.radians(step.q_goal_deg)
-            elif goal_q is None:
-                assert step.T_world_tcp is not None  # a move has a joint or a frame target
-                goal_q = self._ik(step.T_world_tcp, step, then)
             collision = self.collision()
             # sampled only: verification proves the timed trajectory, and a move that fails
             # it is planned again proven (_prove_sampled)
@@ -185,7 +185,13 @@ class StepPlanner(StepContacts):
             if egress is not None:
                 head = plan_linear(kin, collision, self.q, egress[0]).q_rad
                 row.message = egress[1]
-            path, loose = _sampled_joint_path(collision, head, goal_q)
+            if goal_q is None:
+                assert step.T_world_tcp is not None  # a move has a joint or a frame target
+                goal_q, (path, loose) = self._reach_a_branch(
+                    collision, head, self._ik(step.T_world_tcp, step, then)
+                )
+            else:
+                path, loose = _sampled_joint_path(collision, head, goal_q)
             proven = functools.partial(_joint_path, collision, head, goal_q, proven=True)
             if loose is not None:
                 proven, then_proven = loose, proven
@@ -236,10 +242,29 @@ class StepPlanner(StepContacts):
         """Plan a step that does not move (its kind's :meth:`plan`)."""
         kind_of(row.step.kind).plan(self, row)
 
-    def _ik(self, T_world_tcp: np.ndarray, step: Step, then: Step | None) -> np.ndarray:
-        """The branch nearest the current configuration that is collision-free and, when
-        a straight descend follows, from which that descend runs clear to its goal on the
-        same branch (else the nearest whose descend's goal is clear)."""
+    def _reach_a_branch(
+        self, collision: CollisionModel, head: np.ndarray, branches: Iterator[np.ndarray]
+    ) -> tuple[np.ndarray, tuple[np.ndarray, Callable[[], np.ndarray] | None]]:
+        """The first of ``branches`` (in :meth:`_ik`'s order) a joint path reaches from
+        ``head``, and that path: the nearest branch may lie where no path leads (on a
+        wall, beyond the plate the upper arm would have to pass through) while another
+        one is reached. When none is, the nearest branch's error."""
+        first: InfeasibleError | None = None
+        for q in itertools.islice(branches, MAX_GOAL_BRANCHES):
+            try:
+                return q, _sampled_joint_path(collision, head, q)
+            except InfeasibleError as exc:
+                if not exc.failure.reason.startswith("no collision-free joint path"):
+                    raise
+                first = first or exc
+        assert first is not None  # _ik returns at least one branch
+        raise first
+
+    def _ik(self, T_world_tcp: np.ndarray, step: Step, then: Step | None) -> Iterator[np.ndarray]:
+        """The branches to try, in order: those nearest the current configuration that
+        are collision-free and, when a straight descend follows, from which that descend
+        runs clear to its goal on the same branch (else the nearest whose descend's goal
+        is clear, else the nearest collision-free one)."""
         from cellrunner.planning.blockers import every_branch_collides, unreachable
 
         kin = self.world.kinematics
@@ -278,14 +303,19 @@ class StepPlanner(StepContacts):
                 if (q_next := kin.ik_track(follow, q)) is not None
                 and (after := line_model(np.asarray(q), q_next)).is_valid(q_next)
             ]
-            # the first branch whose whole line down is clear: another branch's descend
-            # may pass an arm link by a fixture on its way (issue 33)
-            for q, after in ends_clear:
-                if _line_plans(kin, after, np.asarray(q), follow):
-                    return np.asarray(q)
+            # the branches whose whole line down is clear: another branch's descend may
+            # pass an arm link by a fixture on its way (issue 33)
+            # (each further one's line planned only if the ones before it are not reached)
+            clear = (np.asarray(q) for q, after in ends_clear if _line_plans(kin, after, q, follow))
+            nearest = next(clear, None)
+            if nearest is not None:
+                return itertools.chain([nearest], clear)
             if ends_clear:
-                return np.asarray(ends_clear[0][0])  # its descend will say what is in the way
-        return np.asarray(valid[0])  # the descend that follows will say what is wrong with it
+                return iter(
+                    [np.asarray(ends_clear[0][0])]
+                )  # its descend will say what is in the way
+            return iter([np.asarray(valid[0])])  # the descend will say what is wrong with it
+        return (np.asarray(q) for q in valid)
 
     def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
         return kind_of(step.kind).line_goal(self, step, T_now)
