@@ -25,7 +25,9 @@ def test_every_arm_part_solid_holds_all_its_vertices(model):
         # and nothing past the part: 1 mm beyond each side of its box is outside
         lo, hi = part.vertices_m.min(axis=0), part.vertices_m.max(axis=0)
         centre = (lo + hi) / 2
-        beyond = np.vstack([centre + np.diag(hi - centre + 0.001), centre - np.diag(centre - lo + 0.001)])
+        beyond = np.vstack(
+            [centre + np.diag(hi - centre + 0.001), centre - np.diag(centre - lo + 0.001)]
+        )
         assert not solid.near(beyond, 0.0).any(), (part.link, part.index)
 
 
@@ -60,15 +62,21 @@ def test_a_watched_ur10_on_the_ceiling_sees_nothing_but_itself_in_the_twin(tmp_p
     poses = {"home": world.q_home_rad}
     poses.update({name: np.radians(q) for name, q in case.witness_deg.items()})
     assert len(poses) == 3
-    for name, q in poses.items():
+    static = known.static_solids()
+    surfaces = known.static_surfaces(watch.voxel / 2)
+
+    def look(q: np.ndarray):
+        """A fresh map of the zone after one image of the twin with the arm at ``q``."""
         m = OccupancyMap(watch.zone.pose.matrix(), tuple(watch.zone.box.size), watch.voxel)
         pad = watch.padding + m.half_diagonal_m
-        static = known.static_solids()
-        m.mark_known(lambda c: near_any(static, c, pad), known.static_surfaces(watch.voxel / 2), pad)
+        m.mark_known(lambda c: near_any(static, c, pad), surfaces, pad)
         qpos = np.array(sim.data.qpos)
         qpos[:6] = q
         frame = imager.frame(qpos, sim.data.mocap_pos, sim.data.mocap_quat, 0.0)
         robot = known.robot_at(frame.q_rad)
-        update = m.integrate(frame, range_m, lambda c: near_any(robot, c, pad))
+        return m, m.integrate(frame, range_m, lambda c: near_any(robot, c, pad))
+
+    for name, q in poses.items():
+        m, update = look(q)
         assert update.misses > 0, name  # the camera sees the zone
         assert update.occupied == 0, (name, m.occupied_centres())
