@@ -10,15 +10,28 @@ the whole cell). Parts the arm set down are added as it releases them (:meth:`se
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cellrunner.model.geometry import Mesh, Placed, invert
-from cellrunner.perception.solids import PlacedSolid, Solid, hull_from_faces, solid_of
+from cellrunner.perception.solids import PlacedSolid, Solid, hull_of, solid_of
 
 if TYPE_CHECKING:
     from cellrunner.planning.world import CellWorld
+
+
+@functools.cache
+def arm_solids(model: str) -> tuple[PlacedSolid, ...]:
+    """The arm's convex parts as solids on their links (each in its joint's frame): the
+    hulls of their vertices, as the twin draws them."""
+    from cellrunner.model.arm_geometry import arm_geometry
+
+    return tuple(
+        PlacedSolid(p.link, hull_of(p.vertices_m), p.body, np.eye(4))
+        for p in arm_geometry(model).parts
+    )
 
 
 class KnownScene:
@@ -26,8 +39,6 @@ class KnownScene:
     world."""
 
     def __init__(self, world: CellWorld) -> None:
-        from cellrunner.model.arm_geometry import arm_geometry
-
         self.world = world
         kin = world.kinematics
         self.T_world_base = kin.T_world_base
@@ -35,17 +46,13 @@ class KnownScene:
         frames = world.collision.joint_frames(q0[None])[0]
         T_joint6_flange = invert(frames[6]) @ kin.T_world_flange(q0)
         self.T_joint6_tcp = T_joint6_flange @ kin.T_flange_tcp
-        arm = [
-            PlacedSolid(p.link, hull_from_faces(p.vertices_m, p.faces), p.body, np.eye(4))
-            for p in arm_geometry(world.spec.arm).parts
-        ]
         tool = [
             PlacedSolid(
                 f"tool {t.name!r}", solid_of(t.shape), 6, T_joint6_flange @ t.T_parent_shape
             )
             for t in world.tool
         ]
-        self.robot: tuple[PlacedSolid, ...] = (*arm, *tool)
+        self.robot: tuple[PlacedSolid, ...] = (*arm_solids(world.spec.arm), *tool)
         self.fixtures: tuple[Placed, ...] = tuple(world.fixtures)
         self.parts: list[Placed] = [
             p for p in (self._spawned(part.name, part.at) for part in world.loaded.cell.parts) if p

@@ -65,24 +65,24 @@ def solid_of(shape: Shape) -> Solid:
 
 
 def hull_of(vertices_m: np.ndarray) -> Solid:
-    """The convex hull of points (n x 3) as a solid."""
+    """The convex hull of points (n x 3) as a solid: the planes of Qhull's facets, the
+    same hull the twin (MuJoCo) builds from a mesh's vertices.
+
+    Never planes taken from triangles of a hull's surface (the arm's parts carry such
+    triangles, for drawing): Qhull splits a facet into triangles, some of them slivers
+    whose corners nearly coincide, and a sliver's own normal points anywhere. On the
+    UR10's forearm one such plane cut 139 mm off the part, and the watch took the
+    forearm it saw for an obstacle (docs/check-truth.md)."""
     from scipy.spatial import ConvexHull
 
-    hull = ConvexHull(vertices_m)
+    hull = ConvexHull(np.asarray(vertices_m, float))
     planes = np.array(hull.equations, float)  # n.p + c <= 0 inside, n a unit vector
     planes[:, 3] = -planes[:, 3]
-    return Solid("hull", (0.0, 0.0, 0.0), float(np.linalg.norm(vertices_m, axis=1).max()), planes)
-
-
-def hull_from_faces(vertices_m: np.ndarray, faces: np.ndarray) -> Solid:
-    """A convex polytope given by its outward triangles (the arm's convex parts)."""
-    v0, v1, v2 = (vertices_m[faces[:, k]] for k in range(3))
-    normals = np.cross(v1 - v0, v2 - v0)
-    length = np.linalg.norm(normals, axis=1)
-    keep = length > 1e-12
-    normals = normals[keep] / length[keep, None]
-    planes = np.column_stack([normals, np.einsum("ij,ij->i", normals, v0[keep])])
-    return Solid("hull", (0.0, 0.0, 0.0), float(np.linalg.norm(vertices_m, axis=1).max()), planes)
+    # a facet split into triangles repeats its plane: keep each plane once
+    _, first = np.unique(np.round(planes, 12), axis=0, return_index=True)
+    planes = planes[np.sort(first)]
+    radius = float(np.linalg.norm(vertices_m, axis=1).max())
+    return Solid("hull", (0.0, 0.0, 0.0), radius, planes)
 
 
 @dataclass(frozen=True, eq=False)

@@ -39,7 +39,9 @@ class ArmGeometryMissing(LookupError):
 @dataclass(frozen=True)
 class ConvexPart:
     """One convex part of link ``body``: vertices (n x 3, m, in the joint frame) and the
-    triangles of its hull (outward, indices into the vertices)."""
+    triangles of its hull (outward, indices into the vertices). The triangles are for
+    drawing and edges, not planes: some are slivers whose normals point anywhere (take
+    a hull's planes from its vertices)."""
 
     body: int
     index: int  # among the link's parts
