@@ -23,7 +23,9 @@ and the straight lines down to the frames keep 5 mm over every clearance.
 
 and ``near_support`` is a feasible variant that sets the part down 2 mm above its table,
 ``layered`` one that sets it 2 mm above the part an earlier job put on the layer below
-(places a line engineer writes, which ``check`` must not refuse).
+and ``interlocked`` the same on an interlocked pallet, the upper layer turned 90 deg
+(``turn: [0, 90]``, SPEC section 13) (places a line engineer writes, which ``check``
+must not refuse).
 
 The kinds of :mod:`bench.cellgen_holes` (a pin into a hole: a fit, a hole too shallow, a
 rim and an interference jam) are generated there.
@@ -70,7 +72,16 @@ MOUNTS: dict[
 }
 CEILING_SHARE, WALL_SHARE = 0.3, 0.15
 #: feasible kinds of jobs, and the defects (each breaks one thing)
-FEASIBLE = ("feasible", "near_support", "layered", *CAMERA_FEASIBLE, *cellgen_holes.HOLE_FEASIBLE)
+#: feasible kinds added after the fixed sample was drawn (sampled on seeds of their own)
+LATER_FEASIBLE = ("interlocked",)
+FEASIBLE = (
+    "feasible",
+    "near_support",
+    "layered",
+    *CAMERA_FEASIBLE,
+    *cellgen_holes.HOLE_FEASIBLE,
+    *LATER_FEASIBLE,
+)
 DEFECTS = (
     "out_of_reach",
     "unsupported_place",
@@ -84,10 +95,12 @@ DEFECTS = (
 #: the kinds that place on a pattern of two layers, the job's part on the upper one (on
 #: the part an earlier job put on the lower): ``layered`` 2 mm above it, ``blocked_layer``
 #: with a layer pitch 10 mm under the part's height (it would go into the part below)
-LAYERED = {"layered": 0.002, "blocked_layer": -0.010}
+LAYERED = {"layered": 0.002, "blocked_layer": -0.010, "interlocked": 0.002}
+#: the kinds whose upper layer turns about the frame's Z (deg): an interlocked pallet
+TURNED = {"interlocked": 90.0}
 KINDS = FEASIBLE + DEFECTS
 #: the kinds without cameras (the fixed sample's first part keeps its seeds)
-PLAIN_KINDS = tuple(k for k in KINDS if k not in CAMERA_KINDS)
+PLAIN_KINDS = tuple(k for k in KINDS if k not in CAMERA_KINDS and k not in LATER_FEASIBLE)
 #: the kinds that need one gripper: the others draw jaws or cups (VACUUM_SHARE of them cups)
 NEEDS_GRIPPER = {"jaws_too_narrow": "jaws", "weak_vacuum": "vacuum", **NEEDS_JAWS}
 VACUUM_SHARE = 0.4
@@ -248,6 +261,8 @@ class _Draw:
     #: how far above the place's witness the job's place lies (a layered pattern's upper
     #: layer, m): the witness's line down is proven from that height plus the approach
     rise_m: float = 0.0
+    #: how far the upper layer turns about the place frame's Z (deg, ``TURNED``)
+    turn_deg: float = 0.0
 
 
 def _draw(rng: random.Random, kind: str) -> _Draw:
@@ -277,6 +292,7 @@ def _draw(rng: random.Random, kind: str) -> _Draw:
         _draw_cups(rng, draw)
     if kind in LAYERED:
         draw.rise_m = round(draw.size[2] + LAYERED[kind], 4)
+        draw.turn_deg = TURNED.get(kind, 0.0)
     return draw
 
 
@@ -317,25 +333,53 @@ def _witnesses_clear(draw: _Draw) -> bool:
                 for a, b in labels
             ]
         )
-        tops = []
-        for q, rise_m in ((draw.q_pick, 0.0), (draw.q_place, max(0.0, draw.rise_m))):
-            # the straight line from the approach point down to the witness (or to the
-            # upper layer above it), tracked back up from the witness every 5 mm
-            T_goal, config = draw.kin.T_world_tcp(q), q
-            for k in range(int((APPROACH_M + rise_m) / 0.005) + 1):
-                config = draw.kin.ik_track(T_goal @ _up(k * 0.005), config)
-                if config is None:
-                    return False
-                distances, required = collision.pair_distances(config)
-                if np.any((distances - required)[keep] < WITNESS_MARGIN_M):
-                    return False
-            tops.append(config)
+        # the straight lines from the approach points down to the witnesses (the place's
+        # from above the upper layer, and turned with it on an interlocked pallet)
+        lines = [(draw.q_pick, 0.0, APPROACH_M), (draw.q_place, 0.0, APPROACH_M + draw.rise_m)]
+        if draw.turn_deg:
+            lines.append((draw.q_place, draw.turn_deg, APPROACH_M + draw.rise_m))
+        tops = [_line_top(draw.kin, collision, keep, *line) for line in lines]
+        if any(top is None for top in tops):
+            return False
         # and home, where the job starts and ends (on a wall, the tables may come near it)
         distances, required = collision.pair_distances(np.radians(HOME_DEG))
         if np.any((distances - required)[keep] < WITNESS_MARGIN_M):
             return False
-        return joint_paths_exist(world, draw.q_pick, tops[0], tops[1])
+        return joint_paths_exist(world, draw.q_pick, tops[0], tops[-1])
     return True
+
+
+def _line_top(
+    kin: Any, collision: Any, keep: np.ndarray, q: np.ndarray, turn_deg: float, top_m: float
+) -> np.ndarray | None:
+    """The configuration at the top of the straight line up ``top_m`` from witness ``q``
+    (its pose turned ``turn_deg`` about the TCP's Z), tracked back up every 5 mm, when the
+    whole line keeps every checked pair :data:`WITNESS_MARGIN_M` clear and the wrist
+    :data:`WITNESS_SINGULAR_DEG` off its singularities; else None."""
+    from cellrunner.planning.cartesian import MIN_SHOULDER_DISTANCE_M, MIN_SINGULARITY_ANGLE_DEG
+
+    T_goal, config = kin.T_world_tcp(q) @ _turn(turn_deg), q
+    if turn_deg:  # the wrist's last joint turns the TCP about its Z
+        config = kin.ik_track(T_goal, q + np.radians([0, 0, 0, 0, 0, turn_deg]))
+        if config is None or not kin.within_limits(config):
+            return None
+    for k in range(int(top_m / 0.005) + 1):
+        config = kin.ik_track(T_goal @ _up(k * 0.005), config)
+        if config is None:
+            return None
+        if kin.singularity_distance(config).violation(
+            MIN_SINGULARITY_ANGLE_DEG + WITNESS_SINGULAR_DEG, MIN_SHOULDER_DISTANCE_M + 0.01
+        ):
+            return None
+        distances, required = collision.pair_distances(config)
+        if np.any((distances - required)[keep] < WITNESS_MARGIN_M):
+            return None
+    return np.asarray(config)
+
+
+#: how much farther than ``check`` requires a witness's lines keep the wrist and elbow
+#: from their singularities (deg)
+WITNESS_SINGULAR_DEG = 2.0
 
 
 def joint_paths_exist(
@@ -371,6 +415,14 @@ WITNESS_PATH_S = 10.0
 
 #: the pairs of an arm's link and its carried part
 _ARM_LOAD = {"ROBOT_LINK", "PART"}
+
+
+def _turn(deg: float) -> np.ndarray:
+    """About the frame's Z by ``deg`` (a pattern layer's turn)."""
+    T = np.eye(4)
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    T[:2, :2] = [[c, -s], [s, c]]
+    return T
 
 
 def _up(distance_m: float) -> np.ndarray:
@@ -474,9 +526,12 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
         ],
     }
     if kind in LAYERED:  # the upper of two layers, on the part an earlier job put below
-        pitch = [0.1, 0.1, d.rise_m]
         task["params"] = {"slot": {"type": "int", "min": 0, "max": 1, "default": 1}}
-        task["steps"][2]["place"]["pattern"] = {"grid": [1, 1, 2], "pitch": pitch, "index": "slot"}
+        pattern: dict[str, Any] = {"grid": [1, 1, 2], "pitch": [0.1, 0.1, d.rise_m]}
+        if d.turn_deg:  # interlocked: layer k turns by turn[k % 2]
+            pattern = {"grid": [1, 1], "pitch": [0.1, 0.1], "layers": 2}
+            pattern |= {"layer_pitch": d.rise_m, "turn": [0, d.turn_deg]}
+        task["steps"][2]["place"]["pattern"] = {**pattern, "index": "slot"}
     witness = {"pick": _deg(d.q_pick), "place": _deg(d.q_place)}
     case = Case(seed, kind, cell, task, witness)
     return with_cameras(case, seed) if kind in CAMERA_KINDS else case

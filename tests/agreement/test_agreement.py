@@ -9,7 +9,16 @@ import numpy as np
 import pytest
 
 from bench.agreement import DISAGREEMENTS, classify, judge
-from bench.cellgen import DEFECTS, FEASIBLE, KINDS, MOUNTS, PLAIN_KINDS, corpus, generate
+from bench.cellgen import (
+    DEFECTS,
+    FEASIBLE,
+    KINDS,
+    LATER_FEASIBLE,
+    MOUNTS,
+    PLAIN_KINDS,
+    corpus,
+    generate,
+)
 from bench.cellgen_cameras import CAMERA_KINDS
 
 #: the fixed sample scripts/test runs: each kind on its own seeds (jaws and cups, and the
@@ -18,13 +27,17 @@ from bench.cellgen_cameras import CAMERA_KINDS
 SAMPLE_SEED, SAMPLE_SIZE = 5000, 39
 #: and one job of each kind with a camera (bench/cellgen_cameras.py), on its own seeds
 CAMERA_SEED = 5100
+#: and three of each kind added since (an interlocked pallet's turned upper layer)
+LATER_SEED, LATER_EACH = 5200, 3
 
 
 def sample() -> list:
-    """The fixed sample: the plain kinds' jobs, then one of each camera kind."""
+    """The fixed sample: the plain kinds' jobs, one of each camera kind, then the kinds
+    added since."""
     return [
         *corpus(SAMPLE_SIZE, SAMPLE_SEED, PLAIN_KINDS),
         *corpus(len(CAMERA_KINDS), CAMERA_SEED, CAMERA_KINDS),
+        *corpus(LATER_EACH * len(LATER_FEASIBLE), LATER_SEED, LATER_FEASIBLE),
     ]
 
 
