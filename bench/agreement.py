@@ -51,6 +51,7 @@ class Verdict:
     message: str
     check_s: float
     folder: str
+    rehearse: str = ""  # what dry-run was given besides the files (a fault it injected)
 
 
 def cli(*argv: str) -> tuple[int, dict]:
@@ -71,15 +72,23 @@ def cli(*argv: str) -> tuple[int, dict]:
     )
 
 
-def classify(feasible: bool, check_code: int, result_code: int | None) -> str:
-    """The class of a job from its truth, check's exit code and the twin's result code."""
+def classify(
+    feasible: bool,
+    check_code: int,
+    result_code: int | None,
+    expect_code: int = 0,
+    recovered: bool = True,
+) -> str:
+    """The class of a job from its truth, check's exit code and the twin's result code
+    (``expect_code`` where the rehearsal injects a fault; ``recovered``: its on_error
+    was done)."""
     if check_code == 2:
         return "invalid file"  # the generator wrote a file the loader refuses: its bug
     if check_code != 0:
         return "false refusal" if feasible else "true refuse"
     if result_code is None:
         return "twin did not run"  # the rehearsal ended without a result: the bench's fault
-    if result_code != 0:
+    if result_code != expect_code or not recovered:
         return "false approval"
     return "true accept" if feasible else "twin false OK"
 
@@ -93,12 +102,21 @@ def judge(case: Case, out: Path) -> Verdict:
     check_s = time.perf_counter() - t0
     result_code, message = None, "; ".join(checked.get("errors", []))[:300]
     if check_code == 0:
-        _, rehearsed = cli("dry-run", str(cell), str(task))
+        _, rehearsed = cli("dry-run", str(cell), str(task), *case.rehearse)
         result_code = rehearsed.get("result_code")
         message = str(rehearsed.get("result_text") or "; ".join(rehearsed.get("errors", [])))[:300]
-    verdict = classify(case.feasible, check_code, result_code)
+    recovered = not case.expect_code or "on_error done" in message
+    verdict = classify(case.feasible, check_code, result_code, case.expect_code, recovered)
     return Verdict(
-        case.name, case.kind, check_code, result_code, verdict, message, check_s, str(folder)
+        case.name,
+        case.kind,
+        check_code,
+        result_code,
+        verdict,
+        message,
+        check_s,
+        str(folder),
+        "".join(f" {arg}" for arg in case.rehearse),
     )
 
 
@@ -183,7 +201,7 @@ def write_disagreements(verdicts: list[Verdict], out: Path) -> Path:
     text = "".join(
         f"{v.verdict}: {v.name}: {v.message}\n"
         f"  cellrunner check {v.folder}/cell.yaml {v.folder}/task.yaml\n"
-        f"  cellrunner dry-run {v.folder}/cell.yaml {v.folder}/task.yaml\n"
+        f"  cellrunner dry-run {v.folder}/cell.yaml {v.folder}/task.yaml{v.rehearse}\n"
         for v in rows
     )
     path.write_text(text or "none\n")

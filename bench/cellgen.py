@@ -25,7 +25,10 @@ and ``near_support`` is a feasible variant that sets the part down 2 mm above it
 ``layered`` one that sets it 2 mm above the part an earlier job put on the layer below
 and ``interlocked`` the same on an interlocked pallet, the upper layer turned 90 deg
 (``turn: [0, 90]``, SPEC section 13) (places a line engineer writes, which ``check``
-must not refuse).
+must not refuse). ``recovering`` is the feasible job with an ``on_error`` (the gripper's
+output off, a 50 mm retreat, home), rehearsed with the part slipping out of the gripper
+in the move to the place: the twin must end it 2 (part lost) with on_error done from
+where the arm stopped, as ``check`` proved it from every state a fault can leave.
 
 The kinds of :mod:`bench.cellgen_holes` (a pin into a hole: a fit, a hole too shallow, a
 rim and an interference jam) are generated there.
@@ -73,7 +76,7 @@ MOUNTS: dict[
 CEILING_SHARE, WALL_SHARE = 0.3, 0.15
 #: feasible kinds of jobs, and the defects (each breaks one thing)
 #: feasible kinds added after the fixed sample was drawn (sampled on seeds of their own)
-LATER_FEASIBLE = ("interlocked",)
+LATER_FEASIBLE = ("interlocked", "recovering")
 FEASIBLE = (
     "feasible",
     "near_support",
@@ -119,6 +122,10 @@ class Case:
     cell: dict[str, Any]
     task: dict[str, Any]
     witness_deg: dict[str, list[float]] = field(default_factory=dict)
+    #: what the rehearsal adds to ``dry-run`` (a fault it injects) and the result code it
+    #: must end with then (with ``on_error`` done where it injects one)
+    rehearse: tuple[str, ...] = ()
+    expect_code: int = 0
 
     @property
     def name(self) -> str:
@@ -534,6 +541,10 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
         task["steps"][2]["place"]["pattern"] = {**pattern, "index": "slot"}
     witness = {"pick": _deg(d.q_pick), "place": _deg(d.q_place)}
     case = Case(seed, kind, cell, task, witness)
+    if kind == "recovering":  # the part slips out in the move to the place, on_error clears
+        off = "vacuum_on" if d.gripper == "vacuum" else "gripper_close"
+        task["on_error"] = [{"set_output": {off: False}}, {"retreat": 0.05}, {"move": "home"}]
+        case.rehearse, case.expect_code = ("--inject", "part_slip@approach#2"), 2
     return with_cameras(case, seed) if kind in CAMERA_KINDS else case
 
 

@@ -27,7 +27,8 @@ from bench.cellgen_cameras import CAMERA_KINDS
 SAMPLE_SEED, SAMPLE_SIZE = 5000, 39
 #: and one job of each kind with a camera (bench/cellgen_cameras.py), on its own seeds
 CAMERA_SEED = 5100
-#: and three of each kind added since (an interlocked pallet's turned upper layer)
+#: and three of each kind added since (an interlocked pallet's turned upper layer, a
+#: part that slips out in transit and the on_error that clears up after it)
 LATER_SEED, LATER_EACH = 5200, 3
 
 
@@ -89,6 +90,10 @@ def test_the_classes():
     assert classify(False, 0, 0) == "twin false OK"
     assert classify(False, 2, None) == "invalid file"
     assert classify(True, 0, None) == "twin did not run"
+    # a rehearsal that injects a fault must end with its code, on_error done
+    assert classify(True, 0, 2, expect_code=2) == "true accept"
+    assert classify(True, 0, 2, expect_code=2, recovered=False) == "false approval"
+    assert classify(True, 0, 0, expect_code=2) == "false approval"
 
 
 def test_a_fixed_sample_agrees_with_the_truth(tmp_path):
