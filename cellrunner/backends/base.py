@@ -88,6 +88,15 @@ class RobotBackend(Protocol):
 
 
 @runtime_checkable
+class ExplainsStops(Protocol):
+    """A backend that knows what raised a protective stop (the twin's contacts)."""
+
+    def stop_cause(self) -> str | None:
+        """What the arm met and how hard, while the stop it raised is under way; None
+        when it does not know."""
+
+
+@runtime_checkable
 class FeedsParts(Protocol):
     """A backend that drives its own infeed (the twin's ``sim: feed``)."""
 

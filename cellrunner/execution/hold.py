@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from cellrunner.backends.base import ExplainsStops
 from cellrunner.errors import BackendError
 from cellrunner.execution.context import JobContext
 from cellrunner.model.hold_source import HoldSource
@@ -74,7 +75,7 @@ class JobHold:
                 if not self.policy.resume
                 else f"more than {self.policy.max} protective stops" + self._same_place(ctx, step)
             )
-            return self._failed(f"protective stop during {label}: {why}")
+            return self._failed(f"protective stop during {label}: {_cause(ctx)}{why}")
         if held_for < UNLOCK_DELAY_S:
             return Held.WAIT
         if ctx.last_state.safety is Safety.PROTECTIVE_STOP:
@@ -108,3 +109,11 @@ class JobHold:
             f", {which} with the TCP within {spread_m * 1000:.0f} mm: something there stops "
             "the arm each time"
         )
+
+
+def _cause(ctx: JobContext) -> str:
+    """What raised the protective stop under way, as the backend knows it ("pad 'jaw_a'
+    met fixture 'infeed_table' at 673 N: "), else nothing."""
+    backend = ctx.backend
+    cause = backend.stop_cause() if isinstance(backend, ExplainsStops) else None
+    return f"{cause}: " if cause else ""

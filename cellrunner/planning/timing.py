@@ -12,6 +12,11 @@ to the limits at both ends, stretched starts, stops and curves by 2-5%), under
 
 - joint speed limits x margin (rad/s),
 - joint acceleration limits x margin (rad/s^2),
+- each joint's torque (:mod:`.dynamics`: the arm's masses and inertias, its tool and
+  heaviest part, a share of the joints' rated torques), as TOPP-RA's linear constraint
+  ``-tau <= a(s) s_ddot + b(s) s_dot^2 <= tau``, where the limits carry an arm's dynamics
+  (``MotionLimits.dynamics``): a UR10e's shoulder cannot brake a stretched arm at the
+  controller's 40 rad/s^2, and a plan that asks it to overshoots,
 - the TCP speed cap x margin (m/s), as a path-speed cap ``s_dot <= tcp_cap / v(s)`` with
   ``v(s) = |dp/ds|`` the TCP speed per unit path speed, computed for the whole grid at
   once by forward kinematics and given to TOPP-RA as per-joint limits
@@ -37,7 +42,7 @@ import math
 import types
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -45,6 +50,9 @@ from cellrunner.errors import InfeasibleError, InternalError
 from cellrunner.model.failure import Failure, FailureKind
 from cellrunner.model.robots import RobotSpec
 from cellrunner.planning.kinematics import ArmKinematics
+
+if TYPE_CHECKING:
+    from cellrunner.planning.dynamics import ArmDynamics
 
 #: path position (rad of joint travel) at the given times (s)
 SOfTime = Callable[[np.ndarray], np.ndarray]
@@ -76,6 +84,10 @@ class MotionLimits:
     joint_speed_rad_s: np.ndarray
     joint_accel_rad_s2: np.ndarray
     tcp_speed_mps: float
+    #: the arm's inverse dynamics and the joint torques a plan may ask (N m); None: the
+    #: joint limits alone (an arm with no twin, or a caller that times kinematically)
+    dynamics: ArmDynamics | None = None
+    joint_torque_nm: np.ndarray | None = None
 
     @classmethod
     def from_cell(
@@ -86,9 +98,11 @@ class MotionLimits:
         joint_accel_deg_s2: float | tuple[float, ...] | None = None,
         tcp_speed_mps: float | None = None,
         margin: float = 0.95,
+        dynamics: ArmDynamics | None = None,
     ) -> MotionLimits:
         """Cell limits (degrees, as in the cell file) clamped to the controller's own, x
-        ``margin``. Omitted values default to the controller's limits."""
+        ``margin``. Omitted values default to the controller's limits. ``dynamics``: the
+        arm's, to keep each joint's torque under its share of the rated one too."""
         if not 0 < margin <= 1:
             raise InternalError(f"margin must be in (0, 1], not {margin}")
         speed = np.broadcast_to(
@@ -113,7 +127,14 @@ class MotionLimits:
             tcp_speed_mps if tcp_speed_mps is not None else spec.tcp_speed_max_mps,
             spec.tcp_speed_max_mps,
         )
-        return cls(np.radians(speed) * margin, np.radians(accel) * margin, tcp * margin)
+        torque = None
+        if dynamics is not None:
+            from cellrunner.planning.dynamics import TORQUE_SHARE
+
+            torque = dynamics.torque_max_nm * TORQUE_SHARE
+        return cls(
+            np.radians(speed) * margin, np.radians(accel) * margin, tcp * margin, dynamics, torque
+        )
 
     def scaled(
         self,
@@ -129,7 +150,10 @@ class MotionLimits:
         tcp = (
             self.tcp_speed_mps if tcp_speed_mps is None else min(tcp_speed_mps, self.tcp_speed_mps)
         )
-        return MotionLimits(self.joint_speed_rad_s * f, self.joint_accel_rad_s2 * f * g, tcp)
+        torque = None if self.joint_torque_nm is None else self.joint_torque_nm * f * g
+        return MotionLimits(
+            self.joint_speed_rad_s * f, self.joint_accel_rad_s2 * f * g, tcp, self.dynamics, torque
+        )
 
 
 @dataclass(frozen=True)
@@ -349,6 +373,9 @@ class _Problem:
             PathSpeedBound(),
             constraint.JointAccelerationConstraint(np.column_stack([-alim, alim])),
         ]
+        dyn, tau = self.limits.dynamics, self.limits.joint_torque_nm
+        if dyn is not None and tau is not None:
+            constraints.append(_torque_bound(constraint, dyn, tau * self.tightening))
         try:
             instance = algo.TOPPRA(
                 constraints, self.path, gridpoints=self.grid, parametrizer="ParametrizeConstAccel"
@@ -367,6 +394,28 @@ class _Problem:
                 )
             )
         return np.asarray(sd, float)
+
+
+def _torque_bound(constraint: Any, dyn: ArmDynamics, tau_nm: np.ndarray) -> Any:
+    """TOPP-RA's constraint ``-tau <= a(s) s_ddot + b(s) s_dot^2 <= tau`` on each grid
+    point (:mod:`.dynamics`), collocated as the joint acceleration constraint is."""
+
+    class TorqueBound(constraint.LinearConstraint):  # type: ignore[misc]  # toppra is untyped
+        def __init__(self) -> None:
+            super().__init__()
+            self.dof = len(tau_nm)
+            self.identical = True
+
+        def compute_constraint_params(
+            self, path: Any, gridpoints: np.ndarray
+        ) -> tuple[np.ndarray | None, ...]:
+            a, b = dyn.path_terms(path(gridpoints), path(gridpoints, 1), path(gridpoints, 2))
+            eye = np.eye(self.dof)
+            F = np.vstack([eye, -eye])
+            g = np.concatenate([tau_nm, tau_nm])
+            return a, b, np.zeros_like(a), F, g, None, None
+
+    return TorqueBound()
 
 
 def _resample(
@@ -393,6 +442,11 @@ def _excess(kin: ArmKinematics, q: np.ndarray, limits: MotionLimits, rate_hz: fl
     rv = np.max(np.abs(v) / limits.joint_speed_rad_s, axis=1)  # N + 1 differences
     rt = tcp / limits.tcp_speed_mps
     ra = np.sqrt(np.max(np.abs(a) / limits.joint_accel_rad_s2, axis=1))  # N second differences
+    if limits.dynamics is not None and limits.joint_torque_nm is not None:
+        # second difference k is centred on sample k (the first one padded with rest),
+        # its speed the mean of the differences either side of it
+        tau = limits.dynamics.torques_nm(q, (v[:-1] + v[1:]) / 2, a)
+        ra = np.maximum(ra, np.sqrt(np.max(np.abs(tau) / limits.joint_torque_nm, axis=1)))
     per_sample = np.zeros(len(q))
     # difference k lies between samples k-1 and k (padded with rest at both ends)
     for ratio, offset in ((np.maximum(rv, rt), 1), (ra, 1)):

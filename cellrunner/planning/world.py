@@ -16,6 +16,7 @@ from cellrunner.model.load import LoadedCell
 
 if TYPE_CHECKING:
     from cellrunner.planning.collision import CollisionModel
+    from cellrunner.planning.dynamics import ArmDynamics
     from cellrunner.planning.kinematics import ArmKinematics
     from cellrunner.planning.plan_store import PlanStore
     from cellrunner.planning.timing import MotionLimits
@@ -198,6 +199,25 @@ class CellWorld:
             joint_accel_deg_s2=accel,
             tcp_speed_mps=lim.tcp_speed,
             margin=lim.margin,
+            dynamics=self.dynamics,
+        )
+
+    @cached_property
+    def dynamics(self) -> ArmDynamics | None:
+        """The arm's inverse dynamics with its tool and the heaviest part it may carry
+        (None for an arm with no twin): motions are timed within its joints' torques."""
+        from cellrunner.model.arm_dynamics import link_inertias
+        from cellrunner.planning.dynamics import ArmDynamics
+
+        if link_inertias(self.spec) is None:
+            return None
+        c = self.loaded.cell
+        return ArmDynamics(
+            self.spec,
+            c.tool.tcp.matrix(),
+            float(c.tool.payload.mass),
+            c.tool.payload.cog_m,
+            max((float(p.mass) for p in c.parts), default=0.0),
         )
 
     @cached_property

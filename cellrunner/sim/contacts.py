@@ -59,6 +59,45 @@ class ContactEvent:
     force_N: float
     geoms: tuple[str, str]
 
+    def describe(self) -> str:
+        """What touched what and how hard, the robot's side first: "pad 'jaw_a' met
+        fixture 'infeed_table' at 673 N"."""
+        first, second = sorted(self.geoms, key=lambda g: not _robot_side(g))
+        return f"{geom_label(first)} met {geom_label(second)} at {self.force_N:.0f} N"
+
+
+#: the twin's geom names of the robot's side, by prefix: the arm's links, its tool, pads, cups
+_ROBOT_PREFIXES = ("arm", "tool:", "tool@", "pad:", "cup:")
+
+
+def _robot_side(geom: str) -> bool:
+    return geom.startswith(_ROBOT_PREFIXES)
+
+
+def geom_label(geom: str) -> str:
+    """A twin's geom name as the cell file names the thing: ``fixture:infeed_table:2`` is
+    fixture 'infeed_table', ``arm3_0`` the arm's link 3 (the forearm), ``pad:jaw_a`` pad
+    'jaw_a'."""
+    kind, _, rest = geom.partition(":")
+    name = rest.split(":")[0]
+    if kind in ("fixture", "part", "pad") and name:
+        return f"{kind} {name!r}"
+    if kind == "cup" and name:
+        return f"cup {name}"
+    if kind == "tool" and name:
+        return f"the tool's {name!r}"
+    if geom.startswith(("tool@", "rack@")):
+        tool = geom.partition("@")[2].rsplit(":", 1)[0]
+        return f"tool {tool!r}" if geom.startswith("tool@") else f"the rack of tool {tool!r}"
+    if geom.startswith("arm") and geom[3:4].isdigit():
+        link = int(geom[3])
+        return f"the arm's link {link} ({_LINKS[link]})" if link < len(_LINKS) else geom
+    return f"the {geom}" if geom == "floor" else repr(geom)
+
+
+#: the arm's bodies, base to wrist 3, as the twin numbers them (``arm{i}_{k}``)
+_LINKS = ("base", "shoulder", "upper arm", "forearm", "wrist 1", "wrist 2", "wrist 3")
+
 
 class ContactWorld(Protocol):
     """What the contact rules see of the twin (:class:`~cellrunner.sim.world.SimWorld`)."""

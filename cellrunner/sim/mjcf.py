@@ -36,11 +36,11 @@ from typing import Any
 
 import numpy as np
 
+from cellrunner.model.arm_dynamics import ARM_MASS_KG as ARM_MASS_KG
+from cellrunner.model.arm_dynamics import JOINT_TORQUE_MAX_NM as JOINT_TORQUE_MAX_NM
 from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.sim.description import TwinDescription
 from cellrunner.sim.jaw_welds import add_jaw_welds
-from cellrunner.sim.mjcf_arm import ARM_MASS_KG as ARM_MASS_KG
-from cellrunner.sim.mjcf_arm import JOINT_TORQUE_MAX_NM as JOINT_TORQUE_MAX_NM
 from cellrunner.sim.mjcf_arm import add_arm
 from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC
 from cellrunner.sim.mjcf_bodies import FLAT_MESH_M as FLAT_MESH_M

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from cellrunner.model.arm_dynamics import ARM_MASS_KG, armature_kgm2, joint_torque_max_nm
 from cellrunner.model.arm_geometry import arm_geometry
 from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC, TOOL, fmt, pose_attrs
@@ -16,46 +17,7 @@ from cellrunner.sim.mjcf_document import MjcfDocument
 from cellrunner.sim.tool_changer import add_tools
 from cellrunner.sim.vacuum import add_cups
 
-# Arm masses (kg) and joint torque limits (N m, base..wrist 3), datasheets / UR manuals.
-ARM_MASS_KG = {
-    "ur3": 11.0,
-    "ur5": 18.4,
-    "ur10": 28.9,
-    "ur3e": 11.2,
-    "ur5e": 20.6,
-    "ur10e": 33.5,
-    "ur16e": 33.1,
-    "ur7e": 20.6,  # the UR5e renamed
-    "ur12e": 33.5,  # the UR10e renamed
-    "ur15": 40.2,  # sums of ur_description's link masses (UR15, UR18); UR8 Long assumed
-    "ur18": 39.5,
-    "ur8long": 42.0,
-    "ur20": 64.0,  # datasheets
-    "ur30": 63.5,
-}
-_TORQUE_SMALL = (56.0, 56.0, 28.0, 12.0, 12.0, 12.0)
-_TORQUE_MEDIUM = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)
-_TORQUE_LARGE = (330.0, 330.0, 150.0, 56.0, 56.0, 56.0)
-_TORQUE_UR18 = (433.0, 433.0, 204.0, 70.0, 70.0, 70.0)  # ur_description max_effort
-_TORQUE_UR20 = (738.0, 738.0, 433.0, 107.0, 107.0, 107.0)  # ur_description max_effort
-JOINT_TORQUE_MAX_NM = {
-    "ur3": _TORQUE_SMALL,
-    "ur3e": _TORQUE_SMALL,
-    "ur5": _TORQUE_MEDIUM,
-    "ur5e": _TORQUE_MEDIUM,
-    "ur10": _TORQUE_LARGE,
-    "ur10e": _TORQUE_LARGE,
-    "ur16e": _TORQUE_LARGE,
-    "ur7e": _TORQUE_MEDIUM,
-    "ur12e": _TORQUE_LARGE,
-    "ur15": _TORQUE_UR18,  # assumed: the UR18's joint sizes (same DH d1, d4-d6)
-    "ur18": _TORQUE_UR18,
-    "ur8long": _TORQUE_UR18,  # assumed, as the UR15
-    "ur20": _TORQUE_UR20,
-    "ur30": _TORQUE_UR20,
-}
-# Reflected rotor inertia of the harmonic drives (kg m^2), scaled by arm size.
-_ARMATURE_UR5 = (0.6, 0.6, 0.3, 0.06, 0.06, 0.06)
+# The arm masses, joint torques and drive inertias check times motions with.
 
 
 def add_arm(builder: MjcfDocument, world: ET.Element) -> None:
@@ -64,8 +26,8 @@ def add_arm(builder: MjcfDocument, world: ET.Element) -> None:
     parts = arm_geometry(spec.arm).parts
     volume = sum(p.volume_m3 for p in parts if p.body > 0)
     density = ARM_MASS_KG.get(spec.name, 20.0) / volume
-    scale = (spec.reach_m / 0.85) ** 2
-    torque = JOINT_TORQUE_MAX_NM.get(spec.name, _TORQUE_MEDIUM)
+    armature = armature_kgm2(spec)
+    torque = joint_torque_max_nm(spec)
     body = ET.SubElement(world, "body", name="base", **pose_attrs(d.T_world_base))
     parent = body
     for i in range(7):
@@ -82,7 +44,7 @@ def add_arm(builder: MjcfDocument, world: ET.Element) -> None:
                 name=JOINT_NAMES[i - 1],
                 type="hinge",
                 axis="0 0 1",
-                armature=f"{_ARMATURE_UR5[i - 1] * scale:.6g}",
+                armature=f"{armature[i - 1]:.6g}",
                 damping="0.5",
                 range=fmt(np.radians([spec.joint_min_deg[i - 1], spec.joint_max_deg[i - 1]])),
                 actuatorfrcrange=fmt([-torque[i - 1], torque[i - 1]]),

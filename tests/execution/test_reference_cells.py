@@ -191,8 +191,9 @@ def test_vision_pick_with_the_fingers_landing_on_the_part_is_a_contact(project):
     r = dry_run(project, VISION, "-p", 'part_pose={"xyz": [0, 0, 0], "rpy": [0, 0, 0]}')
     assert r["result_code"] == 100
     assert re.fullmatch(
-        "protective stop during step 5 descend 'camera_zone\\+part_pose': more than 1 protective "
-        "stops, both with the TCP within [0-9]+ mm: something there stops the arm each time",
+        "protective stop during step 5 descend 'camera_zone\\+part_pose': pad 'jaw_[ab]' met part "
+        "'widget' at [0-9]+ N: more than 1 protective stops, both with the TCP within [0-9]+ mm: "
+        "something there stops the arm each time",
         r["result_text"],
     ), r["result_text"]
 

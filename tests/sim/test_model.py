@@ -151,3 +151,18 @@ def test_joint_ranges_are_the_cells_joint_range(model_name: str) -> None:
         joint = model.joint(name)
         assert joint.limited[0] == 1
         np.testing.assert_allclose(joint.range, np.radians([lo, hi]), atol=1e-6)
+
+
+def test_a_contact_stop_names_what_touched_the_robots_side_first():
+    from cellrunner.sim.contacts import ContactEvent, geom_label
+
+    hit = ContactEvent(1.494, 673.2, ("fixture:infeed_table", "pad:jaw_a"))
+    assert hit.describe() == "pad 'jaw_a' met fixture 'infeed_table' at 673 N"
+    assert geom_label("fixture:machine:2") == "fixture 'machine'"
+    assert geom_label("arm3_0") == "the arm's link 3 (forearm)"
+    assert geom_label("part:widget") == "part 'widget'"
+    assert geom_label("tool@gripper:1") == "tool 'gripper'"
+    assert geom_label("floor") == "the floor"
+    assert ContactEvent(0.0, 80.0, ("floor", "arm5_0")).describe() == (
+        "the arm's link 5 (wrist 2) met the floor at 80 N"
+    )

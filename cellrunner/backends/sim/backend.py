@@ -196,6 +196,17 @@ class SimBackend:
         self._require_connection()
         self._world().unlock_protective_stop()
 
+    def stop_cause(self) -> str | None:
+        """The contact that raised the protective stop under way ("pad 'jaw_a' met fixture
+        'infeed_table' at 673 N"), or None (no stop, or one a contact did not raise)."""
+        world = self.world
+        if world is None or world.safety is not Safety.PROTECTIVE_STOP:
+            return None
+        hit = world.last_contact
+        if hit is None or hit.time_s != world.stop_time_s:
+            return None
+        return hit.describe()
+
     def recover_from_estop(self) -> None:
         self._fresh = None
         self._require_connection()
