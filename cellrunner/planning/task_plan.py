@@ -70,11 +70,6 @@ __all__ = [
 
 _R = TypeVar("_R")
 
-#: a corrected line timed with the joint move before it continues that move when the arm,
-#: following the move's set-points at speed, is this close to its start (rad, every
-#: joint); farther (stopped elsewhere) it is planned again from rest
-CONTINUATION_START_RAD = 0.05
-
 if TYPE_CHECKING:
     from cellrunner.planning.collision import ContactAllowance
 
@@ -95,11 +90,6 @@ class TaskPlan:
     failures: list[Failure] = field(default_factory=list)
     on_error: list[StepPlan] = field(default_factory=list)  # verified from the plan's states
     warnings: list[Failure] = field(default_factory=list)  # on_error steps skipped from some states
-    #: a corrected line's piece timed with the joint move before it (:meth:`replan`),
-    #: by the line's index and corrected goal, until the run time asks for it
-    continuations: dict[tuple[int, bytes], ApprovedTrajectory] = field(
-        default_factory=dict, repr=False
-    )
 
     @property
     def ok(self) -> bool:
@@ -144,9 +134,6 @@ class TaskPlan:
         same goal as planned (after a stop), or, for a relative move planned nowhere (a
         retry's retreat), its distance from where the arm stands. ``obstacles`` (the
         watched zone's map) are planned around and verified against like fixtures."""
-        timed = self._continuation(step, np.asarray(q_now_rad, float))
-        if timed is not None:  # timed with the corrected joint move before it
-            return timed
         row = self.row(step)
         if row is None and "corrects" in step.extra:  # a step an align moved: as planned, elsewhere
             row = self.row(step.extra["corrects"])
@@ -178,10 +165,6 @@ class TaskPlan:
             # from it, meets the map: the same goal pose in another configuration whose
             # line is clear (the steps after it then start from where it ends)
             motion = self._other_branch(world, step, q_now_rad, part, allowances, then)
-        if ahead is not None and obstacles is None:
-            joined = self._joined_with_line(world, planner, motion, ahead, q_now_rad)
-            if joined is not None:
-                return joined
         approved = _time_and_verify(world, motion, np.asarray(q_now_rad, float)).approved
         assert approved is not None  # _time_and_verify approves every row or raises
         return approved
@@ -192,49 +175,6 @@ class TaskPlan:
             return None
         after = [s for s in self.steps if s.index == step.index + 1]
         return after[0] if after and after[0].kind in ("descend", "linear") else None
-
-    def _joined_with_line(
-        self,
-        world: CellWorld,
-        planner: StepPlanner,
-        motion: _Motion,
-        line: Step,
-        q_now_rad: np.ndarray,
-    ) -> ApprovedTrajectory | None:
-        """The corrected joint move ``motion`` timed with the corrected ``line`` after it
-        as one non-stop group, as check timed them (each from rest, a UR10e's 80 mm
-        descend braked at its joints' limits, the arm lagged 11 mm and a pad struck the
-        table: s7031); the line's piece waits in :attr:`continuations`. None when they do
-        not join (the move is then timed alone)."""
-        if not _joins(motion.row.step, line, world):
-            return None
-        line_row = self.row(line.extra["corrects"])
-        try:
-            line_motion = planner.motion(
-                StepPlan(line), allowances=None if line_row is None else line_row.allowances
-            )
-        except InfeasibleError:
-            return None  # the line, planned again when its turn comes, says why
-        if not _same_limits(motion.limits, line_motion.limits):
-            return None
-        _time_group(world, [motion, line_motion], np.asarray(q_now_rad, float), joined=True)
-        first, second = motion.row.approved, line_motion.row.approved
-        if first is None or second is None:
-            return None
-        assert line.T_world_tcp is not None  # a corrected line has its goal
-        self.continuations = {(line.index, line.T_world_tcp.tobytes()): second}
-        return first
-
-    def _continuation(self, step: Step, q_now_rad: np.ndarray) -> ApprovedTrajectory | None:
-        """The piece of ``step`` timed with the move before it (:meth:`_joined_with_line`)
-        when the arm is where it starts, taken once."""
-        if "corrects" not in step.extra or step.T_world_tcp is None:
-            return None
-        piece = self.continuations.pop((step.index, step.T_world_tcp.tobytes()), None)
-        if piece is None:
-            return None
-        off = float(np.max(np.abs(piece.trajectory.q_rad[0] - q_now_rad)))
-        return piece if off <= CONTINUATION_START_RAD else None
 
     def _corrected_line_after(self, step: Step) -> Step | None:
         """The straight line after the joint move ``step`` that an align corrected (a
