@@ -64,6 +64,25 @@ def within_tolerance(step: Step, T: np.ndarray) -> bool:
     return bool(moved_m <= float(tolerance.xyz) and turned_deg <= float(tolerance.rpy))
 
 
+def correcting_goals(step: Step, T_look: np.ndarray) -> list[np.ndarray]:
+    """Where the correcting line from the look ``T_look`` (T_world_tcp) ends for each
+    corner of the align ``step``'s max_correction box (the lines the run time may make;
+    corners within the tolerance make none)."""
+    import itertools
+
+    from cellrunner.model.geometry import pose_matrix
+
+    low, high = step.args.box()
+    axes = [(a, b) if b > a else (a,) for a, b in zip(low, high, strict=True)]
+    F = step.extra["T_world_frame"]
+    out = []
+    for six in itertools.product(*axes):
+        C = pose_matrix(six[:3], six[3:])
+        if not within_tolerance(step, C):
+            out.append(correcting_goal(F, C, np.eye(4), T_look))
+    return out
+
+
 def correction_text(C: np.ndarray) -> str:
     """``x +10.0 mm, y -10.0 mm, rz +5.0 deg`` (the axes that are not 0)."""
     six = [*(C[:3, 3] * 1000), *rpy_deg_of(C[:3, :3])]

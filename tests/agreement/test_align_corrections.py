@@ -144,3 +144,31 @@ def test_an_align_jobs_witness_keeps_its_margins_for_every_correction_check_prov
         assert box["xyz"][0] >= OFF_M and box["rpy"][2] >= OFF_DEG
         q_pick = np.radians(case.witness_deg["pick"])
         assert align_witness_clear(case, q_pick, APPROACH_M, WITNESS_MARGIN_M)
+
+
+def test_the_look_takes_a_branch_from_which_every_correcting_line_clears(tmp_path):
+    """A refusal that another IK branch clears is not a refusal: with a box 30 mm in x, y
+    and z, s60130's nearest look branch (6 deg off the wrist singularity) cannot make
+    the correcting lines up and aside, a branch on the other shoulder side (32 deg off)
+    makes them all; the look takes it, and the run time streams that look."""
+    task_file = tmp_path / "task.yaml"
+    task_file.write_text(
+        (DATA / "s60130" / "task.yaml")
+        .read_text()
+        .replace("xyz: [0.01, 0.01, 0]", "xyz: [0.03, 0.03, 0.03]")
+        .replace("tolerance: {xyz: 0.001, rpy: 0.5}", "tolerance: {xyz: 0.01, rpy: 16}")
+    )
+    cell = load_cell(DATA / "s60130" / "cell.yaml")
+    world, task = CellWorld(cell), load_task(task_file, cell)
+    job = plan_job(world, task, {}, world.q_home_rad, use_cache=False)
+    steps = {s.index: s for s in job.steps}
+    align = next(s for s in job.steps if s.kind == "align")
+    q_look = job.task_plan.row(steps[align.index - 1]).q_end_rad
+    branches = world.kinematics.ik_all(steps[align.index - 1].T_world_tcp, world.q_home_rad)
+    nearest = next(q for q in branches if world.collision.is_valid(q))
+    assert world.kinematics.singularity_distance(nearest).wrist_deg < 7.0
+    assert world.kinematics.singularity_distance(q_look).wrist_deg > 20.0
+    for corner in ((0.03, 0.03, 0.03), (-0.03, 0.03, 0.03), (0.03, 0.0, 0.03)):
+        C = pose_matrix(corner, (0, 0, 5))
+        checked = dataclasses.replace(align, extra={**align.extra, "correction": C})
+        prove_correcting_line(StepPlanner(world, q_look, None), checked)  # raises if refused
