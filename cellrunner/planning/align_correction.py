@@ -6,7 +6,7 @@ run time (:mod:`cellrunner.execution.align`) moves the TCP in a straight line at
 where the arm stands and verified like any other motion, then looks again. ``check``
 plans the job for the centre and every corner of ``max_correction`` (``align:FRAME``);
 for each it plans that same line from the look with the same planner and rules
-(:func:`prove_correcting_line`), so a correction the run time would refuse there is
+(:func:`cellrunner.planning.align_proof.prove_correcting_line`), so a correction the run time would refuse there is
 refused before the job runs, naming the correction and the line. The steps after the
 align then start from the look (the arm's configuration there differs from the run
 time's by the correction: millimetres, the same IK branches in the same order).
@@ -14,19 +14,13 @@ time's by the correction: millimetres, the same IK branches in the same order).
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cellrunner.errors import InfeasibleError
 from cellrunner.model.geometry import rpy_deg_of
 from cellrunner.model.step import Step, StepKind
 from cellrunner.model.task import LinearArgs
-
-if TYPE_CHECKING:
-    from cellrunner.planning.step_planner import StepPlanner
 
 #: TCP speed of the correcting moves (m/s)
 CORRECTION_SPEED_MPS = 0.05
@@ -92,39 +86,3 @@ def correction_text(C: np.ndarray) -> str:
         if abs(v) > 1e-6
     ]
     return ", ".join(parts) or "none"
-
-
-def prove_correcting_line(planner: StepPlanner, step: Step) -> None:
-    """Raise InfeasibleError when the correcting line the run time makes at the look for
-    the correction this job is planned with (``step.extra["correction"]``) is refused by
-    the planner or the verifier the run time plans it with (no correction, or one within
-    the tolerance: no move)."""
-    from cellrunner.planning.group_timing import _time_and_verify
-    from cellrunner.planning.step_plan import StepPlan
-    from cellrunner.planning.step_planner import StepPlanner
-
-    C = step.extra.get("correction")
-    if C is None or within_tolerance(step, C):
-        return
-    world, q = planner.world, np.asarray(planner.q, float)
-    T_goal = correcting_goal(
-        step.extra["T_world_frame"], C, np.eye(4), world.kinematics.T_world_tcp(q)
-    )
-    try:  # as TaskPlan.replan plans a step planned nowhere: from here, nothing allowed
-        motion = StepPlanner(world, q, planner.part).motion(
-            StepPlan(correcting_move(step, T_goal)), allowances=()
-        )
-        _time_and_verify(world, motion, q)
-    except InfeasibleError as exc:
-        f = exc.failure
-        raise InfeasibleError(
-            dataclasses.replace(
-                f,
-                reason=f"the correcting line at the look for correction {correction_text(C)} "
-                f"(a {np.linalg.norm(T_goal[:3, 3] - world.kinematics.T_world_tcp(q)[:3, 3]) * 1000:.1f}"
-                f" mm straight move the run time makes before it looks again): {f.reason}",
-                fix=f.fix
-                or "fix: a smaller max_correction, or a look pose (standoff) "
-                "farther from the singularity or fixture",
-            )
-        ) from exc

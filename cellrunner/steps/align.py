@@ -127,8 +127,7 @@ class Align(StepKindDef):
             _check_marker_id(refs, spec, aligned_frame(steps, at) or "")
 
     def plan(self, planner: StepPlanner, row: StepPlan) -> None:
-        from cellrunner.planning.align_correction import prove_correcting_line
-        from cellrunner.planning.align_proof import prove_align
+        from cellrunner.planning.align_proof import prove_align, prove_correcting_line
 
         step = row.step
         prove_align(planner, step)

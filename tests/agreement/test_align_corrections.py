@@ -17,7 +17,8 @@ import pytest
 from cellrunner.errors import InfeasibleError
 from cellrunner.model.geometry import pose_matrix
 from cellrunner.model.load import load_cell, load_task
-from cellrunner.planning.align_correction import correcting_move, prove_correcting_line
+from cellrunner.planning.align_correction import correcting_move
+from cellrunner.planning.align_proof import prove_correcting_line
 from cellrunner.planning.job_plan import plan_job
 from cellrunner.planning.step_planner import StepPlanner
 from cellrunner.planning.world import CellWorld
