@@ -150,7 +150,10 @@ class StepPlanner(StepContacts):
             allowances,
             None
             if follow is None
-            else (follow.kind, _bytes(follow.T_world_tcp), repr(follow.args), follow.index),
+            # a look's branch depends on the align's box (its correcting lines)
+            else (follow.kind, _bytes(follow.T_world_tcp), repr(follow.args))
+            if follow.kind == StepKind.ALIGN
+            else (follow.kind, _bytes(follow.T_world_tcp)),
             np.asarray(self.q, float).tobytes(),
             id(self.world),
             None if part is None else (part.name, repr(part.shape), _bytes(part.T_parent_shape)),
