@@ -51,10 +51,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench import cellgen_holes
 from bench.cellgen_cameras import (
+    ALIGN_KINDS,
     CAMERA_DEFECTS,
     CAMERA_FEASIBLE,
     CAMERA_KINDS,
     NEEDS_JAWS,
+    align_witness_clear,
     with_cameras,
 )
 
@@ -243,8 +245,16 @@ def generate(seed: int, kind: str = "feasible") -> Case:
     rng = random.Random(seed)
     for _ in range(WITNESS_TRIES):
         draw = _draw(rng, kind)
-        if _witnesses_clear(draw):
-            return _case(seed, kind, draw)
+        if not _witnesses_clear(draw):
+            continue
+        case = _case(seed, kind, draw)
+        # an align corrects the pick and looks first: the witness keeps its margins for
+        # every correction check proves, and at the look (bench/cellgen_cameras.py)
+        if kind in ALIGN_KINDS and not align_witness_clear(
+            case, draw.q_pick, APPROACH_M, WITNESS_MARGIN_M
+        ):
+            continue
+        return case
     raise RuntimeError(f"seed {seed}: no witnesses {WITNESS_MARGIN_M * 1000:g} mm clear")
 
 

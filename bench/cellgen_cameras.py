@@ -24,7 +24,8 @@ from typing import Any
 CAMERA_FEASIBLE = ("watched", "aligned")
 CAMERA_DEFECTS = ("camera_blind", "marker_off_part", "marker_too_small")
 CAMERA_KINDS = CAMERA_FEASIBLE + CAMERA_DEFECTS
-NEEDS_JAWS = {k: "jaws" for k in ("aligned", "marker_off_part", "marker_too_small")}
+ALIGN_KINDS = ("aligned", "marker_off_part", "marker_too_small")
+NEEDS_JAWS = dict.fromkeys(ALIGN_KINDS, "jaws")
 
 #: the wrist camera: on the flange beside the gripper, looking along the tool
 WRIST = {
@@ -37,6 +38,17 @@ WRIST = {
 OVERHEAD_F_PX, OVERHEAD_SIZE = 460, (640, 480)
 #: how far the align looks from, and how far the part may lie off its frame
 STANDOFF_M, OFF_M, OFF_DEG = 0.2, 0.005, 3.0
+#: the align's max_correction: the part's offsets and what one look may misread them by
+#: (0.3 mm and 0.4 deg, 2 std, docs/align.md), rounded up. check proves the centre and
+#: corners of this box, so the witness must keep its margins for all of them
+#: (:func:`align_witness_clear`); a box twice the offsets made the witness prove
+#: corrections no job needs
+MAX_CORRECTION_M, MAX_CORRECTION_DEG = 0.006, 4.0
+#: the witness's margin over the planner's singularity thresholds (wrist and elbow
+#: angle, deg; shoulder, m), as bench/cellgen's WITNESS_MARGIN_M is over the clearances
+SINGULARITY_MARGIN_DEG, SHOULDER_MARGIN_M = 2.0, 0.01
+#: samples along a correcting line at the look (it is 10 mm at most)
+LOOK_LINE_SAMPLES = 11
 
 
 def with_cameras(case: Any, seed: int) -> Any:
@@ -127,10 +139,100 @@ def _align(case: Any, rng: random.Random) -> None:
         "camera": "wrist",
         "marker": marker,
         "tolerance": {"xyz": 0.001, "rpy": 0.5},
-        "max_correction": {"xyz": [0.01, 0.01, 0], "rpy": [0, 0, 5]},
+        "max_correction": {
+            "xyz": [MAX_CORRECTION_M, MAX_CORRECTION_M, 0],
+            "rpy": [0, 0, MAX_CORRECTION_DEG],
+        },
         "attempts": 3,
         "standoff": standoff,
     }
     steps = case.task["steps"]
     at = next(i for i, s in enumerate(steps) if "pick" in s)
     steps.insert(at, {"align": align})
+
+
+def align_witness_clear(case: Any, q_pick_rad: Any, approach_m: float, margin_m: float) -> bool:
+    """The pick's witness of an align job keeps its margins for every correction check
+    proves (the centre and corners of max_correction; the part lies up to OFF_M and
+    OFF_DEG off in the twin, inside them): the corrected line down to the pick, tracked
+    from the witness, and the look with the straight correcting line from it (the run
+    time moves the camera with the correction before it looks again) stay
+    ``margin_m`` over every clearance and SINGULARITY_MARGIN_DEG off the singularities
+    the planner keeps away from. Without the look and the corrections a UR10's look
+    stood 6 deg off the wrist singularity and its correcting line went under the
+    planner's 3 deg (s60019)."""
+    import itertools
+    import tempfile
+    from pathlib import Path
+
+    import numpy as np
+
+    from cellrunner.model.geometry import pose_matrix
+    from cellrunner.model.job_steps import job_steps
+    from cellrunner.model.load import load_cell, load_task
+    from cellrunner.planning.cartesian import (
+        MIN_SHOULDER_DISTANCE_M,
+        MIN_SINGULARITY_ANGLE_DEG,
+    )
+    from cellrunner.planning.world import CellWorld
+
+    with tempfile.TemporaryDirectory() as folder:
+        cell_file, task_file = case.write(Path(folder))
+        cell = load_cell(cell_file)
+        steps = job_steps(load_task(task_file, cell), cell.cell, {})
+    world = CellWorld(cell)
+    kin, collision = world.kinematics, world.collision
+    keep = np.array(["part" not in a and "part" not in b for a, b in collision.pair_labels])
+    angle = MIN_SINGULARITY_ANGLE_DEG + SINGULARITY_MARGIN_DEG
+    shoulder = MIN_SHOULDER_DISTANCE_M + SHOULDER_MARGIN_M
+
+    def clear(q: Any) -> bool:
+        if q is None or kin.singularity_distance(q).violation(angle, shoulder) is not None:
+            return False
+        distances, required = collision.pair_distances(q)
+        return bool(np.all((distances - required)[keep] >= margin_m))
+
+    align = next(s for s in steps if s.kind == "align")
+    look = next((s for s in steps if s.index == align.index - 1 and s.kind == "move"), None)
+    F = align.extra["T_world_frame"]
+    T_pick = kin.T_world_tcp(np.asarray(q_pick_rad, float))
+    low, high = align.args.box()
+    axes = [(a, b) if b > a else (a,) for a, b in zip(low, high, strict=True)]
+    corners = [np.zeros(6), *(np.array(c) for c in itertools.product(*axes))]
+    q_look = None
+    if look is not None and look.T_world_tcp is not None:
+        branches = [
+            q for q in kin.ik_all(look.T_world_tcp, world.q_home_rad) if collision.is_valid(q)
+        ]
+        q_look = branches[0] if branches else None
+        if q_look is None or not clear(q_look):
+            return False
+    for six in corners:
+
+        def moved(share: float, six: Any = six) -> Any:
+            C = pose_matrix(six[:3] * share, six[3:] * share)
+            return F @ C @ np.linalg.inv(F)
+
+        W = moved(1.0)
+        q = kin.ik_track(W @ T_pick, np.asarray(q_pick_rad, float))  # the line down, up
+        for k in range(int(approach_m / 0.005) + 1):
+            q = None if q is None else kin.ik_track(W @ T_pick @ _up(k * 0.005), q)
+            if not clear(q):
+                return False
+        if q_look is not None:  # the correcting line at the look
+            assert look is not None
+            q = q_look
+            for share in np.linspace(0.0, 1.0, LOOK_LINE_SAMPLES):
+                q = kin.ik_track(moved(float(share)) @ look.T_world_tcp, q)
+                if not clear(q):
+                    return False
+    return True
+
+
+def _up(distance_m: float) -> Any:
+    """Back up the tool's Z by ``distance_m`` (the approach point above a pick)."""
+    import numpy as np
+
+    T = np.eye(4)
+    T[2, 3] = -distance_m
+    return T

@@ -25,13 +25,14 @@ from cellrunner.execution.steps import run_motion
 from cellrunner.model.align import Marker, Sighting
 from cellrunner.model.codes import ResultCode
 from cellrunner.model.geometry import pose_matrix, rpy_deg_of
-from cellrunner.model.step import Step, StepKind
-from cellrunner.model.task import LinearArgs
+from cellrunner.model.step import Step
+from cellrunner.planning.align_correction import (
+    CORRECTION_SPEED_MPS as CORRECTION_SPEED_MPS,
+)
+from cellrunner.planning.align_correction import correcting_goal, correcting_move
 
 #: the arm stands still this long before each look (s)
 SETTLE_S = 0.1
-#: TCP speed of the correcting moves (m/s)
-CORRECTION_SPEED_MPS = 0.05
 AXES = ("x", "y", "z", "rx", "ry", "rz")
 
 
@@ -66,8 +67,8 @@ def run_align(ctx: JobContext, step: Step) -> StepGen:
                 f"from where the step expects it after {look} looks (tolerance "
                 f"{args.tolerance.xyz * 1000:g} mm, {args.tolerance.rpy:g} deg)",
             )
-        T_goal = F @ C @ np.linalg.inv(applied) @ np.linalg.inv(F) @ ctx.motions.tcp_pose(q)
-        outcome = yield from run_motion(ctx, _correcting_move(step, T_goal), resume=True)
+        T_goal = correcting_goal(F, C, applied, ctx.motions.tcp_pose(q))
+        outcome = yield from run_motion(ctx, correcting_move(step, T_goal), resume=True)
         if not outcome.ok:
             return outcome
         applied = C
@@ -138,19 +139,6 @@ def _within_box(
             f"align: the part at {step.name!r} lies beyond max_correction ({', '.join(outside)})",
         )
     return inside, [*inside[:3, 3], *rpy_deg_of(inside[:3, :3])]
-
-
-def _correcting_move(step: Step, T_goal: np.ndarray) -> Step:
-    """The straight TCP move (at CORRECTION_SPEED_MPS) to ``T_goal`` (world frame, m)."""
-    return Step(
-        step.index,
-        StepKind.LINEAR,
-        step.name,
-        LinearArgs(to=step.name, speed=CORRECTION_SPEED_MPS),
-        step.file_path,
-        step.macro,
-        T_goal,
-    )
 
 
 def frame_correction(

@@ -7,6 +7,9 @@ whatever correction the job is planned with (one error per cause):
   file gives it;
 - **the camera sees the whole marker**, with a margin, from where it looks, for the
   centre and every corner of ``max_correction`` (the part may lie anywhere in that box);
+- **the correcting line** the run time makes at the look for the correction the job is
+  planned with is planned and verified as the run time plans it
+  (:func:`prove_correcting_line`, :mod:`.align_correction`);
 - **one look is sure enough**: the pose noise predicted from the marker's size, the
   standoff and the focal length (:mod:`.marker_noise`) fits the step's tolerance with
   the axes it reads.
@@ -229,3 +232,47 @@ def _closest_fit(fits: Callable[[float], bool], standoff_m: float) -> float | No
         if fits(z):
             return z
     return None
+
+
+def prove_correcting_line(planner: StepPlanner, step: Step) -> None:
+    """Raise InfeasibleError when the correcting line the run time makes at the look for
+    the correction this job is planned with (``step.extra["correction"]``) is refused by
+    the planner or the verifier the run time plans it with (no correction, or one within
+    the tolerance: no move)."""
+    import dataclasses
+
+    from cellrunner.planning.align_correction import (
+        correcting_goal,
+        correcting_move,
+        correction_text,
+        within_tolerance,
+    )
+    from cellrunner.planning.group_timing import _time_and_verify
+    from cellrunner.planning.step_plan import StepPlan
+    from cellrunner.planning.step_planner import StepPlanner
+
+    C = step.extra.get("correction")
+    if C is None or within_tolerance(step, C):
+        return
+    world, q = planner.world, np.asarray(planner.q, float)
+    T_goal = correcting_goal(
+        step.extra["T_world_frame"], C, np.eye(4), world.kinematics.T_world_tcp(q)
+    )
+    try:  # as TaskPlan.replan plans a step planned nowhere: from here, nothing allowed
+        motion = StepPlanner(world, q, planner.part).motion(
+            StepPlan(correcting_move(step, T_goal)), allowances=()
+        )
+        _time_and_verify(world, motion, q)
+    except InfeasibleError as exc:
+        f = exc.failure
+        raise InfeasibleError(
+            dataclasses.replace(
+                f,
+                reason=f"the correcting line at the look for correction {correction_text(C)} "
+                f"(a {np.linalg.norm(T_goal[:3, 3] - world.kinematics.T_world_tcp(q)[:3, 3]) * 1000:.1f}"
+                f" mm straight move the run time makes before it looks again): {f.reason}",
+                fix=f.fix
+                or "fix: a smaller max_correction, or a look pose (standoff) "
+                "farther from the singularity or fixture",
+            )
+        ) from exc

@@ -141,7 +141,7 @@ class StepPlanner(StepContacts):
         """Everything :meth:`_plan_motion` reads: the step, the state, and the step after
         it when the move's IK looks ahead to a straight descend."""
         part = self.part
-        follow = then if then is not None and then.kind in ("descend", "linear") else None
+        follow = then if then is not None and then.kind in ("descend", "linear", "align") else None
         return (
             step.index,
             step.kind,
@@ -151,7 +151,12 @@ class StepPlanner(StepContacts):
             step.q_goal_deg,
             _bytes(goal_q),
             allowances,
-            None if follow is None else (follow.kind, _bytes(follow.T_world_tcp)),
+            None
+            if follow is None
+            # a look's branch depends on the align's box (its correcting lines)
+            else (follow.kind, _bytes(follow.T_world_tcp), repr(follow.args))
+            if follow.kind == StepKind.ALIGN
+            else (follow.kind, _bytes(follow.T_world_tcp)),
             np.asarray(self.q, float).tobytes(),
             id(self.world),
             None if part is None else (part.name, repr(part.shape), _bytes(part.T_parent_shape)),
@@ -285,6 +290,17 @@ class StepPlanner(StepContacts):
         valid = [q for q in branches if collision.is_valid(q)]
         if not valid:
             raise every_branch_collides(step.label, kin, collision, T_world_tcp, self.q)
+        if then is not None and then.kind == StepKind.ALIGN:
+            from cellrunner.planning.align_correction import correcting_goals
+
+            # the look: the nearest branch from which every correcting line the run time
+            # may make there plans clear (near the wrist singularity the nearest may fail
+            # where a branch on the other shoulder side clears them all)
+            goals = correcting_goals(then, T_world_tcp)
+            for q in valid:
+                if all(_line_plans(kin, collision, np.asarray(q), T) for T in goals):
+                    return np.asarray(q)
+            return np.asarray(valid[0])  # the align will say which correction fails
         if follow is not None and then is not None:
             from cellrunner.planning.tight_fit import named_contacts
 

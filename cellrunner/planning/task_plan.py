@@ -149,8 +149,13 @@ class TaskPlan:
             row.q_end_rad if row is not None and row.status == "ok" and row.step is step else None
         )
         then = self._line_after(step) if obstacles is not None else None
+        # a joint move an align corrected: its branch is chosen with the corrected line
+        # after it, as check chose it for the corrections it proved (one judgement)
+        ahead = self._corrected_line_after(step) if goal_q is None else None
         try:
-            motion = planner.motion(StepPlan(step), goal_q=goal_q, allowances=allowances)
+            motion = planner.motion(
+                StepPlan(step), goal_q=goal_q, allowances=allowances, then=ahead
+            )
             if then is not None:
                 self._line_clear(world, then, motion.waypoints[-1])
         except InfeasibleError:
@@ -170,6 +175,23 @@ class TaskPlan:
             return None
         after = [s for s in self.steps if s.index == step.index + 1]
         return after[0] if after and after[0].kind in ("descend", "linear") else None
+
+    def _corrected_line_after(self, step: Step) -> Step | None:
+        """The straight line after the joint move ``step`` that an align corrected (a
+        pick's approach), moved by the same correction: None for any other step."""
+        original = step.extra.get("corrects")
+        if original is None or original.T_world_tcp is None or step.T_world_tcp is None:
+            return None
+        line = self._line_after(original)
+        if line is None or line.T_world_tcp is None:
+            return None
+        if line.extra.get("aligned_frame") != step.extra.get("aligned_frame"):
+            return line
+        # the correction in world axes: T_corrected = W @ T_planned
+        W = step.T_world_tcp @ np.linalg.inv(original.T_world_tcp)
+        return replace(
+            line, T_world_tcp=W @ line.T_world_tcp, extra={**line.extra, "corrects": line}
+        )
 
     def _line_clear(self, world: CellWorld, line: Step, q_rad: np.ndarray) -> None:
         """Raise InfeasibleError unless ``line`` plans from ``q_rad`` in ``world``."""

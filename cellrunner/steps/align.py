@@ -55,6 +55,8 @@ class Align(StepKindDef):
         corrects its frame for the steps after it."""
         import numpy as np
 
+        from cellrunner.model import geometry
+        from cellrunner.model.expand import ALIGN_KEY
         from cellrunner.model.frames import frame_pose
         from cellrunner.model.marker_place import marker_in_frame
 
@@ -92,6 +94,13 @@ class Align(StepKindDef):
                 )
             )
         extra["marker_id_given"] = not isinstance(spec.args.marker, Marker)
+        # the correction check plans this job with (align:FRAME): its correcting line
+        correction = builder.params.get(ALIGN_KEY + frame)
+        extra["correction"] = (
+            None
+            if correction is None
+            else geometry.pose_matrix(correction["xyz"], correction["rpy"])
+        )
         builder.steps.append(
             Step(builder.next_index(), StepKind.ALIGN, frame, args, spec.path, macro, extra=extra)
         )
@@ -118,10 +127,11 @@ class Align(StepKindDef):
             _check_marker_id(refs, spec, aligned_frame(steps, at) or "")
 
     def plan(self, planner: StepPlanner, row: StepPlan) -> None:
-        from cellrunner.planning.align_proof import prove_align
+        from cellrunner.planning.align_proof import prove_align, prove_correcting_line
 
         step = row.step
         prove_align(planner, step)
+        prove_correcting_line(planner, step)
         row.duration_s = ALIGN_LOOK_S
         row.message = (
             f"looks at marker {step.args.marker.id} up to {step.args.attempts} times; "
