@@ -297,10 +297,15 @@ class StepPlanner(StepContacts):
             # may make there plans clear (near the wrist singularity the nearest may fail
             # where a branch on the other shoulder side clears them all)
             goals = correcting_goals(then, T_world_tcp)
-            for q in valid:
-                if all(_line_plans(kin, collision, np.asarray(q), T) for T in goals):
-                    return np.asarray(q)
-            return np.asarray(valid[0])  # the align will say which correction fails
+            sure = (
+                np.asarray(q)
+                for q in valid
+                if all(_line_plans(kin, collision, np.asarray(q), T) for T in goals)
+            )
+            nearest = next(sure, None)
+            if nearest is not None:
+                return itertools.chain([nearest], sure)
+            return iter([np.asarray(valid[0])])  # the align will say which correction fails
         if follow is not None and then is not None:
             from cellrunner.planning.tight_fit import named_contacts
 
@@ -326,11 +331,8 @@ class StepPlanner(StepContacts):
             nearest = next(clear, None)
             if nearest is not None:
                 return itertools.chain([nearest], clear)
-            if ends_clear:
-                return iter(
-                    [np.asarray(ends_clear[0][0])]
-                )  # its descend will say what is in the way
-            return iter([np.asarray(valid[0])])  # the descend will say what is wrong with it
+            # else the descend will say what is in the way, or what is wrong with it
+            return iter([np.asarray(ends_clear[0][0] if ends_clear else valid[0])])
         return (np.asarray(q) for q in valid)
 
     def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
