@@ -243,8 +243,14 @@ def generate(seed: int, kind: str = "feasible") -> Case:
     if kind in cellgen_holes.HOLE_KINDS:  # a pin into a hole (bench/cellgen_holes.py)
         return cellgen_holes.generate(seed, kind)
     rng = random.Random(seed)
+    # the mount is drawn once: a wall's witnesses fail more often than a floor's, and
+    # drawing it again with the rest would leave the walls out
+    r = rng.random()
+    mount = (
+        "ceiling" if r < CEILING_SHARE else "wall" if r < CEILING_SHARE + WALL_SHARE else "floor"
+    )
     for _ in range(WITNESS_TRIES):
-        draw = _draw(rng, kind)
+        draw = _draw(rng, kind, mount)
         if not _witnesses_clear(draw):
             continue
         case = _case(seed, kind, draw)
@@ -282,15 +288,11 @@ class _Draw:
     turn_deg: float = 0.0
 
 
-def _draw(rng: random.Random, kind: str) -> _Draw:
+def _draw(rng: random.Random, kind: str, mount: str) -> _Draw:
     from cellrunner.model.robots import robot_spec
 
     model = rng.choice(ARMS)
     gripper = NEEDS_GRIPPER.get(kind) or ("vacuum" if rng.random() < VACUUM_SHARE else "jaws")
-    r = rng.random()
-    mount = (
-        "ceiling" if r < CEILING_SHARE else "wall" if r < CEILING_SHARE + WALL_SHARE else "floor"
-    )
     reach_m = robot_spec(model).reach_m
     tcp_m = round(rng.uniform(0.12, 0.18), 3)
     kin = _kinematics(model, tcp_m, mount)
