@@ -167,6 +167,12 @@ class JogSession:
                 self._control.waitPeriod(t_start)
         except KeyboardInterrupt:
             return
+        except RuntimeError as exc:
+            # ur_rtde's calls raise RuntimeError when its reconnect to a controller that
+            # is gone gives up ("Timeout connecting to UR dashboard server")
+            if not (self._link_lost() or "connect" in str(exc) or "receive" in str(exc)):
+                raise
+            raise ConnectionLost(f"lost the connection to the arm at {self.host}: {exc}") from exc
         finally:
             if not self.screen:
                 self._say(f"input {self.source.name}: {self.source.status(time.monotonic())}")
