@@ -104,7 +104,8 @@ def plan_linear(
 
     def pose(u: float) -> np.ndarray:
         T = np.eye(4)
-        T[:3, :3] = turn(u).as_matrix()
+        # most lines keep the tool's orientation: no interpolation to evaluate then
+        T[:3, :3] = turn(u).as_matrix() if angle_rad > 1e-12 else T1[:3, :3]
         T[:3, 3] = p0 + u * (p1 - p0)
         return T
 

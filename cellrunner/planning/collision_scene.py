@@ -323,6 +323,8 @@ class CollisionScene:
         """The pairs of ``objects`` checked against each other, with their clearances (m)."""
         pairs: list[tuple[int, int]] = []
         required: list[float] = []
+        # each arm part's row (by identity: comparing parts compares their arrays)
+        self._arm_row = {id(p): k for k, p in enumerate(self._arm.parts)}
         for i, a in enumerate(objects):
             for j in range(i + 1, len(objects)):
                 b = objects[j]
@@ -346,7 +348,7 @@ class CollisionScene:
         if a.group == b.group == "arm":
             assert a.part is not None and b.part is not None
             return self._arm.self_pair_checked(
-                self._arm.parts.index(a.part), self._arm.parts.index(b.part), self.clearance_m
+                self._arm_row[id(a.part)], self._arm_row[id(b.part)], self.clearance_m
             )
         if groups == {"tool"} or groups == {"part"}:
             return False

@@ -71,19 +71,42 @@ def cover_spheres(
     return local @ T[:3, :3].T + T[:3, 3], radius
 
 
+#: :func:`polytope_cover_spheres` of the polytopes seen (the arm's parts: every collision
+#: scene of a cell, one per carried part and contact, covers the same links)
+_COVERS: dict[tuple[bytes, bytes, float], tuple[np.ndarray, np.ndarray]] = {}
+_COVERS_MAX = 1024
+
+
 def polytope_cover_spheres(
     vertices: np.ndarray, faces: np.ndarray, width_m: float = 0.06
 ) -> tuple[np.ndarray, np.ndarray]:
     """Spheres whose union contains the convex polytope (``vertices``, triangle ``faces``):
     the polytope cut into slabs along its longest axis, each slab's ball around the corners
     of the polytope's part in it (its vertices there and its edges' crossings of the slab's
-    planes; the part is the hull of those, and a ball is convex)."""
+    planes; the part is the hull of those, and a ball is convex). Kept per polytope; the
+    arrays returned are shared (read only)."""
     v = np.asarray(vertices, float)
+    f = np.asarray(faces, int)
+    key = (v.tobytes(), f.tobytes(), float(width_m))
+    found = _COVERS.get(key)
+    if found is None:
+        found = _polytope_cover_spheres(v, f, width_m)
+        for array in found:
+            array.flags.writeable = False
+        if len(_COVERS) >= _COVERS_MAX:
+            _COVERS.pop(next(iter(_COVERS)))
+        _COVERS[key] = found
+    return found
+
+
+def _polytope_cover_spheres(
+    v: np.ndarray, f: np.ndarray, width_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`polytope_cover_spheres`, computed."""
     axis = np.linalg.svd(v - v.mean(axis=0), full_matrices=False)[2][0]
     s = v @ axis
     n = max(1, math.ceil((s.max() - s.min()) / width_m))
     cuts = np.linspace(s.min(), s.max(), n + 1)
-    f = np.asarray(faces, int)
     edges = np.unique(
         np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0
     )
