@@ -36,7 +36,7 @@ from bench.cellgen import FEASIBLE, KINDS, Case, corpus_seeds
 CLASSES = ("true accept", "true refuse", "false approval", "twin false OK", "false refusal")
 DISAGREEMENTS = ("false approval", "twin false OK", "false refusal")
 #: verdicts that are the generator's or the bench's fault, not check's or the twin's
-BENCH_FAULTS = ("invalid file", "twin did not run")
+BENCH_FAULTS = ("invalid file", "twin did not run", "no witness")
 
 
 @dataclass(frozen=True)
@@ -124,7 +124,11 @@ def _judge_one(args: tuple[int, str, str]) -> Verdict:
     from bench.cellgen import generate
 
     seed, kind, out = args
-    return judge(generate(seed, kind), Path(out))
+    try:
+        case = generate(seed, kind)
+    except RuntimeError as exc:  # no witnesses found: the generator's, not check's
+        return Verdict(f"s{seed}-{kind}", kind, -1, None, "no witness", str(exc), 0.0, "")
+    return judge(case, Path(out))
 
 
 def run(
@@ -134,18 +138,25 @@ def run(
     out: Path,
     kinds: tuple[str, ...] = KINDS,
     progress: bool = False,
+    resume: bool = False,
 ) -> list[Verdict]:
     """Judge ``count`` generated jobs of ``kinds`` from ``seed`` on ``jobs`` processes: the
     kinds in turn, each job on its own seed (``corpus_seeds``). Each verdict is appended to
     ``out/verdicts.jsonl`` as it comes, so a long run's findings can be read before it ends
-    and are kept if it is stopped; ``progress`` prints a line per job on stderr."""
+    and are kept if it is stopped; ``resume`` keeps the verdicts already there and judges
+    only the jobs they miss; ``progress`` prints a line per job on stderr."""
     from cellrunner.sim.mujoco_loader import enable_pictures
 
     enable_pictures()  # before any job imports MuJoCo: the align cameras draw pictures
     cases = [(s, kind, str(out)) for s, kind in corpus_seeds(count, seed, kinds)]
     out.mkdir(parents=True, exist_ok=True)
     verdicts: list[Verdict] = []
-    with (out / "verdicts.jsonl").open("w") as log:
+    path = out / "verdicts.jsonl"
+    if resume and path.exists():
+        verdicts = [Verdict(**json.loads(line)) for line in path.read_text().splitlines() if line]
+        done = {v.name.split("-")[0] for v in verdicts}
+        cases = [c for c in cases if f"s{c[0]}" not in done]
+    with path.open("a" if resume else "w") as log:
 
         def keep(verdict: Verdict) -> None:
             verdicts.append(verdict)
@@ -189,6 +200,8 @@ def table(verdicts: list[Verdict]) -> str:
     )
     if total["invalid file"]:
         lines.append(f"generator bugs: {total['invalid file']} files the loader refused")
+    if total["no witness"]:
+        lines.append(f"seeds the generator found no witnesses for: {total['no witness']}")
     if total["twin did not run"]:
         lines.append(f"rehearsals that gave no result: {total['twin did not run']}")
     return "\n".join(lines)
@@ -217,6 +230,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
     parser.add_argument("--progress", action="store_true", help="a line per job on stderr")
     parser.add_argument(
+        "--resume", action="store_true", help="keep OUT's verdicts, judge the jobs they miss"
+    )
+    parser.add_argument(
         "--kinds", default=",".join(KINDS), help="comma-separated kinds (default: all)"
     )
     args = parser.parse_args(argv)
@@ -224,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(kinds) - set(KINDS))
     if unknown:
         parser.error(f"unknown kinds {', '.join(unknown)}; known: {', '.join(KINDS)}")
-    verdicts = run(args.cells, args.seed, args.jobs, args.out, kinds, args.progress)
+    verdicts = run(args.cells, args.seed, args.jobs, args.out, kinds, args.progress, args.resume)
     listing = write_disagreements(verdicts, args.out)
     if args.json:
         print(json.dumps([asdict(v) for v in verdicts], indent=1))

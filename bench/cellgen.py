@@ -233,7 +233,7 @@ def _table(name: str, T_frame: np.ndarray, top_z_m: float) -> dict[str, Any]:
 #: what it must keep (m), the waiting part excepted (the jaws stand around it)
 WITNESS_MARGIN_M = 0.005
 #: how many draws a seed may take to find witnesses that keep that margin
-WITNESS_TRIES = 20
+WITNESS_TRIES = 100
 
 
 def generate(seed: int, kind: str = "feasible") -> Case:
