@@ -14,7 +14,6 @@ frame by it.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Generator
 
 import numpy as np
@@ -27,9 +26,11 @@ from cellrunner.model.codes import ResultCode
 from cellrunner.model.geometry import pose_matrix, rpy_deg_of
 from cellrunner.model.step import Step
 from cellrunner.planning.align_correction import (
-    CORRECTION_SPEED_MPS as CORRECTION_SPEED_MPS,
+    correcting_goal,
+    correcting_move,
+    pose_distance,
+    within_tolerance,
 )
-from cellrunner.planning.align_correction import correcting_goal, correcting_move
 
 #: the arm stands still this long before each look (s)
 SETTLE_S = 0.1
@@ -57,10 +58,11 @@ def run_align(ctx: JobContext, step: Step) -> StepGen:
             return within
         C, six = within
         ctx.notes.setdefault("align", {})[step.name] = C
-        moved_m, turned_deg = _distance(np.linalg.inv(applied) @ C)
-        if moved_m <= args.tolerance.xyz and turned_deg <= args.tolerance.rpy:
+        change = np.linalg.inv(applied) @ C
+        if within_tolerance(step, change):
             return Outcome(True, ResultCode.OK, f"corrected by {_pose_text(six)} in {look} looks")
         if look == args.attempts:
+            moved_m, turned_deg = pose_distance(change)
             return Outcome.failed(
                 ResultCode.PLACE_FAILED,
                 f"align: the marker is still {moved_m * 1000:.1f} mm and {turned_deg:.1f} deg "
@@ -128,9 +130,9 @@ def _within_box(
     # within the tolerance of the edge it is at the edge; farther, the arm moves to
     # the nearest correction inside and looks again; beyond it from there, it is
     inside = pose_matrix(np.clip(six[:3], low[:3], high[:3]), np.clip(six[3:], low[3:], high[3:]))
-    excess_m, excess_deg = _distance(np.linalg.inv(inside) @ C)
+    excess_m, excess_deg = pose_distance(np.linalg.inv(inside) @ C)
     at_edge = excess_m <= args.tolerance.xyz and excess_deg <= args.tolerance.rpy
-    gap_m, gap_deg = _distance(np.linalg.inv(applied) @ inside)
+    gap_m, gap_deg = pose_distance(np.linalg.inv(applied) @ inside)
     # already there (within tolerance): the edge is as far as a correction goes
     stuck = gap_m <= args.tolerance.xyz and gap_deg <= args.tolerance.rpy
     if not at_edge and (look == args.attempts or stuck):
@@ -180,12 +182,6 @@ def frame_correction(
     C[:2, :2] = R
     C[:2, 3] = cb - R @ ca
     return C
-
-
-def _distance(T: np.ndarray) -> tuple[float, float]:
-    """(translation m, rotation angle deg) of a pose."""
-    cos = (float(np.trace(T[:3, :3])) - 1.0) / 2.0
-    return float(np.linalg.norm(T[:3, 3])), math.degrees(math.acos(max(-1.0, min(1.0, cos))))
 
 
 def _pose_text(six: list[float]) -> str:

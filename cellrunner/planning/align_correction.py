@@ -49,11 +49,15 @@ def correcting_goal(
     return np.asarray(F @ C @ np.linalg.inv(applied) @ np.linalg.inv(F) @ T_world_tcp)
 
 
+def pose_distance(T: np.ndarray) -> tuple[float, float]:
+    """(translation m, rotation angle deg) of a pose."""
+    cos = (float(np.trace(T[:3, :3])) - 1.0) / 2.0
+    return float(np.linalg.norm(T[:3, 3])), math.degrees(math.acos(max(-1.0, min(1.0, cos))))
+
+
 def within_tolerance(step: Step, T: np.ndarray) -> bool:
     """The change ``T`` (4 x 4, m) is within the align's tolerance: no move is made."""
-    moved_m = float(np.linalg.norm(T[:3, 3]))
-    cos = (float(np.trace(T[:3, :3])) - 1.0) / 2.0
-    turned_deg = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
+    moved_m, turned_deg = pose_distance(T)
     tolerance = step.args.tolerance
     return bool(moved_m <= float(tolerance.xyz) and turned_deg <= float(tolerance.rpy))
 
