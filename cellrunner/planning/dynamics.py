@@ -21,6 +21,7 @@ import pinocchio as pin
 
 from cellrunner.model.arm_dynamics import armature_kgm2, joint_torque_max_nm, link_inertias
 from cellrunner.model.robots import JOINT_NAMES, RobotSpec
+from cellrunner.planning.kinematics import dh_link
 
 #: the share of a joint's rated torque a plan may ask for: the rest is for what the model
 #: leaves out (a carried part's weight, the servo's own lag, the joints' friction)
@@ -56,7 +57,7 @@ class ArmDynamics:
                 pin.Inertia(link.mass_kg, np.asarray(link.com_m), inertia),
                 pin.SE3.Identity(),
             )
-            placement = _dh_link(spec.d_m[i], spec.a_m[i], spec.alpha_rad[i])
+            placement = dh_link(spec.d_m[i], spec.a_m[i], spec.alpha_rad[i])
         # the tool and the part, both on the last joint (the flange is fixed to it)
         T_flange = placement.homogeneous
         p_cog = T_flange @ np.array([*payload_cog_m, 1.0])
@@ -88,12 +89,3 @@ class ArmDynamics:
         a = self.torques_nm(q_rad, zero, dq_ds)
         b = self.torques_nm(q_rad, dq_ds, d2q_ds2)
         return a, b
-
-
-def _dh_link(d: float, a: float, alpha: float) -> pin.SE3:
-    """The fixed part of a DH link: translate d along z, a along x, rotate alpha about x."""
-    ca, sa = np.cos(alpha), np.sin(alpha)
-    T = np.eye(4)
-    T[:3, :3] = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
-    T[:3, 3] = [a, 0, d]
-    return pin.SE3(T)

@@ -82,7 +82,7 @@ def _angle_from_line_deg(q: float) -> float:
     return math.degrees(abs(math.remainder(q, math.pi)))
 
 
-def _dh_link(d: float, a: float, alpha: float) -> pin.SE3:
+def dh_link(d: float, a: float, alpha: float) -> pin.SE3:
     """The fixed part of a DH link: translate d along z, a along x, rotate alpha about x."""
     T = np.eye(4)
     ca, sa = math.cos(alpha), math.sin(alpha)
@@ -115,7 +115,7 @@ class ArmKinematics:
         for i, name in enumerate(JOINT_NAMES):
             parent = model.addJoint(parent, pin.JointModelRZ(), placement, name)
             model.appendBodyToJoint(parent, pin.Inertia.Identity(), pin.SE3.Identity())
-            placement = _dh_link(spec.d_m[i], spec.a_m[i], spec.alpha_rad[i])
+            placement = dh_link(spec.d_m[i], spec.a_m[i], spec.alpha_rad[i])
         model.lowerPositionLimit = np.radians(spec.joint_min_deg)
         model.upperPositionLimit = np.radians(spec.joint_max_deg)
         model.velocityLimit = np.radians(spec.joint_speed_max_deg_s)
