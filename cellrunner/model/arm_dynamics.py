@@ -41,19 +41,19 @@ ARM_MASS_KG = {
 }
 # Joint torque limits (N m, base..wrist 3), datasheets / UR manuals.
 _TORQUE_SMALL = (56.0, 56.0, 28.0, 12.0, 12.0, 12.0)
-TORQUE_MEDIUM = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)
+_TORQUE_MEDIUM = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)
 _TORQUE_LARGE = (330.0, 330.0, 150.0, 56.0, 56.0, 56.0)
 _TORQUE_UR18 = (433.0, 433.0, 204.0, 70.0, 70.0, 70.0)  # ur_description max_effort
 _TORQUE_UR20 = (738.0, 738.0, 433.0, 107.0, 107.0, 107.0)  # ur_description max_effort
 JOINT_TORQUE_MAX_NM = {
     "ur3": _TORQUE_SMALL,
     "ur3e": _TORQUE_SMALL,
-    "ur5": TORQUE_MEDIUM,
-    "ur5e": TORQUE_MEDIUM,
+    "ur5": _TORQUE_MEDIUM,
+    "ur5e": _TORQUE_MEDIUM,
     "ur10": _TORQUE_LARGE,
     "ur10e": _TORQUE_LARGE,
     "ur16e": _TORQUE_LARGE,
-    "ur7e": TORQUE_MEDIUM,
+    "ur7e": _TORQUE_MEDIUM,
     "ur12e": _TORQUE_LARGE,
     "ur15": _TORQUE_UR18,  # assumed: the UR18's joint sizes (same DH d1, d4-d6)
     "ur18": _TORQUE_UR18,
@@ -74,7 +74,7 @@ def armature_kgm2(spec: RobotSpec) -> tuple[float, ...]:
 
 def joint_torque_max_nm(spec: RobotSpec) -> tuple[float, ...]:
     """Each joint's rated torque (N m)."""
-    return JOINT_TORQUE_MAX_NM.get(spec.name, TORQUE_MEDIUM)
+    return JOINT_TORQUE_MAX_NM.get(spec.name, _TORQUE_MEDIUM)
 
 
 class LinkInertia(NamedTuple):

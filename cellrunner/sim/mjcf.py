@@ -36,8 +36,6 @@ from typing import Any
 
 import numpy as np
 
-from cellrunner.model.arm_dynamics import ARM_MASS_KG as ARM_MASS_KG
-from cellrunner.model.arm_dynamics import JOINT_TORQUE_MAX_NM as JOINT_TORQUE_MAX_NM
 from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.sim.description import TwinDescription
 from cellrunner.sim.jaw_welds import add_jaw_welds

@@ -17,8 +17,6 @@ from cellrunner.sim.mjcf_document import MjcfDocument
 from cellrunner.sim.tool_changer import add_tools
 from cellrunner.sim.vacuum import add_cups
 
-# The arm masses, joint torques and drive inertias check times motions with.
-
 
 def add_arm(builder: MjcfDocument, world: ET.Element) -> None:
     d = builder.desc
