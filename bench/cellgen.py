@@ -373,10 +373,7 @@ def _line_top(
 ) -> np.ndarray | None:
     """The configuration at the top of the straight line up ``top_m`` from witness ``q``
     (its pose turned ``turn_deg`` about the TCP's Z), tracked back up every 5 mm, when the
-    whole line keeps every checked pair :data:`WITNESS_MARGIN_M` clear and the wrist
-    :data:`WITNESS_SINGULAR_DEG` off its singularities; else None."""
-    from cellrunner.planning.cartesian import MIN_SHOULDER_DISTANCE_M, MIN_SINGULARITY_ANGLE_DEG
-
+    whole line keeps its margins (:func:`keeps_margins`); else None."""
     T_goal, config = kin.T_world_tcp(q) @ _turn(turn_deg), q
     if turn_deg:  # the wrist's last joint turns the TCP about its Z
         config = kin.ik_track(T_goal, q + np.radians([0, 0, 0, 0, 0, turn_deg]))
@@ -384,21 +381,36 @@ def _line_top(
             return None
     for k in range(int(top_m / 0.005) + 1):
         config = kin.ik_track(T_goal @ _up(k * 0.005), config)
-        if config is None:
-            return None
-        if kin.singularity_distance(config).violation(
-            MIN_SINGULARITY_ANGLE_DEG + WITNESS_SINGULAR_DEG, MIN_SHOULDER_DISTANCE_M + 0.01
-        ):
-            return None
-        distances, required = collision.pair_distances(config)
-        if np.any((distances - required)[keep] < WITNESS_MARGIN_M):
+        if not keeps_margins(kin, collision, keep, config):
             return None
     return np.asarray(config)
 
 
-#: how much farther than ``check`` requires a witness's lines keep the wrist and elbow
-#: from their singularities (deg)
-WITNESS_SINGULAR_DEG = 2.0
+def keeps_margins(
+    kin: Any,
+    collision: Any,
+    keep: np.ndarray,
+    q: np.ndarray | None,
+    margin_m: float = WITNESS_MARGIN_M,
+) -> bool:
+    """A witness's configuration ``q`` (None: none found) keeps every checked pair
+    (``keep``) ``margin_m`` over its clearance and the wrist, elbow and shoulder
+    :data:`WITNESS_SINGULAR_DEG` and :data:`WITNESS_SHOULDER_M` farther from their
+    singularities than the planner requires."""
+    from cellrunner.planning.cartesian import MIN_SHOULDER_DISTANCE_M, MIN_SINGULARITY_ANGLE_DEG
+
+    if q is None or kin.singularity_distance(q).violation(
+        MIN_SINGULARITY_ANGLE_DEG + WITNESS_SINGULAR_DEG,
+        MIN_SHOULDER_DISTANCE_M + WITNESS_SHOULDER_M,
+    ):
+        return False
+    distances, required = collision.pair_distances(q)
+    return bool(np.all((distances - required)[keep] >= margin_m))
+
+
+#: how much farther than ``check`` requires a witness keeps the wrist and elbow from
+#: their singularities (deg), and the wrist point from the shoulder's (m)
+WITNESS_SINGULAR_DEG, WITNESS_SHOULDER_M = 2.0, 0.01
 
 
 def joint_paths_exist(

@@ -44,9 +44,6 @@ STANDOFF_M, OFF_M, OFF_DEG = 0.2, 0.005, 3.0
 #: (:func:`align_witness_clear`); a box twice the offsets made the witness prove
 #: corrections no job needs
 MAX_CORRECTION_M, MAX_CORRECTION_DEG = 0.006, 4.0
-#: the witness's margin over the planner's singularity thresholds (wrist and elbow
-#: angle, deg; shoulder, m), as bench/cellgen's WITNESS_MARGIN_M is over the clearances
-SINGULARITY_MARGIN_DEG, SHOULDER_MARGIN_M = 2.0, 0.01
 #: samples along a correcting line at the look (it is 10 mm at most)
 LOOK_LINE_SAMPLES = 11
 
@@ -157,8 +154,8 @@ def align_witness_clear(case: Any, q_pick_rad: Any, approach_m: float, margin_m:
     OFF_DEG off in the twin, inside them): the corrected line down to the pick, tracked
     from the witness, and the look with the straight correcting line from it (the run
     time moves the camera with the correction before it looks again) stay
-    ``margin_m`` over every clearance and SINGULARITY_MARGIN_DEG off the singularities
-    the planner keeps away from. Without the look and the corrections a UR10's look
+    ``margin_m`` over every clearance and off the singularities as every witness does
+    (``bench.cellgen.keeps_margins``). Without the look and the corrections a UR10's look
     stood 6 deg off the wrist singularity and its correcting line went under the
     planner's 3 deg (s60019)."""
     import itertools
@@ -167,13 +164,10 @@ def align_witness_clear(case: Any, q_pick_rad: Any, approach_m: float, margin_m:
 
     import numpy as np
 
+    from bench.cellgen import _up, keeps_margins
     from cellrunner.model.geometry import pose_matrix
     from cellrunner.model.job_steps import job_steps
     from cellrunner.model.load import load_cell, load_task
-    from cellrunner.planning.cartesian import (
-        MIN_SHOULDER_DISTANCE_M,
-        MIN_SINGULARITY_ANGLE_DEG,
-    )
     from cellrunner.planning.world import CellWorld
 
     with tempfile.TemporaryDirectory() as folder:
@@ -183,14 +177,9 @@ def align_witness_clear(case: Any, q_pick_rad: Any, approach_m: float, margin_m:
     world = CellWorld(cell)
     kin, collision = world.kinematics, world.collision
     keep = np.array(["part" not in a and "part" not in b for a, b in collision.pair_labels])
-    angle = MIN_SINGULARITY_ANGLE_DEG + SINGULARITY_MARGIN_DEG
-    shoulder = MIN_SHOULDER_DISTANCE_M + SHOULDER_MARGIN_M
 
     def clear(q: Any) -> bool:
-        if q is None or kin.singularity_distance(q).violation(angle, shoulder) is not None:
-            return False
-        distances, required = collision.pair_distances(q)
-        return bool(np.all((distances - required)[keep] >= margin_m))
+        return keeps_margins(kin, collision, keep, q, margin_m)
 
     align = next(s for s in steps if s.kind == "align")
     look = next((s for s in steps if s.index == align.index - 1 and s.kind == "move"), None)
@@ -227,12 +216,3 @@ def align_witness_clear(case: Any, q_pick_rad: Any, approach_m: float, margin_m:
                 if not clear(q):
                     return False
     return True
-
-
-def _up(distance_m: float) -> Any:
-    """Back up the tool's Z by ``distance_m`` (the approach point above a pick)."""
-    import numpy as np
-
-    T = np.eye(4)
-    T[2, 3] = -distance_m
-    return T
