@@ -6,85 +6,17 @@ motion within the joints' torques (planning/dynamics.py); this is bench/cellgen.
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 from bench.agreement import cli
 
-CELL = """\
-cell: gen-208-feasible
-robot:
-  model: ur10e
-  host: 127.0.0.2
-  backend: sim
-  mount:
-    xyz: [0.0, 0.0, 2.0]
-    rpy: [180.0, 0.0, 0.0]
-  home: [0.0, -90.0, 90.0, -90.0, -90.0, 0.0]
-tool:
-  tcp:
-    xyz: [0, 0, 0.154]
-    rpy: [0, 0, 0]
-  payload:
-    mass: 1.0
-    cog: [0, 0, 0.051]
-  gripper:
-    kind: io
-    close: {output: gripper_close, value: true}
-    closed_sensor: gripper_closed
-    stroke: 0.083
-  geometry:
-  - cylinder: {radius: 0.057, length: 0.094}
-    xyz: [0, 0, 0.047]
-io:
-  outputs: {gripper_close: DO0}
-  inputs: {gripper_closed: DI0}
-fixtures:
-- name: ceiling_plate
-  box:
-    size: [0.4, 0.4, 0.02]
-  pose:
-    xyz: [0, 0, 2.02]
-- name: infeed_table
-  box:
-    size: [0.3, 0.3, 0.04]
-  pose:
-    xyz: [0.35139, -0.89923, 1.14818]
-- name: outfeed_table
-  box:
-    size: [0.3, 0.3, 0.04]
-  pose:
-    xyz: [0.38776, 0.55074, 1.22867]
-frames:
-  infeed:
-    xyz: [0.35139, -0.89923, 1.20418]
-    rpy: [180.0, 0.0, -78.2583]
-  outfeed:
-    xyz: [0.38776, 0.55074, 1.28467]
-    rpy: [-180.0, 0.0, 108.83]
-parts:
-- name: part
-  box:
-    size: [0.047, 0.056, 0.072]
-  mass: 0.57
-  at: infeed
-tasks: {1: task.yaml}
-journal: var/jobs.sqlite
-"""
-
-TASK = """\
-task: pick_place
-steps:
-- {move: home}
-- pick:
-    at: infeed
-    approach: 0.08
-    grip: {confirm: gripper_closed}
-- place: {at: outfeed, approach: 0.08}
-- {move: home}
-"""
+#: the cell and task as written then
+DATA = Path(__file__).resolve().parent.parent / "data" / "generated" / "s208-ur10e"
 
 
 def test_a_ur10e_jaw_pick_check_approves_is_rehearsed_without_a_stop(tmp_path):
-    (tmp_path / "cell.yaml").write_text(CELL)
-    (tmp_path / "task.yaml").write_text(TASK)
+    shutil.copytree(DATA, tmp_path, dirs_exist_ok=True)  # its plans and journal go there
     cell, task = str(tmp_path / "cell.yaml"), str(tmp_path / "task.yaml")
     code, checked = cli("check", cell, task, "--no-cache")
     assert (code, checked["ok"]) == (0, True), checked
