@@ -235,6 +235,8 @@ class CollisionScene:
         kin = self.kinematics
         model = kin.model
         self._arm = self._arm_geometry(kin.spec.arm)
+        # each arm part's row (by identity: comparing parts compares their arrays)
+        self._arm_row = {id(p): k for k, p in enumerate(self._arm.parts)}
         objects = self._scene_objects()
         self._objects = objects
 
@@ -323,8 +325,6 @@ class CollisionScene:
         """The pairs of ``objects`` checked against each other, with their clearances (m)."""
         pairs: list[tuple[int, int]] = []
         required: list[float] = []
-        # each arm part's row (by identity: comparing parts compares their arrays)
-        self._arm_row = {id(p): k for k, p in enumerate(self._arm.parts)}
         for i, a in enumerate(objects):
             for j in range(i + 1, len(objects)):
                 b = objects[j]
