@@ -96,3 +96,21 @@ def test_a_slip_fault_lets_go_of_the_weld_and_the_part_falls_out_of_the_jaws(dri
     driver.backend.set_output("DO0", False)
     driver.wait(0.3)
     assert world.jaw_welds.loosened == set()  # the next grip may weld again
+
+
+def test_a_welded_part_one_pad_lets_go_of_for_a_period_stays_welded_where_it_was(driver) -> None:
+    """A finger shaken off the part's face for a period is no release: the weld stays
+    where it was made (remade each time, a 1 kg part crept 1 mm down the pads, s80544)."""
+    driver.pick_cube()
+    driver.move_tcp(LIFTED, 0.6, "lift")
+    world = driver.backend.world
+    welds = world.jaw_welds
+    eq = welds.weld["cube"]
+    made = world.model.eq_data[eq].copy()
+    assert world.contacts.touches_pads("cube")
+    welds.update(frozenset(), closing=True)  # this period, not between both pads
+    assert welds.held == {"cube"}
+    assert world.data.eq_active[eq] == 1
+    np.testing.assert_array_equal(world.model.eq_data[eq], made)
+    welds.update(frozenset(), closing=False)  # the jaws open: let go
+    assert welds.held == set()
