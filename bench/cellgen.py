@@ -19,7 +19,9 @@ and the straight lines down to the frames keep 5 mm over every clearance.
 - ``jaws_too_narrow``: the gripper's stroke is narrower than the part;
 - ``weak_vacuum``: the cups hold less than the part weighs;
 - ``blocked_layer``: the place is the upper of two layers whose pitch is 10 mm under the
-  part's height (it would go into the part an earlier job put below).
+  part's height (it would go into the part an earlier job put below);
+- ``blocked_column``: the place is the second of two columns whose pitch is 1-8 mm under
+  the part's width (it would come down onto the part an earlier job put beside it).
 
 and ``near_support`` is a feasible variant that sets the part down 2 mm above its table,
 ``layered`` one that sets it 2 mm above the part an earlier job put on the layer below
@@ -79,6 +81,12 @@ CEILING_SHARE, WALL_SHARE = 0.3, 0.15
 #: feasible kinds of jobs, and the defects (each breaks one thing)
 #: feasible kinds added after the fixed sample was drawn (sampled on seeds of their own)
 LATER_FEASIBLE = ("interlocked", "recovering")
+#: and the declared press fits, feasible and broken (bench/cellgen_holes.py)
+PRESS_KINDS = cellgen_holes.PRESS_KINDS
+#: defects added after the fixed sample was drawn (sampled on seeds of their own)
+LATER_DEFECTS = ("blocked_column",)
+#: the kinds added since the fixed sample's first part: on seeds of their own
+ADDED_KINDS = (*PRESS_KINDS, *LATER_DEFECTS)
 FEASIBLE = (
     "feasible",
     "near_support",
@@ -86,6 +94,7 @@ FEASIBLE = (
     *CAMERA_FEASIBLE,
     *cellgen_holes.HOLE_FEASIBLE,
     *LATER_FEASIBLE,
+    *cellgen_holes.PRESS_FEASIBLE,
 )
 DEFECTS = (
     "out_of_reach",
@@ -96,6 +105,8 @@ DEFECTS = (
     "blocked_layer",
     *CAMERA_DEFECTS,
     *cellgen_holes.HOLE_DEFECTS,
+    *cellgen_holes.PRESS_DEFECTS,
+    *LATER_DEFECTS,
 )
 #: the kinds that place on a pattern of two layers, the job's part on the upper one (on
 #: the part an earlier job put on the lower): ``layered`` 2 mm above it, ``blocked_layer``
@@ -105,7 +116,9 @@ LAYERED = {"layered": 0.002, "blocked_layer": -0.010, "interlocked": 0.002}
 TURNED = {"interlocked": 90.0}
 KINDS = FEASIBLE + DEFECTS
 #: the kinds without cameras (the fixed sample's first part keeps its seeds)
-PLAIN_KINDS = tuple(k for k in KINDS if k not in CAMERA_KINDS and k not in LATER_FEASIBLE)
+PLAIN_KINDS = tuple(
+    k for k in KINDS if k not in CAMERA_KINDS and k not in LATER_FEASIBLE and k not in ADDED_KINDS
+)
 #: the kinds that need one gripper: the others draw jaws or cups (VACUUM_SHARE of them cups)
 NEEDS_GRIPPER = {"jaws_too_narrow": "jaws", "weak_vacuum": "vacuum", **NEEDS_JAWS}
 VACUUM_SHARE = 0.4
@@ -219,12 +232,12 @@ def _xyz(T: np.ndarray) -> list[float]:
     return [round(float(v), 5) for v in T[:3, 3]]
 
 
-def _table(name: str, T_frame: np.ndarray, top_z_m: float) -> dict[str, Any]:
-    """A square table whose top is at ``top_z_m`` under the frame."""
+def _table(name: str, T_frame: np.ndarray, top_z_m: float, side_m: float = 0.30) -> dict[str, Any]:
+    """A square table ``side_m`` wide whose top is at ``top_z_m`` under the frame."""
     x, y, top_z_m = float(T_frame[0, 3]), float(T_frame[1, 3]), float(top_z_m)
     return {
         "name": name,
-        "box": {"size": [0.30, 0.30, TABLE_THICKNESS_M]},
+        "box": {"size": [side_m, side_m, TABLE_THICKNESS_M]},
         "pose": {"xyz": [round(x, 5), round(y, 5), round(top_z_m - TABLE_THICKNESS_M / 2, 5)]},
     }
 
@@ -286,6 +299,8 @@ class _Draw:
     rise_m: float = 0.0
     #: how far the upper layer turns about the place frame's Z (deg, ``TURNED``)
     turn_deg: float = 0.0
+    #: a blocked column's pitch under the part's width (m)
+    column_overlap_m: float = 0.0
 
 
 def _draw(rng: random.Random, kind: str, mount: str) -> _Draw:
@@ -312,6 +327,8 @@ def _draw(rng: random.Random, kind: str, mount: str) -> _Draw:
     if kind in LAYERED:
         draw.rise_m = round(draw.size[2] + LAYERED[kind], 4)
         draw.turn_deg = TURNED.get(kind, 0.0)
+    if kind == "blocked_column":  # drawn last: the other kinds keep their draws
+        draw.column_overlap_m = round(rng.uniform(0.001, 0.008), 4)
     return draw
 
 
@@ -489,6 +506,16 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
         stroke = round(d.size[0] * 0.7, 3)
     elif kind == "weak_vacuum":  # the cups hold less than the part weighs
         holding_N = round(random.Random(seed).uniform(0.4, 0.9) * d.mass * GRAVITY_MPS2, 1)
+    # a blocked column: the job's place is the second column, on the witness; the first,
+    # an earlier job's part, a pitch under the part's width along the frame's Y, and the
+    # table under both
+    column_pitch_m = round(d.size[1] - d.column_overlap_m, 4)
+    T_frame, T_table, table_m = T_place, T_place, 0.30
+    if kind == "blocked_column":
+        T_frame, T_table = T_place.copy(), T_place.copy()
+        T_frame[:3, 3] -= column_pitch_m * T_place[:3, 1]
+        T_table[:3, 3] -= column_pitch_m / 2 * T_place[:3, 1]
+        table_m = 0.45
     tcp_m = d.tcp_m
     if d.gripper == "vacuum":
         # the cups' body ends 30 mm above the TCP (the cups' faces, 20 mm long)
@@ -537,11 +564,11 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
         "fixtures": [
             _base_fixture(d.mount),
             _table("infeed_table", T_pick, pick_top),
-            _table("outfeed_table", T_place, place_top),
+            _table("outfeed_table", T_table, place_top, table_m),
         ],
         "frames": {
             "infeed": {"xyz": _xyz(T_pick), "rpy": _rpy_deg(T_pick)},
-            "outfeed": {"xyz": _xyz(T_place), "rpy": _rpy_deg(T_place)},
+            "outfeed": {"xyz": _xyz(T_frame), "rpy": _rpy_deg(T_frame)},
         },
         "parts": [{"name": "part", "box": {"size": d.size}, "mass": d.mass, "at": "infeed"}],
         "tasks": {1: "task.yaml"},
@@ -563,6 +590,10 @@ def _case(seed: int, kind: str, d: _Draw) -> Case:
             pattern = {"grid": [1, 1], "pitch": [0.1, 0.1], "layers": 2}
             pattern |= {"layer_pitch": d.rise_m, "turn": [0, d.turn_deg]}
         task["steps"][2]["place"]["pattern"] = {**pattern, "index": "slot"}
+    if kind == "blocked_column":  # the second of two columns, beside an earlier job's part
+        task["params"] = {"slot": {"type": "int", "min": 0, "max": 1, "default": 1}}
+        pattern = {"grid": [1, 2, 1], "pitch": [0.1, column_pitch_m, 0.1], "index": "slot"}
+        task["steps"][2]["place"]["pattern"] = pattern
     witness = {"pick": _deg(d.q_pick), "place": _deg(d.q_place)}
     case = Case(seed, kind, cell, task, witness)
     # the part slips out as it is lifted (it falls back under the gripper, which rises

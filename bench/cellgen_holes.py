@@ -22,6 +22,18 @@ witnesses), so the job is reachable by construction; the kinds set the fit:
 - ``jam_interference``: the hole 0.1 mm narrower than the pin on each face and no
   ``force: {min}`` (not a press fit the cell file declares): the pin jams.
 
+And the press fits the insert declares (``force: {min, max}``, drawn after the others so
+the kinds above keep their draws):
+
+- ``press_fit`` (feasible): the hole 0.02-0.1 mm narrower than the pin on each face (0.1
+  mm or more under the 0.2 mm a press fit may overlap a face, as the witnesses keep their
+  clearances by a margin), a window of 10-40 N up to 30-100 N: the pin presses in, its
+  force builds up;
+- ``press_fit_loose``: the same window on a hole with clearance (as ``hole_fit``): the
+  force never builds up, the press fit is not made (3);
+- ``press_fit_jam``: the hole 0.4-0.6 mm narrower on each face, more than a press fit
+  gives (0.2 mm, and the twin's 0.1 mm for the pin's placement): the pin jams.
+
 Chamfers are not generated: the cell file's fixtures are boxes, cylinders and meshes (a
 mesh is its convex hull in the twin), and a chamfer that guides a pin held by a
 position-controlled arm needs a compliance the twin does not model.
@@ -37,11 +49,18 @@ import numpy as np
 #: the feasible hole kinds and the broken ones (each breaks one thing)
 HOLE_FEASIBLE = ("hole_fit",)
 HOLE_DEFECTS = ("hole_too_shallow", "jam_rim", "jam_interference")
-HOLE_KINDS = HOLE_FEASIBLE + HOLE_DEFECTS
+#: the declared press fits (added after the kinds above; sampled on seeds of their own)
+PRESS_FEASIBLE = ("press_fit",)
+PRESS_DEFECTS = ("press_fit_loose", "press_fit_jam")
+PRESS_KINDS = PRESS_FEASIBLE + PRESS_DEFECTS
+HOLE_KINDS = HOLE_FEASIBLE + HOLE_DEFECTS + PRESS_KINDS
 #: how far the pin's tip is over the rim of wall_xp in a jam_rim case (m)
 RIM_OVERLAP_M = 0.0007
 #: the interference of a jam_interference case, per face (m, negative: overlap)
 INTERFERENCE_M = -0.0001
+#: the interference per face of a press_fit (m, negative: overlap) and of a press_fit_jam
+PRESS_FIT_M = (-0.0001, -0.00002)
+PRESS_JAM_M = (-0.0006, -0.0004)
 WALLS = ("wall_xm", "wall_xp", "wall_ym", "wall_yp")
 WALL_THICKNESS_M = 0.02
 #: the hole block's walls stand this tall on the outfeed table (m)
@@ -87,7 +106,7 @@ def _draw(rng: random.Random, kind: str) -> dict[str, Any]:
     floor_below = round(rng.uniform(0.0025, 0.004), 4)
     if kind == "hole_too_shallow":
         floor_below = -round(rng.uniform(0.006, 0.012), 4)
-    return {
+    drawn = {
         "model": model,
         "mount": mount,
         "tcp_m": tcp_m,
@@ -103,6 +122,14 @@ def _draw(rng: random.Random, kind: str) -> dict[str, Any]:
         "q_pick": cellgen._witness(rng, kin, rng.uniform(-150, -40), reach_m, mount),
         "q_place": cellgen._witness(rng, kin, rng.uniform(40, 150), reach_m, mount),
     }
+    if kind in PRESS_KINDS:  # drawn last: the other kinds keep their draws
+        if kind == "press_fit":
+            drawn["clearance"] = round(rng.uniform(*PRESS_FIT_M), 6)
+        elif kind == "press_fit_jam":
+            drawn["clearance"] = round(rng.uniform(*PRESS_JAM_M), 6)
+        low = round(rng.uniform(10, 40), 1)
+        drawn["press_N"] = (low, round(low + rng.uniform(20, 60), 1))
+    return drawn
 
 
 def _case(seed: int, kind: str, d: dict[str, Any]) -> Any:
@@ -221,7 +248,11 @@ def _case(seed: int, kind: str, d: dict[str, Any]) -> Any:
         "to": "hole",
         "depth": depth,
         "speed": 0.01,
-        "force": {"max": d["force_N"]},
+        "force": (
+            {"min": d["press_N"][0], "max": d["press_N"][1]}
+            if "press_N" in d
+            else {"max": d["force_N"]}
+        ),
         "expect_depth": [round(depth - 0.002, 4), round(depth + 0.001, 4)],
         "contact": list(WALLS),
     }

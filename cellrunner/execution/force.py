@@ -196,6 +196,8 @@ def _insertion_outcome(
             f"press fit not made: the force built up to {peak_N:.1f} N, under the "
             f"{low_N:g} N of force.min, by {depth_m * 1000:.1f} mm (the part went in loose)",
         )
+    if low_N is not None:
+        return Outcome(True, message=f"press fit made: {peak_N:.1f} N by {depth_m * 1000:.1f} mm")
     return OK
 
 

@@ -116,8 +116,11 @@ def jam(kin: ArmKinematics, step: Step, bare: CollisionModel, path: np.ndarray) 
     press = _press_fit_N(step)
     allowed_m = PRESS_FIT_MAX_M if press is not None else JAM_TOLERANCE_M
     q_before = np.asarray(path[0], float)
+    deepest_m = 0.0
     for q in np.asarray(path, float):
-        if _overlaps(bare, pairs, q) <= allowed_m:
+        overlap_m = _overlaps(bare, pairs, q)
+        deepest_m = max(deepest_m, overlap_m)
+        if overlap_m <= allowed_m:
             q_before = q
             continue
         # where it begins to press in, between the samples (to 1/256 of their step)
@@ -131,6 +134,16 @@ def jam(kin: ArmKinematics, step: Step, bare: CollisionModel, path: np.ndarray) 
         distances, _ = bare.pair_distances(q)  # how deep at the first sample past it
         into = {bare.pair_labels[k]: -float(distances[k]) for k in pairs if distances[k] < 0}
         return _jam_failure(kin, step, q_before + hi * (q - q_before), into, press)
+    if press is not None and deepest_m <= 0.0:
+        return Failure(
+            FailureKind.CONTACT,
+            f"the press fit is never made: the {_mover(bare, pairs)} does not overlap "
+            f"{', '.join(sorted(named))} anywhere along the insert, so its force cannot "
+            f"build up to the {press[0]:g} N of force.min (it would fail, 3)",
+            fix="fix: a hole narrower than the part, or no force.min if it is a sliding fit",
+            step_index=step.index,
+            step=step.label,
+        )
     if press is not None and press[1] > ARM_FORCE_LIMIT_N:
         return Failure(
             FailureKind.JAM,
@@ -141,6 +154,12 @@ def jam(kin: ArmKinematics, step: Step, bare: CollisionModel, path: np.ndarray) 
             step=step.label,
         )
     return None
+
+
+def _mover(bare: CollisionModel, pairs: list[int]) -> str:
+    """What moves along the line: "held part" or "tool"."""
+    carried = any(bare.pair_labels[k][0].kind is BodyKind.PART for k in pairs)
+    return "held part" if carried else "tool"
 
 
 def _overlaps(bare: CollisionModel, pairs: list[int], q_rad: np.ndarray) -> float:

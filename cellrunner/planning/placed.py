@@ -24,9 +24,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cellrunner.model import geometry
 from cellrunner.model.body import PLACED_PREFIX, BodyKind
 from cellrunner.model.failure import Blocker, Failure, FailureKind
-from cellrunner.model.geometry import Placed
+from cellrunner.model.geometry import Placed, Shape
 from cellrunner.model.step import StepKind
 
 if TYPE_CHECKING:
@@ -70,6 +71,65 @@ def earlier_slot_parts(world: CellWorld, steps: list[Step]) -> tuple[Placed, ...
                 out.append(placed_part(part, T_world_part, f"slot{k}"))
             part = None
     return tuple(out)
+
+
+def found_parts(world: CellWorld, steps: list[Step]) -> tuple[Placed, ...]:
+    """The parts an align finds (s90344): a part off its frame on purpose (``offset``)
+    lies where a camera finds it, which check does not know, so it is no waiting part of
+    the cell (:attr:`CellWorld.waiting_parts`). But it lies within the align's
+    ``max_correction`` of its frame, or the align fails: an obstacle there, grown by that
+    box, to every move until it is carried (a wall-mounted UR16e's move to the look pose
+    swept its forearm through one, 311 N in the twin, that check never saw). Named as a
+    waiting part (``part:NAME``), so that the grip's jaws may reach into it and the job
+    carries it away."""
+    from cellrunner.model.align import aligned_frame
+    from cellrunner.model.body import WAITING_PREFIX
+    from cellrunner.model.expand import frame_pose
+    from cellrunner.model.gripper import part_center_depth_m
+
+    cell = world.loaded.cell
+    grown: dict[str, Placed] = {}
+    for i, step in enumerate(steps):
+        if step.kind != StepKind.ALIGN:
+            continue
+        frame = aligned_frame(steps, i)
+        box = step.args.max_correction
+        for part in cell.parts:
+            if part.at != frame or part.offset is None or frame not in cell.frames:
+                continue
+            shape = part.to_shape(world.loaded.resolve)
+            depth = part_center_depth_m(cell.tool.gripper, shape)
+            T = frame_pose(cell, frame) @ geometry.pose_matrix((0, 0, depth))
+            big = _grown(shape, np.asarray(box.xyz, float), float(np.radians(box.rpy[2])))
+            old = grown.get(part.name)
+            if old is None or _volume(big) > _volume(old.shape):
+                grown[part.name] = Placed(WAITING_PREFIX + part.name, big, T)
+    return tuple(grown.values())
+
+
+def _grown(shape: Shape, xyz_m: np.ndarray, yaw_rad: float) -> Shape:
+    """``shape`` grown to hold itself shifted by up to ``xyz_m`` (each axis, both ways)
+    and turned by up to ``yaw_rad`` about its Z (a mesh as it is)."""
+    dx, dy, dz = np.abs(xyz_m)
+    turn = abs(np.sin(yaw_rad))
+    if isinstance(shape, geometry.Box):
+        hx, hy, hz = (v / 2 for v in shape.size_m)
+        return geometry.Box((2 * (hx + dx + hy * turn), 2 * (hy + dy + hx * turn), 2 * (hz + dz)))
+    if isinstance(shape, geometry.Cylinder):
+        return geometry.Cylinder(shape.radius_m + max(dx, dy), shape.length_m + 2 * dz)
+    if isinstance(shape, geometry.Sphere):
+        return geometry.Sphere(shape.radius_m + float(np.linalg.norm(xyz_m)))
+    return shape
+
+
+def _volume(shape: Shape) -> float:
+    if isinstance(shape, geometry.Box):
+        return float(np.prod(shape.size_m))
+    if isinstance(shape, geometry.Cylinder):
+        return float(np.pi * shape.radius_m**2 * shape.length_m)
+    if isinstance(shape, geometry.Sphere):
+        return float(4 / 3 * np.pi * shape.radius_m**3)
+    return 0.0
 
 
 def beside_refusal(step: Step, part_name: str, clearance: Clearance, end: str) -> Failure | None:

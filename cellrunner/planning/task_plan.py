@@ -296,10 +296,11 @@ def plan_task(
     ``joined=False`` (run --step) ends every motion at rest: the same waypoints, each
     timed from rest to rest, so that the job can pause between any two steps.
     ``on_step(step)`` is called as each step's planning starts (for a progress bar)."""
-    from cellrunner.planning.placed import earlier_slot_parts
+    from cellrunner.planning.placed import earlier_slot_parts, found_parts
 
-    # the parts earlier jobs left on the slots before this job's: there from the start
-    world = world.with_placed(*earlier_slot_parts(world, steps))
+    # the parts earlier jobs left on the slots before this job's, and those an align
+    # finds off their frames: there from the start
+    world = world.with_placed(*found_parts(world, steps), *earlier_slot_parts(world, steps))
     planner = StepPlanner(world, np.asarray(q_start_rad, float), None)
     planner.egress = egress_pose(
         corridors(steps, world.loaded.cell), world.kinematics.T_world_tcp(planner.q)

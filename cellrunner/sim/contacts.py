@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from cellrunner.model.robot_state import Safety
-from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC, TOOL
+from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC, TOOL, geom_kind
 from cellrunner.sim.wrist import GRAVITY_MPS2
 
 if TYPE_CHECKING:
@@ -158,8 +158,7 @@ class ContactMonitor:
         """Geoms were switched on or off (a tool change): take their collision kinds anew."""
         m = self.world.model
         self._kind = [
-            int(m.geom_contype[g]) if (m.geom_contype[g] or m.geom_conaffinity[g]) else 0
-            for g in range(m.ngeom)
+            geom_kind(int(m.geom_contype[g]), int(m.geom_conaffinity[g])) for g in range(m.ngeom)
         ]
         self._static_geoms = [g for g, k in enumerate(self._kind) if k == STATIC]
         self._robot_or_pad_geoms = frozenset(

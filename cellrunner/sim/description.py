@@ -137,6 +137,7 @@ class TwinDescription:
     belts: tuple[Any, ...] = ()  # BeltDescription (sim.belts): conveyors that carry parts
     contact_force_limit_N: float = 60.0  # unexpected contact above this -> protective stop
     rigid_fixtures: frozenset[str] = frozenset()  # named in a step's contact: (sim.rigid_contacts)
+    press_fits: tuple[tuple[str, float], ...] = ()  # (fixture, the fit's force N) (sim.press_fits)
     floor: bool = True
     name: str = "cell"
 
@@ -182,6 +183,11 @@ class TwinDescription:
     @property
     def rate_hz(self) -> float:
         return self.spec.rate_hz
+
+    @property
+    def press_fixtures(self) -> frozenset[str]:
+        """The fixtures of the press fits (:mod:`.press_fits`)."""
+        return frozenset(name for name, _ in self.press_fits)
 
 
 def dh_forward(spec: RobotSpec, q_rad: np.ndarray) -> np.ndarray:

@@ -54,6 +54,7 @@ def description_of(
     be fed there before each job (:mod:`.feed`)."""
     from cellrunner.sim.description import TwinDescription
     from cellrunner.sim.feed import with_rehearsal_parts
+    from cellrunner.sim.press_fits import press_fit_forces
     from cellrunner.sim.rigid_contacts import contact_fixtures
 
     c = loaded.cell
@@ -100,6 +101,7 @@ def description_of(
         ),
         depth_noise_m=c.sim.depth_noise if c.sim is not None else 0.0,
         rigid_fixtures=contact_fixtures(every_task),
+        press_fits=press_fit_forces(every_task),
         name=c.cell,
     )
     shifts: dict[str, np.ndarray] = {}

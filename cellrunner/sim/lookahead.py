@@ -213,6 +213,7 @@ class Lookahead:
             or (w.changer is not None and not w.changer.steady)
             or w.grip_faults.active
             or w.grip_faults.grip_miss_armed
+            or (w.press_fits is not None and (w.press_fits.engaged() or w.gripped))
         ):
             return None
         jaws = w.jaws

@@ -9,7 +9,7 @@ import numpy as np
 
 from cellrunner.model.geometry import Box, Mesh, Placed
 from cellrunner.planning.stl import stl_triangles
-from cellrunner.sim.mjcf_attrs import PADS, PART_HITS, PARTS, ROBOT, STATIC, fmt, pose_attrs
+from cellrunner.sim.mjcf_attrs import PART_HITS, PARTS, fixture_bits, fmt, pose_attrs
 from cellrunner.sim.mjcf_document import MjcfDocument
 from cellrunner.sim.rigid_contacts import rigid_contact_attrs
 
@@ -45,8 +45,7 @@ def add_fixture(builder: MjcfDocument, parent: ET.Element, placed: Placed) -> No
         "geom",
         name=f"fixture:{placed.name}",
         material="fixture",
-        contype=str(STATIC),
-        conaffinity=str(ROBOT | PADS | PARTS),
+        **fixture_bits(placed.name in builder.desc.press_fixtures),
         **builder._shape_attrs(shape),
         **pose_attrs(T),
     )
@@ -76,8 +75,7 @@ def _add_mesh_pieces(builder: MjcfDocument, parent: ET.Element, placed: Placed) 
             material="fixture",
             type="mesh",
             mesh=name,
-            contype=str(STATIC),
-            conaffinity=str(ROBOT | PADS | PARTS),
+            **fixture_bits(placed.name in builder.desc.press_fixtures),
             **pose_attrs(placed.T_parent_shape),
         )
     return True

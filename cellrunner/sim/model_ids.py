@@ -11,6 +11,7 @@ import numpy as np
 
 from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.sim.description import TwinDescription
+from cellrunner.sim.mjcf_attrs import geom_kind as geom_kind_of
 
 
 @dataclass
@@ -45,8 +46,7 @@ def lookup_ids(m: Any, d: TwinDescription) -> ModelIds:
     kv = -m.actuator_biasprm[servo, 2]
     geom_kind = np.zeros(m.ngeom, dtype=int)
     for g in range(m.ngeom):
-        if m.geom_contype[g] or m.geom_conaffinity[g]:
-            geom_kind[g] = m.geom_contype[g]
+        geom_kind[g] = geom_kind_of(int(m.geom_contype[g]), int(m.geom_conaffinity[g]))
     gripper = d.gripper is not None
     jaws = [m.joint(j).id for j in ("jaw_a", "jaw_b")] if gripper else []
     pads = (m.geom("pad:jaw_a").id, m.geom("pad:jaw_b").id) if gripper else (-1, -1)

@@ -37,6 +37,7 @@ from cellrunner.sim.mjcf import PhysicsOptions, compile_model
 from cellrunner.sim.model_ids import ModelIds, lookup_ids
 from cellrunner.sim.mujoco_loader import load_mujoco
 from cellrunner.sim.places import PlaceInspection, Places
+from cellrunner.sim.press_fits import PressFits
 from cellrunner.sim.safety import STOP_DECEL_RAD_S2, StopRamp, StopReason
 from cellrunner.sim.servo import ZERO6 as _ZERO6
 from cellrunner.sim.servo import ServoInput
@@ -99,6 +100,7 @@ class SimWorld:
         self.grip_faults = GripFaults(self)
         self.jaws = Jaws(self) if d.gripper is not None else None
         self.jaw_welds = JawWelds(self) if d.gripper is not None and d.parts else None
+        self.press_fits = PressFits(self) if d.press_fits and d.parts else None
         self.data.ctrl[ids.servo] = self.q_ref
         self._mj.mj_forward(self.model, self.data)
         self.vacuum, self.intruders, self.changer, self.belts, self.feeder = attach_equipment(self)
@@ -239,6 +241,8 @@ class SimWorld:
         if self.vacuum is not None:
             self.vacuum.update()
             self._gripped = self._gripped | self.vacuum.held
+        if self.press_fits is not None:
+            self.press_fits.update(self._gripped)
         if self.grip_faults.active:
             self.grip_faults.update(self._gripped)
         self._update_inputs()

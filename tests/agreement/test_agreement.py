@@ -10,6 +10,7 @@ import pytest
 
 from bench.agreement import DISAGREEMENTS, classify, judge
 from bench.cellgen import (
+    ADDED_KINDS,
     DEFECTS,
     FEASIBLE,
     KINDS,
@@ -30,6 +31,9 @@ CAMERA_SEED = 5100
 #: and three of each kind added since (an interlocked pallet's turned upper layer, a
 #: part that slips out in transit and the on_error that clears up after it)
 LATER_SEED, LATER_EACH = 5200, 3
+#: and two of each kind added after those: the declared press fits (one that presses in,
+#: one loose, one too tight) and a blocked column (a pitch under the part's width)
+ADDED_SEED, ADDED_EACH = 5300, 2
 
 
 def sample() -> list:
@@ -39,6 +43,7 @@ def sample() -> list:
         *corpus(SAMPLE_SIZE, SAMPLE_SEED, PLAIN_KINDS),
         *corpus(len(CAMERA_KINDS), CAMERA_SEED, CAMERA_KINDS),
         *corpus(LATER_EACH * len(LATER_FEASIBLE), LATER_SEED, LATER_FEASIBLE),
+        *corpus(ADDED_EACH * len(ADDED_KINDS), ADDED_SEED, ADDED_KINDS),
     ]
 
 

@@ -11,7 +11,14 @@ import pytest
 
 from bench.agreement import cli
 from bench.cellgen import generate
-from bench.cellgen_holes import HOLE_KINDS, INTERFERENCE_M, RIM_OVERLAP_M
+from bench.cellgen_holes import (
+    HOLE_KINDS,
+    INTERFERENCE_M,
+    PRESS_FIT_M,
+    PRESS_JAM_M,
+    PRESS_KINDS,
+    RIM_OVERLAP_M,
+)
 
 SEED = 11
 
@@ -42,8 +49,16 @@ def test_each_hole_kind_is_reproducible_and_has_its_fit(kind):
     floor_depth = mouth_z - (floor["pose"]["xyz"][2] + floor["box"]["size"][2] / 2)
     if kind == "jam_interference":
         assert gap == pytest.approx(INTERFERENCE_M, abs=2e-5)
+    elif kind == "press_fit":
+        assert PRESS_FIT_M[0] - 1e-5 < gap < PRESS_FIT_M[1] + 1e-5
+    elif kind == "press_fit_jam":
+        assert PRESS_JAM_M[0] - 1e-5 < gap < PRESS_JAM_M[1] + 1e-5
     else:
         assert 0.0002 < gap < 0.0031
+    if kind in PRESS_KINDS:  # a declared press fit: force.min under force.max
+        assert 0 < insert["force"]["min"] < insert["force"]["max"] <= 150
+    else:
+        assert set(insert["force"]) == {"max"}
     if kind == "jam_rim":  # the pin's edge over wall_xp's inner face
         assert off_m == pytest.approx(gap + RIM_OVERLAP_M, abs=2e-5)
     else:

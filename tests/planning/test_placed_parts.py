@@ -9,6 +9,7 @@ import contextlib
 import io
 
 import numpy as np
+import pytest
 
 from cellrunner.cli.common import load
 from cellrunner.model.body import Body, BodyKind
@@ -197,3 +198,37 @@ def test_the_demo_pattern_checks_feasible_with_its_earlier_blocks(tmp_path) -> N
         "check", str(DEMO_CELL), str(ROOT / "tasks/pick_place.yaml"), "-p", "slot=10", "--no-cache"
     )
     assert out["ok"], out["errors"]
+
+
+def test_a_part_an_align_finds_off_its_frame_lies_within_its_max_correction() -> None:
+    """A part off its frame (``offset``) is no waiting part (a camera finds it), but the
+    align's max_correction bounds where it lies: an obstacle grown by that box, named as
+    a waiting part, until the job carries it (s90344)."""
+    from cellrunner.model.load import load_cell, load_task
+    from cellrunner.planning.placed import found_parts
+
+    folder = ROOT / "tests" / "data" / "generated" / "s90344-ur16e-aligned"
+    cell = load_cell(folder / "cell.yaml")
+    task = load_task(folder / "task.yaml", cell)
+    world = CellWorld(cell)
+    assert [p.name for p in world.waiting_parts] == []  # off its frame: where? (a camera)
+    (found,) = found_parts(world, list(task.steps))
+    assert Body.fixture(found.name) == Body(BodyKind.WAITING_PART, "part")
+    (part,) = cell.cell.parts
+    size = np.asarray(part.box.size)
+    align = next(s for s in task.steps if s.kind == "align")
+    dx, dy, _ = align.args.max_correction.xyz
+    turn = np.sin(np.radians(align.args.max_correction.rpy[2]))
+    grown = np.asarray(found.shape.size_m)
+    assert grown[0] == pytest.approx(size[0] + 2 * dx + size[1] * turn)
+    assert grown[1] == pytest.approx(size[1] + 2 * dy + size[0] * turn)
+    assert grown[2] == pytest.approx(size[2])
+    # where it lies: the frame, the box centred on it (the jaws grip the part's centre)
+    frame = np.asarray(cell.cell.frames["infeed"].xyz)
+    assert np.allclose(found.T_parent_shape[:3, 3], frame, atol=1e-9)
+    # the part as the twin puts it (its offset) lies inside the grown box
+    offset = np.asarray(part.offset.xyz)
+    assert np.all(np.abs(offset[:2]) + size[:2] / 2 <= grown[:2] / 2)
+    # a job without the align does not know it
+    no_align = [s for s in task.steps if s.kind != "align"]
+    assert found_parts(world, no_align) == ()
