@@ -50,6 +50,51 @@ def open_pads(stroke_m: float, T_flange_tcp: np.ndarray) -> list[Placed]:
     return pads
 
 
+#: the jaws' frame as the twin draws it (what a wrist camera sees of it, and so what
+#: check's line-of-sight test takes as in the way): a rail across the fingers' tops
+#: ``RAIL_ABOVE_M`` above the pads (its centre), ``RAIL_HALF_Z_M`` half thick, reaching
+#: ``RAIL_MARGIN_M`` (x, y) past the open fingers; and each finger's stem, from the pad's
+#: top ``2 * STEM_HALF_Z_M`` up
+RAIL_ABOVE_M, RAIL_HALF_Z_M, RAIL_MARGIN_M = 0.02, 0.008, (0.01, 0.004)
+STEM_HALF_Z_M = 0.012
+
+
+def jaw_frame(
+    stroke_m: float,
+    finger_size_m: tuple[float, float, float] = FINGER_SIZE_M,
+    pad_z_m: tuple[float, float] = PAD_Z_M,
+) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The rail and the two stems of open jaws, each as (name, centre, full size) in the
+    TCP frame (m): the geometry the twin draws above the pads (not in contact: a wrist
+    camera sees it)."""
+    t, w, _ = finger_size_m
+    z0 = pad_z_m[0]
+    half = stroke_m / 2
+    rail = np.array(
+        [2 * (half + t + RAIL_MARGIN_M[0]), w + 2 * RAIL_MARGIN_M[1], 2 * RAIL_HALF_Z_M]
+    )
+    out = [("rail", np.array([0.0, 0.0, z0 - RAIL_ABOVE_M]), rail)]
+    for name, sign in zip(JAW_PADS, (1.0, -1.0), strict=True):
+        centre = np.array([sign * (half + t / 2), 0.0, z0 - STEM_HALF_Z_M])
+        out.append((f"stem:{name}", centre, np.array([t, w, 2 * STEM_HALF_Z_M])))
+    return out
+
+
+def jaw_frame_shapes(gripper: Gripper | None, T_flange_tcp: np.ndarray) -> list[Placed]:
+    """:func:`jaw_frame` of a parallel gripper, open, as boxes in the flange frame (none
+    for cups)."""
+    if gripper is None or gripper.kind == "vacuum":
+        return []
+    return [
+        Placed(
+            name,
+            Box((float(size[0]), float(size[1]), float(size[2]))),
+            T_flange_tcp @ geometry.pose_matrix(c),
+        )
+        for name, c, size in jaw_frame(float(gripper.stroke))
+    ]
+
+
 #: a suction cup's body: its face is at the cup's xyz, its body this long above it (m)
 CUP_LENGTH_M = 0.02
 

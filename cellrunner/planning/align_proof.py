@@ -143,15 +143,19 @@ SIGHT_SAMPLES, SIGHT_END_M = 80, 0.003
 
 
 def _nothing_in_the_way(planner: StepPlanner, step: Step, T_world_camera: np.ndarray) -> None:
-    """No part of the tool (its geometry and open fingers, at the look) and no fixture
-    stands between the lens and the marker's corners (for the nominal correction): a
-    wrist camera beside a wide gripper body sees the body, not the marker."""
+    """No part of the tool (its geometry, open fingers and the jaws' frame the twin draws
+    above them, at the look) and no fixture stands between the lens and the marker's
+    corners (for the nominal correction): a wrist camera beside a wide gripper body sees
+    the body, not the marker."""
+    from cellrunner.model.gripper import jaw_frame_shapes
     from cellrunner.planning.sight import first_in_the_way
 
     world = planner.world
     T_world_flange = world.kinematics.T_world_flange(planner.q)
+    tool = world.loaded.cell.tool
+    drawn = [*world.tool, *jaw_frame_shapes(tool.gripper, tool.tcp.matrix())]
     bodies = [(f"tool geometry {p.name!r}", p.shape, T_world_flange @ p.T_parent_shape)
-              for p in world.tool]  # fmt: skip
+              for p in drawn]  # fmt: skip
     bodies += [(f"fixture {p.name!r}", p.shape, p.T_parent_shape) for p in world.fixtures]
     corners = _marker_corners(step, np.eye(4))
     targets = np.vstack([corners, corners.mean(axis=0)])

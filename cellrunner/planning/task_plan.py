@@ -284,6 +284,11 @@ class TaskPlan:
         return rows[-1].carrying if rows else None
 
 
+#: how many other IK branches of a joint move's goal a job is planned again with when a
+#: straight line after it fails on an arm link (:func:`_another_branch`)
+BRANCH_REPLANS = 3
+
+
 def plan_task(
     world: CellWorld,
     steps: list[Step],
@@ -295,7 +300,77 @@ def plan_task(
     """Plan every step of a job; failures are recorded per step (the rest is not planned).
     ``joined=False`` (run --step) ends every motion at rest: the same waypoints, each
     timed from rest to rest, so that the job can pause between any two steps.
-    ``on_step(step)`` is called as each step's planning starts (for a progress bar)."""
+    ``on_step(step)`` is called as each step's planning starts (for a progress bar).
+
+    A joint move's branch is chosen with the straight line right after it
+    (:meth:`StepPlanner._ik`); when a later line of the same chain (the insert, the
+    retreat after a release) meets an arm link or a singularity, the job is planned again
+    with the move's other branches, nearest first (a ceiling-mounted UR10's retreat from a
+    hole met the ceiling plate on the nearest branch, 0.07 mm short, where the branch the
+    generator's witness stands on keeps 5 mm more: s5304). The first plan's refusal stands
+    when none of them clears."""
+    plan = _plan_once(world, steps, q_start_rad, joined, on_step, {})
+    tried: list[np.ndarray] = []
+    for _ in range(BRANCH_REPLANS):
+        hint = _another_branch(world, plan, tried)
+        if hint is None:
+            break
+        again = _plan_once(world, steps, q_start_rad, joined, on_step, dict([hint]))
+        if again.ok:
+            return again
+    return plan
+
+
+def _another_branch(
+    world: CellWorld, plan: TaskPlan, tried: list[np.ndarray]
+) -> tuple[int, np.ndarray] | None:
+    """The joint move to plan again and the next untried branch of its goal, when
+    ``plan`` failed on a straight line after it (nothing but straight lines and steps that
+    do not move between them) where an arm link meets something or a singularity is near:
+    another branch puts the arm elsewhere along the same TCP lines. None otherwise."""
+    from cellrunner.model.body import BodyKind
+
+    if not plan.failures:
+        return None
+    failure = plan.failures[0]
+    arm = any(b.body.kind is BodyKind.ROBOT_LINK for b in failure.blockers)
+    if not (
+        failure.kind is FailureKind.SINGULARITY or (failure.kind is FailureKind.COLLISION and arm)
+    ):
+        return None
+    rows = plan.rows
+    at = next((i for i, r in enumerate(rows) if r.step.index == failure.step_index), None)
+    if at is None or not rows[at].step.is_line:
+        return None
+    j = next((i for i in range(at - 1, -1, -1) if rows[i].step.is_planned), None)
+    if j is None:
+        return None
+    move = rows[j]
+    T_goal, q_used = move.step.T_world_tcp, move.q_end_rad
+    if T_goal is None or move.step.q_goal_deg is not None or q_used is None:
+        return None
+    q_before = next(
+        (r.q_end_rad for r in reversed(rows[:j]) if r.q_end_rad is not None), plan.q_start_rad
+    )
+    if not any(np.allclose(q_used, q, atol=1e-3) for q in tried):
+        tried.append(np.asarray(q_used, float))
+    for q in (move.world or world).kinematics.ik_all(T_goal, q_before):
+        if not any(np.allclose(q, seen, atol=1e-3) for seen in tried):
+            tried.append(np.asarray(q, float))
+            return move.step.index, np.asarray(q, float)
+    return None
+
+
+def _plan_once(
+    world: CellWorld,
+    steps: list[Step],
+    q_start_rad: np.ndarray,
+    joined: bool,
+    on_step: Callable[[Step], None] | None,
+    goals: dict[int, np.ndarray],
+) -> TaskPlan:
+    """:func:`plan_task` once, the joint moves of ``goals`` (step index -> joint goal)
+    planned to those goals."""
     from cellrunner.planning.placed import earlier_slot_parts, found_parts
 
     # the parts earlier jobs left on the slots before this job's, and those an align
@@ -331,7 +406,11 @@ def plan_task(
                     or not _same_limits(group[-1].limits, planner.limits_for(step))
                 ):
                     flush()
-                group.append(_at(step, planner.motion, row, then=then))
+                goal = goals.get(step.index)
+                if goal is not None:
+                    group.append(_at(step, planner.motion, row, goal_q=goal, then=then))
+                else:
+                    group.append(_at(step, planner.motion, row, then=then))
                 if (
                     step.kind in (StepKind.DESCEND, StepKind.LINEAR)
                     or step.is_guarded

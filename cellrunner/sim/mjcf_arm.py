@@ -11,6 +11,7 @@ import numpy as np
 
 from cellrunner.model.arm_dynamics import ARM_MASS_KG, armature_kgm2, joint_torque_max_nm
 from cellrunner.model.arm_geometry import arm_geometry
+from cellrunner.model.gripper import jaw_frame
 from cellrunner.model.robots import JOINT_NAMES
 from cellrunner.sim.mjcf_attrs import PADS, PARTS, ROBOT, STATIC, TOOL, fmt, pose_attrs
 from cellrunner.sim.mjcf_document import MjcfDocument
@@ -119,7 +120,10 @@ def _add_gripper(builder: MjcfDocument, tool: ET.Element, g: Any) -> None:
     t, w, _ = g.finger_size_m
     z0, z1 = g.pad_z_m
     half_stroke = g.stroke_m / 2
-    # Visual rail across the fingers' tops, fixed to the tool at the TCP frame.
+    # The jaws' frame (model.gripper.jaw_frame: what a wrist camera sees, and check with
+    # it): a rail across the fingers' tops, fixed to the tool at the TCP frame, and each
+    # finger's stem (moving with it); drawn, not in contact
+    (_, rail_c, rail_size), *stems = jaw_frame(g.stroke_m, g.finger_size_m, g.pad_z_m)
     T_flange_jaws = g.T_flange_tcp if g.T_flange_tcp is not None else d.T_flange_tcp
     rail = ET.SubElement(tool, "body", name="gripper", **pose_attrs(T_flange_jaws))
     ET.SubElement(
@@ -128,15 +132,17 @@ def _add_gripper(builder: MjcfDocument, tool: ET.Element, g: Any) -> None:
         name="gripper:rail",
         type="box",
         material="tool",
-        pos=fmt([0, 0, z0 - 0.02]),
-        size=fmt([half_stroke + t + 0.01, w / 2 + 0.004, 0.008]),
+        pos=fmt(rail_c),
+        size=fmt(rail_size / 2),
         contype="0",
         conaffinity="0",
         density="0",
         group="1",
     )
     ET.SubElement(rail, "inertial", pos="0 0 0", mass="1e-3", diaginertia="1e-7 1e-7 1e-7")
-    for jaw, sign in (("jaw_a", 1.0), ("jaw_b", -1.0)):
+    for (jaw, sign), (_, stem_c, stem_size) in zip(
+        (("jaw_a", 1.0), ("jaw_b", -1.0)), stems, strict=True
+    ):
         body = ET.SubElement(rail, "body", name=jaw)
         ET.SubElement(
             body,
@@ -172,8 +178,8 @@ def _add_gripper(builder: MjcfDocument, tool: ET.Element, g: Any) -> None:
             name=f"stem:{jaw}",
             type="box",
             material="tool",
-            pos=fmt([x, 0, z0 - 0.012]),
-            size=fmt([t / 2, w / 2, 0.012]),
+            pos=fmt(stem_c),
+            size=fmt(stem_size / 2),
             contype="0",
             conaffinity="0",
             density="0",

@@ -176,3 +176,20 @@ def test_s3000_check_and_the_twin_agree_the_pin_stays_standing(tmp_path):
     on_floor_z = floor["pose"]["xyz"][2] + floor["box"]["size"][2] / 2
     half_pin = case.cell["parts"][0]["box"]["size"][2] / 2
     assert pin[2] == pytest.approx(on_floor_z + half_pin, abs=0.001)  # standing on the floor
+
+
+def test_a_retreat_the_nearest_branch_cannot_make_is_planned_on_another(tmp_path):
+    """s5304, a UR10 on the ceiling (stored as generated): the approach over the hole took
+    the nearest IK branch, whose descend is clear, but whose retreat after the release met
+    the ceiling plate 0.07 mm short of the clearance (a false refusal: the witness stands
+    on another branch). The job is planned again with the approach's other branches."""
+    import shutil
+    from pathlib import Path
+
+    data = Path(__file__).resolve().parent.parent / "data" / "generated" / "s5304-ur10-hole_fit"
+    shutil.copytree(data, tmp_path, dirs_exist_ok=True)
+    cell, task = str(tmp_path / "cell.yaml"), str(tmp_path / "task.yaml")
+    code, checked = cli("check", cell, task, "--no-cache")
+    assert (code, checked["ok"]) == (0, True), checked
+    code, run = cli("dry-run", cell, task)
+    assert (run["result_code"], run["result_text"]) == (0, "OK"), run["result_text"]

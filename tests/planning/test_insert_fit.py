@@ -54,10 +54,19 @@ def test_force_min_over_max_is_a_located_error(tmp_path):
     assert "task.yaml:7:" in text and "force min 20 N is not below max 10 N" in text, text
 
 
-def test_a_press_fit_whose_force_never_builds_up_fails_in_the_twin(tmp_path):
+def test_a_press_fit_whose_force_never_builds_up_is_refused_and_fails_in_the_twin(
+    tmp_path, monkeypatch
+):
     """The peg slides into a hole 0.5 mm wider on each side: nothing presses, so the
-    press fit was not made (a worn hole, the wrong part) and the insert fails (3)."""
+    press fit is never made (a worn hole, the wrong part): check refuses it, and the
+    twin, with check's fit rule off, fails the insert (3)."""
     cell, task = _write(tmp_path, 0.0005, "{min: 8, max: 10}")
+    out = json_of("check", cell, task, "--no-cache")
+    (error,) = out["errors"]
+    assert "the press fit is never made: the held part does not overlap" in error
+    from cellrunner.steps import insert
+
+    monkeypatch.setattr(insert.Insert, "check_line", lambda *args: None)
     code, out = main_json("dry-run", cell, task)
     assert code == 1
     assert out["result_code"] == 3, out
