@@ -22,9 +22,14 @@ witnesses), so the job is reachable by construction; the kinds set the fit:
 - ``jam_interference``: the hole 0.1 mm narrower than the pin on each face and no
   ``force: {min}`` (not a press fit the cell file declares): the pin jams.
 
-Chamfers are not generated: the cell file's fixtures are boxes, cylinders and meshes (a
-mesh is its convex hull in the twin), and a chamfer that guides a pin held by a
-position-controlled arm needs a compliance the twin does not model.
+Each kind is drawn again with chamfered walls (``KIND_chamfered``,
+:mod:`bench.cellgen_chamfers`): the same seed's case with every wall a convex mesh, its top
+inner edge bevelled 1-3 mm at 45 deg. The truth stays the plain kind's, as a UR holds a
+part in position control (its force mode is compliant along the insert's axis only, so a
+chamfer steers nothing sideways): a centred pin with clearance goes in past the chamfers
+without touching them (feasible); a pin whose tip lands on a chamfer's slope or on the
+rim past it jams just as on a rim without a chamfer; a hole too shallow and an
+interference fit stay broken (the chamfers lead the pin onto the interference).
 """
 
 from __future__ import annotations

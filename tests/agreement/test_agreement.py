@@ -20,6 +20,7 @@ from bench.cellgen import (
     generate,
 )
 from bench.cellgen_cameras import CAMERA_KINDS
+from bench.cellgen_chamfers import CHAMFERED_KINDS
 
 #: the fixed sample scripts/test runs: each kind on its own seeds (jaws and cups, and the
 #: holes: a fit, a hole too shallow, a rim and an interference jam); with the dry-runs
@@ -30,15 +31,18 @@ CAMERA_SEED = 5100
 #: and three of each kind added since (an interlocked pallet's turned upper layer, a
 #: part that slips out in transit and the on_error that clears up after it)
 LATER_SEED, LATER_EACH = 5200, 3
+#: and one of each hole kind with chamfered walls (bench/cellgen_chamfers.py)
+CHAMFER_SEED = 5300
 
 
 def sample() -> list:
     """The fixed sample: the plain kinds' jobs, one of each camera kind, then the kinds
-    added since."""
+    added since and the chamfered holes."""
     return [
         *corpus(SAMPLE_SIZE, SAMPLE_SEED, PLAIN_KINDS),
         *corpus(len(CAMERA_KINDS), CAMERA_SEED, CAMERA_KINDS),
         *corpus(LATER_EACH * len(LATER_FEASIBLE), LATER_SEED, LATER_FEASIBLE),
+        *corpus(len(CHAMFERED_KINDS), CHAMFER_SEED, CHAMFERED_KINDS),
     ]
 
 
