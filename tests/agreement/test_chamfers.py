@@ -170,3 +170,30 @@ def test_the_twin_jams_a_tip_on_the_chamfer(tmp_path, twin_only):
     assert out["result_text"].startswith("inserted "), out
     inserted_mm = float(out["result_text"].split()[1])
     assert 1.0 < inserted_mm < 3.0  # on the slope 1.9 mm down, not in the bore
+
+
+def test_a_tip_far_over_the_chamfer_is_refused_as_a_jam_not_as_a_press(tmp_path):
+    """The same cell with frame 'hole' 1.6 mm further towards wall_xp: the tip 2.14 mm
+    over its face meets the 2.4 mm chamfer 0.3 mm down and presses in further than the
+    1 mm a named fixture may be pressed into. check said so ('presses 0.92 mm into
+    fixture 'wall_xp', 0.02 mm more than the 0.90 mm it may 0 mm along the line'); it now
+    says what that is, a jam, with the distance that clears the rim."""
+    from ruamel.yaml import YAML
+
+    cell, task = _copy("s106-ur10-chamfered-rim", tmp_path)
+    yaml = YAML()
+    data = yaml.load(Path(cell))
+    walls = {f["name"]: f for f in data["fixtures"]}
+    floor = np.asarray(walls["hole_floor"]["pose"]["xyz"][:2], float)
+    ux = np.asarray(walls["wall_xp"]["pose"]["xyz"][:2], float) - floor
+    ux /= np.linalg.norm(ux)
+    hole = data["frames"]["hole"]["xyz"]
+    hole[0], hole[1] = (round(float(v), 5) for v in np.asarray(hole[:2]) + 0.0016 * ux)
+    with Path(cell).open("w") as out:
+        yaml.dump(data, out)
+    code, out = cli("check", cell, task, "--no-cache")
+    assert code == 1
+    (error,) = out["errors"]
+    assert "part 'pin' comes 2.1" in error
+    assert "mm over the rim of fixture 'wall_xp' 0.3 mm past frame 'hole'" in error
+    assert "it jams on the rim; fix: centre frame 'hole' over the hole (move it 2.2 mm" in error
