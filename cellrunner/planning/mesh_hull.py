@@ -19,7 +19,7 @@ def convexity(triangles: np.ndarray) -> bool | None:
     """Whether the closed mesh of ``triangles`` ((n, 3, 3) corners) fills its convex hull
     (volumes within :data:`HULL_EXCESS`; an open one, enclosing nothing, does not); None
     when its hull has no volume (flat or degenerate)."""
-    from scipy.spatial import ConvexHull
+    from scipy.spatial import ConvexHull, QhullError
 
     triangles = np.asarray(triangles, float)
     if not len(triangles):
@@ -28,6 +28,6 @@ def convexity(triangles: np.ndarray) -> bool | None:
     volume = abs(float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0)
     try:
         hull = ConvexHull(triangles.reshape(-1, 3)).volume
-    except Exception:  # qhull refuses flat or degenerate input (its own error types)
+    except QhullError:  # flat or degenerate: no hull to fill
         return None
     return bool(volume > 0 and hull <= HULL_EXCESS * volume)
