@@ -34,7 +34,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from bench.cellgen import FEASIBLE, KINDS, Case, corpus_seeds
 
 CLASSES = ("true accept", "true refuse", "false approval", "twin false OK", "false refusal")
-DISAGREEMENTS = ("false approval", "twin false OK", "false refusal")
+#: a check that ended in an internal error exits 1 as a refusal does: it is a bug, never a
+#: refusal (a mesh wall named in contact: crashed check, and counted as a true refuse)
+CRASHED = "check crashed"
+DISAGREEMENTS = ("false approval", "twin false OK", "false refusal", CRASHED)
 #: verdicts that are the generator's or the bench's fault, not check's or the twin's
 BENCH_FAULTS = ("invalid file", "twin did not run", "no witness")
 
@@ -107,6 +110,8 @@ def judge(case: Case, out: Path) -> Verdict:
         message = str(rehearsed.get("result_text") or "; ".join(rehearsed.get("errors", [])))[:300]
     recovered = not case.expect_code or "on_error done" in message
     verdict = classify(case.feasible, check_code, result_code, case.expect_code, recovered)
+    if check_code == 1 and any(": internal error: " in e for e in checked.get("errors", [])):
+        verdict = CRASHED
     return Verdict(
         case.name,
         case.kind,
@@ -198,6 +203,8 @@ def table(verdicts: list[Verdict]) -> str:
         f"{total['twin false OK']} (0), false refusals {rate:.1%} (<= 1%), "
         f"cold check p95 {p95:.2f} s (<= 2 s)"
     )
+    if total[CRASHED]:
+        lines.append(f"check crashed (internal errors, not refusals): {total[CRASHED]}")
     if total["invalid file"]:
         lines.append(f"generator bugs: {total['invalid file']} files the loader refused")
     if total["no witness"]:

@@ -33,7 +33,8 @@ as it is lifted: the twin must end it 2 (part lost) with on_error done from
 where the arm stopped, as ``check`` proved it from every state a fault can leave.
 
 The kinds of :mod:`bench.cellgen_holes` (a pin into a hole: a fit, a hole too shallow, a
-rim and an interference jam) are generated there.
+rim and an interference jam) are generated there, and each again with chamfered walls in
+:mod:`bench.cellgen_chamfers` (``hole_fit_chamfered``, ...).
 
 Run ``python bench/cellgen.py SEED [DEFECT] DIR`` to write one case's files.
 """
@@ -51,7 +52,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench import cellgen_holes
+from bench import cellgen_chamfers, cellgen_holes
 from bench.cellgen_cameras import (
     ALIGN_KINDS,
     CAMERA_DEFECTS,
@@ -86,7 +87,7 @@ PRESS_KINDS = cellgen_holes.PRESS_KINDS
 #: defects added after the fixed sample was drawn (sampled on seeds of their own)
 LATER_DEFECTS = ("blocked_column",)
 #: the kinds added since the fixed sample's first part: on seeds of their own
-ADDED_KINDS = (*PRESS_KINDS, *LATER_DEFECTS)
+ADDED_KINDS = (*PRESS_KINDS, *LATER_DEFECTS, *cellgen_chamfers.CHAMFERED_KINDS)
 FEASIBLE = (
     "feasible",
     "near_support",
@@ -95,6 +96,7 @@ FEASIBLE = (
     *cellgen_holes.HOLE_FEASIBLE,
     *LATER_FEASIBLE,
     *cellgen_holes.PRESS_FEASIBLE,
+    *cellgen_chamfers.CHAMFERED_FEASIBLE,
 )
 DEFECTS = (
     "out_of_reach",
@@ -107,6 +109,7 @@ DEFECTS = (
     *cellgen_holes.HOLE_DEFECTS,
     *cellgen_holes.PRESS_DEFECTS,
     *LATER_DEFECTS,
+    *cellgen_chamfers.CHAMFERED_DEFECTS,
 )
 #: the kinds that place on a pattern of two layers, the job's part on the upper one (on
 #: the part an earlier job put on the lower): ``layered`` 2 mm above it, ``blocked_layer``
@@ -115,7 +118,8 @@ LAYERED = {"layered": 0.002, "blocked_layer": -0.010, "interlocked": 0.002}
 #: the kinds whose upper layer turns about the frame's Z (deg): an interlocked pallet
 TURNED = {"interlocked": 90.0}
 KINDS = FEASIBLE + DEFECTS
-#: the kinds without cameras (the fixed sample's first part keeps its seeds)
+#: the kinds without cameras (the fixed sample's first part keeps its seeds), and without
+#: those added since (sampled on seeds of their own)
 PLAIN_KINDS = tuple(
     k for k in KINDS if k not in CAMERA_KINDS and k not in LATER_FEASIBLE and k not in ADDED_KINDS
 )
@@ -141,6 +145,9 @@ class Case:
     #: must end with then (with ``on_error`` done where it injects one)
     rehearse: tuple[str, ...] = ()
     expect_code: int = 0
+    #: files the cell names beside it (a mesh fixture's STL): path relative to the cell
+    #: file's folder -> contents
+    files: dict[str, bytes] = field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -151,8 +158,12 @@ class Case:
         return self.kind in FEASIBLE
 
     def write(self, folder: Path) -> tuple[Path, Path]:
-        """Write ``cell.yaml`` and ``task.yaml`` into ``folder``; their paths."""
+        """Write ``cell.yaml`` and ``task.yaml`` into ``folder`` (and the files the cell
+        names beside it); their paths."""
         folder.mkdir(parents=True, exist_ok=True)
+        for relative, contents in self.files.items():
+            (folder / relative).parent.mkdir(parents=True, exist_ok=True)
+            (folder / relative).write_bytes(contents)
         cell, task = folder / "cell.yaml", folder / "task.yaml"
         for path, data in ((cell, self.cell), (task, self.task)):
             with path.open("w") as out:
@@ -255,6 +266,8 @@ def generate(seed: int, kind: str = "feasible") -> Case:
         raise ValueError(f"unknown case kind {kind!r}; known: {', '.join(KINDS)}")
     if kind in cellgen_holes.HOLE_KINDS:  # a pin into a hole (bench/cellgen_holes.py)
         return cellgen_holes.generate(seed, kind)
+    if kind in cellgen_chamfers.CHAMFERED:  # and into a chamfered one
+        return cellgen_chamfers.generate(seed, kind)
     rng = random.Random(seed)
     # the mount is drawn once: a wall's witnesses fail more often than a floor's, and
     # drawing it again with the rest would leave the walls out

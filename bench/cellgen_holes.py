@@ -34,9 +34,14 @@ the kinds above keep their draws):
 - ``press_fit_jam``: the hole 0.4-0.6 mm narrower on each face, more than a press fit
   gives (0.2 mm, and the twin's 0.1 mm for the pin's placement): the pin jams.
 
-Chamfers are not generated: the cell file's fixtures are boxes, cylinders and meshes (a
-mesh is its convex hull in the twin), and a chamfer that guides a pin held by a
-position-controlled arm needs a compliance the twin does not model.
+The four kinds above are drawn again with chamfered walls (``KIND_chamfered``,
+:mod:`bench.cellgen_chamfers`): the same seed's case with every wall a convex mesh, its top
+inner edge bevelled 1-3 mm at 45 deg. The truth stays the plain kind's, as a UR holds a
+part in position control (its force mode is compliant along the insert's axis only, so a
+chamfer steers nothing sideways): a centred pin with clearance goes in past the chamfers
+without touching them (feasible); a pin whose tip lands on a chamfer's slope or on the
+rim past it jams just as on a rim without a chamfer; a hole too shallow and an
+interference fit stay broken (the chamfers lead the pin onto the interference).
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cellrunner.model.geometry import Box, Cylinder, Mesh, Shape, Sphere, Voxels
+from cellrunner.planning.mesh_hull import convexity
 from cellrunner.planning.stl import read_stl
 
 if TYPE_CHECKING:
@@ -34,12 +35,17 @@ def make_coal_shape(shape: Shape) -> tuple[coal.CollisionGeometry, float]:
     if isinstance(shape, Mesh):
         vertices, triangles = read_stl(shape.path)
         vertices = vertices * shape.scale
+        radius = float(np.linalg.norm(vertices, axis=1).max()) if len(vertices) else 0.0
+        if len(triangles) and convexity(vertices[triangles]):  # as the twin collides it
+            points = coal.StdVec_Vec3s()
+            points.extend(list(vertices))
+            return coal.Convex.convexHull(points, False, ""), radius
         model = coal.BVHModelOBBRSS()
         model.beginModel(len(triangles), len(vertices))
         model.addVertices(np.ascontiguousarray(vertices, dtype=float))
         model.addTriangles(np.ascontiguousarray(triangles, dtype=np.int64))
         model.endModel()
-        return model, float(np.linalg.norm(vertices, axis=1).max()) if len(vertices) else 0.0
+        return model, radius
     raise TypeError(f"unknown shape {shape!r}")
 
 

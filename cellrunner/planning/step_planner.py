@@ -223,7 +223,7 @@ class StepPlanner(StepContacts):
                     allowances = self._place_allowances(step, T_goal, named + touches)
             allowances = (*allowances, *(a for a in touches if a not in allowances))
             collision = self.collision(allowances, step)
-            path = plan_linear(kin, collision, self.q, T_goal).q_rad
+            path = self._line_path(step, collision, T_goal)
             kind_of(step.kind).check_line(self, step, path)
             # the next straight move leaves a force step's or tight fit's contacts
             self.contact = allowances if step.is_guarded or named else ()
@@ -334,6 +334,27 @@ class StepPlanner(StepContacts):
             # else the descend will say what is in the way, or what is wrong with it
             return iter([np.asarray(ends_clear[0][0] if ends_clear else valid[0])])
         return (np.asarray(q) for q in valid)
+
+    def _line_path(self, step: Step, collision: CollisionModel, T_goal: np.ndarray) -> np.ndarray:
+        """The joint samples of the straight line to ``T_goal``, clear in ``collision``. A
+        line refused for pressing into a fixture its step names in ``contact:`` further
+        than the contact allows is refused for what that is, where the step's fit rules
+        find it (a tip over a rim or a chamfer, an interference fit: a jam)."""
+        from cellrunner.planning.cartesian import plan_linear
+
+        kin = self.world.kinematics
+        try:
+            return plan_linear(kin, collision, self.q, T_goal).q_rad
+        except InfeasibleError as exc:
+            named = set(getattr(step.args, "contact", None) or ())
+            if exc.failure.kind is not FailureKind.COLLISION or not any(
+                b.body.kind is BodyKind.FIXTURE and b.body.name in named
+                for b in exc.failure.blockers
+            ):
+                raise
+            free = plan_linear(kin, None, self.q, T_goal).q_rad
+            kind_of(step.kind).check_line(self, step, free)  # raises the fit's refusal
+            raise
 
     def _linear_goal(self, step: Step, T_now: np.ndarray) -> np.ndarray:
         return kind_of(step.kind).line_goal(self, step, T_now)

@@ -10,23 +10,17 @@ import numpy as np
 
 #: how far each triangle's prism reaches into the solid (m)
 PRISM_DEPTH_M = 0.002
-#: a mesh whose hull is this much larger than the mesh (by volume) is not convex
-HULL_EXCESS = 1.02
 #: meshes with more triangles than this stay hulls (a prism per triangle would be too many geoms)
 MAX_TRIANGLES = 3000
 
 
 def is_convex(triangles: np.ndarray) -> bool:
-    """Whether the closed mesh fills its convex hull (volumes within HULL_EXCESS)."""
-    from scipy.spatial import ConvexHull
+    """Whether the closed mesh fills its convex hull, as check decides it
+    (:func:`cellrunner.planning.mesh_hull.convexity`); a flat or degenerate one counts as
+    convex (the caller's flat-mesh rule applies)."""
+    from cellrunner.planning.mesh_hull import convexity
 
-    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    volume = abs(float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0)
-    try:
-        hull = ConvexHull(triangles.reshape(-1, 3)).volume
-    except Exception:  # flat or degenerate: the caller's flat-mesh rule applies
-        return True
-    return volume > 0 and hull <= HULL_EXCESS * volume
+    return convexity(triangles) is not False
 
 
 def prisms(triangles: np.ndarray) -> list[np.ndarray]:
