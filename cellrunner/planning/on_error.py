@@ -205,7 +205,8 @@ def _starts(plan: TaskPlan) -> list[_Start]:
                 where = f"from the middle of {row.step.label}"
                 add(_Start(where, samples[k], world, row.carrying))
                 if row.carrying is not None:
-                    add(_Start(f"{where}, the part lost", samples[k], world, None))
+                    lost = world.without_waiting(row.carrying.name)
+                    add(_Start(f"{where}, the part lost", samples[k], lost, None))
         if row.q_end_rad is not None:
             q = np.asarray(row.q_end_rad, float)
         part = row.carrying
@@ -243,5 +244,6 @@ def _key(q: np.ndarray, world: CellWorld, part: Placed | None) -> tuple[object, 
         np.round(q, 6).tobytes(),
         world.tool_key,
         placed_key(world.placed),
+        tuple(sorted(world.gone)),
         None if part is None else (part.name, np.round(part.T_parent_shape, 6).tobytes()),
     )

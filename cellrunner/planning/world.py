@@ -48,6 +48,9 @@ class CellWorld:
     placed: tuple[Placed, ...] = ()
     #: the world without ``placed`` (None when ``placed`` is empty)
     unplaced: CellWorld | None = None
+    #: the parts a job carried away from their frames and lost (a slip, a drop): no longer
+    #: waiting there, and lying where check cannot know (:meth:`without_waiting`)
+    gone: frozenset[str] = frozenset()
 
     @property
     def spec(self) -> RobotSpec:
@@ -147,7 +150,32 @@ class CellWorld:
             depth = part_center_depth_m(self.loaded.cell.tool.gripper, shape)
             T = frame_pose(self.loaded.cell, part.at) @ geometry.pose_matrix((0, 0, depth))
             out.append(Placed(WAITING_PREFIX + part.name, shape, T))
-        return out + list(self.placed)
+        gone = {WAITING_PREFIX + name for name in self.gone}
+        return [p for p in (*out, *self.placed) if p.name not in gone]
+
+    def without_waiting(self, part_name: str) -> CellWorld:
+        """This world once part ``part_name``, carried away from its frame, is lost: it
+        waits there no more (on_error's states after a part slipped out in transit: its
+        copy at the infeed is not where it fell, and a cleanup move home that passes by the
+        infeed was refused for it, s100175). The arm's model, the tool and the limits are
+        shared (a fresh collision model)."""
+        from cellrunner.model.body import WAITING_PREFIX
+
+        if part_name in self.gone or not any(
+            p.name == WAITING_PREFIX + part_name for p in self.waiting_parts
+        ):
+            return self
+        worlds = self._gone_worlds
+        if part_name not in worlds:
+            world = dataclasses.replace(self, gone=self.gone | {part_name})
+            for name in ("kinematics", "tool", "limits"):  # shared, not built again
+                world.__dict__[name] = getattr(self, name)
+            worlds[part_name] = world
+        return worlds[part_name]
+
+    @cached_property
+    def _gone_worlds(self) -> dict[str, CellWorld]:
+        return {}
 
     @cached_property
     def waiting_supports(self) -> dict[str, tuple[str, ...]]:
