@@ -42,7 +42,7 @@ import numpy as np
 
 from cellrunner.model.jaw_grip import slip_load_N
 from cellrunner.sim.mjcf_attrs import PADS
-from cellrunner.sim.weld_pose import add_tool_welds, weld_where_it_is
+from cellrunner.sim.weld_pose import add_tool_welds, relative_pose, weld_at
 
 if TYPE_CHECKING:
     from cellrunner.sim.description import PartDescription
@@ -87,6 +87,9 @@ class JawWelds:
         self.sliding: set[str] = set()
         self.loosened: set[str] = set()
         self.last_load_N = 0.0
+        #: where each gripped part sat in the jaws while the arm stood still (the grip),
+        #: until the jaws open: its first weld holds it there
+        self.gripped_at: dict[str, np.ndarray] = {}
 
     def pending(self, gripped: frozenset[str]) -> bool:
         """Whether a gripped part may be welded in a coming period (the look-ahead, which
@@ -110,6 +113,7 @@ class JawWelds:
                 self._drop(name)
             self.sliding.clear()
             self.loosened.clear()
+            self.gripped_at.clear()
             return
         self.loosened.update(loose)
         for name in list(self.held):
@@ -121,6 +125,7 @@ class JawWelds:
             if load > self.holds_N.get(name, np.inf):
                 self._drop(name)
                 self.sliding.add(name)
+        still = self._arm_still()
         for name in gripped:
             if name in self.held or name not in self.weld or name in self.loosened:
                 continue
@@ -129,9 +134,13 @@ class JawWelds:
                 if not contacts.in_air(name):
                     continue
                 self.sliding.discard(name)
-            elif any(k != PADS for k in contacts.kinds_touching(name)):
+                self._weld(name, None)  # where it slid to
                 continue
-            self._weld(name)
+            if still:
+                self.gripped_at[name] = self._pose_in_tool(name)
+            if any(k != PADS for k in contacts.kinds_touching(name)):
+                continue
+            self._weld(name, self.gripped_at.get(name))
 
     def _still_between_pads(self, name: str, gripped: frozenset[str]) -> bool:
         """Whether welded part NAME is still in the closed jaws: between both pads, or
@@ -156,13 +165,27 @@ class JawWelds:
         jaw_axis = d.site_xmat[w.ids.tcp_site].reshape(3, 3)[:, 0]
         return float(slip_load_N(f_on_part, jaw_axis))
 
-    def _weld(self, name: str) -> None:
+    def _weld(self, name: str, pose: np.ndarray | None) -> None:
+        """Weld part NAME to the tool at ``pose`` (:func:`relative_pose`: where it sat
+        while the arm stood still and the jaws closed on it), or where it is now. The
+        pads' soft contacts let a part creep 0.2-0.3 mm along them as the lift drags it
+        off its table, before it touches nothing but the pads; welded there, a UR10's pin
+        pressed into a fit 0.1 mm tight met a wall 0.31 mm deep (s100652): a real pad's
+        friction lets nothing creep."""
         w = self.world
-        weld_where_it_is(
-            self._mj, w.model, w.data, self.weld[name], w.ids.tool_body, w.ids.part_bodies[name]
+        weld_at(
+            w.model, w.data, self.weld[name], pose if pose is not None else self._pose_in_tool(name)
         )
         self.held.add(name)
         self._pads_hold(welded=True)
+
+    def _pose_in_tool(self, name: str) -> np.ndarray:
+        w = self.world
+        return relative_pose(self._mj, w.data, w.ids.tool_body, w.ids.part_bodies[name])
+
+    def _arm_still(self) -> bool:
+        """Whether the arm stands still (its joints under 1 mrad/s)."""
+        return bool(np.abs(self.world.data.qvel[0:6]).max() < 1e-3)
 
     def _drop(self, name: str) -> None:
         self.world.data.eq_active[self.weld[name]] = 0

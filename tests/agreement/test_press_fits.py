@@ -8,7 +8,10 @@ on generated cells as bench/cellgen_holes.py wrote them (tests/data/generated):
 - s11 press_fit_loose (the same window on a hole with clearance): check refuses it, the
   fit is never made; the twin fails it (3) for the force that never built up;
 - s11 press_fit_jam (0.4-0.6 mm per face): check refuses it as a jam; with check's fit
-  rule off, the twin jams it too.
+  rule off, the twin jams it too;
+- s100652 (a UR10, 0.1 mm per face): the pads' soft contacts let the pin creep 0.24 mm
+  along them as the lift dragged it off its table, and the jaws' weld held it there: it
+  met a wall 0.31 mm deep (100). The weld now holds the part where the jaws closed on it.
 """
 
 from __future__ import annotations
@@ -109,3 +112,11 @@ def test_the_twin_jams_a_press_fit_far_too_tight(tmp_path, twin_only):
     _, run = cli("dry-run", cell, task)
     assert run["result_code"] in (3, 100), run  # stopped at the mouth, or a protective stop
     assert run["result_code"] != 0
+
+
+def test_a_pin_the_lift_drags_along_the_pads_is_held_where_it_was_gripped(tmp_path):
+    cell, task = _files("s100652-ur10-press_fit", tmp_path)
+    code, checked = cli("check", cell, task, "--no-cache")
+    assert (code, checked["ok"]) == (0, True), checked
+    _, run = cli("dry-run", cell, task)
+    assert (run["result_code"], run["result_text"]) == (0, "OK"), run["result_text"]

@@ -114,3 +114,19 @@ def test_a_welded_part_one_pad_lets_go_of_for_a_period_stays_welded_where_it_was
     np.testing.assert_array_equal(world.model.eq_data[eq], made)
     welds.update(frozenset(), closing=False)  # the jaws open: let go
     assert welds.held == set()
+
+
+def test_the_weld_holds_the_part_where_the_jaws_closed_on_it(driver) -> None:
+    """Dragged off its table by the lift, a part creeps along the pads' soft contacts
+    before it touches nothing but them; the weld holds it where it sat while the arm
+    stood still and the jaws closed (s100652: welded 0.24 mm along the pads, a pin met
+    the wall of its press fit 0.31 mm deep)."""
+    driver.pick_cube()
+    p_grip, R_grip = _pose_in_jaws(driver)  # the arm still, the jaws closed on it
+    world = driver.backend.world
+    assert "cube" in world.jaw_welds.gripped_at
+    driver.move_tcp(LIFTED, 0.6, "lift")
+    assert world.jaw_welds.held == {"cube"}
+    p_lifted, R_lifted = _pose_in_jaws(driver)
+    assert float(np.linalg.norm(p_lifted - p_grip)) < 5e-5  # m
+    assert _angle_deg(R_grip, R_lifted) < 0.1
