@@ -250,8 +250,16 @@ class CollisionScene:
         self._pairs = np.array(pairs, dtype=int).reshape(-1, 2)
         self._required = np.array(required, dtype=float)
         self._required_list = self._required.tolist()
+        surfaces = [isinstance(o.geometry, coal.BVHModelBase) for o in objects]
         for k, req in enumerate(self._geom_data.collisionRequests):
-            req.security_margin = float(self._required[k] + STALL_M)
+            margin = float(self._required[k] + STALL_M)
+            i, j = pairs[k]
+            if margin < 0.0 and (surfaces[i] or surfaces[j]):
+                # coal measures no depth into a triangle surface (a mesh that does not fill
+                # its hull) and refuses a negative margin for one: such a pair may touch,
+                # never overlap (the twin's prisms of such a mesh are 2 mm thin)
+                margin = 0.0
+            req.security_margin = margin
             req.num_max_contacts = 1
         # AABB culling before the exact tests; pinocchio inflates each object's box by the
         # largest security margin of its pairs, so no pair within its clearance is culled

@@ -110,3 +110,28 @@ def test_a_convex_mesh_named_in_a_contact_allowance_is_checked(tmp_path):
         False,
         "tool 'gripper' presses 1.5 mm into fixture 'wall', 0.5 mm more than the 1.0 mm it may",
     )
+
+
+def test_a_non_convex_mesh_in_a_contact_allowance_may_be_touched_not_entered(tmp_path):
+    """An L (two blocks in one STL) does not fill its hull: coal keeps it a triangle
+    surface, measures no depth into it and refused the allowance's negative margin (check
+    ended in an internal error). Such a pair may touch, never overlap: the tool 0.5 mm
+    above it is valid, 0.5 mm into it is not, whatever the allowance."""
+    kin = _kin()
+    x, y, z = _tool_bottom(kin)
+    ell = np.concatenate(
+        [
+            _box_triangles((-0.1, -0.1, -0.04), (0.1, 0.1, 0.0)),
+            _box_triangles((-0.1, 0.05, 0.0), (-0.05, 0.1, 0.05)),
+        ]
+    )
+    stl = _write(tmp_path / "ell.stl", ell)
+    assert convexity(ell) is False
+    verdicts = []
+    for into_m in (-0.0005, 0.0005):
+        pose = pose_matrix((x, y, z + into_m))  # its lower block's top into_m over the tool
+        model = CollisionModel(kin, TOOL, [Placed("ell", Mesh(stl), pose)]).allowing(
+            ContactAllowance("ell", "tool", -0.001)
+        )
+        verdicts.append(model.is_valid(HOME))
+    assert verdicts == [True, False]
