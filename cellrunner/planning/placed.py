@@ -84,8 +84,6 @@ def found_parts(world: CellWorld, steps: list[Step]) -> tuple[Placed, ...]:
     carries it away."""
     from cellrunner.model.align import aligned_frame
     from cellrunner.model.body import WAITING_PREFIX
-    from cellrunner.model.expand import frame_pose
-    from cellrunner.model.gripper import part_center_depth_m
 
     cell = world.loaded.cell
     grown: dict[str, Placed] = {}
@@ -97,9 +95,7 @@ def found_parts(world: CellWorld, steps: list[Step]) -> tuple[Placed, ...]:
         for part in cell.parts:
             if part.at != frame or part.offset is None or frame not in cell.frames:
                 continue
-            shape = part.to_shape(world.loaded.resolve)
-            depth = part_center_depth_m(cell.tool.gripper, shape)
-            T = frame_pose(cell, frame) @ geometry.pose_matrix((0, 0, depth))
+            shape, T = world.at_its_frame(part)
             big = _grown(shape, np.asarray(box.xyz, float), float(np.radians(box.rpy[2])))
             old = grown.get(part.name)
             if old is None or _volume(big) > _volume(old.shape):

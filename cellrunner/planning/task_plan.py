@@ -406,11 +406,9 @@ def _plan_once(
                     or not _same_limits(group[-1].limits, planner.limits_for(step))
                 ):
                     flush()
-                goal = goals.get(step.index)
-                if goal is not None:
-                    group.append(_at(step, planner.motion, row, goal_q=goal, then=then))
-                else:
-                    group.append(_at(step, planner.motion, row, then=then))
+                group.append(
+                    _at(step, planner.motion, row, goal_q=goals.get(step.index), then=then)
+                )
                 if (
                     step.kind in (StepKind.DESCEND, StepKind.LINEAR)
                     or step.is_guarded

@@ -10,11 +10,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cellrunner.model import geometry
-from cellrunner.model.geometry import Placed
+from cellrunner.model.geometry import Placed, Shape
 from cellrunner.model.gripper import gripper_shapes, part_center_depth_m
 from cellrunner.model.load import LoadedCell
 
 if TYPE_CHECKING:
+    from cellrunner.model.cell import Part
     from cellrunner.planning.collision import CollisionModel
     from cellrunner.planning.dynamics import ArmDynamics
     from cellrunner.planning.kinematics import ArmKinematics
@@ -119,10 +120,7 @@ class CellWorld:
         key = placed_key(placed)
         worlds = root._placed_worlds
         if key not in worlds:
-            world = dataclasses.replace(root, placed=placed, unplaced=root)
-            for name in ("kinematics", "tool", "limits"):  # shared, not built again
-                if name in root.__dict__:
-                    world.__dict__[name] = root.__dict__[name]
+            world = root._sharing(dataclasses.replace(root, placed=placed, unplaced=root))
             while len(worlds) >= PLACED_WORLDS_MAX:
                 worlds.pop(next(iter(worlds)))  # the oldest
             worlds[key] = world
@@ -132,6 +130,23 @@ class CellWorld:
     def _placed_worlds(self) -> dict[tuple[object, ...], CellWorld]:
         return {}
 
+    def _sharing(self, world: CellWorld) -> CellWorld:
+        """``world``, a variant of this one, with this one's arm model, tool and limits
+        where they are built: shared, not built again."""
+        for name in ("kinematics", "tool", "limits"):
+            if name in self.__dict__:
+                world.__dict__[name] = self.__dict__[name]
+        return world
+
+    def at_its_frame(self, part: Part) -> tuple[Shape, np.ndarray]:
+        """Part ``part``'s shape and its pose in the world waiting at its frame, as a grip
+        at the frame holds it (jaws: its centre at the frame; cups: its top face)."""
+        from cellrunner.model.expand import frame_pose
+
+        shape = part.to_shape(self.loaded.resolve)
+        depth = part_center_depth_m(self.loaded.cell.tool.gripper, shape)
+        return shape, frame_pose(self.loaded.cell, part.at) @ geometry.pose_matrix((0, 0, depth))
+
     @cached_property
     def waiting_parts(self) -> list[Placed]:
         """The cell's parts where they wait to be picked, at their frames (as a grip at
@@ -140,16 +155,12 @@ class CellWorld:
         an ``offset`` lies where a camera finds it, which check does not know (it proves
         the pick's pose box instead): it is no obstacle."""
         from cellrunner.model.body import WAITING_PREFIX
-        from cellrunner.model.expand import frame_pose
 
-        out = []
-        for part in self.loaded.cell.parts:
-            if part.at not in self.loaded.cell.frames or part.offset is not None:
-                continue
-            shape = part.to_shape(self.loaded.resolve)
-            depth = part_center_depth_m(self.loaded.cell.tool.gripper, shape)
-            T = frame_pose(self.loaded.cell, part.at) @ geometry.pose_matrix((0, 0, depth))
-            out.append(Placed(WAITING_PREFIX + part.name, shape, T))
+        out = [
+            Placed(WAITING_PREFIX + part.name, *self.at_its_frame(part))
+            for part in self.loaded.cell.parts
+            if part.at in self.loaded.cell.frames and part.offset is None
+        ]
         gone = {WAITING_PREFIX + name for name in self.gone}
         return [p for p in (*out, *self.placed) if p.name not in gone]
 
@@ -167,10 +178,9 @@ class CellWorld:
             return self
         worlds = self._gone_worlds
         if part_name not in worlds:
-            world = dataclasses.replace(self, gone=self.gone | {part_name})
-            for name in ("kinematics", "tool", "limits"):  # shared, not built again
-                world.__dict__[name] = getattr(self, name)
-            worlds[part_name] = world
+            worlds[part_name] = self._sharing(
+                dataclasses.replace(self, gone=self.gone | {part_name})
+            )
         return worlds[part_name]
 
     @cached_property

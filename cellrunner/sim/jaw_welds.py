@@ -125,7 +125,6 @@ class JawWelds:
             if load > self.holds_N.get(name, np.inf):
                 self._drop(name)
                 self.sliding.add(name)
-        still = self._arm_still()
         for name in gripped:
             if name in self.held or name not in self.weld or name in self.loosened:
                 continue
@@ -136,7 +135,7 @@ class JawWelds:
                 self.sliding.discard(name)
                 self._weld(name, None)  # where it slid to
                 continue
-            if still:
+            if self._arm_still():
                 self.gripped_at[name] = self._pose_in_tool(name)
             if any(k != PADS for k in contacts.kinds_touching(name)):
                 continue

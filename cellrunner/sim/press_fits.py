@@ -105,18 +105,14 @@ class PressFits:
     def _judge(self, part: str) -> None:
         overlap_m, force_N = self._overlap(part)
         if overlap_m is None:  # clear of every fit
-            self._collide(part, True)
-            self._friction(part, 0.0)
-            self.inside.discard(part)
+            self._rigid(part)
             self.jammed.discard(part)
             return
         if part in self.jammed:
             return
         if overlap_m > self.max_overlap_m:  # past what a fit allows: rigid again, it jams
-            self._collide(part, True)
-            self._friction(part, 0.0)
+            self._rigid(part)
             self.jammed.add(part)
-            self.inside.discard(part)
             return
         self.inside.add(part)
         self._collide(part, False)
@@ -133,6 +129,13 @@ class PressFits:
             if d < NEAR_M and (deepest is None or -d > deepest):
                 deepest, force_N = -float(d), f_N
         return deepest, force_N
+
+    def _rigid(self, part: str) -> None:
+        """Part ``part`` out of every fit: it collides with the fits' fixtures again, free
+        of their friction."""
+        self._collide(part, True)
+        self._friction(part, 0.0)
+        self.inside.discard(part)
 
     def _collide(self, part: str, on: bool) -> None:
         m, g = self.world.model, self._part_geom[part]

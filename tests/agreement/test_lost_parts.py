@@ -7,17 +7,14 @@ rehearsed with the part slipping out as it is lifted ends 2 with on_error done).
 
 from __future__ import annotations
 
-import shutil
-from pathlib import Path
-
 from bench.agreement import cli
+from tests.agreement.generated import GENERATED, copied
 
-DATA = Path(__file__).resolve().parent.parent / "data" / "generated" / "s100175-ur16e-recovering"
+NAME = "s100175-ur16e-recovering"
 
 
 def test_on_error_from_a_lost_part_state_does_not_meet_the_parts_old_place(tmp_path):
-    shutil.copytree(DATA, tmp_path, dirs_exist_ok=True)
-    cell, task = str(tmp_path / "cell.yaml"), str(tmp_path / "task.yaml")
+    cell, task = copied(NAME, tmp_path)
     code, checked = cli("check", cell, task, "--no-cache")
     assert (code, checked["ok"]) == (0, True), checked
     assert not any("waiting part 'part'" in w for w in checked.get("warnings", [])), checked
@@ -30,10 +27,11 @@ def test_a_lost_part_is_no_waiting_part_of_the_world_it_leaves():
     from cellrunner.model.load import load_cell
     from cellrunner.planning.world import CellWorld
 
-    world = CellWorld(load_cell(DATA / "cell.yaml"))
+    world = CellWorld(load_cell(GENERATED / NAME / "cell.yaml"))
+    kinematics = world.kinematics  # built, as planning has built it before on_error
     assert [p.name for p in world.waiting_parts] == ["part:part"]
     lost = world.without_waiting("part")
     assert lost.waiting_parts == [] and lost.gone == {"part"}
-    assert lost.kinematics is world.kinematics  # the arm's model is shared
+    assert lost.kinematics is kinematics  # the arm's model is shared
     assert world.without_waiting("part") is lost  # built once
     assert lost.without_waiting("part") is lost and world.without_waiting("nothing") is world
