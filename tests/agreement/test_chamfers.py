@@ -11,7 +11,6 @@ a convex wall was one), which the harness counted as a refusal."""
 from __future__ import annotations
 
 import math
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -28,8 +27,8 @@ from bench.cellgen_chamfers import (
 )
 from cellrunner.planning.mesh_hull import convexity
 from cellrunner.planning.stl import stl_triangles
+from tests.agreement.generated import approved_and_rehearsed, copied
 
-GENERATED = Path(__file__).resolve().parent.parent / "data" / "generated"
 SEED = 11
 
 
@@ -114,22 +113,14 @@ def _length(walls: dict) -> float:
     return float(np.linalg.norm(yp - ym)) + 0.02
 
 
-def _copy(name: str, tmp_path: Path) -> tuple[str, str]:
-    shutil.copytree(GENERATED / name, tmp_path, dirs_exist_ok=True)  # its plans go there
-    return str(tmp_path / "cell.yaml"), str(tmp_path / "task.yaml")
-
-
 def test_a_centred_pin_goes_into_a_chamfered_hole_in_check_and_the_twin(tmp_path):
     """s100, a UR5e: the pin with 0.25-3 mm of clearance, centred over walls bevelled at
     45 deg: check approves the insert along the convex walls and the twin ends 0 with the
     pin let go in its hole, standing on its floor."""
     from ruamel.yaml import YAML
 
-    cell, task = _copy("s100-ur5e-chamfered-fit", tmp_path)
-    code, checked = cli("check", cell, task, "--no-cache")
-    assert (code, checked["ok"]) == (0, True), checked
-    code, run = cli("dry-run", cell, task)
-    assert (run["result_code"], run["result_text"]) == (0, "OK"), run["result_text"]
+    cell, task = copied("s100-ur5e-chamfered-fit", tmp_path)
+    _, run = approved_and_rehearsed(cell, task)
     data = YAML(typ="safe").load(Path(cell))
     hole = data["frames"]["hole"]["xyz"]
     pin = run["parts_end_m"]["pin"]
@@ -143,7 +134,7 @@ def test_check_refuses_a_tip_on_the_chamfer_as_a_jam_on_the_rim(tmp_path):
     """s106, a UR10: the pin's tip 0.54 mm over the inner face of wall_xp, whose chamfer is
     2.4 mm wide: it meets the slope 1.9 mm down, and an arm held in position cannot slide
     along it; check names the wall and where, and the fix moves the frame past the rim."""
-    cell, task = _copy("s106-ur10-chamfered-rim", tmp_path)
+    cell, task = copied("s106-ur10-chamfered-rim", tmp_path)
     code, out = cli("check", cell, task, "--no-cache")
     assert code == 1
     (error,) = out["errors"]
@@ -152,19 +143,10 @@ def test_check_refuses_a_tip_on_the_chamfer_as_a_jam_on_the_rim(tmp_path):
     assert "it jams on the rim; fix: centre frame 'hole' over the hole (move it 0.6 mm" in error
 
 
-@pytest.fixture
-def twin_only(monkeypatch):
-    """check's fit rules off: the job runs in the twin as check approved it before them."""
-    from cellrunner.steps import _families, insert
-
-    monkeypatch.setattr(insert.Insert, "check_line", lambda *args: None)
-    monkeypatch.setattr(_families.FrameLine, "check_line", lambda *args: None)
-
-
 def test_the_twin_jams_a_tip_on_the_chamfer(tmp_path, twin_only):
     """The same job in the twin alone: the pin's edge meets the rigid, convex slope and
     the insert stops at its force limit short of expect_depth (3), as on a plain rim."""
-    cell, task = _copy("s106-ur10-chamfered-rim", tmp_path)
+    cell, task = copied("s106-ur10-chamfered-rim", tmp_path)
     _, out = cli("dry-run", cell, task)
     assert out["result_code"] == 3, out
     assert out["result_text"].startswith("inserted "), out
@@ -180,7 +162,7 @@ def test_a_tip_far_over_the_chamfer_is_refused_as_a_jam_not_as_a_press(tmp_path)
     says what that is, a jam, with the distance that clears the rim."""
     from ruamel.yaml import YAML
 
-    cell, task = _copy("s106-ur10-chamfered-rim", tmp_path)
+    cell, task = copied("s106-ur10-chamfered-rim", tmp_path)
     yaml = YAML()
     data = yaml.load(Path(cell))
     walls = {f["name"]: f for f in data["fixtures"]}

@@ -103,15 +103,6 @@ def test_check_approves_the_fit(tmp_path):
     assert code == 0, out["errors"]
 
 
-@pytest.fixture
-def twin_only(monkeypatch):
-    """check's fit rules off: the job runs in the twin as check approved it before them."""
-    from cellrunner.steps import _families, insert
-
-    monkeypatch.setattr(insert.Insert, "check_line", lambda *args: None)
-    monkeypatch.setattr(_families.FrameLine, "check_line", lambda *args: None)
-
-
 @pytest.mark.parametrize("kind", ["jam_interference", "jam_rim"])
 def test_the_twin_fails_the_jams(tmp_path, twin_only, kind):
     """Its walls are rigid (sim/rigid_contacts.py): the pin with 0.1 mm of interference
@@ -183,13 +174,6 @@ def test_a_retreat_the_nearest_branch_cannot_make_is_planned_on_another(tmp_path
     the nearest IK branch, whose descend is clear, but whose retreat after the release met
     the ceiling plate 0.07 mm short of the clearance (a false refusal: the witness stands
     on another branch). The job is planned again with the approach's other branches."""
-    import shutil
-    from pathlib import Path
+    from tests.agreement.generated import approved_and_rehearsed, copied
 
-    data = Path(__file__).resolve().parent.parent / "data" / "generated" / "s5304-ur10-hole_fit"
-    shutil.copytree(data, tmp_path, dirs_exist_ok=True)
-    cell, task = str(tmp_path / "cell.yaml"), str(tmp_path / "task.yaml")
-    code, checked = cli("check", cell, task, "--no-cache")
-    assert (code, checked["ok"]) == (0, True), checked
-    code, run = cli("dry-run", cell, task)
-    assert (run["result_code"], run["result_text"]) == (0, "OK"), run["result_text"]
+    approved_and_rehearsed(*copied("s5304-ur10-hole_fit", tmp_path))

@@ -7,26 +7,24 @@ off, fails the align (3): it sees the rail, not the marker."""
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import pytest
 
 from bench.agreement import cli
+from tests.agreement.generated import copied
 
-DATA = Path(__file__).resolve().parent.parent / "data" / "generated" / "s90344-ur16e-aligned"
 #: the wrist camera's place on s90344's flange, and one on the TCP's axis behind the rail
 BESIDE, BEHIND = "xyz: [0.101, 0, 0.05]", "xyz: [0, 0, 0.075]"
 
 
 @pytest.fixture
 def behind_the_rail(tmp_path) -> tuple[str, str]:
-    shutil.copytree(DATA, tmp_path, dirs_exist_ok=True)
-    cell = tmp_path / "cell.yaml"
-    text = cell.read_text()
+    cell, task = copied("s90344-ur16e-aligned", tmp_path)
+    text = Path(cell).read_text()
     assert BESIDE in text
-    cell.write_text(text.replace(BESIDE, BEHIND))
-    return str(cell), str(tmp_path / "task.yaml")
+    Path(cell).write_text(text.replace(BESIDE, BEHIND))
+    return cell, task
 
 
 def test_check_refuses_a_wrist_camera_behind_the_jaws_rail(behind_the_rail):

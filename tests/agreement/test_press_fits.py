@@ -18,27 +18,17 @@ from __future__ import annotations
 
 import math
 import re
-import shutil
 from pathlib import Path
 
 import pytest
 
 from bench.agreement import cli
-
-GENERATED = Path(__file__).resolve().parent.parent / "data" / "generated"
-
-
-def _files(name: str, tmp_path: Path) -> tuple[str, str]:
-    shutil.copytree(GENERATED / name, tmp_path, dirs_exist_ok=True)  # plans, journal there
-    return str(tmp_path / "cell.yaml"), str(tmp_path / "task.yaml")
+from tests.agreement.generated import approved_and_rehearsed, copied
 
 
 def test_a_declared_press_fit_is_approved_and_pressed_in_within_its_window(tmp_path):
-    cell, task = _files("s7012-ur10-press_fit", tmp_path)
-    code, checked = cli("check", cell, task, "--no-cache")
-    assert (code, checked["ok"]) == (0, True), checked
-    code, run = cli("dry-run", cell, task)
-    assert (run["result_code"], run["result_text"]) == (0, "OK"), run["result_text"]
+    cell, task = copied("s7012-ur10-press_fit", tmp_path)
+    _, run = approved_and_rehearsed(cell, task)
     # the pin stays where the insert pressed it: under the hole's mouth, not on its floor
     from ruamel.yaml import YAML
 
@@ -60,7 +50,7 @@ def test_the_twin_presses_a_declared_fit_with_the_force_of_its_window(tmp_path):
     from cellrunner.model.load import load_cell, load_task
     from cellrunner.sim.press_fits import fit_force_N, press_fit_forces
 
-    cell, task = _files("s7012-ur10-press_fit", tmp_path)
+    cell, task = copied("s7012-ur10-press_fit", tmp_path)
     loaded = load_task(task, load_cell(cell))
     (insert,) = [s for s in loaded.steps if s.kind == "insert"]
     low, high = insert.args.force.min, insert.args.force.max
@@ -75,7 +65,7 @@ def test_the_twin_presses_a_declared_fit_with_the_force_of_its_window(tmp_path):
 
 
 def test_a_declared_press_fit_on_a_hole_with_clearance_is_refused(tmp_path):
-    cell, task = _files("s11-ur5e-press_fit_loose", tmp_path)
+    cell, task = copied("s11-ur5e-press_fit_loose", tmp_path)
     code, checked = cli("check", cell, task, "--no-cache")
     assert code == 1
     (error,) = checked["errors"]
@@ -84,39 +74,26 @@ def test_a_declared_press_fit_on_a_hole_with_clearance_is_refused(tmp_path):
 
 
 def test_a_declared_press_fit_far_too_tight_is_refused_as_a_jam(tmp_path):
-    cell, task = _files("s11-ur5-press_fit_jam", tmp_path)
+    cell, task = copied("s11-ur5-press_fit_jam", tmp_path)
     code, checked = cli("check", cell, task, "--no-cache")
     assert code == 1
     (error,) = checked["errors"]
     assert "more than a press fit's 0.2 mm: it jams" in error
 
 
-@pytest.fixture
-def twin_only(monkeypatch):
-    """check's fit rules off: the job runs in the twin as check approved it before them."""
-    from cellrunner.steps import _families, insert
-
-    monkeypatch.setattr(insert.Insert, "check_line", lambda *args: None)
-    monkeypatch.setattr(_families.FrameLine, "check_line", lambda *args: None)
-
-
 def test_the_twin_fails_a_loose_press_fit_for_its_force(tmp_path, twin_only):
-    cell, task = _files("s11-ur5e-press_fit_loose", tmp_path)
+    cell, task = copied("s11-ur5e-press_fit_loose", tmp_path)
     _, run = cli("dry-run", cell, task)
     assert run["result_code"] == 3, run
     assert "press fit not made: the force built up to" in run["result_text"]
 
 
 def test_the_twin_jams_a_press_fit_far_too_tight(tmp_path, twin_only):
-    cell, task = _files("s11-ur5-press_fit_jam", tmp_path)
+    cell, task = copied("s11-ur5-press_fit_jam", tmp_path)
     _, run = cli("dry-run", cell, task)
     assert run["result_code"] in (3, 100), run  # stopped at the mouth, or a protective stop
     assert run["result_code"] != 0
 
 
 def test_a_pin_the_lift_drags_along_the_pads_is_held_where_it_was_gripped(tmp_path):
-    cell, task = _files("s100652-ur10-press_fit", tmp_path)
-    code, checked = cli("check", cell, task, "--no-cache")
-    assert (code, checked["ok"]) == (0, True), checked
-    _, run = cli("dry-run", cell, task)
-    assert (run["result_code"], run["result_text"]) == (0, "OK"), run["result_text"]
+    approved_and_rehearsed(*copied("s100652-ur10-press_fit", tmp_path))

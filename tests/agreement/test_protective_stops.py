@@ -17,41 +17,19 @@ them when they stopped:
 
 from __future__ import annotations
 
-import shutil
-from pathlib import Path
-
-from bench.agreement import cli
-
-#: the cell and task as written then
-GENERATED = Path(__file__).resolve().parent.parent / "data" / "generated"
-DATA = GENERATED / "s208-ur10e"
+from tests.agreement.generated import approved_and_rehearsed, copied
 
 
 def test_a_ur10e_jaw_pick_check_approves_is_rehearsed_without_a_stop(tmp_path):
-    shutil.copytree(DATA, tmp_path, dirs_exist_ok=True)  # its plans and journal go there
-    cell, task = str(tmp_path / "cell.yaml"), str(tmp_path / "task.yaml")
-    code, checked = cli("check", cell, task, "--no-cache")
-    assert (code, checked["ok"]) == (0, True), checked
-    code, run = cli("dry-run", cell, task)
-    assert (run["result_code"], run["result_text"]) == (0, "OK"), run["result_text"]
+    checked, run = approved_and_rehearsed(*copied("s208-ur10e", tmp_path))
     # the shoulder follows its set-points: it overshot 15 mm at the descend's end before
     assert run["max_tracking_error_m"] < 0.005
     assert abs(run["cycle_time_s"] - checked["cycle_time_s"]) < 0.3
 
 
 def test_a_part_gripped_at_its_centre_is_placed_flush_on_its_table_without_a_stop(tmp_path):
-    shutil.copytree(GENERATED / "s80544-ur10-aligned", tmp_path, dirs_exist_ok=True)
-    cell, task = str(tmp_path / "cell.yaml"), str(tmp_path / "task.yaml")
-    code, checked = cli("check", cell, task, "--no-cache")
-    assert (code, checked["ok"]) == (0, True), checked
-    code, run = cli("dry-run", cell, task)
-    assert (run["result_code"], run["result_text"]) == (0, "OK"), run["result_text"]
+    approved_and_rehearsed(*copied("s80544-ur10-aligned", tmp_path))
 
 
 def test_a_part_an_align_finds_off_its_frame_is_an_obstacle_to_the_moves_before(tmp_path):
-    shutil.copytree(GENERATED / "s90344-ur16e-aligned", tmp_path, dirs_exist_ok=True)
-    cell, task = str(tmp_path / "cell.yaml"), str(tmp_path / "task.yaml")
-    code, checked = cli("check", cell, task, "--no-cache")
-    assert (code, checked["ok"]) == (0, True), checked
-    code, run = cli("dry-run", cell, task)
-    assert (run["result_code"], run["result_text"]) == (0, "OK"), run["result_text"]
+    approved_and_rehearsed(*copied("s90344-ur16e-aligned", tmp_path))
